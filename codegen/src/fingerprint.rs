@@ -1,0 +1,82 @@
+//! A stable fingerprint of the wire layout, computed from the model (not from file bytes), so
+//! reformatting the schema or reordering its sections does not change it, while any change a
+//! receiver would mis-decode does.
+
+use crate::model::{ByteOrder, Database, Encoding, PhysType};
+
+/// FNV-1a, 32 bits: small enough for a CAN signal, stable across platforms and Rust versions.
+pub struct Fnv1a(u32);
+
+impl Fnv1a {
+    pub fn new() -> Self {
+        Self(0x811C_9DC5)
+    }
+
+    pub fn write(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.0 ^= u32::from(b);
+            self.0 = self.0.wrapping_mul(0x0100_0193);
+        }
+    }
+
+    /// Writes a field followed by a separator, so adjacent fields cannot run together.
+    pub fn field(&mut self, text: &str) {
+        self.write(text.as_bytes());
+        self.write(&[0x1F]);
+    }
+
+    pub fn finish(&self) -> u32 {
+        self.0
+    }
+}
+
+impl Default for Fnv1a {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+/// Fingerprint of a CAN database's wire layout.
+pub fn database(db: &Database) -> u32 {
+    let mut h = Fnv1a::new();
+    write_database(&mut h, db);
+    h.finish()
+}
+
+/// Feeds a database's wire layout into `h` (shared with the telemetry fingerprint).
+pub fn write_database(h: &mut Fnv1a, db: &Database) {
+    let mut messages: Vec<_> = db.messages.iter().collect();
+    messages.sort_by_key(|m| (m.extended, m.id));
+    for m in messages {
+        h.field(&format!("msg {} {} {} {}", m.id, m.extended, m.len, m.name));
+        for s in &m.signals {
+            let enc = match s.encoding {
+                Encoding::Unsigned => "u",
+                Encoding::Signed => "s",
+                Encoding::Float32 => "f32",
+                Encoding::Float64 => "f64",
+            };
+            let order = if s.byte_order == ByteOrder::LittleEndian { "le" } else { "be" };
+            let mux = s
+                .mux
+                .as_ref()
+                .map(|c| format!("{}:{:?}", m.signals.get(c.selector).map_or("", |x| x.name.as_str()), c.ranges))
+                .unwrap_or_default();
+            h.field(&format!(
+                "sig {} {} {} {order} {enc} {:016x} {:016x} {mux}",
+                s.name,
+                s.start_bit,
+                s.len,
+                s.factor.to_bits(),
+                s.offset.to_bits()
+            ));
+            if let PhysType::Enum(i) = s.phys {
+                if let Some(e) = db.enums.get(i) {
+                    for v in &e.variants {
+                        h.field(&format!("val {} {}", v.value, v.label));
+                    }
+                }
+            }
+        }
+    }
+}

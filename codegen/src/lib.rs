@@ -1,0 +1,162 @@
+//! The AER schema generator: `schema/aer.dbc` (and the telemetry YAML) in, the code every tier
+//! of the car shares out.
+//!
+//! The pipeline follows the data: [`load`] reads files, [`validate`] checks them and builds the
+//! [`model`], [`render`] turns the model into source through askama templates, [`output`]
+//! writes it. Every emitter reads only the model.
+
+pub mod diagnostic;
+pub mod fingerprint;
+pub mod load;
+pub mod model;
+pub mod naming;
+pub mod output;
+pub mod render;
+pub mod validate;
+
+use std::path::{Path, PathBuf};
+
+use askama::Template;
+
+use diagnostic::{Diagnostic, Diagnostics};
+use model::Database;
+
+/// Why generation failed.
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    #[error("{0}")]
+    Schema(#[from] Diagnostics),
+    #[error("warnings are denied for this schema:\n{}", diagnostic::render_all(.0))]
+    DeniedWarnings(Vec<Diagnostic>),
+    #[error("rendering failed: {0}")]
+    Render(#[from] askama::Error),
+    #[error("cannot write {path}: {source}")]
+    Io {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+}
+
+/// A file the generator produces, relative to the output directory.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct GeneratedFile {
+    pub path: PathBuf,
+    pub content: String,
+}
+
+/// What a generation run did.
+#[derive(Debug, Default)]
+pub struct Report {
+    pub warnings: Vec<Diagnostic>,
+    /// Files whose content changed and were rewritten.
+    pub written: Vec<PathBuf>,
+    /// False when rustfmt was unavailable and files were written unformatted.
+    pub formatted: bool,
+    pub fingerprint: u32,
+}
+
+/// Loads and validates a DBC file: the model plus any warnings, or every error found.
+pub fn load_dbc(path: &Path) -> Result<(Database, Vec<Diagnostic>), Diagnostics> {
+    let loaded = load::dbc::load(path)?;
+    validate::dbc::validate(path, &loaded)
+}
+
+/// Renders the codec modules and crate root for `db`. `source` names the schema in headers.
+pub fn codec_files(db: &Database, source: &str, title: &str, krate: &str) -> Result<Vec<GeneratedFile>, Error> {
+    let fingerprint = fingerprint::database(db);
+    let file = |path: &str, content: String| GeneratedFile {
+        path: PathBuf::from(path),
+        content,
+    };
+    Ok(vec![
+        file("lib.rs", render::standalone::LibTemplate { title, source }.render()?),
+        file("runtime.rs", render::codec::render_runtime(source)?),
+        file("can.rs", render::codec::render_can(db, source, fingerprint)?),
+        file("examples/decode.rs", render::standalone::DecodeExample { krate }.render()?),
+        file("examples/encode.rs", render::standalone::EncodeExample { krate }.render()?),
+    ])
+}
+
+/// Formats the Rust files and writes those that changed under `out_dir`.
+pub fn write_files(out_dir: &Path, files: &[GeneratedFile], report: &mut Report) -> Result<(), Error> {
+    report.formatted = true;
+    for f in files {
+        let path = out_dir.join(&f.path);
+        let content = if f.path.extension().is_some_and(|e| e == "rs") {
+            let (text, formatted) = output::rustfmt(&f.content);
+            report.formatted &= formatted;
+            text
+        } else {
+            f.content.clone()
+        };
+        let wrote = output::write_if_changed(&path, &content).map_err(|source| Error::Io {
+            path: path.clone(),
+            source,
+        })?;
+        if wrote {
+            report.written.push(path);
+        }
+    }
+    Ok(())
+}
+
+/// Generates the car's contract crate sources (`generated/`) from `schema_dir`. Warnings are
+/// denied: the car's own schema must be clean.
+pub fn generate_contract(schema_dir: &Path, out_dir: &Path) -> Result<Report, Error> {
+    let dbc_path = schema_dir.join("aer.dbc");
+    let (db, warnings) = load_dbc(&dbc_path)?;
+    if !warnings.is_empty() {
+        return Err(Error::DeniedWarnings(warnings));
+    }
+    let files = codec_files(&db, "schema/aer.dbc", "The car's wire contract: codecs for every CAN frame of the AER car.", "aer")?;
+    let mut report = Report {
+        fingerprint: fingerprint::database(&db),
+        ..Report::default()
+    };
+    write_files(out_dir, &files, &mut report)?;
+    Ok(report)
+}
+
+/// Options for [`generate_crate`].
+#[derive(Debug, Clone, Default)]
+pub struct CrateOptions {
+    /// Crate name; defaults to the DBC file's stem in snake case plus `_can`.
+    pub name: Option<String>,
+    /// Leave out the `[workspace]` table, for crates built as members of a workspace.
+    pub workspace_member: bool,
+}
+
+/// Writes a standalone Cargo crate (codec plus decode/encode examples) for any DBC file.
+pub fn generate_crate(dbc: &Path, out_dir: &Path, options: &CrateOptions) -> Result<Report, Error> {
+    let (db, warnings) = load_dbc(dbc)?;
+    let stem = dbc.file_stem().and_then(|s| s.to_str()).unwrap_or("dbc");
+    let name = options.name.clone().unwrap_or_else(|| format!("{}_can", naming::snake(stem).trim_end_matches('_')));
+    let krate = name.replace('-', "_");
+    let source = dbc.file_name().and_then(|s| s.to_str()).unwrap_or(stem).to_owned();
+    let title = format!("CAN codec for `{source}`.");
+    let mut files: Vec<GeneratedFile> = codec_files(&db, &source, &title, &krate)?
+        .into_iter()
+        .map(|mut f| {
+            if !f.path.starts_with("examples") {
+                f.path = Path::new("src").join(&f.path);
+            }
+            f
+        })
+        .collect();
+    files.push(GeneratedFile {
+        path: PathBuf::from("Cargo.toml"),
+        content: render::standalone::CargoTemplate {
+            name: &name,
+            source: &source,
+            standalone: !options.workspace_member,
+        }
+        .render()?,
+    });
+    let mut report = Report {
+        warnings,
+        fingerprint: fingerprint::database(&db),
+        ..Report::default()
+    };
+    write_files(out_dir, &files, &mut report)?;
+    Ok(report)
+}

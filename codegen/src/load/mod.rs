@@ -1,0 +1,3 @@
+//! Load: bytes on disk -> parsed schema plus where each item was written, for diagnostics.
+
+pub mod dbc;

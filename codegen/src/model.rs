@@ -1,0 +1,233 @@
+//! The intermediate representation: what the wire looks like, independent of DBC/YAML syntax and of
+//! any output language. Every emitter reads only this.
+
+/// A validated CAN database.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Database {
+    /// Human name of the database (the file stem), used in generated docs.
+    pub name: String,
+    pub nodes: Vec<Node>,
+    pub enums: Vec<EnumType>,
+    pub messages: Vec<Message>,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct Node {
+    pub name: String,
+    pub comment: Option<String>,
+}
+
+/// A named set of raw values (from `VAL_TABLE_` or a signal's `VAL_`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct EnumType {
+    /// Rust type name.
+    pub type_name: String,
+    pub variants: Vec<Variant>,
+    /// The integer type that holds every raw value of every signal using this enum.
+    pub repr: IntType,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct Variant {
+    pub ident: String,
+    pub value: i128,
+    /// The label as written in the schema.
+    pub label: String,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct Message {
+    pub name: String,
+    pub type_name: String,
+    pub id: u32,
+    pub extended: bool,
+    /// Payload length in bytes (up to 64 for CAN FD).
+    pub len: usize,
+    pub fd: bool,
+    pub cycle_time_ms: Option<u32>,
+    pub transmitter: Option<String>,
+    pub comment: Option<String>,
+    /// In schema order; `mux` conditions only refer to earlier-decoded signals via `eval_order`.
+    pub signals: Vec<Signal>,
+    /// Indices into `signals` such that every multiplexor comes before the signals it selects.
+    pub eval_order: Vec<usize>,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ByteOrder {
+    /// Intel: the start bit is the least significant bit.
+    LittleEndian,
+    /// Motorola: the start bit is the most significant bit, in Vector's sawtooth numbering.
+    BigEndian,
+}
+
+/// How the raw bits are interpreted.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Encoding {
+    Unsigned,
+    Signed,
+    Float32,
+    Float64,
+}
+
+/// Rust integer types a value can be held in.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+pub enum IntType {
+    U8,
+    U16,
+    U32,
+    U64,
+    U128,
+    I8,
+    I16,
+    I32,
+    I64,
+    I128,
+}
+
+impl IntType {
+    pub fn rust(self) -> &'static str {
+        match self {
+            IntType::U8 => "u8",
+            IntType::U16 => "u16",
+            IntType::U32 => "u32",
+            IntType::U64 => "u64",
+            IntType::U128 => "u128",
+            IntType::I8 => "i8",
+            IntType::I16 => "i16",
+            IntType::I32 => "i32",
+            IntType::I64 => "i64",
+            IntType::I128 => "i128",
+        }
+    }
+
+    pub fn range(self) -> (i128, i128) {
+        match self {
+            IntType::U8 => (0, u8::MAX.into()),
+            IntType::U16 => (0, u16::MAX.into()),
+            IntType::U32 => (0, u32::MAX.into()),
+            IntType::U64 => (0, u64::MAX.into()),
+            IntType::U128 => (0, i128::MAX),
+            IntType::I8 => (i8::MIN.into(), i8::MAX.into()),
+            IntType::I16 => (i16::MIN.into(), i16::MAX.into()),
+            IntType::I32 => (i32::MIN.into(), i32::MAX.into()),
+            IntType::I64 => (i64::MIN.into(), i64::MAX.into()),
+            IntType::I128 => (i128::MIN, i128::MAX),
+        }
+    }
+
+    /// The smallest type that holds every value in `lo..=hi`.
+    pub fn smallest_for(lo: i128, hi: i128) -> IntType {
+        const ORDER: [IntType; 10] = [
+            IntType::U8,
+            IntType::I8,
+            IntType::U16,
+            IntType::I16,
+            IntType::U32,
+            IntType::I32,
+            IntType::U64,
+            IntType::I64,
+            IntType::U128,
+            IntType::I128,
+        ];
+        ORDER
+            .into_iter()
+            .find(|t| {
+                let (tlo, thi) = t.range();
+                tlo <= lo && hi <= thi
+            })
+            .unwrap_or(IntType::I128)
+    }
+}
+
+/// The Rust type of a signal's physical value.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum PhysType {
+    /// A 1-bit unsigned flag with identity scaling.
+    Bool,
+    /// Integral factor and offset: the physical value is an exact integer.
+    Int(IntType),
+    F32,
+    F64,
+    /// Index into `Database::enums`; the field holds the raw value's meaning.
+    Enum(usize),
+}
+
+/// When a multiplexed signal is present: its multiplexor's raw value lies in one of `ranges`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MuxCondition {
+    /// Index of the multiplexor signal in the message.
+    pub selector: usize,
+    /// Inclusive raw-value ranges.
+    pub ranges: Vec<(u64, u64)>,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct Signal {
+    pub name: String,
+    pub field: String,
+    /// As written in the DBC: LSB for Intel, MSB (sawtooth numbering) for Motorola.
+    pub start_bit: u32,
+    pub len: u32,
+    pub byte_order: ByteOrder,
+    pub encoding: Encoding,
+    pub factor: f64,
+    pub offset: f64,
+    /// `None` when the schema gives no range (`[0|0]`, Vector's convention).
+    pub min: Option<f64>,
+    pub max: Option<f64>,
+    pub unit: String,
+    pub comment: Option<String>,
+    pub receivers: Vec<String>,
+    pub phys: PhysType,
+    pub mux: Option<MuxCondition>,
+    pub is_multiplexor: bool,
+}
+
+impl Signal {
+    /// Raw integer type holding the extracted bits (sign-extended for signed signals).
+    pub fn raw_int(&self) -> IntType {
+        let signed = self.encoding == Encoding::Signed;
+        match (self.len, signed) {
+            (0..=8, false) => IntType::U8,
+            (9..=16, false) => IntType::U16,
+            (17..=32, false) => IntType::U32,
+            (_, false) => IntType::U64,
+            (0..=8, true) => IntType::I8,
+            (9..=16, true) => IntType::I16,
+            (17..=32, true) => IntType::I32,
+            (_, true) => IntType::I64,
+        }
+    }
+
+    /// Smallest and largest raw integer the bits can hold.
+    pub fn raw_range(&self) -> (i128, i128) {
+        let len = self.len.min(64);
+        match self.encoding {
+            Encoding::Signed => (-(1i128 << (len - 1)), (1i128 << (len - 1)) - 1),
+            _ => (0, (1i128 << len) - 1),
+        }
+    }
+
+    pub fn is_float_raw(&self) -> bool {
+        matches!(self.encoding, Encoding::Float32 | Encoding::Float64)
+    }
+
+    /// Bit positions the signal occupies, numbered `byte * 8 + bit_in_byte` (LSB = 0).
+    pub fn bits(&self) -> Vec<u32> {
+        match self.byte_order {
+            ByteOrder::LittleEndian => (self.start_bit..self.start_bit + self.len).collect(),
+            ByteOrder::BigEndian => {
+                let msb = be_linear(self.start_bit);
+                (msb..msb + self.len)
+                    .map(|p| (p / 8) * 8 + (7 - p % 8))
+                    .collect()
+            }
+        }
+    }
+}
+
+/// Position of a Motorola start bit in big-endian linear numbering (bit 0 = MSB of byte 0).
+pub fn be_linear(start_bit: u32) -> u32 {
+    (start_bit / 8) * 8 + (7 - start_bit % 8)
+}

@@ -1,0 +1,3 @@
+//! Validate: a parsed schema -> the model, or diagnostics saying exactly what to fix.
+
+pub mod dbc;
