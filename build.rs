@@ -12,7 +12,9 @@ fn main() -> ExitCode {
     match aer_codegen::generate_contract(Path::new("schema"), Path::new("generated")) {
         Ok(report) => {
             if !report.formatted {
-                println!("cargo::warning=rustfmt was not found: generated/ was written unformatted");
+                println!(
+                    "cargo::warning=rustfmt was not found: generated/ was written unformatted"
+                );
             }
             for path in &report.written {
                 println!("cargo::warning=regenerated {}", path.display());

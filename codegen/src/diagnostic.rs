@@ -67,15 +67,34 @@ impl<'a> Reporter<'a> {
         }
     }
 
-    pub fn error(&mut self, code: &'static str, line: usize, message: String, help: impl Into<String>) {
+    pub fn error(
+        &mut self,
+        code: &'static str,
+        line: usize,
+        message: String,
+        help: impl Into<String>,
+    ) {
         self.push(Severity::Error, code, line, message, help.into());
     }
 
-    pub fn warning(&mut self, code: &'static str, line: usize, message: String, help: impl Into<String>) {
+    pub fn warning(
+        &mut self,
+        code: &'static str,
+        line: usize,
+        message: String,
+        help: impl Into<String>,
+    ) {
         self.push(Severity::Warning, code, line, message, help.into());
     }
 
-    fn push(&mut self, severity: Severity, code: &'static str, line: usize, message: String, help: String) {
+    fn push(
+        &mut self,
+        severity: Severity,
+        code: &'static str,
+        line: usize,
+        message: String,
+        help: String,
+    ) {
         let source_line = line
             .checked_sub(1)
             .and_then(|i| self.lines.get(i))

@@ -56,11 +56,21 @@ pub fn write_database(h: &mut Fnv1a, db: &Database) {
                 Encoding::Float32 => "f32",
                 Encoding::Float64 => "f64",
             };
-            let order = if s.byte_order == ByteOrder::LittleEndian { "le" } else { "be" };
+            let order = if s.byte_order == ByteOrder::LittleEndian {
+                "le"
+            } else {
+                "be"
+            };
             let mux = s
                 .mux
                 .as_ref()
-                .map(|c| format!("{}:{:?}", m.signals.get(c.selector).map_or("", |x| x.name.as_str()), c.ranges))
+                .map(|c| {
+                    format!(
+                        "{}:{:?}",
+                        m.signals.get(c.selector).map_or("", |x| x.name.as_str()),
+                        c.ranges
+                    )
+                })
                 .unwrap_or_default();
             h.field(&format!(
                 "sig {} {} {} {order} {enc} {:016x} {:016x} {mux}",

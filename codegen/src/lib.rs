@@ -62,23 +62,44 @@ pub fn load_dbc(path: &Path) -> Result<(Database, Vec<Diagnostic>), Diagnostics>
 }
 
 /// Renders the codec modules and crate root for `db`. `source` names the schema in headers.
-pub fn codec_files(db: &Database, source: &str, title: &str, krate: &str) -> Result<Vec<GeneratedFile>, Error> {
+pub fn codec_files(
+    db: &Database,
+    source: &str,
+    title: &str,
+    krate: &str,
+) -> Result<Vec<GeneratedFile>, Error> {
     let fingerprint = fingerprint::database(db);
     let file = |path: &str, content: String| GeneratedFile {
         path: PathBuf::from(path),
         content,
     };
     Ok(vec![
-        file("lib.rs", render::standalone::LibTemplate { title, source }.render()?),
+        file(
+            "lib.rs",
+            render::standalone::LibTemplate { title, source }.render()?,
+        ),
         file("runtime.rs", render::codec::render_runtime(source)?),
-        file("can.rs", render::codec::render_can(db, source, fingerprint)?),
-        file("examples/decode.rs", render::standalone::DecodeExample { krate }.render()?),
-        file("examples/encode.rs", render::standalone::EncodeExample { krate }.render()?),
+        file(
+            "can.rs",
+            render::codec::render_can(db, source, fingerprint)?,
+        ),
+        file(
+            "examples/decode.rs",
+            render::standalone::DecodeExample { krate }.render()?,
+        ),
+        file(
+            "examples/encode.rs",
+            render::standalone::EncodeExample { krate }.render()?,
+        ),
     ])
 }
 
 /// Formats the Rust files and writes those that changed under `out_dir`.
-pub fn write_files(out_dir: &Path, files: &[GeneratedFile], report: &mut Report) -> Result<(), Error> {
+pub fn write_files(
+    out_dir: &Path,
+    files: &[GeneratedFile],
+    report: &mut Report,
+) -> Result<(), Error> {
     report.formatted = true;
     for f in files {
         let path = out_dir.join(&f.path);
@@ -108,7 +129,12 @@ pub fn generate_contract(schema_dir: &Path, out_dir: &Path) -> Result<Report, Er
     if !warnings.is_empty() {
         return Err(Error::DeniedWarnings(warnings));
     }
-    let files = codec_files(&db, "schema/aer.dbc", "The car's wire contract: codecs for every CAN frame of the AER car.", "aer")?;
+    let files = codec_files(
+        &db,
+        "schema/aer.dbc",
+        "The car's wire contract: codecs for every CAN frame of the AER car.",
+        "aer",
+    )?;
     let mut report = Report {
         fingerprint: fingerprint::database(&db),
         ..Report::default()
@@ -130,9 +156,16 @@ pub struct CrateOptions {
 pub fn generate_crate(dbc: &Path, out_dir: &Path, options: &CrateOptions) -> Result<Report, Error> {
     let (db, warnings) = load_dbc(dbc)?;
     let stem = dbc.file_stem().and_then(|s| s.to_str()).unwrap_or("dbc");
-    let name = options.name.clone().unwrap_or_else(|| format!("{}_can", naming::snake(stem).trim_end_matches('_')));
+    let name = options
+        .name
+        .clone()
+        .unwrap_or_else(|| format!("{}_can", naming::snake(stem).trim_end_matches('_')));
     let krate = name.replace('-', "_");
-    let source = dbc.file_name().and_then(|s| s.to_str()).unwrap_or(stem).to_owned();
+    let source = dbc
+        .file_name()
+        .and_then(|s| s.to_str())
+        .unwrap_or(stem)
+        .to_owned();
     let title = format!("CAN codec for `{source}`.");
     let mut files: Vec<GeneratedFile> = codec_files(&db, &source, &title, &krate)?
         .into_iter()

@@ -8,7 +8,11 @@ use clap::{Parser, Subcommand};
 use aer_codegen::diagnostic::render_all;
 
 #[derive(Parser)]
-#[command(name = "aer-codegen", version, about = "Checks CAN schemas and generates no_std codecs from them")]
+#[command(
+    name = "aer-codegen",
+    version,
+    about = "Checks CAN schemas and generates no_std codecs from them"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -51,7 +55,10 @@ enum Command {
 
 fn main() -> ExitCode {
     match Cli::parse().command {
-        Command::Check { files, deny_warnings } => {
+        Command::Check {
+            files,
+            deny_warnings,
+        } => {
             let mut failed = false;
             for file in &files {
                 match aer_codegen::load_dbc(file) {
@@ -75,7 +82,11 @@ fn main() -> ExitCode {
                     }
                 }
             }
-            if failed { ExitCode::FAILURE } else { ExitCode::SUCCESS }
+            if failed {
+                ExitCode::FAILURE
+            } else {
+                ExitCode::SUCCESS
+            }
         }
         Command::Crate {
             dbc,
@@ -83,14 +94,22 @@ fn main() -> ExitCode {
             name,
             workspace_member,
         } => {
-            let options = aer_codegen::CrateOptions { name, workspace_member };
+            let options = aer_codegen::CrateOptions {
+                name,
+                workspace_member,
+            };
             report(aer_codegen::generate_crate(&dbc, &out, &options), &out)
         }
-        Command::Generate { schema, out } => report(aer_codegen::generate_contract(&schema, &out), &out),
+        Command::Generate { schema, out } => {
+            report(aer_codegen::generate_contract(&schema, &out), &out)
+        }
     }
 }
 
-fn report(result: Result<aer_codegen::Report, aer_codegen::Error>, out: &std::path::Path) -> ExitCode {
+fn report(
+    result: Result<aer_codegen::Report, aer_codegen::Error>,
+    out: &std::path::Path,
+) -> ExitCode {
     match result {
         Ok(r) => {
             if !r.warnings.is_empty() {
@@ -99,7 +118,12 @@ fn report(result: Result<aer_codegen::Report, aer_codegen::Error>, out: &std::pa
             if !r.formatted {
                 eprintln!("warning: rustfmt was not found; the files are unformatted");
             }
-            println!("{}: {} file(s) updated, fingerprint 0x{:08X}", out.display(), r.written.len(), r.fingerprint);
+            println!(
+                "{}: {} file(s) updated, fingerprint 0x{:08X}",
+                out.display(),
+                r.written.len(),
+                r.fingerprint
+            );
             ExitCode::SUCCESS
         }
         Err(e) => {

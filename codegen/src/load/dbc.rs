@@ -110,7 +110,12 @@ pub fn decode_text(bytes: &[u8]) -> Option<String> {
 /// Reads and parses `path`.
 pub fn load(path: &Path) -> Result<LoadedDbc, Diagnostics> {
     let bytes = std::fs::read(path).map_err(|e| {
-        Diagnostics(vec![file_error(path, "E0001", format!("cannot read the file: {e}"), "check the path and permissions")])
+        Diagnostics(vec![file_error(
+            path,
+            "E0001",
+            format!("cannot read the file: {e}"),
+            "check the path and permissions",
+        )])
     })?;
     let text = decode_text(&bytes).ok_or_else(|| {
         Diagnostics(vec![file_error(

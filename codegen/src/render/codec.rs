@@ -3,7 +3,9 @@
 use askama::Template;
 
 use super::{doc_lines, float_lit};
-use crate::model::{be_linear, ByteOrder, Database, Encoding, EnumType, IntType, Message, PhysType, Signal};
+use crate::model::{
+    ByteOrder, Database, Encoding, EnumType, IntType, Message, PhysType, Signal, be_linear,
+};
 
 #[derive(Template)]
 #[template(path = "runtime.rs", escape = "none")]
@@ -111,7 +113,11 @@ fn enum_view(db: &Database, index: usize, e: &EnumType) -> EnumView {
                 ident: v.ident.clone(),
                 value: v.value.to_string(),
                 label_lit: format!("{:?}", v.label),
-                label_doc: if v.label.trim().is_empty() { "(no name)".to_owned() } else { v.label.replace('`', "'") },
+                label_doc: if v.label.trim().is_empty() {
+                    "(no name)".to_owned()
+                } else {
+                    v.label.replace('`', "'")
+                },
             })
             .collect(),
         used_by: if users.is_empty() {
@@ -129,7 +135,11 @@ fn message_view(db: &Database, m: &Message) -> MessageView {
         .enumerate()
         .map(|(i, s)| signal_view(db, m, i, s))
         .collect();
-    let ordered = m.eval_order.iter().filter_map(|&i| signals.get(i).cloned()).collect();
+    let ordered = m
+        .eval_order
+        .iter()
+        .filter_map(|&i| signals.get(i).cloned())
+        .collect();
     let mut docs = m.comment.as_deref().map(doc_lines).unwrap_or_default();
     if !docs.is_empty() {
         docs.push(String::new());
@@ -158,7 +168,9 @@ fn message_view(db: &Database, m: &Message) -> MessageView {
         id: format!("0x{:X}", m.id),
         extended: m.extended,
         len: m.len,
-        cycle_time: m.cycle_time_ms.map_or("None".to_owned(), |c| format!("Some({c})")),
+        cycle_time: m
+            .cycle_time_ms
+            .map_or("None".to_owned(), |c| format!("Some({c})")),
         cycle_time_const: m.cycle_time_ms,
         comment: format!("{:?}", m.comment.as_deref().unwrap_or("")),
         signals,
@@ -172,7 +184,10 @@ fn phys_rust(db: &Database, s: &Signal) -> String {
         PhysType::Int(t) => t.rust().into(),
         PhysType::F32 => "f32".into(),
         PhysType::F64 => "f64".into(),
-        PhysType::Enum(i) => db.enums.get(i).map_or("u64".into(), |e| e.type_name.clone()),
+        PhysType::Enum(i) => db
+            .enums
+            .get(i)
+            .map_or("u64".into(), |e| e.type_name.clone()),
     }
 }
 
@@ -216,11 +231,18 @@ fn signal_view(db: &Database, m: &Message, index: usize, s: &Signal) -> SignalVi
     let raw_ty = raw_rust(s).to_owned();
     let phys_ty = phys_rust(db, s);
     let optional = s.mux.is_some();
-    let field_ty = if optional { format!("Option<{phys_ty}>") } else { phys_ty.clone() };
+    let field_ty = if optional {
+        format!("Option<{phys_ty}>")
+    } else {
+        phys_ty.clone()
+    };
     let msg = format!("{:?}", m.name);
     let sig = format!("{:?}", s.name);
     let f = &s.field;
-    let meta_ref = format!("&{}_SIGNALS[{index}]", crate::naming::screaming(&m.type_name));
+    let meta_ref = format!(
+        "&{}_SIGNALS[{index}]",
+        crate::naming::screaming(&m.type_name)
+    );
 
     // `@` stands for the operand in these expression templates.
     let (read_bits, write_bits) = match s.byte_order {
@@ -230,15 +252,28 @@ fn signal_view(db: &Database, m: &Message, index: usize, s: &Signal) -> SignalVi
         ),
         ByteOrder::BigEndian => (
             format!("bits::read_be(data, {}, {})", be_linear(s.start_bit), s.len),
-            format!("bits::write_be(out, {}, {}, @);", be_linear(s.start_bit), s.len),
+            format!(
+                "bits::write_be(out, {}, {}, @);",
+                be_linear(s.start_bit),
+                s.len
+            ),
         ),
     };
     let raw_int = s.raw_int();
     let (raw_from_bits, bits_from_raw) = match s.encoding {
-        Encoding::Float32 => ("f32::from_bits(@ as u32)".to_owned(), "u64::from(@.to_bits())".to_owned()),
+        Encoding::Float32 => (
+            "f32::from_bits(@ as u32)".to_owned(),
+            "u64::from(@.to_bits())".to_owned(),
+        ),
         Encoding::Float64 => ("f64::from_bits(@)".to_owned(), "@.to_bits()".to_owned()),
-        Encoding::Signed if raw_int == IntType::I64 => (format!("bits::sign_extend(@, {})", s.len), "@ as u64".to_owned()),
-        Encoding::Signed => (format!("bits::sign_extend(@, {}) as {raw_ty}", s.len), "@ as u64".to_owned()),
+        Encoding::Signed if raw_int == IntType::I64 => (
+            format!("bits::sign_extend(@, {})", s.len),
+            "@ as u64".to_owned(),
+        ),
+        Encoding::Signed => (
+            format!("bits::sign_extend(@, {}) as {raw_ty}", s.len),
+            "@ as u64".to_owned(),
+        ),
         Encoding::Unsigned if raw_int == IntType::U64 => ("@".to_owned(), "@".to_owned()),
         Encoding::Unsigned => (format!("@ as {raw_ty}"), "u64::from(@)".to_owned()),
     };
@@ -252,7 +287,13 @@ fn signal_view(db: &Database, m: &Message, index: usize, s: &Signal) -> SignalVi
         let pats: Vec<String> = c
             .ranges
             .iter()
-            .map(|&(lo, hi)| if lo == hi { lo.to_string() } else { format!("{lo}..={hi}") })
+            .map(|&(lo, hi)| {
+                if lo == hi {
+                    lo.to_string()
+                } else {
+                    format!("{lo}..={hi}")
+                }
+            })
             .collect();
         if sel.is_some_and(|x| x.mux.is_some()) {
             format!("matches!({local}, Some({}))", pats.join(" | "))
@@ -267,12 +308,20 @@ fn signal_view(db: &Database, m: &Message, index: usize, s: &Signal) -> SignalVi
             sub(&write_bits, &to_bits(&format!("self.{f}"))),
         ),
         (false, true) => (
-            format!("let {f}_bits = {read_bits};\n        let {f} = {};", from_bits(&format!("{f}_bits"))),
-            format!("let {f}_bits = {};\n        {}", to_bits(&format!("self.{f}")), sub(&write_bits, &format!("{f}_bits"))),
+            format!(
+                "let {f}_bits = {read_bits};\n        let {f} = {};",
+                from_bits(&format!("{f}_bits"))
+            ),
+            format!(
+                "let {f}_bits = {};\n        {}",
+                to_bits(&format!("self.{f}")),
+                sub(&write_bits, &format!("{f}_bits"))
+            ),
         ),
         (true, is_mux) => {
             let missing = format!("EncodeError::MissingSignal {{ message: {msg}, signal: {sig} }}");
-            let unselected = format!("EncodeError::NotSelected {{ message: {msg}, signal: {sig} }}");
+            let unselected =
+                format!("EncodeError::NotSelected {{ message: {msg}, signal: {sig} }}");
             let checked = format!(
                 "match ({condition}, self.{f}) {{\n            (true, Some(v)) => Some({}),\n            (false, None) => None,\n            (true, None) => return Err({missing}),\n            (false, Some(_)) => return Err({unselected}),\n        }}",
                 to_bits("v")
@@ -283,12 +332,21 @@ fn signal_view(db: &Database, m: &Message, index: usize, s: &Signal) -> SignalVi
                         "let {f}_bits = if {condition} {{ Some({read_bits}) }} else {{ None }};\n        let {f} = {f}_bits.map(|bits| {});",
                         from_bits("bits")
                     ),
-                    format!("let {f}_bits = {checked};\n        if let Some(bits) = {f}_bits {{\n            {}\n        }}", sub(&write_bits, "bits")),
+                    format!(
+                        "let {f}_bits = {checked};\n        if let Some(bits) = {f}_bits {{\n            {}\n        }}",
+                        sub(&write_bits, "bits")
+                    ),
                 )
             } else {
                 (
-                    format!("let {f} = if {condition} {{ Some({}) }} else {{ None }};", from_bits(&read_bits)),
-                    format!("if let Some(bits) = {checked} {{\n            {}\n        }}", sub(&write_bits, "bits")),
+                    format!(
+                        "let {f} = if {condition} {{ Some({}) }} else {{ None }};",
+                        from_bits(&read_bits)
+                    ),
+                    format!(
+                        "if let Some(bits) = {checked} {{\n            {}\n        }}",
+                        sub(&write_bits, "bits")
+                    ),
                 )
             }
         }
@@ -303,30 +361,58 @@ fn signal_view(db: &Database, m: &Message, index: usize, s: &Signal) -> SignalVi
             let value = if identity(s) {
                 "Value::from(v.into_raw())".to_owned()
             } else if integral_scale {
-                format!("Value::Int(i128::from(v.into_raw()) * {} + {})", s.factor as i128, s.offset as i128)
+                format!(
+                    "Value::Int(i128::from(v.into_raw()) * {} + {})",
+                    s.factor as i128, s.offset as i128
+                )
             } else {
-                format!("Value::Float({})", scale_expr("v.into_raw() as f64", s.factor, s.offset))
+                format!(
+                    "Value::Float({})",
+                    scale_expr("v.into_raw() as f64", s.factor, s.offset)
+                )
             };
             let from = if identity(s) {
                 format!("v.to_int::<{repr}>().map({phys_ty}::from_raw)")
             } else {
-                format!("v.unscale::<{repr}>({}, {}).map({phys_ty}::from_raw)", float_lit(s.factor), float_lit(s.offset))
+                format!(
+                    "v.unscale::<{repr}>({}, {}).map({phys_ty}::from_raw)",
+                    float_lit(s.factor),
+                    float_lit(s.offset)
+                )
             };
             (value, "v.label()".to_owned(), from)
         }
         PhysType::Bool => ("Value::from(v)".into(), "None".into(), "v.to_bool()".into()),
-        PhysType::Int(t) => ("Value::from(v)".into(), "None".into(), format!("v.to_int::<{}>()", t.rust())),
-        PhysType::F32 => ("Value::from(v)".into(), "None".into(), "Some(v.to_f32())".into()),
-        PhysType::F64 => ("Value::from(v)".into(), "None".into(), "Some(v.to_f64())".into()),
+        PhysType::Int(t) => (
+            "Value::from(v)".into(),
+            "None".into(),
+            format!("v.to_int::<{}>()", t.rust()),
+        ),
+        PhysType::F32 => (
+            "Value::from(v)".into(),
+            "None".into(),
+            "Some(v.to_f32())".into(),
+        ),
+        PhysType::F64 => (
+            "Value::from(v)".into(),
+            "None".into(),
+            "Some(v.to_f64())".into(),
+        ),
     };
     let visit_stmt = if optional {
-        format!("if let Some(v) = self.{f} {{\n            visitor.signal({meta_ref}, {value_expr}, {label_expr});\n        }}")
+        format!(
+            "if let Some(v) = self.{f} {{\n            visitor.signal({meta_ref}, {value_expr}, {label_expr});\n        }}"
+        )
     } else {
-        format!("let v = self.{f};\n        visitor.signal({meta_ref}, {value_expr}, {label_expr});")
+        format!(
+            "let v = self.{f};\n        visitor.signal({meta_ref}, {value_expr}, {label_expr});"
+        )
     };
     let invalid = format!("EncodeError::InvalidValue {{ message: {msg}, signal: {sig} }}");
     let from_signals_expr = if optional {
-        format!("match source.value({meta_ref}) {{\n                Some(v) => Some({from_value}.ok_or({invalid})?),\n                None => None,\n            }}")
+        format!(
+            "match source.value({meta_ref}) {{\n                Some(v) => Some({from_value}.ok_or({invalid})?),\n                None => None,\n            }}"
+        )
     } else {
         format!(
             "{{\n                let v = source.value({meta_ref}).ok_or(EncodeError::MissingSignal {{ message: {msg}, signal: {sig} }})?;\n                {from_value}.ok_or({invalid})?\n            }}"
@@ -342,7 +428,11 @@ fn signal_view(db: &Database, m: &Message, index: usize, s: &Signal) -> SignalVi
         s.name,
         s.len,
         s.start_bit,
-        if s.byte_order == ByteOrder::LittleEndian { "Intel" } else { "Motorola" },
+        if s.byte_order == ByteOrder::LittleEndian {
+            "Intel"
+        } else {
+            "Motorola"
+        },
         match s.encoding {
             Encoding::Unsigned => "unsigned",
             Encoding::Signed => "signed",
@@ -351,7 +441,11 @@ fn signal_view(db: &Database, m: &Message, index: usize, s: &Signal) -> SignalVi
         }
     );
     if !identity(s) {
-        facts.push_str(&format!(", physical = raw * {} + {}", float_lit(s.factor), float_lit(s.offset)));
+        facts.push_str(&format!(
+            ", physical = raw * {} + {}",
+            float_lit(s.factor),
+            float_lit(s.offset)
+        ));
     }
     if let (Some(lo), Some(hi)) = (s.min, s.max) {
         facts.push_str(&format!(", range [{}, {}]", float_lit(lo), float_lit(hi)));
@@ -366,7 +460,13 @@ fn signal_view(db: &Database, m: &Message, index: usize, s: &Signal) -> SignalVi
         let vals: Vec<String> = c
             .ranges
             .iter()
-            .map(|&(lo, hi)| if lo == hi { lo.to_string() } else { format!("{lo}-{hi}") })
+            .map(|&(lo, hi)| {
+                if lo == hi {
+                    lo.to_string()
+                } else {
+                    format!("{lo}-{hi}")
+                }
+            })
             .collect();
         docs.push(format!("Present only when `{sel}` is {}.", vals.join(", ")));
     }
@@ -389,12 +489,21 @@ fn signal_view(db: &Database, m: &Message, index: usize, s: &Signal) -> SignalVi
 }
 
 /// Bodies of `<field>_from_raw(raw) -> Phys` and `<field>_to_raw(v) -> Result<Raw, _>`.
-fn conversions(db: &Database, s: &Signal, raw_ty: &str, phys_ty: &str, msg: &str, sig: &str) -> (String, Vec<String>) {
+fn conversions(
+    db: &Database,
+    s: &Signal,
+    raw_ty: &str,
+    phys_ty: &str,
+    msg: &str,
+    sig: &str,
+) -> (String, Vec<String>) {
     let out_of_range = format!("EncodeError::OutOfRange {{ message: {msg}, signal: {sig} }}");
     let mut to_raw = Vec::new();
     let phys_as_f64 = match s.phys {
         PhysType::Bool => "f64::from(u8::from(v))".to_owned(),
-        PhysType::Int(IntType::U8 | IntType::U16 | IntType::U32 | IntType::I8 | IntType::I16 | IntType::I32) => "f64::from(v)".to_owned(),
+        PhysType::Int(
+            IntType::U8 | IntType::U16 | IntType::U32 | IntType::I8 | IntType::I16 | IntType::I32,
+        ) => "f64::from(v)".to_owned(),
         PhysType::Int(_) => "v as f64".to_owned(),
         PhysType::F32 => "f64::from(v)".to_owned(),
         PhysType::F64 => "v".to_owned(),
@@ -445,7 +554,9 @@ fn conversions(db: &Database, s: &Signal, raw_ty: &str, phys_ty: &str, msg: &str
                 to_raw.push(fit("v"));
                 "raw".to_owned()
             } else {
-                to_raw.push(format!("let raw = {raw_ty}::try_from(v).map_err(|_| {out_of_range})?;"));
+                to_raw.push(format!(
+                    "let raw = {raw_ty}::try_from(v).map_err(|_| {out_of_range})?;"
+                ));
                 to_raw.push(fit("raw"));
                 format!("{phys_ty}::from(raw)")
             }
@@ -461,7 +572,9 @@ fn conversions(db: &Database, s: &Signal, raw_ty: &str, phys_ty: &str, msg: &str
                 format!("runtime::div_round(i128::from(v) - {o}, {f})")
             };
             to_raw.push(format!("let raw = {unscaled};"));
-            to_raw.push(format!("let raw = {raw_ty}::try_from(raw).map_err(|_| {out_of_range})?;"));
+            to_raw.push(format!(
+                "let raw = {raw_ty}::try_from(raw).map_err(|_| {out_of_range})?;"
+            ));
             to_raw.push(fit("raw"));
             let mut e = "i128::from(raw)".to_owned();
             if f != 1 {
@@ -475,30 +588,54 @@ fn conversions(db: &Database, s: &Signal, raw_ty: &str, phys_ty: &str, msg: &str
         PhysType::F32 | PhysType::F64 if s.is_float_raw() => {
             let raw_expr = match (s.encoding, s.phys) {
                 (Encoding::Float32, PhysType::F32) if ident => "v".to_owned(),
-                (Encoding::Float32, PhysType::F32) => format!("{} as f32", unscale_expr("f64::from(v)", s.factor, s.offset)),
-                (Encoding::Float32, _) => format!("({}) as f32", unscale_expr("v", s.factor, s.offset)),
+                (Encoding::Float32, PhysType::F32) => format!(
+                    "{} as f32",
+                    unscale_expr("f64::from(v)", s.factor, s.offset)
+                ),
+                (Encoding::Float32, _) => {
+                    format!("({}) as f32", unscale_expr("v", s.factor, s.offset))
+                }
                 _ => unscale_expr("v", s.factor, s.offset),
             };
             to_raw.push(format!("Ok({raw_expr})"));
             match (s.encoding, s.phys) {
                 (Encoding::Float32, PhysType::F32) if ident => "raw".to_owned(),
-                (Encoding::Float32, PhysType::F32) => format!("({}) as f32", scale_expr("f64::from(raw)", s.factor, s.offset)),
+                (Encoding::Float32, PhysType::F32) => format!(
+                    "({}) as f32",
+                    scale_expr("f64::from(raw)", s.factor, s.offset)
+                ),
                 (Encoding::Float32, _) => scale_expr("f64::from(raw)", s.factor, s.offset),
                 _ => scale_expr("raw", s.factor, s.offset),
             }
         }
         PhysType::F32 | PhysType::F64 => {
-            let v64 = if s.phys == PhysType::F32 { "f64::from(v)" } else { "v" };
+            let v64 = if s.phys == PhysType::F32 {
+                "f64::from(v)"
+            } else {
+                "v"
+            };
             // Bounds are powers of two, exact in f64: `raw < hi` rejects 2^64 for a u64.
-            let hi_excl = if s.encoding == Encoding::Signed { 1i128 << (s.len - 1) } else { 1i128 << s.len };
-            to_raw.push(format!("let raw = runtime::round({});", unscale_expr(v64, s.factor, s.offset)));
+            let hi_excl = if s.encoding == Encoding::Signed {
+                1i128 << (s.len - 1)
+            } else {
+                1i128 << s.len
+            };
+            to_raw.push(format!(
+                "let raw = runtime::round({});",
+                unscale_expr(v64, s.factor, s.offset)
+            ));
             to_raw.push(format!(
                 "if ({}..{}).contains(&raw) {{ Ok(raw as {raw_ty}) }} else {{ Err({out_of_range}) }}",
                 float_lit(raw_lo as f64),
                 float_lit(hi_excl as f64)
             ));
             let raw_f = match raw_int {
-                IntType::U8 | IntType::U16 | IntType::U32 | IntType::I8 | IntType::I16 | IntType::I32 => "f64::from(raw)",
+                IntType::U8
+                | IntType::U16
+                | IntType::U32
+                | IntType::I8
+                | IntType::I16
+                | IntType::I32 => "f64::from(raw)",
                 _ => "raw as f64",
             };
             if s.phys == PhysType::F32 {
@@ -530,7 +667,11 @@ fn signal_meta(db: &Database, s: &Signal) -> String {
         s.comment.as_deref().unwrap_or(""),
         s.start_bit,
         s.len,
-        if s.byte_order == ByteOrder::LittleEndian { "LittleEndian" } else { "BigEndian" },
+        if s.byte_order == ByteOrder::LittleEndian {
+            "LittleEndian"
+        } else {
+            "BigEndian"
+        },
         s.encoding == Encoding::Signed,
         float_lit(s.factor),
         float_lit(s.offset),

@@ -31,10 +31,17 @@ const RESERVED_TYPES: [&str; 1] = ["AnyMessage"];
 pub const PHYS_TYPE_ATTRIBUTE: &str = "AerPhysType";
 
 /// Validates `loaded` and builds the model. Returns every diagnostic (warnings too) alongside.
-pub fn validate(path: &Path, loaded: &LoadedDbc) -> Result<(Database, Vec<crate::diagnostic::Diagnostic>), Diagnostics> {
+pub fn validate(
+    path: &Path,
+    loaded: &LoadedDbc,
+) -> Result<(Database, Vec<crate::diagnostic::Diagnostic>), Diagnostics> {
     let mut r = Reporter::new(path, &loaded.text);
     let mut db = Builder { loaded, r: &mut r }.build();
-    db.name = path.file_stem().and_then(|s| s.to_str()).unwrap_or("dbc").to_owned();
+    db.name = path
+        .file_stem()
+        .and_then(|s| s.to_str())
+        .unwrap_or("dbc")
+        .to_owned();
     if r.has_errors() {
         Err(Diagnostics(r.diagnostics))
     } else {
@@ -62,7 +69,9 @@ impl<'a> Builder<'a, '_> {
             .map(|n| Node {
                 name: n.0.clone(),
                 comment: dbc.comments.iter().find_map(|c| match c {
-                    can_dbc::Comment::Node { name, comment } if *name == n.0 => Some(comment.clone()),
+                    can_dbc::Comment::Node { name, comment } if *name == n.0 => {
+                        Some(comment.clone())
+                    }
                     _ => None,
                 }),
             })
@@ -72,10 +81,8 @@ impl<'a> Builder<'a, '_> {
         let mut messages = Vec::new();
         let mut ids: HashMap<(u32, bool), usize> = HashMap::new();
         let mut names: HashMap<String, usize> = HashMap::new();
-        let mut type_names: HashMap<String, usize> = enums
-            .iter()
-            .map(|e| (e.type_name.clone(), 0))
-            .collect();
+        let mut type_names: HashMap<String, usize> =
+            enums.iter().map(|e| (e.type_name.clone(), 0)).collect();
         for reserved in RESERVED_TYPES {
             type_names.insert(reserved.to_owned(), 0);
         }
@@ -99,7 +106,10 @@ impl<'a> Builder<'a, '_> {
                 self.r.error(
                     "E0102",
                     line,
-                    format!("message `{}` reuses id 0x{id:X}, already used on line {first}", msg.name),
+                    format!(
+                        "message `{}` reuses id 0x{id:X}, already used on line {first}",
+                        msg.name
+                    ),
                     "every message needs its own id on the bus; give one of them a free id",
                 );
                 continue;
@@ -108,7 +118,10 @@ impl<'a> Builder<'a, '_> {
                 self.r.error(
                     "E0103",
                     line,
-                    format!("message name `{}` is already used on line {first}", msg.name),
+                    format!(
+                        "message name `{}` is already used on line {first}",
+                        msg.name
+                    ),
                     "every message needs its own name; rename one of them",
                 );
                 continue;
@@ -125,7 +138,9 @@ impl<'a> Builder<'a, '_> {
                 type_name = renamed;
             }
             type_names.insert(type_name.clone(), line);
-            if let Some(m) = self.message(msg, line, written_id, id, extended, type_name, &mut enums) {
+            if let Some(m) =
+                self.message(msg, line, written_id, id, extended, type_name, &mut enums)
+            {
                 messages.push(m);
             }
         }
@@ -156,7 +171,9 @@ impl<'a> Builder<'a, '_> {
             self.r.error(
                 "E0101",
                 line,
-                format!("message `{name}` has standard id 0x{written:X}, above the 11-bit limit 0x7FF"),
+                format!(
+                    "message `{name}` has standard id 0x{written:X}, above the 11-bit limit 0x7FF"
+                ),
                 "for a 29-bit id add 2147483648 (bit 31, Vector's extended-frame flag) to the id",
             );
             None
@@ -205,7 +222,10 @@ impl<'a> Builder<'a, '_> {
             self.r.error(
                 "E0104",
                 line,
-                format!("message `{}` is {} bytes long; a CAN frame carries 0-8 bytes, CAN FD up to 64", msg.name, msg.size),
+                format!(
+                    "message `{}` is {} bytes long; a CAN frame carries 0-8 bytes, CAN FD up to 64",
+                    msg.name, msg.size
+                ),
                 "set the length (the number after the colon) to a valid frame length",
             );
             return None;
@@ -222,7 +242,9 @@ impl<'a> Builder<'a, '_> {
         let cycle_time_ms = match self.message_attribute("GenMsgCycleTime", msg.id) {
             Some(AttributeValue::Uint(v)) if *v > 0 => u32::try_from(*v).ok(),
             Some(AttributeValue::Int(v)) if *v > 0 => u32::try_from(*v).ok(),
-            Some(AttributeValue::Double(v)) if *v >= 1.0 && *v <= f64::from(u32::MAX) => Some(v.round() as u32),
+            Some(AttributeValue::Double(v)) if *v >= 1.0 && *v <= f64::from(u32::MAX) => {
+                Some(v.round() as u32)
+            }
             _ => None,
         };
         let comment = self.loaded.dbc.message_comment(msg.id).map(str::to_owned);
@@ -272,7 +294,10 @@ impl<'a> Builder<'a, '_> {
                 self.r.warning(
                     "W0201",
                     d.line,
-                    format!("signal name `{}` is a Rust keyword; its field is named `{field}`", d.sig.name),
+                    format!(
+                        "signal name `{}` is a Rust keyword; its field is named `{field}`",
+                        d.sig.name
+                    ),
                     "rename the signal so that generated code reads naturally",
                 );
             }
@@ -321,7 +346,10 @@ impl<'a> Builder<'a, '_> {
             self.r.error(
                 "E0105",
                 line,
-                format!("{where_} is {} bits long; signals are 1 to 64 bits", sig.size),
+                format!(
+                    "{where_} is {} bits long; signals are 1 to 64 bits",
+                    sig.size
+                ),
                 "fix the length after the `|` in the SG_ line",
             );
             return None;
@@ -334,24 +362,47 @@ impl<'a> Builder<'a, '_> {
         };
         let frame_bits = u32::try_from(msg_len * 8).unwrap_or(u32::MAX);
         let in_frame = match byte_order {
-            ByteOrder::LittleEndian => start_bit.checked_add(len).is_some_and(|end| end <= frame_bits),
-            ByteOrder::BigEndian => start_bit < frame_bits && crate::model::be_linear(start_bit) + len <= frame_bits,
+            ByteOrder::LittleEndian => start_bit
+                .checked_add(len)
+                .is_some_and(|end| end <= frame_bits),
+            ByteOrder::BigEndian => {
+                start_bit < frame_bits && crate::model::be_linear(start_bit) + len <= frame_bits
+            }
         };
         if !in_frame {
             let hint = match byte_order {
-                ByteOrder::BigEndian => "for Motorola (@0) signals the start bit is the MSB in sawtooth numbering (byte*8 + 7 for the top bit of a byte); check it, the length and the message length",
-                ByteOrder::LittleEndian => "for Intel (@1) signals the start bit is the LSB; start + length must not exceed 8 * message length",
+                ByteOrder::BigEndian => {
+                    "for Motorola (@0) signals the start bit is the MSB in sawtooth numbering (byte*8 + 7 for the top bit of a byte); check it, the length and the message length"
+                }
+                ByteOrder::LittleEndian => {
+                    "for Intel (@1) signals the start bit is the LSB; start + length must not exceed 8 * message length"
+                }
             };
             self.r.error(
                 "E0106",
                 line,
-                format!("{where_} ({}|{}@{}) has bits outside the {msg_len}-byte frame", sig.start_bit, sig.size, if byte_order == ByteOrder::LittleEndian { 1 } else { 0 }),
+                format!(
+                    "{where_} ({}|{}@{}) has bits outside the {msg_len}-byte frame",
+                    sig.start_bit,
+                    sig.size,
+                    if byte_order == ByteOrder::LittleEndian {
+                        1
+                    } else {
+                        0
+                    }
+                ),
                 hint,
             );
             return None;
         }
 
-        let value_type_line = self.loaded.lines.value_types.get(&(written_id, sig.name.clone())).copied().unwrap_or(line);
+        let value_type_line = self
+            .loaded
+            .lines
+            .value_types
+            .get(&(written_id, sig.name.clone()))
+            .copied()
+            .unwrap_or(line);
         let ext = self
             .loaded
             .dbc
@@ -391,7 +442,11 @@ impl<'a> Builder<'a, '_> {
 
         let min = numeric(&sig.min);
         let max = numeric(&sig.max);
-        let (min, max) = if min == 0.0 && max == 0.0 { (None, None) } else { (Some(min), Some(max)) };
+        let (min, max) = if min == 0.0 && max == 0.0 {
+            (None, None)
+        } else {
+            (Some(min), Some(max))
+        };
         if let (Some(lo), Some(hi)) = (min, max) {
             if lo > hi {
                 self.r.error(
@@ -416,13 +471,23 @@ impl<'a> Builder<'a, '_> {
             min,
             max,
             unit: sig.unit.clone(),
-            comment: self.loaded.dbc.signal_comment(msg.id, &sig.name).map(str::to_owned),
-            receivers: sig.receivers.iter().filter(|r| r.as_str() != "Vector__XXX").cloned().collect(),
+            comment: self
+                .loaded
+                .dbc
+                .signal_comment(msg.id, &sig.name)
+                .map(str::to_owned),
+            receivers: sig
+                .receivers
+                .iter()
+                .filter(|r| r.as_str() != "Vector__XXX")
+                .cloned()
+                .collect(),
             phys: PhysType::F64,
             mux: None,
             is_multiplexor: matches!(
                 sig.multiplexer_indicator,
-                MultiplexIndicator::Multiplexor | MultiplexIndicator::MultiplexorAndMultiplexedSignal(_)
+                MultiplexIndicator::Multiplexor
+                    | MultiplexIndicator::MultiplexorAndMultiplexedSignal(_)
             ),
         };
         self.check_range(&s, line, &where_);
@@ -477,9 +542,11 @@ impl<'a> Builder<'a, '_> {
                 && matches!(&a.value, AttributeValue::String(v) if v == "f32")
         });
         let choices = dbc.value_descriptions.iter().find_map(|v| match v {
-            ValueDescription::Signal { message_id, name, value_descriptions } if *message_id == msg.id && *name == s.name => {
-                Some(value_descriptions)
-            }
+            ValueDescription::Signal {
+                message_id,
+                name,
+                value_descriptions,
+            } if *message_id == msg.id && *name == s.name => Some(value_descriptions),
             _ => None,
         });
         let integral = |v: f64| v.fract() == 0.0 && v.abs() < 9.0e18;
@@ -509,8 +576,16 @@ impl<'a> Builder<'a, '_> {
             _ => {}
         }
         if let Some(choices) = choices.filter(|c| !c.is_empty()) {
-            let val_line = self.loaded.lines.values.get(&(written_id, s.name.clone())).copied().unwrap_or(line);
-            return self.enum_for(s, choices, val_line, where_, type_name, enums).map(PhysType::Enum);
+            let val_line = self
+                .loaded
+                .lines
+                .values
+                .get(&(written_id, s.name.clone()))
+                .copied()
+                .unwrap_or(line);
+            return self
+                .enum_for(s, choices, val_line, where_, type_name, enums)
+                .map(PhysType::Enum);
         }
         if s.len == 1 && s.encoding == Encoding::Unsigned && s.factor == 1.0 && s.offset == 0.0 {
             return Some(PhysType::Bool);
@@ -550,7 +625,10 @@ impl<'a> Builder<'a, '_> {
                 self.r.warning(
                     "W0203",
                     line,
-                    format!("{where_} names value {} (`{}`), which its {}-bit raw value can never hold", c.id, c.description, s.len),
+                    format!(
+                        "{where_} names value {} (`{}`), which its {}-bit raw value can never hold",
+                        c.id, c.description, s.len
+                    ),
                     "remove the value from the VAL_ line or fix the signal's length or sign",
                 );
                 continue;
@@ -561,7 +639,11 @@ impl<'a> Builder<'a, '_> {
         kept.dedup_by_key(|(v, _)| *v);
         let raw = s.raw_int();
         let table_match = self.loaded.dbc.value_tables.iter().position(|t| {
-            let mut tv: Vec<(i128, String)> = t.descriptions.iter().map(|d| (i128::from(d.id), d.description.clone())).collect();
+            let mut tv: Vec<(i128, String)> = t
+                .descriptions
+                .iter()
+                .map(|d| (i128::from(d.id), d.description.clone()))
+                .collect();
             tv.sort_by_key(|(v, _)| *v);
             tv == kept
         });
@@ -576,7 +658,12 @@ impl<'a> Builder<'a, '_> {
             }
         }
         if kept.is_empty() {
-            self.r.warning("W0203", line, format!("{where_} has no usable value descriptions"), "remove its VAL_ line");
+            self.r.warning(
+                "W0203",
+                line,
+                format!("{where_} has no usable value descriptions"),
+                "remove its VAL_ line",
+            );
         }
         enums.push(EnumType {
             type_name: format!("{type_name}{}", camel(&s.name)),
@@ -593,7 +680,11 @@ impl<'a> Builder<'a, '_> {
             .value_tables
             .iter()
             .map(|t| {
-                let mut kept: Vec<(i128, String)> = t.descriptions.iter().map(|d| (i128::from(d.id), d.description.clone())).collect();
+                let mut kept: Vec<(i128, String)> = t
+                    .descriptions
+                    .iter()
+                    .map(|d| (i128::from(d.id), d.description.clone()))
+                    .collect();
                 kept.sort_by_key(|(v, _)| *v);
                 kept.dedup_by_key(|(v, _)| *v);
                 let lo = kept.first().map_or(0, |(v, _)| *v);
@@ -615,8 +706,17 @@ impl<'a> Builder<'a, '_> {
         drafts: &[Draft<'a>],
         signals: &mut [Signal],
     ) -> Option<()> {
-        let index_of: HashMap<String, usize> = signals.iter().enumerate().map(|(i, s)| (s.name.clone(), i)).collect();
-        let multiplexors: Vec<usize> = signals.iter().enumerate().filter(|(_, s)| s.is_multiplexor).map(|(i, _)| i).collect();
+        let index_of: HashMap<String, usize> = signals
+            .iter()
+            .enumerate()
+            .map(|(i, s)| (s.name.clone(), i))
+            .collect();
+        let multiplexors: Vec<usize> = signals
+            .iter()
+            .enumerate()
+            .filter(|(_, s)| s.is_multiplexor)
+            .map(|(i, _)| i)
+            .collect();
         let mut ok = true;
         for (i, d) in drafts.iter().enumerate() {
             let extended: Vec<&can_dbc::ExtendedMultiplex> = self
@@ -629,18 +729,28 @@ impl<'a> Builder<'a, '_> {
             // An SG_MUL_VAL_ line defines the condition whatever the indicator says (tools that
             // dump extended multiplexing often write a nested multiplexor as plain `M`).
             let value = match d.sig.multiplexer_indicator {
-                MultiplexIndicator::MultiplexedSignal(v) | MultiplexIndicator::MultiplexorAndMultiplexedSignal(v) => v,
+                MultiplexIndicator::MultiplexedSignal(v)
+                | MultiplexIndicator::MultiplexorAndMultiplexedSignal(v) => v,
                 _ if !extended.is_empty() => 0,
                 _ => continue,
             };
             let where_ = format!("signal `{}` of message `{}`", d.sig.name, msg.name);
             let condition = if let Some(first) = extended.first() {
-                let line = self.loaded.lines.mux_values.get(&(written_id, d.sig.name.clone())).copied().unwrap_or(d.line);
+                let line = self
+                    .loaded
+                    .lines
+                    .mux_values
+                    .get(&(written_id, d.sig.name.clone()))
+                    .copied()
+                    .unwrap_or(d.line);
                 let Some(&sel) = index_of.get(&first.multiplexor_signal_name) else {
                     self.r.error(
                         "E0114",
                         line,
-                        format!("{where_} is multiplexed by `{}`, which is not a signal of the message", first.multiplexor_signal_name),
+                        format!(
+                            "{where_} is multiplexed by `{}`, which is not a signal of the message",
+                            first.multiplexor_signal_name
+                        ),
                         "name an existing multiplexor signal in the SG_MUL_VAL_ line",
                     );
                     ok = false;
@@ -650,11 +760,18 @@ impl<'a> Builder<'a, '_> {
                     .iter()
                     .flat_map(|e| e.mappings.iter().map(|m| (m.min_value, m.max_value)))
                     .collect();
-                MuxCondition { selector: sel, ranges }
+                MuxCondition {
+                    selector: sel,
+                    ranges,
+                }
             } else {
-                let candidates: Vec<usize> = multiplexors.iter().copied().filter(|&m| m != i).collect();
+                let candidates: Vec<usize> =
+                    multiplexors.iter().copied().filter(|&m| m != i).collect();
                 match candidates.as_slice() {
-                    [sel] => MuxCondition { selector: *sel, ranges: vec![(value, value)] },
+                    [sel] => MuxCondition {
+                        selector: *sel,
+                        ranges: vec![(value, value)],
+                    },
                     [] => {
                         self.r.error(
                             "E0114",
@@ -689,7 +806,11 @@ impl<'a> Builder<'a, '_> {
                 continue;
             }
             let (_, sel_hi) = sel.raw_range();
-            if let Some(&(lo, hi)) = condition.ranges.iter().find(|(lo, hi)| lo > hi || i128::from(*hi) > sel_hi) {
+            if let Some(&(lo, hi)) = condition
+                .ranges
+                .iter()
+                .find(|(lo, hi)| lo > hi || i128::from(*hi) > sel_hi)
+            {
                 self.r.error(
                     "E0116",
                     d.line,
@@ -705,7 +826,12 @@ impl<'a> Builder<'a, '_> {
     }
 
     /// Orders signals so that each multiplexor is decoded before what it selects.
-    fn eval_order(&mut self, msg: &can_dbc::Message, line: usize, signals: &[Signal]) -> Option<Vec<usize>> {
+    fn eval_order(
+        &mut self,
+        msg: &can_dbc::Message,
+        line: usize,
+        signals: &[Signal],
+    ) -> Option<Vec<usize>> {
         let mut order = Vec::with_capacity(signals.len());
         let mut done = vec![false; signals.len()];
         while order.len() < signals.len() {
@@ -732,11 +858,15 @@ impl<'a> Builder<'a, '_> {
 
     /// Reports signals that share bits and can be present in the same frame.
     fn check_overlaps(&mut self, msg: &can_dbc::Message, drafts: &[Draft<'a>], signals: &[Signal]) {
-        let bits: Vec<BTreeSet<u32>> = signals.iter().map(|s| s.bits().into_iter().collect()).collect();
+        let bits: Vec<BTreeSet<u32>> = signals
+            .iter()
+            .map(|s| s.bits().into_iter().collect())
+            .collect();
         let mut reported = HashSet::new();
         for a in 0..signals.len() {
             for b in a + 1..signals.len() {
-                if bits[a].is_disjoint(&bits[b]) || exclusive(signals, a, b) || !reported.insert(b) {
+                if bits[a].is_disjoint(&bits[b]) || exclusive(signals, a, b) || !reported.insert(b)
+                {
                     continue;
                 }
                 let shared: Vec<u32> = bits[a].intersection(&bits[b]).copied().collect();
@@ -774,7 +904,10 @@ fn exclusive(signals: &[Signal], a: usize, b: usize) -> bool {
     pa.iter().any(|ca| {
         pb.iter().any(|cb| {
             ca.selector == cb.selector
-                && ca.ranges.iter().all(|&(lo1, hi1)| cb.ranges.iter().all(|&(lo2, hi2)| hi1 < lo2 || hi2 < lo1))
+                && ca
+                    .ranges
+                    .iter()
+                    .all(|&(lo1, hi1)| cb.ranges.iter().all(|&(lo2, hi2)| hi1 < lo2 || hi2 < lo1))
         })
     })
 }
