@@ -1251,14 +1251,9 @@ impl CcmStatus {
 
     /// Raw value of `CCM_VehicleState` for a physical value, range-checked.
     pub fn ccm_vehicle_state_to_raw(v: VehicleState) -> Result<u8, EncodeError> {
-        runtime::check_range(
-            v.into_raw() as f64,
-            0.0,
-            5.0,
-            1e-6,
-            "CCM_Status",
-            "CCM_VehicleState",
-        )?;
+        if let VehicleState::Unknown(raw) = v {
+            runtime::check_range(raw as f64, 0.0, 5.0, 1e-6, "CCM_Status", "CCM_VehicleState")?;
+        }
         Ok(v.into_raw())
     }
 
@@ -2427,14 +2422,9 @@ impl Vcu1 {
 
     /// Raw value of `VCU_GearLeverPosSts` for a physical value, range-checked.
     pub fn vcu_gear_lever_pos_sts_to_raw(v: GearLeverPos) -> Result<u8, EncodeError> {
-        runtime::check_range(
-            v.into_raw() as f64,
-            0.0,
-            4.0,
-            1e-6,
-            "VCU1",
-            "VCU_GearLeverPosSts",
-        )?;
+        if let GearLeverPos::Unknown(raw) = v {
+            runtime::check_range(raw as f64, 0.0, 4.0, 1e-6, "VCU1", "VCU_GearLeverPosSts")?;
+        }
         let raw = v.into_raw();
         if (0..=7).contains(&raw) {
             Ok(raw)
@@ -2507,7 +2497,9 @@ impl Vcu1 {
 
     /// Raw value of `VCU_MotorMode` for a physical value, range-checked.
     pub fn vcu_motor_mode_to_raw(v: MotorMode) -> Result<u8, EncodeError> {
-        runtime::check_range(v.into_raw() as f64, 0.0, 2.0, 1e-6, "VCU1", "VCU_MotorMode")?;
+        if let MotorMode::Unknown(raw) = v {
+            runtime::check_range(raw as f64, 0.0, 2.0, 1e-6, "VCU1", "VCU_MotorMode")?;
+        }
         let raw = v.into_raw();
         if (0..=3).contains(&raw) {
             Ok(raw)
@@ -2526,14 +2518,9 @@ impl Vcu1 {
 
     /// Raw value of `VCU_WarningLevel` for a physical value, range-checked.
     pub fn vcu_warning_level_to_raw(v: McuWarningLevel) -> Result<u8, EncodeError> {
-        runtime::check_range(
-            v.into_raw() as f64,
-            0.0,
-            3.0,
-            1e-6,
-            "VCU1",
-            "VCU_WarningLevel",
-        )?;
+        if let McuWarningLevel::Unknown(raw) = v {
+            runtime::check_range(raw as f64, 0.0, 3.0, 1e-6, "VCU1", "VCU_WarningLevel")?;
+        }
         let raw = v.into_raw();
         if (0..=3).contains(&raw) {
             Ok(raw)
@@ -2552,14 +2539,9 @@ impl Vcu1 {
 
     /// Raw value of `VCU_KeyPosition` for a physical value, range-checked.
     pub fn vcu_key_position_to_raw(v: KeyPosition) -> Result<u8, EncodeError> {
-        runtime::check_range(
-            v.into_raw() as f64,
-            0.0,
-            3.0,
-            1e-6,
-            "VCU1",
-            "VCU_KeyPosition",
-        )?;
+        if let KeyPosition::Unknown(raw) = v {
+            runtime::check_range(raw as f64, 0.0, 3.0, 1e-6, "VCU1", "VCU_KeyPosition")?;
+        }
         let raw = v.into_raw();
         if (0..=3).contains(&raw) {
             Ok(raw)
@@ -3202,7 +3184,9 @@ impl Mcu1 {
 
     /// Raw value of `MCU_MainState` for a physical value, range-checked.
     pub fn mcu_main_state_to_raw(v: McuMainState) -> Result<u8, EncodeError> {
-        runtime::check_range(v.into_raw() as f64, 0.0, 4.0, 1e-6, "MCU1", "MCU_MainState")?;
+        if let McuMainState::Unknown(raw) = v {
+            runtime::check_range(raw as f64, 0.0, 4.0, 1e-6, "MCU1", "MCU_MainState")?;
+        }
         let raw = v.into_raw();
         if (0..=7).contains(&raw) {
             Ok(raw)
@@ -3221,14 +3205,9 @@ impl Mcu1 {
 
     /// Raw value of `MCU_RotateDirection` for a physical value, range-checked.
     pub fn mcu_rotate_direction_to_raw(v: MotorRotateDirection) -> Result<u8, EncodeError> {
-        runtime::check_range(
-            v.into_raw() as f64,
-            0.0,
-            3.0,
-            1e-6,
-            "MCU1",
-            "MCU_RotateDirection",
-        )?;
+        if let MotorRotateDirection::Unknown(raw) = v {
+            runtime::check_range(raw as f64, 0.0, 3.0, 1e-6, "MCU1", "MCU_RotateDirection")?;
+        }
         let raw = v.into_raw();
         if (0..=3).contains(&raw) {
             Ok(raw)
@@ -3266,14 +3245,9 @@ impl Mcu1 {
 
     /// Raw value of `MCU_MotorState` for a physical value, range-checked.
     pub fn mcu_motor_state_to_raw(v: MotorMode) -> Result<u8, EncodeError> {
-        runtime::check_range(
-            v.into_raw() as f64,
-            0.0,
-            2.0,
-            1e-6,
-            "MCU1",
-            "MCU_MotorState",
-        )?;
+        if let MotorMode::Unknown(raw) = v {
+            runtime::check_range(raw as f64, 0.0, 2.0, 1e-6, "MCU1", "MCU_MotorState")?;
+        }
         let raw = v.into_raw();
         if (0..=3).contains(&raw) {
             Ok(raw)
@@ -3292,7 +3266,9 @@ impl Mcu1 {
 
     /// Raw value of `MCU_WorkMode` for a physical value, range-checked.
     pub fn mcu_work_mode_to_raw(v: McuWorkMode) -> Result<u8, EncodeError> {
-        runtime::check_range(v.into_raw() as f64, 0.0, 2.0, 1e-6, "MCU1", "MCU_WorkMode")?;
+        if let McuWorkMode::Unknown(raw) = v {
+            runtime::check_range(raw as f64, 0.0, 2.0, 1e-6, "MCU1", "MCU_WorkMode")?;
+        }
         let raw = v.into_raw();
         if (0..=3).contains(&raw) {
             Ok(raw)
@@ -4577,14 +4553,9 @@ impl Mcu2 {
 
     /// Raw value of `MCU_WarningLevel` for a physical value, range-checked.
     pub fn mcu_warning_level_to_raw(v: McuWarningLevel) -> Result<u8, EncodeError> {
-        runtime::check_range(
-            v.into_raw() as f64,
-            0.0,
-            3.0,
-            1e-6,
-            "MCU2",
-            "MCU_WarningLevel",
-        )?;
+        if let McuWarningLevel::Unknown(raw) = v {
+            runtime::check_range(raw as f64, 0.0, 3.0, 1e-6, "MCU2", "MCU_WarningLevel")?;
+        }
         let raw = v.into_raw();
         if (0..=3).contains(&raw) {
             Ok(raw)
@@ -6610,14 +6581,9 @@ impl PccStatus {
 
     /// Raw value of `PCC_State` for a physical value, range-checked.
     pub fn pcc_state_to_raw(v: PrechargeState) -> Result<u8, EncodeError> {
-        runtime::check_range(
-            v.into_raw() as f64,
-            0.0,
-            6.0,
-            1e-6,
-            "PCC_Status",
-            "PCC_State",
-        )?;
+        if let PrechargeState::Unknown(raw) = v {
+            runtime::check_range(raw as f64, 0.0, 6.0, 1e-6, "PCC_Status", "PCC_State")?;
+        }
         Ok(v.into_raw())
     }
 
@@ -7696,14 +7662,16 @@ impl ImdInfoGeneral {
 
     /// Raw value of `IMD_DeviceActivity` for a physical value, range-checked.
     pub fn imd_device_activity_to_raw(v: ImdDeviceActivity) -> Result<u8, EncodeError> {
-        runtime::check_range(
-            v.into_raw() as f64,
-            0.0,
-            2.0,
-            1e-6,
-            "IMD_InfoGeneral",
-            "IMD_DeviceActivity",
-        )?;
+        if let ImdDeviceActivity::Unknown(raw) = v {
+            runtime::check_range(
+                raw as f64,
+                0.0,
+                2.0,
+                1e-6,
+                "IMD_InfoGeneral",
+                "IMD_DeviceActivity",
+            )?;
+        }
         Ok(v.into_raw())
     }
 }
@@ -9164,7 +9132,7 @@ impl AnyMessage {
 
     /// Encodes into `out`; returns the payload length.
     pub fn encode(&self, out: &mut [u8]) -> Result<usize, EncodeError> {
-        match self {
+        match *self {
             Self::CcmStatus(m) => m.encode(out),
             Self::Vcu1(m) => m.encode(out),
             Self::Mcu1(m) => m.encode(out),
@@ -9186,7 +9154,7 @@ impl AnyMessage {
 
     /// Calls `visitor` with every present signal's physical value.
     pub fn visit(&self, visitor: &mut impl SignalVisitor) {
-        match self {
+        match *self {
             Self::CcmStatus(m) => m.visit(visitor),
             Self::Vcu1(m) => m.visit(visitor),
             Self::Mcu1(m) => m.visit(visitor),
@@ -9208,7 +9176,7 @@ impl AnyMessage {
 
     /// Encodes into an `embedded-can` frame.
     pub fn to_frame<F: embedded_can::Frame>(&self) -> Result<F, EncodeError> {
-        match self {
+        match *self {
             Self::CcmStatus(m) => m.to_frame(),
             Self::Vcu1(m) => m.to_frame(),
             Self::Mcu1(m) => m.to_frame(),

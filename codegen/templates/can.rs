@@ -265,7 +265,7 @@ impl AnyMessage {
 
     /// Encodes into `out`; returns the payload length.
     pub fn encode(&self, {% if messages.is_empty() %}_out{% else %}out{% endif %}: &mut [u8]) -> Result<usize, EncodeError> {
-        match self {
+        match *self {
 {%- for m in messages %}
             Self::{{ m.type_name }}(m) => m.encode(out),
 {%- endfor %}
@@ -274,7 +274,7 @@ impl AnyMessage {
 
     /// Calls `visitor` with every present signal's physical value.
     pub fn visit(&self, {% if messages.is_empty() %}_visitor{% else %}visitor{% endif %}: &mut impl SignalVisitor) {
-        match self {
+        match *self {
 {%- for m in messages %}
             Self::{{ m.type_name }}(m) => m.visit(visitor),
 {%- endfor %}
@@ -283,7 +283,7 @@ impl AnyMessage {
 
     /// Encodes into an `embedded-can` frame.
     pub fn to_frame<F: embedded_can::Frame>(&self) -> Result<F, EncodeError> {
-        match self {
+        match *self {
 {%- for m in messages %}
             Self::{{ m.type_name }}(m) => m.to_frame(),
 {%- endfor %}

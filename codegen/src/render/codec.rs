@@ -507,15 +507,21 @@ fn conversions(
         PhysType::Int(_) => "v as f64".to_owned(),
         PhysType::F32 => "f64::from(v)".to_owned(),
         PhysType::F64 => "v".to_owned(),
-        PhysType::Enum(_) => scale_expr("v.into_raw() as f64", s.factor, s.offset),
+        PhysType::Enum(_) => scale_expr("raw as f64", s.factor, s.offset),
     };
     if let (Some(lo), Some(hi)) = (s.min, s.max) {
-        to_raw.push(format!(
+        let check = format!(
             "runtime::check_range({phys_as_f64}, {}, {}, {}, {msg}, {sig})?;",
             float_lit(lo),
             float_lit(hi),
             float_lit(s.factor.abs() * 1e-6)
-        ));
+        );
+        // Values the schema names are valid whatever the range says (255 = "SNA" beyond
+        // [0|100], say); only unnamed raw values are range-checked (cantools does the same).
+        to_raw.push(match s.phys {
+            PhysType::Enum(_) => format!("if let {phys_ty}::Unknown(raw) = v {{\n{check}\n}}"),
+            _ => check,
+        });
     }
     let (raw_lo, raw_hi) = s.raw_range();
     let raw_int = s.raw_int();

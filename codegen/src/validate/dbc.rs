@@ -114,33 +114,35 @@ impl<'a> Builder<'a, '_> {
                 );
                 continue;
             }
-            if let Some(first) = names.insert(msg.name.clone(), line) {
+            let msg_name = self.long_message_name(msg);
+            if let Some(first) = names.insert(msg_name.clone(), line) {
                 self.r.error(
                     "E0103",
                     line,
                     format!(
                         "message name `{}` is already used on line {first}",
-                        msg.name
+                        msg_name
                     ),
                     "every message needs its own name; rename one of them",
                 );
                 continue;
             }
-            let mut type_name = camel(&msg.name);
+            let mut type_name = camel(&msg_name);
             if let Some(first) = type_names.get(&type_name).copied() {
                 let renamed = format!("{type_name}0x{id:X}");
                 self.r.warning(
                     "W0204",
                     line,
-                    format!("message `{}` would be named `{type_name}` in Rust, a name already taken (line {first}); it is named `{renamed}`", msg.name),
+                    format!("message `{msg_name}` would be named `{type_name}` in Rust, a name already taken (line {first}); it is named `{renamed}`"),
                     "keep message and value-table names distinct after conversion to CamelCase",
                 );
                 type_name = renamed;
             }
             type_names.insert(type_name.clone(), line);
-            if let Some(m) =
+            if let Some(mut m) =
                 self.message(msg, line, written_id, id, extended, type_name, &mut enums)
             {
+                m.name = msg_name;
                 messages.push(m);
             }
         }
@@ -180,6 +182,45 @@ impl<'a> Builder<'a, '_> {
         } else {
             u32::try_from(written).ok().map(|id| (id, false))
         }
+    }
+
+    /// The message's full name: Vector keeps names over 32 characters in an attribute.
+    fn long_message_name(&self, msg: &can_dbc::Message) -> String {
+        self.loaded
+            .dbc
+            .attribute_values_message
+            .iter()
+            .find_map(|a| match &a.value {
+                AttributeValue::String(long)
+                    if a.name == "SystemMessageLongSymbol"
+                        && a.message_id == msg.id
+                        && !long.is_empty() =>
+                {
+                    Some(long.clone())
+                }
+                _ => None,
+            })
+            .unwrap_or_else(|| msg.name.clone())
+    }
+
+    /// The signal's full name (see [`Self::long_message_name`]).
+    fn long_signal_name(&self, msg: &can_dbc::Message, sig: &can_dbc::Signal) -> String {
+        self.loaded
+            .dbc
+            .attribute_values_signal
+            .iter()
+            .find_map(|a| match &a.value {
+                AttributeValue::String(long)
+                    if a.name == "SystemSignalLongSymbol"
+                        && a.message_id == msg.id
+                        && a.signal_name == sig.name
+                        && !long.is_empty() =>
+                {
+                    Some(long.clone())
+                }
+                _ => None,
+            })
+            .unwrap_or_else(|| sig.name.clone())
     }
 
     fn message_attribute(&self, name: &str, id: MessageId) -> Option<&'a AttributeValue> {
@@ -268,13 +309,14 @@ impl<'a> Builder<'a, '_> {
         let mut fields: HashMap<String, (String, usize)> = HashMap::new();
         let mut ok = true;
         for d in &drafts {
-            let mut field = snake(&d.sig.name);
+            let sig_name = self.long_signal_name(msg, d.sig);
+            let mut field = snake(&sig_name);
             if let Some((other, other_line)) = fields.get(&field).cloned() {
-                if other == d.sig.name {
+                if other == sig_name {
                     self.r.error(
                         "E0108",
                         d.line,
-                        format!("signal `{}` is defined twice in message `{}` (first on line {other_line})", d.sig.name, msg.name),
+                        format!("signal `{}` is defined twice in message `{}` (first on line {other_line})", sig_name, msg.name),
                         "signal names must be unique within a message; rename or remove one",
                     );
                     ok = false;
@@ -284,12 +326,12 @@ impl<'a> Builder<'a, '_> {
                 self.r.warning(
                     "W0204",
                     d.line,
-                    format!("signals `{other}` (line {other_line}) and `{}` would both be the Rust field `{field}`; this one is `{renamed}`", d.sig.name),
+                    format!("signals `{other}` (line {other_line}) and `{sig_name}` would both be the Rust field `{field}`; this one is `{renamed}`"),
                     "keep signal names distinct after conversion to snake_case",
                 );
                 field = renamed;
             }
-            fields.insert(field.clone(), (d.sig.name.clone(), d.line));
+            fields.insert(field.clone(), (sig_name.clone(), d.line));
             if is_keyword(&d.sig.name) || is_keyword(&field) || field.ends_with('_') {
                 self.r.warning(
                     "W0201",
@@ -302,7 +344,10 @@ impl<'a> Builder<'a, '_> {
                 );
             }
             match self.signal(msg, written_id, len, d, field, &type_name, enums) {
-                Some(s) => signals.push(s),
+                Some(mut s) => {
+                    s.name = sig_name;
+                    signals.push(s);
+                }
                 None => ok = false,
             }
         }
@@ -706,10 +751,11 @@ impl<'a> Builder<'a, '_> {
         drafts: &[Draft<'a>],
         signals: &mut [Signal],
     ) -> Option<()> {
-        let index_of: HashMap<String, usize> = signals
+        // SG_MUL_VAL_ lines use the short names as written in the SG_ lines.
+        let index_of: HashMap<String, usize> = drafts
             .iter()
             .enumerate()
-            .map(|(i, s)| (s.name.clone(), i))
+            .map(|(i, d)| (d.sig.name.clone(), i))
             .collect();
         let multiplexors: Vec<usize> = signals
             .iter()
