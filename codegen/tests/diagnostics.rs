@@ -1,0 +1,314 @@
+//! Every kind of schema mistake gets a diagnostic naming the file, the line, what is wrong and
+//! how to fix it.
+
+use std::path::Path;
+
+use aer_codegen::diagnostic::{Diagnostic, Severity};
+
+const HEADER: &str = "VERSION \"\"\n\nNS_ :\n\tCM_\n\nBS_:\n\nBU_: ECU\n\n";
+
+/// Lines of `HEADER`, so tests can give line numbers relative to their own text.
+fn header_lines() -> usize {
+    HEADER.lines().count()
+}
+
+/// Loads and validates `body` (appended to a minimal header); returns every diagnostic.
+fn diagnose(body: &str) -> Vec<Diagnostic> {
+    let text = format!("{HEADER}{body}");
+    let path = Path::new("car.dbc");
+    match aer_codegen::load::dbc::parse(path, text) {
+        Err(d) => d.0,
+        Ok(loaded) => match aer_codegen::validate::dbc::validate(path, &loaded) {
+            Ok((_, warnings)) => warnings,
+            Err(d) => d.0,
+        },
+    }
+}
+
+/// Asserts one diagnostic with `code` at `line` (of `body`, 1-based) whose message contains
+/// every fragment, and returns it.
+fn expect(body: &str, code: &str, line: usize, fragments: &[&str]) -> Diagnostic {
+    let diags = diagnose(body);
+    let d = diags
+        .iter()
+        .find(|d| d.code == code)
+        .unwrap_or_else(|| panic!("no {code} in {diags:#?}"))
+        .clone();
+    assert_eq!(d.line, header_lines() + line, "line of {d:#?}");
+    assert_eq!(d.file, Path::new("car.dbc"));
+    for f in fragments {
+        assert!(d.message.contains(f), "{f:?} not in {:?}", d.message);
+    }
+    assert!(!d.help.is_empty(), "a diagnostic must say how to fix it");
+    let shown = d.to_string();
+    assert!(shown.contains(&format!("car.dbc:{}", d.line)), "{shown}");
+    assert!(shown.contains(&format!("[{code}]")), "{shown}");
+    d
+}
+
+#[test]
+fn syntax_errors_point_at_the_line() {
+    let d = expect(
+        "BO_ 100 M: 8 ECU\n SG_ A : 0|8@1+ (1,0) [0|1 \"\" ECU\n",
+        "E0003",
+        2,
+        &["DBC syntax is invalid"],
+    );
+    assert_eq!(d.severity, Severity::Error);
+}
+
+#[test]
+fn standard_id_above_11_bits() {
+    expect(
+        "BO_ 2048 M: 8 ECU\n SG_ A : 0|8@1+ (1,0) [0|0] \"\" ECU\n",
+        "E0101",
+        1,
+        &["standard id 0x800", "11-bit"],
+    );
+}
+
+#[test]
+fn extended_id_above_29_bits() {
+    expect(
+        "BO_ 4294967295 M: 8 ECU\n SG_ A : 0|8@1+ (1,0) [0|0] \"\" ECU\n",
+        "E0101",
+        1,
+        &["extended id 0x7FFFFFFF", "29-bit"],
+    );
+}
+
+#[test]
+fn duplicate_ids() {
+    expect(
+        "BO_ 100 A: 8 ECU\n SG_ X : 0|8@1+ (1,0) [0|0] \"\" ECU\n\nBO_ 100 B: 8 ECU\n SG_ Y : 0|8@1+ (1,0) [0|0] \"\" ECU\n",
+        "E0102",
+        4,
+        &["`B` reuses id 0x64", "line 10"],
+    );
+}
+
+#[test]
+fn duplicate_message_names() {
+    expect(
+        "BO_ 100 Same: 8 ECU\n SG_ X : 0|8@1+ (1,0) [0|0] \"\" ECU\n\nBO_ 101 Same: 8 ECU\n SG_ Y : 0|8@1+ (1,0) [0|0] \"\" ECU\n",
+        "E0103",
+        4,
+        &["`Same` is already used"],
+    );
+}
+
+#[test]
+fn frames_longer_than_can_fd() {
+    expect(
+        "BO_ 100 M: 65 ECU\n SG_ A : 0|8@1+ (1,0) [0|0] \"\" ECU\n",
+        "E0104",
+        1,
+        &["65 bytes"],
+    );
+}
+
+#[test]
+fn signal_lengths_outside_1_to_64() {
+    expect(
+        "BO_ 100 M: 8 ECU\n SG_ Zero : 0|0@1+ (1,0) [0|0] \"\" ECU\n",
+        "E0105",
+        2,
+        &["`Zero`", "0 bits"],
+    );
+    expect(
+        "BO_ 100 M: 64 ECU\n SG_ Huge : 0|65@1+ (1,0) [0|0] \"\" ECU\n",
+        "E0105",
+        2,
+        &["65 bits"],
+    );
+}
+
+#[test]
+fn bits_outside_the_frame_intel_and_motorola() {
+    expect(
+        "BO_ 100 M: 2 ECU\n SG_ Ok : 0|8@1+ (1,0) [0|0] \"\" ECU\n SG_ Past : 12|8@1+ (1,0) [0|0] \"\" ECU\n",
+        "E0106",
+        3,
+        &["`Past`", "outside the 2-byte frame"],
+    );
+    // Motorola 16 bits from bit 0: the MSB is bit 0 of byte 0, so it runs into byte 2.
+    let d = expect(
+        "BO_ 100 M: 2 ECU\n SG_ Moto : 0|16@0+ (1,0) [0|0] \"\" ECU\n",
+        "E0106",
+        2,
+        &["`Moto`", "(0|16@0)"],
+    );
+    assert!(d.help.contains("sawtooth"), "{}", d.help);
+}
+
+#[test]
+fn overlapping_signals() {
+    expect(
+        "BO_ 100 M: 8 ECU\n SG_ A : 0|12@1+ (1,0) [0|0] \"\" ECU\n SG_ B : 8|8@1+ (1,0) [0|0] \"\" ECU\n",
+        "E0107",
+        3,
+        &["`A` and `B`", "[8, 9, 10, 11]"],
+    );
+}
+
+#[test]
+fn multiplexed_alternatives_may_share_bits() {
+    let diags = diagnose(
+        "BO_ 100 M: 8 ECU\n SG_ Sel M : 0|8@1+ (1,0) [0|0] \"\" ECU\n SG_ A m0 : 8|8@1+ (1,0) [0|0] \"\" ECU\n SG_ B m1 : 8|16@1+ (1,0) [0|0] \"\" ECU\n",
+    );
+    assert!(diags.is_empty(), "{diags:#?}");
+}
+
+#[test]
+fn duplicate_signal_names() {
+    expect(
+        "BO_ 100 M: 8 ECU\n SG_ A : 0|8@1+ (1,0) [0|0] \"\" ECU\n SG_ A : 8|8@1+ (1,0) [0|0] \"\" ECU\n",
+        "E0108",
+        3,
+        &["`A` is defined twice"],
+    );
+}
+
+#[test]
+fn ieee_float_of_the_wrong_length() {
+    expect(
+        "BO_ 100 M: 8 ECU\n SG_ F : 0|16@1- (1,0) [0|0] \"\" ECU\n\nSIG_VALTYPE_ 100 F : 1;\n",
+        "E0112",
+        4,
+        &["IEEE float (32 bits)", "16 bits long"],
+    );
+}
+
+#[test]
+fn zero_factor() {
+    expect(
+        "BO_ 100 M: 8 ECU\n SG_ Z : 0|8@1+ (0,0) [0|0] \"\" ECU\n",
+        "E0113",
+        2,
+        &["factor 0"],
+    );
+}
+
+#[test]
+fn multiplexed_signal_without_multiplexor() {
+    expect(
+        "BO_ 100 M: 8 ECU\n SG_ A m1 : 8|8@1+ (1,0) [0|0] \"\" ECU\n",
+        "E0114",
+        2,
+        &["no multiplexor"],
+    );
+}
+
+#[test]
+fn extended_multiplexing_naming_an_unknown_multiplexor() {
+    expect(
+        "BO_ 100 M: 8 ECU\n SG_ Sel M : 0|8@1+ (1,0) [0|0] \"\" ECU\n SG_ A m1 : 8|8@1+ (1,0) [0|0] \"\" ECU\n\nSG_MUL_VAL_ 100 A Nope 1-1;\n",
+        "E0114",
+        5,
+        &["`Nope`"],
+    );
+}
+
+#[test]
+fn minimum_above_maximum() {
+    expect(
+        "BO_ 100 M: 8 ECU\n SG_ R : 0|8@1+ (1,0) [10|5] \"\" ECU\n",
+        "E0115",
+        2,
+        &["minimum 10 above its maximum 5"],
+    );
+}
+
+#[test]
+fn multiplexor_values_it_cannot_take() {
+    expect(
+        "BO_ 100 M: 8 ECU\n SG_ Sel M : 0|2@1+ (1,0) [0|0] \"\" ECU\n SG_ A m7 : 8|8@1+ (1,0) [0|0] \"\" ECU\n",
+        "E0116",
+        3,
+        &["values 7-7", "2-bit multiplexor"],
+    );
+}
+
+#[test]
+fn f32_requested_for_a_wide_signal() {
+    expect(
+        "BO_ 100 M: 8 ECU\n SG_ W : 0|32@1+ (0.1,0) [0|0] \"\" ECU\n\nBA_DEF_ SG_ \"AerPhysType\" STRING ;\nBA_ \"AerPhysType\" SG_ 100 W \"f32\";\n",
+        "E0118",
+        5,
+        &["f32", "24-bit mantissa"],
+    );
+}
+
+#[test]
+fn warnings_for_what_vendor_files_get_wrong() {
+    let keyword = expect(
+        "BO_ 100 M: 8 ECU\n SG_ type : 0|8@1+ (1,0) [0|0] \"\" ECU\n",
+        "W0201",
+        2,
+        &["`type_`"],
+    );
+    assert_eq!(keyword.severity, Severity::Warning);
+    expect(
+        "BO_ 100 M: 8 ECU\n SG_ Pct : 0|8@1+ (1,0) [0|300] \"%\" ECU\n",
+        "W0202",
+        2,
+        &["[0|300]", "[0|255]"],
+    );
+    expect(
+        "BO_ 100 M: 8 ECU\n SG_ E : 0|2@1+ (1,0) [0|0] \"\" ECU\n\nVAL_ 100 E 9 \"NINE\" 1 \"ONE\" ;\n",
+        "W0203",
+        4,
+        &["value 9 (`NINE`)"],
+    );
+    expect(
+        "BO_ 100 M: 8 ECU\n SG_ FooBar : 0|8@1+ (1,0) [0|0] \"\" ECU\n SG_ foo_bar : 8|8@1+ (1,0) [0|0] \"\" ECU\n",
+        "W0204",
+        3,
+        &["`foo_bar`"],
+    );
+}
+
+#[test]
+fn the_car_schema_denies_warnings() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    std::fs::write(
+        dir.path().join("aer.dbc"),
+        format!("{HEADER}BO_ 100 M: 8 ECU\n SG_ type : 0|8@1+ (1,0) [0|0] \"\" ECU\n"),
+    )
+    .expect("write");
+    let err = aer_codegen::generate_contract(dir.path(), &dir.path().join("out"))
+        .expect_err("a warning must fail the car's build");
+    let text = err.to_string();
+    assert!(text.contains("warnings are denied"), "{text}");
+    assert!(text.contains("W0201"), "{text}");
+    assert!(
+        !dir.path().join("out").exists(),
+        "nothing may be written for a rejected schema"
+    );
+}
+
+#[test]
+fn the_cli_prints_the_same_diagnostics_and_fails() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let path = dir.path().join("bad.dbc");
+    std::fs::write(
+        &path,
+        format!("{HEADER}BO_ 100 M: 2 ECU\n SG_ Past : 12|8@1+ (1,0) [0|0] \"\" ECU\n"),
+    )
+    .expect("write");
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_aer-codegen"))
+        .arg("check")
+        .arg(&path)
+        .output()
+        .expect("run aer-codegen");
+    assert!(!out.status.success());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    let expected = aer_codegen::load_dbc(&path)
+        .expect_err("invalid")
+        .to_string();
+    assert!(stderr.contains(&expected), "{stderr}\n---\n{expected}");
+    assert!(
+        stderr.contains(&format!("{}:{}", path.display(), header_lines() + 2)),
+        "{stderr}"
+    );
+}

@@ -1,0 +1,257 @@
+//! `aer-codegen crate` end to end: generate a crate for the project's tricky DBC (1-bit signed,
+//! odd Motorola widths, 64-bit, IEEE float/double, f32 physical values, simple and cascaded
+//! extended multiplexing, 29-bit ids, a 64-byte CAN FD frame), build it with its `decode` and
+//! `encode` examples, and replay cantools' vectors through them.
+
+use std::collections::BTreeMap;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::sync::OnceLock;
+
+use aer_codegen::model::PhysType;
+use serde_json::Value as Json;
+
+fn manifest_dir() -> &'static Path {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// Generates and builds the crate once per test run; returns the example binaries.
+fn examples() -> &'static (PathBuf, PathBuf) {
+    static BUILT: OnceLock<(PathBuf, PathBuf)> = OnceLock::new();
+    BUILT.get_or_init(|| {
+        let root = Path::new(env!("CARGO_TARGET_TMPDIR")).join("tricky_can");
+        let dbc = manifest_dir().join("tests/dbc/tricky.dbc");
+        aer_codegen::generate_crate(&dbc, &root, &aer_codegen::CrateOptions::default())
+            .expect("tricky.dbc generates");
+        let target = Path::new(env!("CARGO_TARGET_TMPDIR")).join("tricky_can_target");
+        let status = Command::new(env!("CARGO"))
+            .args(["build", "--quiet", "--examples"])
+            .current_dir(&root)
+            .env("CARGO_TARGET_DIR", &target)
+            .status()
+            .expect("run cargo");
+        assert!(status.success(), "the generated crate must build");
+        let bin = |name: &str| target.join("debug/examples").join(name);
+        (bin("decode"), bin("encode"))
+    })
+}
+
+fn run(exe: &Path, input: &str) -> Vec<String> {
+    let mut child = Command::new(exe)
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .spawn()
+        .expect("start example");
+    child
+        .stdin
+        .take()
+        .expect("stdin")
+        .write_all(input.as_bytes())
+        .expect("write stdin");
+    let out = child.wait_with_output().expect("example output");
+    assert!(out.status.success());
+    String::from_utf8(out.stdout)
+        .expect("UTF-8 output")
+        .lines()
+        .map(str::to_owned)
+        .collect()
+}
+
+fn vectors() -> Vec<Json> {
+    include_str!("vectors/tricky.jsonl")
+        .lines()
+        .map(|l| serde_json::from_str(l).expect("JSON"))
+        .collect()
+}
+
+fn candump(v: &Json) -> String {
+    let id = v["id"].as_u64().expect("id");
+    let data = v["data"].as_str().expect("data").to_uppercase();
+    let ident = if v["extended"] == Json::Bool(true) {
+        format!("{id:08X}")
+    } else {
+        format!("{id:03X}")
+    };
+    let sep = if data.len() > 16 { "##0" } else { "#" };
+    format!("(1700000000.000001) can0 {ident}{sep}{data}")
+}
+
+/// Half a raw step per (message, signal), for signals the schema asks to hold in `f32`.
+fn f32_tolerances() -> BTreeMap<(String, String), f64> {
+    let (db, _) =
+        aer_codegen::load_dbc(&manifest_dir().join("tests/dbc/tricky.dbc")).expect("loads");
+    db.messages
+        .iter()
+        .flat_map(|m| {
+            m.signals
+                .iter()
+                .filter(|s| s.phys == PhysType::F32 && !s.is_float_raw())
+                .map(|s| ((m.name.clone(), s.name.clone()), s.factor.abs() / 2.0))
+        })
+        .collect()
+}
+
+#[test]
+fn decode_example_agrees_with_cantools() {
+    let (decode, _) = examples();
+    let vectors = vectors();
+    let input: String = vectors.iter().map(|v| candump(v) + "\n").collect();
+    let lines = run(decode, &input);
+    assert_eq!(lines.len(), vectors.len(), "one output line per input line");
+    let tolerance = f32_tolerances();
+    assert!(!tolerance.is_empty());
+    for (v, line) in vectors.iter().zip(&lines) {
+        let got: Json = serde_json::from_str(line).expect("decode prints JSON");
+        let name = v["name"].as_str().expect("name");
+        assert_eq!(got["name"], v["name"], "{line}");
+        assert_eq!(got["t"].as_f64(), Some(1_700_000_000.000_001));
+        let (want, got) = (
+            v["signals"].as_object().expect("obj"),
+            got["signals"].as_object().expect("obj"),
+        );
+        assert_eq!(
+            want.keys().collect::<Vec<_>>(),
+            got.keys().collect::<Vec<_>>(),
+            "{name}: {line}"
+        );
+        for (sig, w) in want {
+            let g = &got[sig];
+            match tolerance.get(&(name.to_owned(), sig.clone())) {
+                Some(tol) => {
+                    let (w, g) = (w.as_f64().expect("num"), g.as_f64().expect("num"));
+                    assert!(
+                        (w - g).abs() <= *tol,
+                        "{name}.{sig}: cantools {w}, ours {g}"
+                    );
+                }
+                None => assert_eq!(w.as_f64(), g.as_f64(), "{name}.{sig} in {line}"),
+            }
+        }
+    }
+}
+
+#[test]
+fn encode_example_agrees_with_cantools() {
+    let (_, encode) = examples();
+    let vectors = vectors();
+    let input: String = vectors
+        .iter()
+        .map(|v| {
+            serde_json::json!({"id": v["id"], "extended": v["extended"], "signals": v["signals"]})
+                .to_string()
+                + "\n"
+        })
+        .collect();
+    let lines = run(encode, &input);
+    assert_eq!(lines.len(), vectors.len());
+    let (mut compared, mut refused) = (0, 0);
+    for (v, line) in vectors.iter().zip(&lines) {
+        match v["encoded"].as_str() {
+            Some(hex) => {
+                let want = candump(
+                    &serde_json::json!({"id": v["id"], "extended": v["extended"], "data": hex}),
+                );
+                let want = want.split_once(' ').expect("space").1;
+                assert_eq!(line.split_once(' ').map(|x| x.1), Some(want), "{v}");
+                assert!(line.starts_with("(0.000000) can0 "));
+                compared += 1;
+            }
+            None => {
+                assert!(
+                    line.starts_with("{\"error\""),
+                    "cantools refused, ours gave {line} for {v}"
+                );
+                refused += 1;
+            }
+        }
+    }
+    assert!(
+        compared > 500 && refused > 0,
+        "{compared} compared, {refused} refused"
+    );
+}
+
+#[test]
+fn bad_candump_lines_give_one_error_line_each() {
+    let (decode, _) = examples();
+    let input = [
+        "",
+        "garbage",
+        "(1700000000.5) can0 100",
+        "(1700000000.5) can0 1000#00",
+        "(1700000000.5) can0 800#00",
+        "(1700000000.5) can0 7FF#0011",
+        "(1700000000.5) can0 100#0",
+        "(1700000000.5) can0 100#R",
+        "(1700000000.5) can0 100#00",
+        "(170000x000.5) can0 100#0000000000000000",
+        "(1700000000.5) can0 108##1",
+    ]
+    .join("\n");
+    let lines = run(decode, &(input + "\n"));
+    assert_eq!(lines.len(), 11);
+    let errors: Vec<String> = lines
+        .iter()
+        .map(|l| {
+            let j: Json = serde_json::from_str(l).unwrap_or_else(|e| panic!("{l}: {e}"));
+            j["error"]
+                .as_str()
+                .unwrap_or_else(|| panic!("not an error: {l}"))
+                .to_owned()
+        })
+        .collect();
+    assert!(
+        errors[3].contains("3 (standard) or 8 (extended)"),
+        "{errors:?}"
+    );
+    assert!(errors[4].contains("not a valid CAN id"), "{errors:?}");
+    assert!(
+        errors[5].contains("unknown standard id 0x7FF"),
+        "{errors:?}"
+    );
+    assert!(errors[7].contains("remote frame"), "{errors:?}");
+    assert!(
+        errors[8].contains("payload is 1 bytes, the message needs 8"),
+        "{errors:?}"
+    );
+    let short: Json = serde_json::from_str(&lines[8]).expect("json");
+    assert_eq!(short["id"], 256);
+    assert_eq!(short["t"].as_f64(), Some(1_700_000_000.5));
+}
+
+#[test]
+fn bad_json_lines_give_one_error_line_each() {
+    let (_, encode) = examples();
+    let input = [
+        "not json",
+        r#"{"id": 999}"#,
+        r#"{"id": 262, "signals": {"Mux": 0, "Always": 1}}"#,
+        r#"{"id": 262, "signals": {"Mux": 0, "PageA": 1.0, "PageB": 3, "Always": 1}}"#,
+        r#"{"id": 262, "signals": {"Mux": 0, "PageA": 1.0, "Always": 1, "Typo": 1}}"#,
+        r#"{"id": 256, "signals": {"OneBitSignedIntel": 1, "OneBitSignedMoto": 0, "OddSignedMoto": 0, "OddUnsignedIntel": 0, "ScaledInt": 0, "NegativeScale": 0, "type": 0}}"#,
+        r#"{"id": 262, "signals": {"Mux": "PAGE_B", "PageB": -5, "Always": 255}}"#,
+    ]
+    .join("\n");
+    let lines = run(encode, &(input + "\n"));
+    assert_eq!(lines.len(), 7);
+    assert!(lines[0].contains("invalid JSON"), "{lines:?}");
+    assert!(lines[1].contains("no message has id 999"), "{lines:?}");
+    assert!(
+        lines[2].contains("SimpleMux.PageA: value missing"),
+        "{lines:?}"
+    );
+    assert!(
+        lines[3].contains("SimpleMux.PageB: set, but its multiplexor selects other signals"),
+        "{lines:?}"
+    );
+    assert!(lines[4].contains("no signal `Typo`"), "{lines:?}");
+    // A 1-bit signed signal holds 0 and -1 only.
+    assert!(
+        lines[5].contains("Widths.OneBitSignedIntel: value out of range"),
+        "{lines:?}"
+    );
+    // Enum values by name; -5 as 24-bit two's complement, Motorola from bit 0 of byte 1
+    // (the frame cantools encodes for the same values).
+    assert_eq!(lines[6], "(0.000000) can0 106#0101FFFFF60000FF");
+}
