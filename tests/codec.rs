@@ -187,7 +187,7 @@ fn constants_and_metadata_come_from_the_schema() {
     assert_eq!(Vcu1::CYCLE_TIME_MS, 20);
     assert_eq!(PccStatus::CYCLE_TIME_MS, 10);
     assert_eq!(<Vcu1 as CanMessage>::META.len, 8);
-    assert!(ImdInfoVoltage::EXTENDED);
+    const { assert!(ImdInfoVoltage::EXTENDED) };
     let torque = Mcu1::META
         .signals
         .iter()
