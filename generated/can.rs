@@ -671,6 +671,7 @@ impl From<ImdDeviceActivity> for u8 {
         value.into_raw()
     }
 }
+
 /// CCM status, on both buses: vehicle state, latched faults and the schema fingerprint of the flashed firmware.
 ///
 /// `CCM_Status`: standard id 0xA0, 8 bytes, every 100 ms, sent by CCM.
@@ -682,35 +683,35 @@ pub struct CcmStatus {
     pub ccm_vehicle_state: VehicleState,
     /// Fault bitmap bit 0: pack over-current.
     ///
-    /// `CCM_FaultOverCurrent`: 1 bits from bit 8 (Intel), unsigned, range [0.0, 1.0].
+    /// `CCM_FaultOverCurrent`: 1 bit from bit 8 (Intel), unsigned, range [0.0, 1.0].
     pub ccm_fault_over_current: bool,
     /// Fault bitmap bit 1: pack under-voltage.
     ///
-    /// `CCM_FaultUnderVoltage`: 1 bits from bit 9 (Intel), unsigned, range [0.0, 1.0].
+    /// `CCM_FaultUnderVoltage`: 1 bit from bit 9 (Intel), unsigned, range [0.0, 1.0].
     pub ccm_fault_under_voltage: bool,
     /// Fault bitmap bit 2: over-temperature.
     ///
-    /// `CCM_FaultOverTemperature`: 1 bits from bit 10 (Intel), unsigned, range [0.0, 1.0].
+    /// `CCM_FaultOverTemperature`: 1 bit from bit 10 (Intel), unsigned, range [0.0, 1.0].
     pub ccm_fault_over_temperature: bool,
     /// Fault bitmap bit 3: accelerator pedal sensor out of range or implausible (T.4.2).
     ///
-    /// `CCM_FaultApps`: 1 bits from bit 11 (Intel), unsigned, range [0.0, 1.0].
+    /// `CCM_FaultApps`: 1 bit from bit 11 (Intel), unsigned, range [0.0, 1.0].
     pub ccm_fault_apps: bool,
     /// Fault bitmap bit 4: brake system encoder out of range.
     ///
-    /// `CCM_FaultBse`: 1 bits from bit 12 (Intel), unsigned, range [0.0, 1.0].
+    /// `CCM_FaultBse`: 1 bit from bit 12 (Intel), unsigned, range [0.0, 1.0].
     pub ccm_fault_bse: bool,
     /// Fault bitmap bit 5: brake pedal position sensor.
     ///
-    /// `CCM_FaultBpps`: 1 bits from bit 13 (Intel), unsigned, range [0.0, 1.0].
+    /// `CCM_FaultBpps`: 1 bit from bit 13 (Intel), unsigned, range [0.0, 1.0].
     pub ccm_fault_bpps: bool,
     /// Fault bitmap bit 6: throttle above 25 % with the brake pressed (EV.4.7); cleared below 5 %.
     ///
-    /// `CCM_FaultAppsBrakePlausibility`: 1 bits from bit 14 (Intel), unsigned, range [0.0, 1.0].
+    /// `CCM_FaultAppsBrakePlausibility`: 1 bit from bit 14 (Intel), unsigned, range [0.0, 1.0].
     pub ccm_fault_apps_brake_plausibility: bool,
     /// Fault bitmap bit 7: low-voltage battery low.
     ///
-    /// `CCM_FaultLowBatteryVoltage`: 1 bits from bit 15 (Intel), unsigned, range [0.0, 1.0].
+    /// `CCM_FaultLowBatteryVoltage`: 1 bit from bit 15 (Intel), unsigned, range [0.0, 1.0].
     pub ccm_fault_low_battery_voltage: bool,
     /// Fingerprint of the schema the firmware was built from (aer::can::SCHEMA_FINGERPRINT); receivers compare it with their own.
     ///
@@ -722,7 +723,7 @@ pub struct CcmStatus {
     pub ccm_rolling_counter: u8,
     /// Ready-to-drive sound completed and drive enabled.
     ///
-    /// `CCM_ReadyToDrive`: 1 bits from bit 52 (Intel), unsigned, range [0.0, 1.0].
+    /// `CCM_ReadyToDrive`: 1 bit from bit 52 (Intel), unsigned, range [0.0, 1.0].
     pub ccm_ready_to_drive: bool,
 }
 
@@ -1483,6 +1484,7 @@ impl CanMessage for CcmStatus {
         Self::from_signals(source)
     }
 }
+
 /// Vehicle control command to the inverter. RollingCounter must increment every frame; CheckSum = (sum of bytes 0..6) XOR 0xFF.
 ///
 /// `VCU1`: standard id 0x101, 8 bytes, every 20 ms, sent by CCM.
@@ -1490,7 +1492,7 @@ impl CanMessage for CcmStatus {
 pub struct Vcu1 {
     /// Torque request: 0.392 % of MOTOR_MAX_TORQUE (260 Nm) per bit, given here directly in Nm.
     ///
-    /// `VCU_TorqueReq`: 8 bits from bit 7 (Motorola), unsigned, physical = raw * 1.0192 + 0.0, range [0.0, 259.896], unit `Nm`.
+    /// `VCU_TorqueReq`: 8 bits from bit 7 (Motorola), unsigned, physical = raw * 1.0192, range [0.0, 259.896], unit `Nm`.
     pub vcu_torque_req: f64,
     /// Speed request, used only in speed mode.
     ///
@@ -1498,25 +1500,25 @@ pub struct Vcu1 {
     pub vcu_motor_spd_req: u16,
     /// `VCU_AuthenticationStatus`: 2 bits from bit 30 (Motorola), unsigned, range [0.0, 3.0].
     pub vcu_authentication_status: u8,
-    /// `VCU_ChangeGearAlarm`: 1 bits from bit 31 (Motorola), unsigned, range [0.0, 1.0].
+    /// `VCU_ChangeGearAlarm`: 1 bit from bit 31 (Motorola), unsigned, range [0.0, 1.0].
     pub vcu_change_gear_alarm: bool,
     /// 1 when the vehicle is ready.
     ///
-    /// `VCU_VehicleState`: 1 bits from bit 32 (Motorola), unsigned, range [0.0, 1.0].
+    /// `VCU_VehicleState`: 1 bit from bit 32 (Motorola), unsigned, range [0.0, 1.0].
     pub vcu_vehicle_state: bool,
     /// `VCU_BrakePedalSts`: 2 bits from bit 34 (Motorola), unsigned, range [0.0, 3.0].
     pub vcu_brake_pedal_sts: u8,
-    /// `VCU_BmsMainRelayCmd`: 1 bits from bit 35 (Motorola), unsigned, range [0.0, 1.0].
+    /// `VCU_BmsMainRelayCmd`: 1 bit from bit 35 (Motorola), unsigned, range [0.0, 1.0].
     pub vcu_bms_main_relay_cmd: bool,
     /// `VCU_GearLeverPosSts`: 3 bits from bit 38 (Motorola), unsigned, range [0.0, 4.0].
     pub vcu_gear_lever_pos_sts: GearLeverPos,
-    /// `VCU_GearLeverPosStsF`: 1 bits from bit 39 (Motorola), unsigned, range [0.0, 1.0].
+    /// `VCU_GearLeverPosStsF`: 1 bit from bit 39 (Motorola), unsigned, range [0.0, 1.0].
     pub vcu_gear_lever_pos_sts_f: bool,
-    /// `VCU_AcControlCmd`: 1 bits from bit 40 (Motorola), unsigned, range [0.0, 1.0].
+    /// `VCU_AcControlCmd`: 1 bit from bit 40 (Motorola), unsigned, range [0.0, 1.0].
     pub vcu_ac_control_cmd: bool,
     /// 0 torque control, 1 speed control.
     ///
-    /// `VCU_WorkMode`: 1 bits from bit 41 (Motorola), unsigned, range [0.0, 1.0].
+    /// `VCU_WorkMode`: 1 bit from bit 41 (Motorola), unsigned, range [0.0, 1.0].
     pub vcu_work_mode: bool,
     /// `VCU_MotorMode`: 2 bits from bit 43 (Motorola), unsigned, range [0.0, 2.0].
     pub vcu_motor_mode: MotorMode,
@@ -1528,7 +1530,7 @@ pub struct Vcu1 {
     ///
     /// `VCU_RollingCounter`: 4 bits from bit 51 (Motorola), unsigned, range [0.0, 15.0].
     pub vcu_rolling_counter: u8,
-    /// `VCU_BmsAuxRelayCmd`: 1 bits from bit 52 (Motorola), unsigned, range [0.0, 1.0].
+    /// `VCU_BmsAuxRelayCmd`: 1 bit from bit 52 (Motorola), unsigned, range [0.0, 1.0].
     pub vcu_bms_aux_relay_cmd: bool,
     /// `VCU_PowerReduceReq`: 3 bits from bit 55 (Motorola), unsigned, range [0.0, 7.0].
     pub vcu_power_reduce_req: u8,
@@ -2640,6 +2642,7 @@ impl CanMessage for Vcu1 {
         Self::from_signals(source)
     }
 }
+
 /// Inverter status 1: speed, torques and states.
 ///
 /// `MCU1`: standard id 0x105, 8 bytes, every 10 ms, sent by INV.
@@ -2647,19 +2650,19 @@ impl CanMessage for Vcu1 {
 pub struct Mcu1 {
     /// Motor speed.
     ///
-    /// `MCU_MotorSpeed`: 16 bits from bit 7 (Motorola), unsigned, physical = raw * 0.25 + 0.0, range [0.0, 16383.75], unit `rpm`.
+    /// `MCU_MotorSpeed`: 16 bits from bit 7 (Motorola), unsigned, physical = raw * 0.25, range [0.0, 16383.75], unit `rpm`.
     pub mcu_motor_speed: f64,
     /// Actual torque: 0.392 % of 260 Nm per bit, in Nm (the old decoder forgot the /100 and was 100x off).
     ///
-    /// `MCU_ActualTorque`: 8 bits from bit 23 (Motorola), unsigned, physical = raw * 1.0192 + 0.0, range [0.0, 259.896], unit `Nm`.
+    /// `MCU_ActualTorque`: 8 bits from bit 23 (Motorola), unsigned, physical = raw * 1.0192, range [0.0, 259.896], unit `Nm`.
     pub mcu_actual_torque: f64,
     /// Torque the inverter can deliver now, in Nm.
     ///
-    /// `MCU_MaxMotorTorque`: 8 bits from bit 31 (Motorola), unsigned, physical = raw * 1.0192 + 0.0, range [0.0, 259.896], unit `Nm`.
+    /// `MCU_MaxMotorTorque`: 8 bits from bit 31 (Motorola), unsigned, physical = raw * 1.0192, range [0.0, 259.896], unit `Nm`.
     pub mcu_max_motor_torque: f64,
     /// Brake (regen) torque the inverter can absorb now, in Nm.
     ///
-    /// `MCU_MaxMotorBrakeTorque`: 8 bits from bit 39 (Motorola), unsigned, physical = raw * 1.0192 + 0.0, range [0.0, 259.896], unit `Nm`.
+    /// `MCU_MaxMotorBrakeTorque`: 8 bits from bit 39 (Motorola), unsigned, physical = raw * 1.0192, range [0.0, 259.896], unit `Nm`.
     pub mcu_max_motor_brake_torque: f64,
     /// `MCU_MainState`: 3 bits from bit 45 (Motorola), unsigned, range [0.0, 4.0].
     pub mcu_main_state: McuMainState,
@@ -3300,6 +3303,7 @@ impl CanMessage for Mcu1 {
         Self::from_signals(source)
     }
 }
+
 /// Inverter status 2: temperatures, faults and warnings.
 ///
 /// `MCU2`: standard id 0x106, 8 bytes, every 100 ms, sent by INV.
@@ -3307,49 +3311,49 @@ impl CanMessage for Mcu1 {
 pub struct Mcu2 {
     /// Motor temperature.
     ///
-    /// `MCU_MotorTemp`: 8 bits from bit 7 (Motorola), unsigned, physical = raw * 1.0 + -40.0, range [-40.0, 215.0], unit `degC`.
+    /// `MCU_MotorTemp`: 8 bits from bit 7 (Motorola), unsigned, physical = raw - 40.0, range [-40.0, 215.0], unit `degC`.
     pub mcu_motor_temp: i16,
     /// Inverter temperature.
     ///
-    /// `MCU_InverterTemp`: 8 bits from bit 15 (Motorola), unsigned, physical = raw * 1.0 + -40.0, range [-40.0, 215.0], unit `degC`.
+    /// `MCU_InverterTemp`: 8 bits from bit 15 (Motorola), unsigned, physical = raw - 40.0, range [-40.0, 215.0], unit `degC`.
     pub mcu_inverter_temp: i16,
-    /// `MCU_DcMainWireOverCurrFault`: 1 bits from bit 16 (Motorola), unsigned, range [0.0, 1.0].
+    /// `MCU_DcMainWireOverCurrFault`: 1 bit from bit 16 (Motorola), unsigned, range [0.0, 1.0].
     pub mcu_dc_main_wire_over_curr_fault: bool,
-    /// `MCU_MotorPhaseCurrFault`: 1 bits from bit 17 (Motorola), unsigned, range [0.0, 1.0].
+    /// `MCU_MotorPhaseCurrFault`: 1 bit from bit 17 (Motorola), unsigned, range [0.0, 1.0].
     pub mcu_motor_phase_curr_fault: bool,
-    /// `MCU_OverHotFault`: 1 bits from bit 18 (Motorola), unsigned, range [0.0, 1.0].
+    /// `MCU_OverHotFault`: 1 bit from bit 18 (Motorola), unsigned, range [0.0, 1.0].
     pub mcu_over_hot_fault: bool,
-    /// `MCU_ResolverFault`: 1 bits from bit 19 (Motorola), unsigned, range [0.0, 1.0].
+    /// `MCU_ResolverFault`: 1 bit from bit 19 (Motorola), unsigned, range [0.0, 1.0].
     pub mcu_resolver_fault: bool,
-    /// `MCU_PhaseCurrSensorFault`: 1 bits from bit 20 (Motorola), unsigned, range [0.0, 1.0].
+    /// `MCU_PhaseCurrSensorFault`: 1 bit from bit 20 (Motorola), unsigned, range [0.0, 1.0].
     pub mcu_phase_curr_sensor_fault: bool,
-    /// `MCU_MotorOverSpdFault`: 1 bits from bit 21 (Motorola), unsigned, range [0.0, 1.0].
+    /// `MCU_MotorOverSpdFault`: 1 bit from bit 21 (Motorola), unsigned, range [0.0, 1.0].
     pub mcu_motor_over_spd_fault: bool,
-    /// `MCU_DrvMotorOverHotFault`: 1 bits from bit 22 (Motorola), unsigned, range [0.0, 1.0].
+    /// `MCU_DrvMotorOverHotFault`: 1 bit from bit 22 (Motorola), unsigned, range [0.0, 1.0].
     pub mcu_drv_motor_over_hot_fault: bool,
-    /// `MCU_DcMainWireOverVoltFault`: 1 bits from bit 23 (Motorola), unsigned, range [0.0, 1.0].
+    /// `MCU_DcMainWireOverVoltFault`: 1 bit from bit 23 (Motorola), unsigned, range [0.0, 1.0].
     pub mcu_dc_main_wire_over_volt_fault: bool,
-    /// `MCU_DrvMotorOverCoolFault`: 1 bits from bit 24 (Motorola), unsigned, range [0.0, 1.0].
+    /// `MCU_DrvMotorOverCoolFault`: 1 bit from bit 24 (Motorola), unsigned, range [0.0, 1.0].
     pub mcu_drv_motor_over_cool_fault: bool,
-    /// `MCU_MotorSystemState`: 1 bits from bit 25 (Motorola), unsigned, range [0.0, 1.0].
+    /// `MCU_MotorSystemState`: 1 bit from bit 25 (Motorola), unsigned, range [0.0, 1.0].
     pub mcu_motor_system_state: bool,
-    /// `MCU_TempSensorState`: 1 bits from bit 26 (Motorola), unsigned, range [0.0, 1.0].
+    /// `MCU_TempSensorState`: 1 bit from bit 26 (Motorola), unsigned, range [0.0, 1.0].
     pub mcu_temp_sensor_state: bool,
-    /// `MCU_MotorTempSensorState`: 1 bits from bit 27 (Motorola), unsigned, range [0.0, 1.0].
+    /// `MCU_MotorTempSensorState`: 1 bit from bit 27 (Motorola), unsigned, range [0.0, 1.0].
     pub mcu_motor_temp_sensor_state: bool,
-    /// `MCU_DcVoltSensorState`: 1 bits from bit 28 (Motorola), unsigned, range [0.0, 1.0].
+    /// `MCU_DcVoltSensorState`: 1 bit from bit 28 (Motorola), unsigned, range [0.0, 1.0].
     pub mcu_dc_volt_sensor_state: bool,
-    /// `MCU_DcLowVoltWarning`: 1 bits from bit 29 (Motorola), unsigned, range [0.0, 1.0].
+    /// `MCU_DcLowVoltWarning`: 1 bit from bit 29 (Motorola), unsigned, range [0.0, 1.0].
     pub mcu_dc_low_volt_warning: bool,
-    /// `MCU_12V_LowVoltWarning`: 1 bits from bit 30 (Motorola), unsigned, range [0.0, 1.0].
+    /// `MCU_12V_LowVoltWarning`: 1 bit from bit 30 (Motorola), unsigned, range [0.0, 1.0].
     pub mcu_12v_low_volt_warning: bool,
     /// `MCU2_RollingCounter`: 4 bits from bit 51 (Motorola), unsigned, range [0.0, 15.0].
     pub mcu2_rolling_counter: u8,
     /// `MCU_WarningLevel`: 2 bits from bit 53 (Motorola), unsigned, range [0.0, 3.0].
     pub mcu_warning_level: McuWarningLevel,
-    /// `MCU_MotorOpenPhaseFault`: 1 bits from bit 54 (Motorola), unsigned, range [0.0, 1.0].
+    /// `MCU_MotorOpenPhaseFault`: 1 bit from bit 54 (Motorola), unsigned, range [0.0, 1.0].
     pub mcu_motor_open_phase_fault: bool,
-    /// `MCU_MotorStallFault`: 1 bits from bit 55 (Motorola), unsigned, range [0.0, 1.0].
+    /// `MCU_MotorStallFault`: 1 bit from bit 55 (Motorola), unsigned, range [0.0, 1.0].
     pub mcu_motor_stall_fault: bool,
 }
 
@@ -4623,16 +4627,17 @@ impl CanMessage for Mcu2 {
         Self::from_signals(source)
     }
 }
+
 /// Inverter status 3: DC link and phase electrical values.
 ///
 /// `MCU3`: standard id 0x107, 8 bytes, every 10 ms, sent by INV.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Mcu3 {
-    /// `MCU_DcVoltage`: 16 bits from bit 7 (Motorola), unsigned, physical = raw * 0.01 + 0.0, range [0.0, 655.35], unit `V`.
+    /// `MCU_DcVoltage`: 16 bits from bit 7 (Motorola), unsigned, physical = raw * 0.01, range [0.0, 655.35], unit `V`.
     pub mcu_dc_voltage: f64,
-    /// `MCU_DcCurrent`: 16 bits from bit 23 (Motorola), signed, physical = raw * 0.01 + 0.0, range [-327.68, 327.67], unit `A`.
+    /// `MCU_DcCurrent`: 16 bits from bit 23 (Motorola), signed, physical = raw * 0.01, range [-327.68, 327.67], unit `A`.
     pub mcu_dc_current: f64,
-    /// `MCU_PhaseCurrent`: 16 bits from bit 39 (Motorola), unsigned, physical = raw * 0.01 + 0.0, range [0.0, 655.35], unit `A`.
+    /// `MCU_PhaseCurrent`: 16 bits from bit 39 (Motorola), unsigned, physical = raw * 0.01, range [0.0, 655.35], unit `A`.
     pub mcu_phase_current: f64,
 }
 
@@ -4871,6 +4876,7 @@ impl CanMessage for Mcu3 {
         Self::from_signals(source)
     }
 }
+
 /// BMS frame 1 as the inverter expects it from a BMS; emulated by the CCM.
 ///
 /// `BMS1`: standard id 0x1A0, 8 bytes, every 100 ms, sent by CCM.
@@ -4878,11 +4884,11 @@ impl CanMessage for Mcu3 {
 pub struct Bms1 {
     /// Precharge relay feedback (closed = 1).
     ///
-    /// `BMS_PrechargeRelayFb`: 1 bits from bit 26 (Motorola), unsigned, range [0.0, 1.0].
+    /// `BMS_PrechargeRelayFb`: 1 bit from bit 26 (Motorola), unsigned, range [0.0, 1.0].
     pub bms_precharge_relay_fb: bool,
     /// Precharge finished.
     ///
-    /// `BMS_PrechargeFinishSts`: 1 bits from bit 28 (Motorola), unsigned, range [0.0, 1.0].
+    /// `BMS_PrechargeFinishSts`: 1 bit from bit 28 (Motorola), unsigned, range [0.0, 1.0].
     pub bms_precharge_finish_sts: bool,
 }
 
@@ -5065,6 +5071,7 @@ impl CanMessage for Bms1 {
         Self::from_signals(source)
     }
 }
+
 /// BMS frame 2 as the inverter expects it from a BMS; emulated by the CCM.
 ///
 /// `BMS2`: standard id 0x1A1, 8 bytes, every 100 ms, sent by CCM.
@@ -5072,7 +5079,7 @@ impl CanMessage for Bms1 {
 pub struct Bms2 {
     /// Allowed discharge current: raw = (I + 500) x 10.
     ///
-    /// `BMS_AllowMaxDischarge`: 16 bits from bit 7 (Motorola), unsigned, physical = raw * 0.1 + -500.0, range [-500.0, 6053.5], unit `A`.
+    /// `BMS_AllowMaxDischarge`: 16 bits from bit 7 (Motorola), unsigned, physical = raw * 0.1 - 500.0, range [-500.0, 6053.5], unit `A`.
     pub bms_allow_max_discharge: f64,
 }
 
@@ -5196,6 +5203,7 @@ impl CanMessage for Bms2 {
         Self::from_signals(source)
     }
 }
+
 /// Orion BMS 2 pack status, as configured in the team's Orion profile.
 ///
 /// `Orion_PackStatus`: standard id 0x6B0, 8 bytes, every 10 ms, sent by BMS.
@@ -5203,15 +5211,15 @@ impl CanMessage for Bms2 {
 pub struct OrionPackStatus {
     /// Pack current, positive when discharging.
     ///
-    /// `Orion_PackCurrent`: 16 bits from bit 7 (Motorola), signed, physical = raw * 0.1 + 0.0, range [-3276.8, 3276.7], unit `A`.
+    /// `Orion_PackCurrent`: 16 bits from bit 7 (Motorola), signed, physical = raw * 0.1, range [-3276.8, 3276.7], unit `A`.
     pub orion_pack_current: f64,
     /// Instantaneous pack voltage.
     ///
-    /// `Orion_PackInstVoltage`: 16 bits from bit 23 (Motorola), unsigned, physical = raw * 0.1 + 0.0, range [0.0, 6553.5], unit `V`.
+    /// `Orion_PackInstVoltage`: 16 bits from bit 23 (Motorola), unsigned, physical = raw * 0.1, range [0.0, 6553.5], unit `V`.
     pub orion_pack_inst_voltage: f64,
     /// State of charge.
     ///
-    /// `Orion_PackSoc`: 8 bits from bit 39 (Motorola), unsigned, physical = raw * 0.5 + 0.0, range [0.0, 100.0], unit `%`.
+    /// `Orion_PackSoc`: 8 bits from bit 39 (Motorola), unsigned, physical = raw * 0.5, range [0.0, 100.0], unit `%`.
     pub orion_pack_soc: f64,
     /// Orion relay state bitfield.
     ///
@@ -5526,6 +5534,7 @@ impl CanMessage for OrionPackStatus {
         Self::from_signals(source)
     }
 }
+
 /// Orion BMS 2 current limits and temperatures.
 ///
 /// `Orion_Limits`: standard id 0x6B1, 8 bytes, every 100 ms, sent by BMS.
@@ -5838,16 +5847,17 @@ impl CanMessage for OrionLimits {
         Self::from_signals(source)
     }
 }
+
 /// Orion BMS 2 cell voltages.
 ///
 /// `Orion_CellVoltages`: standard id 0x6B2, 8 bytes, every 100 ms, sent by BMS.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct OrionCellVoltages {
-    /// `Orion_LowCellVoltage`: 16 bits from bit 7 (Motorola), unsigned, physical = raw * 0.0001 + 0.0, range [0.0, 6.5535], unit `V`.
+    /// `Orion_LowCellVoltage`: 16 bits from bit 7 (Motorola), unsigned, physical = raw * 0.0001, range [0.0, 6.5535], unit `V`.
     pub orion_low_cell_voltage: f64,
-    /// `Orion_HighCellVoltage`: 16 bits from bit 23 (Motorola), unsigned, physical = raw * 0.0001 + 0.0, range [0.0, 6.5535], unit `V`.
+    /// `Orion_HighCellVoltage`: 16 bits from bit 23 (Motorola), unsigned, physical = raw * 0.0001, range [0.0, 6.5535], unit `V`.
     pub orion_high_cell_voltage: f64,
-    /// `Orion_AvgCellVoltage`: 16 bits from bit 39 (Motorola), unsigned, physical = raw * 0.0001 + 0.0, range [0.0, 6.5535], unit `V`.
+    /// `Orion_AvgCellVoltage`: 16 bits from bit 39 (Motorola), unsigned, physical = raw * 0.0001, range [0.0, 6.5535], unit `V`.
     pub orion_avg_cell_voltage: f64,
     /// Id of the lowest cell.
     ///
@@ -6171,6 +6181,7 @@ impl CanMessage for OrionCellVoltages {
         Self::from_signals(source)
     }
 }
+
 /// Precharge controller status, every 10 ms.
 ///
 /// `PCC_Status`: standard id 0x222, 8 bytes, every 10 ms, sent by PCC.
@@ -6182,31 +6193,31 @@ pub struct PccStatus {
     pub pcc_state: PrechargeState,
     /// Error bit 0x01: target reached faster than the minimum time (short or wrong measurement).
     ///
-    /// `PCC_ErrorTooFast`: 1 bits from bit 8 (Intel), unsigned, range [0.0, 1.0].
+    /// `PCC_ErrorTooFast`: 1 bit from bit 8 (Intel), unsigned, range [0.0, 1.0].
     pub pcc_error_too_fast: bool,
     /// Error bit 0x02: target not reached in time.
     ///
-    /// `PCC_ErrorTooSlow`: 1 bits from bit 9 (Intel), unsigned, range [0.0, 1.0].
+    /// `PCC_ErrorTooSlow`: 1 bit from bit 9 (Intel), unsigned, range [0.0, 1.0].
     pub pcc_error_too_slow: bool,
     /// Error bit 0x04: no BMS frame for 1.5 s.
     ///
-    /// `PCC_ErrorBmsTimeout`: 1 bits from bit 10 (Intel), unsigned, range [0.0, 1.0].
+    /// `PCC_ErrorBmsTimeout`: 1 bit from bit 10 (Intel), unsigned, range [0.0, 1.0].
     pub pcc_error_bms_timeout: bool,
     /// Error bit 0x80: state machine in an undefined state.
     ///
-    /// `PCC_ErrorUndefinedState`: 1 bits from bit 15 (Intel), unsigned, range [0.0, 1.0].
+    /// `PCC_ErrorUndefinedState`: 1 bit from bit 15 (Intel), unsigned, range [0.0, 1.0].
     pub pcc_error_undefined_state: bool,
     /// Accumulator voltage from the V/F converter.
     ///
-    /// `PCC_AccumulatorVoltage`: 16 bits from bit 16 (Intel), unsigned, physical = raw * 0.01 + 0.0, range [0.0, 655.35], unit `V`.
+    /// `PCC_AccumulatorVoltage`: 16 bits from bit 16 (Intel), unsigned, physical = raw * 0.01, range [0.0, 655.35], unit `V`.
     pub pcc_accumulator_voltage: f64,
     /// Tractive-system voltage from the V/F converter.
     ///
-    /// `PCC_TractiveVoltage`: 16 bits from bit 32 (Intel), unsigned, physical = raw * 0.01 + 0.0, range [0.0, 655.35], unit `V`.
+    /// `PCC_TractiveVoltage`: 16 bits from bit 32 (Intel), unsigned, physical = raw * 0.01, range [0.0, 655.35], unit `V`.
     pub pcc_tractive_voltage: f64,
     /// Tractive-system voltage as a percentage of the accumulator voltage.
     ///
-    /// `PCC_PrechargeProgress`: 16 bits from bit 48 (Intel), unsigned, physical = raw * 0.01 + 0.0, range [0.0, 655.35], unit `%`.
+    /// `PCC_PrechargeProgress`: 16 bits from bit 48 (Intel), unsigned, physical = raw * 0.01, range [0.0, 655.35], unit `%`.
     pub pcc_precharge_progress: f64,
 }
 
@@ -6736,6 +6747,7 @@ impl CanMessage for PccStatus {
         Self::from_signals(source)
     }
 }
+
 /// Bender IMD general information (J1939 PGN 0xFF01).
 ///
 /// `IMD_InfoGeneral`: extended id 0x18FF01F4, 8 bytes, every 100 ms, sent by IMD.
@@ -6751,27 +6763,27 @@ pub struct ImdInfoGeneral {
     pub imd_r_iso_status: u8,
     /// `IMD_MeasurementCounter`: 8 bits from bit 24 (Intel), unsigned, range [0.0, 255.0].
     pub imd_measurement_counter: u8,
-    /// `IMD_DeviceError`: 1 bits from bit 32 (Intel), unsigned, range [0.0, 1.0].
+    /// `IMD_DeviceError`: 1 bit from bit 32 (Intel), unsigned, range [0.0, 1.0].
     pub imd_device_error: bool,
-    /// `IMD_HvPosConnectionFailure`: 1 bits from bit 33 (Intel), unsigned, range [0.0, 1.0].
+    /// `IMD_HvPosConnectionFailure`: 1 bit from bit 33 (Intel), unsigned, range [0.0, 1.0].
     pub imd_hv_pos_connection_failure: bool,
-    /// `IMD_HvNegConnectionFailure`: 1 bits from bit 34 (Intel), unsigned, range [0.0, 1.0].
+    /// `IMD_HvNegConnectionFailure`: 1 bit from bit 34 (Intel), unsigned, range [0.0, 1.0].
     pub imd_hv_neg_connection_failure: bool,
-    /// `IMD_EarthConnectionFailure`: 1 bits from bit 35 (Intel), unsigned, range [0.0, 1.0].
+    /// `IMD_EarthConnectionFailure`: 1 bit from bit 35 (Intel), unsigned, range [0.0, 1.0].
     pub imd_earth_connection_failure: bool,
-    /// `IMD_IsoAlarm`: 1 bits from bit 36 (Intel), unsigned, range [0.0, 1.0].
+    /// `IMD_IsoAlarm`: 1 bit from bit 36 (Intel), unsigned, range [0.0, 1.0].
     pub imd_iso_alarm: bool,
-    /// `IMD_IsoWarning`: 1 bits from bit 37 (Intel), unsigned, range [0.0, 1.0].
+    /// `IMD_IsoWarning`: 1 bit from bit 37 (Intel), unsigned, range [0.0, 1.0].
     pub imd_iso_warning: bool,
-    /// `IMD_IsoOutdated`: 1 bits from bit 38 (Intel), unsigned, range [0.0, 1.0].
+    /// `IMD_IsoOutdated`: 1 bit from bit 38 (Intel), unsigned, range [0.0, 1.0].
     pub imd_iso_outdated: bool,
-    /// `IMD_UnbalanceAlarm`: 1 bits from bit 39 (Intel), unsigned, range [0.0, 1.0].
+    /// `IMD_UnbalanceAlarm`: 1 bit from bit 39 (Intel), unsigned, range [0.0, 1.0].
     pub imd_unbalance_alarm: bool,
-    /// `IMD_UndervoltageAlarm`: 1 bits from bit 40 (Intel), unsigned, range [0.0, 1.0].
+    /// `IMD_UndervoltageAlarm`: 1 bit from bit 40 (Intel), unsigned, range [0.0, 1.0].
     pub imd_undervoltage_alarm: bool,
-    /// `IMD_UnsafeToStart`: 1 bits from bit 41 (Intel), unsigned, range [0.0, 1.0].
+    /// `IMD_UnsafeToStart`: 1 bit from bit 41 (Intel), unsigned, range [0.0, 1.0].
     pub imd_unsafe_to_start: bool,
-    /// `IMD_EarthliftOpen`: 1 bits from bit 42 (Intel), unsigned, range [0.0, 1.0].
+    /// `IMD_EarthliftOpen`: 1 bit from bit 42 (Intel), unsigned, range [0.0, 1.0].
     pub imd_earthlift_open: bool,
     /// What the IMD is doing.
     ///
@@ -7695,6 +7707,7 @@ impl CanMessage for ImdInfoGeneral {
         Self::from_signals(source)
     }
 }
+
 /// Bender IMD isolation detail (J1939 PGN 0xFF02).
 ///
 /// `IMD_InfoIsolationDetail`: extended id 0x18FF02F4, 8 bytes, every 100 ms, sent by IMD.
@@ -8056,16 +8069,17 @@ impl CanMessage for ImdInfoIsolationDetail {
         Self::from_signals(source)
     }
 }
+
 /// Bender IMD voltages (J1939 PGN 0xFF03): raw offset 32128 at 0.05 V per bit.
 ///
 /// `IMD_InfoVoltage`: extended id 0x18FF03F4, 8 bytes, every 100 ms, sent by IMD.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ImdInfoVoltage {
-    /// `IMD_HvSystemVoltage`: 16 bits from bit 0 (Intel), unsigned, physical = raw * 0.05 + -1606.4, range [-1606.4, 1670.35], unit `V`.
+    /// `IMD_HvSystemVoltage`: 16 bits from bit 0 (Intel), unsigned, physical = raw * 0.05 - 1606.4, range [-1606.4, 1670.35], unit `V`.
     pub imd_hv_system_voltage: f64,
-    /// `IMD_HvNegToEarthVoltage`: 16 bits from bit 16 (Intel), unsigned, physical = raw * 0.05 + -1606.4, range [-1606.4, 1670.35], unit `V`.
+    /// `IMD_HvNegToEarthVoltage`: 16 bits from bit 16 (Intel), unsigned, physical = raw * 0.05 - 1606.4, range [-1606.4, 1670.35], unit `V`.
     pub imd_hv_neg_to_earth_voltage: f64,
-    /// `IMD_HvPosToEarthVoltage`: 16 bits from bit 32 (Intel), unsigned, physical = raw * 0.05 + -1606.4, range [-1606.4, 1670.35], unit `V`.
+    /// `IMD_HvPosToEarthVoltage`: 16 bits from bit 32 (Intel), unsigned, physical = raw * 0.05 - 1606.4, range [-1606.4, 1670.35], unit `V`.
     pub imd_hv_pos_to_earth_voltage: f64,
     /// `IMD_VoltageMeasurementCounter`: 8 bits from bit 48 (Intel), unsigned, range [0.0, 255.0].
     pub imd_voltage_measurement_counter: u8,
@@ -8448,6 +8462,7 @@ impl CanMessage for ImdInfoVoltage {
         Self::from_signals(source)
     }
 }
+
 /// Bender IMD IT-system values (J1939 PGN 0xFF04).
 ///
 /// `IMD_InfoItSystem`: extended id 0x18FF04F4, 8 bytes, every 100 ms, sent by IMD.
@@ -8461,7 +8476,7 @@ pub struct ImdInfoItSystem {
     pub imd_unbalance: u8,
     /// `IMD_UnbalanceMeasurementCounter`: 8 bits from bit 32 (Intel), unsigned, range [0.0, 255.0].
     pub imd_unbalance_measurement_counter: u8,
-    /// `IMD_VoltageFrequency`: 16 bits from bit 40 (Intel), unsigned, physical = raw * 0.1 + 0.0, range [0.0, 6553.5], unit `Hz`.
+    /// `IMD_VoltageFrequency`: 16 bits from bit 40 (Intel), unsigned, physical = raw * 0.1, range [0.0, 6553.5], unit `Hz`.
     pub imd_voltage_frequency: f64,
 }
 
@@ -8820,6 +8835,7 @@ impl CanMessage for ImdInfoItSystem {
         Self::from_signals(source)
     }
 }
+
 /// Request to the Bender IMD (J1939 PGN 0xEF00 from the CCM, address 0x17, to the IMD, 0xF4).
 ///
 /// `IMD_Request`: extended id 0x18EFF417, 8 bytes, sent by CCM.

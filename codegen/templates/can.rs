@@ -76,8 +76,7 @@ impl From<{{ e.name }}> for {{ e.repr }} {
 }
 {%- endfor %}
 {%- for m in messages %}
-
-{%- for d in m.docs %}
+{% for d in m.docs %}
 ///{% if !d.is_empty() %} {{ d }}{% endif %}
 {%- endfor %}
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -424,9 +424,10 @@ fn signal_view(db: &Database, m: &Message, index: usize, s: &Signal) -> SignalVi
         docs.push(String::new());
     }
     let mut facts = format!(
-        "`{}`: {} bits from bit {} ({}), {}",
+        "`{}`: {} bit{} from bit {} ({}), {}",
         s.name,
         s.len,
+        if s.len == 1 { "" } else { "s" },
         s.start_bit,
         if s.byte_order == ByteOrder::LittleEndian {
             "Intel"
@@ -441,11 +442,17 @@ fn signal_view(db: &Database, m: &Message, index: usize, s: &Signal) -> SignalVi
         }
     );
     if !identity(s) {
-        facts.push_str(&format!(
-            ", physical = raw * {} + {}",
-            float_lit(s.factor),
-            float_lit(s.offset)
-        ));
+        let offset = match s.offset {
+            0.0 => String::new(),
+            o if o < 0.0 => format!(" - {}", float_lit(-o)),
+            o => format!(" + {}", float_lit(o)),
+        };
+        let factor = if s.factor == 1.0 {
+            String::new()
+        } else {
+            format!(" * {}", float_lit(s.factor))
+        };
+        facts.push_str(&format!(", physical = raw{factor}{offset}"));
     }
     if let (Some(lo), Some(hi)) = (s.min, s.max) {
         facts.push_str(&format!(", range [{}, {}]", float_lit(lo), float_lit(hi)));

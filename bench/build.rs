@@ -1,0 +1,92 @@
+//! Generates, for each benchmarked DBC file, our codec and dbc-codegen 0.4.0's code for the same
+//! file, plus a small per-message harness for the peer (its getters and `new` are per message,
+//! so there is no generic way to call them).
+
+use std::fmt::Write as _;
+
+use heck::{ToSnakeCase, ToUpperCamelCase};
+use std::path::{Path, PathBuf};
+
+/// (module name, DBC path relative to this crate).
+const DBCS: [(&str, &str); 2] = [
+    ("aer", "../schema/aer.dbc"),
+    ("vehicle", "../../shared/dbc-corpus/cantools/vehicle.dbc"),
+];
+
+fn main() {
+    let out = PathBuf::from(std::env::var("OUT_DIR").expect("cargo sets OUT_DIR"));
+    let mut index = String::new();
+    for (name, path) in DBCS {
+        println!("cargo::rerun-if-changed={path}");
+        let (db, _) = aer_codegen::load_dbc(Path::new(path)).unwrap_or_else(|e| panic!("{e}"));
+
+        let ours = out.join(format!("ours_{name}"));
+        std::fs::create_dir_all(&ours).expect("out dir");
+        let runtime = aer_codegen::render::codec::render_runtime(path).expect("render runtime");
+        let can = aer_codegen::render::codec::render_can(&db, path, 0).expect("render messages");
+        std::fs::write(ours.join("runtime.rs"), runtime).expect("write");
+        std::fs::write(ours.join("can.rs"), can).expect("write");
+
+        let text = aer_codegen::load::dbc::decode_text(&std::fs::read(path).expect("read DBC")).expect("text");
+        let peer = out.join(format!("peer_{name}.rs"));
+        dbc_codegen::Config::builder()
+            .dbc_name(name)
+            .dbc_content(&text)
+            .build()
+            .write_to_file(&peer)
+            .expect("dbc-codegen generates");
+
+        let harness = out.join(format!("peer_harness_{name}.rs"));
+        std::fs::write(&harness, peer_harness(&db)).expect("write harness");
+        // `#[path]` (not `include!`) so the files keep their inner doc comments and attributes.
+        writeln!(
+            index,
+            "pub mod {name} {{\n  pub mod ours {{\n    #[path = {:?}] pub mod runtime;\n    #[path = {:?}] pub mod can;\n  }}\n  #[path = {:?}] pub mod peer;\n  #[path = {:?}] pub mod peer_harness;\n}}",
+            ours.join("runtime.rs"),
+            ours.join("can.rs"),
+            peer,
+            harness
+        )
+        .expect("write to string");
+    }
+    std::fs::write(out.join("codecs.rs"), index).expect("write index");
+}
+
+/// dbc-codegen's field naming: heck snake case, prefixed with `x` for keywords and names not
+/// starting with a letter.
+fn peer_name(name: &str, camel: bool) -> String {
+    let cased = if camel { name.to_upper_camel_case() } else { name.to_snake_case() };
+    if !name.starts_with(|c: char| c.is_ascii_alphabetic()) || KEYWORDS.contains(&name) {
+        format!("x{cased}")
+    } else {
+        cased
+    }
+}
+
+const KEYWORDS: [&str; 5] = ["type", "match", "move", "ref", "self"];
+
+/// `decode(id, data)`: parse and call every getter; `prepare(id, data)`: a closure that builds
+/// the message from its physical values with `new` (what encoding is, for dbc-codegen).
+fn peer_harness(db: &aer_codegen::model::Database) -> String {
+    let mut decode = String::new();
+    let mut prepare = String::new();
+    for m in db.messages.iter().filter(|m| m.signals.iter().all(|s| s.mux.is_none())) {
+        let ty = peer_name(&m.name, true);
+        let getters: Vec<String> = m.signals.iter().map(|s| format!("m.{}()", peer_name(&s.name, false))).collect();
+        let _ = writeln!(
+            decode,
+            "      Ok(super::peer::Messages::{ty}(m)) => {{ {} }}",
+            getters.iter().map(|g| format!("black_box({g});")).collect::<String>()
+        );
+        let args: Vec<String> = (0..getters.len()).map(|i| format!("v.{i}")).collect();
+        let _ = writeln!(
+            prepare,
+            "      Ok(super::peer::Messages::{ty}(m)) => {{ let v = ({},); Some(Box::new(move |out: &mut [u8]| match super::peer::{ty}::new({}) {{ Ok(x) => {{ out[..x.raw().len()].copy_from_slice(x.raw()); x.raw().len() }} Err(_) => 0 }})) }}",
+            getters.join(", "),
+            args.join(", ")
+        );
+    }
+    format!(
+        "    use core::hint::black_box;\n    pub fn decode(id: embedded_can::Id, data: &[u8]) {{\n      match super::peer::Messages::from_can_message(id, data) {{\n{decode}      _ => {{}}\n      }}\n    }}\n    #[allow(clippy::type_complexity)]\n    pub fn prepare(id: embedded_can::Id, data: &[u8]) -> Option<Box<dyn Fn(&mut [u8]) -> usize>> {{\n      match super::peer::Messages::from_can_message(id, data) {{\n{prepare}      _ => None,\n      }}\n    }}\n"
+    )
+}
