@@ -90,3 +90,26 @@ pub fn write_database(h: &mut Fnv1a, db: &Database) {
         }
     }
 }
+
+/// Fingerprint of the telemetry packet: its layout plus the CAN database it references, so a
+/// firmware built from a different schema is detected by the Pi.
+pub fn telemetry(db: &Database, t: &crate::model::Telemetry) -> u32 {
+    let mut h = Fnv1a::new();
+    write_database(&mut h, db);
+    h.field(&format!(
+        "telemetry {} {} {} {}",
+        t.type_name, t.tx_id, t.flow_control_id, t.len
+    ));
+    for f in &t.fields {
+        h.field(&format!(
+            "field {} {:?} {:?} {:016x} {:016x} {:?}",
+            f.name,
+            f.wire,
+            f.placement,
+            f.scale.to_bits(),
+            f.offset.to_bits(),
+            f.phys
+        ));
+    }
+    h.finish()
+}

@@ -76,7 +76,12 @@ pub fn codec_files(
     Ok(vec![
         file(
             "lib.rs",
-            render::standalone::LibTemplate { title, source }.render()?,
+            render::standalone::LibTemplate {
+                title,
+                source,
+                telemetry: false,
+            }
+            .render()?,
         ),
         file("runtime.rs", render::codec::render_runtime(source)?),
         file(
@@ -121,22 +126,82 @@ pub fn write_files(
     Ok(())
 }
 
-/// Generates the car's contract crate sources (`generated/`) from `schema_dir`. Warnings are
-/// denied: the car's own schema must be clean.
-pub fn generate_contract(schema_dir: &Path, out_dir: &Path) -> Result<Report, Error> {
-    let dbc_path = schema_dir.join("aer.dbc");
-    let (db, warnings) = load_dbc(&dbc_path)?;
-    if !warnings.is_empty() {
-        return Err(Error::DeniedWarnings(warnings));
+/// The car's schema: the CAN database and the telemetry packet that references it.
+pub struct CarSchema {
+    pub db: Database,
+    pub telemetry: model::Telemetry,
+}
+
+impl CarSchema {
+    /// Loads `aer.dbc` and `telemetry.yaml` from `schema_dir`. Warnings are denied: the car's own
+    /// schema must be clean.
+    pub fn load(schema_dir: &Path) -> Result<Self, Error> {
+        let (db, warnings) = load_dbc(&schema_dir.join("aer.dbc"))?;
+        if !warnings.is_empty() {
+            return Err(Error::DeniedWarnings(warnings));
+        }
+        let yaml = schema_dir.join("telemetry.yaml");
+        let loaded = load::telemetry::load(&yaml)?;
+        let telemetry = validate::telemetry::validate(&yaml, &loaded, &db)?;
+        Ok(Self { db, telemetry })
     }
-    let files = codec_files(
-        &db,
-        "schema/aer.dbc",
-        "The car's wire contract: codecs for every CAN frame of the AER car.",
-        "aer",
-    )?;
+
+    /// Every file of the contract crate, relative to `generated/`.
+    pub fn files(&self) -> Result<Vec<GeneratedFile>, Error> {
+        let (db, t) = (&self.db, &self.telemetry);
+        let dbc = "schema/aer.dbc";
+        let yaml = "schema/telemetry.yaml";
+        let file = |path: &str, content: String| GeneratedFile {
+            path: PathBuf::from(path),
+            content,
+        };
+        let lib = render::standalone::LibTemplate {
+            title: "The car's wire contract: CAN frames, the telemetry packet, its storage and topics.",
+            source: "schema/",
+            telemetry: true,
+        };
+        Ok(vec![
+            file("lib.rs", lib.render()?),
+            file("runtime.rs", render::codec::render_runtime(dbc)?),
+            file(
+                "can.rs",
+                render::codec::render_can(db, dbc, fingerprint::database(db))?,
+            ),
+            file(
+                "telemetry.rs",
+                render::telemetry::render(db, t, yaml, fingerprint::telemetry(db, t))?,
+            ),
+            file(
+                "telemetry_deku.rs",
+                render::telemetry::render_deku(db, t, yaml)?,
+            ),
+            file(
+                "tdengine.rs",
+                render::tdengine::render_rust(db, t, "schema/")?,
+            ),
+            file(
+                "sql/tdengine.sql",
+                render::tdengine::render_sql(db, t, "schema/")?,
+            ),
+            file("mqtt.rs", render::mqtt::render(db, t, "schema/")?),
+            file(
+                "examples/decode.rs",
+                render::standalone::DecodeExample { krate: "aer" }.render()?,
+            ),
+            file(
+                "examples/encode.rs",
+                render::standalone::EncodeExample { krate: "aer" }.render()?,
+            ),
+        ])
+    }
+}
+
+/// Generates the car's contract crate sources (`generated/`) from `schema_dir`.
+pub fn generate_contract(schema_dir: &Path, out_dir: &Path) -> Result<Report, Error> {
+    let schema = CarSchema::load(schema_dir)?;
+    let files = schema.files()?;
     let mut report = Report {
-        fingerprint: fingerprint::database(&db),
+        fingerprint: fingerprint::telemetry(&schema.db, &schema.telemetry),
         ..Report::default()
     };
     write_files(out_dir, &files, &mut report)?;

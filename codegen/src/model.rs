@@ -231,3 +231,116 @@ impl Signal {
 pub fn be_linear(start_bit: u32) -> u32 {
     (start_bit / 8) * 8 + (7 - start_bit % 8)
 }
+
+/// The ISO-TP telemetry packet, laid out byte by byte.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Telemetry {
+    pub type_name: String,
+    pub description: String,
+    pub tx_id: u16,
+    pub flow_control_id: u16,
+    pub period_ms: u32,
+    /// Every field, in schema order; `layout` says where each one sits.
+    pub fields: Vec<TelemetryField>,
+    /// Total packet length in bytes, header included.
+    pub len: usize,
+}
+
+/// Bytes of the fixed header: fingerprint u32, sequence u16, timestamp_us u32.
+pub const TELEMETRY_HEADER_LEN: usize = 10;
+
+/// Largest payload an ISO-TP (ISO 15765-2, classic CAN) message carries.
+pub const ISOTP_MAX_LEN: usize = 4095;
+
+/// How a telemetry field is stored on the wire.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum WireType {
+    U8,
+    U16,
+    U32,
+    I8,
+    I16,
+    I32,
+    F32,
+    Flag,
+}
+
+impl WireType {
+    pub fn bytes(self) -> usize {
+        match self {
+            WireType::U8 | WireType::I8 => 1,
+            WireType::U16 | WireType::I16 => 2,
+            WireType::U32 | WireType::I32 | WireType::F32 => 4,
+            WireType::Flag => 0,
+        }
+    }
+
+    pub fn bits(self) -> u32 {
+        match self {
+            WireType::Flag => 1,
+            other => other.bytes() as u32 * 8,
+        }
+    }
+
+    pub fn rust(self) -> &'static str {
+        match self {
+            WireType::U8 => "u8",
+            WireType::U16 => "u16",
+            WireType::U32 => "u32",
+            WireType::I8 => "i8",
+            WireType::I16 => "i16",
+            WireType::I32 => "i32",
+            WireType::F32 => "f32",
+            WireType::Flag => "bool",
+        }
+    }
+
+    /// Smallest and largest raw value.
+    pub fn range(self) -> (i128, i128) {
+        match self {
+            WireType::U8 => IntType::U8.range(),
+            WireType::U16 => IntType::U16.range(),
+            WireType::U32 => IntType::U32.range(),
+            WireType::I8 => IntType::I8.range(),
+            WireType::I16 => IntType::I16.range(),
+            WireType::I32 => IntType::I32.range(),
+            WireType::Flag => (0, 1),
+            WireType::F32 => (i128::MIN, i128::MAX),
+        }
+    }
+}
+
+/// Where a field sits in the packet.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Placement {
+    /// Byte offset of a byte-aligned little-endian value.
+    Bytes(usize),
+    /// Byte offset and bit (0 = LSB) of a flag.
+    Bit(usize, u8),
+}
+
+/// Dashboard hints for a field.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Display {
+    pub label: Option<String>,
+    pub warn: Option<f64>,
+    pub critical: Option<f64>,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct TelemetryField {
+    pub name: String,
+    pub group: String,
+    pub description: String,
+    pub unit: String,
+    pub wire: WireType,
+    pub scale: f64,
+    pub offset: f64,
+    pub min: Option<f64>,
+    pub max: Option<f64>,
+    pub phys: PhysType,
+    pub placement: Placement,
+    pub display: Display,
+    /// `MESSAGE.SIGNAL` this field mirrors, when it references the DBC.
+    pub source: Option<String>,
+}

@@ -74,17 +74,34 @@ impl From<{{ e.name }}> for {{ e.repr }} {
         value.into_raw()
     }
 }
+
+/// Serialized as the raw number (what plots and databases want); labels are in the metadata.
+#[cfg(feature = "serde")]
+impl serde::Serialize for {{ e.name }} {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        serde::Serialize::serialize(&self.into_raw(), serializer)
+    }
+}
+
+#[cfg(feature = "serde")]
+impl<'de> serde::Deserialize<'de> for {{ e.name }} {
+    fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        <{{ e.repr }} as serde::Deserialize>::deserialize(deserializer).map(Self::from_raw)
+    }
+}
 {%- endfor %}
 {%- for m in messages %}
 {% for d in m.docs %}
 ///{% if !d.is_empty() %} {{ d }}{% endif %}
 {%- endfor %}
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct {{ m.type_name }} {
 {%- for s in m.signals %}
 {%- for d in s.docs %}
     ///{% if !d.is_empty() %} {{ d }}{% endif %}
 {%- endfor %}
+    {{ s.serde_attr }}
     pub {{ s.field }}: {{ s.field_ty }},
 {%- endfor %}
 }

@@ -4,9 +4,32 @@
 //! - [`can`]: one struct per CAN message, [`can::AnyMessage`] for frame-level decoding.
 //! - [`runtime`]: errors, metadata and the [`runtime::SignalVisitor`] /
 //!   [`runtime::SignalSource`] traits for working with any message generically.
+{%- if telemetry %}
+//! - [`telemetry`]: the ISO-TP telemetry packet and its firmware packer.
+//! - [`tdengine`]: the database schema (super tables, columns, insert statements).
+//! - `telemetry_deku` and `mqtt` (feature `host`): the Pi's Deku decoder and the typed MQTT
+//!   topics.
+{%- endif %}
 //!
-//! `no_std`, no allocator, and no panics on any input.
+//! `no_std`, no allocator (without features), and no panics on any input.
 #![no_std]
+{%- if telemetry %}
+
+#[cfg(feature = "host")]
+extern crate alloc;
+#[cfg(feature = "host")]
+extern crate std;
+{%- endif %}
 
 pub mod can;
+{%- if telemetry %}
+#[cfg(feature = "host")]
+pub mod mqtt;
+{%- endif %}
 pub mod runtime;
+{%- if telemetry %}
+pub mod tdengine;
+pub mod telemetry;
+#[cfg(feature = "host")]
+pub mod telemetry_deku;
+{%- endif %}

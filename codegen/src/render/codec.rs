@@ -68,6 +68,8 @@ pub struct SignalView {
     pub encode_stmt: String,
     pub visit_stmt: String,
     pub from_signals_expr: String,
+    /// Names the JSON key after the DBC signal; absent multiplexed signals are left out.
+    pub serde_attr: String,
 }
 
 pub fn render_runtime(source: &str) -> Result<String, askama::Error> {
@@ -178,17 +180,8 @@ fn message_view(db: &Database, m: &Message) -> MessageView {
     }
 }
 
-fn phys_rust(db: &Database, s: &Signal) -> String {
-    match s.phys {
-        PhysType::Bool => "bool".into(),
-        PhysType::Int(t) => t.rust().into(),
-        PhysType::F32 => "f32".into(),
-        PhysType::F64 => "f64".into(),
-        PhysType::Enum(i) => db
-            .enums
-            .get(i)
-            .map_or("u64".into(), |e| e.type_name.clone()),
-    }
+pub(crate) fn phys_rust_signal(db: &Database, s: &Signal) -> String {
+    super::phys_rust(db, s.phys)
 }
 
 fn raw_rust(s: &Signal) -> &'static str {
@@ -200,7 +193,7 @@ fn raw_rust(s: &Signal) -> &'static str {
 }
 
 /// `x * factor + offset` in source form, leaving out identity steps.
-fn scale_expr(x: &str, factor: f64, offset: f64) -> String {
+pub(crate) fn scale_expr(x: &str, factor: f64, offset: f64) -> String {
     let mut e = x.to_owned();
     if factor != 1.0 {
         e = format!("{e} * {}", float_lit(factor));
@@ -229,7 +222,7 @@ fn identity(s: &Signal) -> bool {
 
 fn signal_view(db: &Database, m: &Message, index: usize, s: &Signal) -> SignalView {
     let raw_ty = raw_rust(s).to_owned();
-    let phys_ty = phys_rust(db, s);
+    let phys_ty = phys_rust_signal(db, s);
     let optional = s.mux.is_some();
     let field_ty = if optional {
         format!("Option<{phys_ty}>")
@@ -492,6 +485,17 @@ fn signal_view(db: &Database, m: &Message, index: usize, s: &Signal) -> SignalVi
         encode_stmt,
         visit_stmt,
         from_signals_expr,
+        serde_attr: if optional {
+            format!(
+                "#[cfg_attr(feature = \"serde\", serde(rename = {:?}, default, skip_serializing_if = \"Option::is_none\"))]",
+                s.name
+            )
+        } else {
+            format!(
+                "#[cfg_attr(feature = \"serde\", serde(rename = {:?}))]",
+                s.name
+            )
+        },
     }
 }
 

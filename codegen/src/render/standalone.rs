@@ -7,6 +7,8 @@ use askama::Template;
 pub struct LibTemplate<'a> {
     pub title: &'a str,
     pub source: &'a str,
+    /// Whether the crate also carries the telemetry packet, TDengine schema and MQTT topics.
+    pub telemetry: bool,
 }
 
 #[derive(Template)]

@@ -1,0 +1,107 @@
+//! Reads `telemetry.yaml`. Every value keeps its line so validation can point at it; unknown
+//! keys are errors (a typo such as `sacle:` must not be silently ignored).
+
+use std::path::Path;
+
+use serde::Deserialize;
+use serde_saphyr::Spanned;
+
+use crate::diagnostic::{Diagnostics, Reporter};
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TelemetryFile {
+    pub packet: Spanned<PacketSpec>,
+    pub fields: Vec<Spanned<FieldSpec>>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PacketSpec {
+    pub name: Spanned<String>,
+    #[serde(default)]
+    pub description: String,
+    pub tx_id: Spanned<u32>,
+    pub flow_control_id: Spanned<u32>,
+    pub period_ms: u32,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FieldSpec {
+    pub name: Spanned<String>,
+    #[serde(default)]
+    pub group: Option<String>,
+    #[serde(default)]
+    pub description: Option<String>,
+    #[serde(default)]
+    pub signal: Option<Spanned<String>>,
+    #[serde(default, rename = "type")]
+    pub wire: Option<Spanned<String>>,
+    #[serde(default)]
+    pub scale: Option<Spanned<f64>>,
+    #[serde(default)]
+    pub offset: Option<f64>,
+    #[serde(default)]
+    pub unit: Option<String>,
+    #[serde(default)]
+    pub min: Option<f64>,
+    #[serde(default)]
+    pub max: Option<f64>,
+    #[serde(default, rename = "enum")]
+    pub enum_name: Option<Spanned<String>>,
+    #[serde(default)]
+    pub display: Option<DisplaySpec>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DisplaySpec {
+    #[serde(default)]
+    pub label: Option<String>,
+    #[serde(default)]
+    pub warn: Option<f64>,
+    #[serde(default)]
+    pub critical: Option<f64>,
+}
+
+/// A parsed telemetry file with its source, for diagnostics.
+pub struct LoadedTelemetry {
+    pub text: String,
+    pub file: TelemetryFile,
+}
+
+pub fn load(path: &Path) -> Result<LoadedTelemetry, Diagnostics> {
+    let text = std::fs::read_to_string(path).map_err(|e| {
+        let mut r = Reporter::new(path, "");
+        r.error(
+            "E0201",
+            0,
+            format!("cannot read the file: {e}"),
+            "check the path and that the file is UTF-8",
+        );
+        Diagnostics(r.diagnostics)
+    })?;
+    parse(path, text)
+}
+
+pub fn parse(path: &Path, text: String) -> Result<LoadedTelemetry, Diagnostics> {
+    match serde_saphyr::from_str::<TelemetryFile>(&text) {
+        Ok(file) => Ok(LoadedTelemetry { text, file }),
+        Err(err) => {
+            let line = err
+                .location()
+                .map_or(0, |l| usize::try_from(l.line()).unwrap_or(0));
+            let message = err.to_string();
+            let first = message.lines().next().unwrap_or("invalid YAML").to_owned();
+            let mut r = Reporter::new(path, &text);
+            r.error(
+                "E0202",
+                line,
+                format!("the telemetry schema is not valid: {first}"),
+                "compare with the description at the top of telemetry.yaml (known keys, YAML indentation)",
+            );
+            Err(Diagnostics(r.diagnostics))
+        }
+    }
+}

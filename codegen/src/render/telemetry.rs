@@ -1,0 +1,301 @@
+//! Renders the telemetry packet: the no_std firmware packer (`telemetry.rs`) and the Pi's Deku
+//! decoder (`telemetry_deku.rs`). Both convert through the same generated per-field functions,
+//! so they cannot disagree on scaling.
+
+use askama::Template;
+
+use super::codec::scale_expr;
+use super::{doc_lines, float_lit, phys_rust};
+use crate::model::{Database, PhysType, Placement, Telemetry, TelemetryField, WireType};
+
+#[derive(Template)]
+#[template(path = "telemetry.rs", escape = "none")]
+pub struct TelemetryTemplate<'a> {
+    pub source: &'a str,
+    pub t: &'a Telemetry,
+    pub fingerprint: String,
+    pub enums: Vec<String>,
+    pub fields: Vec<FieldView>,
+    pub flag_bytes: usize,
+}
+
+#[derive(Template)]
+#[template(path = "telemetry_deku.rs", escape = "none")]
+pub struct DekuTemplate<'a> {
+    pub source: &'a str,
+    pub t: &'a Telemetry,
+    pub fields: Vec<FieldView>,
+    pub padding_bits: usize,
+}
+
+pub struct FieldView {
+    pub name: String,
+    pub docs: Vec<String>,
+    pub phys_ty: String,
+    pub wire_ty: &'static str,
+    pub meta: String,
+    pub display: String,
+    pub from_raw_body: String,
+    pub to_raw_body: Vec<String>,
+    pub pack_stmt: String,
+    pub unpack_expr: String,
+    pub visit_stmt: String,
+    pub deku_attr: String,
+}
+
+fn view(db: &Database, index: usize, f: &TelemetryField) -> FieldView {
+    let name = &f.name;
+    let phys_ty = phys_rust(db, f.phys);
+    let wire_ty = f.wire.rust();
+    let identity = f.scale == 1.0 && f.offset == 0.0;
+    let (lo, hi) = f.wire.range();
+    let (from_raw_body, to_raw_body) = match (f.phys, f.wire) {
+        (PhysType::Bool, _) => ("raw".to_owned(), vec!["(v, false)".to_owned()]),
+        (PhysType::Enum(_), _) => (
+            format!("{phys_ty}::from_raw(raw)"),
+            vec!["(v.into_raw(), false)".to_owned()],
+        ),
+        (PhysType::Int(t), w) if identity && t.rust() == w.rust() => {
+            ("raw".to_owned(), vec!["(v, false)".to_owned()])
+        }
+        (PhysType::Int(_), _) => {
+            let (s, o) = (f.scale as i128, f.offset as i128);
+            let mut from = "i128::from(raw)".to_owned();
+            if s != 1 {
+                from = format!("{from} * {s}");
+            }
+            if o != 0 {
+                from = format!("{from} + {o}");
+            }
+            let mut to = "i128::from(v)".to_owned();
+            if o != 0 {
+                to = format!("{to} - {o}");
+            }
+            if s != 1 {
+                to = format!("runtime::div_round({to}, {s})");
+            }
+            (
+                format!("({from}) as {phys_ty}"),
+                vec![
+                    format!("let raw = {to};"),
+                    format!("let clamped = raw.clamp({lo}, {hi});"),
+                    format!("(clamped as {wire_ty}, clamped != raw)"),
+                ],
+            )
+        }
+        (PhysType::F32 | PhysType::F64, WireType::F32) => {
+            if f.phys == PhysType::F32 && identity {
+                ("raw".to_owned(), vec!["(v, false)".to_owned()])
+            } else {
+                let v64 = if f.phys == PhysType::F32 {
+                    "f64::from(v)"
+                } else {
+                    "v"
+                };
+                let from = scale_expr("f64::from(raw)", f.scale, f.offset);
+                let from = if f.phys == PhysType::F32 {
+                    format!("({from}) as f32")
+                } else {
+                    from
+                };
+                (
+                    from,
+                    vec![format!(
+                        "(({}) as f32, false)",
+                        unscale(v64, f.scale, f.offset)
+                    )],
+                )
+            }
+        }
+        (PhysType::F32 | PhysType::F64, _) => {
+            let v64 = if f.phys == PhysType::F32 {
+                "f64::from(v)"
+            } else {
+                "v"
+            };
+            let from = scale_expr("f64::from(raw)", f.scale, f.offset);
+            let from = if f.phys == PhysType::F32 {
+                format!("({from}) as f32")
+            } else {
+                from
+            };
+            (
+                from,
+                vec![
+                    format!(
+                        "let raw = runtime::round({});",
+                        unscale(v64, f.scale, f.offset)
+                    ),
+                    "if raw.is_nan() {\nreturn (0, true);\n}".to_owned(),
+                    format!(
+                        "let clamped = raw.clamp({}, {});",
+                        float_lit(lo as f64),
+                        float_lit(hi as f64)
+                    ),
+                    format!("(clamped as {wire_ty}, clamped != raw)"),
+                ],
+            )
+        }
+    };
+    let (pack_stmt, unpack_expr, start_bit) = match f.placement {
+        Placement::Bytes(at) => (
+            format!("runtime::put(out, {at}, &raw.to_le_bytes());"),
+            format!("Self::{name}_from_raw({wire_ty}::from_le_bytes(runtime::take(data, {at})))"),
+            at * 8,
+        ),
+        Placement::Bit(byte, bit) => (
+            format!(
+                "if raw {{\nif let Some(b) = out.get_mut({byte}) {{\n*b |= 1 << {bit};\n}}\n}}"
+            ),
+            format!(
+                "Self::{name}_from_raw(data.get({byte}).is_some_and(|b| b & (1 << {bit}) != 0))"
+            ),
+            byte * 8 + usize::from(bit),
+        ),
+    };
+    let pack_stmt = format!(
+        "let (raw, clamped) = Self::{name}_to_raw(self.{name});\nsaturated += u8::from(clamped);\n{pack_stmt}"
+    );
+    let (value_expr, label_expr) = match f.phys {
+        PhysType::Enum(_) => ("Value::from(v.into_raw())", "v.label()"),
+        _ => ("Value::from(v)", "None"),
+    };
+    let visit_stmt = format!(
+        "let v = self.{name};\nvisitor.signal(&TELEMETRY_FIELDS[{index}], {value_expr}, {label_expr});"
+    );
+    let labels = match f.phys {
+        PhysType::Enum(i) => db.enums.get(i).map_or(String::new(), |e| {
+            e.variants
+                .iter()
+                .map(|v| format!("({}, {:?})", v.value, v.label))
+                .collect::<Vec<_>>()
+                .join(", ")
+        }),
+        _ => String::new(),
+    };
+    let opt = |v: Option<f64>| v.map_or("None".to_owned(), |x| format!("Some({})", float_lit(x)));
+    let meta = format!(
+        "SignalMeta {{ name: {:?}, unit: {:?}, comment: {:?}, start_bit: {start_bit}, len: {}, byte_order: ByteOrder::LittleEndian, signed: {}, factor: {}, offset: {}, min: {}, max: {}, labels: &[{labels}], multiplexed: false }}",
+        f.name,
+        f.unit,
+        f.description,
+        f.wire.bits(),
+        matches!(f.wire, WireType::I8 | WireType::I16 | WireType::I32),
+        float_lit(f.scale),
+        float_lit(f.offset),
+        opt(f.min),
+        opt(f.max)
+    );
+    let display = format!(
+        "FieldDisplay {{ group: {:?}, label: {:?}, warn: {}, critical: {} }}",
+        f.group,
+        f.display.label.clone().unwrap_or_else(|| f.name.clone()),
+        opt(f.display.warn),
+        opt(f.display.critical)
+    );
+    let mut docs = doc_lines(&f.description);
+    if !docs.is_empty() {
+        docs.push(String::new());
+    }
+    let mut facts = match f.placement {
+        Placement::Bytes(at) => format!("Wire: `{wire_ty}` at byte {at}"),
+        Placement::Bit(byte, bit) => format!("Wire: flag in bit {bit} of byte {byte}"),
+    };
+    if !identity {
+        facts.push_str(&format!(
+            ", physical = raw * {} + {}",
+            float_lit(f.scale),
+            float_lit(f.offset)
+        ));
+    }
+    if !f.unit.is_empty() {
+        facts.push_str(&format!(", unit `{}`", f.unit));
+    }
+    if let Some(src) = &f.source {
+        facts.push_str(&format!(", mirrors `{src}`"));
+    }
+    facts.push('.');
+    docs.push(facts);
+    let deku_attr = if f.wire == WireType::Flag {
+        "#[deku(bits = 1)]\n".to_owned()
+    } else {
+        String::new()
+    };
+    FieldView {
+        name: name.clone(),
+        docs,
+        phys_ty,
+        wire_ty,
+        meta,
+        display,
+        from_raw_body,
+        to_raw_body,
+        pack_stmt,
+        unpack_expr,
+        visit_stmt,
+        deku_attr,
+    }
+}
+
+fn unscale(x: &str, scale: f64, offset: f64) -> String {
+    let mut e = x.to_owned();
+    if offset != 0.0 {
+        e = format!("({e} - {})", float_lit(offset));
+    }
+    if scale != 1.0 {
+        e = format!("{e} / {}", float_lit(scale));
+    }
+    e
+}
+
+fn flag_count(t: &Telemetry) -> usize {
+    t.fields.iter().filter(|f| f.wire == WireType::Flag).count()
+}
+
+pub fn render(
+    db: &Database,
+    t: &Telemetry,
+    source: &str,
+    fingerprint: u32,
+) -> Result<String, askama::Error> {
+    let mut enums: Vec<String> = t
+        .fields
+        .iter()
+        .filter_map(|f| match f.phys {
+            PhysType::Enum(i) => db.enums.get(i).map(|e| e.type_name.clone()),
+            _ => None,
+        })
+        .collect();
+    enums.sort();
+    enums.dedup();
+    TelemetryTemplate {
+        source,
+        t,
+        fingerprint: format!("0x{fingerprint:08X}"),
+        enums,
+        fields: t
+            .fields
+            .iter()
+            .enumerate()
+            .map(|(i, f)| view(db, i, f))
+            .collect(),
+        flag_bytes: flag_count(t).div_ceil(8),
+    }
+    .render()
+}
+
+pub fn render_deku(db: &Database, t: &Telemetry, source: &str) -> Result<String, askama::Error> {
+    let flags = flag_count(t);
+    DekuTemplate {
+        source,
+        t,
+        fields: t
+            .fields
+            .iter()
+            .enumerate()
+            .map(|(i, f)| view(db, i, f))
+            .collect(),
+        padding_bits: flags.div_ceil(8) * 8 - flags,
+    }
+    .render()
+}

@@ -1,0 +1,413 @@
+//! Checks `telemetry.yaml` against the CAN database it references and lays the packet out.
+
+use std::collections::HashMap;
+use std::path::Path;
+
+use serde_saphyr::Spanned;
+
+use crate::diagnostic::{Diagnostics, Reporter};
+use crate::load::telemetry::{FieldSpec, LoadedTelemetry};
+use crate::model::{
+    Database, Display, Encoding, ISOTP_MAX_LEN, IntType, PhysType, Placement, Signal,
+    TELEMETRY_HEADER_LEN, Telemetry, TelemetryField, WireType,
+};
+use crate::naming::{camel, is_keyword};
+
+/// Names the header uses; fields cannot take them.
+const RESERVED: [&str; 4] = ["fingerprint", "sequence", "timestamp_us", "ts"];
+
+fn line_of<T>(s: &Spanned<T>) -> usize {
+    usize::try_from(s.referenced.line()).unwrap_or(0)
+}
+
+/// Validates the telemetry schema against `db` and lays out the packet.
+pub fn validate(
+    path: &Path,
+    loaded: &LoadedTelemetry,
+    db: &Database,
+) -> Result<Telemetry, Diagnostics> {
+    let mut r = Reporter::new(path, &loaded.text);
+    let packet = &loaded.file.packet.value;
+    let type_name = camel(&packet.name.value);
+    for (what, id) in [
+        ("tx_id", &packet.tx_id),
+        ("flow_control_id", &packet.flow_control_id),
+    ] {
+        if id.value > 0x7FF {
+            r.error(
+                "E0212",
+                line_of(id),
+                format!("`{what}` 0x{:X} is not an 11-bit CAN id", id.value),
+                "ISO-TP normal addressing on the car uses standard ids up to 0x7FF",
+            );
+        }
+    }
+    if packet.tx_id.value == packet.flow_control_id.value {
+        r.error(
+            "E0212",
+            line_of(&packet.flow_control_id),
+            "`flow_control_id` equals `tx_id`".to_owned(),
+            "the receiver's flow control needs its own id (0x777 on the car)",
+        );
+    }
+    if db
+        .messages
+        .iter()
+        .any(|m| !m.extended && [packet.tx_id.value, packet.flow_control_id.value].contains(&m.id))
+    {
+        r.error(
+            "E0212",
+            line_of(&packet.tx_id),
+            "an ISO-TP id is also the id of a DBC message".to_owned(),
+            "pick ids no message in aer.dbc uses",
+        );
+    }
+
+    let mut fields = Vec::new();
+    let mut names: HashMap<String, usize> = HashMap::new();
+    for spec in &loaded.file.fields {
+        let line = line_of(spec);
+        let name = &spec.value.name.value;
+        let name_line = line_of(&spec.value.name);
+        let valid = name.starts_with(|c: char| c.is_ascii_lowercase())
+            && name
+                .chars()
+                .all(|c| c.is_ascii_lowercase() || c.is_ascii_digit() || c == '_');
+        if !valid || is_keyword(name) || RESERVED.contains(&name.as_str()) {
+            r.error(
+                "E0206",
+                name_line,
+                format!("field name `{name}` is not usable"),
+                "use snake_case (a-z, 0-9, _), not a Rust keyword and not fingerprint/sequence/timestamp_us/ts",
+            );
+            continue;
+        }
+        if let Some(first) = names.insert(name.clone(), name_line) {
+            r.error(
+                "E0206",
+                name_line,
+                format!("field `{name}` is defined twice (first on line {first})"),
+                "every field needs its own name",
+            );
+            continue;
+        }
+        if let Some(field) = field(&mut r, db, &spec.value, line) {
+            fields.push(field);
+        }
+    }
+
+    // Byte-aligned values first, in schema order, then the flags packed LSB first.
+    let mut offset = TELEMETRY_HEADER_LEN;
+    for f in fields.iter_mut().filter(|f| f.wire != WireType::Flag) {
+        f.placement = Placement::Bytes(offset);
+        offset += f.wire.bytes();
+    }
+    let mut flag = 0usize;
+    for f in fields.iter_mut().filter(|f| f.wire == WireType::Flag) {
+        f.placement = Placement::Bit(offset + flag / 8, (flag % 8) as u8);
+        flag += 1;
+    }
+    let len = offset + flag.div_ceil(8);
+    if len > ISOTP_MAX_LEN {
+        r.error(
+            "E0209",
+            line_of(&loaded.file.packet),
+            format!("the packet is {len} bytes; ISO-TP carries at most {ISOTP_MAX_LEN}"),
+            "remove fields or use narrower wire types (u8/u16 with a scale)",
+        );
+    }
+    if r.has_errors() {
+        return Err(Diagnostics(r.diagnostics));
+    }
+    Ok(Telemetry {
+        type_name,
+        description: packet.description.clone(),
+        tx_id: packet.tx_id.value as u16,
+        flow_control_id: packet.flow_control_id.value as u16,
+        period_ms: packet.period_ms,
+        fields,
+        len,
+    })
+}
+
+fn field(
+    r: &mut Reporter<'_>,
+    db: &Database,
+    spec: &FieldSpec,
+    line: usize,
+) -> Option<TelemetryField> {
+    let name = spec.name.value.clone();
+    let display = spec
+        .display
+        .as_ref()
+        .map_or_else(Display::default, |d| Display {
+            label: d.label.clone(),
+            warn: d.warn,
+            critical: d.critical,
+        });
+    let mut field = TelemetryField {
+        name: name.clone(),
+        group: spec.group.clone().unwrap_or_else(|| "other".to_owned()),
+        description: spec.description.clone().unwrap_or_default(),
+        unit: spec.unit.clone().unwrap_or_default(),
+        wire: WireType::U8,
+        scale: spec.scale.as_ref().map_or(1.0, |s| s.value),
+        offset: spec.offset.unwrap_or(0.0),
+        min: spec.min,
+        max: spec.max,
+        phys: PhysType::F64,
+        placement: Placement::Bytes(0),
+        display,
+        source: None,
+    };
+    match (&spec.signal, &spec.wire, &spec.enum_name) {
+        (Some(reference), None, None) => {
+            if spec.scale.is_some()
+                || spec.offset.is_some()
+                || spec.unit.is_some()
+                || spec.min.is_some()
+                || spec.max.is_some()
+            {
+                r.error(
+                    "E0205",
+                    line,
+                    format!("field `{name}` references a signal and also sets scale/offset/unit/min/max"),
+                    "a referenced signal's scaling comes from aer.dbc; remove them here (or drop `signal:`)",
+                );
+                return None;
+            }
+            let sig = find_signal(r, db, reference)?;
+            inherit(r, db, &mut field, sig, line_of(reference))?;
+            field.source = Some(reference.value.clone());
+        }
+        (None, Some(wire), None) => {
+            field.wire = match wire.value.as_str() {
+                "u8" => WireType::U8,
+                "u16" => WireType::U16,
+                "u32" => WireType::U32,
+                "i8" => WireType::I8,
+                "i16" => WireType::I16,
+                "i32" => WireType::I32,
+                "f32" => WireType::F32,
+                "flag" => WireType::Flag,
+                other => {
+                    r.error(
+                        "E0204",
+                        line_of(wire),
+                        format!("field `{name}` has unknown type `{other}`"),
+                        "use one of u8, u16, u32, i8, i16, i32, f32, flag",
+                    );
+                    return None;
+                }
+            };
+            field.phys = own_phys(&field);
+        }
+        (None, None, Some(enum_name)) => {
+            let wanted = camel(&enum_name.value);
+            let Some(index) = db.enums.iter().position(|e| e.type_name == wanted) else {
+                let known: Vec<&str> = db.enums.iter().map(|e| e.type_name.as_str()).collect();
+                r.error(
+                    "E0207",
+                    line_of(enum_name),
+                    format!(
+                        "field `{name}` uses enum `{}`, which aer.dbc does not define",
+                        enum_name.value
+                    ),
+                    format!(
+                        "define a VAL_TABLE_ in aer.dbc or use one of: {}",
+                        known.join(", ")
+                    ),
+                );
+                return None;
+            };
+            field.wire = enum_wire(db, index)?;
+            field.phys = PhysType::Enum(index);
+        }
+        _ => {
+            r.error(
+                "E0205",
+                line,
+                format!("field `{name}` needs exactly one of `signal`, `type` or `enum`"),
+                "reference a DBC signal (signal: MESSAGE.SIGNAL), or give a wire type, or an enum",
+            );
+            return None;
+        }
+    }
+    let scale_line = spec.scale.as_ref().map_or(line, line_of);
+    if field.scale == 0.0 || !field.scale.is_finite() || !field.offset.is_finite() {
+        r.error(
+            "E0211",
+            scale_line,
+            format!("field `{name}` has scale {}", field.scale),
+            "the scale must be a non-zero finite number",
+        );
+        return None;
+    }
+    if field.wire == WireType::F32
+        && (field.scale != 1.0 || field.offset != 0.0)
+        && field.source.is_none()
+    {
+        r.error(
+            "E0211",
+            scale_line,
+            format!("field `{name}` is f32 on the wire and also scaled"),
+            "an f32 carries the physical value itself: drop scale/offset, or use an integer type with a scale",
+        );
+        return None;
+    }
+    if let (Some(lo), Some(hi)) = (field.min, field.max) {
+        let (raw_lo, raw_hi) = field.wire.range();
+        let (a, b) = (
+            raw_lo as f64 * field.scale + field.offset,
+            raw_hi as f64 * field.scale + field.offset,
+        );
+        let tol = field.scale.abs() / 2.0;
+        if field.wire != WireType::F32 && (lo < a.min(b) - tol || hi > a.max(b) + tol || lo > hi) {
+            r.error(
+                "E0213",
+                line,
+                format!(
+                    "field `{name}` has range [{lo}, {hi}] but a {} with scale {} holds [{}, {}]",
+                    field.wire.rust(),
+                    field.scale,
+                    a.min(b),
+                    a.max(b)
+                ),
+                "use a wider type or a larger scale, or narrow min/max",
+            );
+            return None;
+        }
+    }
+    Some(field)
+}
+
+fn find_signal<'d>(
+    r: &mut Reporter<'_>,
+    db: &'d Database,
+    reference: &Spanned<String>,
+) -> Option<&'d Signal> {
+    let line = line_of(reference);
+    let Some((msg_name, sig_name)) = reference.value.split_once('.') else {
+        r.error(
+            "E0203",
+            line,
+            format!("`{}` does not name a DBC signal", reference.value),
+            "write MESSAGE.SIGNAL, as in MCU1.MCU_MotorSpeed",
+        );
+        return None;
+    };
+    let Some(msg) = db.messages.iter().find(|m| m.name == msg_name) else {
+        r.error(
+            "E0203",
+            line,
+            format!("aer.dbc has no message `{msg_name}`"),
+            "check the message name in schema/aer.dbc (names are case-sensitive)",
+        );
+        return None;
+    };
+    match msg.signals.iter().find(|s| s.name == sig_name) {
+        Some(s) => Some(s),
+        None => {
+            let known: Vec<&str> = msg.signals.iter().map(|s| s.name.as_str()).collect();
+            r.error(
+                "E0203",
+                line,
+                format!("message `{msg_name}` has no signal `{sig_name}`"),
+                format!("its signals are: {}", known.join(", ")),
+            );
+            None
+        }
+    }
+}
+
+/// Copies wire type, scaling, unit, range, enum and comment from a DBC signal.
+fn inherit(
+    r: &mut Reporter<'_>,
+    db: &Database,
+    f: &mut TelemetryField,
+    s: &Signal,
+    line: usize,
+) -> Option<()> {
+    let signed = s.encoding == Encoding::Signed;
+    f.wire =
+        match (s.encoding, s.len) {
+            (Encoding::Float32, _) => WireType::F32,
+            (Encoding::Float64, _) | (_, 33..) => {
+                r.error(
+                "E0210",
+                line,
+                format!("signal `{}` ({} bits) is too wide for a telemetry field", s.name, s.len),
+                "declare the field with its own type and scale instead of referencing the signal",
+            );
+                return None;
+            }
+            (_, 1) if !signed && s.phys == PhysType::Bool => WireType::Flag,
+            (_, 0..=8) => {
+                if signed {
+                    WireType::I8
+                } else {
+                    WireType::U8
+                }
+            }
+            (_, 9..=16) => {
+                if signed {
+                    WireType::I16
+                } else {
+                    WireType::U16
+                }
+            }
+            _ => {
+                if signed {
+                    WireType::I32
+                } else {
+                    WireType::U32
+                }
+            }
+        };
+    if let PhysType::Enum(index) = s.phys {
+        f.wire = enum_wire(db, index)?;
+    }
+    f.scale = s.factor;
+    f.offset = s.offset;
+    f.unit = s.unit.clone();
+    f.min = s.min;
+    f.max = s.max;
+    if f.description.is_empty() {
+        f.description = s.comment.clone().unwrap_or_default();
+    }
+    f.phys = match s.phys {
+        PhysType::Enum(_) | PhysType::Bool | PhysType::Int(_) => s.phys,
+        _ => own_phys(f),
+    };
+    Some(())
+}
+
+fn enum_wire(db: &Database, index: usize) -> Option<WireType> {
+    Some(match db.enums.get(index)?.repr {
+        IntType::U8 => WireType::U8,
+        IntType::I8 => WireType::I8,
+        IntType::U16 => WireType::U16,
+        IntType::I16 => WireType::I16,
+        IntType::I32 => WireType::I32,
+        _ => WireType::U32,
+    })
+}
+
+/// Physical type of a field with its own wire type: exact integers where the scaling allows,
+/// `f32` where it holds every raw value exactly enough (24-bit mantissa), `f64` otherwise.
+fn own_phys(f: &TelemetryField) -> PhysType {
+    match f.wire {
+        WireType::Flag => PhysType::Bool,
+        WireType::F32 => PhysType::F32,
+        w if f.scale.fract() == 0.0 && f.offset.fract() == 0.0 => {
+            let (lo, hi) = w.range();
+            let (a, b) = (
+                lo * f.scale as i128 + f.offset as i128,
+                hi * f.scale as i128 + f.offset as i128,
+            );
+            PhysType::Int(IntType::smallest_for(a.min(b), a.max(b)))
+        }
+        w if w.bits() <= 24 => PhysType::F32,
+        _ => PhysType::F64,
+    }
+}

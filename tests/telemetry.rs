@@ -1,0 +1,206 @@
+//! The firmware's telemetry packer and the Pi's Deku decoder agree, both ways, on every packet;
+//! bad packets give typed errors.
+
+use aer::can::{McuMainState, VehicleState};
+use aer::runtime::{SignalMeta, SignalVisitor, Value};
+use aer::telemetry::{TELEMETRY_FINGERPRINT, Telemetry, TelemetryError, TelemetryHeader};
+use aer::telemetry_deku::{TelemetryDecodeError, TelemetryFrame};
+use deku::DekuContainerWrite;
+use proptest::prelude::*;
+
+/// A packet with the right fingerprint and arbitrary contents.
+fn packet(body: &[u8]) -> Vec<u8> {
+    let mut bytes = body[..Telemetry::LEN].to_vec();
+    bytes[..4].copy_from_slice(&TELEMETRY_FINGERPRINT.to_le_bytes());
+    bytes
+}
+
+/// Bits of the last flag byte that no flag uses.
+fn padding_mask() -> u8 {
+    let flags = Telemetry::FIELDS.iter().filter(|f| f.len == 1).count();
+    match flags % 8 {
+        0 => 0,
+        used => 0xFF << used,
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(3000))]
+
+    /// Deku reads what any sender wrote exactly as the firmware's own reader does, and what the
+    /// firmware packs from those values is the packet itself (unused bits zeroed).
+    #[test]
+    fn deku_decodes_what_the_firmware_packs(body in prop::collection::vec(any::<u8>(), Telemetry::LEN)) {
+        let bytes = packet(&body);
+        let (header, firmware) = Telemetry::unpack(&bytes).expect("right length and fingerprint");
+        let frame = TelemetryFrame::decode(&bytes).expect("deku decodes");
+        prop_assert_eq!(frame.to_telemetry(), (header, firmware));
+
+        let mut packed = [0u8; Telemetry::LEN];
+        prop_assert_eq!(firmware.pack(header, &mut packed), 0, "raw values always fit");
+        let mut expected = bytes.clone();
+        *expected.last_mut().expect("non-empty") &= !padding_mask();
+        prop_assert_eq!(&packed[..], &expected[..]);
+    }
+
+    /// The reverse: Deku writes from a snapshot exactly what the firmware packs.
+    #[test]
+    fn firmware_packs_what_deku_writes(body in prop::collection::vec(any::<u8>(), Telemetry::LEN), seq in any::<u16>(), time in any::<u32>()) {
+        let (_, snapshot) = Telemetry::unpack(&packet(&body)).expect("valid");
+        let header = TelemetryHeader { sequence: seq, timestamp_us: time };
+        let mut packed = [0u8; Telemetry::LEN];
+        snapshot.pack(header, &mut packed);
+        let written = TelemetryFrame::from_telemetry(header, &snapshot).to_bytes().expect("deku writes");
+        prop_assert_eq!(&written[..], &packed[..]);
+    }
+
+    /// Untrusted bytes of any length never panic the decoders.
+    #[test]
+    fn arbitrary_bytes_give_values_or_typed_errors(bytes in prop::collection::vec(any::<u8>(), 0..2 * Telemetry::LEN)) {
+        let firmware = Telemetry::unpack(&bytes);
+        let deku = TelemetryFrame::decode(&bytes);
+        prop_assert_eq!(firmware.is_ok(), deku.is_ok());
+    }
+}
+
+fn sample() -> Telemetry {
+    let (_, mut t) = Telemetry::unpack(&packet(&[0u8; Telemetry::LEN])).expect("valid");
+    t.apps_travel = 0.5;
+    t.motor_speed = 4000.0;
+    t.motor_temp = 85;
+    t.pack_current = -12.5;
+    t.mcu_main_state = McuMainState::Run;
+    t.vehicle_state = VehicleState::Driving;
+    t.shocktravel4 = 38.1;
+    t.fault_bse = true;
+    t
+}
+
+#[test]
+fn physical_values_survive_the_wire_at_the_sensors_resolution() {
+    let t = sample();
+    let header = TelemetryHeader {
+        sequence: 7,
+        timestamp_us: 123_456,
+    };
+    let mut bytes = [0u8; Telemetry::LEN];
+    assert_eq!(t.pack(header, &mut bytes), 0);
+    let (h, back) = TelemetryFrame::decode(&bytes)
+        .expect("decodes")
+        .to_telemetry();
+    assert_eq!(h, header);
+    assert!((back.apps_travel - 0.5).abs() <= 0.002);
+    assert_eq!(back.motor_speed, 4000.0);
+    assert_eq!(back.motor_temp, 85);
+    assert_eq!(back.pack_current, -12.5);
+    assert_eq!(back.mcu_main_state, McuMainState::Run);
+    assert_eq!(back.vehicle_state, VehicleState::Driving);
+    assert!((back.shocktravel4 - 38.1).abs() <= 0.005);
+    assert!(back.fault_bse && !back.fault_apps);
+}
+
+#[test]
+fn out_of_range_values_saturate_and_are_counted() {
+    let mut t = sample();
+    t.shocktravel1 = 1000.0; // the u16 holds up to 655.35 mm
+    t.apps_travel = f32::NAN;
+    let mut bytes = [0u8; Telemetry::LEN];
+    assert_eq!(
+        t.pack(
+            TelemetryHeader {
+                sequence: 0,
+                timestamp_us: 0
+            },
+            &mut bytes
+        ),
+        2
+    );
+    let (_, back) = Telemetry::unpack(&bytes).expect("decodes");
+    assert_eq!(back.shocktravel1, 655.35);
+    assert_eq!(back.apps_travel, 0.0);
+}
+
+#[test]
+fn bad_packets_give_typed_errors() {
+    let mut bytes = [0u8; Telemetry::LEN];
+    sample().pack(
+        TelemetryHeader {
+            sequence: 1,
+            timestamp_us: 2,
+        },
+        &mut bytes,
+    );
+
+    let truncated = &bytes[..Telemetry::LEN - 1];
+    assert_eq!(
+        TelemetryFrame::decode(truncated),
+        Err(TelemetryDecodeError::WrongLength {
+            expected: Telemetry::LEN,
+            actual: Telemetry::LEN - 1
+        })
+    );
+    assert_eq!(
+        Telemetry::unpack(truncated),
+        Err(TelemetryError::WrongLength {
+            expected: Telemetry::LEN,
+            actual: Telemetry::LEN - 1
+        })
+    );
+
+    let mut other = bytes;
+    other[..4].copy_from_slice(&0xDEAD_BEEFu32.to_le_bytes());
+    let err = TelemetryFrame::decode(&other).expect_err("wrong fingerprint");
+    assert_eq!(
+        err,
+        TelemetryDecodeError::FingerprintMismatch {
+            expected: TELEMETRY_FINGERPRINT,
+            found: 0xDEAD_BEEF
+        }
+    );
+    let text = err.to_string();
+    assert!(
+        text.contains("0xDEADBEEF") && text.contains(&format!("0x{TELEMETRY_FINGERPRINT:08X}")),
+        "{text}"
+    );
+
+    // An enum value this build does not know is kept, not a panic.
+    let state = Telemetry::FIELDS
+        .iter()
+        .find(|f| f.name == "vehicle_state")
+        .expect("field");
+    let mut unknown = bytes;
+    unknown[usize::from(state.start_bit) / 8] = 42;
+    let (_, t) = TelemetryFrame::decode(&unknown)
+        .expect("decodes")
+        .to_telemetry();
+    assert_eq!(t.vehicle_state, VehicleState::Unknown(42));
+}
+
+#[test]
+fn the_packet_is_compact_and_documented() {
+    // Today's layout is 118 bytes (18 CAN frames with its flow control).
+    assert!(Telemetry::LEN <= 64, "{} bytes", Telemetry::LEN);
+    assert_eq!(Telemetry::TX_ID, 0x666);
+    assert_eq!(Telemetry::FLOW_CONTROL_ID, 0x777);
+    let current = Telemetry::DISPLAY[Telemetry::FIELDS
+        .iter()
+        .position(|f| f.name == "pack_current")
+        .expect("field")];
+    assert_eq!(
+        (current.group, current.warn, current.critical),
+        ("accumulator", Some(250.0), Some(300.0))
+    );
+
+    struct Names(Vec<&'static str>);
+    impl SignalVisitor for Names {
+        fn signal(&mut self, s: &'static SignalMeta, _v: Value, _l: Option<&'static str>) {
+            self.0.push(s.name);
+        }
+    }
+    let mut names = Names(Vec::new());
+    sample().visit(&mut names);
+    assert_eq!(
+        names.0,
+        Telemetry::FIELDS.iter().map(|f| f.name).collect::<Vec<_>>()
+    );
+}
