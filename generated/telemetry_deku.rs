@@ -10,9 +10,11 @@ use deku::prelude::*;
 
 use super::telemetry::{TELEMETRY_FINGERPRINT, Telemetry, TelemetryHeader};
 
-/// The packet as it is on the wire: raw values, flags LSB first.
+/// The packet as it is on the wire: raw values, then the flag bytes (flags LSB first, in schema
+/// order). Deku reads whole bytes (its bit-level reader is ~50x slower); the generated
+/// conversions pick the flag bits.
 #[derive(Debug, Clone, PartialEq, DekuRead, DekuWrite)]
-#[deku(endian = "little", bit_order = "lsb")]
+#[deku(endian = "little")]
 pub struct TelemetryFrame {
     pub fingerprint: u32,
     pub sequence: u16,
@@ -48,51 +50,7 @@ pub struct TelemetryFrame {
     pub shocktravel2: u16,
     pub shocktravel3: u16,
     pub shocktravel4: u16,
-    #[deku(bits = 1)]
-    pub dc_main_wire_over_volt_fault: bool,
-    #[deku(bits = 1)]
-    pub motor_phase_curr_fault: bool,
-    #[deku(bits = 1)]
-    pub mcu_over_hot_fault: bool,
-    #[deku(bits = 1)]
-    pub resolver_fault: bool,
-    #[deku(bits = 1)]
-    pub phase_curr_sensor_fault: bool,
-    #[deku(bits = 1)]
-    pub motor_over_spd_fault: bool,
-    #[deku(bits = 1)]
-    pub drv_motor_over_hot_fault: bool,
-    #[deku(bits = 1)]
-    pub dc_main_wire_over_curr_fault: bool,
-    #[deku(bits = 1)]
-    pub drv_motor_over_cool_fault: bool,
-    #[deku(bits = 1)]
-    pub dc_low_volt_warning: bool,
-    #[deku(bits = 1)]
-    pub mcu_12v_low_volt_warning: bool,
-    #[deku(bits = 1)]
-    pub motor_stall_fault: bool,
-    #[deku(bits = 1)]
-    pub motor_open_phase_fault: bool,
-    #[deku(bits = 1)]
-    pub fault_over_current: bool,
-    #[deku(bits = 1)]
-    pub fault_under_voltage: bool,
-    #[deku(bits = 1)]
-    pub fault_over_temperature: bool,
-    #[deku(bits = 1)]
-    pub fault_apps: bool,
-    #[deku(bits = 1)]
-    pub fault_bse: bool,
-    #[deku(bits = 1)]
-    pub fault_bpps: bool,
-    #[deku(bits = 1)]
-    pub fault_apps_brake_plausibility: bool,
-    #[deku(bits = 1)]
-    pub fault_low_battery_voltage: bool,
-    /// Unused bits of the last flag byte (zero when sent by the CCM).
-    #[deku(bits = 3)]
-    pub padding: u8,
+    pub flags: [u8; 3],
 }
 
 /// Why a packet could not be decoded.
@@ -182,49 +140,57 @@ impl TelemetryFrame {
             shocktravel3: Telemetry::shocktravel3_from_raw(self.shocktravel3),
             shocktravel4: Telemetry::shocktravel4_from_raw(self.shocktravel4),
             dc_main_wire_over_volt_fault: Telemetry::dc_main_wire_over_volt_fault_from_raw(
-                self.dc_main_wire_over_volt_fault,
+                self.flags[0] & (1 << 0) != 0,
             ),
             motor_phase_curr_fault: Telemetry::motor_phase_curr_fault_from_raw(
-                self.motor_phase_curr_fault,
+                self.flags[0] & (1 << 1) != 0,
             ),
-            mcu_over_hot_fault: Telemetry::mcu_over_hot_fault_from_raw(self.mcu_over_hot_fault),
-            resolver_fault: Telemetry::resolver_fault_from_raw(self.resolver_fault),
+            mcu_over_hot_fault: Telemetry::mcu_over_hot_fault_from_raw(
+                self.flags[0] & (1 << 2) != 0,
+            ),
+            resolver_fault: Telemetry::resolver_fault_from_raw(self.flags[0] & (1 << 3) != 0),
             phase_curr_sensor_fault: Telemetry::phase_curr_sensor_fault_from_raw(
-                self.phase_curr_sensor_fault,
+                self.flags[0] & (1 << 4) != 0,
             ),
             motor_over_spd_fault: Telemetry::motor_over_spd_fault_from_raw(
-                self.motor_over_spd_fault,
+                self.flags[0] & (1 << 5) != 0,
             ),
             drv_motor_over_hot_fault: Telemetry::drv_motor_over_hot_fault_from_raw(
-                self.drv_motor_over_hot_fault,
+                self.flags[0] & (1 << 6) != 0,
             ),
             dc_main_wire_over_curr_fault: Telemetry::dc_main_wire_over_curr_fault_from_raw(
-                self.dc_main_wire_over_curr_fault,
+                self.flags[0] & (1 << 7) != 0,
             ),
             drv_motor_over_cool_fault: Telemetry::drv_motor_over_cool_fault_from_raw(
-                self.drv_motor_over_cool_fault,
+                self.flags[1] & (1 << 0) != 0,
             ),
-            dc_low_volt_warning: Telemetry::dc_low_volt_warning_from_raw(self.dc_low_volt_warning),
+            dc_low_volt_warning: Telemetry::dc_low_volt_warning_from_raw(
+                self.flags[1] & (1 << 1) != 0,
+            ),
             mcu_12v_low_volt_warning: Telemetry::mcu_12v_low_volt_warning_from_raw(
-                self.mcu_12v_low_volt_warning,
+                self.flags[1] & (1 << 2) != 0,
             ),
-            motor_stall_fault: Telemetry::motor_stall_fault_from_raw(self.motor_stall_fault),
+            motor_stall_fault: Telemetry::motor_stall_fault_from_raw(self.flags[1] & (1 << 3) != 0),
             motor_open_phase_fault: Telemetry::motor_open_phase_fault_from_raw(
-                self.motor_open_phase_fault,
+                self.flags[1] & (1 << 4) != 0,
             ),
-            fault_over_current: Telemetry::fault_over_current_from_raw(self.fault_over_current),
-            fault_under_voltage: Telemetry::fault_under_voltage_from_raw(self.fault_under_voltage),
+            fault_over_current: Telemetry::fault_over_current_from_raw(
+                self.flags[1] & (1 << 5) != 0,
+            ),
+            fault_under_voltage: Telemetry::fault_under_voltage_from_raw(
+                self.flags[1] & (1 << 6) != 0,
+            ),
             fault_over_temperature: Telemetry::fault_over_temperature_from_raw(
-                self.fault_over_temperature,
+                self.flags[1] & (1 << 7) != 0,
             ),
-            fault_apps: Telemetry::fault_apps_from_raw(self.fault_apps),
-            fault_bse: Telemetry::fault_bse_from_raw(self.fault_bse),
-            fault_bpps: Telemetry::fault_bpps_from_raw(self.fault_bpps),
+            fault_apps: Telemetry::fault_apps_from_raw(self.flags[2] & (1 << 0) != 0),
+            fault_bse: Telemetry::fault_bse_from_raw(self.flags[2] & (1 << 1) != 0),
+            fault_bpps: Telemetry::fault_bpps_from_raw(self.flags[2] & (1 << 2) != 0),
             fault_apps_brake_plausibility: Telemetry::fault_apps_brake_plausibility_from_raw(
-                self.fault_apps_brake_plausibility,
+                self.flags[2] & (1 << 3) != 0,
             ),
             fault_low_battery_voltage: Telemetry::fault_low_battery_voltage_from_raw(
-                self.fault_low_battery_voltage,
+                self.flags[2] & (1 << 4) != 0,
             ),
         };
         (header, telemetry)
@@ -232,6 +198,70 @@ impl TelemetryFrame {
 
     /// The wire form of a snapshot, as the firmware's packer writes it.
     pub fn from_telemetry(header: TelemetryHeader, t: &Telemetry) -> Self {
+        let mut flags = [0u8; 3];
+        if Telemetry::dc_main_wire_over_volt_fault_to_raw(t.dc_main_wire_over_volt_fault).0 {
+            flags[0] |= 1 << 0;
+        }
+        if Telemetry::motor_phase_curr_fault_to_raw(t.motor_phase_curr_fault).0 {
+            flags[0] |= 1 << 1;
+        }
+        if Telemetry::mcu_over_hot_fault_to_raw(t.mcu_over_hot_fault).0 {
+            flags[0] |= 1 << 2;
+        }
+        if Telemetry::resolver_fault_to_raw(t.resolver_fault).0 {
+            flags[0] |= 1 << 3;
+        }
+        if Telemetry::phase_curr_sensor_fault_to_raw(t.phase_curr_sensor_fault).0 {
+            flags[0] |= 1 << 4;
+        }
+        if Telemetry::motor_over_spd_fault_to_raw(t.motor_over_spd_fault).0 {
+            flags[0] |= 1 << 5;
+        }
+        if Telemetry::drv_motor_over_hot_fault_to_raw(t.drv_motor_over_hot_fault).0 {
+            flags[0] |= 1 << 6;
+        }
+        if Telemetry::dc_main_wire_over_curr_fault_to_raw(t.dc_main_wire_over_curr_fault).0 {
+            flags[0] |= 1 << 7;
+        }
+        if Telemetry::drv_motor_over_cool_fault_to_raw(t.drv_motor_over_cool_fault).0 {
+            flags[1] |= 1 << 0;
+        }
+        if Telemetry::dc_low_volt_warning_to_raw(t.dc_low_volt_warning).0 {
+            flags[1] |= 1 << 1;
+        }
+        if Telemetry::mcu_12v_low_volt_warning_to_raw(t.mcu_12v_low_volt_warning).0 {
+            flags[1] |= 1 << 2;
+        }
+        if Telemetry::motor_stall_fault_to_raw(t.motor_stall_fault).0 {
+            flags[1] |= 1 << 3;
+        }
+        if Telemetry::motor_open_phase_fault_to_raw(t.motor_open_phase_fault).0 {
+            flags[1] |= 1 << 4;
+        }
+        if Telemetry::fault_over_current_to_raw(t.fault_over_current).0 {
+            flags[1] |= 1 << 5;
+        }
+        if Telemetry::fault_under_voltage_to_raw(t.fault_under_voltage).0 {
+            flags[1] |= 1 << 6;
+        }
+        if Telemetry::fault_over_temperature_to_raw(t.fault_over_temperature).0 {
+            flags[1] |= 1 << 7;
+        }
+        if Telemetry::fault_apps_to_raw(t.fault_apps).0 {
+            flags[2] |= 1 << 0;
+        }
+        if Telemetry::fault_bse_to_raw(t.fault_bse).0 {
+            flags[2] |= 1 << 1;
+        }
+        if Telemetry::fault_bpps_to_raw(t.fault_bpps).0 {
+            flags[2] |= 1 << 2;
+        }
+        if Telemetry::fault_apps_brake_plausibility_to_raw(t.fault_apps_brake_plausibility).0 {
+            flags[2] |= 1 << 3;
+        }
+        if Telemetry::fault_low_battery_voltage_to_raw(t.fault_low_battery_voltage).0 {
+            flags[2] |= 1 << 4;
+        }
         Self {
             fingerprint: TELEMETRY_FINGERPRINT,
             sequence: header.sequence,
@@ -267,61 +297,7 @@ impl TelemetryFrame {
             shocktravel2: Telemetry::shocktravel2_to_raw(t.shocktravel2).0,
             shocktravel3: Telemetry::shocktravel3_to_raw(t.shocktravel3).0,
             shocktravel4: Telemetry::shocktravel4_to_raw(t.shocktravel4).0,
-            dc_main_wire_over_volt_fault: Telemetry::dc_main_wire_over_volt_fault_to_raw(
-                t.dc_main_wire_over_volt_fault,
-            )
-            .0,
-            motor_phase_curr_fault: Telemetry::motor_phase_curr_fault_to_raw(
-                t.motor_phase_curr_fault,
-            )
-            .0,
-            mcu_over_hot_fault: Telemetry::mcu_over_hot_fault_to_raw(t.mcu_over_hot_fault).0,
-            resolver_fault: Telemetry::resolver_fault_to_raw(t.resolver_fault).0,
-            phase_curr_sensor_fault: Telemetry::phase_curr_sensor_fault_to_raw(
-                t.phase_curr_sensor_fault,
-            )
-            .0,
-            motor_over_spd_fault: Telemetry::motor_over_spd_fault_to_raw(t.motor_over_spd_fault).0,
-            drv_motor_over_hot_fault: Telemetry::drv_motor_over_hot_fault_to_raw(
-                t.drv_motor_over_hot_fault,
-            )
-            .0,
-            dc_main_wire_over_curr_fault: Telemetry::dc_main_wire_over_curr_fault_to_raw(
-                t.dc_main_wire_over_curr_fault,
-            )
-            .0,
-            drv_motor_over_cool_fault: Telemetry::drv_motor_over_cool_fault_to_raw(
-                t.drv_motor_over_cool_fault,
-            )
-            .0,
-            dc_low_volt_warning: Telemetry::dc_low_volt_warning_to_raw(t.dc_low_volt_warning).0,
-            mcu_12v_low_volt_warning: Telemetry::mcu_12v_low_volt_warning_to_raw(
-                t.mcu_12v_low_volt_warning,
-            )
-            .0,
-            motor_stall_fault: Telemetry::motor_stall_fault_to_raw(t.motor_stall_fault).0,
-            motor_open_phase_fault: Telemetry::motor_open_phase_fault_to_raw(
-                t.motor_open_phase_fault,
-            )
-            .0,
-            fault_over_current: Telemetry::fault_over_current_to_raw(t.fault_over_current).0,
-            fault_under_voltage: Telemetry::fault_under_voltage_to_raw(t.fault_under_voltage).0,
-            fault_over_temperature: Telemetry::fault_over_temperature_to_raw(
-                t.fault_over_temperature,
-            )
-            .0,
-            fault_apps: Telemetry::fault_apps_to_raw(t.fault_apps).0,
-            fault_bse: Telemetry::fault_bse_to_raw(t.fault_bse).0,
-            fault_bpps: Telemetry::fault_bpps_to_raw(t.fault_bpps).0,
-            fault_apps_brake_plausibility: Telemetry::fault_apps_brake_plausibility_to_raw(
-                t.fault_apps_brake_plausibility,
-            )
-            .0,
-            fault_low_battery_voltage: Telemetry::fault_low_battery_voltage_to_raw(
-                t.fault_low_battery_voltage,
-            )
-            .0,
-            padding: 0,
+            flags,
         }
     }
 }

@@ -25,7 +25,7 @@ pub struct DekuTemplate<'a> {
     pub source: &'a str,
     pub t: &'a Telemetry,
     pub fields: Vec<FieldView>,
-    pub padding_bits: usize,
+    pub flag_bytes: usize,
 }
 
 pub struct FieldView {
@@ -40,10 +40,14 @@ pub struct FieldView {
     pub pack_stmt: String,
     pub unpack_expr: String,
     pub visit_stmt: String,
-    pub deku_attr: String,
+    pub is_flag: bool,
+    /// Expression reading the raw value from `self` (a `TelemetryFrame`).
+    pub deku_read: String,
+    /// Statement storing the raw value of `t.<field>` into the frame under construction.
+    pub deku_write: String,
 }
 
-fn view(db: &Database, index: usize, f: &TelemetryField) -> FieldView {
+fn view(db: &Database, first_flag_byte: usize, index: usize, f: &TelemetryField) -> FieldView {
     let name = &f.name;
     let phys_ty = phys_rust(db, f.phys);
     let wire_ty = f.wire.rust();
@@ -216,10 +220,21 @@ fn view(db: &Database, index: usize, f: &TelemetryField) -> FieldView {
     }
     facts.push('.');
     docs.push(facts);
-    let deku_attr = if f.wire == WireType::Flag {
-        "#[deku(bits = 1)]\n".to_owned()
-    } else {
-        String::new()
+    let (deku_read, deku_write) = match f.placement {
+        Placement::Bit(byte, bit) => {
+            let i = byte - first_flag_byte;
+            (
+                format!("self.flags[{i}] & (1 << {bit}) != 0"),
+                format!(
+                    "if {}::{name}_to_raw(t.{name}).0 {{\nflags[{i}] |= 1 << {bit};\n}}",
+                    "Telemetry"
+                ),
+            )
+        }
+        Placement::Bytes(_) => (
+            format!("self.{name}"),
+            format!("{name}: Telemetry::{name}_to_raw(t.{name}).0,"),
+        ),
     };
     FieldView {
         name: name.clone(),
@@ -233,7 +248,9 @@ fn view(db: &Database, index: usize, f: &TelemetryField) -> FieldView {
         pack_stmt,
         unpack_expr,
         visit_stmt,
-        deku_attr,
+        is_flag: f.wire == WireType::Flag,
+        deku_read,
+        deku_write,
     }
 }
 
@@ -250,6 +267,11 @@ fn unscale(x: &str, scale: f64, offset: f64) -> String {
 
 fn flag_count(t: &Telemetry) -> usize {
     t.fields.iter().filter(|f| f.wire == WireType::Flag).count()
+}
+
+/// Byte offset of the first flag byte (flags follow every byte-aligned field).
+fn first_flag_byte(t: &Telemetry) -> usize {
+    t.len - flag_count(t).div_ceil(8)
 }
 
 pub fn render(
@@ -277,7 +299,7 @@ pub fn render(
             .fields
             .iter()
             .enumerate()
-            .map(|(i, f)| view(db, i, f))
+            .map(|(i, f)| view(db, first_flag_byte(t), i, f))
             .collect(),
         flag_bytes: flag_count(t).div_ceil(8),
     }
@@ -285,7 +307,6 @@ pub fn render(
 }
 
 pub fn render_deku(db: &Database, t: &Telemetry, source: &str) -> Result<String, askama::Error> {
-    let flags = flag_count(t);
     DekuTemplate {
         source,
         t,
@@ -293,9 +314,9 @@ pub fn render_deku(db: &Database, t: &Telemetry, source: &str) -> Result<String,
             .fields
             .iter()
             .enumerate()
-            .map(|(i, f)| view(db, i, f))
+            .map(|(i, f)| view(db, first_flag_byte(t), i, f))
             .collect(),
-        padding_bits: flags.div_ceil(8) * 8 - flags,
+        flag_bytes: flag_count(t).div_ceil(8),
     }
     .render()
 }
