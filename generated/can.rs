@@ -873,7 +873,7 @@ pub struct CcmStatus {
     /// `CCM_FaultLowBatteryVoltage`: 1 bit from bit 15 (Intel), unsigned, range [0.0, 1.0].
     #[cfg_attr(feature = "serde", serde(rename = "CCM_FaultLowBatteryVoltage"))]
     pub ccm_fault_low_battery_voltage: bool,
-    /// Fingerprint of the schema the firmware was built from (aer::can::SCHEMA_FINGERPRINT); receivers compare it with their own.
+    /// Fingerprint of the schema the firmware was built from (aer::telemetry::TELEMETRY_FINGERPRINT, which covers aer.dbc and telemetry.yaml); receivers compare it with their own.
     ///
     /// `CCM_SchemaFingerprint`: 32 bits from bit 16 (Intel), unsigned, range [0.0, 4294967295.0].
     #[cfg_attr(feature = "serde", serde(rename = "CCM_SchemaFingerprint"))]
@@ -1036,7 +1036,7 @@ static CCM_STATUS_SIGNALS: [SignalMeta; 12] = [
     SignalMeta {
         name: "CCM_SchemaFingerprint",
         unit: "",
-        comment: "Fingerprint of the schema the firmware was built from (aer::can::SCHEMA_FINGERPRINT); receivers compare it with their own.",
+        comment: "Fingerprint of the schema the firmware was built from (aer::telemetry::TELEMETRY_FINGERPRINT, which covers aer.dbc and telemetry.yaml); receivers compare it with their own.",
         start_bit: 16,
         len: 32,
         byte_order: ByteOrder::LittleEndian,

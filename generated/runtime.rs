@@ -410,7 +410,6 @@ pub fn div_round(numerator: i128, denominator: i128) -> i128 {
         quotient
     }
 }
-
 /// Copies `bytes` into `out` at `at`; bytes past the end of `out` are not written.
 #[inline(always)]
 pub fn put(out: &mut [u8], at: usize, bytes: &[u8]) {

@@ -83,7 +83,7 @@ pub fn codec_files(
             }
             .render()?,
         ),
-        file("runtime.rs", render::codec::render_runtime(source)?),
+        file("runtime.rs", render::codec::render_runtime(source, false)?),
         file(
             "can.rs",
             render::codec::render_can(db, source, fingerprint)?,
@@ -162,7 +162,7 @@ impl CarSchema {
         };
         Ok(vec![
             file("lib.rs", lib.render()?),
-            file("runtime.rs", render::codec::render_runtime(dbc)?),
+            file("runtime.rs", render::codec::render_runtime(dbc, true)?),
             file(
                 "can.rs",
                 render::codec::render_can(db, dbc, fingerprint::database(db))?,

@@ -406,6 +406,7 @@ pub fn div_round(numerator: i128, denominator: i128) -> i128 {
     }
 }
 
+{%- if telemetry %}
 /// Copies `bytes` into `out` at `at`; bytes past the end of `out` are not written.
 #[inline(always)]
 pub fn put(out: &mut [u8], at: usize, bytes: &[u8]) {
@@ -425,6 +426,7 @@ pub fn take<const N: usize>(data: &[u8], at: usize) -> [u8; N] {
     }
     bytes
 }
+{%- endif %}
 
 /// Bit access. Positions are validated by the generator; out-of-payload bytes read as zero and
 /// are never written, so no input can make these panic.

@@ -26,7 +26,8 @@ fn examples() -> &'static (PathBuf, PathBuf) {
             .expect("tricky.dbc generates");
         let target = Path::new(env!("CARGO_TARGET_TMPDIR")).join("tricky_can_target");
         let status = Command::new(env!("CARGO"))
-            .args(["build", "--quiet", "--examples"])
+            // The optional serde derives must compile too (multiplexed Options, enums, i128).
+            .args(["build", "--quiet", "--examples", "--features", "serde"])
             .current_dir(&root)
             .env("CARGO_TARGET_DIR", &target)
             .status()

@@ -11,6 +11,8 @@ use crate::model::{
 #[template(path = "runtime.rs", escape = "none")]
 pub struct RuntimeTemplate<'a> {
     pub source: &'a str,
+    /// Byte helpers for the telemetry packet, emitted only where a packet uses them.
+    pub telemetry: bool,
 }
 
 #[derive(Template)]
@@ -72,8 +74,8 @@ pub struct SignalView {
     pub serde_attr: String,
 }
 
-pub fn render_runtime(source: &str) -> Result<String, askama::Error> {
-    RuntimeTemplate { source }.render()
+pub fn render_runtime(source: &str, telemetry: bool) -> Result<String, askama::Error> {
+    RuntimeTemplate { source, telemetry }.render()
 }
 
 pub fn render_can(db: &Database, source: &str, fingerprint: u32) -> Result<String, askama::Error> {
