@@ -4445,13 +4445,13 @@ impl Mcu2 {
 
     /// Physical value of `MCU_MotorTemp` for a raw value.
     pub fn mcu_motor_temp_from_raw(raw: u8) -> i16 {
-        (i128::from(raw) + -40) as i16
+        (i32::from(raw) - 40) as i16
     }
 
     /// Raw value of `MCU_MotorTemp` for a physical value, range-checked.
     pub fn mcu_motor_temp_to_raw(v: i16) -> Result<u8, EncodeError> {
         runtime::check_range(f64::from(v), -40.0, 215.0, 1e-6, "MCU2", "MCU_MotorTemp")?;
-        let raw = i128::from(v) - -40;
+        let raw = i32::from(v) + 40;
         let raw = u8::try_from(raw).map_err(|_| EncodeError::OutOfRange {
             message: "MCU2",
             signal: "MCU_MotorTemp",
@@ -4461,13 +4461,13 @@ impl Mcu2 {
 
     /// Physical value of `MCU_InverterTemp` for a raw value.
     pub fn mcu_inverter_temp_from_raw(raw: u8) -> i16 {
-        (i128::from(raw) + -40) as i16
+        (i32::from(raw) - 40) as i16
     }
 
     /// Raw value of `MCU_InverterTemp` for a physical value, range-checked.
     pub fn mcu_inverter_temp_to_raw(v: i16) -> Result<u8, EncodeError> {
         runtime::check_range(f64::from(v), -40.0, 215.0, 1e-6, "MCU2", "MCU_InverterTemp")?;
-        let raw = i128::from(v) - -40;
+        let raw = i32::from(v) + 40;
         let raw = u8::try_from(raw).map_err(|_| EncodeError::OutOfRange {
             message: "MCU2",
             signal: "MCU_InverterTemp",

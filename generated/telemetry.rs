@@ -37,15 +37,15 @@ pub struct TelemetryHeader {
 pub struct Telemetry {
     /// Accelerator pedal travel, 0 released, 1 fully pressed.
     ///
-    /// Wire: `u8` at byte 10, physical = raw * 0.004 + 0.0.
+    /// Wire: `u8` at byte 10, physical = raw * 0.004.
     pub apps_travel: f32,
     /// Front brake system encoder voltage (valid 0.5-4.5 V).
     ///
-    /// Wire: `u16` at byte 11, physical = raw * 0.001 + 0.0, unit `V`.
+    /// Wire: `u16` at byte 11, physical = raw * 0.001, unit `V`.
     pub bse_front: f32,
     /// Rear brake system encoder voltage (valid 0.5-4.5 V).
     ///
-    /// Wire: `u16` at byte 13, physical = raw * 0.001 + 0.0, unit `V`.
+    /// Wire: `u16` at byte 13, physical = raw * 0.001, unit `V`.
     pub bse_rear: f32,
     /// Corrected isolation resistance.
     ///
@@ -57,15 +57,15 @@ pub struct Telemetry {
     pub imd_status: u8,
     /// Instantaneous pack voltage.
     ///
-    /// Wire: `u16` at byte 18, physical = raw * 0.1 + 0.0, unit `V`, mirrors `Orion_PackStatus.Orion_PackInstVoltage`.
+    /// Wire: `u16` at byte 18, physical = raw * 0.1, unit `V`, mirrors `Orion_PackStatus.Orion_PackInstVoltage`.
     pub pack_voltage: f32,
     /// Pack current, positive when discharging.
     ///
-    /// Wire: `i16` at byte 20, physical = raw * 0.1 + 0.0, unit `A`, mirrors `Orion_PackStatus.Orion_PackCurrent`.
+    /// Wire: `i16` at byte 20, physical = raw * 0.1, unit `A`, mirrors `Orion_PackStatus.Orion_PackCurrent`.
     pub pack_current: f32,
     /// State of charge.
     ///
-    /// Wire: `u8` at byte 22, physical = raw * 0.5 + 0.0, unit `%`, mirrors `Orion_PackStatus.Orion_PackSoc`.
+    /// Wire: `u8` at byte 22, physical = raw * 0.5, unit `%`, mirrors `Orion_PackStatus.Orion_PackSoc`.
     pub soc: f32,
     /// Discharge current limit.
     ///
@@ -75,23 +75,23 @@ pub struct Telemetry {
     ///
     /// Wire: `u16` at byte 25, unit `A`, mirrors `Orion_Limits.Orion_PackCcl`.
     pub charge_limit: u16,
-    /// Wire: `u16` at byte 27, physical = raw * 0.0001 + 0.0, unit `V`, mirrors `Orion_CellVoltages.Orion_LowCellVoltage`.
+    /// Wire: `u16` at byte 27, physical = raw * 0.0001, unit `V`, mirrors `Orion_CellVoltages.Orion_LowCellVoltage`.
     pub low_cell_volt: f32,
-    /// Wire: `u16` at byte 29, physical = raw * 0.0001 + 0.0, unit `V`, mirrors `Orion_CellVoltages.Orion_HighCellVoltage`.
+    /// Wire: `u16` at byte 29, physical = raw * 0.0001, unit `V`, mirrors `Orion_CellVoltages.Orion_HighCellVoltage`.
     pub high_cell_volt: f32,
-    /// Wire: `u16` at byte 31, physical = raw * 0.0001 + 0.0, unit `V`, mirrors `Orion_CellVoltages.Orion_AvgCellVoltage`.
+    /// Wire: `u16` at byte 31, physical = raw * 0.0001, unit `V`, mirrors `Orion_CellVoltages.Orion_AvgCellVoltage`.
     pub avg_cell_volt: f32,
     /// Motor speed.
     ///
-    /// Wire: `u16` at byte 33, physical = raw * 0.25 + 0.0, unit `rpm`, mirrors `MCU1.MCU_MotorSpeed`.
+    /// Wire: `u16` at byte 33, physical = raw * 0.25, unit `rpm`, mirrors `MCU1.MCU_MotorSpeed`.
     pub motor_speed: f32,
     /// Actual torque: 0.392 % of 260 Nm per bit, in Nm (the old decoder forgot the /100 and was 100x off).
     ///
-    /// Wire: `u8` at byte 35, physical = raw * 1.0192 + 0.0, unit `Nm`, mirrors `MCU1.MCU_ActualTorque`.
+    /// Wire: `u8` at byte 35, physical = raw * 1.0192, unit `Nm`, mirrors `MCU1.MCU_ActualTorque`.
     pub motor_torque: f32,
     /// Torque the inverter can deliver now, in Nm.
     ///
-    /// Wire: `u8` at byte 36, physical = raw * 1.0192 + 0.0, unit `Nm`, mirrors `MCU1.MCU_MaxMotorTorque`.
+    /// Wire: `u8` at byte 36, physical = raw * 1.0192, unit `Nm`, mirrors `MCU1.MCU_MaxMotorTorque`.
     pub max_motor_torque: f32,
     /// Wire: `u8` at byte 37, mirrors `MCU1.MCU_RotateDirection`.
     pub motor_direction: MotorRotateDirection,
@@ -101,19 +101,19 @@ pub struct Telemetry {
     pub mcu_main_state: McuMainState,
     /// Wire: `u8` at byte 40, mirrors `MCU1.MCU_WorkMode`.
     pub mcu_work_mode: McuWorkMode,
-    /// Wire: `u16` at byte 41, physical = raw * 0.01 + 0.0, unit `V`, mirrors `MCU3.MCU_DcVoltage`.
+    /// Wire: `u16` at byte 41, physical = raw * 0.01, unit `V`, mirrors `MCU3.MCU_DcVoltage`.
     pub mcu_voltage: f32,
-    /// Wire: `u16` at byte 43, physical = raw * 0.01 + 0.0, unit `A`, mirrors `MCU3.MCU_PhaseCurrent`.
+    /// Wire: `u16` at byte 43, physical = raw * 0.01, unit `A`, mirrors `MCU3.MCU_PhaseCurrent`.
     pub mcu_phase_current: f32,
-    /// Wire: `i16` at byte 45, physical = raw * 0.01 + 0.0, unit `A`, mirrors `MCU3.MCU_DcCurrent`.
+    /// Wire: `i16` at byte 45, physical = raw * 0.01, unit `A`, mirrors `MCU3.MCU_DcCurrent`.
     pub mcu_current: f32,
     /// Motor temperature.
     ///
-    /// Wire: `u8` at byte 47, physical = raw * 1.0 + -40.0, unit `degC`, mirrors `MCU2.MCU_MotorTemp`.
+    /// Wire: `u8` at byte 47, physical = raw - 40.0, unit `degC`, mirrors `MCU2.MCU_MotorTemp`.
     pub motor_temp: i16,
     /// Inverter temperature.
     ///
-    /// Wire: `u8` at byte 48, physical = raw * 1.0 + -40.0, unit `degC`, mirrors `MCU2.MCU_InverterTemp`.
+    /// Wire: `u8` at byte 48, physical = raw - 40.0, unit `degC`, mirrors `MCU2.MCU_InverterTemp`.
     pub mcu_temp: i16,
     /// Wire: `u8` at byte 49, mirrors `MCU2.MCU_WarningLevel`.
     pub mcu_warning_level: McuWarningLevel,
@@ -123,19 +123,19 @@ pub struct Telemetry {
     pub vehicle_state: VehicleState,
     /// Front-left shock travel.
     ///
-    /// Wire: `u16` at byte 51, physical = raw * 0.01 + 0.0, unit `mm`.
+    /// Wire: `u16` at byte 51, physical = raw * 0.01, unit `mm`.
     pub shocktravel1: f32,
     /// Front-right shock travel.
     ///
-    /// Wire: `u16` at byte 53, physical = raw * 0.01 + 0.0, unit `mm`.
+    /// Wire: `u16` at byte 53, physical = raw * 0.01, unit `mm`.
     pub shocktravel2: f32,
     /// Rear-left shock travel.
     ///
-    /// Wire: `u16` at byte 55, physical = raw * 0.01 + 0.0, unit `mm`.
+    /// Wire: `u16` at byte 55, physical = raw * 0.01, unit `mm`.
     pub shocktravel3: f32,
     /// Rear-right shock travel.
     ///
-    /// Wire: `u16` at byte 57, physical = raw * 0.01 + 0.0, unit `mm`.
+    /// Wire: `u16` at byte 57, physical = raw * 0.01, unit `mm`.
     pub shocktravel4: f32,
     /// Wire: flag in bit 0 of byte 59, mirrors `MCU2.MCU_DcMainWireOverVoltFault`.
     pub dc_main_wire_over_volt_fault: bool,
@@ -2200,24 +2200,24 @@ impl Telemetry {
 
     /// Physical value of `motor_temp` for a raw wire value.
     pub fn motor_temp_from_raw(raw: u8) -> i16 {
-        (i128::from(raw) + -40) as i16
+        (i32::from(raw) - 40) as i16
     }
 
     /// Wire value of `motor_temp`, and whether it had to be saturated.
     pub fn motor_temp_to_raw(v: i16) -> (u8, bool) {
-        let raw = i128::from(v) - -40;
+        let raw = i32::from(v) + 40;
         let clamped = raw.clamp(0, 255);
         (clamped as u8, clamped != raw)
     }
 
     /// Physical value of `mcu_temp` for a raw wire value.
     pub fn mcu_temp_from_raw(raw: u8) -> i16 {
-        (i128::from(raw) + -40) as i16
+        (i32::from(raw) - 40) as i16
     }
 
     /// Wire value of `mcu_temp`, and whether it had to be saturated.
     pub fn mcu_temp_to_raw(v: i16) -> (u8, bool) {
-        let raw = i128::from(v) - -40;
+        let raw = i32::from(v) + 40;
         let clamped = raw.clamp(0, 255);
         (clamped as u8, clamped != raw)
     }

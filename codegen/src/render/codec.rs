@@ -436,19 +436,7 @@ fn signal_view(db: &Database, m: &Message, index: usize, s: &Signal) -> SignalVi
             Encoding::Float64 => "IEEE double",
         }
     );
-    if !identity(s) {
-        let offset = match s.offset {
-            0.0 => String::new(),
-            o if o < 0.0 => format!(" - {}", float_lit(-o)),
-            o => format!(" + {}", float_lit(o)),
-        };
-        let factor = if s.factor == 1.0 {
-            String::new()
-        } else {
-            format!(" * {}", float_lit(s.factor))
-        };
-        facts.push_str(&format!(", physical = raw{factor}{offset}"));
-    }
+    facts.push_str(&super::scaling_doc(s.factor, s.offset));
     if let (Some(lo), Some(hi)) = (s.min, s.max) {
         facts.push_str(&format!(", range [{}, {}]", float_lit(lo), float_lit(hi)));
     }
@@ -580,28 +568,35 @@ fn conversions(
                 format!("{phys_ty}::from(raw)")
             }
         }
-        PhysType::Int(_) => {
+        PhysType::Int(t) => {
             let f = s.factor as i128;
             let o = s.offset as i128;
+            let (plo, phi) = t.range();
+            // Holds the raw type (for `From`), the physical range and the intermediate
+            // `raw * factor`.
+            let (tlo, thi) = raw_int.range();
+            let (a, b) = (raw_lo * f, raw_hi * f);
+            let arith = super::int_arith(tlo.min(plo).min(a).min(b), thi.max(phi).max(a).max(b));
             let unscaled = if f == 1 {
-                format!("i128::from(v) - {o}")
+                format!("{arith}::from(v){}", super::signed_term(-o))
             } else if o == 0 {
                 format!("runtime::div_round(i128::from(v), {f})")
             } else {
-                format!("runtime::div_round(i128::from(v) - {o}, {f})")
+                format!(
+                    "runtime::div_round(i128::from(v){}, {f})",
+                    super::signed_term(-o)
+                )
             };
             to_raw.push(format!("let raw = {unscaled};"));
             to_raw.push(format!(
                 "let raw = {raw_ty}::try_from(raw).map_err(|_| {out_of_range})?;"
             ));
             to_raw.push(fit("raw"));
-            let mut e = "i128::from(raw)".to_owned();
+            let mut e = format!("{arith}::from(raw)");
             if f != 1 {
                 e = format!("{e} * {f}");
             }
-            if o != 0 {
-                e = format!("{e} + {o}");
-            }
+            e.push_str(&super::signed_term(o));
             format!("({e}) as {phys_ty}")
         }
         PhysType::F32 | PhysType::F64 if s.is_float_raw() => {

@@ -35,3 +35,42 @@ pub fn phys_rust(db: &crate::model::Database, phys: crate::model::PhysType) -> S
             .map_or("u64".into(), |e| e.type_name.clone()),
     }
 }
+
+/// `+ 40` / `- 40` (nothing for zero): a signed term that reads naturally after an expression.
+pub fn signed_term(v: i128) -> String {
+    match v {
+        0 => String::new(),
+        v if v < 0 => format!(" - {}", v.unsigned_abs()),
+        v => format!(" + {v}"),
+    }
+}
+
+/// The smallest signed type for integer scaling arithmetic over `lo..=hi` (raw and physical
+/// ranges together): `i32` where it suffices, since wider math is multi-word on the Cortex-M7.
+pub fn int_arith(lo: i128, hi: i128) -> &'static str {
+    if lo >= i128::from(i32::MIN) && hi <= i128::from(i32::MAX) {
+        "i32"
+    } else if lo >= i128::from(i64::MIN) && hi <= i128::from(i64::MAX) {
+        "i64"
+    } else {
+        "i128"
+    }
+}
+
+/// `physical = raw * 0.25 - 40`, for docs (empty for identity scaling).
+pub fn scaling_doc(factor: f64, offset: f64) -> String {
+    if factor == 1.0 && offset == 0.0 {
+        return String::new();
+    }
+    let factor = if factor == 1.0 {
+        String::new()
+    } else {
+        format!(" * {}", float_lit(factor))
+    };
+    let offset = match offset {
+        0.0 => String::new(),
+        o if o < 0.0 => format!(" - {}", float_lit(-o)),
+        o => format!(" + {}", float_lit(o)),
+    };
+    format!(", physical = raw{factor}{offset}")
+}

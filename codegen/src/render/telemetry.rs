@@ -62,22 +62,25 @@ fn view(db: &Database, first_flag_byte: usize, index: usize, f: &TelemetryField)
         (PhysType::Int(t), w) if identity && t.rust() == w.rust() => {
             ("raw".to_owned(), vec!["(v, false)".to_owned()])
         }
-        (PhysType::Int(_), _) => {
+        (PhysType::Int(t), _) => {
             let (s, o) = (f.scale as i128, f.offset as i128);
-            let mut from = "i128::from(raw)".to_owned();
+            let (plo, phi) = t.range();
+            // Holds the wire and physical ranges and the intermediate `raw * scale`.
+            let (a, b) = (lo * s, hi * s);
+            let arith = super::int_arith(lo.min(plo).min(a).min(b), hi.max(phi).max(a).max(b));
+            let mut from = format!("{arith}::from(raw)");
             if s != 1 {
                 from = format!("{from} * {s}");
             }
-            if o != 0 {
-                from = format!("{from} + {o}");
-            }
-            let mut to = "i128::from(v)".to_owned();
-            if o != 0 {
-                to = format!("{to} - {o}");
-            }
-            if s != 1 {
-                to = format!("runtime::div_round({to}, {s})");
-            }
+            from.push_str(&super::signed_term(o));
+            let to = if s == 1 {
+                format!("{arith}::from(v){}", super::signed_term(-o))
+            } else {
+                format!(
+                    "runtime::div_round(i128::from(v){}, {s})",
+                    super::signed_term(-o)
+                )
+            };
             (
                 format!("({from}) as {phys_ty}"),
                 vec![
@@ -205,13 +208,7 @@ fn view(db: &Database, first_flag_byte: usize, index: usize, f: &TelemetryField)
         Placement::Bytes(at) => format!("Wire: `{wire_ty}` at byte {at}"),
         Placement::Bit(byte, bit) => format!("Wire: flag in bit {bit} of byte {byte}"),
     };
-    if !identity {
-        facts.push_str(&format!(
-            ", physical = raw * {} + {}",
-            float_lit(f.scale),
-            float_lit(f.offset)
-        ));
-    }
+    facts.push_str(&super::scaling_doc(f.scale, f.offset));
     if !f.unit.is_empty() {
         facts.push_str(&format!(", unit `{}`", f.unit));
     }
