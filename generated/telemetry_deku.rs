@@ -8,7 +8,7 @@ use std::string::{String, ToString};
 
 use deku::prelude::*;
 
-use super::telemetry::{TELEMETRY_FINGERPRINT, Telemetry, TelemetryHeader};
+use super::telemetry::{TELEMETRY_FINGERPRINT, Telemetry, TelemetryError, TelemetryHeader};
 
 /// The packet as it is on the wire: raw values, then the flag bytes (flags LSB first, in schema
 /// order). Deku reads whole bytes (its bit-level reader is ~50x slower); the generated
@@ -56,10 +56,9 @@ pub struct TelemetryFrame {
 /// Why a packet could not be decoded.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub enum TelemetryDecodeError {
-    /// The packet is not exactly [`Telemetry::LEN`] bytes (truncated or padded).
-    WrongLength { expected: usize, actual: usize },
-    /// The sender was built from another schema.
-    FingerprintMismatch { expected: u32, found: u32 },
+    /// Wrong length (truncated or padded) or another schema's fingerprint: the same checks as
+    /// the firmware's own reader.
+    Packet(TelemetryError),
     /// Deku could not read the bytes.
     Malformed(String),
 }
@@ -67,13 +66,7 @@ pub enum TelemetryDecodeError {
 impl core::fmt::Display for TelemetryDecodeError {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         match self {
-            Self::WrongLength { expected, actual } => {
-                write!(f, "telemetry packet is {actual} bytes, expected {expected}")
-            }
-            Self::FingerprintMismatch { expected, found } => write!(
-                f,
-                "telemetry fingerprint 0x{found:08X} does not match this build's 0x{expected:08X}"
-            ),
+            Self::Packet(e) => e.fmt(f),
             Self::Malformed(why) => write!(f, "malformed telemetry packet: {why}"),
         }
     }
@@ -85,18 +78,20 @@ impl TelemetryFrame {
     /// Decodes a packet, checking its length and fingerprint.
     pub fn decode(bytes: &[u8]) -> Result<Self, TelemetryDecodeError> {
         if bytes.len() != Telemetry::LEN {
-            return Err(TelemetryDecodeError::WrongLength {
+            return Err(TelemetryDecodeError::Packet(TelemetryError::WrongLength {
                 expected: Telemetry::LEN,
                 actual: bytes.len(),
-            });
+            }));
         }
         let (_, frame) = Self::from_bytes((bytes, 0))
             .map_err(|e| TelemetryDecodeError::Malformed(e.to_string()))?;
         if frame.fingerprint != TELEMETRY_FINGERPRINT {
-            return Err(TelemetryDecodeError::FingerprintMismatch {
-                expected: TELEMETRY_FINGERPRINT,
-                found: frame.fingerprint,
-            });
+            return Err(TelemetryDecodeError::Packet(
+                TelemetryError::FingerprintMismatch {
+                    expected: TELEMETRY_FINGERPRINT,
+                    found: frame.fingerprint,
+                },
+            ));
         }
         Ok(frame)
     }

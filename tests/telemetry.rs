@@ -134,10 +134,10 @@ fn bad_packets_give_typed_errors() {
     let truncated = &bytes[..Telemetry::LEN - 1];
     assert_eq!(
         TelemetryFrame::decode(truncated),
-        Err(TelemetryDecodeError::WrongLength {
+        Err(TelemetryDecodeError::Packet(TelemetryError::WrongLength {
             expected: Telemetry::LEN,
             actual: Telemetry::LEN - 1
-        })
+        }))
     );
     assert_eq!(
         Telemetry::unpack(truncated),
@@ -152,10 +152,10 @@ fn bad_packets_give_typed_errors() {
     let err = TelemetryFrame::decode(&other).expect_err("wrong fingerprint");
     assert_eq!(
         err,
-        TelemetryDecodeError::FingerprintMismatch {
+        TelemetryDecodeError::Packet(TelemetryError::FingerprintMismatch {
             expected: TELEMETRY_FINGERPRINT,
             found: 0xDEAD_BEEF
-        }
+        })
     );
     let text = err.to_string();
     assert!(

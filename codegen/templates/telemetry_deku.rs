@@ -8,7 +8,7 @@ use std::string::{String, ToString};
 
 use deku::prelude::*;
 
-use super::telemetry::{TELEMETRY_FINGERPRINT, {{ t.type_name }}, TelemetryHeader};
+use super::telemetry::{TELEMETRY_FINGERPRINT, {{ t.type_name }}, TelemetryError, TelemetryHeader};
 
 /// The packet as it is on the wire: raw values, then the flag bytes (flags LSB first, in schema
 /// order). Deku reads whole bytes (its bit-level reader is ~50x slower); the generated
@@ -32,10 +32,9 @@ pub struct {{ t.type_name }}Frame {
 /// Why a packet could not be decoded.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub enum {{ t.type_name }}DecodeError {
-    /// The packet is not exactly [`{{ t.type_name }}::LEN`] bytes (truncated or padded).
-    WrongLength { expected: usize, actual: usize },
-    /// The sender was built from another schema.
-    FingerprintMismatch { expected: u32, found: u32 },
+    /// Wrong length (truncated or padded) or another schema's fingerprint: the same checks as
+    /// the firmware's own reader.
+    Packet(TelemetryError),
     /// Deku could not read the bytes.
     Malformed(String),
 }
@@ -43,13 +42,7 @@ pub enum {{ t.type_name }}DecodeError {
 impl core::fmt::Display for {{ t.type_name }}DecodeError {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         match self {
-            Self::WrongLength { expected, actual } => {
-                write!(f, "telemetry packet is {actual} bytes, expected {expected}")
-            }
-            Self::FingerprintMismatch { expected, found } => write!(
-                f,
-                "telemetry fingerprint 0x{found:08X} does not match this build's 0x{expected:08X}"
-            ),
+            Self::Packet(e) => e.fmt(f),
             Self::Malformed(why) => write!(f, "malformed telemetry packet: {why}"),
         }
     }
@@ -61,18 +54,18 @@ impl {{ t.type_name }}Frame {
     /// Decodes a packet, checking its length and fingerprint.
     pub fn decode(bytes: &[u8]) -> Result<Self, {{ t.type_name }}DecodeError> {
         if bytes.len() != {{ t.type_name }}::LEN {
-            return Err({{ t.type_name }}DecodeError::WrongLength {
+            return Err({{ t.type_name }}DecodeError::Packet(TelemetryError::WrongLength {
                 expected: {{ t.type_name }}::LEN,
                 actual: bytes.len(),
-            });
+            }));
         }
         let (_, frame) = Self::from_bytes((bytes, 0))
             .map_err(|e| {{ t.type_name }}DecodeError::Malformed(e.to_string()))?;
         if frame.fingerprint != TELEMETRY_FINGERPRINT {
-            return Err({{ t.type_name }}DecodeError::FingerprintMismatch {
+            return Err({{ t.type_name }}DecodeError::Packet(TelemetryError::FingerprintMismatch {
                 expected: TELEMETRY_FINGERPRINT,
                 found: frame.fingerprint,
-            });
+            }));
         }
         Ok(frame)
     }

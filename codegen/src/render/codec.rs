@@ -207,7 +207,7 @@ pub(crate) fn scale_expr(x: &str, factor: f64, offset: f64) -> String {
 }
 
 /// `(x - offset) / factor` in source form, leaving out identity steps.
-fn unscale_expr(x: &str, factor: f64, offset: f64) -> String {
+pub(crate) fn unscale_expr(x: &str, factor: f64, offset: f64) -> String {
     let mut e = x.to_owned();
     if offset != 0.0 {
         e = format!("({e} - {})", float_lit(offset));
@@ -663,16 +663,7 @@ fn conversions(
 }
 
 fn signal_meta(db: &Database, s: &Signal) -> String {
-    let labels = match s.phys {
-        PhysType::Enum(i) => db.enums.get(i).map_or(String::new(), |e| {
-            e.variants
-                .iter()
-                .map(|v| format!("({}, {:?})", v.value, v.label))
-                .collect::<Vec<_>>()
-                .join(", ")
-        }),
-        _ => String::new(),
-    };
+    let labels = super::labels_lit(db, s.phys);
     let opt = |v: Option<f64>| v.map_or("None".to_owned(), |x| format!("Some({})", float_lit(x)));
     format!(
         "SignalMeta {{ name: {:?}, unit: {:?}, comment: {:?}, start_bit: {}, len: {}, byte_order: ByteOrder::{}, signed: {}, factor: {}, offset: {}, min: {}, max: {}, labels: &[{labels}], multiplexed: {} }}",

@@ -74,3 +74,17 @@ pub fn scaling_doc(factor: f64, offset: f64) -> String {
     };
     format!(", physical = raw{factor}{offset}")
 }
+
+/// `(0, "OFF"), (1, "ON")`: the named raw values of an enum type, for metadata literals.
+pub fn labels_lit(db: &crate::model::Database, phys: crate::model::PhysType) -> String {
+    match phys {
+        crate::model::PhysType::Enum(i) => db.enums.get(i).map_or(String::new(), |e| {
+            e.variants
+                .iter()
+                .map(|v| format!("({}, {:?})", v.value, v.label))
+                .collect::<Vec<_>>()
+                .join(", ")
+        }),
+        _ => String::new(),
+    }
+}

@@ -4,7 +4,7 @@
 
 use askama::Template;
 
-use super::codec::scale_expr;
+use super::codec::{scale_expr, unscale_expr};
 use super::{doc_lines, float_lit, phys_rust};
 use crate::model::{Database, PhysType, Placement, Telemetry, TelemetryField, WireType};
 
@@ -90,58 +90,38 @@ fn view(db: &Database, first_flag_byte: usize, index: usize, f: &TelemetryField)
                 ],
             )
         }
-        (PhysType::F32 | PhysType::F64, WireType::F32) => {
-            if f.phys == PhysType::F32 && identity {
-                ("raw".to_owned(), vec!["(v, false)".to_owned()])
-            } else {
-                let v64 = if f.phys == PhysType::F32 {
-                    "f64::from(v)"
-                } else {
-                    "v"
-                };
-                let from = scale_expr("f64::from(raw)", f.scale, f.offset);
-                let from = if f.phys == PhysType::F32 {
-                    format!("({from}) as f32")
-                } else {
-                    from
-                };
-                (
-                    from,
-                    vec![format!(
-                        "(({}) as f32, false)",
-                        unscale(v64, f.scale, f.offset)
-                    )],
-                )
-            }
-        }
-        (PhysType::F32 | PhysType::F64, _) => {
+        (PhysType::F32 | PhysType::F64, wire) => {
             let v64 = if f.phys == PhysType::F32 {
                 "f64::from(v)"
             } else {
                 "v"
             };
-            let from = scale_expr("f64::from(raw)", f.scale, f.offset);
+            let scaled = scale_expr("f64::from(raw)", f.scale, f.offset);
             let from = if f.phys == PhysType::F32 {
-                format!("({from}) as f32")
+                format!("({scaled}) as f32")
             } else {
-                from
+                scaled
             };
-            (
-                from,
-                vec![
-                    format!(
-                        "let raw = runtime::round({});",
-                        unscale(v64, f.scale, f.offset)
-                    ),
-                    "if raw.is_nan() {\nreturn (0, true);\n}".to_owned(),
-                    format!(
-                        "let clamped = raw.clamp({}, {});",
-                        float_lit(lo as f64),
-                        float_lit(hi as f64)
-                    ),
-                    format!("(clamped as {wire_ty}, clamped != raw)"),
-                ],
-            )
+            let unscaled = unscale_expr(v64, f.scale, f.offset);
+            match wire {
+                WireType::F32 if f.phys == PhysType::F32 && identity => {
+                    ("raw".to_owned(), vec!["(v, false)".to_owned()])
+                }
+                WireType::F32 => (from, vec![format!("(({unscaled}) as f32, false)")]),
+                _ => (
+                    from,
+                    vec![
+                        format!("let raw = runtime::round({unscaled});"),
+                        "if raw.is_nan() {\nreturn (0, true);\n}".to_owned(),
+                        format!(
+                            "let clamped = raw.clamp({}, {});",
+                            float_lit(lo as f64),
+                            float_lit(hi as f64)
+                        ),
+                        format!("(clamped as {wire_ty}, clamped != raw)"),
+                    ],
+                ),
+            }
         }
     };
     let (pack_stmt, unpack_expr, start_bit) = match f.placement {
@@ -170,16 +150,7 @@ fn view(db: &Database, first_flag_byte: usize, index: usize, f: &TelemetryField)
     let visit_stmt = format!(
         "let v = self.{name};\nvisitor.signal(&TELEMETRY_FIELDS[{index}], {value_expr}, {label_expr});"
     );
-    let labels = match f.phys {
-        PhysType::Enum(i) => db.enums.get(i).map_or(String::new(), |e| {
-            e.variants
-                .iter()
-                .map(|v| format!("({}, {:?})", v.value, v.label))
-                .collect::<Vec<_>>()
-                .join(", ")
-        }),
-        _ => String::new(),
-    };
+    let labels = super::labels_lit(db, f.phys);
     let opt = |v: Option<f64>| v.map_or("None".to_owned(), |x| format!("Some({})", float_lit(x)));
     let meta = format!(
         "SignalMeta {{ name: {:?}, unit: {:?}, comment: {:?}, start_bit: {start_bit}, len: {}, byte_order: ByteOrder::LittleEndian, signed: {}, factor: {}, offset: {}, min: {}, max: {}, labels: &[{labels}], multiplexed: false }}",
@@ -249,17 +220,6 @@ fn view(db: &Database, first_flag_byte: usize, index: usize, f: &TelemetryField)
         deku_read,
         deku_write,
     }
-}
-
-fn unscale(x: &str, scale: f64, offset: f64) -> String {
-    let mut e = x.to_owned();
-    if offset != 0.0 {
-        e = format!("({e} - {})", float_lit(offset));
-    }
-    if scale != 1.0 {
-        e = format!("{e} / {}", float_lit(scale));
-    }
-    e
 }
 
 fn flag_count(t: &Telemetry) -> usize {
