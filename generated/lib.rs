@@ -5,7 +5,8 @@
 //! - [`runtime`]: errors, metadata and the [`runtime::SignalVisitor`] /
 //!   [`runtime::SignalSource`] traits for working with any message generically.
 //! - [`telemetry`]: the ISO-TP telemetry packet and its firmware packer.
-//! - [`tdengine`]: the database schema (super tables, columns, insert statements).
+//! - [`tdengine`]: the database schema (super tables, columns, insert statements), and
+//!   [`local_store`]: the same tables for the Pi's SQLite store.
 //! - `telemetry_deku` and `mqtt` (feature `host`): the Pi's Deku decoder and the typed MQTT
 //!   topics.
 //!
@@ -18,6 +19,7 @@ extern crate alloc;
 extern crate std;
 
 pub mod can;
+pub mod local_store;
 #[cfg(feature = "host")]
 pub mod mqtt;
 pub mod runtime;

@@ -183,6 +183,14 @@ impl CarSchema {
                 "sql/tdengine.sql",
                 render::tdengine::render_sql(db, t, "schema/")?,
             ),
+            file(
+                "local_store.rs",
+                render::local_store::render_rust(db, t, "schema/")?,
+            ),
+            file(
+                "sql/sqlite.sql",
+                render::local_store::render_sql(db, t, "schema/")?,
+            ),
             file("mqtt.rs", render::mqtt::render(db, t, "schema/")?),
             file(
                 "examples/decode.rs",

@@ -6,7 +6,8 @@
 //!   [`runtime::SignalSource`] traits for working with any message generically.
 {%- if telemetry %}
 //! - [`telemetry`]: the ISO-TP telemetry packet and its firmware packer.
-//! - [`tdengine`]: the database schema (super tables, columns, insert statements).
+//! - [`tdengine`]: the database schema (super tables, columns, insert statements), and
+//!   [`local_store`]: the same tables for the Pi's SQLite store.
 //! - `telemetry_deku` and `mqtt` (feature `host`): the Pi's Deku decoder and the typed MQTT
 //!   topics.
 {%- endif %}
@@ -23,6 +24,7 @@ extern crate std;
 
 pub mod can;
 {%- if telemetry %}
+pub mod local_store;
 #[cfg(feature = "host")]
 pub mod mqtt;
 {%- endif %}

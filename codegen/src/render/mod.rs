@@ -1,6 +1,7 @@
 //! Render: the model -> source files, through askama templates (one per output).
 
 pub mod codec;
+pub mod local_store;
 pub mod mqtt;
 pub mod standalone;
 pub mod tdengine;

@@ -97,7 +97,7 @@ fn table(
     }
 }
 
-fn tables(db: &Database, t: &Telemetry) -> Vec<Table> {
+pub(crate) fn tables(db: &Database, t: &Telemetry) -> Vec<Table> {
     let car = ("car_id".to_owned(), "VARCHAR(32)".to_owned());
     let schema = ("schema_fingerprint".to_owned(), "INT UNSIGNED".to_owned());
     let mut columns = vec![
