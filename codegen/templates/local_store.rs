@@ -56,8 +56,6 @@ impl LocalTable {
         &'a self,
         existing: &'a [&str],
     ) -> impl Iterator<Item = &'a Column> + 'a {
-        self.columns
-            .iter()
-            .filter(move |c| !existing.iter().any(|e| e.eq_ignore_ascii_case(c.name)))
+        super::tdengine::missing_columns(self.columns, existing)
     }
 }

@@ -71,8 +71,17 @@ impl SuperTable {
         &'a self,
         existing: &'a [&str],
     ) -> impl Iterator<Item = &'a Column> + 'a {
-        self.columns
-            .iter()
-            .filter(move |c| !existing.iter().any(|e| e.eq_ignore_ascii_case(c.name)))
+        missing_columns(self.columns, existing)
     }
+}
+
+/// The `columns` that `existing` lacks; names compare case-insensitively, as both databases
+/// treat identifiers.
+pub fn missing_columns<'a>(
+    columns: &'a [Column],
+    existing: &'a [&str],
+) -> impl Iterator<Item = &'a Column> + 'a {
+    columns
+        .iter()
+        .filter(move |c| !existing.iter().any(|e| e.eq_ignore_ascii_case(c.name)))
 }
