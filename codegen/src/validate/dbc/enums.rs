@@ -1,0 +1,131 @@
+//! Enums from value tables: `VAL_TABLE_`s become named types, and a signal's `VAL_` list shares
+//! the table's type when they name the same values.
+
+use std::collections::HashSet;
+
+use super::Builder;
+use crate::model::Encoding;
+use crate::model::{EnumType, IntType, Signal, Variant};
+use crate::naming::camel;
+
+impl Builder<'_, '_> {
+    /// Finds or creates the enum for a signal's value descriptions. A signal whose descriptions
+    /// equal a `VAL_TABLE_` shares that table's type, so one enum serves every signal using it.
+    pub(super) fn enum_for(
+        &mut self,
+        s: &Signal,
+        choices: &[can_dbc::ValDescription],
+        line: usize,
+        where_: &str,
+        type_name: &str,
+        enums: &mut Vec<EnumType>,
+    ) -> Option<usize> {
+        let (lo, hi) = s.raw_range();
+        let mut kept = Vec::new();
+        for c in choices {
+            let v = i128::from(c.id);
+            // VAL_ values are written as raw bit patterns or as signed raw values; accept both.
+            let v = if s.encoding == Encoding::Signed && v > hi && v < (1i128 << s.len) {
+                v - (1i128 << s.len)
+            } else {
+                v
+            };
+            if v < lo || v > hi {
+                self.r.warning(
+                    "W0203",
+                    line,
+                    format!(
+                        "{where_} names value {} (`{}`), which its {}-bit raw value can never hold",
+                        c.id, c.description, s.len
+                    ),
+                    "remove the value from the VAL_ line or fix the signal's length or sign",
+                );
+                continue;
+            }
+            kept.push((v, c.description.clone()));
+        }
+        kept.sort_by_key(|(v, _)| *v);
+        kept.dedup_by_key(|(v, _)| *v);
+        let raw = s.raw_int();
+        let table_match = self.loaded.dbc.value_tables.iter().position(|t| {
+            let mut tv: Vec<(i128, String)> = t
+                .descriptions
+                .iter()
+                .map(|d| (i128::from(d.id), d.description.clone()))
+                .collect();
+            tv.sort_by_key(|(v, _)| *v);
+            tv == kept
+        });
+        if let Some(ti) = table_match {
+            let name = camel(&self.loaded.dbc.value_tables[ti].name);
+            if let Some(i) = enums.iter().position(|e| e.type_name == name) {
+                let e = &mut enums[i];
+                let (a, b) = e.repr.range();
+                let (c, d) = raw.range();
+                e.repr = IntType::smallest_for(a.min(c), b.max(d));
+                return Some(i);
+            }
+        }
+        if kept.is_empty() {
+            self.r.warning(
+                "W0203",
+                line,
+                format!("{where_} has no usable value descriptions"),
+                "remove its VAL_ line",
+            );
+        }
+        enums.push(EnumType {
+            type_name: format!("{type_name}{}", camel(&s.name)),
+            variants: variants(&kept),
+            repr: raw,
+        });
+        let _ = where_;
+        Some(enums.len() - 1)
+    }
+
+    pub(super) fn value_tables(&mut self) -> Vec<EnumType> {
+        self.loaded
+            .dbc
+            .value_tables
+            .iter()
+            .map(|t| {
+                let mut kept: Vec<(i128, String)> = t
+                    .descriptions
+                    .iter()
+                    .map(|d| (i128::from(d.id), d.description.clone()))
+                    .collect();
+                kept.sort_by_key(|(v, _)| *v);
+                kept.dedup_by_key(|(v, _)| *v);
+                let lo = kept.first().map_or(0, |(v, _)| *v);
+                let hi = kept.last().map_or(0, |(v, _)| *v);
+                EnumType {
+                    type_name: camel(&t.name),
+                    variants: variants(&kept),
+                    repr: IntType::smallest_for(lo.min(0), hi),
+                }
+            })
+            .collect()
+    }
+}
+
+/// Enum variants with unique identifiers; `Unknown` is reserved for the fallback variant.
+fn variants(values: &[(i128, String)]) -> Vec<Variant> {
+    let mut taken: HashSet<String> = HashSet::from(["Unknown".to_owned()]);
+    values
+        .iter()
+        .map(|(value, label)| {
+            let mut ident = camel(label);
+            if !taken.insert(ident.clone()) {
+                ident = format!("{ident}{}", value.unsigned_abs());
+                while !taken.insert(ident.clone()) {
+                    ident.push('_');
+                }
+            }
+            Variant {
+                ident,
+                value: *value,
+                label: label.clone(),
+            }
+        })
+        .collect()
+}

@@ -1,0 +1,230 @@
+//! Multiplexing: conditions from `mN` indicators and `SG_MUL_VAL_` lines, the order in which
+//! multiplexors must be decoded, and overlaps between signals that can share a frame.
+
+use std::collections::{BTreeSet, HashMap, HashSet};
+
+use can_dbc::MultiplexIndicator;
+
+use super::{Builder, Draft};
+use crate::model::{MuxCondition, Signal};
+
+impl<'a> Builder<'a, '_> {
+    /// Attaches mux conditions from `mN` indicators and `SG_MUL_VAL_` lines.
+    pub(super) fn resolve_multiplexing(
+        &mut self,
+        msg: &can_dbc::Message,
+        written_id: u64,
+        drafts: &[Draft<'a>],
+        signals: &mut [Signal],
+    ) -> Option<()> {
+        // SG_MUL_VAL_ lines use the short names as written in the SG_ lines.
+        let index_of: HashMap<String, usize> = drafts
+            .iter()
+            .enumerate()
+            .map(|(i, d)| (d.sig.name.clone(), i))
+            .collect();
+        let multiplexors: Vec<usize> = signals
+            .iter()
+            .enumerate()
+            .filter(|(_, s)| s.is_multiplexor)
+            .map(|(i, _)| i)
+            .collect();
+        let mut ok = true;
+        for (i, d) in drafts.iter().enumerate() {
+            let extended: Vec<&can_dbc::ExtendedMultiplex> = self
+                .loaded
+                .dbc
+                .extended_multiplex
+                .iter()
+                .filter(|e| e.message_id == msg.id && e.signal_name == d.sig.name)
+                .collect();
+            // An SG_MUL_VAL_ line defines the condition whatever the indicator says (tools that
+            // dump extended multiplexing often write a nested multiplexor as plain `M`).
+            let value = match d.sig.multiplexer_indicator {
+                MultiplexIndicator::MultiplexedSignal(v)
+                | MultiplexIndicator::MultiplexorAndMultiplexedSignal(v) => v,
+                _ if !extended.is_empty() => 0,
+                _ => continue,
+            };
+            let where_ = format!("signal `{}` of message `{}`", d.sig.name, msg.name);
+            let condition = if let Some(first) = extended.first() {
+                let line = self
+                    .loaded
+                    .lines
+                    .mux_values
+                    .get(&(written_id, d.sig.name.clone()))
+                    .copied()
+                    .unwrap_or(d.line);
+                let Some(&sel) = index_of.get(&first.multiplexor_signal_name) else {
+                    self.r.error(
+                        "E0114",
+                        line,
+                        format!(
+                            "{where_} is multiplexed by `{}`, which is not a signal of the message",
+                            first.multiplexor_signal_name
+                        ),
+                        "name an existing multiplexor signal in the SG_MUL_VAL_ line",
+                    );
+                    ok = false;
+                    continue;
+                };
+                let ranges = extended
+                    .iter()
+                    .flat_map(|e| e.mappings.iter().map(|m| (m.min_value, m.max_value)))
+                    .collect();
+                MuxCondition {
+                    selector: sel,
+                    ranges,
+                }
+            } else {
+                let candidates: Vec<usize> =
+                    multiplexors.iter().copied().filter(|&m| m != i).collect();
+                match candidates.as_slice() {
+                    [sel] => MuxCondition {
+                        selector: *sel,
+                        ranges: vec![(value, value)],
+                    },
+                    [] => {
+                        self.r.error(
+                            "E0114",
+                            d.line,
+                            format!("{where_} is multiplexed (m{value}) but the message has no multiplexor signal (M)"),
+                            "mark the selector signal with `M`, or remove the `m` indicator",
+                        );
+                        ok = false;
+                        continue;
+                    }
+                    _ => {
+                        self.r.error(
+                            "E0114",
+                            d.line,
+                            format!("{where_} is multiplexed (m{value}) but the message has several multiplexors and no SG_MUL_VAL_ line says which one selects it"),
+                            "add `SG_MUL_VAL_ <id> <signal> <multiplexor> <lo>-<hi>;` for this signal",
+                        );
+                        ok = false;
+                        continue;
+                    }
+                }
+            };
+            let sel = &signals[condition.selector];
+            if !sel.is_multiplexor || sel.is_float_raw() {
+                self.r.error(
+                    "E0114",
+                    d.line,
+                    format!("{where_} is selected by `{}`, which is not an integer multiplexor signal (M)", sel.name),
+                    "mark the selector with `M` (or `mNM` when it is itself multiplexed); selectors must be integers",
+                );
+                ok = false;
+                continue;
+            }
+            let (_, sel_hi) = sel.raw_range();
+            if let Some(&(lo, hi)) = condition
+                .ranges
+                .iter()
+                .find(|(lo, hi)| lo > hi || i128::from(*hi) > sel_hi)
+            {
+                self.r.error(
+                    "E0116",
+                    d.line,
+                    format!("{where_} is selected by `{}` values {lo}-{hi}, which its {}-bit multiplexor cannot take", sel.name, sel.len),
+                    "use multiplexor values between 0 and the multiplexor's largest raw value",
+                );
+                ok = false;
+                continue;
+            }
+            signals[i].mux = Some(condition);
+        }
+        ok.then_some(())
+    }
+
+    /// Orders signals so that each multiplexor is decoded before what it selects.
+    pub(super) fn eval_order(
+        &mut self,
+        msg: &can_dbc::Message,
+        line: usize,
+        signals: &[Signal],
+    ) -> Option<Vec<usize>> {
+        let mut order = Vec::with_capacity(signals.len());
+        let mut done = vec![false; signals.len()];
+        while order.len() < signals.len() {
+            let before = order.len();
+            for (i, s) in signals.iter().enumerate() {
+                let ready = s.mux.as_ref().is_none_or(|m| done[m.selector]);
+                if !done[i] && ready {
+                    done[i] = true;
+                    order.push(i);
+                }
+            }
+            if order.len() == before {
+                self.r.error(
+                    "E0114",
+                    line,
+                    format!("the multiplexors of message `{}` select each other in a cycle", msg.name),
+                    "a multiplexor must not be selected, directly or indirectly, by a signal it selects",
+                );
+                return None;
+            }
+        }
+        Some(order)
+    }
+
+    /// Reports signals that share bits and can be present in the same frame.
+    pub(super) fn check_overlaps(
+        &mut self,
+        msg: &can_dbc::Message,
+        drafts: &[Draft<'a>],
+        signals: &[Signal],
+    ) {
+        let bits: Vec<BTreeSet<u32>> = signals
+            .iter()
+            .map(|s| s.bits().into_iter().collect())
+            .collect();
+        let mut reported = HashSet::new();
+        for a in 0..signals.len() {
+            for b in a + 1..signals.len() {
+                if bits[a].is_disjoint(&bits[b]) || exclusive(signals, a, b) || !reported.insert(b)
+                {
+                    continue;
+                }
+                let shared: Vec<u32> = bits[a].intersection(&bits[b]).copied().collect();
+                self.r.error(
+                    "E0107",
+                    drafts[b].line,
+                    format!(
+                        "signals `{}` and `{}` of message `{}` overlap in bit(s) {:?}",
+                        signals[a].name, signals[b].name, msg.name, shared
+                    ),
+                    "move one of them, or make them alternatives of the same multiplexor",
+                );
+            }
+        }
+    }
+}
+
+/// True when two signals can never be in the same frame: some multiplexor selects them with
+/// disjoint values.
+fn exclusive(signals: &[Signal], a: usize, b: usize) -> bool {
+    let path = |mut i: usize| {
+        let mut conds = Vec::new();
+        let mut guard = 0;
+        while let Some(m) = signals.get(i).and_then(|s| s.mux.as_ref()) {
+            conds.push(m);
+            i = m.selector;
+            guard += 1;
+            if guard > signals.len() {
+                break;
+            }
+        }
+        conds
+    };
+    let (pa, pb) = (path(a), path(b));
+    pa.iter().any(|ca| {
+        pb.iter().any(|cb| {
+            ca.selector == cb.selector
+                && ca
+                    .ranges
+                    .iter()
+                    .all(|&(lo1, hi1)| cb.ranges.iter().all(|&(lo2, hi2)| hi1 < lo2 || hi2 < lo1))
+        })
+    })
+}
