@@ -226,6 +226,15 @@ fn flag_count(t: &Telemetry) -> usize {
     t.fields.iter().filter(|f| f.wire == WireType::Flag).count()
 }
 
+fn field_views(db: &Database, t: &Telemetry) -> Vec<FieldView> {
+    let first_flag = first_flag_byte(t);
+    t.fields
+        .iter()
+        .enumerate()
+        .map(|(i, f)| view(db, first_flag, i, f))
+        .collect()
+}
+
 /// Byte offset of the first flag byte (flags follow every byte-aligned field).
 fn first_flag_byte(t: &Telemetry) -> usize {
     t.len - flag_count(t).div_ceil(8)
@@ -252,12 +261,7 @@ pub fn render(
         t,
         fingerprint: format!("0x{fingerprint:08X}"),
         enums,
-        fields: t
-            .fields
-            .iter()
-            .enumerate()
-            .map(|(i, f)| view(db, first_flag_byte(t), i, f))
-            .collect(),
+        fields: field_views(db, t),
         flag_bytes: flag_count(t).div_ceil(8),
     }
     .render()
@@ -267,12 +271,7 @@ pub fn render_deku(db: &Database, t: &Telemetry, source: &str) -> Result<String,
     DekuTemplate {
         source,
         t,
-        fields: t
-            .fields
-            .iter()
-            .enumerate()
-            .map(|(i, f)| view(db, first_flag_byte(t), i, f))
-            .collect(),
+        fields: field_views(db, t),
         flag_bytes: flag_count(t).div_ceil(8),
     }
     .render()

@@ -47,15 +47,12 @@ impl Builder<'_, '_> {
         kept.sort_by_key(|(v, _)| *v);
         kept.dedup_by_key(|(v, _)| *v);
         let raw = s.raw_int();
-        let table_match = self.loaded.dbc.value_tables.iter().position(|t| {
-            let mut tv: Vec<(i128, String)> = t
-                .descriptions
-                .iter()
-                .map(|d| (i128::from(d.id), d.description.clone()))
-                .collect();
-            tv.sort_by_key(|(v, _)| *v);
-            tv == kept
-        });
+        let table_match = self
+            .loaded
+            .dbc
+            .value_tables
+            .iter()
+            .position(|t| sorted_values(&t.descriptions) == kept);
         if let Some(ti) = table_match {
             let name = camel(&self.loaded.dbc.value_tables[ti].name);
             if let Some(i) = enums.iter().position(|e| e.type_name == name) {
@@ -89,13 +86,7 @@ impl Builder<'_, '_> {
             .value_tables
             .iter()
             .map(|t| {
-                let mut kept: Vec<(i128, String)> = t
-                    .descriptions
-                    .iter()
-                    .map(|d| (i128::from(d.id), d.description.clone()))
-                    .collect();
-                kept.sort_by_key(|(v, _)| *v);
-                kept.dedup_by_key(|(v, _)| *v);
+                let kept = sorted_values(&t.descriptions);
                 let lo = kept.first().map_or(0, |(v, _)| *v);
                 let hi = kept.last().map_or(0, |(v, _)| *v);
                 EnumType {
@@ -128,4 +119,15 @@ fn variants(values: &[(i128, String)]) -> Vec<Variant> {
             }
         })
         .collect()
+}
+
+/// (value, label) pairs by value, the first label kept where a value repeats.
+fn sorted_values(descriptions: &[can_dbc::ValDescription]) -> Vec<(i128, String)> {
+    let mut values: Vec<(i128, String)> = descriptions
+        .iter()
+        .map(|d| (i128::from(d.id), d.description.clone()))
+        .collect();
+    values.sort_by_key(|(v, _)| *v);
+    values.dedup_by_key(|(v, _)| *v);
+    values
 }
