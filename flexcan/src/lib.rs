@@ -1,0 +1,307 @@
+//! A small FlexCAN driver for the i.MX RT1062 (Teensy 4.0 and 4.1), shared by the CCM and PCC
+//! firmware. imxrt-hal 0.6 has none.
+//!
+//! What it does: classic CAN (no CAN FD) on CAN1 or CAN2 from the 24 MHz oscillator, exact
+//! bit timing ([`timing`]), reception through the 6-deep hardware RX FIFO (ordered, with a
+//! hardware overflow flag that is counted), transmission from 7 mailboxes. Frames with the same
+//! identifier leave in the order they were queued: a frame is refused with
+//! [`TxError::Busy`] while an earlier one with its identifier is still pending, because the
+//! controller arbitrates pending mailboxes by identifier and mailbox number, not by age.
+//!
+//! Register facts are from the i.MX RT1060 reference manual, chapter "FlexCAN"; the errata
+//! workaround is ERR005829 (a mailbox armed during arbitration can be skipped unless the first
+//! free mailbox is written inactive twice afterwards).
+#![no_std]
+
+mod frame;
+pub mod timing;
+
+pub use frame::CanFrame;
+use frame::code;
+use imxrt_iomuxc::{
+    consts::Const,
+    flexcan::{Pin, Rx, Tx},
+};
+use imxrt_ral as ral;
+use timing::{BitTiming, UnreachableBitrate};
+
+/// CAN clock root: the 24 MHz oscillator, undivided.
+pub const CAN_CLOCK_HZ: u32 = 24_000_000;
+
+// MCR bits.
+const MCR_MDIS: u32 = 1 << 31;
+const MCR_FRZ: u32 = 1 << 30;
+const MCR_RFEN: u32 = 1 << 29;
+const MCR_HALT: u32 = 1 << 28;
+const MCR_NOTRDY: u32 = 1 << 27;
+const MCR_SOFTRST: u32 = 1 << 25;
+const MCR_FRZACK: u32 = 1 << 24;
+const MCR_SUPV: u32 = 1 << 23;
+const MCR_WRNEN: u32 = 1 << 21;
+const MCR_LPMACK: u32 = 1 << 20;
+const MCR_SRXDIS: u32 = 1 << 17;
+const MCR_IRMQ: u32 = 1 << 16;
+// CTRL2: store received remote frames instead of answering them automatically.
+const CTRL2_RRS: u32 = 1 << 17;
+// IFLAG1 bits while the RX FIFO is on: frame available, almost full, overflow.
+const IFLAG_FIFO_AVAILABLE: u32 = 1 << 5;
+const IFLAG_FIFO_WARNING: u32 = 1 << 6;
+const IFLAG_FIFO_OVERFLOW: u32 = 1 << 7;
+
+/// Message-buffer layout with the RX FIFO on and RFFN = 0: the FIFO occupies buffers 0-5,
+/// its 8-entry filter table buffers 6-7, so buffer 8 is the first free one.
+const FIFO_FILTERS: usize = 8;
+/// Buffer 8 stays inactive for the ERR005829 workaround.
+const ERRATA_MB: usize = 8;
+const FIRST_TX_MB: usize = 9;
+const LAST_MB: usize = 15;
+/// Message-buffer RAM starts 0x80 bytes into the register block; each buffer is 4 words.
+const MB_RAM_WORD_OFFSET: usize = 0x80 / 4;
+
+/// Register polling limit during set-up (each poll is one bus read, a few ns).
+const POLL_LIMIT: u32 = 1_000_000;
+
+/// Why the controller could not be started.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum InitError {
+    /// The bit rate cannot be made exactly from the CAN clock.
+    Bitrate(UnreachableBitrate),
+    /// The TX and RX pins belong to another FlexCAN instance than the registers.
+    WrongPins,
+    /// The controller did not acknowledge a mode change (clock not running?).
+    Timeout(&'static str),
+}
+
+/// Why a frame was not queued.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TxError {
+    /// Every mailbox is busy, or a frame with this identifier is still pending; retry later.
+    Busy,
+}
+
+/// Fault confinement state of the controller (ESR1.FLTCONF).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum FaultState {
+    /// Normal operation.
+    ErrorActive,
+    /// An error counter passed 127: the node still talks, with passive error flags.
+    ErrorPassive,
+    /// The transmit error counter passed 255; the controller recovers by itself after
+    /// 128 x 11 recessive bits.
+    BusOff,
+}
+
+/// Error counters and state, for the status and telemetry frames.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct BusStatus {
+    /// Fault confinement state.
+    pub state: FaultState,
+    /// Transmit error counter.
+    pub tx_errors: u8,
+    /// Receive error counter.
+    pub rx_errors: u8,
+    /// Frames lost because the hardware RX FIFO was full (since start-up).
+    pub rx_fifo_overflows: u32,
+}
+
+/// A started FlexCAN controller. `N` is the instance number (1 or 2).
+pub struct Flexcan<const N: u8> {
+    regs: ral::can::Instance<N>,
+    rx_fifo_overflows: u32,
+}
+
+impl<const N: u8> Flexcan<N> {
+    /// Clocks, resets and starts controller `N` at `bitrate`, receiving every frame (no
+    /// filters: the decoders decide what they care about), muxing `tx` and `rx` to it.
+    ///
+    /// Sets the shared CAN clock root to the 24 MHz oscillator, so every FlexCAN instance runs
+    /// from the same clock.
+    pub fn new<TX, RX>(
+        regs: ral::can::Instance<N>,
+        mut tx: TX,
+        mut rx: RX,
+        ccm: &ral::ccm::CCM,
+        bitrate: u32,
+    ) -> Result<Self, InitError>
+    where
+        TX: Pin<Signal = Tx, Module = Const<N>>,
+        RX: Pin<Signal = Rx, Module = Const<N>>,
+    {
+        let timing = BitTiming::for_bitrate(CAN_CLOCK_HZ, bitrate).map_err(InitError::Bitrate)?;
+        enable_clock::<N>(ccm)?;
+        imxrt_iomuxc::flexcan::prepare(&mut tx);
+        imxrt_iomuxc::flexcan::prepare(&mut rx);
+        let mut can = Self {
+            regs,
+            rx_fifo_overflows: 0,
+        };
+        can.configure(timing)?;
+        Ok(can)
+    }
+
+    fn configure(&mut self, timing: BitTiming) -> Result<(), InitError> {
+        ral::modify_reg!(ral::can, self.regs, MCR, |mcr| mcr & !MCR_MDIS);
+        self.wait_mcr(MCR_LPMACK, false, "leave low-power mode")?;
+        ral::modify_reg!(ral::can, self.regs, MCR, |mcr| mcr | MCR_SOFTRST);
+        self.wait_mcr(MCR_SOFTRST, false, "soft reset")?;
+        ral::modify_reg!(ral::can, self.regs, MCR, |mcr| mcr | MCR_FRZ | MCR_HALT);
+        self.wait_mcr(MCR_FRZACK, true, "enter freeze mode")?;
+
+        // Oscillator clock (CLKSRC = 0), automatic bus-off recovery, lowest ID sent first.
+        let ctrl1 = (u32::from(timing.presdiv) << 24)
+            | (u32::from(timing.rjw) << 22)
+            | (u32::from(timing.pseg1) << 19)
+            | (u32::from(timing.pseg2) << 16)
+            | u32::from(timing.propseg);
+        ral::write_reg!(ral::can, self.regs, CTRL1, ctrl1);
+        // RFFN = 0 (8 filters), remote frames stored rather than answered.
+        ral::write_reg!(ral::can, self.regs, CTRL2, CTRL2_RRS);
+        // RX FIFO, individual masks, no self-reception, user mode, warnings, buffers 0..=15.
+        let maxmb = u32::try_from(LAST_MB).unwrap_or(15);
+        let mcr = ral::read_reg!(ral::can, self.regs, MCR) & !(MCR_SUPV | 0x7F | (0b11 << 8));
+        ral::write_reg!(
+            ral::can,
+            self.regs,
+            MCR,
+            mcr | MCR_RFEN | MCR_IRMQ | MCR_SRXDIS | MCR_WRNEN | maxmb
+        );
+
+        // Accept everything: filter entries 0 with all-zero ("don't care") masks.
+        for index in 0..FIFO_FILTERS {
+            if let Some(mask) = self.regs.RXIMR.get(index) {
+                mask.write(0);
+            }
+        }
+        ral::write_reg!(ral::can, self.regs, RXFGMASK, 0);
+        for word in 0..FIFO_FILTERS {
+            self.write_mb_word(6 + word / 4, word % 4, 0);
+        }
+        for mb in ERRATA_MB..=LAST_MB {
+            self.write_mb_word(mb, 0, frame::cs_with_code(code::TX_INACTIVE));
+        }
+        ral::write_reg!(ral::can, self.regs, IFLAG1, u32::MAX);
+        ral::write_reg!(ral::can, self.regs, IMASK1, 0);
+
+        ral::modify_reg!(ral::can, self.regs, MCR, |mcr| mcr & !(MCR_FRZ | MCR_HALT));
+        self.wait_mcr(MCR_FRZACK, false, "leave freeze mode")?;
+        self.wait_mcr(MCR_NOTRDY, false, "synchronise to the bus")
+    }
+
+    fn wait_mcr(&self, bit: u32, set: bool, what: &'static str) -> Result<(), InitError> {
+        for _ in 0..POLL_LIMIT {
+            let mcr = ral::read_reg!(ral::can, self.regs, MCR);
+            if (mcr & bit != 0) == set {
+                return Ok(());
+            }
+        }
+        Err(InitError::Timeout(what))
+    }
+
+    /// Enables the "frame received" interrupt (and the FIFO overflow one, so a lost frame is
+    /// counted as soon as it happens). Unmask the CAN1/CAN2 vector in the NVIC as well.
+    pub fn enable_rx_interrupt(&mut self) {
+        ral::modify_reg!(ral::can, self.regs, IMASK1, |mask| {
+            mask | IFLAG_FIFO_AVAILABLE | IFLAG_FIFO_OVERFLOW
+        });
+    }
+
+    /// The next received frame, oldest first, or `None` when the FIFO is empty. Also counts
+    /// and clears a FIFO overflow.
+    pub fn receive(&mut self) -> Option<CanFrame> {
+        let flags = ral::read_reg!(ral::can, self.regs, IFLAG1);
+        if flags & IFLAG_FIFO_OVERFLOW != 0 {
+            self.rx_fifo_overflows = self.rx_fifo_overflows.wrapping_add(1);
+            ral::write_reg!(
+                ral::can,
+                self.regs,
+                IFLAG1,
+                IFLAG_FIFO_OVERFLOW | IFLAG_FIFO_WARNING
+            );
+        }
+        if flags & IFLAG_FIFO_AVAILABLE == 0 {
+            return None;
+        }
+        let words = [0, 1, 2, 3].map(|word| self.read_mb_word(0, word));
+        // Clearing the flag pops the FIFO (and reading TIMER releases the buffer lock).
+        ral::write_reg!(ral::can, self.regs, IFLAG1, IFLAG_FIFO_AVAILABLE);
+        let _ = ral::read_reg!(ral::can, self.regs, TIMER);
+        Some(frame::rx_frame(words))
+    }
+
+    /// Queues `frame` for transmission in a free mailbox.
+    pub fn transmit(&mut self, frame: &CanFrame) -> Result<(), TxError> {
+        let words = frame::tx_words(frame);
+        let mut free = None;
+        for mb in FIRST_TX_MB..=LAST_MB {
+            let cs = self.read_mb_word(mb, 0);
+            if frame::code_of(cs) == code::TX_DATA {
+                if frame::id_of(cs, self.read_mb_word(mb, 1)) == embedded_can::Frame::id(frame) {
+                    return Err(TxError::Busy);
+                }
+            } else if free.is_none() {
+                free = Some(mb);
+            }
+        }
+        let mb = free.ok_or(TxError::Busy)?;
+        if let Some(bit) = 1u32.checked_shl(u32::try_from(mb).unwrap_or(u32::MAX)) {
+            ral::write_reg!(ral::can, self.regs, IFLAG1, bit);
+        }
+        self.write_mb_word(mb, 0, frame::cs_with_code(code::TX_INACTIVE));
+        self.write_mb_word(mb, 1, words[1]);
+        self.write_mb_word(mb, 2, words[2]);
+        self.write_mb_word(mb, 3, words[3]);
+        self.write_mb_word(mb, 0, words[0]);
+        // ERR005829: write the reserved first buffer inactive twice after arming one.
+        self.write_mb_word(ERRATA_MB, 0, frame::cs_with_code(code::TX_INACTIVE));
+        self.write_mb_word(ERRATA_MB, 0, frame::cs_with_code(code::TX_INACTIVE));
+        Ok(())
+    }
+
+    /// Error counters, fault confinement state and the RX FIFO overflow count.
+    pub fn status(&self) -> BusStatus {
+        let ecr = ral::read_reg!(ral::can, self.regs, ECR);
+        let esr1 = ral::read_reg!(ral::can, self.regs, ESR1);
+        let state = match (esr1 >> 4) & 0b11 {
+            0b00 => FaultState::ErrorActive,
+            0b01 => FaultState::ErrorPassive,
+            _ => FaultState::BusOff,
+        };
+        let [tx_errors, rx_errors, _, _] = ecr.to_le_bytes();
+        BusStatus {
+            state,
+            tx_errors,
+            rx_errors,
+            rx_fifo_overflows: self.rx_fifo_overflows,
+        }
+    }
+
+    fn mb_word_ptr(&self, mb: usize, word: usize) -> *mut u32 {
+        let base = core::ptr::from_ref::<ral::can::RegisterBlock>(&self.regs).cast::<u32>();
+        base.cast_mut()
+            .wrapping_add(MB_RAM_WORD_OFFSET + mb * 4 + word)
+    }
+
+    fn read_mb_word(&self, mb: usize, word: usize) -> u32 {
+        debug_assert!(mb <= LAST_MB && word < 4);
+        // SAFETY: `mb` <= LAST_MB and `word` < 4 (all callers use constants in range), so the
+        // address is inside this instance's message-buffer RAM, which is always mapped.
+        unsafe { self.mb_word_ptr(mb, word).read_volatile() }
+    }
+
+    fn write_mb_word(&mut self, mb: usize, word: usize, value: u32) {
+        debug_assert!(mb <= LAST_MB && word < 4);
+        // SAFETY: as in `read_mb_word`; we own the instance, so nothing else writes it.
+        unsafe { self.mb_word_ptr(mb, word).write_volatile(value) }
+    }
+}
+
+/// Selects the 24 MHz oscillator for the CAN clock root and ungates instance `N`'s clocks.
+fn enable_clock<const N: u8>(ccm: &ral::ccm::CCM) -> Result<(), InitError> {
+    ral::modify_reg!(ral::ccm, ccm, CSCMR2, CAN_CLK_SEL: 1, CAN_CLK_PODF: 0);
+    match N {
+        1 => ral::modify_reg!(ral::ccm, ccm, CCGR0, CG7: 0b11, CG8: 0b11),
+        2 => ral::modify_reg!(ral::ccm, ccm, CCGR0, CG9: 0b11, CG10: 0b11),
+        _ => return Err(InitError::WrongPins),
+    }
+    Ok(())
+}
