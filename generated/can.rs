@@ -10,7 +10,7 @@ use super::runtime::{
 /// Fingerprint of the schema's wire layout (ids, bit positions, types, scaling, value names).
 /// Sent by the firmware and checked by receivers, so a mismatched flash is detected instead of
 /// mis-decoded.
-pub const SCHEMA_FINGERPRINT: u32 = 0x30D3F341;
+pub const SCHEMA_FINGERPRINT: u32 = 0x5D2DC1A0;
 
 /// Values of `MCU1.MCU_RotateDirection`.
 ///
@@ -6446,6 +6446,11 @@ pub struct PccStatus {
     /// `PCC_ErrorBmsTimeout`: 1 bit from bit 10 (Intel), unsigned, range [0.0, 1.0].
     #[cfg_attr(feature = "serde", serde(rename = "PCC_ErrorBmsTimeout"))]
     pub pcc_error_bms_timeout: bool,
+    /// Error bit 0x08: the shutdown input opened while the tractive system was energised; clears once the shutdown circuit is closed again and the tractive system is discharged.
+    ///
+    /// `PCC_ErrorShutdown`: 1 bit from bit 11 (Intel), unsigned, range [0.0, 1.0].
+    #[cfg_attr(feature = "serde", serde(rename = "PCC_ErrorShutdown"))]
+    pub pcc_error_shutdown: bool,
     /// Error bit 0x80: state machine in an undefined state.
     ///
     /// `PCC_ErrorUndefinedState`: 1 bit from bit 15 (Intel), unsigned, range [0.0, 1.0].
@@ -6468,7 +6473,7 @@ pub struct PccStatus {
     pub pcc_precharge_progress: f64,
 }
 
-static PCC_STATUS_SIGNALS: [SignalMeta; 8] = [
+static PCC_STATUS_SIGNALS: [SignalMeta; 9] = [
     SignalMeta {
         name: "PCC_State",
         unit: "",
@@ -6527,6 +6532,21 @@ static PCC_STATUS_SIGNALS: [SignalMeta; 8] = [
         unit: "",
         comment: "Error bit 0x04: no BMS frame for 1.5 s.",
         start_bit: 10,
+        len: 1,
+        byte_order: ByteOrder::LittleEndian,
+        signed: false,
+        factor: 1.0,
+        offset: 0.0,
+        min: Some(0.0),
+        max: Some(1.0),
+        labels: &[],
+        multiplexed: false,
+    },
+    SignalMeta {
+        name: "PCC_ErrorShutdown",
+        unit: "",
+        comment: "Error bit 0x08: the shutdown input opened while the tractive system was energised; clears once the shutdown circuit is closed again and the tractive system is discharged.",
+        start_bit: 11,
         len: 1,
         byte_order: ByteOrder::LittleEndian,
         signed: false,
@@ -6623,6 +6643,8 @@ impl PccStatus {
         let pcc_error_too_slow = Self::pcc_error_too_slow_from_raw(bits::read_le(data, 9, 1) as u8);
         let pcc_error_bms_timeout =
             Self::pcc_error_bms_timeout_from_raw(bits::read_le(data, 10, 1) as u8);
+        let pcc_error_shutdown =
+            Self::pcc_error_shutdown_from_raw(bits::read_le(data, 11, 1) as u8);
         let pcc_error_undefined_state =
             Self::pcc_error_undefined_state_from_raw(bits::read_le(data, 15, 1) as u8);
         let pcc_accumulator_voltage =
@@ -6636,6 +6658,7 @@ impl PccStatus {
             pcc_error_too_fast,
             pcc_error_too_slow,
             pcc_error_bms_timeout,
+            pcc_error_shutdown,
             pcc_error_undefined_state,
             pcc_accumulator_voltage,
             pcc_tractive_voltage,
@@ -6672,6 +6695,12 @@ impl PccStatus {
             u64::from(Self::pcc_error_bms_timeout_to_raw(
                 self.pcc_error_bms_timeout,
             )?),
+        );
+        bits::write_le(
+            out,
+            11,
+            1,
+            u64::from(Self::pcc_error_shutdown_to_raw(self.pcc_error_shutdown)?),
         );
         bits::write_le(
             out,
@@ -6718,14 +6747,16 @@ impl PccStatus {
         visitor.signal(&PCC_STATUS_SIGNALS[2], Value::from(v), None);
         let v = self.pcc_error_bms_timeout;
         visitor.signal(&PCC_STATUS_SIGNALS[3], Value::from(v), None);
-        let v = self.pcc_error_undefined_state;
+        let v = self.pcc_error_shutdown;
         visitor.signal(&PCC_STATUS_SIGNALS[4], Value::from(v), None);
-        let v = self.pcc_accumulator_voltage;
+        let v = self.pcc_error_undefined_state;
         visitor.signal(&PCC_STATUS_SIGNALS[5], Value::from(v), None);
-        let v = self.pcc_tractive_voltage;
+        let v = self.pcc_accumulator_voltage;
         visitor.signal(&PCC_STATUS_SIGNALS[6], Value::from(v), None);
-        let v = self.pcc_precharge_progress;
+        let v = self.pcc_tractive_voltage;
         visitor.signal(&PCC_STATUS_SIGNALS[7], Value::from(v), None);
+        let v = self.pcc_precharge_progress;
+        visitor.signal(&PCC_STATUS_SIGNALS[8], Value::from(v), None);
     }
 
     /// Builds the message from physical values looked up by signal.
@@ -6781,9 +6812,21 @@ impl PccStatus {
                     signal: "PCC_ErrorBmsTimeout",
                 })?
             },
-            pcc_error_undefined_state: {
+            pcc_error_shutdown: {
                 let v = source
                     .value(&PCC_STATUS_SIGNALS[4])
+                    .ok_or(EncodeError::MissingSignal {
+                        message: "PCC_Status",
+                        signal: "PCC_ErrorShutdown",
+                    })?;
+                v.to_bool().ok_or(EncodeError::InvalidValue {
+                    message: "PCC_Status",
+                    signal: "PCC_ErrorShutdown",
+                })?
+            },
+            pcc_error_undefined_state: {
+                let v = source
+                    .value(&PCC_STATUS_SIGNALS[5])
                     .ok_or(EncodeError::MissingSignal {
                         message: "PCC_Status",
                         signal: "PCC_ErrorUndefinedState",
@@ -6795,7 +6838,7 @@ impl PccStatus {
             },
             pcc_accumulator_voltage: {
                 let v = source
-                    .value(&PCC_STATUS_SIGNALS[5])
+                    .value(&PCC_STATUS_SIGNALS[6])
                     .ok_or(EncodeError::MissingSignal {
                         message: "PCC_Status",
                         signal: "PCC_AccumulatorVoltage",
@@ -6807,7 +6850,7 @@ impl PccStatus {
             },
             pcc_tractive_voltage: {
                 let v = source
-                    .value(&PCC_STATUS_SIGNALS[6])
+                    .value(&PCC_STATUS_SIGNALS[7])
                     .ok_or(EncodeError::MissingSignal {
                         message: "PCC_Status",
                         signal: "PCC_TractiveVoltage",
@@ -6819,7 +6862,7 @@ impl PccStatus {
             },
             pcc_precharge_progress: {
                 let v = source
-                    .value(&PCC_STATUS_SIGNALS[7])
+                    .value(&PCC_STATUS_SIGNALS[8])
                     .ok_or(EncodeError::MissingSignal {
                         message: "PCC_Status",
                         signal: "PCC_PrechargeProgress",
@@ -6895,6 +6938,24 @@ impl PccStatus {
             1e-6,
             "PCC_Status",
             "PCC_ErrorBmsTimeout",
+        )?;
+        Ok(u8::from(v))
+    }
+
+    /// Physical value of `PCC_ErrorShutdown` for a raw value.
+    pub fn pcc_error_shutdown_from_raw(raw: u8) -> bool {
+        raw != 0
+    }
+
+    /// Raw value of `PCC_ErrorShutdown` for a physical value, range-checked.
+    pub fn pcc_error_shutdown_to_raw(v: bool) -> Result<u8, EncodeError> {
+        runtime::check_range(
+            f64::from(u8::from(v)),
+            0.0,
+            1.0,
+            1e-6,
+            "PCC_Status",
+            "PCC_ErrorShutdown",
         )?;
         Ok(u8::from(v))
     }

@@ -853,7 +853,7 @@ pub static CAN_ORION_CELL_VOLTAGES: LocalTable = LocalTable {
 pub static CAN_PCC_STATUS: LocalTable = LocalTable {
     name: "can_pcc_status",
     create: [
-        r#"CREATE TABLE IF NOT EXISTS "can_pcc_status" ("id" INTEGER PRIMARY KEY, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "pcc_state" INTEGER, "pcc_error_too_fast" INTEGER, "pcc_error_too_slow" INTEGER, "pcc_error_bms_timeout" INTEGER, "pcc_error_undefined_state" INTEGER, "pcc_accumulator_voltage" REAL, "pcc_tractive_voltage" REAL, "pcc_precharge_progress" REAL)"#,
+        r#"CREATE TABLE IF NOT EXISTS "can_pcc_status" ("id" INTEGER PRIMARY KEY, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "pcc_state" INTEGER, "pcc_error_too_fast" INTEGER, "pcc_error_too_slow" INTEGER, "pcc_error_bms_timeout" INTEGER, "pcc_error_shutdown" INTEGER, "pcc_error_undefined_state" INTEGER, "pcc_accumulator_voltage" REAL, "pcc_tractive_voltage" REAL, "pcc_precharge_progress" REAL)"#,
         r#"CREATE INDEX IF NOT EXISTS "can_pcc_status_ts" ON "can_pcc_status" ("ts")"#,
     ],
     columns: &[
@@ -890,6 +890,10 @@ pub static CAN_PCC_STATUS: LocalTable = LocalTable {
             sql_type: "INTEGER",
         },
         Column {
+            name: "pcc_error_shutdown",
+            sql_type: "INTEGER",
+        },
+        Column {
             name: "pcc_error_undefined_state",
             sql_type: "INTEGER",
         },
@@ -906,7 +910,7 @@ pub static CAN_PCC_STATUS: LocalTable = LocalTable {
             sql_type: "REAL",
         },
     ],
-    insert: r#"INSERT INTO "can_pcc_status" ("car_id", "bus", "schema_fingerprint", "ts", "pcc_state", "pcc_error_too_fast", "pcc_error_too_slow", "pcc_error_bms_timeout", "pcc_error_undefined_state", "pcc_accumulator_voltage", "pcc_tractive_voltage", "pcc_precharge_progress") VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12)"#,
+    insert: r#"INSERT INTO "can_pcc_status" ("car_id", "bus", "schema_fingerprint", "ts", "pcc_state", "pcc_error_too_fast", "pcc_error_too_slow", "pcc_error_bms_timeout", "pcc_error_shutdown", "pcc_error_undefined_state", "pcc_accumulator_voltage", "pcc_tractive_voltage", "pcc_precharge_progress") VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13)"#,
 };
 
 /// CAN message `IMD_InfoGeneral` (0x18FF01F4), one row per frame; multiplexed signals are NULL when absent.

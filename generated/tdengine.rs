@@ -854,7 +854,7 @@ pub static CAN_ORION_CELL_VOLTAGES: SuperTable = SuperTable {
 /// CAN message `PCC_Status` (0x222), one row per frame; multiplexed signals are NULL when absent.
 pub static CAN_PCC_STATUS: SuperTable = SuperTable {
     name: "can_pcc_status",
-    create: "CREATE STABLE IF NOT EXISTS `can_pcc_status` (`ts` TIMESTAMP, `pcc_state` TINYINT UNSIGNED, `pcc_error_too_fast` BOOL, `pcc_error_too_slow` BOOL, `pcc_error_bms_timeout` BOOL, `pcc_error_undefined_state` BOOL, `pcc_accumulator_voltage` DOUBLE, `pcc_tractive_voltage` DOUBLE, `pcc_precharge_progress` DOUBLE) TAGS (`car_id` VARCHAR(32), `bus` VARCHAR(16), `schema_fingerprint` INT UNSIGNED)",
+    create: "CREATE STABLE IF NOT EXISTS `can_pcc_status` (`ts` TIMESTAMP, `pcc_state` TINYINT UNSIGNED, `pcc_error_too_fast` BOOL, `pcc_error_too_slow` BOOL, `pcc_error_bms_timeout` BOOL, `pcc_error_shutdown` BOOL, `pcc_error_undefined_state` BOOL, `pcc_accumulator_voltage` DOUBLE, `pcc_tractive_voltage` DOUBLE, `pcc_precharge_progress` DOUBLE) TAGS (`car_id` VARCHAR(32), `bus` VARCHAR(16), `schema_fingerprint` INT UNSIGNED)",
     columns: &[
         Column {
             name: "ts",
@@ -874,6 +874,10 @@ pub static CAN_PCC_STATUS: SuperTable = SuperTable {
         },
         Column {
             name: "pcc_error_bms_timeout",
+            sql_type: "BOOL",
+        },
+        Column {
+            name: "pcc_error_shutdown",
             sql_type: "BOOL",
         },
         Column {
@@ -907,7 +911,7 @@ pub static CAN_PCC_STATUS: SuperTable = SuperTable {
             sql_type: "INT UNSIGNED",
         },
     ],
-    insert: "INSERT INTO ? USING `can_pcc_status` TAGS (?, ?, ?) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)",
+    insert: "INSERT INTO ? USING `can_pcc_status` TAGS (?, ?, ?) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
 };
 
 /// CAN message `IMD_InfoGeneral` (0x18FF01F4), one row per frame; multiplexed signals are NULL when absent.

@@ -46,7 +46,7 @@ CREATE TABLE IF NOT EXISTS "can_orion_cell_voltages" ("id" INTEGER PRIMARY KEY, 
 CREATE INDEX IF NOT EXISTS "can_orion_cell_voltages_ts" ON "can_orion_cell_voltages" ("ts");
 
 -- CAN message `PCC_Status` (0x222), one row per frame; multiplexed signals are NULL when absent.
-CREATE TABLE IF NOT EXISTS "can_pcc_status" ("id" INTEGER PRIMARY KEY, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "pcc_state" INTEGER, "pcc_error_too_fast" INTEGER, "pcc_error_too_slow" INTEGER, "pcc_error_bms_timeout" INTEGER, "pcc_error_undefined_state" INTEGER, "pcc_accumulator_voltage" REAL, "pcc_tractive_voltage" REAL, "pcc_precharge_progress" REAL);
+CREATE TABLE IF NOT EXISTS "can_pcc_status" ("id" INTEGER PRIMARY KEY, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "pcc_state" INTEGER, "pcc_error_too_fast" INTEGER, "pcc_error_too_slow" INTEGER, "pcc_error_bms_timeout" INTEGER, "pcc_error_shutdown" INTEGER, "pcc_error_undefined_state" INTEGER, "pcc_accumulator_voltage" REAL, "pcc_tractive_voltage" REAL, "pcc_precharge_progress" REAL);
 CREATE INDEX IF NOT EXISTS "can_pcc_status_ts" ON "can_pcc_status" ("ts");
 
 -- CAN message `IMD_InfoGeneral` (0x18FF01F4), one row per frame; multiplexed signals are NULL when absent.
