@@ -1,0 +1,80 @@
+//! The precharge circuit's constants, in one place.
+//!
+//! Values from the team's documentation (vehicle-facts.md, the seed's PCC pages). Timing
+//! limits are for the current accumulator and tractive-system capacitance; they change with
+//! the precharge resistor, so they live in a struct the firmware builds once.
+
+/// Period of the control task and of the status frame, in milliseconds.
+pub const TASK_PERIOD_MS: u32 = 10;
+
+/// Everything the precharge state machine compares against.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PrechargeConfig {
+    /// Progress (tractive-system voltage as % of the accumulator's) that ends precharge.
+    pub target_percent: f32,
+    /// Reaching the target sooner than this after precharge started means a short or a wrong
+    /// measurement.
+    pub min_time_ms: u32,
+    /// Not reaching the target within this time means a wiring fault, a stuck discharge or a
+    /// target set too high.
+    pub max_time_ms: u32,
+    /// Progress must stay at or above the target this long before it counts (filters a noisy
+    /// sample).
+    pub target_hold_ms: u32,
+    /// Below this accumulator voltage the measurement cannot vouch for a pack: no precharge,
+    /// and an energised tractive system is discharged.
+    pub min_accumulator_v: f32,
+    /// The shutdown circuit must be closed, the pack present and the BMS talking for this long
+    /// before precharge starts.
+    pub standby_settle_ms: u32,
+    /// A BMS frame older than this is a CAN timeout.
+    pub bms_timeout_ms: u32,
+    /// Tractive-system voltage below which it counts as discharged (60 V DC: the rules'
+    /// limit for low voltage).
+    pub discharged_v: f32,
+}
+
+impl PrechargeConfig {
+    /// The car's values: 90 % target reached between 8.2 s and 9.2 s, BMS timeout 1.5 s.
+    pub const CAR: Self = Self {
+        target_percent: 90.0,
+        min_time_ms: 8_200,
+        max_time_ms: 9_200,
+        target_hold_ms: 20,
+        min_accumulator_v: 60.0,
+        standby_settle_ms: 200,
+        bms_timeout_ms: 1_500,
+        discharged_v: 60.0,
+    };
+}
+
+impl Default for PrechargeConfig {
+    fn default() -> Self {
+        Self::CAR
+    }
+}
+
+/// The voltage-to-frequency measurement chain: HV divider, then an LM331 converter.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct VfConfig {
+    /// Converter volts per hertz of output (set by its timing resistor and capacitor).
+    pub volts_per_hz: f32,
+    /// HV divider ratio (input volts per converter volt): (R1 + R2) / R2.
+    pub divider_ratio: f32,
+    /// Low-pass cut-off applied to the measured voltage, in Hz.
+    pub cutoff_hz: f32,
+    /// No edge for this long means the input is at (or near) 0 V.
+    pub edge_timeout_us: u32,
+}
+
+impl VfConfig {
+    /// The PCC board: 0.001275 V/Hz, divider 5 x 510 kOhm over 39 kOhm, 10 Hz cut-off
+    /// (a 16 ms time constant: smooths the 10 ms windows without hiding a precharge that is
+    /// several seconds long).
+    pub const PCC_BOARD: Self = Self {
+        volts_per_hz: 0.001_275,
+        divider_ratio: (5.0 * 510_000.0 + 39_000.0) / 39_000.0,
+        cutoff_hz: 10.0,
+        edge_timeout_us: 100_000,
+    };
+}

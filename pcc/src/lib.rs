@@ -1,0 +1,21 @@
+//! Precharge controller (PCC) logic: hardware-free, `no_std`, tested on the host and on an
+//! emulated Cortex-M7.
+//!
+//! Data flow per 10 ms control period: the V/F converters' edges become voltages
+//! ([`measurement`]), BMS frames become a link state ([`bms`]), the state machine
+//! ([`machine`]) turns both plus the shutdown input into a state, the relays follow from the
+//! state alone ([`relays`]), and the status frame is built by the generated codec
+//! ([`status`](Precharge::status)).
+#![no_std]
+
+pub mod bms;
+pub mod config;
+pub mod machine;
+pub mod measurement;
+pub mod relays;
+pub mod sim;
+mod status;
+
+pub use config::{PrechargeConfig, TASK_PERIOD_MS, VfConfig};
+pub use machine::{Errors, Inputs, Precharge, State};
+pub use relays::Relays;

@@ -1,0 +1,283 @@
+//! The precharge state machine.
+//!
+//! ```text
+//!            shutdown closed, pack >= min, BMS alive, all for 200 ms
+//!  STANDBY ------------------------------------------------------> PRECHARGE
+//!     ^                                                             |  |  |
+//!     | TS < 60 V                      target held, after min time |  |  | too fast / too slow /
+//!     |                                                             v  |  | shutdown / BMS timeout
+//!  DISCHARGE <-- pack lost --  ONLINE <-- charger safety off --  CHARGING |
+//!                               (and PRECHARGE, CHARGING)                 v
+//!                                                                       ERROR
+//! ```
+//! ERROR opens everything. Its precharge-timing and BMS-timeout causes latch until the PCC is
+//! reset (power cycle after the cause is found); a shutdown-only error clears once the
+//! shutdown circuit has been closed again for the settle time and the tractive system is
+//! below 60 V, so switching the car off with the shutdown circuit needs no power cycle.
+//!
+//! Time is a free-running millisecond counter that may wrap; every comparison is on
+//! differences, so a wrap (after 49.7 days) changes nothing.
+
+use crate::config::PrechargeConfig;
+use crate::relays::Relays;
+
+/// Precharge controller state, as sent in PCC_Status.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum State {
+    /// Waiting for the shutdown circuit, the pack voltage and the BMS.
+    Standby,
+    /// Charging the tractive system through the precharge resistor.
+    Precharge,
+    /// Relays open, tractive system discharging after the pack went away.
+    Discharge,
+    /// Precharge complete, AIR+ closed: ready to drive.
+    Online,
+    /// Precharge complete with the BMS's charger safety on: connected for charging.
+    Charging,
+    /// A fault: everything open.
+    Error,
+}
+
+impl State {
+    /// The schema's value for this state.
+    pub const fn to_wire(self) -> aer::can::PrechargeState {
+        use aer::can::PrechargeState as Wire;
+        match self {
+            Self::Standby => Wire::Standby,
+            Self::Precharge => Wire::Precharge,
+            Self::Discharge => Wire::Discharge,
+            Self::Online => Wire::Online,
+            Self::Charging => Wire::Charging,
+            Self::Error => Wire::Error,
+        }
+    }
+
+    /// True in the states where the accumulator may be connected to the tractive system.
+    pub const fn is_energised(self) -> bool {
+        matches!(self, Self::Precharge | Self::Online | Self::Charging)
+    }
+}
+
+/// Latched error causes, as sent in PCC_Status.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Errors {
+    /// 0x01: the target was reached before the minimum time.
+    pub too_fast: bool,
+    /// 0x02: the target was not reached within the maximum time.
+    pub too_slow: bool,
+    /// 0x04: no BMS frame for the timeout while energised.
+    pub bms_timeout: bool,
+    /// 0x08: the shutdown input opened while energised.
+    pub shutdown: bool,
+}
+
+impl Errors {
+    /// True when a cause other than the shutdown input is latched (those need a reset).
+    pub const fn needs_reset(&self) -> bool {
+        self.too_fast || self.too_slow || self.bms_timeout
+    }
+
+    /// True when any cause is latched.
+    pub const fn any(&self) -> bool {
+        self.needs_reset() || self.shutdown
+    }
+}
+
+/// What the control task measured this period.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Inputs {
+    /// Free-running milliseconds.
+    pub now_ms: u32,
+    /// Filtered accumulator voltage (V).
+    pub accumulator_v: f32,
+    /// Filtered tractive-system voltage (V).
+    pub tractive_v: f32,
+    /// The active-high Shutdown_in signal: the shutdown circuit is open.
+    pub shutdown_open: bool,
+    /// When the last BMS frame arrived (`None` before the first).
+    pub bms_last_seen_ms: Option<u32>,
+    /// The BMS reports its charger-safety output on.
+    pub charger_safety: bool,
+}
+
+/// The precharge controller.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Precharge {
+    config: PrechargeConfig,
+    state: State,
+    errors: Errors,
+    /// When the current state was entered.
+    entered_ms: u32,
+    /// Since when the standby conditions (or, in ERROR, the recovery conditions) have held.
+    conditions_since_ms: Option<u32>,
+    /// Since when progress has been at or above the target during this precharge.
+    at_target_since_ms: Option<u32>,
+    progress_percent: f32,
+    accumulator_v: f32,
+    tractive_v: f32,
+}
+
+impl Precharge {
+    /// A controller in STANDBY with every relay open, as at reset.
+    pub fn new(config: PrechargeConfig, now_ms: u32) -> Self {
+        Self {
+            config,
+            state: State::Standby,
+            errors: Errors::default(),
+            entered_ms: now_ms,
+            conditions_since_ms: None,
+            at_target_since_ms: None,
+            progress_percent: 0.0,
+            accumulator_v: 0.0,
+            tractive_v: 0.0,
+        }
+    }
+
+    /// Current state.
+    pub fn state(&self) -> State {
+        self.state
+    }
+
+    /// Latched error causes.
+    pub fn errors(&self) -> Errors {
+        self.errors
+    }
+
+    /// Tractive-system voltage as % of the accumulator's, as last computed.
+    pub fn progress_percent(&self) -> f32 {
+        self.progress_percent
+    }
+
+    /// Accumulator voltage as last measured (V, never negative or NaN).
+    pub fn accumulator_v(&self) -> f32 {
+        self.accumulator_v
+    }
+
+    /// Tractive-system voltage as last measured (V, never negative or NaN).
+    pub fn tractive_v(&self) -> f32 {
+        self.tractive_v
+    }
+
+    /// The relay outputs for the current state.
+    pub fn relays(&self) -> Relays {
+        Relays::for_state(self.state)
+    }
+
+    /// Runs one control period and returns the relay outputs to apply now.
+    pub fn step(&mut self, inputs: &Inputs) -> Relays {
+        let now = inputs.now_ms;
+        // A measurement that is not a number cannot vouch for anything: treat it as 0 V,
+        // which opens the relays (pack lost) rather than closing any.
+        self.accumulator_v = sanitise(inputs.accumulator_v);
+        self.tractive_v = sanitise(inputs.tractive_v);
+        self.progress_percent = if self.accumulator_v >= self.config.min_accumulator_v {
+            100.0 * self.tractive_v / self.accumulator_v
+        } else {
+            0.0
+        };
+        let pack_present = self.accumulator_v >= self.config.min_accumulator_v;
+        let bms_alive = inputs
+            .bms_last_seen_ms
+            .is_some_and(|seen| now.wrapping_sub(seen) <= self.config.bms_timeout_ms);
+
+        if self.state.is_energised() {
+            // Faults first: whatever else happens this period, they open everything.
+            if inputs.shutdown_open {
+                self.errors.shutdown = true;
+            }
+            if !bms_alive {
+                self.errors.bms_timeout = true;
+            }
+            if self.errors.any() {
+                self.enter(State::Error, now);
+                return self.relays();
+            }
+            if !pack_present {
+                self.enter(State::Discharge, now);
+                return self.relays();
+            }
+        }
+
+        match self.state {
+            State::Standby => {
+                let ready = !inputs.shutdown_open && pack_present && bms_alive;
+                if self.held_for(ready, now, self.config.standby_settle_ms) {
+                    self.enter(State::Precharge, now);
+                }
+            }
+            State::Precharge => self.precharge(now, inputs.charger_safety),
+            State::Online if inputs.charger_safety => self.enter(State::Charging, now),
+            State::Charging if !inputs.charger_safety => self.enter(State::Online, now),
+            State::Online | State::Charging => {}
+            State::Discharge => {
+                if self.tractive_v < self.config.discharged_v {
+                    self.enter(State::Standby, now);
+                }
+            }
+            State::Error => {
+                let recovered = !self.errors.needs_reset()
+                    && !inputs.shutdown_open
+                    && self.tractive_v < self.config.discharged_v;
+                if self.held_for(recovered, now, self.config.standby_settle_ms) {
+                    self.errors = Errors::default();
+                    self.enter(State::Standby, now);
+                }
+            }
+        }
+        self.relays()
+    }
+
+    fn precharge(&mut self, now: u32, charger_safety: bool) {
+        let elapsed = now.wrapping_sub(self.entered_ms);
+        if self.progress_percent >= self.config.target_percent {
+            let since = *self.at_target_since_ms.get_or_insert(now);
+            if now.wrapping_sub(since) < self.config.target_hold_ms {
+                return;
+            }
+            // The moment the target was first reached decides, not the end of the hold.
+            let reached_after = since.wrapping_sub(self.entered_ms);
+            if reached_after < self.config.min_time_ms {
+                self.errors.too_fast = true;
+                self.enter(State::Error, now);
+            } else if reached_after > self.config.max_time_ms {
+                self.errors.too_slow = true;
+                self.enter(State::Error, now);
+            } else if charger_safety {
+                self.enter(State::Charging, now);
+            } else {
+                self.enter(State::Online, now);
+            }
+        } else {
+            self.at_target_since_ms = None;
+            if elapsed > self.config.max_time_ms {
+                self.errors.too_slow = true;
+                self.enter(State::Error, now);
+            }
+        }
+    }
+
+    /// True once `condition` has held continuously for `duration_ms` (tracked across calls).
+    fn held_for(&mut self, condition: bool, now: u32, duration_ms: u32) -> bool {
+        if !condition {
+            self.conditions_since_ms = None;
+            return false;
+        }
+        let since = *self.conditions_since_ms.get_or_insert(now);
+        now.wrapping_sub(since) >= duration_ms
+    }
+
+    fn enter(&mut self, state: State, now: u32) {
+        self.state = state;
+        self.entered_ms = now;
+        self.conditions_since_ms = None;
+        self.at_target_since_ms = None;
+    }
+}
+
+fn sanitise(volts: f32) -> f32 {
+    if volts.is_finite() && volts > 0.0 {
+        volts
+    } else {
+        0.0
+    }
+}

@@ -1,0 +1,414 @@
+//! Every transition of the precharge state machine, and every timing limit probed just before
+//! and just after it.
+
+use aer_pcc::{Errors, Inputs, Precharge, PrechargeConfig, Relays, State};
+
+const CONFIG: PrechargeConfig = PrechargeConfig::CAR;
+const PACK_V: f32 = 400.0;
+
+/// A test bench: the PCC plus the inputs the firmware would measure.
+struct Bench {
+    pcc: Precharge,
+    inputs: Inputs,
+}
+
+impl Bench {
+    /// Powered up at `start_ms` with everything ready to precharge, BMS frame just received.
+    fn ready_at(start_ms: u32) -> Self {
+        Self {
+            pcc: Precharge::new(CONFIG, start_ms),
+            inputs: Inputs {
+                now_ms: start_ms,
+                accumulator_v: PACK_V,
+                tractive_v: 0.0,
+                shutdown_open: false,
+                bms_last_seen_ms: Some(start_ms),
+                charger_safety: false,
+            },
+        }
+    }
+
+    fn ready() -> Self {
+        Self::ready_at(1_000)
+    }
+
+    fn at(&mut self, now_ms: u32) -> Relays {
+        self.inputs.now_ms = now_ms;
+        self.pcc.step(&self.inputs)
+    }
+
+    /// Steps to `now_ms` keeping the BMS heartbeat fresh.
+    fn at_with_bms(&mut self, now_ms: u32) -> Relays {
+        self.inputs.bms_last_seen_ms = Some(now_ms);
+        self.at(now_ms)
+    }
+
+    fn state(&self) -> State {
+        self.pcc.state()
+    }
+
+    fn set_progress(&mut self, percent: f32) {
+        self.inputs.tractive_v = PACK_V * percent / 100.0;
+    }
+
+    /// Runs STANDBY -> PRECHARGE; returns the time precharge started.
+    fn start_precharge(&mut self) -> u32 {
+        let t0 = self.inputs.now_ms;
+        self.at_with_bms(t0);
+        let start = t0.wrapping_add(CONFIG.standby_settle_ms);
+        self.at_with_bms(start);
+        assert_eq!(self.state(), State::Precharge);
+        start
+    }
+
+    /// Runs a clean precharge reaching the target at `reached_after` ms; returns the time the
+    /// hold completed.
+    fn precharge_reaching_target_after(&mut self, reached_after: u32) -> u32 {
+        let start = self.start_precharge();
+        self.set_progress(50.0);
+        self.at_with_bms(start.wrapping_add(reached_after / 2));
+        self.set_progress(CONFIG.target_percent);
+        let reached = start.wrapping_add(reached_after);
+        self.at_with_bms(reached);
+        let done = reached.wrapping_add(CONFIG.target_hold_ms);
+        self.at_with_bms(done);
+        done
+    }
+
+    fn online(&mut self) -> u32 {
+        let done = self.precharge_reaching_target_after(CONFIG.min_time_ms + 100);
+        assert_eq!(self.state(), State::Online);
+        done
+    }
+}
+
+const PRECHARGING: Relays = Relays {
+    air_plus: false,
+    air_minus: true,
+    precharge: true,
+    shutdown: true,
+};
+const CONNECTED: Relays = Relays {
+    air_plus: true,
+    air_minus: true,
+    precharge: false,
+    shutdown: true,
+};
+
+#[test]
+fn reset_is_standby_with_every_relay_open() {
+    let pcc = Precharge::new(CONFIG, 0);
+    assert_eq!(pcc.state(), State::Standby);
+    assert_eq!(pcc.relays(), Relays::ALL_OPEN);
+    assert_eq!(pcc.errors(), Errors::default());
+}
+
+#[test]
+fn standby_starts_precharge_after_the_settle_time_exactly() {
+    let mut bench = Bench::ready();
+    assert_eq!(bench.at_with_bms(1_000), Relays::ALL_OPEN);
+    assert_eq!(
+        bench.at_with_bms(1_199),
+        Relays::ALL_OPEN,
+        "1 ms before the settle time"
+    );
+    assert_eq!(bench.state(), State::Standby);
+    assert_eq!(bench.at_with_bms(1_200), PRECHARGING, "at the settle time");
+    assert_eq!(bench.state(), State::Precharge);
+}
+
+#[test]
+fn standby_waits_for_each_condition_and_restarts_the_settle_time() {
+    // Shutdown circuit open.
+    let mut bench = Bench::ready();
+    bench.inputs.shutdown_open = true;
+    bench.at_with_bms(1_000);
+    bench.at_with_bms(5_000);
+    assert_eq!(bench.state(), State::Standby);
+    bench.inputs.shutdown_open = false;
+    bench.at_with_bms(5_010);
+    bench.at_with_bms(5_209);
+    assert_eq!(
+        bench.state(),
+        State::Standby,
+        "settle time counts from the closing"
+    );
+    bench.at_with_bms(5_210);
+    assert_eq!(bench.state(), State::Precharge);
+
+    // Pack voltage just below, then at, the minimum.
+    let mut bench = Bench::ready();
+    bench.inputs.accumulator_v = CONFIG.min_accumulator_v - 0.01;
+    bench.at_with_bms(1_000);
+    bench.at_with_bms(2_000);
+    assert_eq!(bench.state(), State::Standby);
+    bench.inputs.accumulator_v = CONFIG.min_accumulator_v;
+    bench.at_with_bms(2_000);
+    bench.at_with_bms(2_200);
+    assert_eq!(bench.state(), State::Precharge);
+
+    // No BMS frame yet, then a stale one, then a fresh one.
+    let mut bench = Bench::ready();
+    bench.inputs.bms_last_seen_ms = None;
+    bench.at(1_000);
+    bench.at(3_000);
+    assert_eq!(bench.state(), State::Standby);
+    bench.inputs.bms_last_seen_ms = Some(3_000 - CONFIG.bms_timeout_ms - 1);
+    bench.at(3_000);
+    bench.at(3_300);
+    assert_eq!(bench.state(), State::Standby);
+
+    // A glitch during the settle time restarts it.
+    let mut bench = Bench::ready();
+    bench.at_with_bms(1_000);
+    bench.inputs.shutdown_open = true;
+    bench.at_with_bms(1_150);
+    bench.inputs.shutdown_open = false;
+    bench.at_with_bms(1_160);
+    bench.at_with_bms(1_359);
+    assert_eq!(bench.state(), State::Standby);
+    bench.at_with_bms(1_360);
+    assert_eq!(bench.state(), State::Precharge);
+}
+
+#[test]
+fn reaching_the_target_at_the_minimum_time_goes_online_after_the_hold() {
+    let mut bench = Bench::ready();
+    let start = bench.start_precharge();
+    bench.set_progress(CONFIG.target_percent);
+    let reached = start + CONFIG.min_time_ms;
+    assert_eq!(bench.at_with_bms(reached), PRECHARGING);
+    assert_eq!(
+        bench.at_with_bms(reached + CONFIG.target_hold_ms - 1),
+        PRECHARGING,
+        "1 ms before the hold ends"
+    );
+    assert_eq!(
+        bench.at_with_bms(reached + CONFIG.target_hold_ms),
+        CONNECTED
+    );
+    assert_eq!(bench.state(), State::Online);
+    assert_eq!(bench.pcc.errors(), Errors::default());
+}
+
+#[test]
+fn reaching_the_target_one_ms_before_the_minimum_time_is_too_fast() {
+    let mut bench = Bench::ready();
+    bench.precharge_reaching_target_after(CONFIG.min_time_ms - 1);
+    assert_eq!(bench.state(), State::Error);
+    assert_eq!(bench.pcc.relays(), Relays::ALL_OPEN);
+    assert!(bench.pcc.errors().too_fast);
+    assert!(!bench.pcc.errors().too_slow);
+}
+
+#[test]
+fn progress_just_below_the_target_does_not_count() {
+    let mut bench = Bench::ready();
+    let start = bench.start_precharge();
+    bench.set_progress(CONFIG.target_percent - 0.01);
+    bench.at_with_bms(start + CONFIG.min_time_ms + 500);
+    bench.at_with_bms(start + CONFIG.min_time_ms + 600);
+    assert_eq!(bench.state(), State::Precharge);
+}
+
+#[test]
+fn a_dip_below_the_target_restarts_the_hold() {
+    let mut bench = Bench::ready();
+    let start = bench.start_precharge();
+    let reached = start + CONFIG.min_time_ms + 10;
+    bench.set_progress(CONFIG.target_percent);
+    bench.at_with_bms(reached);
+    bench.set_progress(CONFIG.target_percent - 1.0);
+    bench.at_with_bms(reached + 10);
+    bench.set_progress(CONFIG.target_percent);
+    bench.at_with_bms(reached + 15);
+    bench.at_with_bms(reached + 30);
+    assert_eq!(bench.state(), State::Precharge, "the hold restarted at +15");
+    bench.at_with_bms(reached + 35);
+    assert_eq!(bench.state(), State::Online);
+}
+
+#[test]
+fn not_reaching_the_target_is_too_slow_one_ms_after_the_maximum_time() {
+    let mut bench = Bench::ready();
+    let start = bench.start_precharge();
+    bench.set_progress(80.0);
+    assert_eq!(bench.at_with_bms(start + CONFIG.max_time_ms), PRECHARGING);
+    assert_eq!(bench.state(), State::Precharge, "at the maximum time");
+    assert_eq!(
+        bench.at_with_bms(start + CONFIG.max_time_ms + 1),
+        Relays::ALL_OPEN
+    );
+    assert_eq!(bench.state(), State::Error);
+    assert!(bench.pcc.errors().too_slow);
+}
+
+#[test]
+fn reaching_the_target_at_the_maximum_time_still_counts_but_after_it_does_not() {
+    let mut bench = Bench::ready();
+    bench.precharge_reaching_target_after(CONFIG.max_time_ms);
+    assert_eq!(bench.state(), State::Online);
+
+    // Sparse steps: below target at max - 10, at target first seen at max + 1.
+    let mut bench = Bench::ready();
+    let start = bench.start_precharge();
+    bench.set_progress(80.0);
+    bench.at_with_bms(start + CONFIG.max_time_ms - 10);
+    bench.set_progress(CONFIG.target_percent);
+    bench.at_with_bms(start + CONFIG.max_time_ms + 1);
+    bench.at_with_bms(start + CONFIG.max_time_ms + 1 + CONFIG.target_hold_ms);
+    assert_eq!(bench.state(), State::Error);
+    assert!(bench.pcc.errors().too_slow);
+}
+
+#[test]
+fn charger_safety_chooses_charging_and_switches_with_online() {
+    let mut bench = Bench::ready();
+    bench.inputs.charger_safety = true;
+    let done = bench.precharge_reaching_target_after(CONFIG.min_time_ms);
+    assert_eq!(bench.state(), State::Charging);
+    assert_eq!(bench.pcc.relays(), CONNECTED);
+    bench.inputs.charger_safety = false;
+    assert_eq!(bench.at_with_bms(done + 10), CONNECTED);
+    assert_eq!(bench.state(), State::Online);
+    bench.inputs.charger_safety = true;
+    bench.at_with_bms(done + 20);
+    assert_eq!(bench.state(), State::Charging);
+}
+
+#[test]
+fn the_shutdown_input_opens_everything_in_the_same_period_in_every_energised_state() {
+    for energised in [State::Precharge, State::Online, State::Charging] {
+        let mut bench = Bench::ready();
+        bench.inputs.charger_safety = energised == State::Charging;
+        let now = if energised == State::Precharge {
+            bench.start_precharge()
+        } else {
+            bench.precharge_reaching_target_after(CONFIG.min_time_ms)
+        };
+        assert_eq!(bench.state(), energised);
+        bench.inputs.shutdown_open = true;
+        assert_eq!(
+            bench.at_with_bms(now + 1),
+            Relays::ALL_OPEN,
+            "{energised:?}"
+        );
+        assert_eq!(bench.state(), State::Error);
+        assert_eq!(
+            bench.pcc.errors(),
+            Errors {
+                shutdown: true,
+                ..Errors::default()
+            }
+        );
+    }
+}
+
+#[test]
+fn a_bms_timeout_opens_everything_one_ms_after_the_limit() {
+    for energised in [State::Precharge, State::Online, State::Charging] {
+        let mut bench = Bench::ready();
+        bench.inputs.charger_safety = energised == State::Charging;
+        let now = if energised == State::Precharge {
+            bench.start_precharge()
+        } else {
+            bench.precharge_reaching_target_after(CONFIG.min_time_ms)
+        };
+        let seen = now;
+        bench.inputs.bms_last_seen_ms = Some(seen);
+        bench.set_progress(if energised == State::Precharge {
+            10.0
+        } else {
+            100.0
+        });
+        assert_ne!(bench.at(seen + CONFIG.bms_timeout_ms), Relays::ALL_OPEN);
+        assert_eq!(bench.state(), energised, "at the timeout");
+        assert_eq!(bench.at(seen + CONFIG.bms_timeout_ms + 1), Relays::ALL_OPEN);
+        assert_eq!(bench.state(), State::Error);
+        assert!(bench.pcc.errors().bms_timeout);
+    }
+}
+
+#[test]
+fn losing_the_pack_discharges_and_standby_follows_below_60_volts() {
+    let mut bench = Bench::ready();
+    let done = bench.online();
+    bench.inputs.accumulator_v = CONFIG.min_accumulator_v - 0.01;
+    bench.inputs.tractive_v = 300.0;
+    assert_eq!(bench.at_with_bms(done + 10), Relays::ALL_OPEN);
+    assert_eq!(bench.state(), State::Discharge);
+    assert_eq!(bench.pcc.errors(), Errors::default());
+    bench.inputs.tractive_v = CONFIG.discharged_v;
+    bench.at_with_bms(done + 500);
+    assert_eq!(bench.state(), State::Discharge, "at 60 V");
+    bench.inputs.tractive_v = CONFIG.discharged_v - 0.01;
+    assert_eq!(bench.at_with_bms(done + 510), Relays::ALL_OPEN);
+    assert_eq!(bench.state(), State::Standby);
+}
+
+#[test]
+fn losing_the_pack_during_precharge_discharges_too() {
+    let mut bench = Bench::ready();
+    let start = bench.start_precharge();
+    bench.inputs.accumulator_v = 0.0;
+    bench.at_with_bms(start + 10);
+    assert_eq!(bench.state(), State::Discharge);
+}
+
+#[test]
+fn a_measurement_that_is_not_a_number_counts_as_no_pack() {
+    let mut bench = Bench::ready();
+    let done = bench.online();
+    bench.inputs.accumulator_v = f32::NAN;
+    assert_eq!(bench.at_with_bms(done + 10), Relays::ALL_OPEN);
+    assert_eq!(bench.state(), State::Discharge);
+    assert_eq!(bench.pcc.accumulator_v(), 0.0);
+}
+
+#[test]
+fn a_shutdown_error_clears_after_the_circuit_closes_and_the_bus_is_discharged() {
+    let mut bench = Bench::ready();
+    let done = bench.online();
+    bench.inputs.shutdown_open = true;
+    bench.at_with_bms(done + 10);
+    assert_eq!(bench.state(), State::Error);
+
+    // Closed again, but the tractive system still holds 100 V: no recovery.
+    bench.inputs.shutdown_open = false;
+    bench.inputs.tractive_v = 100.0;
+    bench.at_with_bms(done + 20);
+    bench.at_with_bms(done + 1_000);
+    assert_eq!(bench.state(), State::Error);
+
+    bench.inputs.tractive_v = CONFIG.discharged_v - 0.01;
+    bench.at_with_bms(done + 1_010);
+    bench.at_with_bms(done + 1_010 + CONFIG.standby_settle_ms - 1);
+    assert_eq!(bench.state(), State::Error, "1 ms before the settle time");
+    assert_eq!(
+        bench.at_with_bms(done + 1_010 + CONFIG.standby_settle_ms),
+        Relays::ALL_OPEN
+    );
+    assert_eq!(bench.state(), State::Standby);
+    assert_eq!(bench.pcc.errors(), Errors::default());
+}
+
+#[test]
+fn timing_and_bms_errors_latch_until_reset() {
+    let mut bench = Bench::ready();
+    bench.precharge_reaching_target_after(CONFIG.min_time_ms - 1);
+    assert!(bench.pcc.errors().too_fast);
+    bench.inputs.tractive_v = 0.0;
+    for t in (20_000..80_000).step_by(10) {
+        assert_eq!(bench.at_with_bms(t), Relays::ALL_OPEN);
+    }
+    assert_eq!(bench.state(), State::Error);
+    assert!(bench.pcc.errors().too_fast);
+}
+
+#[test]
+fn the_millisecond_counter_may_wrap_mid_precharge() {
+    let mut bench = Bench::ready_at(u32::MAX - 4_000);
+    let done = bench.precharge_reaching_target_after(CONFIG.min_time_ms);
+    assert!(done < 10_000, "the counter wrapped");
+    assert_eq!(bench.state(), State::Online);
+}

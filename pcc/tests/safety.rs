@@ -1,0 +1,197 @@
+//! Safety properties over arbitrary input sequences (proptest).
+//!
+//! - AIR+ never closes unless the precharge that led there reached the target, and reached it
+//!   no sooner than the minimum time after it started.
+//! - Any fault (shutdown input, BMS timeout) seen while energised opens every relay in the
+//!   same step, i.e. within one task period.
+//! - Outside PRECHARGE/ONLINE/CHARGING every relay is open; AIR+ and the precharge relay are
+//!   never closed together, and AIR+ never without AIR-.
+//! - With a real RC precharge, the outcome is exactly what the time to 90 % predicts.
+
+use aer_pcc::{Inputs, Precharge, PrechargeConfig, Relays, State};
+use proptest::prelude::*;
+
+const CONFIG: PrechargeConfig = PrechargeConfig::CAR;
+
+/// One control period's worth of stimulus.
+#[derive(Debug, Clone)]
+struct Tick {
+    dt_ms: u32,
+    accumulator_v: f32,
+    tractive_v: f32,
+    shutdown_open: bool,
+    bms_frame: bool,
+    charger_safety: bool,
+}
+
+fn tick() -> impl Strategy<Value = Tick> {
+    (
+        prop_oneof![Just(10u32), 1u32..40, 0u32..2_000],
+        prop_oneof![Just(400.0f32), 0.0f32..700.0, Just(f32::NAN)],
+        prop_oneof![0.0f32..700.0, Just(400.0f32), Just(361.0f32)],
+        prop::bool::weighted(0.05),
+        prop::bool::weighted(0.9),
+        prop::bool::weighted(0.2),
+    )
+        .prop_map(
+            |(dt_ms, accumulator_v, tractive_v, shutdown_open, bms_frame, charger_safety)| Tick {
+                dt_ms,
+                accumulator_v,
+                tractive_v,
+                shutdown_open,
+                bms_frame,
+                charger_safety,
+            },
+        )
+}
+
+/// Sequences biased towards completing a precharge: ramps of the tractive voltage.
+fn ramp() -> impl Strategy<Value = Vec<Tick>> {
+    (5_000u32..12_000, 10u32..=10, 0.5f32..1.2).prop_map(|(duration_ms, dt_ms, overshoot)| {
+        let steps = duration_ms / dt_ms + 30;
+        (0..steps)
+            .map(|i| {
+                let fraction = (i * dt_ms) as f32 / duration_ms as f32;
+                Tick {
+                    dt_ms,
+                    accumulator_v: 400.0,
+                    tractive_v: (400.0 * fraction * overshoot).min(400.0),
+                    shutdown_open: false,
+                    bms_frame: true,
+                    charger_safety: false,
+                }
+            })
+            .collect()
+    })
+}
+
+/// Runs `ticks` and checks every invariant after every step.
+fn check_sequence(start_ms: u32, ticks: &[Tick]) -> Result<(), TestCaseError> {
+    let mut pcc = Precharge::new(CONFIG, start_ms);
+    prop_assert_eq!(pcc.relays(), Relays::ALL_OPEN);
+    let mut now = start_ms;
+    let mut bms_seen = None;
+    let mut precharge_started = None;
+    let mut air_plus_allowed = false;
+    for tick in ticks {
+        now = now.wrapping_add(tick.dt_ms);
+        if tick.bms_frame {
+            bms_seen = Some(now);
+        }
+        let before = pcc.state();
+        let inputs = Inputs {
+            now_ms: now,
+            accumulator_v: tick.accumulator_v,
+            tractive_v: tick.tractive_v,
+            shutdown_open: tick.shutdown_open,
+            bms_last_seen_ms: bms_seen,
+            charger_safety: tick.charger_safety,
+        };
+        let relays = pcc.step(&inputs);
+        let after = pcc.state();
+
+        // Faults seen while energised open everything in this very step.
+        let bms_stale = bms_seen.is_none_or(|seen| now.wrapping_sub(seen) > CONFIG.bms_timeout_ms);
+        if before.is_energised() && (tick.shutdown_open || bms_stale) {
+            prop_assert_eq!(relays, Relays::ALL_OPEN, "fault in {:?}", before);
+            prop_assert_eq!(after, State::Error);
+        }
+        if !after.is_energised() {
+            prop_assert_eq!(relays, Relays::ALL_OPEN, "{:?}", after);
+        }
+        prop_assert!(!(relays.air_plus && relays.precharge));
+        prop_assert!(!relays.air_plus || relays.air_minus);
+
+        // Track the precharge that could allow AIR+.
+        if after == State::Precharge && before != State::Precharge {
+            precharge_started = Some(now);
+            air_plus_allowed = false;
+        }
+        if before == State::Precharge && matches!(after, State::Online | State::Charging) {
+            let started = precharge_started.expect("precharge has a start");
+            prop_assert!(now.wrapping_sub(started) >= CONFIG.min_time_ms);
+            prop_assert!(pcc.progress_percent() >= CONFIG.target_percent);
+            air_plus_allowed = true;
+        }
+        if !after.is_energised() {
+            air_plus_allowed = false;
+        }
+        if relays.air_plus {
+            prop_assert!(
+                air_plus_allowed,
+                "AIR+ closed without a completed precharge"
+            );
+        }
+    }
+    Ok(())
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(2_000))]
+
+    #[test]
+    fn random_inputs_never_break_a_safety_rule(
+        start_ms in any::<u32>(),
+        ticks in prop::collection::vec(tick(), 1..400),
+    ) {
+        check_sequence(start_ms, &ticks)?;
+    }
+
+    #[test]
+    fn ramps_with_faults_never_break_a_safety_rule(
+        start_ms in any::<u32>(),
+        mut ticks in ramp(),
+        faults in prop::collection::vec((any::<prop::sample::Index>(), tick()), 0..4),
+    ) {
+        for (index, fault) in faults {
+            let at = index.index(ticks.len());
+            ticks[at] = Tick { dt_ms: ticks[at].dt_ms, ..fault };
+        }
+        check_sequence(start_ms, &ticks)?;
+    }
+
+    /// An RC precharge reaches 90 % at tau x ln(10); sampled every 10 ms from its start, the
+    /// controller goes ONLINE exactly when that first sample at or above the target falls
+    /// within [min, max], and errors otherwise.
+    #[test]
+    fn an_rc_precharge_ends_as_its_time_constant_predicts(tau_ms in 2_000.0f64..5_000.0) {
+        let mut pcc = Precharge::new(CONFIG, 0);
+        let ready = |now_ms, tractive_v| Inputs {
+            now_ms,
+            accumulator_v: 400.0,
+            tractive_v,
+            shutdown_open: false,
+            bms_last_seen_ms: Some(now_ms),
+            charger_safety: false,
+        };
+        pcc.step(&ready(0, 0.0));
+        pcc.step(&ready(CONFIG.standby_settle_ms, 0.0));
+        prop_assert_eq!(pcc.state(), State::Precharge);
+        let start = CONFIG.standby_settle_ms;
+        let mut first_at_target = None;
+        for k in 1..=1_200u32 {
+            let elapsed = k * 10;
+            let tractive_v = (400.0 * (1.0 - (-f64::from(elapsed) / tau_ms).exp())) as f32;
+            if first_at_target.is_none() && 100.0 * tractive_v / 400.0 >= CONFIG.target_percent {
+                first_at_target = Some(elapsed);
+            }
+            pcc.step(&ready(start + elapsed, tractive_v));
+            if pcc.state() != State::Precharge {
+                break;
+            }
+        }
+        let expected = match first_at_target {
+            Some(t) if t < CONFIG.min_time_ms => State::Error,
+            Some(t) if t <= CONFIG.max_time_ms => State::Online,
+            _ => State::Error,
+        };
+        prop_assert_eq!(pcc.state(), expected, "tau {} ms, at target after {:?} ms", tau_ms, first_at_target);
+        let errors = pcc.errors();
+        match first_at_target {
+            Some(t) if t < CONFIG.min_time_ms => prop_assert!(errors.too_fast),
+            Some(t) if t > CONFIG.max_time_ms => prop_assert!(errors.too_slow),
+            None => prop_assert!(errors.too_slow),
+            _ => prop_assert!(!errors.any()),
+        }
+    }
+}
