@@ -1,0 +1,142 @@
+//! Project tasks that need more than `cargo build`: `cargo xtask firmware` builds the
+//! flashable images, `cargo xtask m7-check` runs the portable code on an emulated Cortex-M7.
+
+mod ihex;
+mod image;
+
+use anyhow::{Context, Result, bail};
+use clap::{Parser, Subcommand};
+use image::{FLASH_T40, FLEXRAM_BYTES, Image, RAM, Region};
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+/// The firmware target of both Teensys.
+const TARGET: &str = "thumbv7em-none-eabihf";
+
+#[derive(Parser)]
+#[command(about = "Project tasks: firmware images and Cortex-M7 checks")]
+struct Cli {
+    #[command(subcommand)]
+    task: Task,
+}
+
+#[derive(Subcommand)]
+enum Task {
+    /// Build the firmware (release) and write target/firmware/<name>.hex for
+    /// teensy_loader_cli, printing flash and RAM use.
+    Firmware,
+}
+
+/// A firmware image to build.
+struct Firmware {
+    /// Image and binary name.
+    name: &'static str,
+    /// Cargo package.
+    package: &'static str,
+    /// Board.
+    board: &'static str,
+    /// The board's flash.
+    flash: Region,
+}
+
+const FIRMWARE: [Firmware; 1] = [Firmware {
+    name: "pcc",
+    package: "aer-pcc",
+    board: "Teensy 4.0",
+    flash: FLASH_T40,
+}];
+
+fn main() -> Result<()> {
+    match Cli::parse().task {
+        Task::Firmware => firmware(),
+    }
+}
+
+fn workspace_root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .map_or_else(|| PathBuf::from("."), Path::to_path_buf)
+}
+
+fn cargo() -> Command {
+    Command::new(std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into()))
+}
+
+fn firmware() -> Result<()> {
+    let root = workspace_root();
+    let out_dir = root.join("target/firmware");
+    std::fs::create_dir_all(&out_dir).with_context(|| format!("creating {}", out_dir.display()))?;
+    for firmware in &FIRMWARE {
+        let status = cargo()
+            .current_dir(&root)
+            .args([
+                "build",
+                "--release",
+                "--target",
+                TARGET,
+                "--features",
+                "firmware",
+            ])
+            .args(["--package", firmware.package, "--bin", firmware.name])
+            .status()
+            .context("running cargo build")?;
+        if !status.success() {
+            bail!("building the {} firmware failed", firmware.name);
+        }
+        let elf_path = root
+            .join("target")
+            .join(TARGET)
+            .join("release")
+            .join(firmware.name);
+        let elf =
+            std::fs::read(&elf_path).with_context(|| format!("reading {}", elf_path.display()))?;
+        let image = Image::read(&elf).with_context(|| format!("reading {}", elf_path.display()))?;
+        if image.outside(firmware.flash) > 0 {
+            bail!(
+                "{}: {} loadable bytes lie outside flash; check the linker script",
+                firmware.name,
+                image.outside(firmware.flash)
+            );
+        }
+        let chunks: Vec<(u32, &[u8])> = image
+            .load
+            .iter()
+            .map(|(address, bytes)| (*address, bytes.as_slice()))
+            .collect();
+        let hex_path = out_dir.join(format!("{}.hex", firmware.name));
+        std::fs::write(&hex_path, ihex::write(&chunks))
+            .with_context(|| format!("writing {}", hex_path.display()))?;
+        report(firmware, &image, &hex_path);
+    }
+    Ok(())
+}
+
+fn report(firmware: &Firmware, image: &Image, hex_path: &Path) {
+    let flash = image.flash_bytes(firmware.flash);
+    println!(
+        "{} ({}): {}",
+        firmware.name,
+        firmware.board,
+        hex_path.display()
+    );
+    println!(
+        "  flash {:>8} B of {:>8} B ({:.2} %)",
+        flash,
+        firmware.flash.size,
+        percent(flash, firmware.flash.size)
+    );
+    for (used, region) in image.ram.iter().zip(RAM) {
+        println!("  {:<22} {:>8} B", region.name, used);
+    }
+    let flexram = image.ram[0] + image.ram[1];
+    println!(
+        "  FlexRAM (ITCM + DTCM) {:>8} B of {:>8} B ({:.2} %)",
+        flexram,
+        FLEXRAM_BYTES,
+        percent(flexram, FLEXRAM_BYTES)
+    );
+}
+
+fn percent(part: u32, whole: u32) -> f64 {
+    f64::from(part) * 100.0 / f64::from(whole)
+}
