@@ -347,12 +347,20 @@ fn losing_the_pack_discharges_and_standby_follows_below_60_volts() {
 }
 
 #[test]
-fn losing_the_pack_during_precharge_discharges_too() {
-    let mut bench = Bench::ready();
-    let start = bench.start_precharge();
-    bench.inputs.accumulator_v = 0.0;
-    bench.at_with_bms(start + 10);
-    assert_eq!(bench.state(), State::Discharge);
+fn losing_the_pack_discharges_from_every_energised_state() {
+    for energised in [State::Precharge, State::Online, State::Charging] {
+        let mut bench = Bench::ready();
+        bench.inputs.charger_safety = energised == State::Charging;
+        let now = if energised == State::Precharge {
+            bench.start_precharge()
+        } else {
+            bench.precharge_reaching_target_after(CONFIG.min_time_ms)
+        };
+        assert_eq!(bench.state(), energised);
+        bench.inputs.accumulator_v = 0.0;
+        assert_eq!(bench.at_with_bms(now + 10), Relays::ALL_OPEN, "{energised:?}");
+        assert_eq!(bench.state(), State::Discharge);
+    }
 }
 
 #[test]

@@ -3,6 +3,7 @@
 
 mod ihex;
 mod image;
+mod m7_check;
 
 use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand};
@@ -25,6 +26,13 @@ enum Task {
     /// Build the firmware (release) and write target/firmware/<name>.hex for
     /// teensy_loader_cli, printing flash and RAM use.
     Firmware,
+    /// Run the portable code (codec, telemetry packer, PCC logic) on an emulated Cortex-M7
+    /// (qemu-system-arm, mps2-an500) and require the same transcript as on the host.
+    M7Check {
+        /// Seconds QEMU may run before the check fails.
+        #[arg(long, default_value_t = 300)]
+        timeout: u64,
+    },
 }
 
 /// A firmware image to build.
@@ -49,6 +57,7 @@ const FIRMWARE: [Firmware; 1] = [Firmware {
 fn main() -> Result<()> {
     match Cli::parse().task {
         Task::Firmware => firmware(),
+        Task::M7Check { timeout } => m7_check::run(&workspace_root(), TARGET, timeout),
     }
 }
 
@@ -58,7 +67,7 @@ fn workspace_root() -> PathBuf {
         .map_or_else(|| PathBuf::from("."), Path::to_path_buf)
 }
 
-fn cargo() -> Command {
+pub(crate) fn cargo() -> Command {
     Command::new(std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into()))
 }
 

@@ -1,0 +1,50 @@
+//! The checks `cargo xtask m7-check` runs twice, on the host and on an emulated Cortex-M7, and
+//! compares line by line: any difference means the firmware's instruction set computes
+//! something else than the host tests saw (float handling, integer widths, layout).
+//!
+//! Each check writes one or more transcript lines; bulk results are folded into an FNV-1a
+//! digest of their `Debug` text and bytes, so the transcript stays short while covering every
+//! decoded value.
+#![no_std]
+
+mod codec;
+mod digest;
+mod pcc;
+
+pub use digest::Digest;
+
+/// Writes the whole transcript.
+pub fn run(out: &mut impl core::fmt::Write) -> core::fmt::Result {
+    codec::can_messages(out)?;
+    codec::telemetry(out)?;
+    pcc::scenarios(out)?;
+    writeln!(out, "done")
+}
+
+/// A small deterministic generator (xorshift32), identical on every target.
+#[derive(Debug, Clone)]
+pub struct Rng(u32);
+
+impl Rng {
+    /// A generator from a non-zero seed.
+    pub fn new(seed: u32) -> Self {
+        Self(seed.max(1))
+    }
+
+    /// The next 32 random bits.
+    pub fn next_u32(&mut self) -> u32 {
+        let mut x = self.0;
+        x ^= x << 13;
+        x ^= x >> 17;
+        x ^= x << 5;
+        self.0 = x;
+        x
+    }
+
+    /// Fills `bytes`.
+    pub fn fill(&mut self, bytes: &mut [u8]) {
+        for byte in bytes {
+            *byte = self.next_u32().to_le_bytes()[0];
+        }
+    }
+}
