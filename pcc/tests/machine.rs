@@ -358,7 +358,11 @@ fn losing_the_pack_discharges_from_every_energised_state() {
         };
         assert_eq!(bench.state(), energised);
         bench.inputs.accumulator_v = 0.0;
-        assert_eq!(bench.at_with_bms(now + 10), Relays::ALL_OPEN, "{energised:?}");
+        assert_eq!(
+            bench.at_with_bms(now + 10),
+            Relays::ALL_OPEN,
+            "{energised:?}"
+        );
         assert_eq!(bench.state(), State::Discharge);
     }
 }
