@@ -4,13 +4,14 @@
 
 use crate::Digest;
 use aer::can::OrionPackStatus;
+use aer_flexcan::CanFrame;
 use aer_pcc::measurement::VoltageChannel;
 use aer_pcc::sim::PrechargePlant;
 use aer_pcc::{
     Inputs, Precharge, PrechargeConfig, Relays, State, TASK_PERIOD_MS, VfConfig, bms::BmsLink,
 };
 use core::fmt::Write;
-use embedded_can::{Frame, Id, StandardId};
+use embedded_can::{Frame, StandardId};
 
 /// One scripted session.
 struct Scenario {
@@ -137,7 +138,9 @@ fn run(scenario: &Scenario, out: &mut impl Write) -> core::fmt::Result {
         let charger = scenario.charger_from_ms.is_some_and(|from| now_ms >= from);
         let bms_talks = scenario.bms_silent_from_ms.is_none_or(|from| now_ms < from);
         if bms_talks && now_ms % 100 == 0 {
-            bms.on_frame(now_ms, &pack_status(plant.accumulator_v, charger));
+            if let Some(frame) = pack_status(plant.accumulator_v, charger) {
+                bms.on_frame(now_ms, &frame);
+            }
         }
 
         let inputs = Inputs {
@@ -186,7 +189,7 @@ fn run(scenario: &Scenario, out: &mut impl Write) -> core::fmt::Result {
 }
 
 /// An Orion pack-status frame, through the generated encoder.
-fn pack_status(pack_v: f32, charger_safety: bool) -> SimFrame {
+fn pack_status(pack_v: f32, charger_safety: bool) -> Option<CanFrame> {
     let status = OrionPackStatus {
         orion_pack_current: 0.0,
         orion_pack_inst_voltage: f64::from((pack_v * 10.0) as u16) / 10.0,
@@ -197,43 +200,5 @@ fn pack_status(pack_v: f32, charger_safety: bool) -> SimFrame {
     if status.encode(&mut data).is_err() {
         data = [0xFF; 8];
     }
-    SimFrame {
-        id: Id::Standard(StandardId::new(0x6B0).unwrap_or(StandardId::ZERO)),
-        data,
-    }
-}
-
-/// A classic CAN frame for the simulation.
-struct SimFrame {
-    id: Id,
-    data: [u8; 8],
-}
-
-impl Frame for SimFrame {
-    fn new(id: impl Into<Id>, data: &[u8]) -> Option<Self> {
-        let mut buffer = [0u8; 8];
-        buffer.get_mut(..data.len())?.copy_from_slice(data);
-        Some(Self {
-            id: id.into(),
-            data: buffer,
-        })
-    }
-    fn new_remote(_: impl Into<Id>, _: usize) -> Option<Self> {
-        None
-    }
-    fn is_extended(&self) -> bool {
-        matches!(self.id, Id::Extended(_))
-    }
-    fn is_remote_frame(&self) -> bool {
-        false
-    }
-    fn id(&self) -> Id {
-        self.id
-    }
-    fn dlc(&self) -> usize {
-        8
-    }
-    fn data(&self) -> &[u8] {
-        &self.data
-    }
+    CanFrame::new(StandardId::new(0x6B0)?, &data)
 }

@@ -1,47 +1,15 @@
 //! The BMS link: heartbeat, charger safety, and counted bad frames.
 
 use aer::can::OrionPackStatus;
+use aer_flexcan::CanFrame;
 use aer_pcc::bms::BmsLink;
-use embedded_can::{Frame, Id, StandardId};
+use embedded_can::{Frame, StandardId};
 
-#[derive(Debug, Clone)]
-struct TestFrame {
-    id: Id,
-    data: Vec<u8>,
+fn frame(id: u32, data: &[u8]) -> CanFrame {
+    CanFrame::new(StandardId::new(id as u16).unwrap(), data).unwrap()
 }
 
-impl Frame for TestFrame {
-    fn new(id: impl Into<Id>, data: &[u8]) -> Option<Self> {
-        Some(Self {
-            id: id.into(),
-            data: data.to_vec(),
-        })
-    }
-    fn new_remote(_: impl Into<Id>, _: usize) -> Option<Self> {
-        None
-    }
-    fn is_extended(&self) -> bool {
-        matches!(self.id, Id::Extended(_))
-    }
-    fn is_remote_frame(&self) -> bool {
-        false
-    }
-    fn id(&self) -> Id {
-        self.id
-    }
-    fn dlc(&self) -> usize {
-        self.data.len()
-    }
-    fn data(&self) -> &[u8] {
-        &self.data
-    }
-}
-
-fn frame(id: u32, data: &[u8]) -> TestFrame {
-    TestFrame::new(StandardId::new(id as u16).unwrap(), data).unwrap()
-}
-
-fn pack_status(relay_state: u16) -> TestFrame {
+fn pack_status(relay_state: u16) -> CanFrame {
     let status = OrionPackStatus {
         orion_pack_current: 12.3,
         orion_pack_inst_voltage: 398.7,
@@ -88,7 +56,7 @@ fn frames_of_other_nodes_are_ignored() {
     bms.on_frame(5, &frame(0x101, &[0; 8]));
     bms.on_frame(
         5,
-        &TestFrame::new(embedded_can::ExtendedId::new(0x6B0).unwrap(), &[0; 8]).unwrap(),
+        &CanFrame::new(embedded_can::ExtendedId::new(0x6B0).unwrap(), &[0; 8]).unwrap(),
     );
     assert_eq!(bms.last_seen_ms(), None);
     assert_eq!(bms.decode_errors, 0);

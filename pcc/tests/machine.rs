@@ -75,6 +75,19 @@ impl Bench {
         done
     }
 
+    /// A bench in `energised` (PRECHARGE, ONLINE or CHARGING); returns the time it got there.
+    fn in_state(energised: State) -> (Self, u32) {
+        let mut bench = Self::ready();
+        bench.inputs.charger_safety = energised == State::Charging;
+        let now = if energised == State::Precharge {
+            bench.start_precharge()
+        } else {
+            bench.precharge_reaching_target_after(CONFIG.min_time_ms)
+        };
+        assert_eq!(bench.state(), energised);
+        (bench, now)
+    }
+
     fn online(&mut self) -> u32 {
         let done = self.precharge_reaching_target_after(CONFIG.min_time_ms + 100);
         assert_eq!(self.state(), State::Online);
@@ -279,14 +292,7 @@ fn charger_safety_chooses_charging_and_switches_with_online() {
 #[test]
 fn the_shutdown_input_opens_everything_in_the_same_period_in_every_energised_state() {
     for energised in [State::Precharge, State::Online, State::Charging] {
-        let mut bench = Bench::ready();
-        bench.inputs.charger_safety = energised == State::Charging;
-        let now = if energised == State::Precharge {
-            bench.start_precharge()
-        } else {
-            bench.precharge_reaching_target_after(CONFIG.min_time_ms)
-        };
-        assert_eq!(bench.state(), energised);
+        let (mut bench, now) = Bench::in_state(energised);
         bench.inputs.shutdown_open = true;
         assert_eq!(
             bench.at_with_bms(now + 1),
@@ -307,13 +313,7 @@ fn the_shutdown_input_opens_everything_in_the_same_period_in_every_energised_sta
 #[test]
 fn a_bms_timeout_opens_everything_one_ms_after_the_limit() {
     for energised in [State::Precharge, State::Online, State::Charging] {
-        let mut bench = Bench::ready();
-        bench.inputs.charger_safety = energised == State::Charging;
-        let now = if energised == State::Precharge {
-            bench.start_precharge()
-        } else {
-            bench.precharge_reaching_target_after(CONFIG.min_time_ms)
-        };
+        let (mut bench, now) = Bench::in_state(energised);
         let seen = now;
         bench.inputs.bms_last_seen_ms = Some(seen);
         bench.set_progress(if energised == State::Precharge {
@@ -349,14 +349,7 @@ fn losing_the_pack_discharges_and_standby_follows_below_60_volts() {
 #[test]
 fn losing_the_pack_discharges_from_every_energised_state() {
     for energised in [State::Precharge, State::Online, State::Charging] {
-        let mut bench = Bench::ready();
-        bench.inputs.charger_safety = energised == State::Charging;
-        let now = if energised == State::Precharge {
-            bench.start_precharge()
-        } else {
-            bench.precharge_reaching_target_after(CONFIG.min_time_ms)
-        };
-        assert_eq!(bench.state(), energised);
+        let (mut bench, now) = Bench::in_state(energised);
         bench.inputs.accumulator_v = 0.0;
         assert_eq!(
             bench.at_with_bms(now + 10),
