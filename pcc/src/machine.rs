@@ -20,6 +20,7 @@
 
 use crate::config::PrechargeConfig;
 use crate::relays::Relays;
+use aer_control::Persist;
 
 /// Precharge controller state, as sent in PCC_Status.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -108,8 +109,8 @@ pub struct Precharge {
     errors: Errors,
     /// When the current state was entered.
     entered_ms: u32,
-    /// Since when the standby conditions (or, in ERROR, the recovery conditions) have held.
-    conditions_since_ms: Option<u32>,
+    /// How long the standby conditions (or, in ERROR, the recovery conditions) have held.
+    conditions: Persist,
     /// Since when progress has been at or above the target during this precharge.
     at_target_since_ms: Option<u32>,
     progress_percent: f32,
@@ -125,7 +126,7 @@ impl Precharge {
             state: State::Standby,
             errors: Errors::default(),
             entered_ms: now_ms,
-            conditions_since_ms: None,
+            conditions: Persist::default(),
             at_target_since_ms: None,
             progress_percent: 0.0,
             accumulator_v: 0.0,
@@ -258,18 +259,15 @@ impl Precharge {
 
     /// True once `condition` has held continuously for `duration_ms` (tracked across calls).
     fn held_for(&mut self, condition: bool, now: u32, duration_ms: u32) -> bool {
-        if !condition {
-            self.conditions_since_ms = None;
-            return false;
-        }
-        let since = *self.conditions_since_ms.get_or_insert(now);
-        now.wrapping_sub(since) >= duration_ms
+        self.conditions
+            .update(condition, now)
+            .is_some_and(|held| held >= duration_ms)
     }
 
     fn enter(&mut self, state: State, now: u32) {
         self.state = state;
         self.entered_ms = now;
-        self.conditions_since_ms = None;
+        self.conditions.reset();
         self.at_target_since_ms = None;
     }
 }

@@ -6,6 +6,7 @@
 //! window) still reads right instead of alternating with zero.
 
 use crate::config::VfConfig;
+use aer_control::LowPass;
 
 /// Edge-to-edge frequency measurement on one input.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
@@ -52,35 +53,6 @@ impl FrequencyMeter {
         self.span_us = 0;
         self.last_hz = hz;
         hz
-    }
-}
-
-/// One-pole low-pass: alpha = 1 / (1 + (1 / (2 pi fc)) / dt), the team's filter.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct LowPass {
-    alpha: f32,
-    value: Option<f32>,
-}
-
-impl LowPass {
-    /// A filter with cut-off `cutoff_hz` for samples every `period_s` seconds.
-    pub fn new(cutoff_hz: f32, period_s: f32) -> Self {
-        let time_constant = 1.0 / (2.0 * core::f32::consts::PI * cutoff_hz);
-        Self {
-            alpha: 1.0 / (1.0 + time_constant / period_s),
-            value: None,
-        }
-    }
-
-    /// Feeds one sample and returns the filtered value; the first sample passes unchanged so
-    /// the output does not crawl up from zero.
-    pub fn update(&mut self, sample: f32) -> f32 {
-        let value = match self.value {
-            None => sample,
-            Some(previous) => previous + self.alpha * (sample - previous),
-        };
-        self.value = Some(value);
-        value
     }
 }
 
@@ -175,15 +147,6 @@ mod tests {
         let mut meter = FrequencyMeter::default();
         let last = feed(&mut meter, u32::MAX - 1_000, 250, 20);
         assert!((meter.sample(last.wrapping_add(10), 100_000) - 4_000.0).abs() < 0.01);
-    }
-
-    #[test]
-    fn the_filter_follows_the_team_formula() {
-        // fc = 100 Hz at dt = 1 ms gives alpha = 1 / (1 + 1.5915 / 1) = 0.3859.
-        let mut filter = LowPass::new(100.0, 0.001);
-        assert_eq!(filter.update(10.0), 10.0);
-        let next = filter.update(0.0);
-        assert!((next - 10.0 * (1.0 - 0.385_869)).abs() < 1e-3, "{next}");
     }
 
     #[test]
