@@ -5,6 +5,7 @@
 //! then every value field byte-aligned in schema order, then the flags packed LSB first
 //! (3 byte(s), unused bits zero).
 
+use super::can::AnyMessage;
 use super::can::McuMainState;
 use super::can::McuWarningLevel;
 use super::can::McuWorkMode;
@@ -1350,6 +1351,66 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 52] = [
     },
 ];
 
+impl Default for Telemetry {
+    /// Every value zero (`false`, an enum's raw 0), as before any data arrived.
+    fn default() -> Self {
+        Self {
+            apps_travel: 0.0,
+            bse_front: 0.0,
+            bse_rear: 0.0,
+            imd_resistance: 0,
+            imd_status: 0,
+            pack_voltage: 0.0,
+            pack_current: 0.0,
+            soc: 0.0,
+            discharge_limit: 0,
+            charge_limit: 0,
+            low_cell_volt: 0.0,
+            high_cell_volt: 0.0,
+            avg_cell_volt: 0.0,
+            motor_speed: 0.0,
+            motor_torque: 0.0,
+            max_motor_torque: 0.0,
+            motor_direction: MotorRotateDirection::from_raw(0),
+            motor_state: MotorMode::from_raw(0),
+            mcu_main_state: McuMainState::from_raw(0),
+            mcu_work_mode: McuWorkMode::from_raw(0),
+            mcu_voltage: 0.0,
+            mcu_phase_current: 0.0,
+            mcu_current: 0.0,
+            motor_temp: 0,
+            mcu_temp: 0,
+            mcu_warning_level: McuWarningLevel::from_raw(0),
+            vehicle_state: VehicleState::from_raw(0),
+            shocktravel1: 0.0,
+            shocktravel2: 0.0,
+            shocktravel3: 0.0,
+            shocktravel4: 0.0,
+            dc_main_wire_over_volt_fault: false,
+            motor_phase_curr_fault: false,
+            mcu_over_hot_fault: false,
+            resolver_fault: false,
+            phase_curr_sensor_fault: false,
+            motor_over_spd_fault: false,
+            drv_motor_over_hot_fault: false,
+            dc_main_wire_over_curr_fault: false,
+            drv_motor_over_cool_fault: false,
+            dc_low_volt_warning: false,
+            mcu_12v_low_volt_warning: false,
+            motor_stall_fault: false,
+            motor_open_phase_fault: false,
+            fault_over_current: false,
+            fault_under_voltage: false,
+            fault_over_temperature: false,
+            fault_apps: false,
+            fault_bse: false,
+            fault_bpps: false,
+            fault_apps_brake_plausibility: false,
+            fault_low_battery_voltage: false,
+        }
+    }
+}
+
 impl Telemetry {
     /// Packet length in bytes.
     pub const LEN: usize = 62;
@@ -1783,6 +1844,76 @@ impl Telemetry {
                 ),
             },
         ))
+    }
+
+    /// Copies every field that mirrors a DBC signal (`signal:` in telemetry.yaml) from a
+    /// decoded message; other fields keep their value. The sender calls this for each frame it
+    /// decodes, so a new mirrored field is filled without code changes.
+    pub fn apply(&mut self, message: &AnyMessage) {
+        match message {
+            AnyMessage::CcmStatus(m) => {
+                self.vehicle_state = m.ccm_vehicle_state;
+                self.fault_over_current = m.ccm_fault_over_current;
+                self.fault_under_voltage = m.ccm_fault_under_voltage;
+                self.fault_over_temperature = m.ccm_fault_over_temperature;
+                self.fault_apps = m.ccm_fault_apps;
+                self.fault_bse = m.ccm_fault_bse;
+                self.fault_bpps = m.ccm_fault_bpps;
+                self.fault_apps_brake_plausibility = m.ccm_fault_apps_brake_plausibility;
+                self.fault_low_battery_voltage = m.ccm_fault_low_battery_voltage;
+            }
+            AnyMessage::Mcu1(m) => {
+                self.motor_speed = m.mcu_motor_speed as f32;
+                self.motor_torque = m.mcu_actual_torque as f32;
+                self.max_motor_torque = m.mcu_max_motor_torque as f32;
+                self.motor_direction = m.mcu_rotate_direction;
+                self.motor_state = m.mcu_motor_state;
+                self.mcu_main_state = m.mcu_main_state;
+                self.mcu_work_mode = m.mcu_work_mode;
+            }
+            AnyMessage::Mcu2(m) => {
+                self.motor_temp = m.mcu_motor_temp;
+                self.mcu_temp = m.mcu_inverter_temp;
+                self.mcu_warning_level = m.mcu_warning_level;
+                self.dc_main_wire_over_volt_fault = m.mcu_dc_main_wire_over_volt_fault;
+                self.motor_phase_curr_fault = m.mcu_motor_phase_curr_fault;
+                self.mcu_over_hot_fault = m.mcu_over_hot_fault;
+                self.resolver_fault = m.mcu_resolver_fault;
+                self.phase_curr_sensor_fault = m.mcu_phase_curr_sensor_fault;
+                self.motor_over_spd_fault = m.mcu_motor_over_spd_fault;
+                self.drv_motor_over_hot_fault = m.mcu_drv_motor_over_hot_fault;
+                self.dc_main_wire_over_curr_fault = m.mcu_dc_main_wire_over_curr_fault;
+                self.drv_motor_over_cool_fault = m.mcu_drv_motor_over_cool_fault;
+                self.dc_low_volt_warning = m.mcu_dc_low_volt_warning;
+                self.mcu_12v_low_volt_warning = m.mcu_12v_low_volt_warning;
+                self.motor_stall_fault = m.mcu_motor_stall_fault;
+                self.motor_open_phase_fault = m.mcu_motor_open_phase_fault;
+            }
+            AnyMessage::Mcu3(m) => {
+                self.mcu_voltage = m.mcu_dc_voltage as f32;
+                self.mcu_phase_current = m.mcu_phase_current as f32;
+                self.mcu_current = m.mcu_dc_current as f32;
+            }
+            AnyMessage::OrionPackStatus(m) => {
+                self.pack_voltage = m.orion_pack_inst_voltage as f32;
+                self.pack_current = m.orion_pack_current as f32;
+                self.soc = m.orion_pack_soc as f32;
+            }
+            AnyMessage::OrionLimits(m) => {
+                self.discharge_limit = m.orion_pack_dcl;
+                self.charge_limit = m.orion_pack_ccl;
+            }
+            AnyMessage::OrionCellVoltages(m) => {
+                self.low_cell_volt = m.orion_low_cell_voltage as f32;
+                self.high_cell_volt = m.orion_high_cell_voltage as f32;
+                self.avg_cell_volt = m.orion_avg_cell_voltage as f32;
+            }
+            AnyMessage::ImdInfoGeneral(m) => {
+                self.imd_resistance = m.imd_r_iso_corrected;
+                self.imd_status = m.imd_r_iso_status;
+            }
+            _ => {}
+        }
     }
 
     /// Calls `visitor` with every field's physical value, in schema order.

@@ -204,3 +204,47 @@ fn the_packet_is_compact_and_documented() {
         Telemetry::FIELDS.iter().map(|f| f.name).collect::<Vec<_>>()
     );
 }
+
+#[test]
+fn apply_copies_every_mirrored_signal_of_a_decoded_message() {
+    use aer::can::{AnyMessage, Mcu1, McuMainState, OrionPackStatus};
+    let mut telemetry = Telemetry::default();
+    assert_eq!(telemetry.motor_speed, 0.0);
+    assert_eq!(telemetry.mcu_main_state, McuMainState::from_raw(0));
+
+    let mcu1 = Mcu1 {
+        mcu_motor_speed: 4321.25,
+        mcu_actual_torque: 101.9,
+        mcu_max_motor_torque: 259.896,
+        mcu_max_motor_brake_torque: 0.0,
+        mcu_main_state: McuMainState::Run,
+        mcu_rotate_direction: aer::can::MotorRotateDirection::Forward,
+        mcu1_rolling_counter: 3,
+        mcu_motor_state: aer::can::MotorMode::Drive,
+        mcu_work_mode: aer::can::McuWorkMode::Torque,
+    };
+    let mut data = [0u8; 8];
+    mcu1.encode(&mut data).unwrap();
+    let decoded = AnyMessage::decode(Mcu1::ID, false, &data).unwrap();
+    telemetry.apply(&decoded);
+    let AnyMessage::Mcu1(decoded) = decoded else {
+        unreachable!()
+    };
+    assert_eq!(telemetry.motor_speed, decoded.mcu_motor_speed as f32);
+    assert_eq!(telemetry.motor_torque, decoded.mcu_actual_torque as f32);
+    assert_eq!(telemetry.mcu_main_state, McuMainState::Run);
+    assert_eq!(telemetry.motor_state, aer::can::MotorMode::Drive);
+
+    // Another message leaves the motor fields alone and fills its own.
+    let before = telemetry.motor_speed;
+    let pack = OrionPackStatus {
+        orion_pack_current: -12.5,
+        orion_pack_inst_voltage: 398.7,
+        orion_pack_soc: 80.5,
+        orion_relay_state: 1,
+    };
+    telemetry.apply(&AnyMessage::OrionPackStatus(pack));
+    assert_eq!(telemetry.motor_speed, before);
+    assert_eq!(telemetry.pack_current, -12.5);
+    assert_eq!(telemetry.soc, 80.5);
+}

@@ -5,6 +5,7 @@
 //! then every value field byte-aligned in schema order, then the flags packed LSB first
 //! ({{ flag_bytes }} byte(s), unused bits zero).
 
+use super::can::AnyMessage;
 use super::runtime::{self, ByteOrder, SignalMeta, SignalVisitor, Value};
 {%- for e in enums %}
 use super::can::{{ e }};
@@ -89,6 +90,17 @@ static TELEMETRY_DISPLAY: [FieldDisplay; {{ fields.len() }}] = [
 {%- endfor %}
 ];
 
+impl Default for {{ t.type_name }} {
+    /// Every value zero (`false`, an enum's raw 0), as before any data arrived.
+    fn default() -> Self {
+        Self {
+{%- for f in fields %}
+            {{ f.name }}: {{ f.default_expr }},
+{%- endfor %}
+        }
+    }
+}
+
 impl {{ t.type_name }} {
     /// Packet length in bytes.
     pub const LEN: usize = {{ t.len }};
@@ -145,6 +157,22 @@ impl {{ t.type_name }} {
 {%- endfor %}
             },
         ))
+    }
+
+    /// Copies every field that mirrors a DBC signal (`signal:` in telemetry.yaml) from a
+    /// decoded message; other fields keep their value. The sender calls this for each frame it
+    /// decodes, so a new mirrored field is filled without code changes.
+    pub fn apply(&mut self, message: &AnyMessage) {
+        match message {
+{%- for arm in mirrors %}
+            AnyMessage::{{ arm.variant }}(m) => {
+{%- for stmt in arm.statements %}
+                {{ stmt }}
+{%- endfor %}
+            }
+{%- endfor %}
+            _ => {}
+        }
     }
 
     /// Calls `visitor` with every field's physical value, in schema order.

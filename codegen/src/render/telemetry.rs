@@ -17,6 +17,15 @@ pub struct TelemetryTemplate<'a> {
     pub enums: Vec<String>,
     pub fields: Vec<FieldView>,
     pub flag_bytes: usize,
+    /// One arm per DBC message that telemetry fields mirror.
+    pub mirrors: Vec<MirrorArm>,
+}
+
+/// The statements that copy one message's signals into the telemetry fields that mirror them.
+pub struct MirrorArm {
+    /// `AnyMessage` variant (the message's type name).
+    pub variant: String,
+    pub statements: Vec<String>,
 }
 
 #[derive(Template)]
@@ -40,6 +49,8 @@ pub struct FieldView {
     pub pack_stmt: String,
     pub unpack_expr: String,
     pub visit_stmt: String,
+    /// The field's value before any data arrived (zero, `false`, or the enum's raw 0).
+    pub default_expr: String,
     pub is_flag: bool,
     /// Expression reading the raw value from `self` (a `TelemetryFrame`).
     pub deku_read: String,
@@ -204,9 +215,16 @@ fn view(db: &Database, first_flag_byte: usize, index: usize, f: &TelemetryField)
             format!("{name}: Telemetry::{name}_to_raw(t.{name}).0,"),
         ),
     };
+    let default_expr = match f.phys {
+        PhysType::Bool => "false".to_owned(),
+        PhysType::Int(_) => "0".to_owned(),
+        PhysType::F32 | PhysType::F64 => "0.0".to_owned(),
+        PhysType::Enum(_) => format!("{phys_ty}::from_raw(0)"),
+    };
     FieldView {
         name: name.clone(),
         docs,
+        default_expr,
         phys_ty,
         wire_ty,
         meta,
@@ -263,8 +281,53 @@ pub fn render(
         enums,
         fields: field_views(db, t),
         flag_bytes: flag_count(t).div_ceil(8),
+        mirrors: mirror_arms(db, t),
     }
     .render()
+}
+
+/// Groups the fields that mirror DBC signals by message, in DBC message order.
+fn mirror_arms(db: &Database, t: &Telemetry) -> Vec<MirrorArm> {
+    db.messages
+        .iter()
+        .filter_map(|message| {
+            let statements: Vec<String> = t
+                .fields
+                .iter()
+                .filter_map(|field| {
+                    let (msg, sig) = field.source.as_deref()?.split_once('.')?;
+                    if msg != message.name {
+                        return None;
+                    }
+                    let signal = message.signals.iter().find(|s| s.name == sig)?;
+                    let value = if signal.phys == field.phys {
+                        "v".to_owned()
+                    } else {
+                        format!("v as {}", phys_rust(db, field.phys))
+                    };
+                    Some(if signal.mux.is_some() {
+                        format!(
+                            "if let Some(v) = m.{} {{\nself.{} = {value};\n}}",
+                            signal.field, field.name
+                        )
+                    } else if value == "v" {
+                        format!("self.{} = m.{};", field.name, signal.field)
+                    } else {
+                        format!(
+                            "self.{} = m.{} as {};",
+                            field.name,
+                            signal.field,
+                            phys_rust(db, field.phys)
+                        )
+                    })
+                })
+                .collect();
+            (!statements.is_empty()).then(|| MirrorArm {
+                variant: message.type_name.clone(),
+                statements,
+            })
+        })
+        .collect()
 }
 
 pub fn render_deku(db: &Database, t: &Telemetry, source: &str) -> Result<String, askama::Error> {
