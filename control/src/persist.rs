@@ -7,6 +7,11 @@ pub struct Persist {
 }
 
 impl Persist {
+    /// A condition that has not held yet.
+    pub const fn new() -> Self {
+        Self { since_ms: None }
+    }
+
     /// Feeds the condition at `now_ms`; returns for how long it has held (`None` while false).
     pub fn update(&mut self, condition: bool, now_ms: u32) -> Option<u32> {
         if !condition {

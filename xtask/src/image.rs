@@ -23,6 +23,13 @@ pub const FLASH_T40: Region = Region {
     start: 0x6000_0000,
     size: 2 * 1024 * 1024 - 4096,
 };
+/// External QSPI flash (Teensy 4.1: 8 MiB; the last 4 KiB hold the bootloader's data).
+pub const FLASH_T41: Region = Region {
+    name: "flash",
+    start: 0x6000_0000,
+    size: 8 * 1024 * 1024 - 4096,
+};
+
 /// On-chip RAM regions: FlexRAM (512 KiB shared by ITCM and DTCM in 32 KiB banks) and OCRAM2.
 pub const RAM: [Region; 3] = [
     Region {

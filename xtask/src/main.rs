@@ -7,7 +7,7 @@ mod m7_check;
 
 use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand};
-use image::{FLASH_T40, FLEXRAM_BYTES, Image, RAM, Region};
+use image::{FLASH_T40, FLASH_T41, FLEXRAM_BYTES, Image, RAM, Region};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -47,12 +47,20 @@ struct Firmware {
     flash: Region,
 }
 
-const FIRMWARE: [Firmware; 1] = [Firmware {
-    name: "pcc",
-    package: "aer-pcc",
-    board: "Teensy 4.0",
-    flash: FLASH_T40,
-}];
+const FIRMWARE: [Firmware; 2] = [
+    Firmware {
+        name: "ccm",
+        package: "aer-ccm",
+        board: "Teensy 4.1",
+        flash: FLASH_T41,
+    },
+    Firmware {
+        name: "pcc",
+        package: "aer-pcc",
+        board: "Teensy 4.0",
+        flash: FLASH_T40,
+    },
+];
 
 fn main() -> Result<()> {
     match Cli::parse().task {

@@ -1,0 +1,470 @@
+//! CCM firmware for the Teensy 4.1 (RTIC 2).
+//!
+//! Tasks, highest priority first:
+//! - `wheel_edge` (GPIO3 interrupt, 5): time-stamps front wheel-speed pulses.
+//! - `sensors` (1 kHz, 4): on-chip ADC (brakes, shocks) and the ADS1115 (pedals).
+//! - `can1_receive` / `can2_receive` (CAN interrupts, 3): drain the FlexCAN FIFOs into bounded
+//!   queues (overflows counted); the Pi's ISO-TP flow control (0x777) goes straight to the
+//!   telemetry sender.
+//! - `control` (100 Hz, 2): CAN intake, state machine, torque, outputs; VCU1/BMS1/BMS2 every
+//!   20 ms, CCM_Status every 100 ms.
+//! - `telemetry` (100 Hz, 1): snapshot -> generated packer -> ISO-TP on 0x666.
+//! - `watchdog` (10 Hz, 1): feeds WDOG1 (1 s timeout) only while every task's heartbeat is
+//!   younger than 100 ms.
+//!
+//! Every decision is in the `aer_ccm` library; this file moves data between it and the
+//! hardware. Torque is zero until the first control step says otherwise.
+#![no_std]
+#![no_main]
+
+mod board;
+mod pwm;
+
+use teensy4_panic as _;
+
+#[rtic::app(device = teensy4_bsp, peripherals = true, dispatchers = [KPP, PIT, GPT2])]
+mod app {
+    use crate::board;
+    use crate::pwm::PwmBlock;
+    use aer::can::CcmStatus;
+    use aer::telemetry::Telemetry;
+    use aer_ccm::ads1115::Ads1115;
+    use aer_ccm::apps::AppsCalibration;
+    use aer_ccm::config::{
+        CONTROL_PERIOD_MS, INVERTER_PERIOD_MS, TELEMETRY_PERIOD_MS, WATCHDOG_CHECK_MS,
+    };
+    use aer_ccm::watchdog::{Supervisor, Task};
+    use aer_ccm::{Ccm, DriverInputs, SensorSample};
+    use aer_flexcan::{CanFrame, Flexcan};
+    use core::sync::atomic::{AtomicU32, Ordering};
+    use embedded_can::{Frame, Id, StandardId};
+    use heapless::spsc::{Consumer, Producer, Queue};
+    use rtic_monotonics::imxrt::prelude::*;
+    use teensy4_bsp::{
+        board as bsp,
+        hal::{self, adc, flexpwm, gpio},
+        ral,
+    };
+
+    imxrt_gpt1_monotonic!(Mono, 1_000_000);
+
+    /// Received frames waiting for the control task, per bus.
+    const RX_QUEUE: usize = 64;
+
+    /// Frames dropped because a receive queue was full.
+    static RX_QUEUE_OVERFLOWS: AtomicU32 = AtomicU32::new(0);
+    /// Frames not sent because every mailbox was busy (bus-off or flooded bus).
+    static TX_BUSY: AtomicU32 = AtomicU32::new(0);
+    /// Frames that could not be encoded.
+    static ENCODE_FAILURES: AtomicU32 = AtomicU32::new(0);
+
+    #[shared]
+    struct Shared {
+        ccm: Ccm,
+        can1: Flexcan<1>,
+        can2: Flexcan<2>,
+        supervisor: Supervisor,
+    }
+
+    #[local]
+    struct Local {
+        adc: adc::Adc,
+        analog: [adc::AnalogInput; 6],
+        ads: Ads1115<hal::lpi2c::Lpi2c>,
+        wheel_left: gpio::Input,
+        wheel_right: gpio::Input,
+        ready_to_move: gpio::Input,
+        launch: gpio::Input,
+        brake_light: gpio::Output,
+        cooling: PwmBlock,
+        buzzer: PwmBlock,
+        can1_rx: Producer<'static, CanFrame>,
+        can2_rx: Producer<'static, CanFrame>,
+        can1_frames: Consumer<'static, CanFrame>,
+        can2_frames: Consumer<'static, CanFrame>,
+        wdog: ral::wdog::WDOG1,
+    }
+
+    #[init(local = [
+        queue1: Queue<CanFrame, RX_QUEUE> = Queue::new(),
+        queue2: Queue<CanFrame, RX_QUEUE> = Queue::new(),
+    ])]
+    fn init(cx: init::Context) -> (Shared, Local) {
+        let bsp::Resources {
+            pins,
+            mut gpio2,
+            mut gpio3,
+            mut gpio4,
+            mut gpt1,
+            ccm,
+            adc1,
+            lpi2c1,
+            flexpwm2,
+            flexpwm4,
+            ..
+        } = bsp::t41(cx.device);
+        let pins = board::pins(pins);
+
+        let Ok(brake_light) = gpio2.output(pins.brake_light) else {
+            halt()
+        };
+        let (Ok(ready_to_move), Ok(launch)) =
+            (gpio2.input(pins.ready_to_move), gpio4.input(pins.launch))
+        else {
+            halt()
+        };
+        let (Ok(wheel_left), Ok(wheel_right)) =
+            (gpio3.input(pins.wheels.0), gpio3.input(pins.wheels.1))
+        else {
+            halt()
+        };
+        let rising = Some(gpio::Trigger::RisingEdge);
+        if gpio3.set_interrupt(&wheel_left, rising).is_err()
+            || gpio3.set_interrupt(&wheel_right, rising).is_err()
+        {
+            halt();
+        }
+
+        let (fan_pin, pump_pin) = pins.cooling;
+        let mut fan_pin = fan_pin;
+        let mut pump_pin = pump_pin;
+        let mut buzzer_pin = pins.buzzer;
+        hal::iomuxc::flexpwm::prepare(&mut fan_pin);
+        hal::iomuxc::flexpwm::prepare(&mut pump_pin);
+        hal::iomuxc::flexpwm::prepare(&mut buzzer_pin);
+        let Some(cooling) = PwmBlock::new(flexpwm4, flexpwm::SM::SM2, board::COOLING_PWM_HZ) else {
+            halt()
+        };
+        let Some(buzzer) = PwmBlock::new(flexpwm2, flexpwm::SM::SM0, board::BUZZER_HZ) else {
+            halt()
+        };
+
+        let mut adc = adc1;
+        adc.set_resolution(adc::ResolutionBits::Res12);
+        let (brake_front, brake_rear) = pins.brakes;
+        let (fl, fr, rl, rr) = pins.shocks;
+        let (Ok(a0), Ok(a1), Ok(a2), Ok(a3), Ok(a6), Ok(a7)) = (
+            adc.input::<_, 1>(brake_front),
+            adc.input::<_, 1>(brake_rear),
+            adc.input::<_, 1>(fl),
+            adc.input::<_, 1>(fr),
+            adc.input::<_, 1>(rl),
+            adc.input::<_, 1>(rr),
+        ) else {
+            halt()
+        };
+
+        let (scl, sda) = pins.i2c;
+        let i2c = bsp::lpi2c(lpi2c1, scl, sda, bsp::Lpi2cClockSpeed::KHz400);
+        let mut ads = Ads1115::new(i2c);
+        ads.start();
+
+        gpt1.set_clock_source(hal::gpt::ClockSource::PeripheralClock);
+        gpt1.set_divider(bsp::PERCLK_FREQUENCY / 1_000_000);
+        // SAFETY: `gpt1` is configured above and not used again; the monotonic owns it.
+        Mono::start(
+            unsafe { ral::gpt::GPT1::instance() },
+            Priority::rtic_default(),
+        );
+
+        // SAFETY: the BSP does not hand out FlexCAN or WDOG1; nothing else uses them.
+        let (can1_regs, can2_regs, wdog) = unsafe {
+            (
+                ral::can::CAN1::instance(),
+                ral::can::CAN2::instance(),
+                ral::wdog::WDOG1::instance(),
+            )
+        };
+        let (tx1, rx1) = pins.can1;
+        let (tx2, rx2) = pins.can2;
+        let (Ok(mut can1), Ok(mut can2)) = (
+            Flexcan::new(can1_regs, tx1, rx1, &ccm, board::CAN_BITRATE),
+            Flexcan::new(can2_regs, tx2, rx2, &ccm, board::CAN_BITRATE),
+        ) else {
+            halt()
+        };
+        can1.enable_rx_interrupt();
+        can2.enable_rx_interrupt();
+        start_watchdog(&wdog);
+
+        let (can1_rx, can1_frames) = cx.local.queue1.split();
+        let (can2_rx, can2_frames) = cx.local.queue2.split();
+        if sensors::spawn().is_err()
+            || control::spawn().is_err()
+            || telemetry::spawn().is_err()
+            || watchdog::spawn().is_err()
+        {
+            halt();
+        }
+        (
+            Shared {
+                ccm: Ccm::new(AppsCalibration::DEFAULT),
+                can1,
+                can2,
+                supervisor: Supervisor::default(),
+            },
+            Local {
+                adc,
+                analog: [a0, a1, a2, a3, a6, a7],
+                ads,
+                wheel_left,
+                wheel_right,
+                ready_to_move,
+                launch,
+                brake_light,
+                cooling,
+                buzzer,
+                can1_rx,
+                can2_rx,
+                can1_frames,
+                can2_frames,
+                wdog,
+            },
+        )
+    }
+
+    /// Start-up failed (a pin on the wrong port, a controller that does not start): outputs
+    /// stay unconfigured (no torque is ever commanded) and the watchdog is never started.
+    fn halt() -> ! {
+        loop {
+            cortex_m::asm::wfi();
+        }
+    }
+
+    fn now_us() -> u32 {
+        // 32-bit microseconds wrap every 71 minutes; the library uses differences only.
+        Mono::now().as_ticks() as u32
+    }
+
+    fn now_ms() -> u32 {
+        (Mono::now().as_ticks() / 1_000) as u32
+    }
+
+    /// WDOG1 with a 1 s timeout: WT = 1 (0.5 s steps, plus one), enabled. The power-down
+    /// counter is switched off so only a missed service resets the CCM.
+    fn start_watchdog(wdog: &ral::wdog::WDOG1) {
+        ral::write_reg!(ral::wdog, wdog, WMCR, 0);
+        ral::modify_reg!(ral::wdog, wdog, WCR, WT: 1, WDE: 1);
+    }
+
+    fn feed_watchdog(wdog: &ral::wdog::WDOG1) {
+        ral::write_reg!(ral::wdog, wdog, WSR, 0x5555);
+        ral::write_reg!(ral::wdog, wdog, WSR, 0xAAAA);
+    }
+
+    #[task(binds = GPIO3_COMBINED_16_31, priority = 5, local = [wheel_left, wheel_right], shared = [ccm])]
+    fn wheel_edge(mut cx: wheel_edge::Context) {
+        let now = now_us();
+        if cx.local.wheel_left.is_triggered() {
+            cx.local.wheel_left.clear_triggered();
+            cx.shared.ccm.lock(|ccm| ccm.wheel_pulse(0, now));
+        }
+        if cx.local.wheel_right.is_triggered() {
+            cx.local.wheel_right.clear_triggered();
+            cx.shared.ccm.lock(|ccm| ccm.wheel_pulse(1, now));
+        }
+    }
+
+    #[task(priority = 4, local = [adc, analog, ads], shared = [ccm, supervisor])]
+    async fn sensors(mut cx: sensors::Context) {
+        let mut next = Mono::now();
+        loop {
+            next += 1u64.millis();
+            let [brake_front, brake_rear, fl, fr, rl, rr] = cx
+                .local
+                .analog
+                .each_mut()
+                .map(|input| cx.local.adc.read_blocking(input));
+            let volts = |counts: u16| f32::from(counts) * board::ADC_REFERENCE_V / 4095.0;
+            let sample = SensorSample {
+                apps_raw: cx.local.ads.poll(),
+                brake_v: (
+                    volts(brake_front) * board::BRAKE_DIVIDER,
+                    volts(brake_rear) * board::BRAKE_DIVIDER,
+                ),
+                shock_raw: [fl, fr, rl, rr],
+            };
+            let now = now_ms();
+            cx.shared.ccm.lock(|ccm| ccm.sample(&sample, now));
+            cx.shared
+                .supervisor
+                .lock(|supervisor| supervisor.beat(Task::Sensors, now));
+            Mono::delay_until(next).await;
+        }
+    }
+
+    /// Drains a FIFO; the Pi's flow control goes to the telemetry sender at once.
+    fn drain<const N: u8>(
+        can: &mut Flexcan<N>,
+        queue: &mut Producer<'static, CanFrame>,
+        ccm: &mut impl rtic::Mutex<T = Ccm>,
+    ) {
+        while let Some(frame) = can.receive() {
+            if frame.id() == Id::Standard(flow_control_id()) {
+                let now = now_us();
+                ccm.lock(|ccm| ccm.link().on_flow_control(frame.data(), now));
+            } else if queue.enqueue(frame).is_err() {
+                RX_QUEUE_OVERFLOWS.fetch_add(1, Ordering::Relaxed);
+            }
+        }
+    }
+
+    fn flow_control_id() -> StandardId {
+        StandardId::new(Telemetry::FLOW_CONTROL_ID).unwrap_or(StandardId::MAX)
+    }
+
+    #[task(binds = CAN1, priority = 3, local = [can1_rx], shared = [can1, ccm])]
+    fn can1_receive(mut cx: can1_receive::Context) {
+        let queue = cx.local.can1_rx;
+        let ccm = &mut cx.shared.ccm;
+        cx.shared.can1.lock(|can| drain(can, queue, ccm));
+    }
+
+    #[task(binds = CAN2, priority = 3, local = [can2_rx], shared = [can2, ccm])]
+    fn can2_receive(mut cx: can2_receive::Context) {
+        let queue = cx.local.can2_rx;
+        let ccm = &mut cx.shared.ccm;
+        cx.shared.can2.lock(|can| drain(can, queue, ccm));
+    }
+
+    fn send<const N: u8>(can: &mut impl rtic::Mutex<T = Flexcan<N>>, id: u32, data: &[u8]) {
+        let frame = u16::try_from(id)
+            .ok()
+            .and_then(StandardId::new)
+            .and_then(|id| CanFrame::new(id, data));
+        match frame {
+            Some(frame) => {
+                if can.lock(|can| can.transmit(&frame)).is_err() {
+                    TX_BUSY.fetch_add(1, Ordering::Relaxed);
+                }
+            }
+            None => {
+                ENCODE_FAILURES.fetch_add(1, Ordering::Relaxed);
+            }
+        }
+    }
+
+    #[task(priority = 2,
+           local = [ready_to_move, launch, brake_light, cooling, buzzer, can1_frames, can2_frames],
+           shared = [ccm, can1, can2, supervisor])]
+    async fn control(mut cx: control::Context) {
+        let mut next = Mono::now();
+        let mut step: u32 = 0;
+        loop {
+            next += u64::from(CONTROL_PERIOD_MS).millis();
+            let now = now_ms();
+            let now_micros = now_us();
+            let (frames1, frames2) = (&mut cx.local.can1_frames, &mut cx.local.can2_frames);
+            let driver = DriverInputs {
+                ready_to_move: cx.local.ready_to_move.is_set(),
+                launch: cx.local.launch.is_set(),
+            };
+            let (outputs, inverter, status) = cx.shared.ccm.lock(|ccm| {
+                while let Some(frame) = frames1.dequeue() {
+                    ccm.on_frame(&frame, now);
+                }
+                while let Some(frame) = frames2.dequeue() {
+                    ccm.on_frame(&frame, now);
+                }
+                let outputs = ccm.control(driver, now, now_micros);
+                let inverter = (step % (INVERTER_PERIOD_MS / CONTROL_PERIOD_MS) == 0)
+                    .then(|| ccm.inverter_frames());
+                let status = (step % 10 == 0).then(|| ccm.status());
+                (outputs, inverter, status)
+            });
+            if outputs.brake_light {
+                cx.local.brake_light.set();
+            } else {
+                cx.local.brake_light.clear();
+            }
+            cx.local
+                .cooling
+                .set_duty(flexpwm::Channel::A, outputs.cooling.fan);
+            cx.local
+                .cooling
+                .set_duty(flexpwm::Channel::B, outputs.cooling.pump);
+            cx.local.buzzer.set_duty(
+                flexpwm::Channel::A,
+                if outputs.vehicle.rtd_sound { 0.5 } else { 0.0 },
+            );
+
+            match inverter {
+                Some(Ok(frames)) => {
+                    for (id, data) in frames {
+                        send(&mut cx.shared.can2, id, &data);
+                    }
+                }
+                Some(Err(_)) => {
+                    ENCODE_FAILURES.fetch_add(1, Ordering::Relaxed);
+                }
+                None => {}
+            }
+            if let Some(status) = status {
+                let mut data = [0u8; CcmStatus::LEN];
+                if status.encode(&mut data).is_ok() {
+                    send(&mut cx.shared.can1, CcmStatus::ID, &data);
+                    send(&mut cx.shared.can2, CcmStatus::ID, &data);
+                } else {
+                    ENCODE_FAILURES.fetch_add(1, Ordering::Relaxed);
+                }
+            }
+            cx.shared.supervisor.lock(|supervisor| {
+                supervisor.beat(Task::Control, now);
+                supervisor.beat(Task::Inverter, now);
+            });
+            step = step.wrapping_add(1);
+            Mono::delay_until(next).await;
+        }
+    }
+
+    #[task(priority = 1, shared = [ccm, can1, supervisor])]
+    async fn telemetry(mut cx: telemetry::Context) {
+        let mut next = Mono::now();
+        loop {
+            next += u64::from(TELEMETRY_PERIOD_MS).millis();
+            let started = now_us();
+            cx.shared.ccm.lock(|ccm| ccm.send_telemetry(started));
+            // Feed the ISO-TP frames out as mailboxes free up, until the packet is done or
+            // the next snapshot is due (which then supersedes it, counted by the link).
+            while Mono::now() < next {
+                let now = now_us();
+                let Some(frame) = cx.shared.ccm.lock(|ccm| ccm.link().poll(now)) else {
+                    // Waiting for flow control or STmin, or done: check again shortly.
+                    Mono::delay(200u64.micros()).await;
+                    continue;
+                };
+                let queued = StandardId::new(Telemetry::TX_ID)
+                    .and_then(|id| CanFrame::new(id, frame.as_slice()))
+                    .is_some_and(|can_frame| {
+                        cx.shared.can1.lock(|can| can.transmit(&can_frame)).is_ok()
+                    });
+                if queued {
+                    cx.shared.ccm.lock(|ccm| ccm.link().sent(now));
+                } else {
+                    Mono::delay(100u64.micros()).await;
+                }
+            }
+            let now = now_ms();
+            cx.shared
+                .supervisor
+                .lock(|supervisor| supervisor.beat(Task::Telemetry, now));
+            Mono::delay_until(next).await;
+        }
+    }
+
+    #[task(priority = 1, local = [wdog], shared = [supervisor])]
+    async fn watchdog(mut cx: watchdog::Context) {
+        loop {
+            let now = now_ms();
+            if cx
+                .shared
+                .supervisor
+                .lock(|supervisor| supervisor.overdue(now))
+                == 0
+            {
+                feed_watchdog(cx.local.wdog);
+            }
+            Mono::delay(u64::from(WATCHDOG_CHECK_MS).millis()).await;
+        }
+    }
+}

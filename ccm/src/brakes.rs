@@ -1,0 +1,109 @@
+//! Brake system encoders (BSE): front and rear pressure sensors, their range check, the
+//! front/rear circuit plausibility check, and the brake light.
+
+use crate::config::{
+    BRAKE_CIRCUITS_IMPLAUSIBLE, BRAKE_LIGHT_PSI, BRAKE_PRESSED_PSI, BSE_FULL_SCALE_PSI,
+    BSE_VALID_V, PEDAL_FILTER_HZ, SENSOR_FAULT_PERSIST_MS,
+};
+use aer_control::{LowPass, Persist};
+
+/// What the brakes read this sample.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct BrakeReading {
+    /// Front sensor voltage (filtered).
+    pub front_v: f32,
+    /// Rear sensor voltage (filtered).
+    pub rear_v: f32,
+    /// Front circuit pressure (psi).
+    pub front_psi: f32,
+    /// Rear circuit pressure (psi).
+    pub rear_psi: f32,
+    /// The front circuit is above the "pressed" threshold (and its sensor is sound).
+    pub pressed: bool,
+    /// A sensor has been outside 0.5-4.5 V for over 100 ms (the BSE fault bit).
+    pub sensor_fault: bool,
+    /// One circuit is pressurised while the other is not (the BPPS fault bit).
+    pub circuits_implausible: bool,
+    /// Brake light output.
+    pub light: bool,
+}
+
+/// The brake channel.
+#[derive(Debug, Clone)]
+pub struct Brakes {
+    front: LowPass,
+    rear: LowPass,
+    range: Persist,
+    circuits: Persist,
+    light: bool,
+    reading: BrakeReading,
+}
+
+impl Brakes {
+    /// A channel sampled every `period_ms`.
+    pub fn new(period_ms: u32) -> Self {
+        let period_s = period_ms as f32 / 1_000.0;
+        Self {
+            front: LowPass::new(PEDAL_FILTER_HZ, period_s),
+            rear: LowPass::new(PEDAL_FILTER_HZ, period_s),
+            range: Persist::default(),
+            circuits: Persist::default(),
+            light: false,
+            reading: BrakeReading::default(),
+        }
+    }
+
+    /// The last reading.
+    pub fn reading(&self) -> BrakeReading {
+        self.reading
+    }
+
+    /// Feeds one pair of sensor voltages (after the board's divider).
+    pub fn update(&mut self, front_v: f32, rear_v: f32, now_ms: u32) -> BrakeReading {
+        let front_v = self.front.update(front_v);
+        let rear_v = self.rear.update(rear_v);
+        let valid = |v: f32| (BSE_VALID_V.0..=BSE_VALID_V.1).contains(&v);
+        let sensor_fault = self
+            .range
+            .update(!(valid(front_v) && valid(rear_v)), now_ms)
+            .is_some_and(|held| held > SENSOR_FAULT_PERSIST_MS);
+        let front_psi = pressure(front_v);
+        let rear_psi = pressure(rear_v);
+        let (high, low, persist_ms) = BRAKE_CIRCUITS_IMPLAUSIBLE;
+        let one_sided =
+            (front_psi > high && rear_psi < low) || (rear_psi > high && front_psi < low);
+        let circuits_implausible = self
+            .circuits
+            .update(one_sided, now_ms)
+            .is_some_and(|held| held > persist_ms);
+        // The light follows the highest circuit so one failed sensor cannot hide braking.
+        let highest = front_psi.max(rear_psi);
+        if highest > BRAKE_LIGHT_PSI.0 {
+            self.light = true;
+        } else if highest < BRAKE_LIGHT_PSI.1 {
+            self.light = false;
+        }
+        self.reading = BrakeReading {
+            front_v,
+            rear_v,
+            front_psi,
+            rear_psi,
+            pressed: front_psi.max(rear_psi) > BRAKE_PRESSED_PSI,
+            sensor_fault,
+            circuits_implausible,
+            light: self.light,
+        };
+        self.reading
+    }
+}
+
+/// Pressure for a sensor voltage: 0.5 V = 0 psi, 4.5 V = full scale, clamped.
+pub fn pressure(volts: f32) -> f32 {
+    let fraction = (volts - BSE_VALID_V.0) / (BSE_VALID_V.1 - BSE_VALID_V.0);
+    (fraction * BSE_FULL_SCALE_PSI).clamp(0.0, BSE_FULL_SCALE_PSI)
+}
+
+/// The sensor voltage for a pressure (for tests and simulations).
+pub fn volts_for(psi: f32) -> f32 {
+    BSE_VALID_V.0 + psi / BSE_FULL_SCALE_PSI * (BSE_VALID_V.1 - BSE_VALID_V.0)
+}

@@ -1,0 +1,29 @@
+//! Central computer (CCM) logic: hardware-free, `no_std`, tested on the host and on an
+//! emulated Cortex-M7. The firmware (`src/bin/ccm/`) only moves data between [`Ccm`] and the
+//! hardware.
+//!
+//! Data flow: 1 kHz sensor samples ([`apps`], [`brakes`], [`chassis`]) and CAN frames
+//! ([`bus`]) -> 100 Hz control ([`faults`], [`vehicle`], [`drive`] with [`launch`],
+//! [`traction`] and [`power`]; [`thermal`]) -> inverter frames ([`inverter`]), CCM status,
+//! and the telemetry packet over ISO-TP ([`telemetry`]); [`watchdog`] supervises the tasks.
+#![no_std]
+
+pub mod ads1115;
+pub mod apps;
+pub mod brakes;
+pub mod bus;
+pub mod chassis;
+pub mod config;
+mod controller;
+pub mod drive;
+pub mod faults;
+pub mod inverter;
+pub mod launch;
+pub mod power;
+pub mod telemetry;
+pub mod thermal;
+pub mod traction;
+pub mod vehicle;
+pub mod watchdog;
+
+pub use controller::{Ccm, ControlOutputs, DriverInputs, OutFrame, SensorSample};

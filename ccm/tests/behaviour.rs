@@ -1,0 +1,454 @@
+//! Each module's behaviour at its limits.
+
+use aer::can::{AnyMessage, PccStatus, PrechargeState, Vcu1};
+use aer::telemetry::Telemetry;
+use aer_ccm::apps::{Apps, AppsCalibration, volts_to_counts};
+use aer_ccm::brakes::{Brakes, volts_for};
+use aer_ccm::faults::{Fault, FaultMap};
+use aer_ccm::inverter::{DriveCommand, Vcu1Builder, checksum};
+use aer_ccm::thermal::cooling;
+use aer_ccm::traction::TractionControl;
+use aer_ccm::vehicle::{State, Vehicle, VehicleInputs};
+use aer_ccm::{Ccm, DriverInputs, SensorSample};
+use aer_flexcan::CanFrame;
+use aer_isotp::{Config, Received, Receiver};
+use embedded_can::{Frame, StandardId};
+
+const CAL: AppsCalibration = AppsCalibration::DEFAULT;
+
+/// Raw counts for a pedal travel on each sensor.
+fn pedal(travel1: f32, travel2: f32) -> (i16, i16) {
+    let raw = |(rest, full): (f32, f32), t: f32| (rest + t * (full - rest)) as i16;
+    (raw(CAL.apps1, travel1), raw(CAL.apps2, travel2))
+}
+
+// --- APPS --------------------------------------------------------------------------------------
+
+#[test]
+fn apps_maps_the_calibration_to_0_1_and_averages() {
+    let mut apps = Apps::new(CAL, 1);
+    let (a, b) = pedal(0.5, 0.5);
+    let reading = apps.update(a, b, false, 0);
+    assert!((reading.travel - 0.5).abs() < 1e-3, "{reading:?}");
+    let (a, b) = pedal(1.3, -0.2);
+    let mut clamped = Apps::new(CAL, 1);
+    let reading = clamped.update(a, b, false, 0);
+    assert_eq!((reading.apps1, reading.apps2), (1.0, 0.0));
+}
+
+#[test]
+fn apps_range_fault_needs_more_than_100_ms() {
+    let mut apps = Apps::new(CAL, 1);
+    // 0.2 V on APPS1: below 10 % of 3.3 V (an open wire pulls the signal low).
+    let low = volts_to_counts(0.2) as i16;
+    let (_, b) = pedal(0.0, 0.0);
+    for t in 0..=100 {
+        assert!(!apps.update(low, b, false, t).out_of_range, "t = {t}");
+    }
+    assert!(apps.update(low, b, false, 101).out_of_range);
+    let (a, b) = pedal(0.0, 0.0);
+    // The filter needs a few samples to come back; the fault clears with it.
+    let cleared = (102..200).any(|t| !apps.update(a, b, false, t).out_of_range);
+    assert!(cleared);
+}
+
+#[test]
+fn apps_disagreement_over_10_percent_for_over_100_ms_is_implausible() {
+    let mut apps = Apps::new(CAL, 1);
+    let (a, b) = pedal(0.50, 0.39);
+    for t in 0..=100 {
+        apps.update(a, b, false, t);
+    }
+    assert!(!apps.reading().implausible, "at 100 ms");
+    assert!(apps.update(a, b, false, 101).implausible);
+
+    let mut close = Apps::new(CAL, 1);
+    let (a, b) = pedal(0.50, 0.41);
+    for t in 0..500 {
+        close.update(a, b, false, t);
+    }
+    assert!(!close.reading().implausible, "9 % apart is plausible");
+}
+
+#[test]
+fn apps_brake_plausibility_latches_above_25_percent_and_resets_below_5() {
+    let mut apps = Apps::new(CAL, 1);
+    let mut t = 0;
+    let mut hold = |apps: &mut Apps, travel: f32, brake: bool| {
+        let (a, b) = pedal(travel, travel);
+        let mut reading = apps.update(a, b, brake, t);
+        for _ in 0..50 {
+            t += 1;
+            reading = apps.update(a, b, brake, t);
+        }
+        reading
+    };
+    assert!(
+        !hold(&mut apps, 0.24, true).brake_plausibility,
+        "24 % with brake"
+    );
+    assert!(
+        hold(&mut apps, 0.26, true).brake_plausibility,
+        "26 % with brake"
+    );
+    assert!(
+        hold(&mut apps, 0.26, false).brake_plausibility,
+        "latched without brake"
+    );
+    assert!(
+        hold(&mut apps, 0.06, false).brake_plausibility,
+        "6 %: still latched"
+    );
+    assert!(
+        !hold(&mut apps, 0.04, false).brake_plausibility,
+        "4 %: reset"
+    );
+}
+
+// --- Brakes ------------------------------------------------------------------------------------
+
+#[test]
+fn brake_sensor_fault_light_and_circuits() {
+    let mut brakes = Brakes::new(1);
+    for t in 0..=100 {
+        assert!(
+            !brakes.update(4.6, volts_for(0.0), t).sensor_fault,
+            "t = {t}"
+        );
+    }
+    assert!(brakes.update(4.6, volts_for(0.0), 101).sensor_fault);
+
+    let mut brakes = Brakes::new(1);
+    let settle = |brakes: &mut Brakes, front: f32, rear: f32, from: u32| {
+        (from..from + 50).for_each(|t| {
+            brakes.update(volts_for(front), volts_for(rear), t);
+        });
+        brakes.reading()
+    };
+    assert!(!settle(&mut brakes, 25.0, 25.0, 0).light, "25 psi: not yet");
+    assert!(settle(&mut brakes, 35.0, 35.0, 50).light, "35 psi: on");
+    assert!(
+        settle(&mut brakes, 25.0, 25.0, 100).light,
+        "hysteresis holds at 25 psi"
+    );
+    assert!(!settle(&mut brakes, 15.0, 15.0, 150).light, "15 psi: off");
+    assert!(settle(&mut brakes, 60.0, 60.0, 200).pressed);
+
+    // One circuit at 500 psi, the other empty, for over 500 ms.
+    let mut brakes = Brakes::new(1);
+    settle(&mut brakes, 500.0, 0.0, 0);
+    for t in 50..=500 {
+        brakes.update(volts_for(500.0), volts_for(0.0), t);
+    }
+    assert!(!brakes.reading().circuits_implausible);
+    assert!(settle(&mut brakes, 500.0, 0.0, 560).circuits_implausible);
+}
+
+// --- Vehicle state machine ----------------------------------------------------------------------
+
+struct Car {
+    vehicle: Vehicle,
+    inputs: VehicleInputs,
+}
+
+impl Car {
+    fn new() -> Self {
+        Self {
+            vehicle: Vehicle::new(),
+            inputs: VehicleInputs {
+                now_ms: 0,
+                pcc: None,
+                rtm_button: false,
+                brake_pressed: false,
+                faults: FaultMap::NONE,
+            },
+        }
+    }
+
+    /// Steps to `now` with a fresh PCC status in `pcc`.
+    fn at(&mut self, now: u32, pcc: Option<PrechargeState>) -> State {
+        self.inputs.now_ms = now;
+        if let Some(state) = pcc {
+            self.inputs.pcc = Some((state, now));
+        }
+        self.vehicle.step(&self.inputs).state
+    }
+
+    /// OFF -> STANDBY -> PRECHARGING -> IDLE, ending at `now` = 100.
+    fn idle(&mut self) {
+        assert_eq!(self.at(0, None), State::Off);
+        assert_eq!(self.at(10, Some(PrechargeState::Standby)), State::Standby);
+        assert_eq!(
+            self.at(20, Some(PrechargeState::Precharge)),
+            State::Precharging
+        );
+        assert_eq!(self.at(100, Some(PrechargeState::Online)), State::Idle);
+    }
+
+    /// Presses the button with the brake from `from`; returns when the sound started.
+    fn press(&mut self, from: u32) -> u32 {
+        self.inputs.rtm_button = true;
+        self.inputs.brake_pressed = true;
+        let mut t = from;
+        loop {
+            self.at(t, Some(PrechargeState::Online));
+            if self.vehicle.step(&self.inputs).rtd_sound {
+                break;
+            }
+            t += 10;
+        }
+        self.inputs.rtm_button = false;
+        t
+    }
+}
+
+#[test]
+fn driving_needs_button_brake_and_the_full_ready_to_drive_sound() {
+    let mut car = Car::new();
+    car.idle();
+    // Button without brake: nothing.
+    car.inputs.rtm_button = true;
+    for t in (110..500).step_by(10) {
+        assert_eq!(car.at(t, Some(PrechargeState::Online)), State::Idle);
+    }
+    car.inputs.rtm_button = false;
+    car.at(510, Some(PrechargeState::Online));
+
+    let started = car.press(520);
+    assert!(started - 520 >= 200, "debounced: {started}");
+    let outputs = car.vehicle.step(&car.inputs);
+    assert!(outputs.rtd_sound && !outputs.torque_enabled);
+    assert_eq!(
+        car.at(started + 1_999, Some(PrechargeState::Online)),
+        State::Idle
+    );
+    assert_eq!(
+        car.at(started + 2_000, Some(PrechargeState::Online)),
+        State::Driving
+    );
+    let outputs = car.vehicle.step(&car.inputs);
+    assert!(outputs.torque_enabled && !outputs.rtd_sound);
+}
+
+#[test]
+fn a_stale_or_lost_precharge_leaves_driving_at_once() {
+    let mut car = Car::new();
+    car.idle();
+    let started = car.press(200);
+    let driving_at = started + 2_000;
+    assert_eq!(
+        car.at(driving_at, Some(PrechargeState::Online)),
+        State::Driving
+    );
+    // No PCC frame for 100 ms is still fine; 101 ms is not.
+    assert_eq!(car.at(driving_at + 100, None), State::Driving);
+    assert_eq!(car.at(driving_at + 101, None), State::Standby);
+}
+
+#[test]
+fn faults_stop_the_vehicle_and_clear_to_standby() {
+    let mut car = Car::new();
+    car.idle();
+    let started = car.press(200);
+    car.at(started + 2_000, Some(PrechargeState::Online));
+    let mut faults = FaultMap::NONE;
+    faults.set(Fault::Bse, true);
+    car.inputs.faults = faults;
+    assert_eq!(
+        car.at(started + 2_010, Some(PrechargeState::Online)),
+        State::Fault
+    );
+    car.inputs.faults = FaultMap::NONE;
+    assert_eq!(
+        car.at(started + 2_020, Some(PrechargeState::Online)),
+        State::Standby
+    );
+    assert_eq!(
+        car.at(started + 2_030, Some(PrechargeState::Online)),
+        State::Idle,
+        "needs the button again"
+    );
+
+    // The plausibility fault cuts torque (elsewhere) but keeps DRIVING.
+    let mut plausibility = FaultMap::NONE;
+    plausibility.set(Fault::AppsBrakePlausibility, true);
+    assert!(!plausibility.stops_the_vehicle());
+    // A PCC error is a fault too.
+    assert_eq!(
+        car.at(started + 2_040, Some(PrechargeState::Error)),
+        State::Fault
+    );
+}
+
+#[test]
+fn a_second_press_leaves_driving() {
+    let mut car = Car::new();
+    car.idle();
+    let started = car.press(200);
+    car.at(started + 2_000, Some(PrechargeState::Online));
+    car.inputs.rtm_button = false;
+    car.at(started + 2_010, Some(PrechargeState::Online));
+    car.inputs.rtm_button = true;
+    let left = (started + 2_020..started + 3_000)
+        .step_by(10)
+        .find(|t| car.at(*t, Some(PrechargeState::Online)) == State::Idle);
+    assert!(left.is_some());
+}
+
+// --- Inverter frames -----------------------------------------------------------------------------
+
+#[test]
+fn vcu1_counts_and_carries_a_valid_checksum() {
+    let mut builder = Vcu1Builder::default();
+    let command = DriveCommand {
+        torque_nm: 101.92,
+        drive: true,
+        main_relay: true,
+        brake_pressed: false,
+    };
+    for expected_counter in (0..16).chain(0..4) {
+        let data = builder.next_frame(&command).unwrap();
+        let vcu1 = Vcu1::decode(&data).unwrap();
+        assert_eq!(vcu1.vcu_rolling_counter, expected_counter);
+        assert_eq!(
+            data[7],
+            checksum(&data),
+            "byte 7 = (sum of bytes 0..6) ^ 0xFF"
+        );
+        assert!(
+            (vcu1.vcu_torque_req - 101.92).abs() < 1e-9,
+            "100 raw = 101.92 Nm"
+        );
+        assert_eq!(data[0], 100);
+    }
+    let over = builder
+        .next_frame(&DriveCommand {
+            torque_nm: 400.0,
+            ..command
+        })
+        .unwrap();
+    assert_eq!(over[0], 255, "clamped to the frame's 259.9 Nm");
+    let nan = builder
+        .next_frame(&DriveCommand {
+            torque_nm: f32::NAN,
+            ..command
+        })
+        .unwrap();
+    assert_eq!(nan[0], 0);
+}
+
+// --- Cooling, traction ---------------------------------------------------------------------------
+
+#[test]
+fn cooling_ramps_with_temperature() {
+    assert_eq!(cooling(false, 20.0, 20.0).pump, 0.0);
+    assert_eq!(cooling(true, 20.0, 20.0).pump, 0.3);
+    assert_eq!(cooling(true, 60.0, 20.0).pump, 1.0);
+    assert_eq!(cooling(true, 20.0, 20.0).fan, 0.0);
+    assert!((cooling(true, 20.0, 57.5).fan - 0.5).abs() < 1e-6);
+    assert_eq!(cooling(true, f32::NAN, 20.0).fan, 1.0);
+}
+
+#[test]
+fn traction_control_only_removes_torque_and_returns_it() {
+    let mut traction = TractionControl::new(10);
+    for _ in 0..100 {
+        assert_eq!(
+            traction.step(50.0, 52.0, 200.0),
+            200.0,
+            "4 % slip: untouched"
+        );
+    }
+    let mut reduced = 200.0;
+    for _ in 0..20 {
+        reduced = traction.step(50.0, 70.0, 200.0);
+    }
+    assert!(reduced < 150.0, "40 % slip: {reduced}");
+    let mut recovered = reduced;
+    for _ in 0..300 {
+        recovered = traction.step(50.0, 51.0, 200.0);
+    }
+    assert_eq!(recovered, 200.0);
+    let mut rolling_off = TractionControl::new(10);
+    assert_eq!(
+        rolling_off.step(1.0, 30.0, 120.0),
+        120.0,
+        "below 3 rad/s slip is undefined"
+    );
+}
+
+// --- The whole CCM: bus intake and telemetry over ISO-TP ----------------------------------------
+
+fn frame(id: u16, data: &[u8]) -> CanFrame {
+    CanFrame::new(StandardId::new(id).unwrap(), data).unwrap()
+}
+
+#[test]
+fn bus_frames_fill_the_mirror_and_bad_ones_are_counted() {
+    let mut ccm = Ccm::new(CAL);
+    let status = PccStatus {
+        pcc_state: PrechargeState::Online,
+        pcc_error_too_fast: false,
+        pcc_error_too_slow: false,
+        pcc_error_bms_timeout: false,
+        pcc_error_shutdown: false,
+        pcc_error_undefined_state: false,
+        pcc_accumulator_voltage: 398.0,
+        pcc_tractive_voltage: 397.0,
+        pcc_precharge_progress: 99.7,
+    };
+    let mut data = [0u8; 8];
+    status.encode(&mut data).unwrap();
+    ccm.on_frame(&frame(0x222, &data), 5);
+    assert_eq!(ccm.bus().pcc, Some((PrechargeState::Online, 5)));
+    ccm.on_frame(&frame(0x222, &data[..4]), 6);
+    ccm.on_frame(&frame(0x123, &data), 7);
+    assert_eq!(ccm.bus().decode_errors, 1);
+    assert_eq!(ccm.bus().unknown_ids, 1);
+}
+
+#[test]
+fn the_telemetry_packet_reaches_an_iso_tp_receiver_intact() {
+    let mut ccm = Ccm::new(CAL);
+    let (a, b) = pedal(0.4, 0.4);
+    for t in 0..20 {
+        ccm.sample(
+            &SensorSample {
+                apps_raw: (a, b),
+                brake_v: (volts_for(10.0), volts_for(10.0)),
+                shock_raw: [4095, 4081, 4067, 4053],
+            },
+            t,
+        );
+    }
+    ccm.control(DriverInputs::default(), 20, 20_000);
+    let expected = ccm.snapshot();
+    ccm.send_telemetry(30_000);
+
+    let mut receiver: Receiver<64> = Receiver::new(Config::CAR);
+    let mut now = 30_000;
+    let mut delivered = None;
+    while delivered.is_none() {
+        let Some(out) = ccm.link().poll(now) else {
+            panic!("the sender stalled");
+        };
+        ccm.link().sent(now);
+        match receiver.on_frame(out.as_slice(), now).unwrap() {
+            Received::FlowControl(reply) => ccm.link().on_flow_control(reply.as_slice(), now),
+            Received::Message(message) => delivered = Some(message.to_vec()),
+            Received::Nothing => {}
+        }
+        now += 250;
+    }
+    let (header, telemetry) = Telemetry::unpack(&delivered.unwrap()).unwrap();
+    assert_eq!(header.timestamp_us, 30_000);
+    assert_eq!(telemetry.vehicle_state, aer::can::VehicleState::Off);
+    assert!((telemetry.apps_travel - expected.apps_travel).abs() <= 0.002);
+    assert!((telemetry.shocktravel2 - expected.shocktravel2).abs() <= 0.005);
+    assert_eq!(ccm.link().counters().sent, 1);
+    // The mirror is the generated apply(): a CCM_Status decoded elsewhere reads the same.
+    let status = ccm.status();
+    let mut from_status = Telemetry::default();
+    from_status.apply(&AnyMessage::CcmStatus(status));
+    assert_eq!(from_status.vehicle_state, telemetry.vehicle_state);
+}

@@ -1,0 +1,189 @@
+//! The team documentation's test plans (../shared/seed), case by case.
+
+use aer_ccm::chassis::{WheelSpeed, shock_raw_for_volts, shock_travel_mm};
+use aer_ccm::config::SHOCK_TRAVEL_MAX_MM;
+use aer_ccm::launch::{LaunchControl, LaunchInputs, LaunchState};
+use aer_ccm::power::PowerLimits;
+use aer_ccm::watchdog::{Supervisor, Task};
+
+// --- PowerLimit_Update ---------------------------------------------------------------------
+
+/// The test plan's constants: MOTOR_MAX_TORQUE 260, POWER_THRESHOLD 90 (in the plan's own
+/// units, compared with voltage x current), SOC_START 0.2, SOC_END 0.05.
+const PLAN: PowerLimits = PowerLimits {
+    max_torque_nm: 260.0,
+    power_limit_w: 90.0,
+    soc_derate: (0.2, 0.05),
+};
+
+#[test]
+fn power_limit_case_1_base_case_passes_the_demand() {
+    assert_eq!(PLAN.limit_torque(0.25, 40.0, 2.0, 200.0), 200.0);
+}
+
+#[test]
+fn power_limit_case_2_clamps_to_the_motor_maximum() {
+    assert_eq!(PLAN.limit_torque(0.25, 40.0, 2.0, 270.0), 260.0);
+}
+
+#[test]
+fn power_limit_case_3_scales_by_the_power_threshold() {
+    assert!((PLAN.limit_torque(0.25, 40.0, 3.0, 200.0) - 150.0).abs() < 1e-3);
+}
+
+#[test]
+fn power_limit_case_4_derates_with_soc() {
+    assert!((PLAN.limit_torque(0.1, 40.0, 2.0, 200.0) - 66.67).abs() < 0.01);
+}
+
+#[test]
+fn power_limit_case_5_is_zero_at_the_end_of_derating() {
+    assert_eq!(PLAN.limit_torque(0.05, 40.0, 2.0, 200.0), 0.0);
+}
+
+// --- Launch control --------------------------------------------------------------------------
+
+fn inputs(front: (f32, f32), driven: f32, torque: f32, brake_psi: f32) -> LaunchInputs {
+    LaunchInputs {
+        button: true,
+        brake_psi,
+        front_rad_s: front,
+        driven_rad_s: driven,
+        driver_torque_nm: torque,
+    }
+}
+
+/// Launch control armed (brake 60 psi, motor stopped, button) and then released.
+fn active() -> LaunchControl {
+    let mut launch = LaunchControl::new(10);
+    launch.step(&inputs((0.0, 0.0), 0.0, 0.0, 60.0));
+    launch.step(&inputs((0.0, 0.0), 0.0, 0.0, 0.0));
+    assert_eq!(launch.state(), LaunchState::Active);
+    launch
+}
+
+#[test]
+fn launch_case_1_brake_held_at_standstill_turns_launch_on() {
+    let mut launch = LaunchControl::new(10);
+    launch.step(&inputs((0.0, 0.0), 0.0, 0.0, 60.0));
+    assert_eq!(
+        launch.state(),
+        LaunchState::Armed,
+        "ON, waiting for the brake release"
+    );
+}
+
+#[test]
+fn launch_case_2_no_slip_barely_changes_the_torque() {
+    let mut launch = active();
+    let torque = launch.step(&inputs((80.0, 82.0), 80.0, 150.0, 0.0));
+    assert!(launch.slip().abs() <= 0.02, "slip {}", launch.slip());
+    assert!((150.0..=165.0).contains(&torque), "{torque}");
+    assert_eq!(launch.state(), LaunchState::Active);
+}
+
+#[test]
+fn launch_case_3_very_high_slip_takes_the_torque_to_near_zero() {
+    let mut launch = active();
+    let torque = launch.step(&inputs((40.0, 42.0), 100.0, 200.0, 0.0));
+    assert!(launch.slip() > 1.4, "slip {}", launch.slip());
+    assert!(torque < 5.0, "{torque}");
+}
+
+#[test]
+fn launch_case_4_slip_below_target_adds_torque_up_to_260() {
+    let mut launch = active();
+    let torque = launch.step(&inputs((100.0, 99.0), 100.0, 250.0, 0.0));
+    assert!(launch.slip() < 0.07);
+    assert_eq!(torque, 260.0);
+}
+
+#[test]
+fn launch_case_5_brake_ends_launch_and_resets_the_pid() {
+    let mut launch = active();
+    for _ in 0..20 {
+        launch.step(&inputs((40.0, 42.0), 100.0, 200.0, 0.0));
+    }
+    let torque = launch.step(&inputs((40.0, 42.0), 100.0, 0.9 * 260.0, 80.0));
+    assert_eq!(launch.state(), LaunchState::Off);
+    assert_eq!(torque, 0.9 * 260.0, "torque = raw input");
+    // Re-armed, the PID starts from zero: the first correction equals a fresh controller's.
+    let mut fresh = active();
+    let mut reused = launch;
+    reused.step(&inputs((0.0, 0.0), 0.0, 0.0, 60.0));
+    reused.step(&inputs((0.0, 0.0), 0.0, 0.0, 0.0));
+    let step = inputs((80.0, 82.0), 80.0, 150.0, 0.0);
+    assert_eq!(reused.step(&step), fresh.step(&step));
+}
+
+#[test]
+fn launch_pid_state_persists_between_steps() {
+    // Fixed defect: with the PID rebuilt every step the correction would never grow.
+    let mut launch = active();
+    let step = inputs((80.0, 82.0), 80.0, 100.0, 0.0);
+    let first = launch.step(&step);
+    let second = launch.step(&step);
+    assert!(second > first, "{first} -> {second}");
+}
+
+// --- Shock travel ----------------------------------------------------------------------------
+
+#[test]
+fn shock_case_2_fully_extended_is_zero() {
+    assert_eq!(shock_travel_mm(4095), 0.0);
+}
+
+#[test]
+fn shock_case_3_half_the_span_is_half_the_travel() {
+    let travel = shock_travel_mm(shock_raw_for_volts(4.93));
+    assert!((travel - 0.5 * SHOCK_TRAVEL_MAX_MM).abs() < 0.5, "{travel}");
+}
+
+#[test]
+fn shock_case_4_full_compression_is_full_travel() {
+    let travel = shock_travel_mm(shock_raw_for_volts(4.86));
+    assert!((travel - SHOCK_TRAVEL_MAX_MM).abs() < 0.5, "{travel}");
+}
+
+#[test]
+fn shock_case_5_beyond_the_span_is_clamped() {
+    assert_eq!(
+        shock_travel_mm(shock_raw_for_volts(4.0)),
+        SHOCK_TRAVEL_MAX_MM
+    );
+    assert_eq!(shock_travel_mm(0), SHOCK_TRAVEL_MAX_MM);
+}
+
+// --- Wheel speed -----------------------------------------------------------------------------
+
+#[test]
+fn wheel_speed_is_60e6_over_dt_times_teeth_and_zero_after_half_a_second() {
+    let mut wheel = WheelSpeed::new(24);
+    assert_eq!(wheel.rpm(0), 0.0);
+    wheel.on_pulse(1_000);
+    assert_eq!(wheel.rpm(1_500), 0.0, "one pulse is no period");
+    wheel.on_pulse(3_500); // dt 2,500 us
+    assert!((wheel.rpm(3_600) - 1_000.0).abs() < 1e-3);
+    assert!(wheel.rpm(3_500 + 500_000) > 0.0, "at 0.5 s");
+    assert_eq!(wheel.rpm(3_500 + 500_001), 0.0, "after 0.5 s");
+}
+
+// --- Watchdog ----------------------------------------------------------------------------------
+
+#[test]
+fn watchdog_is_fed_only_while_every_task_beat_within_100_ms() {
+    let mut supervisor = Supervisor::default();
+    assert_eq!(supervisor.overdue(0), 0b1111, "nothing has run yet");
+    for task in Task::ALL {
+        supervisor.beat(task, 1_000);
+    }
+    assert_eq!(supervisor.overdue(1_100), 0, "at 100 ms");
+    supervisor.beat(Task::Control, 1_100);
+    supervisor.beat(Task::Inverter, 1_100);
+    supervisor.beat(Task::Telemetry, 1_100);
+    assert_eq!(
+        supervisor.overdue(1_101),
+        1 << Task::Sensors as u8,
+        "sensors overdue"
+    );
+}
