@@ -33,7 +33,7 @@ impl PowerLimits {
         } else {
             0.0
         };
-        let mut torque = demand.clamp(0.0, self.max_torque_nm);
+        let mut torque = demand.max(0.0).min(self.max_torque_nm);
         let (start, end) = self.soc_derate;
         // A SOC that is not a number cannot vouch for the pack: no torque.
         let soc = if soc.is_finite() { soc } else { end };
@@ -44,6 +44,6 @@ impl PowerLimits {
         if power.is_finite() && power > self.power_limit_w {
             torque *= self.power_limit_w / power;
         }
-        torque.clamp(0.0, self.max_torque_nm)
+        torque.max(0.0).min(self.max_torque_nm)
     }
 }

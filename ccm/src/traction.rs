@@ -56,6 +56,6 @@ impl TractionControl {
         // Only the excess over the threshold counts; once slip is back under it the integral
         // bleeds off (negative error) and the driver gets the torque back.
         let reduction = self.pid.step(self.slip - TRACTION_SLIP).max(0.0);
-        (demand - reduction).clamp(0.0, demand)
+        (demand - reduction).max(0.0).min(demand)
     }
 }

@@ -48,13 +48,16 @@ impl Pid {
         if !error.is_finite() {
             return 0.0;
         }
-        self.integral =
-            (self.integral + ki * error * self.period_s).clamp(-integral_limit, integral_limit);
+        self.integral = (self.integral + ki * error * self.period_s)
+            .max(-integral_limit)
+            .min(integral_limit);
         let derivative = self
             .previous_error
             .map_or(0.0, |previous| kd * (error - previous) / self.period_s);
         self.previous_error = Some(error);
-        (kp * error + self.integral + derivative).clamp(-output_limit, output_limit)
+        (kp * error + self.integral + derivative)
+            .max(-output_limit)
+            .min(output_limit)
     }
 
     /// Clears the integral and derivative history.

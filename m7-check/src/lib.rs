@@ -7,17 +7,23 @@
 //! decoded value.
 #![no_std]
 
+mod ccm;
 mod codec;
+mod cost;
 mod digest;
+mod isotp;
 mod pcc;
 
+pub use cost::{COSTS, Cost};
 pub use digest::Digest;
 
 /// Writes the whole transcript.
 pub fn run(out: &mut impl core::fmt::Write) -> core::fmt::Result {
     codec::can_messages(out)?;
     codec::telemetry(out)?;
+    isotp::transfers(out)?;
     pcc::scenarios(out)?;
+    ccm::session(out)?;
     writeln!(out, "done")
 }
 

@@ -16,12 +16,13 @@ impl PwmBlock {
     /// Configures and starts `sm` at about `hz`, outputs off. Returns `None` when `hz` needs
     /// more than 32,767 counts even at a prescaler of 4.
     pub fn new(mut pwm: Pwm, sm: SM, hz: u32) -> Option<Self> {
-        let (prescaler, divider) = if board::IPG_FREQUENCY / hz <= 32_767 {
+        let counts = board::IPG_FREQUENCY.checked_div(hz)?;
+        let (prescaler, divider) = if counts <= 32_767 {
             (Prescaler::Prescaler1, 1)
         } else {
             (Prescaler::Prescaler4, 4)
         };
-        let period = i16::try_from(board::IPG_FREQUENCY / divider / hz).ok()?;
+        let period = i16::try_from(counts / divider).ok()?;
         pwm.set_debug_enable(sm, true);
         pwm.set_wait_enable(sm, true);
         pwm.set_clock_select(sm, ClockSelect::Ipg);
