@@ -50,6 +50,10 @@ pub struct TelemetryFrame {
     pub shocktravel2: u16,
     pub shocktravel3: u16,
     pub shocktravel4: u16,
+    pub can_rx_dropped: u8,
+    pub can_tx_dropped: u8,
+    pub can_decode_errors: u8,
+    pub telemetry_superseded: u8,
     pub flags: [u8; 3],
 }
 
@@ -134,6 +138,12 @@ impl TelemetryFrame {
             shocktravel2: Telemetry::shocktravel2_from_raw(self.shocktravel2),
             shocktravel3: Telemetry::shocktravel3_from_raw(self.shocktravel3),
             shocktravel4: Telemetry::shocktravel4_from_raw(self.shocktravel4),
+            can_rx_dropped: Telemetry::can_rx_dropped_from_raw(self.can_rx_dropped),
+            can_tx_dropped: Telemetry::can_tx_dropped_from_raw(self.can_tx_dropped),
+            can_decode_errors: Telemetry::can_decode_errors_from_raw(self.can_decode_errors),
+            telemetry_superseded: Telemetry::telemetry_superseded_from_raw(
+                self.telemetry_superseded,
+            ),
             dc_main_wire_over_volt_fault: Telemetry::dc_main_wire_over_volt_fault_from_raw(
                 self.flags[0] & (1 << 0) != 0,
             ),
@@ -292,6 +302,10 @@ impl TelemetryFrame {
             shocktravel2: Telemetry::shocktravel2_to_raw(t.shocktravel2).0,
             shocktravel3: Telemetry::shocktravel3_to_raw(t.shocktravel3).0,
             shocktravel4: Telemetry::shocktravel4_to_raw(t.shocktravel4).0,
+            can_rx_dropped: Telemetry::can_rx_dropped_to_raw(t.can_rx_dropped).0,
+            can_tx_dropped: Telemetry::can_tx_dropped_to_raw(t.can_tx_dropped).0,
+            can_decode_errors: Telemetry::can_decode_errors_to_raw(t.can_decode_errors).0,
+            telemetry_superseded: Telemetry::telemetry_superseded_to_raw(t.telemetry_superseded).0,
             flags,
         }
     }

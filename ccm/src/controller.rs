@@ -71,6 +71,16 @@ pub struct Ccm {
     bus: BusState,
     link: TelemetryLink,
     last: Option<ControlOutputs>,
+    driver: DriverCounters,
+}
+
+/// Drops the firmware counts outside the library (queues, mailboxes), for telemetry.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct DriverCounters {
+    /// Received frames lost: receive queue or hardware FIFO full.
+    pub rx_dropped: u32,
+    /// Frames not sent: every mailbox busy.
+    pub tx_dropped: u32,
 }
 
 impl Ccm {
@@ -89,6 +99,10 @@ impl Ccm {
             bus: BusState::default(),
             link: TelemetryLink::new(),
             last: None,
+            driver: DriverCounters {
+                rx_dropped: 0,
+                tx_dropped: 0,
+            },
         }
     }
 
@@ -115,6 +129,11 @@ impl Ccm {
     /// The brakes as last sampled.
     pub fn brakes(&self) -> BrakeReading {
         self.brakes.reading()
+    }
+
+    /// Updates the firmware's drop counters (reported in telemetry).
+    pub fn set_driver_counters(&mut self, counters: DriverCounters) {
+        self.driver = counters;
     }
 
     /// Feeds a received CAN frame (either bus).
@@ -279,6 +298,13 @@ impl Ccm {
         snapshot.shocktravel2 = fr;
         snapshot.shocktravel3 = rl;
         snapshot.shocktravel4 = rr;
+        // Counters wrap at 8 bits on the wire; at 100 packets/s the Pi sees every increment.
+        let wrap = |count: u32| (count & 0xFF) as u8;
+        snapshot.can_rx_dropped = wrap(self.driver.rx_dropped);
+        snapshot.can_tx_dropped = wrap(self.driver.tx_dropped);
+        snapshot.can_decode_errors =
+            wrap(self.bus.decode_errors.wrapping_add(self.bus.unknown_ids));
+        snapshot.telemetry_superseded = wrap(self.link.counters().superseded);
         snapshot
     }
 

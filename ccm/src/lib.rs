@@ -26,4 +26,4 @@ pub mod traction;
 pub mod vehicle;
 pub mod watchdog;
 
-pub use controller::{Ccm, ControlOutputs, DriverInputs, OutFrame, SensorSample};
+pub use controller::{Ccm, ControlOutputs, DriverCounters, DriverInputs, OutFrame, SensorSample};

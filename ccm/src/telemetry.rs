@@ -4,8 +4,8 @@
 use aer::telemetry::{Telemetry, TelemetryHeader};
 use aer_isotp::{Config, Frame, SendError, Sender};
 
-/// Buffer for one packet (the packet is `Telemetry::LEN` bytes).
-const BUFFER: usize = 64;
+/// Buffer for one packet (the packet is `Telemetry::LEN` bytes; room to grow).
+const BUFFER: usize = 128;
 const _: () = assert!(
     Telemetry::LEN <= BUFFER,
     "raise BUFFER: the telemetry packet grew"

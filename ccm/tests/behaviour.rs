@@ -405,6 +405,15 @@ fn bus_frames_fill_the_mirror_and_bad_ones_are_counted() {
     ccm.on_frame(&frame(0x123, &data), 7);
     assert_eq!(ccm.bus().decode_errors, 1);
     assert_eq!(ccm.bus().unknown_ids, 1);
+    // Every drop reaches the Pi in telemetry.
+    ccm.set_driver_counters(aer_ccm::DriverCounters {
+        rx_dropped: 3,
+        tx_dropped: 257,
+    });
+    let snapshot = ccm.snapshot();
+    assert_eq!(snapshot.can_decode_errors, 2);
+    assert_eq!(snapshot.can_rx_dropped, 3);
+    assert_eq!(snapshot.can_tx_dropped, 1, "wraps at 256");
 }
 
 #[test]
@@ -425,7 +434,7 @@ fn the_telemetry_packet_reaches_an_iso_tp_receiver_intact() {
     let expected = ccm.snapshot();
     ccm.send_telemetry(30_000);
 
-    let mut receiver: Receiver<64> = Receiver::new(Config::CAR);
+    let mut receiver: Receiver<128> = Receiver::new(Config::CAR);
     let mut now = 30_000;
     let mut delivered = None;
     while delivered.is_none() {

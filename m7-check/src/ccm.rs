@@ -182,7 +182,7 @@ pub fn ccm_at(until_ms: u32) -> Ccm {
 pub fn session(out: &mut impl Write) -> core::fmt::Result {
     let mut ccm = Ccm::new(AppsCalibration::DEFAULT);
     let mut world = World::new();
-    let mut receiver: Receiver<64> = Receiver::new(Config::CAR);
+    let mut receiver: Receiver<128> = Receiver::new(Config::CAR);
     let mut torque_digest = Digest::default();
     let mut frames_digest = Digest::default();
     let mut telemetry_digest = Digest::default();

@@ -34,7 +34,7 @@ mod app {
         CONTROL_PERIOD_MS, INVERTER_PERIOD_MS, TELEMETRY_PERIOD_MS, WATCHDOG_CHECK_MS,
     };
     use aer_ccm::watchdog::{Supervisor, Task};
-    use aer_ccm::{Ccm, DriverInputs, SensorSample};
+    use aer_ccm::{Ccm, DriverCounters, DriverInputs, SensorSample};
     use aer_flexcan::{CanFrame, Flexcan};
     use core::sync::atomic::{AtomicU32, Ordering};
     use embedded_can::{Frame, Id, StandardId};
@@ -359,7 +359,19 @@ mod app {
                 ready_to_move: cx.local.ready_to_move.is_set(),
                 launch: cx.local.launch.is_set(),
             };
+            let fifo_overflows = cx
+                .shared
+                .can1
+                .lock(|can| can.status().rx_fifo_overflows)
+                .wrapping_add(cx.shared.can2.lock(|can| can.status().rx_fifo_overflows));
+            let counters = DriverCounters {
+                rx_dropped: RX_QUEUE_OVERFLOWS
+                    .load(Ordering::Relaxed)
+                    .wrapping_add(fifo_overflows),
+                tx_dropped: TX_BUSY.load(Ordering::Relaxed),
+            };
             let (outputs, inverter, status) = cx.shared.ccm.lock(|ccm| {
+                ccm.set_driver_counters(counters);
                 while let Some(frame) = frames1.dequeue() {
                     ccm.on_frame(&frame, now);
                 }
