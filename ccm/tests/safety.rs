@@ -309,17 +309,25 @@ fn check(rig: &Rig, outputs: &ControlOutputs) -> Result<(), TestCaseError> {
     Ok(())
 }
 
+/// Runs `ticks` (after the scripted start into DRIVING if `from_driving`), checking every step.
+fn run(ticks: &[Tick], from_driving: bool) -> Result<(), TestCaseError> {
+    let mut rig = Rig::new();
+    if from_driving {
+        rig.drive_away();
+    }
+    for tick in ticks {
+        let outputs = rig.tick(tick);
+        check(&rig, &outputs)?;
+    }
+    Ok(())
+}
+
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(400))]
 
     #[test]
     fn torque_and_state_stay_safe_for_any_inputs(ticks in prop::collection::vec(tick(), 1..300)) {
-        let mut rig = Rig::new();
-        rig.drive_away();
-        for tick in &ticks {
-            let outputs = rig.tick(tick);
-            check(&rig, &outputs)?;
-        }
+        run(&ticks, true)?;
     }
 
     #[test]
@@ -334,21 +342,12 @@ proptest! {
                 pack.0 = soc;
             }
         }
-        let mut rig = Rig::new();
-        rig.drive_away();
-        for tick in &ticks {
-            let outputs = rig.tick(tick);
-            check(&rig, &outputs)?;
-        }
+        run(&ticks, true)?;
     }
 
     #[test]
     fn from_reset_random_inputs_never_drive_unsafely(ticks in prop::collection::vec(tick(), 1..300)) {
-        let mut rig = Rig::new();
-        for tick in &ticks {
-            let outputs = rig.tick(tick);
-            check(&rig, &outputs)?;
-        }
+        run(&ticks, false)?;
     }
 }
 
