@@ -4,6 +4,7 @@
 mod ihex;
 mod image;
 mod m7_check;
+mod session;
 
 use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand};
@@ -26,6 +27,9 @@ enum Task {
     /// Build the firmware (release) and write target/firmware/<name>.hex for
     /// teensy_loader_cli, printing flash and RAM use.
     Firmware,
+    /// Record a driving session of the CCM logic as a candump log (raspi/data/session.log, the
+    /// Pi demo's input).
+    SessionLog,
     /// Run the portable code (codec, telemetry packer, PCC logic) on an emulated Cortex-M7
     /// (qemu-system-arm, mps2-an500) and require the same transcript as on the host.
     M7Check {
@@ -65,6 +69,12 @@ const FIRMWARE: [Firmware; 2] = [
 fn main() -> Result<()> {
     match Cli::parse().task {
         Task::Firmware => firmware(),
+        Task::SessionLog => {
+            let path = workspace_root().join("raspi/data/session.log");
+            let frames = session::write(&path)?;
+            println!("{}: {frames} frames", path.display());
+            Ok(())
+        }
         Task::M7Check { timeout } => m7_check::run(&workspace_root(), TARGET, timeout),
     }
 }

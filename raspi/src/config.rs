@@ -1,0 +1,207 @@
+//! The service configuration: one TOML file (every key optional), then environment overrides.
+
+use anyhow::{Context, Result};
+use serde::Deserialize;
+use std::path::{Path, PathBuf};
+
+/// Everything the service reads from its configuration.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct Config {
+    pub car_id: String,
+    pub can: CanConfig,
+    pub mqtt: MqttConfig,
+    pub store: StoreConfig,
+    pub tdengine: TdengineConfig,
+}
+
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct CanConfig {
+    pub interfaces: Vec<String>,
+    pub telemetry_interface: String,
+}
+
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct MqttConfig {
+    pub embedded_broker: bool,
+    pub broker_config: Option<PathBuf>,
+    pub host: String,
+    pub port: u16,
+    pub username: Option<String>,
+    pub password: Option<String>,
+    pub topic_prefix: String,
+    pub queue: usize,
+}
+
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct StoreConfig {
+    pub path: PathBuf,
+}
+
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct TdengineConfig {
+    pub enabled: bool,
+    pub dsn: String,
+    pub batch_rows: usize,
+    pub workers: usize,
+}
+
+impl Default for Config {
+    fn default() -> Self {
+        Self {
+            car_id: "car1".into(),
+            can: CanConfig::default(),
+            mqtt: MqttConfig::default(),
+            store: StoreConfig::default(),
+            tdengine: TdengineConfig::default(),
+        }
+    }
+}
+
+impl Default for CanConfig {
+    fn default() -> Self {
+        Self {
+            interfaces: vec!["can0".into(), "can1".into()],
+            telemetry_interface: "can0".into(),
+        }
+    }
+}
+
+impl Default for MqttConfig {
+    fn default() -> Self {
+        Self {
+            embedded_broker: true,
+            broker_config: None,
+            host: "127.0.0.1".into(),
+            port: 1883,
+            username: None,
+            password: None,
+            topic_prefix: "aer".into(),
+            queue: 10_000,
+        }
+    }
+}
+
+impl Default for StoreConfig {
+    fn default() -> Self {
+        Self {
+            path: "aer-local.sqlite".into(),
+        }
+    }
+}
+
+impl Default for TdengineConfig {
+    fn default() -> Self {
+        Self {
+            enabled: false,
+            dsn: "taos+ws://localhost:6041".into(),
+            batch_rows: 5_000,
+            workers: 2,
+        }
+    }
+}
+
+impl Config {
+    /// Reads `path` (if given) and applies the environment overrides from `env`.
+    pub fn load(path: Option<&Path>, env: impl Fn(&str) -> Option<String>) -> Result<Self> {
+        let mut config = match path {
+            Some(path) => {
+                let text = std::fs::read_to_string(path)
+                    .with_context(|| format!("reading the configuration {}", path.display()))?;
+                toml::from_str(&text)
+                    .with_context(|| format!("in the configuration {}", path.display()))?
+            }
+            None => Self::default(),
+        };
+        config.apply_env(env)?;
+        Ok(config)
+    }
+
+    fn apply_env(&mut self, env: impl Fn(&str) -> Option<String>) -> Result<()> {
+        if let Some(v) = env("AER_CAR_ID") {
+            self.car_id = v;
+        }
+        if let Some(v) = env("AER_CAN_INTERFACES") {
+            self.can.interfaces = v.split(',').map(|s| s.trim().to_owned()).collect();
+        }
+        if let Some(v) = env("AER_TELEMETRY_INTERFACE") {
+            self.can.telemetry_interface = v;
+        }
+        if let Some(v) = env("AER_MQTT_HOST") {
+            self.mqtt.host = v;
+        }
+        if let Some(v) = env("AER_MQTT_PORT") {
+            self.mqtt.port = v
+                .parse()
+                .with_context(|| format!("AER_MQTT_PORT={v} is not a port"))?;
+        }
+        if let Some(v) = env("AER_MQTT_USERNAME") {
+            self.mqtt.username = Some(v);
+        }
+        if let Some(v) = env("AER_MQTT_PASSWORD") {
+            self.mqtt.password = Some(v);
+        }
+        if let Some(v) = env("AER_MQTT_PREFIX") {
+            self.mqtt.topic_prefix = v;
+        }
+        if let Some(v) = env("AER_STORE_PATH") {
+            self.store.path = v.into();
+        }
+        if let Some(v) = env("AER_TDENGINE_DSN") {
+            self.tdengine.dsn = v;
+            self.tdengine.enabled = true;
+        }
+        Ok(())
+    }
+
+    /// Topic prefix of this car: `<prefix>/<car_id>`.
+    pub fn topic_prefix(&self) -> String {
+        format!("{}/{}", self.mqtt.topic_prefix, self.car_id)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_shipped_file_equals_the_defaults() {
+        let shipped = Path::new(env!("CARGO_MANIFEST_DIR")).join("config/aer-raspi.toml");
+        let config = Config::load(Some(&shipped), |_| None).unwrap();
+        assert_eq!(config, Config::default());
+    }
+
+    #[test]
+    fn environment_overrides_the_file() {
+        let config = Config::load(None, |key| match key {
+            "AER_CAR_ID" => Some("car7".into()),
+            "AER_MQTT_PORT" => Some("1999".into()),
+            "AER_CAN_INTERFACES" => Some("vcan0, vcan1".into()),
+            "AER_TDENGINE_DSN" => Some("taos+ws://pit:6041".into()),
+            _ => None,
+        })
+        .unwrap();
+        assert_eq!(config.car_id, "car7");
+        assert_eq!(config.mqtt.port, 1999);
+        assert_eq!(config.can.interfaces, ["vcan0", "vcan1"]);
+        assert!(config.tdengine.enabled);
+        assert_eq!(config.topic_prefix(), "aer/car7");
+        assert!(Config::load(None, |k| (k == "AER_MQTT_PORT").then(|| "x".into())).is_err());
+    }
+
+    #[test]
+    fn unknown_keys_are_refused_with_the_file_name() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("bad.toml");
+        std::fs::write(&path, "car_idd = \"x\"\n").unwrap();
+        let error = format!("{:#}", Config::load(Some(&path), |_| None).unwrap_err());
+        assert!(
+            error.contains("bad.toml") && error.contains("car_idd"),
+            "{error}"
+        );
+    }
+}

@@ -1,0 +1,173 @@
+//! Frames in, records out: ISO-TP reassembly of the telemetry packet (per bus), fingerprint
+//! check, the generated telemetry and DBC decoders. Every failure is counted and logged.
+
+use crate::candump::LoggedFrame;
+use crate::metrics::{Counters, worth_logging};
+use aer::can::AnyMessage;
+use aer::runtime::DecodeError;
+use aer::telemetry::{Telemetry, TelemetryError, TelemetryHeader};
+use aer_isotp::{Config, Frame, Received, Receiver};
+use embedded_can::Id;
+use std::sync::Arc;
+use std::sync::atomic::Ordering;
+use tracing::warn;
+
+/// Largest ISO-TP message accepted (the protocol's limit; the packet is much smaller).
+const MAX_MESSAGE: usize = aer_isotp::MAX_PAYLOAD;
+
+/// A decoded unit of data.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Record {
+    /// A telemetry packet.
+    Telemetry {
+        /// When its last frame arrived (us since the epoch).
+        ts_us: u64,
+        /// Bus it came on.
+        bus: u8,
+        header: TelemetryHeader,
+        telemetry: Box<Telemetry>,
+    },
+    /// A regular DBC frame.
+    Can {
+        /// When it arrived (us since the epoch).
+        ts_us: u64,
+        /// Bus it came on.
+        bus: u8,
+        message: AnyMessage,
+    },
+}
+
+/// The decoder state: one ISO-TP receiver per bus.
+pub struct Ingest {
+    counters: Arc<Counters>,
+    receivers: Vec<Receiver<MAX_MESSAGE>>,
+}
+
+impl Ingest {
+    /// A decoder counting into `counters`.
+    pub fn new(counters: Arc<Counters>) -> Self {
+        Self {
+            counters,
+            receivers: Vec::new(),
+        }
+    }
+
+    /// Decodes one frame. `emit` gets every record; `reply` gets the ISO-TP flow-control
+    /// frames to send back on the frame's bus (live buses only; replays ignore them).
+    pub fn on_frame(
+        &mut self,
+        frame: &LoggedFrame,
+        mut emit: impl FnMut(Record),
+        mut reply: impl FnMut(u8, Frame),
+    ) {
+        Counters::bump(&self.counters.frames);
+        let (id, extended) = match frame.id {
+            Id::Standard(id) => (u32::from(id.as_raw()), false),
+            Id::Extended(id) => (id.as_raw(), true),
+        };
+        if !extended && id == u32::from(Telemetry::TX_ID) {
+            self.isotp(frame, &mut emit, &mut reply);
+            return;
+        }
+        if !extended && id == u32::from(Telemetry::FLOW_CONTROL_ID) {
+            // Our own (or a logged) flow control: not data.
+            return;
+        }
+        match AnyMessage::decode(id, extended, frame.payload()) {
+            Ok(message) => {
+                Counters::bump(&self.counters.messages);
+                emit(Record::Can {
+                    ts_us: frame.ts_us,
+                    bus: frame.bus,
+                    message,
+                });
+            }
+            Err(DecodeError::UnknownId { .. }) => {
+                let count = Counters::bump(&self.counters.unknown_ids);
+                if worth_logging(count) {
+                    warn!(
+                        id = format_args!("{id:#x}"),
+                        extended, count, "frame of an id the schema does not know"
+                    );
+                }
+            }
+            Err(error) => {
+                let count = Counters::bump(&self.counters.decode_errors);
+                if worth_logging(count) {
+                    warn!(%error, count, "frame failed to decode");
+                }
+            }
+        }
+    }
+
+    fn isotp(
+        &mut self,
+        frame: &LoggedFrame,
+        emit: &mut impl FnMut(Record),
+        reply: &mut impl FnMut(u8, Frame),
+    ) {
+        let bus = usize::from(frame.bus);
+        while self.receivers.len() <= bus {
+            self.receivers.push(Receiver::new(Config::CAR));
+        }
+        let Some(receiver) = self.receivers.get_mut(bus) else {
+            return;
+        };
+        let counters = &self.counters;
+        match receiver.on_frame(frame.payload(), frame.ts_us as u32) {
+            Ok(Received::Nothing) => {}
+            Ok(Received::FlowControl(fc)) => reply(frame.bus, fc),
+            Ok(Received::Message(packet)) => match Telemetry::unpack(packet) {
+                Ok((header, telemetry)) => {
+                    Counters::bump(&counters.packets);
+                    counters
+                        .last_packet_us
+                        .store(frame.ts_us, Ordering::Relaxed);
+                    counters.firmware_fingerprint.store(
+                        u64::from(aer::telemetry::TELEMETRY_FINGERPRINT),
+                        Ordering::Relaxed,
+                    );
+                    emit(Record::Telemetry {
+                        ts_us: frame.ts_us,
+                        bus: frame.bus,
+                        header,
+                        telemetry: Box::new(telemetry),
+                    });
+                }
+                Err(TelemetryError::FingerprintMismatch { expected, found }) => {
+                    counters
+                        .firmware_fingerprint
+                        .store(u64::from(found), Ordering::Relaxed);
+                    let count = Counters::bump(&counters.fingerprint_mismatches);
+                    if worth_logging(count) {
+                        warn!(
+                            expected = format_args!("{expected:#010x}"),
+                            found = format_args!("{found:#010x}"),
+                            count,
+                            "telemetry from firmware built from another schema: flash the CCM from this commit"
+                        );
+                    }
+                }
+                Err(error) => {
+                    let count = Counters::bump(&counters.packet_errors);
+                    if worth_logging(count) {
+                        warn!(%error, count, "telemetry packet rejected");
+                    }
+                }
+            },
+            Err(error) => {
+                let count = Counters::bump(&counters.isotp_errors);
+                if worth_logging(count) {
+                    warn!(bus, ?error, count, "ISO-TP frame rejected");
+                }
+            }
+        }
+        // Reported after the frame is taken, so a new message is never held up.
+        if receiver.take_interrupted() {
+            let count = Counters::bump(&counters.isotp_errors);
+            if worth_logging(count) {
+                warn!(bus, count, "ISO-TP message interrupted by a new one");
+            }
+        }
+    }
+}

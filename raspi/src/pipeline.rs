@@ -1,0 +1,65 @@
+//! One place where a frame goes through decoding to MQTT and the local store.
+
+use crate::candump::LoggedFrame;
+use crate::ingest::{Ingest, Record};
+use crate::metrics::Counters;
+use crate::publish::Publisher;
+use crate::store::{self, Row};
+use aer_isotp::Frame;
+use std::sync::Arc;
+use std::sync::mpsc::SyncSender;
+
+/// Decoder plus outputs.
+pub struct Pipeline {
+    ingest: Ingest,
+    publisher: Option<Publisher>,
+    store: Option<SyncSender<Row>>,
+    car_id: String,
+    bus_names: Vec<String>,
+}
+
+impl Pipeline {
+    /// A pipeline publishing with `publisher` and storing through `store` (either optional).
+    pub fn new(
+        counters: Arc<Counters>,
+        car_id: String,
+        bus_names: Vec<String>,
+        publisher: Option<Publisher>,
+        store: Option<SyncSender<Row>>,
+    ) -> Self {
+        Self {
+            ingest: Ingest::new(counters),
+            publisher,
+            store,
+            car_id,
+            bus_names,
+        }
+    }
+
+    /// Bus names by index (the order interfaces were first seen).
+    pub fn bus_names_mut(&mut self) -> &mut Vec<String> {
+        &mut self.bus_names
+    }
+
+    /// Takes one frame through the whole pipeline; `reply` gets flow-control frames.
+    pub fn feed(&mut self, frame: &LoggedFrame, reply: impl FnMut(u8, Frame)) {
+        let publisher = self.publisher.as_ref();
+        let store = self.store.as_ref();
+        let car_id = &self.car_id;
+        let bus_names = &self.bus_names;
+        self.ingest.on_frame(
+            frame,
+            |record: Record| {
+                if let Some(publisher) = publisher {
+                    publisher.publish(&record);
+                }
+                if let (Some(store), Some(row)) = (store, store::row(&record, car_id, bus_names)) {
+                    // Blocks while the writer is behind: the store never drops. It only fails
+                    // once the writer is gone, at shutdown.
+                    let _ = store.send(row);
+                }
+            },
+            reply,
+        );
+    }
+}

@@ -1,0 +1,276 @@
+//! The durable local store (SQLite, bundled): the generated tables, written in batches by one
+//! thread, plus the forwarder's cursor table. Nothing is dropped on the way in: a full queue
+//! slows the producer down instead.
+
+use crate::ingest::Record;
+use crate::metrics::Counters;
+use aer::can::MESSAGES;
+use aer::local_store::{LocalTable, TABLES};
+use aer::runtime::{SignalMeta, SignalVisitor, Value};
+use rusqlite::types::Value as Sql;
+use rusqlite::{Connection, params_from_iter};
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::sync::atomic::Ordering;
+use std::sync::mpsc::{Receiver, RecvTimeoutError, SyncSender, sync_channel};
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+use thiserror::Error;
+use tracing::{error, info};
+
+/// Rows per transaction at most, and the longest a row waits for its batch.
+const BATCH_ROWS: usize = 2_000;
+const BATCH_WAIT: Duration = Duration::from_millis(100);
+/// Rows that may wait for the writer before producers block.
+const QUEUE_ROWS: usize = 65_536;
+
+/// Why the store cannot be used.
+#[derive(Debug, Error)]
+pub enum StoreError {
+    /// The file cannot be created or opened (missing folder, no permission, read-only disk).
+    #[error("cannot open the local store at {path}: {source}")]
+    Open {
+        path: PathBuf,
+        #[source]
+        source: rusqlite::Error,
+    },
+    /// Creating or migrating the tables failed.
+    #[error("cannot prepare the local store's tables at {path}: {source}")]
+    Schema {
+        path: PathBuf,
+        #[source]
+        source: rusqlite::Error,
+    },
+}
+
+/// The forwarder's persisted position per table.
+pub const CURSOR_TABLE: &str = "CREATE TABLE IF NOT EXISTS \"forward_cursor\" (\"table_name\" TEXT PRIMARY KEY, \"last_id\" INTEGER NOT NULL)";
+
+/// Opens (creating if needed) the store at `path` and brings its tables up to this schema:
+/// missing tables are created, missing columns added. Fails at once if the path is not
+/// writable, so a bad path is reported at start-up, not at the first packet.
+pub fn open(path: &Path) -> Result<Connection, StoreError> {
+    let open_error = |source| StoreError::Open {
+        path: path.to_owned(),
+        source,
+    };
+    let db = Connection::open(path).map_err(open_error)?;
+    let schema_error = |source| StoreError::Schema {
+        path: path.to_owned(),
+        source,
+    };
+    // WAL: the forwarder reads while the writer appends; NORMAL sync is durable across
+    // application crashes and loses at most the last transaction on power loss.
+    db.pragma_update(None, "journal_mode", "WAL")
+        .map_err(schema_error)?;
+    db.pragma_update(None, "synchronous", "NORMAL")
+        .map_err(schema_error)?;
+    for table in TABLES {
+        for statement in table.create {
+            db.execute(statement, []).map_err(schema_error)?;
+        }
+        migrate(&db, table).map_err(schema_error)?;
+    }
+    db.execute(CURSOR_TABLE, []).map_err(schema_error)?;
+    Ok(db)
+}
+
+/// Adds the columns a store created by an older build lacks.
+fn migrate(db: &Connection, table: &LocalTable) -> rusqlite::Result<()> {
+    let mut statement = db.prepare("SELECT name FROM pragma_table_info(?1)")?;
+    let existing: Vec<String> = statement
+        .query_map([table.name], |row| row.get(0))?
+        .collect::<rusqlite::Result<_>>()?;
+    let existing: Vec<&str> = existing.iter().map(String::as_str).collect();
+    for column in table.missing_columns(&existing) {
+        info!(
+            table = table.name,
+            column = column.name,
+            "adding a column the store lacks"
+        );
+        db.execute(&table.add_column_sql(column), [])?;
+    }
+    Ok(())
+}
+
+/// One row for one table.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Row {
+    /// Index into `aer::local_store::TABLES`.
+    pub table: usize,
+    /// Values in the table's column order (without `id`).
+    pub values: Vec<Sql>,
+}
+
+/// Builds the row a record becomes.
+pub fn row(record: &Record, car_id: &str, bus_names: &[String]) -> Option<Row> {
+    match record {
+        Record::Telemetry {
+            ts_us,
+            header,
+            telemetry,
+            ..
+        } => {
+            let mut values = Vec::with_capacity(TABLES.first()?.columns.len());
+            values.extend([
+                Sql::Text(car_id.to_owned()),
+                Sql::Integer(i64::from(aer::telemetry::TELEMETRY_FINGERPRINT)),
+                Sql::Integer(i64::try_from(*ts_us).ok()?),
+                Sql::Integer(i64::from(header.sequence)),
+                Sql::Integer(i64::from(header.timestamp_us)),
+            ]);
+            telemetry.visit(&mut Values(&mut values));
+            Some(Row { table: 0, values })
+        }
+        Record::Can {
+            ts_us,
+            bus,
+            message,
+            ..
+        } => {
+            let meta = message.meta();
+            // Metadata is compared by id: a `const` reference need not have one address.
+            let index = MESSAGES
+                .iter()
+                .position(|m| m.id == meta.id && m.extended == meta.extended)?;
+            let table = index + 1;
+            let columns = TABLES.get(table)?.columns.len();
+            let mut values = vec![Sql::Null; columns];
+            let bus_name = bus_names
+                .get(usize::from(*bus))
+                .cloned()
+                .unwrap_or_else(|| format!("bus{bus}"));
+            let head = [
+                Sql::Text(car_id.to_owned()),
+                Sql::Text(bus_name),
+                Sql::Integer(i64::from(aer::can::SCHEMA_FINGERPRINT)),
+                Sql::Integer(i64::try_from(*ts_us).ok()?),
+            ];
+            let tags = head.len();
+            for (slot, value) in values.iter_mut().zip(head) {
+                *slot = value;
+            }
+            // Multiplexed signals that are absent stay NULL.
+            message.visit(&mut ByName {
+                signals: meta.signals,
+                values: &mut values,
+                offset: tags,
+            });
+            Some(Row { table, values })
+        }
+    }
+}
+
+fn sql_value(value: Value) -> Sql {
+    match value {
+        Value::Int(i) => i64::try_from(i).map_or(Sql::Real(i as f64), Sql::Integer),
+        Value::Float(f) if f.is_finite() => Sql::Real(f),
+        Value::Float(_) => Sql::Null,
+    }
+}
+
+struct Values<'a>(&'a mut Vec<Sql>);
+
+impl SignalVisitor for Values<'_> {
+    fn signal(&mut self, _: &'static SignalMeta, value: Value, _: Option<&'static str>) {
+        self.0.push(sql_value(value));
+    }
+}
+
+struct ByName<'a> {
+    signals: &'static [SignalMeta],
+    values: &'a mut [Sql],
+    offset: usize,
+}
+
+impl SignalVisitor for ByName<'_> {
+    fn signal(&mut self, signal: &'static SignalMeta, value: Value, _: Option<&'static str>) {
+        let slot = self
+            .signals
+            .iter()
+            .position(|s| s.name == signal.name)
+            .and_then(|i| self.values.get_mut(self.offset + i));
+        if let Some(slot) = slot {
+            *slot = sql_value(value);
+        }
+    }
+}
+
+/// The writer thread and its queue.
+pub struct StoreWriter {
+    sender: Option<SyncSender<Row>>,
+    thread: Option<JoinHandle<()>>,
+}
+
+impl StoreWriter {
+    /// Starts the writer on `db`.
+    pub fn start(db: Connection, counters: Arc<Counters>) -> Self {
+        let (sender, receiver) = sync_channel(QUEUE_ROWS);
+        let thread = std::thread::Builder::new()
+            .name("store-writer".into())
+            .spawn(move || write_loop(db, &receiver, &counters))
+            .ok();
+        Self {
+            sender: Some(sender),
+            thread,
+        }
+    }
+
+    /// A handle producers send rows with (blocks while the queue is full).
+    pub fn sender(&self) -> Option<SyncSender<Row>> {
+        self.sender.clone()
+    }
+
+    /// Flushes every queued row and stops the writer.
+    pub fn finish(mut self) {
+        self.sender.take();
+        if let Some(thread) = self.thread.take() {
+            let _ = thread.join();
+        }
+    }
+}
+
+fn write_loop(mut db: Connection, receiver: &Receiver<Row>, counters: &Counters) {
+    let mut batch: Vec<Row> = Vec::with_capacity(BATCH_ROWS);
+    let mut open = true;
+    while open || !batch.is_empty() {
+        let deadline = Instant::now() + BATCH_WAIT;
+        while open && batch.len() < BATCH_ROWS {
+            let wait = deadline.saturating_duration_since(Instant::now());
+            match receiver.recv_timeout(wait) {
+                Ok(row) => batch.push(row),
+                Err(RecvTimeoutError::Timeout) => break,
+                Err(RecvTimeoutError::Disconnected) => open = false,
+            }
+        }
+        if batch.is_empty() {
+            continue;
+        }
+        match commit(&mut db, &batch) {
+            Ok(()) => {
+                counters
+                    .stored
+                    .fetch_add(batch.len() as u64, Ordering::Relaxed);
+                batch.clear();
+            }
+            Err(error) => {
+                // Disk full or I/O error: keep the batch and retry, so nothing is lost while
+                // the cause is fixed; producers block once the queue fills.
+                error!(%error, rows = batch.len(), "local store write failed; retrying in 1 s");
+                std::thread::sleep(Duration::from_secs(1));
+            }
+        }
+    }
+}
+
+fn commit(db: &mut Connection, batch: &[Row]) -> rusqlite::Result<()> {
+    let transaction = db.transaction()?;
+    for row in batch {
+        let Some(table) = TABLES.get(row.table) else {
+            continue;
+        };
+        let mut statement = transaction.prepare_cached(table.insert)?;
+        statement.execute(params_from_iter(row.values.iter()))?;
+    }
+    transaction.commit()
+}
