@@ -155,3 +155,62 @@ pub const SUFFIXES: [&str; 17] = [
     can::IMD_INFO_IT_SYSTEM.suffix(),
     can::IMD_REQUEST.suffix(),
 ];
+
+/// A decoded CAN message as the payload of its own topic: the topic suffix and the JSON. Each
+/// arm goes through the message's typed topic, so the payload type cannot drift.
+pub fn encode_message(
+    message: &crate::can::AnyMessage,
+    ts: f64,
+) -> Result<(&'static str, Vec<u8>), serde_json::Error> {
+    use crate::can::AnyMessage;
+    match *message {
+        AnyMessage::CcmStatus(value) => can::CCM_STATUS
+            .encode(&Sample { ts, value })
+            .map(|payload| (can::CCM_STATUS.suffix(), payload)),
+        AnyMessage::Vcu1(value) => can::VCU1
+            .encode(&Sample { ts, value })
+            .map(|payload| (can::VCU1.suffix(), payload)),
+        AnyMessage::Mcu1(value) => can::MCU1
+            .encode(&Sample { ts, value })
+            .map(|payload| (can::MCU1.suffix(), payload)),
+        AnyMessage::Mcu2(value) => can::MCU2
+            .encode(&Sample { ts, value })
+            .map(|payload| (can::MCU2.suffix(), payload)),
+        AnyMessage::Mcu3(value) => can::MCU3
+            .encode(&Sample { ts, value })
+            .map(|payload| (can::MCU3.suffix(), payload)),
+        AnyMessage::Bms1(value) => can::BMS1
+            .encode(&Sample { ts, value })
+            .map(|payload| (can::BMS1.suffix(), payload)),
+        AnyMessage::Bms2(value) => can::BMS2
+            .encode(&Sample { ts, value })
+            .map(|payload| (can::BMS2.suffix(), payload)),
+        AnyMessage::OrionPackStatus(value) => can::ORION_PACK_STATUS
+            .encode(&Sample { ts, value })
+            .map(|payload| (can::ORION_PACK_STATUS.suffix(), payload)),
+        AnyMessage::OrionLimits(value) => can::ORION_LIMITS
+            .encode(&Sample { ts, value })
+            .map(|payload| (can::ORION_LIMITS.suffix(), payload)),
+        AnyMessage::OrionCellVoltages(value) => can::ORION_CELL_VOLTAGES
+            .encode(&Sample { ts, value })
+            .map(|payload| (can::ORION_CELL_VOLTAGES.suffix(), payload)),
+        AnyMessage::PccStatus(value) => can::PCC_STATUS
+            .encode(&Sample { ts, value })
+            .map(|payload| (can::PCC_STATUS.suffix(), payload)),
+        AnyMessage::ImdInfoGeneral(value) => can::IMD_INFO_GENERAL
+            .encode(&Sample { ts, value })
+            .map(|payload| (can::IMD_INFO_GENERAL.suffix(), payload)),
+        AnyMessage::ImdInfoIsolationDetail(value) => can::IMD_INFO_ISOLATION_DETAIL
+            .encode(&Sample { ts, value })
+            .map(|payload| (can::IMD_INFO_ISOLATION_DETAIL.suffix(), payload)),
+        AnyMessage::ImdInfoVoltage(value) => can::IMD_INFO_VOLTAGE
+            .encode(&Sample { ts, value })
+            .map(|payload| (can::IMD_INFO_VOLTAGE.suffix(), payload)),
+        AnyMessage::ImdInfoItSystem(value) => can::IMD_INFO_IT_SYSTEM
+            .encode(&Sample { ts, value })
+            .map(|payload| (can::IMD_INFO_IT_SYSTEM.suffix(), payload)),
+        AnyMessage::ImdRequest(value) => can::IMD_REQUEST
+            .encode(&Sample { ts, value })
+            .map(|payload| (can::IMD_REQUEST.suffix(), payload)),
+    }
+}

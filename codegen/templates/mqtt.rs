@@ -93,3 +93,19 @@ pub const SUFFIXES: [&str; {{ messages.len() + 1 }}] = [
     can::{{ m.0 }}.suffix(),
 {%- endfor %}
 ];
+
+/// A decoded CAN message as the payload of its own topic: the topic suffix and the JSON. Each
+/// arm goes through the message's typed topic, so the payload type cannot drift.
+pub fn encode_message(
+    message: &crate::can::AnyMessage,
+    ts: f64,
+) -> Result<(&'static str, Vec<u8>), serde_json::Error> {
+    use crate::can::AnyMessage;
+    match *message {
+{%- for m in messages %}
+        AnyMessage::{{ m.2 }}(value) => can::{{ m.0 }}
+            .encode(&Sample { ts, value })
+            .map(|payload| (can::{{ m.0 }}.suffix(), payload)),
+{%- endfor %}
+    }
+}
