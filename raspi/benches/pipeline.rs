@@ -1,1 +1,190 @@
-fn main() {}
+//! Pipeline throughput: the bundled session (4,500 packets, 67,950 frames) through ISO-TP and
+//! the generated decoders, published with rumqttc to the embedded broker and written to the
+//! SQLite store, against today's design (serde_json of the whole struct plus one line-protocol
+//! string per packet, vehicle-facts.md) on the same packets.
+//!
+//! Run on one core (pipeline, store writer, MQTT client and broker share it):
+//! `taskset -c 0 cargo bench -p aer-raspi --bench pipeline`.
+
+use aer::telemetry::Telemetry;
+use aer_raspi::candump::{LoggedFrame, parse_line};
+use aer_raspi::config::MqttConfig;
+use aer_raspi::ingest::{Ingest, Record};
+use aer_raspi::metrics::Counters;
+use aer_raspi::pipeline::Pipeline;
+use aer_raspi::{broker, publish, store};
+use criterion::{Criterion, Throughput, criterion_group, criterion_main};
+use std::collections::HashMap;
+use std::fmt::Write as _;
+use std::hint::black_box;
+use std::sync::Arc;
+use std::time::Duration;
+
+const SESSION: &str = include_str!("../data/session.log");
+
+fn frames() -> Vec<LoggedFrame> {
+    let mut buses = HashMap::new();
+    SESSION
+        .lines()
+        .filter_map(|line| {
+            parse_line(line, |name| {
+                let next = buses.len() as u8;
+                *buses.entry(name.to_owned()).or_insert(next)
+            })
+            .ok()
+        })
+        .collect()
+}
+
+fn packets(frames: &[LoggedFrame]) -> Vec<(u64, Telemetry)> {
+    let mut ingest = Ingest::new(Arc::new(Counters::default()));
+    let mut packets = Vec::new();
+    for frame in frames {
+        ingest.on_frame(
+            frame,
+            |record| {
+                if let Record::Telemetry {
+                    ts_us, telemetry, ..
+                } = record
+                {
+                    packets.push((ts_us, *telemetry));
+                }
+            },
+            |_, _| {},
+        );
+    }
+    packets
+}
+
+/// Today's Pi: one JSON document of the whole struct (with `ts` in ms) and one line-protocol
+/// string with every field as a float.
+fn todays_design(ts_us: u64, telemetry: &Telemetry, json: &mut String, line: &mut String) {
+    #[derive(serde::Serialize)]
+    struct Today<'a> {
+        ts: u64,
+        #[serde(flatten)]
+        telemetry: &'a Telemetry,
+    }
+    json.clear();
+    json.push_str(
+        &serde_json::to_string(&Today {
+            ts: ts_us / 1_000,
+            telemetry,
+        })
+        .unwrap_or_default(),
+    );
+    line.clear();
+    line.push_str("telemetry,car=car1 ");
+    struct Fields<'a>(&'a mut String, bool);
+    impl aer::runtime::SignalVisitor for Fields<'_> {
+        fn signal(
+            &mut self,
+            s: &'static aer::runtime::SignalMeta,
+            v: aer::runtime::Value,
+            _: Option<&'static str>,
+        ) {
+            if self.1 {
+                self.0.push(',');
+            }
+            self.1 = true;
+            let _ = write!(self.0, "{}={}", s.name, v.to_f64() as f32);
+        }
+    }
+    telemetry.visit(&mut Fields(line, false));
+    let _ = write!(line, " {}", ts_us * 1_000);
+}
+
+fn bench(c: &mut Criterion) {
+    let frames = frames();
+    let packets = packets(&frames);
+    let runtime = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(1)
+        .enable_all()
+        .build()
+        .expect("runtime");
+    let port = std::net::TcpListener::bind("127.0.0.1:0")
+        .and_then(|l| l.local_addr())
+        .map(|a| a.port())
+        .expect("port");
+    let text = broker::DEFAULT_CONFIG.replace("127.0.0.1:1883", &format!("127.0.0.1:{port}"));
+    broker::spawn(toml::from_str(&text).expect("broker config")).expect("broker");
+    let counters = Arc::new(Counters::default());
+    let mqtt = MqttConfig {
+        port,
+        queue: 200_000,
+        ..MqttConfig::default()
+    };
+    let publisher = runtime.block_on(async {
+        let (publisher, eventloop) =
+            publish::connect(&mqtt, "bench", "aer/car1".into(), counters.clone());
+        let (up_tx, mut up) = tokio::sync::watch::channel(false);
+        tokio::spawn(publish::drive(eventloop, up_tx));
+        let _ = tokio::time::timeout(Duration::from_secs(10), up.wait_for(|u| *u)).await;
+        publisher
+    });
+    let dir = tempfile::tempdir().expect("temp dir");
+    // The CCM's packets alone (ISO-TP frames and flow control), without the other nodes.
+    let telemetry_frames: Vec<LoggedFrame> = frames
+        .iter()
+        .filter(|f| matches!(f.id, embedded_can::Id::Standard(id) if id.as_raw() == 0x666 || id.as_raw() == 0x777))
+        .copied()
+        .collect();
+    let ours = |frames: &[LoggedFrame]| {
+        let path = dir.path().join("bench.sqlite");
+        let _ = std::fs::remove_file(&path);
+        let writer =
+            store::StoreWriter::start(store::open(&path).expect("store"), counters.clone());
+        let mut pipeline = Pipeline::new(
+            counters.clone(),
+            "car1".into(),
+            vec!["can0".into(), "can1".into()],
+            Some(publisher.clone()),
+            writer.sender(),
+        );
+        for frame in frames {
+            pipeline.feed(frame, |_, _| {});
+        }
+        drop(pipeline);
+        writer.finish();
+    };
+
+    let mut group = c.benchmark_group("pipeline");
+    group.sample_size(10);
+    group.throughput(Throughput::Elements(packets.len() as u64));
+    group.bench_function(
+        "ours: session, packets + 18,450 CAN frames, decode + MQTT + store",
+        |b| {
+            b.iter(|| ours(&frames));
+        },
+    );
+    group.bench_function("ours: packets only, decode + MQTT + store", |b| {
+        b.iter(|| ours(&telemetry_frames));
+    });
+    group.bench_function("today: JSON + line protocol", |b| {
+        let mut json = String::new();
+        let mut line = String::new();
+        b.iter(|| {
+            for (ts, telemetry) in &packets {
+                todays_design(*ts, telemetry, &mut json, &mut line);
+                black_box((&json, &line));
+            }
+        });
+    });
+    group.bench_function("today: JSON + line protocol + MQTT publish", |b| {
+        let mut json = String::new();
+        let mut line = String::new();
+        b.iter(|| {
+            for (ts, telemetry) in &packets {
+                todays_design(*ts, telemetry, &mut json, &mut line);
+                publisher.publish_json("telemetry_today", &json, false);
+                black_box(&line);
+            }
+        });
+    });
+    group.finish();
+    let dropped = counters.snapshot().publish_dropped;
+    assert_eq!(dropped, 0, "the benchmark must not drop MQTT messages");
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);

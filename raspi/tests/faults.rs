@@ -1,0 +1,279 @@
+//! Faults on the way in: every kind is counted, logged, and the pipeline goes on. Plus the
+//! start-up error for an unwritable store, and the forwarder's behaviour without TDengine.
+
+use aer::telemetry::Telemetry;
+use aer_raspi::candump::LoggedFrame;
+use aer_raspi::config::TdengineConfig;
+use aer_raspi::forward::{advance, next_batch};
+use aer_raspi::metrics::Counters;
+use aer_raspi::pipeline::Pipeline;
+use aer_raspi::source::{ReplayOptions, replay};
+use aer_raspi::{forward, store};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Duration;
+
+const SESSION: &str = include_str!("../data/session.log");
+
+/// The session's first `packets` telemetry packets (and everything between), as lines.
+fn session_lines(packets: usize) -> Vec<String> {
+    let mut lines = Vec::new();
+    let mut firsts = 0;
+    for line in SESSION.lines() {
+        if line.contains(" 666#1") {
+            firsts += 1;
+            if firsts > packets {
+                break;
+            }
+        }
+        lines.push(line.to_owned());
+    }
+    lines
+}
+
+async fn run(lines: &[String]) -> (aer_raspi::metrics::Snapshot, u64) {
+    let counters = Arc::new(Counters::default());
+    let dir = tempfile::tempdir().expect("temp dir");
+    let writer = store::StoreWriter::start(
+        store::open(&dir.path().join("s.sqlite")).expect("store"),
+        counters.clone(),
+    );
+    let mut pipeline = Pipeline::new(
+        counters.clone(),
+        "car1".into(),
+        Vec::new(),
+        None,
+        writer.sender(),
+    );
+    let text = lines.join("\n");
+    let stats = replay(
+        text.as_bytes(),
+        &mut pipeline,
+        &counters,
+        ReplayOptions {
+            fast: true,
+            restamp: false,
+        },
+        &AtomicBool::new(false),
+    )
+    .await;
+    drop(pipeline);
+    writer.finish();
+    (counters.snapshot(), stats.bad_lines)
+}
+
+#[tokio::test]
+async fn a_clean_log_has_no_errors() {
+    let (snapshot, bad) = run(&session_lines(20)).await;
+    assert_eq!(snapshot.packets, 20);
+    assert_eq!(bad, 0);
+    assert_eq!(
+        snapshot.isotp_errors + snapshot.decode_errors + snapshot.unknown_ids,
+        0
+    );
+}
+
+#[tokio::test]
+async fn every_fault_is_counted_and_the_rest_still_decodes() {
+    let mut lines = session_lines(20);
+    // Indices of the consecutive frames of the 3rd, 5th and 7th packets.
+    let telemetry_frames: Vec<usize> = lines
+        .iter()
+        .enumerate()
+        .filter(|(_, l)| l.contains(" 666#2"))
+        .map(|(i, _)| i)
+        .collect();
+    let third_packet_cf = telemetry_frames[2 * 9 + 3];
+    let fifth_packet_cf = telemetry_frames[4 * 9 + 5];
+    // 1. a lost consecutive frame (3rd packet), 2. a repeated one (5th packet).
+    let repeated = lines[fifth_packet_cf].clone();
+    lines.insert(fifth_packet_cf, repeated);
+    lines.remove(third_packet_cf);
+    // 3. truncated and garbage lines, 4. an unknown id, 5. a known id with a short payload.
+    lines.insert(10, "(1795348800.015000) can0 1A".into());
+    lines.insert(11, "garbage".into());
+    lines.insert(12, "(1795348800.015000) can0 7AB#0102".into());
+    lines.insert(13, "(1795348800.015000) can1 105#0102".into());
+    // 6. a packet from firmware built from another schema: same layout, other fingerprint.
+    let foreign = foreign_packet_lines();
+    let at = lines.len();
+    lines.splice(at..at, foreign);
+
+    let (snapshot, bad) = run(&lines).await;
+    assert_eq!(bad, 2, "truncated + garbage");
+    assert_eq!(snapshot.bad_lines, 2);
+    assert_eq!(snapshot.unknown_ids, 1);
+    assert_eq!(snapshot.decode_errors, 1);
+    assert_eq!(snapshot.fingerprint_mismatches, 1);
+    // The lost frame: the next frame has the wrong sequence number (one error); the repeated
+    // frame likewise; the frames after each error until the next first frame are unexpected.
+    assert!(snapshot.isotp_errors >= 2, "{snapshot:?}");
+    assert_eq!(snapshot.packets, 18, "20 packets, two broken");
+    assert_eq!(snapshot.stored, snapshot.packets + snapshot.messages);
+}
+
+/// A telemetry packet whose fingerprint is not ours, as the frames a CCM would send.
+fn foreign_packet_lines() -> Vec<String> {
+    let mut packet = [0u8; Telemetry::LEN];
+    Telemetry::default().pack(
+        aer::telemetry::TelemetryHeader {
+            sequence: 9,
+            timestamp_us: 0,
+        },
+        &mut packet,
+    );
+    packet[..4].copy_from_slice(&0xDEAD_BEEFu32.to_le_bytes());
+    let mut sender: aer_isotp::Sender<128> = aer_isotp::Sender::new(aer_isotp::Config::CAR);
+    sender.start(&packet).expect("start");
+    let mut lines = Vec::new();
+    let id = embedded_can::Id::Standard(embedded_can::StandardId::new(0x666).expect("id"));
+    let mut ts = 1_795_348_900_000_000u64;
+    while let Ok(Some(frame)) = sender.poll(ts as u32) {
+        sender.sent(ts as u32);
+        lines.push(
+            LoggedFrame::new(ts, 0, id, frame.as_slice())
+                .expect("frame")
+                .to_line("can0"),
+        );
+        if lines.len() == 1 {
+            sender
+                .on_flow_control(&[0x30, 0, 0], ts as u32)
+                .expect("fc");
+        }
+        ts += 250;
+    }
+    lines
+}
+
+#[test]
+fn an_unwritable_store_path_is_a_clear_error_at_start_up() {
+    let error =
+        store::open(std::path::Path::new("/nonexistent-folder/aer.sqlite")).expect_err("must fail");
+    let text = error.to_string();
+    assert!(
+        text.contains("/nonexistent-folder/aer.sqlite") && text.contains("cannot open"),
+        "{text}"
+    );
+}
+
+#[test]
+fn the_cursor_gives_no_duplicates_and_no_gaps_across_failures_and_restarts() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let path = dir.path().join("s.sqlite");
+    let counters = Arc::new(Counters::default());
+    let writer = store::StoreWriter::start(store::open(&path).expect("store"), counters.clone());
+    let sender = writer.sender().expect("sender");
+    let row = |seq: i64| store::Row {
+        table: 0,
+        values: {
+            let mut values = vec![
+                rusqlite::types::Value::Text("car1".into()),
+                rusqlite::types::Value::Integer(1),
+                rusqlite::types::Value::Integer(1_000 + seq),
+                rusqlite::types::Value::Integer(seq),
+            ];
+            values.resize(
+                aer::local_store::TABLES[0].columns.len(),
+                rusqlite::types::Value::Null,
+            );
+            values
+        },
+    };
+    for seq in 0..12 {
+        sender.send(row(seq)).expect("queued");
+    }
+    drop(sender);
+    writer.finish();
+
+    let sequences = |rows: &[Vec<rusqlite::types::Value>]| -> Vec<i64> {
+        rows.iter()
+            .map(|r| match r[3] {
+                rusqlite::types::Value::Integer(i) => i,
+                _ => -1,
+            })
+            .collect()
+    };
+    let db = store::open(&path).expect("reopen");
+    // A batch that TDengine refused: the cursor stays.
+    let (last, rows) = next_batch(&db, 0, 5).expect("batch");
+    assert_eq!(sequences(&rows), [0, 1, 2, 3, 4]);
+    drop(db);
+    // Restart: the same rows again (no gap), then accepted.
+    let db = store::open(&path).expect("restart");
+    let (again, rows) = next_batch(&db, 0, 5).expect("batch");
+    assert_eq!((again, sequences(&rows)), (last, vec![0, 1, 2, 3, 4]));
+    advance(&db, 0, again).expect("cursor");
+    drop(db);
+    // Restart after success: only what follows (no duplicate).
+    let db = store::open(&path).expect("restart");
+    let (last, rows) = next_batch(&db, 0, 100).expect("batch");
+    assert_eq!(sequences(&rows), (5..12).collect::<Vec<_>>());
+    advance(&db, 0, last).expect("cursor");
+    assert!(next_batch(&db, 0, 100).expect("batch").1.is_empty());
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn without_tdengine_rows_stay_and_the_forwarder_retries() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let path = dir.path().join("s.sqlite");
+    let (_, _) = {
+        let counters = Arc::new(Counters::default());
+        let writer =
+            store::StoreWriter::start(store::open(&path).expect("store"), counters.clone());
+        let mut pipeline = Pipeline::new(
+            counters.clone(),
+            "car1".into(),
+            Vec::new(),
+            None,
+            writer.sender(),
+        );
+        let text = session_lines(5).join("\n");
+        replay(
+            text.as_bytes(),
+            &mut pipeline,
+            &counters,
+            ReplayOptions {
+                fast: true,
+                restamp: false,
+            },
+            &AtomicBool::new(false),
+        )
+        .await;
+        drop(pipeline);
+        writer.finish();
+        (counters.snapshot(), 0)
+    };
+    // A port nothing listens on.
+    let port = std::net::TcpListener::bind("127.0.0.1:0")
+        .and_then(|l| l.local_addr())
+        .expect("port")
+        .port();
+    let config = TdengineConfig {
+        enabled: true,
+        dsn: format!("taos+ws://127.0.0.1:{port}"),
+        batch_rows: 5_000,
+        workers: 2,
+    };
+    let counters = Arc::new(Counters::default());
+    let stop = Arc::new(AtomicBool::new(false));
+    let forwarder = tokio::spawn(forward::run(
+        config,
+        path.clone(),
+        counters.clone(),
+        stop.clone(),
+    ));
+    // Wait (bounded) until both workers have failed to connect at least once.
+    let waited = tokio::time::timeout(Duration::from_secs(20), async {
+        while counters.forward_errors.load(Ordering::Relaxed) < 2 {
+            tokio::time::sleep(Duration::from_millis(20)).await;
+        }
+    })
+    .await;
+    stop.store(true, Ordering::Relaxed);
+    assert!(waited.is_ok(), "the forwarder never reported the outage");
+    let _ = tokio::time::timeout(Duration::from_secs(10), forwarder).await;
+    assert_eq!(counters.forwarded.load(Ordering::Relaxed), 0);
+    let db = store::open(&path).expect("store");
+    let (_, rows) = next_batch(&db, 0, 5_000).expect("batch");
+    assert_eq!(rows.len(), 5, "every telemetry row is still waiting");
+}
