@@ -20,6 +20,17 @@ pub struct Config {
 pub struct CanConfig {
     pub interfaces: Vec<String>,
     pub telemetry_interface: String,
+    pub isotp: IsoTpMode,
+}
+
+/// Who reassembles the CCM's ISO-TP telemetry in `run`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum IsoTpMode {
+    /// The kernel's ISO-TP socket (module can-isotp), which also answers with flow control.
+    Kernel,
+    /// The service's own receiver (aer-isotp) on the raw CAN socket.
+    Userspace,
 }
 
 #[derive(Debug, Clone, PartialEq, Deserialize)]
@@ -67,6 +78,7 @@ impl Default for CanConfig {
         Self {
             interfaces: vec!["can0".into(), "can1".into()],
             telemetry_interface: "can0".into(),
+            isotp: IsoTpMode::Kernel,
         }
     }
 }
@@ -130,6 +142,13 @@ impl Config {
         }
         if let Some(v) = env("AER_TELEMETRY_INTERFACE") {
             self.can.telemetry_interface = v;
+        }
+        if let Some(v) = env("AER_ISOTP") {
+            self.can.isotp = match v.as_str() {
+                "kernel" => IsoTpMode::Kernel,
+                "userspace" => IsoTpMode::Userspace,
+                other => anyhow::bail!("AER_ISOTP={other}: use kernel or userspace"),
+            };
         }
         if let Some(v) = env("AER_MQTT_HOST") {
             self.mqtt.host = v;

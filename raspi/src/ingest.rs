@@ -41,6 +41,9 @@ pub enum Record {
 pub struct Ingest {
     counters: Arc<Counters>,
     receivers: Vec<Receiver<MAX_MESSAGE>>,
+    /// Reassemble ISO-TP from raw frames (replays, and buses without the kernel's ISO-TP
+    /// socket); `false` when the kernel delivers whole packets through [`Ingest::on_packet`].
+    userspace_isotp: bool,
 }
 
 impl Ingest {
@@ -49,7 +52,19 @@ impl Ingest {
         Self {
             counters,
             receivers: Vec::new(),
+            userspace_isotp: true,
         }
+    }
+
+    /// Leaves ISO-TP to the kernel: raw 0x666/0x777 frames are then ignored.
+    pub fn with_kernel_isotp(mut self) -> Self {
+        self.userspace_isotp = false;
+        self
+    }
+
+    /// Decodes a telemetry packet the kernel's ISO-TP socket reassembled.
+    pub fn on_packet(&self, ts_us: u64, bus: u8, packet: &[u8], mut emit: impl FnMut(Record)) {
+        packet_record(&self.counters, ts_us, bus, packet, &mut emit);
     }
 
     /// Decodes one frame. `emit` gets every record; `reply` gets the ISO-TP flow-control
@@ -66,7 +81,9 @@ impl Ingest {
             Id::Extended(id) => (id.as_raw(), true),
         };
         if !extended && id == u32::from(Telemetry::TX_ID) {
-            self.isotp(frame, &mut emit, &mut reply);
+            if self.userspace_isotp {
+                self.isotp(frame, &mut emit, &mut reply);
+            }
             return;
         }
         if !extended && id == u32::from(Telemetry::FLOW_CONTROL_ID) {
@@ -117,44 +134,9 @@ impl Ingest {
         match receiver.on_frame(frame.payload(), frame.ts_us as u32) {
             Ok(Received::Nothing) => {}
             Ok(Received::FlowControl(fc)) => reply(frame.bus, fc),
-            Ok(Received::Message(packet)) => match Telemetry::unpack(packet) {
-                Ok((header, telemetry)) => {
-                    Counters::bump(&counters.packets);
-                    counters
-                        .last_packet_us
-                        .store(frame.ts_us, Ordering::Relaxed);
-                    counters.firmware_fingerprint.store(
-                        u64::from(aer::telemetry::TELEMETRY_FINGERPRINT),
-                        Ordering::Relaxed,
-                    );
-                    emit(Record::Telemetry {
-                        ts_us: frame.ts_us,
-                        bus: frame.bus,
-                        header,
-                        telemetry: Box::new(telemetry),
-                    });
-                }
-                Err(TelemetryError::FingerprintMismatch { expected, found }) => {
-                    counters
-                        .firmware_fingerprint
-                        .store(u64::from(found), Ordering::Relaxed);
-                    let count = Counters::bump(&counters.fingerprint_mismatches);
-                    if worth_logging(count) {
-                        warn!(
-                            expected = format_args!("{expected:#010x}"),
-                            found = format_args!("{found:#010x}"),
-                            count,
-                            "telemetry from firmware built from another schema: flash the CCM from this commit"
-                        );
-                    }
-                }
-                Err(error) => {
-                    let count = Counters::bump(&counters.packet_errors);
-                    if worth_logging(count) {
-                        warn!(%error, count, "telemetry packet rejected");
-                    }
-                }
-            },
+            Ok(Received::Message(packet)) => {
+                packet_record(counters, frame.ts_us, frame.bus, packet, emit)
+            }
             Err(error) => {
                 let count = Counters::bump(&counters.isotp_errors);
                 if worth_logging(count) {
@@ -167,6 +149,52 @@ impl Ingest {
             let count = Counters::bump(&counters.isotp_errors);
             if worth_logging(count) {
                 warn!(bus, count, "ISO-TP message interrupted by a new one");
+            }
+        }
+    }
+}
+
+/// Unpacks a reassembled telemetry packet (fingerprint and length checked) into a record.
+fn packet_record(
+    counters: &Counters,
+    ts_us: u64,
+    bus: u8,
+    packet: &[u8],
+    emit: &mut impl FnMut(Record),
+) {
+    match Telemetry::unpack(packet) {
+        Ok((header, telemetry)) => {
+            Counters::bump(&counters.packets);
+            counters.last_packet_us.store(ts_us, Ordering::Relaxed);
+            counters.firmware_fingerprint.store(
+                u64::from(aer::telemetry::TELEMETRY_FINGERPRINT),
+                Ordering::Relaxed,
+            );
+            emit(Record::Telemetry {
+                ts_us,
+                bus,
+                header,
+                telemetry: Box::new(telemetry),
+            });
+        }
+        Err(TelemetryError::FingerprintMismatch { expected, found }) => {
+            counters
+                .firmware_fingerprint
+                .store(u64::from(found), Ordering::Relaxed);
+            let count = Counters::bump(&counters.fingerprint_mismatches);
+            if worth_logging(count) {
+                warn!(
+                    expected = format_args!("{expected:#010x}"),
+                    found = format_args!("{found:#010x}"),
+                    count,
+                    "telemetry from firmware built from another schema: flash the CCM from this commit"
+                );
+            }
+        }
+        Err(error) => {
+            let count = Counters::bump(&counters.packet_errors);
+            if worth_logging(count) {
+                warn!(%error, count, "telemetry packet rejected");
             }
         }
     }

@@ -2,7 +2,7 @@
 //! and DBC decoding -> typed MQTT topics on an embedded broker + a durable local store ->
 //! TDengine.
 
-use aer_raspi::config::Config;
+use aer_raspi::config::{self, Config};
 use aer_raspi::metrics::Counters;
 use aer_raspi::pipeline::Pipeline;
 use aer_raspi::source::{self, ReplayOptions};
@@ -150,6 +150,9 @@ async fn serve(config: Config, command: Command) -> Result<()> {
         Some(publisher.clone()),
         writer.sender(),
     );
+    if matches!(command, Command::Run) && config.can.isotp == config::IsoTpMode::Kernel {
+        pipeline = pipeline.with_kernel_isotp();
+    }
     match command {
         Command::Run => run_live(&config, &mut pipeline, stop.clone()).await,
         Command::Replay { file, fast } => {
@@ -232,6 +235,7 @@ async fn run_live(config: &Config, pipeline: &mut Pipeline, stop: Arc<AtomicBool
     source::socketcan(
         config.can.interfaces.clone(),
         &config.can.telemetry_interface,
+        config.can.isotp,
         pipeline,
         stop,
     )

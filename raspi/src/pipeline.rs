@@ -36,6 +36,22 @@ impl Pipeline {
         }
     }
 
+    /// Leaves ISO-TP reassembly to the kernel (`run` with `isotp = "kernel"`).
+    pub fn with_kernel_isotp(mut self) -> Self {
+        self.ingest = self.ingest.with_kernel_isotp();
+        self
+    }
+
+    /// Takes one telemetry packet the kernel reassembled through decoding and the outputs.
+    pub fn feed_packet(&mut self, ts_us: u64, bus: u8, packet: &[u8]) {
+        let publisher = self.publisher.as_ref();
+        let store = self.store.as_ref();
+        let (car_id, bus_names) = (&self.car_id, &self.bus_names);
+        self.ingest.on_packet(ts_us, bus, packet, |record| {
+            output(&record, publisher, store, car_id, bus_names);
+        });
+    }
+
     /// Bus names by index (the order interfaces were first seen).
     pub fn bus_names_mut(&mut self) -> &mut Vec<String> {
         &mut self.bus_names
@@ -49,17 +65,26 @@ impl Pipeline {
         let bus_names = &self.bus_names;
         self.ingest.on_frame(
             frame,
-            |record: Record| {
-                if let Some(publisher) = publisher {
-                    publisher.publish(&record);
-                }
-                if let (Some(store), Some(row)) = (store, store::row(&record, car_id, bus_names)) {
-                    // Blocks while the writer is behind: the store never drops. It only fails
-                    // once the writer is gone, at shutdown.
-                    let _ = store.send(row);
-                }
-            },
+            |record: Record| output(&record, publisher, store, car_id, bus_names),
             reply,
         );
+    }
+}
+
+/// Publishes and stores one record.
+fn output(
+    record: &Record,
+    publisher: Option<&Publisher>,
+    store: Option<&SyncSender<Row>>,
+    car_id: &str,
+    bus_names: &[String],
+) {
+    if let Some(publisher) = publisher {
+        publisher.publish(record);
+    }
+    if let (Some(store), Some(row)) = (store, store::row(record, car_id, bus_names)) {
+        // Blocks while the writer is behind: the store never drops. It only fails once the
+        // writer is gone, at shutdown.
+        let _ = store.send(row);
     }
 }

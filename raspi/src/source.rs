@@ -124,21 +124,26 @@ pub async fn synthetic(
 }
 
 /// Live SocketCAN: every configured interface is read (and reopened with a 1 s backoff when
-/// missing or failing); flow control for the telemetry goes out on its interface.
+/// missing or failing). With kernel ISO-TP the telemetry arrives as whole packets from the
+/// can-isotp socket (which sends the flow control itself); otherwise the service reassembles
+/// it from raw frames and sends the flow control on the telemetry interface.
 #[cfg(target_os = "linux")]
 pub async fn socketcan(
     interfaces: Vec<String>,
     telemetry_interface: &str,
+    isotp: crate::config::IsoTpMode,
     pipeline: &mut Pipeline,
     stop: Arc<AtomicBool>,
 ) {
     use tokio::sync::mpsc;
-    let (frames_tx, mut frames_rx) = mpsc::channel::<LoggedFrame>(4_096);
+    let (frames_tx, mut frames_rx) = mpsc::channel::<Input>(4_096);
+    let kernel = isotp == crate::config::IsoTpMode::Kernel;
     let mut replies = Vec::new();
     for (index, name) in interfaces.iter().enumerate() {
         pipeline.bus_names_mut().push(name.clone());
         let (reply_tx, reply_rx) = mpsc::channel::<aer_isotp::Frame>(64);
-        replies.push((name == telemetry_interface).then_some(reply_tx));
+        let telemetry_bus = name == telemetry_interface;
+        replies.push((telemetry_bus && !kernel).then_some(reply_tx));
         let bus = u8::try_from(index).unwrap_or(u8::MAX);
         tokio::spawn(bus_task(
             name.clone(),
@@ -147,19 +152,89 @@ pub async fn socketcan(
             reply_rx,
             stop.clone(),
         ));
+        if telemetry_bus && kernel {
+            let (name, frames, stop) = (name.clone(), frames_tx.clone(), stop.clone());
+            std::thread::Builder::new()
+                .name("isotp".into())
+                .spawn(move || kernel_isotp(&name, bus, &frames, &stop))
+                .ok();
+        }
     }
     drop(frames_tx);
-    while let Some(frame) = frames_rx.recv().await {
+    while let Some(input) = frames_rx.recv().await {
         if stop.load(Ordering::Relaxed) {
             break;
         }
-        pipeline.feed(&frame, |bus, fc| {
-            if let Some(Some(reply)) = replies.get(usize::from(bus)) {
-                // The bus task writes it; if its queue is full the sender times out (N_Bs)
-                // and the CCM's next packet starts afresh.
-                let _ = reply.try_send(fc);
+        match input {
+            Input::Frame(frame) => pipeline.feed(&frame, |bus, fc| {
+                if let Some(Some(reply)) = replies.get(usize::from(bus)) {
+                    // The bus task writes it; if its queue is full the CCM's sender times out
+                    // (N_Bs) and its next packet starts afresh.
+                    let _ = reply.try_send(fc);
+                }
+            }),
+            Input::Packet { ts_us, bus, packet } => pipeline.feed_packet(ts_us, bus, &packet),
+        }
+    }
+}
+
+/// What the live sources hand the pipeline.
+#[cfg(target_os = "linux")]
+enum Input {
+    Frame(LoggedFrame),
+    Packet {
+        ts_us: u64,
+        bus: u8,
+        packet: Vec<u8>,
+    },
+}
+
+/// Reads whole telemetry packets from the kernel's ISO-TP socket (blocking, own thread).
+#[cfg(target_os = "linux")]
+fn kernel_isotp(
+    name: &str,
+    bus: u8,
+    packets: &tokio::sync::mpsc::Sender<Input>,
+    stop: &AtomicBool,
+) {
+    use aer::telemetry::Telemetry;
+    use embedded_can::StandardId;
+    use tracing::{error, info};
+    let (Some(rx), Some(tx)) = (
+        StandardId::new(Telemetry::TX_ID),
+        StandardId::new(Telemetry::FLOW_CONTROL_ID),
+    ) else {
+        return;
+    };
+    while !stop.load(Ordering::Relaxed) {
+        let mut socket = match socketcan_isotp::IsoTpSocket::open(name, rx, tx) {
+            Ok(socket) => socket,
+            Err(err) => {
+                error!(interface = %name, error = %err, "cannot open the kernel ISO-TP socket (modprobe can-isotp); retrying in 1 s");
+                std::thread::sleep(Duration::from_secs(1));
+                continue;
             }
-        });
+        };
+        info!(interface = %name, "reading telemetry from the kernel's ISO-TP socket");
+        loop {
+            match socket.read() {
+                Ok(packet) => {
+                    let input = Input::Packet {
+                        ts_us: now_us(),
+                        bus,
+                        packet: packet.to_vec(),
+                    };
+                    if packets.blocking_send(input).is_err() {
+                        return;
+                    }
+                }
+                Err(err) => {
+                    error!(interface = %name, error = %err, "ISO-TP read failed; reopening in 1 s");
+                    break;
+                }
+            }
+        }
+        std::thread::sleep(Duration::from_secs(1));
     }
 }
 
@@ -167,7 +242,7 @@ pub async fn socketcan(
 async fn bus_task(
     name: String,
     bus: u8,
-    frames: tokio::sync::mpsc::Sender<LoggedFrame>,
+    frames: tokio::sync::mpsc::Sender<Input>,
     mut replies: tokio::sync::mpsc::Receiver<aer_isotp::Frame>,
     stop: Arc<AtomicBool>,
 ) {
@@ -189,7 +264,7 @@ async fn bus_task(
                     Ok(frame) => {
                         let logged = LoggedFrame::new(now_us(), bus, frame.id(), frame.data());
                         if let Some(logged) = logged {
-                            if frames.send(logged).await.is_err() {
+                            if frames.send(Input::Frame(logged)).await.is_err() {
                                 return;
                             }
                         }

@@ -277,3 +277,57 @@ async fn without_tdengine_rows_stay_and_the_forwarder_retries() {
     let (_, rows) = next_batch(&db, 0, 5_000).expect("batch");
     assert_eq!(rows.len(), 5, "every telemetry row is still waiting");
 }
+
+#[tokio::test]
+async fn kernel_reassembled_packets_take_the_same_path() {
+    let counters = Arc::new(Counters::default());
+    let dir = tempfile::tempdir().expect("temp dir");
+    let writer = store::StoreWriter::start(
+        store::open(&dir.path().join("k.sqlite")).expect("store"),
+        counters.clone(),
+    );
+    let mut pipeline = Pipeline::new(
+        counters.clone(),
+        "car1".into(),
+        vec!["can0".into()],
+        None,
+        writer.sender(),
+    )
+    .with_kernel_isotp();
+    // Raw ISO-TP frames are the kernel's business now: ignored, not counted as errors.
+    let text = session_lines(3).join("\n");
+    replay(
+        text.as_bytes(),
+        &mut pipeline,
+        &counters,
+        ReplayOptions {
+            fast: true,
+            restamp: false,
+        },
+        &AtomicBool::new(false),
+    )
+    .await;
+    assert_eq!(counters.snapshot().packets, 0);
+    assert_eq!(counters.snapshot().isotp_errors, 0);
+    // Whole packets, as the can-isotp socket delivers them.
+    let mut packet = [0u8; Telemetry::LEN];
+    Telemetry {
+        soc: 77.5,
+        ..Telemetry::default()
+    }
+    .pack(
+        aer::telemetry::TelemetryHeader {
+            sequence: 1,
+            timestamp_us: 2,
+        },
+        &mut packet,
+    );
+    pipeline.feed_packet(1_795_348_800_000_000, 0, &packet);
+    pipeline.feed_packet(1_795_348_800_010_000, 0, &packet[..10]);
+    drop(pipeline);
+    writer.finish();
+    let snapshot = counters.snapshot();
+    assert_eq!(snapshot.packets, 1);
+    assert_eq!(snapshot.packet_errors, 1, "a short packet is counted");
+    assert_eq!(snapshot.stored, snapshot.packets + snapshot.messages);
+}
