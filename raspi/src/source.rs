@@ -101,6 +101,15 @@ pub async fn replay(
     stats
 }
 
+/// Replays a whole log as fast as possible with its recorded timestamps (tests, benchmarks).
+pub async fn replay_all(log: &[u8], pipeline: &mut Pipeline, counters: &Counters) -> ReplayStats {
+    let options = ReplayOptions {
+        fast: true,
+        restamp: false,
+    };
+    replay(log, pipeline, counters, options, &AtomicBool::new(false)).await
+}
+
 /// Frames of a synthetic vehicle: see [`crate::synthetic`].
 pub async fn synthetic(
     rate_hz: f64,

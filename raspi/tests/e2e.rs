@@ -8,14 +8,13 @@ use aer_raspi::candump::{LoggedFrame, parse_line};
 use aer_raspi::ingest::{Ingest, Record};
 use aer_raspi::metrics::Counters;
 use aer_raspi::pipeline::Pipeline;
-use aer_raspi::source::{ReplayOptions, replay};
+use aer_raspi::source::replay_all;
 use aer_raspi::{broker, config::MqttConfig, publish, store};
 use rumqttc::{AsyncClient, Event, MqttOptions, Packet, QoS};
 use std::collections::HashMap;
 use std::io::{BufRead, BufReader};
 use std::process::{Command, Stdio};
 use std::sync::Arc;
-use std::sync::atomic::AtomicBool;
 use std::time::Duration;
 
 const SESSION: &str = include_str!("../data/session.log");
@@ -180,17 +179,7 @@ async fn every_packet_reaches_both_subscribers_and_the_store() {
         Some(publisher.clone()),
         writer.sender(),
     );
-    let stats = replay(
-        SESSION.as_bytes(),
-        &mut pipeline,
-        &counters,
-        ReplayOptions {
-            fast: true,
-            restamp: false,
-        },
-        &AtomicBool::new(false),
-    )
-    .await;
+    let stats = replay_all(SESSION.as_bytes(), &mut pipeline, &counters).await;
     assert_eq!(stats.frames, 67_950);
     drop(pipeline);
     tokio::task::spawn_blocking(move || writer.finish())

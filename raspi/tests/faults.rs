@@ -7,7 +7,7 @@ use aer_raspi::config::TdengineConfig;
 use aer_raspi::forward::{advance, next_batch};
 use aer_raspi::metrics::Counters;
 use aer_raspi::pipeline::Pipeline;
-use aer_raspi::source::{ReplayOptions, replay};
+use aer_raspi::source::replay_all;
 use aer_raspi::{forward, store};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -46,17 +46,7 @@ async fn run(lines: &[String]) -> (aer_raspi::metrics::Snapshot, u64) {
         writer.sender(),
     );
     let text = lines.join("\n");
-    let stats = replay(
-        text.as_bytes(),
-        &mut pipeline,
-        &counters,
-        ReplayOptions {
-            fast: true,
-            restamp: false,
-        },
-        &AtomicBool::new(false),
-    )
-    .await;
+    let stats = replay_all(text.as_bytes(), &mut pipeline, &counters).await;
     drop(pipeline);
     writer.finish();
     (counters.snapshot(), stats.bad_lines)
@@ -228,17 +218,7 @@ async fn without_tdengine_rows_stay_and_the_forwarder_retries() {
             writer.sender(),
         );
         let text = session_lines(5).join("\n");
-        replay(
-            text.as_bytes(),
-            &mut pipeline,
-            &counters,
-            ReplayOptions {
-                fast: true,
-                restamp: false,
-            },
-            &AtomicBool::new(false),
-        )
-        .await;
+        replay_all(text.as_bytes(), &mut pipeline, &counters).await;
         drop(pipeline);
         writer.finish();
         (counters.snapshot(), 0)
@@ -296,17 +276,7 @@ async fn kernel_reassembled_packets_take_the_same_path() {
     .with_kernel_isotp();
     // Raw ISO-TP frames are the kernel's business now: ignored, not counted as errors.
     let text = session_lines(3).join("\n");
-    replay(
-        text.as_bytes(),
-        &mut pipeline,
-        &counters,
-        ReplayOptions {
-            fast: true,
-            restamp: false,
-        },
-        &AtomicBool::new(false),
-    )
-    .await;
+    replay_all(text.as_bytes(), &mut pipeline, &counters).await;
     assert_eq!(counters.snapshot().packets, 0);
     assert_eq!(counters.snapshot().isotp_errors, 0);
     // Whole packets, as the can-isotp socket delivers them.

@@ -5,7 +5,7 @@
 use aer_raspi::config::TdengineConfig;
 use aer_raspi::metrics::Counters;
 use aer_raspi::pipeline::Pipeline;
-use aer_raspi::source::{ReplayOptions, replay};
+use aer_raspi::source::replay_all;
 use aer_raspi::{forward, store};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -34,17 +34,7 @@ async fn the_forwarder_moves_every_row_into_tdengine() {
         writer.sender(),
     );
     let log = include_str!("../data/session.log");
-    replay(
-        log.as_bytes(),
-        &mut pipeline,
-        &counters,
-        ReplayOptions {
-            fast: true,
-            restamp: false,
-        },
-        &AtomicBool::new(false),
-    )
-    .await;
+    replay_all(log.as_bytes(), &mut pipeline, &counters).await;
     drop(pipeline);
     writer.finish();
     let stored = counters.snapshot().stored;
