@@ -24,11 +24,17 @@ const BACKOFF_MAX: Duration = Duration::from_secs(30);
 /// Pause when every table is caught up.
 const IDLE: Duration = Duration::from_millis(200);
 
-/// The SQL that prepares a database for this schema: the database and every super table.
-pub fn schema_statements() -> Vec<&'static str> {
-    let mut statements = vec![CREATE_DATABASE];
-    statements.extend(SUPER_TABLES.iter().map(|t| t.create));
+/// The SQL that prepares a database for this schema: the database and every super table,
+/// qualified with the database name (a WebSocket connection has no current database).
+pub fn schema_statements() -> Vec<String> {
+    let mut statements = vec![CREATE_DATABASE.to_owned()];
+    statements.extend(SUPER_TABLES.iter().map(|t| qualified(t.create, t.name)));
     statements
+}
+
+/// `sql` with its first mention of `table` qualified by the database.
+fn qualified(sql: &str, table: &str) -> String {
+    sql.replacen(&format!("`{table}`"), &format!("`{DATABASE}`.`{table}`"), 1)
 }
 
 /// Reads the next batch of `table` after the cursor: (last id, rows without `id`).
@@ -114,10 +120,7 @@ async fn connect(dsn: &str) -> Result<Taos> {
                 column = column.name,
                 "adding a column TDengine lacks"
             );
-            let sql = table.add_column_sql(column).replace(
-                &format!("`{}`", table.name),
-                &format!("`{DATABASE}`.`{}`", table.name),
-            );
+            let sql = qualified(&table.add_column_sql(column), table.name);
             taos.exec(&sql)
                 .await
                 .with_context(|| format!("running {sql}"))?;
@@ -240,5 +243,34 @@ async fn worker_loop(
         } else if moved == 0 {
             tokio::time::sleep(IDLE).await;
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_schema_statement_names_the_database() {
+        let statements = schema_statements();
+        assert!(statements[0].starts_with("CREATE DATABASE IF NOT EXISTS `aer`"));
+        assert_eq!(statements.len(), 1 + SUPER_TABLES.len());
+        for (statement, table) in statements[1..].iter().zip(SUPER_TABLES) {
+            assert!(
+                statement.starts_with(&format!(
+                    "CREATE STABLE IF NOT EXISTS `aer`.`{}` (",
+                    table.name
+                )),
+                "{statement}"
+            );
+        }
+        let column = &SUPER_TABLES[0].columns[1];
+        assert_eq!(
+            qualified(&SUPER_TABLES[0].add_column_sql(column), "telemetry"),
+            format!(
+                "ALTER STABLE `aer`.`telemetry` ADD COLUMN `{}` {}",
+                column.name, column.sql_type
+            )
+        );
     }
 }
