@@ -99,7 +99,7 @@ async fn connect(dsn: &str) -> Result<Taos> {
     let builder = TaosBuilder::from_dsn(dsn).context("TDengine DSN")?;
     let taos = builder.build().await.context("connecting to TDengine")?;
     for statement in schema_statements() {
-        taos.exec(statement)
+        taos.exec(&statement)
             .await
             .with_context(|| format!("running {statement}"))?;
     }
