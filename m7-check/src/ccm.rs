@@ -251,7 +251,8 @@ pub fn session(out: &mut impl Write) -> core::fmt::Result {
     )
 }
 
-fn quiet_mcu2() -> Mcu2 {
+/// An MCU2 frame with no fault or warning set (fill in the temperatures).
+pub fn quiet_mcu2() -> Mcu2 {
     Mcu2 {
         mcu_motor_temp: 30,
         mcu_inverter_temp: 30,

@@ -14,6 +14,7 @@ mod digest;
 mod isotp;
 mod pcc;
 
+pub use ccm::quiet_mcu2;
 pub use cost::{COSTS, Cost};
 pub use digest::Digest;
 

@@ -4,9 +4,8 @@
 //! control from the ISO-TP receiver; the other nodes' frames from the generated encoders.
 
 use aer::can::{
-    AnyMessage, Mcu1, Mcu2, Mcu3, McuMainState, McuWarningLevel, McuWorkMode, MotorMode,
-    MotorRotateDirection, OrionCellVoltages, OrionLimits, OrionPackStatus, PccStatus,
-    PrechargeState,
+    AnyMessage, Mcu1, Mcu2, Mcu3, McuMainState, McuWorkMode, MotorMode, MotorRotateDirection,
+    OrionCellVoltages, OrionLimits, OrionPackStatus, PccStatus, PrechargeState,
 };
 use aer::telemetry::Telemetry;
 use aer_ccm::apps::AppsCalibration;
@@ -190,7 +189,7 @@ pub fn write(path: &Path) -> Result<usize> {
                     AnyMessage::Mcu2(Mcu2 {
                         mcu_motor_temp: car.motor_temp as i16,
                         mcu_inverter_temp: car.inverter_temp as i16,
-                        ..quiet_mcu2()
+                        ..aer_m7_check::quiet_mcu2()
                     }),
                 ),
                 (
@@ -266,30 +265,4 @@ pub fn write(path: &Path) -> Result<usize> {
     }
     std::fs::write(path, log).with_context(|| format!("writing {}", path.display()))?;
     Ok(frames)
-}
-
-fn quiet_mcu2() -> Mcu2 {
-    Mcu2 {
-        mcu_motor_temp: 30,
-        mcu_inverter_temp: 30,
-        mcu_dc_main_wire_over_curr_fault: false,
-        mcu_motor_phase_curr_fault: false,
-        mcu_over_hot_fault: false,
-        mcu_resolver_fault: false,
-        mcu_phase_curr_sensor_fault: false,
-        mcu_motor_over_spd_fault: false,
-        mcu_drv_motor_over_hot_fault: false,
-        mcu_dc_main_wire_over_volt_fault: false,
-        mcu_drv_motor_over_cool_fault: false,
-        mcu_motor_system_state: false,
-        mcu_temp_sensor_state: false,
-        mcu_motor_temp_sensor_state: false,
-        mcu_dc_volt_sensor_state: false,
-        mcu_dc_low_volt_warning: false,
-        mcu_12v_low_volt_warning: false,
-        mcu2_rolling_counter: 0,
-        mcu_warning_level: McuWarningLevel::None,
-        mcu_motor_open_phase_fault: false,
-        mcu_motor_stall_fault: false,
-    }
 }
