@@ -31,7 +31,7 @@ fn free_port() -> u16 {
 fn start_broker(port: u16) {
     let text = broker::DEFAULT_CONFIG
         .replace("127.0.0.1:1883", &format!("127.0.0.1:{port}"))
-        .replace("max_segment_size = 1048576", "max_segment_size = 67108864");
+        .replace("max_segment_size = 262144", "max_segment_size = 67108864");
     let config: rumqttd::Config = toml::from_str(&text).expect("broker config");
     broker::check(&config).expect("loopback only");
     broker::spawn(config).expect("broker thread");
