@@ -69,7 +69,11 @@ fn main() -> Result<()> {
     tracing_subscriber::fmt()
         .with_env_filter(
             tracing_subscriber::EnvFilter::try_from_default_env()
-                .unwrap_or_else(|_| "info,rumqttd=warn".into()),
+                // rumqttd logs every client disconnect as an error inside its `remote_link`
+                // span; keep its other warnings (a listener that cannot bind, for one).
+                .unwrap_or_else(|_| {
+                    "info,rumqttd=warn,rumqttd::server::broker[remote_link]=off".into()
+                }),
         )
         .init();
     let cli = Cli::parse();
@@ -183,11 +187,13 @@ async fn serve(config: Config, command: Command) -> Result<()> {
         Command::Demo => {
             println!(
                 "aer-raspi demo: replaying the bundled session at recorded speed, looping until Ctrl-C.\n\
-                 Watch it:   mosquitto_sub -h 127.0.0.1 -t 'aer/#' -v\n\
-                 Plot it:    PlotJuggler > Streaming > MQTT, broker 127.0.0.1:1883, topic aer/{}/telemetry (JSON, timestamp field `ts`)\n\
-                 Data file:  {} (SQLite, tables from schema/)",
-                config.car_id,
-                std::fs::canonicalize(&config.store.path)
+                 Watch it:   mosquitto_sub -h {host} -p {port} -t 'aer/#' -v\n\
+                 Plot it:    PlotJuggler > Streaming > MQTT, broker {host}:{port}, topic aer/{car}/telemetry (JSON, timestamp field `ts`)\n\
+                 Data file:  {file} (SQLite, tables from schema/)",
+                host = config.mqtt.host,
+                port = config.mqtt.port,
+                car = config.car_id,
+                file = std::fs::canonicalize(&config.store.path)
                     .unwrap_or_else(|_| config.store.path.clone())
                     .display()
             );

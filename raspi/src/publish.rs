@@ -53,10 +53,11 @@ pub fn connect(
 
 /// Polls the MQTT event loop in its own task (publishing from the polling task would
 /// deadlock once the queue fills: rumqtt issue #263); connection errors are logged and
-/// retried after a second. `connected` is set on every (re)connection; the loop ends after
-/// a clean disconnect.
+/// retried after a second. `connected` is set on every (re)connection; after a disconnect
+/// the loop ends once the broker has closed the connection.
 pub async fn drive(mut eventloop: EventLoop, connected_tx: tokio::sync::watch::Sender<bool>) {
     let mut connected = false;
+    let mut closing = false;
     loop {
         match eventloop.poll().await {
             Ok(Event::Incoming(Packet::ConnAck(_))) => {
@@ -64,8 +65,9 @@ pub async fn drive(mut eventloop: EventLoop, connected_tx: tokio::sync::watch::S
                 let _ = connected_tx.send(true);
                 info!("connected to the MQTT broker");
             }
-            Ok(Event::Outgoing(rumqttc::Outgoing::Disconnect)) => return,
+            Ok(Event::Outgoing(rumqttc::Outgoing::Disconnect)) => closing = true,
             Ok(_) => {}
+            Err(_) if closing => return,
             Err(error) => {
                 if connected {
                     warn!(%error, "MQTT connection lost; reconnecting every second");
