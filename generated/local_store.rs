@@ -21,7 +21,7 @@ pub struct LocalTable {
 pub static TELEMETRY: LocalTable = LocalTable {
     name: "telemetry",
     create: [
-        r#"CREATE TABLE IF NOT EXISTS "telemetry" ("id" INTEGER PRIMARY KEY, "car_id" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "sequence" INTEGER, "timestamp_us" INTEGER, "apps_travel" REAL, "bse_front" REAL, "bse_rear" REAL, "imd_resistance" INTEGER, "imd_status" INTEGER, "pack_voltage" REAL, "pack_current" REAL, "soc" REAL, "discharge_limit" INTEGER, "charge_limit" INTEGER, "low_cell_volt" REAL, "high_cell_volt" REAL, "avg_cell_volt" REAL, "motor_speed" REAL, "motor_torque" REAL, "max_motor_torque" REAL, "motor_direction" INTEGER, "motor_state" INTEGER, "mcu_main_state" INTEGER, "mcu_work_mode" INTEGER, "mcu_voltage" REAL, "mcu_phase_current" REAL, "mcu_current" REAL, "motor_temp" INTEGER, "mcu_temp" INTEGER, "mcu_warning_level" INTEGER, "vehicle_state" INTEGER, "shocktravel1" REAL, "shocktravel2" REAL, "shocktravel3" REAL, "shocktravel4" REAL, "can_rx_dropped" INTEGER, "can_tx_dropped" INTEGER, "can_decode_errors" INTEGER, "telemetry_superseded" INTEGER, "dc_main_wire_over_volt_fault" INTEGER, "motor_phase_curr_fault" INTEGER, "mcu_over_hot_fault" INTEGER, "resolver_fault" INTEGER, "phase_curr_sensor_fault" INTEGER, "motor_over_spd_fault" INTEGER, "drv_motor_over_hot_fault" INTEGER, "dc_main_wire_over_curr_fault" INTEGER, "drv_motor_over_cool_fault" INTEGER, "dc_low_volt_warning" INTEGER, "mcu_12v_low_volt_warning" INTEGER, "motor_stall_fault" INTEGER, "motor_open_phase_fault" INTEGER, "fault_over_current" INTEGER, "fault_under_voltage" INTEGER, "fault_over_temperature" INTEGER, "fault_apps" INTEGER, "fault_bse" INTEGER, "fault_bpps" INTEGER, "fault_apps_brake_plausibility" INTEGER, "fault_low_battery_voltage" INTEGER)"#,
+        r#"CREATE TABLE IF NOT EXISTS "telemetry" ("id" INTEGER PRIMARY KEY, "car_id" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "sequence" INTEGER, "timestamp_us" INTEGER, "apps_travel" REAL, "bse_front" REAL, "bse_rear" REAL, "imd_resistance" INTEGER, "imd_status" INTEGER, "pack_voltage" REAL, "pack_current" REAL, "soc" REAL, "discharge_limit" INTEGER, "charge_limit" INTEGER, "low_cell_volt" REAL, "high_cell_volt" REAL, "avg_cell_volt" REAL, "pack_temp" INTEGER, "motor_speed" REAL, "motor_torque" REAL, "max_motor_torque" REAL, "motor_direction" INTEGER, "motor_state" INTEGER, "mcu_main_state" INTEGER, "mcu_work_mode" INTEGER, "mcu_voltage" REAL, "mcu_phase_current" REAL, "mcu_current" REAL, "motor_temp" INTEGER, "mcu_temp" INTEGER, "mcu_warning_level" INTEGER, "vehicle_state" INTEGER, "ready_to_drive" INTEGER, "shocktravel1" REAL, "shocktravel2" REAL, "shocktravel3" REAL, "shocktravel4" REAL, "can_rx_dropped" INTEGER, "can_tx_dropped" INTEGER, "can_decode_errors" INTEGER, "telemetry_superseded" INTEGER, "dc_main_wire_over_volt_fault" INTEGER, "motor_phase_curr_fault" INTEGER, "mcu_over_hot_fault" INTEGER, "resolver_fault" INTEGER, "phase_curr_sensor_fault" INTEGER, "motor_over_spd_fault" INTEGER, "drv_motor_over_hot_fault" INTEGER, "dc_main_wire_over_curr_fault" INTEGER, "drv_motor_over_cool_fault" INTEGER, "dc_low_volt_warning" INTEGER, "mcu_12v_low_volt_warning" INTEGER, "motor_stall_fault" INTEGER, "motor_open_phase_fault" INTEGER, "fault_over_current" INTEGER, "fault_under_voltage" INTEGER, "fault_over_temperature" INTEGER, "fault_apps" INTEGER, "fault_bse" INTEGER, "fault_bpps" INTEGER, "fault_apps_brake_plausibility" INTEGER, "fault_low_battery_voltage" INTEGER)"#,
         r#"CREATE INDEX IF NOT EXISTS "telemetry_ts" ON "telemetry" ("ts")"#,
     ],
     columns: &[
@@ -98,6 +98,10 @@ pub static TELEMETRY: LocalTable = LocalTable {
             sql_type: "REAL",
         },
         Column {
+            name: "pack_temp",
+            sql_type: "INTEGER",
+        },
+        Column {
             name: "motor_speed",
             sql_type: "REAL",
         },
@@ -151,6 +155,10 @@ pub static TELEMETRY: LocalTable = LocalTable {
         },
         Column {
             name: "vehicle_state",
+            sql_type: "INTEGER",
+        },
+        Column {
+            name: "ready_to_drive",
             sql_type: "INTEGER",
         },
         Column {
@@ -270,7 +278,7 @@ pub static TELEMETRY: LocalTable = LocalTable {
             sql_type: "INTEGER",
         },
     ],
-    insert: r#"INSERT INTO "telemetry" ("car_id", "schema_fingerprint", "ts", "sequence", "timestamp_us", "apps_travel", "bse_front", "bse_rear", "imd_resistance", "imd_status", "pack_voltage", "pack_current", "soc", "discharge_limit", "charge_limit", "low_cell_volt", "high_cell_volt", "avg_cell_volt", "motor_speed", "motor_torque", "max_motor_torque", "motor_direction", "motor_state", "mcu_main_state", "mcu_work_mode", "mcu_voltage", "mcu_phase_current", "mcu_current", "motor_temp", "mcu_temp", "mcu_warning_level", "vehicle_state", "shocktravel1", "shocktravel2", "shocktravel3", "shocktravel4", "can_rx_dropped", "can_tx_dropped", "can_decode_errors", "telemetry_superseded", "dc_main_wire_over_volt_fault", "motor_phase_curr_fault", "mcu_over_hot_fault", "resolver_fault", "phase_curr_sensor_fault", "motor_over_spd_fault", "drv_motor_over_hot_fault", "dc_main_wire_over_curr_fault", "drv_motor_over_cool_fault", "dc_low_volt_warning", "mcu_12v_low_volt_warning", "motor_stall_fault", "motor_open_phase_fault", "fault_over_current", "fault_under_voltage", "fault_over_temperature", "fault_apps", "fault_bse", "fault_bpps", "fault_apps_brake_plausibility", "fault_low_battery_voltage") VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17, ?18, ?19, ?20, ?21, ?22, ?23, ?24, ?25, ?26, ?27, ?28, ?29, ?30, ?31, ?32, ?33, ?34, ?35, ?36, ?37, ?38, ?39, ?40, ?41, ?42, ?43, ?44, ?45, ?46, ?47, ?48, ?49, ?50, ?51, ?52, ?53, ?54, ?55, ?56, ?57, ?58, ?59, ?60, ?61)"#,
+    insert: r#"INSERT INTO "telemetry" ("car_id", "schema_fingerprint", "ts", "sequence", "timestamp_us", "apps_travel", "bse_front", "bse_rear", "imd_resistance", "imd_status", "pack_voltage", "pack_current", "soc", "discharge_limit", "charge_limit", "low_cell_volt", "high_cell_volt", "avg_cell_volt", "pack_temp", "motor_speed", "motor_torque", "max_motor_torque", "motor_direction", "motor_state", "mcu_main_state", "mcu_work_mode", "mcu_voltage", "mcu_phase_current", "mcu_current", "motor_temp", "mcu_temp", "mcu_warning_level", "vehicle_state", "ready_to_drive", "shocktravel1", "shocktravel2", "shocktravel3", "shocktravel4", "can_rx_dropped", "can_tx_dropped", "can_decode_errors", "telemetry_superseded", "dc_main_wire_over_volt_fault", "motor_phase_curr_fault", "mcu_over_hot_fault", "resolver_fault", "phase_curr_sensor_fault", "motor_over_spd_fault", "drv_motor_over_hot_fault", "dc_main_wire_over_curr_fault", "drv_motor_over_cool_fault", "dc_low_volt_warning", "mcu_12v_low_volt_warning", "motor_stall_fault", "motor_open_phase_fault", "fault_over_current", "fault_under_voltage", "fault_over_temperature", "fault_apps", "fault_bse", "fault_bpps", "fault_apps_brake_plausibility", "fault_low_battery_voltage") VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17, ?18, ?19, ?20, ?21, ?22, ?23, ?24, ?25, ?26, ?27, ?28, ?29, ?30, ?31, ?32, ?33, ?34, ?35, ?36, ?37, ?38, ?39, ?40, ?41, ?42, ?43, ?44, ?45, ?46, ?47, ?48, ?49, ?50, ?51, ?52, ?53, ?54, ?55, ?56, ?57, ?58, ?59, ?60, ?61, ?62, ?63)"#,
 };
 
 /// CAN message `CCM_Status` (0xA0), one row per frame; multiplexed signals are NULL when absent.

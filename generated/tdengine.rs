@@ -33,7 +33,7 @@ pub const CREATE_DATABASE: &str = "CREATE DATABASE IF NOT EXISTS `aer` PRECISION
 /// The telemetry packet (Telemetry), one row per packet.
 pub static TELEMETRY: SuperTable = SuperTable {
     name: "telemetry",
-    create: "CREATE STABLE IF NOT EXISTS `telemetry` (`ts` TIMESTAMP, `sequence` SMALLINT UNSIGNED, `timestamp_us` INT UNSIGNED, `apps_travel` FLOAT, `bse_front` FLOAT, `bse_rear` FLOAT, `imd_resistance` SMALLINT UNSIGNED, `imd_status` TINYINT UNSIGNED, `pack_voltage` FLOAT, `pack_current` FLOAT, `soc` FLOAT, `discharge_limit` SMALLINT UNSIGNED, `charge_limit` SMALLINT UNSIGNED, `low_cell_volt` FLOAT, `high_cell_volt` FLOAT, `avg_cell_volt` FLOAT, `motor_speed` FLOAT, `motor_torque` FLOAT, `max_motor_torque` FLOAT, `motor_direction` TINYINT UNSIGNED, `motor_state` TINYINT UNSIGNED, `mcu_main_state` TINYINT UNSIGNED, `mcu_work_mode` TINYINT UNSIGNED, `mcu_voltage` FLOAT, `mcu_phase_current` FLOAT, `mcu_current` FLOAT, `motor_temp` SMALLINT, `mcu_temp` SMALLINT, `mcu_warning_level` TINYINT UNSIGNED, `vehicle_state` TINYINT UNSIGNED, `shocktravel1` FLOAT, `shocktravel2` FLOAT, `shocktravel3` FLOAT, `shocktravel4` FLOAT, `can_rx_dropped` TINYINT UNSIGNED, `can_tx_dropped` TINYINT UNSIGNED, `can_decode_errors` TINYINT UNSIGNED, `telemetry_superseded` TINYINT UNSIGNED, `dc_main_wire_over_volt_fault` BOOL, `motor_phase_curr_fault` BOOL, `mcu_over_hot_fault` BOOL, `resolver_fault` BOOL, `phase_curr_sensor_fault` BOOL, `motor_over_spd_fault` BOOL, `drv_motor_over_hot_fault` BOOL, `dc_main_wire_over_curr_fault` BOOL, `drv_motor_over_cool_fault` BOOL, `dc_low_volt_warning` BOOL, `mcu_12v_low_volt_warning` BOOL, `motor_stall_fault` BOOL, `motor_open_phase_fault` BOOL, `fault_over_current` BOOL, `fault_under_voltage` BOOL, `fault_over_temperature` BOOL, `fault_apps` BOOL, `fault_bse` BOOL, `fault_bpps` BOOL, `fault_apps_brake_plausibility` BOOL, `fault_low_battery_voltage` BOOL) TAGS (`car_id` VARCHAR(32), `schema_fingerprint` INT UNSIGNED)",
+    create: "CREATE STABLE IF NOT EXISTS `telemetry` (`ts` TIMESTAMP, `sequence` SMALLINT UNSIGNED, `timestamp_us` INT UNSIGNED, `apps_travel` FLOAT, `bse_front` FLOAT, `bse_rear` FLOAT, `imd_resistance` SMALLINT UNSIGNED, `imd_status` TINYINT UNSIGNED, `pack_voltage` FLOAT, `pack_current` FLOAT, `soc` FLOAT, `discharge_limit` SMALLINT UNSIGNED, `charge_limit` SMALLINT UNSIGNED, `low_cell_volt` FLOAT, `high_cell_volt` FLOAT, `avg_cell_volt` FLOAT, `pack_temp` TINYINT, `motor_speed` FLOAT, `motor_torque` FLOAT, `max_motor_torque` FLOAT, `motor_direction` TINYINT UNSIGNED, `motor_state` TINYINT UNSIGNED, `mcu_main_state` TINYINT UNSIGNED, `mcu_work_mode` TINYINT UNSIGNED, `mcu_voltage` FLOAT, `mcu_phase_current` FLOAT, `mcu_current` FLOAT, `motor_temp` SMALLINT, `mcu_temp` SMALLINT, `mcu_warning_level` TINYINT UNSIGNED, `vehicle_state` TINYINT UNSIGNED, `ready_to_drive` BOOL, `shocktravel1` FLOAT, `shocktravel2` FLOAT, `shocktravel3` FLOAT, `shocktravel4` FLOAT, `can_rx_dropped` TINYINT UNSIGNED, `can_tx_dropped` TINYINT UNSIGNED, `can_decode_errors` TINYINT UNSIGNED, `telemetry_superseded` TINYINT UNSIGNED, `dc_main_wire_over_volt_fault` BOOL, `motor_phase_curr_fault` BOOL, `mcu_over_hot_fault` BOOL, `resolver_fault` BOOL, `phase_curr_sensor_fault` BOOL, `motor_over_spd_fault` BOOL, `drv_motor_over_hot_fault` BOOL, `dc_main_wire_over_curr_fault` BOOL, `drv_motor_over_cool_fault` BOOL, `dc_low_volt_warning` BOOL, `mcu_12v_low_volt_warning` BOOL, `motor_stall_fault` BOOL, `motor_open_phase_fault` BOOL, `fault_over_current` BOOL, `fault_under_voltage` BOOL, `fault_over_temperature` BOOL, `fault_apps` BOOL, `fault_bse` BOOL, `fault_bpps` BOOL, `fault_apps_brake_plausibility` BOOL, `fault_low_battery_voltage` BOOL) TAGS (`car_id` VARCHAR(32), `schema_fingerprint` INT UNSIGNED)",
     columns: &[
         Column {
             name: "ts",
@@ -100,6 +100,10 @@ pub static TELEMETRY: SuperTable = SuperTable {
             sql_type: "FLOAT",
         },
         Column {
+            name: "pack_temp",
+            sql_type: "TINYINT",
+        },
+        Column {
             name: "motor_speed",
             sql_type: "FLOAT",
         },
@@ -154,6 +158,10 @@ pub static TELEMETRY: SuperTable = SuperTable {
         Column {
             name: "vehicle_state",
             sql_type: "TINYINT UNSIGNED",
+        },
+        Column {
+            name: "ready_to_drive",
+            sql_type: "BOOL",
         },
         Column {
             name: "shocktravel1",
@@ -282,7 +290,7 @@ pub static TELEMETRY: SuperTable = SuperTable {
             sql_type: "INT UNSIGNED",
         },
     ],
-    insert: "INSERT INTO ? USING `telemetry` TAGS (?, ?) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+    insert: "INSERT INTO ? USING `telemetry` TAGS (?, ?) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
 };
 
 /// CAN message `CCM_Status` (0xA0), one row per frame; multiplexed signals are NULL when absent.

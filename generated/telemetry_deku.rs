@@ -32,6 +32,7 @@ pub struct TelemetryFrame {
     pub low_cell_volt: u16,
     pub high_cell_volt: u16,
     pub avg_cell_volt: u16,
+    pub pack_temp: i8,
     pub motor_speed: u16,
     pub motor_torque: u8,
     pub max_motor_torque: u8,
@@ -120,6 +121,7 @@ impl TelemetryFrame {
             low_cell_volt: Telemetry::low_cell_volt_from_raw(self.low_cell_volt),
             high_cell_volt: Telemetry::high_cell_volt_from_raw(self.high_cell_volt),
             avg_cell_volt: Telemetry::avg_cell_volt_from_raw(self.avg_cell_volt),
+            pack_temp: Telemetry::pack_temp_from_raw(self.pack_temp),
             motor_speed: Telemetry::motor_speed_from_raw(self.motor_speed),
             motor_torque: Telemetry::motor_torque_from_raw(self.motor_torque),
             max_motor_torque: Telemetry::max_motor_torque_from_raw(self.max_motor_torque),
@@ -134,6 +136,7 @@ impl TelemetryFrame {
             mcu_temp: Telemetry::mcu_temp_from_raw(self.mcu_temp),
             mcu_warning_level: Telemetry::mcu_warning_level_from_raw(self.mcu_warning_level),
             vehicle_state: Telemetry::vehicle_state_from_raw(self.vehicle_state),
+            ready_to_drive: Telemetry::ready_to_drive_from_raw(self.flags[0] & (1 << 0) != 0),
             shocktravel1: Telemetry::shocktravel1_from_raw(self.shocktravel1),
             shocktravel2: Telemetry::shocktravel2_from_raw(self.shocktravel2),
             shocktravel3: Telemetry::shocktravel3_from_raw(self.shocktravel3),
@@ -145,57 +148,57 @@ impl TelemetryFrame {
                 self.telemetry_superseded,
             ),
             dc_main_wire_over_volt_fault: Telemetry::dc_main_wire_over_volt_fault_from_raw(
-                self.flags[0] & (1 << 0) != 0,
-            ),
-            motor_phase_curr_fault: Telemetry::motor_phase_curr_fault_from_raw(
                 self.flags[0] & (1 << 1) != 0,
             ),
-            mcu_over_hot_fault: Telemetry::mcu_over_hot_fault_from_raw(
+            motor_phase_curr_fault: Telemetry::motor_phase_curr_fault_from_raw(
                 self.flags[0] & (1 << 2) != 0,
             ),
-            resolver_fault: Telemetry::resolver_fault_from_raw(self.flags[0] & (1 << 3) != 0),
-            phase_curr_sensor_fault: Telemetry::phase_curr_sensor_fault_from_raw(
-                self.flags[0] & (1 << 4) != 0,
+            mcu_over_hot_fault: Telemetry::mcu_over_hot_fault_from_raw(
+                self.flags[0] & (1 << 3) != 0,
             ),
-            motor_over_spd_fault: Telemetry::motor_over_spd_fault_from_raw(
+            resolver_fault: Telemetry::resolver_fault_from_raw(self.flags[0] & (1 << 4) != 0),
+            phase_curr_sensor_fault: Telemetry::phase_curr_sensor_fault_from_raw(
                 self.flags[0] & (1 << 5) != 0,
             ),
-            drv_motor_over_hot_fault: Telemetry::drv_motor_over_hot_fault_from_raw(
+            motor_over_spd_fault: Telemetry::motor_over_spd_fault_from_raw(
                 self.flags[0] & (1 << 6) != 0,
             ),
-            dc_main_wire_over_curr_fault: Telemetry::dc_main_wire_over_curr_fault_from_raw(
+            drv_motor_over_hot_fault: Telemetry::drv_motor_over_hot_fault_from_raw(
                 self.flags[0] & (1 << 7) != 0,
             ),
-            drv_motor_over_cool_fault: Telemetry::drv_motor_over_cool_fault_from_raw(
+            dc_main_wire_over_curr_fault: Telemetry::dc_main_wire_over_curr_fault_from_raw(
                 self.flags[1] & (1 << 0) != 0,
             ),
-            dc_low_volt_warning: Telemetry::dc_low_volt_warning_from_raw(
+            drv_motor_over_cool_fault: Telemetry::drv_motor_over_cool_fault_from_raw(
                 self.flags[1] & (1 << 1) != 0,
             ),
-            mcu_12v_low_volt_warning: Telemetry::mcu_12v_low_volt_warning_from_raw(
+            dc_low_volt_warning: Telemetry::dc_low_volt_warning_from_raw(
                 self.flags[1] & (1 << 2) != 0,
             ),
-            motor_stall_fault: Telemetry::motor_stall_fault_from_raw(self.flags[1] & (1 << 3) != 0),
-            motor_open_phase_fault: Telemetry::motor_open_phase_fault_from_raw(
-                self.flags[1] & (1 << 4) != 0,
+            mcu_12v_low_volt_warning: Telemetry::mcu_12v_low_volt_warning_from_raw(
+                self.flags[1] & (1 << 3) != 0,
             ),
-            fault_over_current: Telemetry::fault_over_current_from_raw(
+            motor_stall_fault: Telemetry::motor_stall_fault_from_raw(self.flags[1] & (1 << 4) != 0),
+            motor_open_phase_fault: Telemetry::motor_open_phase_fault_from_raw(
                 self.flags[1] & (1 << 5) != 0,
             ),
-            fault_under_voltage: Telemetry::fault_under_voltage_from_raw(
+            fault_over_current: Telemetry::fault_over_current_from_raw(
                 self.flags[1] & (1 << 6) != 0,
             ),
-            fault_over_temperature: Telemetry::fault_over_temperature_from_raw(
+            fault_under_voltage: Telemetry::fault_under_voltage_from_raw(
                 self.flags[1] & (1 << 7) != 0,
             ),
-            fault_apps: Telemetry::fault_apps_from_raw(self.flags[2] & (1 << 0) != 0),
-            fault_bse: Telemetry::fault_bse_from_raw(self.flags[2] & (1 << 1) != 0),
-            fault_bpps: Telemetry::fault_bpps_from_raw(self.flags[2] & (1 << 2) != 0),
+            fault_over_temperature: Telemetry::fault_over_temperature_from_raw(
+                self.flags[2] & (1 << 0) != 0,
+            ),
+            fault_apps: Telemetry::fault_apps_from_raw(self.flags[2] & (1 << 1) != 0),
+            fault_bse: Telemetry::fault_bse_from_raw(self.flags[2] & (1 << 2) != 0),
+            fault_bpps: Telemetry::fault_bpps_from_raw(self.flags[2] & (1 << 3) != 0),
             fault_apps_brake_plausibility: Telemetry::fault_apps_brake_plausibility_from_raw(
-                self.flags[2] & (1 << 3) != 0,
+                self.flags[2] & (1 << 4) != 0,
             ),
             fault_low_battery_voltage: Telemetry::fault_low_battery_voltage_from_raw(
-                self.flags[2] & (1 << 4) != 0,
+                self.flags[2] & (1 << 5) != 0,
             ),
         };
         (header, telemetry)
@@ -204,68 +207,71 @@ impl TelemetryFrame {
     /// The wire form of a snapshot, as the firmware's packer writes it.
     pub fn from_telemetry(header: TelemetryHeader, t: &Telemetry) -> Self {
         let mut flags = [0u8; 3];
-        if Telemetry::dc_main_wire_over_volt_fault_to_raw(t.dc_main_wire_over_volt_fault).0 {
+        if Telemetry::ready_to_drive_to_raw(t.ready_to_drive).0 {
             flags[0] |= 1 << 0;
         }
-        if Telemetry::motor_phase_curr_fault_to_raw(t.motor_phase_curr_fault).0 {
+        if Telemetry::dc_main_wire_over_volt_fault_to_raw(t.dc_main_wire_over_volt_fault).0 {
             flags[0] |= 1 << 1;
         }
-        if Telemetry::mcu_over_hot_fault_to_raw(t.mcu_over_hot_fault).0 {
+        if Telemetry::motor_phase_curr_fault_to_raw(t.motor_phase_curr_fault).0 {
             flags[0] |= 1 << 2;
         }
-        if Telemetry::resolver_fault_to_raw(t.resolver_fault).0 {
+        if Telemetry::mcu_over_hot_fault_to_raw(t.mcu_over_hot_fault).0 {
             flags[0] |= 1 << 3;
         }
-        if Telemetry::phase_curr_sensor_fault_to_raw(t.phase_curr_sensor_fault).0 {
+        if Telemetry::resolver_fault_to_raw(t.resolver_fault).0 {
             flags[0] |= 1 << 4;
         }
-        if Telemetry::motor_over_spd_fault_to_raw(t.motor_over_spd_fault).0 {
+        if Telemetry::phase_curr_sensor_fault_to_raw(t.phase_curr_sensor_fault).0 {
             flags[0] |= 1 << 5;
         }
-        if Telemetry::drv_motor_over_hot_fault_to_raw(t.drv_motor_over_hot_fault).0 {
+        if Telemetry::motor_over_spd_fault_to_raw(t.motor_over_spd_fault).0 {
             flags[0] |= 1 << 6;
         }
-        if Telemetry::dc_main_wire_over_curr_fault_to_raw(t.dc_main_wire_over_curr_fault).0 {
+        if Telemetry::drv_motor_over_hot_fault_to_raw(t.drv_motor_over_hot_fault).0 {
             flags[0] |= 1 << 7;
         }
-        if Telemetry::drv_motor_over_cool_fault_to_raw(t.drv_motor_over_cool_fault).0 {
+        if Telemetry::dc_main_wire_over_curr_fault_to_raw(t.dc_main_wire_over_curr_fault).0 {
             flags[1] |= 1 << 0;
         }
-        if Telemetry::dc_low_volt_warning_to_raw(t.dc_low_volt_warning).0 {
+        if Telemetry::drv_motor_over_cool_fault_to_raw(t.drv_motor_over_cool_fault).0 {
             flags[1] |= 1 << 1;
         }
-        if Telemetry::mcu_12v_low_volt_warning_to_raw(t.mcu_12v_low_volt_warning).0 {
+        if Telemetry::dc_low_volt_warning_to_raw(t.dc_low_volt_warning).0 {
             flags[1] |= 1 << 2;
         }
-        if Telemetry::motor_stall_fault_to_raw(t.motor_stall_fault).0 {
+        if Telemetry::mcu_12v_low_volt_warning_to_raw(t.mcu_12v_low_volt_warning).0 {
             flags[1] |= 1 << 3;
         }
-        if Telemetry::motor_open_phase_fault_to_raw(t.motor_open_phase_fault).0 {
+        if Telemetry::motor_stall_fault_to_raw(t.motor_stall_fault).0 {
             flags[1] |= 1 << 4;
         }
-        if Telemetry::fault_over_current_to_raw(t.fault_over_current).0 {
+        if Telemetry::motor_open_phase_fault_to_raw(t.motor_open_phase_fault).0 {
             flags[1] |= 1 << 5;
         }
-        if Telemetry::fault_under_voltage_to_raw(t.fault_under_voltage).0 {
+        if Telemetry::fault_over_current_to_raw(t.fault_over_current).0 {
             flags[1] |= 1 << 6;
         }
-        if Telemetry::fault_over_temperature_to_raw(t.fault_over_temperature).0 {
+        if Telemetry::fault_under_voltage_to_raw(t.fault_under_voltage).0 {
             flags[1] |= 1 << 7;
         }
-        if Telemetry::fault_apps_to_raw(t.fault_apps).0 {
+        if Telemetry::fault_over_temperature_to_raw(t.fault_over_temperature).0 {
             flags[2] |= 1 << 0;
         }
-        if Telemetry::fault_bse_to_raw(t.fault_bse).0 {
+        if Telemetry::fault_apps_to_raw(t.fault_apps).0 {
             flags[2] |= 1 << 1;
         }
-        if Telemetry::fault_bpps_to_raw(t.fault_bpps).0 {
+        if Telemetry::fault_bse_to_raw(t.fault_bse).0 {
             flags[2] |= 1 << 2;
         }
-        if Telemetry::fault_apps_brake_plausibility_to_raw(t.fault_apps_brake_plausibility).0 {
+        if Telemetry::fault_bpps_to_raw(t.fault_bpps).0 {
             flags[2] |= 1 << 3;
         }
-        if Telemetry::fault_low_battery_voltage_to_raw(t.fault_low_battery_voltage).0 {
+        if Telemetry::fault_apps_brake_plausibility_to_raw(t.fault_apps_brake_plausibility).0 {
             flags[2] |= 1 << 4;
+        }
+        if Telemetry::fault_low_battery_voltage_to_raw(t.fault_low_battery_voltage).0 {
+            flags[2] |= 1 << 5;
         }
         Self {
             fingerprint: TELEMETRY_FINGERPRINT,
@@ -284,6 +290,7 @@ impl TelemetryFrame {
             low_cell_volt: Telemetry::low_cell_volt_to_raw(t.low_cell_volt).0,
             high_cell_volt: Telemetry::high_cell_volt_to_raw(t.high_cell_volt).0,
             avg_cell_volt: Telemetry::avg_cell_volt_to_raw(t.avg_cell_volt).0,
+            pack_temp: Telemetry::pack_temp_to_raw(t.pack_temp).0,
             motor_speed: Telemetry::motor_speed_to_raw(t.motor_speed).0,
             motor_torque: Telemetry::motor_torque_to_raw(t.motor_torque).0,
             max_motor_torque: Telemetry::max_motor_torque_to_raw(t.max_motor_torque).0,

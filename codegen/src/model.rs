@@ -319,12 +319,15 @@ pub enum Placement {
     Bit(usize, u8),
 }
 
-/// Dashboard hints for a field.
+/// Dashboard hints for a field: a label and thresholds above (`warn`, `critical`) or below
+/// (`warn_below`, `critical_below`) which the value needs attention.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct Display {
     pub label: Option<String>,
     pub warn: Option<f64>,
     pub critical: Option<f64>,
+    pub warn_below: Option<f64>,
+    pub critical_below: Option<f64>,
 }
 
 #[derive(Debug, Clone, PartialEq)]

@@ -66,7 +66,7 @@ impl core::fmt::Display for TelemetryError {
 
 impl core::error::Error for TelemetryError {}
 
-/// Where a field belongs on the dashboard.
+/// Where a field belongs on the dashboard, and when its value needs attention.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct FieldDisplay {
     /// Pit-view section.
@@ -76,6 +76,43 @@ pub struct FieldDisplay {
     pub warn: Option<f64>,
     /// Values above this are shown as critical.
     pub critical: Option<f64>,
+    /// Values below this are shown as a warning.
+    pub warn_below: Option<f64>,
+    /// Values below this are shown as critical.
+    pub critical_below: Option<f64>,
+}
+
+/// How a value stands against its field's thresholds, from fine to critical.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum Level {
+    Normal,
+    Warn,
+    Critical,
+}
+
+impl FieldDisplay {
+    /// The level of `value`: critical beyond a critical threshold, a warning beyond a warning
+    /// one, normal otherwise (and for NaN, which no threshold orders). A flag is 0 or 1, so
+    /// `critical: 0` makes a set flag critical.
+    pub fn level(&self, value: f64) -> Level {
+        let above = |limit: Option<f64>| limit.is_some_and(|limit| value > limit);
+        let below = |limit: Option<f64>| limit.is_some_and(|limit| value < limit);
+        if above(self.critical) || below(self.critical_below) {
+            Level::Critical
+        } else if above(self.warn) || below(self.warn_below) {
+            Level::Warn
+        } else {
+            Level::Normal
+        }
+    }
+
+    /// True when the schema gives the field any threshold.
+    pub fn has_thresholds(&self) -> bool {
+        self.warn.is_some()
+            || self.critical.is_some()
+            || self.warn_below.is_some()
+            || self.critical_below.is_some()
+    }
 }
 
 static TELEMETRY_FIELDS: [SignalMeta; {{ fields.len() }}] = [

@@ -159,6 +159,12 @@ fn telemetry_mistakes_are_reported_with_lines() {
             "range [0, 900]",
         ),
         (
+            "display: { label: Current, warn: 250, critical: 300 }",
+            "display: { label: Current, warn: 350, critical: 300 }",
+            "E0214",
+            "warn above critical (350 > 300)",
+        ),
+        (
             "tx_id: 0x666",
             "tx_id: 0x1666",
             "E0212",
@@ -202,6 +208,11 @@ fn telemetry_mistakes_are_reported_with_lines() {
             edited
                 .lines()
                 .position(|l| l == "  - name: shocktravel5")
+                .map(|i| i + 1)
+        } else if code == "E0214" {
+            edited
+                .lines()
+                .position(|l| l == "  - name: pack_current")
                 .map(|i| i + 1)
         } else {
             line

@@ -61,6 +61,7 @@ struct Car {
     soc: f32,
     motor_temp: f32,
     inverter_temp: f32,
+    pack_temp: f32,
 }
 
 /// Writes the session to `path`; returns the number of frames.
@@ -73,6 +74,7 @@ pub fn write(path: &Path) -> Result<usize> {
         soc: 92.0,
         motor_temp: 28.0,
         inverter_temp: 26.0,
+        pack_temp: 27.0,
     };
     let mut log = String::new();
     let mut frames = 0usize;
@@ -112,6 +114,7 @@ pub fn write(path: &Path) -> Result<usize> {
         car.soc = (car.soc - power_kw * 0.000_06).max(0.0);
         car.motor_temp += power_kw * 0.000_35 - (car.motor_temp - 28.0) * 0.000_2;
         car.inverter_temp += power_kw * 0.000_2 - (car.inverter_temp - 26.0) * 0.000_3;
+        car.pack_temp += power_kw * 0.000_1 - (car.pack_temp - 27.0) * 0.000_1;
         let pack_v = 380.0 + car.soc * 0.3 - power_kw * 0.1;
         // Within what MCU3's 16-bit x 0.01 A field holds.
         let current = (power_kw * 1_000.0 / pack_v).min(320.0);
@@ -167,7 +170,7 @@ pub fn write(path: &Path) -> Result<usize> {
                     AnyMessage::OrionLimits(OrionLimits {
                         orion_pack_dcl: 300,
                         orion_pack_ccl: 40,
-                        orion_high_temperature: 31,
+                        orion_high_temperature: car.pack_temp.round() as i8,
                         orion_low_temperature: 24,
                     }),
                 ),

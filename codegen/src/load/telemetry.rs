@@ -63,6 +63,10 @@ pub struct DisplaySpec {
     pub warn: Option<f64>,
     #[serde(default)]
     pub critical: Option<f64>,
+    #[serde(default)]
+    pub warn_below: Option<f64>,
+    #[serde(default)]
+    pub critical_below: Option<f64>,
 }
 
 /// A parsed telemetry file with its source, for diagnostics.

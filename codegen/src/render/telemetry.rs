@@ -176,11 +176,13 @@ fn view(db: &Database, first_flag_byte: usize, index: usize, f: &TelemetryField)
         opt(f.max)
     );
     let display = format!(
-        "FieldDisplay {{ group: {:?}, label: {:?}, warn: {}, critical: {} }}",
+        "FieldDisplay {{ group: {:?}, label: {:?}, warn: {}, critical: {}, warn_below: {}, critical_below: {} }}",
         f.group,
         f.display.label.clone().unwrap_or_else(|| f.name.clone()),
         opt(f.display.warn),
-        opt(f.display.critical)
+        opt(f.display.critical),
+        opt(f.display.warn_below),
+        opt(f.display.critical_below)
     );
     let mut docs = doc_lines(&f.description);
     if !docs.is_empty() {

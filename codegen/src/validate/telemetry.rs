@@ -144,7 +144,18 @@ fn field(
             label: d.label.clone(),
             warn: d.warn,
             critical: d.critical,
+            warn_below: d.warn_below,
+            critical_below: d.critical_below,
         });
+    if let Some(problem) = threshold_problem(&display) {
+        r.error(
+            "E0214",
+            line,
+            format!("field `{name}` has display thresholds that {problem}"),
+            "a warning comes before critical: warn <= critical above, warn_below >= critical_below below",
+        );
+        return None;
+    }
     let mut field = TelemetryField {
         name: name.clone(),
         group: spec.group.clone().unwrap_or_else(|| "other".to_owned()),
@@ -279,6 +290,32 @@ fn field(
         }
     }
     Some(field)
+}
+
+/// What is wrong with a field's thresholds, if anything.
+fn threshold_problem(display: &Display) -> Option<String> {
+    let all = [
+        display.warn,
+        display.critical,
+        display.warn_below,
+        display.critical_below,
+    ];
+    if all.iter().flatten().any(|v| !v.is_finite()) {
+        return Some("are not finite numbers".to_owned());
+    }
+    if let (Some(warn), Some(critical)) = (display.warn, display.critical)
+        && warn > critical
+    {
+        return Some(format!("warn above critical ({warn} > {critical})"));
+    }
+    if let (Some(warn), Some(critical)) = (display.warn_below, display.critical_below)
+        && warn < critical
+    {
+        return Some(format!(
+            "warn below critical (warn_below {warn} < critical_below {critical})"
+        ));
+    }
+    None
 }
 
 fn find_signal<'d>(
