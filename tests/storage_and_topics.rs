@@ -99,7 +99,8 @@ fn a_live_database_lacking_columns_gets_alter_statements() {
 fn topics_live_under_the_car_prefix() {
     assert_eq!(mqtt::TELEMETRY.path("aer/car1"), "aer/car1/telemetry");
     assert_eq!(mqtt::can::MCU1.path("aer/car1/"), "aer/car1/can/mcu1");
-    assert_eq!(mqtt::SUFFIXES.len(), 1 + aer::can::MESSAGES.len());
+    assert_eq!(mqtt::SUFFIXES.len(), 3 + aer::can::MESSAGES.len());
+    assert_eq!(mqtt::STATUS.path("aer/car1"), "aer/car1/status");
     assert!(
         mqtt::SUFFIXES
             .iter()

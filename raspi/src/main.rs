@@ -266,14 +266,8 @@ async fn report(
     while !stop.load(Ordering::Relaxed) {
         tick.tick().await;
         let now = counters.snapshot();
-        publisher.publish_json("status", &publish::status(&car_id, &counters), true);
-        let metrics = publish::Metrics {
-            ts: publish::seconds(source::now_us()),
-            packets_per_s: (now.packets - previous.packets) as f64,
-            store_lag: (now.packets + now.messages).saturating_sub(now.stored),
-            counters: now,
-        };
-        publisher.publish_json("metrics", &metrics, false);
+        let metrics = publish::metrics(now, previous);
+        publish::report(&publisher, &car_id, &counters, &metrics);
         if console {
             println!(
                 "packets {:>7} ({:>4}/s)  frames {:>8}  stored {:>8}  published {:>8}  dropped {}  errors isotp {} decode {} unknown {} bad-lines {}",

@@ -1,7 +1,7 @@
 //! Counters every stage updates; the metrics topic, the status topic and the live console
 //! read them. Lock-free, so any thread can count.
 
-use serde::Serialize;
+use aer::mqtt::ServiceCounters;
 use std::sync::atomic::{AtomicU64, Ordering};
 
 /// Everything counted since start-up.
@@ -42,35 +42,16 @@ pub struct Counters {
     pub firmware_fingerprint: AtomicU64,
 }
 
-/// A point-in-time copy, as published on the metrics topic.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize)]
-pub struct Snapshot {
-    pub frames: u64,
-    pub bad_lines: u64,
-    pub packets: u64,
-    pub messages: u64,
-    pub isotp_errors: u64,
-    pub fingerprint_mismatches: u64,
-    pub packet_errors: u64,
-    pub decode_errors: u64,
-    pub unknown_ids: u64,
-    pub published: u64,
-    pub publish_dropped: u64,
-    pub stored: u64,
-    pub forwarded: u64,
-    pub forward_errors: u64,
-}
-
 impl Counters {
     /// Adds one to `counter`.
     pub fn bump(counter: &AtomicU64) -> u64 {
         counter.fetch_add(1, Ordering::Relaxed) + 1
     }
 
-    /// Reads every counter.
-    pub fn snapshot(&self) -> Snapshot {
+    /// Reads every counter, as the metrics topic publishes them.
+    pub fn snapshot(&self) -> ServiceCounters {
         let get = |c: &AtomicU64| c.load(Ordering::Relaxed);
-        Snapshot {
+        ServiceCounters {
             frames: get(&self.frames),
             bad_lines: get(&self.bad_lines),
             packets: get(&self.packets),

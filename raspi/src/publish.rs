@@ -4,8 +4,11 @@
 
 use crate::config::MqttConfig;
 use crate::ingest::Record;
-use crate::metrics::{Counters, Snapshot, worth_logging};
-use aer::mqtt::{Sample, TELEMETRY, TelemetryRecord, encode_message};
+use crate::metrics::{Counters, worth_logging};
+use aer::mqtt::{
+    METRICS, Metrics, STATUS, Sample, ServiceCounters, Status, TELEMETRY, TelemetryRecord, Topic,
+    encode_message,
+};
 use rumqttc::{AsyncClient, Event, EventLoop, MqttOptions, Packet, QoS};
 use serde::Serialize;
 use std::sync::Arc;
@@ -118,10 +121,22 @@ impl Publisher {
         let _ = self.client.disconnect().await;
     }
 
-    /// Publishes a JSON value on `<prefix>/<suffix>`.
+    /// Publishes any JSON value on `<prefix>/<suffix>` (outside the typed topics: probes and
+    /// the benchmark's stand-in for today's payload).
     pub fn publish_json(&self, suffix: &str, value: &impl Serialize, retain: bool) {
         if let Ok(payload) = serde_json::to_vec(value) {
             self.send(format!("{}/{suffix}", self.prefix), payload, retain);
+        }
+    }
+
+    /// Publishes `value` on `topic`, typed by the topic.
+    pub fn publish_on<P: Serialize>(&self, topic: &Topic<P>, value: &P, retain: bool) {
+        match topic.encode(value) {
+            Ok(payload) => self.send(topic.path(&self.prefix), payload, retain),
+            Err(error) => {
+                let count = Counters::bump(&self.counters.publish_dropped);
+                warn!(%error, count, topic = topic.suffix(), "payload could not be serialised");
+            }
         }
     }
 
@@ -151,32 +166,20 @@ pub fn seconds(ts_us: u64) -> f64 {
     ts_us as f64 / 1e6
 }
 
-/// The retained status topic.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct Status {
-    pub service: &'static str,
-    pub car_id: String,
-    /// This build's DBC schema fingerprint.
-    pub schema_fingerprint: String,
-    /// This build's telemetry fingerprint.
-    pub telemetry_fingerprint: String,
-    /// The telemetry fingerprint the firmware last sent (`null` before the first packet).
-    pub firmware_fingerprint_seen: Option<String>,
-    /// Whether the firmware and this service were built from the same schema.
-    pub fingerprint_match: Option<bool>,
-    /// Receive time of the last telemetry packet (s since the epoch).
-    pub last_packet_ts: Option<f64>,
+/// The counters now, with the packet rate since `previous` (read one second earlier).
+pub fn metrics(now: ServiceCounters, previous: ServiceCounters) -> Metrics {
+    Metrics {
+        ts: seconds(crate::source::now_us()),
+        packets_per_s: now.packets.saturating_sub(previous.packets) as f64,
+        store_lag: (now.packets + now.messages).saturating_sub(now.stored),
+        counters: now,
+    }
 }
 
-/// The periodic metrics topic.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct Metrics {
-    pub ts: f64,
-    pub packets_per_s: f64,
-    /// Rows decoded but not yet committed to the local store.
-    pub store_lag: u64,
-    #[serde(flatten)]
-    pub counters: Snapshot,
+/// Publishes the retained status and the metrics.
+pub fn report(publisher: &Publisher, car_id: &str, counters: &Counters, metrics: &Metrics) {
+    publisher.publish_on(&STATUS, &status(car_id, counters), true);
+    publisher.publish_on(&METRICS, metrics, false);
 }
 
 /// The status as of now.
@@ -185,7 +188,7 @@ pub fn status(car_id: &str, counters: &Counters) -> Status {
     let last = counters.last_packet_us.load(Ordering::Relaxed);
     let ours = aer::telemetry::TELEMETRY_FINGERPRINT;
     Status {
-        service: "aer-raspi",
+        service: "aer-raspi".to_owned(),
         car_id: car_id.to_owned(),
         schema_fingerprint: format!("{:#010x}", aer::can::SCHEMA_FINGERPRINT),
         telemetry_fingerprint: format!("{ours:#010x}"),

@@ -31,7 +31,7 @@ fn session_lines(packets: usize) -> Vec<String> {
     lines
 }
 
-async fn run(lines: &[String]) -> (aer_raspi::metrics::Snapshot, u64) {
+async fn run(lines: &[String]) -> (aer::mqtt::ServiceCounters, u64) {
     let counters = Arc::new(Counters::default());
     let dir = tempfile::tempdir().expect("temp dir");
     let writer = store::StoreWriter::start(
