@@ -1,0 +1,227 @@
+//! The dashboard's configuration: one TOML file (every key optional), then environment
+//! overrides. The MQTT variables are the Pi service's, so one environment serves both.
+
+use anyhow::{Context, Result, bail};
+use serde::Deserialize;
+use std::path::Path;
+use std::time::Duration;
+
+/// Everything the dashboard reads from its configuration.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct Config {
+    /// The car whose topics are shown: `<topic_prefix>/<car_id>/...`.
+    pub car_id: String,
+    pub mqtt: MqttConfig,
+    pub display: DisplayConfig,
+}
+
+/// Where the telemetry comes from.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct MqttConfig {
+    pub host: String,
+    pub port: u16,
+    pub username: Option<String>,
+    pub password: Option<String>,
+    pub topic_prefix: String,
+}
+
+/// What the screens show and how.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct DisplayConfig {
+    /// The view at start-up.
+    pub view: View,
+    /// Fill the screen (the car's display) instead of opening a window.
+    pub fullscreen: bool,
+    /// Data older than this is marked stale (ms).
+    pub stale_after_ms: u64,
+    /// Length of the lap; when set, a lap ends every time the car has covered it (distance
+    /// from the motor speed). Laps can always be marked by hand (key `L`).
+    pub lap_length_m: Option<f64>,
+    /// Telemetry fields plotted in the pit view at start-up (click a field to add or remove it).
+    pub plots: Vec<String>,
+    /// Seconds of history the pit view's plots show (30-60 s).
+    pub plot_window_s: f64,
+}
+
+/// The two screens.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "lowercase")]
+pub enum View {
+    /// Full screen on the car's display: what the driver needs at a glance.
+    Driver,
+    /// A laptop on the Pi's network: every field, plots, fault history, link health.
+    Pit,
+}
+
+impl Default for Config {
+    fn default() -> Self {
+        Self {
+            car_id: "car1".into(),
+            mqtt: MqttConfig::default(),
+            display: DisplayConfig::default(),
+        }
+    }
+}
+
+impl Default for MqttConfig {
+    fn default() -> Self {
+        Self {
+            host: "127.0.0.1".into(),
+            port: 1883,
+            username: None,
+            password: None,
+            topic_prefix: "aer".into(),
+        }
+    }
+}
+
+impl Default for DisplayConfig {
+    fn default() -> Self {
+        Self {
+            view: View::Driver,
+            fullscreen: false,
+            stale_after_ms: 200,
+            lap_length_m: None,
+            plots: vec![
+                "motor_speed".into(),
+                "pack_current".into(),
+                "apps_travel".into(),
+            ],
+            plot_window_s: 60.0,
+        }
+    }
+}
+
+impl Config {
+    /// Reads `path` (if given), applies the environment overrides from `env`, and checks the
+    /// result.
+    pub fn load(path: Option<&Path>, env: impl Fn(&str) -> Option<String>) -> Result<Self> {
+        let mut config = match path {
+            Some(path) => {
+                let text = std::fs::read_to_string(path)
+                    .with_context(|| format!("reading the configuration {}", path.display()))?;
+                toml::from_str(&text)
+                    .with_context(|| format!("in the configuration {}", path.display()))?
+            }
+            None => Self::default(),
+        };
+        config.apply_env(env)?;
+        config.check()?;
+        Ok(config)
+    }
+
+    fn apply_env(&mut self, env: impl Fn(&str) -> Option<String>) -> Result<()> {
+        if let Some(v) = env("AER_CAR_ID") {
+            self.car_id = v;
+        }
+        if let Some(v) = env("AER_MQTT_HOST") {
+            self.mqtt.host = v;
+        }
+        if let Some(v) = env("AER_MQTT_PORT") {
+            self.mqtt.port = v
+                .parse()
+                .with_context(|| format!("AER_MQTT_PORT={v} is not a port"))?;
+        }
+        if let Some(v) = env("AER_MQTT_USERNAME") {
+            self.mqtt.username = Some(v);
+        }
+        if let Some(v) = env("AER_MQTT_PASSWORD") {
+            self.mqtt.password = Some(v);
+        }
+        if let Some(v) = env("AER_MQTT_PREFIX") {
+            self.mqtt.topic_prefix = v;
+        }
+        Ok(())
+    }
+
+    fn check(&self) -> Result<()> {
+        for name in &self.display.plots {
+            if !aer::telemetry::Telemetry::FIELDS
+                .iter()
+                .any(|f| f.name == name)
+            {
+                bail!(
+                    "display.plots: `{name}` is not a telemetry field (see schema/telemetry.yaml)"
+                );
+            }
+        }
+        if !(1.0..=600.0).contains(&self.display.plot_window_s) {
+            bail!("display.plot_window_s must be between 1 and 600 s");
+        }
+        if self
+            .display
+            .lap_length_m
+            .is_some_and(|m| !(m > 0.0 && m.is_finite()))
+        {
+            bail!("display.lap_length_m must be a positive distance");
+        }
+        if self.mqtt.username.is_some() != self.mqtt.password.is_some() {
+            bail!("mqtt.username and mqtt.password go together");
+        }
+        Ok(())
+    }
+
+    /// Topic prefix of this car: `<prefix>/<car_id>`.
+    pub fn topic_prefix(&self) -> String {
+        format!(
+            "{}/{}",
+            self.mqtt.topic_prefix.trim_end_matches('/'),
+            self.car_id
+        )
+    }
+
+    /// How old data may be before it is marked stale.
+    pub fn stale_after(&self) -> Duration {
+        Duration::from_millis(self.display.stale_after_ms)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_shipped_file_equals_the_defaults() {
+        let shipped = Path::new(env!("CARGO_MANIFEST_DIR")).join("config/aer-dashboard.toml");
+        let config = Config::load(Some(&shipped), |_| None).unwrap();
+        assert_eq!(config, Config::default());
+    }
+
+    #[test]
+    fn environment_overrides_the_file() {
+        let config = Config::load(None, |key| match key {
+            "AER_CAR_ID" => Some("car7".into()),
+            "AER_MQTT_HOST" => Some("10.0.0.2".into()),
+            "AER_MQTT_PORT" => Some("1999".into()),
+            "AER_MQTT_USERNAME" => Some("pit".into()),
+            "AER_MQTT_PASSWORD" => Some("secret".into()),
+            _ => None,
+        })
+        .unwrap();
+        assert_eq!(config.topic_prefix(), "aer/car7");
+        assert_eq!(config.mqtt.host, "10.0.0.2");
+        assert_eq!(config.mqtt.port, 1999);
+        assert_eq!(config.mqtt.username.as_deref(), Some("pit"));
+        assert!(Config::load(None, |k| (k == "AER_MQTT_PORT").then(|| "x".into())).is_err());
+    }
+
+    #[test]
+    fn bad_values_are_refused_with_the_reason() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("bad.toml");
+        std::fs::write(&path, "[display]\nplots = [\"shocktravel9\"]\n").unwrap();
+        let error = format!("{:#}", Config::load(Some(&path), |_| None).unwrap_err());
+        assert!(error.contains("shocktravel9"), "{error}");
+        std::fs::write(&path, "car_idd = \"x\"\n").unwrap();
+        let error = format!("{:#}", Config::load(Some(&path), |_| None).unwrap_err());
+        assert!(
+            error.contains("bad.toml") && error.contains("car_idd"),
+            "{error}"
+        );
+        let only_user = Config::load(None, |k| (k == "AER_MQTT_USERNAME").then(|| "pit".into()));
+        assert!(only_user.is_err());
+    }
+}

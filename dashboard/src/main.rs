@@ -1,0 +1,120 @@
+//! aer-dashboard: the driver's display and the pit crew's view of the car's telemetry, fed by
+//! the generated typed MQTT topics on the Pi's broker.
+
+use aer_dashboard::config::{Config, View};
+use aer_dashboard::screenshot::{self, DRIVER_SIZE, FONT, PIT_SIZE};
+use aer_dashboard::session;
+use aer_dashboard::ui::App;
+use anyhow::{Context, Result};
+use clap::{Parser, Subcommand};
+use std::path::PathBuf;
+use std::time::Instant;
+
+#[derive(Parser)]
+#[command(
+    name = "aer-dashboard",
+    version,
+    about = "Driver and pit views of the car's telemetry (MQTT topics aer/<car>/telemetry, status, metrics)",
+    long_about = "Driver and pit views of the car's telemetry, read from the typed MQTT topics the Pi \
+service publishes (aer/<car>/telemetry, aer/<car>/status, aer/<car>/metrics). Labels, units and \
+thresholds come from schema/telemetry.yaml.\n\nKeys: Tab switches view, L marks a lap; in the pit \
+view a click on a field plots it."
+)]
+struct Cli {
+    /// Configuration file (TOML; every key optional, see dashboard/config/aer-dashboard.toml).
+    #[arg(long, short, global = true, env = "AER_DASHBOARD_CONFIG")]
+    config: Option<PathBuf>,
+    #[command(subcommand)]
+    command: Option<Command>,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Show the dashboard (the default).
+    Run {
+        /// The view at start-up (default: the configuration's, driver).
+        #[arg(long, value_enum)]
+        view: Option<View>,
+        /// Fill the screen (the car's display).
+        #[arg(long)]
+        fullscreen: bool,
+    },
+    /// Render both views, filled from a recorded session, to DIR/driver.png and DIR/pit.png
+    /// without a display.
+    Screenshot {
+        /// Where to write the PNG files.
+        #[arg(long)]
+        out: PathBuf,
+        /// A candump log of the car (default: the session the Pi's demo replays).
+        #[arg(long)]
+        log: Option<PathBuf>,
+        /// Seconds into the session to show (default: its end).
+        #[arg(long)]
+        at: Option<f64>,
+    },
+}
+
+fn main() -> Result<()> {
+    tracing_subscriber::fmt()
+        .with_env_filter(
+            tracing_subscriber::EnvFilter::try_from_default_env()
+                .unwrap_or_else(|_| "info,wgpu=warn,iced=warn".into()),
+        )
+        .init();
+    let cli = Cli::parse();
+    let mut config = Config::load(cli.config.as_deref(), |key| std::env::var(key).ok())?;
+    match cli.command.unwrap_or(Command::Run {
+        view: None,
+        fullscreen: false,
+    }) {
+        Command::Run { view, fullscreen } => {
+            config.display.view = view.unwrap_or(config.display.view);
+            config.display.fullscreen |= fullscreen;
+            run(config)
+        }
+        Command::Screenshot { out, log, at } => {
+            let text = match &log {
+                Some(path) => std::fs::read_to_string(path)
+                    .with_context(|| format!("reading {}", path.display()))?,
+                None => screenshot::BUNDLED_SESSION.to_owned(),
+            };
+            let session = session::load(&text, &config.car_id);
+            if session.bad_lines > 0 {
+                tracing::warn!(
+                    lines = session.bad_lines,
+                    "log lines that are not CAN frames were skipped"
+                );
+            }
+            for path in screenshot::both_views(&config, &session, at, &out)? {
+                println!("{}", path.display());
+            }
+            Ok(())
+        }
+    }
+}
+
+fn run(config: Config) -> Result<()> {
+    let size = match config.display.view {
+        View::Driver => DRIVER_SIZE,
+        View::Pit => PIT_SIZE,
+    };
+    let window = iced::window::Settings {
+        size,
+        fullscreen: config.display.fullscreen,
+        ..iced::window::Settings::default()
+    };
+    tracing::info!(
+        broker = format!("{}:{}", config.mqtt.host, config.mqtt.port),
+        topics = format!("{}/{{telemetry,status,metrics}}", config.topic_prefix()),
+        "aer-dashboard"
+    );
+    let boot = move || App::new(&config, Instant::now());
+    iced::application(boot, App::update, App::view)
+        .title(App::title)
+        .theme(App::theme)
+        .subscription(App::subscription)
+        .default_font(FONT)
+        .window(window)
+        .run()
+        .context("the dashboard window")
+}

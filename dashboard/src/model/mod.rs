@@ -1,0 +1,405 @@
+//! What the screens show, as plain data: the latest packet and its age, derived driver values
+//! (speed, power, the hottest temperature), alarms, plots, laps and link health. No UI types
+//! here, and time is passed in, so tests drive it exactly.
+
+pub mod alarms;
+pub mod fields;
+pub mod health;
+pub mod history;
+pub mod laps;
+
+use crate::config::Config;
+use aer::can::VehicleState;
+use aer::mqtt::{Metrics, Sample, Status, TelemetryRecord};
+use aer::telemetry::{Level, Telemetry, TelemetryHeader};
+use alarms::Alarms;
+use fields::{Field, FieldValue, Schema};
+use health::{Connection, Health};
+use history::History;
+use laps::LapTimer;
+use std::time::{Duration, Instant};
+
+/// The car's own constants (ccm/src/config.rs): one place for them, shared with the firmware.
+use aer_ccm::config::{GEAR_RATIO, POWER_LIMIT_W, WHEEL_RADIUS_M};
+
+/// Something the dashboard learns from the broker.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Update {
+    /// Connected (again) and subscribed.
+    Connected,
+    /// The connection failed or was lost; the link retries by itself.
+    Disconnected(String),
+    Telemetry(Box<Sample<TelemetryRecord>>),
+    /// The Pi service's retained status.
+    Status(Box<Status>),
+    /// The Pi service's counters, every second.
+    Metrics(Box<Metrics>),
+    /// A payload that is not its topic's type.
+    Undecodable {
+        topic: String,
+        error: String,
+    },
+}
+
+/// The newest telemetry packet.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Latest {
+    /// When the Pi received it (s since the epoch).
+    pub ts: f64,
+    /// When it reached this dashboard.
+    pub received: Instant,
+    pub header: TelemetryHeader,
+    pub telemetry: Telemetry,
+}
+
+/// How current the data on screen is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Freshness {
+    /// No packet since start-up.
+    NoData,
+    Fresh,
+    /// The newest packet is this old: more than the stale limit.
+    Stale(Duration),
+}
+
+/// A value with its label, unit and level, as the driver view shows it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Reading {
+    pub label: &'static str,
+    pub value: f64,
+    pub unit: &'static str,
+    pub level: Level,
+}
+
+/// Everything the two views show.
+#[derive(Debug, Clone)]
+pub struct Dashboard {
+    schema: Schema,
+    stale_after: Duration,
+    latest: Option<Latest>,
+    values: Vec<FieldValue>,
+    alarms: Alarms,
+    history: History,
+    laps: LapTimer,
+    health: Health,
+    plots: Vec<usize>,
+}
+
+impl Dashboard {
+    /// An empty dashboard for the car's telemetry, set up from `config`.
+    pub fn new(config: &Config) -> Self {
+        Self::with_schema(Schema::TELEMETRY, config)
+    }
+
+    /// An empty dashboard for the fields of `schema` (the car's, or a test's).
+    pub fn with_schema(schema: Schema, config: &Config) -> Self {
+        let plots = config
+            .display
+            .plots
+            .iter()
+            .filter_map(|name| schema.field(name).map(|f| f.index))
+            .collect();
+        Self {
+            schema,
+            stale_after: config.stale_after(),
+            latest: None,
+            values: Vec::with_capacity(schema.fields.len()),
+            alarms: Alarms::new(schema),
+            history: History::new(config.display.plot_window_s, schema.fields.len()),
+            laps: LapTimer::new(config.display.lap_length_m),
+            health: Health::default(),
+            plots,
+        }
+    }
+
+    /// Takes one update received at `now`.
+    pub fn apply(&mut self, update: Update, now: Instant) {
+        match update {
+            Update::Connected => self.health.connection = Connection::Connected,
+            Update::Disconnected(reason) => {
+                // Keep the time of the first failure while it stays down.
+                if !matches!(self.health.connection, Connection::Lost { .. }) {
+                    self.health.connection = Connection::Lost { since: now, reason };
+                } else if let Connection::Lost { reason: old, .. } = &mut self.health.connection {
+                    *old = reason;
+                }
+            }
+            Update::Telemetry(sample) => self.telemetry(&sample, now),
+            Update::Status(status) => self.health.status = Some(*status),
+            Update::Metrics(metrics) => self.health.metrics = Some(*metrics),
+            Update::Undecodable { topic, error } => self.health.undecodable(&topic, &error),
+        }
+    }
+
+    /// Takes one telemetry packet received at `now`.
+    pub fn telemetry(&mut self, sample: &Sample<TelemetryRecord>, now: Instant) {
+        let telemetry = sample.value.telemetry;
+        self.laps.update(
+            sample.ts,
+            speed_m_s(&telemetry),
+            telemetry.vehicle_state == VehicleState::Driving,
+        );
+        self.health.packet(sample.value.header.sequence, now);
+        self.latest = Some(Latest {
+            ts: sample.ts,
+            received: now,
+            header: sample.value.header,
+            telemetry,
+        });
+        let mut values = std::mem::take(&mut self.values);
+        fields::read(&telemetry, &mut values);
+        self.record(sample.ts, values);
+    }
+
+    /// Takes one packet's field values for this dashboard's schema: what [`Self::telemetry`]
+    /// does with a packet of the car's, for any field table.
+    pub fn take_values(&mut self, ts: f64, values: &[FieldValue]) {
+        let mut own = std::mem::take(&mut self.values);
+        own.clear();
+        own.extend_from_slice(values);
+        self.record(ts, own);
+    }
+
+    fn record(&mut self, ts: f64, values: Vec<FieldValue>) {
+        self.alarms.update(ts, &values);
+        self.history.push(ts, &values);
+        self.values = values;
+    }
+
+    /// The field table shown.
+    pub fn schema(&self) -> Schema {
+        self.schema
+    }
+
+    /// The newest packet's value of every field, in schema order (empty before the first).
+    pub fn field_values(&self) -> &[FieldValue] {
+        &self.values
+    }
+
+    /// The newest packet.
+    pub fn latest(&self) -> Option<&Latest> {
+        self.latest.as_ref()
+    }
+
+    /// How current the data is at `now`.
+    pub fn freshness(&self, now: Instant) -> Freshness {
+        match &self.latest {
+            None => Freshness::NoData,
+            Some(latest) => {
+                let age = now.saturating_duration_since(latest.received);
+                if age > self.stale_after {
+                    Freshness::Stale(age)
+                } else {
+                    Freshness::Fresh
+                }
+            }
+        }
+    }
+
+    /// The car's time at `now`: the newest packet's time plus its age (s).
+    pub fn car_time(&self, now: Instant) -> Option<f64> {
+        self.latest
+            .as_ref()
+            .map(|latest| latest.ts + now.saturating_duration_since(latest.received).as_secs_f64())
+    }
+
+    /// Road speed from the motor speed (km/h).
+    pub fn speed_kmh(&self) -> Option<f64> {
+        self.latest
+            .as_ref()
+            .map(|latest| speed_m_s(&latest.telemetry) * 3.6)
+    }
+
+    /// Battery power (kW, positive while discharging) and the rules' limit.
+    pub fn power_kw(&self) -> Option<(f64, f64)> {
+        self.latest.as_ref().map(|latest| {
+            let watts =
+                f64::from(latest.telemetry.pack_voltage) * f64::from(latest.telemetry.pack_current);
+            (watts / 1_000.0, f64::from(POWER_LIMIT_W) / 1_000.0)
+        })
+    }
+
+    /// The schema field called `name` as a reading of the newest packet.
+    pub fn reading(&self, name: &str) -> Option<Reading> {
+        let field = self.schema.field(name)?;
+        self.reading_of(field)
+    }
+
+    fn reading_of(&self, field: Field) -> Option<Reading> {
+        let value = self.values.get(field.index)?.value;
+        Some(Reading {
+            label: field.display.label,
+            value,
+            unit: field.unit(),
+            level: field.level(value),
+        })
+    }
+
+    /// Of the temperatures the schema gives a critical limit (pack, motor, inverter), the one
+    /// closest to its limit: a pack at 55 °C of 60 matters more than a motor at 90 of 120.
+    pub fn hottest(&self) -> Option<Reading> {
+        self.schema
+            .fields()
+            .filter(|f| f.meta.unit == "degC")
+            .filter_map(|f| {
+                let limit = f.display.critical.filter(|c| *c > 0.0)?;
+                let reading = self.reading_of(f)?;
+                Some((reading.value / limit, reading))
+            })
+            .max_by(|a, b| a.0.total_cmp(&b.0))
+            .map(|(_, reading)| reading)
+    }
+
+    /// The CCM's vehicle state.
+    pub fn vehicle_state(&self) -> Option<VehicleState> {
+        self.latest.as_ref().map(|l| l.telemetry.vehicle_state)
+    }
+
+    /// The CCM says drive is enabled (ready-to-drive sound done).
+    pub fn ready_to_drive(&self) -> bool {
+        self.latest
+            .as_ref()
+            .is_some_and(|l| l.telemetry.ready_to_drive)
+    }
+
+    /// Alarms active now, critical first.
+    pub fn active_alarms(&self) -> Vec<(&'static str, Level)> {
+        self.alarms.active()
+    }
+
+    /// The alarm history.
+    pub fn alarms(&self) -> &Alarms {
+        &self.alarms
+    }
+
+    /// The plot history.
+    pub fn history(&self) -> &History {
+        &self.history
+    }
+
+    /// The lap timer.
+    pub fn laps(&self) -> &LapTimer {
+        &self.laps
+    }
+
+    /// Ends the lap in progress at `now` (key `L`).
+    pub fn mark_lap(&mut self, now: Instant) {
+        if let Some(ts) = self.car_time(now) {
+            self.laps.mark(ts);
+        }
+    }
+
+    /// Link health.
+    pub fn health(&self) -> &Health {
+        &self.health
+    }
+
+    /// Fields plotted in the pit view, in the order they were picked.
+    pub fn plots(&self) -> &[usize] {
+        &self.plots
+    }
+
+    /// Adds field `index` to the plots, or removes it.
+    pub fn toggle_plot(&mut self, index: usize) {
+        if let Some(at) = self.plots.iter().position(|&p| p == index) {
+            self.plots.remove(at);
+        } else if index < self.schema.fields.len() {
+            self.plots.push(index);
+        }
+    }
+}
+
+/// Road speed (m/s) from the motor speed, through the gear ratio and the wheel radius.
+fn speed_m_s(telemetry: &Telemetry) -> f64 {
+    f64::from(telemetry.motor_speed) / f64::from(GEAR_RATIO) * std::f64::consts::TAU / 60.0
+        * f64::from(WHEEL_RADIUS_M)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn packet(sequence: u16, ts: f64, telemetry: Telemetry) -> Sample<TelemetryRecord> {
+        Sample {
+            ts,
+            value: TelemetryRecord {
+                header: TelemetryHeader {
+                    sequence,
+                    timestamp_us: 0,
+                },
+                telemetry,
+            },
+        }
+    }
+
+    #[test]
+    fn data_is_stale_after_the_limit() {
+        let mut dashboard = Dashboard::new(&Config::default());
+        let t0 = Instant::now();
+        assert_eq!(dashboard.freshness(t0), Freshness::NoData);
+        dashboard.telemetry(&packet(1, 10.0, Telemetry::default()), t0);
+        assert_eq!(
+            dashboard.freshness(t0 + Duration::from_millis(200)),
+            Freshness::Fresh
+        );
+        assert_eq!(
+            dashboard.freshness(t0 + Duration::from_millis(201)),
+            Freshness::Stale(Duration::from_millis(201))
+        );
+    }
+
+    #[test]
+    fn driver_values_follow_the_car_constants() {
+        let mut dashboard = Dashboard::new(&Config::default());
+        // 1000 rpm at the motor = 1000 / 3.5 at the wheel: 2 pi 0.35 m x 285.7/min = 37.7 km/h.
+        let telemetry = Telemetry {
+            motor_speed: 1_000.0,
+            pack_voltage: 400.0,
+            pack_current: 150.0,
+            motor_temp: 90,
+            mcu_temp: 80,
+            ..Telemetry::default()
+        };
+        dashboard.telemetry(&packet(1, 10.0, telemetry), Instant::now());
+        let speed = dashboard.speed_kmh().unwrap();
+        assert!((speed - 37.699).abs() < 0.01, "{speed}");
+        assert_eq!(dashboard.power_kw(), Some((60.0, 80.0)));
+        // Inverter 80 of 85 is closer to its limit than motor 90 of 120.
+        let hottest = dashboard.hottest().unwrap();
+        assert_eq!((hottest.label, hottest.value), ("Inverter", 80.0));
+        assert_eq!(hottest.level, Level::Warn);
+    }
+
+    #[test]
+    fn a_lost_connection_keeps_the_time_it_was_first_lost() {
+        let mut dashboard = Dashboard::new(&Config::default());
+        let t0 = Instant::now();
+        dashboard.apply(Update::Disconnected("refused".into()), t0);
+        dashboard.apply(
+            Update::Disconnected("timed out".into()),
+            t0 + Duration::from_secs(3),
+        );
+        assert_eq!(
+            dashboard.health().connection,
+            Connection::Lost {
+                since: t0,
+                reason: "timed out".into()
+            }
+        );
+        dashboard.apply(Update::Connected, t0 + Duration::from_secs(4));
+        assert_eq!(dashboard.health().connection, Connection::Connected);
+    }
+
+    #[test]
+    fn plots_can_be_picked_and_dropped() {
+        let mut dashboard = Dashboard::new(&Config::default());
+        let soc = Schema::TELEMETRY.field("soc").unwrap().index;
+        let before = dashboard.plots().len();
+        dashboard.toggle_plot(soc);
+        assert_eq!(dashboard.plots().last(), Some(&soc));
+        dashboard.toggle_plot(soc);
+        assert_eq!(dashboard.plots().len(), before);
+        dashboard.toggle_plot(10_000);
+        assert_eq!(dashboard.plots().len(), before);
+    }
+}

@@ -1,0 +1,165 @@
+//! The iced application: messages, update, the two views and the subscriptions (the MQTT
+//! link, a clock for staleness, the keyboard).
+
+pub mod driver;
+pub mod pit;
+pub mod plot;
+pub mod style;
+
+use crate::config::{Config, View};
+use crate::link;
+use crate::model::health::Connection;
+use crate::model::{Dashboard, Freshness, Update};
+use iced::keyboard::{self, Key, key::Named};
+use iced::widget::{container, text};
+use iced::{Element, Fill, Subscription, Theme};
+use std::time::{Duration, Instant};
+
+/// How often the screens re-check staleness and redraw without new data.
+pub const TICK: Duration = Duration::from_millis(50);
+
+/// What the application reacts to.
+#[derive(Debug, Clone)]
+pub enum Message {
+    /// An update from the broker and when it arrived.
+    Link(Instant, Update),
+    /// The clock.
+    Tick(Instant),
+    /// Switch between the driver and pit views (Tab).
+    ToggleView,
+    /// End the lap in progress (L).
+    MarkLap,
+    /// Plot field `index`, or stop plotting it (a click on the field).
+    TogglePlot(usize),
+}
+
+/// The dashboard application.
+pub struct App {
+    link: link::Settings,
+    model: Dashboard,
+    view: View,
+    now: Instant,
+}
+
+impl App {
+    /// A dashboard for `config`, before any data, at `now`.
+    pub fn new(config: &Config, now: Instant) -> Self {
+        Self {
+            link: link::Settings::from_config(config),
+            model: Dashboard::new(config),
+            view: config.display.view,
+            now,
+        }
+    }
+
+    /// A dashboard showing `model` in `view` at `now` (screenshots, tests).
+    pub fn with_model(config: &Config, model: Dashboard, view: View, now: Instant) -> Self {
+        Self {
+            link: link::Settings::from_config(config),
+            model,
+            view,
+            now,
+        }
+    }
+
+    /// The model behind the screens.
+    pub fn model(&self) -> &Dashboard {
+        &self.model
+    }
+
+    /// The view shown.
+    pub fn current_view(&self) -> View {
+        self.view
+    }
+
+    /// Takes one message.
+    pub fn update(&mut self, message: Message) {
+        match message {
+            Message::Link(at, update) => {
+                self.model.apply(update, at);
+                self.now = self.now.max(at);
+            }
+            Message::Tick(at) => self.now = self.now.max(at),
+            Message::ToggleView => {
+                self.view = match self.view {
+                    View::Driver => View::Pit,
+                    View::Pit => View::Driver,
+                }
+            }
+            Message::MarkLap => self.model.mark_lap(self.now),
+            Message::TogglePlot(index) => self.model.toggle_plot(index),
+        }
+    }
+
+    /// The current view.
+    pub fn view(&self) -> Element<'_, Message> {
+        match self.view {
+            View::Driver => driver::view(&self.model, self.now),
+            View::Pit => pit::view(&self.model, self.now),
+        }
+    }
+
+    /// The window title.
+    pub fn title(&self) -> String {
+        format!("AER dashboard: {}", self.link.prefix)
+    }
+
+    /// Always the dark theme: the views set their own high-contrast colours.
+    pub fn theme(&self) -> Theme {
+        Theme::Dark
+    }
+
+    /// The MQTT link, the clock and the keyboard.
+    pub fn subscription(&self) -> Subscription<Message> {
+        Subscription::batch([
+            Subscription::run_with(self.link.clone(), |settings| link::stream(settings.clone()))
+                .map(|(at, update)| Message::Link(at, update)),
+            iced::time::every(TICK).map(Message::Tick),
+            keyboard::listen().filter_map(key_message),
+        ])
+    }
+}
+
+fn key_message(event: keyboard::Event) -> Option<Message> {
+    let keyboard::Event::KeyPressed { key, .. } = event else {
+        return None;
+    };
+    match key.as_ref() {
+        Key::Named(Named::Tab) => Some(Message::ToggleView),
+        Key::Character(c) if c.eq_ignore_ascii_case("l") => Some(Message::MarkLap),
+        _ => None,
+    }
+}
+
+/// The banner both views put on top: a lost link (red), stale or missing data (amber).
+pub fn status_banner<'a>(
+    model: &Dashboard,
+    freshness: Freshness,
+    now: Instant,
+) -> Option<Element<'a, Message>> {
+    let (message, color) = match (&model.health().connection, freshness) {
+        (Connection::Lost { since, reason }, _) => (
+            format!(
+                "NO LINK to the broker for {:.0} s: {reason}",
+                now.saturating_duration_since(*since).as_secs_f64()
+            ),
+            style::CRITICAL,
+        ),
+        (_, Freshness::Stale(age)) => (
+            format!("STALE: no telemetry for {:.1} s", age.as_secs_f64()),
+            style::WARN,
+        ),
+        (Connection::Connecting, Freshness::NoData) => {
+            ("CONNECTING to the broker".to_owned(), style::WARN)
+        }
+        (_, Freshness::NoData) => ("NO DATA from the car yet".to_owned(), style::WARN),
+        (_, Freshness::Fresh) => return None,
+    };
+    Some(
+        container(text(message).size(26))
+            .padding([4, 12])
+            .width(Fill)
+            .style(style::banner(color))
+            .into(),
+    )
+}

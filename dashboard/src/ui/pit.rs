@@ -1,0 +1,270 @@
+//! The pit view: every telemetry field grouped by subsystem (straight from the schema's
+//! tables), plots of the fields picked by clicking them, the fault history and link health.
+
+use super::plot::{MAX_POINTS, Plot};
+use super::{Message, status_banner, style};
+use crate::model::fields::{Field, heading};
+use crate::model::health::{Connection, SchemaMatch, fingerprint};
+use crate::model::{Dashboard, Freshness};
+use aer::telemetry::Level;
+use iced::widget::{button, canvas, column, container, row, scrollable, space, text};
+use iced::{Alignment, Element, Fill, FillPortion, Length};
+use std::time::Instant;
+
+/// The pit view at `now`.
+pub fn view(model: &Dashboard, now: Instant) -> Element<'_, Message> {
+    let freshness = model.freshness(now);
+    let mut screen = column![link(model, now)].spacing(8);
+    if let Some(banner) = status_banner(model, freshness, now) {
+        screen = screen.push(banner);
+    }
+    let body = row![
+        scrollable(fields(model, freshness != Freshness::Fresh)).width(FillPortion(3)),
+        column![plots(model), fault_history(model)]
+            .spacing(8)
+            .width(FillPortion(2)),
+    ]
+    .spacing(8)
+    .height(Fill);
+    container(screen.push(body))
+        .padding(10)
+        .width(Fill)
+        .height(Fill)
+        .style(style::screen)
+        .into()
+}
+
+/// The link panel: connection, packet rate and losses here, and what the Pi reports.
+fn link(model: &Dashboard, now: Instant) -> Element<'_, Message> {
+    let health = model.health();
+    let (connection, connection_color) = match &health.connection {
+        Connection::Connecting => ("connecting".to_owned(), style::WARN),
+        Connection::Connected => ("connected".to_owned(), style::GOOD),
+        Connection::Lost { .. } => ("LOST".to_owned(), style::CRITICAL),
+    };
+    let ours = fingerprint(aer::telemetry::TELEMETRY_FINGERPRINT);
+    let (schema, schema_color) = match health.schema_match() {
+        SchemaMatch::Unknown => (format!("schema {ours}: not confirmed yet"), style::DIM),
+        SchemaMatch::Match => (
+            format!("schema {ours}: firmware, Pi, dashboard match"),
+            style::GOOD,
+        ),
+        SchemaMatch::FirmwareDiffers => (
+            format!(
+                "FIRMWARE SCHEMA {} != {ours}: packets rejected, flash the CCM",
+                health
+                    .status
+                    .as_ref()
+                    .and_then(|s| s.firmware_fingerprint_seen.clone())
+                    .unwrap_or_default()
+            ),
+            style::CRITICAL,
+        ),
+        SchemaMatch::PiDiffers => (
+            format!(
+                "PI SCHEMA {} != dashboard {ours}: rebuild one of them",
+                health
+                    .status
+                    .as_ref()
+                    .map(|s| s.telemetry_fingerprint.clone())
+                    .unwrap_or_default()
+            ),
+            style::CRITICAL,
+        ),
+    };
+    let here = format!(
+        "{} packets/s   lost {}   unreadable {}",
+        health.rate(now),
+        health.lost,
+        health.undecodable
+    );
+    let pi = health.metrics.as_ref().map_or_else(
+        || "Pi: no metrics yet".to_owned(),
+        |m| {
+            format!(
+                "Pi: ISO-TP errors {}   decode errors {}   fingerprint rejects {}   MQTT drops {}   store lag {}",
+                m.counters.isotp_errors,
+                m.counters.decode_errors + m.counters.packet_errors,
+                m.counters.fingerprint_mismatches,
+                m.counters.publish_dropped,
+                m.store_lag
+            )
+        },
+    );
+    let pi_color = if health.metrics.as_ref().is_some_and(|m| {
+        m.counters.isotp_errors
+            + m.counters.decode_errors
+            + m.counters.packet_errors
+            + m.counters.fingerprint_mismatches
+            + m.counters.publish_dropped
+            > 0
+    }) {
+        style::WARN
+    } else {
+        style::DIM
+    };
+    let mut panel = column![
+        row![
+            text("LINK").size(16).color(style::DIM),
+            text(connection).size(16).color(connection_color),
+            text(here).size(16),
+            space::horizontal(),
+            text(schema).size(16).color(schema_color),
+        ]
+        .spacing(16),
+        text(pi).size(14).color(pi_color),
+    ]
+    .spacing(2);
+    if let Some(error) = &health.last_error {
+        panel = panel.push(
+            text(format!("last unreadable payload: {error}"))
+                .size(14)
+                .color(style::WARN),
+        );
+    }
+    container(panel)
+        .padding(8)
+        .width(Fill)
+        .style(style::panel)
+        .into()
+}
+
+/// Every field of the schema, one panel per group; a click plots the field.
+fn fields(model: &Dashboard, stale: bool) -> Element<'_, Message> {
+    let schema = model.schema();
+    let values = model.field_values();
+    let panels = schema.groups().into_iter().map(|(group, members)| {
+        let rows = members
+            .into_iter()
+            .filter_map(|index| schema.get(index))
+            .map(|field| field_row(model, field, values.get(field.index).copied(), stale));
+        container(
+            column![text(heading(group)).size(17).color(style::DIM)]
+                .extend(rows)
+                .spacing(1),
+        )
+        .padding(8)
+        .width(Length::Fixed(238.0))
+        .style(style::panel)
+        .into()
+    });
+    row(panels).spacing(8).wrap().vertical_spacing(8).into()
+}
+
+fn field_row<'a>(
+    model: &Dashboard,
+    field: Field,
+    value: Option<crate::model::fields::FieldValue>,
+    stale: bool,
+) -> Element<'a, Message> {
+    let plotted = model.plots().contains(&field.index);
+    let (shown, level) = value.map_or(("--".to_owned(), Level::Normal), |v| {
+        (field.format(v), field.level(v.value))
+    });
+    let marker = if plotted { "● " } else { "" };
+    let content = row![
+        text(format!("{marker}{}", field.display.label)).size(14),
+        space::horizontal(),
+        text(shown).size(14).color(style::level_color(level, stale)),
+        text(field.unit()).size(12).color(style::DIM).width(34),
+    ]
+    .spacing(6)
+    .align_y(Alignment::Center);
+    button(content)
+        .padding([1, 4])
+        .width(Fill)
+        .style(style::field_row(plotted))
+        .on_press(Message::TogglePlot(field.index))
+        .into()
+}
+
+/// The picked fields over the history window.
+fn plots(model: &Dashboard) -> Element<'_, Message> {
+    let schema = model.schema();
+    let history = model.history();
+    let values = model.field_values();
+    if model.plots().is_empty() {
+        return container(text("Click a field to plot it").size(16).color(style::DIM))
+            .padding(8)
+            .width(Fill)
+            .style(style::panel)
+            .into();
+    }
+    let charts = model.plots().iter().filter_map(|&index| {
+        let field = schema.get(index)?;
+        let now = values
+            .get(index)
+            .map_or("--".to_owned(), |v| field.format(*v));
+        let title = row![
+            text(field.display.label).size(15),
+            space::horizontal(),
+            text(format!("{now} {}", field.unit())).size(15),
+            text(format!("  last {:.0} s", history.window_s()))
+                .size(13)
+                .color(style::DIM),
+        ];
+        let chart = canvas(Plot {
+            series: history.series(index, MAX_POINTS),
+            window_s: history.window_s() as f32,
+            color: style::PLOT,
+        })
+        .width(Fill)
+        .height(110);
+        Some(
+            container(column![title, chart].spacing(2))
+                .padding(6)
+                .style(style::panel)
+                .into(),
+        )
+    });
+    column(charts).spacing(8).into()
+}
+
+/// Raised and cleared faults with their times, newest first.
+fn fault_history(model: &Dashboard) -> Element<'_, Message> {
+    let entries = model.alarms().history().take(100).map(|event| {
+        let (what, color) = match event.level {
+            Level::Normal => ("cleared", style::GOOD),
+            Level::Warn => ("warning", style::WARN),
+            Level::Critical => ("FAULT", style::CRITICAL),
+        };
+        row![
+            text(clock(event.ts)).size(14).color(style::DIM).width(96),
+            text(what).size(14).color(color).width(70),
+            text(event.label).size(14),
+        ]
+        .into()
+    });
+    let list: Element<'_, Message> = if model.alarms().history().next().is_none() {
+        text("none").size(14).color(style::DIM).into()
+    } else {
+        scrollable(column(entries).spacing(1)).height(Fill).into()
+    };
+    container(column![text("Fault history").size(17).color(style::DIM), list].spacing(4))
+        .padding(8)
+        .width(Fill)
+        .height(Fill)
+        .style(style::panel)
+        .into()
+}
+
+/// Time of day (UTC) of a packet time, to the millisecond.
+pub fn clock(ts: f64) -> String {
+    let ms = (ts.max(0.0) * 1_000.0).round() as u64 % 86_400_000;
+    format!(
+        "{:02}:{:02}:{:02}.{:03}",
+        ms / 3_600_000,
+        ms / 60_000 % 60,
+        ms / 1_000 % 60,
+        ms % 1_000
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn clock_shows_utc_time_of_day() {
+        // 2026-11-21 12:00:00.25 UTC
+        assert_eq!(super::clock(1_795_348_800.25), "12:00:00.250");
+    }
+}

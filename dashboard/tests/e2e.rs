@@ -1,0 +1,121 @@
+//! End to end with the real components: the Pi service replays the bundled session through its
+//! pipeline and publishes on the embedded rumqttd broker; the dashboard's own MQTT link reads
+//! the typed topics; its model and views must show exactly what the car sent.
+
+use aer::mqtt::STATUS;
+use aer_dashboard::config::{Config, View};
+use aer_dashboard::link::{self, Settings};
+use aer_dashboard::model::health::SchemaMatch;
+use aer_dashboard::model::{Dashboard, Update};
+use aer_dashboard::screenshot::{BUNDLED_SESSION, PIT_SIZE};
+use aer_dashboard::session;
+use aer_dashboard::ui::App;
+use aer_raspi::config::MqttConfig;
+use aer_raspi::metrics::Counters;
+use aer_raspi::pipeline::Pipeline;
+use aer_raspi::source::replay_all;
+use aer_raspi::{broker, publish};
+use iced::futures::StreamExt;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+fn free_port() -> u16 {
+    std::net::TcpListener::bind("127.0.0.1:0")
+        .and_then(|l| l.local_addr())
+        .map(|a| a.port())
+        .expect("a free port")
+}
+
+/// Waits for the next update; a stuck link fails the test instead of hanging it.
+async fn next(
+    stream: &mut (impl iced::futures::Stream<Item = (Instant, Update)> + Unpin),
+) -> (Instant, Update) {
+    tokio::time::timeout(Duration::from_secs(30), stream.next())
+        .await
+        .expect("an update within 30 s")
+        .expect("the link never ends")
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_replayed_session_reaches_the_dashboard_intact() {
+    let expected = session::load(BUNDLED_SESSION, "car1");
+    assert_eq!(expected.samples.len(), 4_500);
+
+    // The Pi's broker, with segments that hold a replay run flat out.
+    let port = free_port();
+    let text = broker::DEFAULT_CONFIG
+        .replace("127.0.0.1:1883", &format!("127.0.0.1:{port}"))
+        .replace("max_segment_size = 262144", "max_segment_size = 67108864");
+    let broker_config: rumqttd::Config = toml::from_str(&text).expect("broker config");
+    broker::spawn(broker_config).expect("broker");
+
+    // The dashboard's link: connected means subscribed.
+    let settings = Settings {
+        host: "127.0.0.1".into(),
+        port,
+        credentials: None,
+        prefix: "aer/car1".into(),
+    };
+    let mut updates = Box::pin(link::stream(settings));
+    let config = Config::default();
+    let mut model = Dashboard::new(&config);
+    loop {
+        let (at, update) = next(&mut updates).await;
+        let connected = update == Update::Connected;
+        model.apply(update, at);
+        if connected {
+            break;
+        }
+    }
+
+    // The Pi service: replay -> ingest -> typed topics, then its retained status.
+    let counters = Arc::new(Counters::default());
+    let mqtt = MqttConfig {
+        port,
+        ..MqttConfig::default()
+    };
+    let (publisher, eventloop) =
+        publish::connect(&mqtt, "e2e-pi", "aer/car1".into(), counters.clone());
+    let (up_tx, mut up) = tokio::sync::watch::channel(false);
+    tokio::spawn(publish::drive(eventloop, up_tx));
+    tokio::time::timeout(Duration::from_secs(10), up.wait_for(|u| *u))
+        .await
+        .expect("the Pi connects")
+        .expect("watch");
+    let mut pipeline = Pipeline::new(
+        counters.clone(),
+        "car1".into(),
+        Vec::new(),
+        Some(publisher.clone()),
+        None,
+    );
+    replay_all(BUNDLED_SESSION.as_bytes(), &mut pipeline, &counters).await;
+    publisher.publish_on(&STATUS, &publish::status("car1", &counters), true);
+    assert_eq!(counters.snapshot().publish_dropped, 0);
+
+    let mut received = Vec::new();
+    while received.len() < expected.samples.len() || model.health().status.is_none() {
+        let (at, update) = next(&mut updates).await;
+        if let Update::Telemetry(sample) = &update {
+            received.push((**sample).clone());
+        }
+        model.apply(update, at);
+    }
+
+    // Every packet, in order, with the values the generated decoder reads from the log.
+    assert_eq!(received, expected.samples);
+    let health = model.health();
+    assert_eq!(health.packets, 4_500);
+    assert_eq!(health.lost, 0);
+    assert_eq!(health.undecodable, 0);
+    assert_eq!(health.schema_match(), SchemaMatch::Match);
+
+    // The views show the last packet.
+    let last = expected.samples.last().expect("a packet");
+    let now = model.latest().expect("latest").received;
+    let soc = format!("{:.1}", last.value.telemetry.soc);
+    let app = App::with_model(&config, model, View::Pit, now);
+    let mut ui = iced_test::Simulator::with_size(iced::Settings::default(), PIT_SIZE, app.view());
+    assert!(ui.find(soc.as_str()).is_ok(), "pit view lacks SOC {soc}");
+    assert!(ui.find("connected").is_ok());
+}

@@ -1,0 +1,272 @@
+//! Headless UI tests (iced_test): the real views, laid out and queried without a display.
+//! Time is passed in, so staleness is tested exactly, without sleeping.
+
+use aer::can::VehicleState;
+use aer::mqtt::{Sample, TelemetryRecord};
+use aer::runtime::SignalMeta;
+use aer::telemetry::{FieldDisplay, Telemetry, TelemetryHeader};
+use aer_dashboard::config::{Config, View};
+use aer_dashboard::model::fields::{FieldValue, Schema};
+use aer_dashboard::model::{Dashboard, Update};
+use aer_dashboard::screenshot::{DRIVER_SIZE, PIT_SIZE};
+use aer_dashboard::ui::{App, Message};
+use iced::{Element, Settings};
+use iced_test::Simulator;
+use iced_test::selector::Candidate;
+use std::time::{Duration, Instant};
+
+fn packet(sequence: u16, telemetry: Telemetry) -> Update {
+    Update::Telemetry(Box::new(Sample {
+        ts: 1_795_348_800.0 + f64::from(sequence) * 0.01,
+        value: TelemetryRecord {
+            header: TelemetryHeader {
+                sequence,
+                timestamp_us: u32::from(sequence) * 10_000,
+            },
+            telemetry,
+        },
+    }))
+}
+
+/// A car driving: 1000 rpm at the motor (37.7 km/h with the 3.5 gear and 0.35 m wheel),
+/// 400 V x 150 A = 60 kW, SOC 72 %, motor 90 degC (of 120), inverter 80 degC (of 85).
+fn driving() -> Telemetry {
+    Telemetry {
+        motor_speed: 1_000.0,
+        pack_voltage: 400.0,
+        pack_current: 150.0,
+        soc: 72.0,
+        motor_temp: 90,
+        mcu_temp: 80,
+        vehicle_state: VehicleState::Driving,
+        ready_to_drive: true,
+        ..Telemetry::default()
+    }
+}
+
+/// An app in `view` that has been connected since `t0` and got `telemetry` at `t0`.
+fn app_with(view: View, telemetry: Telemetry, t0: Instant) -> App {
+    let mut config = Config::default();
+    config.display.view = view;
+    let mut app = App::new(&config, t0);
+    app.update(Message::Link(t0, Update::Connected));
+    app.update(Message::Link(t0, packet(1, telemetry)));
+    app
+}
+
+fn simulate(app: &App) -> Simulator<'_, Message> {
+    let size = match app.current_view() {
+        View::Driver => DRIVER_SIZE,
+        View::Pit => PIT_SIZE,
+    };
+    Simulator::with_size(Settings::default(), size, app.view())
+}
+
+fn shows(app: &App, text: &str) -> bool {
+    simulate(app).find(text).is_ok()
+}
+
+/// True when some text on screen contains `part`.
+fn shows_part(app: &App, part: &str) -> bool {
+    let part = part.to_owned();
+    simulate(app)
+        .find(move |candidate: Candidate<'_>| match candidate {
+            Candidate::Text { content, .. } if content.contains(part.as_str()) => Some(()),
+            _ => None,
+        })
+        .is_ok()
+}
+
+#[test]
+fn driver_values_arrive_as_text() {
+    let t0 = Instant::now();
+    let app = app_with(View::Driver, driving(), t0);
+    for expected in [
+        "38",
+        "72 %",
+        "60 / 80 kW",
+        "INVERTER",
+        "80 °C",
+        "DRIVING",
+        "READY TO DRIVE",
+        "NO FAULTS",
+    ] {
+        assert!(shows(&app, expected), "driver view lacks {expected:?}");
+    }
+    assert!(!shows_part(&app, "STALE"));
+
+    let mut parked = driving();
+    parked.vehicle_state = VehicleState::Standby;
+    parked.ready_to_drive = false;
+    let app = app_with(View::Driver, parked, t0);
+    assert!(shows(&app, "STANDBY") && shows(&app, "NOT READY"));
+    assert!(!shows(&app, "READY TO DRIVE"));
+}
+
+#[test]
+fn no_data_for_200_ms_is_marked_stale_in_both_views() {
+    let t0 = Instant::now();
+    for view in [View::Driver, View::Pit] {
+        let mut app = app_with(view, driving(), t0);
+        app.update(Message::Tick(t0 + Duration::from_millis(200)));
+        assert!(!shows_part(&app, "STALE"), "{view:?} stale at 200 ms");
+        app.update(Message::Tick(t0 + Duration::from_millis(201)));
+        assert!(
+            shows(&app, "STALE: no telemetry for 0.2 s"),
+            "{view:?} not stale at 201 ms"
+        );
+        // A new packet makes it current again.
+        app.update(Message::Link(
+            t0 + Duration::from_millis(250),
+            packet(2, driving()),
+        ));
+        assert!(
+            !shows_part(&app, "STALE"),
+            "{view:?} still stale after a packet"
+        );
+    }
+}
+
+#[test]
+fn a_lost_broker_connection_is_obvious() {
+    let t0 = Instant::now();
+    for view in [View::Driver, View::Pit] {
+        let mut app = app_with(view, driving(), t0);
+        app.update(Message::Link(
+            t0 + Duration::from_millis(10),
+            Update::Disconnected("connection refused".into()),
+        ));
+        app.update(Message::Tick(t0 + Duration::from_secs(3)));
+        assert!(
+            shows(&app, "NO LINK to the broker for 3 s: connection refused"),
+            "{view:?}"
+        );
+    }
+    let mut config = Config::default();
+    config.display.view = View::Driver;
+    let app = App::new(&config, t0);
+    assert!(shows(&app, "CONNECTING to the broker"));
+}
+
+#[test]
+fn a_fault_flag_shows_its_name() {
+    let t0 = Instant::now();
+    let mut faulty = driving();
+    faulty.fault_bse = true;
+    faulty.motor_stall_fault = true;
+    let driver = app_with(View::Driver, faulty, t0);
+    let bse = Schema::TELEMETRY.field("fault_bse").unwrap().display.label;
+    let stall = Schema::TELEMETRY
+        .field("motor_stall_fault")
+        .unwrap()
+        .display
+        .label;
+    assert_ne!(
+        bse, "fault_bse",
+        "the schema gives the fault a readable name"
+    );
+    assert!(shows(&driver, bse), "driver view lacks {bse:?}");
+    assert!(shows(&driver, stall), "driver view lacks {stall:?}");
+    assert!(!shows(&driver, "NO FAULTS"));
+
+    // The pit view's history has it, with the time it was raised.
+    let mut pit = app_with(View::Pit, driving(), t0);
+    pit.update(Message::Link(
+        t0 + Duration::from_millis(10),
+        packet(2, faulty),
+    ));
+    assert!(shows(&pit, "FAULT"));
+    assert!(shows(&pit, "12:00:00.020"), "the packet's time of day");
+}
+
+#[test]
+fn every_schema_field_is_in_the_pit_view() {
+    let app = app_with(View::Pit, driving(), Instant::now());
+    let mut ui = simulate(&app);
+    for field in Schema::TELEMETRY.fields() {
+        let label = field.display.label;
+        let plotted = ui.find(format!("● {label}")).is_ok();
+        assert!(
+            plotted || ui.find(label).is_ok(),
+            "pit view lacks {label:?}"
+        );
+    }
+}
+
+/// A schema with one field this code has never heard of, as if it were added to telemetry.yaml.
+fn schema_with_shocktravel5() -> Schema {
+    let mut fields = Telemetry::FIELDS.to_vec();
+    let mut display = Telemetry::DISPLAY.to_vec();
+    let template = Schema::TELEMETRY.field("shocktravel4").unwrap();
+    fields.push(SignalMeta {
+        name: "shocktravel5",
+        comment: "Fifth shock travel sensor.",
+        ..*template.meta
+    });
+    display.push(FieldDisplay {
+        label: "shocktravel5",
+        ..*template.display
+    });
+    Schema {
+        fields: Vec::leak(fields),
+        display: Vec::leak(display),
+    }
+}
+
+#[test]
+fn a_new_schema_field_appears_in_the_pit_view() {
+    let schema = schema_with_shocktravel5();
+    let config = Config::default();
+    let mut model = Dashboard::with_schema(schema, &config);
+    let t0 = Instant::now();
+    model.apply(Update::Connected, t0);
+    let mut values: Vec<FieldValue> = (0..schema.fields.len())
+        .map(|_| FieldValue {
+            value: 0.0,
+            label: None,
+        })
+        .collect();
+    if let Some(last) = values.last_mut() {
+        last.value = 31.42;
+    }
+    model.take_values(1.0, &values);
+    let app = App::with_model(&config, model, View::Pit, t0);
+    assert!(shows(&app, "shocktravel5"));
+    assert!(shows(&app, "31.42"));
+}
+
+#[test]
+fn clicking_a_field_plots_it() {
+    let t0 = Instant::now();
+    let mut app = app_with(View::Pit, driving(), t0);
+    let soc = Schema::TELEMETRY.field("soc").unwrap();
+    assert!(!shows(&app, &format!("● {}", soc.display.label)));
+    let messages: Vec<Message> = {
+        let mut ui = simulate(&app);
+        ui.click(soc.display.label).expect("the SOC row");
+        ui.into_messages().collect()
+    };
+    assert!(matches!(messages.as_slice(), [Message::TogglePlot(i)] if *i == soc.index));
+    for message in messages {
+        app.update(message);
+    }
+    assert!(shows(&app, &format!("● {}", soc.display.label)));
+    assert!(shows(&app, "72.0 %"), "the plot's title shows the value");
+}
+
+#[test]
+fn keys_switch_the_view_and_mark_laps() {
+    let t0 = Instant::now();
+    let mut app = app_with(View::Driver, driving(), t0);
+    assert!(shows(&app, "LAP 1"));
+    app.update(Message::Link(
+        t0 + Duration::from_secs(62),
+        packet(6_200, driving()),
+    ));
+    app.update(Message::MarkLap);
+    assert!(shows(&app, "LAP 2"));
+    assert!(shows(&app, "last 1:02.0   best 1:02.0"));
+    app.update(Message::ToggleView);
+    assert_eq!(app.current_view(), View::Pit);
+    let _: Element<'_, Message> = app.view();
+}
