@@ -148,6 +148,61 @@ fn a_lost_broker_connection_is_obvious() {
     assert!(shows(&app, "CONNECTING to the broker"));
 }
 
+fn pi_status(telemetry_fingerprint: u32, firmware_ok: Option<bool>) -> Update {
+    Update::Status(Box::new(aer::mqtt::Status {
+        service: "aer-raspi".into(),
+        car_id: "car1".into(),
+        schema_fingerprint: format!("{:#010x}", aer::can::SCHEMA_FINGERPRINT),
+        telemetry_fingerprint: format!("{telemetry_fingerprint:#010x}"),
+        firmware_fingerprint_seen: firmware_ok.map(|_| "0x12345678".into()),
+        fingerprint_match: firmware_ok,
+        last_packet_ts: None,
+    }))
+}
+
+#[test]
+fn a_schema_mismatch_says_which_side_to_rebuild() {
+    let t0 = Instant::now();
+    let ours = aer::telemetry::TELEMETRY_FINGERPRINT;
+    let mut config = Config::default();
+    config.display.view = View::Driver;
+
+    // The Pi runs another schema: its payloads do not decode here.
+    let mut app = App::new(&config, t0);
+    app.update(Message::Link(t0, Update::Connected));
+    app.update(Message::Link(t0, pi_status(ours ^ 1, Some(true))));
+    app.update(Message::Link(
+        t0,
+        Update::Undecodable {
+            topic: "aer/car1/telemetry".into(),
+            error: "missing field `pack_temp`".into(),
+        },
+    ));
+    assert!(shows(
+        &app,
+        "TELEMETRY UNREADABLE: the Pi runs another schema"
+    ));
+    app.update(Message::ToggleView);
+    assert!(
+        shows_part(&app, "missing field `pack_temp`"),
+        "the pit view names the error"
+    );
+
+    // The CCM runs another schema: the Pi rejects its packets, so nothing arrives.
+    let mut app = App::new(&config, t0);
+    app.update(Message::Link(t0, Update::Connected));
+    app.update(Message::Link(t0, pi_status(ours, Some(false))));
+    assert!(shows(
+        &app,
+        "FIRMWARE ON ANOTHER SCHEMA: the Pi rejects its packets, flash the CCM"
+    ));
+
+    // All agree: no banner once data flows.
+    let mut app = app_with(View::Driver, driving(), t0);
+    app.update(Message::Link(t0, pi_status(ours, Some(true))));
+    assert!(!shows_part(&app, "SCHEMA") && !shows_part(&app, "UNREADABLE"));
+}
+
 #[test]
 fn a_fault_flag_shows_its_name() {
     let t0 = Instant::now();

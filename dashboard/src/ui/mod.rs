@@ -8,7 +8,7 @@ pub mod style;
 
 use crate::config::{Config, View};
 use crate::link;
-use crate::model::health::Connection;
+use crate::model::health::{Connection, SchemaMatch};
 use crate::model::{Dashboard, Freshness, Update};
 use iced::keyboard::{self, Key, key::Named};
 use iced::widget::{container, text};
@@ -131,18 +131,36 @@ fn key_message(event: keyboard::Event) -> Option<Message> {
     }
 }
 
-/// The banner both views put on top: a lost link (red), stale or missing data (amber).
+/// The banner both views put on top, most urgent first: a lost link, data that stopped or never
+/// became readable (with the reason when the schemas disagree), stale data, a schema mismatch
+/// that still lets data through.
 pub fn status_banner<'a>(
     model: &Dashboard,
     freshness: Freshness,
     now: Instant,
 ) -> Option<Element<'a, Message>> {
-    let (message, color) = match (&model.health().connection, freshness) {
+    let health = model.health();
+    let schema = health.schema_match();
+    let no_data = freshness != Freshness::Fresh;
+    let (message, color) = match (&health.connection, freshness) {
         (Connection::Lost { since, reason }, _) => (
             format!(
                 "NO LINK to the broker for {:.0} s: {reason}",
                 now.saturating_duration_since(*since).as_secs_f64()
             ),
+            style::CRITICAL,
+        ),
+        _ if no_data && schema == SchemaMatch::FirmwareDiffers => (
+            "FIRMWARE ON ANOTHER SCHEMA: the Pi rejects its packets, flash the CCM".to_owned(),
+            style::CRITICAL,
+        ),
+        (_, Freshness::NoData) if health.undecodable > 0 => (
+            match schema {
+                SchemaMatch::PiDiffers => {
+                    "TELEMETRY UNREADABLE: the Pi runs another schema".to_owned()
+                }
+                _ => "TELEMETRY UNREADABLE: see the pit view's link panel".to_owned(),
+            },
             style::CRITICAL,
         ),
         (_, Freshness::Stale(age)) => (
@@ -153,6 +171,10 @@ pub fn status_banner<'a>(
             ("CONNECTING to the broker".to_owned(), style::WARN)
         }
         (_, Freshness::NoData) => ("NO DATA from the car yet".to_owned(), style::WARN),
+        (_, Freshness::Fresh) if schema == SchemaMatch::PiDiffers => (
+            "SCHEMA: the Pi and this dashboard differ, fields may be missing".to_owned(),
+            style::WARN,
+        ),
         (_, Freshness::Fresh) => return None,
     };
     Some(
