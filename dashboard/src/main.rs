@@ -79,9 +79,10 @@ fn main() -> Result<()> {
                 None => screenshot::BUNDLED_SESSION.to_owned(),
             };
             let session = session::load(&text, &config.car_id);
-            if session.bad_lines > 0 {
+            let bad_lines = session.metrics.counters.bad_lines;
+            if bad_lines > 0 {
                 tracing::warn!(
-                    lines = session.bad_lines,
+                    lines = bad_lines,
                     "log lines that are not CAN frames were skipped"
                 );
             }

@@ -9,9 +9,9 @@
 use aer::telemetry::Telemetry;
 use aer_raspi::candump::{LoggedFrame, parse_line};
 use aer_raspi::config::MqttConfig;
-use aer_raspi::ingest::{Ingest, Record};
 use aer_raspi::metrics::Counters;
 use aer_raspi::pipeline::Pipeline;
+use aer_raspi::source::decode_log;
 use aer_raspi::{broker, publish, store};
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use std::collections::HashMap;
@@ -34,26 +34,6 @@ fn frames() -> Vec<LoggedFrame> {
             .ok()
         })
         .collect()
-}
-
-fn packets(frames: &[LoggedFrame]) -> Vec<(u64, Telemetry)> {
-    let mut ingest = Ingest::new(Arc::new(Counters::default()));
-    let mut packets = Vec::new();
-    for frame in frames {
-        ingest.on_frame(
-            frame,
-            |record| {
-                if let Record::Telemetry {
-                    ts_us, telemetry, ..
-                } = record
-                {
-                    packets.push((ts_us, *telemetry));
-                }
-            },
-            |_, _| {},
-        );
-    }
-    packets
 }
 
 /// Today's Pi: one JSON document of the whole struct (with `ts` in ms) and one line-protocol
@@ -96,7 +76,11 @@ fn todays_design(ts_us: u64, telemetry: &Telemetry, json: &mut String, line: &mu
 
 fn bench(c: &mut Criterion) {
     let frames = frames();
-    let packets = packets(&frames);
+    let packets: Vec<(u64, Telemetry)> = decode_log(SESSION)
+        .packets
+        .into_iter()
+        .map(|(ts_us, _, telemetry)| (ts_us, telemetry))
+        .collect();
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(1)
         .enable_all()

@@ -2,8 +2,10 @@
 //! All of them feed the same [`Pipeline`].
 
 use crate::candump::{LoggedFrame, parse_line};
+use crate::ingest::{Ingest, Record};
 use crate::metrics::{Counters, worth_logging};
 use crate::pipeline::Pipeline;
+use aer::telemetry::{Telemetry, TelemetryHeader};
 use std::collections::HashMap;
 use std::io::BufRead;
 use std::sync::Arc;
@@ -108,6 +110,50 @@ pub async fn replay_all(log: &[u8], pipeline: &mut Pipeline, counters: &Counters
         restamp: false,
     };
     replay(log, pipeline, counters, options, &AtomicBool::new(false)).await
+}
+
+/// A candump log decoded as the pipeline decodes it, without outputs.
+#[derive(Debug)]
+pub struct DecodedLog {
+    /// Every telemetry packet: receive time (us since the epoch), header and values.
+    pub packets: Vec<(u64, TelemetryHeader, Telemetry)>,
+    /// What decoding counted (frames, errors, the firmware fingerprint seen, ...).
+    pub counters: Arc<Counters>,
+}
+
+/// Decodes a whole log in memory with its recorded timestamps (tests, benchmarks, the
+/// dashboard's screenshots). Broken lines are counted in `bad_lines`, as in a replay.
+pub fn decode_log(log: &str) -> DecodedLog {
+    let counters = Arc::new(Counters::default());
+    let mut ingest = Ingest::new(counters.clone());
+    let mut buses: HashMap<String, u8> = HashMap::new();
+    let mut packets = Vec::new();
+    for line in log.lines().filter(|line| !line.trim().is_empty()) {
+        let parsed = parse_line(line, |name| {
+            let next = u8::try_from(buses.len()).unwrap_or(u8::MAX);
+            *buses.entry(name.to_owned()).or_insert(next)
+        });
+        let Ok(frame) = parsed else {
+            Counters::bump(&counters.bad_lines);
+            continue;
+        };
+        ingest.on_frame(
+            &frame,
+            |record| {
+                if let Record::Telemetry {
+                    ts_us,
+                    header,
+                    telemetry,
+                    ..
+                } = record
+                {
+                    packets.push((ts_us, header, *telemetry));
+                }
+            },
+            |_, _| {},
+        );
+    }
+    DecodedLog { packets, counters }
 }
 
 /// Frames of a synthetic vehicle: see [`crate::synthetic`].

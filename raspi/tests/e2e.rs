@@ -4,11 +4,9 @@
 //! from the log, and the store must hold every row.
 
 use aer::mqtt::{Sample, TELEMETRY, TelemetryRecord};
-use aer_raspi::candump::{LoggedFrame, parse_line};
-use aer_raspi::ingest::{Ingest, Record};
 use aer_raspi::metrics::Counters;
 use aer_raspi::pipeline::Pipeline;
-use aer_raspi::source::replay_all;
+use aer_raspi::source::{decode_log, replay_all};
 use aer_raspi::{broker, config::MqttConfig, publish, store};
 use rumqttc::{AsyncClient, Event, MqttOptions, Packet, QoS};
 use std::collections::HashMap;
@@ -39,32 +37,17 @@ fn start_broker(port: u16) {
 
 /// What the generated decoder reads from the log, by sequence number.
 fn expected_packets() -> HashMap<u16, (u64, aer::telemetry::Telemetry)> {
-    let mut ingest = Ingest::new(Arc::new(Counters::default()));
-    let mut packets = HashMap::new();
-    let mut buses = HashMap::new();
-    for line in SESSION.lines() {
-        let frame: LoggedFrame = parse_line(line, |name| {
-            let next = buses.len() as u8;
-            *buses.entry(name.to_owned()).or_insert(next)
-        })
-        .expect("the bundled log is clean");
-        ingest.on_frame(
-            &frame,
-            |record| {
-                if let Record::Telemetry {
-                    ts_us,
-                    header,
-                    telemetry,
-                    ..
-                } = record
-                {
-                    packets.insert(header.sequence, (ts_us, *telemetry));
-                }
-            },
-            |_, _| {},
-        );
-    }
-    packets
+    let decoded = decode_log(SESSION);
+    assert_eq!(
+        decoded.counters.snapshot().bad_lines,
+        0,
+        "the bundled log is clean"
+    );
+    decoded
+        .packets
+        .into_iter()
+        .map(|(ts_us, header, telemetry)| (header.sequence, (ts_us, telemetry)))
+        .collect()
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
