@@ -8,7 +8,7 @@ use aer::can::MESSAGES;
 use aer::local_store::{LocalTable, TABLES};
 use aer::runtime::{SignalMeta, SignalVisitor, Value};
 use rusqlite::types::Value as Sql;
-use rusqlite::{Connection, params_from_iter};
+use rusqlite::Connection;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::Ordering;
@@ -265,12 +265,25 @@ fn write_loop(mut db: Connection, receiver: &Receiver<Row>, counters: &Counters)
 
 fn commit(db: &mut Connection, batch: &[Row]) -> rusqlite::Result<()> {
     let transaction = db.transaction()?;
-    for row in batch {
-        let Some(table) = TABLES.get(row.table) else {
-            continue;
-        };
-        let mut statement = transaction.prepare_cached(table.insert)?;
-        statement.execute(params_from_iter(row.values.iter()))?;
+    {
+        // Each table's statement is prepared once per batch, not looked up per row.
+        let mut statements: Vec<Option<rusqlite::CachedStatement<'_>>> =
+            TABLES.iter().map(|_| None).collect();
+        for row in batch {
+            let (Some(table), Some(slot)) = (TABLES.get(row.table), statements.get_mut(row.table))
+            else {
+                continue;
+            };
+            let statement = match slot {
+                Some(statement) => statement,
+                None => slot.insert(transaction.prepare_cached(table.insert)?),
+            };
+            // Every column is bound, so no value of the previous row can remain.
+            for (index, value) in row.values.iter().enumerate() {
+                statement.raw_bind_parameter(index + 1, value)?;
+            }
+            statement.raw_execute()?;
+        }
     }
     transaction.commit()
 }
