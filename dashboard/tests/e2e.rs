@@ -47,7 +47,9 @@ async fn a_replayed_session_reaches_the_dashboard_intact() {
         .replace("127.0.0.1:1883", &format!("127.0.0.1:{port}"))
         .replace("max_segment_size = 262144", "max_segment_size = 67108864");
     let broker_config: rumqttd::Config = toml::from_str(&text).expect("broker config");
-    broker::spawn(broker_config).expect("broker");
+    // The Pi's own in-process link is not used here: this test publishes with rumqttc over TCP,
+    // as the Pi service does with a broker elsewhere.
+    let _link = broker::spawn(broker_config, "e2e-pi-link").expect("broker");
 
     // The dashboard's link: connected means subscribed.
     let settings = Settings {
@@ -74,10 +76,10 @@ async fn a_replayed_session_reaches_the_dashboard_intact() {
         port,
         ..MqttConfig::default()
     };
-    let (publisher, eventloop) =
+    let (publisher, driver) =
         publish::connect(&mqtt, "e2e-pi", "aer/car1".into(), counters.clone());
     let (up_tx, mut up) = tokio::sync::watch::channel(false);
-    tokio::spawn(publish::drive(eventloop, up_tx));
+    tokio::spawn(publish::drive(driver, up_tx));
     tokio::time::timeout(Duration::from_secs(10), up.wait_for(|u| *u))
         .await
         .expect("the Pi connects")

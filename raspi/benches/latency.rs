@@ -30,7 +30,11 @@ fn main() {
             .map(|a| a.port())
             .expect("port");
         let text = broker::DEFAULT_CONFIG.replace("127.0.0.1:1883", &format!("127.0.0.1:{port}"));
-        broker::spawn(toml::from_str(&text).expect("broker config")).expect("broker");
+        let link = broker::spawn(
+            toml::from_str(&text).expect("broker config"),
+            "latency-ingest",
+        )
+        .expect("broker");
 
         let mut options = MqttOptions::new("latency-subscriber", "127.0.0.1", port);
         options.set_max_packet_size(64 * 1024, 64 * 1024);
@@ -71,14 +75,14 @@ fn main() {
         }
 
         let counters = Arc::new(Counters::default());
-        let mqtt = MqttConfig {
-            port,
-            ..MqttConfig::default()
-        };
-        let (publisher, eventloop) =
-            publish::connect(&mqtt, "latency-ingest", "aer/car1".into(), counters.clone());
+        let (publisher, driver) = publish::embedded(
+            link,
+            MqttConfig::default().queue,
+            "aer/car1".into(),
+            counters.clone(),
+        );
         let (up_tx, mut up) = tokio::sync::watch::channel(false);
-        tokio::spawn(publish::drive(eventloop, up_tx));
+        tokio::spawn(publish::drive(driver, up_tx));
         let _ = up.wait_for(|u| *u).await;
         let dir = tempfile::tempdir().expect("temp dir");
         let writer = store::StoreWriter::start(
@@ -116,6 +120,8 @@ fn main() {
                     s.insert(sequence, Instant::now());
                 }
                 pipeline.feed(last, |_, _| {});
+                // As the live source does before waiting for the next frame.
+                pipeline.flush();
                 tokio::time::sleep_until(next).await;
             }
             // Let the last deliveries arrive (bounded wait for the tail, not a synchronisation).

@@ -42,25 +42,36 @@ pub fn check(config: &rumqttd::Config) -> Result<()> {
     Ok(())
 }
 
-/// Starts the broker on a thread of its own (rumqttd's `start` blocks) and waits (up to 2 s)
-/// until its listeners are bound, then turns Nagle's algorithm off on them (see [`nodelay`]).
-pub fn spawn(config: rumqttd::Config) -> Result<std::thread::JoinHandle<()>> {
+/// An in-process connection to the embedded broker: what the service publishes goes straight
+/// into the broker's router, with no TCP connection and no system call per message.
+pub struct Link {
+    pub tx: rumqttd::local::LinkTx,
+    pub rx: rumqttd::local::LinkRx,
+}
+
+/// Starts the broker on a thread of its own (rumqttd's `start` blocks), waits (up to 2 s) until
+/// its listeners are bound and turns Nagle's algorithm off on them (see [`nodelay`]). Returns
+/// an in-process link called `client_id` for the service's own publishes.
+pub fn spawn(config: rumqttd::Config, client_id: &str) -> Result<Link> {
     let listeners = listeners(&config);
-    let handle = std::thread::Builder::new()
+    let mut broker = rumqttd::Broker::new(config);
+    let (tx, rx) = broker
+        .link(client_id)
+        .context("connecting to the embedded broker's router")?;
+    std::thread::Builder::new()
         .name("mqtt-broker".into())
         .spawn(move || {
-            let mut broker = rumqttd::Broker::new(config);
             if let Err(error) = broker.start() {
                 tracing::error!(%error, "embedded MQTT broker stopped");
             }
         })
         .context("starting the broker thread")?;
     nodelay::wait_and_set(&listeners, std::time::Duration::from_secs(2));
-    Ok(handle)
+    Ok(Link { tx, rx })
 }
 
 /// The TCP addresses the broker listens on.
-fn listeners(config: &rumqttd::Config) -> Vec<std::net::SocketAddr> {
+pub fn listeners(config: &rumqttd::Config) -> Vec<std::net::SocketAddr> {
     [&config.v4, &config.v5, &config.ws]
         .into_iter()
         .flatten()
@@ -144,17 +155,20 @@ pub mod nodelay {
         let mut storage: libc::sockaddr_storage = unsafe { std::mem::zeroed() };
         let mut len = std::mem::size_of::<libc::sockaddr_storage>() as libc::socklen_t;
         // SAFETY: storage is large enough for any address and len says so.
-        let named = unsafe {
-            libc::getsockname(fd, std::ptr::from_mut(&mut storage).cast(), &mut len)
-        } == 0;
+        let named =
+            unsafe { libc::getsockname(fd, std::ptr::from_mut(&mut storage).cast(), &mut len) }
+                == 0;
         if !named {
             return None;
         }
         match libc::c_int::from(storage.ss_family) {
             libc::AF_INET => {
                 // SAFETY: the family says the storage holds a sockaddr_in.
-                let v4: libc::sockaddr_in =
-                    unsafe { std::ptr::from_ref(&storage).cast::<libc::sockaddr_in>().read() };
+                let v4: libc::sockaddr_in = unsafe {
+                    std::ptr::from_ref(&storage)
+                        .cast::<libc::sockaddr_in>()
+                        .read()
+                };
                 Some(SocketAddr::from((
                     v4.sin_addr.s_addr.to_ne_bytes(),
                     u16::from_be(v4.sin_port),
@@ -162,8 +176,11 @@ pub mod nodelay {
             }
             libc::AF_INET6 => {
                 // SAFETY: the family says the storage holds a sockaddr_in6.
-                let v6: libc::sockaddr_in6 =
-                    unsafe { std::ptr::from_ref(&storage).cast::<libc::sockaddr_in6>().read() };
+                let v6: libc::sockaddr_in6 = unsafe {
+                    std::ptr::from_ref(&storage)
+                        .cast::<libc::sockaddr_in6>()
+                        .read()
+                };
                 Some(SocketAddr::from((
                     v6.sin6_addr.s6_addr,
                     u16::from_be(v6.sin6_port),

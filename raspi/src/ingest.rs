@@ -57,9 +57,8 @@ impl Ingest {
     }
 
     /// Leaves ISO-TP to the kernel: raw 0x666/0x777 frames are then ignored.
-    pub fn with_kernel_isotp(mut self) -> Self {
+    pub fn use_kernel_isotp(&mut self) {
         self.userspace_isotp = false;
-        self
     }
 
     /// Decodes a telemetry packet the kernel's ISO-TP socket reassembled.

@@ -101,25 +101,39 @@ async fn serve(config: Config, command: Command) -> Result<()> {
     let writer = store::StoreWriter::start(db, counters.clone());
     info!(path = %config.store.path.display(), "local store open");
 
-    if config.mqtt.embedded_broker {
+    let client_id = format!("aer-raspi-{}", config.car_id);
+    // Where subscribers find the data: the embedded broker's first listener, or the broker
+    // the service publishes to.
+    let mut broker_address = format!("{}:{}", config.mqtt.host, config.mqtt.port);
+    let (publisher, driver) = if config.mqtt.embedded_broker {
         let broker_config = broker::load(config.mqtt.broker_config.as_deref())?;
-        broker::spawn(broker_config)?;
-    }
-    let (publisher, eventloop) = publish::connect(
-        &config.mqtt,
-        &format!("aer-raspi-{}", config.car_id),
-        config.topic_prefix(),
-        counters.clone(),
-    );
+        if let Some(listener) = broker::listeners(&broker_config).first() {
+            broker_address = listener.to_string();
+        }
+        let link = broker::spawn(broker_config, &client_id)?;
+        publish::embedded(
+            link,
+            config.mqtt.queue,
+            config.topic_prefix(),
+            counters.clone(),
+        )
+    } else {
+        publish::connect(
+            &config.mqtt,
+            &client_id,
+            config.topic_prefix(),
+            counters.clone(),
+        )
+    };
     let (connected_tx, mut connected) = tokio::sync::watch::channel(false);
-    let mqtt = tokio::spawn(publish::drive(eventloop, connected_tx));
+    let mqtt = tokio::spawn(publish::drive(driver, connected_tx));
     // Give the broker a moment so the first packets are not dropped for want of a connection;
     // without one the service runs anyway (MQTT drops are counted, the store keeps everything).
     if tokio::time::timeout(Duration::from_secs(5), connected.wait_for(|up| *up))
         .await
         .is_err()
     {
-        tracing::warn!(host = %config.mqtt.host, port = config.mqtt.port, "no MQTT broker yet; publishing once it is reachable");
+        tracing::warn!(broker = %broker_address, "no MQTT broker yet; publishing once it is reachable");
     }
     let demo = matches!(command, Command::Demo);
     let reporter = tokio::spawn(report(
@@ -185,13 +199,15 @@ async fn serve(config: Config, command: Command) -> Result<()> {
             source::synthetic(rate, &mut pipeline, &stop, packets).await;
         }
         Command::Demo => {
+            let (host, port) = broker_address
+                .rsplit_once(':')
+                .unwrap_or((broker_address.as_str(), "1883"));
             println!(
                 "aer-raspi demo: replaying the bundled session at recorded speed, looping until Ctrl-C.\n\
                  Watch it:   mosquitto_sub -h {host} -p {port} -t 'aer/#' -v\n\
+                 Dashboard:  cargo run --release -p aer-dashboard (Tab: pit view)\n\
                  Plot it:    PlotJuggler > Streaming > MQTT, broker {host}:{port}, topic aer/{car}/telemetry (JSON, timestamp field `ts`)\n\
                  Data file:  {file} (SQLite, tables from schema/)",
-                host = config.mqtt.host,
-                port = config.mqtt.port,
                 car = config.car_id,
                 file = std::fs::canonicalize(&config.store.path)
                     .unwrap_or_else(|_| config.store.path.clone())

@@ -4,16 +4,15 @@ use crate::candump::LoggedFrame;
 use crate::ingest::{Ingest, Record};
 use crate::metrics::Counters;
 use crate::publish::Publisher;
-use crate::store::{self, Row};
+use crate::store::{self, RowSender};
 use aer_isotp::Frame;
 use std::sync::Arc;
-use std::sync::mpsc::SyncSender;
 
 /// Decoder plus outputs.
 pub struct Pipeline {
     ingest: Ingest,
     publisher: Option<Publisher>,
-    store: Option<SyncSender<Row>>,
+    store: Option<RowSender>,
     car_id: String,
     bus_names: Vec<String>,
 }
@@ -25,7 +24,7 @@ impl Pipeline {
         car_id: String,
         bus_names: Vec<String>,
         publisher: Option<Publisher>,
-        store: Option<SyncSender<Row>>,
+        store: Option<RowSender>,
     ) -> Self {
         Self {
             ingest: Ingest::new(counters),
@@ -38,7 +37,7 @@ impl Pipeline {
 
     /// Leaves ISO-TP reassembly to the kernel (`run` with `isotp = "kernel"`).
     pub fn with_kernel_isotp(mut self) -> Self {
-        self.ingest = self.ingest.with_kernel_isotp();
+        self.ingest.use_kernel_isotp();
         self
     }
 
@@ -57,7 +56,16 @@ impl Pipeline {
         &mut self.bus_names
     }
 
-    /// Takes one frame through the whole pipeline; `reply` gets flow-control frames.
+    /// Hands what was published to the broker: call before waiting for more input (a record
+    /// may otherwise wait for the next one).
+    pub fn flush(&self) {
+        if let Some(publisher) = &self.publisher {
+            publisher.flush();
+        }
+    }
+
+    /// Takes one frame through the whole pipeline; `reply` gets flow-control frames. Call
+    /// [`Self::flush`] before waiting for the next frame.
     pub fn feed(&mut self, frame: &LoggedFrame, reply: impl FnMut(u8, Frame)) {
         let publisher = self.publisher.as_ref();
         let store = self.store.as_ref();
@@ -71,11 +79,17 @@ impl Pipeline {
     }
 }
 
+impl Drop for Pipeline {
+    fn drop(&mut self) {
+        self.flush();
+    }
+}
+
 /// Publishes and stores one record.
 fn output(
     record: &Record,
     publisher: Option<&Publisher>,
-    store: Option<&SyncSender<Row>>,
+    store: Option<&RowSender>,
     car_id: &str,
     bus_names: &[String],
 ) {
@@ -83,8 +97,7 @@ fn output(
         publisher.publish(record);
     }
     if let (Some(store), Some(row)) = (store, store::row(record, car_id, bus_names)) {
-        // Blocks while the writer is behind: the store never drops. It only fails once the
-        // writer is gone, at shutdown.
-        let _ = store.send(row);
+        // Blocks while the writer is behind: the store never drops.
+        store.send(row);
     }
 }

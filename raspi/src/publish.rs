@@ -1,7 +1,14 @@
-//! Publishes records on the generated typed topics through rumqttc, with a counted drop
-//! policy: the MQTT client's queue is bounded, and a record that does not fit is dropped and
-//! counted rather than stalling decoding (the local store still gets it).
+//! Publishes records on the generated typed topics, with a counted drop policy: the queue to
+//! the broker is bounded, and a record that does not fit is dropped and counted rather than
+//! stalling decoding (the local store still gets it).
+//!
+//! Into the embedded broker the publisher uses rumqttd's in-process link: a publish is a push
+//! onto the router's queue. Through rumqttc and loopback TCP, every message cost a system call
+//! on each side and two more thread hand-offs, a third of the pipeline's time on one core. A
+//! broker elsewhere (`embedded_broker = false`) is reached with rumqttc, its event loop in its
+//! own task.
 
+use crate::broker;
 use crate::config::MqttConfig;
 use crate::ingest::Record;
 use crate::metrics::{Counters, worth_logging};
@@ -10,8 +17,10 @@ use aer::mqtt::{
     encode_message,
 };
 use rumqttc::{AsyncClient, Event, EventLoop, MqttOptions, Packet, QoS};
+use rumqttd::local::{LinkRx, LinkTx};
 use serde::Serialize;
 use std::sync::Arc;
+use std::sync::Mutex;
 use std::sync::atomic::Ordering;
 use std::time::Duration;
 use tracing::{info, warn};
@@ -19,19 +28,96 @@ use tracing::{info, warn};
 /// Sends records to the broker.
 #[derive(Clone)]
 pub struct Publisher {
-    client: AsyncClient,
+    sink: Sink,
     prefix: String,
     counters: Arc<Counters>,
 }
 
-/// Connects (lazily: the event loop connects and reconnects) and returns the publisher and
-/// the event loop to drive with [`drive`].
+#[derive(Clone)]
+enum Sink {
+    /// The embedded broker's router, in process.
+    Embedded(Arc<Mutex<EmbeddedLink>>),
+    /// A broker over TCP (rumqttc; its event loop runs in [`drive`]).
+    Remote(AsyncClient),
+}
+
+struct EmbeddedLink {
+    tx: LinkTx,
+    /// Messages that may wait for the router before new ones are dropped.
+    queue: usize,
+    /// The newest record, queued at the next flush: it carries the router's wake-up.
+    held: Option<rumqttd::protocol::Packet>,
+}
+
+impl EmbeddedLink {
+    /// Queues `packet`: with `wake`, it goes now and wakes the router for everything queued;
+    /// without, it is held until the next message or [`Self::flush`]. Waking the router for
+    /// each message of a burst cost a context switch each (the woken router preempts the
+    /// pipeline); the router takes the whole queue at each wake-up.
+    fn queue(&mut self, packet: rumqttd::protocol::Packet, wake: bool) -> bool {
+        let mut waiting = self.tx.buffer();
+        // The link's queue is unbounded: bound it here.
+        if waiting.len() >= self.queue {
+            return false;
+        }
+        if let Some(held) = self.held.take() {
+            waiting.push_back(held);
+        }
+        drop(waiting);
+        if wake {
+            push(&mut self.tx, packet)
+        } else {
+            self.held = Some(packet);
+            true
+        }
+    }
+
+    /// Queues the held message and wakes the router.
+    fn flush(&mut self) -> bool {
+        self.held
+            .take()
+            .is_none_or(|packet| push(&mut self.tx, packet))
+    }
+}
+
+/// What keeps a publisher's connection going: run it with [`drive`].
+pub enum Driver {
+    /// Reads what the embedded broker's router sends back on the in-process link.
+    Embedded(LinkRx),
+    /// The rumqttc event loop.
+    Remote(Box<EventLoop>),
+}
+
+/// A publisher into the embedded broker over its in-process `link`.
+pub fn embedded(
+    link: broker::Link,
+    queue: usize,
+    prefix: String,
+    counters: Arc<Counters>,
+) -> (Publisher, Driver) {
+    let sink = Sink::Embedded(Arc::new(Mutex::new(EmbeddedLink {
+        tx: link.tx,
+        queue: queue.max(1),
+        held: None,
+    })));
+    (
+        Publisher {
+            sink,
+            prefix,
+            counters,
+        },
+        Driver::Embedded(link.rx),
+    )
+}
+
+/// A publisher to the broker `config` names, over TCP. It connects lazily: [`drive`]
+/// connects, and reconnects after a failure.
 pub fn connect(
     config: &MqttConfig,
     client_id: &str,
     prefix: String,
     counters: Arc<Counters>,
-) -> (Publisher, EventLoop) {
+) -> (Publisher, Driver) {
     let mut options = MqttOptions::new(client_id, config.host.clone(), config.port);
     options.set_keep_alive(Duration::from_secs(5));
     options.set_max_packet_size(64 * 1024, 64 * 1024);
@@ -40,25 +126,38 @@ pub fn connect(
     }
     let (client, mut eventloop) = AsyncClient::new(options, config.queue.max(1));
     // Without TCP_NODELAY, Nagle's algorithm holds small publishes back for up to the peer's
-    // delayed-ACK time (~40 ms): the measured p99 latency was 35 ms before this.
+    // delayed-ACK time (~40 ms).
     let mut network = eventloop.network_options();
     network.set_tcp_nodelay(true);
     eventloop.set_network_options(network);
     (
         Publisher {
-            client,
+            sink: Sink::Remote(client),
             prefix,
             counters,
         },
-        eventloop,
+        Driver::Remote(Box::new(eventloop)),
     )
 }
 
-/// Polls the MQTT event loop in its own task (publishing from the polling task would
-/// deadlock once the queue fills: rumqtt issue #263); connection errors are logged and
-/// retried after a second. `connected` is set on every (re)connection; after a disconnect
-/// the loop ends once the broker has closed the connection.
-pub async fn drive(mut eventloop: EventLoop, connected_tx: tokio::sync::watch::Sender<bool>) {
+/// Keeps the publisher's connection going until it is closed; `connected` is set on every
+/// (re)connection.
+///
+/// Remote: polls the rumqttc event loop in its own task (publishing from the polling task would
+/// deadlock once the queue fills: rumqtt issue #263); connection errors are logged and retried
+/// after a second; after a disconnect the loop ends once the broker has closed the connection.
+/// Embedded: reads (and discards) what the router sends back until the link closes.
+pub async fn drive(driver: Driver, connected_tx: tokio::sync::watch::Sender<bool>) {
+    match driver {
+        Driver::Embedded(mut rx) => {
+            let _ = connected_tx.send(true);
+            while rx.next().await.is_ok() {}
+        }
+        Driver::Remote(eventloop) => drive_remote(*eventloop, connected_tx).await,
+    }
+}
+
+async fn drive_remote(mut eventloop: EventLoop, connected_tx: tokio::sync::watch::Sender<bool>) {
     let mut connected = false;
     let mut closing = false;
     loop {
@@ -83,7 +182,8 @@ pub async fn drive(mut eventloop: EventLoop, connected_tx: tokio::sync::watch::S
 }
 
 impl Publisher {
-    /// Publishes one record on its typed topic.
+    /// Publishes one record on its typed topic. Into the embedded broker, the newest record
+    /// goes out with the next one or at [`Self::flush`]: call it before waiting for input.
     pub fn publish(&self, record: &Record) {
         let (topic, payload) = match record {
             Record::Telemetry {
@@ -107,7 +207,7 @@ impl Publisher {
             },
         };
         match payload {
-            Ok(payload) => self.send(topic, payload, false),
+            Ok(payload) => self.send(topic, payload, false, false),
             Err(error) => {
                 // Serialising generated types cannot fail short of a bug; count it as a drop.
                 let count = Counters::bump(&self.counters.publish_dropped);
@@ -116,23 +216,50 @@ impl Publisher {
         }
     }
 
-    /// Sends everything queued, then disconnects (the event loop then ends).
+    /// Hands every published record to the broker now.
+    pub fn flush(&self) {
+        if let Sink::Embedded(link) = &self.sink
+            && !link.lock().is_ok_and(|mut link| link.flush())
+        {
+            let count = Counters::bump(&self.counters.publish_dropped);
+            if worth_logging(count) {
+                warn!(count, "the embedded broker is gone: message dropped");
+            }
+        }
+    }
+
+    /// Sends everything queued, then disconnects ([`drive`] then ends).
     pub async fn disconnect(&self) {
-        let _ = self.client.disconnect().await;
+        match &self.sink {
+            Sink::Remote(client) => {
+                let _ = client.disconnect().await;
+            }
+            Sink::Embedded(link) => {
+                let disconnect = rumqttd::protocol::Packet::Disconnect(
+                    rumqttd::protocol::Disconnect {
+                        reason_code: rumqttd::protocol::DisconnectReasonCode::NormalDisconnection,
+                    },
+                    None,
+                );
+                if let Ok(mut link) = link.lock() {
+                    let _ = link.queue(disconnect, true);
+                }
+            }
+        }
     }
 
     /// Publishes any JSON value on `<prefix>/<suffix>` (outside the typed topics: probes and
     /// the benchmark's stand-in for today's payload).
     pub fn publish_json(&self, suffix: &str, value: &impl Serialize, retain: bool) {
         if let Ok(payload) = serde_json::to_vec(value) {
-            self.send(format!("{}/{suffix}", self.prefix), payload, retain);
+            self.send(format!("{}/{suffix}", self.prefix), payload, retain, true);
         }
     }
 
     /// Publishes `value` on `topic`, typed by the topic.
     pub fn publish_on<P: Serialize>(&self, topic: &Topic<P>, value: &P, retain: bool) {
         match topic.encode(value) {
-            Ok(payload) => self.send(topic.path(&self.prefix), payload, retain),
+            Ok(payload) => self.send(topic.path(&self.prefix), payload, retain, true),
             Err(error) => {
                 let count = Counters::bump(&self.counters.publish_dropped);
                 warn!(%error, count, topic = topic.suffix(), "payload could not be serialised");
@@ -140,25 +267,47 @@ impl Publisher {
         }
     }
 
-    fn send(&self, topic: String, payload: Vec<u8>, retain: bool) {
-        match self
-            .client
-            .try_publish(topic, QoS::AtMostOnce, retain, payload)
-        {
-            Ok(()) => {
-                Counters::bump(&self.counters.published);
-            }
-            Err(_) => {
-                let count = Counters::bump(&self.counters.publish_dropped);
-                if worth_logging(count) {
-                    warn!(
-                        count,
-                        "MQTT queue full (broker slow or unreachable): message dropped"
-                    );
-                }
+    fn send(&self, topic: String, payload: Vec<u8>, retain: bool, wake: bool) {
+        let accepted = match &self.sink {
+            Sink::Remote(client) => client
+                .try_publish(topic, QoS::AtMostOnce, retain, payload)
+                .is_ok(),
+            Sink::Embedded(link) => link.lock().is_ok_and(|mut link| {
+                let packet = rumqttd::protocol::Packet::Publish(
+                    rumqttd::protocol::Publish::new(
+                        bytes::Bytes::from(topic),
+                        bytes::Bytes::from(payload),
+                        retain,
+                    ),
+                    None,
+                );
+                link.queue(packet, wake)
+            }),
+        };
+        if accepted {
+            Counters::bump(&self.counters.published);
+        } else {
+            let count = Counters::bump(&self.counters.publish_dropped);
+            if worth_logging(count) {
+                warn!(
+                    count,
+                    "MQTT queue full (broker slow or unreachable): message dropped"
+                );
             }
         }
     }
+}
+
+/// Queues `packet` for the router and wakes it. `LinkTx::send` is the one public way to queue
+/// any packet (a retained publish, a disconnect); it has no await point, so one poll runs it to
+/// the end. Were it ever pending, the packet would still be queued, taken with the next wake.
+fn push(tx: &mut LinkTx, packet: rumqttd::protocol::Packet) -> bool {
+    let mut send = std::pin::pin!(tx.send(packet));
+    let mut context = std::task::Context::from_waker(std::task::Waker::noop());
+    !matches!(
+        send.as_mut().poll(&mut context),
+        std::task::Poll::Ready(Err(_))
+    )
 }
 
 /// Seconds since the epoch, as PlotJuggler reads `ts`.

@@ -21,6 +21,9 @@ pub fn now_us() -> u64 {
         .map_or(0, |d| u64::try_from(d.as_micros()).unwrap_or(u64::MAX))
 }
 
+/// Frames a fast replay takes between handing its records to the broker.
+const FLUSH_FRAMES: u64 = 256;
+
 /// How a log is replayed.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct ReplayOptions {
@@ -88,10 +91,17 @@ pub async fn replay(
                 continue;
             }
         };
-        if !options.fast {
+        if options.fast {
+            if stats.frames % FLUSH_FRAMES == 0 {
+                pipeline.flush();
+            }
+        } else {
             let (first_us, start) = *origin.get_or_insert((frame.ts_us, Instant::now()));
             let due = start + Duration::from_micros(frame.ts_us.saturating_sub(first_us));
-            tokio::time::sleep_until(due).await;
+            if due > Instant::now() {
+                pipeline.flush();
+                tokio::time::sleep_until(due).await;
+            }
         }
         if options.restamp {
             frame.ts_us = now_us();
@@ -100,6 +110,7 @@ pub async fn replay(
         // A replay cannot answer the CCM: flow control is computed and dropped.
         pipeline.feed(&frame, |_, _| {});
     }
+    pipeline.flush();
     stats
 }
 
@@ -174,6 +185,7 @@ pub async fn synthetic(
             pipeline.feed(&frame, |_, _| {});
         }
         packets += 1;
+        pipeline.flush();
         tokio::time::sleep_until(next).await;
     }
 }
@@ -216,7 +228,18 @@ pub async fn socketcan(
         }
     }
     drop(frames_tx);
-    while let Some(input) = frames_rx.recv().await {
+    loop {
+        // Everything that has arrived, then hand it to the broker before waiting again.
+        let input = match frames_rx.try_recv() {
+            Ok(input) => input,
+            Err(_) => {
+                pipeline.flush();
+                match frames_rx.recv().await {
+                    Some(input) => input,
+                    None => break,
+                }
+            }
+        };
         if stop.load(Ordering::Relaxed) {
             break;
         }

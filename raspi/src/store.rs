@@ -7,14 +7,13 @@ use crate::metrics::Counters;
 use aer::can::MESSAGES;
 use aer::local_store::{LocalTable, TABLES};
 use aer::runtime::{SignalMeta, SignalVisitor, Value};
-use rusqlite::types::Value as Sql;
 use rusqlite::Connection;
+use rusqlite::types::Value as Sql;
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
 use std::sync::atomic::Ordering;
-use std::sync::mpsc::{Receiver, RecvTimeoutError, SyncSender, sync_channel};
+use std::sync::{Arc, Condvar, Mutex};
 use std::thread::JoinHandle;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 use thiserror::Error;
 use tracing::{error, info};
 
@@ -198,17 +197,84 @@ impl SignalVisitor for ByName<'_> {
 
 /// The writer thread and its queue.
 pub struct StoreWriter {
-    sender: Option<SyncSender<Row>>,
+    sender: Option<RowSender>,
     thread: Option<JoinHandle<()>>,
+}
+
+/// Rows waiting for the writer. Producers wake the writer only when a batch is full, so a busy
+/// pipeline costs one wake-up per batch, not one per row; otherwise the writer takes what is
+/// there every [`BATCH_WAIT`].
+struct Queue {
+    state: Mutex<Pending>,
+    /// Signals the writer: a full batch, or the last sender gone.
+    filled: Condvar,
+    /// Signals blocked producers: the writer took the queue.
+    emptied: Condvar,
+}
+
+struct Pending {
+    rows: Vec<Row>,
+    senders: usize,
+}
+
+/// Sends rows to the writer; blocks while [`QUEUE_ROWS`] rows wait, so nothing is dropped.
+/// The writer stops once every sender is gone and the queue is written.
+pub struct RowSender(Arc<Queue>);
+
+impl RowSender {
+    /// Queues `row`.
+    pub fn send(&self, row: Row) {
+        let Ok(mut pending) = self.0.state.lock() else {
+            return;
+        };
+        while pending.rows.len() >= QUEUE_ROWS {
+            match self.0.emptied.wait(pending) {
+                Ok(guard) => pending = guard,
+                Err(_) => return,
+            }
+        }
+        pending.rows.push(row);
+        if pending.rows.len() == BATCH_ROWS {
+            self.0.filled.notify_one();
+        }
+    }
+}
+
+impl Clone for RowSender {
+    fn clone(&self) -> Self {
+        if let Ok(mut pending) = self.0.state.lock() {
+            pending.senders += 1;
+        }
+        Self(self.0.clone())
+    }
+}
+
+impl Drop for RowSender {
+    fn drop(&mut self) {
+        if let Ok(mut pending) = self.0.state.lock() {
+            pending.senders -= 1;
+            if pending.senders == 0 {
+                self.0.filled.notify_one();
+            }
+        }
+    }
 }
 
 impl StoreWriter {
     /// Starts the writer on `db`.
     pub fn start(db: Connection, counters: Arc<Counters>) -> Self {
-        let (sender, receiver) = sync_channel(QUEUE_ROWS);
+        let queue = Arc::new(Queue {
+            state: Mutex::new(Pending {
+                rows: Vec::with_capacity(BATCH_ROWS),
+                senders: 1,
+            }),
+            filled: Condvar::new(),
+            emptied: Condvar::new(),
+        });
+        let sender = RowSender(queue.clone());
         let thread = std::thread::Builder::new()
             .name("store-writer".into())
-            .spawn(move || write_loop(db, &receiver, &counters))
+            .spawn(move || write_loop(db, &queue, &counters))
             .ok();
         Self {
             sender: Some(sender),
@@ -216,12 +282,12 @@ impl StoreWriter {
         }
     }
 
-    /// A handle producers send rows with (blocks while the queue is full).
-    pub fn sender(&self) -> Option<SyncSender<Row>> {
+    /// A handle producers send rows with.
+    pub fn sender(&self) -> Option<RowSender> {
         self.sender.clone()
     }
 
-    /// Flushes every queued row and stops the writer.
+    /// Writes every queued row and stops the writer, once every other sender is dropped.
     pub fn finish(mut self) {
         self.sender.take();
         if let Some(thread) = self.thread.take() {
@@ -230,35 +296,41 @@ impl StoreWriter {
     }
 }
 
-fn write_loop(mut db: Connection, receiver: &Receiver<Row>, counters: &Counters) {
+fn write_loop(mut db: Connection, queue: &Queue, counters: &Counters) {
     let mut batch: Vec<Row> = Vec::with_capacity(BATCH_ROWS);
-    let mut open = true;
-    while open || !batch.is_empty() {
-        let deadline = Instant::now() + BATCH_WAIT;
-        while open && batch.len() < BATCH_ROWS {
-            let wait = deadline.saturating_duration_since(Instant::now());
-            match receiver.recv_timeout(wait) {
-                Ok(row) => batch.push(row),
-                Err(RecvTimeoutError::Timeout) => break,
-                Err(RecvTimeoutError::Disconnected) => open = false,
+    loop {
+        let open = {
+            let Ok(mut pending) = queue.state.lock() else {
+                return;
+            };
+            if pending.rows.len() < BATCH_ROWS && pending.senders > 0 {
+                match queue.filled.wait_timeout(pending, BATCH_WAIT) {
+                    Ok((guard, _)) => pending = guard,
+                    Err(_) => return,
+                }
+            }
+            std::mem::swap(&mut batch, &mut pending.rows);
+            queue.emptied.notify_all();
+            pending.senders > 0
+        };
+        while !batch.is_empty() {
+            match commit(&mut db, &batch) {
+                Ok(()) => {
+                    counters
+                        .stored
+                        .fetch_add(batch.len() as u64, Ordering::Relaxed);
+                    batch.clear();
+                }
+                Err(error) => {
+                    // Disk full or I/O error: keep the batch and retry, so nothing is lost
+                    // while the cause is fixed; producers block once the queue fills.
+                    error!(%error, rows = batch.len(), "local store write failed; retrying in 1 s");
+                    std::thread::sleep(Duration::from_secs(1));
+                }
             }
         }
-        if batch.is_empty() {
-            continue;
-        }
-        match commit(&mut db, &batch) {
-            Ok(()) => {
-                counters
-                    .stored
-                    .fetch_add(batch.len() as u64, Ordering::Relaxed);
-                batch.clear();
-            }
-            Err(error) => {
-                // Disk full or I/O error: keep the batch and retry, so nothing is lost while
-                // the cause is fixed; producers block once the queue fills.
-                error!(%error, rows = batch.len(), "local store write failed; retrying in 1 s");
-                std::thread::sleep(Duration::from_secs(1));
-            }
+        if !open {
+            return;
         }
     }
 }

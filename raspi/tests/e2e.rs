@@ -25,14 +25,15 @@ fn free_port() -> u16 {
 }
 
 /// The broker of the repository's config on `port`, with segments large enough to hold a
-/// fast replay for a slow subscriber (the Pi's config is sized for 100 packets/s).
-fn start_broker(port: u16) {
+/// fast replay for a slow subscriber (the Pi's config is sized for 100 packets/s); returns the
+/// service's in-process link to it.
+fn start_broker(port: u16) -> broker::Link {
     let text = broker::DEFAULT_CONFIG
         .replace("127.0.0.1:1883", &format!("127.0.0.1:{port}"))
         .replace("max_segment_size = 262144", "max_segment_size = 67108864");
     let config: rumqttd::Config = toml::from_str(&text).expect("broker config");
     broker::check(&config).expect("loopback only");
-    broker::spawn(config).expect("broker thread");
+    broker::spawn(config, "e2e-ingest").expect("broker thread")
 }
 
 /// What the generated decoder reads from the log, by sequence number.
@@ -56,7 +57,7 @@ async fn every_packet_reaches_both_subscribers_and_the_store() {
     assert_eq!(expected.len(), 4_500, "45 s at 100 Hz");
 
     let port = free_port();
-    start_broker(port);
+    let link = start_broker(port);
 
     // rumqttc subscriber, subscribed (SubAck seen) before anything is published.
     let mut options = MqttOptions::new("e2e-subscriber", "127.0.0.1", port);
@@ -109,14 +110,15 @@ async fn every_packet_reaches_both_subscribers_and_the_store() {
         .expect("mosquitto_sub (Debian package mosquitto-clients; .ci/run installs it)");
     let mut lines = BufReader::new(mosquitto.stdout.take().expect("stdout")).lines();
     let counters = Arc::new(Counters::default());
-    let mqtt = MqttConfig {
-        port,
-        ..MqttConfig::default()
-    };
-    let (publisher, eventloop) =
-        publish::connect(&mqtt, "e2e-ingest", "aer/car1".into(), counters.clone());
+    // The service's own path: in process into the embedded broker.
+    let (publisher, driver) = publish::embedded(
+        link,
+        MqttConfig::default().queue,
+        "aer/car1".into(),
+        counters.clone(),
+    );
     let (up_tx, mut up) = tokio::sync::watch::channel(false);
-    tokio::spawn(publish::drive(eventloop, up_tx));
+    tokio::spawn(publish::drive(driver, up_tx));
     tokio::time::timeout(Duration::from_secs(10), up.wait_for(|u| *u))
         .await
         .expect("connected")

@@ -170,7 +170,7 @@ fn the_cursor_gives_no_duplicates_and_no_gaps_across_failures_and_restarts() {
         },
     };
     for seq in 0..12 {
-        sender.send(row(seq)).expect("queued");
+        sender.send(row(seq));
     }
     drop(sender);
     writer.finish();
