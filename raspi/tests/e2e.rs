@@ -177,6 +177,24 @@ async fn every_packet_reaches_both_subscribers_and_the_store() {
     assert_eq!(snapshot.publish_dropped, 0, "{snapshot:?}");
     assert_eq!(snapshot.stored, 4_500 + 18_450);
 
+    // The status is retained: a subscriber that comes later still gets it.
+    publish::report(
+        &publisher,
+        "car1",
+        &counters,
+        &publish::metrics(snapshot, snapshot),
+    );
+    let late = Command::new("mosquitto_sub")
+        .args(["-h", "127.0.0.1", "-p", &port.to_string()])
+        .args(["-t", "aer/car1/status", "-C", "1", "-W", "10"])
+        .output()
+        .expect("mosquitto_sub");
+    let status: aer::mqtt::Status = aer::mqtt::STATUS
+        .decode(&late.stdout)
+        .expect("a retained status");
+    assert_eq!(status.fingerprint_match, Some(true));
+    assert_eq!(status.car_id, "car1");
+
     let (telemetry, can) = collector.await.expect("collector");
     assert_eq!(telemetry.len(), 4_500, "rumqttc subscriber: every packet");
     assert_eq!(can, 18_450, "rumqttc subscriber: every CAN frame");
