@@ -35,8 +35,8 @@ pub struct Publisher {
 
 #[derive(Clone)]
 enum Sink {
-    /// The embedded broker's router, in process.
-    Embedded(Arc<Mutex<EmbeddedLink>>),
+    /// The embedded broker's router, in process; the notification ends [`drive`].
+    Embedded(Arc<Mutex<EmbeddedLink>>, Arc<tokio::sync::Notify>),
     /// A broker over TCP (rumqttc; its event loop runs in [`drive`]).
     Remote(AsyncClient),
 }
@@ -82,8 +82,9 @@ impl EmbeddedLink {
 
 /// What keeps a publisher's connection going: run it with [`drive`].
 pub enum Driver {
-    /// Reads what the embedded broker's router sends back on the in-process link.
-    Embedded(LinkRx),
+    /// Reads what the embedded broker's router sends back on the in-process link, until the
+    /// publisher disconnects.
+    Embedded(LinkRx, Arc<tokio::sync::Notify>),
     /// The rumqttc event loop.
     Remote(Box<EventLoop>),
 }
@@ -95,18 +96,22 @@ pub fn embedded(
     prefix: String,
     counters: Arc<Counters>,
 ) -> (Publisher, Driver) {
-    let sink = Sink::Embedded(Arc::new(Mutex::new(EmbeddedLink {
-        tx: link.tx,
-        queue: queue.max(1),
-        held: None,
-    })));
+    let closed = Arc::new(tokio::sync::Notify::new());
+    let sink = Sink::Embedded(
+        Arc::new(Mutex::new(EmbeddedLink {
+            tx: link.tx,
+            queue: queue.max(1),
+            held: None,
+        })),
+        closed.clone(),
+    );
     (
         Publisher {
             sink,
             prefix,
             counters,
         },
-        Driver::Embedded(link.rx),
+        Driver::Embedded(link.rx, closed),
     )
 }
 
@@ -146,12 +151,20 @@ pub fn connect(
 /// Remote: polls the rumqttc event loop in its own task (publishing from the polling task would
 /// deadlock once the queue fills: rumqtt issue #263); connection errors are logged and retried
 /// after a second; after a disconnect the loop ends once the broker has closed the connection.
-/// Embedded: reads (and discards) what the router sends back until the link closes.
+/// Embedded: reads (and discards) what the router sends back until the publisher disconnects
+/// (the link itself stays open: the router logs errors when a local link disconnects).
 pub async fn drive(driver: Driver, connected_tx: tokio::sync::watch::Sender<bool>) {
     match driver {
-        Driver::Embedded(mut rx) => {
+        Driver::Embedded(mut rx, closed) => {
             let _ = connected_tx.send(true);
-            while rx.next().await.is_ok() {}
+            loop {
+                tokio::select! {
+                    () = closed.notified() => return,
+                    received = rx.next() => if received.is_err() {
+                        return;
+                    },
+                }
+            }
         }
         Driver::Remote(eventloop) => drive_remote(*eventloop, connected_tx).await,
     }
@@ -218,7 +231,7 @@ impl Publisher {
 
     /// Hands every published record to the broker now.
     pub fn flush(&self) {
-        if let Sink::Embedded(link) = &self.sink
+        if let Sink::Embedded(link, _) = &self.sink
             && !link.lock().is_ok_and(|mut link| link.flush())
         {
             let count = Counters::bump(&self.counters.publish_dropped);
@@ -234,16 +247,9 @@ impl Publisher {
             Sink::Remote(client) => {
                 let _ = client.disconnect().await;
             }
-            Sink::Embedded(link) => {
-                let disconnect = rumqttd::protocol::Packet::Disconnect(
-                    rumqttd::protocol::Disconnect {
-                        reason_code: rumqttd::protocol::DisconnectReasonCode::NormalDisconnection,
-                    },
-                    None,
-                );
-                if let Ok(mut link) = link.lock() {
-                    let _ = link.queue(disconnect, true);
-                }
+            Sink::Embedded(_, closed) => {
+                self.flush();
+                closed.notify_one();
             }
         }
     }
@@ -272,7 +278,7 @@ impl Publisher {
             Sink::Remote(client) => client
                 .try_publish(topic, QoS::AtMostOnce, retain, payload)
                 .is_ok(),
-            Sink::Embedded(link) => link.lock().is_ok_and(|mut link| {
+            Sink::Embedded(link, _) => link.lock().is_ok_and(|mut link| {
                 let packet = rumqttd::protocol::Packet::Publish(
                     rumqttd::protocol::Publish::new(
                         bytes::Bytes::from(topic),
@@ -299,8 +305,9 @@ impl Publisher {
 }
 
 /// Queues `packet` for the router and wakes it. `LinkTx::send` is the one public way to queue
-/// any packet (a retained publish, a disconnect); it has no await point, so one poll runs it to
-/// the end. Were it ever pending, the packet would still be queued, taken with the next wake.
+/// any packet with a wake-up (`try_publish` cannot retain); it has no await point, so one poll
+/// runs it to the end. Were it ever pending, the packet would still be queued, taken with the
+/// next wake.
 fn push(tx: &mut LinkTx, packet: rumqttd::protocol::Packet) -> bool {
     let mut send = std::pin::pin!(tx.send(packet));
     let mut context = std::task::Context::from_waker(std::task::Waker::noop());
