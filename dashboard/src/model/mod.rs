@@ -210,13 +210,32 @@ impl Dashboard {
             .map(|latest| speed_m_s(&latest.telemetry) * 3.6)
     }
 
-    /// Battery power (kW, positive while discharging) and the rules' limit.
-    pub fn power_kw(&self) -> Option<(f64, f64)> {
-        self.latest.as_ref().map(|latest| {
-            let watts =
-                f64::from(latest.telemetry.pack_voltage) * f64::from(latest.telemetry.pack_current);
-            (watts / 1_000.0, f64::from(POWER_LIMIT_W) / 1_000.0)
+    /// Battery power (kW, positive while discharging): amber above 90 % of the rules' limit
+    /// ([`Self::power_limit_kw`]), red above it.
+    pub fn power(&self) -> Option<Reading> {
+        let latest = self.latest.as_ref()?;
+        let kw = f64::from(latest.telemetry.pack_voltage)
+            * f64::from(latest.telemetry.pack_current)
+            / 1_000.0;
+        let limit = Self::power_limit_kw();
+        let level = if kw > limit {
+            Level::Critical
+        } else if kw > 0.9 * limit {
+            Level::Warn
+        } else {
+            Level::Normal
+        };
+        Some(Reading {
+            label: "Power",
+            value: kw,
+            unit: "kW",
+            level,
         })
+    }
+
+    /// The accumulator power limit (EV.3.3.1), as the CCM enforces it (kW).
+    pub fn power_limit_kw() -> f64 {
+        f64::from(POWER_LIMIT_W) / 1_000.0
     }
 
     /// The schema field called `name` as a reading of the newest packet.
@@ -363,7 +382,9 @@ mod tests {
         dashboard.telemetry(&packet(1, 10.0, telemetry), Instant::now());
         let speed = dashboard.speed_kmh().unwrap();
         assert!((speed - 37.699).abs() < 0.01, "{speed}");
-        assert_eq!(dashboard.power_kw(), Some((60.0, 80.0)));
+        let power = dashboard.power().unwrap();
+        assert_eq!((power.value, power.level), (60.0, Level::Normal));
+        assert_eq!(Dashboard::power_limit_kw(), 80.0);
         // Inverter 80 of 85 is closer to its limit than motor 90 of 120.
         let hottest = dashboard.hottest().unwrap();
         assert_eq!((hottest.label, hottest.value), ("Inverter", 80.0));

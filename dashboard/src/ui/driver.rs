@@ -73,16 +73,12 @@ pub fn view(model: &Dashboard, now: Instant) -> Element<'_, Message> {
     .spacing(4)
     .width(FillPortion(2));
 
-    let (power, limit) = model.power_kw().unwrap_or((0.0, 80.0));
-    let power_level = if power > limit {
-        Level::Critical
-    } else if power > 0.9 * limit {
-        Level::Warn
-    } else {
-        Level::Normal
-    };
-    let power_text = match model.power_kw() {
-        Some(_) => format!("{power:.0} / {limit:.0} kW"),
+    let power = model.power();
+    let limit = Dashboard::power_limit_kw();
+    let power_level = power.as_ref().map_or(Level::Normal, |p| p.level);
+    let power_kw = power.as_ref().map_or(0.0, |p| p.value);
+    let power_text = match &power {
+        Some(p) => format!("{:.0} / {limit:.0} kW", p.value),
         None => "-- kW".to_owned(),
     };
     let power_panel = column![
@@ -92,7 +88,7 @@ pub fn view(model: &Dashboard, now: Instant) -> Element<'_, Message> {
             text(power_text).size(34).color(value_color(power_level)),
         ]
         .align_y(Alignment::Center),
-        progress_bar(0.0..=limit as f32, power.max(0.0) as f32)
+        progress_bar(0.0..=limit as f32, power_kw.max(0.0) as f32)
             .girth(18)
             .style(style::bar(value_color(power_level))),
     ]
