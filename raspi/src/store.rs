@@ -217,7 +217,7 @@ struct Pending {
     senders: usize,
 }
 
-/// Sends rows to the writer; blocks while 65,536 rows wait, so nothing is dropped.
+/// Sends rows to the writer; blocks while the queue is full, so nothing is dropped.
 /// The writer stops once every sender is gone and the queue is written.
 pub struct RowSender(Arc<Queue>);
 
