@@ -13,8 +13,8 @@ pub struct Pipeline {
     ingest: Ingest,
     publisher: Option<Publisher>,
     store: Option<RowSender>,
-    car_id: String,
-    bus_names: Vec<String>,
+    car_id: Arc<str>,
+    bus_names: Vec<Arc<str>>,
 }
 
 impl Pipeline {
@@ -22,7 +22,7 @@ impl Pipeline {
     pub fn new(
         counters: Arc<Counters>,
         car_id: String,
-        bus_names: Vec<String>,
+        bus_names: Vec<Arc<str>>,
         publisher: Option<Publisher>,
         store: Option<RowSender>,
     ) -> Self {
@@ -30,7 +30,7 @@ impl Pipeline {
             ingest: Ingest::new(counters),
             publisher,
             store,
-            car_id,
+            car_id: car_id.into(),
             bus_names,
         }
     }
@@ -52,7 +52,7 @@ impl Pipeline {
     }
 
     /// Bus names by index (the order interfaces were first seen).
-    pub fn bus_names_mut(&mut self) -> &mut Vec<String> {
+    pub fn bus_names_mut(&mut self) -> &mut Vec<Arc<str>> {
         &mut self.bus_names
     }
 
@@ -90,13 +90,14 @@ fn output(
     record: &Record,
     publisher: Option<&Publisher>,
     store: Option<&RowSender>,
-    car_id: &str,
-    bus_names: &[String],
+    car_id: &Arc<str>,
+    bus_names: &[Arc<str>],
 ) {
     if let Some(publisher) = publisher {
         publisher.publish(record);
     }
-    if let (Some(store), Some(row)) = (store, store::row(record, car_id, bus_names)) {
+    if let Some(store) = store {
+        let row = store::row(record, car_id, bus_names);
         // Blocks while the writer is behind: the store never drops.
         store.send(row);
     }

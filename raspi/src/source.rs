@@ -76,7 +76,7 @@ pub async fn replay(
         let parsed = parse_line(&line, |name| {
             let next = u8::try_from(interfaces.len()).unwrap_or(u8::MAX);
             *interfaces.entry(name.to_owned()).or_insert_with(|| {
-                pipeline.bus_names_mut().push(name.to_owned());
+                pipeline.bus_names_mut().push(name.into());
                 next
             })
         });
@@ -207,7 +207,7 @@ pub async fn socketcan(
     let kernel = isotp == crate::config::IsoTpMode::Kernel;
     let mut replies = Vec::new();
     for (index, name) in interfaces.iter().enumerate() {
-        pipeline.bus_names_mut().push(name.clone());
+        pipeline.bus_names_mut().push(name.as_str().into());
         let (reply_tx, reply_rx) = mpsc::channel::<aer_isotp::Frame>(64);
         let telemetry_bus = name == telemetry_interface;
         replies.push((telemetry_bus && !kernel).then_some(reply_tx));

@@ -4,11 +4,12 @@
 
 use crate::ingest::Record;
 use crate::metrics::Counters;
+use aer::can::AnyMessage;
 use aer::can::MESSAGES;
 use aer::local_store::{LocalTable, TABLES};
 use aer::runtime::{SignalMeta, SignalVisitor, Value};
-use rusqlite::Connection;
-use rusqlite::types::Value as Sql;
+use aer::telemetry::{Telemetry, TelemetryHeader};
+use rusqlite::{Connection, Statement};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::Ordering;
 use std::sync::{Arc, Condvar, Mutex};
@@ -92,106 +93,155 @@ fn migrate(db: &Connection, table: &LocalTable) -> rusqlite::Result<()> {
     Ok(())
 }
 
-/// One row for one table.
+/// One record on its way into the store: the decoded values themselves. The writer binds
+/// them straight into its insert, so the pipeline allocates nothing per row.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Row {
-    /// Index into `aer::local_store::TABLES`.
-    pub table: usize,
-    /// Values in the table's column order (without `id`).
-    pub values: Vec<Sql>,
+    pub car_id: Arc<str>,
+    /// Receive time (us since the epoch).
+    pub ts_us: u64,
+    pub data: RowData,
 }
 
-/// Builds the row a record becomes.
-pub fn row(record: &Record, car_id: &str, bus_names: &[String]) -> Option<Row> {
+/// What a row holds.
+#[derive(Debug, Clone, PartialEq)]
+pub enum RowData {
+    Telemetry {
+        header: TelemetryHeader,
+        telemetry: Telemetry,
+    },
+    Can {
+        /// The bus's interface name.
+        bus: Arc<str>,
+        message: AnyMessage,
+    },
+}
+
+/// The row a record becomes; `bus_names` maps bus numbers to interface names.
+pub fn row(record: &Record, car_id: &Arc<str>, bus_names: &[Arc<str>]) -> Row {
     match record {
         Record::Telemetry {
             ts_us,
             header,
             telemetry,
             ..
-        } => {
-            let mut values = Vec::with_capacity(TABLES.first()?.columns.len());
-            values.extend([
-                Sql::Text(car_id.to_owned()),
-                Sql::Integer(i64::from(aer::telemetry::TELEMETRY_FINGERPRINT)),
-                Sql::Integer(i64::try_from(*ts_us).ok()?),
-                Sql::Integer(i64::from(header.sequence)),
-                Sql::Integer(i64::from(header.timestamp_us)),
-            ]);
-            telemetry.visit(&mut Values(&mut values));
-            Some(Row { table: 0, values })
-        }
+        } => Row {
+            car_id: car_id.clone(),
+            ts_us: *ts_us,
+            data: RowData::Telemetry {
+                header: *header,
+                telemetry: **telemetry,
+            },
+        },
         Record::Can {
             ts_us,
             bus,
             message,
-            ..
-        } => {
-            let meta = message.meta();
-            // Metadata is compared by id: a `const` reference need not have one address.
-            let index = MESSAGES
-                .iter()
-                .position(|m| m.id == meta.id && m.extended == meta.extended)?;
-            let table = index + 1;
-            let columns = TABLES.get(table)?.columns.len();
-            let mut values = vec![Sql::Null; columns];
-            let bus_name = bus_names
-                .get(usize::from(*bus))
-                .cloned()
-                .unwrap_or_else(|| format!("bus{bus}"));
-            let head = [
-                Sql::Text(car_id.to_owned()),
-                Sql::Text(bus_name),
-                Sql::Integer(i64::from(aer::can::SCHEMA_FINGERPRINT)),
-                Sql::Integer(i64::try_from(*ts_us).ok()?),
-            ];
-            let tags = head.len();
-            for (slot, value) in values.iter_mut().zip(head) {
-                *slot = value;
+        } => Row {
+            car_id: car_id.clone(),
+            ts_us: *ts_us,
+            data: RowData::Can {
+                bus: bus_names
+                    .get(usize::from(*bus))
+                    .cloned()
+                    .unwrap_or_else(|| format!("bus{bus}").into()),
+                message: *message,
+            },
+        },
+    }
+}
+
+impl Row {
+    /// Index of the row's table in `aer::local_store::TABLES` (telemetry first, then one per
+    /// DBC message in schema order).
+    fn table(&self) -> Option<usize> {
+        match &self.data {
+            RowData::Telemetry { .. } => Some(0),
+            RowData::Can { message, .. } => {
+                let meta = message.meta();
+                // Compared by id: a `const` reference need not have one address.
+                MESSAGES
+                    .iter()
+                    .position(|m| m.id == meta.id && m.extended == meta.extended)
+                    .map(|index| index + 1)
             }
-            // Multiplexed signals that are absent stay NULL.
-            message.visit(&mut ByName {
-                signals: meta.signals,
-                values: &mut values,
-                offset: tags,
-            });
-            Some(Row { table, values })
+        }
+    }
+
+    /// Binds every column of the row into `statement` (its table's insert).
+    fn bind(&self, statement: &mut Statement<'_>) -> rusqlite::Result<()> {
+        let ts = i64::try_from(self.ts_us).unwrap_or(i64::MAX);
+        statement.raw_bind_parameter(1, &*self.car_id)?;
+        match &self.data {
+            RowData::Telemetry { header, telemetry } => {
+                statement.raw_bind_parameter(2, aer::telemetry::TELEMETRY_FINGERPRINT)?;
+                statement.raw_bind_parameter(3, ts)?;
+                statement.raw_bind_parameter(4, header.sequence)?;
+                statement.raw_bind_parameter(5, header.timestamp_us)?;
+                let mut binder = Binder::new(statement, 6, &[]);
+                telemetry.visit(&mut binder);
+                binder.result
+            }
+            RowData::Can { bus, message } => {
+                // Multiplexed signals that are absent must read NULL, not the previous row's.
+                statement.clear_bindings();
+                statement.raw_bind_parameter(1, &*self.car_id)?;
+                statement.raw_bind_parameter(2, &**bus)?;
+                statement.raw_bind_parameter(3, aer::can::SCHEMA_FINGERPRINT)?;
+                statement.raw_bind_parameter(4, ts)?;
+                let mut binder = Binder::new(statement, 5, message.meta().signals);
+                message.visit(&mut binder);
+                binder.result
+            }
         }
     }
 }
 
-fn sql_value(value: Value) -> Sql {
-    match value {
-        Value::Int(i) => i64::try_from(i).map_or(Sql::Real(i as f64), Sql::Integer),
-        Value::Float(f) if f.is_finite() => Sql::Real(f),
-        Value::Float(_) => Sql::Null,
-    }
-}
-
-struct Values<'a>(&'a mut Vec<Sql>);
-
-impl SignalVisitor for Values<'_> {
-    fn signal(&mut self, _: &'static SignalMeta, value: Value, _: Option<&'static str>) {
-        self.0.push(sql_value(value));
-    }
-}
-
-struct ByName<'a> {
+/// Binds visited values: in visiting order, or (with `signals`) at their signal's column.
+struct Binder<'s, 'c> {
+    statement: &'s mut Statement<'c>,
+    first: usize,
+    next: usize,
     signals: &'static [SignalMeta],
-    values: &'a mut [Sql],
-    offset: usize,
+    result: rusqlite::Result<()>,
 }
 
-impl SignalVisitor for ByName<'_> {
-    fn signal(&mut self, signal: &'static SignalMeta, value: Value, _: Option<&'static str>) {
-        let slot = self
-            .signals
-            .iter()
-            .position(|s| s.name == signal.name)
-            .and_then(|i| self.values.get_mut(self.offset + i));
-        if let Some(slot) = slot {
-            *slot = sql_value(value);
+impl<'s, 'c> Binder<'s, 'c> {
+    fn new(statement: &'s mut Statement<'c>, first: usize, signals: &'static [SignalMeta]) -> Self {
+        Self {
+            statement,
+            first,
+            next: first,
+            signals,
+            result: Ok(()),
         }
+    }
+}
+
+impl SignalVisitor for Binder<'_, '_> {
+    fn signal(&mut self, signal: &'static SignalMeta, value: Value, _: Option<&'static str>) {
+        if self.result.is_err() {
+            return;
+        }
+        let index = if self.signals.is_empty() {
+            self.next
+        } else {
+            match self.signals.iter().position(|s| s.name == signal.name) {
+                Some(position) => self.first + position,
+                None => return,
+            }
+        };
+        self.next += 1;
+        self.result = match value {
+            Value::Int(i) => match i64::try_from(i) {
+                Ok(i) => self.statement.raw_bind_parameter(index, i),
+                Err(_) => self.statement.raw_bind_parameter(index, i as f64),
+            },
+            Value::Float(f) if f.is_finite() => self.statement.raw_bind_parameter(index, f),
+            Value::Float(_) => self
+                .statement
+                .raw_bind_parameter(index, rusqlite::types::Null),
+        };
     }
 }
 
@@ -342,18 +392,17 @@ fn commit(db: &mut Connection, batch: &[Row]) -> rusqlite::Result<()> {
         let mut statements: Vec<Option<rusqlite::CachedStatement<'_>>> =
             TABLES.iter().map(|_| None).collect();
         for row in batch {
-            let (Some(table), Some(slot)) = (TABLES.get(row.table), statements.get_mut(row.table))
-            else {
+            let Some(index) = row.table() else {
+                continue;
+            };
+            let (Some(table), Some(slot)) = (TABLES.get(index), statements.get_mut(index)) else {
                 continue;
             };
             let statement = match slot {
                 Some(statement) => statement,
                 None => slot.insert(transaction.prepare_cached(table.insert)?),
             };
-            // Every column is bound, so no value of the previous row can remain.
-            for (index, value) in row.values.iter().enumerate() {
-                statement.raw_bind_parameter(index + 1, value)?;
-            }
+            row.bind(statement)?;
             statement.raw_execute()?;
         }
     }

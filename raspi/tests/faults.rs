@@ -153,20 +153,15 @@ fn the_cursor_gives_no_duplicates_and_no_gaps_across_failures_and_restarts() {
     let counters = Arc::new(Counters::default());
     let writer = store::StoreWriter::start(store::open(&path).expect("store"), counters.clone());
     let sender = writer.sender().expect("sender");
-    let row = |seq: i64| store::Row {
-        table: 0,
-        values: {
-            let mut values = vec![
-                rusqlite::types::Value::Text("car1".into()),
-                rusqlite::types::Value::Integer(1),
-                rusqlite::types::Value::Integer(1_000 + seq),
-                rusqlite::types::Value::Integer(seq),
-            ];
-            values.resize(
-                aer::local_store::TABLES[0].columns.len(),
-                rusqlite::types::Value::Null,
-            );
-            values
+    let row = |seq: u16| store::Row {
+        car_id: "car1".into(),
+        ts_us: 1_000 + u64::from(seq),
+        data: store::RowData::Telemetry {
+            header: aer::telemetry::TelemetryHeader {
+                sequence: seq,
+                timestamp_us: 0,
+            },
+            telemetry: aer::telemetry::Telemetry::default(),
         },
     };
     for seq in 0..12 {
