@@ -76,6 +76,168 @@ pub struct TelemetryRecord {
 /// The telemetry packet, every 10 ms.
 pub const TELEMETRY: Topic<Sample<TelemetryRecord>> = Topic::new("telemetry");
 
+impl TelemetryRecord {
+    /// The telemetry topic's payload for this record at `ts`: the same JSON object as
+    /// `TELEMETRY.encode` (same keys in the same order, numbers that read back exactly),
+    /// written directly: keys are constants and numbers are formatted in place, where serde
+    /// escapes every key and goes through its flattening serializer.
+    pub fn to_json(&self, ts: f64) -> Vec<u8> {
+        let mut payload = Vec::with_capacity(2575);
+        let out = &mut payload;
+        out.extend_from_slice(b"{\"ts\":");
+        json_f64(out, ts);
+        out.extend_from_slice(b",\"sequence\":");
+        json_int(out, self.header.sequence);
+        out.extend_from_slice(b",\"timestamp_us\":");
+        json_int(out, self.header.timestamp_us);
+        out.extend_from_slice(b",\"apps_travel\":");
+        json_f32(out, self.telemetry.apps_travel);
+        out.extend_from_slice(b",\"bse_front\":");
+        json_f32(out, self.telemetry.bse_front);
+        out.extend_from_slice(b",\"bse_rear\":");
+        json_f32(out, self.telemetry.bse_rear);
+        out.extend_from_slice(b",\"imd_resistance\":");
+        json_int(out, self.telemetry.imd_resistance);
+        out.extend_from_slice(b",\"imd_status\":");
+        json_int(out, self.telemetry.imd_status);
+        out.extend_from_slice(b",\"pack_voltage\":");
+        json_f32(out, self.telemetry.pack_voltage);
+        out.extend_from_slice(b",\"pack_current\":");
+        json_f32(out, self.telemetry.pack_current);
+        out.extend_from_slice(b",\"soc\":");
+        json_f32(out, self.telemetry.soc);
+        out.extend_from_slice(b",\"discharge_limit\":");
+        json_int(out, self.telemetry.discharge_limit);
+        out.extend_from_slice(b",\"charge_limit\":");
+        json_int(out, self.telemetry.charge_limit);
+        out.extend_from_slice(b",\"low_cell_volt\":");
+        json_f32(out, self.telemetry.low_cell_volt);
+        out.extend_from_slice(b",\"high_cell_volt\":");
+        json_f32(out, self.telemetry.high_cell_volt);
+        out.extend_from_slice(b",\"avg_cell_volt\":");
+        json_f32(out, self.telemetry.avg_cell_volt);
+        out.extend_from_slice(b",\"pack_temp\":");
+        json_int(out, self.telemetry.pack_temp);
+        out.extend_from_slice(b",\"motor_speed\":");
+        json_f32(out, self.telemetry.motor_speed);
+        out.extend_from_slice(b",\"motor_torque\":");
+        json_f32(out, self.telemetry.motor_torque);
+        out.extend_from_slice(b",\"max_motor_torque\":");
+        json_f32(out, self.telemetry.max_motor_torque);
+        out.extend_from_slice(b",\"motor_direction\":");
+        json_int(out, self.telemetry.motor_direction.into_raw());
+        out.extend_from_slice(b",\"motor_state\":");
+        json_int(out, self.telemetry.motor_state.into_raw());
+        out.extend_from_slice(b",\"mcu_main_state\":");
+        json_int(out, self.telemetry.mcu_main_state.into_raw());
+        out.extend_from_slice(b",\"mcu_work_mode\":");
+        json_int(out, self.telemetry.mcu_work_mode.into_raw());
+        out.extend_from_slice(b",\"mcu_voltage\":");
+        json_f32(out, self.telemetry.mcu_voltage);
+        out.extend_from_slice(b",\"mcu_phase_current\":");
+        json_f32(out, self.telemetry.mcu_phase_current);
+        out.extend_from_slice(b",\"mcu_current\":");
+        json_f32(out, self.telemetry.mcu_current);
+        out.extend_from_slice(b",\"motor_temp\":");
+        json_int(out, self.telemetry.motor_temp);
+        out.extend_from_slice(b",\"mcu_temp\":");
+        json_int(out, self.telemetry.mcu_temp);
+        out.extend_from_slice(b",\"mcu_warning_level\":");
+        json_int(out, self.telemetry.mcu_warning_level.into_raw());
+        out.extend_from_slice(b",\"vehicle_state\":");
+        json_int(out, self.telemetry.vehicle_state.into_raw());
+        out.extend_from_slice(b",\"ready_to_drive\":");
+        json_bool(out, self.telemetry.ready_to_drive);
+        out.extend_from_slice(b",\"shocktravel1\":");
+        json_f32(out, self.telemetry.shocktravel1);
+        out.extend_from_slice(b",\"shocktravel2\":");
+        json_f32(out, self.telemetry.shocktravel2);
+        out.extend_from_slice(b",\"shocktravel3\":");
+        json_f32(out, self.telemetry.shocktravel3);
+        out.extend_from_slice(b",\"shocktravel4\":");
+        json_f32(out, self.telemetry.shocktravel4);
+        out.extend_from_slice(b",\"can_rx_dropped\":");
+        json_int(out, self.telemetry.can_rx_dropped);
+        out.extend_from_slice(b",\"can_tx_dropped\":");
+        json_int(out, self.telemetry.can_tx_dropped);
+        out.extend_from_slice(b",\"can_decode_errors\":");
+        json_int(out, self.telemetry.can_decode_errors);
+        out.extend_from_slice(b",\"telemetry_superseded\":");
+        json_int(out, self.telemetry.telemetry_superseded);
+        out.extend_from_slice(b",\"dc_main_wire_over_volt_fault\":");
+        json_bool(out, self.telemetry.dc_main_wire_over_volt_fault);
+        out.extend_from_slice(b",\"motor_phase_curr_fault\":");
+        json_bool(out, self.telemetry.motor_phase_curr_fault);
+        out.extend_from_slice(b",\"mcu_over_hot_fault\":");
+        json_bool(out, self.telemetry.mcu_over_hot_fault);
+        out.extend_from_slice(b",\"resolver_fault\":");
+        json_bool(out, self.telemetry.resolver_fault);
+        out.extend_from_slice(b",\"phase_curr_sensor_fault\":");
+        json_bool(out, self.telemetry.phase_curr_sensor_fault);
+        out.extend_from_slice(b",\"motor_over_spd_fault\":");
+        json_bool(out, self.telemetry.motor_over_spd_fault);
+        out.extend_from_slice(b",\"drv_motor_over_hot_fault\":");
+        json_bool(out, self.telemetry.drv_motor_over_hot_fault);
+        out.extend_from_slice(b",\"dc_main_wire_over_curr_fault\":");
+        json_bool(out, self.telemetry.dc_main_wire_over_curr_fault);
+        out.extend_from_slice(b",\"drv_motor_over_cool_fault\":");
+        json_bool(out, self.telemetry.drv_motor_over_cool_fault);
+        out.extend_from_slice(b",\"dc_low_volt_warning\":");
+        json_bool(out, self.telemetry.dc_low_volt_warning);
+        out.extend_from_slice(b",\"mcu_12v_low_volt_warning\":");
+        json_bool(out, self.telemetry.mcu_12v_low_volt_warning);
+        out.extend_from_slice(b",\"motor_stall_fault\":");
+        json_bool(out, self.telemetry.motor_stall_fault);
+        out.extend_from_slice(b",\"motor_open_phase_fault\":");
+        json_bool(out, self.telemetry.motor_open_phase_fault);
+        out.extend_from_slice(b",\"fault_over_current\":");
+        json_bool(out, self.telemetry.fault_over_current);
+        out.extend_from_slice(b",\"fault_under_voltage\":");
+        json_bool(out, self.telemetry.fault_under_voltage);
+        out.extend_from_slice(b",\"fault_over_temperature\":");
+        json_bool(out, self.telemetry.fault_over_temperature);
+        out.extend_from_slice(b",\"fault_apps\":");
+        json_bool(out, self.telemetry.fault_apps);
+        out.extend_from_slice(b",\"fault_bse\":");
+        json_bool(out, self.telemetry.fault_bse);
+        out.extend_from_slice(b",\"fault_bpps\":");
+        json_bool(out, self.telemetry.fault_bpps);
+        out.extend_from_slice(b",\"fault_apps_brake_plausibility\":");
+        json_bool(out, self.telemetry.fault_apps_brake_plausibility);
+        out.extend_from_slice(b",\"fault_low_battery_voltage\":");
+        json_bool(out, self.telemetry.fault_low_battery_voltage);
+        out.push(b'}');
+        payload
+    }
+}
+
+fn json_int(out: &mut Vec<u8>, value: impl itoa::Integer) {
+    out.extend_from_slice(itoa::Buffer::new().format(value).as_bytes());
+}
+
+fn json_bool(out: &mut Vec<u8>, value: bool) {
+    out.extend_from_slice(if value { b"true" } else { b"false" });
+}
+
+/// A number as JSON; not-a-number and infinities have no JSON form and are `null`, as serde
+/// writes them.
+fn json_f32(out: &mut Vec<u8>, value: f32) {
+    if value.is_finite() {
+        out.extend_from_slice(ryu::Buffer::new().format_finite(value).as_bytes());
+    } else {
+        out.extend_from_slice(b"null");
+    }
+}
+
+/// A number as JSON (`null` for not-a-number and infinities, as serde writes them).
+fn json_f64(out: &mut Vec<u8>, value: f64) {
+    if value.is_finite() {
+        out.extend_from_slice(ryu::Buffer::new().format_finite(value).as_bytes());
+    } else {
+        out.extend_from_slice(b"null");
+    }
+}
+
 /// The ingest service's state, retained, so a subscriber learns it on subscribing: which
 /// schema the service decodes, which one the firmware sends, and when data last came.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

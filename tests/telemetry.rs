@@ -2,11 +2,21 @@
 //! bad packets give typed errors.
 
 use aer::can::{McuMainState, VehicleState};
+use aer::mqtt::{Sample, TELEMETRY, TelemetryRecord};
 use aer::runtime::{SignalMeta, SignalVisitor, Value};
 use aer::telemetry::{TELEMETRY_FINGERPRINT, Telemetry, TelemetryError, TelemetryHeader};
 use aer::telemetry_deku::{TelemetryDecodeError, TelemetryFrame};
 use deku::DekuContainerWrite;
 use proptest::prelude::*;
+
+/// The keys of a flat JSON object, in order.
+fn keys(json: &[u8]) -> Vec<String> {
+    let text = std::str::from_utf8(json).expect("UTF-8");
+    text.split(['{', ','])
+        .filter_map(|part| part.split_once("\":"))
+        .map(|(key, _)| key.trim_start_matches('"').to_owned())
+        .collect()
+}
 
 /// A packet with the right fingerprint and arbitrary contents.
 fn packet(body: &[u8]) -> Vec<u8> {
@@ -41,6 +51,25 @@ proptest! {
         let mut expected = bytes.clone();
         *expected.last_mut().expect("non-empty") &= !padding_mask();
         prop_assert_eq!(&packed[..], &expected[..]);
+    }
+
+    /// The telemetry topic's direct JSON writer says what serde says: the same keys in the
+    /// same order, and numbers that read back to the same record.
+    #[test]
+    fn the_direct_json_writer_matches_serde(
+        body in prop::collection::vec(any::<u8>(), Telemetry::LEN),
+        seq in any::<u16>(),
+        time in any::<u32>(),
+        ts in 0.0f64..4.0e9,
+    ) {
+        let (_, telemetry) = Telemetry::unpack(&packet(&body)).expect("valid");
+        let record = TelemetryRecord { header: TelemetryHeader { sequence: seq, timestamp_us: time }, telemetry };
+        let sample = Sample { ts, value: record.clone() };
+        let direct = record.to_json(ts);
+        let serde = TELEMETRY.encode(&sample).expect("serde");
+        prop_assert_eq!(keys(&direct).len(), 3 + Telemetry::FIELDS.len());
+        prop_assert_eq!(keys(&direct), keys(&serde));
+        prop_assert_eq!(TELEMETRY.decode(&direct).expect("reads back"), sample);
     }
 
     /// The reverse: Deku writes from a snapshot exactly what the firmware packs.

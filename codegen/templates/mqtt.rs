@@ -76,6 +76,60 @@ pub struct TelemetryRecord {
 /// The telemetry packet, every 10 ms.
 pub const TELEMETRY: Topic<Sample<TelemetryRecord>> = Topic::new("telemetry");
 
+impl TelemetryRecord {
+    /// The telemetry topic's payload for this record at `ts`: the same JSON object as
+    /// `TELEMETRY.encode` (same keys in the same order, numbers that read back exactly),
+    /// written directly: keys are constants and numbers are formatted in place, where serde
+    /// escapes every key and goes through its flattening serializer.
+    pub fn to_json(&self, ts: f64) -> Vec<u8> {
+        let mut payload = Vec::with_capacity({{ json_capacity }});
+        let out = &mut payload;
+        out.extend_from_slice(b"{\"ts\":");
+        json_f64(out, ts);
+        out.extend_from_slice(b",\"sequence\":");
+        json_int(out, self.header.sequence);
+        out.extend_from_slice(b",\"timestamp_us\":");
+        json_int(out, self.header.timestamp_us);
+{%- for f in json_fields %}
+        out.extend_from_slice(b",\"{{ f.0 }}\":");
+        {{ f.1 }};
+{%- endfor %}
+        out.push(b'}');
+        payload
+    }
+}
+
+fn json_int(out: &mut Vec<u8>, value: impl itoa::Integer) {
+    out.extend_from_slice(itoa::Buffer::new().format(value).as_bytes());
+}
+{%- if json_bool %}
+
+fn json_bool(out: &mut Vec<u8>, value: bool) {
+    out.extend_from_slice(if value { b"true" } else { b"false" });
+}
+{%- endif %}
+{%- if json_f32 %}
+
+/// A number as JSON; not-a-number and infinities have no JSON form and are `null`, as serde
+/// writes them.
+fn json_f32(out: &mut Vec<u8>, value: f32) {
+    if value.is_finite() {
+        out.extend_from_slice(ryu::Buffer::new().format_finite(value).as_bytes());
+    } else {
+        out.extend_from_slice(b"null");
+    }
+}
+{%- endif %}
+
+/// A number as JSON (`null` for not-a-number and infinities, as serde writes them).
+fn json_f64(out: &mut Vec<u8>, value: f64) {
+    if value.is_finite() {
+        out.extend_from_slice(ryu::Buffer::new().format_finite(value).as_bytes());
+    } else {
+        out.extend_from_slice(b"null");
+    }
+}
+
 /// The ingest service's state, retained, so a subscriber learns it on subscribing: which
 /// schema the service decodes, which one the firmware sends, and when data last came.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

@@ -13,7 +13,7 @@ use crate::config::MqttConfig;
 use crate::ingest::Record;
 use crate::metrics::{Counters, worth_logging};
 use aer::mqtt::{
-    METRICS, Metrics, STATUS, Sample, ServiceCounters, Status, TELEMETRY, TelemetryRecord, Topic,
+    METRICS, Metrics, STATUS, ServiceCounters, Status, TELEMETRY, TelemetryRecord, Topic,
     encode_message,
 };
 use rumqttc::{AsyncClient, Event, EventLoop, MqttOptions, Packet, QoS};
@@ -30,6 +30,8 @@ use tracing::{info, warn};
 pub struct Publisher {
     sink: Sink,
     prefix: String,
+    /// The telemetry topic under the prefix, built once: it carries every packet.
+    telemetry_topic: bytes::Bytes,
     counters: Arc<Counters>,
 }
 
@@ -106,11 +108,7 @@ pub fn embedded(
         closed.clone(),
     );
     (
-        Publisher {
-            sink,
-            prefix,
-            counters,
-        },
+        Publisher::new(sink, prefix, counters),
         Driver::Embedded(link.rx, closed),
     )
 }
@@ -136,11 +134,7 @@ pub fn connect(
     network.set_tcp_nodelay(true);
     eventloop.set_network_options(network);
     (
-        Publisher {
-            sink: Sink::Remote(client),
-            prefix,
-            counters,
-        },
+        Publisher::new(Sink::Remote(client), prefix, counters),
         Driver::Remote(Box::new(eventloop)),
     )
 }
@@ -195,6 +189,15 @@ async fn drive_remote(mut eventloop: EventLoop, connected_tx: tokio::sync::watch
 }
 
 impl Publisher {
+    fn new(sink: Sink, prefix: String, counters: Arc<Counters>) -> Self {
+        Self {
+            telemetry_topic: TELEMETRY.path(&prefix).into(),
+            sink,
+            prefix,
+            counters,
+        }
+    }
+
     /// Publishes one record on its typed topic. Into the embedded broker, the newest record
     /// goes out with the next one or at [`Self::flush`]: call it before waiting for input.
     pub fn publish(&self, record: &Record) {
@@ -205,18 +208,18 @@ impl Publisher {
                 telemetry,
                 ..
             } => {
-                let sample = Sample {
-                    ts: seconds(*ts_us),
-                    value: TelemetryRecord {
-                        header: *header,
-                        telemetry: **telemetry,
-                    },
+                let record = TelemetryRecord {
+                    header: *header,
+                    telemetry: **telemetry,
                 };
-                (TELEMETRY.path(&self.prefix), TELEMETRY.encode(&sample))
+                (
+                    self.telemetry_topic.clone(),
+                    Ok(record.to_json(seconds(*ts_us))),
+                )
             }
             Record::Can { ts_us, message, .. } => match encode_message(message, seconds(*ts_us)) {
-                Ok((suffix, payload)) => (format!("{}/{suffix}", self.prefix), Ok(payload)),
-                Err(error) => (String::new(), Err(error)),
+                Ok((suffix, payload)) => (format!("{}/{suffix}", self.prefix).into(), Ok(payload)),
+                Err(error) => (bytes::Bytes::new(), Err(error)),
             },
         };
         match payload {
@@ -258,14 +261,19 @@ impl Publisher {
     /// the benchmark's stand-in for today's payload).
     pub fn publish_json(&self, suffix: &str, value: &impl Serialize, retain: bool) {
         if let Ok(payload) = serde_json::to_vec(value) {
-            self.send(format!("{}/{suffix}", self.prefix), payload, retain, true);
+            self.send(
+                format!("{}/{suffix}", self.prefix).into(),
+                payload,
+                retain,
+                true,
+            );
         }
     }
 
     /// Publishes `value` on `topic`, typed by the topic.
     pub fn publish_on<P: Serialize>(&self, topic: &Topic<P>, value: &P, retain: bool) {
         match topic.encode(value) {
-            Ok(payload) => self.send(topic.path(&self.prefix), payload, retain, true),
+            Ok(payload) => self.send(topic.path(&self.prefix).into(), payload, retain, true),
             Err(error) => {
                 let count = Counters::bump(&self.counters.publish_dropped);
                 warn!(%error, count, topic = topic.suffix(), "payload could not be serialised");
@@ -273,18 +281,17 @@ impl Publisher {
         }
     }
 
-    fn send(&self, topic: String, payload: Vec<u8>, retain: bool, wake: bool) {
+    fn send(&self, topic: bytes::Bytes, payload: Vec<u8>, retain: bool, wake: bool) {
         let accepted = match &self.sink {
-            Sink::Remote(client) => client
-                .try_publish(topic, QoS::AtMostOnce, retain, payload)
-                .is_ok(),
+            // Topics are built from UTF-8 strings, so the conversion cannot fail.
+            Sink::Remote(client) => std::str::from_utf8(&topic).is_ok_and(|topic| {
+                client
+                    .try_publish(topic, QoS::AtMostOnce, retain, payload)
+                    .is_ok()
+            }),
             Sink::Embedded(link, _) => link.lock().is_ok_and(|mut link| {
                 let packet = rumqttd::protocol::Packet::Publish(
-                    rumqttd::protocol::Publish::new(
-                        bytes::Bytes::from(topic),
-                        bytes::Bytes::from(payload),
-                        retain,
-                    ),
+                    rumqttd::protocol::Publish::new(topic, bytes::Bytes::from(payload), retain),
                     None,
                 );
                 link.queue(packet, wake)
