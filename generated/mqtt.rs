@@ -85,45 +85,45 @@ impl TelemetryRecord {
         let mut payload = Vec::with_capacity(2575);
         let out = &mut payload;
         out.extend_from_slice(b"{\"ts\":");
-        json_f64(out, ts);
+        json_float(out, ts);
         out.extend_from_slice(b",\"sequence\":");
         json_int(out, self.header.sequence);
         out.extend_from_slice(b",\"timestamp_us\":");
         json_int(out, self.header.timestamp_us);
         out.extend_from_slice(b",\"apps_travel\":");
-        json_f32(out, self.telemetry.apps_travel);
+        json_float(out, self.telemetry.apps_travel);
         out.extend_from_slice(b",\"bse_front\":");
-        json_f32(out, self.telemetry.bse_front);
+        json_float(out, self.telemetry.bse_front);
         out.extend_from_slice(b",\"bse_rear\":");
-        json_f32(out, self.telemetry.bse_rear);
+        json_float(out, self.telemetry.bse_rear);
         out.extend_from_slice(b",\"imd_resistance\":");
         json_int(out, self.telemetry.imd_resistance);
         out.extend_from_slice(b",\"imd_status\":");
         json_int(out, self.telemetry.imd_status);
         out.extend_from_slice(b",\"pack_voltage\":");
-        json_f32(out, self.telemetry.pack_voltage);
+        json_float(out, self.telemetry.pack_voltage);
         out.extend_from_slice(b",\"pack_current\":");
-        json_f32(out, self.telemetry.pack_current);
+        json_float(out, self.telemetry.pack_current);
         out.extend_from_slice(b",\"soc\":");
-        json_f32(out, self.telemetry.soc);
+        json_float(out, self.telemetry.soc);
         out.extend_from_slice(b",\"discharge_limit\":");
         json_int(out, self.telemetry.discharge_limit);
         out.extend_from_slice(b",\"charge_limit\":");
         json_int(out, self.telemetry.charge_limit);
         out.extend_from_slice(b",\"low_cell_volt\":");
-        json_f32(out, self.telemetry.low_cell_volt);
+        json_float(out, self.telemetry.low_cell_volt);
         out.extend_from_slice(b",\"high_cell_volt\":");
-        json_f32(out, self.telemetry.high_cell_volt);
+        json_float(out, self.telemetry.high_cell_volt);
         out.extend_from_slice(b",\"avg_cell_volt\":");
-        json_f32(out, self.telemetry.avg_cell_volt);
+        json_float(out, self.telemetry.avg_cell_volt);
         out.extend_from_slice(b",\"pack_temp\":");
         json_int(out, self.telemetry.pack_temp);
         out.extend_from_slice(b",\"motor_speed\":");
-        json_f32(out, self.telemetry.motor_speed);
+        json_float(out, self.telemetry.motor_speed);
         out.extend_from_slice(b",\"motor_torque\":");
-        json_f32(out, self.telemetry.motor_torque);
+        json_float(out, self.telemetry.motor_torque);
         out.extend_from_slice(b",\"max_motor_torque\":");
-        json_f32(out, self.telemetry.max_motor_torque);
+        json_float(out, self.telemetry.max_motor_torque);
         out.extend_from_slice(b",\"motor_direction\":");
         json_int(out, self.telemetry.motor_direction.into_raw());
         out.extend_from_slice(b",\"motor_state\":");
@@ -133,11 +133,11 @@ impl TelemetryRecord {
         out.extend_from_slice(b",\"mcu_work_mode\":");
         json_int(out, self.telemetry.mcu_work_mode.into_raw());
         out.extend_from_slice(b",\"mcu_voltage\":");
-        json_f32(out, self.telemetry.mcu_voltage);
+        json_float(out, self.telemetry.mcu_voltage);
         out.extend_from_slice(b",\"mcu_phase_current\":");
-        json_f32(out, self.telemetry.mcu_phase_current);
+        json_float(out, self.telemetry.mcu_phase_current);
         out.extend_from_slice(b",\"mcu_current\":");
-        json_f32(out, self.telemetry.mcu_current);
+        json_float(out, self.telemetry.mcu_current);
         out.extend_from_slice(b",\"motor_temp\":");
         json_int(out, self.telemetry.motor_temp);
         out.extend_from_slice(b",\"mcu_temp\":");
@@ -149,13 +149,13 @@ impl TelemetryRecord {
         out.extend_from_slice(b",\"ready_to_drive\":");
         json_bool(out, self.telemetry.ready_to_drive);
         out.extend_from_slice(b",\"shocktravel1\":");
-        json_f32(out, self.telemetry.shocktravel1);
+        json_float(out, self.telemetry.shocktravel1);
         out.extend_from_slice(b",\"shocktravel2\":");
-        json_f32(out, self.telemetry.shocktravel2);
+        json_float(out, self.telemetry.shocktravel2);
         out.extend_from_slice(b",\"shocktravel3\":");
-        json_f32(out, self.telemetry.shocktravel3);
+        json_float(out, self.telemetry.shocktravel3);
         out.extend_from_slice(b",\"shocktravel4\":");
-        json_f32(out, self.telemetry.shocktravel4);
+        json_float(out, self.telemetry.shocktravel4);
         out.extend_from_slice(b",\"can_rx_dropped\":");
         json_int(out, self.telemetry.can_rx_dropped);
         out.extend_from_slice(b",\"can_tx_dropped\":");
@@ -221,17 +221,8 @@ fn json_bool(out: &mut Vec<u8>, value: bool) {
 
 /// A number as JSON; not-a-number and infinities have no JSON form and are `null`, as serde
 /// writes them.
-fn json_f32(out: &mut Vec<u8>, value: f32) {
-    if value.is_finite() {
-        out.extend_from_slice(ryu::Buffer::new().format_finite(value).as_bytes());
-    } else {
-        out.extend_from_slice(b"null");
-    }
-}
-
-/// A number as JSON (`null` for not-a-number and infinities, as serde writes them).
-fn json_f64(out: &mut Vec<u8>, value: f64) {
-    if value.is_finite() {
+fn json_float<F: ryu::Float + Into<f64>>(out: &mut Vec<u8>, value: F) {
+    if value.into().is_finite() {
         out.extend_from_slice(ryu::Buffer::new().format_finite(value).as_bytes());
     } else {
         out.extend_from_slice(b"null");

@@ -278,3 +278,33 @@ fn apply_copies_every_mirrored_signal_of_a_decoded_message() {
     assert_eq!(telemetry.pack_current, -12.5);
     assert_eq!(telemetry.soc, 80.5);
 }
+
+/// Values JSON cannot hold are `null` in the direct writer's payload, as serde writes them.
+#[test]
+fn the_direct_json_writer_writes_null_where_serde_does() {
+    let telemetry = Telemetry {
+        soc: f32::NAN,
+        motor_speed: f32::INFINITY,
+        ..Telemetry::default()
+    };
+    let record = TelemetryRecord {
+        header: TelemetryHeader {
+            sequence: 1,
+            timestamp_us: 2,
+        },
+        telemetry,
+    };
+    let direct: serde_json::Value =
+        serde_json::from_slice(&record.to_json(1.5)).expect("valid JSON");
+    let serde: serde_json::Value = serde_json::from_slice(
+        &TELEMETRY
+            .encode(&Sample {
+                ts: 1.5,
+                value: record,
+            })
+            .expect("serde"),
+    )
+    .expect("valid JSON");
+    assert!(direct["soc"].is_null() && direct["motor_speed"].is_null());
+    assert_eq!(direct, serde);
+}

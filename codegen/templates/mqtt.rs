@@ -85,7 +85,7 @@ impl TelemetryRecord {
         let mut payload = Vec::with_capacity({{ json_capacity }});
         let out = &mut payload;
         out.extend_from_slice(b"{\"ts\":");
-        json_f64(out, ts);
+        json_float(out, ts);
         out.extend_from_slice(b",\"sequence\":");
         json_int(out, self.header.sequence);
         out.extend_from_slice(b",\"timestamp_us\":");
@@ -108,22 +108,11 @@ fn json_bool(out: &mut Vec<u8>, value: bool) {
     out.extend_from_slice(if value { b"true" } else { b"false" });
 }
 {%- endif %}
-{%- if json_f32 %}
 
 /// A number as JSON; not-a-number and infinities have no JSON form and are `null`, as serde
 /// writes them.
-fn json_f32(out: &mut Vec<u8>, value: f32) {
-    if value.is_finite() {
-        out.extend_from_slice(ryu::Buffer::new().format_finite(value).as_bytes());
-    } else {
-        out.extend_from_slice(b"null");
-    }
-}
-{%- endif %}
-
-/// A number as JSON (`null` for not-a-number and infinities, as serde writes them).
-fn json_f64(out: &mut Vec<u8>, value: f64) {
-    if value.is_finite() {
+fn json_float<F: ryu::Float + Into<f64>>(out: &mut Vec<u8>, value: F) {
+    if value.into().is_finite() {
         out.extend_from_slice(ryu::Buffer::new().format_finite(value).as_bytes());
     } else {
         out.extend_from_slice(b"null");

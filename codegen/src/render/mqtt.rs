@@ -15,9 +15,8 @@ pub struct MqttTemplate<'a> {
     pub json_fields: Vec<(String, String)>,
     /// Bytes reserved for a telemetry payload: enough for every field at its widest.
     pub json_capacity: usize,
-    /// The packet has flags / f32 fields (their writers are emitted only then).
+    /// The packet has flags (their writer is emitted only then).
     pub json_bool: bool,
-    pub json_f32: bool,
 }
 
 pub fn render(db: &Database, t: &Telemetry, source: &str) -> Result<String, askama::Error> {
@@ -30,8 +29,9 @@ pub fn render(db: &Database, t: &Telemetry, source: &str) -> Result<String, aska
                 PhysType::Bool => format!("json_bool(out, self.telemetry.{name})"),
                 PhysType::Enum(_) => format!("json_int(out, self.telemetry.{name}.into_raw())"),
                 PhysType::Int(_) => format!("json_int(out, self.telemetry.{name})"),
-                PhysType::F32 => format!("json_f32(out, self.telemetry.{name})"),
-                PhysType::F64 => format!("json_f64(out, self.telemetry.{name})"),
+                PhysType::F32 | PhysType::F64 => {
+                    format!("json_float(out, self.telemetry.{name})")
+                }
             };
             (name.clone(), call)
         })
@@ -42,7 +42,6 @@ pub fn render(db: &Database, t: &Telemetry, source: &str) -> Result<String, aska
         source,
         telemetry_type: &t.type_name,
         json_bool: t.fields.iter().any(|f| f.phys == PhysType::Bool),
-        json_f32: t.fields.iter().any(|f| f.phys == PhysType::F32),
         json_fields,
         json_capacity,
         messages: db
