@@ -62,11 +62,6 @@ impl App {
         }
     }
 
-    /// The model behind the screens.
-    pub fn model(&self) -> &Dashboard {
-        &self.model
-    }
-
     /// The view shown.
     pub fn current_view(&self) -> View {
         self.view
