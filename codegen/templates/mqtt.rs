@@ -41,6 +41,17 @@ impl<P> Topic<P> {
     }
 }
 
+/// The prefix of one car's topics, `<root>/<car_id>` (such as `aer/car1`). Every tier builds
+/// it here, so a publisher and its subscribers cannot disagree on it.
+pub fn car_prefix(root: &str, car_id: &str) -> String {
+    let root = root.trim_end_matches('/');
+    let mut prefix = String::with_capacity(root.len() + 1 + car_id.len());
+    prefix.push_str(root);
+    prefix.push('/');
+    prefix.push_str(car_id);
+    prefix
+}
+
 impl<P: Serialize> Topic<P> {
     /// The JSON payload for `value`.
     pub fn encode(&self, value: &P) -> Result<Vec<u8>, serde_json::Error> {

@@ -166,11 +166,7 @@ impl Config {
 
     /// Topic prefix of this car: `<prefix>/<car_id>`.
     pub fn topic_prefix(&self) -> String {
-        format!(
-            "{}/{}",
-            self.mqtt.topic_prefix.trim_end_matches('/'),
-            self.car_id
-        )
+        aer::mqtt::car_prefix(&self.mqtt.topic_prefix, &self.car_id)
     }
 
     /// How old data may be before it is marked stale.
@@ -202,6 +198,8 @@ mod tests {
         })
         .unwrap();
         assert_eq!(config.topic_prefix(), "aer/car7");
+        let slash = Config::load(None, |k| (k == "AER_MQTT_PREFIX").then(|| "team/".into()));
+        assert_eq!(slash.unwrap().topic_prefix(), "team/car1");
         assert_eq!(config.mqtt.host, "10.0.0.2");
         assert_eq!(config.mqtt.port, 1999);
         assert_eq!(config.mqtt.username.as_deref(), Some("pit"));

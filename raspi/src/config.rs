@@ -179,7 +179,7 @@ impl Config {
 
     /// Topic prefix of this car: `<prefix>/<car_id>`.
     pub fn topic_prefix(&self) -> String {
-        format!("{}/{}", self.mqtt.topic_prefix, self.car_id)
+        aer::mqtt::car_prefix(&self.mqtt.topic_prefix, &self.car_id)
     }
 }
 
@@ -210,6 +210,9 @@ mod tests {
         assert!(config.tdengine.enabled);
         assert_eq!(config.topic_prefix(), "aer/car7");
         assert!(Config::load(None, |k| (k == "AER_MQTT_PORT").then(|| "x".into())).is_err());
+        // What the dashboard subscribes to with the same setting (its config test).
+        let slash = Config::load(None, |k| (k == "AER_MQTT_PREFIX").then(|| "team/".into()));
+        assert_eq!(slash.unwrap().topic_prefix(), "team/car1");
     }
 
     #[test]
