@@ -18,7 +18,11 @@ pub fn load(path: Option<&Path>) -> Result<rumqttd::Config> {
     Ok(config)
 }
 
-/// Every listener that is reachable from outside the Pi must require a username/password.
+/// The password of the shipped configuration's commented-out network listeners.
+const PLACEHOLDER_PASSWORD: &str = "change-me";
+
+/// Every listener that is reachable from outside the Pi must require a username/password, and
+/// not the shipped placeholder.
 pub fn check(config: &rumqttd::Config) -> Result<()> {
     let listeners = [&config.v4, &config.v5, &config.ws]
         .into_iter()
@@ -36,6 +40,19 @@ pub fn check(config: &rumqttd::Config) -> Result<()> {
                  add `connections.auth = {{ user = \"password\" }}` or listen on 127.0.0.1",
                 server.name,
                 server.listen
+            );
+        }
+        let placeholder = server
+            .connections
+            .auth
+            .iter()
+            .flatten()
+            .find(|(_, password)| password.as_str() == PLACEHOLDER_PASSWORD);
+        if let Some((user, _)) = placeholder {
+            bail!(
+                "broker listener `{}`: user `{user}` still has the placeholder password \
+                 `{PLACEHOLDER_PASSWORD}`; choose one",
+                server.name
             );
         }
     }
@@ -244,11 +261,43 @@ mod tests {
             error.contains("0.0.0.0:1883") && error.contains("credentials"),
             "{error}"
         );
-        let with_auth = open.replace(
-            "dynamic_filters = true",
-            "dynamic_filters = true\n    auth = { pit = \"secret\" }",
+        let with_auth = open.replacen(
+            "    dynamic_filters = true",
+            "    dynamic_filters = true\n    auth = { pit = \"secret\" }",
+            1,
         );
         let config: rumqttd::Config = toml::from_str(&with_auth).unwrap();
         assert!(check(&config).is_ok());
+    }
+
+    /// The shipped file with the commented-out block that starts at `header` uncommented.
+    fn uncommented(header: &str) -> String {
+        let mut inside = false;
+        let mut text = String::new();
+        for line in DEFAULT_CONFIG.lines() {
+            inside = (inside || line == header) && line.starts_with('#');
+            let line = if inside {
+                line.strip_prefix("# ").unwrap_or(line)
+            } else {
+                line
+            };
+            text.push_str(line);
+            text.push('\n');
+        }
+        text
+    }
+
+    #[test]
+    fn the_shipped_network_listeners_work_once_their_password_is_chosen() {
+        for header in ["# [v4.2]", "# [ws.1]"] {
+            let text = uncommented(header);
+            let config: rumqttd::Config = toml::from_str(&text).unwrap();
+            assert_eq!(listeners(&config).len(), 2, "{header}");
+            let error = check(&config).unwrap_err().to_string();
+            assert!(error.contains("placeholder"), "{error}");
+            let chosen = text.replace("\"change-me\"", "\"Xq7-fast-laps\"");
+            let config: rumqttd::Config = toml::from_str(&chosen).unwrap();
+            assert!(check(&config).is_ok(), "{header}");
+        }
     }
 }
