@@ -8,7 +8,10 @@ use crate::model::Update;
 use aer::mqtt::{METRICS, STATUS, TELEMETRY};
 use iced::futures::channel::mpsc;
 use iced::futures::{SinkExt, Stream};
-use rumqttc::{AsyncClient, Event, EventLoop, MqttOptions, Packet, QoS, SubscribeFilter};
+use rumqttc::{
+    AsyncClient, ConnectionError, Event, EventLoop, MqttOptions, Packet, QoS, StateError,
+    SubscribeFilter,
+};
 use std::time::{Duration, Instant};
 
 /// Where to connect and what to subscribe to. Part of the subscription's identity: a change
@@ -80,9 +83,9 @@ pub fn stream(settings: Settings) -> impl Stream<Item = (Instant, Update)> {
         256,
         async move |mut output: mpsc::Sender<(Instant, Update)>| {
             let (client, mut eventloop) = connect(&settings);
-            let topics = settings.topics();
+            let mut accepted = false;
             loop {
-                let update = next(&client, &mut eventloop, &settings.prefix, &topics).await;
+                let update = next(&client, &mut eventloop, &mut accepted, &settings).await;
                 let failed = matches!(update, Some(Update::Disconnected(_)));
                 if let Some(update) = update {
                     // Waits while the screen catches up; the broker then holds (or, beyond its
@@ -118,19 +121,22 @@ fn connect(settings: &Settings) -> (AsyncClient, EventLoop) {
 }
 
 /// Polls the connection once: an update for the screens, or `None` for protocol traffic.
+/// `accepted` tracks whether the broker has accepted the current connection.
 async fn next(
     client: &AsyncClient,
     eventloop: &mut EventLoop,
-    prefix: &str,
-    topics: &[String],
+    accepted: &mut bool,
+    settings: &Settings,
 ) -> Option<Update> {
     match eventloop.poll().await {
         Ok(Event::Incoming(Packet::ConnAck(_))) => {
+            *accepted = true;
             // A clean session forgets subscriptions: subscribe on every connection, all topics
             // in one request (the queue holds 16, so this never blocks the loop draining it).
-            let filters = topics
-                .iter()
-                .map(|topic| SubscribeFilter::new(topic.clone(), QoS::AtMostOnce));
+            let filters = settings
+                .topics()
+                .into_iter()
+                .map(|topic| SubscribeFilter::new(topic, QoS::AtMostOnce));
             match client.try_subscribe_many(filters) {
                 Ok(()) => None,
                 Err(error) => Some(Update::Disconnected(format!("subscribing: {error}"))),
@@ -139,10 +145,28 @@ async fn next(
         // Connected means subscribed: nothing published from here on is missed.
         Ok(Event::Incoming(Packet::SubAck(_))) => Some(Update::Connected),
         Ok(Event::Incoming(Packet::Publish(publish))) => {
-            Some(decode(prefix, &publish.topic, &publish.payload))
+            Some(decode(&settings.prefix, &publish.topic, &publish.payload))
         }
         Ok(_) => None,
-        Err(error) => Some(Update::Disconnected(error.to_string())),
+        Err(error) => {
+            let reason = why_down(&error, *accepted);
+            *accepted = false;
+            Some(Update::Disconnected(reason))
+        }
+    }
+}
+
+/// Why the link is down, in words the pit crew can act on.
+fn why_down(error: &ConnectionError, accepted: bool) -> String {
+    match error {
+        // rumqttd answers a wrong or missing username/password by closing the connection, not
+        // with a refusal code.
+        ConnectionError::MqttState(StateError::ConnectionAborted) if !accepted => {
+            "the broker closed the connection before accepting it: wrong or missing \
+             username/password (AER_MQTT_USERNAME, AER_MQTT_PASSWORD)?"
+                .into()
+        }
+        other => other.to_string(),
     }
 }
 

@@ -121,3 +121,47 @@ async fn a_replayed_session_reaches_the_dashboard_intact() {
     assert!(ui.find(soc.as_str()).is_ok(), "pit view lacks SOC {soc}");
     assert!(ui.find("connected").is_ok());
 }
+
+/// A pit laptop on a broker listener with credentials (as the Pi's network listener must have):
+/// without them or with a wrong password the link reports why it is down, with the right
+/// ones it connects.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_listener_with_credentials_admits_only_the_right_ones() {
+    let port = free_port();
+    let text = broker::DEFAULT_CONFIG
+        .replace("127.0.0.1:1883", &format!("127.0.0.1:{port}"))
+        .replacen(
+            "    dynamic_filters = true",
+            "    dynamic_filters = true\n    auth = { pit = \"Xq7-fast-laps\" }",
+            1,
+        );
+    let broker_config: rumqttd::Config = toml::from_str(&text).expect("broker config");
+    let _link = broker::spawn(broker_config, "e2e-pi-link").expect("broker");
+
+    let settings = |credentials: Option<(&str, &str)>| Settings {
+        host: "127.0.0.1".into(),
+        port,
+        credentials: credentials.map(|(u, p)| (u.into(), p.into())),
+        prefix: "aer/car1".into(),
+    };
+    for refused in [
+        None,
+        Some(("pit", "guess")),
+        Some(("driver", "Xq7-fast-laps")),
+    ] {
+        let mut updates = Box::pin(link::stream(settings(refused)));
+        let (_, update) = next(&mut updates).await;
+        match update {
+            Update::Disconnected(reason) => {
+                assert!(
+                    reason.contains("username/password"),
+                    "{refused:?}: {reason}"
+                )
+            }
+            other => panic!("{refused:?}: expected a refusal, got {other:?}"),
+        }
+    }
+    let mut updates = Box::pin(link::stream(settings(Some(("pit", "Xq7-fast-laps")))));
+    let (_, update) = next(&mut updates).await;
+    assert_eq!(update, Update::Connected);
+}
