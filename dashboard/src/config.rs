@@ -1,7 +1,9 @@
 //! The dashboard's configuration: one TOML file (every key optional), then environment
-//! overrides. The MQTT variables are the Pi service's, so one environment serves both.
+//! overrides. The broker variables are the Pi service's ([`BrokerSettings`]), so one environment
+//! serves both.
 
-use anyhow::{Context, Result, bail};
+use aer_raspi::config::{BrokerSettings, read_or_default};
+use anyhow::{Result, bail};
 use serde::Deserialize;
 use std::path::Path;
 use std::time::Duration;
@@ -99,42 +101,18 @@ impl Config {
     /// Reads `path` (if given), applies the environment overrides from `env`, and checks the
     /// result.
     pub fn load(path: Option<&Path>, env: impl Fn(&str) -> Option<String>) -> Result<Self> {
-        let mut config = match path {
-            Some(path) => {
-                let text = std::fs::read_to_string(path)
-                    .with_context(|| format!("reading the configuration {}", path.display()))?;
-                toml::from_str(&text)
-                    .with_context(|| format!("in the configuration {}", path.display()))?
-            }
-            None => Self::default(),
-        };
-        config.apply_env(env)?;
+        let mut config: Self = read_or_default(path)?;
+        BrokerSettings {
+            car_id: &mut config.car_id,
+            host: &mut config.mqtt.host,
+            port: &mut config.mqtt.port,
+            username: &mut config.mqtt.username,
+            password: &mut config.mqtt.password,
+            topic_prefix: &mut config.mqtt.topic_prefix,
+        }
+        .apply_env(env)?;
         config.check()?;
         Ok(config)
-    }
-
-    fn apply_env(&mut self, env: impl Fn(&str) -> Option<String>) -> Result<()> {
-        if let Some(v) = env("AER_CAR_ID") {
-            self.car_id = v;
-        }
-        if let Some(v) = env("AER_MQTT_HOST") {
-            self.mqtt.host = v;
-        }
-        if let Some(v) = env("AER_MQTT_PORT") {
-            self.mqtt.port = v
-                .parse()
-                .with_context(|| format!("AER_MQTT_PORT={v} is not a port"))?;
-        }
-        if let Some(v) = env("AER_MQTT_USERNAME") {
-            self.mqtt.username = Some(v);
-        }
-        if let Some(v) = env("AER_MQTT_PASSWORD") {
-            self.mqtt.password = Some(v);
-        }
-        if let Some(v) = env("AER_MQTT_PREFIX") {
-            self.mqtt.topic_prefix = v;
-        }
-        Ok(())
     }
 
     fn check(&self) -> Result<()> {

@@ -2,6 +2,7 @@
 
 use anyhow::{Context, Result};
 use serde::Deserialize;
+use serde::de::DeserializeOwned;
 use std::path::{Path, PathBuf};
 
 /// Everything the service reads from its configuration.
@@ -120,23 +121,21 @@ impl Default for TdengineConfig {
 impl Config {
     /// Reads `path` (if given) and applies the environment overrides from `env`.
     pub fn load(path: Option<&Path>, env: impl Fn(&str) -> Option<String>) -> Result<Self> {
-        let mut config = match path {
-            Some(path) => {
-                let text = std::fs::read_to_string(path)
-                    .with_context(|| format!("reading the configuration {}", path.display()))?;
-                toml::from_str(&text)
-                    .with_context(|| format!("in the configuration {}", path.display()))?
-            }
-            None => Self::default(),
-        };
+        let mut config: Self = read_or_default(path)?;
         config.apply_env(env)?;
         Ok(config)
     }
 
     fn apply_env(&mut self, env: impl Fn(&str) -> Option<String>) -> Result<()> {
-        if let Some(v) = env("AER_CAR_ID") {
-            self.car_id = v;
+        BrokerSettings {
+            car_id: &mut self.car_id,
+            host: &mut self.mqtt.host,
+            port: &mut self.mqtt.port,
+            username: &mut self.mqtt.username,
+            password: &mut self.mqtt.password,
+            topic_prefix: &mut self.mqtt.topic_prefix,
         }
+        .apply_env(&env)?;
         if let Some(v) = env("AER_CAN_INTERFACES") {
             self.can.interfaces = v.split(',').map(|s| s.trim().to_owned()).collect();
         }
@@ -149,23 +148,6 @@ impl Config {
                 "userspace" => IsoTpMode::Userspace,
                 other => anyhow::bail!("AER_ISOTP={other}: use kernel or userspace"),
             };
-        }
-        if let Some(v) = env("AER_MQTT_HOST") {
-            self.mqtt.host = v;
-        }
-        if let Some(v) = env("AER_MQTT_PORT") {
-            self.mqtt.port = v
-                .parse()
-                .with_context(|| format!("AER_MQTT_PORT={v} is not a port"))?;
-        }
-        if let Some(v) = env("AER_MQTT_USERNAME") {
-            self.mqtt.username = Some(v);
-        }
-        if let Some(v) = env("AER_MQTT_PASSWORD") {
-            self.mqtt.password = Some(v);
-        }
-        if let Some(v) = env("AER_MQTT_PREFIX") {
-            self.mqtt.topic_prefix = v;
         }
         if let Some(v) = env("AER_STORE_PATH") {
             self.store.path = v.into();
@@ -180,6 +162,56 @@ impl Config {
     /// Topic prefix of this car: `<prefix>/<car_id>`.
     pub fn topic_prefix(&self) -> String {
         aer::mqtt::car_prefix(&self.mqtt.topic_prefix, &self.car_id)
+    }
+}
+
+/// Reads a TOML configuration file (every key optional), or gives the defaults without one.
+pub fn read_or_default<T: DeserializeOwned + Default>(path: Option<&Path>) -> Result<T> {
+    let Some(path) = path else {
+        return Ok(T::default());
+    };
+    let text = std::fs::read_to_string(path)
+        .with_context(|| format!("reading the configuration {}", path.display()))?;
+    toml::from_str(&text).with_context(|| format!("in the configuration {}", path.display()))
+}
+
+/// Which broker and which car's topics: the settings the service and the dashboard share.
+/// Both take them from the same environment variables, so one environment points the Pi and
+/// its dashboards at the same broker and car.
+pub struct BrokerSettings<'a> {
+    pub car_id: &'a mut String,
+    pub host: &'a mut String,
+    pub port: &'a mut u16,
+    pub username: &'a mut Option<String>,
+    pub password: &'a mut Option<String>,
+    pub topic_prefix: &'a mut String,
+}
+
+impl BrokerSettings<'_> {
+    /// Applies `AER_CAR_ID`, `AER_MQTT_HOST`, `AER_MQTT_PORT`, `AER_MQTT_USERNAME`,
+    /// `AER_MQTT_PASSWORD` and `AER_MQTT_PREFIX` from `env`.
+    pub fn apply_env(self, env: impl Fn(&str) -> Option<String>) -> Result<()> {
+        if let Some(v) = env("AER_CAR_ID") {
+            *self.car_id = v;
+        }
+        if let Some(v) = env("AER_MQTT_HOST") {
+            *self.host = v;
+        }
+        if let Some(v) = env("AER_MQTT_PORT") {
+            *self.port = v
+                .parse()
+                .with_context(|| format!("AER_MQTT_PORT={v} is not a port"))?;
+        }
+        if let Some(v) = env("AER_MQTT_USERNAME") {
+            *self.username = Some(v);
+        }
+        if let Some(v) = env("AER_MQTT_PASSWORD") {
+            *self.password = Some(v);
+        }
+        if let Some(v) = env("AER_MQTT_PREFIX") {
+            *self.topic_prefix = v;
+        }
+        Ok(())
     }
 }
 
