@@ -10,10 +10,10 @@ pub struct PidGains {
     pub ki: f32,
     /// Derivative gain (seconds).
     pub kd: f32,
-    /// The integral term's contribution is kept within +/- this (anti-windup).
-    pub integral_limit: f32,
-    /// The output is kept within +/- this.
-    pub output_limit: f32,
+    /// The integral term's contribution is kept within (low, high) (anti-windup).
+    pub integral_range: (f32, f32),
+    /// The output is kept within (low, high).
+    pub output_range: (f32, f32),
 }
 
 /// A PID controller stepped at a fixed period.
@@ -42,22 +42,22 @@ impl Pid {
             kp,
             ki,
             kd,
-            integral_limit,
-            output_limit,
+            integral_range,
+            output_range,
         } = self.gains;
         if !error.is_finite() {
             return 0.0;
         }
         self.integral = (self.integral + ki * error * self.period_s)
-            .max(-integral_limit)
-            .min(integral_limit);
+            .max(integral_range.0)
+            .min(integral_range.1);
         let derivative = self
             .previous_error
             .map_or(0.0, |previous| kd * (error - previous) / self.period_s);
         self.previous_error = Some(error);
         (kp * error + self.integral + derivative)
-            .max(-output_limit)
-            .min(output_limit)
+            .max(output_range.0)
+            .min(output_range.1)
     }
 
     /// Clears the integral and derivative history.
@@ -75,8 +75,8 @@ mod tests {
         kp: 2.0,
         ki: 10.0,
         kd: 0.0,
-        integral_limit: 5.0,
-        output_limit: 100.0,
+        integral_range: (-5.0, 5.0),
+        output_range: (-100.0, 100.0),
     };
 
     #[test]
@@ -95,6 +95,24 @@ mod tests {
         assert!((pid.step(1.0) - 7.0).abs() < 1e-5, "integral capped at 5");
         pid.reset();
         assert!((pid.step(1.0) - 2.1).abs() < 1e-6);
+    }
+
+    #[test]
+    fn a_one_sided_integral_bleeds_to_its_floor_and_no_further() {
+        // A controller that only ever removes something: a long negative error must not
+        // store up a negative integral that would delay the next positive correction.
+        let mut pid = Pid::new(
+            PidGains {
+                integral_range: (0.0, 5.0),
+                output_range: (0.0, 100.0),
+                ..GAINS
+            },
+            0.01,
+        );
+        for _ in 0..1_000 {
+            assert_eq!(pid.step(-1.0), 0.0);
+        }
+        assert!((pid.step(1.0) - 2.1).abs() < 1e-6, "starts from zero");
     }
 
     #[test]
