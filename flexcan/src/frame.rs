@@ -72,6 +72,9 @@ pub(crate) mod code {
     pub const TX_INACTIVE: u32 = 0b1000;
     /// Transmit buffer holding a frame to send.
     pub const TX_DATA: u32 = 0b1100;
+    /// Written: abort the pending frame (MCR.AEN set). Read back after the buffer's flag
+    /// rose: the frame was aborted (a transmitted one reads `TX_INACTIVE`).
+    pub const TX_ABORT: u32 = 0b1001;
 }
 
 const CODE_SHIFT: u32 = 24;

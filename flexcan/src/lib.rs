@@ -7,6 +7,14 @@
 //! identifier leave in the order they were queued: a frame is refused with
 //! [`TxError::Busy`] while an earlier one with its identifier is still pending, because the
 //! controller arbitrates pending mailboxes by identifier and mailbox number, not by age.
+//! A command that must never go out stale uses [`Flexcan::transmit_latest`] instead: it
+//! aborts the pending frame with the same identifier and queues the new one.
+//!
+//! Errors: [`Flexcan::check_errors`] reports the fault confinement state (error-active,
+//! error-passive, bus-off), counts every entry into bus-off and then aborts every pending
+//! frame, so nothing queued before the bus went away is sent late once it recovers. Recovery
+//! itself is the controller's automatic one (CTRL1.BOFFREC clear): after 128 occurrences of
+//! 11 recessive bits it is error-active again.
 //!
 //! Register facts are from the i.MX RT1060 reference manual, chapter "FlexCAN"; the errata
 //! workaround is ERR005829 (a mailbox armed during arbitration can be skipped unless the first
@@ -41,6 +49,10 @@ const MCR_WRNEN: u32 = 1 << 21;
 const MCR_LPMACK: u32 = 1 << 20;
 const MCR_SRXDIS: u32 = 1 << 17;
 const MCR_IRMQ: u32 = 1 << 16;
+const MCR_AEN: u32 = 1 << 12;
+// ESR1: entered bus-off (write 1 to clear), and the fault confinement field.
+const ESR1_BOFFINT: u32 = 1 << 2;
+const ESR1_FLTCONF_SHIFT: u32 = 4;
 // CTRL2: store received remote frames instead of answering them automatically.
 const CTRL2_RRS: u32 = 1 << 17;
 // IFLAG1 bits while the RX FIFO is on: frame available, almost full, overflow.
@@ -91,6 +103,17 @@ pub enum FaultState {
     BusOff,
 }
 
+impl FaultState {
+    /// The state an ESR1 value reports.
+    pub const fn from_esr1(esr1: u32) -> Self {
+        match (esr1 >> ESR1_FLTCONF_SHIFT) & 0b11 {
+            0b00 => Self::ErrorActive,
+            0b01 => Self::ErrorPassive,
+            _ => Self::BusOff,
+        }
+    }
+}
+
 /// Error counters and state, for the status and telemetry frames.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct BusStatus {
@@ -102,12 +125,19 @@ pub struct BusStatus {
     pub rx_errors: u8,
     /// Frames lost because the hardware RX FIFO was full (since start-up).
     pub rx_fifo_overflows: u32,
+    /// Times the controller entered bus-off (counted by [`Flexcan::check_errors`]).
+    pub bus_off_events: u32,
+    /// Queued frames that never went out: replaced by a newer one with the same identifier,
+    /// or aborted when the controller went bus-off.
+    pub tx_dropped: u32,
 }
 
 /// A started FlexCAN controller. `N` is the instance number (1 or 2).
 pub struct Flexcan<const N: u8> {
     regs: ral::can::Instance<N>,
     rx_fifo_overflows: u32,
+    bus_off_events: u32,
+    tx_dropped: u32,
 }
 
 impl<const N: u8> Flexcan<N> {
@@ -134,6 +164,8 @@ impl<const N: u8> Flexcan<N> {
         let mut can = Self {
             regs,
             rx_fifo_overflows: 0,
+            bus_off_events: 0,
+            tx_dropped: 0,
         };
         can.configure(timing)?;
         Ok(can)
@@ -156,14 +188,15 @@ impl<const N: u8> Flexcan<N> {
         ral::write_reg!(ral::can, self.regs, CTRL1, ctrl1);
         // RFFN = 0 (8 filters), remote frames stored rather than answered.
         ral::write_reg!(ral::can, self.regs, CTRL2, CTRL2_RRS);
-        // RX FIFO, individual masks, no self-reception, user mode, warnings, buffers 0..=15.
+        // RX FIFO, individual masks, no self-reception, user mode, warnings, transmit abort,
+        // buffers 0..=15.
         let maxmb = u32::try_from(LAST_MB).unwrap_or(15);
         let mcr = ral::read_reg!(ral::can, self.regs, MCR) & !(MCR_SUPV | 0x7F | (0b11 << 8));
         ral::write_reg!(
             ral::can,
             self.regs,
             MCR,
-            mcr | MCR_RFEN | MCR_IRMQ | MCR_SRXDIS | MCR_WRNEN | maxmb
+            mcr | MCR_RFEN | MCR_IRMQ | MCR_SRXDIS | MCR_WRNEN | MCR_AEN | maxmb
         );
 
         // Accept everything: filter entries 0 with all-zero ("don't care") masks.
@@ -257,22 +290,76 @@ impl<const N: u8> Flexcan<N> {
         Ok(())
     }
 
-    /// Error counters, fault confinement state and the RX FIFO overflow count.
-    pub fn status(&self) -> BusStatus {
-        let ecr = ral::read_reg!(ral::can, self.regs, ECR);
+    /// Queues `frame`, first aborting a pending frame with the same identifier (counted in
+    /// [`BusStatus::tx_dropped`] unless it went out while the abort was requested): the
+    /// newest command replaces a stale one instead of queueing behind it.
+    pub fn transmit_latest(&mut self, frame: &CanFrame) -> Result<(), TxError> {
+        let id = embedded_can::Frame::id(frame);
+        for mb in FIRST_TX_MB..=LAST_MB {
+            let cs = self.read_mb_word(mb, 0);
+            if frame::code_of(cs) == code::TX_DATA
+                && frame::id_of(cs, self.read_mb_word(mb, 1)) == id
+            {
+                self.abort(mb);
+            }
+        }
+        self.transmit(frame)
+    }
+
+    /// Reads the error state; on an entry into bus-off (ESR1.BOFFINT), counts it, clears
+    /// the flag and aborts every pending frame. Call it periodically (every control step).
+    pub fn check_errors(&mut self) -> BusStatus {
         let esr1 = ral::read_reg!(ral::can, self.regs, ESR1);
-        let state = match (esr1 >> 4) & 0b11 {
-            0b00 => FaultState::ErrorActive,
-            0b01 => FaultState::ErrorPassive,
-            _ => FaultState::BusOff,
-        };
+        if esr1 & ESR1_BOFFINT != 0 {
+            ral::write_reg!(ral::can, self.regs, ESR1, ESR1_BOFFINT);
+            self.bus_off_events = self.bus_off_events.wrapping_add(1);
+            for mb in FIRST_TX_MB..=LAST_MB {
+                if frame::code_of(self.read_mb_word(mb, 0)) == code::TX_DATA {
+                    self.abort(mb);
+                }
+            }
+        }
+        self.status_from(esr1)
+    }
+
+    /// Error counters, fault confinement state and the drop counts.
+    pub fn status(&self) -> BusStatus {
+        self.status_from(ral::read_reg!(ral::can, self.regs, ESR1))
+    }
+
+    fn status_from(&self, esr1: u32) -> BusStatus {
+        let ecr = ral::read_reg!(ral::can, self.regs, ECR);
         let [tx_errors, rx_errors, _, _] = ecr.to_le_bytes();
         BusStatus {
-            state,
+            state: FaultState::from_esr1(esr1),
             tx_errors,
             rx_errors,
             rx_fifo_overflows: self.rx_fifo_overflows,
+            bus_off_events: self.bus_off_events,
+            tx_dropped: self.tx_dropped,
         }
+    }
+
+    /// Aborts the pending frame in `mb` (RM "Transmission abort mechanism"): clear the
+    /// buffer's flag, write ABORT, wait for the flag (at most the rest of a frame on the
+    /// wire), then read whether it was aborted or sent. Leaves the buffer free.
+    fn abort(&mut self, mb: usize) {
+        let Some(bit) = u32::try_from(mb).ok().and_then(|mb| 1u32.checked_shl(mb)) else {
+            return;
+        };
+        ral::write_reg!(ral::can, self.regs, IFLAG1, bit);
+        self.write_mb_word(mb, 0, frame::cs_with_code(code::TX_ABORT));
+        let finished =
+            (0..POLL_LIMIT).any(|_| ral::read_reg!(ral::can, self.regs, IFLAG1) & bit != 0);
+        let aborted = frame::code_of(self.read_mb_word(mb, 0)) == code::TX_ABORT;
+        if finished {
+            ral::write_reg!(ral::can, self.regs, IFLAG1, bit);
+        }
+        if aborted || !finished {
+            self.tx_dropped = self.tx_dropped.wrapping_add(1);
+        }
+        // Park the buffer whatever happened, so `transmit` can reuse it.
+        self.write_mb_word(mb, 0, frame::cs_with_code(code::TX_INACTIVE));
     }
 
     fn mb_word_ptr(&self, mb: usize, word: usize) -> *mut u32 {
@@ -304,4 +391,22 @@ fn enable_clock<const N: u8>(ccm: &ral::ccm::CCM) -> Result<(), InitError> {
         _ => return Err(InitError::WrongPins),
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn fault_confinement_reads_from_esr1_fltconf() {
+        assert_eq!(FaultState::from_esr1(0), FaultState::ErrorActive);
+        assert_eq!(FaultState::from_esr1(0b01 << 4), FaultState::ErrorPassive);
+        assert_eq!(FaultState::from_esr1(0b10 << 4), FaultState::BusOff);
+        assert_eq!(FaultState::from_esr1(0b11 << 4), FaultState::BusOff);
+        // Other ESR1 bits (BOFFINT, error flags) do not change the state.
+        assert_eq!(
+            FaultState::from_esr1(ESR1_BOFFINT | 0xFC00),
+            FaultState::ErrorActive
+        );
+    }
 }
