@@ -10,7 +10,7 @@ use super::runtime::{
 /// Fingerprint of the schema's wire layout (ids, bit positions, types, scaling, value names).
 /// Sent by the firmware and checked by receivers, so a mismatched flash is detected instead of
 /// mis-decoded.
-pub const SCHEMA_FINGERPRINT: u32 = 0x5D2DC1A0;
+pub const SCHEMA_FINGERPRINT: u32 = 0x480F5E33;
 
 /// Values of `MCU1.MCU_RotateDirection`.
 ///
@@ -868,7 +868,7 @@ pub struct CcmStatus {
     /// `CCM_FaultAppsBrakePlausibility`: 1 bit from bit 14 (Intel), unsigned, range [0.0, 1.0].
     #[cfg_attr(feature = "serde", serde(rename = "CCM_FaultAppsBrakePlausibility"))]
     pub ccm_fault_apps_brake_plausibility: bool,
-    /// Fault bitmap bit 7: low-voltage battery low.
+    /// Fault bitmap bit 7: accumulator state of charge at or below 5 %, the end of the torque derating.
     ///
     /// `CCM_FaultLowBatteryVoltage`: 1 bit from bit 15 (Intel), unsigned, range [0.0, 1.0].
     #[cfg_attr(feature = "serde", serde(rename = "CCM_FaultLowBatteryVoltage"))]
@@ -888,9 +888,49 @@ pub struct CcmStatus {
     /// `CCM_ReadyToDrive`: 1 bit from bit 52 (Intel), unsigned, range [0.0, 1.0].
     #[cfg_attr(feature = "serde", serde(rename = "CCM_ReadyToDrive"))]
     pub ccm_ready_to_drive: bool,
+    /// Fault bitmap bit 8: the pedal converter delivered no conversion on a channel for 20 ms (T.4.2.10).
+    ///
+    /// `CCM_FaultPedalSignalLost`: 1 bit from bit 53 (Intel), unsigned, range [0.0, 1.0].
+    #[cfg_attr(feature = "serde", serde(rename = "CCM_FaultPedalSignalLost"))]
+    pub ccm_fault_pedal_signal_lost: bool,
+    /// Fault bitmap bit 9: the 1 kHz sensor sample is older than 10 ms.
+    ///
+    /// `CCM_FaultSensorsStale`: 1 bit from bit 54 (Intel), unsigned, range [0.0, 1.0].
+    #[cfg_attr(feature = "serde", serde(rename = "CCM_FaultSensorsStale"))]
+    pub ccm_fault_sensors_stale: bool,
+    /// Fault bitmap bit 10: a BMS frame the CCM acts on is older than its limit.
+    ///
+    /// `CCM_FaultBmsTimeout`: 1 bit from bit 55 (Intel), unsigned, range [0.0, 1.0].
+    #[cfg_attr(feature = "serde", serde(rename = "CCM_FaultBmsTimeout"))]
+    pub ccm_fault_bms_timeout: bool,
+    /// Fault bitmap bit 11: an inverter status frame is older than its limit.
+    ///
+    /// `CCM_FaultInverterTimeout`: 1 bit from bit 56 (Intel), unsigned, range [0.0, 1.0].
+    #[cfg_attr(feature = "serde", serde(rename = "CCM_FaultInverterTimeout"))]
+    pub ccm_fault_inverter_timeout: bool,
+    /// Fault bitmap bit 12: the precharge controller's status is older than 100 ms.
+    ///
+    /// `CCM_FaultPccTimeout`: 1 bit from bit 57 (Intel), unsigned, range [0.0, 1.0].
+    #[cfg_attr(feature = "serde", serde(rename = "CCM_FaultPccTimeout"))]
+    pub ccm_fault_pcc_timeout: bool,
+    /// Fault bitmap bit 13: the inverter reports a fault (MCU2 fault bits or warning level HIGH).
+    ///
+    /// `CCM_FaultInverterFault`: 1 bit from bit 58 (Intel), unsigned, range [0.0, 1.0].
+    #[cfg_attr(feature = "serde", serde(rename = "CCM_FaultInverterFault"))]
+    pub ccm_fault_inverter_fault: bool,
+    /// Fault bitmap bit 14: the inverter reports a warning (low DC or 12 V, a sensor state, warning level LOW or MEDIUM).
+    ///
+    /// `CCM_FaultInverterWarning`: 1 bit from bit 59 (Intel), unsigned, range [0.0, 1.0].
+    #[cfg_attr(feature = "serde", serde(rename = "CCM_FaultInverterWarning"))]
+    pub ccm_fault_inverter_warning: bool,
+    /// Fault bitmap bit 15: the precharge controller reports ERROR (or a state the schema does not know); its own error bits say why.
+    ///
+    /// `CCM_FaultPccError`: 1 bit from bit 60 (Intel), unsigned, range [0.0, 1.0].
+    #[cfg_attr(feature = "serde", serde(rename = "CCM_FaultPccError"))]
+    pub ccm_fault_pcc_error: bool,
 }
 
-static CCM_STATUS_SIGNALS: [SignalMeta; 12] = [
+static CCM_STATUS_SIGNALS: [SignalMeta; 20] = [
     SignalMeta {
         name: "CCM_VehicleState",
         unit: "",
@@ -1021,7 +1061,7 @@ static CCM_STATUS_SIGNALS: [SignalMeta; 12] = [
     SignalMeta {
         name: "CCM_FaultLowBatteryVoltage",
         unit: "",
-        comment: "Fault bitmap bit 7: low-voltage battery low.",
+        comment: "Fault bitmap bit 7: accumulator state of charge at or below 5 %, the end of the torque derating.",
         start_bit: 15,
         len: 1,
         byte_order: ByteOrder::LittleEndian,
@@ -1078,6 +1118,126 @@ static CCM_STATUS_SIGNALS: [SignalMeta; 12] = [
         labels: &[],
         multiplexed: false,
     },
+    SignalMeta {
+        name: "CCM_FaultPedalSignalLost",
+        unit: "",
+        comment: "Fault bitmap bit 8: the pedal converter delivered no conversion on a channel for 20 ms (T.4.2.10).",
+        start_bit: 53,
+        len: 1,
+        byte_order: ByteOrder::LittleEndian,
+        signed: false,
+        factor: 1.0,
+        offset: 0.0,
+        min: Some(0.0),
+        max: Some(1.0),
+        labels: &[],
+        multiplexed: false,
+    },
+    SignalMeta {
+        name: "CCM_FaultSensorsStale",
+        unit: "",
+        comment: "Fault bitmap bit 9: the 1 kHz sensor sample is older than 10 ms.",
+        start_bit: 54,
+        len: 1,
+        byte_order: ByteOrder::LittleEndian,
+        signed: false,
+        factor: 1.0,
+        offset: 0.0,
+        min: Some(0.0),
+        max: Some(1.0),
+        labels: &[],
+        multiplexed: false,
+    },
+    SignalMeta {
+        name: "CCM_FaultBmsTimeout",
+        unit: "",
+        comment: "Fault bitmap bit 10: a BMS frame the CCM acts on is older than its limit.",
+        start_bit: 55,
+        len: 1,
+        byte_order: ByteOrder::LittleEndian,
+        signed: false,
+        factor: 1.0,
+        offset: 0.0,
+        min: Some(0.0),
+        max: Some(1.0),
+        labels: &[],
+        multiplexed: false,
+    },
+    SignalMeta {
+        name: "CCM_FaultInverterTimeout",
+        unit: "",
+        comment: "Fault bitmap bit 11: an inverter status frame is older than its limit.",
+        start_bit: 56,
+        len: 1,
+        byte_order: ByteOrder::LittleEndian,
+        signed: false,
+        factor: 1.0,
+        offset: 0.0,
+        min: Some(0.0),
+        max: Some(1.0),
+        labels: &[],
+        multiplexed: false,
+    },
+    SignalMeta {
+        name: "CCM_FaultPccTimeout",
+        unit: "",
+        comment: "Fault bitmap bit 12: the precharge controller's status is older than 100 ms.",
+        start_bit: 57,
+        len: 1,
+        byte_order: ByteOrder::LittleEndian,
+        signed: false,
+        factor: 1.0,
+        offset: 0.0,
+        min: Some(0.0),
+        max: Some(1.0),
+        labels: &[],
+        multiplexed: false,
+    },
+    SignalMeta {
+        name: "CCM_FaultInverterFault",
+        unit: "",
+        comment: "Fault bitmap bit 13: the inverter reports a fault (MCU2 fault bits or warning level HIGH).",
+        start_bit: 58,
+        len: 1,
+        byte_order: ByteOrder::LittleEndian,
+        signed: false,
+        factor: 1.0,
+        offset: 0.0,
+        min: Some(0.0),
+        max: Some(1.0),
+        labels: &[],
+        multiplexed: false,
+    },
+    SignalMeta {
+        name: "CCM_FaultInverterWarning",
+        unit: "",
+        comment: "Fault bitmap bit 14: the inverter reports a warning (low DC or 12 V, a sensor state, warning level LOW or MEDIUM).",
+        start_bit: 59,
+        len: 1,
+        byte_order: ByteOrder::LittleEndian,
+        signed: false,
+        factor: 1.0,
+        offset: 0.0,
+        min: Some(0.0),
+        max: Some(1.0),
+        labels: &[],
+        multiplexed: false,
+    },
+    SignalMeta {
+        name: "CCM_FaultPccError",
+        unit: "",
+        comment: "Fault bitmap bit 15: the precharge controller reports ERROR (or a state the schema does not know); its own error bits say why.",
+        start_bit: 60,
+        len: 1,
+        byte_order: ByteOrder::LittleEndian,
+        signed: false,
+        factor: 1.0,
+        offset: 0.0,
+        min: Some(0.0),
+        max: Some(1.0),
+        labels: &[],
+        multiplexed: false,
+    },
 ];
 
 impl CcmStatus {
@@ -1119,6 +1279,22 @@ impl CcmStatus {
             Self::ccm_rolling_counter_from_raw(bits::read_le(data, 48, 4) as u8);
         let ccm_ready_to_drive =
             Self::ccm_ready_to_drive_from_raw(bits::read_le(data, 52, 1) as u8);
+        let ccm_fault_pedal_signal_lost =
+            Self::ccm_fault_pedal_signal_lost_from_raw(bits::read_le(data, 53, 1) as u8);
+        let ccm_fault_sensors_stale =
+            Self::ccm_fault_sensors_stale_from_raw(bits::read_le(data, 54, 1) as u8);
+        let ccm_fault_bms_timeout =
+            Self::ccm_fault_bms_timeout_from_raw(bits::read_le(data, 55, 1) as u8);
+        let ccm_fault_inverter_timeout =
+            Self::ccm_fault_inverter_timeout_from_raw(bits::read_le(data, 56, 1) as u8);
+        let ccm_fault_pcc_timeout =
+            Self::ccm_fault_pcc_timeout_from_raw(bits::read_le(data, 57, 1) as u8);
+        let ccm_fault_inverter_fault =
+            Self::ccm_fault_inverter_fault_from_raw(bits::read_le(data, 58, 1) as u8);
+        let ccm_fault_inverter_warning =
+            Self::ccm_fault_inverter_warning_from_raw(bits::read_le(data, 59, 1) as u8);
+        let ccm_fault_pcc_error =
+            Self::ccm_fault_pcc_error_from_raw(bits::read_le(data, 60, 1) as u8);
         Ok(Self {
             ccm_vehicle_state,
             ccm_fault_over_current,
@@ -1132,6 +1308,14 @@ impl CcmStatus {
             ccm_schema_fingerprint,
             ccm_rolling_counter,
             ccm_ready_to_drive,
+            ccm_fault_pedal_signal_lost,
+            ccm_fault_sensors_stale,
+            ccm_fault_bms_timeout,
+            ccm_fault_inverter_timeout,
+            ccm_fault_pcc_timeout,
+            ccm_fault_inverter_fault,
+            ccm_fault_inverter_warning,
+            ccm_fault_pcc_error,
         })
     }
 
@@ -1223,6 +1407,68 @@ impl CcmStatus {
             1,
             u64::from(Self::ccm_ready_to_drive_to_raw(self.ccm_ready_to_drive)?),
         );
+        bits::write_le(
+            out,
+            53,
+            1,
+            u64::from(Self::ccm_fault_pedal_signal_lost_to_raw(
+                self.ccm_fault_pedal_signal_lost,
+            )?),
+        );
+        bits::write_le(
+            out,
+            54,
+            1,
+            u64::from(Self::ccm_fault_sensors_stale_to_raw(
+                self.ccm_fault_sensors_stale,
+            )?),
+        );
+        bits::write_le(
+            out,
+            55,
+            1,
+            u64::from(Self::ccm_fault_bms_timeout_to_raw(
+                self.ccm_fault_bms_timeout,
+            )?),
+        );
+        bits::write_le(
+            out,
+            56,
+            1,
+            u64::from(Self::ccm_fault_inverter_timeout_to_raw(
+                self.ccm_fault_inverter_timeout,
+            )?),
+        );
+        bits::write_le(
+            out,
+            57,
+            1,
+            u64::from(Self::ccm_fault_pcc_timeout_to_raw(
+                self.ccm_fault_pcc_timeout,
+            )?),
+        );
+        bits::write_le(
+            out,
+            58,
+            1,
+            u64::from(Self::ccm_fault_inverter_fault_to_raw(
+                self.ccm_fault_inverter_fault,
+            )?),
+        );
+        bits::write_le(
+            out,
+            59,
+            1,
+            u64::from(Self::ccm_fault_inverter_warning_to_raw(
+                self.ccm_fault_inverter_warning,
+            )?),
+        );
+        bits::write_le(
+            out,
+            60,
+            1,
+            u64::from(Self::ccm_fault_pcc_error_to_raw(self.ccm_fault_pcc_error)?),
+        );
         Ok(Self::LEN)
     }
 
@@ -1252,6 +1498,22 @@ impl CcmStatus {
         visitor.signal(&CCM_STATUS_SIGNALS[10], Value::from(v), None);
         let v = self.ccm_ready_to_drive;
         visitor.signal(&CCM_STATUS_SIGNALS[11], Value::from(v), None);
+        let v = self.ccm_fault_pedal_signal_lost;
+        visitor.signal(&CCM_STATUS_SIGNALS[12], Value::from(v), None);
+        let v = self.ccm_fault_sensors_stale;
+        visitor.signal(&CCM_STATUS_SIGNALS[13], Value::from(v), None);
+        let v = self.ccm_fault_bms_timeout;
+        visitor.signal(&CCM_STATUS_SIGNALS[14], Value::from(v), None);
+        let v = self.ccm_fault_inverter_timeout;
+        visitor.signal(&CCM_STATUS_SIGNALS[15], Value::from(v), None);
+        let v = self.ccm_fault_pcc_timeout;
+        visitor.signal(&CCM_STATUS_SIGNALS[16], Value::from(v), None);
+        let v = self.ccm_fault_inverter_fault;
+        visitor.signal(&CCM_STATUS_SIGNALS[17], Value::from(v), None);
+        let v = self.ccm_fault_inverter_warning;
+        visitor.signal(&CCM_STATUS_SIGNALS[18], Value::from(v), None);
+        let v = self.ccm_fault_pcc_error;
+        visitor.signal(&CCM_STATUS_SIGNALS[19], Value::from(v), None);
     }
 
     /// Builds the message from physical values looked up by signal.
@@ -1403,6 +1665,110 @@ impl CcmStatus {
                 v.to_bool().ok_or(EncodeError::InvalidValue {
                     message: "CCM_Status",
                     signal: "CCM_ReadyToDrive",
+                })?
+            },
+            ccm_fault_pedal_signal_lost: {
+                let v =
+                    source
+                        .value(&CCM_STATUS_SIGNALS[12])
+                        .ok_or(EncodeError::MissingSignal {
+                            message: "CCM_Status",
+                            signal: "CCM_FaultPedalSignalLost",
+                        })?;
+                v.to_bool().ok_or(EncodeError::InvalidValue {
+                    message: "CCM_Status",
+                    signal: "CCM_FaultPedalSignalLost",
+                })?
+            },
+            ccm_fault_sensors_stale: {
+                let v =
+                    source
+                        .value(&CCM_STATUS_SIGNALS[13])
+                        .ok_or(EncodeError::MissingSignal {
+                            message: "CCM_Status",
+                            signal: "CCM_FaultSensorsStale",
+                        })?;
+                v.to_bool().ok_or(EncodeError::InvalidValue {
+                    message: "CCM_Status",
+                    signal: "CCM_FaultSensorsStale",
+                })?
+            },
+            ccm_fault_bms_timeout: {
+                let v =
+                    source
+                        .value(&CCM_STATUS_SIGNALS[14])
+                        .ok_or(EncodeError::MissingSignal {
+                            message: "CCM_Status",
+                            signal: "CCM_FaultBmsTimeout",
+                        })?;
+                v.to_bool().ok_or(EncodeError::InvalidValue {
+                    message: "CCM_Status",
+                    signal: "CCM_FaultBmsTimeout",
+                })?
+            },
+            ccm_fault_inverter_timeout: {
+                let v =
+                    source
+                        .value(&CCM_STATUS_SIGNALS[15])
+                        .ok_or(EncodeError::MissingSignal {
+                            message: "CCM_Status",
+                            signal: "CCM_FaultInverterTimeout",
+                        })?;
+                v.to_bool().ok_or(EncodeError::InvalidValue {
+                    message: "CCM_Status",
+                    signal: "CCM_FaultInverterTimeout",
+                })?
+            },
+            ccm_fault_pcc_timeout: {
+                let v =
+                    source
+                        .value(&CCM_STATUS_SIGNALS[16])
+                        .ok_or(EncodeError::MissingSignal {
+                            message: "CCM_Status",
+                            signal: "CCM_FaultPccTimeout",
+                        })?;
+                v.to_bool().ok_or(EncodeError::InvalidValue {
+                    message: "CCM_Status",
+                    signal: "CCM_FaultPccTimeout",
+                })?
+            },
+            ccm_fault_inverter_fault: {
+                let v =
+                    source
+                        .value(&CCM_STATUS_SIGNALS[17])
+                        .ok_or(EncodeError::MissingSignal {
+                            message: "CCM_Status",
+                            signal: "CCM_FaultInverterFault",
+                        })?;
+                v.to_bool().ok_or(EncodeError::InvalidValue {
+                    message: "CCM_Status",
+                    signal: "CCM_FaultInverterFault",
+                })?
+            },
+            ccm_fault_inverter_warning: {
+                let v =
+                    source
+                        .value(&CCM_STATUS_SIGNALS[18])
+                        .ok_or(EncodeError::MissingSignal {
+                            message: "CCM_Status",
+                            signal: "CCM_FaultInverterWarning",
+                        })?;
+                v.to_bool().ok_or(EncodeError::InvalidValue {
+                    message: "CCM_Status",
+                    signal: "CCM_FaultInverterWarning",
+                })?
+            },
+            ccm_fault_pcc_error: {
+                let v =
+                    source
+                        .value(&CCM_STATUS_SIGNALS[19])
+                        .ok_or(EncodeError::MissingSignal {
+                            message: "CCM_Status",
+                            signal: "CCM_FaultPccError",
+                        })?;
+                v.to_bool().ok_or(EncodeError::InvalidValue {
+                    message: "CCM_Status",
+                    signal: "CCM_FaultPccError",
                 })?
             },
         })
@@ -1623,6 +1989,150 @@ impl CcmStatus {
             1e-6,
             "CCM_Status",
             "CCM_ReadyToDrive",
+        )?;
+        Ok(u8::from(v))
+    }
+
+    /// Physical value of `CCM_FaultPedalSignalLost` for a raw value.
+    pub fn ccm_fault_pedal_signal_lost_from_raw(raw: u8) -> bool {
+        raw != 0
+    }
+
+    /// Raw value of `CCM_FaultPedalSignalLost` for a physical value, range-checked.
+    pub fn ccm_fault_pedal_signal_lost_to_raw(v: bool) -> Result<u8, EncodeError> {
+        runtime::check_range(
+            f64::from(u8::from(v)),
+            0.0,
+            1.0,
+            1e-6,
+            "CCM_Status",
+            "CCM_FaultPedalSignalLost",
+        )?;
+        Ok(u8::from(v))
+    }
+
+    /// Physical value of `CCM_FaultSensorsStale` for a raw value.
+    pub fn ccm_fault_sensors_stale_from_raw(raw: u8) -> bool {
+        raw != 0
+    }
+
+    /// Raw value of `CCM_FaultSensorsStale` for a physical value, range-checked.
+    pub fn ccm_fault_sensors_stale_to_raw(v: bool) -> Result<u8, EncodeError> {
+        runtime::check_range(
+            f64::from(u8::from(v)),
+            0.0,
+            1.0,
+            1e-6,
+            "CCM_Status",
+            "CCM_FaultSensorsStale",
+        )?;
+        Ok(u8::from(v))
+    }
+
+    /// Physical value of `CCM_FaultBmsTimeout` for a raw value.
+    pub fn ccm_fault_bms_timeout_from_raw(raw: u8) -> bool {
+        raw != 0
+    }
+
+    /// Raw value of `CCM_FaultBmsTimeout` for a physical value, range-checked.
+    pub fn ccm_fault_bms_timeout_to_raw(v: bool) -> Result<u8, EncodeError> {
+        runtime::check_range(
+            f64::from(u8::from(v)),
+            0.0,
+            1.0,
+            1e-6,
+            "CCM_Status",
+            "CCM_FaultBmsTimeout",
+        )?;
+        Ok(u8::from(v))
+    }
+
+    /// Physical value of `CCM_FaultInverterTimeout` for a raw value.
+    pub fn ccm_fault_inverter_timeout_from_raw(raw: u8) -> bool {
+        raw != 0
+    }
+
+    /// Raw value of `CCM_FaultInverterTimeout` for a physical value, range-checked.
+    pub fn ccm_fault_inverter_timeout_to_raw(v: bool) -> Result<u8, EncodeError> {
+        runtime::check_range(
+            f64::from(u8::from(v)),
+            0.0,
+            1.0,
+            1e-6,
+            "CCM_Status",
+            "CCM_FaultInverterTimeout",
+        )?;
+        Ok(u8::from(v))
+    }
+
+    /// Physical value of `CCM_FaultPccTimeout` for a raw value.
+    pub fn ccm_fault_pcc_timeout_from_raw(raw: u8) -> bool {
+        raw != 0
+    }
+
+    /// Raw value of `CCM_FaultPccTimeout` for a physical value, range-checked.
+    pub fn ccm_fault_pcc_timeout_to_raw(v: bool) -> Result<u8, EncodeError> {
+        runtime::check_range(
+            f64::from(u8::from(v)),
+            0.0,
+            1.0,
+            1e-6,
+            "CCM_Status",
+            "CCM_FaultPccTimeout",
+        )?;
+        Ok(u8::from(v))
+    }
+
+    /// Physical value of `CCM_FaultInverterFault` for a raw value.
+    pub fn ccm_fault_inverter_fault_from_raw(raw: u8) -> bool {
+        raw != 0
+    }
+
+    /// Raw value of `CCM_FaultInverterFault` for a physical value, range-checked.
+    pub fn ccm_fault_inverter_fault_to_raw(v: bool) -> Result<u8, EncodeError> {
+        runtime::check_range(
+            f64::from(u8::from(v)),
+            0.0,
+            1.0,
+            1e-6,
+            "CCM_Status",
+            "CCM_FaultInverterFault",
+        )?;
+        Ok(u8::from(v))
+    }
+
+    /// Physical value of `CCM_FaultInverterWarning` for a raw value.
+    pub fn ccm_fault_inverter_warning_from_raw(raw: u8) -> bool {
+        raw != 0
+    }
+
+    /// Raw value of `CCM_FaultInverterWarning` for a physical value, range-checked.
+    pub fn ccm_fault_inverter_warning_to_raw(v: bool) -> Result<u8, EncodeError> {
+        runtime::check_range(
+            f64::from(u8::from(v)),
+            0.0,
+            1.0,
+            1e-6,
+            "CCM_Status",
+            "CCM_FaultInverterWarning",
+        )?;
+        Ok(u8::from(v))
+    }
+
+    /// Physical value of `CCM_FaultPccError` for a raw value.
+    pub fn ccm_fault_pcc_error_from_raw(raw: u8) -> bool {
+        raw != 0
+    }
+
+    /// Raw value of `CCM_FaultPccError` for a physical value, range-checked.
+    pub fn ccm_fault_pcc_error_to_raw(v: bool) -> Result<u8, EncodeError> {
+        runtime::check_range(
+            f64::from(u8::from(v)),
+            0.0,
+            1.0,
+            1e-6,
+            "CCM_Status",
+            "CCM_FaultPccError",
         )?;
         Ok(u8::from(v))
     }

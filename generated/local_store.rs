@@ -21,7 +21,7 @@ pub struct LocalTable {
 pub static TELEMETRY: LocalTable = LocalTable {
     name: "telemetry",
     create: [
-        r#"CREATE TABLE IF NOT EXISTS "telemetry" ("id" INTEGER PRIMARY KEY, "car_id" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "sequence" INTEGER, "timestamp_us" INTEGER, "apps_travel" REAL, "bse_front" REAL, "bse_rear" REAL, "imd_resistance" INTEGER, "imd_status" INTEGER, "pack_voltage" REAL, "pack_current" REAL, "soc" REAL, "discharge_limit" INTEGER, "charge_limit" INTEGER, "low_cell_volt" REAL, "high_cell_volt" REAL, "avg_cell_volt" REAL, "pack_temp" INTEGER, "motor_speed" REAL, "motor_torque" REAL, "max_motor_torque" REAL, "motor_direction" INTEGER, "motor_state" INTEGER, "mcu_main_state" INTEGER, "mcu_work_mode" INTEGER, "mcu_voltage" REAL, "mcu_phase_current" REAL, "mcu_current" REAL, "motor_temp" INTEGER, "mcu_temp" INTEGER, "mcu_warning_level" INTEGER, "vehicle_state" INTEGER, "ready_to_drive" INTEGER, "shocktravel1" REAL, "shocktravel2" REAL, "shocktravel3" REAL, "shocktravel4" REAL, "can_rx_dropped" INTEGER, "can_tx_dropped" INTEGER, "can_decode_errors" INTEGER, "telemetry_superseded" INTEGER, "dc_main_wire_over_volt_fault" INTEGER, "motor_phase_curr_fault" INTEGER, "mcu_over_hot_fault" INTEGER, "resolver_fault" INTEGER, "phase_curr_sensor_fault" INTEGER, "motor_over_spd_fault" INTEGER, "drv_motor_over_hot_fault" INTEGER, "dc_main_wire_over_curr_fault" INTEGER, "drv_motor_over_cool_fault" INTEGER, "dc_low_volt_warning" INTEGER, "mcu_12v_low_volt_warning" INTEGER, "motor_stall_fault" INTEGER, "motor_open_phase_fault" INTEGER, "fault_over_current" INTEGER, "fault_under_voltage" INTEGER, "fault_over_temperature" INTEGER, "fault_apps" INTEGER, "fault_bse" INTEGER, "fault_bpps" INTEGER, "fault_apps_brake_plausibility" INTEGER, "fault_low_battery_voltage" INTEGER)"#,
+        r#"CREATE TABLE IF NOT EXISTS "telemetry" ("id" INTEGER PRIMARY KEY, "car_id" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "sequence" INTEGER, "timestamp_us" INTEGER, "apps_travel" REAL, "bse_front" REAL, "bse_rear" REAL, "imd_resistance" INTEGER, "imd_status" INTEGER, "pack_voltage" REAL, "pack_current" REAL, "soc" REAL, "discharge_limit" INTEGER, "charge_limit" INTEGER, "low_cell_volt" REAL, "high_cell_volt" REAL, "avg_cell_volt" REAL, "pack_temp" INTEGER, "motor_speed" REAL, "motor_torque" REAL, "max_motor_torque" REAL, "motor_direction" INTEGER, "motor_state" INTEGER, "mcu_main_state" INTEGER, "mcu_work_mode" INTEGER, "mcu_voltage" REAL, "mcu_phase_current" REAL, "mcu_current" REAL, "motor_temp" INTEGER, "mcu_temp" INTEGER, "mcu_warning_level" INTEGER, "vehicle_state" INTEGER, "ready_to_drive" INTEGER, "torque_command" REAL, "shocktravel1" REAL, "shocktravel2" REAL, "shocktravel3" REAL, "shocktravel4" REAL, "can_rx_dropped" INTEGER, "can_tx_dropped" INTEGER, "can_decode_errors" INTEGER, "telemetry_superseded" INTEGER, "pedal_bus_errors" INTEGER, "can_bus_off_events" INTEGER, "can1_error_passive" INTEGER, "can1_bus_off" INTEGER, "can2_error_passive" INTEGER, "can2_bus_off" INTEGER, "dc_main_wire_over_volt_fault" INTEGER, "motor_phase_curr_fault" INTEGER, "mcu_over_hot_fault" INTEGER, "resolver_fault" INTEGER, "phase_curr_sensor_fault" INTEGER, "motor_over_spd_fault" INTEGER, "drv_motor_over_hot_fault" INTEGER, "dc_main_wire_over_curr_fault" INTEGER, "drv_motor_over_cool_fault" INTEGER, "dc_low_volt_warning" INTEGER, "mcu_12v_low_volt_warning" INTEGER, "motor_stall_fault" INTEGER, "motor_open_phase_fault" INTEGER, "fault_over_current" INTEGER, "fault_under_voltage" INTEGER, "fault_over_temperature" INTEGER, "fault_apps" INTEGER, "fault_bse" INTEGER, "fault_bpps" INTEGER, "fault_apps_brake_plausibility" INTEGER, "fault_low_battery_voltage" INTEGER, "fault_pedal_signal_lost" INTEGER, "fault_sensors_stale" INTEGER, "fault_bms_timeout" INTEGER, "fault_inverter_timeout" INTEGER, "fault_pcc_timeout" INTEGER, "fault_inverter_fault" INTEGER, "fault_inverter_warning" INTEGER, "fault_pcc_error" INTEGER)"#,
         r#"CREATE INDEX IF NOT EXISTS "telemetry_ts" ON "telemetry" ("ts")"#,
     ],
     columns: &[
@@ -162,6 +162,10 @@ pub static TELEMETRY: LocalTable = LocalTable {
             sql_type: "INTEGER",
         },
         Column {
+            name: "torque_command",
+            sql_type: "REAL",
+        },
+        Column {
             name: "shocktravel1",
             sql_type: "REAL",
         },
@@ -191,6 +195,30 @@ pub static TELEMETRY: LocalTable = LocalTable {
         },
         Column {
             name: "telemetry_superseded",
+            sql_type: "INTEGER",
+        },
+        Column {
+            name: "pedal_bus_errors",
+            sql_type: "INTEGER",
+        },
+        Column {
+            name: "can_bus_off_events",
+            sql_type: "INTEGER",
+        },
+        Column {
+            name: "can1_error_passive",
+            sql_type: "INTEGER",
+        },
+        Column {
+            name: "can1_bus_off",
+            sql_type: "INTEGER",
+        },
+        Column {
+            name: "can2_error_passive",
+            sql_type: "INTEGER",
+        },
+        Column {
+            name: "can2_bus_off",
             sql_type: "INTEGER",
         },
         Column {
@@ -277,15 +305,47 @@ pub static TELEMETRY: LocalTable = LocalTable {
             name: "fault_low_battery_voltage",
             sql_type: "INTEGER",
         },
+        Column {
+            name: "fault_pedal_signal_lost",
+            sql_type: "INTEGER",
+        },
+        Column {
+            name: "fault_sensors_stale",
+            sql_type: "INTEGER",
+        },
+        Column {
+            name: "fault_bms_timeout",
+            sql_type: "INTEGER",
+        },
+        Column {
+            name: "fault_inverter_timeout",
+            sql_type: "INTEGER",
+        },
+        Column {
+            name: "fault_pcc_timeout",
+            sql_type: "INTEGER",
+        },
+        Column {
+            name: "fault_inverter_fault",
+            sql_type: "INTEGER",
+        },
+        Column {
+            name: "fault_inverter_warning",
+            sql_type: "INTEGER",
+        },
+        Column {
+            name: "fault_pcc_error",
+            sql_type: "INTEGER",
+        },
     ],
-    insert: r#"INSERT INTO "telemetry" ("car_id", "schema_fingerprint", "ts", "sequence", "timestamp_us", "apps_travel", "bse_front", "bse_rear", "imd_resistance", "imd_status", "pack_voltage", "pack_current", "soc", "discharge_limit", "charge_limit", "low_cell_volt", "high_cell_volt", "avg_cell_volt", "pack_temp", "motor_speed", "motor_torque", "max_motor_torque", "motor_direction", "motor_state", "mcu_main_state", "mcu_work_mode", "mcu_voltage", "mcu_phase_current", "mcu_current", "motor_temp", "mcu_temp", "mcu_warning_level", "vehicle_state", "ready_to_drive", "shocktravel1", "shocktravel2", "shocktravel3", "shocktravel4", "can_rx_dropped", "can_tx_dropped", "can_decode_errors", "telemetry_superseded", "dc_main_wire_over_volt_fault", "motor_phase_curr_fault", "mcu_over_hot_fault", "resolver_fault", "phase_curr_sensor_fault", "motor_over_spd_fault", "drv_motor_over_hot_fault", "dc_main_wire_over_curr_fault", "drv_motor_over_cool_fault", "dc_low_volt_warning", "mcu_12v_low_volt_warning", "motor_stall_fault", "motor_open_phase_fault", "fault_over_current", "fault_under_voltage", "fault_over_temperature", "fault_apps", "fault_bse", "fault_bpps", "fault_apps_brake_plausibility", "fault_low_battery_voltage") VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17, ?18, ?19, ?20, ?21, ?22, ?23, ?24, ?25, ?26, ?27, ?28, ?29, ?30, ?31, ?32, ?33, ?34, ?35, ?36, ?37, ?38, ?39, ?40, ?41, ?42, ?43, ?44, ?45, ?46, ?47, ?48, ?49, ?50, ?51, ?52, ?53, ?54, ?55, ?56, ?57, ?58, ?59, ?60, ?61, ?62, ?63)"#,
+    insert: r#"INSERT INTO "telemetry" ("car_id", "schema_fingerprint", "ts", "sequence", "timestamp_us", "apps_travel", "bse_front", "bse_rear", "imd_resistance", "imd_status", "pack_voltage", "pack_current", "soc", "discharge_limit", "charge_limit", "low_cell_volt", "high_cell_volt", "avg_cell_volt", "pack_temp", "motor_speed", "motor_torque", "max_motor_torque", "motor_direction", "motor_state", "mcu_main_state", "mcu_work_mode", "mcu_voltage", "mcu_phase_current", "mcu_current", "motor_temp", "mcu_temp", "mcu_warning_level", "vehicle_state", "ready_to_drive", "torque_command", "shocktravel1", "shocktravel2", "shocktravel3", "shocktravel4", "can_rx_dropped", "can_tx_dropped", "can_decode_errors", "telemetry_superseded", "pedal_bus_errors", "can_bus_off_events", "can1_error_passive", "can1_bus_off", "can2_error_passive", "can2_bus_off", "dc_main_wire_over_volt_fault", "motor_phase_curr_fault", "mcu_over_hot_fault", "resolver_fault", "phase_curr_sensor_fault", "motor_over_spd_fault", "drv_motor_over_hot_fault", "dc_main_wire_over_curr_fault", "drv_motor_over_cool_fault", "dc_low_volt_warning", "mcu_12v_low_volt_warning", "motor_stall_fault", "motor_open_phase_fault", "fault_over_current", "fault_under_voltage", "fault_over_temperature", "fault_apps", "fault_bse", "fault_bpps", "fault_apps_brake_plausibility", "fault_low_battery_voltage", "fault_pedal_signal_lost", "fault_sensors_stale", "fault_bms_timeout", "fault_inverter_timeout", "fault_pcc_timeout", "fault_inverter_fault", "fault_inverter_warning", "fault_pcc_error") VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17, ?18, ?19, ?20, ?21, ?22, ?23, ?24, ?25, ?26, ?27, ?28, ?29, ?30, ?31, ?32, ?33, ?34, ?35, ?36, ?37, ?38, ?39, ?40, ?41, ?42, ?43, ?44, ?45, ?46, ?47, ?48, ?49, ?50, ?51, ?52, ?53, ?54, ?55, ?56, ?57, ?58, ?59, ?60, ?61, ?62, ?63, ?64, ?65, ?66, ?67, ?68, ?69, ?70, ?71, ?72, ?73, ?74, ?75, ?76, ?77, ?78)"#,
 };
 
 /// CAN message `CCM_Status` (0xA0), one row per frame; multiplexed signals are NULL when absent.
 pub static CAN_CCM_STATUS: LocalTable = LocalTable {
     name: "can_ccm_status",
     create: [
-        r#"CREATE TABLE IF NOT EXISTS "can_ccm_status" ("id" INTEGER PRIMARY KEY, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "ccm_vehicle_state" INTEGER, "ccm_fault_over_current" INTEGER, "ccm_fault_under_voltage" INTEGER, "ccm_fault_over_temperature" INTEGER, "ccm_fault_apps" INTEGER, "ccm_fault_bse" INTEGER, "ccm_fault_bpps" INTEGER, "ccm_fault_apps_brake_plausibility" INTEGER, "ccm_fault_low_battery_voltage" INTEGER, "ccm_schema_fingerprint" INTEGER, "ccm_rolling_counter" INTEGER, "ccm_ready_to_drive" INTEGER)"#,
+        r#"CREATE TABLE IF NOT EXISTS "can_ccm_status" ("id" INTEGER PRIMARY KEY, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "ccm_vehicle_state" INTEGER, "ccm_fault_over_current" INTEGER, "ccm_fault_under_voltage" INTEGER, "ccm_fault_over_temperature" INTEGER, "ccm_fault_apps" INTEGER, "ccm_fault_bse" INTEGER, "ccm_fault_bpps" INTEGER, "ccm_fault_apps_brake_plausibility" INTEGER, "ccm_fault_low_battery_voltage" INTEGER, "ccm_schema_fingerprint" INTEGER, "ccm_rolling_counter" INTEGER, "ccm_ready_to_drive" INTEGER, "ccm_fault_pedal_signal_lost" INTEGER, "ccm_fault_sensors_stale" INTEGER, "ccm_fault_bms_timeout" INTEGER, "ccm_fault_inverter_timeout" INTEGER, "ccm_fault_pcc_timeout" INTEGER, "ccm_fault_inverter_fault" INTEGER, "ccm_fault_inverter_warning" INTEGER, "ccm_fault_pcc_error" INTEGER)"#,
         r#"CREATE INDEX IF NOT EXISTS "can_ccm_status_ts" ON "can_ccm_status" ("ts")"#,
     ],
     columns: &[
@@ -353,8 +413,40 @@ pub static CAN_CCM_STATUS: LocalTable = LocalTable {
             name: "ccm_ready_to_drive",
             sql_type: "INTEGER",
         },
+        Column {
+            name: "ccm_fault_pedal_signal_lost",
+            sql_type: "INTEGER",
+        },
+        Column {
+            name: "ccm_fault_sensors_stale",
+            sql_type: "INTEGER",
+        },
+        Column {
+            name: "ccm_fault_bms_timeout",
+            sql_type: "INTEGER",
+        },
+        Column {
+            name: "ccm_fault_inverter_timeout",
+            sql_type: "INTEGER",
+        },
+        Column {
+            name: "ccm_fault_pcc_timeout",
+            sql_type: "INTEGER",
+        },
+        Column {
+            name: "ccm_fault_inverter_fault",
+            sql_type: "INTEGER",
+        },
+        Column {
+            name: "ccm_fault_inverter_warning",
+            sql_type: "INTEGER",
+        },
+        Column {
+            name: "ccm_fault_pcc_error",
+            sql_type: "INTEGER",
+        },
     ],
-    insert: r#"INSERT INTO "can_ccm_status" ("car_id", "bus", "schema_fingerprint", "ts", "ccm_vehicle_state", "ccm_fault_over_current", "ccm_fault_under_voltage", "ccm_fault_over_temperature", "ccm_fault_apps", "ccm_fault_bse", "ccm_fault_bpps", "ccm_fault_apps_brake_plausibility", "ccm_fault_low_battery_voltage", "ccm_schema_fingerprint", "ccm_rolling_counter", "ccm_ready_to_drive") VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16)"#,
+    insert: r#"INSERT INTO "can_ccm_status" ("car_id", "bus", "schema_fingerprint", "ts", "ccm_vehicle_state", "ccm_fault_over_current", "ccm_fault_under_voltage", "ccm_fault_over_temperature", "ccm_fault_apps", "ccm_fault_bse", "ccm_fault_bpps", "ccm_fault_apps_brake_plausibility", "ccm_fault_low_battery_voltage", "ccm_schema_fingerprint", "ccm_rolling_counter", "ccm_ready_to_drive", "ccm_fault_pedal_signal_lost", "ccm_fault_sensors_stale", "ccm_fault_bms_timeout", "ccm_fault_inverter_timeout", "ccm_fault_pcc_timeout", "ccm_fault_inverter_fault", "ccm_fault_inverter_warning", "ccm_fault_pcc_error") VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17, ?18, ?19, ?20, ?21, ?22, ?23, ?24)"#,
 };
 
 /// CAN message `VCU1` (0x101), one row per frame; multiplexed signals are NULL when absent.

@@ -93,7 +93,7 @@ impl TelemetryRecord {
     /// written directly: keys are constants and numbers are formatted in place, where serde
     /// escapes every key and goes through its flattening serializer.
     pub fn to_json(&self, ts: f64) -> Vec<u8> {
-        let mut payload = Vec::with_capacity(2575);
+        let mut payload = Vec::with_capacity(3258);
         let out = &mut payload;
         out.extend_from_slice(b"{\"ts\":");
         json_float(out, ts);
@@ -159,6 +159,8 @@ impl TelemetryRecord {
         json_int(out, self.telemetry.vehicle_state.into_raw());
         out.extend_from_slice(b",\"ready_to_drive\":");
         json_bool(out, self.telemetry.ready_to_drive);
+        out.extend_from_slice(b",\"torque_command\":");
+        json_float(out, self.telemetry.torque_command);
         out.extend_from_slice(b",\"shocktravel1\":");
         json_float(out, self.telemetry.shocktravel1);
         out.extend_from_slice(b",\"shocktravel2\":");
@@ -175,6 +177,18 @@ impl TelemetryRecord {
         json_int(out, self.telemetry.can_decode_errors);
         out.extend_from_slice(b",\"telemetry_superseded\":");
         json_int(out, self.telemetry.telemetry_superseded);
+        out.extend_from_slice(b",\"pedal_bus_errors\":");
+        json_int(out, self.telemetry.pedal_bus_errors);
+        out.extend_from_slice(b",\"can_bus_off_events\":");
+        json_int(out, self.telemetry.can_bus_off_events);
+        out.extend_from_slice(b",\"can1_error_passive\":");
+        json_bool(out, self.telemetry.can1_error_passive);
+        out.extend_from_slice(b",\"can1_bus_off\":");
+        json_bool(out, self.telemetry.can1_bus_off);
+        out.extend_from_slice(b",\"can2_error_passive\":");
+        json_bool(out, self.telemetry.can2_error_passive);
+        out.extend_from_slice(b",\"can2_bus_off\":");
+        json_bool(out, self.telemetry.can2_bus_off);
         out.extend_from_slice(b",\"dc_main_wire_over_volt_fault\":");
         json_bool(out, self.telemetry.dc_main_wire_over_volt_fault);
         out.extend_from_slice(b",\"motor_phase_curr_fault\":");
@@ -217,6 +231,22 @@ impl TelemetryRecord {
         json_bool(out, self.telemetry.fault_apps_brake_plausibility);
         out.extend_from_slice(b",\"fault_low_battery_voltage\":");
         json_bool(out, self.telemetry.fault_low_battery_voltage);
+        out.extend_from_slice(b",\"fault_pedal_signal_lost\":");
+        json_bool(out, self.telemetry.fault_pedal_signal_lost);
+        out.extend_from_slice(b",\"fault_sensors_stale\":");
+        json_bool(out, self.telemetry.fault_sensors_stale);
+        out.extend_from_slice(b",\"fault_bms_timeout\":");
+        json_bool(out, self.telemetry.fault_bms_timeout);
+        out.extend_from_slice(b",\"fault_inverter_timeout\":");
+        json_bool(out, self.telemetry.fault_inverter_timeout);
+        out.extend_from_slice(b",\"fault_pcc_timeout\":");
+        json_bool(out, self.telemetry.fault_pcc_timeout);
+        out.extend_from_slice(b",\"fault_inverter_fault\":");
+        json_bool(out, self.telemetry.fault_inverter_fault);
+        out.extend_from_slice(b",\"fault_inverter_warning\":");
+        json_bool(out, self.telemetry.fault_inverter_warning);
+        out.extend_from_slice(b",\"fault_pcc_error\":");
+        json_bool(out, self.telemetry.fault_pcc_error);
         out.push(b'}');
         payload
     }

@@ -33,7 +33,7 @@ pub const CREATE_DATABASE: &str = "CREATE DATABASE IF NOT EXISTS `aer` PRECISION
 /// The telemetry packet (Telemetry), one row per packet.
 pub static TELEMETRY: SuperTable = SuperTable {
     name: "telemetry",
-    create: "CREATE STABLE IF NOT EXISTS `telemetry` (`ts` TIMESTAMP, `sequence` SMALLINT UNSIGNED, `timestamp_us` INT UNSIGNED, `apps_travel` FLOAT, `bse_front` FLOAT, `bse_rear` FLOAT, `imd_resistance` SMALLINT UNSIGNED, `imd_status` TINYINT UNSIGNED, `pack_voltage` FLOAT, `pack_current` FLOAT, `soc` FLOAT, `discharge_limit` SMALLINT UNSIGNED, `charge_limit` SMALLINT UNSIGNED, `low_cell_volt` FLOAT, `high_cell_volt` FLOAT, `avg_cell_volt` FLOAT, `pack_temp` TINYINT, `motor_speed` FLOAT, `motor_torque` FLOAT, `max_motor_torque` FLOAT, `motor_direction` TINYINT UNSIGNED, `motor_state` TINYINT UNSIGNED, `mcu_main_state` TINYINT UNSIGNED, `mcu_work_mode` TINYINT UNSIGNED, `mcu_voltage` FLOAT, `mcu_phase_current` FLOAT, `mcu_current` FLOAT, `motor_temp` SMALLINT, `mcu_temp` SMALLINT, `mcu_warning_level` TINYINT UNSIGNED, `vehicle_state` TINYINT UNSIGNED, `ready_to_drive` BOOL, `shocktravel1` FLOAT, `shocktravel2` FLOAT, `shocktravel3` FLOAT, `shocktravel4` FLOAT, `can_rx_dropped` TINYINT UNSIGNED, `can_tx_dropped` TINYINT UNSIGNED, `can_decode_errors` TINYINT UNSIGNED, `telemetry_superseded` TINYINT UNSIGNED, `dc_main_wire_over_volt_fault` BOOL, `motor_phase_curr_fault` BOOL, `mcu_over_hot_fault` BOOL, `resolver_fault` BOOL, `phase_curr_sensor_fault` BOOL, `motor_over_spd_fault` BOOL, `drv_motor_over_hot_fault` BOOL, `dc_main_wire_over_curr_fault` BOOL, `drv_motor_over_cool_fault` BOOL, `dc_low_volt_warning` BOOL, `mcu_12v_low_volt_warning` BOOL, `motor_stall_fault` BOOL, `motor_open_phase_fault` BOOL, `fault_over_current` BOOL, `fault_under_voltage` BOOL, `fault_over_temperature` BOOL, `fault_apps` BOOL, `fault_bse` BOOL, `fault_bpps` BOOL, `fault_apps_brake_plausibility` BOOL, `fault_low_battery_voltage` BOOL) TAGS (`car_id` VARCHAR(32), `schema_fingerprint` INT UNSIGNED)",
+    create: "CREATE STABLE IF NOT EXISTS `telemetry` (`ts` TIMESTAMP, `sequence` SMALLINT UNSIGNED, `timestamp_us` INT UNSIGNED, `apps_travel` FLOAT, `bse_front` FLOAT, `bse_rear` FLOAT, `imd_resistance` SMALLINT UNSIGNED, `imd_status` TINYINT UNSIGNED, `pack_voltage` FLOAT, `pack_current` FLOAT, `soc` FLOAT, `discharge_limit` SMALLINT UNSIGNED, `charge_limit` SMALLINT UNSIGNED, `low_cell_volt` FLOAT, `high_cell_volt` FLOAT, `avg_cell_volt` FLOAT, `pack_temp` TINYINT, `motor_speed` FLOAT, `motor_torque` FLOAT, `max_motor_torque` FLOAT, `motor_direction` TINYINT UNSIGNED, `motor_state` TINYINT UNSIGNED, `mcu_main_state` TINYINT UNSIGNED, `mcu_work_mode` TINYINT UNSIGNED, `mcu_voltage` FLOAT, `mcu_phase_current` FLOAT, `mcu_current` FLOAT, `motor_temp` SMALLINT, `mcu_temp` SMALLINT, `mcu_warning_level` TINYINT UNSIGNED, `vehicle_state` TINYINT UNSIGNED, `ready_to_drive` BOOL, `torque_command` FLOAT, `shocktravel1` FLOAT, `shocktravel2` FLOAT, `shocktravel3` FLOAT, `shocktravel4` FLOAT, `can_rx_dropped` TINYINT UNSIGNED, `can_tx_dropped` TINYINT UNSIGNED, `can_decode_errors` TINYINT UNSIGNED, `telemetry_superseded` TINYINT UNSIGNED, `pedal_bus_errors` TINYINT UNSIGNED, `can_bus_off_events` TINYINT UNSIGNED, `can1_error_passive` BOOL, `can1_bus_off` BOOL, `can2_error_passive` BOOL, `can2_bus_off` BOOL, `dc_main_wire_over_volt_fault` BOOL, `motor_phase_curr_fault` BOOL, `mcu_over_hot_fault` BOOL, `resolver_fault` BOOL, `phase_curr_sensor_fault` BOOL, `motor_over_spd_fault` BOOL, `drv_motor_over_hot_fault` BOOL, `dc_main_wire_over_curr_fault` BOOL, `drv_motor_over_cool_fault` BOOL, `dc_low_volt_warning` BOOL, `mcu_12v_low_volt_warning` BOOL, `motor_stall_fault` BOOL, `motor_open_phase_fault` BOOL, `fault_over_current` BOOL, `fault_under_voltage` BOOL, `fault_over_temperature` BOOL, `fault_apps` BOOL, `fault_bse` BOOL, `fault_bpps` BOOL, `fault_apps_brake_plausibility` BOOL, `fault_low_battery_voltage` BOOL, `fault_pedal_signal_lost` BOOL, `fault_sensors_stale` BOOL, `fault_bms_timeout` BOOL, `fault_inverter_timeout` BOOL, `fault_pcc_timeout` BOOL, `fault_inverter_fault` BOOL, `fault_inverter_warning` BOOL, `fault_pcc_error` BOOL) TAGS (`car_id` VARCHAR(32), `schema_fingerprint` INT UNSIGNED)",
     columns: &[
         Column {
             name: "ts",
@@ -164,6 +164,10 @@ pub static TELEMETRY: SuperTable = SuperTable {
             sql_type: "BOOL",
         },
         Column {
+            name: "torque_command",
+            sql_type: "FLOAT",
+        },
+        Column {
             name: "shocktravel1",
             sql_type: "FLOAT",
         },
@@ -194,6 +198,30 @@ pub static TELEMETRY: SuperTable = SuperTable {
         Column {
             name: "telemetry_superseded",
             sql_type: "TINYINT UNSIGNED",
+        },
+        Column {
+            name: "pedal_bus_errors",
+            sql_type: "TINYINT UNSIGNED",
+        },
+        Column {
+            name: "can_bus_off_events",
+            sql_type: "TINYINT UNSIGNED",
+        },
+        Column {
+            name: "can1_error_passive",
+            sql_type: "BOOL",
+        },
+        Column {
+            name: "can1_bus_off",
+            sql_type: "BOOL",
+        },
+        Column {
+            name: "can2_error_passive",
+            sql_type: "BOOL",
+        },
+        Column {
+            name: "can2_bus_off",
+            sql_type: "BOOL",
         },
         Column {
             name: "dc_main_wire_over_volt_fault",
@@ -279,6 +307,38 @@ pub static TELEMETRY: SuperTable = SuperTable {
             name: "fault_low_battery_voltage",
             sql_type: "BOOL",
         },
+        Column {
+            name: "fault_pedal_signal_lost",
+            sql_type: "BOOL",
+        },
+        Column {
+            name: "fault_sensors_stale",
+            sql_type: "BOOL",
+        },
+        Column {
+            name: "fault_bms_timeout",
+            sql_type: "BOOL",
+        },
+        Column {
+            name: "fault_inverter_timeout",
+            sql_type: "BOOL",
+        },
+        Column {
+            name: "fault_pcc_timeout",
+            sql_type: "BOOL",
+        },
+        Column {
+            name: "fault_inverter_fault",
+            sql_type: "BOOL",
+        },
+        Column {
+            name: "fault_inverter_warning",
+            sql_type: "BOOL",
+        },
+        Column {
+            name: "fault_pcc_error",
+            sql_type: "BOOL",
+        },
     ],
     tags: &[
         Column {
@@ -290,13 +350,13 @@ pub static TELEMETRY: SuperTable = SuperTable {
             sql_type: "INT UNSIGNED",
         },
     ],
-    insert: "INSERT INTO ? USING `telemetry` TAGS (?, ?) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+    insert: "INSERT INTO ? USING `telemetry` TAGS (?, ?) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
 };
 
 /// CAN message `CCM_Status` (0xA0), one row per frame; multiplexed signals are NULL when absent.
 pub static CAN_CCM_STATUS: SuperTable = SuperTable {
     name: "can_ccm_status",
-    create: "CREATE STABLE IF NOT EXISTS `can_ccm_status` (`ts` TIMESTAMP, `ccm_vehicle_state` TINYINT UNSIGNED, `ccm_fault_over_current` BOOL, `ccm_fault_under_voltage` BOOL, `ccm_fault_over_temperature` BOOL, `ccm_fault_apps` BOOL, `ccm_fault_bse` BOOL, `ccm_fault_bpps` BOOL, `ccm_fault_apps_brake_plausibility` BOOL, `ccm_fault_low_battery_voltage` BOOL, `ccm_schema_fingerprint` INT UNSIGNED, `ccm_rolling_counter` TINYINT UNSIGNED, `ccm_ready_to_drive` BOOL) TAGS (`car_id` VARCHAR(32), `bus` VARCHAR(16), `schema_fingerprint` INT UNSIGNED)",
+    create: "CREATE STABLE IF NOT EXISTS `can_ccm_status` (`ts` TIMESTAMP, `ccm_vehicle_state` TINYINT UNSIGNED, `ccm_fault_over_current` BOOL, `ccm_fault_under_voltage` BOOL, `ccm_fault_over_temperature` BOOL, `ccm_fault_apps` BOOL, `ccm_fault_bse` BOOL, `ccm_fault_bpps` BOOL, `ccm_fault_apps_brake_plausibility` BOOL, `ccm_fault_low_battery_voltage` BOOL, `ccm_schema_fingerprint` INT UNSIGNED, `ccm_rolling_counter` TINYINT UNSIGNED, `ccm_ready_to_drive` BOOL, `ccm_fault_pedal_signal_lost` BOOL, `ccm_fault_sensors_stale` BOOL, `ccm_fault_bms_timeout` BOOL, `ccm_fault_inverter_timeout` BOOL, `ccm_fault_pcc_timeout` BOOL, `ccm_fault_inverter_fault` BOOL, `ccm_fault_inverter_warning` BOOL, `ccm_fault_pcc_error` BOOL) TAGS (`car_id` VARCHAR(32), `bus` VARCHAR(16), `schema_fingerprint` INT UNSIGNED)",
     columns: &[
         Column {
             name: "ts",
@@ -350,6 +410,38 @@ pub static CAN_CCM_STATUS: SuperTable = SuperTable {
             name: "ccm_ready_to_drive",
             sql_type: "BOOL",
         },
+        Column {
+            name: "ccm_fault_pedal_signal_lost",
+            sql_type: "BOOL",
+        },
+        Column {
+            name: "ccm_fault_sensors_stale",
+            sql_type: "BOOL",
+        },
+        Column {
+            name: "ccm_fault_bms_timeout",
+            sql_type: "BOOL",
+        },
+        Column {
+            name: "ccm_fault_inverter_timeout",
+            sql_type: "BOOL",
+        },
+        Column {
+            name: "ccm_fault_pcc_timeout",
+            sql_type: "BOOL",
+        },
+        Column {
+            name: "ccm_fault_inverter_fault",
+            sql_type: "BOOL",
+        },
+        Column {
+            name: "ccm_fault_inverter_warning",
+            sql_type: "BOOL",
+        },
+        Column {
+            name: "ccm_fault_pcc_error",
+            sql_type: "BOOL",
+        },
     ],
     tags: &[
         Column {
@@ -365,7 +457,7 @@ pub static CAN_CCM_STATUS: SuperTable = SuperTable {
             sql_type: "INT UNSIGNED",
         },
     ],
-    insert: "INSERT INTO ? USING `can_ccm_status` TAGS (?, ?, ?) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+    insert: "INSERT INTO ? USING `can_ccm_status` TAGS (?, ?, ?) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
 };
 
 /// CAN message `VCU1` (0x101), one row per frame; multiplexed signals are NULL when absent.

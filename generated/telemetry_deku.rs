@@ -47,6 +47,7 @@ pub struct TelemetryFrame {
     pub mcu_temp: u8,
     pub mcu_warning_level: u8,
     pub vehicle_state: u8,
+    pub torque_command: u8,
     pub shocktravel1: u16,
     pub shocktravel2: u16,
     pub shocktravel3: u16,
@@ -55,7 +56,9 @@ pub struct TelemetryFrame {
     pub can_tx_dropped: u8,
     pub can_decode_errors: u8,
     pub telemetry_superseded: u8,
-    pub flags: [u8; 3],
+    pub pedal_bus_errors: u8,
+    pub can_bus_off_events: u8,
+    pub flags: [u8; 5],
 }
 
 /// Why a packet could not be decoded.
@@ -137,6 +140,7 @@ impl TelemetryFrame {
             mcu_warning_level: Telemetry::mcu_warning_level_from_raw(self.mcu_warning_level),
             vehicle_state: Telemetry::vehicle_state_from_raw(self.vehicle_state),
             ready_to_drive: Telemetry::ready_to_drive_from_raw(self.flags[0] & (1 << 0) != 0),
+            torque_command: Telemetry::torque_command_from_raw(self.torque_command),
             shocktravel1: Telemetry::shocktravel1_from_raw(self.shocktravel1),
             shocktravel2: Telemetry::shocktravel2_from_raw(self.shocktravel2),
             shocktravel3: Telemetry::shocktravel3_from_raw(self.shocktravel3),
@@ -147,131 +151,195 @@ impl TelemetryFrame {
             telemetry_superseded: Telemetry::telemetry_superseded_from_raw(
                 self.telemetry_superseded,
             ),
-            dc_main_wire_over_volt_fault: Telemetry::dc_main_wire_over_volt_fault_from_raw(
+            pedal_bus_errors: Telemetry::pedal_bus_errors_from_raw(self.pedal_bus_errors),
+            can_bus_off_events: Telemetry::can_bus_off_events_from_raw(self.can_bus_off_events),
+            can1_error_passive: Telemetry::can1_error_passive_from_raw(
                 self.flags[0] & (1 << 1) != 0,
             ),
-            motor_phase_curr_fault: Telemetry::motor_phase_curr_fault_from_raw(
-                self.flags[0] & (1 << 2) != 0,
-            ),
-            mcu_over_hot_fault: Telemetry::mcu_over_hot_fault_from_raw(
+            can1_bus_off: Telemetry::can1_bus_off_from_raw(self.flags[0] & (1 << 2) != 0),
+            can2_error_passive: Telemetry::can2_error_passive_from_raw(
                 self.flags[0] & (1 << 3) != 0,
             ),
-            resolver_fault: Telemetry::resolver_fault_from_raw(self.flags[0] & (1 << 4) != 0),
-            phase_curr_sensor_fault: Telemetry::phase_curr_sensor_fault_from_raw(
+            can2_bus_off: Telemetry::can2_bus_off_from_raw(self.flags[0] & (1 << 4) != 0),
+            dc_main_wire_over_volt_fault: Telemetry::dc_main_wire_over_volt_fault_from_raw(
                 self.flags[0] & (1 << 5) != 0,
             ),
-            motor_over_spd_fault: Telemetry::motor_over_spd_fault_from_raw(
+            motor_phase_curr_fault: Telemetry::motor_phase_curr_fault_from_raw(
                 self.flags[0] & (1 << 6) != 0,
             ),
-            drv_motor_over_hot_fault: Telemetry::drv_motor_over_hot_fault_from_raw(
+            mcu_over_hot_fault: Telemetry::mcu_over_hot_fault_from_raw(
                 self.flags[0] & (1 << 7) != 0,
             ),
-            dc_main_wire_over_curr_fault: Telemetry::dc_main_wire_over_curr_fault_from_raw(
-                self.flags[1] & (1 << 0) != 0,
-            ),
-            drv_motor_over_cool_fault: Telemetry::drv_motor_over_cool_fault_from_raw(
+            resolver_fault: Telemetry::resolver_fault_from_raw(self.flags[1] & (1 << 0) != 0),
+            phase_curr_sensor_fault: Telemetry::phase_curr_sensor_fault_from_raw(
                 self.flags[1] & (1 << 1) != 0,
             ),
-            dc_low_volt_warning: Telemetry::dc_low_volt_warning_from_raw(
+            motor_over_spd_fault: Telemetry::motor_over_spd_fault_from_raw(
                 self.flags[1] & (1 << 2) != 0,
             ),
-            mcu_12v_low_volt_warning: Telemetry::mcu_12v_low_volt_warning_from_raw(
+            drv_motor_over_hot_fault: Telemetry::drv_motor_over_hot_fault_from_raw(
                 self.flags[1] & (1 << 3) != 0,
             ),
-            motor_stall_fault: Telemetry::motor_stall_fault_from_raw(self.flags[1] & (1 << 4) != 0),
-            motor_open_phase_fault: Telemetry::motor_open_phase_fault_from_raw(
+            dc_main_wire_over_curr_fault: Telemetry::dc_main_wire_over_curr_fault_from_raw(
+                self.flags[1] & (1 << 4) != 0,
+            ),
+            drv_motor_over_cool_fault: Telemetry::drv_motor_over_cool_fault_from_raw(
                 self.flags[1] & (1 << 5) != 0,
             ),
-            fault_over_current: Telemetry::fault_over_current_from_raw(
+            dc_low_volt_warning: Telemetry::dc_low_volt_warning_from_raw(
                 self.flags[1] & (1 << 6) != 0,
             ),
-            fault_under_voltage: Telemetry::fault_under_voltage_from_raw(
+            mcu_12v_low_volt_warning: Telemetry::mcu_12v_low_volt_warning_from_raw(
                 self.flags[1] & (1 << 7) != 0,
             ),
-            fault_over_temperature: Telemetry::fault_over_temperature_from_raw(
-                self.flags[2] & (1 << 0) != 0,
+            motor_stall_fault: Telemetry::motor_stall_fault_from_raw(self.flags[2] & (1 << 0) != 0),
+            motor_open_phase_fault: Telemetry::motor_open_phase_fault_from_raw(
+                self.flags[2] & (1 << 1) != 0,
             ),
-            fault_apps: Telemetry::fault_apps_from_raw(self.flags[2] & (1 << 1) != 0),
-            fault_bse: Telemetry::fault_bse_from_raw(self.flags[2] & (1 << 2) != 0),
-            fault_bpps: Telemetry::fault_bpps_from_raw(self.flags[2] & (1 << 3) != 0),
-            fault_apps_brake_plausibility: Telemetry::fault_apps_brake_plausibility_from_raw(
+            fault_over_current: Telemetry::fault_over_current_from_raw(
+                self.flags[2] & (1 << 2) != 0,
+            ),
+            fault_under_voltage: Telemetry::fault_under_voltage_from_raw(
+                self.flags[2] & (1 << 3) != 0,
+            ),
+            fault_over_temperature: Telemetry::fault_over_temperature_from_raw(
                 self.flags[2] & (1 << 4) != 0,
             ),
-            fault_low_battery_voltage: Telemetry::fault_low_battery_voltage_from_raw(
-                self.flags[2] & (1 << 5) != 0,
+            fault_apps: Telemetry::fault_apps_from_raw(self.flags[2] & (1 << 5) != 0),
+            fault_bse: Telemetry::fault_bse_from_raw(self.flags[2] & (1 << 6) != 0),
+            fault_bpps: Telemetry::fault_bpps_from_raw(self.flags[2] & (1 << 7) != 0),
+            fault_apps_brake_plausibility: Telemetry::fault_apps_brake_plausibility_from_raw(
+                self.flags[3] & (1 << 0) != 0,
             ),
+            fault_low_battery_voltage: Telemetry::fault_low_battery_voltage_from_raw(
+                self.flags[3] & (1 << 1) != 0,
+            ),
+            fault_pedal_signal_lost: Telemetry::fault_pedal_signal_lost_from_raw(
+                self.flags[3] & (1 << 2) != 0,
+            ),
+            fault_sensors_stale: Telemetry::fault_sensors_stale_from_raw(
+                self.flags[3] & (1 << 3) != 0,
+            ),
+            fault_bms_timeout: Telemetry::fault_bms_timeout_from_raw(self.flags[3] & (1 << 4) != 0),
+            fault_inverter_timeout: Telemetry::fault_inverter_timeout_from_raw(
+                self.flags[3] & (1 << 5) != 0,
+            ),
+            fault_pcc_timeout: Telemetry::fault_pcc_timeout_from_raw(self.flags[3] & (1 << 6) != 0),
+            fault_inverter_fault: Telemetry::fault_inverter_fault_from_raw(
+                self.flags[3] & (1 << 7) != 0,
+            ),
+            fault_inverter_warning: Telemetry::fault_inverter_warning_from_raw(
+                self.flags[4] & (1 << 0) != 0,
+            ),
+            fault_pcc_error: Telemetry::fault_pcc_error_from_raw(self.flags[4] & (1 << 1) != 0),
         };
         (header, telemetry)
     }
 
     /// The wire form of a snapshot, as the firmware's packer writes it.
     pub fn from_telemetry(header: TelemetryHeader, t: &Telemetry) -> Self {
-        let mut flags = [0u8; 3];
+        let mut flags = [0u8; 5];
         if Telemetry::ready_to_drive_to_raw(t.ready_to_drive).0 {
             flags[0] |= 1 << 0;
         }
-        if Telemetry::dc_main_wire_over_volt_fault_to_raw(t.dc_main_wire_over_volt_fault).0 {
+        if Telemetry::can1_error_passive_to_raw(t.can1_error_passive).0 {
             flags[0] |= 1 << 1;
         }
-        if Telemetry::motor_phase_curr_fault_to_raw(t.motor_phase_curr_fault).0 {
+        if Telemetry::can1_bus_off_to_raw(t.can1_bus_off).0 {
             flags[0] |= 1 << 2;
         }
-        if Telemetry::mcu_over_hot_fault_to_raw(t.mcu_over_hot_fault).0 {
+        if Telemetry::can2_error_passive_to_raw(t.can2_error_passive).0 {
             flags[0] |= 1 << 3;
         }
-        if Telemetry::resolver_fault_to_raw(t.resolver_fault).0 {
+        if Telemetry::can2_bus_off_to_raw(t.can2_bus_off).0 {
             flags[0] |= 1 << 4;
         }
-        if Telemetry::phase_curr_sensor_fault_to_raw(t.phase_curr_sensor_fault).0 {
+        if Telemetry::dc_main_wire_over_volt_fault_to_raw(t.dc_main_wire_over_volt_fault).0 {
             flags[0] |= 1 << 5;
         }
-        if Telemetry::motor_over_spd_fault_to_raw(t.motor_over_spd_fault).0 {
+        if Telemetry::motor_phase_curr_fault_to_raw(t.motor_phase_curr_fault).0 {
             flags[0] |= 1 << 6;
         }
-        if Telemetry::drv_motor_over_hot_fault_to_raw(t.drv_motor_over_hot_fault).0 {
+        if Telemetry::mcu_over_hot_fault_to_raw(t.mcu_over_hot_fault).0 {
             flags[0] |= 1 << 7;
         }
-        if Telemetry::dc_main_wire_over_curr_fault_to_raw(t.dc_main_wire_over_curr_fault).0 {
+        if Telemetry::resolver_fault_to_raw(t.resolver_fault).0 {
             flags[1] |= 1 << 0;
         }
-        if Telemetry::drv_motor_over_cool_fault_to_raw(t.drv_motor_over_cool_fault).0 {
+        if Telemetry::phase_curr_sensor_fault_to_raw(t.phase_curr_sensor_fault).0 {
             flags[1] |= 1 << 1;
         }
-        if Telemetry::dc_low_volt_warning_to_raw(t.dc_low_volt_warning).0 {
+        if Telemetry::motor_over_spd_fault_to_raw(t.motor_over_spd_fault).0 {
             flags[1] |= 1 << 2;
         }
-        if Telemetry::mcu_12v_low_volt_warning_to_raw(t.mcu_12v_low_volt_warning).0 {
+        if Telemetry::drv_motor_over_hot_fault_to_raw(t.drv_motor_over_hot_fault).0 {
             flags[1] |= 1 << 3;
         }
-        if Telemetry::motor_stall_fault_to_raw(t.motor_stall_fault).0 {
+        if Telemetry::dc_main_wire_over_curr_fault_to_raw(t.dc_main_wire_over_curr_fault).0 {
             flags[1] |= 1 << 4;
         }
-        if Telemetry::motor_open_phase_fault_to_raw(t.motor_open_phase_fault).0 {
+        if Telemetry::drv_motor_over_cool_fault_to_raw(t.drv_motor_over_cool_fault).0 {
             flags[1] |= 1 << 5;
         }
-        if Telemetry::fault_over_current_to_raw(t.fault_over_current).0 {
+        if Telemetry::dc_low_volt_warning_to_raw(t.dc_low_volt_warning).0 {
             flags[1] |= 1 << 6;
         }
-        if Telemetry::fault_under_voltage_to_raw(t.fault_under_voltage).0 {
+        if Telemetry::mcu_12v_low_volt_warning_to_raw(t.mcu_12v_low_volt_warning).0 {
             flags[1] |= 1 << 7;
         }
-        if Telemetry::fault_over_temperature_to_raw(t.fault_over_temperature).0 {
+        if Telemetry::motor_stall_fault_to_raw(t.motor_stall_fault).0 {
             flags[2] |= 1 << 0;
         }
-        if Telemetry::fault_apps_to_raw(t.fault_apps).0 {
+        if Telemetry::motor_open_phase_fault_to_raw(t.motor_open_phase_fault).0 {
             flags[2] |= 1 << 1;
         }
-        if Telemetry::fault_bse_to_raw(t.fault_bse).0 {
+        if Telemetry::fault_over_current_to_raw(t.fault_over_current).0 {
             flags[2] |= 1 << 2;
         }
-        if Telemetry::fault_bpps_to_raw(t.fault_bpps).0 {
+        if Telemetry::fault_under_voltage_to_raw(t.fault_under_voltage).0 {
             flags[2] |= 1 << 3;
         }
-        if Telemetry::fault_apps_brake_plausibility_to_raw(t.fault_apps_brake_plausibility).0 {
+        if Telemetry::fault_over_temperature_to_raw(t.fault_over_temperature).0 {
             flags[2] |= 1 << 4;
         }
-        if Telemetry::fault_low_battery_voltage_to_raw(t.fault_low_battery_voltage).0 {
+        if Telemetry::fault_apps_to_raw(t.fault_apps).0 {
             flags[2] |= 1 << 5;
+        }
+        if Telemetry::fault_bse_to_raw(t.fault_bse).0 {
+            flags[2] |= 1 << 6;
+        }
+        if Telemetry::fault_bpps_to_raw(t.fault_bpps).0 {
+            flags[2] |= 1 << 7;
+        }
+        if Telemetry::fault_apps_brake_plausibility_to_raw(t.fault_apps_brake_plausibility).0 {
+            flags[3] |= 1 << 0;
+        }
+        if Telemetry::fault_low_battery_voltage_to_raw(t.fault_low_battery_voltage).0 {
+            flags[3] |= 1 << 1;
+        }
+        if Telemetry::fault_pedal_signal_lost_to_raw(t.fault_pedal_signal_lost).0 {
+            flags[3] |= 1 << 2;
+        }
+        if Telemetry::fault_sensors_stale_to_raw(t.fault_sensors_stale).0 {
+            flags[3] |= 1 << 3;
+        }
+        if Telemetry::fault_bms_timeout_to_raw(t.fault_bms_timeout).0 {
+            flags[3] |= 1 << 4;
+        }
+        if Telemetry::fault_inverter_timeout_to_raw(t.fault_inverter_timeout).0 {
+            flags[3] |= 1 << 5;
+        }
+        if Telemetry::fault_pcc_timeout_to_raw(t.fault_pcc_timeout).0 {
+            flags[3] |= 1 << 6;
+        }
+        if Telemetry::fault_inverter_fault_to_raw(t.fault_inverter_fault).0 {
+            flags[3] |= 1 << 7;
+        }
+        if Telemetry::fault_inverter_warning_to_raw(t.fault_inverter_warning).0 {
+            flags[4] |= 1 << 0;
+        }
+        if Telemetry::fault_pcc_error_to_raw(t.fault_pcc_error).0 {
+            flags[4] |= 1 << 1;
         }
         Self {
             fingerprint: TELEMETRY_FINGERPRINT,
@@ -305,6 +373,7 @@ impl TelemetryFrame {
             mcu_temp: Telemetry::mcu_temp_to_raw(t.mcu_temp).0,
             mcu_warning_level: Telemetry::mcu_warning_level_to_raw(t.mcu_warning_level).0,
             vehicle_state: Telemetry::vehicle_state_to_raw(t.vehicle_state).0,
+            torque_command: Telemetry::torque_command_to_raw(t.torque_command).0,
             shocktravel1: Telemetry::shocktravel1_to_raw(t.shocktravel1).0,
             shocktravel2: Telemetry::shocktravel2_to_raw(t.shocktravel2).0,
             shocktravel3: Telemetry::shocktravel3_to_raw(t.shocktravel3).0,
@@ -313,6 +382,8 @@ impl TelemetryFrame {
             can_tx_dropped: Telemetry::can_tx_dropped_to_raw(t.can_tx_dropped).0,
             can_decode_errors: Telemetry::can_decode_errors_to_raw(t.can_decode_errors).0,
             telemetry_superseded: Telemetry::telemetry_superseded_to_raw(t.telemetry_superseded).0,
+            pedal_bus_errors: Telemetry::pedal_bus_errors_to_raw(t.pedal_bus_errors).0,
+            can_bus_off_events: Telemetry::can_bus_off_events_to_raw(t.can_bus_off_events).0,
             flags,
         }
     }

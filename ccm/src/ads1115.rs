@@ -2,8 +2,13 @@
 //!
 //! Single-shot conversions at 860 samples/s, alternating between the two pedal channels:
 //! each call to [`Ads1115::poll`] reads the finished conversion (if any) and starts the
-//! other channel, so it never blocks waiting for a conversion. Each channel updates at about
-//! 430 Hz; the 1 kHz pedal filter holds the latest value in between.
+//! other channel, so it never blocks waiting for a conversion. Each channel updates about
+//! every 2.3 ms.
+//!
+//! A poll reports only conversions that finished since the last one. A converter that stops
+//! answering therefore delivers nothing, and the pedal channel's freshness check
+//! ([`crate::apps`]) turns that into a fault, instead of the last good counts being
+//! repeated as if the pedal were still where it was.
 
 use embedded_hal::i2c::I2c;
 
@@ -23,72 +28,86 @@ pub const fn config_for(channel: u8) -> u16 {
     CONFIG_BASE | ((0b100 | (channel as u16 & 0b11)) << 12)
 }
 
+/// New conversions of channel 0 (APPS1) and 1 (APPS2) delivered by one poll; `None` where
+/// nothing new arrived.
+pub type Conversions = [Option<i16>; 2];
+
 /// The two pedal channels, read alternately.
 #[derive(Debug)]
 pub struct Ads1115<B> {
     bus: B,
-    channel: u8,
-    latest: [i16; 2],
-    /// I2C transactions that failed (counted; the last good values are kept).
+    /// The channel whose conversion was started successfully and has not been read yet.
+    converting: Option<u8>,
+    /// The channel to start next.
+    next: u8,
+    /// I2C transactions that failed (counted; the firmware reports them in telemetry).
     pub bus_errors: u32,
 }
 
 impl<B: I2c> Ads1115<B> {
-    /// A converter on `bus`; call [`start`](Self::start) once before polling.
+    /// A converter on `bus`; the first [`poll`](Self::poll) starts converting.
     pub const fn new(bus: B) -> Self {
         Self {
             bus,
-            channel: 0,
-            latest: [0; 2],
+            converting: None,
+            next: 0,
             bus_errors: 0,
         }
     }
 
-    /// Starts the first conversion.
-    pub fn start(&mut self) {
-        self.start_channel(0);
-    }
-
-    /// Latest counts of channel 0 (APPS1) and 1 (APPS2).
-    pub fn latest(&self) -> (i16, i16) {
-        (self.latest[0], self.latest[1])
-    }
-
-    /// Reads a finished conversion and starts the next channel; returns the latest pair.
-    pub fn poll(&mut self) -> (i16, i16) {
-        let mut config = [0u8; 2];
-        if self
-            .bus
-            .write_read(ADDRESS, &[REG_CONFIG], &mut config)
-            .is_err()
-        {
-            self.bus_errors = self.bus_errors.wrapping_add(1);
-            return self.latest();
+    /// Reads a finished conversion, starts the next channel, and returns what is new.
+    ///
+    /// A conversion is only read back after its start was acknowledged: an idle converter
+    /// also reads "done", and its result register still holds an old value.
+    pub fn poll(&mut self) -> Conversions {
+        let mut fresh = [None, None];
+        if let Some(channel) = self.converting {
+            match self.read_finished() {
+                Ok(Some(counts)) => {
+                    if let Some(slot) = fresh.get_mut(usize::from(channel)) {
+                        *slot = Some(counts);
+                    }
+                    self.converting = None;
+                    self.next = (channel + 1) % 2;
+                }
+                Ok(None) => return fresh,
+                Err(()) => {
+                    // Whatever the converter is doing, its result cannot be trusted: start over.
+                    self.count_error();
+                    self.converting = None;
+                    return fresh;
+                }
+            }
         }
+        self.start(self.next);
+        fresh
+    }
+
+    fn read_finished(&mut self) -> Result<Option<i16>, ()> {
+        let mut config = [0u8; 2];
+        self.bus
+            .write_read(ADDRESS, &[REG_CONFIG], &mut config)
+            .map_err(|_| ())?;
         if u16::from_be_bytes(config) & CONVERSION_DONE == 0 {
-            return self.latest();
+            return Ok(None);
         }
         let mut result = [0u8; 2];
-        if self
-            .bus
+        self.bus
             .write_read(ADDRESS, &[REG_CONVERSION], &mut result)
-            .is_err()
-        {
-            self.bus_errors = self.bus_errors.wrapping_add(1);
-            return self.latest();
-        }
-        if let Some(slot) = self.latest.get_mut(usize::from(self.channel)) {
-            *slot = i16::from_be_bytes(result);
-        }
-        self.start_channel((self.channel + 1) % 2);
-        self.latest()
+            .map_err(|_| ())?;
+        Ok(Some(i16::from_be_bytes(result)))
     }
 
-    fn start_channel(&mut self, channel: u8) {
-        self.channel = channel;
+    fn start(&mut self, channel: u8) {
         let [high, low] = config_for(channel).to_be_bytes();
-        if self.bus.write(ADDRESS, &[REG_CONFIG, high, low]).is_err() {
-            self.bus_errors = self.bus_errors.wrapping_add(1);
+        if self.bus.write(ADDRESS, &[REG_CONFIG, high, low]).is_ok() {
+            self.converting = Some(channel);
+        } else {
+            self.count_error();
         }
+    }
+
+    fn count_error(&mut self) {
+        self.bus_errors = self.bus_errors.wrapping_add(1);
     }
 }

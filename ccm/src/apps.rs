@@ -1,10 +1,12 @@
 //! Accelerator pedal position sensors (APPS): two sensors through the ADS1115, filtered,
-//! calibrated to 0..1, checked for wiring faults and disagreement, and the APPS/brake
-//! plausibility latch.
+//! calibrated to 0..1, checked for wiring faults, disagreement and lost conversions, and the
+//! APPS/brake plausibility latch.
 
+use crate::ads1115::Conversions;
 use crate::config::{
     ADS1115_FULL_SCALE_V, APPS_BRAKE_RESET, APPS_BRAKE_TRIP, APPS_IMPLAUSIBLE, APPS1_SUPPLY_V,
-    APPS2_SUPPLY_V, PEDAL_FILTER_HZ, SENSOR_FAULT_PERSIST_MS,
+    APPS2_SUPPLY_V, PEDAL_CONVERSION_TIMEOUT_MS, PEDAL_FILTER_HZ, SENSOR_FAULT_GAP_MS,
+    SENSOR_FAULT_PERSIST_MS,
 };
 use aer_control::{LowPass, Persist};
 
@@ -38,7 +40,9 @@ pub fn counts_to_volts(counts: f32) -> f32 {
 /// What the pedal reads this sample.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct AppsReading {
-    /// Pedal travel 0..1: the average of both sensors.
+    /// Pedal travel 0..1 as the torque request reads it: the lower of the two sensors, so
+    /// one sensor reading high (stuck, drifting, shorted) never asks for torque; 0 while a
+    /// channel is lost.
     pub travel: f32,
     /// Sensor 1 travel 0..1.
     pub apps1: f32,
@@ -48,7 +52,11 @@ pub struct AppsReading {
     pub out_of_range: bool,
     /// The sensors have disagreed by over 10 % for over 100 ms.
     pub implausible: bool,
-    /// Throttle above 25 % with the brake pressed; held until the throttle is below 5 %.
+    /// A channel has delivered no new conversion for over
+    /// [`PEDAL_CONVERSION_TIMEOUT_MS`]: the converter or its bus is lost.
+    pub signal_lost: bool,
+    /// Throttle above 25 % on either sensor with the brakes engaged; held until both are
+    /// below 5 %.
     pub brake_plausibility: bool,
 }
 
@@ -59,12 +67,47 @@ impl AppsReading {
     }
 }
 
+/// One sensor's converter channel: its filter and when it last delivered a conversion.
+#[derive(Debug, Clone)]
+struct Channel {
+    filter: LowPass,
+    /// Time of the last conversion (ms), or of the first update before any arrived.
+    converted_ms: Option<u32>,
+}
+
+impl Channel {
+    fn new(period_s: f32) -> Self {
+        Self {
+            filter: LowPass::new(PEDAL_FILTER_HZ, period_s),
+            converted_ms: None,
+        }
+    }
+
+    /// Filters a new conversion, if any; returns the filtered counts.
+    fn update(&mut self, raw: Option<i16>, now_ms: u32) -> f32 {
+        match raw {
+            Some(raw) => {
+                self.converted_ms = Some(now_ms);
+                self.filter.update(f32::from(raw))
+            }
+            None => {
+                self.converted_ms.get_or_insert(now_ms);
+                self.filter.value()
+            }
+        }
+    }
+
+    fn lost(&self, now_ms: u32) -> bool {
+        self.converted_ms
+            .is_none_or(|at| now_ms.wrapping_sub(at) > PEDAL_CONVERSION_TIMEOUT_MS)
+    }
+}
+
 /// The APPS channel.
 #[derive(Debug, Clone)]
 pub struct Apps {
     calibration: AppsCalibration,
-    filter1: LowPass,
-    filter2: LowPass,
+    sensors: [Channel; 2],
     range: Persist,
     disagreement: Persist,
     brake_plausibility: bool,
@@ -77,8 +120,7 @@ impl Apps {
         let period_s = period_ms as f32 / 1_000.0;
         Self {
             calibration,
-            filter1: LowPass::new(PEDAL_FILTER_HZ, period_s),
-            filter2: LowPass::new(PEDAL_FILTER_HZ, period_s),
+            sensors: [Channel::new(period_s), Channel::new(period_s)],
             range: Persist::default(),
             disagreement: Persist::default(),
             brake_plausibility: false,
@@ -91,16 +133,18 @@ impl Apps {
         self.reading
     }
 
-    /// Feeds one pair of raw ADS1115 samples.
+    /// Feeds the conversions that arrived this sample (`None`: nothing new on that channel).
     pub fn update(
         &mut self,
-        raw1: i16,
-        raw2: i16,
-        brake_pressed: bool,
+        conversions: Conversions,
+        brakes_engaged: bool,
         now_ms: u32,
     ) -> AppsReading {
-        let counts1 = self.filter1.update(f32::from(raw1));
-        let counts2 = self.filter2.update(f32::from(raw2));
+        let [raw1, raw2] = conversions;
+        let [sensor1, sensor2] = &mut self.sensors;
+        let counts1 = sensor1.update(raw1, now_ms);
+        let counts2 = sensor2.update(raw2, now_ms);
+        let signal_lost = sensor1.lost(now_ms) || sensor2.lost(now_ms);
         let apps1 = map(counts1, self.calibration.apps1);
         let apps2 = map(counts2, self.calibration.apps2);
         let in_range = |counts: f32, supply: f32| {
@@ -108,18 +152,29 @@ impl Apps {
             (0.1 * supply..=0.9 * supply).contains(&volts)
         };
         let bad_range = !(in_range(counts1, APPS1_SUPPLY_V) && in_range(counts2, APPS2_SUPPLY_V));
+        // A sample or two back inside the limits (noise, the filter gliding through) does not
+        // restart the 100 ms: only a clean stretch does.
         let out_of_range = self
             .range
-            .update(bad_range, now_ms)
+            .update_bridging(bad_range, now_ms, SENSOR_FAULT_GAP_MS)
             .is_some_and(|held| held > SENSOR_FAULT_PERSIST_MS);
         let implausible = self
             .disagreement
-            .update((apps1 - apps2).abs() > APPS_IMPLAUSIBLE, now_ms)
+            .update_bridging(
+                (apps1 - apps2).abs() > APPS_IMPLAUSIBLE,
+                now_ms,
+                SENSOR_FAULT_GAP_MS,
+            )
             .is_some_and(|held| held > SENSOR_FAULT_PERSIST_MS);
-        let travel = (apps1 + apps2) / 2.0;
-        if travel > APPS_BRAKE_TRIP && brake_pressed {
+        // A lost channel says nothing about the pedal: the request is zero, not the last value.
+        let (travel, highest) = if signal_lost {
+            (0.0, 0.0)
+        } else {
+            (apps1.min(apps2), apps1.max(apps2))
+        };
+        if highest > APPS_BRAKE_TRIP && brakes_engaged {
             self.brake_plausibility = true;
-        } else if travel < APPS_BRAKE_RESET {
+        } else if highest < APPS_BRAKE_RESET {
             self.brake_plausibility = false;
         }
         self.reading = AppsReading {
@@ -128,6 +183,7 @@ impl Apps {
             apps2,
             out_of_range,
             implausible,
+            signal_lost,
             brake_plausibility: self.brake_plausibility,
         };
         self.reading

@@ -1,9 +1,10 @@
 //! Brake system encoders (BSE): front and rear pressure sensors, their range check, the
-//! front/rear circuit plausibility check, and the brake light.
+//! front/rear circuit plausibility check, and whether the brakes are engaged, which is what
+//! the brake light shows and what the APPS/brake plausibility check and launch control use.
 
 use crate::config::{
-    BRAKE_CIRCUITS_IMPLAUSIBLE, BRAKE_LIGHT_PSI, BRAKE_PRESSED_PSI, BSE_FULL_SCALE_PSI,
-    BSE_VALID_V, PEDAL_FILTER_HZ, SENSOR_FAULT_PERSIST_MS,
+    BRAKE_CIRCUITS_IMPLAUSIBLE, BRAKES_ENGAGED_PSI, BSE_FULL_SCALE_PSI, BSE_VALID_V,
+    PEDAL_FILTER_HZ, SENSOR_FAULT_PERSIST_MS,
 };
 use aer_control::{LowPass, Persist};
 
@@ -18,14 +19,13 @@ pub struct BrakeReading {
     pub front_psi: f32,
     /// Rear circuit pressure (psi).
     pub rear_psi: f32,
-    /// The front circuit is above the "pressed" threshold (and its sensor is sound).
-    pub pressed: bool,
+    /// The brakes are engaged: the highest circuit rose above the engaged pressure and has
+    /// not fallen below the released pressure since. Drives the brake light.
+    pub engaged: bool,
     /// A sensor has been outside 0.5-4.5 V for over 100 ms (the BSE fault bit).
     pub sensor_fault: bool,
     /// One circuit is pressurised while the other is not (the BPPS fault bit).
     pub circuits_implausible: bool,
-    /// Brake light output.
-    pub light: bool,
 }
 
 /// The brake channel.
@@ -35,7 +35,7 @@ pub struct Brakes {
     rear: LowPass,
     range: Persist,
     circuits: Persist,
-    light: bool,
+    engaged: bool,
     reading: BrakeReading,
 }
 
@@ -48,7 +48,7 @@ impl Brakes {
             rear: LowPass::new(PEDAL_FILTER_HZ, period_s),
             range: Persist::default(),
             circuits: Persist::default(),
-            light: false,
+            engaged: false,
             reading: BrakeReading::default(),
         }
     }
@@ -58,10 +58,12 @@ impl Brakes {
         self.reading
     }
 
-    /// Feeds one pair of sensor voltages (after the board's divider).
+    /// Feeds one pair of sensor voltages (after the board's divider). A voltage that is not
+    /// a number reads as 0 V: out of range, so it becomes a sensor fault.
     pub fn update(&mut self, front_v: f32, rear_v: f32, now_ms: u32) -> BrakeReading {
-        let front_v = self.front.update(front_v);
-        let rear_v = self.rear.update(rear_v);
+        let number = |volts: f32| if volts.is_finite() { volts } else { 0.0 };
+        let front_v = self.front.update(number(front_v));
+        let rear_v = self.rear.update(number(rear_v));
         let valid = |v: f32| (BSE_VALID_V.0..=BSE_VALID_V.1).contains(&v);
         let sensor_fault = self
             .range
@@ -76,22 +78,22 @@ impl Brakes {
             .circuits
             .update(one_sided, now_ms)
             .is_some_and(|held| held > persist_ms);
-        // The light follows the highest circuit so one failed sensor cannot hide braking.
+        // The highest circuit counts, so one failed sensor cannot hide braking.
         let highest = front_psi.max(rear_psi);
-        if highest > BRAKE_LIGHT_PSI.0 {
-            self.light = true;
-        } else if highest < BRAKE_LIGHT_PSI.1 {
-            self.light = false;
+        let (engage, release) = BRAKES_ENGAGED_PSI;
+        if highest > engage {
+            self.engaged = true;
+        } else if highest < release {
+            self.engaged = false;
         }
         self.reading = BrakeReading {
             front_v,
             rear_v,
             front_psi,
             rear_psi,
-            pressed: front_psi.max(rear_psi) > BRAKE_PRESSED_PSI,
+            engaged: self.engaged,
             sensor_fault,
             circuits_implausible,
-            light: self.light,
         };
         self.reading
     }

@@ -1,23 +1,104 @@
 //! What the CCM keeps from the CAN buses: every decoded frame updates the telemetry mirror
-//! (generated `Telemetry::apply`), plus the few values the control logic needs that
-//! telemetry does not carry.
+//! (generated `Telemetry::apply`), and the messages the control logic acts on are kept with
+//! their arrival time, so the control step only ever uses fresh values.
 
-use aer::can::{AnyMessage, PrechargeState};
+use crate::config::{
+    BMS_CELLS_TIMEOUT_MS, BMS_LIMITS_TIMEOUT_MS, BMS_PACK_TIMEOUT_MS, MCU1_TIMEOUT_MS,
+    MCU2_TIMEOUT_MS, MCU3_TIMEOUT_MS, PCC_STATUS_TIMEOUT_MS, START_UP_GRACE_MS,
+};
+use aer::can::{
+    AnyMessage, Mcu1, Mcu2, Mcu3, OrionCellVoltages, OrionLimits, OrionPackStatus, PccStatus,
+};
 use aer::runtime::DecodeError;
 use aer::telemetry::Telemetry;
 use embedded_can::{Frame, Id};
+
+/// The latest value of one message and when it arrived (ms).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Received<T> {
+    latest: Option<(T, u32)>,
+}
+
+impl<T> Default for Received<T> {
+    fn default() -> Self {
+        Self { latest: None }
+    }
+}
+
+impl<T: Copy> Received<T> {
+    /// Records `value`, received at `now_ms`.
+    pub fn store(&mut self, value: T, now_ms: u32) {
+        self.latest = Some((value, now_ms));
+    }
+
+    /// The value if it is at most `limit_ms` old at `now_ms`.
+    pub fn fresh(&self, now_ms: u32, limit_ms: u32) -> Option<T> {
+        self.latest
+            .filter(|(_, at)| now_ms.wrapping_sub(*at) <= limit_ms)
+            .map(|(value, _)| value)
+    }
+
+    /// True when the value is older than `limit_ms`, or was never received although the CCM
+    /// started (`started_ms`) more than the start-up grace period ago.
+    pub fn lost(&self, now_ms: u32, limit_ms: u32, started_ms: u32) -> bool {
+        match self.latest {
+            Some((_, at)) => now_ms.wrapping_sub(at) > limit_ms,
+            None => now_ms.wrapping_sub(started_ms) > START_UP_GRACE_MS,
+        }
+    }
+}
+
+/// Which nodes the CCM has lost (an input older than its limit).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct LostNodes {
+    /// The PCC's status.
+    pub pcc: bool,
+    /// Any of the Orion BMS's three frames.
+    pub bms: bool,
+    /// Any of the inverter's three frames.
+    pub inverter: bool,
+}
+
+/// The values the control step acts on, each `None` unless fresh.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BusInputs {
+    /// PCC status.
+    pub pcc: Option<PccStatus>,
+    /// Orion pack status: current, voltage, SOC.
+    pub pack: Option<OrionPackStatus>,
+    /// Orion current limits and temperatures.
+    pub limits: Option<OrionLimits>,
+    /// Orion cell voltages.
+    pub cells: Option<OrionCellVoltages>,
+    /// Inverter status 1: motor speed, torques, the inverter's available torque.
+    pub motor: Option<Mcu1>,
+    /// Inverter status 2: temperatures, fault bits, warning level.
+    pub inverter: Option<Mcu2>,
+    /// Inverter status 3: DC voltage and current.
+    pub dc_link: Option<Mcu3>,
+    /// Inputs gone stale.
+    pub lost: LostNodes,
+}
 
 /// Latest values from the buses.
 #[derive(Debug, Clone, Default)]
 pub struct BusState {
     /// Every field mirrored from a DBC signal, as last received.
     pub mirror: Telemetry,
-    /// The PCC's state and when its status arrived (ms).
-    pub pcc: Option<(PrechargeState, u32)>,
-    /// When the BMS last reported (ms).
-    pub bms_seen_ms: Option<u32>,
-    /// Hottest pack temperature (degC).
-    pub pack_high_temp_degc: f32,
+    /// PCC_Status.
+    pub pcc: Received<PccStatus>,
+    /// Orion_PackStatus.
+    pub pack: Received<OrionPackStatus>,
+    /// Orion_Limits.
+    pub limits: Received<OrionLimits>,
+    /// Orion_CellVoltages.
+    pub cells: Received<OrionCellVoltages>,
+    /// MCU1.
+    pub mcu1: Received<Mcu1>,
+    /// MCU2.
+    pub mcu2: Received<Mcu2>,
+    /// MCU3.
+    pub mcu3: Received<Mcu3>,
     /// Frames of known ids that failed to decode (wrong length): counted and ignored.
     pub decode_errors: u32,
     /// Frames whose id the schema does not know: counted and ignored.
@@ -45,17 +126,39 @@ impl BusState {
                 return;
             }
         };
-        match &message {
-            AnyMessage::PccStatus(status) => self.pcc = Some((status.pcc_state, now_ms)),
-            AnyMessage::OrionPackStatus(_) | AnyMessage::OrionCellVoltages(_) => {
-                self.bms_seen_ms = Some(now_ms);
-            }
-            AnyMessage::OrionLimits(limits) => {
-                self.bms_seen_ms = Some(now_ms);
-                self.pack_high_temp_degc = f32::from(limits.orion_high_temperature);
-            }
+        match message {
+            AnyMessage::PccStatus(status) => self.pcc.store(status, now_ms),
+            AnyMessage::OrionPackStatus(pack) => self.pack.store(pack, now_ms),
+            AnyMessage::OrionLimits(limits) => self.limits.store(limits, now_ms),
+            AnyMessage::OrionCellVoltages(cells) => self.cells.store(cells, now_ms),
+            AnyMessage::Mcu1(mcu1) => self.mcu1.store(mcu1, now_ms),
+            AnyMessage::Mcu2(mcu2) => self.mcu2.store(mcu2, now_ms),
+            AnyMessage::Mcu3(mcu3) => self.mcu3.store(mcu3, now_ms),
             _ => {}
         }
         self.mirror.apply(&message);
+    }
+
+    /// The fresh values at `now_ms`, for a CCM that started at `started_ms`.
+    pub fn inputs(&self, now_ms: u32, started_ms: u32) -> BusInputs {
+        let lost = LostNodes {
+            pcc: self.pcc.lost(now_ms, PCC_STATUS_TIMEOUT_MS, started_ms),
+            bms: self.pack.lost(now_ms, BMS_PACK_TIMEOUT_MS, started_ms)
+                || self.limits.lost(now_ms, BMS_LIMITS_TIMEOUT_MS, started_ms)
+                || self.cells.lost(now_ms, BMS_CELLS_TIMEOUT_MS, started_ms),
+            inverter: self.mcu1.lost(now_ms, MCU1_TIMEOUT_MS, started_ms)
+                || self.mcu2.lost(now_ms, MCU2_TIMEOUT_MS, started_ms)
+                || self.mcu3.lost(now_ms, MCU3_TIMEOUT_MS, started_ms),
+        };
+        BusInputs {
+            pcc: self.pcc.fresh(now_ms, PCC_STATUS_TIMEOUT_MS),
+            pack: self.pack.fresh(now_ms, BMS_PACK_TIMEOUT_MS),
+            limits: self.limits.fresh(now_ms, BMS_LIMITS_TIMEOUT_MS),
+            cells: self.cells.fresh(now_ms, BMS_CELLS_TIMEOUT_MS),
+            motor: self.mcu1.fresh(now_ms, MCU1_TIMEOUT_MS),
+            inverter: self.mcu2.fresh(now_ms, MCU2_TIMEOUT_MS),
+            dc_link: self.mcu3.fresh(now_ms, MCU3_TIMEOUT_MS),
+            lost,
+        }
     }
 }

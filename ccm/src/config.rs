@@ -1,5 +1,14 @@
-//! The car's constants, in one place (vehicle-facts.md and the team's documentation; values
-//! marked "assumed" are this firmware's choices and should be checked on the car).
+//! The CCM's constants, in one place (vehicle-facts.md and the team's documentation; values
+//! marked "assumed" are this firmware's choices and should be checked on the car). The car's
+//! physical parameters and rule limits, which the dashboard and the car model need too, come
+//! from `aer-params` and are re-exported here.
+
+use aer::can::{Mcu1, Mcu2, Mcu3, OrionCellVoltages, OrionLimits, OrionPackStatus, PccStatus};
+
+pub use aer_params::{
+    DRIVETRAIN_EFFICIENCY, GEAR_RATIO, MOTOR_MAX_TORQUE_NM, POWER_LIMIT_W, SOC_DERATE_END,
+    SOC_DERATE_START, WHEEL_RADIUS_M,
+};
 
 // --- Task rates --------------------------------------------------------------------------
 
@@ -11,21 +20,65 @@ pub const CONTROL_PERIOD_MS: u32 = 10;
 pub const INVERTER_PERIOD_MS: u32 = 20;
 /// Telemetry packet to the Pi.
 pub const TELEMETRY_PERIOD_MS: u32 = 10;
+/// CCM_Status on both buses.
+pub const STATUS_PERIOD_MS: u32 = 100;
 /// Watchdog supervisor check.
 pub const WATCHDOG_CHECK_MS: u32 = 100;
 /// Hardware watchdog timeout.
 pub const HARDWARE_WATCHDOG_TIMEOUT_MS: u32 = 1_000;
 
-// --- Powertrain --------------------------------------------------------------------------
+// --- Freshness: how old an input may be before it counts as lost -------------------------
+//
+// A lost input means no torque and a named fault (see `faults`). A node that has never been
+// heard is lost once the CCM has run for `START_UP_GRACE_MS`, so the other nodes may boot a
+// little later than the CCM without a fault at every power-up.
 
-/// Motor torque the car is built for (Nm).
-pub const MOTOR_MAX_TORQUE_NM: f32 = 260.0;
-/// Tractive power limit (EV.3.3.1), in W.
-pub const POWER_LIMIT_W: f32 = 80_000.0;
-/// SOC below which torque is derated linearly...
-pub const SOC_DERATE_START: f32 = 0.20;
-/// ...down to zero at this SOC.
-pub const SOC_DERATE_END: f32 = 0.05;
+/// Frames of a node this many cycle times apart (nine missed) mean the node is lost.
+pub const MISSED_FRAMES: u32 = 10;
+/// The 1 kHz sensor sample (brakes, shocks, the pedal converter's poll): the sampling task
+/// has stopped.
+pub const SAMPLE_TIMEOUT_MS: u32 = 10;
+/// A pedal sensor channel without a new ADS1115 conversion for this long: the converter
+/// or its I2C bus is lost (each channel converts about every 2.3 ms). With the control step
+/// after it, torque is zero well within T.4.2.10's 100 ms.
+pub const PEDAL_CONVERSION_TIMEOUT_MS: u32 = 20;
+/// PCC status (0x222, every 10 ms).
+pub const PCC_STATUS_TIMEOUT_MS: u32 = MISSED_FRAMES * PccStatus::CYCLE_TIME_MS;
+/// Orion pack status (0x6B0, every 10 ms): current, voltage, SOC.
+pub const BMS_PACK_TIMEOUT_MS: u32 = MISSED_FRAMES * OrionPackStatus::CYCLE_TIME_MS;
+/// Orion limits and cell voltages (0x6B1, 0x6B2, every 100 ms): 5 missed frames.
+pub const BMS_LIMITS_TIMEOUT_MS: u32 = 5 * OrionLimits::CYCLE_TIME_MS;
+/// Orion cell voltages (0x6B2, every 100 ms).
+pub const BMS_CELLS_TIMEOUT_MS: u32 = 5 * OrionCellVoltages::CYCLE_TIME_MS;
+/// MCU1 (motor speed, torque; every 10 ms): the power ceiling needs the speed.
+pub const MCU1_TIMEOUT_MS: u32 = 5 * Mcu1::CYCLE_TIME_MS;
+/// MCU3 (DC voltage and current; every 10 ms): the power trim needs them.
+pub const MCU3_TIMEOUT_MS: u32 = 5 * Mcu3::CYCLE_TIME_MS;
+/// MCU2 (temperatures, fault bits; every 100 ms).
+pub const MCU2_TIMEOUT_MS: u32 = 5 * Mcu2::CYCLE_TIME_MS;
+/// Missing nodes are not reported as lost during this long after start-up.
+pub const START_UP_GRACE_MS: u32 = 1_000;
+
+// --- Power limiting ----------------------------------------------------------------------
+
+/// The power the limiter aims at (W): below the rules' 80 kW by the measurement's resolution
+/// and the ripple of the trim, so that every 100 ms average stays below the limit.
+pub const POWER_TARGET_W: f32 = 78_000.0;
+/// Integral gain of the power trim (per second, on the relative power error): the
+/// efficiency estimate settles in about 0.2 s.
+pub const POWER_TRIM_GAIN: f32 = 5.0;
+/// The trim raises the efficiency estimate only while the measured power moved by less than
+/// this fraction of the target since the last step...
+pub const POWER_SETTLED_FRACTION: f32 = 0.01;
+/// ...and reads at least this share (allowing for the measurement's resolution) of the least
+/// the ceiling can give: lowest / highest efficiency times the target.
+pub const POWER_TRIM_FLOOR: f32 = 0.98;
+/// Time constant (s) with which the efficiency estimate returns to the lowest efficiency
+/// while the power ceiling does not bind, so the next full-power phase starts safe.
+pub const POWER_TRIM_RELAX_S: f32 = 0.5;
+/// Below this motor speed (rad/s) the power ceiling is computed at this speed (the ceiling
+/// is far above the motor maximum there anyway).
+pub const POWER_CEILING_MIN_RAD_S: f32 = 10.0;
 
 // --- Pedals ------------------------------------------------------------------------------
 
@@ -33,12 +86,19 @@ pub const SOC_DERATE_END: f32 = 0.05;
 pub const PEDAL_FILTER_HZ: f32 = 100.0;
 /// A sensor fault must persist longer than this (ms) before it counts (T.4.2.10, T.4.3.4).
 pub const SENSOR_FAULT_PERSIST_MS: u32 = 100;
+/// A pedal sensor fault still counts as continuous through a clean spell this short (ms).
+pub const SENSOR_FAULT_GAP_MS: u32 = 10;
 /// APPS sensors disagreeing by more than this fraction of travel is implausible (T.4.2.4).
 pub const APPS_IMPLAUSIBLE: f32 = 0.10;
-/// APPS/brake plausibility (EV.4.7): throttle above this with the brake pressed latches...
+/// APPS/brake plausibility (EV.4.7): throttle above this with the brakes engaged latches...
 pub const APPS_BRAKE_TRIP: f32 = 0.25;
 /// ...until the throttle is back below this.
 pub const APPS_BRAKE_RESET: f32 = 0.05;
+/// Pedal travel below which the driver counts as off the throttle (ends a launch).
+pub const PEDAL_RELEASED: f32 = 0.05;
+/// Pedal travel that still asks for no torque: the sensors' noise at rest must not command
+/// torque. The torque request rises linearly from here to full travel.
+pub const PEDAL_DEADBAND: f32 = 0.02;
 /// ADS1115 full-scale range at PGA 2/3 (V): APPS2 runs on 5 V, above the 4.096 V range.
 pub const ADS1115_FULL_SCALE_V: f32 = 6.144;
 /// APPS1 supply (V); valid signal 10-90 % of it.
@@ -49,10 +109,11 @@ pub const APPS2_SUPPLY_V: f32 = 5.0;
 pub const BSE_VALID_V: (f32, f32) = (0.5, 4.5);
 /// Brake pressure at 4.5 V (psi); 0.5 V is 0 psi (assumed: 2,000 psi sensors).
 pub const BSE_FULL_SCALE_PSI: f32 = 2_000.0;
-/// Front brake pressure counted as "brake pressed" (psi, assumed).
-pub const BRAKE_PRESSED_PSI: f32 = 50.0;
-/// Brake light on above / off below (psi, assumed): hysteresis against flicker.
-pub const BRAKE_LIGHT_PSI: (f32, f32) = (30.0, 20.0);
+/// The one "brakes engaged" threshold (psi, assumed): engaged above the first pressure,
+/// released below the second (hysteresis against flicker). The brake light, the APPS/brake
+/// plausibility check and launch control all use it, so the light is on exactly when the
+/// CCM treats the brakes as engaged.
+pub const BRAKES_ENGAGED_PSI: (f32, f32) = (30.0, 20.0);
 /// Front and rear circuits disagreeing (one above the first pressure while the other stays
 /// below the second) for longer than this is a brake-pressure plausibility fault (assumed).
 pub const BRAKE_CIRCUITS_IMPLAUSIBLE: (f32, f32, u32) = (400.0, 20.0, 500);
@@ -69,10 +130,6 @@ pub const SHOCK_ADC_FULL: (u16, f32) = (4095, 5.0);
 pub const WHEEL_TEETH: u32 = 24;
 /// No pulse for this long means the wheel stands still (us).
 pub const WHEEL_STOP_TIMEOUT_US: u32 = 500_000;
-/// Wheel radius (m).
-pub const WHEEL_RADIUS_M: f32 = 0.35;
-/// Motor revolutions per wheel revolution (assumed).
-pub const GEAR_RATIO: f32 = 3.5;
 
 // --- Driver controls ---------------------------------------------------------------------
 
@@ -80,8 +137,6 @@ pub const GEAR_RATIO: f32 = 3.5;
 pub const RTM_DEBOUNCE_MS: u32 = 200;
 /// Ready-to-drive sound length before torque is enabled (EV.9.2: 1-3 s).
 pub const RTD_SOUND_MS: u32 = 2_000;
-/// A PCC status older than this (10 missed frames) cannot vouch for the precharge.
-pub const PCC_STATUS_TIMEOUT_MS: u32 = 100;
 
 // --- Launch and traction control ---------------------------------------------------------
 

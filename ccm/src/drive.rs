@@ -1,30 +1,37 @@
-//! The torque path: pedal -> launch or traction control -> power and SOC limits, and zero
-//! whenever the vehicle may not drive.
+//! The torque path: pedal -> launch or traction control (which only take torque away) ->
+//! SOC derating -> power ceiling -> the torque monitor, which alone has the last word.
 
 use crate::apps::AppsReading;
-use crate::config::MOTOR_MAX_TORQUE_NM;
+use crate::config::{GEAR_RATIO, MOTOR_MAX_TORQUE_NM, PEDAL_DEADBAND};
 use crate::faults::FaultMap;
 use crate::launch::{LaunchControl, LaunchInputs, LaunchState};
-use crate::power::PowerLimits;
+use crate::monitor::{MonitorInputs, allowed_torque};
+use crate::power::{PowerLimiter, PowerLimits};
 use crate::traction::TractionControl;
 
-/// Everything the torque path reads in one 100 Hz step.
+/// Everything the torque path reads in one 100 Hz step; bus values are `None` unless fresh.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TorqueInputs {
     /// The pedal.
     pub apps: AppsReading,
+    /// The brakes are engaged.
+    pub brakes_engaged: bool,
+    /// The sensor sample is fresh.
+    pub sensors_fresh: bool,
     /// The vehicle state machine allows torque (DRIVING, sound finished, precharge done).
     pub torque_enabled: bool,
     /// Active faults.
     pub faults: FaultMap,
-    /// Pack SOC (0..1), voltage (V) and current (A, positive discharging).
-    pub pack: (f32, f32, f32),
+    /// Pack SOC (0..1), from the BMS.
+    pub soc: Option<f32>,
+    /// Motor speed (rad/s), from MCU1.
+    pub motor_rad_s: Option<f32>,
+    /// The inverter's available torque (Nm), from MCU1.
+    pub inverter_max_nm: Option<f32>,
+    /// DC power into the inverter (W), from MCU3, or the BMS's pack power if that is higher.
+    pub dc_power_w: Option<f32>,
     /// Front-left and front-right wheel speeds (rad/s).
     pub front_rad_s: (f32, f32),
-    /// Driven wheel speed from the motor (rad/s).
-    pub driven_rad_s: f32,
-    /// Front brake pressure (psi).
-    pub brake_psi: f32,
     /// Launch button.
     pub launch_button: bool,
 }
@@ -32,20 +39,36 @@ pub struct TorqueInputs {
 /// The step's result.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TorqueCommand {
-    /// Torque to command (Nm), 0..260.
+    /// Torque to command (Nm), 0..260, never above `allowed_nm`.
     pub torque_nm: f32,
+    /// What the torque monitor allows (Nm).
+    pub allowed_nm: f32,
+    /// The power ceiling this step (Nm).
+    pub power_ceiling_nm: f32,
     /// Launch control state.
     pub launch: LaunchState,
     /// Slip the active controller saw.
     pub slip: f32,
 }
 
-/// Launch and traction control plus the limits.
+impl TorqueCommand {
+    /// No torque, launch off.
+    pub const ZERO: Self = Self {
+        torque_nm: 0.0,
+        allowed_nm: 0.0,
+        power_ceiling_nm: 0.0,
+        launch: LaunchState::Off,
+        slip: 0.0,
+    };
+}
+
+/// Launch and traction control, the limits and the monitor.
 #[derive(Debug, Clone)]
 pub struct TorquePath {
     launch: LaunchControl,
     traction: TractionControl,
     limits: PowerLimits,
+    power: PowerLimiter,
 }
 
 impl TorquePath {
@@ -55,43 +78,82 @@ impl TorquePath {
             launch: LaunchControl::new(period_ms),
             traction: TractionControl::new(period_ms),
             limits,
+            power: PowerLimiter::new(period_ms),
         }
+    }
+
+    /// The power limiter (its efficiency estimate, for diagnostics).
+    pub fn power_limiter(&self) -> &PowerLimiter {
+        &self.power
     }
 
     /// One step.
     pub fn step(&mut self, inputs: &TorqueInputs) -> TorqueCommand {
+        let apps = &inputs.apps;
         let may_drive = inputs.torque_enabled
-            && !inputs.faults.any()
-            && !inputs.apps.brake_plausibility
-            && !inputs.apps.sensor_fault();
+            && !inputs.faults.stops_torque()
+            && !apps.brake_plausibility
+            && !apps.sensor_fault()
+            && !apps.signal_lost;
         let driver = if may_drive {
-            (inputs.apps.travel * MOTOR_MAX_TORQUE_NM).clamp(0.0, MOTOR_MAX_TORQUE_NM)
+            torque_request(apps.travel)
         } else {
             0.0
         };
+        let motor_rad_s = inputs.motor_rad_s.unwrap_or(0.0);
+        let driven_rad_s = motor_rad_s / GEAR_RATIO;
         let launch_torque = self.launch.step(&LaunchInputs {
             button: inputs.launch_button && may_drive,
-            brake_psi: inputs.brake_psi,
+            brakes_engaged: inputs.brakes_engaged,
+            pedal: apps.travel,
             front_rad_s: inputs.front_rad_s,
-            driven_rad_s: inputs.driven_rad_s,
+            driven_rad_s,
             driver_torque_nm: driver,
         });
         let front_average = (inputs.front_rad_s.0 + inputs.front_rad_s.1) / 2.0;
-        let traction_torque = self
-            .traction
-            .step(front_average, inputs.driven_rad_s, driver);
+        let traction_torque = self.traction.step(front_average, driven_rad_s, driver);
         let (controlled, slip) = if self.launch.state() == LaunchState::Active {
             (launch_torque, self.launch.slip())
         } else {
             (traction_torque, self.traction.slip())
         };
-        let (soc, voltage, current) = inputs.pack;
-        let limited = self.limits.limit_torque(soc, voltage, current, controlled);
+        let derated = self
+            .limits
+            .soc_limited(inputs.soc.unwrap_or(f32::NAN), controlled.min(driver));
+        let power_ceiling =
+            self.power
+                .step(motor_rad_s, inputs.dc_power_w.unwrap_or(f32::NAN), derated);
+        let allowed = allowed_torque(&MonitorInputs {
+            torque_enabled: inputs.torque_enabled,
+            faults: inputs.faults,
+            apps: *apps,
+            sensors_fresh: inputs.sensors_fresh,
+            motor_rad_s: inputs.motor_rad_s,
+            soc: inputs.soc,
+            inverter_max_nm: inputs.inverter_max_nm,
+            dc_power_w: inputs.dc_power_w,
+        });
+        let torque = derated.min(power_ceiling).min(allowed);
         TorqueCommand {
-            // Launch control may add torque, but never beyond what the driver may have.
-            torque_nm: if may_drive { limited } else { 0.0 },
+            torque_nm: if may_drive && torque.is_finite() {
+                torque.max(0.0)
+            } else {
+                0.0
+            },
+            allowed_nm: allowed,
+            power_ceiling_nm: power_ceiling,
             launch: self.launch.state(),
             slip,
         }
     }
+}
+
+/// The driver's torque request (Nm) for pedal `travel` (0..1): nothing within the deadband,
+/// then linear up to the motor maximum at full travel.
+pub fn torque_request(travel: f32) -> f32 {
+    let fraction = (travel - PEDAL_DEADBAND) / (1.0 - PEDAL_DEADBAND);
+    if fraction.is_nan() {
+        return 0.0;
+    }
+    fraction.clamp(0.0, 1.0) * MOTOR_MAX_TORQUE_NM
 }

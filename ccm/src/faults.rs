@@ -1,33 +1,69 @@
-//! The fault bitmap (the CCM_Status and telemetry fault flags) and its handler.
+//! The fault bitmap (CCM_Status and the telemetry fault flags), what each fault makes the
+//! car do, and the monitor that turns readings into faults.
 
+use crate::apps::AppsReading;
+use crate::brakes::BrakeReading;
+use crate::bus::BusInputs;
 use crate::config::{MAX_TEMP_DEGC, MIN_CELL_V, SENSOR_FAULT_PERSIST_MS, SOC_DERATE_END};
+use aer::can::{Mcu2, McuWarningLevel, PrechargeState};
 use aer_control::Persist;
 
-/// One fault bit (vehicle-facts.md: bits 0-7).
+/// One fault bit. Bits 0-7 are the team's original bitmap (vehicle-facts.md); the rest are
+/// the inputs the CCM lost or the inverter reported.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[repr(u8)]
 pub enum Fault {
-    /// Pack current above the BMS's discharge limit.
+    /// Pack current above the BMS's discharge limit for 100 ms.
     OverCurrent = 0,
-    /// Lowest cell below 2.8 V.
+    /// Lowest cell below 2.8 V for 100 ms.
     UnderVoltage = 1,
-    /// Motor, inverter or pack over its temperature limit.
+    /// Motor, inverter or pack over its temperature limit for 100 ms.
     OverTemperature = 2,
-    /// APPS out of range or implausible.
+    /// APPS out of range or implausible for over 100 ms (T.4.2).
     Apps = 3,
-    /// Brake pressure sensor out of range.
+    /// Brake pressure sensor out of range for over 100 ms (T.4.3).
     Bse = 4,
     /// Front and rear brake circuits implausible.
     Bpps = 5,
-    /// Throttle with the brake pressed (EV.4.7), until the throttle is released.
+    /// Throttle with the brakes engaged (EV.4.7), until the throttle is released.
     AppsBrakePlausibility = 6,
-    /// Pack SOC at or below 5 %.
+    /// Accumulator SOC at or below 5 %: the end of the derating.
     LowBatteryVoltage = 7,
+    /// The pedal converter delivered no conversion on a channel for 20 ms (T.4.2.10).
+    PedalSignalLost = 8,
+    /// The 1 kHz sensor sample is older than 10 ms: the sampling task stopped.
+    SensorsStale = 9,
+    /// A BMS frame the CCM acts on is older than its limit.
+    BmsTimeout = 10,
+    /// An inverter status frame is older than its limit.
+    InverterTimeout = 11,
+    /// The PCC's status is older than 100 ms.
+    PccTimeout = 12,
+    /// The inverter reports a fault (MCU2 fault bits, or warning level HIGH).
+    InverterFault = 13,
+    /// The inverter reports a warning (low DC or 12 V, a sensor state, warning level
+    /// LOW or MEDIUM).
+    InverterWarning = 14,
+    /// The PCC reports ERROR (or a state the schema does not know): the accumulator is
+    /// disconnected; the PCC's own error bits say why.
+    PccError = 15,
+}
+
+/// What a fault makes the car do.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Reaction {
+    /// Reported only; the car keeps driving.
+    Warn,
+    /// Zero torque while it lasts; the car stays in DRIVING.
+    CutTorque,
+    /// Zero torque and the vehicle goes to FAULT; once it clears, STANDBY, and the driver
+    /// needs the ready-to-drive procedure again.
+    Stop,
 }
 
 impl Fault {
     /// Every fault, in bit order.
-    pub const ALL: [Self; 8] = [
+    pub const ALL: [Self; 16] = [
         Self::OverCurrent,
         Self::UnderVoltage,
         Self::OverTemperature,
@@ -36,6 +72,14 @@ impl Fault {
         Self::Bpps,
         Self::AppsBrakePlausibility,
         Self::LowBatteryVoltage,
+        Self::PedalSignalLost,
+        Self::SensorsStale,
+        Self::BmsTimeout,
+        Self::InverterTimeout,
+        Self::PccTimeout,
+        Self::InverterFault,
+        Self::InverterWarning,
+        Self::PccError,
     ];
 
     /// The fault's bit.
@@ -43,15 +87,18 @@ impl Fault {
         1 << self as u8
     }
 
-    /// Whether the vehicle must leave DRIVING for FAULT. EV.4.7 only asks that the motor
-    /// stops while the pedals disagree, so the plausibility fault cuts torque in DRIVING
-    /// instead.
-    pub const fn stops_the_vehicle(self) -> bool {
-        !matches!(self, Self::AppsBrakePlausibility)
+    /// The reaction. EV.4.7 only asks that the motor stops while the pedals disagree, so the
+    /// plausibility fault cuts torque and keeps DRIVING; an inverter warning is reported.
+    pub const fn reaction(self) -> Reaction {
+        match self {
+            Self::AppsBrakePlausibility => Reaction::CutTorque,
+            Self::InverterWarning => Reaction::Warn,
+            _ => Reaction::Stop,
+        }
     }
 }
 
-/// Active faults, one bit each (32 bits as in the team's design; 8 used).
+/// Active faults, one bit each (32 bits as in the team's design).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct FaultMap(u32);
 
@@ -78,34 +125,76 @@ impl FaultMap {
         self.0
     }
 
-    /// Any fault at all: no torque.
+    /// Any fault at all, warnings included.
     pub const fn any(&self) -> bool {
         self.0 != 0
     }
 
+    /// Any fault whose reaction includes zero torque.
+    pub fn stops_torque(&self) -> bool {
+        self.any_with(|reaction| reaction != Reaction::Warn)
+    }
+
     /// Any fault that puts the vehicle in FAULT.
     pub fn stops_the_vehicle(&self) -> bool {
+        self.any_with(|reaction| reaction == Reaction::Stop)
+    }
+
+    fn any_with(&self, wanted: impl Fn(Reaction) -> bool) -> bool {
         Fault::ALL
             .iter()
-            .any(|fault| self.has(*fault) && fault.stops_the_vehicle())
+            .any(|fault| self.has(*fault) && wanted(fault.reaction()))
     }
 }
 
-/// Accumulator and drive readings the fault checks need.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub struct PackReadings {
-    /// Pack current (A, positive discharging).
-    pub current_a: f32,
-    /// BMS discharge current limit (A).
-    pub discharge_limit_a: f32,
-    /// Lowest cell voltage (V).
-    pub low_cell_v: f32,
-    /// SOC (0..1).
-    pub soc: f32,
-    /// Motor, inverter and hottest pack temperatures (degC).
-    pub temperatures_degc: (f32, f32, f32),
-    /// True once the BMS has reported (limits and cells are meaningless before).
-    pub bms_seen: bool,
+/// What the inverter's MCU2 frame reports: (fault, warning).
+///
+/// The fault bits and warning level HIGH stop the car; the low-voltage warnings, the four
+/// sensor/system state bits and levels LOW/MEDIUM are warnings. (The state bits' polarity is
+/// not in the team's documentation; 1 is taken as "not normal" and only reported, since the
+/// inverter protects itself against its own sensor faults.)
+pub fn inverter_condition(mcu2: &Mcu2) -> (bool, bool) {
+    let fault = mcu2.mcu_dc_main_wire_over_curr_fault
+        || mcu2.mcu_motor_phase_curr_fault
+        || mcu2.mcu_over_hot_fault
+        || mcu2.mcu_resolver_fault
+        || mcu2.mcu_phase_curr_sensor_fault
+        || mcu2.mcu_motor_over_spd_fault
+        || mcu2.mcu_drv_motor_over_hot_fault
+        || mcu2.mcu_dc_main_wire_over_volt_fault
+        || mcu2.mcu_drv_motor_over_cool_fault
+        || mcu2.mcu_motor_stall_fault
+        || mcu2.mcu_motor_open_phase_fault
+        || matches!(
+            mcu2.mcu_warning_level,
+            McuWarningLevel::High | McuWarningLevel::Unknown(_)
+        );
+    let warning = mcu2.mcu_dc_low_volt_warning
+        || mcu2.mcu_12v_low_volt_warning
+        || mcu2.mcu_motor_system_state
+        || mcu2.mcu_temp_sensor_state
+        || mcu2.mcu_motor_temp_sensor_state
+        || mcu2.mcu_dc_volt_sensor_state
+        || matches!(
+            mcu2.mcu_warning_level,
+            McuWarningLevel::Low | McuWarningLevel::Medium
+        );
+    (fault, warning)
+}
+
+/// Everything the fault checks read in one control step.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FaultInputs<'a> {
+    /// Free-running milliseconds.
+    pub now_ms: u32,
+    /// Fresh bus values and lost nodes.
+    pub bus: &'a BusInputs,
+    /// The pedal.
+    pub apps: AppsReading,
+    /// The brakes.
+    pub brakes: BrakeReading,
+    /// The last sensor sample is older than its limit.
+    pub sensors_stale: bool,
 }
 
 /// Turns readings into the fault bitmap; readings-based faults must persist 100 ms.
@@ -117,55 +206,70 @@ pub struct FaultMonitor {
 }
 
 impl FaultMonitor {
-    /// Evaluates every fault at `now_ms`.
-    pub fn evaluate(
-        &mut self,
-        now_ms: u32,
-        pack: &PackReadings,
-        apps_fault: bool,
-        apps_brake_plausibility: bool,
-        bse_fault: bool,
-        brake_circuits_implausible: bool,
-    ) -> FaultMap {
+    /// Evaluates every fault.
+    pub fn evaluate(&mut self, inputs: &FaultInputs<'_>) -> FaultMap {
+        let now_ms = inputs.now_ms;
+        let bus = inputs.bus;
         let persists = |persist: &mut Persist, condition: bool| {
             persist
                 .update(condition, now_ms)
                 .is_some_and(|held| held > SENSOR_FAULT_PERSIST_MS)
         };
-        let (motor, inverter, pack_temp) = pack.temperatures_degc;
-        let (motor_max, inverter_max, pack_max) = MAX_TEMP_DEGC;
         let mut map = FaultMap::NONE;
+
+        let over_current = bus.pack.zip(bus.limits).is_some_and(|(pack, limits)| {
+            pack.orion_pack_current > f64::from(limits.orion_pack_dcl)
+        });
         map.set(
             Fault::OverCurrent,
-            persists(
-                &mut self.over_current,
-                pack.bms_seen && pack.current_a > pack.discharge_limit_a,
-            ),
+            persists(&mut self.over_current, over_current),
         );
+        let under_voltage = bus
+            .cells
+            .is_some_and(|cells| cells.orion_low_cell_voltage < f64::from(MIN_CELL_V));
         map.set(
             Fault::UnderVoltage,
-            persists(
-                &mut self.under_voltage,
-                pack.bms_seen && pack.low_cell_v < MIN_CELL_V,
-            ),
+            persists(&mut self.under_voltage, under_voltage),
         );
-        // A temperature that is not a number counts as too hot.
-        let too_hot = |t: f32, max: f32| t.is_nan() || t > max;
-        let hot = too_hot(motor, motor_max)
-            || too_hot(inverter, inverter_max)
-            || too_hot(pack_temp, pack_max);
+        let (motor_max, inverter_max, pack_max) = MAX_TEMP_DEGC;
+        let hot = |degc: f32, max: f32| degc > max;
+        let over_temperature = bus.inverter.is_some_and(|mcu2| {
+            hot(f32::from(mcu2.mcu_motor_temp), motor_max)
+                || hot(f32::from(mcu2.mcu_inverter_temp), inverter_max)
+        }) || bus
+            .limits
+            .is_some_and(|limits| hot(f32::from(limits.orion_high_temperature), pack_max));
         map.set(
             Fault::OverTemperature,
-            persists(&mut self.over_temperature, hot),
+            persists(&mut self.over_temperature, over_temperature),
         );
-        map.set(Fault::Apps, apps_fault);
-        map.set(Fault::Bse, bse_fault);
-        map.set(Fault::Bpps, brake_circuits_implausible);
-        map.set(Fault::AppsBrakePlausibility, apps_brake_plausibility);
-        map.set(
-            Fault::LowBatteryVoltage,
-            pack.bms_seen && pack.soc <= SOC_DERATE_END,
-        );
+
+        map.set(Fault::Apps, inputs.apps.sensor_fault());
+        map.set(Fault::Bse, inputs.brakes.sensor_fault);
+        map.set(Fault::Bpps, inputs.brakes.circuits_implausible);
+        map.set(Fault::AppsBrakePlausibility, inputs.apps.brake_plausibility);
+        let empty = bus
+            .pack
+            .is_some_and(|pack| pack.orion_pack_soc / 100.0 <= f64::from(SOC_DERATE_END));
+        map.set(Fault::LowBatteryVoltage, empty);
+
+        map.set(Fault::PedalSignalLost, inputs.apps.signal_lost);
+        map.set(Fault::SensorsStale, inputs.sensors_stale);
+        map.set(Fault::BmsTimeout, bus.lost.bms);
+        map.set(Fault::InverterTimeout, bus.lost.inverter);
+        map.set(Fault::PccTimeout, bus.lost.pcc);
+        let (inverter_fault, inverter_warning) = bus
+            .inverter
+            .map_or((false, false), |mcu2| inverter_condition(&mcu2));
+        map.set(Fault::InverterFault, inverter_fault);
+        map.set(Fault::InverterWarning, inverter_warning);
+        let pcc_error = bus.pcc.is_some_and(|status| {
+            matches!(
+                status.pcc_state,
+                PrechargeState::Error | PrechargeState::Unknown(_)
+            )
+        });
+        map.set(Fault::PccError, pcc_error);
         map
     }
 }

@@ -17,8 +17,8 @@ pub struct DriveCommand {
     pub drive: bool,
     /// The precharge is complete: the inverter may close its main relay.
     pub main_relay: bool,
-    /// The brake is pressed.
-    pub brake_pressed: bool,
+    /// The brakes are engaged.
+    pub brakes_engaged: bool,
 }
 
 /// Builds VCU1 frames; the rolling counter increments on every frame (mod 16).
@@ -28,8 +28,8 @@ pub struct Vcu1Builder {
 }
 
 impl Vcu1Builder {
-    /// The next VCU1 payload.
-    pub fn next_frame(&mut self, command: &DriveCommand) -> Result<[u8; 8], EncodeError> {
+    /// The next VCU1 message (checksum filled in) and its payload.
+    pub fn next_frame(&mut self, command: &DriveCommand) -> Result<(Vcu1, [u8; 8]), EncodeError> {
         let torque = if command.torque_nm.is_finite() {
             command.torque_nm
         } else {
@@ -41,7 +41,7 @@ impl Vcu1Builder {
             vcu_authentication_status: 0,
             vcu_change_gear_alarm: false,
             vcu_vehicle_state: command.drive,
-            vcu_brake_pedal_sts: u8::from(command.brake_pressed),
+            vcu_brake_pedal_sts: u8::from(command.brakes_engaged),
             vcu_bms_main_relay_cmd: command.main_relay,
             vcu_gear_lever_pos_sts: if command.drive {
                 GearLeverPos::D
@@ -68,7 +68,7 @@ impl Vcu1Builder {
         vcu1.vcu_check_sum = checksum(&data);
         vcu1.encode(&mut data)?;
         self.rolling_counter = (self.rolling_counter + 1) & 0x0F;
-        Ok(data)
+        Ok((vcu1, data))
     }
 }
 

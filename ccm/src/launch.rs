@@ -1,12 +1,20 @@
-//! Launch control: slip-ratio PID on the driven wheels for standing starts.
+//! Launch control: slip-ratio control on the driven wheels for standing starts.
 //!
-//! The team's design, with the defects its documentation lists fixed: the PID keeps its state
-//! between steps and runs at a fixed 100 Hz; activation needs the launch button (FSAE), not
-//! just a held brake. Slip = (driven - free rolling) / free rolling, with the slower front
-//! wheel as the free-rolling reference. Below the band (5 %) torque is added, above it (10 %)
-//! removed, aiming at 7 %; the result stays within 0..260 Nm.
+//! The team's design, with the defects its documentation lists fixed (the PID keeps its state
+//! between steps and runs at a fixed 100 Hz; activation needs the launch button, not just a
+//! held brake) and two safety changes over its test plan:
+//! - launch control only takes torque away from the driver's request, never adds to it
+//!   (the plan's case 4 adds torque up to 260 Nm when slip is below the target; with the
+//!   pedal released that kept pushing the car);
+//! - an active launch ends when the pedal drops below 5 % or the brakes are engaged (the plan
+//!   ends it on the brake only).
+//!
+//! Slip = (driven - free rolling) / free rolling, with the slower front wheel as the
+//! free-rolling reference. Above the band (10 %) torque is taken away, aiming at 7 %; inside
+//! the band the reduction holds; below it the reduction bleeds off back to the driver's
+//! request.
 
-use crate::config::{LAUNCH_SLIP, MIN_SLIP_SPEED_RAD_S, MOTOR_MAX_TORQUE_NM};
+use crate::config::{LAUNCH_SLIP, MIN_SLIP_SPEED_RAD_S, MOTOR_MAX_TORQUE_NM, PEDAL_RELEASED};
 use aer_control::{Pid, PidGains};
 
 /// Where the launch sequence is.
@@ -14,9 +22,9 @@ use aer_control::{Pid, PidGains};
 pub enum LaunchState {
     /// Torque passes through unchanged.
     Off,
-    /// Button pressed while stopped on the brake: ready, torque still passes through.
+    /// Button pressed while stopped with the brakes engaged: ready, torque passes through.
     Armed,
-    /// Brake released: slip control active until the brake is pressed again.
+    /// Brakes released and the pedal pressed: slip control active.
     Active,
 }
 
@@ -25,8 +33,10 @@ pub enum LaunchState {
 pub struct LaunchInputs {
     /// The launch button.
     pub button: bool,
-    /// Front brake pressure (psi).
-    pub brake_psi: f32,
+    /// The brakes are engaged (the brake light's threshold).
+    pub brakes_engaged: bool,
+    /// Pedal travel 0..1.
+    pub pedal: f32,
     /// Front-left and front-right wheel speeds (rad/s).
     pub front_rad_s: (f32, f32),
     /// Driven (rear) wheel speed, from the motor speed and gear ratio (rad/s).
@@ -35,37 +45,32 @@ pub struct LaunchInputs {
     pub driver_torque_nm: f32,
 }
 
-/// Brake pressure (psi) that arms launch (held while stopped) and ends an active launch.
-pub const BRAKE_ARM_PSI: f32 = 50.0;
-/// Brake pressure (psi) below which an armed launch starts.
-pub const BRAKE_RELEASE_PSI: f32 = 10.0;
 /// The motor counts as stopped below this (rad/s).
 pub const STOPPED_RAD_S: f32 = 0.5;
 
-/// Gains tuned so the team's test plan holds: full correction for slip far above the band,
-/// a few Nm for slip just below it.
+/// Gains of the torque reduction: 30 % slip above the target takes away about 60 Nm at once.
 pub const LAUNCH_GAINS: PidGains = PidGains {
     kp: 200.0,
     ki: 100.0,
     kd: 0.0,
-    integral_limit: 60.0,
-    output_limit: MOTOR_MAX_TORQUE_NM,
+    integral_range: (0.0, 60.0),
+    output_range: (0.0, MOTOR_MAX_TORQUE_NM),
 };
 
 /// Launch control.
 #[derive(Debug, Clone)]
 pub struct LaunchControl {
     state: LaunchState,
-    pid: Pid,
+    reduction: Pid,
     slip: f32,
 }
 
 impl LaunchControl {
-    /// Off, with the PID stepped every `period_ms`.
+    /// Off, with the controller stepped every `period_ms`.
     pub fn new(period_ms: u32) -> Self {
         Self {
             state: LaunchState::Off,
-            pid: Pid::new(LAUNCH_GAINS, period_ms as f32 / 1_000.0),
+            reduction: Pid::new(LAUNCH_GAINS, period_ms as f32 / 1_000.0),
             slip: 0.0,
         }
     }
@@ -80,51 +85,57 @@ impl LaunchControl {
         self.slip
     }
 
-    /// One 100 Hz step: the torque to command (only changed while `Active`).
+    /// One 100 Hz step: the torque to command, never above the driver's request.
     pub fn step(&mut self, inputs: &LaunchInputs) -> f32 {
+        let driver = inputs.driver_torque_nm.clamp(0.0, MOTOR_MAX_TORQUE_NM);
         let stopped = inputs.driven_rad_s.abs() < STOPPED_RAD_S;
+        let released = inputs.pedal.is_nan() || inputs.pedal < PEDAL_RELEASED;
         match self.state {
             LaunchState::Off => {
-                if inputs.button && stopped && inputs.brake_psi >= BRAKE_ARM_PSI {
+                if inputs.button && stopped && inputs.brakes_engaged {
                     self.state = LaunchState::Armed;
                 }
-                inputs.driver_torque_nm
+                driver
             }
             LaunchState::Armed => {
-                if inputs.brake_psi < BRAKE_RELEASE_PSI {
+                if !inputs.brakes_engaged && !released {
                     self.state = LaunchState::Active;
-                    self.pid.reset();
-                    return self.active(inputs);
+                    self.reduction.reset();
+                    return self.active(inputs, driver);
                 }
-                inputs.driver_torque_nm
+                if !stopped {
+                    // Rolled away without launching.
+                    self.state = LaunchState::Off;
+                }
+                driver
             }
             LaunchState::Active => {
-                if inputs.brake_psi >= BRAKE_ARM_PSI {
+                if inputs.brakes_engaged || released {
                     self.state = LaunchState::Off;
-                    self.pid.reset();
-                    return inputs.driver_torque_nm;
+                    self.reduction.reset();
+                    return driver;
                 }
-                self.active(inputs)
+                self.active(inputs, driver)
             }
         }
     }
 
-    fn active(&mut self, inputs: &LaunchInputs) -> f32 {
+    fn active(&mut self, inputs: &LaunchInputs, driver: f32) -> f32 {
         let (target, low, high) = LAUNCH_SLIP;
         let free = inputs.front_rad_s.0.min(inputs.front_rad_s.1);
         if free.is_nan() || free < MIN_SLIP_SPEED_RAD_S {
             // Rolling off the line: slip is not defined yet, pass the driver's torque.
             self.slip = 0.0;
-            return inputs.driver_torque_nm.clamp(0.0, MOTOR_MAX_TORQUE_NM);
+            return driver;
         }
         self.slip = (inputs.driven_rad_s - free) / free;
-        // Inside the band the integral holds; outside it the error drives the correction.
+        // Inside the band the reduction holds; outside it the error moves it.
         let error = if (low..=high).contains(&self.slip) {
             0.0
         } else {
-            target - self.slip
+            self.slip - target
         };
-        let correction = self.pid.step(error);
-        (inputs.driver_torque_nm + correction).clamp(0.0, MOTOR_MAX_TORQUE_NM)
+        let reduction = self.reduction.step(error);
+        (driver - reduction).clamp(0.0, driver)
     }
 }

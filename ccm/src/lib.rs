@@ -3,9 +3,10 @@
 //! hardware.
 //!
 //! Data flow: 1 kHz sensor samples ([`apps`], [`brakes`], [`chassis`]) and CAN frames
-//! ([`bus`]) -> 100 Hz control ([`faults`], [`vehicle`], [`drive`] with [`launch`],
-//! [`traction`] and [`power`]; [`thermal`]) -> inverter frames ([`inverter`]), CCM status,
-//! and the telemetry packet over ISO-TP ([`telemetry`]); [`watchdog`] supervises the tasks.
+//! ([`bus`], every value kept with its arrival time) -> 100 Hz control ([`faults`],
+//! [`vehicle`], [`drive`]: [`launch`] or [`traction`], [`power`], then the independent
+//! [`monitor`]; [`thermal`]) -> inverter frames ([`inverter`]), CCM status, and the telemetry
+//! packet over ISO-TP ([`telemetry`]); [`watchdog`] supervises the tasks.
 #![no_std]
 
 pub mod ads1115;
@@ -19,6 +20,7 @@ pub mod drive;
 pub mod faults;
 pub mod inverter;
 pub mod launch;
+pub mod monitor;
 pub mod power;
 pub mod telemetry;
 pub mod thermal;
@@ -26,4 +28,6 @@ pub mod traction;
 pub mod vehicle;
 pub mod watchdog;
 
-pub use controller::{Ccm, ControlOutputs, DriverCounters, DriverInputs, OutFrame, SensorSample};
+pub use controller::{
+    BusHealth, Ccm, ControlOutputs, DriverCounters, DriverInputs, OutFrame, SensorSample,
+};

@@ -2,7 +2,8 @@
 //!
 //! slip = (rear average - front average) / front average, front speeds filtered; above 10 %
 //! a PID (state kept between steps, fixed 100 Hz) removes torque. It never adds torque: the
-//! result is within 0..driver torque.
+//! result is within 0..driver torque. The integral never goes below zero, so a long stretch
+//! without slip cannot store up a negative reduction that would delay the next intervention.
 
 use crate::config::{MIN_SLIP_SPEED_RAD_S, MOTOR_MAX_TORQUE_NM, TRACTION_SLIP};
 use aer_control::{LowPass, Pid, PidGains};
@@ -12,8 +13,8 @@ pub const TRACTION_GAINS: PidGains = PidGains {
     kp: 500.0,
     ki: 200.0,
     kd: 0.0,
-    integral_limit: MOTOR_MAX_TORQUE_NM,
-    output_limit: MOTOR_MAX_TORQUE_NM,
+    integral_range: (0.0, MOTOR_MAX_TORQUE_NM),
+    output_range: (0.0, MOTOR_MAX_TORQUE_NM),
 };
 
 /// Traction control.
@@ -54,8 +55,8 @@ impl TractionControl {
         }
         self.slip = (rear - front) / front;
         // Only the excess over the threshold counts; once slip is back under it the integral
-        // bleeds off (negative error) and the driver gets the torque back.
-        let reduction = self.pid.step(self.slip - TRACTION_SLIP).max(0.0);
+        // bleeds off to zero (negative error) and the driver gets the torque back.
+        let reduction = self.pid.step(self.slip - TRACTION_SLIP);
         (demand - reduction).max(0.0).min(demand)
     }
 }

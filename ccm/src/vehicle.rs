@@ -1,11 +1,11 @@
 //! The vehicle state machine: OFF, STANDBY, PRECHARGING, IDLE, DRIVING, FAULT.
 //!
 //! Driven by the PCC's status frame (the generated `PccStatus`), the debounced ready-to-move
-//! button, the brake, and the fault bitmap. DRIVING needs the PCC to report ONLINE in a fresh
-//! frame at every step, the button pressed with the brake held, and the ready-to-drive sound
-//! played for its full length first (EV.9.2).
+//! button, the brakes, and the fault bitmap. DRIVING needs the PCC to report ONLINE in a fresh
+//! frame at every step, the button pressed with the brakes engaged, and the ready-to-drive
+//! sound played for its full length first (EV.9.2).
 
-use crate::config::{PCC_STATUS_TIMEOUT_MS, RTD_SOUND_MS, RTM_DEBOUNCE_MS};
+use crate::config::{RTD_SOUND_MS, RTM_DEBOUNCE_MS};
 use crate::faults::FaultMap;
 use aer::can::PrechargeState;
 use aer_control::Persist;
@@ -47,12 +47,12 @@ impl State {
 pub struct VehicleInputs {
     /// Free-running milliseconds.
     pub now_ms: u32,
-    /// The last PCC status's state and when it arrived.
-    pub pcc: Option<(PrechargeState, u32)>,
+    /// The PCC's state, if its status is fresh (see [`crate::config::PCC_STATUS_TIMEOUT_MS`]).
+    pub pcc: Option<PrechargeState>,
     /// Ready-to-move button, raw (debounced here).
     pub rtm_button: bool,
-    /// The brake is pressed.
-    pub brake_pressed: bool,
+    /// The brakes are engaged.
+    pub brakes_engaged: bool,
     /// Active faults.
     pub faults: FaultMap,
 }
@@ -104,18 +104,12 @@ impl Vehicle {
     /// One control step.
     pub fn step(&mut self, inputs: &VehicleInputs) -> VehicleOutputs {
         let now = inputs.now_ms;
-        let pcc = inputs
-            .pcc
-            .filter(|(_, at)| now.wrapping_sub(*at) <= PCC_STATUS_TIMEOUT_MS)
-            .map(|(state, _)| state);
+        let pcc = inputs.pcc;
         let precharge_complete = pcc == Some(PrechargeState::Online);
         let pressed = self.button_pressed(inputs.rtm_button, now);
 
-        let pcc_error = matches!(
-            pcc,
-            Some(PrechargeState::Error | PrechargeState::Unknown(_))
-        );
-        if inputs.faults.stops_the_vehicle() || (pcc_error && self.state != State::Off) {
+        // A PCC in ERROR is a fault in the map (`Fault::PccError`), like every other cause.
+        if inputs.faults.stops_the_vehicle() {
             self.enter(State::Fault);
         }
         match self.state {
@@ -141,7 +135,7 @@ impl Vehicle {
                     } else if now.wrapping_sub(since) >= RTD_SOUND_MS {
                         self.enter(State::Driving);
                     }
-                } else if pressed && inputs.brake_pressed {
+                } else if pressed && inputs.brakes_engaged {
                     self.sound_since_ms = Some(now);
                 }
             }
@@ -153,7 +147,7 @@ impl Vehicle {
                 }
             }
             State::Fault => {
-                if !inputs.faults.stops_the_vehicle() && !pcc_error {
+                if !inputs.faults.stops_the_vehicle() {
                     self.enter(State::Standby);
                 }
             }

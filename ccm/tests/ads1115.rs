@@ -2,6 +2,8 @@
 
 use aer_ccm::ads1115::{ADDRESS, Ads1115, config_for};
 use embedded_hal::i2c::{ErrorKind, ErrorType, I2c, Operation};
+use std::cell::Cell;
+use std::rc::Rc;
 
 /// Register-level model of an ADS1115: a conversion finishes after `latency` config reads.
 struct Simulated {
@@ -13,6 +15,12 @@ struct Simulated {
     result: i16,
     fail: bool,
     writes: Vec<Vec<u8>>,
+    /// Start commands (config writes) still to refuse, shared with the test.
+    refuse_starts: Rc<Cell<u32>>,
+    /// Whether the result register holds a conversion not read yet.
+    unread: bool,
+    /// Result-register reads with no new conversion behind them, shared with the test.
+    stale_reads: Rc<Cell<u32>>,
 }
 
 impl ErrorType for Simulated {
@@ -32,6 +40,10 @@ impl I2c for Simulated {
         for operation in operations {
             match operation {
                 Operation::Write(bytes) => {
+                    if bytes.len() == 3 && self.refuse_starts.get() > 0 {
+                        self.refuse_starts.set(self.refuse_starts.get() - 1);
+                        return Err(ErrorKind::Other);
+                    }
                     self.writes.push(bytes.to_vec());
                     self.pointer = bytes[0];
                     if let [0x01, high, low] = **bytes {
@@ -46,6 +58,7 @@ impl I2c for Simulated {
                             Some((channel, left)) if *left == 0 => {
                                 self.result = self.inputs[usize::from(*channel)];
                                 self.pending = None;
+                                self.unread = true;
                                 true
                             }
                             Some((_, left)) => {
@@ -56,6 +69,10 @@ impl I2c for Simulated {
                         };
                         (self.config & 0x7FFF) | if done { 0x8000 } else { 0 }
                     } else {
+                        if !self.unread {
+                            self.stale_reads.set(self.stale_reads.get() + 1);
+                        }
+                        self.unread = false;
                         self.result as u16
                     };
                     buffer.copy_from_slice(&value.to_be_bytes());
@@ -76,6 +93,9 @@ fn converter(latency: u32) -> Simulated {
         result: 0,
         fail: false,
         writes: Vec::new(),
+        refuse_starts: Rc::default(),
+        unread: false,
+        stale_reads: Rc::default(),
     }
 }
 
@@ -86,27 +106,44 @@ fn config_words_select_single_ended_inputs_at_860_sps_and_6_144_v() {
 }
 
 #[test]
-fn channels_alternate_without_blocking() {
+fn channels_alternate_without_blocking_and_report_only_new_conversions() {
     let mut ads = Ads1115::new(converter(1));
-    ads.start();
-    assert_eq!(ads.poll(), (0, 0), "first conversion still running");
-    assert_eq!(ads.poll(), (1_234, 0), "APPS1 done, APPS2 started");
-    ads.poll();
-    assert_eq!(ads.poll(), (1_234, -56));
+    assert_eq!(ads.poll(), [None, None], "APPS1 started");
+    assert_eq!(ads.poll(), [None, None], "first conversion still running");
+    assert_eq!(ads.poll(), [Some(1_234), None], "APPS1 done, APPS2 started");
+    assert_eq!(ads.poll(), [None, None]);
+    assert_eq!(ads.poll(), [None, Some(-56)]);
     assert_eq!(ads.bus_errors, 0);
 }
 
 #[test]
-fn bus_errors_are_counted_and_the_last_values_kept() {
-    let mut ads = Ads1115::new(converter(0));
-    ads.start();
-    ads.poll();
-    let before = ads.latest();
+fn a_converter_that_stops_answering_delivers_nothing_and_is_counted() {
+    // Issue 12: the driver previously repeated the last good counts, freezing the throttle.
     let mut failing = converter(0);
     failing.fail = true;
     let mut broken = Ads1115::new(failing);
-    broken.start();
-    assert_eq!(broken.poll(), (0, 0));
-    assert_eq!(broken.bus_errors, 2);
-    assert_eq!(before, (1_234, 0));
+    for _ in 0..10 {
+        assert_eq!(broken.poll(), [None, None]);
+    }
+    assert_eq!(broken.bus_errors, 10, "every failed start is counted");
+}
+
+#[test]
+fn a_start_that_was_not_acknowledged_is_never_read_back() {
+    // An idle converter reads "done" and its result register still holds the last value:
+    // reading it after a refused start would present an old value as new.
+    let sim = converter(0);
+    let refuse = Rc::clone(&sim.refuse_starts);
+    let stale = Rc::clone(&sim.stale_reads);
+    let mut ads = Ads1115::new(sim);
+    let mut delivered = 0;
+    for poll in 0..40 {
+        if poll % 7 == 3 {
+            refuse.set(1);
+        }
+        delivered += ads.poll().iter().flatten().count();
+    }
+    assert!(delivered > 10, "{delivered}");
+    assert_eq!(stale.get(), 0, "result read without a new conversion");
+    assert!(ads.bus_errors >= 5);
 }

@@ -25,14 +25,14 @@ fn pedal(travel1: f32, travel2: f32) -> (i16, i16) {
 // --- APPS --------------------------------------------------------------------------------------
 
 #[test]
-fn apps_maps_the_calibration_to_0_1_and_averages() {
+fn apps_maps_the_calibration_to_0_1_and_takes_the_lower_sensor() {
     let mut apps = Apps::new(CAL, 1);
     let (a, b) = pedal(0.5, 0.5);
-    let reading = apps.update(a, b, false, 0);
+    let reading = apps.update([Some(a), Some(b)], false, 0);
     assert!((reading.travel - 0.5).abs() < 1e-3, "{reading:?}");
     let (a, b) = pedal(1.3, -0.2);
     let mut clamped = Apps::new(CAL, 1);
-    let reading = clamped.update(a, b, false, 0);
+    let reading = clamped.update([Some(a), Some(b)], false, 0);
     assert_eq!((reading.apps1, reading.apps2), (1.0, 0.0));
 }
 
@@ -43,12 +43,15 @@ fn apps_range_fault_needs_more_than_100_ms() {
     let low = volts_to_counts(0.2) as i16;
     let (_, b) = pedal(0.0, 0.0);
     for t in 0..=100 {
-        assert!(!apps.update(low, b, false, t).out_of_range, "t = {t}");
+        assert!(
+            !apps.update([Some(low), Some(b)], false, t).out_of_range,
+            "t = {t}"
+        );
     }
-    assert!(apps.update(low, b, false, 101).out_of_range);
+    assert!(apps.update([Some(low), Some(b)], false, 101).out_of_range);
     let (a, b) = pedal(0.0, 0.0);
     // The filter needs a few samples to come back; the fault clears with it.
-    let cleared = (102..200).any(|t| !apps.update(a, b, false, t).out_of_range);
+    let cleared = (102..200).any(|t| !apps.update([Some(a), Some(b)], false, t).out_of_range);
     assert!(cleared);
 }
 
@@ -57,15 +60,15 @@ fn apps_disagreement_over_10_percent_for_over_100_ms_is_implausible() {
     let mut apps = Apps::new(CAL, 1);
     let (a, b) = pedal(0.50, 0.39);
     for t in 0..=100 {
-        apps.update(a, b, false, t);
+        apps.update([Some(a), Some(b)], false, t);
     }
     assert!(!apps.reading().implausible, "at 100 ms");
-    assert!(apps.update(a, b, false, 101).implausible);
+    assert!(apps.update([Some(a), Some(b)], false, 101).implausible);
 
     let mut close = Apps::new(CAL, 1);
     let (a, b) = pedal(0.50, 0.41);
     for t in 0..500 {
-        close.update(a, b, false, t);
+        close.update([Some(a), Some(b)], false, t);
     }
     assert!(!close.reading().implausible, "9 % apart is plausible");
 }
@@ -76,10 +79,10 @@ fn apps_brake_plausibility_latches_above_25_percent_and_resets_below_5() {
     let mut t = 0;
     let mut hold = |apps: &mut Apps, travel: f32, brake: bool| {
         let (a, b) = pedal(travel, travel);
-        let mut reading = apps.update(a, b, brake, t);
+        let mut reading = apps.update([Some(a), Some(b)], brake, t);
         for _ in 0..50 {
             t += 1;
-            reading = apps.update(a, b, brake, t);
+            reading = apps.update([Some(a), Some(b)], brake, t);
         }
         reading
     };
@@ -125,14 +128,17 @@ fn brake_sensor_fault_light_and_circuits() {
         });
         brakes.reading()
     };
-    assert!(!settle(&mut brakes, 25.0, 25.0, 0).light, "25 psi: not yet");
-    assert!(settle(&mut brakes, 35.0, 35.0, 50).light, "35 psi: on");
     assert!(
-        settle(&mut brakes, 25.0, 25.0, 100).light,
+        !settle(&mut brakes, 25.0, 25.0, 0).engaged,
+        "25 psi: not yet"
+    );
+    assert!(settle(&mut brakes, 35.0, 35.0, 50).engaged, "35 psi: on");
+    assert!(
+        settle(&mut brakes, 25.0, 25.0, 100).engaged,
         "hysteresis holds at 25 psi"
     );
-    assert!(!settle(&mut brakes, 15.0, 15.0, 150).light, "15 psi: off");
-    assert!(settle(&mut brakes, 60.0, 60.0, 200).pressed);
+    assert!(!settle(&mut brakes, 15.0, 15.0, 150).engaged, "15 psi: off");
+    assert!(settle(&mut brakes, 60.0, 60.0, 200).engaged);
 
     // One circuit at 500 psi, the other empty, for over 500 ms.
     let mut brakes = Brakes::new(1);
@@ -159,18 +165,16 @@ impl Car {
                 now_ms: 0,
                 pcc: None,
                 rtm_button: false,
-                brake_pressed: false,
+                brakes_engaged: false,
                 faults: FaultMap::NONE,
             },
         }
     }
 
-    /// Steps to `now` with a fresh PCC status in `pcc`.
+    /// Steps to `now` with the PCC's fresh status `pcc` (`None`: no fresh status).
     fn at(&mut self, now: u32, pcc: Option<PrechargeState>) -> State {
         self.inputs.now_ms = now;
-        if let Some(state) = pcc {
-            self.inputs.pcc = Some((state, now));
-        }
+        self.inputs.pcc = pcc;
         self.vehicle.step(&self.inputs).state
     }
 
@@ -188,7 +192,7 @@ impl Car {
     /// Presses the button with the brake from `from`; returns when the sound started.
     fn press(&mut self, from: u32) -> u32 {
         self.inputs.rtm_button = true;
-        self.inputs.brake_pressed = true;
+        self.inputs.brakes_engaged = true;
         let mut t = from;
         loop {
             self.at(t, Some(PrechargeState::Online));
@@ -240,9 +244,8 @@ fn a_stale_or_lost_precharge_leaves_driving_at_once() {
         car.at(driving_at, Some(PrechargeState::Online)),
         State::Driving
     );
-    // No PCC frame for 100 ms is still fine; 101 ms is not.
-    assert_eq!(car.at(driving_at + 100, None), State::Driving);
-    assert_eq!(car.at(driving_at + 101, None), State::Standby);
+    // The bus layer stops vouching for a status older than 100 ms (tested in `bus`).
+    assert_eq!(car.at(driving_at + 10, None), State::Standby);
 }
 
 #[test]
@@ -273,7 +276,11 @@ fn faults_stop_the_vehicle_and_clear_to_standby() {
     let mut plausibility = FaultMap::NONE;
     plausibility.set(Fault::AppsBrakePlausibility, true);
     assert!(!plausibility.stops_the_vehicle());
-    // A PCC error is a fault too.
+    // A PCC error is a fault too (the fault monitor raises it; here, as the state machine
+    // receives it).
+    let mut pcc_error = FaultMap::NONE;
+    pcc_error.set(Fault::PccError, true);
+    car.inputs.faults = pcc_error;
     assert_eq!(
         car.at(started + 2_040, Some(PrechargeState::Error)),
         State::Fault
@@ -304,10 +311,10 @@ fn vcu1_counts_and_carries_a_valid_checksum() {
         torque_nm: 101.92,
         drive: true,
         main_relay: true,
-        brake_pressed: false,
+        brakes_engaged: false,
     };
     for expected_counter in (0..16).chain(0..4) {
-        let data = builder.next_frame(&command).unwrap();
+        let (_, data) = builder.next_frame(&command).unwrap();
         let vcu1 = Vcu1::decode(&data).unwrap();
         assert_eq!(vcu1.vcu_rolling_counter, expected_counter);
         assert_eq!(
@@ -321,14 +328,14 @@ fn vcu1_counts_and_carries_a_valid_checksum() {
         );
         assert_eq!(data[0], 100);
     }
-    let over = builder
+    let (_, over) = builder
         .next_frame(&DriveCommand {
             torque_nm: 400.0,
             ..command
         })
         .unwrap();
     assert_eq!(over[0], 255, "clamped to the frame's 259.9 Nm");
-    let nan = builder
+    let (_, nan) = builder
         .next_frame(&DriveCommand {
             torque_nm: f32::NAN,
             ..command
@@ -400,7 +407,10 @@ fn bus_frames_fill_the_mirror_and_bad_ones_are_counted() {
     let mut data = [0u8; 8];
     status.encode(&mut data).unwrap();
     ccm.on_frame(&frame(0x222, &data), 5);
-    assert_eq!(ccm.bus().pcc, Some((PrechargeState::Online, 5)));
+    assert_eq!(
+        ccm.bus().pcc.fresh(5, 0).map(|status| status.pcc_state),
+        Some(PrechargeState::Online)
+    );
     ccm.on_frame(&frame(0x222, &data[..4]), 6);
     ccm.on_frame(&frame(0x123, &data), 7);
     assert_eq!(ccm.bus().decode_errors, 1);
@@ -409,6 +419,7 @@ fn bus_frames_fill_the_mirror_and_bad_ones_are_counted() {
     ccm.set_driver_counters(aer_ccm::DriverCounters {
         rx_dropped: 3,
         tx_dropped: 257,
+        ..aer_ccm::DriverCounters::default()
     });
     let snapshot = ccm.snapshot();
     assert_eq!(snapshot.can_decode_errors, 2);
@@ -423,7 +434,7 @@ fn the_telemetry_packet_reaches_an_iso_tp_receiver_intact() {
     for t in 0..20 {
         ccm.sample(
             &SensorSample {
-                apps_raw: (a, b),
+                apps_raw: [Some(a), Some(b)],
                 brake_v: (volts_for(10.0), volts_for(10.0)),
                 shock_raw: [4095, 4081, 4067, 4053],
             },
@@ -460,4 +471,243 @@ fn the_telemetry_packet_reaches_an_iso_tp_receiver_intact() {
     let mut from_status = Telemetry::default();
     from_status.apply(&AnyMessage::CcmStatus(status));
     assert_eq!(from_status.vehicle_state, telemetry.vehicle_state);
+}
+
+// --- Freshness, torque monitor, power limiter --------------------------------------------------
+
+#[test]
+fn a_received_value_is_fresh_up_to_its_limit_and_lost_after_it_or_after_the_grace_period() {
+    use aer_ccm::bus::Received;
+    use aer_ccm::config::START_UP_GRACE_MS;
+    let mut received: Received<u8> = Received::default();
+    assert!(
+        !received.lost(START_UP_GRACE_MS, 100, 0),
+        "within the start-up grace"
+    );
+    assert!(
+        received.lost(START_UP_GRACE_MS + 1, 100, 0),
+        "never heard after it"
+    );
+    received.store(7, 1_000);
+    assert_eq!(received.fresh(1_100, 100), Some(7));
+    assert!(!received.lost(1_100, 100, 0));
+    assert_eq!(received.fresh(1_101, 100), None);
+    assert!(received.lost(1_101, 100, 0));
+    // The millisecond clock wraps.
+    received.store(8, u32::MAX - 10);
+    assert_eq!(received.fresh(20, 100), Some(8));
+}
+
+fn monitor_inputs() -> aer_ccm::monitor::MonitorInputs {
+    aer_ccm::monitor::MonitorInputs {
+        torque_enabled: true,
+        faults: FaultMap::NONE,
+        apps: aer_ccm::apps::AppsReading {
+            travel: 1.0,
+            apps1: 1.0,
+            apps2: 1.0,
+            ..Default::default()
+        },
+        sensors_fresh: true,
+        motor_rad_s: Some(100.0),
+        soc: Some(0.8),
+        inverter_max_nm: Some(259.896),
+        dc_power_w: Some(20_000.0),
+    }
+}
+
+#[test]
+fn the_monitor_allows_the_least_of_pedal_power_soc_motor_and_inverter() {
+    use aer_ccm::monitor::{MonitorInputs, allowed_torque};
+    let full = monitor_inputs();
+    assert!(
+        (allowed_torque(&full) - 259.896).abs() < 1e-3,
+        "inverter maximum"
+    );
+    // 0.97 x 80 kW at 400 rad/s = 194 Nm.
+    let fast = MonitorInputs {
+        motor_rad_s: Some(400.0),
+        ..full
+    };
+    assert!(
+        (allowed_torque(&fast) - 194.0).abs() < 0.01,
+        "{}",
+        allowed_torque(&fast)
+    );
+    let low_soc = MonitorInputs {
+        soc: Some(0.125),
+        ..full
+    };
+    assert!((allowed_torque(&low_soc) - 130.0).abs() < 0.01);
+    // One sensor failing high cannot raise the request above the other.
+    let mut apps = full.apps;
+    apps.apps1 = 1.0;
+    apps.apps2 = 0.3;
+    apps.travel = 0.65;
+    let split = MonitorInputs { apps, ..full };
+    let bound = (0.3 - 0.02) / 0.98 * 260.0;
+    assert!(
+        (allowed_torque(&split) - bound).abs() < 0.01,
+        "{}",
+        allowed_torque(&split)
+    );
+}
+
+#[test]
+fn the_monitor_allows_nothing_without_fresh_inputs_or_with_a_stopping_fault() {
+    use aer_ccm::monitor::{MonitorInputs, allowed_torque};
+    let full = monitor_inputs();
+    for stale in [
+        MonitorInputs {
+            motor_rad_s: None,
+            ..full
+        },
+        MonitorInputs { soc: None, ..full },
+        MonitorInputs {
+            inverter_max_nm: None,
+            ..full
+        },
+        MonitorInputs {
+            dc_power_w: None,
+            ..full
+        },
+        MonitorInputs {
+            sensors_fresh: false,
+            ..full
+        },
+        MonitorInputs {
+            torque_enabled: false,
+            ..full
+        },
+        MonitorInputs {
+            soc: Some(f32::NAN),
+            ..full
+        },
+        MonitorInputs {
+            motor_rad_s: Some(f32::NAN),
+            ..full
+        },
+    ] {
+        assert_eq!(allowed_torque(&stale), 0.0, "{stale:?}");
+    }
+    for fault in Fault::ALL {
+        let mut faults = FaultMap::NONE;
+        faults.set(fault, true);
+        let allowed = allowed_torque(&MonitorInputs { faults, ..full });
+        if fault.reaction() == aer_ccm::faults::Reaction::Warn {
+            assert!(allowed > 0.0, "{fault:?} is a warning");
+        } else {
+            assert_eq!(allowed, 0.0, "{fault:?}");
+        }
+    }
+}
+
+#[test]
+fn the_power_ceiling_starts_safe_trims_up_only_when_settled_and_down_at_once() {
+    use aer_ccm::config::{DRIVETRAIN_EFFICIENCY, POWER_TARGET_W};
+    use aer_ccm::power::PowerLimiter;
+    let (lowest, highest) = DRIVETRAIN_EFFICIENCY;
+    let mut limiter = PowerLimiter::new(10);
+    let omega = 350.0;
+    let first = limiter.step(omega, 0.0, 260.0);
+    assert!(
+        (first - lowest * POWER_TARGET_W / omega).abs() < 0.5,
+        "{first}"
+    );
+    // The measurement still rising: no trim up.
+    for measured in [10_000.0, 30_000.0, 50_000.0, 65_000.0] {
+        limiter.step(omega, measured, 260.0);
+        assert_eq!(
+            limiter.efficiency(),
+            lowest,
+            "while the measurement catches up"
+        );
+    }
+    // Settled below the target: trims up, towards (not past) the highest efficiency.
+    for _ in 0..200 {
+        limiter.step(omega, 70_000.0, 260.0);
+    }
+    assert_eq!(limiter.efficiency(), highest);
+    // Above the target: down at once, settled or not.
+    let before = limiter.efficiency();
+    limiter.step(omega, 90_000.0, 260.0);
+    assert!(limiter.efficiency() < before);
+    // Not binding: back to the lowest efficiency.
+    for _ in 0..500 {
+        limiter.step(omega, 20_000.0, 10.0);
+    }
+    assert!(limiter.efficiency() - lowest < 1e-3);
+}
+
+#[test]
+fn the_torque_request_has_a_rest_deadband_and_reaches_the_maximum() {
+    use aer_ccm::drive::torque_request;
+    assert_eq!(torque_request(0.0), 0.0);
+    assert_eq!(
+        torque_request(0.019),
+        0.0,
+        "sensor noise at rest asks for nothing"
+    );
+    assert_eq!(torque_request(1.0), 260.0);
+    assert_eq!(torque_request(f32::NAN), 0.0);
+    assert!(torque_request(0.51) > torque_request(0.5));
+}
+
+#[test]
+fn inverter_fault_bits_stop_the_car_and_warnings_are_reported() {
+    use aer::can::{Mcu2, McuWarningLevel};
+    use aer_ccm::faults::inverter_condition;
+    let quiet = aer_m7_check_free_quiet_mcu2();
+    assert_eq!(inverter_condition(&quiet), (false, false));
+    let stall = Mcu2 {
+        mcu_motor_stall_fault: true,
+        ..quiet
+    };
+    assert_eq!(inverter_condition(&stall), (true, false));
+    let high = Mcu2 {
+        mcu_warning_level: McuWarningLevel::High,
+        ..quiet
+    };
+    assert_eq!(inverter_condition(&high), (true, false));
+    let unknown = Mcu2 {
+        mcu_warning_level: McuWarningLevel::Unknown(7),
+        ..quiet
+    };
+    assert_eq!(inverter_condition(&unknown), (true, false));
+    let low_12v = Mcu2 {
+        mcu_12v_low_volt_warning: true,
+        ..quiet
+    };
+    assert_eq!(inverter_condition(&low_12v), (false, true));
+    let medium = Mcu2 {
+        mcu_warning_level: McuWarningLevel::Medium,
+        ..quiet
+    };
+    assert_eq!(inverter_condition(&medium), (false, true));
+}
+
+fn aer_m7_check_free_quiet_mcu2() -> aer::can::Mcu2 {
+    aer::can::Mcu2 {
+        mcu_motor_temp: 40,
+        mcu_inverter_temp: 35,
+        mcu_dc_main_wire_over_curr_fault: false,
+        mcu_motor_phase_curr_fault: false,
+        mcu_over_hot_fault: false,
+        mcu_resolver_fault: false,
+        mcu_phase_curr_sensor_fault: false,
+        mcu_motor_over_spd_fault: false,
+        mcu_drv_motor_over_hot_fault: false,
+        mcu_dc_main_wire_over_volt_fault: false,
+        mcu_drv_motor_over_cool_fault: false,
+        mcu_motor_system_state: false,
+        mcu_temp_sensor_state: false,
+        mcu_motor_temp_sensor_state: false,
+        mcu_dc_volt_sensor_state: false,
+        mcu_dc_low_volt_warning: false,
+        mcu_12v_low_volt_warning: false,
+        mcu2_rolling_counter: 0,
+        mcu_warning_level: aer::can::McuWarningLevel::None,
+        mcu_motor_open_phase_fault: false,
+        mcu_motor_stall_fault: false,
+    }
 }

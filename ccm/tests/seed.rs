@@ -3,7 +3,7 @@
 use aer_ccm::chassis::{WheelSpeed, shock_raw_for_volts, shock_travel_mm};
 use aer_ccm::config::SHOCK_TRAVEL_MAX_MM;
 use aer_ccm::launch::{LaunchControl, LaunchInputs, LaunchState};
-use aer_ccm::power::PowerLimits;
+use aer_ccm::power::{PowerLimiter, PowerLimits};
 use aer_ccm::watchdog::{Supervisor, Task};
 
 // --- PowerLimit_Update ---------------------------------------------------------------------
@@ -18,46 +18,66 @@ const PLAN: PowerLimits = PowerLimits {
 
 #[test]
 fn power_limit_case_1_base_case_passes_the_demand() {
-    assert_eq!(PLAN.limit_torque(0.25, 40.0, 2.0, 200.0), 200.0);
+    assert_eq!(PLAN.soc_limited(0.25, 200.0), 200.0);
 }
 
 #[test]
 fn power_limit_case_2_clamps_to_the_motor_maximum() {
-    assert_eq!(PLAN.limit_torque(0.25, 40.0, 2.0, 270.0), 260.0);
+    assert_eq!(PLAN.soc_limited(0.25, 270.0), 260.0);
 }
 
+/// Deviation from the plan: case 3 scales the demand by threshold / measured power (40 V x
+/// 3 A = 120 > 90, so 200 -> 150). Measured power is produced by the previous, already
+/// limited command, so in closed loop that scaling settles near sqrt(demand x limit): with
+/// the car's 80 kW it held 89 / 100 / 115 kW at 3,300 / 4,000 / 5,000 rpm (EV.3.3.1 broken).
+/// The CCM instead limits with a torque ceiling from the motor speed, trimmed by the measured
+/// power (`power.rs`); the car model proves it holds in closed loop
+/// (`car-model/tests/power_limit.rs`). Here: the same measured power no longer scales an
+/// instantaneous demand; the ceiling at the lowest efficiency keeps P <= target at any speed.
 #[test]
-fn power_limit_case_3_scales_by_the_power_threshold() {
-    assert!((PLAN.limit_torque(0.25, 40.0, 3.0, 200.0) - 150.0).abs() < 1e-3);
+fn power_limit_case_3_deviation_the_ceiling_comes_from_speed_not_from_the_last_measurement() {
+    let mut limiter = PowerLimiter::new(10);
+    let motor_rad_s = 400.0;
+    // 200 Nm at 400 rad/s is 80 kW of shaft power: above what the target allows.
+    let ceiling = limiter.step(motor_rad_s, 120.0, 200.0);
+    let (lowest, _) = aer_ccm::config::DRIVETRAIN_EFFICIENCY;
+    let target = aer_ccm::config::POWER_TARGET_W;
+    assert!(
+        (ceiling - lowest * target / motor_rad_s).abs() < 1e-3,
+        "{ceiling}"
+    );
+    assert!(ceiling * motor_rad_s / lowest <= target + 1.0);
 }
 
 #[test]
 fn power_limit_case_4_derates_with_soc() {
-    assert!((PLAN.limit_torque(0.1, 40.0, 2.0, 200.0) - 66.67).abs() < 0.01);
+    assert!((PLAN.soc_limited(0.1, 200.0) - 66.67).abs() < 0.01);
 }
 
 #[test]
 fn power_limit_case_5_is_zero_at_the_end_of_derating() {
-    assert_eq!(PLAN.limit_torque(0.05, 40.0, 2.0, 200.0), 0.0);
+    assert_eq!(PLAN.soc_limited(0.05, 200.0), 0.0);
 }
 
 // --- Launch control --------------------------------------------------------------------------
 
-fn inputs(front: (f32, f32), driven: f32, torque: f32, brake_psi: f32) -> LaunchInputs {
+fn inputs(front: (f32, f32), driven: f32, torque: f32, brakes_engaged: bool) -> LaunchInputs {
     LaunchInputs {
         button: true,
-        brake_psi,
+        brakes_engaged,
+        pedal: torque / 260.0,
         front_rad_s: front,
         driven_rad_s: driven,
         driver_torque_nm: torque,
     }
 }
 
-/// Launch control armed (brake 60 psi, motor stopped, button) and then released.
+/// Launch control armed (brakes engaged, motor stopped, button), brakes released and the
+/// pedal pressed.
 fn active() -> LaunchControl {
     let mut launch = LaunchControl::new(10);
-    launch.step(&inputs((0.0, 0.0), 0.0, 0.0, 60.0));
-    launch.step(&inputs((0.0, 0.0), 0.0, 0.0, 0.0));
+    launch.step(&inputs((0.0, 0.0), 0.0, 0.0, true));
+    launch.step(&inputs((0.0, 0.0), 0.0, 130.0, false));
     assert_eq!(launch.state(), LaunchState::Active);
     launch
 }
@@ -65,7 +85,7 @@ fn active() -> LaunchControl {
 #[test]
 fn launch_case_1_brake_held_at_standstill_turns_launch_on() {
     let mut launch = LaunchControl::new(10);
-    launch.step(&inputs((0.0, 0.0), 0.0, 0.0, 60.0));
+    launch.step(&inputs((0.0, 0.0), 0.0, 0.0, true));
     assert_eq!(
         launch.state(),
         LaunchState::Armed,
@@ -76,54 +96,67 @@ fn launch_case_1_brake_held_at_standstill_turns_launch_on() {
 #[test]
 fn launch_case_2_no_slip_barely_changes_the_torque() {
     let mut launch = active();
-    let torque = launch.step(&inputs((80.0, 82.0), 80.0, 150.0, 0.0));
+    let torque = launch.step(&inputs((80.0, 82.0), 80.0, 150.0, false));
     assert!(launch.slip().abs() <= 0.02, "slip {}", launch.slip());
-    assert!((150.0..=165.0).contains(&torque), "{torque}");
+    assert_eq!(torque, 150.0, "unchanged");
     assert_eq!(launch.state(), LaunchState::Active);
 }
 
 #[test]
 fn launch_case_3_very_high_slip_takes_the_torque_to_near_zero() {
     let mut launch = active();
-    let torque = launch.step(&inputs((40.0, 42.0), 100.0, 200.0, 0.0));
+    let torque = launch.step(&inputs((40.0, 42.0), 100.0, 200.0, false));
     assert!(launch.slip() > 1.4, "slip {}", launch.slip());
     assert!(torque < 5.0, "{torque}");
 }
 
+/// Deviation from the plan: case 4 expects the PID to add torque above the driver's 250 Nm
+/// (up to 260) when slip is below the target. Adding torque is what kept the car pushing
+/// with the pedal released (74 Nm for 10 s after a launch, issue 12); launch control now
+/// only takes torque away, so the driver's 250 Nm passes unchanged.
 #[test]
-fn launch_case_4_slip_below_target_adds_torque_up_to_260() {
+fn launch_case_4_deviation_slip_below_target_never_adds_torque() {
     let mut launch = active();
-    let torque = launch.step(&inputs((100.0, 99.0), 100.0, 250.0, 0.0));
+    let torque = launch.step(&inputs((100.0, 99.0), 100.0, 250.0, false));
     assert!(launch.slip() < 0.07);
-    assert_eq!(torque, 260.0);
+    assert_eq!(torque, 250.0);
 }
 
 #[test]
 fn launch_case_5_brake_ends_launch_and_resets_the_pid() {
     let mut launch = active();
     for _ in 0..20 {
-        launch.step(&inputs((40.0, 42.0), 100.0, 200.0, 0.0));
+        launch.step(&inputs((40.0, 42.0), 100.0, 200.0, false));
     }
-    let torque = launch.step(&inputs((40.0, 42.0), 100.0, 0.9 * 260.0, 80.0));
+    let torque = launch.step(&inputs((40.0, 42.0), 100.0, 0.9 * 260.0, true));
     assert_eq!(launch.state(), LaunchState::Off);
     assert_eq!(torque, 0.9 * 260.0, "torque = raw input");
-    // Re-armed, the PID starts from zero: the first correction equals a fresh controller's.
+    // Re-armed, the controller starts from zero: the first correction equals a fresh one's.
     let mut fresh = active();
     let mut reused = launch;
-    reused.step(&inputs((0.0, 0.0), 0.0, 0.0, 60.0));
-    reused.step(&inputs((0.0, 0.0), 0.0, 0.0, 0.0));
-    let step = inputs((80.0, 82.0), 80.0, 150.0, 0.0);
+    reused.step(&inputs((0.0, 0.0), 0.0, 0.0, true));
+    reused.step(&inputs((0.0, 0.0), 0.0, 130.0, false));
+    let step = inputs((40.0, 42.0), 50.0, 150.0, false);
     assert_eq!(reused.step(&step), fresh.step(&step));
 }
 
 #[test]
-fn launch_pid_state_persists_between_steps() {
+fn launch_ends_when_the_pedal_drops_below_5_percent() {
+    let mut launch = active();
+    launch.step(&inputs((80.0, 82.0), 80.0, 150.0, false));
+    let torque = launch.step(&inputs((80.0, 82.0), 80.0, 10.0, false));
+    assert_eq!(launch.state(), LaunchState::Off, "3.8 % pedal");
+    assert_eq!(torque, 10.0);
+}
+
+#[test]
+fn launch_reduction_state_persists_between_steps() {
     // Fixed defect: with the PID rebuilt every step the correction would never grow.
     let mut launch = active();
-    let step = inputs((80.0, 82.0), 80.0, 100.0, 0.0);
+    let step = inputs((80.0, 82.0), 100.0, 200.0, false);
     let first = launch.step(&step);
     let second = launch.step(&step);
-    assert!(second > first, "{first} -> {second}");
+    assert!(second < first, "{first} -> {second}");
 }
 
 // --- Shock travel ----------------------------------------------------------------------------

@@ -6,8 +6,9 @@
 //! - `can1_receive` / `can2_receive` (CAN interrupts, 3): drain the FlexCAN FIFOs into bounded
 //!   queues (overflows counted); the Pi's ISO-TP flow control (0x777) goes straight to the
 //!   telemetry sender.
-//! - `control` (100 Hz, 2): CAN intake, state machine, torque, outputs; VCU1/BMS1/BMS2 every
-//!   20 ms, CCM_Status every 100 ms.
+//! - `control` (100 Hz, 2): CAN intake, bus health, state machine, torque, outputs;
+//!   VCU1/BMS1/BMS2 every 20 ms (a VCU1 still pending replaces the older one), CCM_Status
+//!   every 100 ms.
 //! - `telemetry` (100 Hz, 1): snapshot -> generated packer -> ISO-TP on 0x666.
 //! - `watchdog` (10 Hz, 1): feeds WDOG1 (1 s timeout) only while every task's heartbeat is
 //!   younger than 100 ms.
@@ -31,11 +32,12 @@ mod app {
     use aer_ccm::ads1115::Ads1115;
     use aer_ccm::apps::AppsCalibration;
     use aer_ccm::config::{
-        CONTROL_PERIOD_MS, INVERTER_PERIOD_MS, TELEMETRY_PERIOD_MS, WATCHDOG_CHECK_MS,
+        CONTROL_PERIOD_MS, INVERTER_PERIOD_MS, STATUS_PERIOD_MS, TELEMETRY_PERIOD_MS,
+        WATCHDOG_CHECK_MS,
     };
     use aer_ccm::watchdog::{Supervisor, Task};
-    use aer_ccm::{Ccm, DriverCounters, DriverInputs, SensorSample};
-    use aer_flexcan::{CanFrame, Flexcan};
+    use aer_ccm::{BusHealth, Ccm, DriverCounters, DriverInputs, SensorSample};
+    use aer_flexcan::{BusStatus, CanFrame, FaultState, Flexcan};
     use core::sync::atomic::{AtomicU32, Ordering};
     use embedded_can::{Frame, Id, StandardId};
     use heapless::spsc::{Consumer, Producer, Queue};
@@ -53,10 +55,11 @@ mod app {
 
     /// Frames dropped because a receive queue was full.
     static RX_QUEUE_OVERFLOWS: AtomicU32 = AtomicU32::new(0);
-    /// Frames not sent because every mailbox was busy (bus-off or flooded bus).
-    static TX_BUSY: AtomicU32 = AtomicU32::new(0);
-    /// Frames that could not be encoded.
-    static ENCODE_FAILURES: AtomicU32 = AtomicU32::new(0);
+    /// Frames not sent: every mailbox busy (bus-off or flooded bus), or the frame could not
+    /// be encoded. Reported in telemetry with the controllers' own drops.
+    static TX_NOT_SENT: AtomicU32 = AtomicU32::new(0);
+    /// Failed I2C transactions with the pedal converter (copied from the sensors task).
+    static PEDAL_BUS_ERRORS: AtomicU32 = AtomicU32::new(0);
 
     #[shared]
     struct Shared {
@@ -156,8 +159,7 @@ mod app {
 
         let (scl, sda) = pins.i2c;
         let i2c = bsp::lpi2c(lpi2c1, scl, sda, bsp::Lpi2cClockSpeed::KHz400);
-        let mut ads = Ads1115::new(i2c);
-        ads.start();
+        let ads = Ads1115::new(i2c);
 
         gpt1.set_clock_source(hal::gpt::ClockSource::PeripheralClock);
         gpt1.set_divider(bsp::PERCLK_FREQUENCY / 1_000_000);
@@ -284,6 +286,7 @@ mod app {
                 ),
                 shock_raw: [fl, fr, rl, rr],
             };
+            PEDAL_BUS_ERRORS.store(cx.local.ads.bus_errors, Ordering::Relaxed);
             let now = now_ms();
             cx.shared.ccm.lock(|ccm| ccm.sample(&sample, now));
             cx.shared
@@ -327,20 +330,40 @@ mod app {
         cx.shared.can2.lock(|can| drain(can, queue, ccm));
     }
 
-    fn send<const N: u8>(can: &mut impl rtic::Mutex<T = Flexcan<N>>, id: u32, data: &[u8]) {
+    /// How a frame is queued: behind a pending one with its identifier, or replacing it.
+    #[derive(Clone, Copy, PartialEq, Eq)]
+    enum Queueing {
+        Behind,
+        Replacing,
+    }
+
+    fn send<const N: u8>(
+        can: &mut impl rtic::Mutex<T = Flexcan<N>>,
+        id: u32,
+        data: &[u8],
+        queueing: Queueing,
+    ) {
         let frame = u16::try_from(id)
             .ok()
             .and_then(StandardId::new)
             .and_then(|id| CanFrame::new(id, data));
-        match frame {
-            Some(frame) => {
-                if can.lock(|can| can.transmit(&frame)).is_err() {
-                    TX_BUSY.fetch_add(1, Ordering::Relaxed);
-                }
-            }
-            None => {
-                ENCODE_FAILURES.fetch_add(1, Ordering::Relaxed);
-            }
+        let sent = frame.is_some_and(|frame| {
+            can.lock(|can| match queueing {
+                Queueing::Behind => can.transmit(&frame),
+                Queueing::Replacing => can.transmit_latest(&frame),
+            })
+            .is_ok()
+        });
+        if !sent {
+            TX_NOT_SENT.fetch_add(1, Ordering::Relaxed);
+        }
+    }
+
+    fn health(status: &BusStatus) -> BusHealth {
+        BusHealth {
+            error_passive: status.state == FaultState::ErrorPassive,
+            bus_off: status.state == FaultState::BusOff,
+            bus_off_events: status.bus_off_events,
         }
     }
 
@@ -359,16 +382,19 @@ mod app {
                 ready_to_move: cx.local.ready_to_move.is_set(),
                 launch: cx.local.launch.is_set(),
             };
-            let fifo_overflows = cx
-                .shared
-                .can1
-                .lock(|can| can.status().rx_fifo_overflows)
-                .wrapping_add(cx.shared.can2.lock(|can| can.status().rx_fifo_overflows));
+            let bus1 = cx.shared.can1.lock(|can| can.check_errors());
+            let bus2 = cx.shared.can2.lock(|can| can.check_errors());
             let counters = DriverCounters {
                 rx_dropped: RX_QUEUE_OVERFLOWS
                     .load(Ordering::Relaxed)
-                    .wrapping_add(fifo_overflows),
-                tx_dropped: TX_BUSY.load(Ordering::Relaxed),
+                    .wrapping_add(bus1.rx_fifo_overflows)
+                    .wrapping_add(bus2.rx_fifo_overflows),
+                tx_dropped: TX_NOT_SENT
+                    .load(Ordering::Relaxed)
+                    .wrapping_add(bus1.tx_dropped)
+                    .wrapping_add(bus2.tx_dropped),
+                pedal_bus_errors: PEDAL_BUS_ERRORS.load(Ordering::Relaxed),
+                buses: [health(&bus1), health(&bus2)],
             };
             let (outputs, inverter, status) = cx.shared.ccm.lock(|ccm| {
                 ccm.set_driver_counters(counters);
@@ -381,7 +407,8 @@ mod app {
                 let outputs = ccm.control(driver, now, now_micros);
                 let inverter = (step % (INVERTER_PERIOD_MS / CONTROL_PERIOD_MS) == 0)
                     .then(|| ccm.inverter_frames());
-                let status = (step % 10 == 0).then(|| ccm.status());
+                let status =
+                    (step % (STATUS_PERIOD_MS / CONTROL_PERIOD_MS) == 0).then(|| ccm.next_status());
                 (outputs, inverter, status)
             });
             if outputs.brake_light {
@@ -402,22 +429,23 @@ mod app {
 
             match inverter {
                 Some(Ok(frames)) => {
+                    // A torque command never waits behind an older one: it replaces it.
                     for (id, data) in frames {
-                        send(&mut cx.shared.can2, id, &data);
+                        send(&mut cx.shared.can2, id, &data, Queueing::Replacing);
                     }
                 }
                 Some(Err(_)) => {
-                    ENCODE_FAILURES.fetch_add(1, Ordering::Relaxed);
+                    TX_NOT_SENT.fetch_add(3, Ordering::Relaxed);
                 }
                 None => {}
             }
             if let Some(status) = status {
                 let mut data = [0u8; CcmStatus::LEN];
                 if status.encode(&mut data).is_ok() {
-                    send(&mut cx.shared.can1, CcmStatus::ID, &data);
-                    send(&mut cx.shared.can2, CcmStatus::ID, &data);
+                    send(&mut cx.shared.can1, CcmStatus::ID, &data, Queueing::Behind);
+                    send(&mut cx.shared.can2, CcmStatus::ID, &data, Queueing::Behind);
                 } else {
-                    ENCODE_FAILURES.fetch_add(1, Ordering::Relaxed);
+                    TX_NOT_SENT.fetch_add(2, Ordering::Relaxed);
                 }
             }
             cx.shared.supervisor.lock(|supervisor| {
