@@ -5,7 +5,8 @@
 //! ([`measurement`]), BMS frames become a link state ([`bms`]), the state machine
 //! ([`machine`]) turns both plus the shutdown input into a state, the relays follow from the
 //! state alone ([`relays`]), and the status frame is built by the generated codec
-//! ([`status`](Precharge::status)).
+//! ([`status`](Precharge::status)). [`watchdog`] decides when the hardware watchdog may be
+//! serviced and what a restart after it expired means.
 #![no_std]
 
 pub mod bms;
@@ -13,9 +14,11 @@ pub mod config;
 pub mod machine;
 pub mod measurement;
 pub mod relays;
-pub mod sim;
+mod state;
 mod status;
+pub mod watchdog;
 
 pub use config::{PrechargeConfig, TASK_PERIOD_MS, VfConfig};
-pub use machine::{Errors, Inputs, Precharge, State};
+pub use machine::{Inputs, Precharge};
 pub use relays::Relays;
+pub use state::{Errors, State};

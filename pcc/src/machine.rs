@@ -20,69 +20,8 @@
 
 use crate::config::PrechargeConfig;
 use crate::relays::Relays;
+use crate::state::{Errors, State};
 use aer_control::Persist;
-
-/// Precharge controller state, as sent in PCC_Status.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub enum State {
-    /// Waiting for the shutdown circuit, the pack voltage and the BMS.
-    Standby,
-    /// Charging the tractive system through the precharge resistor.
-    Precharge,
-    /// Relays open, tractive system discharging after the pack went away.
-    Discharge,
-    /// Precharge complete, AIR+ closed: ready to drive.
-    Online,
-    /// Precharge complete with the BMS's charger safety on: connected for charging.
-    Charging,
-    /// A fault: everything open.
-    Error,
-}
-
-impl State {
-    /// The schema's value for this state.
-    pub const fn to_wire(self) -> aer::can::PrechargeState {
-        use aer::can::PrechargeState as Wire;
-        match self {
-            Self::Standby => Wire::Standby,
-            Self::Precharge => Wire::Precharge,
-            Self::Discharge => Wire::Discharge,
-            Self::Online => Wire::Online,
-            Self::Charging => Wire::Charging,
-            Self::Error => Wire::Error,
-        }
-    }
-
-    /// True in the states where the accumulator may be connected to the tractive system.
-    pub const fn is_energised(self) -> bool {
-        matches!(self, Self::Precharge | Self::Online | Self::Charging)
-    }
-}
-
-/// Latched error causes, as sent in PCC_Status.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub struct Errors {
-    /// 0x01: the target was reached before the minimum time.
-    pub too_fast: bool,
-    /// 0x02: the target was not reached within the maximum time.
-    pub too_slow: bool,
-    /// 0x04: no BMS frame for the timeout while energised.
-    pub bms_timeout: bool,
-    /// 0x08: the shutdown input opened while energised.
-    pub shutdown: bool,
-}
-
-impl Errors {
-    /// True when a cause other than the shutdown input is latched (those need a reset).
-    pub const fn needs_reset(&self) -> bool {
-        self.too_fast || self.too_slow || self.bms_timeout
-    }
-
-    /// True when any cause is latched.
-    pub const fn any(&self) -> bool {
-        self.needs_reset() || self.shutdown
-    }
-}
 
 /// What the control task measured this period.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -132,6 +71,16 @@ impl Precharge {
             accumulator_v: 0.0,
             tractive_v: 0.0,
         }
+    }
+
+    /// A controller that restarted because its watchdog expired: it cannot know what state
+    /// it was in (it hung or panicked there), so it starts in ERROR with every relay open
+    /// and the "undefined state" cause latched until the PCC is power-cycled.
+    pub fn after_watchdog_reset(config: PrechargeConfig, now_ms: u32) -> Self {
+        let mut pcc = Self::new(config, now_ms);
+        pcc.errors.undefined_state = true;
+        pcc.state = State::Error;
+        pcc
     }
 
     /// Current state.

@@ -1,7 +1,7 @@
 //! The relay outputs, derived from the state alone so no path can leave one closed by
 //! accident.
 
-use crate::machine::State;
+use crate::state::State;
 
 /// Commanded relay and shutdown-control outputs (`true` = energised / closed).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]

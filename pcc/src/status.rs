@@ -17,8 +17,7 @@ impl Precharge {
             pcc_error_too_slow: errors.too_slow,
             pcc_error_bms_timeout: errors.bms_timeout,
             pcc_error_shutdown: errors.shutdown,
-            // Rust's exhaustive state enum cannot hold an undefined state.
-            pcc_error_undefined_state: false,
+            pcc_error_undefined_state: errors.undefined_state,
             pcc_accumulator_voltage: clamp(self.accumulator_v()),
             pcc_tractive_voltage: clamp(self.tractive_v()),
             pcc_precharge_progress: clamp(self.progress_percent()),

@@ -5,6 +5,7 @@
 //! Shutdown_in input are not documented there; the pins below are this firmware's choice and
 //! must match the board's schematic before the first HV test.
 
+use teensy4_bsp::hal::iomuxc::gpio::Pin as GpioPin;
 use teensy4_bsp::pins::t40 as pins;
 
 /// CAN bit rate of both car buses.
@@ -36,6 +37,14 @@ pub struct Pins {
     /// Shutdown_in, active high when the shutdown circuit is open (pin 12).
     pub shutdown_in: pins::P12,
 }
+
+/// GPIO4 bits of the relay drivers on pins 2, 3 and 4 (AIR+, AIR-, precharge): the panic
+/// handler clears them without the HAL.
+pub const RELAYS_GPIO4_MASK: u32 = 1 << <pins::P2 as GpioPin<4>>::OFFSET
+    | 1 << <pins::P3 as GpioPin<4>>::OFFSET
+    | 1 << <pins::P4 as GpioPin<4>>::OFFSET;
+/// GPIO2 bit of the shutdown relay control on pin 11.
+pub const SHUTDOWN_GPIO2_MASK: u32 = 1 << <pins::P11 as GpioPin<2>>::OFFSET;
 
 /// Assigns the Teensy's pins to the board's signals.
 pub fn pins(pins: pins::Pins) -> Pins {

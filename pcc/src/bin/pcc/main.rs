@@ -5,22 +5,50 @@
 //! - `can_receive` (CAN2 interrupt, priority 2): drains the FlexCAN RX FIFO into a bounded
 //!   queue; a full queue drops the frame and counts it.
 //! - `control` (every 10 ms, priority 1): samples the voltages, feeds BMS frames to the link
-//!   monitor, steps the state machine, applies the relays in the same period, and sends the
-//!   status frame 0x222.
+//!   monitor, steps the state machine, applies the relays in the same period, sends the
+//!   status frame 0x222, and services the watchdog if the loop is on schedule.
 //!
 //! All decisions are in the `aer_pcc` library; this file only moves data between it and the
-//! hardware. At reset every relay output is low (open) until the first control step.
+//! hardware.
+//!
+//! Failing safe: every relay output is low (open) from reset until a control step closes
+//! it; the relay pads get the internal 100 kOhm pull-down before they become outputs (the
+//! board still needs external pull-downs: between reset and init the pins are inputs with
+//! only the pad keeper). WDOG1 (0.5 s) is serviced only by an on-time control loop, so a
+//! hang restarts the PCC; the panic handler opens every relay before anything else and then
+//! lets the watchdog restart it. After a watchdog restart the PCC starts in ERROR with the
+//! "undefined state" cause latched until a power cycle.
 #![no_std]
 #![no_main]
 
 mod board;
 
-use teensy4_panic as _;
+use core::panic::PanicInfo;
+use teensy4_bsp::ral;
+
+/// Opens every relay, then waits for the watchdog. Runs with whatever state the code had
+/// when it panicked, so it touches nothing but the relay pins' write-only clear registers.
+#[panic_handler]
+fn panic(_: &PanicInfo<'_>) -> ! {
+    // SAFETY: DR_CLEAR registers are write-only and only clear the given bits; the masks
+    // are the relay pins (board.rs), which are outputs from init onwards, so this can only
+    // drive relays open. Nothing else in the program can run after a panic.
+    unsafe {
+        let gpio4 = ral::gpio::GPIO4::instance();
+        ral::write_reg!(ral::gpio, gpio4, DR_CLEAR, board::RELAYS_GPIO4_MASK);
+        let gpio2 = ral::gpio::GPIO2::instance();
+        ral::write_reg!(ral::gpio, gpio2, DR_CLEAR, board::SHUTDOWN_GPIO2_MASK);
+    }
+    loop {
+        cortex_m::asm::nop();
+    }
+}
 
 #[rtic::app(device = teensy4_bsp, peripherals = true, dispatchers = [KPP])]
 mod app {
     use crate::board;
     use aer_flexcan::{CanFrame, Flexcan};
+    use aer_pcc::watchdog::{LoopMonitor, reset_by_watchdog};
     use aer_pcc::{
         Inputs, Precharge, PrechargeConfig, Relays, TASK_PERIOD_MS, VfConfig, bms::BmsLink,
         measurement::VoltageChannel,
@@ -30,7 +58,10 @@ mod app {
     use rtic_monotonics::imxrt::prelude::*;
     use teensy4_bsp::{
         board as bsp,
-        hal::{self, gpio},
+        hal::{
+            self, gpio,
+            iomuxc::{self, Config, PullKeeper},
+        },
         ral,
     };
 
@@ -83,6 +114,8 @@ mod app {
         relays: RelayPins,
         rx_producer: Producer<'static, CanFrame>,
         rx_consumer: Consumer<'static, CanFrame>,
+        wdog: ral::wdog::WDOG1,
+        watchdog_reset: bool,
     }
 
     #[init(local = [rx_queue: Queue<CanFrame, RX_QUEUE> = Queue::new()])]
@@ -96,11 +129,16 @@ mod app {
             ccm,
             ..
         } = bsp::t40(cx.device);
-        let pins = board::pins(pins);
+        let mut pins = board::pins(pins);
 
-        // Relays first, driven open, before anything else can run. A pin on the wrong port
-        // is a build-time mistake in board.rs; the outputs then stay unconfigured (high-Z,
-        // relays open) and the PCC halts.
+        // Relays first, driven open, before anything else can run. The pads get a pull-down
+        // first; a pin on the wrong port is a build-time mistake in board.rs; the outputs then
+        // stay unconfigured (relays open) and the PCC halts.
+        let pull_down = Config::modify().set_pull_keeper(Some(PullKeeper::Pulldown100k));
+        iomuxc::configure(&mut pins.air_plus, pull_down);
+        iomuxc::configure(&mut pins.air_minus, pull_down);
+        iomuxc::configure(&mut pins.precharge, pull_down);
+        iomuxc::configure(&mut pins.shutdown_control, pull_down);
         let (Ok(air_plus), Ok(air_minus), Ok(precharge), Ok(shutdown)) = (
             gpio4.output(pins.air_plus),
             gpio4.output(pins.air_minus),
@@ -142,8 +180,20 @@ mod app {
             halt_safe();
         }
 
-        // SAFETY: the BSP does not hand out the FlexCAN instances; nothing else uses CAN2.
-        let can_regs = unsafe { ral::can::CAN2::instance() };
+        // SAFETY: the BSP does not hand out the FlexCAN instances, SRC or WDOG1; nothing else
+        // uses CAN2, the reset status or the watchdog.
+        let (can_regs, src, wdog) = unsafe {
+            (
+                ral::can::CAN2::instance(),
+                ral::src::SRC::instance(),
+                ral::wdog::WDOG1::instance(),
+            )
+        };
+        // Was this start a watchdog restart? Clear the sticky flags so the next one is judged
+        // on its own.
+        let srsr = ral::read_reg!(ral::src, src, SRSR);
+        ral::write_reg!(ral::src, src, SRSR, srsr);
+        let watchdog_reset = reset_by_watchdog(srsr);
         let mut can =
             match Flexcan::new(can_regs, pins.can_tx, pins.can_rx, &ccm, board::CAN_BITRATE) {
                 Ok(can) => can,
@@ -151,6 +201,8 @@ mod app {
                 Err(_) => halt_safe(),
             };
         can.enable_rx_interrupt();
+
+        start_watchdog(&wdog);
 
         let (rx_producer, rx_consumer) = cx.local.rx_queue.split();
         let vf = VfConfig::PCC_BOARD;
@@ -171,11 +223,26 @@ mod app {
                 relays,
                 rx_producer,
                 rx_consumer,
+                wdog,
+                watchdog_reset,
             },
         )
     }
 
-    /// Parks the core with every relay output low. Only reachable at start-up.
+    /// WDOG1 with a 0.5 s timeout (WT = 0), enabled. The power-down counter is switched off
+    /// so only a missed service restarts the PCC.
+    fn start_watchdog(wdog: &ral::wdog::WDOG1) {
+        ral::write_reg!(ral::wdog, wdog, WMCR, 0);
+        ral::modify_reg!(ral::wdog, wdog, WCR, WT: 0, WDE: 1);
+    }
+
+    fn service_watchdog(wdog: &ral::wdog::WDOG1) {
+        ral::write_reg!(ral::wdog, wdog, WSR, 0x5555);
+        ral::write_reg!(ral::wdog, wdog, WSR, 0xAAAA);
+    }
+
+    /// Parks the core with every relay output low. Only reachable at start-up, before the
+    /// watchdog runs.
     fn halt_safe() -> ! {
         loop {
             cortex_m::asm::wfi();
@@ -213,12 +280,18 @@ mod app {
         });
     }
 
-    #[task(priority = 1, local = [relays, shutdown_in, rx_consumer],
+    #[task(priority = 1, local = [relays, shutdown_in, rx_consumer, wdog, watchdog_reset],
            shared = [accumulator, tractive, can])]
     async fn control(mut cx: control::Context) {
         let start = Mono::now();
-        let mut pcc = Precharge::new(PrechargeConfig::CAR, (start.as_ticks() / 1_000) as u32);
+        let start_ms = (start.as_ticks() / 1_000) as u32;
+        let mut pcc = if *cx.local.watchdog_reset {
+            Precharge::after_watchdog_reset(PrechargeConfig::CAR, start_ms)
+        } else {
+            Precharge::new(PrechargeConfig::CAR, start_ms)
+        };
         let mut bms = BmsLink::default();
+        let mut health = LoopMonitor::new(TASK_PERIOD_MS);
         let mut next = start;
         loop {
             next += u64::from(TASK_PERIOD_MS).millis();
@@ -249,6 +322,9 @@ mod app {
                 None => {
                     STATUS_ENCODE_FAILURES.fetch_add(1, Ordering::Relaxed);
                 }
+            }
+            if health.step_completed(Mono::now().as_ticks() as u32) {
+                service_watchdog(cx.local.wdog);
             }
             Mono::delay_until(next).await;
         }

@@ -1,0 +1,67 @@
+//! The precharge controller's state and latched error causes, as sent in PCC_Status.
+
+/// Precharge controller state, as sent in PCC_Status.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum State {
+    /// Waiting for the shutdown circuit, the pack voltage and the BMS.
+    Standby,
+    /// Charging the tractive system through the precharge resistor.
+    Precharge,
+    /// Relays open, tractive system discharging after the pack went away.
+    Discharge,
+    /// Precharge complete, AIR+ closed: ready to drive.
+    Online,
+    /// Precharge complete with the BMS's charger safety on: connected for charging.
+    Charging,
+    /// A fault: everything open.
+    Error,
+}
+
+impl State {
+    /// The schema's value for this state.
+    pub const fn to_wire(self) -> aer::can::PrechargeState {
+        use aer::can::PrechargeState as Wire;
+        match self {
+            Self::Standby => Wire::Standby,
+            Self::Precharge => Wire::Precharge,
+            Self::Discharge => Wire::Discharge,
+            Self::Online => Wire::Online,
+            Self::Charging => Wire::Charging,
+            Self::Error => Wire::Error,
+        }
+    }
+
+    /// True in the states where the accumulator may be connected to the tractive system.
+    pub const fn is_energised(self) -> bool {
+        matches!(self, Self::Precharge | Self::Online | Self::Charging)
+    }
+}
+
+/// Latched error causes, as sent in PCC_Status.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Errors {
+    /// 0x01: the target was reached before the minimum time.
+    pub too_fast: bool,
+    /// 0x02: the target was not reached within the maximum time.
+    pub too_slow: bool,
+    /// 0x04: no BMS frame for the timeout while energised.
+    pub bms_timeout: bool,
+    /// 0x08: the shutdown input opened while energised.
+    pub shutdown: bool,
+    /// 0x80: the PCC restarted after its watchdog expired (a hang or a panic), so the state
+    /// it was in is not known.
+    pub undefined_state: bool,
+}
+
+impl Errors {
+    /// True when a cause other than the shutdown input is latched (those need a power
+    /// cycle, after the cause is found).
+    pub const fn needs_reset(&self) -> bool {
+        self.too_fast || self.too_slow || self.bms_timeout || self.undefined_state
+    }
+
+    /// True when any cause is latched.
+    pub const fn any(&self) -> bool {
+        self.needs_reset() || self.shutdown
+    }
+}
