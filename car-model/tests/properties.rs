@@ -1,0 +1,151 @@
+//! The rules as invariants over random drive cycles, random car parameters and random faults
+//! (proptest). Every case drives one of the cycles (acceleration with launch control,
+//! skidpad, autocross with throttle/brake overlaps) with a random drivetrain efficiency
+//! (0.85-0.97, also falling with speed), measurement lag (0-50 ms), BMS delay (0-2 periods)
+//! and bus jitter (0-3 ms), and up to three faults at random times for random durations.
+//! Checked every millisecond (see `aer_car_model::rules`):
+//! - every 100 ms average of accumulator power <= 80 kW;
+//! - zero torque within each condition's time after it begins: pedal released, APPS
+//!   implausible or out of range, pedal converter lost, brakes with throttle, brake sensor
+//!   fault, sampling stopped, BMS or inverter silent, PCC not online, either bus off;
+//! - no torque outside DRIVING; no DRIVING without a fresh ONLINE from the PCC; never more
+//!   than the torque monitor allows.
+//!
+//! Cases: 40 by default (about 20 s in a debug build on two cores); set PROPTEST_CASES for
+//! more.
+
+use aer_car_model::chassis::Mode;
+use aer_car_model::driver::Cycle;
+use aer_car_model::faults::{Fault, FaultPlan, Injection, Node};
+use aer_car_model::{ClosedLoop, ModelParams, NoTap};
+use proptest::prelude::*;
+use std::sync::OnceLock;
+
+/// Length of each case after the start-up (ms).
+const RUN_MS: u32 = 15_000;
+
+fn started(cycle: Cycle) -> ClosedLoop {
+    static STARTED: OnceLock<[ClosedLoop; 3]> = OnceLock::new();
+    let all = STARTED.get_or_init(|| {
+        [Cycle::Acceleration, Cycle::Skidpad, Cycle::Autocross].map(|cycle| {
+            let mut run = ClosedLoop::new(ModelParams::NOMINAL, Mode::Road, cycle, FaultPlan::NONE);
+            assert!(run.start_up(20_000), "{cycle:?}: start-up");
+            run
+        })
+    });
+    match cycle {
+        Cycle::Acceleration => all[0].clone(),
+        Cycle::Skidpad => all[1].clone(),
+        _ => all[2].clone(),
+    }
+}
+
+fn fault() -> impl Strategy<Value = Fault> {
+    prop_oneof![
+        Just(Fault::PedalConverterLost),
+        (0usize..2).prop_map(Fault::PedalSensorOpen),
+        (0usize..2).prop_map(Fault::PedalSensorShorted),
+        (0usize..2).prop_map(Fault::PedalSensorStuck),
+        Just(Fault::BrakeSensorNan),
+        Just(Fault::SamplingStopped),
+        Just(Fault::BmsSilent),
+        Just(Fault::InverterSilent),
+        Just(Fault::ShutdownOpen),
+        (0usize..2).prop_map(Fault::BusOff),
+        prop_oneof![
+            Just(Node::Pcc),
+            Just(Node::Bms),
+            Just(Node::Inverter),
+            Just(Node::Imd)
+        ]
+        .prop_map(Fault::GarbledFrames),
+    ]
+}
+
+/// (fault, start after the start-up in ms, duration in ms; 0 = to the end)
+fn injections() -> impl Strategy<Value = Vec<(Fault, u32, u32)>> {
+    prop::collection::vec(
+        (
+            fault(),
+            0u32..RUN_MS,
+            prop_oneof![3 => 20u32..3_000, 1 => Just(0u32)],
+        ),
+        0..=3,
+    )
+}
+
+fn params() -> impl Strategy<Value = ModelParams> {
+    (
+        0.85f32..=0.97,
+        0.0f32..0.06,
+        0.0f32..50.0,
+        0usize..=2,
+        0u32..=3,
+        any::<u32>(),
+    )
+        .prop_map(
+            |(
+                efficiency,
+                efficiency_droop,
+                measurement_lag_ms,
+                bms_delay_periods,
+                frame_jitter_ms,
+                seed,
+            )| {
+                ModelParams {
+                    efficiency,
+                    efficiency_droop,
+                    measurement_lag_ms,
+                    bms_delay_periods,
+                    frame_jitter_ms,
+                    seed,
+                }
+            },
+        )
+}
+
+fn cycle() -> impl Strategy<Value = Cycle> {
+    prop_oneof![
+        Just(Cycle::Acceleration),
+        Just(Cycle::Skidpad),
+        Just(Cycle::Autocross)
+    ]
+}
+
+fn cases() -> u32 {
+    std::env::var("PROPTEST_CASES")
+        .ok()
+        .and_then(|cases| cases.parse().ok())
+        .unwrap_or(40)
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: cases(), ..ProptestConfig::default() })]
+
+    #[test]
+    fn the_rules_hold_over_random_cycles_cars_and_faults(
+        cycle in cycle(),
+        params in params(),
+        injections in injections(),
+    ) {
+        let mut run = started(cycle);
+        let start = run.now_ms();
+        let plan = injections.iter().fold(FaultPlan::NONE, |plan, (fault, at, length)| {
+            let from_ms = start + at;
+            plan.with(Injection {
+                fault: *fault,
+                from_ms,
+                until_ms: if *length == 0 { u32::MAX } else { from_ms + length },
+            })
+        });
+        run.retune(params, plan);
+        run.run_until(start + RUN_MS, &mut NoTap);
+        prop_assert_eq!(
+            run.rules.first_violation(),
+            None,
+            "{} violations; stats {:?}",
+            run.rules.violations(),
+            run.rules.stats()
+        );
+    }
+}
