@@ -41,10 +41,11 @@ pub const COSTS: [Cost; 4] = [
 ];
 
 fn ccm_control(iterations: u32) {
-    let mut ccm = crate::ccm::ccm_at(4_500);
-    // Fresh bus data stays valid for the PCC timeout, so step within it repeatedly.
+    // Full throttle, 2 s into the acceleration run: the power ceiling binds.
+    let (mut ccm, now) = crate::ccm::ccm_driving(2_000);
+    // Fresh bus data stays valid within its timeouts, so step at the same time repeatedly.
     for _ in 0..iterations {
-        let outputs = ccm.control(DriverInputs::default(), 4_500, 4_500_000);
+        let outputs = ccm.control(DriverInputs::default(), now, now.wrapping_mul(1_000));
         core::hint::black_box(outputs);
     }
 }
@@ -52,7 +53,7 @@ fn ccm_control(iterations: u32) {
 fn ccm_sample(iterations: u32) {
     let mut ccm = Ccm::new(AppsCalibration::DEFAULT);
     let sample = SensorSample {
-        apps_raw: (4_000, 6_000),
+        apps_raw: [Some(4_000), Some(6_000)],
         brake_v: (0.6, 0.6),
         shock_raw: [4000; 4],
     };
@@ -62,7 +63,7 @@ fn ccm_sample(iterations: u32) {
 }
 
 fn telemetry_pack(iterations: u32) {
-    let mut ccm = crate::ccm::ccm_at(4_500);
+    let (ccm, _) = crate::ccm::ccm_driving(2_000);
     let mut packet = [0u8; Telemetry::LEN];
     for i in 0..iterations {
         let snapshot = ccm.snapshot();

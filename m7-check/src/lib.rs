@@ -14,7 +14,6 @@ mod digest;
 mod isotp;
 mod pcc;
 
-pub use ccm::quiet_mcu2;
 pub use cost::{COSTS, Cost};
 pub use digest::Digest;
 

@@ -4,9 +4,9 @@
 
 use crate::Digest;
 use aer::can::OrionPackStatus;
+use aer_car_model::precharge::PrechargePlant;
 use aer_flexcan::CanFrame;
 use aer_pcc::measurement::VoltageChannel;
-use aer_pcc::sim::PrechargePlant;
 use aer_pcc::{
     Inputs, Precharge, PrechargeConfig, Relays, State, TASK_PERIOD_MS, VfConfig, bms::BmsLink,
 };
