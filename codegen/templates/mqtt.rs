@@ -19,7 +19,9 @@ pub struct Topic<P> {
 }
 
 impl<P> Topic<P> {
-    const fn new(suffix: &'static str) -> Self {
+    /// The topic `suffix` below a car's prefix, carrying `P` (the schema's topics are below;
+    /// a service may define its own, such as its status).
+    pub const fn new(suffix: &'static str) -> Self {
         Self {
             suffix,
             payload: PhantomData,
@@ -130,78 +132,6 @@ fn json_float<F: ryu::Float + Into<f64>>(out: &mut Vec<u8>, value: F) {
     }
 }
 
-/// The ingest service's state, retained, so a subscriber learns it on subscribing: which
-/// schema the service decodes, which one the firmware sends, and when data last came.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct Status {
-    /// The publishing service (`aer-raspi`).
-    pub service: String,
-    pub car_id: String,
-    /// The DBC schema fingerprint the service was built from (`0x` and eight hex digits).
-    pub schema_fingerprint: String,
-    /// The telemetry fingerprint the service decodes.
-    pub telemetry_fingerprint: String,
-    /// The telemetry fingerprint the firmware last sent (`null` before the first packet).
-    pub firmware_fingerprint_seen: Option<String>,
-    /// Whether the firmware and the service were built from the same schema.
-    pub fingerprint_match: Option<bool>,
-    /// Receive time of the last telemetry packet (s since the epoch).
-    pub last_packet_ts: Option<f64>,
-}
-
-/// Everything the ingest service counted since it started.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
-pub struct ServiceCounters {
-    /// CAN frames taken from a source.
-    pub frames: u64,
-    /// Log lines that were not frames (truncated, garbage).
-    pub bad_lines: u64,
-    /// Telemetry packets decoded.
-    pub packets: u64,
-    /// DBC messages decoded.
-    pub messages: u64,
-    /// ISO-TP errors: lost or repeated consecutive frames, timeouts, malformed frames,
-    /// interrupted messages.
-    pub isotp_errors: u64,
-    /// Packets whose fingerprint is not the service's (firmware and Pi disagree).
-    pub fingerprint_mismatches: u64,
-    /// Packets of the wrong length.
-    pub packet_errors: u64,
-    /// Frames of known ids that failed to decode.
-    pub decode_errors: u64,
-    /// Frames whose id the schema does not know.
-    pub unknown_ids: u64,
-    /// MQTT messages handed to the client.
-    pub published: u64,
-    /// MQTT messages dropped because the client's queue was full.
-    pub publish_dropped: u64,
-    /// Rows committed to the local store.
-    pub stored: u64,
-    /// Rows forwarded to TDengine.
-    pub forwarded: u64,
-    /// TDengine write failures (retried).
-    pub forward_errors: u64,
-}
-
-/// The ingest service's counters, published every second.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct Metrics {
-    /// When they were read (s since the epoch).
-    pub ts: f64,
-    /// Telemetry packets decoded in the last second.
-    pub packets_per_s: f64,
-    /// Rows decoded but not yet committed to the local store.
-    pub store_lag: u64,
-    #[serde(flatten)]
-    pub counters: ServiceCounters,
-}
-
-/// The ingest service's status (retained).
-pub const STATUS: Topic<Status> = Topic::new("status");
-
-/// The ingest service's counters, every second.
-pub const METRICS: Topic<Metrics> = Topic::new("metrics");
-
 /// One topic per CAN message of the schema.
 pub mod can {
     use super::{Sample, Topic};
@@ -212,12 +142,10 @@ pub mod can {
 {%- endfor %}
 }
 
-/// Every topic suffix: telemetry, the service's status and metrics, then the CAN messages (for
-/// subscriptions and documentation).
-pub const SUFFIXES: [&str; {{ messages.len() + 3 }}] = [
+/// Every topic suffix of the schema: telemetry, then the CAN messages (for subscriptions and
+/// documentation).
+pub const SUFFIXES: [&str; {{ messages.len() + 1 }}] = [
     TELEMETRY.suffix(),
-    STATUS.suffix(),
-    METRICS.suffix(),
 {%- for m in messages %}
     can::{{ m.0 }}.suffix(),
 {%- endfor %}

@@ -1,8 +1,8 @@
 //! The dashboard's configuration: one TOML file (every key optional), then environment
-//! overrides. The broker variables are the Pi service's ([`BrokerSettings`]), so one environment
-//! serves both.
+//! overrides. The `[mqtt]` section and its variables are the Pi service's ([`BrokerConfig`]),
+//! so one environment serves both.
 
-use aer_raspi::config::{BrokerSettings, read_or_default};
+use aer_host::config::{BrokerConfig, apply_car_env, read_or_default};
 use anyhow::{Result, bail};
 use serde::Deserialize;
 use std::path::Path;
@@ -14,19 +14,9 @@ use std::time::Duration;
 pub struct Config {
     /// The car whose topics are shown: `<topic_prefix>/<car_id>/...`.
     pub car_id: String,
-    pub mqtt: MqttConfig,
+    /// Where the telemetry comes from (the Pi service's `[mqtt]` section).
+    pub mqtt: BrokerConfig,
     pub display: DisplayConfig,
-}
-
-/// Where the telemetry comes from.
-#[derive(Debug, Clone, PartialEq, Deserialize)]
-#[serde(default, deny_unknown_fields)]
-pub struct MqttConfig {
-    pub host: String,
-    pub port: u16,
-    pub username: Option<String>,
-    pub password: Option<String>,
-    pub topic_prefix: String,
 }
 
 /// What the screens show and how.
@@ -62,20 +52,8 @@ impl Default for Config {
     fn default() -> Self {
         Self {
             car_id: "car1".into(),
-            mqtt: MqttConfig::default(),
+            mqtt: BrokerConfig::default(),
             display: DisplayConfig::default(),
-        }
-    }
-}
-
-impl Default for MqttConfig {
-    fn default() -> Self {
-        Self {
-            host: "127.0.0.1".into(),
-            port: 1883,
-            username: None,
-            password: None,
-            topic_prefix: "aer".into(),
         }
     }
 }
@@ -102,15 +80,8 @@ impl Config {
     /// result.
     pub fn load(path: Option<&Path>, env: impl Fn(&str) -> Option<String>) -> Result<Self> {
         let mut config: Self = read_or_default(path)?;
-        BrokerSettings {
-            car_id: &mut config.car_id,
-            host: &mut config.mqtt.host,
-            port: &mut config.mqtt.port,
-            username: &mut config.mqtt.username,
-            password: &mut config.mqtt.password,
-            topic_prefix: &mut config.mqtt.topic_prefix,
-        }
-        .apply_env(env)?;
+        apply_car_env(&mut config.car_id, &env);
+        config.mqtt.apply_env(&env)?;
         config.check()?;
         Ok(config)
     }

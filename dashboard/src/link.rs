@@ -5,7 +5,8 @@
 
 use crate::config::Config;
 use crate::model::Update;
-use aer::mqtt::{METRICS, STATUS, TELEMETRY};
+use aer::mqtt::TELEMETRY;
+use aer_host::status::{METRICS, STATUS};
 use iced::futures::channel::mpsc;
 use iced::futures::{SinkExt, Stream};
 use rumqttc::{

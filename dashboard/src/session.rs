@@ -1,10 +1,11 @@
 //! A recorded session (a candump log of the car) as the telemetry the Pi publishes: decoded
-//! by the Pi service's own ingest code (ISO-TP, fingerprint check, generated unpacker), so a
-//! screenshot shows exactly what the car sent.
+//! by the Pi service's own ingest code (`aer_host::ingest`: ISO-TP, fingerprint check,
+//! generated unpacker), so a screenshot shows exactly what the car sent.
 
-use aer::mqtt::{Metrics, Sample, Status, TelemetryRecord};
-use aer_raspi::publish;
-use aer_raspi::source::decode_log;
+use aer::mqtt::{Sample, TelemetryRecord};
+use aer_host::clock::seconds;
+use aer_host::ingest::decode_log;
+use aer_host::status::{Metrics, Status, status};
 
 /// What a log holds.
 #[derive(Debug, Clone)]
@@ -26,7 +27,7 @@ pub fn load(log: &str, car_id: &str) -> Session {
         .packets
         .into_iter()
         .map(|(ts_us, header, telemetry)| Sample {
-            ts: publish::seconds(ts_us),
+            ts: seconds(ts_us),
             value: TelemetryRecord { header, telemetry },
         })
         .collect();
@@ -43,7 +44,7 @@ pub fn load(log: &str, car_id: &str) -> Session {
             store_lag: 0,
             counters: decoded.counters.snapshot(),
         },
-        status: publish::status(car_id, &decoded.counters),
+        status: status(car_id, &decoded.counters),
         samples,
     }
 }

@@ -149,7 +149,7 @@ fn a_lost_broker_connection_is_obvious() {
 }
 
 fn pi_status(telemetry_fingerprint: u32, firmware_ok: Option<bool>) -> Update {
-    Update::Status(Box::new(aer::mqtt::Status {
+    Update::Status(Box::new(aer_host::status::Status {
         service: "aer-raspi".into(),
         car_id: "car1".into(),
         schema_fingerprint: format!("{:#010x}", aer::can::SCHEMA_FINGERPRINT),

@@ -79,8 +79,8 @@ mod cortex_m7 {
         for cost in &aer_m7_check::COSTS {
             // The same run with no iterations is the set-up alone (a CCM driven into
             // DRIVING, say): only the difference is the operation's cost.
-            let elapsed = measure(|| (cost.run)(cost.iterations))
-                .saturating_sub(measure(|| (cost.run)(0)));
+            let elapsed =
+                measure(|| (cost.run)(cost.iterations)).saturating_sub(measure(|| (cost.run)(0)));
             let per_op = elapsed as f64 * instructions_per_tick / f64::from(cost.iterations);
             writeln!(out, "cost {}: {:.0} instructions", cost.name, per_op)?;
         }

@@ -1,17 +1,41 @@
-//! Latency from a packet's last CAN frame entering the pipeline to its delivery at an MQTT
+//! Latency from a packet's last CAN frame entering the ingest stage to its delivery at an MQTT
 //! subscriber (rumqttc, loopback, embedded broker, store writer running), at 100 Hz and 1 kHz.
-//! Prints p50, p99 and max. Run: `cargo bench -p aer-raspi --bench latency`.
+//! The traffic is the closed-loop car model's (every frame on both buses), one telemetry
+//! packet per 10 ms of model time. Prints p50, p99 and max. Run: `cargo bench -p aer-raspi
+//! --bench latency`.
 
 use aer::mqtt::{Sample, TELEMETRY, TelemetryRecord};
-use aer_raspi::config::MqttConfig;
-use aer_raspi::metrics::Counters;
-use aer_raspi::pipeline::Pipeline;
-use aer_raspi::synthetic::Vehicle;
-use aer_raspi::{broker, publish, store};
+use aer::telemetry::Telemetry;
+use aer_car_model::chassis::Mode;
+use aer_car_model::driver::Cycle;
+use aer_car_model::faults::FaultPlan;
+use aer_car_model::{BusTap, ClosedLoop, ModelParams};
+use aer_flexcan::CanFrame;
+use aer_host::candump::LoggedFrame;
+use aer_host::clock::now_us;
+use aer_host::counters::Counters;
+use aer_raspi::broker;
+use aer_raspi::config::BrokerOptions;
+use aer_raspi::ingest::Stage;
+use aer_raspi::sink::Sink;
+use aer_raspi::sink::mqtt as publish;
+use aer_raspi::sink::store::{self as store, StoreSink};
+use aer_raspi::source::{Input, Replies};
+use embedded_can::{Frame, Id};
 use rumqttc::{AsyncClient, Event, MqttOptions, Packet, QoS};
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
+
+/// One model step's frames.
+#[derive(Default)]
+struct Frames(Vec<(usize, CanFrame)>);
+
+impl BusTap for Frames {
+    fn frame(&mut self, _: u64, bus: usize, frame: &CanFrame) {
+        self.0.push((bus, *frame));
+    }
+}
 
 fn percentile(sorted: &[Duration], p: f64) -> Duration {
     let index = ((sorted.len() as f64 - 1.0) * p).round() as usize;
@@ -77,7 +101,7 @@ fn main() {
         let counters = Arc::new(Counters::default());
         let (publisher, driver) = publish::embedded(
             link,
-            MqttConfig::default().queue,
+            BrokerOptions::default().queue,
             "aer/car1".into(),
             counters.clone(),
         );
@@ -89,13 +113,18 @@ fn main() {
             store::open(&dir.path().join("l.sqlite")).expect("store"),
             counters.clone(),
         );
-        let mut pipeline = Pipeline::new(
-            counters.clone(),
-            "car1".into(),
-            vec!["can0".into()],
-            Some(publisher),
-            writer.sender(),
-        );
+        let sinks: Vec<Box<dyn Sink>> = vec![
+            Box::new(publisher),
+            Box::new(StoreSink::new(writer.sender().expect("store open"), "car1")),
+        ];
+        let mut stage = Stage::new(counters.clone(), sinks, Replies::default());
+        for (index, name) in ["can0", "can1"].into_iter().enumerate() {
+            stage.take(Input::Bus {
+                index: index as u8,
+                name: name.into(),
+            });
+        }
+        let telemetry = Id::Standard(embedded_can::StandardId::new(Telemetry::TX_ID).expect("id"));
 
         for (rate, packets) in [(100u32, 1_000u16), (1_000, 5_000)] {
             if let Ok(mut r) = received.lock() {
@@ -104,24 +133,33 @@ fn main() {
             if let Ok(mut s) = sent.lock() {
                 s.clear();
             }
-            let mut vehicle = Vehicle::new();
+            let mut model = ClosedLoop::new(
+                ModelParams::NOMINAL,
+                Mode::Road,
+                Cycle::Autocross,
+                FaultPlan::NONE,
+            );
             let period = Duration::from_secs(1) / rate;
             let mut next = tokio::time::Instant::now();
             for sequence in 0..packets {
                 next += period;
-                let frames = vehicle.step(period.as_secs_f64(), aer_raspi::source::now_us());
-                let Some((last, rest)) = frames.split_last() else {
-                    continue;
-                };
-                for frame in rest {
-                    pipeline.feed(frame, |_, _| {});
+                let mut frames = Frames::default();
+                model.run_until(model.now_ms() + 10, &mut frames);
+                // The step ends with the telemetry packet: its last frame is the clock's start.
+                let last = frames.0.iter().rposition(|(_, f)| f.id() == telemetry);
+                for (index, (bus, frame)) in frames.0.iter().enumerate() {
+                    let logged = LoggedFrame::new(now_us(), *bus as u8, frame.id(), frame.data());
+                    if Some(index) == last {
+                        if let Ok(mut s) = sent.lock() {
+                            s.insert(sequence, Instant::now());
+                        }
+                    }
+                    if let Some(logged) = logged {
+                        stage.take(Input::Frame(logged));
+                    }
                 }
-                if let Ok(mut s) = sent.lock() {
-                    s.insert(sequence, Instant::now());
-                }
-                pipeline.feed(last, |_, _| {});
-                // As the live source does before waiting for the next frame.
-                pipeline.flush();
+                // As the stage does before waiting for the next input.
+                stage.flush();
                 tokio::time::sleep_until(next).await;
             }
             // Let the last deliveries arrive (bounded wait for the tail, not a synchronisation).
@@ -141,7 +179,7 @@ fn main() {
                 latencies.last().copied().unwrap_or_default()
             );
         }
-        drop(pipeline);
+        drop(stage);
         writer.finish();
     });
 }

@@ -1,40 +1,31 @@
-//! Pipeline throughput: the bundled session (4,500 packets, 67,950 frames) through ISO-TP and
-//! the generated decoders, published with rumqttc to the embedded broker and written to the
-//! SQLite store, against today's design (serde_json of the whole struct plus one line-protocol
-//! string per packet, vehicle-facts.md) on the same packets.
+//! Pipeline throughput: the bundled session (4,500 packets and every other frame on both
+//! buses) from the replay source through the ingest stage (ISO-TP, the generated decoders)
+//! to the sinks (published in process into the embedded broker, written to the SQLite store),
+//! against today's design (serde_json of the whole struct plus one line-protocol string per
+//! packet, vehicle-facts.md) on the same packets.
 //!
 //! Run on one core (pipeline, store writer, MQTT client and broker share it):
 //! `taskset -c 0 cargo bench -p aer-raspi --bench pipeline`.
 
 use aer::telemetry::Telemetry;
-use aer_raspi::candump::{LoggedFrame, parse_line};
-use aer_raspi::config::MqttConfig;
-use aer_raspi::metrics::Counters;
-use aer_raspi::pipeline::Pipeline;
-use aer_raspi::source::decode_log;
-use aer_raspi::{broker, publish, store};
+use aer_host::config::BrokerConfig;
+use aer_host::counters::Counters;
+use aer_host::ingest::decode_log;
+use aer_raspi::broker;
+use aer_raspi::ingest::Stage;
+use aer_raspi::sink::Sink;
+use aer_raspi::sink::mqtt as publish;
+use aer_raspi::sink::store::{self as store, StoreSink};
+use aer_raspi::source::Replies;
 use criterion::{BatchSize, Criterion, Throughput, criterion_group, criterion_main};
-use std::collections::HashMap;
 use std::fmt::Write as _;
 use std::hint::black_box;
 use std::sync::Arc;
 use std::time::Duration;
 
 const SESSION: &str = include_str!("../data/session.log");
-
-fn frames() -> Vec<LoggedFrame> {
-    let mut buses = HashMap::new();
-    SESSION
-        .lines()
-        .filter_map(|line| {
-            parse_line(line, |name| {
-                let next = buses.len() as u8;
-                *buses.entry(name.to_owned()).or_insert(next)
-            })
-            .ok()
-        })
-        .collect()
-}
+/// Messages the broker queue may hold: the benchmark publishes a whole session at once.
+const QUEUE: usize = 400_000;
 
 /// Today's Pi: one JSON document of the whole struct (with `ts` in ms) and one line-protocol
 /// string with every field as a float.
@@ -75,7 +66,6 @@ fn todays_design(ts_us: u64, telemetry: &Telemetry, json: &mut String, line: &mu
 }
 
 fn bench(c: &mut Criterion) {
-    let frames = frames();
     let packets: Vec<(u64, Telemetry)> = decode_log(SESSION)
         .packets
         .into_iter()
@@ -94,18 +84,18 @@ fn bench(c: &mut Criterion) {
     let link =
         broker::spawn(toml::from_str(&text).expect("broker config"), "bench").expect("broker");
     let counters = Arc::new(Counters::default());
-    let mqtt = MqttConfig {
+    let mqtt = BrokerConfig {
         port,
-        queue: 200_000,
-        ..MqttConfig::default()
+        ..BrokerConfig::default()
     };
     // Ours publishes as the service does, in process into the embedded broker; today's Pi
     // publishes with rumqttc over loopback TCP to its embedded broker.
     let (publisher, today_publisher) = runtime.block_on(async {
         let (publisher, driver) =
-            publish::embedded(link, mqtt.queue, "aer/car1".into(), counters.clone());
+            publish::embedded(link, QUEUE, "aer/car1".into(), counters.clone());
         tokio::spawn(publish::drive(driver, tokio::sync::watch::channel(false).0));
-        let (today, driver) = publish::connect(&mqtt, "today", "aer/car1".into(), counters.clone());
+        let (today, driver) =
+            publish::connect(&mqtt, QUEUE, "today", "aer/car1".into(), counters.clone());
         let (up_tx, mut up) = tokio::sync::watch::channel(false);
         tokio::spawn(publish::drive(driver, up_tx));
         let _ = tokio::time::timeout(Duration::from_secs(10), up.wait_for(|u| *u)).await;
@@ -113,10 +103,10 @@ fn bench(c: &mut Criterion) {
     });
     let dir = tempfile::tempdir().expect("temp dir");
     // The CCM's packets alone (ISO-TP frames and flow control), without the other nodes.
-    let telemetry_frames: Vec<LoggedFrame> = frames
-        .iter()
-        .filter(|f| matches!(f.id, embedded_can::Id::Standard(id) if id.as_raw() == 0x666 || id.as_raw() == 0x777))
-        .copied()
+    let telemetry_log: String = SESSION
+        .lines()
+        .filter(|line| line.contains(" 666#") || line.contains(" 777#"))
+        .flat_map(|line| [line, "\n"])
         .collect();
     // A running service: the store is open (tables created) before the clock starts; the
     // clock stops once its writer has committed the last row.
@@ -125,20 +115,18 @@ fn bench(c: &mut Criterion) {
         let _ = std::fs::remove_file(&path);
         let writer =
             store::StoreWriter::start(store::open(&path).expect("store"), counters.clone());
-        let pipeline = Pipeline::new(
-            counters.clone(),
-            "car1".into(),
-            vec!["can0".into(), "can1".into()],
-            Some(publisher.clone()),
-            writer.sender(),
-        );
-        (pipeline, writer)
+        let sinks: Vec<Box<dyn Sink>> = vec![
+            Box::new(publisher.clone()),
+            Box::new(StoreSink::new(writer.sender().expect("store open"), "car1")),
+        ];
+        (
+            Stage::new(counters.clone(), sinks, Replies::default()),
+            writer,
+        )
     };
-    let ours = |(mut pipeline, writer): (Pipeline, store::StoreWriter), frames: &[LoggedFrame]| {
-        for frame in frames {
-            pipeline.feed(frame, |_, _| {});
-        }
-        drop(pipeline);
+    let ours = |(stage, writer): (Stage, store::StoreWriter), log: &str| {
+        let (stage, _) = runtime.block_on(stage.replay_all(log.as_bytes(), &counters));
+        drop(stage);
         writer.finish();
     };
 
@@ -146,15 +134,15 @@ fn bench(c: &mut Criterion) {
     group.sample_size(10);
     group.throughput(Throughput::Elements(packets.len() as u64));
     group.bench_function(
-        "ours: session, packets + 18,450 CAN frames, decode + MQTT + store",
+        "ours: session, packets + every CAN frame, decode + MQTT + store",
         |b| {
-            b.iter_batched(service, |s| ours(s, &frames), BatchSize::PerIteration);
+            b.iter_batched(service, |s| ours(s, SESSION), BatchSize::PerIteration);
         },
     );
     group.bench_function("ours: packets only, decode + MQTT + store", |b| {
         b.iter_batched(
             service,
-            |s| ours(s, &telemetry_frames),
+            |s| ours(s, &telemetry_log),
             BatchSize::PerIteration,
         );
     });

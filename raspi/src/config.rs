@@ -1,8 +1,9 @@
 //! The service configuration: one TOML file (every key optional), then environment overrides.
+//! The `[mqtt]` section and its variables are the dashboard's too (`aer_host::config`).
 
-use anyhow::{Context, Result};
+use aer_host::config::{BrokerConfig, apply_car_env, read_or_default};
+use anyhow::Result;
 use serde::Deserialize;
-use serde::de::DeserializeOwned;
 use std::path::{Path, PathBuf};
 
 /// Everything the service reads from its configuration.
@@ -11,7 +12,10 @@ use std::path::{Path, PathBuf};
 pub struct Config {
     pub car_id: String,
     pub can: CanConfig,
-    pub mqtt: MqttConfig,
+    /// Where the car's topics are (shared with the dashboard).
+    pub mqtt: BrokerConfig,
+    /// How the service publishes: its embedded broker, or the one in `[mqtt]`.
+    pub broker: BrokerOptions,
     pub store: StoreConfig,
     pub tdengine: TdengineConfig,
 }
@@ -36,14 +40,13 @@ pub enum IsoTpMode {
 
 #[derive(Debug, Clone, PartialEq, Deserialize)]
 #[serde(default, deny_unknown_fields)]
-pub struct MqttConfig {
-    pub embedded_broker: bool,
-    pub broker_config: Option<PathBuf>,
-    pub host: String,
-    pub port: u16,
-    pub username: Option<String>,
-    pub password: Option<String>,
-    pub topic_prefix: String,
+pub struct BrokerOptions {
+    /// Start the embedded rumqttd broker and publish into it in process; otherwise publish
+    /// over TCP to the broker in `[mqtt]`.
+    pub embedded: bool,
+    /// The embedded broker's configuration (default: the bundled `config/rumqttd.toml`).
+    pub config: Option<PathBuf>,
+    /// Messages that may wait for the broker before new ones are dropped (and counted).
     pub queue: usize,
 }
 
@@ -67,7 +70,8 @@ impl Default for Config {
         Self {
             car_id: "car1".into(),
             can: CanConfig::default(),
-            mqtt: MqttConfig::default(),
+            mqtt: BrokerConfig::default(),
+            broker: BrokerOptions::default(),
             store: StoreConfig::default(),
             tdengine: TdengineConfig::default(),
         }
@@ -84,16 +88,11 @@ impl Default for CanConfig {
     }
 }
 
-impl Default for MqttConfig {
+impl Default for BrokerOptions {
     fn default() -> Self {
         Self {
-            embedded_broker: true,
-            broker_config: None,
-            host: "127.0.0.1".into(),
-            port: 1883,
-            username: None,
-            password: None,
-            topic_prefix: "aer".into(),
+            embedded: true,
+            config: None,
             queue: 10_000,
         }
     }
@@ -127,15 +126,8 @@ impl Config {
     }
 
     fn apply_env(&mut self, env: impl Fn(&str) -> Option<String>) -> Result<()> {
-        BrokerSettings {
-            car_id: &mut self.car_id,
-            host: &mut self.mqtt.host,
-            port: &mut self.mqtt.port,
-            username: &mut self.mqtt.username,
-            password: &mut self.mqtt.password,
-            topic_prefix: &mut self.mqtt.topic_prefix,
-        }
-        .apply_env(&env)?;
+        apply_car_env(&mut self.car_id, &env);
+        self.mqtt.apply_env(&env)?;
         if let Some(v) = env("AER_CAN_INTERFACES") {
             self.can.interfaces = v.split(',').map(|s| s.trim().to_owned()).collect();
         }
@@ -161,57 +153,7 @@ impl Config {
 
     /// Topic prefix of this car: `<prefix>/<car_id>`.
     pub fn topic_prefix(&self) -> String {
-        aer::mqtt::car_prefix(&self.mqtt.topic_prefix, &self.car_id)
-    }
-}
-
-/// Reads a TOML configuration file (every key optional), or gives the defaults without one.
-pub fn read_or_default<T: DeserializeOwned + Default>(path: Option<&Path>) -> Result<T> {
-    let Some(path) = path else {
-        return Ok(T::default());
-    };
-    let text = std::fs::read_to_string(path)
-        .with_context(|| format!("reading the configuration {}", path.display()))?;
-    toml::from_str(&text).with_context(|| format!("in the configuration {}", path.display()))
-}
-
-/// Which broker and which car's topics: the settings the service and the dashboard share.
-/// Both take them from the same environment variables, so one environment points the Pi and
-/// its dashboards at the same broker and car.
-pub struct BrokerSettings<'a> {
-    pub car_id: &'a mut String,
-    pub host: &'a mut String,
-    pub port: &'a mut u16,
-    pub username: &'a mut Option<String>,
-    pub password: &'a mut Option<String>,
-    pub topic_prefix: &'a mut String,
-}
-
-impl BrokerSettings<'_> {
-    /// Applies `AER_CAR_ID`, `AER_MQTT_HOST`, `AER_MQTT_PORT`, `AER_MQTT_USERNAME`,
-    /// `AER_MQTT_PASSWORD` and `AER_MQTT_PREFIX` from `env`.
-    pub fn apply_env(self, env: impl Fn(&str) -> Option<String>) -> Result<()> {
-        if let Some(v) = env("AER_CAR_ID") {
-            *self.car_id = v;
-        }
-        if let Some(v) = env("AER_MQTT_HOST") {
-            *self.host = v;
-        }
-        if let Some(v) = env("AER_MQTT_PORT") {
-            *self.port = v
-                .parse()
-                .with_context(|| format!("AER_MQTT_PORT={v} is not a port"))?;
-        }
-        if let Some(v) = env("AER_MQTT_USERNAME") {
-            *self.username = Some(v);
-        }
-        if let Some(v) = env("AER_MQTT_PASSWORD") {
-            *self.password = Some(v);
-        }
-        if let Some(v) = env("AER_MQTT_PREFIX") {
-            *self.topic_prefix = v;
-        }
-        Ok(())
+        self.mqtt.car_prefix(&self.car_id)
     }
 }
 

@@ -4,18 +4,19 @@
 //! timestamps (TDengine keeps one row per timestamp and sub-table), so nothing is duplicated.
 
 use crate::config::TdengineConfig;
-use crate::metrics::{Counters, worth_logging};
 use crate::sql::Mapping;
 use aer::local_store::TABLES;
 use aer::tdengine::{CREATE_DATABASE, DATABASE, SUPER_TABLES};
+use aer_host::counters::{Counters, worth_logging};
 use anyhow::{Context, Result};
 use rusqlite::Connection;
 use rusqlite::types::Value as Sql;
 use std::path::PathBuf;
 use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::Ordering;
 use std::time::Duration;
 use taos::{AsyncFetchable, AsyncQueryable, AsyncTBuilder, Taos, TaosBuilder};
+use tokio_util::sync::CancellationToken;
 use tracing::{info, warn};
 
 /// Backoff after a failure: 1 s doubling to 30 s.
@@ -129,12 +130,12 @@ async fn connect(dsn: &str) -> Result<Taos> {
     Ok(taos)
 }
 
-/// Runs the forwarder until `stop`: `config.workers` workers share the tables.
+/// Runs the forwarder until `cancel`: `config.workers` workers share the tables.
 pub async fn run(
     config: TdengineConfig,
     store: PathBuf,
     counters: Arc<Counters>,
-    stop: Arc<AtomicBool>,
+    cancel: CancellationToken,
 ) {
     let workers = config.workers.clamp(1, TABLES.len());
     let mut handles = Vec::new();
@@ -147,7 +148,7 @@ pub async fn run(
             store.clone(),
             tables,
             counters.clone(),
-            stop.clone(),
+            cancel.clone(),
         )));
     }
     for handle in handles {
@@ -160,7 +161,7 @@ async fn worker_loop(
     store: PathBuf,
     tables: Vec<usize>,
     counters: Arc<Counters>,
-    stop: Arc<AtomicBool>,
+    cancel: CancellationToken,
 ) {
     let mut backoff = BACKOFF_START;
     let mut taos: Option<Taos> = None;
@@ -176,7 +177,7 @@ async fn worker_loop(
         .iter()
         .filter_map(|t| Some((*t, Mapping::new(TABLES.get(*t)?, SUPER_TABLES.get(*t)?)?)))
         .collect();
-    while !stop.load(Ordering::Relaxed) {
+    while !cancel.is_cancelled() {
         let connection = match &taos {
             Some(connection) => connection,
             None => match connect(&config.dsn).await {
@@ -194,7 +195,7 @@ async fn worker_loop(
                             "TDengine unreachable; rows stay in the local store"
                         );
                     }
-                    tokio::time::sleep(backoff).await;
+                    pause(backoff, &cancel).await;
                     backoff = (backoff * 2).min(BACKOFF_MAX);
                     continue;
                 }
@@ -238,11 +239,19 @@ async fn worker_loop(
         }
         if failed {
             taos = None;
-            tokio::time::sleep(backoff).await;
+            pause(backoff, &cancel).await;
             backoff = (backoff * 2).min(BACKOFF_MAX);
         } else if moved == 0 {
-            tokio::time::sleep(IDLE).await;
+            pause(IDLE, &cancel).await;
         }
+    }
+}
+
+/// Waits `duration`, or less if cancelled.
+async fn pause(duration: Duration, cancel: &CancellationToken) {
+    tokio::select! {
+        () = tokio::time::sleep(duration) => {}
+        () = cancel.cancelled() => {}
     }
 }
 

@@ -1,200 +1,117 @@
-//! Frames in, records out: ISO-TP reassembly of the telemetry packet (per bus), fingerprint
-//! check, the generated telemetry and DBC decoders. Every failure is counted and logged.
+//! The ingest stage: batches from the sources in, decoded records out to every sink, on one
+//! task. Decoding itself is `aer_host::ingest`, shared with the dashboard; this stage keeps
+//! the bus names the sources announce, sends ISO-TP flow control back to the source's bus,
+//! and flushes the sinks whenever it is about to wait.
 
-use crate::candump::LoggedFrame;
-use crate::metrics::{Counters, worth_logging};
-use aer::can::AnyMessage;
-use aer::runtime::DecodeError;
-use aer::telemetry::{Telemetry, TelemetryError, TelemetryHeader};
-use aer_isotp::{Config, Frame, Received, Receiver};
-use embedded_can::Id;
+use crate::sink::Sink;
+use crate::source::replay::{ReplayOptions, ReplayStats, replay};
+use crate::source::{self, Input, Receiver, Replies};
+use aer_host::counters::Counters;
+use aer_host::ingest::{Ingest, Record};
 use std::sync::Arc;
-use std::sync::atomic::Ordering;
-use tracing::warn;
+use tokio_util::sync::CancellationToken;
 
-/// Largest ISO-TP message accepted (the protocol's limit; the packet is much smaller).
-const MAX_MESSAGE: usize = aer_isotp::MAX_PAYLOAD;
-
-/// A decoded unit of data.
-#[derive(Debug, Clone, PartialEq)]
-pub enum Record {
-    /// A telemetry packet.
-    Telemetry {
-        /// When its last frame arrived (us since the epoch).
-        ts_us: u64,
-        /// Bus it came on.
-        bus: u8,
-        header: TelemetryHeader,
-        telemetry: Box<Telemetry>,
-    },
-    /// A regular DBC frame.
-    Can {
-        /// When it arrived (us since the epoch).
-        ts_us: u64,
-        /// Bus it came on.
-        bus: u8,
-        message: AnyMessage,
-    },
+/// Decoder, bus names and sinks.
+pub struct Stage {
+    ingest: Ingest,
+    buses: Vec<Arc<str>>,
+    sinks: Vec<Box<dyn Sink>>,
+    replies: Replies,
 }
 
-/// The decoder state: one ISO-TP receiver per bus.
-pub struct Ingest {
-    counters: Arc<Counters>,
-    receivers: Vec<Receiver<MAX_MESSAGE>>,
-    /// Reassemble ISO-TP from raw frames (replays, and buses without the kernel's ISO-TP
-    /// socket); `false` when the kernel delivers whole packets through [`Ingest::on_packet`].
-    userspace_isotp: bool,
-}
-
-impl Ingest {
-    /// A decoder counting into `counters`.
-    pub fn new(counters: Arc<Counters>) -> Self {
+impl Stage {
+    /// A stage counting into `counters` and handing records to `sinks`; flow control goes
+    /// to `replies`.
+    pub fn new(counters: Arc<Counters>, sinks: Vec<Box<dyn Sink>>, replies: Replies) -> Self {
         Self {
-            counters,
-            receivers: Vec::new(),
-            userspace_isotp: true,
+            ingest: Ingest::new(counters),
+            buses: Vec::new(),
+            sinks,
+            replies,
         }
     }
 
-    /// Leaves ISO-TP to the kernel: raw 0x666/0x777 frames are then ignored.
-    pub fn use_kernel_isotp(&mut self) {
-        self.userspace_isotp = false;
+    /// Leaves ISO-TP reassembly to the kernel (whole packets arrive as [`Input::Packet`]).
+    pub fn with_kernel_isotp(mut self) -> Self {
+        self.ingest.use_kernel_isotp();
+        self
     }
 
-    /// Decodes a telemetry packet the kernel's ISO-TP socket reassembled.
-    pub fn on_packet(&self, ts_us: u64, bus: u8, packet: &[u8], mut emit: impl FnMut(Record)) {
-        packet_record(&self.counters, ts_us, bus, packet, &mut emit);
-    }
-
-    /// Decodes one frame. `emit` gets every record; `reply` gets the ISO-TP flow-control
-    /// frames to send back on the frame's bus (live buses only; replays ignore them).
-    pub fn on_frame(
-        &mut self,
-        frame: &LoggedFrame,
-        mut emit: impl FnMut(Record),
-        mut reply: impl FnMut(u8, Frame),
-    ) {
-        Counters::bump(&self.counters.frames);
-        let (id, extended) = match frame.id {
-            Id::Standard(id) => (u32::from(id.as_raw()), false),
-            Id::Extended(id) => (id.as_raw(), true),
-        };
-        if !extended && id == u32::from(Telemetry::TX_ID) {
-            if self.userspace_isotp {
-                self.isotp(frame, &mut emit, &mut reply);
+    /// Takes one input through decoding to the sinks.
+    pub fn take(&mut self, input: Input) {
+        let Self {
+            ingest,
+            buses,
+            sinks,
+            replies,
+        } = self;
+        match input {
+            Input::Bus { index, name } => {
+                let index = usize::from(index);
+                if buses.len() <= index {
+                    buses.resize(index + 1, Arc::from(""));
+                }
+                if let Some(slot) = buses.get_mut(index) {
+                    *slot = name;
+                }
             }
-            return;
-        }
-        if !extended && id == u32::from(Telemetry::FLOW_CONTROL_ID) {
-            // Our own (or a logged) flow control: not data.
-            return;
-        }
-        match AnyMessage::decode(id, extended, frame.payload()) {
-            Ok(message) => {
-                Counters::bump(&self.counters.messages);
-                emit(Record::Can {
-                    ts_us: frame.ts_us,
-                    bus: frame.bus,
-                    message,
+            Input::Frame(frame) => ingest.on_frame(
+                &frame,
+                |record| hand_on(sinks, buses, &record),
+                |bus, fc| replies.send(bus, fc),
+            ),
+            Input::Packet { ts_us, bus, packet } => {
+                ingest.on_packet(ts_us, bus, &packet, |record| {
+                    hand_on(sinks, buses, &record);
                 });
             }
-            Err(DecodeError::UnknownId { .. }) => {
-                let count = Counters::bump(&self.counters.unknown_ids);
-                if worth_logging(count) {
-                    warn!(
-                        id = format_args!("{id:#x}"),
-                        extended, count, "frame of an id the schema does not know"
-                    );
-                }
-            }
-            Err(error) => {
-                let count = Counters::bump(&self.counters.decode_errors);
-                if worth_logging(count) {
-                    warn!(%error, count, "frame failed to decode");
-                }
-            }
         }
     }
 
-    fn isotp(
-        &mut self,
-        frame: &LoggedFrame,
-        emit: &mut impl FnMut(Record),
-        reply: &mut impl FnMut(u8, Frame),
-    ) {
-        let bus = usize::from(frame.bus);
-        while self.receivers.len() <= bus {
-            self.receivers.push(Receiver::new(Config::CAR));
+    /// Hands whatever the sinks hold back on: call before waiting for input.
+    pub fn flush(&mut self) {
+        for sink in &mut self.sinks {
+            sink.flush();
         }
-        let Some(receiver) = self.receivers.get_mut(bus) else {
-            return;
-        };
-        let counters = &self.counters;
-        match receiver.on_frame(frame.payload(), frame.ts_us as u32) {
-            Ok(Received::Nothing) => {}
-            Ok(Received::FlowControl(fc)) => reply(frame.bus, fc),
-            Ok(Received::Message(packet)) => {
-                packet_record(counters, frame.ts_us, frame.bus, packet, emit)
-            }
-            Err(error) => {
-                let count = Counters::bump(&counters.isotp_errors);
-                if worth_logging(count) {
-                    warn!(bus, ?error, count, "ISO-TP frame rejected");
+    }
+
+    /// Runs until every source has hung up: each batch through the sinks, then a flush
+    /// before waiting for the next.
+    pub async fn run(mut self, mut batches: Receiver) -> Self {
+        loop {
+            let batch = match batches.try_recv() {
+                Ok(batch) => batch,
+                Err(_) => {
+                    self.flush();
+                    match batches.recv().await {
+                        Some(batch) => batch,
+                        None => break,
+                    }
                 }
+            };
+            for input in batch {
+                self.take(input);
             }
         }
-        // Reported after the frame is taken, so a new message is never held up.
-        if receiver.take_interrupted() {
-            let count = Counters::bump(&counters.isotp_errors);
-            if worth_logging(count) {
-                warn!(bus, count, "ISO-TP message interrupted by a new one");
-            }
-        }
+        self.flush();
+        self
+    }
+
+    /// Replays `log` flat out with its recorded timestamps through this stage, the replay
+    /// source and the stage running side by side as in the service (tests, benchmarks).
+    pub async fn replay_all(self, log: &[u8], counters: &Counters) -> (Self, ReplayStats) {
+        let (inputs, batches) = source::channel();
+        let cancel = CancellationToken::new();
+        let (stats, stage) = tokio::join!(
+            replay(log, inputs, counters, ReplayOptions::FAST, &cancel),
+            self.run(batches)
+        );
+        (stage, stats)
     }
 }
 
-/// Unpacks a reassembled telemetry packet (fingerprint and length checked) into a record.
-fn packet_record(
-    counters: &Counters,
-    ts_us: u64,
-    bus: u8,
-    packet: &[u8],
-    emit: &mut impl FnMut(Record),
-) {
-    match Telemetry::unpack(packet) {
-        Ok((header, telemetry)) => {
-            Counters::bump(&counters.packets);
-            counters.last_packet_us.store(ts_us, Ordering::Relaxed);
-            counters.firmware_fingerprint.store(
-                u64::from(aer::telemetry::TELEMETRY_FINGERPRINT),
-                Ordering::Relaxed,
-            );
-            emit(Record::Telemetry {
-                ts_us,
-                bus,
-                header,
-                telemetry: Box::new(telemetry),
-            });
-        }
-        Err(TelemetryError::FingerprintMismatch { expected, found }) => {
-            counters
-                .firmware_fingerprint
-                .store(u64::from(found), Ordering::Relaxed);
-            let count = Counters::bump(&counters.fingerprint_mismatches);
-            if worth_logging(count) {
-                warn!(
-                    expected = format_args!("{expected:#010x}"),
-                    found = format_args!("{found:#010x}"),
-                    count,
-                    "telemetry from firmware built from another schema: flash the CCM from this commit"
-                );
-            }
-        }
-        Err(error) => {
-            let count = Counters::bump(&counters.packet_errors);
-            if worth_logging(count) {
-                warn!(%error, count, "telemetry packet rejected");
-            }
-        }
+fn hand_on(sinks: &mut [Box<dyn Sink>], buses: &[Arc<str>], record: &Record) {
+    for sink in sinks {
+        sink.accept(record, buses);
     }
 }

@@ -1,20 +1,17 @@
 //! The Pi's ingest service as a library: the binary (`aer-raspi`), the end-to-end tests and the
-//! benchmarks use the same pipeline.
+//! benchmarks run the same stages.
 //!
-//! Data flow: [`source`] (SocketCAN, a candump log via [`candump`], or [`synthetic`]) ->
-//! [`pipeline`] -> [`ingest`] (ISO-TP + generated decoders) -> [`publish`] (typed MQTT topics
-//! on the embedded [`broker`]) and [`store`] (SQLite) -> [`forward`] (TDengine via [`sql`]).
-//! [`metrics`] counts everything on the way.
+//! Data flow, one way: [`source`] (SocketCAN, a candump log, the car model) -> [`ingest`]
+//! (decoding, shared with the dashboard in `aer-host`) -> [`sink`]s: typed MQTT topics on the
+//! embedded [`broker`], and the SQLite store -> [`forward`] (TDengine via [`sql`]).
+//! [`report`] publishes the service's status and metrics; [`service`] assembles it all.
 
 pub mod broker;
-pub mod candump;
 pub mod config;
 pub mod forward;
 pub mod ingest;
-pub mod metrics;
-pub mod pipeline;
-pub mod publish;
+pub mod report;
+pub mod service;
+pub mod sink;
 pub mod source;
 pub mod sql;
-pub mod store;
-pub mod synthetic;

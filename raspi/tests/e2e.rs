@@ -4,10 +4,16 @@
 //! from the log, and the store must hold every row.
 
 use aer::mqtt::{Sample, TELEMETRY, TelemetryRecord};
-use aer_raspi::metrics::Counters;
-use aer_raspi::pipeline::Pipeline;
-use aer_raspi::source::{decode_log, replay_all};
-use aer_raspi::{broker, config::MqttConfig, publish, store};
+use aer_host::counters::Counters;
+use aer_host::ingest::decode_log;
+use aer_host::status::{METRICS, STATUS, metrics, status};
+use aer_raspi::broker;
+use aer_raspi::config::BrokerOptions;
+use aer_raspi::ingest::Stage;
+use aer_raspi::sink::Sink;
+use aer_raspi::sink::mqtt as publish;
+use aer_raspi::sink::store::{self as store, StoreSink};
+use aer_raspi::source::Replies;
 use rumqttc::{AsyncClient, Event, MqttOptions, Packet, QoS};
 use std::collections::HashMap;
 use std::io::{BufRead, BufReader};
@@ -34,6 +40,11 @@ fn start_broker(port: u16) -> broker::Link {
     let config: rumqttd::Config = toml::from_str(&text).expect("broker config");
     broker::check(&config).expect("loopback only");
     broker::spawn(config, "e2e-ingest").expect("broker thread")
+}
+
+/// The regular DBC frames in the log: every frame but the telemetry's ISO-TP and flow control.
+fn can_frames() -> u64 {
+    decode_log(SESSION).counters.snapshot().messages
 }
 
 /// What the generated decoder reads from the log, by sequence number.
@@ -78,7 +89,7 @@ async fn every_packet_reaches_both_subscribers_and_the_store() {
     let collector = tokio::spawn(async move {
         let mut telemetry = Vec::new();
         let mut can = 0usize;
-        while telemetry.len() < 4_500 || can < 18_450 {
+        while telemetry.len() < 4_500 || (can as u64) < can_frames() {
             match tokio::time::timeout(Duration::from_secs(20), events.poll()).await {
                 Ok(Ok(Event::Incoming(Packet::Publish(p)))) => {
                     if p.topic.ends_with("/telemetry") {
@@ -113,7 +124,7 @@ async fn every_packet_reaches_both_subscribers_and_the_store() {
     // The service's own path: in process into the embedded broker.
     let (publisher, driver) = publish::embedded(
         link,
-        MqttConfig::default().queue,
+        BrokerOptions::default().queue,
         "aer/car1".into(),
         counters.clone(),
     );
@@ -157,47 +168,43 @@ async fn every_packet_reaches_both_subscribers_and_the_store() {
     let dir = tempfile::tempdir().expect("temp dir");
     let path = dir.path().join("store.sqlite");
     let writer = store::StoreWriter::start(store::open(&path).expect("store"), counters.clone());
-    let mut pipeline = Pipeline::new(
-        counters.clone(),
-        "car1".into(),
-        Vec::new(),
-        Some(publisher.clone()),
-        writer.sender(),
-    );
-    let stats = replay_all(SESSION.as_bytes(), &mut pipeline, &counters).await;
-    assert_eq!(stats.frames, 67_950);
-    drop(pipeline);
+    let sinks: Vec<Box<dyn Sink>> = vec![
+        Box::new(publisher.clone()),
+        Box::new(StoreSink::new(writer.sender().expect("store open"), "car1")),
+    ];
+    let stage = Stage::new(counters.clone(), sinks, Replies::default());
+    let (stage, stats) = stage.replay_all(SESSION.as_bytes(), &counters).await;
+    assert_eq!(stats.frames, SESSION.lines().count() as u64);
+    drop(stage);
     tokio::task::spawn_blocking(move || writer.finish())
         .await
         .expect("store flushed");
 
     let snapshot = counters.snapshot();
     assert_eq!(snapshot.packets, 4_500);
-    assert_eq!(snapshot.messages, 18_450);
+    assert_eq!(snapshot.messages, can_frames());
     assert_eq!(snapshot.publish_dropped, 0, "{snapshot:?}");
-    assert_eq!(snapshot.stored, 4_500 + 18_450);
+    assert_eq!(snapshot.stored, 4_500 + can_frames());
 
     // The status is retained: a subscriber that comes later still gets it.
-    publish::report(
-        &publisher,
-        "car1",
-        &counters,
-        &publish::metrics(snapshot, snapshot),
-    );
+    publisher.publish_on(&STATUS, &status("car1", &counters), true);
+    publisher.publish_on(&METRICS, &metrics(snapshot, snapshot), false);
     let late = Command::new("mosquitto_sub")
         .args(["-h", "127.0.0.1", "-p", &port.to_string()])
         .args(["-t", "aer/car1/status", "-C", "1", "-W", "10"])
         .output()
         .expect("mosquitto_sub");
-    let status: aer::mqtt::Status = aer::mqtt::STATUS
-        .decode(&late.stdout)
-        .expect("a retained status");
+    let status = STATUS.decode(&late.stdout).expect("a retained status");
     assert_eq!(status.fingerprint_match, Some(true));
     assert_eq!(status.car_id, "car1");
 
     let (telemetry, can) = collector.await.expect("collector");
     assert_eq!(telemetry.len(), 4_500, "rumqttc subscriber: every packet");
-    assert_eq!(can, 18_450, "rumqttc subscriber: every CAN frame");
+    assert_eq!(
+        can as u64,
+        can_frames(),
+        "rumqttc subscriber: every CAN frame"
+    );
     for payload in &telemetry {
         let sample: Sample<TelemetryRecord> = TELEMETRY.decode(payload).expect("typed payload");
         let (ts_us, values) = expected
@@ -242,5 +249,5 @@ async fn every_packet_reaches_both_subscribers_and_the_store() {
             .expect("count")
         })
         .sum();
-    assert_eq!(can_rows, 18_450);
+    assert_eq!(can_rows as u64, can_frames());
 }

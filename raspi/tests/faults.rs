@@ -2,16 +2,28 @@
 //! start-up error for an unwritable store, and the forwarder's behaviour without TDengine.
 
 use aer::telemetry::Telemetry;
-use aer_raspi::candump::LoggedFrame;
+use aer_host::candump::LoggedFrame;
+use aer_host::counters::{Counters, ServiceCounters};
 use aer_raspi::config::TdengineConfig;
+use aer_raspi::forward;
 use aer_raspi::forward::{advance, next_batch};
-use aer_raspi::metrics::Counters;
-use aer_raspi::pipeline::Pipeline;
-use aer_raspi::source::replay_all;
-use aer_raspi::{forward, store};
+use aer_raspi::ingest::Stage;
+use aer_raspi::sink::Sink;
+use aer_raspi::sink::store::{self as store, StoreSink};
+use aer_raspi::source::{Input, Replies};
 use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
+use tokio_util::sync::CancellationToken;
+
+/// A stage that stores everything it decodes through `writer`.
+fn storing(counters: &Arc<Counters>, writer: &store::StoreWriter) -> Stage {
+    let sinks: Vec<Box<dyn Sink>> = writer
+        .sender()
+        .map(|rows| Box::new(StoreSink::new(rows, "car1")) as Box<dyn Sink>)
+        .into_iter()
+        .collect();
+    Stage::new(counters.clone(), sinks, Replies::default())
+}
 
 const SESSION: &str = include_str!("../data/session.log");
 
@@ -31,23 +43,17 @@ fn session_lines(packets: usize) -> Vec<String> {
     lines
 }
 
-async fn run(lines: &[String]) -> (aer::mqtt::ServiceCounters, u64) {
+async fn run(lines: &[String]) -> (ServiceCounters, u64) {
     let counters = Arc::new(Counters::default());
     let dir = tempfile::tempdir().expect("temp dir");
     let writer = store::StoreWriter::start(
         store::open(&dir.path().join("s.sqlite")).expect("store"),
         counters.clone(),
     );
-    let mut pipeline = Pipeline::new(
-        counters.clone(),
-        "car1".into(),
-        Vec::new(),
-        None,
-        writer.sender(),
-    );
+    let stage = storing(&counters, &writer);
     let text = lines.join("\n");
-    let stats = replay_all(text.as_bytes(), &mut pipeline, &counters).await;
-    drop(pipeline);
+    let (stage, stats) = stage.replay_all(text.as_bytes(), &counters).await;
+    drop(stage);
     writer.finish();
     (counters.snapshot(), stats.bad_lines)
 }
@@ -73,8 +79,9 @@ async fn every_fault_is_counted_and_the_rest_still_decodes() {
         .filter(|(_, l)| l.contains(" 666#2"))
         .map(|(i, _)| i)
         .collect();
-    let third_packet_cf = telemetry_frames[2 * 9 + 3];
-    let fifth_packet_cf = telemetry_frames[4 * 9 + 5];
+    let per_packet = (Telemetry::LEN - 6).div_ceil(7);
+    let third_packet_cf = telemetry_frames[2 * per_packet + 3];
+    let fifth_packet_cf = telemetry_frames[4 * per_packet + 5];
     // 1. a lost consecutive frame (3rd packet), 2. a repeated one (5th packet).
     let repeated = lines[fifth_packet_cf].clone();
     lines.insert(fifth_packet_cf, repeated);
@@ -205,16 +212,10 @@ async fn without_tdengine_rows_stay_and_the_forwarder_retries() {
         let counters = Arc::new(Counters::default());
         let writer =
             store::StoreWriter::start(store::open(&path).expect("store"), counters.clone());
-        let mut pipeline = Pipeline::new(
-            counters.clone(),
-            "car1".into(),
-            Vec::new(),
-            None,
-            writer.sender(),
-        );
+        let stage = storing(&counters, &writer);
         let text = session_lines(5).join("\n");
-        replay_all(text.as_bytes(), &mut pipeline, &counters).await;
-        drop(pipeline);
+        let (stage, _) = stage.replay_all(text.as_bytes(), &counters).await;
+        drop(stage);
         writer.finish();
         (counters.snapshot(), 0)
     };
@@ -230,24 +231,24 @@ async fn without_tdengine_rows_stay_and_the_forwarder_retries() {
         workers: 2,
     };
     let counters = Arc::new(Counters::default());
-    let stop = Arc::new(AtomicBool::new(false));
+    let cancel = CancellationToken::new();
     let forwarder = tokio::spawn(forward::run(
         config,
         path.clone(),
         counters.clone(),
-        stop.clone(),
+        cancel.clone(),
     ));
     // Wait (bounded) until both workers have failed to connect at least once.
     let waited = tokio::time::timeout(Duration::from_secs(20), async {
-        while counters.forward_errors.load(Ordering::Relaxed) < 2 {
+        while counters.snapshot().forward_errors < 2 {
             tokio::time::sleep(Duration::from_millis(20)).await;
         }
     })
     .await;
-    stop.store(true, Ordering::Relaxed);
+    cancel.cancel();
     assert!(waited.is_ok(), "the forwarder never reported the outage");
     let _ = tokio::time::timeout(Duration::from_secs(10), forwarder).await;
-    assert_eq!(counters.forwarded.load(Ordering::Relaxed), 0);
+    assert_eq!(counters.snapshot().forwarded, 0);
     let db = store::open(&path).expect("store");
     let (_, rows) = next_batch(&db, 0, 5_000).expect("batch");
     assert_eq!(rows.len(), 5, "every telemetry row is still waiting");
@@ -261,17 +262,10 @@ async fn kernel_reassembled_packets_take_the_same_path() {
         store::open(&dir.path().join("k.sqlite")).expect("store"),
         counters.clone(),
     );
-    let mut pipeline = Pipeline::new(
-        counters.clone(),
-        "car1".into(),
-        vec!["can0".into()],
-        None,
-        writer.sender(),
-    )
-    .with_kernel_isotp();
+    let stage = storing(&counters, &writer).with_kernel_isotp();
     // Raw ISO-TP frames are the kernel's business now: ignored, not counted as errors.
     let text = session_lines(3).join("\n");
-    replay_all(text.as_bytes(), &mut pipeline, &counters).await;
+    let (mut stage, _) = stage.replay_all(text.as_bytes(), &counters).await;
     assert_eq!(counters.snapshot().packets, 0);
     assert_eq!(counters.snapshot().isotp_errors, 0);
     // Whole packets, as the can-isotp socket delivers them.
@@ -287,9 +281,17 @@ async fn kernel_reassembled_packets_take_the_same_path() {
         },
         &mut packet,
     );
-    pipeline.feed_packet(1_795_348_800_000_000, 0, &packet);
-    pipeline.feed_packet(1_795_348_800_010_000, 0, &packet[..10]);
-    drop(pipeline);
+    stage.take(Input::Packet {
+        ts_us: 1_795_348_800_000_000,
+        bus: 0,
+        packet: packet.to_vec(),
+    });
+    stage.take(Input::Packet {
+        ts_us: 1_795_348_800_010_000,
+        bus: 0,
+        packet: packet[..10].to_vec(),
+    });
+    drop(stage);
     writer.finish();
     let snapshot = counters.snapshot();
     assert_eq!(snapshot.packets, 1);

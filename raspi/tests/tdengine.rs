@@ -2,15 +2,17 @@
 //! `AER_TDENGINE_DSN=taos+ws://host:6041` to run it. The forwarder creates the database and
 //! super tables, moves a replayed session, and the row counts match the local store.
 
+use aer_host::counters::Counters;
 use aer_raspi::config::TdengineConfig;
-use aer_raspi::metrics::Counters;
-use aer_raspi::pipeline::Pipeline;
-use aer_raspi::source::replay_all;
-use aer_raspi::{forward, store};
+use aer_raspi::forward;
+use aer_raspi::ingest::Stage;
+use aer_raspi::sink::Sink;
+use aer_raspi::sink::store::{self as store, StoreSink};
+use aer_raspi::source::Replies;
 use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 use taos::{AsyncFetchable, AsyncQueryable, AsyncTBuilder, TaosBuilder};
+use tokio_util::sync::CancellationToken;
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn the_forwarder_moves_every_row_into_tdengine() {
@@ -26,35 +28,33 @@ async fn the_forwarder_moves_every_row_into_tdengine() {
     let writer = store::StoreWriter::start(store::open(&path).expect("store"), counters.clone());
     // A car id of its own, so earlier runs' rows do not count.
     let car = format!("it{}", std::process::id());
-    let mut pipeline = Pipeline::new(
-        counters.clone(),
-        car.clone(),
-        Vec::new(),
-        None,
-        writer.sender(),
-    );
+    let sinks: Vec<Box<dyn Sink>> = vec![Box::new(StoreSink::new(
+        writer.sender().expect("store open"),
+        &car,
+    ))];
+    let stage = Stage::new(counters.clone(), sinks, Replies::default());
     let log = include_str!("../data/session.log");
-    replay_all(log.as_bytes(), &mut pipeline, &counters).await;
-    drop(pipeline);
+    let (stage, _) = stage.replay_all(log.as_bytes(), &counters).await;
+    drop(stage);
     writer.finish();
     let stored = counters.snapshot().stored;
 
-    let stop = Arc::new(AtomicBool::new(false));
+    let cancel = CancellationToken::new();
     let config = TdengineConfig {
         enabled: true,
         dsn: dsn.clone(),
         batch_rows: 5_000,
         workers: 2,
     };
-    let forwarder = tokio::spawn(forward::run(config, path, counters.clone(), stop.clone()));
+    let forwarder = tokio::spawn(forward::run(config, path, counters.clone(), cancel.clone()));
     tokio::time::timeout(Duration::from_secs(120), async {
-        while counters.forwarded.load(Ordering::Relaxed) < stored {
+        while counters.snapshot().forwarded < stored {
             tokio::time::sleep(Duration::from_millis(100)).await;
         }
     })
     .await
     .expect("every stored row forwarded within 2 minutes");
-    stop.store(true, Ordering::Relaxed);
+    cancel.cancel();
     let _ = forwarder.await;
 
     let taos = TaosBuilder::from_dsn(&dsn)

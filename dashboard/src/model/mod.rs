@@ -10,8 +10,9 @@ pub mod laps;
 
 use crate::config::Config;
 use aer::can::VehicleState;
-use aer::mqtt::{Metrics, Sample, Status, TelemetryRecord};
+use aer::mqtt::{Sample, TelemetryRecord};
 use aer::telemetry::{Level, Telemetry, TelemetryHeader};
+use aer_host::status::{Metrics, Status};
 use alarms::Alarms;
 use fields::{Field, FieldValue, Schema};
 use health::{Connection, Health};
@@ -20,7 +21,7 @@ use laps::LapTimer;
 use std::time::{Duration, Instant};
 
 /// The car's own constants (ccm/src/config.rs): one place for them, shared with the firmware.
-use aer_ccm::config::{GEAR_RATIO, POWER_LIMIT_W, WHEEL_RADIUS_M};
+use aer_params::{GEAR_RATIO, POWER_LIMIT_W, WHEEL_RADIUS_M};
 
 /// Something the dashboard learns from the broker.
 #[derive(Debug, Clone, PartialEq)]

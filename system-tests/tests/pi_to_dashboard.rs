@@ -2,7 +2,6 @@
 //! pipeline and publishes on the embedded rumqttd broker; the dashboard's own MQTT link reads
 //! the typed topics; its model and views must show exactly what the car sent.
 
-use aer::mqtt::STATUS;
 use aer_dashboard::config::{Config, View};
 use aer_dashboard::link::{self, Settings};
 use aer_dashboard::model::health::SchemaMatch;
@@ -10,11 +9,15 @@ use aer_dashboard::model::{Dashboard, Update};
 use aer_dashboard::screenshot::{BUNDLED_SESSION, PIT_SIZE};
 use aer_dashboard::session;
 use aer_dashboard::ui::App;
-use aer_raspi::config::MqttConfig;
-use aer_raspi::metrics::Counters;
-use aer_raspi::pipeline::Pipeline;
-use aer_raspi::source::replay_all;
-use aer_raspi::{broker, publish};
+use aer_host::config::BrokerConfig;
+use aer_host::counters::Counters;
+use aer_host::status::{STATUS, status};
+use aer_raspi::broker;
+use aer_raspi::config::BrokerOptions;
+use aer_raspi::ingest::Stage;
+use aer_raspi::sink::Sink;
+use aer_raspi::sink::mqtt as publish;
+use aer_raspi::source::Replies;
 use iced::futures::StreamExt;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -72,27 +75,26 @@ async fn a_replayed_session_reaches_the_dashboard_intact() {
 
     // The Pi service: replay -> ingest -> typed topics, then its retained status.
     let counters = Arc::new(Counters::default());
-    let mqtt = MqttConfig {
+    let mqtt = BrokerConfig {
         port,
-        ..MqttConfig::default()
+        ..BrokerConfig::default()
     };
+    let queue = BrokerOptions::default().queue;
     let (publisher, driver) =
-        publish::connect(&mqtt, "e2e-pi", "aer/car1".into(), counters.clone());
+        publish::connect(&mqtt, queue, "e2e-pi", "aer/car1".into(), counters.clone());
     let (up_tx, mut up) = tokio::sync::watch::channel(false);
     tokio::spawn(publish::drive(driver, up_tx));
     tokio::time::timeout(Duration::from_secs(10), up.wait_for(|u| *u))
         .await
         .expect("the Pi connects")
         .expect("watch");
-    let mut pipeline = Pipeline::new(
-        counters.clone(),
-        "car1".into(),
-        Vec::new(),
-        Some(publisher.clone()),
-        None,
-    );
-    replay_all(BUNDLED_SESSION.as_bytes(), &mut pipeline, &counters).await;
-    publisher.publish_on(&STATUS, &publish::status("car1", &counters), true);
+    let sinks: Vec<Box<dyn Sink>> = vec![Box::new(publisher.clone())];
+    let stage = Stage::new(counters.clone(), sinks, Replies::default());
+    let (stage, _) = stage
+        .replay_all(BUNDLED_SESSION.as_bytes(), &counters)
+        .await;
+    drop(stage);
+    publisher.publish_on(&STATUS, &status("car1", &counters), true);
     assert_eq!(counters.snapshot().publish_dropped, 0);
 
     let mut received = Vec::new();

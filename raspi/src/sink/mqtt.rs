@@ -9,26 +9,23 @@
 //! own task.
 
 use crate::broker;
-use crate::config::MqttConfig;
-use crate::ingest::Record;
-use crate::metrics::{Counters, worth_logging};
-use aer::mqtt::{
-    METRICS, Metrics, STATUS, ServiceCounters, Status, TELEMETRY, TelemetryRecord, Topic,
-    encode_message,
-};
+use aer::mqtt::{TELEMETRY, TelemetryRecord, Topic, encode_message};
+use aer_host::clock::seconds;
+use aer_host::config::BrokerConfig;
+use aer_host::counters::{Counters, worth_logging};
+use aer_host::ingest::Record;
 use rumqttc::{AsyncClient, Event, EventLoop, MqttOptions, Packet, QoS};
 use rumqttd::local::{LinkRx, LinkTx};
 use serde::Serialize;
 use std::sync::Arc;
 use std::sync::Mutex;
-use std::sync::atomic::Ordering;
 use std::time::Duration;
 use tracing::{info, warn};
 
 /// Sends records to the broker.
 #[derive(Clone)]
 pub struct Publisher {
-    sink: Sink,
+    connection: Connection,
     prefix: String,
     /// The telemetry topic under the prefix, built once: it carries every packet.
     telemetry_topic: bytes::Bytes,
@@ -36,7 +33,7 @@ pub struct Publisher {
 }
 
 #[derive(Clone)]
-enum Sink {
+enum Connection {
     /// The embedded broker's router, in process; the notification ends [`drive`].
     Embedded(Arc<Mutex<EmbeddedLink>>, Arc<tokio::sync::Notify>),
     /// A broker over TCP (rumqttc; its event loop runs in [`drive`]).
@@ -99,7 +96,7 @@ pub fn embedded(
     counters: Arc<Counters>,
 ) -> (Publisher, Driver) {
     let closed = Arc::new(tokio::sync::Notify::new());
-    let sink = Sink::Embedded(
+    let connection = Connection::Embedded(
         Arc::new(Mutex::new(EmbeddedLink {
             tx: link.tx,
             queue: queue.max(1),
@@ -108,15 +105,16 @@ pub fn embedded(
         closed.clone(),
     );
     (
-        Publisher::new(sink, prefix, counters),
+        Publisher::new(connection, prefix, counters),
         Driver::Embedded(link.rx, closed),
     )
 }
 
-/// A publisher to the broker `config` names, over TCP. It connects lazily: [`drive`]
-/// connects, and reconnects after a failure.
+/// A publisher to the broker `config` names, over TCP, queueing up to `queue` messages. It
+/// connects lazily: [`drive`] connects, and reconnects after a failure.
 pub fn connect(
-    config: &MqttConfig,
+    config: &BrokerConfig,
+    queue: usize,
     client_id: &str,
     prefix: String,
     counters: Arc<Counters>,
@@ -127,14 +125,14 @@ pub fn connect(
     if let (Some(user), Some(password)) = (&config.username, &config.password) {
         options.set_credentials(user.clone(), password.clone());
     }
-    let (client, mut eventloop) = AsyncClient::new(options, config.queue.max(1));
+    let (client, mut eventloop) = AsyncClient::new(options, queue.max(1));
     // Without TCP_NODELAY, Nagle's algorithm holds small publishes back for up to the peer's
     // delayed-ACK time (~40 ms).
     let mut network = eventloop.network_options();
     network.set_tcp_nodelay(true);
     eventloop.set_network_options(network);
     (
-        Publisher::new(Sink::Remote(client), prefix, counters),
+        Publisher::new(Connection::Remote(client), prefix, counters),
         Driver::Remote(Box::new(eventloop)),
     )
 }
@@ -189,10 +187,10 @@ async fn drive_remote(mut eventloop: EventLoop, connected_tx: tokio::sync::watch
 }
 
 impl Publisher {
-    fn new(sink: Sink, prefix: String, counters: Arc<Counters>) -> Self {
+    fn new(connection: Connection, prefix: String, counters: Arc<Counters>) -> Self {
         Self {
             telemetry_topic: TELEMETRY.path(&prefix).into(),
-            sink,
+            connection,
             prefix,
             counters,
         }
@@ -234,7 +232,7 @@ impl Publisher {
 
     /// Hands every published record to the broker now.
     pub fn flush(&self) {
-        if let Sink::Embedded(link, _) = &self.sink
+        if let Connection::Embedded(link, _) = &self.connection
             && !link.lock().is_ok_and(|mut link| link.flush())
         {
             let count = Counters::bump(&self.counters.publish_dropped);
@@ -246,11 +244,11 @@ impl Publisher {
 
     /// Sends everything queued, then disconnects ([`drive`] then ends).
     pub async fn disconnect(&self) {
-        match &self.sink {
-            Sink::Remote(client) => {
+        match &self.connection {
+            Connection::Remote(client) => {
                 let _ = client.disconnect().await;
             }
-            Sink::Embedded(_, closed) => {
+            Connection::Embedded(_, closed) => {
                 self.flush();
                 closed.notify_one();
             }
@@ -282,14 +280,14 @@ impl Publisher {
     }
 
     fn send(&self, topic: bytes::Bytes, payload: Vec<u8>, retain: bool, wake: bool) {
-        let accepted = match &self.sink {
+        let accepted = match &self.connection {
             // Topics are built from UTF-8 strings, so the conversion cannot fail.
-            Sink::Remote(client) => std::str::from_utf8(&topic).is_ok_and(|topic| {
+            Connection::Remote(client) => std::str::from_utf8(&topic).is_ok_and(|topic| {
                 client
                     .try_publish(topic, QoS::AtMostOnce, retain, payload)
                     .is_ok()
             }),
-            Sink::Embedded(link, _) => link.lock().is_ok_and(|mut link| {
+            Connection::Embedded(link, _) => link.lock().is_ok_and(|mut link| {
                 let packet = rumqttd::protocol::Packet::Publish(
                     rumqttd::protocol::Publish::new(topic, bytes::Bytes::from(payload), retain),
                     None,
@@ -324,39 +322,12 @@ fn push(tx: &mut LinkTx, packet: rumqttd::protocol::Packet) -> bool {
     )
 }
 
-/// Seconds since the epoch, as PlotJuggler reads `ts`.
-pub fn seconds(ts_us: u64) -> f64 {
-    ts_us as f64 / 1e6
-}
-
-/// The counters now, with the packet rate since `previous` (read one second earlier).
-pub fn metrics(now: ServiceCounters, previous: ServiceCounters) -> Metrics {
-    Metrics {
-        ts: seconds(crate::source::now_us()),
-        packets_per_s: now.packets.saturating_sub(previous.packets) as f64,
-        store_lag: (now.packets + now.messages).saturating_sub(now.stored),
-        counters: now,
+impl super::Sink for Publisher {
+    fn accept(&mut self, record: &Record, _: &[Arc<str>]) {
+        self.publish(record);
     }
-}
 
-/// Publishes the retained status and the metrics.
-pub fn report(publisher: &Publisher, car_id: &str, counters: &Counters, metrics: &Metrics) {
-    publisher.publish_on(&STATUS, &status(car_id, counters), true);
-    publisher.publish_on(&METRICS, metrics, false);
-}
-
-/// The status as of now.
-pub fn status(car_id: &str, counters: &Counters) -> Status {
-    let seen = counters.firmware_fingerprint.load(Ordering::Relaxed);
-    let last = counters.last_packet_us.load(Ordering::Relaxed);
-    let ours = aer::telemetry::TELEMETRY_FINGERPRINT;
-    Status {
-        service: "aer-raspi".to_owned(),
-        car_id: car_id.to_owned(),
-        schema_fingerprint: format!("{:#010x}", aer::can::SCHEMA_FINGERPRINT),
-        telemetry_fingerprint: format!("{ours:#010x}"),
-        firmware_fingerprint_seen: (seen != 0).then(|| format!("{seen:#010x}")),
-        fingerprint_match: (seen != 0).then_some(seen == u64::from(ours)),
-        last_packet_ts: (last != 0).then(|| seconds(last)),
+    fn flush(&mut self) {
+        Publisher::flush(self);
     }
 }

@@ -1,0 +1,102 @@
+//! The ingest service's counters: one list, from which both the live counters (atomic, any
+//! thread bumps them) and the published snapshot ([`ServiceCounters`], the metrics payload)
+//! are made, so the two cannot drift apart.
+
+use serde::{Deserialize, Serialize};
+use std::sync::atomic::{AtomicU64, Ordering};
+
+macro_rules! counters {
+    ($($(#[doc = $doc:literal])+ $name:ident,)+) => {
+        /// Everything the ingest service counted since it started, as published.
+        #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+        pub struct ServiceCounters {
+            $($(#[doc = $doc])+ pub $name: u64,)+
+        }
+
+        /// The live counters, and the two last-seen values the status reports.
+        #[derive(Debug, Default)]
+        pub struct Counters {
+            $($(#[doc = $doc])+ pub $name: AtomicU64,)+
+            /// Receive time of the last telemetry packet (us since the epoch, 0 = none yet).
+            pub last_packet_us: AtomicU64,
+            /// Telemetry fingerprint the firmware sent last (0 = none yet).
+            pub firmware_fingerprint: AtomicU64,
+        }
+
+        impl Counters {
+            /// Reads every counter, as the metrics topic publishes them.
+            pub fn snapshot(&self) -> ServiceCounters {
+                ServiceCounters {
+                    $($name: self.$name.load(Ordering::Relaxed),)+
+                }
+            }
+        }
+    };
+}
+
+counters! {
+    /// CAN frames taken from a source.
+    frames,
+    /// Log lines that were not frames (truncated, garbage).
+    bad_lines,
+    /// Telemetry packets decoded.
+    packets,
+    /// DBC messages decoded.
+    messages,
+    /// ISO-TP errors: lost or repeated consecutive frames, timeouts, malformed frames,
+    /// interrupted messages.
+    isotp_errors,
+    /// Packets whose fingerprint is not the service's (firmware and Pi disagree).
+    fingerprint_mismatches,
+    /// Packets of the wrong length.
+    packet_errors,
+    /// Frames of known ids that failed to decode.
+    decode_errors,
+    /// Frames whose id the schema does not know.
+    unknown_ids,
+    /// MQTT messages handed to the broker.
+    published,
+    /// MQTT messages dropped because the broker's queue was full.
+    publish_dropped,
+    /// Rows committed to the local store.
+    stored,
+    /// Rows forwarded to TDengine.
+    forwarded,
+    /// TDengine write failures (retried).
+    forward_errors,
+}
+
+impl Counters {
+    /// Adds one to `counter`; returns the new count.
+    pub fn bump(counter: &AtomicU64) -> u64 {
+        counter.fetch_add(1, Ordering::Relaxed) + 1
+    }
+}
+
+/// True for the counts worth a log line (1, 2, 4, 8, ...): every kind of fault is logged the
+/// first time and then ever more rarely, so a flood cannot drown the log.
+pub fn worth_logging(count: u64) -> bool {
+    count.is_power_of_two()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_snapshot_reads_every_counter() {
+        let counters = Counters::default();
+        Counters::bump(&counters.frames);
+        Counters::bump(&counters.forward_errors);
+        Counters::bump(&counters.forward_errors);
+        let snapshot = counters.snapshot();
+        assert_eq!((snapshot.frames, snapshot.forward_errors), (1, 2));
+        assert_eq!(snapshot.packets, 0);
+    }
+
+    #[test]
+    fn logging_thins_out_as_a_count_grows() {
+        let logged: Vec<u64> = (1..=20).filter(|c| worth_logging(*c)).collect();
+        assert_eq!(logged, [1, 2, 4, 8, 16]);
+    }
+}

@@ -1,0 +1,246 @@
+//! Frames in, records out: ISO-TP reassembly of the telemetry packet (per bus), fingerprint
+//! check, the generated telemetry and DBC decoders. Every failure is counted and logged.
+//! Decoding only: where records go is the caller's business.
+
+use crate::candump::{LoggedFrame, parse_line};
+use crate::counters::{Counters, worth_logging};
+use aer::can::AnyMessage;
+use aer::runtime::DecodeError;
+use aer::telemetry::{Telemetry, TelemetryError, TelemetryHeader};
+use aer_isotp::{Config, Frame, Received, Receiver};
+use embedded_can::Id;
+use std::collections::HashMap;
+use std::sync::Arc;
+use std::sync::atomic::Ordering;
+use tracing::warn;
+
+/// Largest ISO-TP message accepted (the protocol's limit; the packet is much smaller).
+const MAX_MESSAGE: usize = aer_isotp::MAX_PAYLOAD;
+
+/// A decoded unit of data.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Record {
+    /// A telemetry packet.
+    Telemetry {
+        /// When its last frame arrived (us since the epoch).
+        ts_us: u64,
+        /// Bus it came on.
+        bus: u8,
+        header: TelemetryHeader,
+        telemetry: Box<Telemetry>,
+    },
+    /// A regular DBC frame.
+    Can {
+        /// When it arrived (us since the epoch).
+        ts_us: u64,
+        /// Bus it came on.
+        bus: u8,
+        message: AnyMessage,
+    },
+}
+
+/// The decoder state: one ISO-TP receiver per bus.
+pub struct Ingest {
+    counters: Arc<Counters>,
+    receivers: Vec<Receiver<MAX_MESSAGE>>,
+    /// Reassemble ISO-TP from raw frames (replays, and buses without the kernel's ISO-TP
+    /// socket); `false` when the kernel delivers whole packets through [`Ingest::on_packet`].
+    userspace_isotp: bool,
+}
+
+impl Ingest {
+    /// A decoder counting into `counters`.
+    pub fn new(counters: Arc<Counters>) -> Self {
+        Self {
+            counters,
+            receivers: Vec::new(),
+            userspace_isotp: true,
+        }
+    }
+
+    /// Leaves ISO-TP to the kernel: raw 0x666/0x777 frames are then ignored.
+    pub fn use_kernel_isotp(&mut self) {
+        self.userspace_isotp = false;
+    }
+
+    /// Decodes a telemetry packet the kernel's ISO-TP socket reassembled.
+    pub fn on_packet(&self, ts_us: u64, bus: u8, packet: &[u8], mut emit: impl FnMut(Record)) {
+        packet_record(&self.counters, ts_us, bus, packet, &mut emit);
+    }
+
+    /// Decodes one frame. `emit` gets every record; `reply` gets the ISO-TP flow-control
+    /// frames to send back on the frame's bus (live buses only; replays ignore them).
+    pub fn on_frame(
+        &mut self,
+        frame: &LoggedFrame,
+        mut emit: impl FnMut(Record),
+        mut reply: impl FnMut(u8, Frame),
+    ) {
+        Counters::bump(&self.counters.frames);
+        let (id, extended) = match frame.id {
+            Id::Standard(id) => (u32::from(id.as_raw()), false),
+            Id::Extended(id) => (id.as_raw(), true),
+        };
+        if !extended && id == u32::from(Telemetry::TX_ID) {
+            if self.userspace_isotp {
+                self.isotp(frame, &mut emit, &mut reply);
+            }
+            return;
+        }
+        if !extended && id == u32::from(Telemetry::FLOW_CONTROL_ID) {
+            // Our own (or a logged) flow control: not data.
+            return;
+        }
+        match AnyMessage::decode(id, extended, frame.payload()) {
+            Ok(message) => {
+                Counters::bump(&self.counters.messages);
+                emit(Record::Can {
+                    ts_us: frame.ts_us,
+                    bus: frame.bus,
+                    message,
+                });
+            }
+            Err(DecodeError::UnknownId { .. }) => {
+                let count = Counters::bump(&self.counters.unknown_ids);
+                if worth_logging(count) {
+                    warn!(
+                        id = format_args!("{id:#x}"),
+                        extended, count, "frame of an id the schema does not know"
+                    );
+                }
+            }
+            Err(error) => {
+                let count = Counters::bump(&self.counters.decode_errors);
+                if worth_logging(count) {
+                    warn!(%error, count, "frame failed to decode");
+                }
+            }
+        }
+    }
+
+    fn isotp(
+        &mut self,
+        frame: &LoggedFrame,
+        emit: &mut impl FnMut(Record),
+        reply: &mut impl FnMut(u8, Frame),
+    ) {
+        let bus = usize::from(frame.bus);
+        while self.receivers.len() <= bus {
+            self.receivers.push(Receiver::new(Config::CAR));
+        }
+        let Some(receiver) = self.receivers.get_mut(bus) else {
+            return;
+        };
+        let counters = &self.counters;
+        match receiver.on_frame(frame.payload(), frame.ts_us as u32) {
+            Ok(Received::Nothing) => {}
+            Ok(Received::FlowControl(fc)) => reply(frame.bus, fc),
+            Ok(Received::Message(packet)) => {
+                packet_record(counters, frame.ts_us, frame.bus, packet, emit)
+            }
+            Err(error) => {
+                let count = Counters::bump(&counters.isotp_errors);
+                if worth_logging(count) {
+                    warn!(bus, ?error, count, "ISO-TP frame rejected");
+                }
+            }
+        }
+        // Reported after the frame is taken, so a new message is never held up.
+        if receiver.take_interrupted() {
+            let count = Counters::bump(&counters.isotp_errors);
+            if worth_logging(count) {
+                warn!(bus, count, "ISO-TP message interrupted by a new one");
+            }
+        }
+    }
+}
+
+/// Unpacks a reassembled telemetry packet (fingerprint and length checked) into a record.
+fn packet_record(
+    counters: &Counters,
+    ts_us: u64,
+    bus: u8,
+    packet: &[u8],
+    emit: &mut impl FnMut(Record),
+) {
+    match Telemetry::unpack(packet) {
+        Ok((header, telemetry)) => {
+            Counters::bump(&counters.packets);
+            counters.last_packet_us.store(ts_us, Ordering::Relaxed);
+            counters.firmware_fingerprint.store(
+                u64::from(aer::telemetry::TELEMETRY_FINGERPRINT),
+                Ordering::Relaxed,
+            );
+            emit(Record::Telemetry {
+                ts_us,
+                bus,
+                header,
+                telemetry: Box::new(telemetry),
+            });
+        }
+        Err(TelemetryError::FingerprintMismatch { expected, found }) => {
+            counters
+                .firmware_fingerprint
+                .store(u64::from(found), Ordering::Relaxed);
+            let count = Counters::bump(&counters.fingerprint_mismatches);
+            if worth_logging(count) {
+                warn!(
+                    expected = format_args!("{expected:#010x}"),
+                    found = format_args!("{found:#010x}"),
+                    count,
+                    "telemetry from firmware built from another schema: flash the CCM from this commit"
+                );
+            }
+        }
+        Err(error) => {
+            let count = Counters::bump(&counters.packet_errors);
+            if worth_logging(count) {
+                warn!(%error, count, "telemetry packet rejected");
+            }
+        }
+    }
+}
+
+/// A candump log decoded as the service decodes it, without outputs.
+#[derive(Debug)]
+pub struct DecodedLog {
+    /// Every telemetry packet: receive time (us since the epoch), header and values.
+    pub packets: Vec<(u64, TelemetryHeader, Telemetry)>,
+    /// What decoding counted (frames, errors, the firmware fingerprint seen, ...).
+    pub counters: Arc<Counters>,
+}
+
+/// Decodes a whole log in memory with its recorded timestamps (tests, benchmarks, the
+/// dashboard's screenshots). Broken lines are counted in `bad_lines`, as in a replay.
+pub fn decode_log(log: &str) -> DecodedLog {
+    let counters = Arc::new(Counters::default());
+    let mut ingest = Ingest::new(counters.clone());
+    let mut buses: HashMap<String, u8> = HashMap::new();
+    let mut packets = Vec::new();
+    for line in log.lines().filter(|line| !line.trim().is_empty()) {
+        let parsed = parse_line(line, |name| {
+            let next = u8::try_from(buses.len()).unwrap_or(u8::MAX);
+            *buses.entry(name.to_owned()).or_insert(next)
+        });
+        let Ok(frame) = parsed else {
+            Counters::bump(&counters.bad_lines);
+            continue;
+        };
+        ingest.on_frame(
+            &frame,
+            |record| {
+                if let Record::Telemetry {
+                    ts_us,
+                    header,
+                    telemetry,
+                    ..
+                } = record
+                {
+                    packets.push((ts_us, header, *telemetry));
+                }
+            },
+            |_, _| {},
+        );
+    }
+    DecodedLog { packets, counters }
+}

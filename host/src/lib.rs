@@ -1,0 +1,17 @@
+//! What every host-side consumer of the car's data shares, the Pi service and the dashboard
+//! alike, with nothing of either: no broker, no database, no UI.
+//!
+//! - [`candump`]: candump log lines, the interchange format of recorded sessions;
+//! - [`ingest`]: frames in, decoded records out (ISO-TP reassembly, fingerprint check, the
+//!   generated decoders), and [`ingest::decode_log`] for whole logs;
+//! - [`counters`]: the service's counters, one set for counting and publishing;
+//! - [`status`]: the service's status and metrics payloads and their typed topics;
+//! - [`config`]: reading configuration files and the broker settings both tiers use;
+//! - [`clock`]: timestamps as the topics carry them.
+
+pub mod candump;
+pub mod clock;
+pub mod config;
+pub mod counters;
+pub mod ingest;
+pub mod status;

@@ -1,0 +1,96 @@
+//! The ingest service's own topics: its status (retained: which schema it decodes, which the
+//! firmware sends, when data last came) and its counters every second.
+
+use crate::clock::{now_us, seconds};
+use crate::counters::{Counters, ServiceCounters};
+use aer::mqtt::Topic;
+use serde::{Deserialize, Serialize};
+use std::sync::atomic::Ordering;
+
+/// The ingest service's state, retained, so a subscriber learns it on subscribing.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Status {
+    /// The publishing service (`aer-raspi`).
+    pub service: String,
+    pub car_id: String,
+    /// The DBC schema fingerprint the service was built from (`0x` and eight hex digits).
+    pub schema_fingerprint: String,
+    /// The telemetry fingerprint the service decodes.
+    pub telemetry_fingerprint: String,
+    /// The telemetry fingerprint the firmware last sent (`null` before the first packet).
+    pub firmware_fingerprint_seen: Option<String>,
+    /// Whether the firmware and the service were built from the same schema.
+    pub fingerprint_match: Option<bool>,
+    /// Receive time of the last telemetry packet (s since the epoch).
+    pub last_packet_ts: Option<f64>,
+}
+
+/// The ingest service's counters, published every second.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Metrics {
+    /// When they were read (s since the epoch).
+    pub ts: f64,
+    /// Telemetry packets decoded in the last second.
+    pub packets_per_s: f64,
+    /// Rows decoded but not yet committed to the local store.
+    pub store_lag: u64,
+    #[serde(flatten)]
+    pub counters: ServiceCounters,
+}
+
+/// The ingest service's status (retained).
+pub const STATUS: Topic<Status> = Topic::new("status");
+
+/// The ingest service's counters, every second.
+pub const METRICS: Topic<Metrics> = Topic::new("metrics");
+
+/// The status as of now, for `car_id`, from what `counters` saw.
+pub fn status(car_id: &str, counters: &Counters) -> Status {
+    let seen = counters.firmware_fingerprint.load(Ordering::Relaxed);
+    let last = counters.last_packet_us.load(Ordering::Relaxed);
+    let ours = aer::telemetry::TELEMETRY_FINGERPRINT;
+    Status {
+        service: "aer-raspi".to_owned(),
+        car_id: car_id.to_owned(),
+        schema_fingerprint: format!("{:#010x}", aer::can::SCHEMA_FINGERPRINT),
+        telemetry_fingerprint: format!("{ours:#010x}"),
+        firmware_fingerprint_seen: (seen != 0).then(|| format!("{seen:#010x}")),
+        fingerprint_match: (seen != 0).then_some(seen == u64::from(ours)),
+        last_packet_ts: (last != 0).then(|| seconds(last)),
+    }
+}
+
+/// The counters `now`, with the packet rate since `previous` (read one second earlier).
+pub fn metrics(now: ServiceCounters, previous: ServiceCounters) -> Metrics {
+    Metrics {
+        ts: seconds(now_us()),
+        packets_per_s: now.packets.saturating_sub(previous.packets) as f64,
+        store_lag: (now.packets + now.messages).saturating_sub(now.stored),
+        counters: now,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_status_says_whether_the_firmware_matches() {
+        let counters = Counters::default();
+        let before = status("car1", &counters);
+        assert_eq!(
+            (before.fingerprint_match, before.last_packet_ts),
+            (None, None)
+        );
+        counters.firmware_fingerprint.store(
+            u64::from(aer::telemetry::TELEMETRY_FINGERPRINT),
+            Ordering::Relaxed,
+        );
+        counters.last_packet_us.store(2_500_000, Ordering::Relaxed);
+        let after = status("car1", &counters);
+        assert_eq!(after.fingerprint_match, Some(true));
+        assert_eq!(after.last_packet_ts, Some(2.5));
+        let round_trip = STATUS.decode(&STATUS.encode(&after).unwrap()).unwrap();
+        assert_eq!(round_trip, after);
+    }
+}

@@ -1,0 +1,48 @@
+//! The service's own topics, every second: the retained status (which schema it decodes,
+//! which the firmware sends, when data last came) and the metrics (every counter, packet
+//! rate, store lag); in the demo also a console line.
+
+use crate::sink::mqtt::Publisher;
+use aer_host::counters::Counters;
+use aer_host::status::{METRICS, STATUS, metrics, status};
+use std::sync::Arc;
+use std::time::Duration;
+use tokio_util::sync::CancellationToken;
+
+/// Publishes status and metrics every second until `cancel`; `console` also prints a line.
+pub async fn run(
+    publisher: Publisher,
+    car_id: String,
+    counters: Arc<Counters>,
+    cancel: CancellationToken,
+    console: bool,
+) {
+    let mut previous = counters.snapshot();
+    let mut tick = tokio::time::interval(Duration::from_secs(1));
+    loop {
+        tokio::select! {
+            _ = tick.tick() => {}
+            () = cancel.cancelled() => return,
+        }
+        let now = counters.snapshot();
+        let metrics = metrics(now, previous);
+        publisher.publish_on(&STATUS, &status(&car_id, &counters), true);
+        publisher.publish_on(&METRICS, &metrics, false);
+        if console {
+            println!(
+                "packets {:>7} ({:>4}/s)  frames {:>8}  stored {:>8}  published {:>8}  dropped {}  errors isotp {} decode {} unknown {} bad-lines {}",
+                now.packets,
+                metrics.packets_per_s,
+                now.frames,
+                now.stored,
+                now.published,
+                now.publish_dropped,
+                now.isotp_errors,
+                now.decode_errors,
+                now.unknown_ids,
+                now.bad_lines
+            );
+        }
+        previous = now;
+    }
+}
