@@ -11,12 +11,152 @@ pub enum Severity {
     Error,
 }
 
+/// What kind of problem a finding is. Each has a stable, greppable code (`E0103`) so tests and
+/// people can refer to it; `E` codes are errors, `W` codes warnings.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Code {
+    /// E0001: the DBC file cannot be read.
+    DbcUnreadable,
+    /// E0002: the DBC is neither UTF-8 nor Windows-1252.
+    DbcEncoding,
+    /// E0003: the DBC does not parse.
+    DbcSyntax,
+    /// E0101: a message id beyond the 11- or 29-bit limit.
+    IdOutOfRange,
+    /// E0102: two messages with one id.
+    DuplicateId,
+    /// E0103: two messages with one name.
+    DuplicateMessageName,
+    /// E0104: a payload length no CAN or CAN FD frame has.
+    FrameLength,
+    /// E0105: a signal shorter than 1 or longer than 64 bits.
+    SignalLength,
+    /// E0106: a signal with bits outside its frame.
+    SignalOutsideFrame,
+    /// E0107: signals that share bits (and can be present together).
+    SignalOverlap,
+    /// E0108: two signals with one name in a message.
+    DuplicateSignal,
+    /// E0112: an IEEE float signal of the wrong length.
+    FloatLength,
+    /// E0113: a zero or non-finite factor.
+    BadFactor,
+    /// E0114: multiplexing that cannot be resolved.
+    Multiplexing,
+    /// E0115: a minimum above the maximum.
+    RangeInverted,
+    /// E0116: multiplexor values the multiplexor cannot take.
+    MuxValueOutOfRange,
+    /// E0118: an f32 physical value for a raw value f32 cannot hold.
+    F32TooNarrow,
+    /// E0201: the telemetry schema cannot be read.
+    TelemetryUnreadable,
+    /// E0202: the telemetry schema does not parse.
+    TelemetrySyntax,
+    /// E0203: a field references a signal that does not exist.
+    UnknownSignal,
+    /// E0204: an unknown wire type.
+    UnknownWireType,
+    /// E0205: a field that is not exactly one of signal, type or enum.
+    FieldKind,
+    /// E0206: an unusable or duplicate field name.
+    FieldName,
+    /// E0207: a field uses an enum the DBC does not define.
+    UnknownEnum,
+    /// E0209: a packet longer than ISO-TP carries.
+    PacketTooLong,
+    /// E0210: a referenced signal too wide for a telemetry field.
+    SignalTooWide,
+    /// E0211: an unusable scale.
+    BadScale,
+    /// E0212: unusable ISO-TP ids.
+    IsoTpIds,
+    /// E0213: a range the wire type cannot hold.
+    FieldRange,
+    /// E0214: display thresholds in the wrong order.
+    Thresholds,
+    /// W0201: a name that is a Rust keyword.
+    KeywordName,
+    /// W0202: a range the raw value cannot reach.
+    RangeBeyondRaw,
+    /// W0203: value descriptions the signal cannot hold.
+    UnusableValues,
+    /// W0204: a name renamed to avoid a clash.
+    Renamed,
+    /// W0205: a CAN FD length that is not a frame length.
+    FdLength,
+}
+
+impl Code {
+    /// The stable code, such as `E0103`.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Code::DbcUnreadable => "E0001",
+            Code::DbcEncoding => "E0002",
+            Code::DbcSyntax => "E0003",
+            Code::IdOutOfRange => "E0101",
+            Code::DuplicateId => "E0102",
+            Code::DuplicateMessageName => "E0103",
+            Code::FrameLength => "E0104",
+            Code::SignalLength => "E0105",
+            Code::SignalOutsideFrame => "E0106",
+            Code::SignalOverlap => "E0107",
+            Code::DuplicateSignal => "E0108",
+            Code::FloatLength => "E0112",
+            Code::BadFactor => "E0113",
+            Code::Multiplexing => "E0114",
+            Code::RangeInverted => "E0115",
+            Code::MuxValueOutOfRange => "E0116",
+            Code::F32TooNarrow => "E0118",
+            Code::TelemetryUnreadable => "E0201",
+            Code::TelemetrySyntax => "E0202",
+            Code::UnknownSignal => "E0203",
+            Code::UnknownWireType => "E0204",
+            Code::FieldKind => "E0205",
+            Code::FieldName => "E0206",
+            Code::UnknownEnum => "E0207",
+            Code::PacketTooLong => "E0209",
+            Code::SignalTooWide => "E0210",
+            Code::BadScale => "E0211",
+            Code::IsoTpIds => "E0212",
+            Code::FieldRange => "E0213",
+            Code::Thresholds => "E0214",
+            Code::KeywordName => "W0201",
+            Code::RangeBeyondRaw => "W0202",
+            Code::UnusableValues => "W0203",
+            Code::Renamed => "W0204",
+            Code::FdLength => "W0205",
+        }
+    }
+
+    /// Errors stop generation; warnings do not.
+    pub fn severity(self) -> Severity {
+        if self.as_str().starts_with('W') {
+            Severity::Warning
+        } else {
+            Severity::Error
+        }
+    }
+}
+
+impl fmt::Display for Code {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+/// Lets tests and tools compare with the printed code: `d.code == "E0103"`.
+impl PartialEq<&str> for Code {
+    fn eq(&self, other: &&str) -> bool {
+        self.as_str() == *other
+    }
+}
+
 /// One finding about a schema file.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Diagnostic {
     pub severity: Severity,
-    /// Stable, greppable code such as `E0103`, so tests and people can refer to a kind of error.
-    pub code: &'static str,
+    pub code: Code,
     pub file: PathBuf,
     /// 1-based line; 0 when the finding concerns the file as a whole.
     pub line: usize,
@@ -67,45 +207,19 @@ impl<'a> Reporter<'a> {
         }
     }
 
-    pub fn error(
-        &mut self,
-        code: &'static str,
-        line: usize,
-        message: String,
-        help: impl Into<String>,
-    ) {
-        self.push(Severity::Error, code, line, message, help.into());
-    }
-
-    pub fn warning(
-        &mut self,
-        code: &'static str,
-        line: usize,
-        message: String,
-        help: impl Into<String>,
-    ) {
-        self.push(Severity::Warning, code, line, message, help.into());
-    }
-
-    fn push(
-        &mut self,
-        severity: Severity,
-        code: &'static str,
-        line: usize,
-        message: String,
-        help: String,
-    ) {
+    /// Records a finding at `line` (1-based; 0 for the whole file); its code says how severe.
+    pub fn report(&mut self, code: Code, line: usize, message: String, help: impl Into<String>) {
         let source_line = line
             .checked_sub(1)
             .and_then(|i| self.lines.get(i))
             .map(|s| (*s).to_owned());
         self.diagnostics.push(Diagnostic {
-            severity,
+            severity: code.severity(),
             code,
             file: self.file.to_owned(),
             line,
             message,
-            help,
+            help: help.into(),
             source_line,
         });
     }

@@ -20,7 +20,7 @@ pub struct {{ t.type_name }}Frame {
     pub sequence: u16,
     pub timestamp_us: u32,
 {%- for f in fields %}
-{%- if !f.is_flag %}
+{%- if !f.is_flag() %}
     pub {{ f.name }}: {{ f.wire_ty }},
 {%- endif %}
 {%- endfor %}
@@ -78,7 +78,12 @@ impl {{ t.type_name }}Frame {
         };
         let telemetry = {{ t.type_name }} {
 {%- for f in fields %}
-            {{ f.name }}: {{ t.type_name }}::{{ f.name }}_from_raw({{ f.deku_read }}),
+            {{ f.name }}: {{ t.type_name }}::{{ f.name }}_from_raw(
+{%- match f.placement -%}
+{%- when FieldPlacement::Bytes { .. } -%} self.{{ f.name }}
+{%- when FieldPlacement::Flag { bit, flag_byte, .. } -%} self.flags[{{ flag_byte }}] & (1 << {{ bit }}) != 0
+{%- endmatch -%}
+),
 {%- endfor %}
         };
         (header, telemetry)
@@ -89,8 +94,10 @@ impl {{ t.type_name }}Frame {
 {%- if flag_bytes > 0 %}
         let mut flags = [0u8; {{ flag_bytes }}];
 {%- for f in fields %}
-{%- if f.is_flag %}
-        {{ f.deku_write }}
+{%- if let FieldPlacement::Flag { bit, flag_byte, .. } = f.placement %}
+        if {{ t.type_name }}::{{ f.name }}_to_raw(t.{{ f.name }}).0 {
+            flags[{{ flag_byte }}] |= 1 << {{ bit }};
+        }
 {%- endif %}
 {%- endfor %}
 {%- endif %}
@@ -99,8 +106,8 @@ impl {{ t.type_name }}Frame {
             sequence: header.sequence,
             timestamp_us: header.timestamp_us,
 {%- for f in fields %}
-{%- if !f.is_flag %}
-            {{ f.deku_write }}
+{%- if !f.is_flag() %}
+            {{ f.name }}: {{ t.type_name }}::{{ f.name }}_to_raw(t.{{ f.name }}).0,
 {%- endif %}
 {%- endfor %}
 {%- if flag_bytes > 0 %}

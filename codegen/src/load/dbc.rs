@@ -5,7 +5,7 @@
 use std::collections::HashMap;
 use std::path::Path;
 
-use crate::diagnostic::{Diagnostic, Diagnostics, Reporter};
+use crate::diagnostic::{Code, Diagnostic, Diagnostics, Reporter};
 
 /// A parsed DBC file with the source kept for diagnostics.
 pub struct LoadedDbc {
@@ -112,7 +112,7 @@ pub fn load(path: &Path) -> Result<LoadedDbc, Diagnostics> {
     let bytes = std::fs::read(path).map_err(|e| {
         Diagnostics(vec![file_error(
             path,
-            "E0001",
+            Code::DbcUnreadable,
             format!("cannot read the file: {e}"),
             "check the path and permissions",
         )])
@@ -120,7 +120,7 @@ pub fn load(path: &Path) -> Result<LoadedDbc, Diagnostics> {
     let text = decode_text(&bytes).ok_or_else(|| {
         Diagnostics(vec![file_error(
             path,
-            "E0002",
+            Code::DbcEncoding,
             "the file is neither UTF-8 nor Windows-1252 text".into(),
             "save the DBC as UTF-8 or as CANdb++ writes it (Windows-1252)",
         )])
@@ -147,8 +147,8 @@ pub fn parse(path: &Path, text: String) -> Result<LoadedDbc, Diagnostics> {
                 }
                 other => (0, other.to_string()),
             };
-            reporter.error(
-                "E0003",
+            reporter.report(
+                Code::DbcSyntax,
                 line,
                 format!("the DBC syntax is invalid: {what}"),
                 "compare the line with the DBC grammar (a missing quote, semicolon or `|` is the usual cause)",
@@ -158,9 +158,9 @@ pub fn parse(path: &Path, text: String) -> Result<LoadedDbc, Diagnostics> {
     }
 }
 
-fn file_error(path: &Path, code: &'static str, message: String, help: &str) -> Diagnostic {
+fn file_error(path: &Path, code: Code, message: String, help: &str) -> Diagnostic {
     Diagnostic {
-        severity: crate::diagnostic::Severity::Error,
+        severity: code.severity(),
         code,
         file: path.to_owned(),
         line: 0,

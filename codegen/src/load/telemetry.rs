@@ -6,7 +6,7 @@ use std::path::Path;
 use serde::Deserialize;
 use serde_saphyr::Spanned;
 
-use crate::diagnostic::{Diagnostics, Reporter};
+use crate::diagnostic::{Code, Diagnostics, Reporter};
 
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -78,8 +78,8 @@ pub struct LoadedTelemetry {
 pub fn load(path: &Path) -> Result<LoadedTelemetry, Diagnostics> {
     let text = std::fs::read_to_string(path).map_err(|e| {
         let mut r = Reporter::new(path, "");
-        r.error(
-            "E0201",
+        r.report(
+            Code::TelemetryUnreadable,
             0,
             format!("cannot read the file: {e}"),
             "check the path and that the file is UTF-8",
@@ -99,8 +99,8 @@ pub fn parse(path: &Path, text: String) -> Result<LoadedTelemetry, Diagnostics> 
             let message = err.to_string();
             let first = message.lines().next().unwrap_or("invalid YAML").to_owned();
             let mut r = Reporter::new(path, &text);
-            r.error(
-                "E0202",
+            r.report(
+                Code::TelemetrySyntax,
                 line,
                 format!("the telemetry schema is not valid: {first}"),
                 "compare with the description at the top of telemetry.yaml (known keys, YAML indentation)",

@@ -5,7 +5,7 @@ use std::path::Path;
 
 use serde_saphyr::Spanned;
 
-use crate::diagnostic::{Diagnostics, Reporter};
+use crate::diagnostic::{Code, Diagnostics, Reporter};
 use crate::load::telemetry::{FieldSpec, LoadedTelemetry};
 use crate::model::{
     Database, Display, Encoding, ISOTP_MAX_LEN, IntType, PhysType, Placement, Signal,
@@ -34,8 +34,8 @@ pub fn validate(
         ("flow_control_id", &packet.flow_control_id),
     ] {
         if id.value > 0x7FF {
-            r.error(
-                "E0212",
+            r.report(
+                Code::IsoTpIds,
                 line_of(id),
                 format!("`{what}` 0x{:X} is not an 11-bit CAN id", id.value),
                 "ISO-TP normal addressing on the car uses standard ids up to 0x7FF",
@@ -43,8 +43,8 @@ pub fn validate(
         }
     }
     if packet.tx_id.value == packet.flow_control_id.value {
-        r.error(
-            "E0212",
+        r.report(
+            Code::IsoTpIds,
             line_of(&packet.flow_control_id),
             "`flow_control_id` equals `tx_id`".to_owned(),
             "the receiver's flow control needs its own id (0x777 on the car)",
@@ -55,8 +55,8 @@ pub fn validate(
         .iter()
         .any(|m| !m.extended && [packet.tx_id.value, packet.flow_control_id.value].contains(&m.id))
     {
-        r.error(
-            "E0212",
+        r.report(
+            Code::IsoTpIds,
             line_of(&packet.tx_id),
             "an ISO-TP id is also the id of a DBC message".to_owned(),
             "pick ids no message in aer.dbc uses",
@@ -74,8 +74,8 @@ pub fn validate(
                 .chars()
                 .all(|c| c.is_ascii_lowercase() || c.is_ascii_digit() || c == '_');
         if !valid || is_keyword(name) || RESERVED.contains(&name.as_str()) {
-            r.error(
-                "E0206",
+            r.report(
+                Code::FieldName,
                 name_line,
                 format!("field name `{name}` is not usable"),
                 "use snake_case (a-z, 0-9, _), not a Rust keyword and not fingerprint/sequence/timestamp_us/ts",
@@ -83,8 +83,8 @@ pub fn validate(
             continue;
         }
         if let Some(first) = names.insert(name.clone(), name_line) {
-            r.error(
-                "E0206",
+            r.report(
+                Code::FieldName,
                 name_line,
                 format!("field `{name}` is defined twice (first on line {first})"),
                 "every field needs its own name",
@@ -109,8 +109,8 @@ pub fn validate(
     }
     let len = offset + flag.div_ceil(8);
     if len > ISOTP_MAX_LEN {
-        r.error(
-            "E0209",
+        r.report(
+            Code::PacketTooLong,
             line_of(&loaded.file.packet),
             format!("the packet is {len} bytes; ISO-TP carries at most {ISOTP_MAX_LEN}"),
             "remove fields or use narrower wire types (u8/u16 with a scale)",
@@ -148,8 +148,8 @@ fn field(
             critical_below: d.critical_below,
         });
     if let Some(problem) = threshold_problem(&display) {
-        r.error(
-            "E0214",
+        r.report(
+            Code::Thresholds,
             line,
             format!("field `{name}` has display thresholds that {problem}"),
             "a warning comes before critical: warn <= critical above, warn_below >= critical_below below",
@@ -179,8 +179,8 @@ fn field(
                 || spec.min.is_some()
                 || spec.max.is_some()
             {
-                r.error(
-                    "E0205",
+                r.report(
+                    Code::FieldKind,
                     line,
                     format!("field `{name}` references a signal and also sets scale/offset/unit/min/max"),
                     "a referenced signal's scaling comes from aer.dbc; remove them here (or drop `signal:`)",
@@ -202,8 +202,8 @@ fn field(
                 "f32" => WireType::F32,
                 "flag" => WireType::Flag,
                 other => {
-                    r.error(
-                        "E0204",
+                    r.report(
+                        Code::UnknownWireType,
                         line_of(wire),
                         format!("field `{name}` has unknown type `{other}`"),
                         "use one of u8, u16, u32, i8, i16, i32, f32, flag",
@@ -217,8 +217,8 @@ fn field(
             let wanted = camel(&enum_name.value);
             let Some(index) = db.enums.iter().position(|e| e.type_name == wanted) else {
                 let known: Vec<&str> = db.enums.iter().map(|e| e.type_name.as_str()).collect();
-                r.error(
-                    "E0207",
+                r.report(
+                    Code::UnknownEnum,
                     line_of(enum_name),
                     format!(
                         "field `{name}` uses enum `{}`, which aer.dbc does not define",
@@ -235,8 +235,8 @@ fn field(
             field.phys = PhysType::Enum(index);
         }
         _ => {
-            r.error(
-                "E0205",
+            r.report(
+                Code::FieldKind,
                 line,
                 format!("field `{name}` needs exactly one of `signal`, `type` or `enum`"),
                 "reference a DBC signal (signal: MESSAGE.SIGNAL), or give a wire type, or an enum",
@@ -246,8 +246,8 @@ fn field(
     }
     let scale_line = spec.scale.as_ref().map_or(line, line_of);
     if field.scale == 0.0 || !field.scale.is_finite() || !field.offset.is_finite() {
-        r.error(
-            "E0211",
+        r.report(
+            Code::BadScale,
             scale_line,
             format!("field `{name}` has scale {}", field.scale),
             "the scale must be a non-zero finite number",
@@ -258,8 +258,8 @@ fn field(
         && (field.scale != 1.0 || field.offset != 0.0)
         && field.source.is_none()
     {
-        r.error(
-            "E0211",
+        r.report(
+            Code::BadScale,
             scale_line,
             format!("field `{name}` is f32 on the wire and also scaled"),
             "an f32 carries the physical value itself: drop scale/offset, or use an integer type with a scale",
@@ -274,8 +274,8 @@ fn field(
         );
         let tol = field.scale.abs() / 2.0;
         if field.wire != WireType::F32 && (lo < a.min(b) - tol || hi > a.max(b) + tol || lo > hi) {
-            r.error(
-                "E0213",
+            r.report(
+                Code::FieldRange,
                 line,
                 format!(
                     "field `{name}` has range [{lo}, {hi}] but a {} with scale {} holds [{}, {}]",
@@ -325,8 +325,8 @@ fn find_signal<'d>(
 ) -> Option<&'d Signal> {
     let line = line_of(reference);
     let Some((msg_name, sig_name)) = reference.value.split_once('.') else {
-        r.error(
-            "E0203",
+        r.report(
+            Code::UnknownSignal,
             line,
             format!("`{}` does not name a DBC signal", reference.value),
             "write MESSAGE.SIGNAL, as in MCU1.MCU_MotorSpeed",
@@ -334,8 +334,8 @@ fn find_signal<'d>(
         return None;
     };
     let Some(msg) = db.messages.iter().find(|m| m.name == msg_name) else {
-        r.error(
-            "E0203",
+        r.report(
+            Code::UnknownSignal,
             line,
             format!("aer.dbc has no message `{msg_name}`"),
             "check the message name in schema/aer.dbc (names are case-sensitive)",
@@ -346,8 +346,8 @@ fn find_signal<'d>(
         Some(s) => Some(s),
         None => {
             let known: Vec<&str> = msg.signals.iter().map(|s| s.name.as_str()).collect();
-            r.error(
-                "E0203",
+            r.report(
+                Code::UnknownSignal,
                 line,
                 format!("message `{msg_name}` has no signal `{sig_name}`"),
                 format!("its signals are: {}", known.join(", ")),
@@ -370,8 +370,8 @@ fn inherit(
         match (s.encoding, s.len) {
             (Encoding::Float32, _) => WireType::F32,
             (Encoding::Float64, _) | (_, 33..) => {
-                r.error(
-                "E0210",
+                r.report(
+                Code::SignalTooWide,
                 line,
                 format!("signal `{}` ({} bits) is too wide for a telemetry field", s.name, s.len),
                 "declare the field with its own type and scale instead of referencing the signal",

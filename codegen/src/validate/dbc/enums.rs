@@ -4,6 +4,7 @@
 use std::collections::HashSet;
 
 use super::Builder;
+use crate::diagnostic::Code;
 use crate::model::Encoding;
 use crate::model::{EnumType, IntType, Signal, Variant};
 use crate::naming::camel;
@@ -31,8 +32,8 @@ impl Builder<'_, '_> {
                 v
             };
             if v < lo || v > hi {
-                self.r.warning(
-                    "W0203",
+                self.r.report(
+                    Code::UnusableValues,
                     line,
                     format!(
                         "{where_} names value {} (`{}`), which its {}-bit raw value can never hold",
@@ -64,8 +65,8 @@ impl Builder<'_, '_> {
             }
         }
         if kept.is_empty() {
-            self.r.warning(
-                "W0203",
+            self.r.report(
+                Code::UnusableValues,
                 line,
                 format!("{where_} has no usable value descriptions"),
                 "remove its VAL_ line",

@@ -13,7 +13,7 @@ use can_dbc::{
     SignalExtendedValueType, ValueDescription, ValueType,
 };
 
-use crate::diagnostic::{Diagnostics, Reporter};
+use crate::diagnostic::{Code, Diagnostics, Reporter};
 use crate::load::dbc::LoadedDbc;
 use crate::model::{
     ByteOrder, Database, Encoding, EnumType, IntType, Message, Node, PhysType, Signal,
@@ -102,8 +102,8 @@ impl<'a> Builder<'a, '_> {
                 continue;
             };
             if let Some(first) = ids.insert((id, extended), line) {
-                self.r.error(
-                    "E0102",
+                self.r.report(
+                    Code::DuplicateId,
                     line,
                     format!(
                         "message `{}` reuses id 0x{id:X}, already used on line {first}",
@@ -115,8 +115,8 @@ impl<'a> Builder<'a, '_> {
             }
             let msg_name = self.long_message_name(msg);
             if let Some(first) = names.insert(msg_name.clone(), line) {
-                self.r.error(
-                    "E0103",
+                self.r.report(
+                    Code::DuplicateMessageName,
                     line,
                     format!(
                         "message name `{}` is already used on line {first}",
@@ -129,8 +129,8 @@ impl<'a> Builder<'a, '_> {
             let mut type_name = camel(&msg_name);
             if let Some(first) = type_names.get(&type_name).copied() {
                 let renamed = format!("{type_name}0x{id:X}");
-                self.r.warning(
-                    "W0204",
+                self.r.report(
+                    Code::Renamed,
                     line,
                     format!("message `{msg_name}` would be named `{type_name}` in Rust, a name already taken (line {first}); it is named `{renamed}`"),
                     "keep message and value-table names distinct after conversion to CamelCase",
@@ -159,8 +159,8 @@ impl<'a> Builder<'a, '_> {
         if written & EXTENDED_FLAG != 0 {
             let id = written & !EXTENDED_FLAG;
             if id > 0x1FFF_FFFF {
-                self.r.error(
-                    "E0101",
+                self.r.report(
+                    Code::IdOutOfRange,
                     line,
                     format!("message `{name}` has extended id 0x{id:X}, above the 29-bit limit 0x1FFFFFFF"),
                     "write the id as 0x80000000 + (29-bit id) in decimal",
@@ -169,8 +169,8 @@ impl<'a> Builder<'a, '_> {
             }
             u32::try_from(id).ok().map(|id| (id, true))
         } else if written > 0x7FF {
-            self.r.error(
-                "E0101",
+            self.r.report(
+                Code::IdOutOfRange,
                 line,
                 format!(
                     "message `{name}` has standard id 0x{written:X}, above the 11-bit limit 0x7FF"
@@ -259,8 +259,8 @@ impl<'a> Builder<'a, '_> {
     ) -> Option<Message> {
         let len = usize::try_from(msg.size).unwrap_or(usize::MAX);
         if len > 64 {
-            self.r.error(
-                "E0104",
+            self.r.report(
+                Code::FrameLength,
                 line,
                 format!(
                     "message `{}` is {} bytes long; a CAN frame carries 0-8 bytes, CAN FD up to 64",
@@ -271,8 +271,8 @@ impl<'a> Builder<'a, '_> {
             return None;
         }
         if !FD_LENGTHS.contains(&len) && len != 64 {
-            self.r.warning(
-                "W0205",
+            self.r.report(
+                Code::FdLength,
                 line,
                 format!("message `{}` is {len} bytes long, which no CAN FD frame carries exactly (12, 16, 20, 24, 32, 48, 64)", msg.name),
                 "use the next valid CAN FD length; frames on the bus are padded to it",
@@ -312,8 +312,8 @@ impl<'a> Builder<'a, '_> {
             let mut field = snake(&sig_name);
             if let Some((other, other_line)) = fields.get(&field).cloned() {
                 if other == sig_name {
-                    self.r.error(
-                        "E0108",
+                    self.r.report(
+                        Code::DuplicateSignal,
                         d.line,
                         format!("signal `{}` is defined twice in message `{}` (first on line {other_line})", sig_name, msg.name),
                         "signal names must be unique within a message; rename or remove one",
@@ -322,8 +322,8 @@ impl<'a> Builder<'a, '_> {
                     continue;
                 }
                 let renamed = format!("{field}_{}", fields.len());
-                self.r.warning(
-                    "W0204",
+                self.r.report(
+                    Code::Renamed,
                     d.line,
                     format!("signals `{other}` (line {other_line}) and `{sig_name}` would both be the Rust field `{field}`; this one is `{renamed}`"),
                     "keep signal names distinct after conversion to snake_case",
@@ -332,8 +332,8 @@ impl<'a> Builder<'a, '_> {
             }
             fields.insert(field.clone(), (sig_name.clone(), d.line));
             if is_keyword(&d.sig.name) || is_keyword(&field) || field.ends_with('_') {
-                self.r.warning(
-                    "W0201",
+                self.r.report(
+                    Code::KeywordName,
                     d.line,
                     format!(
                         "signal name `{}` is a Rust keyword; its field is named `{field}`",
@@ -387,8 +387,8 @@ impl<'a> Builder<'a, '_> {
         let line = d.line;
         let where_ = format!("signal `{}` of message `{}`", sig.name, msg.name);
         if sig.size == 0 || sig.size > 64 {
-            self.r.error(
-                "E0105",
+            self.r.report(
+                Code::SignalLength,
                 line,
                 format!(
                     "{where_} is {} bits long; signals are 1 to 64 bits",
@@ -422,8 +422,8 @@ impl<'a> Builder<'a, '_> {
                     "for Intel (@1) signals the start bit is the LSB; start + length must not exceed 8 * message length"
                 }
             };
-            self.r.error(
-                "E0106",
+            self.r.report(
+                Code::SignalOutsideFrame,
                 line,
                 format!(
                     "{where_} ({}|{}@{}) has bits outside the {msg_len}-byte frame",
@@ -466,8 +466,8 @@ impl<'a> Builder<'a, '_> {
             _ => None,
         };
         if let Some(want) = float_len.filter(|w| *w != len) {
-            self.r.error(
-                "E0112",
+            self.r.report(
+                Code::FloatLength,
                 value_type_line,
                 format!("{where_} is declared IEEE float ({want} bits) but is {len} bits long"),
                 format!("make the signal {want} bits long, or remove its SIG_VALTYPE_ line"),
@@ -475,8 +475,8 @@ impl<'a> Builder<'a, '_> {
             return None;
         }
         if sig.factor == 0.0 || !sig.factor.is_finite() || !sig.offset.is_finite() {
-            self.r.error(
-                "E0113",
+            self.r.report(
+                Code::BadFactor,
                 line,
                 format!("{where_} has factor {} and offset {}; the factor must be a non-zero finite number", sig.factor, sig.offset),
                 "fix the `(factor,offset)` pair in the SG_ line",
@@ -493,8 +493,8 @@ impl<'a> Builder<'a, '_> {
         };
         if let (Some(lo), Some(hi)) = (min, max) {
             if lo > hi {
-                self.r.error(
-                    "E0115",
+                self.r.report(
+                    Code::RangeInverted,
                     line,
                     format!("{where_} has minimum {lo} above its maximum {hi}"),
                     "swap the numbers in `[min|max]`",
@@ -553,8 +553,8 @@ impl<'a> Builder<'a, '_> {
         let bad_min = s.min.filter(|m| *m < plo - tol(plo));
         let bad_max = s.max.filter(|m| *m > phi + tol(phi));
         if bad_min.is_some() || bad_max.is_some() {
-            self.r.warning(
-                "W0202",
+            self.r.report(
+                Code::RangeBeyondRaw,
                 line,
                 format!(
                     "{where_} declares the range [{}|{}] but its {}-bit raw value only reaches [{plo}|{phi}]",
@@ -604,8 +604,8 @@ impl<'a> Builder<'a, '_> {
                 .copied()
                 .unwrap_or(line);
             if s.encoding == Encoding::Float64 || (!s.is_float_raw() && s.len > 24) {
-                self.r.error(
-                    "E0118",
+                self.r.report(
+                    Code::F32TooNarrow,
                     attr_line,
                     format!("{where_} asks for an f32 physical value, but its {}-bit raw value does not fit f32's 24-bit mantissa", s.len),
                     "remove the AerPhysType attribute (f64 is used) or shorten the signal to 24 bits",

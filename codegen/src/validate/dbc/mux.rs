@@ -6,6 +6,7 @@ use std::collections::{BTreeSet, HashMap, HashSet};
 use can_dbc::MultiplexIndicator;
 
 use super::{Builder, Draft};
+use crate::diagnostic::Code;
 use crate::model::{MuxCondition, Signal};
 
 impl<'a> Builder<'a, '_> {
@@ -56,8 +57,8 @@ impl<'a> Builder<'a, '_> {
                     .copied()
                     .unwrap_or(d.line);
                 let Some(&sel) = index_of.get(&first.multiplexor_signal_name) else {
-                    self.r.error(
-                        "E0114",
+                    self.r.report(
+                        Code::Multiplexing,
                         line,
                         format!(
                             "{where_} is multiplexed by `{}`, which is not a signal of the message",
@@ -85,8 +86,8 @@ impl<'a> Builder<'a, '_> {
                         ranges: vec![(value, value)],
                     },
                     [] => {
-                        self.r.error(
-                            "E0114",
+                        self.r.report(
+                            Code::Multiplexing,
                             d.line,
                             format!("{where_} is multiplexed (m{value}) but the message has no multiplexor signal (M)"),
                             "mark the selector signal with `M`, or remove the `m` indicator",
@@ -95,8 +96,8 @@ impl<'a> Builder<'a, '_> {
                         continue;
                     }
                     _ => {
-                        self.r.error(
-                            "E0114",
+                        self.r.report(
+                            Code::Multiplexing,
                             d.line,
                             format!("{where_} is multiplexed (m{value}) but the message has several multiplexors and no SG_MUL_VAL_ line says which one selects it"),
                             "add `SG_MUL_VAL_ <id> <signal> <multiplexor> <lo>-<hi>;` for this signal",
@@ -108,8 +109,8 @@ impl<'a> Builder<'a, '_> {
             };
             let sel = &signals[condition.selector];
             if !sel.is_multiplexor || sel.is_float_raw() {
-                self.r.error(
-                    "E0114",
+                self.r.report(
+                    Code::Multiplexing,
                     d.line,
                     format!("{where_} is selected by `{}`, which is not an integer multiplexor signal (M)", sel.name),
                     "mark the selector with `M` (or `mNM` when it is itself multiplexed); selectors must be integers",
@@ -123,8 +124,8 @@ impl<'a> Builder<'a, '_> {
                 .iter()
                 .find(|(lo, hi)| lo > hi || i128::from(*hi) > sel_hi)
             {
-                self.r.error(
-                    "E0116",
+                self.r.report(
+                    Code::MuxValueOutOfRange,
                     d.line,
                     format!("{where_} is selected by `{}` values {lo}-{hi}, which its {}-bit multiplexor cannot take", sel.name, sel.len),
                     "use multiplexor values between 0 and the multiplexor's largest raw value",
@@ -156,8 +157,8 @@ impl<'a> Builder<'a, '_> {
                 }
             }
             if order.len() == before {
-                self.r.error(
-                    "E0114",
+                self.r.report(
+                    Code::Multiplexing,
                     line,
                     format!("the multiplexors of message `{}` select each other in a cycle", msg.name),
                     "a multiplexor must not be selected, directly or indirectly, by a signal it selects",
@@ -187,8 +188,8 @@ impl<'a> Builder<'a, '_> {
                     continue;
                 }
                 let shared: Vec<u32> = bits[a].intersection(&bits[b]).copied().collect();
-                self.r.error(
-                    "E0107",
+                self.r.report(
+                    Code::SignalOverlap,
                     drafts[b].line,
                     format!(
                         "signals `{}` and `{}` of message `{}` overlap in bit(s) {:?}",

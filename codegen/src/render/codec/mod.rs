@@ -1,0 +1,172 @@
+//! Renders the no_std codec (`runtime.rs` and the messages module) from the model.
+
+mod signal;
+
+use askama::Template;
+
+use super::doc_lines;
+use super::fragment::{OptionLit, StrLit};
+use crate::model::{Database, EnumType, Message, PhysType};
+use signal::{
+    Conversion, EnumScale, Fit, FloatWire, PhysAsF64, Presence, RawCodec, SignalView, ValueKind,
+};
+
+#[derive(Template)]
+#[template(path = "runtime.rs", escape = "none")]
+pub struct RuntimeTemplate<'a> {
+    pub source: &'a str,
+    /// Byte helpers for the telemetry packet, emitted only where a packet uses them.
+    pub telemetry: bool,
+}
+
+#[derive(Template)]
+#[template(path = "can.rs", escape = "none")]
+pub struct CanTemplate<'a> {
+    pub source: &'a str,
+    pub db_name: &'a str,
+    pub fingerprint: String,
+    pub enums: Vec<EnumView>,
+    pub messages: Vec<MessageView>,
+}
+
+pub struct EnumView {
+    pub name: String,
+    pub repr: &'static str,
+    pub variants: Vec<VariantView>,
+    pub used_by: String,
+}
+
+pub struct VariantView {
+    pub ident: String,
+    pub value: i128,
+    pub label: StrLit,
+    pub label_doc: String,
+}
+
+pub struct MessageView {
+    pub type_name: String,
+    pub name: StrLit,
+    /// The static array of the signals' metadata.
+    pub meta_static: String,
+    pub docs: Vec<String>,
+    pub id: String,
+    pub extended: bool,
+    pub len: usize,
+    pub cycle_time: OptionLit<u32>,
+    pub comment: StrLit,
+    pub signals: Vec<SignalView>,
+    /// Indices into `signals` in the order decode/encode must process them (multiplexors
+    /// first).
+    pub order: Vec<usize>,
+}
+
+impl MessageView {
+    /// The signals in decode/encode order.
+    pub fn ordered(&self) -> impl Iterator<Item = &SignalView> {
+        self.order.iter().filter_map(|&i| self.signals.get(i))
+    }
+}
+
+pub fn render_runtime(source: &str, telemetry: bool) -> Result<String, askama::Error> {
+    RuntimeTemplate { source, telemetry }.render()
+}
+
+pub fn render_can(db: &Database, source: &str, fingerprint: u32) -> Result<String, askama::Error> {
+    let enums = db
+        .enums
+        .iter()
+        .enumerate()
+        .map(|(i, e)| enum_view(db, i, e))
+        .collect();
+    let messages = db.messages.iter().map(|m| message_view(db, m)).collect();
+    CanTemplate {
+        source,
+        db_name: &db.name,
+        fingerprint: format!("0x{fingerprint:08X}"),
+        enums,
+        messages,
+    }
+    .render()
+}
+
+fn enum_view(db: &Database, index: usize, e: &EnumType) -> EnumView {
+    let users: Vec<String> = db
+        .messages
+        .iter()
+        .flat_map(|m| {
+            m.signals
+                .iter()
+                .filter(|s| s.phys == PhysType::Enum(index))
+                .map(move |s| format!("`{}.{}`", m.name, s.name))
+        })
+        .collect();
+    EnumView {
+        name: e.type_name.clone(),
+        repr: e.repr.rust(),
+        variants: e
+            .variants
+            .iter()
+            .map(|v| VariantView {
+                ident: v.ident.clone(),
+                value: v.value,
+                label: StrLit(v.label.clone()),
+                label_doc: if v.label.trim().is_empty() {
+                    "(no name)".to_owned()
+                } else {
+                    v.label.replace('`', "'")
+                },
+            })
+            .collect(),
+        used_by: if users.is_empty() {
+            "Named values from the schema's value table.".to_owned()
+        } else {
+            format!("Values of {}.", users.join(", "))
+        },
+    }
+}
+
+fn message_view(db: &Database, m: &Message) -> MessageView {
+    MessageView {
+        type_name: m.type_name.clone(),
+        name: StrLit(m.name.clone()),
+        meta_static: format!("{}_SIGNALS", crate::naming::screaming(&m.type_name)),
+        docs: message_docs(m),
+        id: format!("0x{:X}", m.id),
+        extended: m.extended,
+        len: m.len,
+        cycle_time: OptionLit(m.cycle_time_ms),
+        comment: StrLit(m.comment.clone().unwrap_or_default()),
+        signals: m
+            .signals
+            .iter()
+            .enumerate()
+            .map(|(i, s)| SignalView::new(db, m, i, s))
+            .collect(),
+        order: m.eval_order.clone(),
+    }
+}
+
+/// The schema's comment, then the wire facts.
+fn message_docs(m: &Message) -> Vec<String> {
+    let mut docs = m.comment.as_deref().map(doc_lines).unwrap_or_default();
+    if !docs.is_empty() {
+        docs.push(String::new());
+    }
+    let kind = if m.extended { "extended" } else { "standard" };
+    let mut facts = format!(
+        "`{}`: {kind} id 0x{:X}, {} bytes{}",
+        m.name,
+        m.id,
+        m.len,
+        if m.fd { " (CAN FD)" } else { "" }
+    );
+    if let Some(ms) = m.cycle_time_ms {
+        facts.push_str(&format!(", every {ms} ms"));
+    }
+    if let Some(tx) = &m.transmitter {
+        facts.push_str(&format!(", sent by {tx}"));
+    }
+    facts.push('.');
+    docs.push(facts);
+    docs
+}

@@ -1,0 +1,490 @@
+//! A signal as the codec template sees it: typed parts (where its bits sit, how bits become
+//! the raw value, when it is present, how raw and physical values convert) that
+//! `templates/signal.rs` spells out as statements.
+
+use crate::model::{ByteOrder, Database, Encoding, IntType, Message, PhysType, Signal, be_linear};
+use crate::render::fragment::{FloatLit, IntScaling, OptionLit, Scaling, StrLit, ToF64, int_arith};
+use crate::render::meta::{MetaView, labels};
+use crate::render::{doc_lines, phys_rust};
+
+pub struct SignalView {
+    pub name: StrLit,
+    /// The message's name, for errors that name the signal.
+    pub message: StrLit,
+    pub field: String,
+    /// Position in the message's signal list (and its metadata array).
+    pub index: usize,
+    pub docs: Vec<String>,
+    pub raw_ty: &'static str,
+    pub phys_ty: String,
+    pub placement: Placement,
+    pub raw: RawCodec,
+    pub presence: Presence,
+    pub is_multiplexor: bool,
+    pub conversion: Conversion,
+    /// The schema's range, checked before encoding.
+    pub range: Option<RangeCheck>,
+    pub value: ValueKind,
+    pub meta: MetaView,
+}
+
+/// Where a signal's bits sit in the payload.
+pub struct Placement {
+    /// `le` or `be`: the suffix of the runtime's `bits::read_*`/`write_*`.
+    pub order: &'static str,
+    /// LSB for Intel; the MSB in big-endian linear numbering for Motorola.
+    pub start: u32,
+    pub len: u32,
+}
+
+/// How the extracted bits (a `u64`) become the raw value, and back.
+pub enum RawCodec {
+    F32,
+    F64,
+    /// Sign-extended to `i64`; `narrow` names a smaller raw type to cast to.
+    Signed {
+        len: u32,
+        narrow: Option<&'static str>,
+    },
+    /// A 64-bit unsigned raw value is the bits themselves.
+    Unsigned64,
+    /// Unsigned, narrowed to the raw type.
+    Unsigned {
+        ty: &'static str,
+    },
+}
+
+/// When the signal is in the payload.
+pub enum Presence {
+    Always,
+    /// Only when its multiplexor's raw value matches.
+    When(MuxCondition),
+}
+
+/// `matches!(selector_bits, 1 | 4..=7)`.
+pub struct MuxCondition {
+    /// The local holding the multiplexor's bits.
+    pub selector: String,
+    /// The multiplexor is itself multiplexed, so its bits are an `Option`.
+    pub selector_optional: bool,
+    /// Inclusive ranges of selector values.
+    pub ranges: Vec<(u64, u64)>,
+}
+
+impl MuxCondition {
+    /// `1 | 4..=7`.
+    pub fn patterns(&self) -> String {
+        self.ranges
+            .iter()
+            .map(|&(lo, hi)| {
+                if lo == hi {
+                    lo.to_string()
+                } else {
+                    format!("{lo}..={hi}")
+                }
+            })
+            .collect::<Vec<_>>()
+            .join(" | ")
+    }
+}
+
+/// How the raw value becomes the physical value (`<field>_from_raw`) and back (`<field>_to_raw`).
+pub enum Conversion {
+    /// A 1-bit flag.
+    Bool,
+    /// Named values; `widen` is the enum's representation when wider than the raw type.
+    Enum {
+        widen: Option<&'static str>,
+        fit: Fit,
+    },
+    /// Identity scaling into an integer; `convert` when the types differ.
+    Int { convert: bool, fit: Fit },
+    /// Whole factor and offset: exact integer arithmetic.
+    IntScaled { scaling: IntScaling, fit: Fit },
+    /// An IEEE float on the wire.
+    Float { scaling: Scaling, wire: FloatWire },
+    /// An integer on the wire scaled to a float, rounded back to the nearest raw value.
+    Quantized {
+        scaling: Scaling,
+        phys_f32: bool,
+        phys_to_f64: ToF64,
+        raw_to_f64: ToF64,
+        /// Raw values the bits can hold: `lo..hi` (bounds are powers of two, exact in f64).
+        lo: FloatLit,
+        hi: FloatLit,
+    },
+}
+
+/// Which float types meet on the wire and in the struct.
+#[derive(Clone, Copy, PartialEq, Eq)]
+pub enum FloatWire {
+    /// `f32` on the wire and in the struct, unscaled.
+    F32Plain,
+    /// `f32` on the wire and in the struct, scaled through `f64`.
+    F32Scaled,
+    /// `f32` on the wire, `f64` in the struct.
+    F32Wide,
+    /// `f64` on both sides.
+    F64,
+}
+
+/// Whether an integer raw value needs a check against the signal's bit width.
+pub enum Fit {
+    /// The raw type is exactly as wide as the signal.
+    Full,
+    Range {
+        lo: i128,
+        hi: i128,
+    },
+}
+
+/// `runtime::check_range(...)` on the physical value before it is encoded.
+pub struct RangeCheck {
+    pub value: PhysAsF64,
+    pub min: FloatLit,
+    pub max: FloatLit,
+    /// A millionth of a raw step: what float arithmetic may add at the edges.
+    pub tolerance: FloatLit,
+}
+
+/// The physical value `v` as `f64`, for the range check.
+pub enum PhysAsF64 {
+    Bool,
+    Number(ToF64),
+    /// Only unnamed enum values are checked (a named value is valid whatever the range says,
+    /// as in cantools), scaled from their raw value.
+    UnknownEnum {
+        scaling: Scaling,
+    },
+}
+
+/// The value a visitor sees, and how a value from a [`SignalSource`] becomes the field.
+pub enum ValueKind {
+    Bool,
+    Int {
+        ty: &'static str,
+    },
+    F32,
+    F64,
+    Enum {
+        repr: &'static str,
+        scale: EnumScale,
+    },
+}
+
+/// How an enum's raw value scales into the visited value.
+pub enum EnumScale {
+    Identity,
+    /// Exact in integers.
+    Int {
+        factor: i128,
+        offset: i128,
+    },
+    Float {
+        scaling: Scaling,
+    },
+}
+
+impl SignalView {
+    pub fn new(db: &Database, m: &Message, index: usize, s: &Signal) -> Self {
+        SignalView {
+            name: StrLit(s.name.clone()),
+            message: StrLit(m.name.clone()),
+            field: s.field.clone(),
+            index,
+            docs: docs(m, s),
+            raw_ty: raw_type(s),
+            phys_ty: phys_rust(db, s.phys),
+            placement: placement(s),
+            raw: raw_codec(s),
+            presence: presence(m, s),
+            is_multiplexor: s.is_multiplexor,
+            conversion: conversion(db, s),
+            range: range_check(s),
+            value: value_kind(db, s),
+            meta: meta(db, s),
+        }
+    }
+
+    /// The struct field's type: multiplexed signals are `Option`al.
+    pub fn field_ty(&self) -> String {
+        match self.presence {
+            Presence::Always => self.phys_ty.clone(),
+            Presence::When(_) => format!("Option<{}>", self.phys_ty),
+        }
+    }
+
+    pub fn optional(&self) -> bool {
+        matches!(self.presence, Presence::When(_))
+    }
+
+    /// The local holding a multiplexor's bits.
+    pub fn bits_local(&self) -> String {
+        format!("{}_bits", self.field)
+    }
+
+    /// The call reading the signal's bits from `data`.
+    pub fn read_expr(&self) -> String {
+        let p = &self.placement;
+        format!("bits::read_{}(data, {}, {})", p.order, p.start, p.len)
+    }
+}
+
+fn raw_type(s: &Signal) -> &'static str {
+    match s.encoding {
+        Encoding::Float32 => "f32",
+        Encoding::Float64 => "f64",
+        _ => s.raw_int().rust(),
+    }
+}
+
+fn scaling(s: &Signal) -> Scaling {
+    Scaling {
+        factor: s.factor,
+        offset: s.offset,
+    }
+}
+
+fn placement(s: &Signal) -> Placement {
+    match s.byte_order {
+        ByteOrder::LittleEndian => Placement {
+            order: "le",
+            start: s.start_bit,
+            len: s.len,
+        },
+        ByteOrder::BigEndian => Placement {
+            order: "be",
+            start: be_linear(s.start_bit),
+            len: s.len,
+        },
+    }
+}
+
+fn raw_codec(s: &Signal) -> RawCodec {
+    let raw_int = s.raw_int();
+    match s.encoding {
+        Encoding::Float32 => RawCodec::F32,
+        Encoding::Float64 => RawCodec::F64,
+        Encoding::Signed => RawCodec::Signed {
+            len: s.len,
+            narrow: (raw_int != IntType::I64).then(|| raw_int.rust()),
+        },
+        Encoding::Unsigned if raw_int == IntType::U64 => RawCodec::Unsigned64,
+        Encoding::Unsigned => RawCodec::Unsigned { ty: raw_int.rust() },
+    }
+}
+
+fn presence(m: &Message, s: &Signal) -> Presence {
+    let Some(c) = &s.mux else {
+        return Presence::Always;
+    };
+    let selector = m.signals.get(c.selector);
+    Presence::When(MuxCondition {
+        selector: selector.map_or("selector".to_owned(), |x| format!("{}_bits", x.field)),
+        selector_optional: selector.is_some_and(|x| x.mux.is_some()),
+        ranges: c.ranges.clone(),
+    })
+}
+
+/// The width check for a raw integer of the signal's raw type.
+fn fit(s: &Signal) -> Fit {
+    let (lo, hi) = s.raw_range();
+    if (lo, hi) == s.raw_int().range() {
+        Fit::Full
+    } else {
+        Fit::Range { lo, hi }
+    }
+}
+
+/// Whether `f64::from` takes a value of this type losslessly.
+fn to_f64(t: IntType) -> ToF64 {
+    match t {
+        IntType::U8 | IntType::U16 | IntType::U32 | IntType::I8 | IntType::I16 | IntType::I32 => {
+            ToF64::From
+        }
+        _ => ToF64::Cast,
+    }
+}
+
+fn conversion(db: &Database, s: &Signal) -> Conversion {
+    let raw_int = s.raw_int();
+    let scaling = scaling(s);
+    match s.phys {
+        PhysType::Bool => Conversion::Bool,
+        PhysType::Enum(i) => {
+            let repr = db.enums.get(i).map_or(IntType::U64, |e| e.repr);
+            Conversion::Enum {
+                widen: (repr != raw_int).then(|| repr.rust()),
+                fit: fit(s),
+            }
+        }
+        PhysType::Int(t) if scaling.is_identity() => Conversion::Int {
+            convert: t != raw_int,
+            fit: fit(s),
+        },
+        PhysType::Int(t) => {
+            let (factor, offset) = (s.factor as i128, s.offset as i128);
+            let (raw_lo, raw_hi) = s.raw_range();
+            let (phys_lo, phys_hi) = t.range();
+            // Holds the raw type (for `From`), the physical range and the intermediate
+            // `raw * factor`.
+            let (type_lo, type_hi) = raw_int.range();
+            let (a, b) = (raw_lo * factor, raw_hi * factor);
+            Conversion::IntScaled {
+                scaling: IntScaling {
+                    arith: int_arith(
+                        type_lo.min(phys_lo).min(a).min(b),
+                        type_hi.max(phys_hi).max(a).max(b),
+                    ),
+                    factor,
+                    offset,
+                },
+                fit: fit(s),
+            }
+        }
+        PhysType::F32 | PhysType::F64 if s.is_float_raw() => Conversion::Float {
+            scaling,
+            wire: match (s.encoding, s.phys) {
+                (Encoding::Float32, PhysType::F32) if scaling.is_identity() => FloatWire::F32Plain,
+                (Encoding::Float32, PhysType::F32) => FloatWire::F32Scaled,
+                (Encoding::Float32, _) => FloatWire::F32Wide,
+                _ => FloatWire::F64,
+            },
+        },
+        PhysType::F32 | PhysType::F64 => {
+            let (raw_lo, _) = s.raw_range();
+            let hi_excl = if s.encoding == Encoding::Signed {
+                1i128 << (s.len - 1)
+            } else {
+                1i128 << s.len
+            };
+            let phys_f32 = s.phys == PhysType::F32;
+            Conversion::Quantized {
+                scaling,
+                phys_f32,
+                phys_to_f64: if phys_f32 { ToF64::From } else { ToF64::Same },
+                raw_to_f64: to_f64(raw_int),
+                lo: FloatLit(raw_lo as f64),
+                hi: FloatLit(hi_excl as f64),
+            }
+        }
+    }
+}
+
+fn range_check(s: &Signal) -> Option<RangeCheck> {
+    let (min, max) = (s.min?, s.max?);
+    let value = match s.phys {
+        PhysType::Bool => PhysAsF64::Bool,
+        PhysType::Int(t) => PhysAsF64::Number(to_f64(t)),
+        PhysType::F32 => PhysAsF64::Number(ToF64::From),
+        PhysType::F64 => PhysAsF64::Number(ToF64::Same),
+        PhysType::Enum(_) => PhysAsF64::UnknownEnum {
+            scaling: scaling(s),
+        },
+    };
+    Some(RangeCheck {
+        value,
+        min: FloatLit(min),
+        max: FloatLit(max),
+        tolerance: FloatLit(s.factor.abs() * 1e-6),
+    })
+}
+
+fn value_kind(db: &Database, s: &Signal) -> ValueKind {
+    match s.phys {
+        PhysType::Bool => ValueKind::Bool,
+        PhysType::Int(t) => ValueKind::Int { ty: t.rust() },
+        PhysType::F32 => ValueKind::F32,
+        PhysType::F64 => ValueKind::F64,
+        PhysType::Enum(i) => {
+            let scaling = scaling(s);
+            ValueKind::Enum {
+                repr: db.enums.get(i).map_or("u64", |e| e.repr.rust()),
+                scale: if scaling.is_identity() {
+                    EnumScale::Identity
+                } else if scaling.is_integral() {
+                    EnumScale::Int {
+                        factor: s.factor as i128,
+                        offset: s.offset as i128,
+                    }
+                } else {
+                    EnumScale::Float { scaling }
+                },
+            }
+        }
+    }
+}
+
+fn meta(db: &Database, s: &Signal) -> MetaView {
+    MetaView {
+        name: StrLit(s.name.clone()),
+        unit: StrLit(s.unit.clone()),
+        comment: StrLit(s.comment.clone().unwrap_or_default()),
+        start_bit: s.start_bit,
+        len: s.len,
+        byte_order: match s.byte_order {
+            ByteOrder::LittleEndian => "LittleEndian",
+            ByteOrder::BigEndian => "BigEndian",
+        },
+        signed: s.encoding == Encoding::Signed,
+        factor: FloatLit(s.factor),
+        offset: FloatLit(s.offset),
+        min: OptionLit(s.min.map(FloatLit)),
+        max: OptionLit(s.max.map(FloatLit)),
+        labels: labels(db, s.phys),
+        multiplexed: s.mux.is_some(),
+    }
+}
+
+/// The schema's comment, then the wire facts, then when a multiplexed signal is present.
+fn docs(m: &Message, s: &Signal) -> Vec<String> {
+    let mut docs = s.comment.as_deref().map(doc_lines).unwrap_or_default();
+    if !docs.is_empty() {
+        docs.push(String::new());
+    }
+    let mut facts = format!(
+        "`{}`: {} bit{} from bit {} ({}), {}",
+        s.name,
+        s.len,
+        if s.len == 1 { "" } else { "s" },
+        s.start_bit,
+        match s.byte_order {
+            ByteOrder::LittleEndian => "Intel",
+            ByteOrder::BigEndian => "Motorola",
+        },
+        match s.encoding {
+            Encoding::Unsigned => "unsigned",
+            Encoding::Signed => "signed",
+            Encoding::Float32 => "IEEE float",
+            Encoding::Float64 => "IEEE double",
+        }
+    );
+    facts.push_str(&scaling(s).doc());
+    if let (Some(lo), Some(hi)) = (s.min, s.max) {
+        facts.push_str(&format!(", range [{}, {}]", FloatLit(lo), FloatLit(hi)));
+    }
+    if !s.unit.is_empty() {
+        facts.push_str(&format!(", unit `{}`", s.unit.replace('`', "'")));
+    }
+    facts.push('.');
+    docs.push(facts);
+    if let Some(c) = &s.mux {
+        let selector = m.signals.get(c.selector).map_or("?", |x| x.name.as_str());
+        let values: Vec<String> = c
+            .ranges
+            .iter()
+            .map(|&(lo, hi)| {
+                if lo == hi {
+                    lo.to_string()
+                } else {
+                    format!("{lo}-{hi}")
+                }
+            })
+            .collect();
+        docs.push(format!(
+            "Present only when `{selector}` is {}.",
+            values.join(", ")
+        ));
+    }
+    docs
+}
