@@ -6,7 +6,7 @@ use std::path::Path;
 use serde_saphyr::Spanned;
 
 use crate::diagnostic::{Code, Diagnostics, Reporter};
-use crate::load::telemetry::{FieldSpec, LoadedTelemetry};
+use crate::load::telemetry::{FieldSpec, LoadedTelemetry, PacketSpec};
 use crate::model::{
     Database, Display, Encoding, ISOTP_MAX_LEN, IntType, PhysType, Placement, Signal,
     TELEMETRY_HEADER_LEN, Telemetry, TelemetryField, WireType,
@@ -28,7 +28,33 @@ pub fn validate(
 ) -> Result<Telemetry, Diagnostics> {
     let mut r = Reporter::new(path, &loaded.text);
     let packet = &loaded.file.packet.value;
-    let type_name = camel(&packet.name.value);
+    check_ids(&mut r, packet, db);
+    let mut fields = fields(&mut r, loaded, db);
+    let len = lay_out(&mut fields);
+    if len > ISOTP_MAX_LEN {
+        r.report(
+            Code::PacketTooLong,
+            line_of(&loaded.file.packet),
+            format!("the packet is {len} bytes; ISO-TP carries at most {ISOTP_MAX_LEN}"),
+            "remove fields or use narrower wire types (u8/u16 with a scale)",
+        );
+    }
+    if r.has_errors() {
+        return Err(Diagnostics(r.diagnostics));
+    }
+    Ok(Telemetry {
+        type_name: camel(&packet.name.value),
+        description: packet.description.clone(),
+        tx_id: packet.tx_id.value as u16,
+        flow_control_id: packet.flow_control_id.value as u16,
+        period_ms: packet.period_ms,
+        fields,
+        len,
+    })
+}
+
+/// The ISO-TP ids: standard, distinct, and not used by a DBC message.
+fn check_ids(r: &mut Reporter<'_>, packet: &PacketSpec, db: &Database) {
     for (what, id) in [
         ("tx_id", &packet.tx_id),
         ("flow_control_id", &packet.flow_control_id),
@@ -62,11 +88,13 @@ pub fn validate(
             "pick ids no message in aer.dbc uses",
         );
     }
+}
 
+/// Every usable field, in schema order (not yet placed); the others are reported.
+fn fields(r: &mut Reporter<'_>, loaded: &LoadedTelemetry, db: &Database) -> Vec<TelemetryField> {
     let mut fields = Vec::new();
     let mut names: HashMap<String, usize> = HashMap::new();
     for spec in &loaded.file.fields {
-        let line = line_of(spec);
         let name = &spec.value.name.value;
         let name_line = line_of(&spec.value.name);
         let valid = name.starts_with(|c: char| c.is_ascii_lowercase())
@@ -91,12 +119,16 @@ pub fn validate(
             );
             continue;
         }
-        if let Some(field) = field(&mut r, db, &spec.value, line) {
+        if let Some(field) = field(r, db, &spec.value, line_of(spec)) {
             fields.push(field);
         }
     }
+    fields
+}
 
-    // Byte-aligned values first, in schema order, then the flags packed LSB first.
+/// Places byte-aligned values first, in schema order, then the flags packed LSB first;
+/// returns the packet's length.
+fn lay_out(fields: &mut [TelemetryField]) -> usize {
     let mut offset = TELEMETRY_HEADER_LEN;
     for f in fields.iter_mut().filter(|f| f.wire != WireType::Flag) {
         f.placement = Placement::Bytes(offset);
@@ -107,29 +139,10 @@ pub fn validate(
         f.placement = Placement::Bit(offset + flag / 8, (flag % 8) as u8);
         flag += 1;
     }
-    let len = offset + flag.div_ceil(8);
-    if len > ISOTP_MAX_LEN {
-        r.report(
-            Code::PacketTooLong,
-            line_of(&loaded.file.packet),
-            format!("the packet is {len} bytes; ISO-TP carries at most {ISOTP_MAX_LEN}"),
-            "remove fields or use narrower wire types (u8/u16 with a scale)",
-        );
-    }
-    if r.has_errors() {
-        return Err(Diagnostics(r.diagnostics));
-    }
-    Ok(Telemetry {
-        type_name,
-        description: packet.description.clone(),
-        tx_id: packet.tx_id.value as u16,
-        flow_control_id: packet.flow_control_id.value as u16,
-        period_ms: packet.period_ms,
-        fields,
-        len,
-    })
+    offset + flag.div_ceil(8)
 }
 
+/// One field: its kind (a DBC signal, a wire type or an enum), scaling and range.
 fn field(
     r: &mut Reporter<'_>,
     db: &Database,
@@ -137,25 +150,7 @@ fn field(
     line: usize,
 ) -> Option<TelemetryField> {
     let name = spec.name.value.clone();
-    let display = spec
-        .display
-        .as_ref()
-        .map_or_else(Display::default, |d| Display {
-            label: d.label.clone(),
-            warn: d.warn,
-            critical: d.critical,
-            warn_below: d.warn_below,
-            critical_below: d.critical_below,
-        });
-    if let Some(problem) = threshold_problem(&display) {
-        r.report(
-            Code::Thresholds,
-            line,
-            format!("field `{name}` has display thresholds that {problem}"),
-            "a warning comes before critical: warn <= critical above, warn_below >= critical_below below",
-        );
-        return None;
-    }
+    let display = display(r, spec, line)?;
     let mut field = TelemetryField {
         name: name.clone(),
         group: spec.group.clone().unwrap_or_else(|| "other".to_owned()),
@@ -192,45 +187,11 @@ fn field(
             field.source = Some(reference.value.clone());
         }
         (None, Some(wire), None) => {
-            field.wire = match wire.value.as_str() {
-                "u8" => WireType::U8,
-                "u16" => WireType::U16,
-                "u32" => WireType::U32,
-                "i8" => WireType::I8,
-                "i16" => WireType::I16,
-                "i32" => WireType::I32,
-                "f32" => WireType::F32,
-                "flag" => WireType::Flag,
-                other => {
-                    r.report(
-                        Code::UnknownWireType,
-                        line_of(wire),
-                        format!("field `{name}` has unknown type `{other}`"),
-                        "use one of u8, u16, u32, i8, i16, i32, f32, flag",
-                    );
-                    return None;
-                }
-            };
+            field.wire = wire_type(r, &name, wire)?;
             field.phys = own_phys(&field);
         }
         (None, None, Some(enum_name)) => {
-            let wanted = camel(&enum_name.value);
-            let Some(index) = db.enums.iter().position(|e| e.type_name == wanted) else {
-                let known: Vec<&str> = db.enums.iter().map(|e| e.type_name.as_str()).collect();
-                r.report(
-                    Code::UnknownEnum,
-                    line_of(enum_name),
-                    format!(
-                        "field `{name}` uses enum `{}`, which aer.dbc does not define",
-                        enum_name.value
-                    ),
-                    format!(
-                        "define a VAL_TABLE_ in aer.dbc or use one of: {}",
-                        known.join(", ")
-                    ),
-                );
-                return None;
-            };
+            let index = find_enum(r, db, &name, enum_name)?;
             field.wire = enum_wire(db, index)?;
             field.phys = PhysType::Enum(index);
         }
@@ -244,7 +205,90 @@ fn field(
             return None;
         }
     }
-    let scale_line = spec.scale.as_ref().map_or(line, line_of);
+    check_scaling(r, &field, spec.scale.as_ref().map_or(line, line_of))?;
+    check_range(r, &field, line)?;
+    Some(field)
+}
+
+/// The dashboard hints, with thresholds in a sensible order.
+fn display(r: &mut Reporter<'_>, spec: &FieldSpec, line: usize) -> Option<Display> {
+    let display = spec
+        .display
+        .as_ref()
+        .map_or_else(Display::default, |d| Display {
+            label: d.label.clone(),
+            warn: d.warn,
+            critical: d.critical,
+            warn_below: d.warn_below,
+            critical_below: d.critical_below,
+        });
+    if let Some(problem) = threshold_problem(&display) {
+        r.report(
+            Code::Thresholds,
+            line,
+            format!(
+                "field `{}` has display thresholds that {problem}",
+                spec.name.value
+            ),
+            "a warning comes before critical: warn <= critical above, warn_below >= critical_below below",
+        );
+        return None;
+    }
+    Some(display)
+}
+
+fn wire_type(r: &mut Reporter<'_>, name: &str, wire: &Spanned<String>) -> Option<WireType> {
+    Some(match wire.value.as_str() {
+        "u8" => WireType::U8,
+        "u16" => WireType::U16,
+        "u32" => WireType::U32,
+        "i8" => WireType::I8,
+        "i16" => WireType::I16,
+        "i32" => WireType::I32,
+        "f32" => WireType::F32,
+        "flag" => WireType::Flag,
+        other => {
+            r.report(
+                Code::UnknownWireType,
+                line_of(wire),
+                format!("field `{name}` has unknown type `{other}`"),
+                "use one of u8, u16, u32, i8, i16, i32, f32, flag",
+            );
+            return None;
+        }
+    })
+}
+
+/// The index of the DBC enum a field names.
+fn find_enum(
+    r: &mut Reporter<'_>,
+    db: &Database,
+    name: &str,
+    enum_name: &Spanned<String>,
+) -> Option<usize> {
+    let wanted = camel(&enum_name.value);
+    let index = db.enums.iter().position(|e| e.type_name == wanted);
+    if index.is_none() {
+        let known: Vec<&str> = db.enums.iter().map(|e| e.type_name.as_str()).collect();
+        r.report(
+            Code::UnknownEnum,
+            line_of(enum_name),
+            format!(
+                "field `{name}` uses enum `{}`, which aer.dbc does not define",
+                enum_name.value
+            ),
+            format!(
+                "define a VAL_TABLE_ in aer.dbc or use one of: {}",
+                known.join(", ")
+            ),
+        );
+    }
+    index
+}
+
+/// A usable scale: non-zero and finite, and none at all for an f32 of the field's own.
+fn check_scaling(r: &mut Reporter<'_>, field: &TelemetryField, scale_line: usize) -> Option<()> {
+    let name = &field.name;
     if field.scale == 0.0 || !field.scale.is_finite() || !field.offset.is_finite() {
         r.report(
             Code::BadScale,
@@ -266,30 +310,37 @@ fn field(
         );
         return None;
     }
-    if let (Some(lo), Some(hi)) = (field.min, field.max) {
-        let (raw_lo, raw_hi) = field.wire.range();
-        let (a, b) = (
-            raw_lo as f64 * field.scale + field.offset,
-            raw_hi as f64 * field.scale + field.offset,
+    Some(())
+}
+
+/// `min`/`max` within what the wire type holds at the field's scale.
+fn check_range(r: &mut Reporter<'_>, field: &TelemetryField, line: usize) -> Option<()> {
+    let (Some(lo), Some(hi)) = (field.min, field.max) else {
+        return Some(());
+    };
+    let (raw_lo, raw_hi) = field.wire.range();
+    let (a, b) = (
+        raw_lo as f64 * field.scale + field.offset,
+        raw_hi as f64 * field.scale + field.offset,
+    );
+    let tol = field.scale.abs() / 2.0;
+    if field.wire != WireType::F32 && (lo < a.min(b) - tol || hi > a.max(b) + tol || lo > hi) {
+        r.report(
+            Code::FieldRange,
+            line,
+            format!(
+                "field `{}` has range [{lo}, {hi}] but a {} with scale {} holds [{}, {}]",
+                field.name,
+                field.wire.rust(),
+                field.scale,
+                a.min(b),
+                a.max(b)
+            ),
+            "use a wider type or a larger scale, or narrow min/max",
         );
-        let tol = field.scale.abs() / 2.0;
-        if field.wire != WireType::F32 && (lo < a.min(b) - tol || hi > a.max(b) + tol || lo > hi) {
-            r.report(
-                Code::FieldRange,
-                line,
-                format!(
-                    "field `{name}` has range [{lo}, {hi}] but a {} with scale {} holds [{}, {}]",
-                    field.wire.rust(),
-                    field.scale,
-                    a.min(b),
-                    a.max(b)
-                ),
-                "use a wider type or a larger scale, or narrow min/max",
-            );
-            return None;
-        }
+        return None;
     }
-    Some(field)
+    Some(())
 }
 
 /// What is wrong with a field's thresholds, if anything.

@@ -9,6 +9,15 @@ use super::{Builder, Draft};
 use crate::diagnostic::Code;
 use crate::model::{MuxCondition, Signal};
 
+/// A finding that has been reported; the caller only needs to know it failed.
+struct Reported;
+
+/// The signals that can select others: by their name as written, and the `M` ones.
+struct Selectors {
+    by_name: HashMap<String, usize>,
+    multiplexors: Vec<usize>,
+}
+
 impl<'a> Builder<'a, '_> {
     /// Attaches mux conditions from `mN` indicators and `SG_MUL_VAL_` lines.
     pub(super) fn resolve_multiplexing(
@@ -18,124 +27,180 @@ impl<'a> Builder<'a, '_> {
         drafts: &[Draft<'a>],
         signals: &mut [Signal],
     ) -> Option<()> {
-        // SG_MUL_VAL_ lines use the short names as written in the SG_ lines.
-        let index_of: HashMap<String, usize> = drafts
-            .iter()
-            .enumerate()
-            .map(|(i, d)| (d.sig.name.clone(), i))
-            .collect();
-        let multiplexors: Vec<usize> = signals
-            .iter()
-            .enumerate()
-            .filter(|(_, s)| s.is_multiplexor)
-            .map(|(i, _)| i)
-            .collect();
+        let selectors = Selectors {
+            // SG_MUL_VAL_ lines use the short names as written in the SG_ lines.
+            by_name: drafts
+                .iter()
+                .enumerate()
+                .map(|(i, d)| (d.sig.name.clone(), i))
+                .collect(),
+            multiplexors: signals
+                .iter()
+                .enumerate()
+                .filter(|(_, s)| s.is_multiplexor)
+                .map(|(i, _)| i)
+                .collect(),
+        };
         let mut ok = true;
         for (i, d) in drafts.iter().enumerate() {
-            let extended: Vec<&can_dbc::ExtendedMultiplex> = self
-                .loaded
-                .dbc
-                .extended_multiplex
-                .iter()
-                .filter(|e| e.message_id == msg.id && e.signal_name == d.sig.name)
-                .collect();
-            // An SG_MUL_VAL_ line defines the condition whatever the indicator says (tools that
-            // dump extended multiplexing often write a nested multiplexor as plain `M`).
-            let value = match d.sig.multiplexer_indicator {
-                MultiplexIndicator::MultiplexedSignal(v)
-                | MultiplexIndicator::MultiplexorAndMultiplexedSignal(v) => v,
-                _ if !extended.is_empty() => 0,
-                _ => continue,
-            };
             let where_ = format!("signal `{}` of message `{}`", d.sig.name, msg.name);
-            let condition = if let Some(first) = extended.first() {
-                let line = self
-                    .loaded
-                    .lines
-                    .mux_values
-                    .get(&(written_id, d.sig.name.clone()))
-                    .copied()
-                    .unwrap_or(d.line);
-                let Some(&sel) = index_of.get(&first.multiplexor_signal_name) else {
-                    self.r.report(
-                        Code::Multiplexing,
-                        line,
-                        format!(
-                            "{where_} is multiplexed by `{}`, which is not a signal of the message",
-                            first.multiplexor_signal_name
-                        ),
-                        "name an existing multiplexor signal in the SG_MUL_VAL_ line",
-                    );
+            let condition = match self.mux_condition(msg, written_id, i, d, &where_, &selectors) {
+                Ok(Some(condition)) => condition,
+                Ok(None) => continue,
+                Err(Reported) => {
                     ok = false;
                     continue;
-                };
-                let ranges = extended
-                    .iter()
-                    .flat_map(|e| e.mappings.iter().map(|m| (m.min_value, m.max_value)))
-                    .collect();
-                MuxCondition {
-                    selector: sel,
-                    ranges,
-                }
-            } else {
-                let candidates: Vec<usize> =
-                    multiplexors.iter().copied().filter(|&m| m != i).collect();
-                match candidates.as_slice() {
-                    [sel] => MuxCondition {
-                        selector: *sel,
-                        ranges: vec![(value, value)],
-                    },
-                    [] => {
-                        self.r.report(
-                            Code::Multiplexing,
-                            d.line,
-                            format!("{where_} is multiplexed (m{value}) but the message has no multiplexor signal (M)"),
-                            "mark the selector signal with `M`, or remove the `m` indicator",
-                        );
-                        ok = false;
-                        continue;
-                    }
-                    _ => {
-                        self.r.report(
-                            Code::Multiplexing,
-                            d.line,
-                            format!("{where_} is multiplexed (m{value}) but the message has several multiplexors and no SG_MUL_VAL_ line says which one selects it"),
-                            "add `SG_MUL_VAL_ <id> <signal> <multiplexor> <lo>-<hi>;` for this signal",
-                        );
-                        ok = false;
-                        continue;
-                    }
                 }
             };
-            let sel = &signals[condition.selector];
-            if !sel.is_multiplexor || sel.is_float_raw() {
+            if self
+                .check_selector(d, &where_, &condition, signals)
+                .is_err()
+            {
+                ok = false;
+                continue;
+            }
+            if let Some(signal) = signals.get_mut(i) {
+                signal.mux = Some(condition);
+            }
+        }
+        ok.then_some(())
+    }
+
+    /// When signal `i` is present: from its `SG_MUL_VAL_` lines, else from its `mN` indicator
+    /// and the message's one multiplexor; `None` for a signal that is always present.
+    fn mux_condition(
+        &mut self,
+        msg: &can_dbc::Message,
+        written_id: u64,
+        i: usize,
+        d: &Draft<'_>,
+        where_: &str,
+        selectors: &Selectors,
+    ) -> Result<Option<MuxCondition>, Reported> {
+        let extended: Vec<&can_dbc::ExtendedMultiplex> = self
+            .loaded
+            .dbc
+            .extended_multiplex
+            .iter()
+            .filter(|e| e.message_id == msg.id && e.signal_name == d.sig.name)
+            .collect();
+        // An SG_MUL_VAL_ line defines the condition whatever the indicator says (tools that
+        // dump extended multiplexing often write a nested multiplexor as plain `M`).
+        let value = match d.sig.multiplexer_indicator {
+            MultiplexIndicator::MultiplexedSignal(v)
+            | MultiplexIndicator::MultiplexorAndMultiplexedSignal(v) => v,
+            _ if !extended.is_empty() => 0,
+            _ => return Ok(None),
+        };
+        let Some(first) = extended.first() else {
+            return self
+                .implicit_condition(i, d, value, where_, selectors)
+                .map(Some);
+        };
+        let line = self
+            .loaded
+            .lines
+            .mux_values
+            .get(&(written_id, d.sig.name.clone()))
+            .copied()
+            .unwrap_or(d.line);
+        let Some(&selector) = selectors.by_name.get(&first.multiplexor_signal_name) else {
+            self.r.report(
+                Code::Multiplexing,
+                line,
+                format!(
+                    "{where_} is multiplexed by `{}`, which is not a signal of the message",
+                    first.multiplexor_signal_name
+                ),
+                "name an existing multiplexor signal in the SG_MUL_VAL_ line",
+            );
+            return Err(Reported);
+        };
+        Ok(Some(MuxCondition {
+            selector,
+            ranges: extended
+                .iter()
+                .flat_map(|e| e.mappings.iter().map(|m| (m.min_value, m.max_value)))
+                .collect(),
+        }))
+    }
+
+    /// `mN` without `SG_MUL_VAL_`: selected by the message's only other multiplexor.
+    fn implicit_condition(
+        &mut self,
+        i: usize,
+        d: &Draft<'_>,
+        value: u64,
+        where_: &str,
+        selectors: &Selectors,
+    ) -> Result<MuxCondition, Reported> {
+        let candidates: Vec<usize> = selectors
+            .multiplexors
+            .iter()
+            .copied()
+            .filter(|&m| m != i)
+            .collect();
+        match candidates.as_slice() {
+            [selector] => Ok(MuxCondition {
+                selector: *selector,
+                ranges: vec![(value, value)],
+            }),
+            [] => {
                 self.r.report(
                     Code::Multiplexing,
                     d.line,
-                    format!("{where_} is selected by `{}`, which is not an integer multiplexor signal (M)", sel.name),
-                    "mark the selector with `M` (or `mNM` when it is itself multiplexed); selectors must be integers",
+                    format!("{where_} is multiplexed (m{value}) but the message has no multiplexor signal (M)"),
+                    "mark the selector signal with `M`, or remove the `m` indicator",
                 );
-                ok = false;
-                continue;
+                Err(Reported)
             }
-            let (_, sel_hi) = sel.raw_range();
-            if let Some(&(lo, hi)) = condition
-                .ranges
-                .iter()
-                .find(|(lo, hi)| lo > hi || i128::from(*hi) > sel_hi)
-            {
+            _ => {
                 self.r.report(
-                    Code::MuxValueOutOfRange,
+                    Code::Multiplexing,
                     d.line,
-                    format!("{where_} is selected by `{}` values {lo}-{hi}, which its {}-bit multiplexor cannot take", sel.name, sel.len),
-                    "use multiplexor values between 0 and the multiplexor's largest raw value",
+                    format!("{where_} is multiplexed (m{value}) but the message has several multiplexors and no SG_MUL_VAL_ line says which one selects it"),
+                    "add `SG_MUL_VAL_ <id> <signal> <multiplexor> <lo>-<hi>;` for this signal",
                 );
-                ok = false;
-                continue;
+                Err(Reported)
             }
-            signals[i].mux = Some(condition);
         }
-        ok.then_some(())
+    }
+
+    /// The selector must be an integer multiplexor that can take every value it selects on.
+    fn check_selector(
+        &mut self,
+        d: &Draft<'_>,
+        where_: &str,
+        condition: &MuxCondition,
+        signals: &[Signal],
+    ) -> Result<(), Reported> {
+        let Some(sel) = signals.get(condition.selector) else {
+            return Err(Reported);
+        };
+        if !sel.is_multiplexor || sel.is_float_raw() {
+            self.r.report(
+                Code::Multiplexing,
+                d.line,
+                format!("{where_} is selected by `{}`, which is not an integer multiplexor signal (M)", sel.name),
+                "mark the selector with `M` (or `mNM` when it is itself multiplexed); selectors must be integers",
+            );
+            return Err(Reported);
+        }
+        let (_, sel_hi) = sel.raw_range();
+        if let Some(&(lo, hi)) = condition
+            .ranges
+            .iter()
+            .find(|(lo, hi)| lo > hi || i128::from(*hi) > sel_hi)
+        {
+            self.r.report(
+                Code::MuxValueOutOfRange,
+                d.line,
+                format!("{where_} is selected by `{}` values {lo}-{hi}, which its {}-bit multiplexor cannot take", sel.name, sel.len),
+                "use multiplexor values between 0 and the multiplexor's largest raw value",
+            );
+            return Err(Reported);
+        }
+        Ok(())
     }
 
     /// Orders signals so that each multiplexor is decoded before what it selects.
