@@ -933,6 +933,7 @@ pub struct CcmStatus {
 static CCM_STATUS_SIGNALS: [SignalMeta; 20] = [
     SignalMeta {
         name: "CCM_VehicleState",
+        index: 0,
         unit: "",
         comment: "Vehicle state machine of the CCM.",
         start_bit: 0,
@@ -955,6 +956,7 @@ static CCM_STATUS_SIGNALS: [SignalMeta; 20] = [
     },
     SignalMeta {
         name: "CCM_FaultOverCurrent",
+        index: 1,
         unit: "",
         comment: "Fault bitmap bit 0: pack over-current.",
         start_bit: 8,
@@ -970,6 +972,7 @@ static CCM_STATUS_SIGNALS: [SignalMeta; 20] = [
     },
     SignalMeta {
         name: "CCM_FaultUnderVoltage",
+        index: 2,
         unit: "",
         comment: "Fault bitmap bit 1: pack under-voltage.",
         start_bit: 9,
@@ -985,6 +988,7 @@ static CCM_STATUS_SIGNALS: [SignalMeta; 20] = [
     },
     SignalMeta {
         name: "CCM_FaultOverTemperature",
+        index: 3,
         unit: "",
         comment: "Fault bitmap bit 2: over-temperature.",
         start_bit: 10,
@@ -1000,6 +1004,7 @@ static CCM_STATUS_SIGNALS: [SignalMeta; 20] = [
     },
     SignalMeta {
         name: "CCM_FaultApps",
+        index: 4,
         unit: "",
         comment: "Fault bitmap bit 3: accelerator pedal sensor out of range or implausible (T.4.2).",
         start_bit: 11,
@@ -1015,6 +1020,7 @@ static CCM_STATUS_SIGNALS: [SignalMeta; 20] = [
     },
     SignalMeta {
         name: "CCM_FaultBse",
+        index: 5,
         unit: "",
         comment: "Fault bitmap bit 4: brake system encoder out of range.",
         start_bit: 12,
@@ -1030,6 +1036,7 @@ static CCM_STATUS_SIGNALS: [SignalMeta; 20] = [
     },
     SignalMeta {
         name: "CCM_FaultBpps",
+        index: 6,
         unit: "",
         comment: "Fault bitmap bit 5: brake pedal position sensor.",
         start_bit: 13,
@@ -1045,6 +1052,7 @@ static CCM_STATUS_SIGNALS: [SignalMeta; 20] = [
     },
     SignalMeta {
         name: "CCM_FaultAppsBrakePlausibility",
+        index: 7,
         unit: "",
         comment: "Fault bitmap bit 6: throttle above 25 % with the brake pressed (EV.4.7); cleared below 5 %.",
         start_bit: 14,
@@ -1060,6 +1068,7 @@ static CCM_STATUS_SIGNALS: [SignalMeta; 20] = [
     },
     SignalMeta {
         name: "CCM_FaultLowBatteryVoltage",
+        index: 8,
         unit: "",
         comment: "Fault bitmap bit 7: accumulator state of charge at or below 5 %, the end of the torque derating.",
         start_bit: 15,
@@ -1075,6 +1084,7 @@ static CCM_STATUS_SIGNALS: [SignalMeta; 20] = [
     },
     SignalMeta {
         name: "CCM_SchemaFingerprint",
+        index: 9,
         unit: "",
         comment: "Fingerprint of the schema the firmware was built from (aer::telemetry::TELEMETRY_FINGERPRINT, which covers aer.dbc and telemetry.yaml); receivers compare it with their own.",
         start_bit: 16,
@@ -1090,6 +1100,7 @@ static CCM_STATUS_SIGNALS: [SignalMeta; 20] = [
     },
     SignalMeta {
         name: "CCM_RollingCounter",
+        index: 10,
         unit: "",
         comment: "Increments every frame; a stuck value means a stuck CCM.",
         start_bit: 48,
@@ -1105,6 +1116,7 @@ static CCM_STATUS_SIGNALS: [SignalMeta; 20] = [
     },
     SignalMeta {
         name: "CCM_ReadyToDrive",
+        index: 11,
         unit: "",
         comment: "Ready-to-drive sound completed and drive enabled.",
         start_bit: 52,
@@ -1120,6 +1132,7 @@ static CCM_STATUS_SIGNALS: [SignalMeta; 20] = [
     },
     SignalMeta {
         name: "CCM_FaultPedalSignalLost",
+        index: 12,
         unit: "",
         comment: "Fault bitmap bit 8: the pedal converter delivered no conversion on a channel for 20 ms (T.4.2.10).",
         start_bit: 53,
@@ -1135,6 +1148,7 @@ static CCM_STATUS_SIGNALS: [SignalMeta; 20] = [
     },
     SignalMeta {
         name: "CCM_FaultSensorsStale",
+        index: 13,
         unit: "",
         comment: "Fault bitmap bit 9: the 1 kHz sensor sample is older than 10 ms.",
         start_bit: 54,
@@ -1150,6 +1164,7 @@ static CCM_STATUS_SIGNALS: [SignalMeta; 20] = [
     },
     SignalMeta {
         name: "CCM_FaultBmsTimeout",
+        index: 14,
         unit: "",
         comment: "Fault bitmap bit 10: a BMS frame the CCM acts on is older than its limit.",
         start_bit: 55,
@@ -1165,6 +1180,7 @@ static CCM_STATUS_SIGNALS: [SignalMeta; 20] = [
     },
     SignalMeta {
         name: "CCM_FaultInverterTimeout",
+        index: 15,
         unit: "",
         comment: "Fault bitmap bit 11: an inverter status frame is older than its limit.",
         start_bit: 56,
@@ -1180,6 +1196,7 @@ static CCM_STATUS_SIGNALS: [SignalMeta; 20] = [
     },
     SignalMeta {
         name: "CCM_FaultPccTimeout",
+        index: 16,
         unit: "",
         comment: "Fault bitmap bit 12: the precharge controller's status is older than 100 ms.",
         start_bit: 57,
@@ -1195,6 +1212,7 @@ static CCM_STATUS_SIGNALS: [SignalMeta; 20] = [
     },
     SignalMeta {
         name: "CCM_FaultInverterFault",
+        index: 17,
         unit: "",
         comment: "Fault bitmap bit 13: the inverter reports a fault (MCU2 fault bits or warning level HIGH).",
         start_bit: 58,
@@ -1210,6 +1228,7 @@ static CCM_STATUS_SIGNALS: [SignalMeta; 20] = [
     },
     SignalMeta {
         name: "CCM_FaultInverterWarning",
+        index: 18,
         unit: "",
         comment: "Fault bitmap bit 14: the inverter reports a warning (low DC or 12 V, a sensor state, warning level LOW or MEDIUM).",
         start_bit: 59,
@@ -1225,6 +1244,7 @@ static CCM_STATUS_SIGNALS: [SignalMeta; 20] = [
     },
     SignalMeta {
         name: "CCM_FaultPccError",
+        index: 19,
         unit: "",
         comment: "Fault bitmap bit 15: the precharge controller reports ERROR (or a state the schema does not know); its own error bits say why.",
         start_bit: 60,
@@ -2235,6 +2255,7 @@ pub struct Vcu1 {
 static VCU1_SIGNALS: [SignalMeta; 18] = [
     SignalMeta {
         name: "VCU_TorqueReq",
+        index: 0,
         unit: "Nm",
         comment: "Torque request: 0.392 % of MOTOR_MAX_TORQUE (260 Nm) per bit, given here directly in Nm.",
         start_bit: 7,
@@ -2250,6 +2271,7 @@ static VCU1_SIGNALS: [SignalMeta; 18] = [
     },
     SignalMeta {
         name: "VCU_MotorSpdReq",
+        index: 1,
         unit: "rpm",
         comment: "Speed request, used only in speed mode.",
         start_bit: 15,
@@ -2265,6 +2287,7 @@ static VCU1_SIGNALS: [SignalMeta; 18] = [
     },
     SignalMeta {
         name: "VCU_AuthenticationStatus",
+        index: 2,
         unit: "",
         comment: "",
         start_bit: 30,
@@ -2280,6 +2303,7 @@ static VCU1_SIGNALS: [SignalMeta; 18] = [
     },
     SignalMeta {
         name: "VCU_ChangeGearAlarm",
+        index: 3,
         unit: "",
         comment: "",
         start_bit: 31,
@@ -2295,6 +2319,7 @@ static VCU1_SIGNALS: [SignalMeta; 18] = [
     },
     SignalMeta {
         name: "VCU_VehicleState",
+        index: 4,
         unit: "",
         comment: "1 when the vehicle is ready.",
         start_bit: 32,
@@ -2310,6 +2335,7 @@ static VCU1_SIGNALS: [SignalMeta; 18] = [
     },
     SignalMeta {
         name: "VCU_BrakePedalSts",
+        index: 5,
         unit: "",
         comment: "",
         start_bit: 34,
@@ -2325,6 +2351,7 @@ static VCU1_SIGNALS: [SignalMeta; 18] = [
     },
     SignalMeta {
         name: "VCU_BmsMainRelayCmd",
+        index: 6,
         unit: "",
         comment: "",
         start_bit: 35,
@@ -2340,6 +2367,7 @@ static VCU1_SIGNALS: [SignalMeta; 18] = [
     },
     SignalMeta {
         name: "VCU_GearLeverPosSts",
+        index: 7,
         unit: "",
         comment: "",
         start_bit: 38,
@@ -2355,6 +2383,7 @@ static VCU1_SIGNALS: [SignalMeta; 18] = [
     },
     SignalMeta {
         name: "VCU_GearLeverPosStsF",
+        index: 8,
         unit: "",
         comment: "",
         start_bit: 39,
@@ -2370,6 +2399,7 @@ static VCU1_SIGNALS: [SignalMeta; 18] = [
     },
     SignalMeta {
         name: "VCU_AcControlCmd",
+        index: 9,
         unit: "",
         comment: "",
         start_bit: 40,
@@ -2385,6 +2415,7 @@ static VCU1_SIGNALS: [SignalMeta; 18] = [
     },
     SignalMeta {
         name: "VCU_WorkMode",
+        index: 10,
         unit: "",
         comment: "0 torque control, 1 speed control.",
         start_bit: 41,
@@ -2400,6 +2431,7 @@ static VCU1_SIGNALS: [SignalMeta; 18] = [
     },
     SignalMeta {
         name: "VCU_MotorMode",
+        index: 11,
         unit: "",
         comment: "",
         start_bit: 43,
@@ -2415,6 +2447,7 @@ static VCU1_SIGNALS: [SignalMeta; 18] = [
     },
     SignalMeta {
         name: "VCU_WarningLevel",
+        index: 12,
         unit: "",
         comment: "",
         start_bit: 45,
@@ -2430,6 +2463,7 @@ static VCU1_SIGNALS: [SignalMeta; 18] = [
     },
     SignalMeta {
         name: "VCU_KeyPosition",
+        index: 13,
         unit: "",
         comment: "",
         start_bit: 47,
@@ -2445,6 +2479,7 @@ static VCU1_SIGNALS: [SignalMeta; 18] = [
     },
     SignalMeta {
         name: "VCU_RollingCounter",
+        index: 14,
         unit: "",
         comment: "Must increment every frame or the inverter faults.",
         start_bit: 51,
@@ -2460,6 +2495,7 @@ static VCU1_SIGNALS: [SignalMeta; 18] = [
     },
     SignalMeta {
         name: "VCU_BmsAuxRelayCmd",
+        index: 15,
         unit: "",
         comment: "",
         start_bit: 52,
@@ -2475,6 +2511,7 @@ static VCU1_SIGNALS: [SignalMeta; 18] = [
     },
     SignalMeta {
         name: "VCU_PowerReduceReq",
+        index: 16,
         unit: "",
         comment: "",
         start_bit: 55,
@@ -2490,6 +2527,7 @@ static VCU1_SIGNALS: [SignalMeta; 18] = [
     },
     SignalMeta {
         name: "VCU_CheckSum",
+        index: 17,
         unit: "",
         comment: "(sum of bytes 0..6) XOR 0xFF.",
         start_bit: 63,
@@ -3381,6 +3419,7 @@ pub struct Mcu1 {
 static MCU1_SIGNALS: [SignalMeta; 9] = [
     SignalMeta {
         name: "MCU_MotorSpeed",
+        index: 0,
         unit: "rpm",
         comment: "Motor speed.",
         start_bit: 7,
@@ -3396,6 +3435,7 @@ static MCU1_SIGNALS: [SignalMeta; 9] = [
     },
     SignalMeta {
         name: "MCU_ActualTorque",
+        index: 1,
         unit: "Nm",
         comment: "Actual torque: 0.392 % of 260 Nm per bit, in Nm (the old decoder forgot the /100 and was 100x off).",
         start_bit: 23,
@@ -3411,6 +3451,7 @@ static MCU1_SIGNALS: [SignalMeta; 9] = [
     },
     SignalMeta {
         name: "MCU_MaxMotorTorque",
+        index: 2,
         unit: "Nm",
         comment: "Torque the inverter can deliver now, in Nm.",
         start_bit: 31,
@@ -3426,6 +3467,7 @@ static MCU1_SIGNALS: [SignalMeta; 9] = [
     },
     SignalMeta {
         name: "MCU_MaxMotorBrakeTorque",
+        index: 3,
         unit: "Nm",
         comment: "Brake (regen) torque the inverter can absorb now, in Nm.",
         start_bit: 39,
@@ -3441,6 +3483,7 @@ static MCU1_SIGNALS: [SignalMeta; 9] = [
     },
     SignalMeta {
         name: "MCU_MainState",
+        index: 4,
         unit: "",
         comment: "",
         start_bit: 45,
@@ -3462,6 +3505,7 @@ static MCU1_SIGNALS: [SignalMeta; 9] = [
     },
     SignalMeta {
         name: "MCU_RotateDirection",
+        index: 5,
         unit: "",
         comment: "",
         start_bit: 47,
@@ -3482,6 +3526,7 @@ static MCU1_SIGNALS: [SignalMeta; 9] = [
     },
     SignalMeta {
         name: "MCU1_RollingCounter",
+        index: 6,
         unit: "",
         comment: "",
         start_bit: 51,
@@ -3497,6 +3542,7 @@ static MCU1_SIGNALS: [SignalMeta; 9] = [
     },
     SignalMeta {
         name: "MCU_MotorState",
+        index: 7,
         unit: "",
         comment: "",
         start_bit: 53,
@@ -3512,6 +3558,7 @@ static MCU1_SIGNALS: [SignalMeta; 9] = [
     },
     SignalMeta {
         name: "MCU_WorkMode",
+        index: 8,
         unit: "",
         comment: "",
         start_bit: 55,
@@ -4084,6 +4131,7 @@ pub struct Mcu2 {
 static MCU2_SIGNALS: [SignalMeta; 21] = [
     SignalMeta {
         name: "MCU_MotorTemp",
+        index: 0,
         unit: "degC",
         comment: "Motor temperature.",
         start_bit: 7,
@@ -4099,6 +4147,7 @@ static MCU2_SIGNALS: [SignalMeta; 21] = [
     },
     SignalMeta {
         name: "MCU_InverterTemp",
+        index: 1,
         unit: "degC",
         comment: "Inverter temperature.",
         start_bit: 15,
@@ -4114,6 +4163,7 @@ static MCU2_SIGNALS: [SignalMeta; 21] = [
     },
     SignalMeta {
         name: "MCU_DcMainWireOverCurrFault",
+        index: 2,
         unit: "",
         comment: "",
         start_bit: 16,
@@ -4129,6 +4179,7 @@ static MCU2_SIGNALS: [SignalMeta; 21] = [
     },
     SignalMeta {
         name: "MCU_MotorPhaseCurrFault",
+        index: 3,
         unit: "",
         comment: "",
         start_bit: 17,
@@ -4144,6 +4195,7 @@ static MCU2_SIGNALS: [SignalMeta; 21] = [
     },
     SignalMeta {
         name: "MCU_OverHotFault",
+        index: 4,
         unit: "",
         comment: "",
         start_bit: 18,
@@ -4159,6 +4211,7 @@ static MCU2_SIGNALS: [SignalMeta; 21] = [
     },
     SignalMeta {
         name: "MCU_ResolverFault",
+        index: 5,
         unit: "",
         comment: "",
         start_bit: 19,
@@ -4174,6 +4227,7 @@ static MCU2_SIGNALS: [SignalMeta; 21] = [
     },
     SignalMeta {
         name: "MCU_PhaseCurrSensorFault",
+        index: 6,
         unit: "",
         comment: "",
         start_bit: 20,
@@ -4189,6 +4243,7 @@ static MCU2_SIGNALS: [SignalMeta; 21] = [
     },
     SignalMeta {
         name: "MCU_MotorOverSpdFault",
+        index: 7,
         unit: "",
         comment: "",
         start_bit: 21,
@@ -4204,6 +4259,7 @@ static MCU2_SIGNALS: [SignalMeta; 21] = [
     },
     SignalMeta {
         name: "MCU_DrvMotorOverHotFault",
+        index: 8,
         unit: "",
         comment: "",
         start_bit: 22,
@@ -4219,6 +4275,7 @@ static MCU2_SIGNALS: [SignalMeta; 21] = [
     },
     SignalMeta {
         name: "MCU_DcMainWireOverVoltFault",
+        index: 9,
         unit: "",
         comment: "",
         start_bit: 23,
@@ -4234,6 +4291,7 @@ static MCU2_SIGNALS: [SignalMeta; 21] = [
     },
     SignalMeta {
         name: "MCU_DrvMotorOverCoolFault",
+        index: 10,
         unit: "",
         comment: "",
         start_bit: 24,
@@ -4249,6 +4307,7 @@ static MCU2_SIGNALS: [SignalMeta; 21] = [
     },
     SignalMeta {
         name: "MCU_MotorSystemState",
+        index: 11,
         unit: "",
         comment: "",
         start_bit: 25,
@@ -4264,6 +4323,7 @@ static MCU2_SIGNALS: [SignalMeta; 21] = [
     },
     SignalMeta {
         name: "MCU_TempSensorState",
+        index: 12,
         unit: "",
         comment: "",
         start_bit: 26,
@@ -4279,6 +4339,7 @@ static MCU2_SIGNALS: [SignalMeta; 21] = [
     },
     SignalMeta {
         name: "MCU_MotorTempSensorState",
+        index: 13,
         unit: "",
         comment: "",
         start_bit: 27,
@@ -4294,6 +4355,7 @@ static MCU2_SIGNALS: [SignalMeta; 21] = [
     },
     SignalMeta {
         name: "MCU_DcVoltSensorState",
+        index: 14,
         unit: "",
         comment: "",
         start_bit: 28,
@@ -4309,6 +4371,7 @@ static MCU2_SIGNALS: [SignalMeta; 21] = [
     },
     SignalMeta {
         name: "MCU_DcLowVoltWarning",
+        index: 15,
         unit: "",
         comment: "",
         start_bit: 29,
@@ -4324,6 +4387,7 @@ static MCU2_SIGNALS: [SignalMeta; 21] = [
     },
     SignalMeta {
         name: "MCU_12V_LowVoltWarning",
+        index: 16,
         unit: "",
         comment: "",
         start_bit: 30,
@@ -4339,6 +4403,7 @@ static MCU2_SIGNALS: [SignalMeta; 21] = [
     },
     SignalMeta {
         name: "MCU2_RollingCounter",
+        index: 17,
         unit: "",
         comment: "",
         start_bit: 51,
@@ -4354,6 +4419,7 @@ static MCU2_SIGNALS: [SignalMeta; 21] = [
     },
     SignalMeta {
         name: "MCU_WarningLevel",
+        index: 18,
         unit: "",
         comment: "",
         start_bit: 53,
@@ -4369,6 +4435,7 @@ static MCU2_SIGNALS: [SignalMeta; 21] = [
     },
     SignalMeta {
         name: "MCU_MotorOpenPhaseFault",
+        index: 19,
         unit: "",
         comment: "",
         start_bit: 54,
@@ -4384,6 +4451,7 @@ static MCU2_SIGNALS: [SignalMeta; 21] = [
     },
     SignalMeta {
         name: "MCU_MotorStallFault",
+        index: 20,
         unit: "",
         comment: "",
         start_bit: 55,
@@ -5372,6 +5440,7 @@ pub struct Mcu3 {
 static MCU3_SIGNALS: [SignalMeta; 3] = [
     SignalMeta {
         name: "MCU_DcVoltage",
+        index: 0,
         unit: "V",
         comment: "",
         start_bit: 7,
@@ -5387,6 +5456,7 @@ static MCU3_SIGNALS: [SignalMeta; 3] = [
     },
     SignalMeta {
         name: "MCU_DcCurrent",
+        index: 1,
         unit: "A",
         comment: "",
         start_bit: 23,
@@ -5402,6 +5472,7 @@ static MCU3_SIGNALS: [SignalMeta; 3] = [
     },
     SignalMeta {
         name: "MCU_PhaseCurrent",
+        index: 2,
         unit: "A",
         comment: "",
         start_bit: 39,
@@ -5626,6 +5697,7 @@ pub struct Bms1 {
 static BMS1_SIGNALS: [SignalMeta; 2] = [
     SignalMeta {
         name: "BMS_PrechargeRelayFb",
+        index: 0,
         unit: "",
         comment: "Precharge relay feedback (closed = 1).",
         start_bit: 26,
@@ -5641,6 +5713,7 @@ static BMS1_SIGNALS: [SignalMeta; 2] = [
     },
     SignalMeta {
         name: "BMS_PrechargeFinishSts",
+        index: 1,
         unit: "",
         comment: "Precharge finished.",
         start_bit: 28,
@@ -5818,6 +5891,7 @@ pub struct Bms2 {
 
 static BMS2_SIGNALS: [SignalMeta; 1] = [SignalMeta {
     name: "BMS_AllowMaxDischarge",
+    index: 0,
     unit: "A",
     comment: "Allowed discharge current: raw = (I + 500) x 10.",
     start_bit: 7,
@@ -5968,6 +6042,7 @@ pub struct OrionPackStatus {
 static ORION_PACK_STATUS_SIGNALS: [SignalMeta; 4] = [
     SignalMeta {
         name: "Orion_PackCurrent",
+        index: 0,
         unit: "A",
         comment: "Pack current, positive when discharging.",
         start_bit: 7,
@@ -5983,6 +6058,7 @@ static ORION_PACK_STATUS_SIGNALS: [SignalMeta; 4] = [
     },
     SignalMeta {
         name: "Orion_PackInstVoltage",
+        index: 1,
         unit: "V",
         comment: "Instantaneous pack voltage.",
         start_bit: 23,
@@ -5998,6 +6074,7 @@ static ORION_PACK_STATUS_SIGNALS: [SignalMeta; 4] = [
     },
     SignalMeta {
         name: "Orion_PackSoc",
+        index: 2,
         unit: "%",
         comment: "State of charge.",
         start_bit: 39,
@@ -6013,6 +6090,7 @@ static ORION_PACK_STATUS_SIGNALS: [SignalMeta; 4] = [
     },
     SignalMeta {
         name: "Orion_RelayState",
+        index: 3,
         unit: "",
         comment: "Orion relay state bitfield.",
         start_bit: 47,
@@ -6300,6 +6378,7 @@ pub struct OrionLimits {
 static ORION_LIMITS_SIGNALS: [SignalMeta; 4] = [
     SignalMeta {
         name: "Orion_PackDcl",
+        index: 0,
         unit: "A",
         comment: "Discharge current limit.",
         start_bit: 7,
@@ -6315,6 +6394,7 @@ static ORION_LIMITS_SIGNALS: [SignalMeta; 4] = [
     },
     SignalMeta {
         name: "Orion_PackCcl",
+        index: 1,
         unit: "A",
         comment: "Charge current limit.",
         start_bit: 23,
@@ -6330,6 +6410,7 @@ static ORION_LIMITS_SIGNALS: [SignalMeta; 4] = [
     },
     SignalMeta {
         name: "Orion_HighTemperature",
+        index: 2,
         unit: "degC",
         comment: "",
         start_bit: 39,
@@ -6345,6 +6426,7 @@ static ORION_LIMITS_SIGNALS: [SignalMeta; 4] = [
     },
     SignalMeta {
         name: "Orion_LowTemperature",
+        index: 3,
         unit: "degC",
         comment: "",
         start_bit: 47,
@@ -6616,6 +6698,7 @@ pub struct OrionCellVoltages {
 static ORION_CELL_VOLTAGES_SIGNALS: [SignalMeta; 4] = [
     SignalMeta {
         name: "Orion_LowCellVoltage",
+        index: 0,
         unit: "V",
         comment: "",
         start_bit: 7,
@@ -6631,6 +6714,7 @@ static ORION_CELL_VOLTAGES_SIGNALS: [SignalMeta; 4] = [
     },
     SignalMeta {
         name: "Orion_HighCellVoltage",
+        index: 1,
         unit: "V",
         comment: "",
         start_bit: 23,
@@ -6646,6 +6730,7 @@ static ORION_CELL_VOLTAGES_SIGNALS: [SignalMeta; 4] = [
     },
     SignalMeta {
         name: "Orion_AvgCellVoltage",
+        index: 2,
         unit: "V",
         comment: "",
         start_bit: 39,
@@ -6661,6 +6746,7 @@ static ORION_CELL_VOLTAGES_SIGNALS: [SignalMeta; 4] = [
     },
     SignalMeta {
         name: "Orion_LowCellId",
+        index: 3,
         unit: "",
         comment: "Id of the lowest cell.",
         start_bit: 55,
@@ -6986,6 +7072,7 @@ pub struct PccStatus {
 static PCC_STATUS_SIGNALS: [SignalMeta; 9] = [
     SignalMeta {
         name: "PCC_State",
+        index: 0,
         unit: "",
         comment: "Precharge state machine.",
         start_bit: 0,
@@ -7009,6 +7096,7 @@ static PCC_STATUS_SIGNALS: [SignalMeta; 9] = [
     },
     SignalMeta {
         name: "PCC_ErrorTooFast",
+        index: 1,
         unit: "",
         comment: "Error bit 0x01: target reached faster than the minimum time (short or wrong measurement).",
         start_bit: 8,
@@ -7024,6 +7112,7 @@ static PCC_STATUS_SIGNALS: [SignalMeta; 9] = [
     },
     SignalMeta {
         name: "PCC_ErrorTooSlow",
+        index: 2,
         unit: "",
         comment: "Error bit 0x02: target not reached in time.",
         start_bit: 9,
@@ -7039,6 +7128,7 @@ static PCC_STATUS_SIGNALS: [SignalMeta; 9] = [
     },
     SignalMeta {
         name: "PCC_ErrorBmsTimeout",
+        index: 3,
         unit: "",
         comment: "Error bit 0x04: no BMS frame for 1.5 s.",
         start_bit: 10,
@@ -7054,6 +7144,7 @@ static PCC_STATUS_SIGNALS: [SignalMeta; 9] = [
     },
     SignalMeta {
         name: "PCC_ErrorShutdown",
+        index: 4,
         unit: "",
         comment: "Error bit 0x08: the shutdown input opened while the tractive system was energised; clears once the shutdown circuit is closed again and the tractive system is discharged.",
         start_bit: 11,
@@ -7069,6 +7160,7 @@ static PCC_STATUS_SIGNALS: [SignalMeta; 9] = [
     },
     SignalMeta {
         name: "PCC_ErrorUndefinedState",
+        index: 5,
         unit: "",
         comment: "Error bit 0x80: state machine in an undefined state.",
         start_bit: 15,
@@ -7084,6 +7176,7 @@ static PCC_STATUS_SIGNALS: [SignalMeta; 9] = [
     },
     SignalMeta {
         name: "PCC_AccumulatorVoltage",
+        index: 6,
         unit: "V",
         comment: "Accumulator voltage from the V/F converter.",
         start_bit: 16,
@@ -7099,6 +7192,7 @@ static PCC_STATUS_SIGNALS: [SignalMeta; 9] = [
     },
     SignalMeta {
         name: "PCC_TractiveVoltage",
+        index: 7,
         unit: "V",
         comment: "Tractive-system voltage from the V/F converter.",
         start_bit: 32,
@@ -7114,6 +7208,7 @@ static PCC_STATUS_SIGNALS: [SignalMeta; 9] = [
     },
     SignalMeta {
         name: "PCC_PrechargeProgress",
+        index: 8,
         unit: "%",
         comment: "Tractive-system voltage as a percentage of the accumulator voltage.",
         start_bit: 48,
@@ -7628,6 +7723,7 @@ pub struct ImdInfoGeneral {
 static IMD_INFO_GENERAL_SIGNALS: [SignalMeta; 15] = [
     SignalMeta {
         name: "IMD_RIsoCorrected",
+        index: 0,
         unit: "kOhm",
         comment: "Corrected isolation resistance.",
         start_bit: 0,
@@ -7643,6 +7739,7 @@ static IMD_INFO_GENERAL_SIGNALS: [SignalMeta; 15] = [
     },
     SignalMeta {
         name: "IMD_RIsoStatus",
+        index: 1,
         unit: "",
         comment: "Status of the isolation measurement (Bender codes).",
         start_bit: 16,
@@ -7658,6 +7755,7 @@ static IMD_INFO_GENERAL_SIGNALS: [SignalMeta; 15] = [
     },
     SignalMeta {
         name: "IMD_MeasurementCounter",
+        index: 2,
         unit: "",
         comment: "",
         start_bit: 24,
@@ -7673,6 +7771,7 @@ static IMD_INFO_GENERAL_SIGNALS: [SignalMeta; 15] = [
     },
     SignalMeta {
         name: "IMD_DeviceError",
+        index: 3,
         unit: "",
         comment: "",
         start_bit: 32,
@@ -7688,6 +7787,7 @@ static IMD_INFO_GENERAL_SIGNALS: [SignalMeta; 15] = [
     },
     SignalMeta {
         name: "IMD_HvPosConnectionFailure",
+        index: 4,
         unit: "",
         comment: "",
         start_bit: 33,
@@ -7703,6 +7803,7 @@ static IMD_INFO_GENERAL_SIGNALS: [SignalMeta; 15] = [
     },
     SignalMeta {
         name: "IMD_HvNegConnectionFailure",
+        index: 5,
         unit: "",
         comment: "",
         start_bit: 34,
@@ -7718,6 +7819,7 @@ static IMD_INFO_GENERAL_SIGNALS: [SignalMeta; 15] = [
     },
     SignalMeta {
         name: "IMD_EarthConnectionFailure",
+        index: 6,
         unit: "",
         comment: "",
         start_bit: 35,
@@ -7733,6 +7835,7 @@ static IMD_INFO_GENERAL_SIGNALS: [SignalMeta; 15] = [
     },
     SignalMeta {
         name: "IMD_IsoAlarm",
+        index: 7,
         unit: "",
         comment: "",
         start_bit: 36,
@@ -7748,6 +7851,7 @@ static IMD_INFO_GENERAL_SIGNALS: [SignalMeta; 15] = [
     },
     SignalMeta {
         name: "IMD_IsoWarning",
+        index: 8,
         unit: "",
         comment: "",
         start_bit: 37,
@@ -7763,6 +7867,7 @@ static IMD_INFO_GENERAL_SIGNALS: [SignalMeta; 15] = [
     },
     SignalMeta {
         name: "IMD_IsoOutdated",
+        index: 9,
         unit: "",
         comment: "",
         start_bit: 38,
@@ -7778,6 +7883,7 @@ static IMD_INFO_GENERAL_SIGNALS: [SignalMeta; 15] = [
     },
     SignalMeta {
         name: "IMD_UnbalanceAlarm",
+        index: 10,
         unit: "",
         comment: "",
         start_bit: 39,
@@ -7793,6 +7899,7 @@ static IMD_INFO_GENERAL_SIGNALS: [SignalMeta; 15] = [
     },
     SignalMeta {
         name: "IMD_UndervoltageAlarm",
+        index: 11,
         unit: "",
         comment: "",
         start_bit: 40,
@@ -7808,6 +7915,7 @@ static IMD_INFO_GENERAL_SIGNALS: [SignalMeta; 15] = [
     },
     SignalMeta {
         name: "IMD_UnsafeToStart",
+        index: 12,
         unit: "",
         comment: "",
         start_bit: 41,
@@ -7823,6 +7931,7 @@ static IMD_INFO_GENERAL_SIGNALS: [SignalMeta; 15] = [
     },
     SignalMeta {
         name: "IMD_EarthliftOpen",
+        index: 13,
         unit: "",
         comment: "",
         start_bit: 42,
@@ -7838,6 +7947,7 @@ static IMD_INFO_GENERAL_SIGNALS: [SignalMeta; 15] = [
     },
     SignalMeta {
         name: "IMD_DeviceActivity",
+        index: 14,
         unit: "",
         comment: "What the IMD is doing.",
         start_bit: 48,
@@ -8568,6 +8678,7 @@ pub struct ImdInfoIsolationDetail {
 static IMD_INFO_ISOLATION_DETAIL_SIGNALS: [SignalMeta; 5] = [
     SignalMeta {
         name: "IMD_RIsoNegative",
+        index: 0,
         unit: "kOhm",
         comment: "",
         start_bit: 0,
@@ -8583,6 +8694,7 @@ static IMD_INFO_ISOLATION_DETAIL_SIGNALS: [SignalMeta; 5] = [
     },
     SignalMeta {
         name: "IMD_RIsoPositive",
+        index: 1,
         unit: "kOhm",
         comment: "",
         start_bit: 16,
@@ -8598,6 +8710,7 @@ static IMD_INFO_ISOLATION_DETAIL_SIGNALS: [SignalMeta; 5] = [
     },
     SignalMeta {
         name: "IMD_RIsoOriginal",
+        index: 2,
         unit: "kOhm",
         comment: "",
         start_bit: 32,
@@ -8613,6 +8726,7 @@ static IMD_INFO_ISOLATION_DETAIL_SIGNALS: [SignalMeta; 5] = [
     },
     SignalMeta {
         name: "IMD_IsoMeasurementCounter",
+        index: 3,
         unit: "",
         comment: "",
         start_bit: 48,
@@ -8628,6 +8742,7 @@ static IMD_INFO_ISOLATION_DETAIL_SIGNALS: [SignalMeta; 5] = [
     },
     SignalMeta {
         name: "IMD_IsoQuality",
+        index: 4,
         unit: "%",
         comment: "",
         start_bit: 56,
@@ -8936,6 +9051,7 @@ pub struct ImdInfoVoltage {
 static IMD_INFO_VOLTAGE_SIGNALS: [SignalMeta; 5] = [
     SignalMeta {
         name: "IMD_HvSystemVoltage",
+        index: 0,
         unit: "V",
         comment: "",
         start_bit: 0,
@@ -8951,6 +9067,7 @@ static IMD_INFO_VOLTAGE_SIGNALS: [SignalMeta; 5] = [
     },
     SignalMeta {
         name: "IMD_HvNegToEarthVoltage",
+        index: 1,
         unit: "V",
         comment: "",
         start_bit: 16,
@@ -8966,6 +9083,7 @@ static IMD_INFO_VOLTAGE_SIGNALS: [SignalMeta; 5] = [
     },
     SignalMeta {
         name: "IMD_HvPosToEarthVoltage",
+        index: 2,
         unit: "V",
         comment: "",
         start_bit: 32,
@@ -8981,6 +9099,7 @@ static IMD_INFO_VOLTAGE_SIGNALS: [SignalMeta; 5] = [
     },
     SignalMeta {
         name: "IMD_VoltageMeasurementCounter",
+        index: 3,
         unit: "",
         comment: "",
         start_bit: 48,
@@ -8996,6 +9115,7 @@ static IMD_INFO_VOLTAGE_SIGNALS: [SignalMeta; 5] = [
     },
     SignalMeta {
         name: "IMD_VoltageQuality",
+        index: 4,
         unit: "%",
         comment: "",
         start_bit: 56,
@@ -9335,6 +9455,7 @@ pub struct ImdInfoItSystem {
 static IMD_INFO_IT_SYSTEM_SIGNALS: [SignalMeta; 5] = [
     SignalMeta {
         name: "IMD_Capacity",
+        index: 0,
         unit: "nF",
         comment: "",
         start_bit: 0,
@@ -9350,6 +9471,7 @@ static IMD_INFO_IT_SYSTEM_SIGNALS: [SignalMeta; 5] = [
     },
     SignalMeta {
         name: "IMD_CapacityMeasurementCounter",
+        index: 1,
         unit: "",
         comment: "",
         start_bit: 16,
@@ -9365,6 +9487,7 @@ static IMD_INFO_IT_SYSTEM_SIGNALS: [SignalMeta; 5] = [
     },
     SignalMeta {
         name: "IMD_Unbalance",
+        index: 2,
         unit: "%",
         comment: "",
         start_bit: 24,
@@ -9380,6 +9503,7 @@ static IMD_INFO_IT_SYSTEM_SIGNALS: [SignalMeta; 5] = [
     },
     SignalMeta {
         name: "IMD_UnbalanceMeasurementCounter",
+        index: 3,
         unit: "",
         comment: "",
         start_bit: 32,
@@ -9395,6 +9519,7 @@ static IMD_INFO_IT_SYSTEM_SIGNALS: [SignalMeta; 5] = [
     },
     SignalMeta {
         name: "IMD_VoltageFrequency",
+        index: 4,
         unit: "Hz",
         comment: "",
         start_bit: 40,
@@ -9705,6 +9830,7 @@ pub struct ImdRequest {
 static IMD_REQUEST_SIGNALS: [SignalMeta; 2] = [
     SignalMeta {
         name: "IMD_RequestIndex",
+        index: 0,
         unit: "",
         comment: "",
         start_bit: 0,
@@ -9720,6 +9846,7 @@ static IMD_REQUEST_SIGNALS: [SignalMeta; 2] = [
     },
     SignalMeta {
         name: "IMD_RequestData",
+        index: 1,
         unit: "",
         comment: "",
         start_bit: 8,

@@ -5,10 +5,8 @@
 //! - [`runtime`]: errors, metadata and the [`runtime::SignalVisitor`] /
 //!   [`runtime::SignalSource`] traits for working with any message generically.
 //! - [`telemetry`]: the ISO-TP telemetry packet and its firmware packer.
-//! - [`tdengine`]: the database schema (super tables, columns, insert statements), and
-//!   [`local_store`]: the same tables for the Pi's SQLite store.
-//! - `telemetry_deku` and `mqtt` (feature `host`): the Pi's Deku decoder and the typed MQTT
-//!   topics.
+//! - `tables`, `telemetry_deku` and `mqtt` (feature `host`): the tables the Pi stores in
+//!   SQLite and TDengine, its Deku decoder, and the typed MQTT topics.
 //!
 //! `no_std`, no allocator (without features), and no panics on any input.
 #![no_std]
@@ -19,11 +17,11 @@ extern crate alloc;
 extern crate std;
 
 pub mod can;
-pub mod local_store;
 #[cfg(feature = "host")]
 pub mod mqtt;
 pub mod runtime;
-pub mod tdengine;
+#[cfg(feature = "host")]
+pub mod tables;
 pub mod telemetry;
 #[cfg(feature = "host")]
 pub mod telemetry_deku;

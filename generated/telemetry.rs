@@ -357,6 +357,7 @@ impl FieldDisplay {
 static TELEMETRY_FIELDS: [SignalMeta; 73] = [
     SignalMeta {
         name: "apps_travel",
+        index: 0,
         unit: "",
         comment: "Accelerator pedal travel, 0 released, 1 fully pressed.",
         start_bit: 80,
@@ -372,6 +373,7 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
     },
     SignalMeta {
         name: "bse_front",
+        index: 1,
         unit: "V",
         comment: "Front brake system encoder voltage (valid 0.5-4.5 V).",
         start_bit: 88,
@@ -387,6 +389,7 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
     },
     SignalMeta {
         name: "bse_rear",
+        index: 2,
         unit: "V",
         comment: "Rear brake system encoder voltage (valid 0.5-4.5 V).",
         start_bit: 104,
@@ -402,6 +405,7 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
     },
     SignalMeta {
         name: "imd_resistance",
+        index: 3,
         unit: "kOhm",
         comment: "Corrected isolation resistance.",
         start_bit: 120,
@@ -417,6 +421,7 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
     },
     SignalMeta {
         name: "imd_status",
+        index: 4,
         unit: "",
         comment: "Status of the isolation measurement (Bender codes).",
         start_bit: 136,
@@ -432,6 +437,7 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
     },
     SignalMeta {
         name: "pack_voltage",
+        index: 5,
         unit: "V",
         comment: "Instantaneous pack voltage.",
         start_bit: 144,
@@ -447,6 +453,7 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
     },
     SignalMeta {
         name: "pack_current",
+        index: 6,
         unit: "A",
         comment: "Pack current, positive when discharging.",
         start_bit: 160,
@@ -462,6 +469,7 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
     },
     SignalMeta {
         name: "soc",
+        index: 7,
         unit: "%",
         comment: "State of charge.",
         start_bit: 176,
@@ -477,6 +485,7 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
     },
     SignalMeta {
         name: "discharge_limit",
+        index: 8,
         unit: "A",
         comment: "Discharge current limit.",
         start_bit: 184,
@@ -492,6 +501,7 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
     },
     SignalMeta {
         name: "charge_limit",
+        index: 9,
         unit: "A",
         comment: "Charge current limit.",
         start_bit: 200,
@@ -507,6 +517,7 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
     },
     SignalMeta {
         name: "low_cell_volt",
+        index: 10,
         unit: "V",
         comment: "",
         start_bit: 216,
@@ -522,6 +533,7 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
     },
     SignalMeta {
         name: "high_cell_volt",
+        index: 11,
         unit: "V",
         comment: "",
         start_bit: 232,
@@ -537,6 +549,7 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
     },
     SignalMeta {
         name: "avg_cell_volt",
+        index: 12,
         unit: "V",
         comment: "",
         start_bit: 248,
@@ -552,6 +565,7 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
     },
     SignalMeta {
         name: "pack_temp",
+        index: 13,
         unit: "degC",
         comment: "",
         start_bit: 264,
@@ -567,6 +581,7 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
     },
     SignalMeta {
         name: "motor_speed",
+        index: 14,
         unit: "rpm",
         comment: "Motor speed.",
         start_bit: 272,
@@ -582,6 +597,7 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
     },
     SignalMeta {
         name: "motor_torque",
+        index: 15,
         unit: "Nm",
         comment: "Actual torque: 0.392 % of 260 Nm per bit, in Nm (the old decoder forgot the /100 and was 100x off).",
         start_bit: 288,
@@ -597,6 +613,7 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
     },
     SignalMeta {
         name: "max_motor_torque",
+        index: 16,
         unit: "Nm",
         comment: "Torque the inverter can deliver now, in Nm.",
         start_bit: 296,
@@ -612,6 +629,7 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
     },
     SignalMeta {
         name: "motor_direction",
+        index: 17,
         unit: "",
         comment: "",
         start_bit: 304,
@@ -632,6 +650,7 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
     },
     SignalMeta {
         name: "motor_state",
+        index: 18,
         unit: "",
         comment: "",
         start_bit: 312,
@@ -647,6 +666,7 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
     },
     SignalMeta {
         name: "mcu_main_state",
+        index: 19,
         unit: "",
         comment: "",
         start_bit: 320,
@@ -668,6 +688,7 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
     },
     SignalMeta {
         name: "mcu_work_mode",
+        index: 20,
         unit: "",
         comment: "",
         start_bit: 328,
@@ -683,6 +704,7 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
     },
     SignalMeta {
         name: "mcu_voltage",
+        index: 21,
         unit: "V",
         comment: "",
         start_bit: 336,
@@ -698,6 +720,7 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
     },
     SignalMeta {
         name: "mcu_phase_current",
+        index: 22,
         unit: "A",
         comment: "",
         start_bit: 352,
@@ -713,6 +736,7 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
     },
     SignalMeta {
         name: "mcu_current",
+        index: 23,
         unit: "A",
         comment: "",
         start_bit: 368,
@@ -728,6 +752,7 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
     },
     SignalMeta {
         name: "motor_temp",
+        index: 24,
         unit: "degC",
         comment: "Motor temperature.",
         start_bit: 384,
@@ -743,6 +768,7 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
     },
     SignalMeta {
         name: "mcu_temp",
+        index: 25,
         unit: "degC",
         comment: "Inverter temperature.",
         start_bit: 392,
@@ -758,6 +784,7 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
     },
     SignalMeta {
         name: "mcu_warning_level",
+        index: 26,
         unit: "",
         comment: "",
         start_bit: 400,
@@ -773,6 +800,7 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
     },
     SignalMeta {
         name: "vehicle_state",
+        index: 27,
         unit: "",
         comment: "Vehicle state machine of the CCM.",
         start_bit: 408,
@@ -795,6 +823,7 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
     },
     SignalMeta {
         name: "ready_to_drive",
+        index: 28,
         unit: "",
         comment: "Ready-to-drive sound completed and drive enabled.",
         start_bit: 536,
@@ -810,6 +839,7 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
     },
     SignalMeta {
         name: "torque_command",
+        index: 29,
         unit: "Nm",
         comment: "Torque request: 0.392 % of MOTOR_MAX_TORQUE (260 Nm) per bit, given here directly in Nm.",
         start_bit: 416,
@@ -825,6 +855,7 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
     },
     SignalMeta {
         name: "shocktravel1",
+        index: 30,
         unit: "mm",
         comment: "Front-left shock travel.",
         start_bit: 424,
@@ -840,6 +871,7 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
     },
     SignalMeta {
         name: "shocktravel2",
+        index: 31,
         unit: "mm",
         comment: "Front-right shock travel.",
         start_bit: 440,
@@ -855,6 +887,7 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
     },
     SignalMeta {
         name: "shocktravel3",
+        index: 32,
         unit: "mm",
         comment: "Rear-left shock travel.",
         start_bit: 456,
@@ -870,6 +903,7 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
     },
     SignalMeta {
         name: "shocktravel4",
+        index: 33,
         unit: "mm",
         comment: "Rear-right shock travel.",
         start_bit: 472,
@@ -885,6 +919,7 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
     },
     SignalMeta {
         name: "can_rx_dropped",
+        index: 34,
         unit: "",
         comment: "CAN frames the CCM dropped because a receive queue was full (since start-up, wrapping at 256).",
         start_bit: 488,
@@ -900,6 +935,7 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
     },
     SignalMeta {
         name: "can_tx_dropped",
+        index: 35,
         unit: "",
         comment: "CAN frames the CCM could not queue because every mailbox was busy (since start-up, wrapping at 256).",
         start_bit: 496,
@@ -915,6 +951,7 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
     },
     SignalMeta {
         name: "can_decode_errors",
+        index: 36,
         unit: "",
         comment: "Received frames of known ids that failed to decode, plus frames of unknown ids (since start-up, wrapping at 256).",
         start_bit: 504,
@@ -930,6 +967,7 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
     },
     SignalMeta {
         name: "telemetry_superseded",
+        index: 37,
         unit: "",
         comment: "Telemetry packets abandoned because the next one was due first, so no or slow flow control (since start-up, wrapping at 256).",
         start_bit: 512,
@@ -945,6 +983,7 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
     },
     SignalMeta {
         name: "pedal_bus_errors",
+        index: 38,
         unit: "",
         comment: "Failed I2C transactions with the pedal sensors' converter (since start-up, wrapping at 256).",
         start_bit: 520,
@@ -960,6 +999,7 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
     },
     SignalMeta {
         name: "can_bus_off_events",
+        index: 39,
         unit: "",
         comment: "Times either of the CCM's CAN controllers went bus-off (since start-up, wrapping at 256); each recovers by itself after 128 x 11 recessive bits.",
         start_bit: 528,
@@ -975,6 +1015,7 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
     },
     SignalMeta {
         name: "can1_error_passive",
+        index: 40,
         unit: "",
         comment: "The CCM's CAN1 controller is error-passive (an error counter above 127).",
         start_bit: 537,
@@ -990,6 +1031,7 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
     },
     SignalMeta {
         name: "can1_bus_off",
+        index: 41,
         unit: "",
         comment: "The CCM's CAN1 controller is bus-off.",
         start_bit: 538,
@@ -1005,6 +1047,7 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
     },
     SignalMeta {
         name: "can2_error_passive",
+        index: 42,
         unit: "",
         comment: "The CCM's CAN2 controller is error-passive (an error counter above 127).",
         start_bit: 539,
@@ -1020,6 +1063,7 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
     },
     SignalMeta {
         name: "can2_bus_off",
+        index: 43,
         unit: "",
         comment: "The CCM's CAN2 controller is bus-off.",
         start_bit: 540,
@@ -1035,6 +1079,7 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
     },
     SignalMeta {
         name: "dc_main_wire_over_volt_fault",
+        index: 44,
         unit: "",
         comment: "",
         start_bit: 541,
@@ -1050,6 +1095,7 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
     },
     SignalMeta {
         name: "motor_phase_curr_fault",
+        index: 45,
         unit: "",
         comment: "",
         start_bit: 542,
@@ -1065,6 +1111,7 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
     },
     SignalMeta {
         name: "mcu_over_hot_fault",
+        index: 46,
         unit: "",
         comment: "",
         start_bit: 543,
@@ -1080,6 +1127,7 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
     },
     SignalMeta {
         name: "resolver_fault",
+        index: 47,
         unit: "",
         comment: "",
         start_bit: 544,
@@ -1095,6 +1143,7 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
     },
     SignalMeta {
         name: "phase_curr_sensor_fault",
+        index: 48,
         unit: "",
         comment: "",
         start_bit: 545,
@@ -1110,6 +1159,7 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
     },
     SignalMeta {
         name: "motor_over_spd_fault",
+        index: 49,
         unit: "",
         comment: "",
         start_bit: 546,
@@ -1125,6 +1175,7 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
     },
     SignalMeta {
         name: "drv_motor_over_hot_fault",
+        index: 50,
         unit: "",
         comment: "",
         start_bit: 547,
@@ -1140,6 +1191,7 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
     },
     SignalMeta {
         name: "dc_main_wire_over_curr_fault",
+        index: 51,
         unit: "",
         comment: "",
         start_bit: 548,
@@ -1155,6 +1207,7 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
     },
     SignalMeta {
         name: "drv_motor_over_cool_fault",
+        index: 52,
         unit: "",
         comment: "",
         start_bit: 549,
@@ -1170,6 +1223,7 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
     },
     SignalMeta {
         name: "dc_low_volt_warning",
+        index: 53,
         unit: "",
         comment: "",
         start_bit: 550,
@@ -1185,6 +1239,7 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
     },
     SignalMeta {
         name: "mcu_12v_low_volt_warning",
+        index: 54,
         unit: "",
         comment: "",
         start_bit: 551,
@@ -1200,6 +1255,7 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
     },
     SignalMeta {
         name: "motor_stall_fault",
+        index: 55,
         unit: "",
         comment: "",
         start_bit: 552,
@@ -1215,6 +1271,7 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
     },
     SignalMeta {
         name: "motor_open_phase_fault",
+        index: 56,
         unit: "",
         comment: "",
         start_bit: 553,
@@ -1230,6 +1287,7 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
     },
     SignalMeta {
         name: "fault_over_current",
+        index: 57,
         unit: "",
         comment: "Fault bitmap bit 0: pack over-current.",
         start_bit: 554,
@@ -1245,6 +1303,7 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
     },
     SignalMeta {
         name: "fault_under_voltage",
+        index: 58,
         unit: "",
         comment: "Fault bitmap bit 1: pack under-voltage.",
         start_bit: 555,
@@ -1260,6 +1319,7 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
     },
     SignalMeta {
         name: "fault_over_temperature",
+        index: 59,
         unit: "",
         comment: "Fault bitmap bit 2: over-temperature.",
         start_bit: 556,
@@ -1275,6 +1335,7 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
     },
     SignalMeta {
         name: "fault_apps",
+        index: 60,
         unit: "",
         comment: "Fault bitmap bit 3: accelerator pedal sensor out of range or implausible (T.4.2).",
         start_bit: 557,
@@ -1290,6 +1351,7 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
     },
     SignalMeta {
         name: "fault_bse",
+        index: 61,
         unit: "",
         comment: "Fault bitmap bit 4: brake system encoder out of range.",
         start_bit: 558,
@@ -1305,6 +1367,7 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
     },
     SignalMeta {
         name: "fault_bpps",
+        index: 62,
         unit: "",
         comment: "Fault bitmap bit 5: brake pedal position sensor.",
         start_bit: 559,
@@ -1320,6 +1383,7 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
     },
     SignalMeta {
         name: "fault_apps_brake_plausibility",
+        index: 63,
         unit: "",
         comment: "Fault bitmap bit 6: throttle above 25 % with the brake pressed (EV.4.7); cleared below 5 %.",
         start_bit: 560,
@@ -1335,6 +1399,7 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
     },
     SignalMeta {
         name: "fault_low_battery_voltage",
+        index: 64,
         unit: "",
         comment: "Fault bitmap bit 7: accumulator state of charge at or below 5 %, the end of the torque derating.",
         start_bit: 561,
@@ -1350,6 +1415,7 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
     },
     SignalMeta {
         name: "fault_pedal_signal_lost",
+        index: 65,
         unit: "",
         comment: "Fault bitmap bit 8: the pedal converter delivered no conversion on a channel for 20 ms (T.4.2.10).",
         start_bit: 562,
@@ -1365,6 +1431,7 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
     },
     SignalMeta {
         name: "fault_sensors_stale",
+        index: 66,
         unit: "",
         comment: "Fault bitmap bit 9: the 1 kHz sensor sample is older than 10 ms.",
         start_bit: 563,
@@ -1380,6 +1447,7 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
     },
     SignalMeta {
         name: "fault_bms_timeout",
+        index: 67,
         unit: "",
         comment: "Fault bitmap bit 10: a BMS frame the CCM acts on is older than its limit.",
         start_bit: 564,
@@ -1395,6 +1463,7 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
     },
     SignalMeta {
         name: "fault_inverter_timeout",
+        index: 68,
         unit: "",
         comment: "Fault bitmap bit 11: an inverter status frame is older than its limit.",
         start_bit: 565,
@@ -1410,6 +1479,7 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
     },
     SignalMeta {
         name: "fault_pcc_timeout",
+        index: 69,
         unit: "",
         comment: "Fault bitmap bit 12: the precharge controller's status is older than 100 ms.",
         start_bit: 566,
@@ -1425,6 +1495,7 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
     },
     SignalMeta {
         name: "fault_inverter_fault",
+        index: 70,
         unit: "",
         comment: "Fault bitmap bit 13: the inverter reports a fault (MCU2 fault bits or warning level HIGH).",
         start_bit: 567,
@@ -1440,6 +1511,7 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
     },
     SignalMeta {
         name: "fault_inverter_warning",
+        index: 71,
         unit: "",
         comment: "Fault bitmap bit 14: the inverter reports a warning (low DC or 12 V, a sensor state, warning level LOW or MEDIUM).",
         start_bit: 568,
@@ -1455,6 +1527,7 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
     },
     SignalMeta {
         name: "fault_pcc_error",
+        index: 72,
         unit: "",
         comment: "Fault bitmap bit 15: the precharge controller reports ERROR (or a state the schema does not know); its own error bits say why.",
         start_bit: 569,

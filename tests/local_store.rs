@@ -2,15 +2,15 @@
 //! packet goes in through the generated insert statement and comes back with the same values, and
 //! a store from an older build gains a missing column.
 
-use aer::local_store::{self, TABLES};
 use aer::runtime::{SignalMeta, SignalVisitor, Value};
+use aer::tables::{self, TABLES};
 use aer::telemetry::{TELEMETRY_FINGERPRINT, Telemetry};
 use rusqlite::types::Value as Sql;
 
 fn open() -> rusqlite::Connection {
     let db = rusqlite::Connection::open_in_memory().expect("in-memory SQLite");
     for table in TABLES {
-        for statement in table.create {
+        for statement in table.sqlite.create {
             db.execute(statement, [])
                 .unwrap_or_else(|e| panic!("{}: {e}\n{statement}", table.name));
         }
@@ -32,27 +32,27 @@ impl SignalVisitor for Row {
 #[test]
 fn every_table_is_valid_sqlite_and_mirrors_tdengine() {
     let db = open();
-    for (local, remote) in TABLES.iter().zip(aer::tdengine::SUPER_TABLES) {
-        assert_eq!(local.name, remote.name);
-        let count: i64 = db
-            .query_row(
-                "SELECT count(*) FROM pragma_table_info(?1)",
-                [local.name],
-                |r| r.get(0),
-            )
+    for table in TABLES {
+        let columns: Vec<(String, String)> = db
+            .prepare("SELECT name, type FROM pragma_table_info(?1)")
+            .and_then(|mut s| {
+                s.query_map([table.name], |r| Ok((r.get(0)?, r.get(1)?)))?
+                    .collect()
+            })
             .expect("table exists");
-        // id + tags + columns.
+        // id, then tags and columns with their SQLite types.
+        let expected: Vec<(String, String)> = std::iter::once(("id".into(), "INTEGER".into()))
+            .chain(
+                table
+                    .local_columns()
+                    .map(|c| (c.name.to_owned(), c.ty.sqlite().to_owned())),
+            )
+            .collect();
+        assert_eq!(columns, expected, "{}", table.name);
         assert_eq!(
-            count as usize,
-            1 + remote.tags.len() + remote.columns.len(),
-            "{}",
-            local.name
+            table.sqlite.insert.matches('?').count(),
+            table.local_columns().count()
         );
-        assert_eq!(
-            local.columns.len(),
-            remote.tags.len() + remote.columns.len()
-        );
-        assert_eq!(local.insert.matches('?').count(), local.columns.len());
     }
 }
 
@@ -73,15 +73,14 @@ fn a_packet_round_trips_through_the_store() {
     snapshot.visit(&mut row);
     let inserted = db
         .execute(
-            local_store::TELEMETRY.insert,
+            tables::TELEMETRY.sqlite.insert,
             rusqlite::params_from_iter(row.0.iter()),
         )
         .expect("insert");
     assert_eq!(inserted, 1);
 
-    let names: Vec<String> = local_store::TELEMETRY
-        .columns
-        .iter()
+    let names: Vec<String> = tables::TELEMETRY
+        .local_columns()
         .map(|c| format!("\"{}\"", c.name))
         .collect();
     let back: Vec<Sql> = db
@@ -97,8 +96,9 @@ fn a_packet_round_trips_through_the_store() {
 #[test]
 fn an_older_store_gains_missing_columns() {
     let db = rusqlite::Connection::open_in_memory().expect("SQLite");
+    // A store from a build whose packet had no fields yet.
     db.execute(
-        "CREATE TABLE \"telemetry\" (\"id\" INTEGER PRIMARY KEY, \"car_id\" TEXT NOT NULL)",
+        "CREATE TABLE \"telemetry\" (\"id\" INTEGER PRIMARY KEY, \"car_id\" TEXT NOT NULL, \"schema_fingerprint\" INTEGER NOT NULL, \"ts\" INTEGER NOT NULL)",
         [],
     )
     .expect("old table");
@@ -107,10 +107,10 @@ fn an_older_store_gains_missing_columns() {
         .and_then(|mut s| s.query_map([], |r| r.get(0))?.collect())
         .expect("columns");
     let existing: Vec<&str> = existing.iter().map(String::as_str).collect();
-    let missing: Vec<_> = local_store::TELEMETRY.missing_columns(&existing).collect();
-    assert_eq!(missing.len(), local_store::TELEMETRY.columns.len() - 1);
+    let missing: Vec<_> = tables::TELEMETRY.missing_columns(&existing).collect();
+    assert_eq!(missing.len(), tables::TELEMETRY.columns.len() - 1);
     for column in missing {
-        db.execute(&local_store::TELEMETRY.add_column_sql(column), [])
+        db.execute(&tables::TELEMETRY.sqlite_add_column(column), [])
             .expect("ALTER TABLE");
     }
     let n: i64 = db
@@ -120,5 +120,5 @@ fn an_older_store_gains_missing_columns() {
             |r| r.get(0),
         )
         .expect("count");
-    assert_eq!(n as usize, 1 + local_store::TELEMETRY.columns.len());
+    assert_eq!(n as usize, 1 + tables::TELEMETRY.local_columns().count());
 }

@@ -1,73 +1,91 @@
 //! The generated TDengine schema and MQTT topics: what the Pi creates, migrates and publishes.
 
-use aer::can::{Mcu1, McuMainState};
+use aer::can::{AnyMessage, Mcu1, McuMainState};
 use aer::mqtt::{self, Sample, TelemetryRecord};
-use aer::tdengine::{self, SUPER_TABLES};
+use aer::tables::{self, ColumnType, TABLES};
 use aer::telemetry::{Telemetry, TelemetryHeader};
 
 #[test]
-fn the_database_fits_a_raspberry_pi() {
-    let sql = tdengine::CREATE_DATABASE;
-    for option in ["PRECISION 'us'", "VGROUPS 1", "BUFFER 16"] {
-        assert!(sql.contains(option), "{sql}");
-    }
-    assert_eq!(tdengine::DATABASE, "aer");
-}
-
-#[test]
 fn telemetry_table_has_a_lossless_typed_column_per_field() {
-    let t = &tdengine::TELEMETRY;
+    let t = &tables::TELEMETRY;
     assert_eq!(t.columns[0].name, "ts");
-    assert_eq!(t.columns[0].sql_type, "TIMESTAMP");
+    assert_eq!(t.columns[0].ty, ColumnType::Timestamp);
     assert_eq!(t.columns.len(), 3 + Telemetry::FIELDS.len());
-    let ty = |name: &str| {
-        t.columns
-            .iter()
-            .find(|c| c.name == name)
-            .map(|c| c.sql_type)
-    };
+    let ty = |name: &str| t.columns.iter().find(|c| c.name == name).map(|c| c.ty);
     assert_eq!(
         ty("motor_temp"),
-        Some("SMALLINT"),
+        Some(ColumnType::I16),
         "offset -40 on a u8: exact integers"
     );
-    assert_eq!(ty("fault_bse"), Some("BOOL"));
+    assert_eq!(ty("fault_bse"), Some(ColumnType::Bool));
     assert_eq!(
         ty("mcu_main_state"),
-        Some("TINYINT UNSIGNED"),
+        Some(ColumnType::U8),
         "enums as their raw value"
     );
-    assert_eq!(ty("shocktravel1"), Some("FLOAT"));
+    assert_eq!(ty("shocktravel1"), Some(ColumnType::F32));
+    assert_eq!(ColumnType::I16.tdengine(), "SMALLINT");
+    assert_eq!(ColumnType::U8.tdengine(), "TINYINT UNSIGNED");
+    assert_eq!(ColumnType::VarChar(32).tdengine(), "VARCHAR(32)");
+    assert_eq!(ColumnType::F32.sqlite(), "REAL");
+    assert_eq!(ColumnType::Timestamp.sqlite(), "INTEGER");
     assert_eq!(
         t.tags.iter().map(|c| c.name).collect::<Vec<_>>(),
         ["car_id", "schema_fingerprint"]
     );
-    let marks = t.insert.matches('?').count();
-    assert_eq!(marks, 1 + t.tags.len() + t.columns.len(), "{}", t.insert);
+    let marks = t.tdengine.insert.matches('?').count();
+    assert_eq!(
+        marks,
+        1 + t.tags.len() + t.columns.len(),
+        "{}",
+        t.tdengine.insert
+    );
     assert!(
-        t.create
+        t.tdengine
+            .create
             .starts_with("CREATE STABLE IF NOT EXISTS `telemetry` (`ts` TIMESTAMP")
     );
 }
 
 #[test]
-fn every_can_message_has_a_super_table() {
-    assert_eq!(SUPER_TABLES.len(), 1 + aer::can::MESSAGES.len());
-    let mcu1 = SUPER_TABLES
+fn every_can_message_has_a_table_found_without_searching() {
+    assert_eq!(TABLES.len(), 1 + aer::can::MESSAGES.len());
+    for (index, table) in TABLES.iter().enumerate() {
+        assert_eq!(table.index, index, "{}", table.name);
+    }
+    let mcu1 = Mcu1::decode(&[0; Mcu1::LEN]).expect("an all-zero MCU1 decodes");
+    let table = tables::for_message(&AnyMessage::Mcu1(mcu1));
+    assert_eq!(table.name, "can_mcu1");
+    assert_eq!(table.columns.len(), 1 + Mcu1::META.signals.len());
+    // Signal i of the message is column 1 + i.
+    for (i, signal) in Mcu1::META.signals.iter().enumerate() {
+        assert_eq!(usize::from(signal.index), i);
+    }
+    let speed = Mcu1::META
+        .signals
         .iter()
-        .find(|t| t.name == "can_mcu1")
-        .expect("MCU1 table");
-    assert_eq!(mcu1.columns.len(), 1 + Mcu1::META.signals.len());
-    assert!(
-        mcu1.columns
-            .iter()
-            .any(|c| c.name == "mcu_motor_speed" && c.sql_type == "DOUBLE")
+        .find(|s| s.name == "MCU_MotorSpeed")
+        .expect("MCU_MotorSpeed");
+    assert_eq!(
+        table.columns[1 + usize::from(speed.index)].name,
+        "mcu_motor_speed"
     );
-    assert!(mcu1.tags.iter().any(|c| c.name == "bus"));
+    assert!(
+        table
+            .columns
+            .iter()
+            .any(|c| c.name == "mcu_motor_speed" && c.ty == ColumnType::F64)
+    );
+    assert!(table.tags.iter().any(|c| c.name == "bus"));
+    // Every message's frames go to the table at its position (telemetry is first).
+    for (i, meta) in aer::can::MESSAGES.iter().enumerate() {
+        let table = TABLES[1 + i];
+        assert_eq!(table.columns.len(), 1 + meta.signals.len(), "{}", meta.name);
+    }
     let script = include_str!("../generated/sql/tdengine.sql");
-    for table in SUPER_TABLES {
+    for table in TABLES {
         assert!(
-            script.contains(table.create),
+            script.contains(table.tdengine.create),
             "{} missing from the .sql script",
             table.name
         );
@@ -76,7 +94,7 @@ fn every_can_message_has_a_super_table() {
 
 #[test]
 fn a_live_database_lacking_columns_gets_alter_statements() {
-    let t = &tdengine::TELEMETRY;
+    let t = &tables::TELEMETRY;
     let existing: Vec<&str> = t
         .columns
         .iter()
@@ -86,8 +104,12 @@ fn a_live_database_lacking_columns_gets_alter_statements() {
     let missing: Vec<_> = t.missing_columns(&existing).collect();
     assert_eq!(missing.len(), 1);
     assert_eq!(
-        t.add_column_sql(missing[0]),
+        t.tdengine_add_column(missing[0]),
         "ALTER STABLE `telemetry` ADD COLUMN `shocktravel4` FLOAT"
+    );
+    assert_eq!(
+        t.sqlite_add_column(missing[0]),
+        "ALTER TABLE \"telemetry\" ADD COLUMN \"shocktravel4\" REAL"
     );
     // TDengine reports column names in lower case; names compare case-insensitively.
     let upper: Vec<String> = t.columns.iter().map(|c| c.name.to_uppercase()).collect();

@@ -1,6 +1,7 @@
 //! Shock travel (linear potentiometers) and wheel speed (gear-tooth pulses).
 
 use crate::config::{SHOCK_ADC_FULL, SHOCK_SPAN_V, SHOCK_TRAVEL_MAX_MM, WHEEL_STOP_TIMEOUT_US};
+use core::sync::atomic::{AtomicU8, AtomicU32, Ordering};
 
 /// Shock travel in mm for a raw 12-bit ADC reading (team documentation: the signal rests at
 /// 5 V and drops 0.14 V over the full travel, so the drop below full scale is the travel).
@@ -57,5 +58,67 @@ impl WheelSpeed {
     /// Wheel speed in rad/s.
     pub fn rad_per_s(&self, now_us: u32) -> f32 {
         self.rpm(now_us) * core::f32::consts::TAU / 60.0
+    }
+}
+
+/// One wheel's pulse times, written by the pin interrupt and read by the control step
+/// without a lock: the interrupt is the only writer and each value is one atomic word, so
+/// the edge interrupt is never masked (a reader may see a period one pulse newer than the
+/// time stamp, both real).
+#[derive(Debug, Default)]
+pub struct PulseTimer {
+    last_pulse_us: AtomicU32,
+    period_us: AtomicU32,
+    /// 0: no pulse yet; 1: one pulse (no period); 2: a period is known.
+    pulses: AtomicU8,
+}
+
+/// A copy holds the pulse times as they are now.
+impl Clone for PulseTimer {
+    fn clone(&self) -> Self {
+        let copy = Self::new();
+        copy.last_pulse_us.store(
+            self.last_pulse_us.load(Ordering::Relaxed),
+            Ordering::Relaxed,
+        );
+        copy.period_us
+            .store(self.period_us.load(Ordering::Relaxed), Ordering::Relaxed);
+        copy.pulses
+            .store(self.pulses.load(Ordering::Acquire), Ordering::Relaxed);
+        copy
+    }
+}
+
+impl PulseTimer {
+    pub const fn new() -> Self {
+        Self {
+            last_pulse_us: AtomicU32::new(0),
+            period_us: AtomicU32::new(0),
+            pulses: AtomicU8::new(0),
+        }
+    }
+
+    /// Records a pulse at `now_us` (the pin interrupt; the only writer).
+    pub fn on_pulse(&self, now_us: u32) {
+        let seen = self.pulses.load(Ordering::Relaxed);
+        if seen > 0 {
+            let last = self.last_pulse_us.load(Ordering::Relaxed);
+            self.period_us
+                .store(now_us.wrapping_sub(last), Ordering::Relaxed);
+        }
+        self.last_pulse_us.store(now_us, Ordering::Relaxed);
+        // Published last: a reader that sees the count sees the times it counts.
+        self.pulses
+            .store(seen.saturating_add(1).min(2), Ordering::Release);
+    }
+
+    /// The speed sensor's state as of now, for a gear with `teeth` teeth.
+    pub fn speed(&self, teeth: u32) -> WheelSpeed {
+        let pulses = self.pulses.load(Ordering::Acquire);
+        WheelSpeed {
+            teeth,
+            last_pulse_us: (pulses > 0).then(|| self.last_pulse_us.load(Ordering::Relaxed)),
+            period_us: (pulses > 1).then(|| self.period_us.load(Ordering::Relaxed)),
+        }
     }
 }

@@ -7,6 +7,10 @@
 //! [`vehicle`], [`drive`]: [`launch`] or [`traction`], [`power`], then the independent
 //! [`monitor`]; [`thermal`]) -> inverter frames ([`inverter`]), CCM status, and the telemetry
 //! packet over ISO-TP ([`telemetry`]); [`watchdog`] supervises the tasks.
+//!
+//! State is split by writer so the firmware locks each part at its own priority: the wheel
+//! pulse timers ([`chassis::PulseTimer`], lock-free), [`sensors::Sensors`], the
+//! [`telemetry::TelemetryLink`] and [`control::Control`]; [`Ccm`] drives all four together.
 #![no_std]
 
 pub mod ads1115;
@@ -15,19 +19,21 @@ pub mod brakes;
 pub mod bus;
 pub mod chassis;
 pub mod config;
+pub mod control;
 mod controller;
 pub mod drive;
 pub mod faults;
 pub mod inverter;
+mod io;
 pub mod launch;
 pub mod monitor;
 pub mod power;
+pub mod sensors;
 pub mod telemetry;
 pub mod thermal;
 pub mod traction;
 pub mod vehicle;
 pub mod watchdog;
 
-pub use controller::{
-    BusHealth, Ccm, ControlOutputs, DriverCounters, DriverInputs, OutFrame, SensorSample,
-};
+pub use controller::Ccm;
+pub use io::{BusHealth, ControlOutputs, DriverCounters, DriverInputs, OutFrame, SensorSample};

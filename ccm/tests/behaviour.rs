@@ -711,3 +711,29 @@ fn aer_m7_check_free_quiet_mcu2() -> aer::can::Mcu2 {
         mcu_motor_stall_fault: false,
     }
 }
+
+proptest::proptest! {
+    /// The lock-free timers the edge interrupt writes give the control step exactly the
+    /// speed the plain sensor computes from the same pulses.
+    #[test]
+    fn pulse_timers_read_what_the_pulses_say(
+        gaps in proptest::collection::vec(1u32..200_000, 0..20),
+        start in proptest::prelude::any::<u32>(),
+        later in 0u32..1_000_000,
+    ) {
+        use aer_ccm::chassis::{PulseTimer, WheelSpeed};
+        let timer = PulseTimer::new();
+        let mut plain = WheelSpeed::new(24);
+        let mut now = start;
+        for gap in gaps {
+            now = now.wrapping_add(gap);
+            timer.on_pulse(now);
+            plain.on_pulse(now);
+        }
+        let read = timer.speed(24);
+        proptest::prop_assert_eq!(read, plain);
+        let at = now.wrapping_add(later);
+        proptest::prop_assert_eq!(read.rpm(at).to_bits(), plain.rpm(at).to_bits());
+        proptest::prop_assert_eq!(timer.clone().speed(24), plain);
+    }
+}

@@ -175,21 +175,14 @@ impl CarSchema {
                 "telemetry_deku.rs",
                 render::telemetry::render_deku(db, t, yaml)?,
             ),
-            file(
-                "tdengine.rs",
-                render::tdengine::render_rust(db, t, "schema/")?,
-            ),
+            file("tables.rs", render::tables::render_rust(db, t, "schema/")?),
             file(
                 "sql/tdengine.sql",
-                render::tdengine::render_sql(db, t, "schema/")?,
-            ),
-            file(
-                "local_store.rs",
-                render::local_store::render_rust(db, t, "schema/")?,
+                render::tables::render_tdengine_sql(db, t, "schema/")?,
             ),
             file(
                 "sql/sqlite.sql",
-                render::local_store::render_sql(db, t, "schema/")?,
+                render::tables::render_sqlite_sql(db, t, "schema/")?,
             ),
             file("mqtt.rs", render::mqtt::render(db, t, "schema/")?),
             file(

@@ -6,10 +6,8 @@
 //!   [`runtime::SignalSource`] traits for working with any message generically.
 {%- if telemetry %}
 //! - [`telemetry`]: the ISO-TP telemetry packet and its firmware packer.
-//! - [`tdengine`]: the database schema (super tables, columns, insert statements), and
-//!   [`local_store`]: the same tables for the Pi's SQLite store.
-//! - `telemetry_deku` and `mqtt` (feature `host`): the Pi's Deku decoder and the typed MQTT
-//!   topics.
+//! - `tables`, `telemetry_deku` and `mqtt` (feature `host`): the tables the Pi stores in
+//!   SQLite and TDengine, its Deku decoder, and the typed MQTT topics.
 {%- endif %}
 //!
 //! `no_std`, no allocator (without features), and no panics on any input.
@@ -24,13 +22,13 @@ extern crate std;
 
 pub mod can;
 {%- if telemetry %}
-pub mod local_store;
 #[cfg(feature = "host")]
 pub mod mqtt;
 {%- endif %}
 pub mod runtime;
 {%- if telemetry %}
-pub mod tdengine;
+#[cfg(feature = "host")]
+pub mod tables;
 pub mod telemetry;
 #[cfg(feature = "host")]
 pub mod telemetry_deku;

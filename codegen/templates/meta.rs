@@ -2,6 +2,7 @@
 {%- macro signal_meta(meta) -%}
     SignalMeta {
         name: {{ meta.name }},
+        index: {{ meta.index }},
         unit: {{ meta.unit }},
         comment: {{ meta.comment }},
         start_bit: {{ meta.start_bit }},

@@ -104,8 +104,17 @@ impl TelemetryRecord {
         out.extend_from_slice(b",\"timestamp_us\":");
         json_int(out, self.header.timestamp_us);
 {%- for f in json_fields %}
-        out.extend_from_slice(b",\"{{ f.0 }}\":");
-        {{ f.1 }};
+        out.extend_from_slice(b",\"{{ f.name }}\":");
+{%- match f.kind %}
+{%- when JsonKind::Bool %}
+        json_bool(out, self.telemetry.{{ f.name }});
+{%- when JsonKind::Enum %}
+        json_int(out, self.telemetry.{{ f.name }}.into_raw());
+{%- when JsonKind::Int %}
+        json_int(out, self.telemetry.{{ f.name }});
+{%- when JsonKind::Float %}
+        json_float(out, self.telemetry.{{ f.name }});
+{%- endmatch %}
 {%- endfor %}
         out.push(b'}');
         payload
@@ -137,8 +146,8 @@ pub mod can {
     use super::{Sample, Topic};
 {%- for m in messages %}
 
-    /// Frames of `{{ m.2 }}`.
-    pub const {{ m.0 }}: Topic<Sample<crate::can::{{ m.2 }}>> = Topic::new("{{ m.1 }}");
+    /// Frames of `{{ m.type_name }}`.
+    pub const {{ m.const_name }}: Topic<Sample<crate::can::{{ m.type_name }}>> = Topic::new("{{ m.suffix }}");
 {%- endfor %}
 }
 
@@ -147,7 +156,7 @@ pub mod can {
 pub const SUFFIXES: [&str; {{ messages.len() + 1 }}] = [
     TELEMETRY.suffix(),
 {%- for m in messages %}
-    can::{{ m.0 }}.suffix(),
+    can::{{ m.const_name }}.suffix(),
 {%- endfor %}
 ];
 
@@ -160,9 +169,9 @@ pub fn encode_message(
     use crate::can::AnyMessage;
     match *message {
 {%- for m in messages %}
-        AnyMessage::{{ m.2 }}(value) => can::{{ m.0 }}
+        AnyMessage::{{ m.type_name }}(value) => can::{{ m.const_name }}
             .encode(&Sample { ts, value })
-            .map(|payload| (can::{{ m.0 }}.suffix(), payload)),
+            .map(|payload| (can::{{ m.const_name }}.suffix(), payload)),
 {%- endfor %}
     }
 }

@@ -143,6 +143,8 @@ pub enum ByteOrder {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SignalMeta {
     pub name: &'static str,
+    /// Position in its message's (or the packet's) list of signals, in schema order.
+    pub index: u16,
     pub unit: &'static str,
     pub comment: &'static str,
     pub start_bit: u16,

@@ -3,6 +3,6 @@
 {%- for t in tables %}
 
 -- {{ t.doc }}
-{{ t.create }};
-{{ t.index }};
+{{ t.sqlite_create() }};
+{{ t.sqlite_index() }};
 {%- endfor %}

@@ -1,6 +1,6 @@
 //! The point of the project: one schema edit (a new field `shocktravel5` next to
 //! `shocktravel4`) reaches all four outputs: the firmware packer, the Pi's Deku decoder, the
-//! TDengine DDL and the MQTT payload.
+//! tables (TDengine and SQLite) and the MQTT payload.
 
 use std::path::Path;
 
@@ -104,9 +104,11 @@ fn a_new_field_reaches_every_tier() {
         "{telemetry_table}"
     );
     assert!(
-        file(&files, "tdengine.rs")
-            .contains(r#"Column { name: "shocktravel5", sql_type: "FLOAT" }"#)
+        file(&files, "tables.rs")
+            .contains(r#"Column { name: "shocktravel5", ty: ColumnType::F32 }"#)
     );
+    // The Pi's SQLite store: the same column.
+    assert!(file(&files, "sql/sqlite.sql").contains(r#""shocktravel5" REAL"#));
 
     // MQTT: the telemetry topic's payload is the packet struct, serialized with every field.
     let mqtt = file(&files, "mqtt.rs");

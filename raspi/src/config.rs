@@ -61,6 +61,11 @@ pub struct StoreConfig {
 pub struct TdengineConfig {
     pub enabled: bool,
     pub dsn: String,
+    /// The database the car's tables live in (letters, digits and `_`).
+    pub database: String,
+    /// Options of `CREATE DATABASE` after `PRECISION 'us'` (which the timestamps need):
+    /// sized for a Raspberry Pi by default.
+    pub database_options: String,
     pub batch_rows: usize,
     pub workers: usize,
 }
@@ -111,6 +116,10 @@ impl Default for TdengineConfig {
         Self {
             enabled: false,
             dsn: "taos+ws://localhost:6041".into(),
+            database: "aer".into(),
+            // One vgroup, a 16 MB write buffer, the last row cached, ten years kept.
+            database_options:
+                "VGROUPS 1 REPLICA 1 BUFFER 16 PAGES 64 CACHEMODEL 'last_row' KEEP 3650".into(),
             batch_rows: 5_000,
             workers: 2,
         }
@@ -122,6 +131,16 @@ impl Config {
     pub fn load(path: Option<&Path>, env: impl Fn(&str) -> Option<String>) -> Result<Self> {
         let mut config: Self = read_or_default(path)?;
         config.apply_env(env)?;
+        let database = &config.tdengine.database;
+        if database.is_empty()
+            || !database
+                .chars()
+                .all(|c| c.is_ascii_alphanumeric() || c == '_')
+        {
+            anyhow::bail!(
+                "[tdengine] database = {database:?}: use letters, digits and underscores"
+            );
+        }
         Ok(config)
     }
 

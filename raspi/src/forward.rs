@@ -5,8 +5,7 @@
 
 use crate::config::TdengineConfig;
 use crate::sql::Mapping;
-use aer::local_store::TABLES;
-use aer::tdengine::{CREATE_DATABASE, DATABASE, SUPER_TABLES};
+use aer::tables::TABLES;
 use aer_host::counters::{Counters, worth_logging};
 use anyhow::{Context, Result};
 use rusqlite::Connection;
@@ -25,17 +24,26 @@ const BACKOFF_MAX: Duration = Duration::from_secs(30);
 /// Pause when every table is caught up.
 const IDLE: Duration = Duration::from_millis(200);
 
-/// The SQL that prepares a database for this schema: the database and every super table,
-/// qualified with the database name (a WebSocket connection has no current database).
-pub fn schema_statements() -> Vec<String> {
-    let mut statements = vec![CREATE_DATABASE.to_owned()];
-    statements.extend(SUPER_TABLES.iter().map(|t| qualified(t.create, t.name)));
+/// The SQL that prepares a database for this schema: the database (microsecond timestamps,
+/// the configured options) and every super table, qualified with the database name (a
+/// WebSocket connection has no current database).
+pub fn schema_statements(config: &TdengineConfig) -> Vec<String> {
+    let database = &config.database;
+    let mut statements = vec![format!(
+        "CREATE DATABASE IF NOT EXISTS `{database}` PRECISION 'us' {}",
+        config.database_options
+    )];
+    statements.extend(
+        TABLES
+            .iter()
+            .map(|t| qualified(t.tdengine.create, t.name, database)),
+    );
     statements
 }
 
-/// `sql` with its first mention of `table` qualified by the database.
-fn qualified(sql: &str, table: &str) -> String {
-    sql.replacen(&format!("`{table}`"), &format!("`{DATABASE}`.`{table}`"), 1)
+/// `sql` with its first mention of `table` qualified by `database`.
+fn qualified(sql: &str, table: &str, database: &str) -> String {
+    sql.replacen(&format!("`{table}`"), &format!("`{database}`.`{table}`"), 1)
 }
 
 /// Reads the next batch of `table` after the cursor: (last id, rows without `id`).
@@ -96,17 +104,18 @@ pub fn advance(db: &Connection, table: usize, last_id: i64) -> rusqlite::Result<
 }
 
 /// Connects and prepares the database; adds columns a live database lacks.
-async fn connect(dsn: &str) -> Result<Taos> {
-    let builder = TaosBuilder::from_dsn(dsn).context("TDengine DSN")?;
+async fn connect(config: &TdengineConfig) -> Result<Taos> {
+    let builder = TaosBuilder::from_dsn(&config.dsn).context("TDengine DSN")?;
     let taos = builder.build().await.context("connecting to TDengine")?;
-    for statement in schema_statements() {
+    let database = &config.database;
+    for statement in schema_statements(config) {
         taos.exec(&statement)
             .await
             .with_context(|| format!("running {statement}"))?;
     }
-    for table in SUPER_TABLES {
+    for table in TABLES {
         let described = taos
-            .query(format!("DESCRIBE `{DATABASE}`.`{}`", table.name))
+            .query(format!("DESCRIBE `{database}`.`{}`", table.name))
             .await?
             .to_records()
             .await?;
@@ -121,7 +130,7 @@ async fn connect(dsn: &str) -> Result<Taos> {
                 column = column.name,
                 "adding a column TDengine lacks"
             );
-            let sql = qualified(&table.add_column_sql(column), table.name);
+            let sql = qualified(&table.tdengine_add_column(column), table.name, database);
             taos.exec(&sql)
                 .await
                 .with_context(|| format!("running {sql}"))?;
@@ -175,12 +184,12 @@ async fn worker_loop(
     let _ = db.busy_timeout(Duration::from_secs(5));
     let mappings: Vec<(usize, Mapping)> = tables
         .iter()
-        .filter_map(|t| Some((*t, Mapping::new(TABLES.get(*t)?, SUPER_TABLES.get(*t)?)?)))
+        .filter_map(|t| Some((*t, Mapping::new(TABLES.get(*t)?, &config.database))))
         .collect();
     while !cancel.is_cancelled() {
         let connection = match &taos {
             Some(connection) => connection,
-            None => match connect(&config.dsn).await {
+            None => match connect(&config).await {
                 Ok(connection) => {
                     info!(dsn = %config.dsn, "forwarding the local store to TDengine");
                     backoff = BACKOFF_START;
@@ -261,24 +270,37 @@ mod tests {
 
     #[test]
     fn every_schema_statement_names_the_database() {
-        let statements = schema_statements();
-        assert!(statements[0].starts_with("CREATE DATABASE IF NOT EXISTS `aer`"));
-        assert_eq!(statements.len(), 1 + SUPER_TABLES.len());
-        for (statement, table) in statements[1..].iter().zip(SUPER_TABLES) {
+        let config = TdengineConfig {
+            database: "pit".into(),
+            ..TdengineConfig::default()
+        };
+        let statements = schema_statements(&config);
+        assert!(
+            statements[0].starts_with("CREATE DATABASE IF NOT EXISTS `pit` PRECISION 'us' "),
+            "{}",
+            statements[0]
+        );
+        // Sized for a Raspberry Pi by default.
+        for option in ["VGROUPS 1", "BUFFER 16"] {
+            assert!(statements[0].contains(option), "{}", statements[0]);
+        }
+        assert_eq!(statements.len(), 1 + TABLES.len());
+        for (statement, table) in statements[1..].iter().zip(TABLES) {
             assert!(
                 statement.starts_with(&format!(
-                    "CREATE STABLE IF NOT EXISTS `aer`.`{}` (",
+                    "CREATE STABLE IF NOT EXISTS `pit`.`{}` (",
                     table.name
                 )),
                 "{statement}"
             );
         }
-        let column = &SUPER_TABLES[0].columns[1];
+        let column = &TABLES[0].columns[1];
         assert_eq!(
-            qualified(&SUPER_TABLES[0].add_column_sql(column), "telemetry"),
+            qualified(&TABLES[0].tdengine_add_column(column), "telemetry", "pit"),
             format!(
-                "ALTER STABLE `aer`.`telemetry` ADD COLUMN `{}` {}",
-                column.name, column.sql_type
+                "ALTER STABLE `pit`.`telemetry` ADD COLUMN `{}` {}",
+                column.name,
+                column.ty.tdengine()
             )
         );
     }

@@ -2,19 +2,20 @@
 //! VARCHAR, TIMESTAMP in us), one sub-table per car (and bus), statements under TDengine's
 //! 1 MB limit. Batched SQL keeps every column's type, unlike schemaless line protocol.
 
-use aer::local_store::LocalTable;
-use aer::tdengine::{Column, DATABASE, SuperTable};
+use aer::tables::{ColumnType, Table};
 use rusqlite::types::Value as Sql;
 use std::fmt::Write as _;
 
 /// TDengine refuses statements over 1 MB; stay well below.
 pub const MAX_STATEMENT_BYTES: usize = 900 * 1024;
 
-/// The literal for `value` in a column of `sql_type`.
-pub fn literal(value: &Sql, sql_type: &str) -> String {
+/// The literal for `value` in a column of type `ty`.
+pub fn literal(value: &Sql, ty: ColumnType) -> String {
     match value {
         Sql::Null => "NULL".into(),
-        Sql::Integer(i) if sql_type == "BOOL" => (if *i != 0 { "true" } else { "false" }).into(),
+        Sql::Integer(i) if ty == ColumnType::Bool => {
+            (if *i != 0 { "true" } else { "false" }).into()
+        }
         Sql::Integer(i) => i.to_string(),
         Sql::Real(f) if f.is_finite() => format!("{f:?}"),
         Sql::Real(_) => "NULL".into(),
@@ -50,31 +51,27 @@ fn ident_part(text: &str) -> String {
         .collect()
 }
 
-/// Maps the local table's columns onto the super table's tags and columns.
+/// Writes a table's local rows (tags, then columns) as TDengine inserts into `database`.
 pub struct Mapping {
-    remote: &'static SuperTable,
-    /// For each tag, its index in the local row.
-    tags: Vec<usize>,
-    /// For each column, its index in the local row.
-    columns: Vec<usize>,
+    table: &'static Table,
+    database: String,
 }
 
 impl Mapping {
-    /// The mapping between `local` and `remote` (the same table of the generated schema).
-    pub fn new(local: &'static LocalTable, remote: &'static SuperTable) -> Option<Self> {
-        let index = |column: &Column| local.columns.iter().position(|c| c.name == column.name);
-        Some(Self {
-            remote,
-            tags: remote.tags.iter().map(index).collect::<Option<_>>()?,
-            columns: remote.columns.iter().map(index).collect::<Option<_>>()?,
-        })
+    /// Inserts into `table`'s super table in `database`.
+    pub fn new(table: &'static Table, database: &str) -> Self {
+        Self {
+            table,
+            database: database.to_owned(),
+        }
     }
 
     /// `INSERT` statements for `rows` (local rows without `id`), each under
     /// [`MAX_STATEMENT_BYTES`], grouped by sub-table.
     pub fn inserts(&self, rows: &[Vec<Sql>]) -> Vec<String> {
+        let database = &self.database;
         let columns: Vec<String> = self
-            .remote
+            .table
             .columns
             .iter()
             .map(|c| format!("`{}`", c.name))
@@ -84,21 +81,21 @@ impl Mapping {
         let mut current = String::new();
         let mut current_table = String::new();
         for row in rows {
-            let tag_values: Vec<&Sql> = self.tags.iter().filter_map(|i| row.get(*i)).collect();
-            let sub_table = self.sub_table(&tag_values);
+            let tag_values = row.get(..self.table.tags.len()).unwrap_or_default();
+            let sub_table = self.sub_table(tag_values);
             let values = self.values(row);
             let grows_into_new_clause = sub_table != current_table;
             let clause = if grows_into_new_clause {
                 let tags: Vec<String> = self
-                    .remote
+                    .table
                     .tags
                     .iter()
-                    .zip(&tag_values)
-                    .map(|(column, value)| literal(value, column.sql_type))
+                    .zip(tag_values)
+                    .map(|(column, value)| literal(value, column.ty))
                     .collect();
                 format!(
-                    " `{DATABASE}`.`{sub_table}` USING `{DATABASE}`.`{}` TAGS ({}) ({column_list}) VALUES {values}",
-                    self.remote.name,
+                    " `{database}`.`{sub_table}` USING `{database}`.`{}` TAGS ({}) ({column_list}) VALUES {values}",
+                    self.table.name,
                     tags.join(", ")
                 )
             } else {
@@ -125,9 +122,9 @@ impl Mapping {
         statements
     }
 
-    fn sub_table(&self, tags: &[&Sql]) -> String {
-        let mut name = self.remote.name.to_owned();
-        for (column, value) in self.remote.tags.iter().zip(tags) {
+    fn sub_table(&self, tags: &[Sql]) -> String {
+        let mut name = self.table.name.to_owned();
+        for (column, value) in self.table.tags.iter().zip(tags) {
             // The fingerprint is a tag of the super table but not part of the sub-table's
             // identity: one sub-table per car (and bus) keeps a car's history together.
             if column.name == "schema_fingerprint" {
@@ -141,14 +138,17 @@ impl Mapping {
     }
 
     fn values(&self, row: &[Sql]) -> String {
+        // The columns follow the tags in the local row.
+        let values = row.get(self.table.tags.len()..).unwrap_or_default();
         let literals: Vec<String> = self
-            .remote
+            .table
             .columns
             .iter()
-            .zip(&self.columns)
-            .map(|(column, i)| {
-                row.get(*i)
-                    .map_or_else(|| "NULL".into(), |v| literal(v, column.sql_type))
+            .enumerate()
+            .map(|(i, column)| {
+                values
+                    .get(i)
+                    .map_or_else(|| "NULL".into(), |v| literal(v, column.ty))
             })
             .collect();
         format!("({})", literals.join(", "))
@@ -158,29 +158,21 @@ impl Mapping {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use aer::local_store::TABLES;
-    use aer::tdengine::SUPER_TABLES;
+    use aer::tables::TABLES;
 
     #[test]
     fn literals_keep_their_types() {
-        assert_eq!(literal(&Sql::Integer(1), "BOOL"), "true");
-        assert_eq!(literal(&Sql::Integer(0), "BOOL"), "false");
-        assert_eq!(literal(&Sql::Integer(-40), "SMALLINT"), "-40");
-        assert_eq!(literal(&Sql::Real(0.1), "DOUBLE"), "0.1");
-        assert_eq!(literal(&Sql::Real(f64::NAN), "DOUBLE"), "NULL");
-        assert_eq!(literal(&Sql::Null, "INT"), "NULL");
+        assert_eq!(literal(&Sql::Integer(1), ColumnType::Bool), "true");
+        assert_eq!(literal(&Sql::Integer(0), ColumnType::Bool), "false");
+        assert_eq!(literal(&Sql::Integer(-40), ColumnType::I16), "-40");
+        assert_eq!(literal(&Sql::Real(0.1), ColumnType::F64), "0.1");
+        assert_eq!(literal(&Sql::Real(f64::NAN), ColumnType::F64), "NULL");
+        assert_eq!(literal(&Sql::Null, ColumnType::I32), "NULL");
         assert_eq!(
-            literal(&Sql::Text("it's".into()), "VARCHAR(32)"),
+            literal(&Sql::Text("it's".into()), ColumnType::VarChar(32)),
             "'it\\'s'"
         );
         assert_eq!(quote("a\\b"), "'a\\\\b'");
-    }
-
-    #[test]
-    fn every_local_table_maps_onto_its_super_table() {
-        for (local, remote) in TABLES.iter().zip(SUPER_TABLES) {
-            assert!(Mapping::new(local, remote).is_some(), "{}", local.name);
-        }
     }
 
     fn telemetry_row(car: &str, ts: i64) -> Vec<Sql> {
@@ -189,13 +181,13 @@ mod tests {
             Sql::Integer(0x1234),
             Sql::Integer(ts),
         ];
-        row.resize(TABLES[0].columns.len(), Sql::Integer(1));
+        row.resize(TABLES[0].local_columns().count(), Sql::Integer(1));
         row
     }
 
     #[test]
     fn rows_become_one_clause_per_sub_table_with_typed_values() {
-        let mapping = Mapping::new(TABLES[0], SUPER_TABLES[0]).unwrap();
+        let mapping = Mapping::new(TABLES[0], "aer");
         let rows = [
             telemetry_row("car1", 10),
             telemetry_row("car1", 20),
@@ -215,7 +207,7 @@ mod tests {
 
     #[test]
     fn large_batches_split_under_the_statement_limit() {
-        let mapping = Mapping::new(TABLES[0], SUPER_TABLES[0]).unwrap();
+        let mapping = Mapping::new(TABLES[0], "aer");
         let rows: Vec<Vec<Sql>> = (0..5_000).map(|i| telemetry_row("car1", i)).collect();
         let statements = mapping.inserts(&rows);
         assert!(statements.len() > 1);

@@ -240,7 +240,7 @@ async fn every_packet_reaches_both_subscribers_and_the_store() {
     let (_, at_4000) = expected.get(&4000).expect("packet 4000");
     assert_eq!(soc as f32, at_4000.soc);
     assert_eq!(speed as f32, at_4000.motor_speed);
-    let can_rows: i64 = aer::local_store::TABLES[1..]
+    let can_rows: i64 = aer::tables::TABLES[1..]
         .iter()
         .map(|t| {
             db.query_row(&format!("SELECT count(*) FROM \"{}\"", t.name), [], |r| {

@@ -227,8 +227,7 @@ async fn without_tdengine_rows_stay_and_the_forwarder_retries() {
     let config = TdengineConfig {
         enabled: true,
         dsn: format!("taos+ws://127.0.0.1:{port}"),
-        batch_rows: 5_000,
-        workers: 2,
+        ..TdengineConfig::default()
     };
     let counters = Arc::new(Counters::default());
     let cancel = CancellationToken::new();

@@ -43,8 +43,7 @@ async fn the_forwarder_moves_every_row_into_tdengine() {
     let config = TdengineConfig {
         enabled: true,
         dsn: dsn.clone(),
-        batch_rows: 5_000,
-        workers: 2,
+        ..TdengineConfig::default()
     };
     let forwarder = tokio::spawn(forward::run(config, path, counters.clone(), cancel.clone()));
     tokio::time::timeout(Duration::from_secs(120), async {
@@ -64,7 +63,8 @@ async fn the_forwarder_moves_every_row_into_tdengine() {
         .expect("connect");
     let rows = taos
         .query(format!(
-            "SELECT count(*) FROM `aer`.`telemetry` WHERE car_id = '{car}'"
+            "SELECT count(*) FROM `{}`.`telemetry` WHERE car_id = '{car}'",
+            TdengineConfig::default().database
         ))
         .await
         .expect("query")

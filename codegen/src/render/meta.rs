@@ -6,6 +6,8 @@ use crate::model::{Database, PhysType};
 
 pub struct MetaView {
     pub name: StrLit,
+    /// Position in the message's signals (or the packet's fields).
+    pub index: usize,
     pub unit: StrLit,
     pub comment: StrLit,
     pub start_bit: u32,

@@ -2,11 +2,10 @@
 
 pub mod codec;
 pub mod fragment;
-pub mod local_store;
 pub mod meta;
 pub mod mqtt;
 pub mod standalone;
-pub mod tdengine;
+pub mod tables;
 pub mod telemetry;
 
 /// Splits a schema comment into doc-comment lines.

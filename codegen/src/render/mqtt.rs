@@ -10,34 +10,55 @@ use crate::naming::{screaming, snake};
 pub struct MqttTemplate<'a> {
     pub source: &'a str,
     pub telemetry_type: &'a str,
-    pub messages: Vec<(String, String, String)>,
-    /// Telemetry fields as written by the direct JSON writer: (name, writer call).
-    pub json_fields: Vec<(String, String)>,
+    pub messages: Vec<MessageTopic>,
+    /// Telemetry fields as the direct JSON writer writes them.
+    pub json_fields: Vec<JsonField>,
     /// Bytes reserved for a telemetry payload: enough for every field at its widest.
     pub json_capacity: usize,
     /// The packet has flags (their writer is emitted only then).
     pub json_bool: bool,
 }
 
+/// A CAN message's topic.
+pub struct MessageTopic {
+    /// The constant's name, such as `MCU1`.
+    pub const_name: String,
+    /// Below the car's prefix, such as `can/mcu1`.
+    pub suffix: String,
+    /// The payload's message type.
+    pub type_name: String,
+}
+
+/// A telemetry field and the JSON writer for its type.
+pub struct JsonField {
+    pub name: String,
+    pub kind: JsonKind,
+}
+
+pub enum JsonKind {
+    Bool,
+    /// An enum, written as its raw value.
+    Enum,
+    Int,
+    Float,
+}
+
 pub fn render(db: &Database, t: &Telemetry, source: &str) -> Result<String, askama::Error> {
-    let json_fields: Vec<(String, String)> = t
+    let json_fields: Vec<JsonField> = t
         .fields
         .iter()
-        .map(|f| {
-            let name = &f.name;
-            let call = match f.phys {
-                PhysType::Bool => format!("json_bool(out, self.telemetry.{name})"),
-                PhysType::Enum(_) => format!("json_int(out, self.telemetry.{name}.into_raw())"),
-                PhysType::Int(_) => format!("json_int(out, self.telemetry.{name})"),
-                PhysType::F32 | PhysType::F64 => {
-                    format!("json_float(out, self.telemetry.{name})")
-                }
-            };
-            (name.clone(), call)
+        .map(|f| JsonField {
+            name: f.name.clone(),
+            kind: match f.phys {
+                PhysType::Bool => JsonKind::Bool,
+                PhysType::Enum(_) => JsonKind::Enum,
+                PhysType::Int(_) => JsonKind::Int,
+                PhysType::F32 | PhysType::F64 => JsonKind::Float,
+            },
         })
         .collect();
     // Key, quotes, colon, comma and a 24-character number per field, plus the header.
-    let json_capacity = 64 + json_fields.iter().map(|(n, _)| n.len() + 28).sum::<usize>();
+    let json_capacity = 64 + json_fields.iter().map(|f| f.name.len() + 28).sum::<usize>();
     MqttTemplate {
         source,
         telemetry_type: &t.type_name,
@@ -47,13 +68,10 @@ pub fn render(db: &Database, t: &Telemetry, source: &str) -> Result<String, aska
         messages: db
             .messages
             .iter()
-            .map(|m| {
-                let name = snake(&m.name).trim_end_matches('_').to_owned();
-                (
-                    screaming(&m.name),
-                    format!("can/{name}"),
-                    m.type_name.clone(),
-                )
+            .map(|m| MessageTopic {
+                const_name: screaming(&m.name),
+                suffix: format!("can/{}", snake(&m.name).trim_end_matches('_')),
+                type_name: m.type_name.clone(),
             })
             .collect(),
     }

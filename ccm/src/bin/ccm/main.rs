@@ -1,7 +1,8 @@
 //! CCM firmware for the Teensy 4.1 (RTIC 2).
 //!
 //! Tasks, highest priority first:
-//! - `wheel_edge` (GPIO3 interrupt, 5): time-stamps front wheel-speed pulses.
+//! - `wheel_edge` (GPIO3 interrupt, 5): time-stamps front wheel-speed pulses into lock-free
+//!   timers; it shares no resource, so no lock ever masks it.
 //! - `sensors` (1 kHz, 4): on-chip ADC (brakes, shocks) and the ADS1115 (pedals).
 //! - `can1_receive` / `can2_receive` (CAN interrupts, 3): drain the FlexCAN FIFOs into bounded
 //!   queues (overflows counted); the Pi's ISO-TP flow control (0x777) goes straight to the
@@ -15,6 +16,10 @@
 //!
 //! Every decision is in the `aer_ccm` library; this file moves data between it and the
 //! hardware. Torque is zero until the first control step says otherwise.
+//!
+//! Shared state is split by writer, so each lock's ceiling is only as high as its users:
+//! `sensors` (written at 4; read by control and telemetry), `link` (the receive interrupts at
+//! 3 and telemetry), `control` (written at 2; read by telemetry), `supervisor` (4).
 #![no_std]
 #![no_main]
 
@@ -31,12 +36,17 @@ mod app {
     use aer::telemetry::Telemetry;
     use aer_ccm::ads1115::Ads1115;
     use aer_ccm::apps::AppsCalibration;
+    use aer_ccm::chassis::PulseTimer;
+    use aer_ccm::config::WHEEL_TEETH;
     use aer_ccm::config::{
         CONTROL_PERIOD_MS, INVERTER_PERIOD_MS, STATUS_PERIOD_MS, TELEMETRY_PERIOD_MS,
         WATCHDOG_CHECK_MS,
     };
+    use aer_ccm::control::Control;
+    use aer_ccm::sensors::Sensors;
+    use aer_ccm::telemetry::TelemetryLink;
     use aer_ccm::watchdog::{Supervisor, Task};
-    use aer_ccm::{BusHealth, Ccm, DriverCounters, DriverInputs, SensorSample};
+    use aer_ccm::{BusHealth, DriverCounters, DriverInputs, SensorSample};
     use aer_flexcan::{BusStatus, CanFrame, FaultState, Flexcan};
     use core::sync::atomic::{AtomicU32, Ordering};
     use embedded_can::{Frame, Id, StandardId};
@@ -60,10 +70,14 @@ mod app {
     static TX_NOT_SENT: AtomicU32 = AtomicU32::new(0);
     /// Failed I2C transactions with the pedal converter (copied from the sensors task).
     static PEDAL_BUS_ERRORS: AtomicU32 = AtomicU32::new(0);
+    /// Front wheel pulse times: written only by `wheel_edge`, read by `control`.
+    static WHEELS: [PulseTimer; 2] = [PulseTimer::new(), PulseTimer::new()];
 
     #[shared]
     struct Shared {
-        ccm: Ccm,
+        sensors: Sensors,
+        link: TelemetryLink,
+        control: Control,
         can1: Flexcan<1>,
         can2: Flexcan<2>,
         supervisor: Supervisor,
@@ -200,7 +214,9 @@ mod app {
         }
         (
             Shared {
-                ccm: Ccm::new(AppsCalibration::DEFAULT),
+                sensors: Sensors::new(AppsCalibration::DEFAULT),
+                link: TelemetryLink::new(),
+                control: Control::new(),
                 can1,
                 can2,
                 supervisor: Supervisor::default(),
@@ -254,20 +270,21 @@ mod app {
         ral::write_reg!(ral::wdog, wdog, WSR, 0xAAAA);
     }
 
-    #[task(binds = GPIO3_COMBINED_16_31, priority = 5, local = [wheel_left, wheel_right], shared = [ccm])]
-    fn wheel_edge(mut cx: wheel_edge::Context) {
+    #[task(binds = GPIO3_COMBINED_16_31, priority = 5, local = [wheel_left, wheel_right])]
+    fn wheel_edge(cx: wheel_edge::Context) {
         let now = now_us();
+        let [left, right] = &WHEELS;
         if cx.local.wheel_left.is_triggered() {
             cx.local.wheel_left.clear_triggered();
-            cx.shared.ccm.lock(|ccm| ccm.wheel_pulse(0, now));
+            left.on_pulse(now);
         }
         if cx.local.wheel_right.is_triggered() {
             cx.local.wheel_right.clear_triggered();
-            cx.shared.ccm.lock(|ccm| ccm.wheel_pulse(1, now));
+            right.on_pulse(now);
         }
     }
 
-    #[task(priority = 4, local = [adc, analog, ads], shared = [ccm, supervisor])]
+    #[task(priority = 4, local = [adc, analog, ads], shared = [sensors, supervisor])]
     async fn sensors(mut cx: sensors::Context) {
         let mut next = Mono::now();
         loop {
@@ -288,7 +305,9 @@ mod app {
             };
             PEDAL_BUS_ERRORS.store(cx.local.ads.bus_errors, Ordering::Relaxed);
             let now = now_ms();
-            cx.shared.ccm.lock(|ccm| ccm.sample(&sample, now));
+            cx.shared
+                .sensors
+                .lock(|sensors| sensors.sample(&sample, now));
             cx.shared
                 .supervisor
                 .lock(|supervisor| supervisor.beat(Task::Sensors, now));
@@ -300,12 +319,12 @@ mod app {
     fn drain<const N: u8>(
         can: &mut Flexcan<N>,
         queue: &mut Producer<'static, CanFrame>,
-        ccm: &mut impl rtic::Mutex<T = Ccm>,
+        link: &mut impl rtic::Mutex<T = TelemetryLink>,
     ) {
         while let Some(frame) = can.receive() {
             if frame.id() == Id::Standard(flow_control_id()) {
                 let now = now_us();
-                ccm.lock(|ccm| ccm.link().on_flow_control(frame.data(), now));
+                link.lock(|link| link.on_flow_control(frame.data(), now));
             } else if queue.enqueue(frame).is_err() {
                 RX_QUEUE_OVERFLOWS.fetch_add(1, Ordering::Relaxed);
             }
@@ -316,18 +335,18 @@ mod app {
         StandardId::new(Telemetry::FLOW_CONTROL_ID).unwrap_or(StandardId::MAX)
     }
 
-    #[task(binds = CAN1, priority = 3, local = [can1_rx], shared = [can1, ccm])]
+    #[task(binds = CAN1, priority = 3, local = [can1_rx], shared = [can1, link])]
     fn can1_receive(mut cx: can1_receive::Context) {
         let queue = cx.local.can1_rx;
-        let ccm = &mut cx.shared.ccm;
-        cx.shared.can1.lock(|can| drain(can, queue, ccm));
+        let link = &mut cx.shared.link;
+        cx.shared.can1.lock(|can| drain(can, queue, link));
     }
 
-    #[task(binds = CAN2, priority = 3, local = [can2_rx], shared = [can2, ccm])]
+    #[task(binds = CAN2, priority = 3, local = [can2_rx], shared = [can2, link])]
     fn can2_receive(mut cx: can2_receive::Context) {
         let queue = cx.local.can2_rx;
-        let ccm = &mut cx.shared.ccm;
-        cx.shared.can2.lock(|can| drain(can, queue, ccm));
+        let link = &mut cx.shared.link;
+        cx.shared.can2.lock(|can| drain(can, queue, link));
     }
 
     /// How a frame is queued: behind a pending one with its identifier, or replacing it.
@@ -369,7 +388,7 @@ mod app {
 
     #[task(priority = 2,
            local = [ready_to_move, launch, brake_light, cooling, buzzer, can1_frames, can2_frames],
-           shared = [ccm, can1, can2, supervisor])]
+           shared = [sensors, control, can1, can2, supervisor])]
     async fn control(mut cx: control::Context) {
         let mut next = Mono::now();
         let mut step: u32 = 0;
@@ -396,19 +415,22 @@ mod app {
                 pedal_bus_errors: PEDAL_BUS_ERRORS.load(Ordering::Relaxed),
                 buses: [health(&bus1), health(&bus2)],
             };
-            let (outputs, inverter, status) = cx.shared.ccm.lock(|ccm| {
-                ccm.set_driver_counters(counters);
+            let sensors = cx.shared.sensors.lock(|sensors| sensors.reading());
+            let [left, right] = &WHEELS;
+            let wheels = [left.speed(WHEEL_TEETH), right.speed(WHEEL_TEETH)];
+            let (outputs, inverter, status) = cx.shared.control.lock(|control| {
+                control.set_driver_counters(counters);
                 while let Some(frame) = frames1.dequeue() {
-                    ccm.on_frame(&frame, now);
+                    control.on_frame(&frame, now);
                 }
                 while let Some(frame) = frames2.dequeue() {
-                    ccm.on_frame(&frame, now);
+                    control.on_frame(&frame, now);
                 }
-                let outputs = ccm.control(driver, now, now_micros);
+                let outputs = control.step(&sensors, wheels, driver, now, now_micros);
                 let inverter = (step % (INVERTER_PERIOD_MS / CONTROL_PERIOD_MS) == 0)
-                    .then(|| ccm.inverter_frames());
-                let status =
-                    (step % (STATUS_PERIOD_MS / CONTROL_PERIOD_MS) == 0).then(|| ccm.next_status());
+                    .then(|| control.inverter_frames());
+                let status = (step % (STATUS_PERIOD_MS / CONTROL_PERIOD_MS) == 0)
+                    .then(|| control.next_status());
                 (outputs, inverter, status)
             });
             if outputs.brake_light {
@@ -457,18 +479,24 @@ mod app {
         }
     }
 
-    #[task(priority = 1, shared = [ccm, can1, supervisor])]
+    #[task(priority = 1, shared = [sensors, control, link, can1, supervisor])]
     async fn telemetry(mut cx: telemetry::Context) {
         let mut next = Mono::now();
         loop {
             next += u64::from(TELEMETRY_PERIOD_MS).millis();
             let started = now_us();
-            cx.shared.ccm.lock(|ccm| ccm.send_telemetry(started));
+            let sensors = cx.shared.sensors.lock(|sensors| sensors.reading());
+            let counters = cx.shared.link.lock(|link| link.counters());
+            let snapshot = cx
+                .shared
+                .control
+                .lock(|control| control.snapshot(&sensors, counters));
+            cx.shared.link.lock(|link| link.send(&snapshot, started));
             // Feed the ISO-TP frames out as mailboxes free up, until the packet is done or
             // the next snapshot is due (which then supersedes it, counted by the link).
             while Mono::now() < next {
                 let now = now_us();
-                let Some(frame) = cx.shared.ccm.lock(|ccm| ccm.link().poll(now)) else {
+                let Some(frame) = cx.shared.link.lock(|link| link.poll(now)) else {
                     // Waiting for flow control or STmin, or done: check again shortly.
                     Mono::delay(200u64.micros()).await;
                     continue;
@@ -479,7 +507,7 @@ mod app {
                         cx.shared.can1.lock(|can| can.transmit(&can_frame)).is_ok()
                     });
                 if queued {
-                    cx.shared.ccm.lock(|ccm| ccm.link().sent(now));
+                    cx.shared.link.lock(|link| link.sent(now));
                 } else {
                     Mono::delay(100u64.micros()).await;
                 }

@@ -202,7 +202,7 @@ impl SignalView {
             conversion: conversion(db, s),
             range: range_check(s),
             value: value_kind(db, s),
-            meta: meta(db, s),
+            meta: meta(db, index, s),
         }
     }
 
@@ -415,9 +415,10 @@ fn value_kind(db: &Database, s: &Signal) -> ValueKind {
     }
 }
 
-fn meta(db: &Database, s: &Signal) -> MetaView {
+fn meta(db: &Database, index: usize, s: &Signal) -> MetaView {
     MetaView {
         name: StrLit(s.name.clone()),
+        index,
         unit: StrLit(s.unit.clone()),
         comment: StrLit(s.comment.clone().unwrap_or_default()),
         start_bit: s.start_bit,

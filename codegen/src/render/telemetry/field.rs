@@ -105,7 +105,7 @@ impl FieldView {
                 PhysType::F32 | PhysType::F64 => FieldDefault::ZeroFloat,
                 PhysType::Enum(_) => FieldDefault::RawZero,
             },
-            meta: meta(db, f),
+            meta: meta(db, index, f),
             display: display(f),
         }
     }
@@ -160,13 +160,14 @@ fn conversion(f: &TelemetryField) -> FieldConversion {
     }
 }
 
-fn meta(db: &Database, f: &TelemetryField) -> MetaView {
+fn meta(db: &Database, index: usize, f: &TelemetryField) -> MetaView {
     let start_bit = match f.placement {
         Placement::Bytes(at) => at * 8,
         Placement::Bit(byte, bit) => byte * 8 + usize::from(bit),
     };
     MetaView {
         name: StrLit(f.name.clone()),
+        index,
         unit: StrLit(f.unit.clone()),
         comment: StrLit(f.description.clone()),
         start_bit: u32::try_from(start_bit).unwrap_or(u32::MAX),

@@ -1,8 +1,9 @@
 //! A record as a row of its table: the decoded values themselves, bound straight into the
 //! table's prepared insert, so nothing is allocated per row.
 
-use aer::can::{AnyMessage, MESSAGES};
+use aer::can::AnyMessage;
 use aer::runtime::{SignalMeta, SignalVisitor, Value};
+use aer::tables::{self, Table};
 use aer::telemetry::{Telemetry, TelemetryHeader};
 use aer_host::ingest::Record;
 use rusqlite::Statement;
@@ -67,19 +68,11 @@ pub fn row(record: &Record, car_id: &Arc<str>, bus_names: &[Arc<str>]) -> Row {
 }
 
 impl Row {
-    /// Index of the row's table in `aer::local_store::TABLES` (telemetry first, then one per
-    /// DBC message in schema order).
-    pub fn table(&self) -> Option<usize> {
+    /// The row's table.
+    pub fn table(&self) -> &'static Table {
         match &self.data {
-            RowData::Telemetry { .. } => Some(0),
-            RowData::Can { message, .. } => {
-                let meta = message.meta();
-                // Compared by id: a `const` reference need not have one address.
-                MESSAGES
-                    .iter()
-                    .position(|m| m.id == meta.id && m.extended == meta.extended)
-                    .map(|index| index + 1)
-            }
+            RowData::Telemetry { .. } => &tables::TELEMETRY,
+            RowData::Can { message, .. } => tables::for_message(message),
         }
     }
 
@@ -93,7 +86,7 @@ impl Row {
                 statement.raw_bind_parameter(3, ts)?;
                 statement.raw_bind_parameter(4, header.sequence)?;
                 statement.raw_bind_parameter(5, header.timestamp_us)?;
-                let mut binder = Binder::new(statement, 6, &[]);
+                let mut binder = Binder::new(statement, 6);
                 telemetry.visit(&mut binder);
                 binder.result
             }
@@ -104,7 +97,7 @@ impl Row {
                 statement.raw_bind_parameter(2, &**bus)?;
                 statement.raw_bind_parameter(3, aer::can::SCHEMA_FINGERPRINT)?;
                 statement.raw_bind_parameter(4, ts)?;
-                let mut binder = Binder::new(statement, 5, message.meta().signals);
+                let mut binder = Binder::new(statement, 5);
                 message.visit(&mut binder);
                 binder.result
             }
@@ -112,22 +105,18 @@ impl Row {
     }
 }
 
-/// Binds visited values: in visiting order, or (with `signals`) at their signal's column.
+/// Binds visited values at their signal's column: parameter `first` holds signal 0.
 struct Binder<'s, 'c> {
     statement: &'s mut Statement<'c>,
     first: usize,
-    next: usize,
-    signals: &'static [SignalMeta],
     result: rusqlite::Result<()>,
 }
 
 impl<'s, 'c> Binder<'s, 'c> {
-    fn new(statement: &'s mut Statement<'c>, first: usize, signals: &'static [SignalMeta]) -> Self {
+    fn new(statement: &'s mut Statement<'c>, first: usize) -> Self {
         Self {
             statement,
             first,
-            next: first,
-            signals,
             result: Ok(()),
         }
     }
@@ -138,15 +127,7 @@ impl SignalVisitor for Binder<'_, '_> {
         if self.result.is_err() {
             return;
         }
-        let index = if self.signals.is_empty() {
-            self.next
-        } else {
-            match self.signals.iter().position(|s| s.name == signal.name) {
-                Some(position) => self.first + position,
-                None => return,
-            }
-        };
-        self.next += 1;
+        let index = self.first + usize::from(signal.index);
         self.result = match value {
             Value::Int(i) => match i64::try_from(i) {
                 Ok(i) => self.statement.raw_bind_parameter(index, i),

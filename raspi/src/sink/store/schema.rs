@@ -1,7 +1,7 @@
 //! Opening the store: the generated tables, migrated to this schema, and the forwarder's
 //! cursor table.
 
-use aer::local_store::{LocalTable, TABLES};
+use aer::tables::{TABLES, Table};
 use rusqlite::Connection;
 use std::path::{Path, PathBuf};
 use thiserror::Error;
@@ -49,7 +49,7 @@ pub fn open(path: &Path) -> Result<Connection, StoreError> {
     db.pragma_update(None, "synchronous", "NORMAL")
         .map_err(schema_error)?;
     for table in TABLES {
-        for statement in table.create {
+        for statement in table.sqlite.create {
             db.execute(statement, []).map_err(schema_error)?;
         }
         migrate(&db, table).map_err(schema_error)?;
@@ -59,7 +59,7 @@ pub fn open(path: &Path) -> Result<Connection, StoreError> {
 }
 
 /// Adds the columns a store created by an older build lacks.
-fn migrate(db: &Connection, table: &LocalTable) -> rusqlite::Result<()> {
+fn migrate(db: &Connection, table: &Table) -> rusqlite::Result<()> {
     let mut statement = db.prepare("SELECT name FROM pragma_table_info(?1)")?;
     let existing: Vec<String> = statement
         .query_map([table.name], |row| row.get(0))?
@@ -71,7 +71,7 @@ fn migrate(db: &Connection, table: &LocalTable) -> rusqlite::Result<()> {
             column = column.name,
             "adding a column the store lacks"
         );
-        db.execute(&table.add_column_sql(column), [])?;
+        db.execute(&table.sqlite_add_column(column), [])?;
     }
     Ok(())
 }

@@ -3,7 +3,7 @@
 
 use super::queue::{BATCH_ROWS, Queue, RowSender};
 use super::row::Row;
-use aer::local_store::TABLES;
+use aer::tables::TABLES;
 use aer_host::counters::Counters;
 use rusqlite::Connection;
 use std::sync::Arc;
@@ -81,15 +81,13 @@ fn commit(db: &mut Connection, batch: &[Row]) -> rusqlite::Result<()> {
         let mut statements: Vec<Option<rusqlite::CachedStatement<'_>>> =
             TABLES.iter().map(|_| None).collect();
         for row in batch {
-            let Some(index) = row.table() else {
-                continue;
-            };
-            let (Some(table), Some(slot)) = (TABLES.get(index), statements.get_mut(index)) else {
+            let table = row.table();
+            let Some(slot) = statements.get_mut(table.index) else {
                 continue;
             };
             let statement = match slot {
                 Some(statement) => statement,
-                None => slot.insert(transaction.prepare_cached(table.insert)?),
+                None => slot.insert(transaction.prepare_cached(table.sqlite.insert)?),
             };
             row.bind(statement)?;
             statement.raw_execute()?;

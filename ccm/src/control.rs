@@ -1,0 +1,272 @@
+//! What the 100 Hz control step owns: the buses' latest values, the fault monitor, the
+//! vehicle state machine, the torque path and the frames it sends. It reads the sensors and
+//! wheel speeds as inputs, so the firmware locks it only at the control step's priority.
+
+use crate::bus::{BusInputs, BusState};
+use crate::chassis::WheelSpeed;
+use crate::config::{CONTROL_PERIOD_MS, SAMPLE_TIMEOUT_MS};
+use crate::drive::{TorqueInputs, TorquePath};
+use crate::faults::{Fault, FaultInputs, FaultMonitor};
+use crate::inverter::{DriveCommand, Vcu1Builder, bms1_frame, bms2_frame};
+use crate::io::{ControlOutputs, DriverCounters, DriverInputs, OutFrame};
+use crate::power::PowerLimits;
+use crate::sensors::SensorReading;
+use crate::telemetry::LinkCounters;
+use crate::thermal::cooling;
+use crate::vehicle::{Vehicle, VehicleInputs};
+use aer::can::{AnyMessage, Bms1, Bms2, CcmStatus, PrechargeState, SCHEMA_FINGERPRINT, Vcu1};
+use aer::runtime::EncodeError;
+use aer::telemetry::Telemetry;
+use embedded_can::Frame;
+
+/// The control step's state.
+#[derive(Debug, Clone)]
+pub struct Control {
+    vehicle: Vehicle,
+    fault_monitor: FaultMonitor,
+    torque_path: TorquePath,
+    vcu1: Vcu1Builder,
+    status_counter: u8,
+    bus: BusState,
+    last: ControlOutputs,
+    driver: DriverCounters,
+    /// The first time the CCM was fed (ms): missing nodes are judged from here.
+    started_ms: Option<u32>,
+    /// When the last control step ran (ms).
+    stepped_ms: u32,
+}
+
+impl Default for Control {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl Control {
+    /// At reset: vehicle OFF, no torque.
+    pub fn new() -> Self {
+        Self {
+            vehicle: Vehicle::new(),
+            fault_monitor: FaultMonitor::default(),
+            torque_path: TorquePath::new(PowerLimits::CAR, CONTROL_PERIOD_MS),
+            vcu1: Vcu1Builder::default(),
+            status_counter: 0,
+            bus: BusState::default(),
+            last: ControlOutputs::RESET,
+            driver: DriverCounters::default(),
+            started_ms: None,
+            stepped_ms: 0,
+        }
+    }
+
+    /// What the buses delivered so far.
+    pub fn bus(&self) -> &BusState {
+        &self.bus
+    }
+
+    /// The last control step's outputs (the reset outputs before the first step).
+    pub fn last_outputs(&self) -> ControlOutputs {
+        self.last
+    }
+
+    /// The torque path (for diagnostics: the power limiter's efficiency estimate).
+    pub fn torque_path(&self) -> &TorquePath {
+        &self.torque_path
+    }
+
+    /// Updates the firmware's counters (reported in telemetry).
+    pub fn set_driver_counters(&mut self, counters: DriverCounters) {
+        self.driver = counters;
+    }
+
+    /// Feeds a received CAN frame (either bus).
+    pub fn on_frame(&mut self, frame: &impl Frame, now_ms: u32) {
+        self.started_ms.get_or_insert(now_ms);
+        self.bus.on_frame(frame, now_ms);
+    }
+
+    /// When the CCM was first fed: the first frame, sample or control step.
+    fn started(&mut self, first_sample_ms: Option<u32>, now_ms: u32) -> u32 {
+        let earlier = |a: u32, b: u32| if (b.wrapping_sub(a) as i32) < 0 { b } else { a };
+        let started = match (self.started_ms, first_sample_ms) {
+            (Some(fed), Some(sampled)) => earlier(fed, sampled),
+            (Some(at), None) | (None, Some(at)) => at,
+            (None, None) => now_ms,
+        };
+        self.started_ms = Some(started);
+        started
+    }
+
+    /// The 100 Hz control step, from the sensors and front wheel speeds as they are now.
+    pub fn step(
+        &mut self,
+        sensors: &SensorReading,
+        wheels: [WheelSpeed; 2],
+        driver: DriverInputs,
+        now_ms: u32,
+        now_us: u32,
+    ) -> ControlOutputs {
+        let started = self.started(sensors.first_ms, now_ms);
+        self.stepped_ms = now_ms;
+        let (apps, brakes) = (sensors.apps, sensors.brakes);
+        let bus = self.bus.inputs(now_ms, started);
+        let sampled = sensors.sampled_ms.unwrap_or(started);
+        let sensors_stale = now_ms.wrapping_sub(sampled) > SAMPLE_TIMEOUT_MS;
+        let faults = self.fault_monitor.evaluate(&FaultInputs {
+            now_ms,
+            bus: &bus,
+            apps,
+            brakes,
+            sensors_stale,
+        });
+        let vehicle = self.vehicle.step(&VehicleInputs {
+            now_ms,
+            pcc: bus.pcc.map(|status| status.pcc_state),
+            rtm_button: driver.ready_to_move,
+            brakes_engaged: brakes.engaged,
+            faults,
+        });
+        let [left, right] = wheels;
+        let torque = self.torque_path.step(&TorqueInputs {
+            apps,
+            brakes_engaged: brakes.engaged,
+            sensors_fresh: !sensors_stale,
+            torque_enabled: vehicle.torque_enabled,
+            faults,
+            soc: bus.pack.map(|pack| pack.orion_pack_soc as f32 / 100.0),
+            motor_rad_s: bus
+                .motor
+                .map(|mcu1| aer_params::motor_rad_s(mcu1.mcu_motor_speed as f32)),
+            inverter_max_nm: bus.motor.map(|mcu1| mcu1.mcu_max_motor_torque as f32),
+            dc_power_w: dc_power_w(&bus),
+            front_rad_s: (left.rad_per_s(now_us), right.rad_per_s(now_us)),
+            launch_button: driver.launch,
+        });
+        let temperatures = bus.inverter.map_or((f32::NAN, f32::NAN), |mcu2| {
+            (
+                f32::from(mcu2.mcu_inverter_temp),
+                f32::from(mcu2.mcu_motor_temp),
+            )
+        });
+        let outputs = ControlOutputs {
+            vehicle,
+            torque,
+            faults,
+            brake_light: brakes.engaged,
+            cooling: cooling(vehicle.precharge_complete, temperatures.0, temperatures.1),
+        };
+        self.last = outputs;
+        outputs
+    }
+
+    /// VCU1, BMS1 and BMS2 for the inverter (every 20 ms), from the last control step (and
+    /// the brakes as it saw them). The VCU1 sent is mirrored into telemetry (the torque the
+    /// inverter was asked for).
+    pub fn inverter_frames(&mut self) -> Result<[OutFrame; 3], EncodeError> {
+        let last = self.last;
+        let command = DriveCommand {
+            torque_nm: last.torque.torque_nm,
+            drive: last.vehicle.torque_enabled,
+            main_relay: last.vehicle.precharge_complete,
+            brakes_engaged: last.brake_light,
+        };
+        let (vcu1, vcu1_data) = self.vcu1.next_frame(&command)?;
+        self.bus.mirror.apply(&AnyMessage::Vcu1(vcu1));
+        let bus = self
+            .bus
+            .inputs(self.stepped_ms, self.started_ms.unwrap_or(self.stepped_ms));
+        let precharging = bus.pcc.map(|status| status.pcc_state) == Some(PrechargeState::Precharge);
+        // Without a fresh limit from the BMS the inverter may draw nothing.
+        let discharge_limit = bus
+            .limits
+            .map_or(0.0, |limits| f32::from(limits.orion_pack_dcl));
+        Ok([
+            (Vcu1::ID, vcu1_data),
+            (
+                Bms1::ID,
+                bms1_frame(precharging, last.vehicle.precharge_complete)?,
+            ),
+            (Bms2::ID, bms2_frame(discharge_limit)?),
+        ])
+    }
+
+    /// CCM_Status as it stands: state, faults, firmware fingerprint, rolling counter. Reading
+    /// it changes nothing; [`next_status`](Self::next_status) is what the firmware sends.
+    pub fn status(&self) -> CcmStatus {
+        let last = &self.last;
+        let faults = last.faults;
+        CcmStatus {
+            ccm_vehicle_state: last.vehicle.state.to_wire(),
+            ccm_fault_over_current: faults.has(Fault::OverCurrent),
+            ccm_fault_under_voltage: faults.has(Fault::UnderVoltage),
+            ccm_fault_over_temperature: faults.has(Fault::OverTemperature),
+            ccm_fault_apps: faults.has(Fault::Apps),
+            ccm_fault_bse: faults.has(Fault::Bse),
+            ccm_fault_bpps: faults.has(Fault::Bpps),
+            ccm_fault_apps_brake_plausibility: faults.has(Fault::AppsBrakePlausibility),
+            ccm_fault_low_battery_voltage: faults.has(Fault::LowBatteryVoltage),
+            ccm_schema_fingerprint: SCHEMA_FINGERPRINT,
+            ccm_rolling_counter: self.status_counter,
+            ccm_ready_to_drive: last.vehicle.torque_enabled,
+            ccm_fault_pedal_signal_lost: faults.has(Fault::PedalSignalLost),
+            ccm_fault_sensors_stale: faults.has(Fault::SensorsStale),
+            ccm_fault_bms_timeout: faults.has(Fault::BmsTimeout),
+            ccm_fault_inverter_timeout: faults.has(Fault::InverterTimeout),
+            ccm_fault_pcc_timeout: faults.has(Fault::PccTimeout),
+            ccm_fault_inverter_fault: faults.has(Fault::InverterFault),
+            ccm_fault_inverter_warning: faults.has(Fault::InverterWarning),
+            ccm_fault_pcc_error: faults.has(Fault::PccError),
+        }
+    }
+
+    /// The CCM_Status to send now; the rolling counter advances once per call.
+    pub fn next_status(&mut self) -> CcmStatus {
+        let status = self.status();
+        self.status_counter = (self.status_counter + 1) & 0x0F;
+        status
+    }
+
+    /// The telemetry snapshot: everything mirrored from the buses plus the CCM's own sensors,
+    /// state and counters.
+    pub fn snapshot(&self, sensors: &SensorReading, link: LinkCounters) -> Telemetry {
+        let mut snapshot = self.bus.mirror;
+        snapshot.apply(&AnyMessage::CcmStatus(self.status()));
+        snapshot.apps_travel = sensors.apps.travel;
+        snapshot.bse_front = sensors.brakes.front_v;
+        snapshot.bse_rear = sensors.brakes.rear_v;
+        let [fl, fr, rl, rr] = sensors.shock_mm;
+        snapshot.shocktravel1 = fl;
+        snapshot.shocktravel2 = fr;
+        snapshot.shocktravel3 = rl;
+        snapshot.shocktravel4 = rr;
+        // Counters wrap at 8 bits on the wire; at 100 packets/s the Pi sees every increment.
+        let wrap = |count: u32| (count & 0xFF) as u8;
+        let driver = &self.driver;
+        snapshot.can_rx_dropped = wrap(driver.rx_dropped);
+        snapshot.can_tx_dropped = wrap(driver.tx_dropped);
+        snapshot.can_decode_errors =
+            wrap(self.bus.decode_errors.wrapping_add(self.bus.unknown_ids));
+        snapshot.telemetry_superseded = wrap(link.superseded);
+        snapshot.pedal_bus_errors = wrap(driver.pedal_bus_errors);
+        let [can1, can2] = driver.buses;
+        snapshot.can_bus_off_events = wrap(can1.bus_off_events.wrapping_add(can2.bus_off_events));
+        snapshot.can1_error_passive = can1.error_passive;
+        snapshot.can1_bus_off = can1.bus_off;
+        snapshot.can2_error_passive = can2.error_passive;
+        snapshot.can2_bus_off = can2.bus_off;
+        snapshot
+    }
+}
+
+/// DC power into the drivetrain (W): the inverter's DC voltage x current (MCU3), or the BMS's
+/// pack power if that is higher (a cross-check: one wrong or saturated measurement cannot
+/// hide the power). `None` without a fresh MCU3.
+fn dc_power_w(bus: &BusInputs) -> Option<f32> {
+    let inverter = bus
+        .dc_link
+        .map(|mcu3| (mcu3.mcu_dc_voltage * mcu3.mcu_dc_current) as f32)?;
+    let pack = bus
+        .pack
+        .map(|pack| (pack.orion_pack_inst_voltage * pack.orion_pack_current) as f32);
+    Some(pack.map_or(inverter, |pack| inverter.max(pack)))
+}
