@@ -3384,7 +3384,7 @@ pub struct Mcu1 {
     /// `MCU_MotorSpeed`: 16 bits from bit 7 (Motorola), unsigned, physical = raw * 0.25, range [0.0, 16383.75], unit `rpm`.
     #[cfg_attr(feature = "serde", serde(rename = "MCU_MotorSpeed"))]
     pub mcu_motor_speed: f64,
-    /// Actual torque: 0.392 % of 260 Nm per bit, in Nm (the old decoder forgot the /100 and was 100x off).
+    /// Actual torque: 0.392 % of the 260 Nm maximum per bit, in Nm.
     ///
     /// `MCU_ActualTorque`: 8 bits from bit 23 (Motorola), unsigned, physical = raw * 1.0192, range [0.0, 259.896], unit `Nm`.
     #[cfg_attr(feature = "serde", serde(rename = "MCU_ActualTorque"))]
@@ -3437,7 +3437,7 @@ static MCU1_SIGNALS: [SignalMeta; 9] = [
         name: "MCU_ActualTorque",
         index: 1,
         unit: "Nm",
-        comment: "Actual torque: 0.392 % of 260 Nm per bit, in Nm (the old decoder forgot the /100 and was 100x off).",
+        comment: "Actual torque: 0.392 % of the 260 Nm maximum per bit, in Nm.",
         start_bit: 23,
         len: 8,
         byte_order: ByteOrder::BigEndian,

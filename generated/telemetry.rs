@@ -88,7 +88,7 @@ pub struct Telemetry {
     ///
     /// Wire: `u16` at byte 34, physical = raw * 0.25, unit `rpm`, mirrors `MCU1.MCU_MotorSpeed`.
     pub motor_speed: f32,
-    /// Actual torque: 0.392 % of 260 Nm per bit, in Nm (the old decoder forgot the /100 and was 100x off).
+    /// Actual torque: 0.392 % of the 260 Nm maximum per bit, in Nm.
     ///
     /// Wire: `u8` at byte 36, physical = raw * 1.0192, unit `Nm`, mirrors `MCU1.MCU_ActualTorque`.
     pub motor_torque: f32,
@@ -599,7 +599,7 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
         name: "motor_torque",
         index: 15,
         unit: "Nm",
-        comment: "Actual torque: 0.392 % of 260 Nm per bit, in Nm (the old decoder forgot the /100 and was 100x off).",
+        comment: "Actual torque: 0.392 % of the 260 Nm maximum per bit, in Nm.",
         start_bit: 288,
         len: 8,
         byte_order: ByteOrder::LittleEndian,

@@ -4,8 +4,9 @@
 use aer::mqtt::TELEMETRY;
 use aer_dashboard::config::{Config, View};
 use aer_dashboard::model::Dashboard;
-use aer_dashboard::screenshot::{self, BUNDLED_SESSION, DRIVER_SIZE, PIT_SIZE};
+use aer_dashboard::screenshot::{self, DRIVER_SIZE, PIT_SIZE};
 use aer_dashboard::session;
+use aer_dashboard::session::BUNDLED_SESSION;
 use aer_dashboard::ui::App;
 use criterion::{BatchSize, Criterion, Throughput, criterion_group, criterion_main};
 use std::hint::black_box;

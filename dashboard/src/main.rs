@@ -76,7 +76,7 @@ fn main() -> Result<()> {
             let text = match &log {
                 Some(path) => std::fs::read_to_string(path)
                     .with_context(|| format!("reading {}", path.display()))?,
-                None => screenshot::BUNDLED_SESSION.to_owned(),
+                None => session::BUNDLED_SESSION.to_owned(),
             };
             let session = session::load(&text, &config.car_id);
             let bad_lines = session.metrics.counters.bad_lines;

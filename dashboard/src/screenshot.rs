@@ -14,9 +14,6 @@ use std::pin::pin;
 use std::task::{Context as TaskContext, Poll, Waker};
 use std::time::{Duration, Instant};
 
-/// The session the Pi's demo replays (recorded from the CCM's own logic).
-pub const BUNDLED_SESSION: &str = include_str!("../../raspi/data/session.log");
-
 /// The font of every screen, bundled so the car's display, a laptop and a screenshot look alike.
 pub const FONT: Font = Font::with_name("Fira Sans");
 

@@ -7,6 +7,9 @@ use aer_host::clock::seconds;
 use aer_host::ingest::decode_log;
 use aer_host::status::{Metrics, Status, status};
 
+/// The session the Pi's demo replays (recorded from the CCM's own logic).
+pub const BUNDLED_SESSION: &str = include_str!("../../raspi/data/session.log");
+
 /// What a log holds.
 #[derive(Debug, Clone)]
 pub struct Session {
@@ -55,7 +58,7 @@ mod tests {
 
     #[test]
     fn the_bundled_session_decodes_completely() {
-        let session = load(crate::screenshot::BUNDLED_SESSION, "car1");
+        let session = load(BUNDLED_SESSION, "car1");
         assert_eq!(session.metrics.counters.bad_lines, 0);
         assert_eq!(session.samples.len(), 4_500, "45 s at 100 Hz");
         assert_eq!(session.status.fingerprint_match, Some(true));
