@@ -194,7 +194,7 @@ fn constants_and_metadata_come_from_the_schema() {
         .find(|s| s.name == "MCU_ActualTorque")
         .expect("signal");
     assert_eq!(torque.unit, "Nm");
-    assert!(torque.comment.contains("100x off"));
+    assert!(torque.comment.contains("260 Nm maximum"));
     assert_eq!(VehicleState::from_raw(4), VehicleState::Driving);
     assert_eq!(u8::from(VehicleState::Fault), 5);
     assert_ne!(aer::can::SCHEMA_FINGERPRINT, 0);

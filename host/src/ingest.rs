@@ -1,12 +1,14 @@
 //! Frames in, records out: ISO-TP reassembly of the telemetry packet (per bus), fingerprint
-//! check, the generated telemetry and DBC decoders. Every failure is counted and logged.
-//! Decoding only: where records go is the caller's business.
+//! check, the generated decoders (the packet with its Deku structs, frames with the DBC
+//! codec). Every failure is counted and logged. Decoding only: where records go is the
+//! caller's business.
 
 use crate::candump::{LoggedFrame, parse_line};
 use crate::counters::{Counters, worth_logging};
 use aer::can::AnyMessage;
 use aer::runtime::DecodeError;
 use aer::telemetry::{Telemetry, TelemetryError, TelemetryHeader};
+use aer::telemetry_deku::{TelemetryDecodeError, TelemetryFrame};
 use aer_isotp::{Config, Frame, Received, Receiver};
 use embedded_can::Id;
 use std::collections::HashMap;
@@ -155,7 +157,8 @@ impl Ingest {
     }
 }
 
-/// Unpacks a reassembled telemetry packet (fingerprint and length checked) into a record.
+/// Decodes a reassembled telemetry packet with the generated Deku structs (length and
+/// fingerprint checked) into a record.
 fn packet_record(
     counters: &Counters,
     ts_us: u64,
@@ -163,7 +166,7 @@ fn packet_record(
     packet: &[u8],
     emit: &mut impl FnMut(Record),
 ) {
-    match Telemetry::unpack(packet) {
+    match TelemetryFrame::decode(packet).map(|frame| frame.to_telemetry()) {
         Ok((header, telemetry)) => {
             Counters::bump(&counters.packets);
             counters.last_packet_us.store(ts_us, Ordering::Relaxed);
@@ -178,7 +181,10 @@ fn packet_record(
                 telemetry: Box::new(telemetry),
             });
         }
-        Err(TelemetryError::FingerprintMismatch { expected, found }) => {
+        Err(TelemetryDecodeError::Packet(TelemetryError::FingerprintMismatch {
+            expected,
+            found,
+        })) => {
             counters
                 .firmware_fingerprint
                 .store(u64::from(found), Ordering::Relaxed);

@@ -2,6 +2,7 @@
 //! alike, with nothing of either: no broker, no database, no UI.
 //!
 //! - [`candump`]: candump log lines, the interchange format of recorded sessions;
+//! - [`rawlog`]: the raw log's segment format, written before decoding, read by replays;
 //! - [`ingest`]: frames in, decoded records out (ISO-TP reassembly, fingerprint check, the
 //!   generated decoders), and [`ingest::decode_log`] for whole logs;
 //! - [`counters`]: the service's counters, one set for counting and publishing;
@@ -14,4 +15,5 @@ pub mod clock;
 pub mod config;
 pub mod counters;
 pub mod ingest;
+pub mod rawlog;
 pub mod status;
