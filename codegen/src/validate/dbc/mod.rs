@@ -5,7 +5,7 @@
 //! problems a vendor's file may have that the codec can still handle safely (a range wider than
 //! the raw type, a name that needs escaping); the car's own schema is built with warnings denied.
 //!
-//! [`Builder::build`] walks the messages; `message` checks a frame and names its signals;
+//! `Builder::build` walks the messages; `message` checks a frame and names its signals;
 //! `signal` checks one signal's placement, encoding and scaling and picks its physical type;
 //! `enums` and `mux` resolve value tables and multiplexing.
 
