@@ -92,11 +92,12 @@ pub struct TdengineTable {
 }
 
 /// The SQLite table's statements. Its rows hold the tags, then the columns, after an `id`
-/// row number (the forwarder's cursor).
+/// row number (the forwarder's cursor, and the order rows arrived in: the store finds times
+/// by `id`, so no index slows the writes down).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct SqliteTable {
-    /// `CREATE TABLE IF NOT EXISTS ...` and its `ts` index.
-    pub create: [&'static str; 2],
+    /// `CREATE TABLE IF NOT EXISTS ...`.
+    pub create: &'static str,
     /// `INSERT INTO ... VALUES (?1, ...)`: tags, then columns.
     pub insert: &'static str,
 }
@@ -426,10 +427,7 @@ pub static TELEMETRY: Table = Table {
         insert: "INSERT INTO ? USING `telemetry` TAGS (?, ?) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
     },
     sqlite: SqliteTable {
-        create: [
-            r#"CREATE TABLE IF NOT EXISTS "telemetry" ("id" INTEGER PRIMARY KEY, "car_id" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "sequence" INTEGER, "timestamp_us" INTEGER, "apps_travel" REAL, "bse_front" REAL, "bse_rear" REAL, "imd_resistance" INTEGER, "imd_status" INTEGER, "pack_voltage" REAL, "pack_current" REAL, "soc" REAL, "discharge_limit" INTEGER, "charge_limit" INTEGER, "low_cell_volt" REAL, "high_cell_volt" REAL, "avg_cell_volt" REAL, "pack_temp" INTEGER, "motor_speed" REAL, "motor_torque" REAL, "max_motor_torque" REAL, "motor_direction" INTEGER, "motor_state" INTEGER, "mcu_main_state" INTEGER, "mcu_work_mode" INTEGER, "mcu_voltage" REAL, "mcu_phase_current" REAL, "mcu_current" REAL, "motor_temp" INTEGER, "mcu_temp" INTEGER, "mcu_warning_level" INTEGER, "vehicle_state" INTEGER, "ready_to_drive" INTEGER, "torque_command" REAL, "shocktravel1" REAL, "shocktravel2" REAL, "shocktravel3" REAL, "shocktravel4" REAL, "can_rx_dropped" INTEGER, "can_tx_dropped" INTEGER, "can_decode_errors" INTEGER, "telemetry_superseded" INTEGER, "pedal_bus_errors" INTEGER, "can_bus_off_events" INTEGER, "can1_error_passive" INTEGER, "can1_bus_off" INTEGER, "can2_error_passive" INTEGER, "can2_bus_off" INTEGER, "dc_main_wire_over_volt_fault" INTEGER, "motor_phase_curr_fault" INTEGER, "mcu_over_hot_fault" INTEGER, "resolver_fault" INTEGER, "phase_curr_sensor_fault" INTEGER, "motor_over_spd_fault" INTEGER, "drv_motor_over_hot_fault" INTEGER, "dc_main_wire_over_curr_fault" INTEGER, "drv_motor_over_cool_fault" INTEGER, "dc_low_volt_warning" INTEGER, "mcu_12v_low_volt_warning" INTEGER, "motor_stall_fault" INTEGER, "motor_open_phase_fault" INTEGER, "fault_over_current" INTEGER, "fault_under_voltage" INTEGER, "fault_over_temperature" INTEGER, "fault_apps" INTEGER, "fault_bse" INTEGER, "fault_bpps" INTEGER, "fault_apps_brake_plausibility" INTEGER, "fault_low_battery_voltage" INTEGER, "fault_pedal_signal_lost" INTEGER, "fault_sensors_stale" INTEGER, "fault_bms_timeout" INTEGER, "fault_inverter_timeout" INTEGER, "fault_pcc_timeout" INTEGER, "fault_inverter_fault" INTEGER, "fault_inverter_warning" INTEGER, "fault_pcc_error" INTEGER)"#,
-            r#"CREATE INDEX IF NOT EXISTS "telemetry_ts" ON "telemetry" ("ts")"#,
-        ],
+        create: r#"CREATE TABLE IF NOT EXISTS "telemetry" ("id" INTEGER PRIMARY KEY, "car_id" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "sequence" INTEGER, "timestamp_us" INTEGER, "apps_travel" REAL, "bse_front" REAL, "bse_rear" REAL, "imd_resistance" INTEGER, "imd_status" INTEGER, "pack_voltage" REAL, "pack_current" REAL, "soc" REAL, "discharge_limit" INTEGER, "charge_limit" INTEGER, "low_cell_volt" REAL, "high_cell_volt" REAL, "avg_cell_volt" REAL, "pack_temp" INTEGER, "motor_speed" REAL, "motor_torque" REAL, "max_motor_torque" REAL, "motor_direction" INTEGER, "motor_state" INTEGER, "mcu_main_state" INTEGER, "mcu_work_mode" INTEGER, "mcu_voltage" REAL, "mcu_phase_current" REAL, "mcu_current" REAL, "motor_temp" INTEGER, "mcu_temp" INTEGER, "mcu_warning_level" INTEGER, "vehicle_state" INTEGER, "ready_to_drive" INTEGER, "torque_command" REAL, "shocktravel1" REAL, "shocktravel2" REAL, "shocktravel3" REAL, "shocktravel4" REAL, "can_rx_dropped" INTEGER, "can_tx_dropped" INTEGER, "can_decode_errors" INTEGER, "telemetry_superseded" INTEGER, "pedal_bus_errors" INTEGER, "can_bus_off_events" INTEGER, "can1_error_passive" INTEGER, "can1_bus_off" INTEGER, "can2_error_passive" INTEGER, "can2_bus_off" INTEGER, "dc_main_wire_over_volt_fault" INTEGER, "motor_phase_curr_fault" INTEGER, "mcu_over_hot_fault" INTEGER, "resolver_fault" INTEGER, "phase_curr_sensor_fault" INTEGER, "motor_over_spd_fault" INTEGER, "drv_motor_over_hot_fault" INTEGER, "dc_main_wire_over_curr_fault" INTEGER, "drv_motor_over_cool_fault" INTEGER, "dc_low_volt_warning" INTEGER, "mcu_12v_low_volt_warning" INTEGER, "motor_stall_fault" INTEGER, "motor_open_phase_fault" INTEGER, "fault_over_current" INTEGER, "fault_under_voltage" INTEGER, "fault_over_temperature" INTEGER, "fault_apps" INTEGER, "fault_bse" INTEGER, "fault_bpps" INTEGER, "fault_apps_brake_plausibility" INTEGER, "fault_low_battery_voltage" INTEGER, "fault_pedal_signal_lost" INTEGER, "fault_sensors_stale" INTEGER, "fault_bms_timeout" INTEGER, "fault_inverter_timeout" INTEGER, "fault_pcc_timeout" INTEGER, "fault_inverter_fault" INTEGER, "fault_inverter_warning" INTEGER, "fault_pcc_error" INTEGER)"#,
         insert: r#"INSERT INTO "telemetry" ("car_id", "schema_fingerprint", "ts", "sequence", "timestamp_us", "apps_travel", "bse_front", "bse_rear", "imd_resistance", "imd_status", "pack_voltage", "pack_current", "soc", "discharge_limit", "charge_limit", "low_cell_volt", "high_cell_volt", "avg_cell_volt", "pack_temp", "motor_speed", "motor_torque", "max_motor_torque", "motor_direction", "motor_state", "mcu_main_state", "mcu_work_mode", "mcu_voltage", "mcu_phase_current", "mcu_current", "motor_temp", "mcu_temp", "mcu_warning_level", "vehicle_state", "ready_to_drive", "torque_command", "shocktravel1", "shocktravel2", "shocktravel3", "shocktravel4", "can_rx_dropped", "can_tx_dropped", "can_decode_errors", "telemetry_superseded", "pedal_bus_errors", "can_bus_off_events", "can1_error_passive", "can1_bus_off", "can2_error_passive", "can2_bus_off", "dc_main_wire_over_volt_fault", "motor_phase_curr_fault", "mcu_over_hot_fault", "resolver_fault", "phase_curr_sensor_fault", "motor_over_spd_fault", "drv_motor_over_hot_fault", "dc_main_wire_over_curr_fault", "drv_motor_over_cool_fault", "dc_low_volt_warning", "mcu_12v_low_volt_warning", "motor_stall_fault", "motor_open_phase_fault", "fault_over_current", "fault_under_voltage", "fault_over_temperature", "fault_apps", "fault_bse", "fault_bpps", "fault_apps_brake_plausibility", "fault_low_battery_voltage", "fault_pedal_signal_lost", "fault_sensors_stale", "fault_bms_timeout", "fault_inverter_timeout", "fault_pcc_timeout", "fault_inverter_fault", "fault_inverter_warning", "fault_pcc_error") VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17, ?18, ?19, ?20, ?21, ?22, ?23, ?24, ?25, ?26, ?27, ?28, ?29, ?30, ?31, ?32, ?33, ?34, ?35, ?36, ?37, ?38, ?39, ?40, ?41, ?42, ?43, ?44, ?45, ?46, ?47, ?48, ?49, ?50, ?51, ?52, ?53, ?54, ?55, ?56, ?57, ?58, ?59, ?60, ?61, ?62, ?63, ?64, ?65, ?66, ?67, ?68, ?69, ?70, ?71, ?72, ?73, ?74, ?75, ?76, ?77, ?78)"#,
     },
 };
@@ -543,10 +541,7 @@ pub static CAN_CCM_STATUS: Table = Table {
         insert: "INSERT INTO ? USING `can_ccm_status` TAGS (?, ?, ?) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
     },
     sqlite: SqliteTable {
-        create: [
-            r#"CREATE TABLE IF NOT EXISTS "can_ccm_status" ("id" INTEGER PRIMARY KEY, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "ccm_vehicle_state" INTEGER, "ccm_fault_over_current" INTEGER, "ccm_fault_under_voltage" INTEGER, "ccm_fault_over_temperature" INTEGER, "ccm_fault_apps" INTEGER, "ccm_fault_bse" INTEGER, "ccm_fault_bpps" INTEGER, "ccm_fault_apps_brake_plausibility" INTEGER, "ccm_fault_low_battery_voltage" INTEGER, "ccm_schema_fingerprint" INTEGER, "ccm_rolling_counter" INTEGER, "ccm_ready_to_drive" INTEGER, "ccm_fault_pedal_signal_lost" INTEGER, "ccm_fault_sensors_stale" INTEGER, "ccm_fault_bms_timeout" INTEGER, "ccm_fault_inverter_timeout" INTEGER, "ccm_fault_pcc_timeout" INTEGER, "ccm_fault_inverter_fault" INTEGER, "ccm_fault_inverter_warning" INTEGER, "ccm_fault_pcc_error" INTEGER)"#,
-            r#"CREATE INDEX IF NOT EXISTS "can_ccm_status_ts" ON "can_ccm_status" ("ts")"#,
-        ],
+        create: r#"CREATE TABLE IF NOT EXISTS "can_ccm_status" ("id" INTEGER PRIMARY KEY, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "ccm_vehicle_state" INTEGER, "ccm_fault_over_current" INTEGER, "ccm_fault_under_voltage" INTEGER, "ccm_fault_over_temperature" INTEGER, "ccm_fault_apps" INTEGER, "ccm_fault_bse" INTEGER, "ccm_fault_bpps" INTEGER, "ccm_fault_apps_brake_plausibility" INTEGER, "ccm_fault_low_battery_voltage" INTEGER, "ccm_schema_fingerprint" INTEGER, "ccm_rolling_counter" INTEGER, "ccm_ready_to_drive" INTEGER, "ccm_fault_pedal_signal_lost" INTEGER, "ccm_fault_sensors_stale" INTEGER, "ccm_fault_bms_timeout" INTEGER, "ccm_fault_inverter_timeout" INTEGER, "ccm_fault_pcc_timeout" INTEGER, "ccm_fault_inverter_fault" INTEGER, "ccm_fault_inverter_warning" INTEGER, "ccm_fault_pcc_error" INTEGER)"#,
         insert: r#"INSERT INTO "can_ccm_status" ("car_id", "bus", "schema_fingerprint", "ts", "ccm_vehicle_state", "ccm_fault_over_current", "ccm_fault_under_voltage", "ccm_fault_over_temperature", "ccm_fault_apps", "ccm_fault_bse", "ccm_fault_bpps", "ccm_fault_apps_brake_plausibility", "ccm_fault_low_battery_voltage", "ccm_schema_fingerprint", "ccm_rolling_counter", "ccm_ready_to_drive", "ccm_fault_pedal_signal_lost", "ccm_fault_sensors_stale", "ccm_fault_bms_timeout", "ccm_fault_inverter_timeout", "ccm_fault_pcc_timeout", "ccm_fault_inverter_fault", "ccm_fault_inverter_warning", "ccm_fault_pcc_error") VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17, ?18, ?19, ?20, ?21, ?22, ?23, ?24)"#,
     },
 };
@@ -652,10 +647,7 @@ pub static CAN_VCU1: Table = Table {
         insert: "INSERT INTO ? USING `can_vcu1` TAGS (?, ?, ?) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
     },
     sqlite: SqliteTable {
-        create: [
-            r#"CREATE TABLE IF NOT EXISTS "can_vcu1" ("id" INTEGER PRIMARY KEY, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "vcu_torque_req" REAL, "vcu_motor_spd_req" INTEGER, "vcu_authentication_status" INTEGER, "vcu_change_gear_alarm" INTEGER, "vcu_vehicle_state" INTEGER, "vcu_brake_pedal_sts" INTEGER, "vcu_bms_main_relay_cmd" INTEGER, "vcu_gear_lever_pos_sts" INTEGER, "vcu_gear_lever_pos_sts_f" INTEGER, "vcu_ac_control_cmd" INTEGER, "vcu_work_mode" INTEGER, "vcu_motor_mode" INTEGER, "vcu_warning_level" INTEGER, "vcu_key_position" INTEGER, "vcu_rolling_counter" INTEGER, "vcu_bms_aux_relay_cmd" INTEGER, "vcu_power_reduce_req" INTEGER, "vcu_check_sum" INTEGER)"#,
-            r#"CREATE INDEX IF NOT EXISTS "can_vcu1_ts" ON "can_vcu1" ("ts")"#,
-        ],
+        create: r#"CREATE TABLE IF NOT EXISTS "can_vcu1" ("id" INTEGER PRIMARY KEY, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "vcu_torque_req" REAL, "vcu_motor_spd_req" INTEGER, "vcu_authentication_status" INTEGER, "vcu_change_gear_alarm" INTEGER, "vcu_vehicle_state" INTEGER, "vcu_brake_pedal_sts" INTEGER, "vcu_bms_main_relay_cmd" INTEGER, "vcu_gear_lever_pos_sts" INTEGER, "vcu_gear_lever_pos_sts_f" INTEGER, "vcu_ac_control_cmd" INTEGER, "vcu_work_mode" INTEGER, "vcu_motor_mode" INTEGER, "vcu_warning_level" INTEGER, "vcu_key_position" INTEGER, "vcu_rolling_counter" INTEGER, "vcu_bms_aux_relay_cmd" INTEGER, "vcu_power_reduce_req" INTEGER, "vcu_check_sum" INTEGER)"#,
         insert: r#"INSERT INTO "can_vcu1" ("car_id", "bus", "schema_fingerprint", "ts", "vcu_torque_req", "vcu_motor_spd_req", "vcu_authentication_status", "vcu_change_gear_alarm", "vcu_vehicle_state", "vcu_brake_pedal_sts", "vcu_bms_main_relay_cmd", "vcu_gear_lever_pos_sts", "vcu_gear_lever_pos_sts_f", "vcu_ac_control_cmd", "vcu_work_mode", "vcu_motor_mode", "vcu_warning_level", "vcu_key_position", "vcu_rolling_counter", "vcu_bms_aux_relay_cmd", "vcu_power_reduce_req", "vcu_check_sum") VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17, ?18, ?19, ?20, ?21, ?22)"#,
     },
 };
@@ -725,10 +717,7 @@ pub static CAN_MCU1: Table = Table {
         insert: "INSERT INTO ? USING `can_mcu1` TAGS (?, ?, ?) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
     },
     sqlite: SqliteTable {
-        create: [
-            r#"CREATE TABLE IF NOT EXISTS "can_mcu1" ("id" INTEGER PRIMARY KEY, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "mcu_motor_speed" REAL, "mcu_actual_torque" REAL, "mcu_max_motor_torque" REAL, "mcu_max_motor_brake_torque" REAL, "mcu_main_state" INTEGER, "mcu_rotate_direction" INTEGER, "mcu1_rolling_counter" INTEGER, "mcu_motor_state" INTEGER, "mcu_work_mode" INTEGER)"#,
-            r#"CREATE INDEX IF NOT EXISTS "can_mcu1_ts" ON "can_mcu1" ("ts")"#,
-        ],
+        create: r#"CREATE TABLE IF NOT EXISTS "can_mcu1" ("id" INTEGER PRIMARY KEY, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "mcu_motor_speed" REAL, "mcu_actual_torque" REAL, "mcu_max_motor_torque" REAL, "mcu_max_motor_brake_torque" REAL, "mcu_main_state" INTEGER, "mcu_rotate_direction" INTEGER, "mcu1_rolling_counter" INTEGER, "mcu_motor_state" INTEGER, "mcu_work_mode" INTEGER)"#,
         insert: r#"INSERT INTO "can_mcu1" ("car_id", "bus", "schema_fingerprint", "ts", "mcu_motor_speed", "mcu_actual_torque", "mcu_max_motor_torque", "mcu_max_motor_brake_torque", "mcu_main_state", "mcu_rotate_direction", "mcu1_rolling_counter", "mcu_motor_state", "mcu_work_mode") VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13)"#,
     },
 };
@@ -846,10 +835,7 @@ pub static CAN_MCU2: Table = Table {
         insert: "INSERT INTO ? USING `can_mcu2` TAGS (?, ?, ?) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
     },
     sqlite: SqliteTable {
-        create: [
-            r#"CREATE TABLE IF NOT EXISTS "can_mcu2" ("id" INTEGER PRIMARY KEY, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "mcu_motor_temp" INTEGER, "mcu_inverter_temp" INTEGER, "mcu_dc_main_wire_over_curr_fault" INTEGER, "mcu_motor_phase_curr_fault" INTEGER, "mcu_over_hot_fault" INTEGER, "mcu_resolver_fault" INTEGER, "mcu_phase_curr_sensor_fault" INTEGER, "mcu_motor_over_spd_fault" INTEGER, "mcu_drv_motor_over_hot_fault" INTEGER, "mcu_dc_main_wire_over_volt_fault" INTEGER, "mcu_drv_motor_over_cool_fault" INTEGER, "mcu_motor_system_state" INTEGER, "mcu_temp_sensor_state" INTEGER, "mcu_motor_temp_sensor_state" INTEGER, "mcu_dc_volt_sensor_state" INTEGER, "mcu_dc_low_volt_warning" INTEGER, "mcu_12v_low_volt_warning" INTEGER, "mcu2_rolling_counter" INTEGER, "mcu_warning_level" INTEGER, "mcu_motor_open_phase_fault" INTEGER, "mcu_motor_stall_fault" INTEGER)"#,
-            r#"CREATE INDEX IF NOT EXISTS "can_mcu2_ts" ON "can_mcu2" ("ts")"#,
-        ],
+        create: r#"CREATE TABLE IF NOT EXISTS "can_mcu2" ("id" INTEGER PRIMARY KEY, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "mcu_motor_temp" INTEGER, "mcu_inverter_temp" INTEGER, "mcu_dc_main_wire_over_curr_fault" INTEGER, "mcu_motor_phase_curr_fault" INTEGER, "mcu_over_hot_fault" INTEGER, "mcu_resolver_fault" INTEGER, "mcu_phase_curr_sensor_fault" INTEGER, "mcu_motor_over_spd_fault" INTEGER, "mcu_drv_motor_over_hot_fault" INTEGER, "mcu_dc_main_wire_over_volt_fault" INTEGER, "mcu_drv_motor_over_cool_fault" INTEGER, "mcu_motor_system_state" INTEGER, "mcu_temp_sensor_state" INTEGER, "mcu_motor_temp_sensor_state" INTEGER, "mcu_dc_volt_sensor_state" INTEGER, "mcu_dc_low_volt_warning" INTEGER, "mcu_12v_low_volt_warning" INTEGER, "mcu2_rolling_counter" INTEGER, "mcu_warning_level" INTEGER, "mcu_motor_open_phase_fault" INTEGER, "mcu_motor_stall_fault" INTEGER)"#,
         insert: r#"INSERT INTO "can_mcu2" ("car_id", "bus", "schema_fingerprint", "ts", "mcu_motor_temp", "mcu_inverter_temp", "mcu_dc_main_wire_over_curr_fault", "mcu_motor_phase_curr_fault", "mcu_over_hot_fault", "mcu_resolver_fault", "mcu_phase_curr_sensor_fault", "mcu_motor_over_spd_fault", "mcu_drv_motor_over_hot_fault", "mcu_dc_main_wire_over_volt_fault", "mcu_drv_motor_over_cool_fault", "mcu_motor_system_state", "mcu_temp_sensor_state", "mcu_motor_temp_sensor_state", "mcu_dc_volt_sensor_state", "mcu_dc_low_volt_warning", "mcu_12v_low_volt_warning", "mcu2_rolling_counter", "mcu_warning_level", "mcu_motor_open_phase_fault", "mcu_motor_stall_fault") VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17, ?18, ?19, ?20, ?21, ?22, ?23, ?24, ?25)"#,
     },
 };
@@ -895,10 +881,7 @@ pub static CAN_MCU3: Table = Table {
         insert: "INSERT INTO ? USING `can_mcu3` TAGS (?, ?, ?) VALUES (?, ?, ?, ?)",
     },
     sqlite: SqliteTable {
-        create: [
-            r#"CREATE TABLE IF NOT EXISTS "can_mcu3" ("id" INTEGER PRIMARY KEY, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "mcu_dc_voltage" REAL, "mcu_dc_current" REAL, "mcu_phase_current" REAL)"#,
-            r#"CREATE INDEX IF NOT EXISTS "can_mcu3_ts" ON "can_mcu3" ("ts")"#,
-        ],
+        create: r#"CREATE TABLE IF NOT EXISTS "can_mcu3" ("id" INTEGER PRIMARY KEY, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "mcu_dc_voltage" REAL, "mcu_dc_current" REAL, "mcu_phase_current" REAL)"#,
         insert: r#"INSERT INTO "can_mcu3" ("car_id", "bus", "schema_fingerprint", "ts", "mcu_dc_voltage", "mcu_dc_current", "mcu_phase_current") VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7)"#,
     },
 };
@@ -940,10 +923,7 @@ pub static CAN_BMS1: Table = Table {
         insert: "INSERT INTO ? USING `can_bms1` TAGS (?, ?, ?) VALUES (?, ?, ?)",
     },
     sqlite: SqliteTable {
-        create: [
-            r#"CREATE TABLE IF NOT EXISTS "can_bms1" ("id" INTEGER PRIMARY KEY, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "bms_precharge_relay_fb" INTEGER, "bms_precharge_finish_sts" INTEGER)"#,
-            r#"CREATE INDEX IF NOT EXISTS "can_bms1_ts" ON "can_bms1" ("ts")"#,
-        ],
+        create: r#"CREATE TABLE IF NOT EXISTS "can_bms1" ("id" INTEGER PRIMARY KEY, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "bms_precharge_relay_fb" INTEGER, "bms_precharge_finish_sts" INTEGER)"#,
         insert: r#"INSERT INTO "can_bms1" ("car_id", "bus", "schema_fingerprint", "ts", "bms_precharge_relay_fb", "bms_precharge_finish_sts") VALUES (?1, ?2, ?3, ?4, ?5, ?6)"#,
     },
 };
@@ -981,10 +961,7 @@ pub static CAN_BMS2: Table = Table {
         insert: "INSERT INTO ? USING `can_bms2` TAGS (?, ?, ?) VALUES (?, ?)",
     },
     sqlite: SqliteTable {
-        create: [
-            r#"CREATE TABLE IF NOT EXISTS "can_bms2" ("id" INTEGER PRIMARY KEY, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "bms_allow_max_discharge" REAL)"#,
-            r#"CREATE INDEX IF NOT EXISTS "can_bms2_ts" ON "can_bms2" ("ts")"#,
-        ],
+        create: r#"CREATE TABLE IF NOT EXISTS "can_bms2" ("id" INTEGER PRIMARY KEY, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "bms_allow_max_discharge" REAL)"#,
         insert: r#"INSERT INTO "can_bms2" ("car_id", "bus", "schema_fingerprint", "ts", "bms_allow_max_discharge") VALUES (?1, ?2, ?3, ?4, ?5)"#,
     },
 };
@@ -1034,10 +1011,7 @@ pub static CAN_ORION_PACK_STATUS: Table = Table {
         insert: "INSERT INTO ? USING `can_orion_pack_status` TAGS (?, ?, ?) VALUES (?, ?, ?, ?, ?)",
     },
     sqlite: SqliteTable {
-        create: [
-            r#"CREATE TABLE IF NOT EXISTS "can_orion_pack_status" ("id" INTEGER PRIMARY KEY, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "orion_pack_current" REAL, "orion_pack_inst_voltage" REAL, "orion_pack_soc" REAL, "orion_relay_state" INTEGER)"#,
-            r#"CREATE INDEX IF NOT EXISTS "can_orion_pack_status_ts" ON "can_orion_pack_status" ("ts")"#,
-        ],
+        create: r#"CREATE TABLE IF NOT EXISTS "can_orion_pack_status" ("id" INTEGER PRIMARY KEY, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "orion_pack_current" REAL, "orion_pack_inst_voltage" REAL, "orion_pack_soc" REAL, "orion_relay_state" INTEGER)"#,
         insert: r#"INSERT INTO "can_orion_pack_status" ("car_id", "bus", "schema_fingerprint", "ts", "orion_pack_current", "orion_pack_inst_voltage", "orion_pack_soc", "orion_relay_state") VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8)"#,
     },
 };
@@ -1087,10 +1061,7 @@ pub static CAN_ORION_LIMITS: Table = Table {
         insert: "INSERT INTO ? USING `can_orion_limits` TAGS (?, ?, ?) VALUES (?, ?, ?, ?, ?)",
     },
     sqlite: SqliteTable {
-        create: [
-            r#"CREATE TABLE IF NOT EXISTS "can_orion_limits" ("id" INTEGER PRIMARY KEY, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "orion_pack_dcl" INTEGER, "orion_pack_ccl" INTEGER, "orion_high_temperature" INTEGER, "orion_low_temperature" INTEGER)"#,
-            r#"CREATE INDEX IF NOT EXISTS "can_orion_limits_ts" ON "can_orion_limits" ("ts")"#,
-        ],
+        create: r#"CREATE TABLE IF NOT EXISTS "can_orion_limits" ("id" INTEGER PRIMARY KEY, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "orion_pack_dcl" INTEGER, "orion_pack_ccl" INTEGER, "orion_high_temperature" INTEGER, "orion_low_temperature" INTEGER)"#,
         insert: r#"INSERT INTO "can_orion_limits" ("car_id", "bus", "schema_fingerprint", "ts", "orion_pack_dcl", "orion_pack_ccl", "orion_high_temperature", "orion_low_temperature") VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8)"#,
     },
 };
@@ -1140,10 +1111,7 @@ pub static CAN_ORION_CELL_VOLTAGES: Table = Table {
         insert: "INSERT INTO ? USING `can_orion_cell_voltages` TAGS (?, ?, ?) VALUES (?, ?, ?, ?, ?)",
     },
     sqlite: SqliteTable {
-        create: [
-            r#"CREATE TABLE IF NOT EXISTS "can_orion_cell_voltages" ("id" INTEGER PRIMARY KEY, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "orion_low_cell_voltage" REAL, "orion_high_cell_voltage" REAL, "orion_avg_cell_voltage" REAL, "orion_low_cell_id" INTEGER)"#,
-            r#"CREATE INDEX IF NOT EXISTS "can_orion_cell_voltages_ts" ON "can_orion_cell_voltages" ("ts")"#,
-        ],
+        create: r#"CREATE TABLE IF NOT EXISTS "can_orion_cell_voltages" ("id" INTEGER PRIMARY KEY, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "orion_low_cell_voltage" REAL, "orion_high_cell_voltage" REAL, "orion_avg_cell_voltage" REAL, "orion_low_cell_id" INTEGER)"#,
         insert: r#"INSERT INTO "can_orion_cell_voltages" ("car_id", "bus", "schema_fingerprint", "ts", "orion_low_cell_voltage", "orion_high_cell_voltage", "orion_avg_cell_voltage", "orion_low_cell_id") VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8)"#,
     },
 };
@@ -1213,10 +1181,7 @@ pub static CAN_PCC_STATUS: Table = Table {
         insert: "INSERT INTO ? USING `can_pcc_status` TAGS (?, ?, ?) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
     },
     sqlite: SqliteTable {
-        create: [
-            r#"CREATE TABLE IF NOT EXISTS "can_pcc_status" ("id" INTEGER PRIMARY KEY, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "pcc_state" INTEGER, "pcc_error_too_fast" INTEGER, "pcc_error_too_slow" INTEGER, "pcc_error_bms_timeout" INTEGER, "pcc_error_shutdown" INTEGER, "pcc_error_undefined_state" INTEGER, "pcc_accumulator_voltage" REAL, "pcc_tractive_voltage" REAL, "pcc_precharge_progress" REAL)"#,
-            r#"CREATE INDEX IF NOT EXISTS "can_pcc_status_ts" ON "can_pcc_status" ("ts")"#,
-        ],
+        create: r#"CREATE TABLE IF NOT EXISTS "can_pcc_status" ("id" INTEGER PRIMARY KEY, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "pcc_state" INTEGER, "pcc_error_too_fast" INTEGER, "pcc_error_too_slow" INTEGER, "pcc_error_bms_timeout" INTEGER, "pcc_error_shutdown" INTEGER, "pcc_error_undefined_state" INTEGER, "pcc_accumulator_voltage" REAL, "pcc_tractive_voltage" REAL, "pcc_precharge_progress" REAL)"#,
         insert: r#"INSERT INTO "can_pcc_status" ("car_id", "bus", "schema_fingerprint", "ts", "pcc_state", "pcc_error_too_fast", "pcc_error_too_slow", "pcc_error_bms_timeout", "pcc_error_shutdown", "pcc_error_undefined_state", "pcc_accumulator_voltage", "pcc_tractive_voltage", "pcc_precharge_progress") VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13)"#,
     },
 };
@@ -1310,10 +1275,7 @@ pub static CAN_IMD_INFO_GENERAL: Table = Table {
         insert: "INSERT INTO ? USING `can_imd_info_general` TAGS (?, ?, ?) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
     },
     sqlite: SqliteTable {
-        create: [
-            r#"CREATE TABLE IF NOT EXISTS "can_imd_info_general" ("id" INTEGER PRIMARY KEY, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "imd_r_iso_corrected" INTEGER, "imd_r_iso_status" INTEGER, "imd_measurement_counter" INTEGER, "imd_device_error" INTEGER, "imd_hv_pos_connection_failure" INTEGER, "imd_hv_neg_connection_failure" INTEGER, "imd_earth_connection_failure" INTEGER, "imd_iso_alarm" INTEGER, "imd_iso_warning" INTEGER, "imd_iso_outdated" INTEGER, "imd_unbalance_alarm" INTEGER, "imd_undervoltage_alarm" INTEGER, "imd_unsafe_to_start" INTEGER, "imd_earthlift_open" INTEGER, "imd_device_activity" INTEGER)"#,
-            r#"CREATE INDEX IF NOT EXISTS "can_imd_info_general_ts" ON "can_imd_info_general" ("ts")"#,
-        ],
+        create: r#"CREATE TABLE IF NOT EXISTS "can_imd_info_general" ("id" INTEGER PRIMARY KEY, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "imd_r_iso_corrected" INTEGER, "imd_r_iso_status" INTEGER, "imd_measurement_counter" INTEGER, "imd_device_error" INTEGER, "imd_hv_pos_connection_failure" INTEGER, "imd_hv_neg_connection_failure" INTEGER, "imd_earth_connection_failure" INTEGER, "imd_iso_alarm" INTEGER, "imd_iso_warning" INTEGER, "imd_iso_outdated" INTEGER, "imd_unbalance_alarm" INTEGER, "imd_undervoltage_alarm" INTEGER, "imd_unsafe_to_start" INTEGER, "imd_earthlift_open" INTEGER, "imd_device_activity" INTEGER)"#,
         insert: r#"INSERT INTO "can_imd_info_general" ("car_id", "bus", "schema_fingerprint", "ts", "imd_r_iso_corrected", "imd_r_iso_status", "imd_measurement_counter", "imd_device_error", "imd_hv_pos_connection_failure", "imd_hv_neg_connection_failure", "imd_earth_connection_failure", "imd_iso_alarm", "imd_iso_warning", "imd_iso_outdated", "imd_unbalance_alarm", "imd_undervoltage_alarm", "imd_unsafe_to_start", "imd_earthlift_open", "imd_device_activity") VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17, ?18, ?19)"#,
     },
 };
@@ -1367,10 +1329,7 @@ pub static CAN_IMD_INFO_ISOLATION_DETAIL: Table = Table {
         insert: "INSERT INTO ? USING `can_imd_info_isolation_detail` TAGS (?, ?, ?) VALUES (?, ?, ?, ?, ?, ?)",
     },
     sqlite: SqliteTable {
-        create: [
-            r#"CREATE TABLE IF NOT EXISTS "can_imd_info_isolation_detail" ("id" INTEGER PRIMARY KEY, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "imd_r_iso_negative" INTEGER, "imd_r_iso_positive" INTEGER, "imd_r_iso_original" INTEGER, "imd_iso_measurement_counter" INTEGER, "imd_iso_quality" INTEGER)"#,
-            r#"CREATE INDEX IF NOT EXISTS "can_imd_info_isolation_detail_ts" ON "can_imd_info_isolation_detail" ("ts")"#,
-        ],
+        create: r#"CREATE TABLE IF NOT EXISTS "can_imd_info_isolation_detail" ("id" INTEGER PRIMARY KEY, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "imd_r_iso_negative" INTEGER, "imd_r_iso_positive" INTEGER, "imd_r_iso_original" INTEGER, "imd_iso_measurement_counter" INTEGER, "imd_iso_quality" INTEGER)"#,
         insert: r#"INSERT INTO "can_imd_info_isolation_detail" ("car_id", "bus", "schema_fingerprint", "ts", "imd_r_iso_negative", "imd_r_iso_positive", "imd_r_iso_original", "imd_iso_measurement_counter", "imd_iso_quality") VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9)"#,
     },
 };
@@ -1424,10 +1383,7 @@ pub static CAN_IMD_INFO_VOLTAGE: Table = Table {
         insert: "INSERT INTO ? USING `can_imd_info_voltage` TAGS (?, ?, ?) VALUES (?, ?, ?, ?, ?, ?)",
     },
     sqlite: SqliteTable {
-        create: [
-            r#"CREATE TABLE IF NOT EXISTS "can_imd_info_voltage" ("id" INTEGER PRIMARY KEY, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "imd_hv_system_voltage" REAL, "imd_hv_neg_to_earth_voltage" REAL, "imd_hv_pos_to_earth_voltage" REAL, "imd_voltage_measurement_counter" INTEGER, "imd_voltage_quality" INTEGER)"#,
-            r#"CREATE INDEX IF NOT EXISTS "can_imd_info_voltage_ts" ON "can_imd_info_voltage" ("ts")"#,
-        ],
+        create: r#"CREATE TABLE IF NOT EXISTS "can_imd_info_voltage" ("id" INTEGER PRIMARY KEY, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "imd_hv_system_voltage" REAL, "imd_hv_neg_to_earth_voltage" REAL, "imd_hv_pos_to_earth_voltage" REAL, "imd_voltage_measurement_counter" INTEGER, "imd_voltage_quality" INTEGER)"#,
         insert: r#"INSERT INTO "can_imd_info_voltage" ("car_id", "bus", "schema_fingerprint", "ts", "imd_hv_system_voltage", "imd_hv_neg_to_earth_voltage", "imd_hv_pos_to_earth_voltage", "imd_voltage_measurement_counter", "imd_voltage_quality") VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9)"#,
     },
 };
@@ -1481,10 +1437,7 @@ pub static CAN_IMD_INFO_IT_SYSTEM: Table = Table {
         insert: "INSERT INTO ? USING `can_imd_info_it_system` TAGS (?, ?, ?) VALUES (?, ?, ?, ?, ?, ?)",
     },
     sqlite: SqliteTable {
-        create: [
-            r#"CREATE TABLE IF NOT EXISTS "can_imd_info_it_system" ("id" INTEGER PRIMARY KEY, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "imd_capacity" INTEGER, "imd_capacity_measurement_counter" INTEGER, "imd_unbalance" INTEGER, "imd_unbalance_measurement_counter" INTEGER, "imd_voltage_frequency" REAL)"#,
-            r#"CREATE INDEX IF NOT EXISTS "can_imd_info_it_system_ts" ON "can_imd_info_it_system" ("ts")"#,
-        ],
+        create: r#"CREATE TABLE IF NOT EXISTS "can_imd_info_it_system" ("id" INTEGER PRIMARY KEY, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "imd_capacity" INTEGER, "imd_capacity_measurement_counter" INTEGER, "imd_unbalance" INTEGER, "imd_unbalance_measurement_counter" INTEGER, "imd_voltage_frequency" REAL)"#,
         insert: r#"INSERT INTO "can_imd_info_it_system" ("car_id", "bus", "schema_fingerprint", "ts", "imd_capacity", "imd_capacity_measurement_counter", "imd_unbalance", "imd_unbalance_measurement_counter", "imd_voltage_frequency") VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9)"#,
     },
 };
@@ -1526,10 +1479,7 @@ pub static CAN_IMD_REQUEST: Table = Table {
         insert: "INSERT INTO ? USING `can_imd_request` TAGS (?, ?, ?) VALUES (?, ?, ?)",
     },
     sqlite: SqliteTable {
-        create: [
-            r#"CREATE TABLE IF NOT EXISTS "can_imd_request" ("id" INTEGER PRIMARY KEY, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "imd_request_index" INTEGER, "imd_request_data" INTEGER)"#,
-            r#"CREATE INDEX IF NOT EXISTS "can_imd_request_ts" ON "can_imd_request" ("ts")"#,
-        ],
+        create: r#"CREATE TABLE IF NOT EXISTS "can_imd_request" ("id" INTEGER PRIMARY KEY, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "imd_request_index" INTEGER, "imd_request_data" INTEGER)"#,
         insert: r#"INSERT INTO "can_imd_request" ("car_id", "bus", "schema_fingerprint", "ts", "imd_request_index", "imd_request_data") VALUES (?1, ?2, ?3, ?4, ?5, ?6)"#,
     },
 };

@@ -10,10 +10,9 @@ use rusqlite::types::Value as Sql;
 fn open() -> rusqlite::Connection {
     let db = rusqlite::Connection::open_in_memory().expect("in-memory SQLite");
     for table in TABLES {
-        for statement in table.sqlite.create {
-            db.execute(statement, [])
-                .unwrap_or_else(|e| panic!("{}: {e}\n{statement}", table.name));
-        }
+        let statement = table.sqlite.create;
+        db.execute(statement, [])
+            .unwrap_or_else(|e| panic!("{}: {e}\n{statement}", table.name));
     }
     db
 }

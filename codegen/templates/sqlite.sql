@@ -4,5 +4,4 @@
 
 -- {{ t.doc }}
 {{ t.sqlite_create() }};
-{{ t.sqlite_index() }};
 {%- endfor %}

@@ -92,11 +92,12 @@ pub struct TdengineTable {
 }
 
 /// The SQLite table's statements. Its rows hold the tags, then the columns, after an `id`
-/// row number (the forwarder's cursor).
+/// row number (the forwarder's cursor, and the order rows arrived in: the store finds times
+/// by `id`, so no index slows the writes down).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct SqliteTable {
-    /// `CREATE TABLE IF NOT EXISTS ...` and its `ts` index.
-    pub create: [&'static str; 2],
+    /// `CREATE TABLE IF NOT EXISTS ...`.
+    pub create: &'static str,
     /// `INSERT INTO ... VALUES (?1, ...)`: tags, then columns.
     pub insert: &'static str,
 }
@@ -121,10 +122,7 @@ pub static {{ t.const_name }}: Table = Table {
         insert: "{{ t.tdengine_insert() }}",
     },
     sqlite: SqliteTable {
-        create: [
-            r#"{{ t.sqlite_create() }}"#,
-            r#"{{ t.sqlite_index() }}"#,
-        ],
+        create: r#"{{ t.sqlite_create() }}"#,
         insert: r#"{{ t.sqlite_insert() }}"#,
     },
 };

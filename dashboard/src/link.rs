@@ -10,8 +10,8 @@ use aer_host::status::{METRICS, STATUS};
 use iced::futures::channel::mpsc;
 use iced::futures::{SinkExt, Stream};
 use rumqttc::{
-    AsyncClient, ConnectionError, Event, EventLoop, MqttOptions, Packet, QoS, StateError,
-    SubscribeFilter,
+    AsyncClient, ConnectReturnCode, ConnectionError, Event, EventLoop, MqttOptions, Packet, QoS,
+    StateError, SubscribeFilter,
 };
 use std::time::{Duration, Instant};
 
@@ -167,6 +167,22 @@ fn why_down(error: &ConnectionError, accepted: bool) -> String {
              username/password (AER_MQTT_USERNAME, AER_MQTT_PASSWORD)?"
                 .into()
         }
+        ConnectionError::ConnectionRefused(code) => match code {
+            ConnectReturnCode::BadUserNamePassword | ConnectReturnCode::NotAuthorized => {
+                "the broker refused the username/password (AER_MQTT_USERNAME, \
+                 AER_MQTT_PASSWORD)"
+                    .into()
+            }
+            ConnectReturnCode::ServiceUnavailable => {
+                "the broker has no room for another client; it frees the slots of clients \
+                 that stopped reading within seconds"
+                    .into()
+            }
+            ConnectReturnCode::BadClientId => {
+                "the broker refused the client id (the Pi service's ids are reserved)".into()
+            }
+            other => format!("the broker refused the connection: {other:?}"),
+        },
         other => other.to_string(),
     }
 }

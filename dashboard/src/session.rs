@@ -5,7 +5,7 @@
 use aer::mqtt::{Sample, TelemetryRecord};
 use aer_host::clock::seconds;
 use aer_host::ingest::decode_log;
-use aer_host::status::{Metrics, Status, status};
+use aer_host::status::{Metrics, Problems, Status, status};
 
 /// The session the Pi's demo replays (recorded from the CCM's own logic).
 pub const BUNDLED_SESSION: &str = include_str!("../../raspi/data/session.log");
@@ -47,7 +47,7 @@ pub fn load(log: &str, car_id: &str) -> Session {
             store_lag: 0,
             counters: decoded.counters.snapshot(),
         },
-        status: status(car_id, &decoded.counters),
+        status: status(car_id, &decoded.counters, Problems::default()),
         samples,
     }
 }

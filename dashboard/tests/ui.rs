@@ -157,6 +157,9 @@ fn pi_status(telemetry_fingerprint: u32, firmware_ok: Option<bool>) -> Update {
         firmware_fingerprint_seen: firmware_ok.map(|_| "0x12345678".into()),
         fingerprint_match: firmware_ok,
         last_packet_ts: None,
+        undecodable_packets: 0,
+        undecodable_fingerprint: None,
+        problems: Default::default(),
     }))
 }
 

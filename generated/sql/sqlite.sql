@@ -3,68 +3,51 @@
 
 -- The telemetry packet (Telemetry), one row per packet.
 CREATE TABLE IF NOT EXISTS "telemetry" ("id" INTEGER PRIMARY KEY, "car_id" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "sequence" INTEGER, "timestamp_us" INTEGER, "apps_travel" REAL, "bse_front" REAL, "bse_rear" REAL, "imd_resistance" INTEGER, "imd_status" INTEGER, "pack_voltage" REAL, "pack_current" REAL, "soc" REAL, "discharge_limit" INTEGER, "charge_limit" INTEGER, "low_cell_volt" REAL, "high_cell_volt" REAL, "avg_cell_volt" REAL, "pack_temp" INTEGER, "motor_speed" REAL, "motor_torque" REAL, "max_motor_torque" REAL, "motor_direction" INTEGER, "motor_state" INTEGER, "mcu_main_state" INTEGER, "mcu_work_mode" INTEGER, "mcu_voltage" REAL, "mcu_phase_current" REAL, "mcu_current" REAL, "motor_temp" INTEGER, "mcu_temp" INTEGER, "mcu_warning_level" INTEGER, "vehicle_state" INTEGER, "ready_to_drive" INTEGER, "torque_command" REAL, "shocktravel1" REAL, "shocktravel2" REAL, "shocktravel3" REAL, "shocktravel4" REAL, "can_rx_dropped" INTEGER, "can_tx_dropped" INTEGER, "can_decode_errors" INTEGER, "telemetry_superseded" INTEGER, "pedal_bus_errors" INTEGER, "can_bus_off_events" INTEGER, "can1_error_passive" INTEGER, "can1_bus_off" INTEGER, "can2_error_passive" INTEGER, "can2_bus_off" INTEGER, "dc_main_wire_over_volt_fault" INTEGER, "motor_phase_curr_fault" INTEGER, "mcu_over_hot_fault" INTEGER, "resolver_fault" INTEGER, "phase_curr_sensor_fault" INTEGER, "motor_over_spd_fault" INTEGER, "drv_motor_over_hot_fault" INTEGER, "dc_main_wire_over_curr_fault" INTEGER, "drv_motor_over_cool_fault" INTEGER, "dc_low_volt_warning" INTEGER, "mcu_12v_low_volt_warning" INTEGER, "motor_stall_fault" INTEGER, "motor_open_phase_fault" INTEGER, "fault_over_current" INTEGER, "fault_under_voltage" INTEGER, "fault_over_temperature" INTEGER, "fault_apps" INTEGER, "fault_bse" INTEGER, "fault_bpps" INTEGER, "fault_apps_brake_plausibility" INTEGER, "fault_low_battery_voltage" INTEGER, "fault_pedal_signal_lost" INTEGER, "fault_sensors_stale" INTEGER, "fault_bms_timeout" INTEGER, "fault_inverter_timeout" INTEGER, "fault_pcc_timeout" INTEGER, "fault_inverter_fault" INTEGER, "fault_inverter_warning" INTEGER, "fault_pcc_error" INTEGER);
-CREATE INDEX IF NOT EXISTS "telemetry_ts" ON "telemetry" ("ts");
 
 -- CAN message `CCM_Status` (0xA0), one row per frame; multiplexed signals are NULL when absent.
 CREATE TABLE IF NOT EXISTS "can_ccm_status" ("id" INTEGER PRIMARY KEY, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "ccm_vehicle_state" INTEGER, "ccm_fault_over_current" INTEGER, "ccm_fault_under_voltage" INTEGER, "ccm_fault_over_temperature" INTEGER, "ccm_fault_apps" INTEGER, "ccm_fault_bse" INTEGER, "ccm_fault_bpps" INTEGER, "ccm_fault_apps_brake_plausibility" INTEGER, "ccm_fault_low_battery_voltage" INTEGER, "ccm_schema_fingerprint" INTEGER, "ccm_rolling_counter" INTEGER, "ccm_ready_to_drive" INTEGER, "ccm_fault_pedal_signal_lost" INTEGER, "ccm_fault_sensors_stale" INTEGER, "ccm_fault_bms_timeout" INTEGER, "ccm_fault_inverter_timeout" INTEGER, "ccm_fault_pcc_timeout" INTEGER, "ccm_fault_inverter_fault" INTEGER, "ccm_fault_inverter_warning" INTEGER, "ccm_fault_pcc_error" INTEGER);
-CREATE INDEX IF NOT EXISTS "can_ccm_status_ts" ON "can_ccm_status" ("ts");
 
 -- CAN message `VCU1` (0x101), one row per frame; multiplexed signals are NULL when absent.
 CREATE TABLE IF NOT EXISTS "can_vcu1" ("id" INTEGER PRIMARY KEY, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "vcu_torque_req" REAL, "vcu_motor_spd_req" INTEGER, "vcu_authentication_status" INTEGER, "vcu_change_gear_alarm" INTEGER, "vcu_vehicle_state" INTEGER, "vcu_brake_pedal_sts" INTEGER, "vcu_bms_main_relay_cmd" INTEGER, "vcu_gear_lever_pos_sts" INTEGER, "vcu_gear_lever_pos_sts_f" INTEGER, "vcu_ac_control_cmd" INTEGER, "vcu_work_mode" INTEGER, "vcu_motor_mode" INTEGER, "vcu_warning_level" INTEGER, "vcu_key_position" INTEGER, "vcu_rolling_counter" INTEGER, "vcu_bms_aux_relay_cmd" INTEGER, "vcu_power_reduce_req" INTEGER, "vcu_check_sum" INTEGER);
-CREATE INDEX IF NOT EXISTS "can_vcu1_ts" ON "can_vcu1" ("ts");
 
 -- CAN message `MCU1` (0x105), one row per frame; multiplexed signals are NULL when absent.
 CREATE TABLE IF NOT EXISTS "can_mcu1" ("id" INTEGER PRIMARY KEY, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "mcu_motor_speed" REAL, "mcu_actual_torque" REAL, "mcu_max_motor_torque" REAL, "mcu_max_motor_brake_torque" REAL, "mcu_main_state" INTEGER, "mcu_rotate_direction" INTEGER, "mcu1_rolling_counter" INTEGER, "mcu_motor_state" INTEGER, "mcu_work_mode" INTEGER);
-CREATE INDEX IF NOT EXISTS "can_mcu1_ts" ON "can_mcu1" ("ts");
 
 -- CAN message `MCU2` (0x106), one row per frame; multiplexed signals are NULL when absent.
 CREATE TABLE IF NOT EXISTS "can_mcu2" ("id" INTEGER PRIMARY KEY, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "mcu_motor_temp" INTEGER, "mcu_inverter_temp" INTEGER, "mcu_dc_main_wire_over_curr_fault" INTEGER, "mcu_motor_phase_curr_fault" INTEGER, "mcu_over_hot_fault" INTEGER, "mcu_resolver_fault" INTEGER, "mcu_phase_curr_sensor_fault" INTEGER, "mcu_motor_over_spd_fault" INTEGER, "mcu_drv_motor_over_hot_fault" INTEGER, "mcu_dc_main_wire_over_volt_fault" INTEGER, "mcu_drv_motor_over_cool_fault" INTEGER, "mcu_motor_system_state" INTEGER, "mcu_temp_sensor_state" INTEGER, "mcu_motor_temp_sensor_state" INTEGER, "mcu_dc_volt_sensor_state" INTEGER, "mcu_dc_low_volt_warning" INTEGER, "mcu_12v_low_volt_warning" INTEGER, "mcu2_rolling_counter" INTEGER, "mcu_warning_level" INTEGER, "mcu_motor_open_phase_fault" INTEGER, "mcu_motor_stall_fault" INTEGER);
-CREATE INDEX IF NOT EXISTS "can_mcu2_ts" ON "can_mcu2" ("ts");
 
 -- CAN message `MCU3` (0x107), one row per frame; multiplexed signals are NULL when absent.
 CREATE TABLE IF NOT EXISTS "can_mcu3" ("id" INTEGER PRIMARY KEY, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "mcu_dc_voltage" REAL, "mcu_dc_current" REAL, "mcu_phase_current" REAL);
-CREATE INDEX IF NOT EXISTS "can_mcu3_ts" ON "can_mcu3" ("ts");
 
 -- CAN message `BMS1` (0x1A0), one row per frame; multiplexed signals are NULL when absent.
 CREATE TABLE IF NOT EXISTS "can_bms1" ("id" INTEGER PRIMARY KEY, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "bms_precharge_relay_fb" INTEGER, "bms_precharge_finish_sts" INTEGER);
-CREATE INDEX IF NOT EXISTS "can_bms1_ts" ON "can_bms1" ("ts");
 
 -- CAN message `BMS2` (0x1A1), one row per frame; multiplexed signals are NULL when absent.
 CREATE TABLE IF NOT EXISTS "can_bms2" ("id" INTEGER PRIMARY KEY, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "bms_allow_max_discharge" REAL);
-CREATE INDEX IF NOT EXISTS "can_bms2_ts" ON "can_bms2" ("ts");
 
 -- CAN message `Orion_PackStatus` (0x6B0), one row per frame; multiplexed signals are NULL when absent.
 CREATE TABLE IF NOT EXISTS "can_orion_pack_status" ("id" INTEGER PRIMARY KEY, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "orion_pack_current" REAL, "orion_pack_inst_voltage" REAL, "orion_pack_soc" REAL, "orion_relay_state" INTEGER);
-CREATE INDEX IF NOT EXISTS "can_orion_pack_status_ts" ON "can_orion_pack_status" ("ts");
 
 -- CAN message `Orion_Limits` (0x6B1), one row per frame; multiplexed signals are NULL when absent.
 CREATE TABLE IF NOT EXISTS "can_orion_limits" ("id" INTEGER PRIMARY KEY, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "orion_pack_dcl" INTEGER, "orion_pack_ccl" INTEGER, "orion_high_temperature" INTEGER, "orion_low_temperature" INTEGER);
-CREATE INDEX IF NOT EXISTS "can_orion_limits_ts" ON "can_orion_limits" ("ts");
 
 -- CAN message `Orion_CellVoltages` (0x6B2), one row per frame; multiplexed signals are NULL when absent.
 CREATE TABLE IF NOT EXISTS "can_orion_cell_voltages" ("id" INTEGER PRIMARY KEY, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "orion_low_cell_voltage" REAL, "orion_high_cell_voltage" REAL, "orion_avg_cell_voltage" REAL, "orion_low_cell_id" INTEGER);
-CREATE INDEX IF NOT EXISTS "can_orion_cell_voltages_ts" ON "can_orion_cell_voltages" ("ts");
 
 -- CAN message `PCC_Status` (0x222), one row per frame; multiplexed signals are NULL when absent.
 CREATE TABLE IF NOT EXISTS "can_pcc_status" ("id" INTEGER PRIMARY KEY, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "pcc_state" INTEGER, "pcc_error_too_fast" INTEGER, "pcc_error_too_slow" INTEGER, "pcc_error_bms_timeout" INTEGER, "pcc_error_shutdown" INTEGER, "pcc_error_undefined_state" INTEGER, "pcc_accumulator_voltage" REAL, "pcc_tractive_voltage" REAL, "pcc_precharge_progress" REAL);
-CREATE INDEX IF NOT EXISTS "can_pcc_status_ts" ON "can_pcc_status" ("ts");
 
 -- CAN message `IMD_InfoGeneral` (0x18FF01F4), one row per frame; multiplexed signals are NULL when absent.
 CREATE TABLE IF NOT EXISTS "can_imd_info_general" ("id" INTEGER PRIMARY KEY, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "imd_r_iso_corrected" INTEGER, "imd_r_iso_status" INTEGER, "imd_measurement_counter" INTEGER, "imd_device_error" INTEGER, "imd_hv_pos_connection_failure" INTEGER, "imd_hv_neg_connection_failure" INTEGER, "imd_earth_connection_failure" INTEGER, "imd_iso_alarm" INTEGER, "imd_iso_warning" INTEGER, "imd_iso_outdated" INTEGER, "imd_unbalance_alarm" INTEGER, "imd_undervoltage_alarm" INTEGER, "imd_unsafe_to_start" INTEGER, "imd_earthlift_open" INTEGER, "imd_device_activity" INTEGER);
-CREATE INDEX IF NOT EXISTS "can_imd_info_general_ts" ON "can_imd_info_general" ("ts");
 
 -- CAN message `IMD_InfoIsolationDetail` (0x18FF02F4), one row per frame; multiplexed signals are NULL when absent.
 CREATE TABLE IF NOT EXISTS "can_imd_info_isolation_detail" ("id" INTEGER PRIMARY KEY, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "imd_r_iso_negative" INTEGER, "imd_r_iso_positive" INTEGER, "imd_r_iso_original" INTEGER, "imd_iso_measurement_counter" INTEGER, "imd_iso_quality" INTEGER);
-CREATE INDEX IF NOT EXISTS "can_imd_info_isolation_detail_ts" ON "can_imd_info_isolation_detail" ("ts");
 
 -- CAN message `IMD_InfoVoltage` (0x18FF03F4), one row per frame; multiplexed signals are NULL when absent.
 CREATE TABLE IF NOT EXISTS "can_imd_info_voltage" ("id" INTEGER PRIMARY KEY, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "imd_hv_system_voltage" REAL, "imd_hv_neg_to_earth_voltage" REAL, "imd_hv_pos_to_earth_voltage" REAL, "imd_voltage_measurement_counter" INTEGER, "imd_voltage_quality" INTEGER);
-CREATE INDEX IF NOT EXISTS "can_imd_info_voltage_ts" ON "can_imd_info_voltage" ("ts");
 
 -- CAN message `IMD_InfoItSystem` (0x18FF04F4), one row per frame; multiplexed signals are NULL when absent.
 CREATE TABLE IF NOT EXISTS "can_imd_info_it_system" ("id" INTEGER PRIMARY KEY, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "imd_capacity" INTEGER, "imd_capacity_measurement_counter" INTEGER, "imd_unbalance" INTEGER, "imd_unbalance_measurement_counter" INTEGER, "imd_voltage_frequency" REAL);
-CREATE INDEX IF NOT EXISTS "can_imd_info_it_system_ts" ON "can_imd_info_it_system" ("ts");
 
 -- CAN message `IMD_Request` (0x18EFF417), one row per frame; multiplexed signals are NULL when absent.
 CREATE TABLE IF NOT EXISTS "can_imd_request" ("id" INTEGER PRIMARY KEY, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "imd_request_index" INTEGER, "imd_request_data" INTEGER);
-CREATE INDEX IF NOT EXISTS "can_imd_request_ts" ON "can_imd_request" ("ts");

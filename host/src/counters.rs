@@ -21,6 +21,8 @@ macro_rules! counters {
             pub last_packet_us: AtomicU64,
             /// Telemetry fingerprint the firmware sent last (0 = none yet).
             pub firmware_fingerprint: AtomicU64,
+            /// The last fingerprint that was not the service's (0 = none yet).
+            pub mismatched_fingerprint: AtomicU64,
         }
 
         impl Counters {
@@ -60,10 +62,32 @@ counters! {
     publish_dropped,
     /// Rows committed to the local store.
     stored,
+    /// Rows the local store could not take (behind or failing); their frames stay in the
+    /// raw log.
+    store_dropped,
+    /// Failed commits to the local store (retried with backoff).
+    store_errors,
+    /// Rows removed from the store to keep it within its budget.
+    pruned_rows,
+    /// Frames written to the raw log.
+    raw_frames,
+    /// Frames the raw log could not keep (writer behind, disk full or failing).
+    raw_dropped,
+    /// Failed raw log writes (the segment is given up; the next one is tried after a backoff).
+    raw_errors,
+    /// Raw log segments removed to keep it within its budget.
+    pruned_segments,
     /// Rows forwarded to TDengine.
     forwarded,
     /// TDengine write failures (retried).
     forward_errors,
+    /// Rows TDengine refused outright, set aside in the store instead of blocking the rest.
+    forward_set_aside,
+    /// Broker connections the gate refused (reserved client id, bad credentials, no room,
+    /// a publish under the car's prefix).
+    mqtt_refused,
+    /// Broker clients disconnected for not reading what they subscribed to.
+    mqtt_slow_clients,
 }
 
 impl Counters {

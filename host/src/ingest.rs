@@ -188,6 +188,9 @@ fn packet_record(
             counters
                 .firmware_fingerprint
                 .store(u64::from(found), Ordering::Relaxed);
+            counters
+                .mismatched_fingerprint
+                .store(u64::from(found), Ordering::Relaxed);
             let count = Counters::bump(&counters.fingerprint_mismatches);
             if worth_logging(count) {
                 warn!(

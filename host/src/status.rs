@@ -23,6 +23,31 @@ pub struct Status {
     pub fingerprint_match: Option<bool>,
     /// Receive time of the last telemetry packet (s since the epoch).
     pub last_packet_ts: Option<f64>,
+    /// Telemetry packets this service could not decode because another schema built them;
+    /// they stay in the raw log (docs/pi-service.md says how to decode them).
+    #[serde(default)]
+    pub undecodable_packets: u64,
+    /// The fingerprint those packets carry (the last one seen).
+    #[serde(default)]
+    pub undecodable_fingerprint: Option<String>,
+    /// What is failing now, part by part.
+    #[serde(default)]
+    pub problems: Problems,
+}
+
+/// What is failing in the service, part by part (`None`: working).
+#[derive(Debug, Clone, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Problems {
+    /// The local store's last write error, while writes fail (rows are dropped and counted).
+    pub store: Option<String>,
+    /// A damaged store found at start-up, and where it was moved.
+    pub store_recovered: Option<String>,
+    /// The raw log's last write error, while writes fail.
+    pub raw_log: Option<String>,
+    /// Forwarding to TDengine.
+    pub forward: Option<String>,
+    /// The service's own link to the broker.
+    pub mqtt: Option<String>,
 }
 
 /// The ingest service's counters, published every second.
@@ -32,7 +57,7 @@ pub struct Metrics {
     pub ts: f64,
     /// Telemetry packets decoded in the last second.
     pub packets_per_s: f64,
-    /// Rows decoded but not yet committed to the local store.
+    /// Rows decoded but not yet committed to (or dropped by) the local store.
     pub store_lag: u64,
     #[serde(flatten)]
     pub counters: ServiceCounters,
@@ -44,9 +69,10 @@ pub const STATUS: Topic<Status> = Topic::new("status");
 /// The ingest service's counters, every second.
 pub const METRICS: Topic<Metrics> = Topic::new("metrics");
 
-/// The status as of now, for `car_id`, from what `counters` saw.
-pub fn status(car_id: &str, counters: &Counters) -> Status {
+/// The status as of now, for `car_id`, from what `counters` saw and the `problems` reported.
+pub fn status(car_id: &str, counters: &Counters, problems: Problems) -> Status {
     let seen = counters.firmware_fingerprint.load(Ordering::Relaxed);
+    let mismatched = counters.mismatched_fingerprint.load(Ordering::Relaxed);
     let last = counters.last_packet_us.load(Ordering::Relaxed);
     let ours = aer::telemetry::TELEMETRY_FINGERPRINT;
     Status {
@@ -57,6 +83,9 @@ pub fn status(car_id: &str, counters: &Counters) -> Status {
         firmware_fingerprint_seen: (seen != 0).then(|| format!("{seen:#010x}")),
         fingerprint_match: (seen != 0).then_some(seen == u64::from(ours)),
         last_packet_ts: (last != 0).then(|| seconds(last)),
+        undecodable_packets: counters.fingerprint_mismatches.load(Ordering::Relaxed),
+        undecodable_fingerprint: (mismatched != 0).then(|| format!("{mismatched:#010x}")),
+        problems,
     }
 }
 
@@ -65,7 +94,7 @@ pub fn metrics(now: ServiceCounters, previous: ServiceCounters) -> Metrics {
     Metrics {
         ts: seconds(now_us()),
         packets_per_s: now.packets.saturating_sub(previous.packets) as f64,
-        store_lag: (now.packets + now.messages).saturating_sub(now.stored),
+        store_lag: (now.packets + now.messages).saturating_sub(now.stored + now.store_dropped),
         counters: now,
     }
 }
@@ -77,7 +106,7 @@ mod tests {
     #[test]
     fn the_status_says_whether_the_firmware_matches() {
         let counters = Counters::default();
-        let before = status("car1", &counters);
+        let before = status("car1", &counters, Problems::default());
         assert_eq!(
             (before.fingerprint_match, before.last_packet_ts),
             (None, None)
@@ -87,7 +116,7 @@ mod tests {
             Ordering::Relaxed,
         );
         counters.last_packet_us.store(2_500_000, Ordering::Relaxed);
-        let after = status("car1", &counters);
+        let after = status("car1", &counters, Problems::default());
         assert_eq!(after.fingerprint_match, Some(true));
         assert_eq!(after.last_packet_ts, Some(2.5));
         let round_trip = STATUS.decode(&STATUS.encode(&after).unwrap()).unwrap();

@@ -26,6 +26,7 @@ use rumqttc::{AsyncClient, Event, MqttOptions, Packet, QoS};
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
+use tokio_util::sync::CancellationToken;
 
 /// One model step's frames.
 #[derive(Default)]
@@ -54,10 +55,12 @@ fn main() {
             .map(|a| a.port())
             .expect("port");
         let text = broker::DEFAULT_CONFIG.replace("127.0.0.1:1883", &format!("127.0.0.1:{port}"));
-        let link = broker::spawn(
-            toml::from_str(&text).expect("broker config"),
-            "latency-ingest",
+        let broker = broker::start(
+            broker::parse(&text).expect("broker config"),
+            Arc::new(Counters::default()),
+            CancellationToken::new(),
         )
+        .await
         .expect("broker");
 
         let mut options = MqttOptions::new("latency-subscriber", "127.0.0.1", port);
@@ -100,10 +103,12 @@ fn main() {
 
         let counters = Arc::new(Counters::default());
         let (publisher, driver) = publish::embedded(
-            link,
+            broker.link,
+            broker.spares,
             BrokerOptions::default().queue,
             "aer/car1".into(),
             counters.clone(),
+            Arc::default(),
         );
         let (up_tx, mut up) = tokio::sync::watch::channel(false);
         tokio::spawn(publish::drive(driver, up_tx));

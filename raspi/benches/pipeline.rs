@@ -25,6 +25,7 @@ use std::fmt::Write as _;
 use std::hint::black_box;
 use std::sync::Arc;
 use std::time::Duration;
+use tokio_util::sync::CancellationToken;
 
 const SESSION: &str = include_str!("../data/session.log");
 /// Messages the broker queue may hold: the benchmark publishes a whole session at once.
@@ -103,21 +104,30 @@ fn bench(c: &mut Criterion) {
         .map(|a| a.port())
         .expect("port");
     let text = broker::DEFAULT_CONFIG.replace("127.0.0.1:1883", &format!("127.0.0.1:{port}"));
-    let link =
-        broker::spawn(toml::from_str(&text).expect("broker config"), "bench").expect("broker");
     let counters = Arc::new(Counters::default());
     let mqtt = BrokerConfig {
         port,
         ..BrokerConfig::default()
     };
     // Ours publishes as the service does, in process into the embedded broker; today's Pi
-    // publishes with rumqttc over loopback TCP to its embedded broker.
+    // publishes with rumqttc over loopback TCP to its embedded broker (through the gate, so
+    // outside the topics only the service may publish under).
     let (publisher, today_publisher) = runtime.block_on(async {
-        let (publisher, driver) =
-            publish::embedded(link, QUEUE, "aer/car1".into(), counters.clone());
+        let config = broker::parse(&text).expect("broker config");
+        let broker = broker::start(config, counters.clone(), CancellationToken::new())
+            .await
+            .expect("broker");
+        let (publisher, driver) = publish::embedded(
+            broker.link,
+            broker.spares,
+            QUEUE,
+            "aer/car1".into(),
+            counters.clone(),
+            Arc::default(),
+        );
         tokio::spawn(publish::drive(driver, tokio::sync::watch::channel(false).0));
         let (today, driver) =
-            publish::connect(&mqtt, QUEUE, "today", "aer/car1".into(), counters.clone());
+            publish::connect(&mqtt, QUEUE, "today", "today/car1".into(), counters.clone());
         let (up_tx, mut up) = tokio::sync::watch::channel(false);
         tokio::spawn(publish::drive(driver, up_tx));
         let _ = tokio::time::timeout(Duration::from_secs(10), up.wait_for(|u| *u)).await;

@@ -17,6 +17,8 @@ pub struct Config {
     /// How the service publishes: its embedded broker, or the one in `[mqtt]`.
     pub broker: BrokerOptions,
     pub store: StoreConfig,
+    pub raw_log: RawLogConfig,
+    pub retention: RetentionConfig,
     pub tdengine: TdengineConfig,
 }
 
@@ -54,6 +56,36 @@ pub struct BrokerOptions {
 #[serde(default, deny_unknown_fields)]
 pub struct StoreConfig {
     pub path: PathBuf,
+    /// The most the store may take on disk; the oldest rows (forwarded ones first) go beyond.
+    pub max_bytes: u64,
+}
+
+/// The black-box raw log: every frame, before decoding.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct RawLogConfig {
+    pub enabled: bool,
+    pub dir: PathBuf,
+    /// A new segment starts at this size ...
+    pub segment_bytes: u64,
+    /// ... or this age.
+    pub segment_minutes: u64,
+    /// How often written frames are synced to disk (what a power cut can lose at most).
+    pub sync_ms: u64,
+    /// The most the segments may take together; the oldest go beyond.
+    pub max_bytes: u64,
+}
+
+/// Limits shared by the store and the raw log.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct RetentionConfig {
+    /// Data older than this goes (0: kept until a size budget needs the room).
+    pub max_age_days: u64,
+    /// Below this much free space on their file system, the oldest data goes.
+    pub min_free_bytes: u64,
+    /// How often the store's budget is checked.
+    pub check_seconds: u64,
 }
 
 #[derive(Debug, Clone, PartialEq, Deserialize)]
@@ -78,6 +110,8 @@ impl Default for Config {
             mqtt: BrokerConfig::default(),
             broker: BrokerOptions::default(),
             store: StoreConfig::default(),
+            raw_log: RawLogConfig::default(),
+            retention: RetentionConfig::default(),
             tdengine: TdengineConfig::default(),
         }
     }
@@ -107,6 +141,30 @@ impl Default for StoreConfig {
     fn default() -> Self {
         Self {
             path: "aer-local.sqlite".into(),
+            max_bytes: 4 << 30,
+        }
+    }
+}
+
+impl Default for RawLogConfig {
+    fn default() -> Self {
+        Self {
+            enabled: true,
+            dir: "aer-raw".into(),
+            segment_bytes: 16 << 20,
+            segment_minutes: 60,
+            sync_ms: 1_000,
+            max_bytes: 4 << 30,
+        }
+    }
+}
+
+impl Default for RetentionConfig {
+    fn default() -> Self {
+        Self {
+            max_age_days: 30,
+            min_free_bytes: 1 << 30,
+            check_seconds: 60,
         }
     }
 }
@@ -131,6 +189,7 @@ impl Config {
     pub fn load(path: Option<&Path>, env: impl Fn(&str) -> Option<String>) -> Result<Self> {
         let mut config: Self = read_or_default(path)?;
         config.apply_env(env)?;
+        config.check_tags()?;
         let database = &config.tdengine.database;
         if database.is_empty()
             || !database
@@ -163,9 +222,47 @@ impl Config {
         if let Some(v) = env("AER_STORE_PATH") {
             self.store.path = v.into();
         }
+        if let Some(v) = env("AER_RAW_LOG_DIR") {
+            self.raw_log.dir = v.into();
+        }
         if let Some(v) = env("AER_TDENGINE_DSN") {
             self.tdengine.dsn = v;
             self.tdengine.enabled = true;
+        }
+        Ok(())
+    }
+
+    /// The car id and the interface names become TDengine tags of fixed width: one that does
+    /// not fit would have every row refused, so it is refused here, at start-up.
+    fn check_tags(&self) -> Result<()> {
+        let limit = |tag: &str| {
+            aer::tables::TABLES
+                .iter()
+                .flat_map(|table| table.tags)
+                .find(|column| column.name == tag)
+                .and_then(|column| match column.ty {
+                    aer::tables::ColumnType::VarChar(n) => Some(usize::from(n)),
+                    _ => None,
+                })
+        };
+        let too_long = |value: &str, tag: &str| limit(tag).filter(|max| value.len() > *max);
+        if let Some(max) = too_long(&self.car_id, "car_id") {
+            anyhow::bail!(
+                "car_id {:?} is longer than its {max}-byte database tag",
+                self.car_id
+            );
+        }
+        for interface in self
+            .can
+            .interfaces
+            .iter()
+            .chain([&self.can.telemetry_interface])
+        {
+            if let Some(max) = too_long(interface, "bus") {
+                anyhow::bail!(
+                    "interface name {interface:?} is longer than its {max}-byte database tag"
+                );
+            }
         }
         Ok(())
     }
@@ -206,6 +303,20 @@ mod tests {
         // What the dashboard subscribes to with the same setting (its config test).
         let slash = Config::load(None, |k| (k == "AER_MQTT_PREFIX").then(|| "team/".into()));
         assert_eq!(slash.unwrap().topic_prefix(), "team/car1");
+    }
+
+    #[test]
+    fn names_longer_than_their_database_tags_are_refused_at_start_up() {
+        let long = "x".repeat(33);
+        let error = Config::load(None, |k| (k == "AER_CAR_ID").then(|| long.clone()))
+            .expect_err("a 33-byte car id does not fit VARCHAR(32)");
+        assert!(format!("{error:#}").contains("car_id"), "{error:#}");
+        assert!(Config::load(None, |k| (k == "AER_CAR_ID").then(|| "x".repeat(32))).is_ok());
+        let error = Config::load(None, |k| {
+            (k == "AER_CAN_INTERFACES").then(|| "can0,a-very-long-ifname".into())
+        })
+        .expect_err("a 17-byte interface name does not fit VARCHAR(16)");
+        assert!(format!("{error:#}").contains("interface"), "{error:#}");
     }
 
     #[test]

@@ -1,8 +1,10 @@
 //! The ingest stage: batches from the sources in, decoded records out to every sink, on one
-//! task. Decoding itself is `aer_host::ingest`, shared with the dashboard; this stage keeps
-//! the bus names the sources announce, sends ISO-TP flow control back to the source's bus,
-//! and flushes the sinks whenever it is about to wait.
+//! task. Every frame goes to the raw log first, before anything decodes it. Decoding itself
+//! is `aer_host::ingest`, shared with the dashboard; this stage keeps the bus names the
+//! sources announce, sends ISO-TP flow control back to the source's bus, and flushes the raw
+//! log and the sinks whenever it is about to wait.
 
+use crate::rawlog::RawTap;
 use crate::sink::Sink;
 use crate::source::replay::{ReplayOptions, ReplayStats, replay};
 use crate::source::{self, Input, Receiver, Replies};
@@ -17,6 +19,7 @@ pub struct Stage {
     buses: Vec<Arc<str>>,
     sinks: Vec<Box<dyn Sink>>,
     replies: Replies,
+    raw: Option<RawTap>,
 }
 
 impl Stage {
@@ -28,7 +31,14 @@ impl Stage {
             buses: Vec::new(),
             sinks,
             replies,
+            raw: None,
         }
+    }
+
+    /// Appends every frame to the raw log through `tap` before decoding it.
+    pub fn with_raw_log(mut self, tap: RawTap) -> Self {
+        self.raw = Some(tap);
+        self
     }
 
     /// Leaves ISO-TP reassembly to the kernel (whole packets arrive as [`Input::Packet`]).
@@ -44,9 +54,13 @@ impl Stage {
             buses,
             sinks,
             replies,
+            raw,
         } = self;
         match input {
             Input::Bus { index, name } => {
+                if let Some(raw) = raw {
+                    raw.name_bus(index, &name);
+                }
                 let index = usize::from(index);
                 if buses.len() <= index {
                     buses.resize(index + 1, Arc::from(""));
@@ -55,11 +69,16 @@ impl Stage {
                     *slot = name;
                 }
             }
-            Input::Frame(frame) => ingest.on_frame(
-                &frame,
-                |record| hand_on(sinks, buses, &record),
-                |bus, fc| replies.send(bus, fc),
-            ),
+            Input::Frame(frame) => {
+                if let Some(raw) = raw {
+                    raw.frame(&frame);
+                }
+                ingest.on_frame(
+                    &frame,
+                    |record| hand_on(sinks, buses, &record),
+                    |bus, fc| replies.send(bus, fc),
+                )
+            }
             Input::Packet { ts_us, bus, packet } => {
                 ingest.on_packet(ts_us, bus, &packet, |record| {
                     hand_on(sinks, buses, &record);
@@ -70,6 +89,9 @@ impl Stage {
 
     /// Hands whatever the sinks hold back on: call before waiting for input.
     pub fn flush(&mut self) {
+        if let Some(raw) = &mut self.raw {
+            raw.flush();
+        }
         for sink in &mut self.sinks {
             sink.flush();
         }

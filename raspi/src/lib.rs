@@ -8,8 +8,11 @@
 
 pub mod broker;
 pub mod config;
+pub mod disk;
 pub mod forward;
+pub mod health;
 pub mod ingest;
+pub mod rawlog;
 pub mod report;
 pub mod service;
 pub mod sink;

@@ -30,9 +30,10 @@ struct Cli {
 enum Command {
     /// Live: read the configured SocketCAN interfaces (ISO-TP telemetry and every DBC frame).
     Run,
-    /// Replay a candump log (`candump -l` / `-L` format) through the pipeline.
+    /// Replay a candump log (`candump -l` / `-L` format) or a raw log segment through the
+    /// pipeline.
     Replay {
-        /// The log file.
+        /// The log file, or a segment of the raw log (`raw-*.aerraw`).
         file: PathBuf,
         /// As fast as possible instead of at recorded speed.
         #[arg(long)]
@@ -51,6 +52,13 @@ enum Command {
     /// Replay the bundled session at recorded speed, looping until Ctrl-C, with the embedded
     /// broker on 127.0.0.1:1883 and the local store aer-demo.sqlite.
     Demo,
+    /// Print raw log segments as candump -l text (every frame, losslessly), oldest first; a
+    /// folder means every segment in it.
+    RawExport {
+        /// Segment files or raw log folders.
+        #[arg(required = true)]
+        paths: Vec<PathBuf>,
+    },
 }
 
 fn main() -> Result<()> {
@@ -65,6 +73,9 @@ fn main() -> Result<()> {
         )
         .init();
     let cli = Cli::parse();
+    if let Command::RawExport { paths } = &cli.command {
+        return aer_raspi::rawlog::export::candump(paths, std::io::stdout().lock());
+    }
     let mut config = Config::load(cli.config.as_deref(), |key| std::env::var(key).ok())?;
     if matches!(cli.command, Command::Demo)
         && std::env::var_os("AER_STORE_PATH").is_none()
@@ -82,6 +93,7 @@ fn main() -> Result<()> {
         Command::Replay { file, fast } => Job::Replay { file, fast },
         Command::Synthetic { rate, packets } => Job::Synthetic { rate, packets },
         Command::Demo => Job::Demo,
+        Command::RawExport { .. } => return Ok(()),
     };
     runtime.block_on(serve(config, job))
 }

@@ -2,6 +2,7 @@
 //! which the firmware sends, when data last came) and the metrics (every counter, packet
 //! rate, store lag); in the demo also a console line.
 
+use crate::health::Health;
 use crate::sink::mqtt::Publisher;
 use aer_host::counters::Counters;
 use aer_host::status::{METRICS, STATUS, metrics, status};
@@ -14,6 +15,7 @@ pub async fn run(
     publisher: Publisher,
     car_id: String,
     counters: Arc<Counters>,
+    health: Arc<Health>,
     cancel: CancellationToken,
     console: bool,
 ) {
@@ -26,17 +28,21 @@ pub async fn run(
         }
         let now = counters.snapshot();
         let metrics = metrics(now, previous);
-        publisher.publish_on(&STATUS, &status(&car_id, &counters), true);
+        let status = status(&car_id, &counters, health.problems());
+        publisher.publish_on(&STATUS, &status, true);
         publisher.publish_on(&METRICS, &metrics, false);
         if console {
             println!(
-                "packets {:>7} ({:>4}/s)  frames {:>8}  stored {:>8}  published {:>8}  dropped {}  errors isotp {} decode {} unknown {} bad-lines {}",
+                "packets {:>7} ({:>4}/s)  frames {:>8}  raw {:>8}  stored {:>8}  published {:>8}  dropped mqtt {} store {} raw {}  errors isotp {} decode {} unknown {} bad-lines {}",
                 now.packets,
                 metrics.packets_per_s,
                 now.frames,
+                now.raw_frames,
                 now.stored,
                 now.published,
                 now.publish_dropped,
+                now.store_dropped,
+                now.raw_dropped,
                 now.isotp_errors,
                 now.decode_errors,
                 now.unknown_ids,

@@ -1,16 +1,24 @@
-//! The service assembled: a source -> the ingest stage -> the MQTT and store sinks, with the
-//! reporter, the forwarder, and an orderly shutdown (Ctrl-C cancels the source; the stage
-//! drains; the store writes its last rows; MQTT sends what is queued).
+//! The service assembled: a source -> the ingest stage (raw log first) -> the MQTT and store
+//! sinks, with the reporter, the forwarder, and an orderly shutdown bounded in time: SIGINT
+//! or SIGTERM cancels the source; the stage drains; the raw log and the store write what they
+//! hold (a failing store is given a few seconds); MQTT sends what is queued.
 
+use crate::broker::SERVICE_IDS;
 use crate::config::{self, Config};
+use crate::health::Health;
 use crate::ingest::Stage;
+use crate::rawlog::writer::{RawWriter, Settings};
+use crate::rawlog::{RawTap, segments};
 use crate::sink::Sink;
 use crate::sink::mqtt::{self, Publisher};
-use crate::sink::store::{self, StoreSink, StoreWriter};
-use crate::source::replay::{ReplayOptions, replay};
+use crate::sink::store::{
+    self, Budget, Retention, StoreSink, StoreWriter, WhenFull, WriterOptions,
+};
+use crate::source::replay::{ReplayOptions, replay, replay_segment};
 use crate::source::{self, Replies};
 use crate::{broker, forward, report};
 use aer_host::counters::Counters;
+use aer_host::rawlog::SegmentReader;
 use anyhow::{Context, Result};
 use std::io::BufReader;
 use std::path::PathBuf;
@@ -45,18 +53,24 @@ struct Mqtt {
     address: String,
 }
 
-/// Runs `job` until its source ends or Ctrl-C.
+/// How long each part may take to finish at shutdown before the service exits anyway.
+const STOP_WAIT: Duration = Duration::from_secs(5);
+
+/// Runs `job` until its source ends, SIGINT (Ctrl-C) or SIGTERM (systemd).
 pub async fn serve(config: Config, job: Job) -> Result<()> {
     let counters = Arc::new(Counters::default());
+    let health = Arc::new(Health::default());
     let cancel = CancellationToken::new();
-    // The store first: a bad path must stop the service before anything else starts.
-    let writer = StoreWriter::start(store::open(&config.store.path)?, counters.clone());
-    info!(path = %config.store.path.display(), "local store open");
-    let mqtt = start_mqtt(&config, &counters).await?;
+    // The store first: a bad path must stop the service before anything else starts (a
+    // damaged file is moved aside and reported instead).
+    let writer = start_store(&config, &job, &counters, &health)?;
+    let raw_log = start_raw_log(&config, &job, &counters, &health)?;
+    let mqtt = start_mqtt(&config, &counters, &health, &cancel).await?;
     let reporter = tokio::spawn(report::run(
         mqtt.publisher.clone(),
         config.car_id.clone(),
         counters.clone(),
+        health.clone(),
         cancel.clone(),
         job == Job::Demo,
     ));
@@ -65,10 +79,11 @@ pub async fn serve(config: Config, job: Job) -> Result<()> {
             config.tdengine.clone(),
             config.store.path.clone(),
             counters.clone(),
+            health.clone(),
             cancel.clone(),
         ))
     });
-    stop_on_ctrl_c(cancel.clone());
+    stop_on_signals(cancel.clone())?;
 
     let (inputs, batches) = source::channel();
     let replies = start_source(&config, &job, inputs, &counters, &cancel, &mqtt.address)?;
@@ -80,21 +95,32 @@ pub async fn serve(config: Config, job: Job) -> Result<()> {
     if job == Job::Live && config.can.isotp == config::IsoTpMode::Kernel {
         stage = stage.with_kernel_isotp();
     }
+    let mut raw_writer = None;
+    if let Some((writer, blocks)) = raw_log {
+        stage = stage.with_raw_log(RawTap::new(blocks, counters.clone()));
+        raw_writer = Some(writer);
+    }
+    // Dropping the stage hands the raw log its last block and lets the store's queue close.
     drop(stage.run(batches).await);
 
-    // The source is done (or stopped): stop the rest, writing and sending what is left.
+    // The source is done (or stopped): stop the rest, writing and sending what is left, each
+    // part within its time.
     cancel.cancel();
-    tokio::task::spawn_blocking(move || writer.finish())
-        .await
-        .ok();
+    finish_blocking("local store", move || writer.finish()).await;
+    if let Some(raw_writer) = raw_writer {
+        finish_blocking("raw log", move || raw_writer.finish()).await;
+    }
     let _ = tokio::time::timeout(Duration::from_secs(2), reporter).await;
     if let Some(forwarder) = forwarder {
-        let _ = tokio::time::timeout(Duration::from_secs(5), forwarder).await;
+        let _ = tokio::time::timeout(STOP_WAIT, forwarder).await;
     }
-    mqtt.publisher.disconnect().await;
-    if tokio::time::timeout(Duration::from_secs(2), mqtt.connection)
+    // An unreachable broker with a full queue would make this wait for ever.
+    if tokio::time::timeout(Duration::from_secs(2), mqtt.publisher.disconnect())
         .await
         .is_err()
+        || tokio::time::timeout(Duration::from_secs(2), mqtt.connection)
+            .await
+            .is_err()
     {
         warn!("MQTT queue not drained within 2 s");
     }
@@ -102,21 +128,112 @@ pub async fn serve(config: Config, job: Job) -> Result<()> {
     Ok(())
 }
 
+/// Runs `finish` off the runtime, waiting at most [`STOP_WAIT`] for it.
+async fn finish_blocking(part: &str, finish: impl FnOnce() + Send + 'static) {
+    let task = tokio::task::spawn_blocking(finish);
+    if tokio::time::timeout(STOP_WAIT, task).await.is_err() {
+        warn!(
+            part,
+            "did not finish within {} s; stopping anyway",
+            STOP_WAIT.as_secs()
+        );
+    }
+}
+
+/// Opens (or recovers) the store and starts its writer with the retention budget.
+fn start_store(
+    config: &Config,
+    job: &Job,
+    counters: &Arc<Counters>,
+    health: &Arc<Health>,
+) -> Result<StoreWriter> {
+    let (db, recovered) = store::open_or_recover(&config.store.path)?;
+    if let Some(report) = recovered {
+        health.store_recovered.failed(&report);
+    }
+    info!(path = %config.store.path.display(), "local store open");
+    let retention = &config.retention;
+    let budget = Budget {
+        max_bytes: config.store.max_bytes,
+        max_age: max_age(retention.max_age_days),
+        min_free_bytes: retention.min_free_bytes,
+        interval: Duration::from_secs(retention.check_seconds.max(1)),
+    };
+    Ok(StoreWriter::with_options(
+        db,
+        counters.clone(),
+        WriterOptions {
+            retention: Some(Retention::new(config.store.path.clone(), budget)),
+            health: health.clone(),
+            queue_rows: None,
+            // A replay is not live: it waits for the store rather than dropping rows.
+            when_full: if matches!(job, Job::Replay { .. }) {
+                WhenFull::Wait
+            } else {
+                WhenFull::Drop
+            },
+        },
+    ))
+}
+
+fn max_age(days: u64) -> Option<Duration> {
+    (days > 0).then(|| Duration::from_secs(days.saturating_mul(86_400)))
+}
+
+/// Starts the raw log's writer, unless it is off or the job replays a log (which is its own
+/// record).
+fn start_raw_log(
+    config: &Config,
+    job: &Job,
+    counters: &Arc<Counters>,
+    health: &Arc<Health>,
+) -> Result<Option<(RawWriter, std::sync::mpsc::SyncSender<crate::rawlog::Block>)>> {
+    let raw = &config.raw_log;
+    if !raw.enabled || matches!(job, Job::Replay { .. }) {
+        return Ok(None);
+    }
+    let settings = Settings {
+        dir: raw.dir.clone(),
+        segment_bytes: raw.segment_bytes.max(64 * 1024),
+        segment_age: Duration::from_secs(raw.segment_minutes.max(1) * 60),
+        sync_every: Duration::from_millis(raw.sync_ms.clamp(10, 60_000)),
+        budget: segments::Budget {
+            max_bytes: raw.max_bytes,
+            max_age: max_age(config.retention.max_age_days),
+            min_free_bytes: config.retention.min_free_bytes,
+        },
+    };
+    let started = RawWriter::start(settings, counters.clone(), health.clone())
+        .with_context(|| format!("creating the raw log folder {}", raw.dir.display()))?;
+    info!(dir = %raw.dir.display(), "raw log open");
+    Ok(Some(started))
+}
+
 /// Starts the embedded broker and publishes into it, or connects to the configured broker.
-async fn start_mqtt(config: &Config, counters: &Arc<Counters>) -> Result<Mqtt> {
-    let client_id = format!("aer-raspi-{}", config.car_id);
+async fn start_mqtt(
+    config: &Config,
+    counters: &Arc<Counters>,
+    health: &Arc<Health>,
+    cancel: &CancellationToken,
+) -> Result<Mqtt> {
+    let client_id = format!("{SERVICE_IDS}-{}", config.car_id);
     let mut address = format!("{}:{}", config.mqtt.host, config.mqtt.port);
     let (publisher, driver) = if config.broker.embedded {
         let broker_config = broker::load(config.broker.config.as_deref())?;
         if let Some(listener) = broker::listeners(&broker_config).first() {
             address = listener.to_string();
         }
-        let link = broker::spawn(broker_config, &client_id)?;
+        // Only the service publishes under the topic root, whatever the car.
+        let protected = format!("{}/", config.mqtt.topic_prefix.trim_end_matches('/'));
+        let broker = broker::spawn(broker_config, SERVICE_IDS, &protected)?;
+        broker::gate::start(broker.gate, counters.clone(), cancel.clone()).await?;
         mqtt::embedded(
-            link,
+            broker.link,
+            broker.spares,
             config.broker.queue,
             config.topic_prefix(),
             counters.clone(),
+            health.clone(),
         )
     } else {
         mqtt::connect(
@@ -144,13 +261,32 @@ async fn start_mqtt(config: &Config, counters: &Arc<Counters>) -> Result<Mqtt> {
     })
 }
 
-fn stop_on_ctrl_c(cancel: CancellationToken) {
+/// Cancels on SIGINT (Ctrl-C) or SIGTERM (what systemd sends to stop a service).
+#[cfg(unix)]
+fn stop_on_signals(cancel: CancellationToken) -> Result<()> {
+    use tokio::signal::unix::{SignalKind, signal};
+    let mut terminate = signal(SignalKind::terminate()).context("handling SIGTERM")?;
+    let mut interrupt = signal(SignalKind::interrupt()).context("handling SIGINT")?;
+    tokio::spawn(async move {
+        let name = tokio::select! {
+            _ = terminate.recv() => "SIGTERM",
+            _ = interrupt.recv() => "SIGINT",
+        };
+        info!(signal = name, "flushing and stopping");
+        cancel.cancel();
+    });
+    Ok(())
+}
+
+#[cfg(not(unix))]
+fn stop_on_signals(cancel: CancellationToken) -> Result<()> {
     tokio::spawn(async move {
         if tokio::signal::ctrl_c().await.is_ok() {
             info!("Ctrl-C: flushing and stopping");
             cancel.cancel();
         }
     });
+    Ok(())
 }
 
 /// Starts `job`'s source on its own task, sending to `inputs`; returns where flow control goes.
@@ -166,14 +302,29 @@ fn start_source(
     match job.clone() {
         Job::Live => return start_live(config, inputs, &cancel),
         Job::Replay { file, fast } => {
-            let log = std::fs::File::open(&file)
-                .with_context(|| format!("opening {}", file.display()))?;
             let options = ReplayOptions {
                 fast,
                 restamp: false,
             };
+            let mut log = std::fs::File::open(&file)
+                .with_context(|| format!("opening {}", file.display()))?;
+            let mut start = [0u8; 8];
+            let raw = std::io::Read::read(&mut log, &mut start)
+                .is_ok_and(|n| SegmentReader::is_segment(start.get(..n).unwrap_or(&[])));
+            let log = std::fs::File::open(&file)
+                .with_context(|| format!("opening {}", file.display()))?;
             tokio::spawn(async move {
-                let stats = replay(BufReader::new(log), inputs, &counters, options, &cancel).await;
+                let stats = if raw {
+                    let data = std::fs::read(&file).unwrap_or_default();
+                    replay_segment(&data, inputs, &counters, options, &cancel)
+                        .await
+                        .unwrap_or_else(|error| {
+                            warn!(%error, file = %file.display(), "not a readable raw log segment");
+                            Default::default()
+                        })
+                } else {
+                    replay(BufReader::new(log), inputs, &counters, options, &cancel).await
+                };
                 info!(
                     lines = stats.lines,
                     frames = stats.frames,

@@ -6,7 +6,7 @@
 use aer::mqtt::{Sample, TELEMETRY, TelemetryRecord};
 use aer_host::counters::Counters;
 use aer_host::ingest::decode_log;
-use aer_host::status::{METRICS, STATUS, metrics, status};
+use aer_host::status::{METRICS, Problems, STATUS, metrics, status};
 use aer_raspi::broker;
 use aer_raspi::config::BrokerOptions;
 use aer_raspi::ingest::Stage;
@@ -20,6 +20,7 @@ use std::io::{BufRead, BufReader};
 use std::process::{Command, Stdio};
 use std::sync::Arc;
 use std::time::Duration;
+use tokio_util::sync::CancellationToken;
 
 const SESSION: &str = include_str!("../data/session.log");
 
@@ -32,14 +33,17 @@ fn free_port() -> u16 {
 
 /// The broker of the repository's config on `port`, with segments large enough to hold a
 /// fast replay for a slow subscriber (the Pi's config is sized for 100 packets/s); returns the
-/// service's in-process link to it.
-fn start_broker(port: u16) -> broker::Link {
+/// service's links to it.
+async fn start_broker(port: u16, counters: &Arc<Counters>) -> broker::Broker {
     let text = broker::DEFAULT_CONFIG
         .replace("127.0.0.1:1883", &format!("127.0.0.1:{port}"))
         .replace("max_segment_size = 262144", "max_segment_size = 67108864");
-    let config: rumqttd::Config = toml::from_str(&text).expect("broker config");
-    broker::check(&config).expect("loopback only");
-    broker::spawn(config, "e2e-ingest").expect("broker thread")
+    let mut config = broker::parse(&text).expect("loopback only");
+    // The test reads its subscribers only after the replay: not a client that stopped reading.
+    config.stall_limit = Duration::from_secs(120);
+    broker::start(config, counters.clone(), CancellationToken::new())
+        .await
+        .expect("broker thread")
 }
 
 /// The regular DBC frames in the log: every frame but the telemetry's ISO-TP and flow control.
@@ -68,7 +72,8 @@ async fn every_packet_reaches_both_subscribers_and_the_store() {
     assert_eq!(expected.len(), 4_500, "45 s at 100 Hz");
 
     let port = free_port();
-    let link = start_broker(port);
+    let counters = Arc::new(Counters::default());
+    let broker = start_broker(port, &counters).await;
 
     // rumqttc subscriber, subscribed (SubAck seen) before anything is published.
     let mut options = MqttOptions::new("e2e-subscriber", "127.0.0.1", port);
@@ -120,13 +125,14 @@ async fn every_packet_reaches_both_subscribers_and_the_store() {
         .spawn()
         .expect("mosquitto_sub (Debian package mosquitto-clients; .ci/run installs it)");
     let mut lines = BufReader::new(mosquitto.stdout.take().expect("stdout")).lines();
-    let counters = Arc::new(Counters::default());
     // The service's own path: in process into the embedded broker.
     let (publisher, driver) = publish::embedded(
-        link,
+        broker.link,
+        broker.spares,
         BrokerOptions::default().queue,
         "aer/car1".into(),
         counters.clone(),
+        Arc::default(),
     );
     let (up_tx, mut up) = tokio::sync::watch::channel(false);
     tokio::spawn(publish::drive(driver, up_tx));
@@ -187,7 +193,11 @@ async fn every_packet_reaches_both_subscribers_and_the_store() {
     assert_eq!(snapshot.stored, 4_500 + can_frames());
 
     // The status is retained: a subscriber that comes later still gets it.
-    publisher.publish_on(&STATUS, &status("car1", &counters), true);
+    publisher.publish_on(
+        &STATUS,
+        &status("car1", &counters, Problems::default()),
+        true,
+    );
     publisher.publish_on(&METRICS, &metrics(snapshot, snapshot), false);
     let late = Command::new("mosquitto_sub")
         .args(["-h", "127.0.0.1", "-p", &port.to_string()])

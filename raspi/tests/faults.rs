@@ -187,21 +187,25 @@ fn the_cursor_gives_no_duplicates_and_no_gaps_across_failures_and_restarts() {
     };
     let db = store::open(&path).expect("reopen");
     // A batch that TDengine refused: the cursor stays.
-    let (last, rows) = next_batch(&db, 0, 5).expect("batch");
-    assert_eq!(sequences(&rows), [0, 1, 2, 3, 4]);
+    let batch = next_batch(&db, 0, 5).expect("batch");
+    let last = batch.last_id();
+    assert_eq!(sequences(&batch.rows), [0, 1, 2, 3, 4]);
     drop(db);
     // Restart: the same rows again (no gap), then accepted.
     let db = store::open(&path).expect("restart");
-    let (again, rows) = next_batch(&db, 0, 5).expect("batch");
-    assert_eq!((again, sequences(&rows)), (last, vec![0, 1, 2, 3, 4]));
-    advance(&db, 0, again).expect("cursor");
+    let batch = next_batch(&db, 0, 5).expect("batch");
+    assert_eq!(
+        (batch.last_id(), sequences(&batch.rows)),
+        (last, vec![0, 1, 2, 3, 4])
+    );
+    advance(&db, 0, batch.last_id().expect("rows")).expect("cursor");
     drop(db);
     // Restart after success: only what follows (no duplicate).
     let db = store::open(&path).expect("restart");
-    let (last, rows) = next_batch(&db, 0, 100).expect("batch");
-    assert_eq!(sequences(&rows), (5..12).collect::<Vec<_>>());
-    advance(&db, 0, last).expect("cursor");
-    assert!(next_batch(&db, 0, 100).expect("batch").1.is_empty());
+    let batch = next_batch(&db, 0, 100).expect("batch");
+    assert_eq!(sequences(&batch.rows), (5..12).collect::<Vec<_>>());
+    advance(&db, 0, batch.last_id().expect("rows")).expect("cursor");
+    assert!(next_batch(&db, 0, 100).expect("batch").rows.is_empty());
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -235,6 +239,7 @@ async fn without_tdengine_rows_stay_and_the_forwarder_retries() {
         config,
         path.clone(),
         counters.clone(),
+        Arc::default(),
         cancel.clone(),
     ));
     // Wait (bounded) until both workers have failed to connect at least once.
@@ -249,8 +254,8 @@ async fn without_tdengine_rows_stay_and_the_forwarder_retries() {
     let _ = tokio::time::timeout(Duration::from_secs(10), forwarder).await;
     assert_eq!(counters.snapshot().forwarded, 0);
     let db = store::open(&path).expect("store");
-    let (_, rows) = next_batch(&db, 0, 5_000).expect("batch");
-    assert_eq!(rows.len(), 5, "every telemetry row is still waiting");
+    let batch = next_batch(&db, 0, 5_000).expect("batch");
+    assert_eq!(batch.rows.len(), 5, "every telemetry row is still waiting");
 }
 
 #[tokio::test]

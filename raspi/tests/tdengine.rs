@@ -45,7 +45,13 @@ async fn the_forwarder_moves_every_row_into_tdengine() {
         dsn: dsn.clone(),
         ..TdengineConfig::default()
     };
-    let forwarder = tokio::spawn(forward::run(config, path, counters.clone(), cancel.clone()));
+    let forwarder = tokio::spawn(forward::run(
+        config,
+        path,
+        counters.clone(),
+        Arc::default(),
+        cancel.clone(),
+    ));
     tokio::time::timeout(Duration::from_secs(120), async {
         while counters.snapshot().forwarded < stored {
             tokio::time::sleep(Duration::from_millis(100)).await;

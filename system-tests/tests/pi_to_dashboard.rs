@@ -10,9 +10,8 @@ use aer_dashboard::screenshot::PIT_SIZE;
 use aer_dashboard::session;
 use aer_dashboard::session::BUNDLED_SESSION;
 use aer_dashboard::ui::App;
-use aer_host::config::BrokerConfig;
 use aer_host::counters::Counters;
-use aer_host::status::{STATUS, status};
+use aer_host::status::{Problems, STATUS, status};
 use aer_raspi::broker;
 use aer_raspi::config::BrokerOptions;
 use aer_raspi::ingest::Stage;
@@ -22,6 +21,7 @@ use aer_raspi::source::Replies;
 use iced::futures::StreamExt;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
+use tokio_util::sync::CancellationToken;
 
 fn free_port() -> u16 {
     std::net::TcpListener::bind("127.0.0.1:0")
@@ -50,10 +50,13 @@ async fn a_replayed_session_reaches_the_dashboard_intact() {
     let text = broker::DEFAULT_CONFIG
         .replace("127.0.0.1:1883", &format!("127.0.0.1:{port}"))
         .replace("max_segment_size = 262144", "max_segment_size = 67108864");
-    let broker_config: rumqttd::Config = toml::from_str(&text).expect("broker config");
-    // The Pi's own in-process link is not used here: this test publishes with rumqttc over TCP,
-    // as the Pi service does with a broker elsewhere.
-    let _link = broker::spawn(broker_config, "e2e-pi-link").expect("broker");
+    let mut broker_config = broker::parse(&text).expect("broker config");
+    // The dashboard is read only after the replay: not a client that stopped reading.
+    broker_config.stall_limit = Duration::from_secs(120);
+    let counters = Arc::new(Counters::default());
+    let broker = broker::start(broker_config, counters.clone(), CancellationToken::new())
+        .await
+        .expect("broker");
 
     // The dashboard's link: connected means subscribed.
     let settings = Settings {
@@ -74,15 +77,17 @@ async fn a_replayed_session_reaches_the_dashboard_intact() {
         }
     }
 
-    // The Pi service: replay -> ingest -> typed topics, then its retained status.
-    let counters = Arc::new(Counters::default());
-    let mqtt = BrokerConfig {
-        port,
-        ..BrokerConfig::default()
-    };
+    // The Pi service: replay -> ingest -> typed topics (in process, as it publishes into its
+    // embedded broker), then its retained status.
     let queue = BrokerOptions::default().queue;
-    let (publisher, driver) =
-        publish::connect(&mqtt, queue, "e2e-pi", "aer/car1".into(), counters.clone());
+    let (publisher, driver) = publish::embedded(
+        broker.link,
+        broker.spares,
+        queue,
+        "aer/car1".into(),
+        counters.clone(),
+        Arc::default(),
+    );
     let (up_tx, mut up) = tokio::sync::watch::channel(false);
     tokio::spawn(publish::drive(driver, up_tx));
     tokio::time::timeout(Duration::from_secs(10), up.wait_for(|u| *u))
@@ -95,7 +100,11 @@ async fn a_replayed_session_reaches_the_dashboard_intact() {
         .replay_all(BUNDLED_SESSION.as_bytes(), &counters)
         .await;
     drop(stage);
-    publisher.publish_on(&STATUS, &status("car1", &counters), true);
+    publisher.publish_on(
+        &STATUS,
+        &status("car1", &counters, Problems::default()),
+        true,
+    );
     assert_eq!(counters.snapshot().publish_dropped, 0);
 
     let mut received = Vec::new();
@@ -138,8 +147,14 @@ async fn a_listener_with_credentials_admits_only_the_right_ones() {
             "    dynamic_filters = true\n    auth = { pit = \"Xq7-fast-laps\" }",
             1,
         );
-    let broker_config: rumqttd::Config = toml::from_str(&text).expect("broker config");
-    let _link = broker::spawn(broker_config, "e2e-pi-link").expect("broker");
+    let broker_config = broker::parse(&text).expect("broker config");
+    let _broker = broker::start(
+        broker_config,
+        Arc::new(Counters::default()),
+        CancellationToken::new(),
+    )
+    .await
+    .expect("broker");
 
     let settings = |credentials: Option<(&str, &str)>| Settings {
         host: "127.0.0.1".into(),

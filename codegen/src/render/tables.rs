@@ -206,13 +206,6 @@ impl Table {
         )
     }
 
-    pub fn sqlite_index(&self) -> String {
-        format!(
-            "CREATE INDEX IF NOT EXISTS \"{0}_ts\" ON \"{0}\" (\"ts\")",
-            self.name
-        )
-    }
-
     /// `INSERT INTO ... VALUES (?1, ...)`, one parameter per column of the local row.
     pub fn sqlite_insert(&self) -> String {
         let names: Vec<String> = self

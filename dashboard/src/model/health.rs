@@ -179,6 +179,9 @@ mod tests {
             firmware_fingerprint_seen: None,
             fingerprint_match: firmware_ok,
             last_packet_ts: None,
+            undecodable_packets: 0,
+            undecodable_fingerprint: None,
+            problems: Default::default(),
         };
         health.status = Some(status(&ours, Some(true)));
         assert_eq!(health.schema_match(), SchemaMatch::Match);

@@ -9,6 +9,7 @@
 //! own task.
 
 use crate::broker;
+use crate::health::Health;
 use aer::mqtt::{TELEMETRY, TelemetryRecord, Topic, encode_message};
 use aer_host::clock::seconds;
 use aer_host::config::BrokerConfig;
@@ -20,7 +21,7 @@ use serde::Serialize;
 use std::sync::Arc;
 use std::sync::Mutex;
 use std::time::Duration;
-use tracing::{info, warn};
+use tracing::{error, info, warn};
 
 /// Sends records to the broker.
 #[derive(Clone)]
@@ -83,31 +84,48 @@ impl EmbeddedLink {
 pub enum Driver {
     /// Reads what the embedded broker's router sends back on the in-process link, until the
     /// publisher disconnects.
-    Embedded(LinkRx, Arc<tokio::sync::Notify>),
+    Embedded(Box<EmbeddedDriver>),
     /// The rumqttc event loop.
     Remote(Box<EventLoop>),
 }
 
-/// A publisher into the embedded broker over its in-process `link`.
+/// A publisher into the embedded broker over its in-process `link`; should the broker drop
+/// that link, the publisher switches to one of the `spares`.
 pub fn embedded(
     link: broker::Link,
+    spares: Vec<broker::Link>,
     queue: usize,
     prefix: String,
     counters: Arc<Counters>,
+    health: Arc<Health>,
 ) -> (Publisher, Driver) {
     let closed = Arc::new(tokio::sync::Notify::new());
-    let connection = Connection::Embedded(
-        Arc::new(Mutex::new(EmbeddedLink {
-            tx: link.tx,
-            queue: queue.max(1),
-            held: None,
-        })),
-        closed.clone(),
-    );
+    let shared = Arc::new(Mutex::new(EmbeddedLink {
+        tx: link.tx,
+        queue: queue.max(1),
+        held: None,
+    }));
+    let connection = Connection::Embedded(shared.clone(), closed.clone());
     (
         Publisher::new(connection, prefix, counters),
-        Driver::Embedded(link.rx, closed),
+        Driver::Embedded(Box::new(EmbeddedDriver {
+            rx: link.rx,
+            link: shared,
+            spares,
+            closed,
+            health,
+        })),
     )
+}
+
+/// What keeps the embedded link going: reads what the router sends back, and replaces the
+/// link if the router drops it.
+pub struct EmbeddedDriver {
+    rx: LinkRx,
+    link: Arc<Mutex<EmbeddedLink>>,
+    spares: Vec<broker::Link>,
+    closed: Arc<tokio::sync::Notify>,
+    health: Arc<Health>,
 }
 
 /// A publisher to the broker `config` names, over TCP, queueing up to `queue` messages. It
@@ -147,12 +165,12 @@ pub fn connect(
 /// (the link itself stays open: the router logs errors when a local link disconnects).
 pub async fn drive(driver: Driver, connected_tx: tokio::sync::watch::Sender<bool>) {
     match driver {
-        Driver::Embedded(mut rx, closed) => {
+        Driver::Embedded(mut driver) => {
             let _ = connected_tx.send(true);
             loop {
                 tokio::select! {
-                    () = closed.notified() => return,
-                    received = rx.next() => if received.is_err() {
+                    () = driver.closed.notified() => return,
+                    received = driver.rx.next() => if received.is_err() && !driver.replace() {
                         return;
                     },
                 }
@@ -183,6 +201,34 @@ async fn drive_remote(mut eventloop: EventLoop, connected_tx: tokio::sync::watch
                 tokio::time::sleep(Duration::from_secs(1)).await;
             }
         }
+    }
+}
+
+impl EmbeddedDriver {
+    /// The router dropped the link (another connection took its id): switches the publisher
+    /// to a spare. False when none is left.
+    fn replace(&mut self) -> bool {
+        let Some(spare) = self.spares.pop() else {
+            self.health.mqtt.failed(
+                "the broker dropped the service's link and no spare is left: nothing is published",
+            );
+            error!("the embedded broker dropped the service's link; no spare left");
+            return false;
+        };
+        if let Ok(mut link) = self.link.lock() {
+            link.tx = spare.tx;
+            link.held = None;
+        }
+        self.rx = spare.rx;
+        self.health.mqtt.failed(&format!(
+            "the broker dropped the service's link; publishing on a spare ({} left)",
+            self.spares.len()
+        ));
+        warn!(
+            spares = self.spares.len(),
+            "the embedded broker dropped the service's link; switched to a spare"
+        );
+        true
     }
 }
 

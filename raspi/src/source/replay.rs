@@ -1,9 +1,11 @@
-//! A recorded candump log (`candump -l` / `-L`), at recorded speed or flat out.
+//! A recorded log, at recorded speed or flat out: candump text (`candump -l` / `-L`) or a
+//! segment of the service's own raw log.
 
 use super::{Batcher, BusNames, Input, Sender};
-use aer_host::candump::parse_line;
+use aer_host::candump::{LoggedFrame, parse_line};
 use aer_host::clock::now_us;
 use aer_host::counters::{Counters, worth_logging};
+use aer_host::rawlog::SegmentReader;
 use std::io::BufRead;
 use std::time::Duration;
 use tokio::time::Instant;
@@ -36,6 +38,98 @@ pub struct ReplayStats {
     pub bad_lines: u64,
 }
 
+/// Hands frames on at their recorded pace (or flat out), restamped if asked.
+struct Pacer {
+    batcher: Batcher,
+    buses: BusNames,
+    options: ReplayOptions,
+    origin: Option<(u64, Instant)>,
+}
+
+impl Pacer {
+    fn new(out: Sender, options: ReplayOptions) -> Self {
+        Self {
+            batcher: Batcher::new(out),
+            buses: BusNames::default(),
+            options,
+            origin: None,
+        }
+    }
+
+    /// Sends `frame` from interface `interface` when it is due; false once nothing
+    /// downstream listens or `cancel` fired.
+    async fn send(
+        &mut self,
+        interface: &str,
+        mut frame: LoggedFrame,
+        cancel: &CancellationToken,
+    ) -> bool {
+        let (bus, announcement) = self.buses.index(interface);
+        frame.bus = bus;
+        if let Some(announcement) = announcement {
+            if !self.batcher.push(announcement).await {
+                return false;
+            }
+        }
+        if !self.options.fast {
+            let (first_us, start) = *self.origin.get_or_insert((frame.ts_us, Instant::now()));
+            let due = start + Duration::from_micros(frame.ts_us.saturating_sub(first_us));
+            if due > Instant::now() {
+                if !self.batcher.flush().await {
+                    return false;
+                }
+                tokio::select! {
+                    () = tokio::time::sleep_until(due) => {}
+                    () = cancel.cancelled() => return false,
+                }
+            }
+        }
+        if self.options.restamp {
+            frame.ts_us = now_us();
+        }
+        self.batcher.push(Input::Frame(frame)).await
+    }
+
+    async fn finish(mut self) {
+        self.batcher.flush().await;
+    }
+}
+
+/// Replays a raw log segment (`data`, its whole bytes) into `out` until its end, `cancel`, or
+/// nothing downstream listening. Damaged or cut-short blocks are counted (`bad_lines`),
+/// logged and skipped.
+pub async fn replay_segment(
+    data: &[u8],
+    out: Sender,
+    counters: &Counters,
+    options: ReplayOptions,
+    cancel: &CancellationToken,
+) -> Result<ReplayStats, aer_host::rawlog::RawError> {
+    let reader = SegmentReader::new(data)?;
+    let mut stats = ReplayStats::default();
+    let mut pacer = Pacer::new(out, options);
+    for (number, item) in reader.enumerate() {
+        if cancel.is_cancelled() {
+            break;
+        }
+        stats.lines += 1;
+        match item {
+            Ok(raw) => {
+                stats.frames += 1;
+                if !pacer.send(&raw.interface, raw.frame, cancel).await {
+                    break;
+                }
+            }
+            Err(error) => {
+                stats.bad_lines += 1;
+                bad_line(counters, number, &error);
+            }
+        }
+    }
+    pacer.finish().await;
+    Ok(stats)
+}
+
 /// Replays `log` into `out` until its end, `cancel`, or nothing downstream listening. Broken
 /// lines are counted (`bad_lines`) and skipped.
 pub async fn replay(
@@ -46,9 +140,8 @@ pub async fn replay(
     cancel: &CancellationToken,
 ) -> ReplayStats {
     let mut stats = ReplayStats::default();
-    let mut batcher = Batcher::new(out);
-    let mut buses = BusNames::default();
-    let mut origin: Option<(u64, Instant)> = None;
+    let mut pacer = Pacer::new(out, options);
+    let mut interface = String::new();
     for (number, line) in log.lines().enumerate() {
         if cancel.is_cancelled() {
             break;
@@ -66,13 +159,12 @@ pub async fn replay(
         if line.trim().is_empty() {
             continue;
         }
-        let mut announced = None;
         let parsed = parse_line(&line, |name| {
-            let (index, announcement) = buses.index(name);
-            announced = announcement;
-            index
+            interface.clear();
+            interface.push_str(name);
+            0
         });
-        let mut frame = match parsed {
+        let frame = match parsed {
             Ok(frame) => frame,
             Err(error) => {
                 stats.bad_lines += 1;
@@ -80,33 +172,12 @@ pub async fn replay(
                 continue;
             }
         };
-        if let Some(announcement) = announced {
-            if !batcher.push(announcement).await {
-                break;
-            }
-        }
-        if !options.fast {
-            let (first_us, start) = *origin.get_or_insert((frame.ts_us, Instant::now()));
-            let due = start + Duration::from_micros(frame.ts_us.saturating_sub(first_us));
-            if due > Instant::now() {
-                if !batcher.flush().await {
-                    break;
-                }
-                tokio::select! {
-                    () = tokio::time::sleep_until(due) => {}
-                    () = cancel.cancelled() => break,
-                }
-            }
-        }
-        if options.restamp {
-            frame.ts_us = now_us();
-        }
         stats.frames += 1;
-        if !batcher.push(Input::Frame(frame)).await {
+        if !pacer.send(&interface, frame, cancel).await {
             break;
         }
     }
-    batcher.flush().await;
+    pacer.finish().await;
     stats
 }
 

@@ -1,19 +1,23 @@
 //! The durable local store (SQLite, bundled): the generated tables, written in batches by one
-//! thread, plus the forwarder's cursor table. Nothing is dropped on the way in: a full queue
-//! slows the producer down instead.
+//! thread, plus the forwarder's cursor and set-aside tables. Live telemetry never waits for
+//! it: a store that is behind or failing drops rows (counted, reported) while the raw log
+//! keeps their frames.
 //!
-//! [`schema`] opens and migrates the file, [`row`] turns records into rows, [`queue`] holds
-//! them for the [`writer`] thread; [`StoreSink`] is what ingest hands records to.
+//! [`schema`] opens, checks and migrates the file, [`row`] turns records into rows, [`queue`]
+//! holds them for the [`writer`] thread, [`retention`] keeps the file within its budget;
+//! [`StoreSink`] is what ingest hands records to.
 
 pub mod queue;
+pub mod retention;
 pub mod row;
 pub mod schema;
 pub mod writer;
 
-pub use queue::RowSender;
+pub use queue::{RowSender, WhenFull};
+pub use retention::{Budget, Retention};
 pub use row::{Row, RowData};
-pub use schema::{CURSOR_TABLE, StoreError, open};
-pub use writer::StoreWriter;
+pub use schema::{CURSOR_TABLE, SET_ASIDE_TABLE, StoreError, open, open_or_recover};
+pub use writer::{StoreWriter, WriterOptions};
 
 use super::Sink;
 use aer_host::ingest::Record;
@@ -37,7 +41,7 @@ impl StoreSink {
 
 impl Sink for StoreSink {
     fn accept(&mut self, record: &Record, buses: &[Arc<str>]) {
-        // Blocks while the writer is behind: the store never drops.
-        self.rows.send(row::row(record, &self.car_id, buses));
+        // Never waits: a full queue drops the row and counts it.
+        let _ = self.rows.send(row::row(record, &self.car_id, buses));
     }
 }

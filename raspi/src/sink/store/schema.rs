@@ -1,11 +1,16 @@
 //! Opening the store: the generated tables, migrated to this schema, and the forwarder's
-//! cursor table.
+//! cursor and set-aside tables; a damaged file is moved aside so the service can start.
+//!
+//! Durability: WAL with `synchronous = FULL`, so a committed transaction survives a power cut
+//! (the writer commits once a second). What a power cut loses is what had not been committed:
+//! at most the last second's rows plus whatever waited in the writer's queue; a kill of the
+//! process loses the same, and nothing already committed.
 
 use aer::tables::{TABLES, Table};
-use rusqlite::Connection;
+use rusqlite::{Connection, OpenFlags};
 use std::path::{Path, PathBuf};
 use thiserror::Error;
-use tracing::info;
+use tracing::{error, info};
 
 /// Why the store cannot be used.
 #[derive(Debug, Error)]
@@ -24,38 +29,124 @@ pub enum StoreError {
         #[source]
         source: rusqlite::Error,
     },
+    /// The file is not a database, or fails SQLite's integrity check.
+    #[error("the local store at {path} is damaged: {why}")]
+    Damaged { path: PathBuf, why: String },
+    /// A damaged file could not be moved aside.
+    #[error("cannot move the damaged local store {path} aside: {source}")]
+    MoveAside {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
 }
 
 /// The forwarder's persisted position per table.
 pub const CURSOR_TABLE: &str = "CREATE TABLE IF NOT EXISTS \"forward_cursor\" (\"table_name\" TEXT PRIMARY KEY, \"last_id\" INTEGER NOT NULL)";
 
+/// Rows TDengine refused, kept here (not forwarded again) with TDengine's reason.
+pub const SET_ASIDE_TABLE: &str = "CREATE TABLE IF NOT EXISTS \"forward_set_aside\" (\"table_name\" TEXT NOT NULL, \"row_id\" INTEGER NOT NULL, \"error\" TEXT NOT NULL, \"at_us\" INTEGER NOT NULL, PRIMARY KEY (\"table_name\", \"row_id\"))";
+
 /// Opens (creating if needed) the store at `path` and brings its tables up to this schema:
 /// missing tables are created, missing columns added. Fails at once if the path is not
-/// writable, so a bad path is reported at start-up, not at the first packet.
+/// writable, so a bad path is reported at start-up, not at the first packet; fails with
+/// [`StoreError::Damaged`] if the file is not a sound database.
 pub fn open(path: &Path) -> Result<Connection, StoreError> {
     let open_error = |source| StoreError::Open {
         path: path.to_owned(),
         source,
     };
-    let db = Connection::open(path).map_err(open_error)?;
+    let fresh = !path.exists();
+    let db = Connection::open_with_flags(
+        path,
+        OpenFlags::SQLITE_OPEN_READ_WRITE
+            | OpenFlags::SQLITE_OPEN_CREATE
+            | OpenFlags::SQLITE_OPEN_NO_MUTEX,
+    )
+    .map_err(open_error)?;
+    check(&db).map_err(|why| StoreError::Damaged {
+        path: path.to_owned(),
+        why,
+    })?;
     let schema_error = |source| StoreError::Schema {
         path: path.to_owned(),
         source,
     };
-    // WAL: the forwarder reads while the writer appends; NORMAL sync is durable across
-    // application crashes and loses at most the last transaction on power loss.
+    if fresh {
+        // Pages freed by retention go back to the file system (set before any table).
+        db.pragma_update(None, "auto_vacuum", "INCREMENTAL")
+            .map_err(schema_error)?;
+    }
     db.pragma_update(None, "journal_mode", "WAL")
         .map_err(schema_error)?;
-    db.pragma_update(None, "synchronous", "NORMAL")
+    db.pragma_update(None, "synchronous", "FULL")
         .map_err(schema_error)?;
     for table in TABLES {
-        for statement in table.sqlite.create {
-            db.execute(statement, []).map_err(schema_error)?;
-        }
+        db.execute(table.sqlite.create, []).map_err(schema_error)?;
+        // Stores from before 2026-11 indexed `ts`; the index cost a page write per table per
+        // commit and nothing reads it.
+        db.execute(&format!("DROP INDEX IF EXISTS \"{}_ts\"", table.name), [])
+            .map_err(schema_error)?;
         migrate(&db, table).map_err(schema_error)?;
     }
     db.execute(CURSOR_TABLE, []).map_err(schema_error)?;
+    db.execute(SET_ASIDE_TABLE, []).map_err(schema_error)?;
     Ok(db)
+}
+
+/// Opens the store; a damaged one is moved aside (`<file>.damaged-<unix seconds>`, with its
+/// WAL) and a fresh store started, so a bad file never keeps the service from running.
+/// Returns the connection and, after a recovery, what happened.
+pub fn open_or_recover(path: &Path) -> Result<(Connection, Option<String>), StoreError> {
+    match open(path) {
+        Err(StoreError::Damaged { why, .. }) => {
+            let aside = move_aside(path)?;
+            let report = format!(
+                "the store was damaged ({why}); moved to {} and started afresh",
+                aside.display()
+            );
+            error!("{report}");
+            let db = open(path)?;
+            info!(path = %path.display(), "fresh local store open");
+            Ok((db, Some(report)))
+        }
+        other => other.map(|db| (db, None)),
+    }
+}
+
+/// SQLite's quick integrity check (every page read once; catches torn and garbled files).
+fn check(db: &Connection) -> Result<(), String> {
+    let result: Result<String, _> = db.query_row("PRAGMA quick_check", [], |row| row.get(0));
+    match result {
+        Ok(ok) if ok == "ok" => Ok(()),
+        Ok(problem) => Err(problem),
+        Err(error) => Err(error.to_string()),
+    }
+}
+
+fn move_aside(path: &Path) -> Result<PathBuf, StoreError> {
+    let stamp = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_secs());
+    let with_suffix = |suffix: &str| {
+        let mut name = path.as_os_str().to_owned();
+        name.push(suffix);
+        PathBuf::from(name)
+    };
+    let aside = with_suffix(&format!(".damaged-{stamp}"));
+    std::fs::rename(path, &aside).map_err(|source| StoreError::MoveAside {
+        path: path.to_owned(),
+        source,
+    })?;
+    for companion in ["-wal", "-shm"] {
+        let from = with_suffix(companion);
+        if from.exists() {
+            let mut to = aside.as_os_str().to_owned();
+            to.push(companion);
+            let _ = std::fs::rename(&from, PathBuf::from(to));
+        }
+    }
+    Ok(aside)
 }
 
 /// Adds the columns a store created by an older build lacks.

@@ -1,33 +1,75 @@
 //! The writer thread: takes the queue's rows in batches and commits each batch in one
-//! transaction.
+//! transaction. A failing store (disk full, read-only, I/O error) is retried with backoff and
+//! reported; while it fails the queue fills and new rows are dropped and counted, but nothing
+//! upstream waits. Between batches it applies the retention budget.
 
-use super::queue::{BATCH_ROWS, Queue, RowSender};
+use super::queue::{BATCH_ROWS, BATCH_WAIT, QUEUE_ROWS, Queue, RowSender, WhenFull};
+use super::retention::Retention;
 use super::row::Row;
+use crate::health::Health;
 use aer::tables::TABLES;
-use aer_host::counters::Counters;
+use aer_host::counters::{Counters, worth_logging};
 use rusqlite::Connection;
 use std::sync::Arc;
 use std::sync::atomic::Ordering;
 use std::thread::JoinHandle;
-use std::time::Duration;
-use tracing::error;
+use std::time::{Duration, Instant};
+use tracing::{error, info};
+
+/// Backoff after a failed commit: 1 s doubling to 30 s.
+const RETRY_START: Duration = Duration::from_secs(1);
+const RETRY_MAX: Duration = Duration::from_secs(30);
+/// How long a stopping writer keeps retrying a failing store before it gives up on the rows
+/// it holds (counted as dropped; the raw log has their frames).
+const STOP_GRACE: Duration = Duration::from_secs(3);
 
 /// The writer thread and its queue.
 pub struct StoreWriter {
     sender: Option<RowSender>,
+    queue: Arc<Queue>,
     thread: Option<JoinHandle<()>>,
+}
+
+/// What the writer does besides writing.
+#[derive(Default)]
+pub struct WriterOptions {
+    /// Keeps the store within its budget.
+    pub retention: Option<Retention>,
+    /// Where the writer reports failures.
+    pub health: Arc<Health>,
+    /// Rows that may wait (default [`QUEUE_ROWS`]).
+    pub queue_rows: Option<usize>,
+    /// What senders do when that many wait.
+    pub when_full: WhenFull,
 }
 
 impl StoreWriter {
     /// Starts the writer on `db`.
     pub fn start(db: Connection, counters: Arc<Counters>) -> Self {
-        let (queue, sender) = Queue::new();
+        Self::with_options(db, counters, WriterOptions::default())
+    }
+
+    /// Starts the writer on `db` with retention and health reporting.
+    pub fn with_options(db: Connection, counters: Arc<Counters>, options: WriterOptions) -> Self {
+        let (queue, sender) = Queue::new(
+            options.queue_rows.unwrap_or(QUEUE_ROWS),
+            options.when_full,
+            counters.clone(),
+        );
+        let writer = Writer {
+            db,
+            queue: queue.clone(),
+            counters,
+            health: options.health,
+            retention: options.retention,
+        };
         let thread = std::thread::Builder::new()
             .name("store-writer".into())
-            .spawn(move || write_loop(db, &queue, &counters))
+            .spawn(move || writer.run())
             .ok();
         Self {
             sender: Some(sender),
+            queue,
             thread,
         }
     }
@@ -37,7 +79,13 @@ impl StoreWriter {
         self.sender.clone()
     }
 
-    /// Writes every queued row and stops the writer, once every other sender is dropped.
+    /// Rows waiting for the writer.
+    pub fn backlog(&self) -> usize {
+        self.queue.len()
+    }
+
+    /// Writes every queued row and stops the writer, once every other sender is dropped. A
+    /// store that keeps failing is given [`STOP_GRACE`], then its rows are counted as dropped.
     pub fn finish(mut self) {
         self.sender.take();
         if let Some(thread) = self.thread.take() {
@@ -46,30 +94,82 @@ impl StoreWriter {
     }
 }
 
-fn write_loop(mut db: Connection, queue: &Queue, counters: &Counters) {
-    let mut batch: Vec<Row> = Vec::with_capacity(BATCH_ROWS);
-    loop {
-        let Some(open) = queue.take(&mut batch) else {
-            return;
-        };
-        while !batch.is_empty() {
-            match commit(&mut db, &batch) {
+struct Writer {
+    db: Connection,
+    queue: Arc<Queue>,
+    counters: Arc<Counters>,
+    health: Arc<Health>,
+    retention: Option<Retention>,
+}
+
+impl Writer {
+    fn run(mut self) {
+        let mut batch: Vec<Row> = Vec::with_capacity(BATCH_ROWS);
+        loop {
+            let Some(open) = self.queue.take(&mut batch, BATCH_WAIT) else {
+                return;
+            };
+            if !batch.is_empty() {
+                self.write(&mut batch, open);
+            }
+            if let Some(retention) = &mut self.retention {
+                retention.maybe_prune(&self.db, &self.counters);
+            }
+            if !open {
+                return;
+            }
+        }
+    }
+
+    /// Commits `batch`, retrying with backoff while the store fails; once the service is
+    /// stopping (`open` false) it gives up after [`STOP_GRACE`].
+    fn write(&mut self, batch: &mut Vec<Row>, open: bool) {
+        let mut backoff = RETRY_START;
+        let mut stop_by = (!open).then(|| Instant::now() + STOP_GRACE);
+        loop {
+            match commit(&mut self.db, batch) {
                 Ok(()) => {
-                    counters
+                    self.counters
                         .stored
                         .fetch_add(batch.len() as u64, Ordering::Relaxed);
                     batch.clear();
+                    self.queue.set_failing(false);
+                    if self.health.store.recovered() {
+                        info!("local store writes again");
+                    }
+                    return;
                 }
                 Err(error) => {
-                    // Disk full or I/O error: keep the batch and retry, so nothing is lost
-                    // while the cause is fixed; producers block once the queue fills.
-                    error!(%error, rows = batch.len(), "local store write failed; retrying in 1 s");
-                    std::thread::sleep(Duration::from_secs(1));
+                    let count = Counters::bump(&self.counters.store_errors);
+                    self.health.store.failed(&error.to_string());
+                    self.queue.set_failing(true);
+                    if worth_logging(count) {
+                        error!(%error, rows = batch.len(), retry_s = backoff.as_secs(), count,
+                            "local store write failed; new rows are dropped (and counted) while it fails");
+                    }
                 }
             }
-        }
-        if !open {
-            return;
+            if stop_by.is_none() && self.queue.is_closed() {
+                stop_by = Some(Instant::now() + STOP_GRACE);
+            }
+            if let Some(deadline) = stop_by {
+                if Instant::now() >= deadline {
+                    self.counters
+                        .store_dropped
+                        .fetch_add(batch.len() as u64, Ordering::Relaxed);
+                    error!(
+                        rows = batch.len(),
+                        "stopping with the local store failing: rows dropped"
+                    );
+                    batch.clear();
+                    return;
+                }
+            }
+            let pause = stop_by.map_or(backoff, |deadline| {
+                backoff.min(deadline.saturating_duration_since(Instant::now()))
+            });
+            self.queue.wait_closed(pause);
+            backoff = (backoff * 2).min(RETRY_MAX);
         }
     }
 }

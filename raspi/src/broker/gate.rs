@@ -1,0 +1,364 @@
+//! The gate: every MQTT client reaches the embedded broker through it, because rumqttd has no
+//! access control of its own. The broker itself listens only on loopback, on a port and with
+//! a password only the gate knows. For each client the gate
+//! - checks the listener's credentials and refuses the service's own client ids (a client
+//!   with the same id would take the service's link off the broker);
+//! - refuses a will, and disconnects any publish, under the protected topic prefix: only the
+//!   service publishes there;
+//! - caps the keep-alive, so a dead client's slot frees within a minute and a half;
+//! - disconnects a client that stops reading what it subscribed to (its data is dropped, not
+//!   queued), and at the connection limit makes room by disconnecting one that stalled;
+//! - speaks TLS on listeners that have certificates.
+//!
+//! Everything refused is counted (`mqtt_refused`, `mqtt_slow_clients`) and logged.
+
+use super::packet::{self, CONNECT, Connect, PUBLISH};
+use super::tls;
+use aer_host::counters::{Counters, worth_logging};
+use std::collections::HashMap;
+use std::net::SocketAddr;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt};
+use tokio::net::{TcpListener, TcpStream};
+use tokio_util::sync::CancellationToken;
+use tracing::{info, warn};
+
+/// A listener clients connect to.
+#[derive(Debug, Clone)]
+pub struct Listener {
+    pub name: String,
+    pub listen: SocketAddr,
+    /// Users and passwords; `None` (loopback only) lets anyone subscribe.
+    pub auth: Option<HashMap<String, String>>,
+    /// Certificate and key (PEM): TLS on this listener.
+    pub tls: Option<tls::Files>,
+}
+
+/// How the gate treats clients.
+#[derive(Debug, Clone)]
+pub struct Settings {
+    pub listeners: Vec<Listener>,
+    /// The broker's own (loopback) listener, and the credentials it accepts.
+    pub broker: SocketAddr,
+    pub broker_user: String,
+    pub broker_password: String,
+    /// Topics only the service may publish under (`aer/`).
+    pub protected: String,
+    /// Client ids only the service may use (`aer-raspi`).
+    pub reserved_ids: String,
+    /// Clients at once, beyond which a stalled one makes room or the newcomer is refused.
+    pub max_clients: usize,
+    /// A client that has not taken data for this long is disconnected.
+    pub stall_limit: Duration,
+    /// Keep-alive asked for by clients is capped at this (0, "never", included).
+    pub max_keep_alive_s: u16,
+}
+
+/// The connected clients, for the connection limit.
+#[derive(Default)]
+struct Clients {
+    next: u64,
+    by_id: HashMap<u64, Client>,
+}
+
+struct Client {
+    /// Since when a write to the client has been waiting (us since the gate started; 0 when
+    /// none waits).
+    stalled_since: Arc<AtomicU64>,
+    disconnect: CancellationToken,
+}
+
+struct Gate {
+    settings: Settings,
+    counters: Arc<Counters>,
+    clients: Mutex<Clients>,
+    started: Instant,
+}
+
+/// Binds every listener (so a taken port fails at start-up) and serves them until `cancel`.
+pub async fn start(
+    settings: Settings,
+    counters: Arc<Counters>,
+    cancel: CancellationToken,
+) -> anyhow::Result<()> {
+    let mut bound = Vec::new();
+    for listener in &settings.listeners {
+        let socket = TcpListener::bind(listener.listen).await.map_err(|e| {
+            anyhow::anyhow!(
+                "broker listener `{}` on {}: {e}",
+                listener.name,
+                listener.listen
+            )
+        })?;
+        let acceptor = listener.tls.as_ref().map(tls::acceptor).transpose()?;
+        bound.push((socket, acceptor, listener.clone()));
+    }
+    let gate = Arc::new(Gate {
+        settings,
+        counters,
+        clients: Mutex::new(Clients::default()),
+        started: Instant::now(),
+    });
+    for (socket, acceptor, listener) in bound {
+        let (gate, cancel) = (gate.clone(), cancel.clone());
+        tokio::spawn(async move {
+            info!(listener = listener.name, address = %listener.listen, tls = acceptor.is_some(), "MQTT listener open");
+            loop {
+                let accepted = tokio::select! {
+                    accepted = socket.accept() => accepted,
+                    () = cancel.cancelled() => return,
+                };
+                let Ok((stream, peer)) = accepted else {
+                    continue;
+                };
+                let _ = stream.set_nodelay(true);
+                let (gate, listener, acceptor) = (gate.clone(), listener.clone(), acceptor.clone());
+                tokio::spawn(async move {
+                    match acceptor {
+                        Some(acceptor) => {
+                            match tokio::time::timeout(HANDSHAKE, acceptor.accept(stream)).await {
+                                Ok(Ok(stream)) => gate.serve(stream, &listener, peer).await,
+                                _ => gate.refused(peer, "TLS handshake failed"),
+                            }
+                        }
+                        None => gate.serve(stream, &listener, peer).await,
+                    }
+                });
+            }
+        });
+    }
+    Ok(())
+}
+
+/// How long a new client has for TLS and its CONNECT.
+const HANDSHAKE: Duration = Duration::from_secs(10);
+
+impl Gate {
+    fn refused(&self, peer: SocketAddr, why: &str) {
+        let count = Counters::bump(&self.counters.mqtt_refused);
+        if worth_logging(count) {
+            warn!(%peer, why, count, "MQTT client refused");
+        }
+    }
+
+    fn now_us(&self) -> u64 {
+        (self.started.elapsed().as_micros() as u64).max(1)
+    }
+
+    /// Checks a new client's CONNECT; the reason and CONNACK code if it is refused.
+    fn admit(&self, connect: &Connect, listener: &Listener) -> Result<(), (&'static str, u8)> {
+        if connect.client_id.starts_with(&self.settings.reserved_ids) {
+            return Err(("client id reserved for the service", 2));
+        }
+        if let Some(users) = listener.auth.as_ref().filter(|users| !users.is_empty()) {
+            let matches = connect
+                .username
+                .as_ref()
+                .and_then(|user| users.get(user))
+                .is_some_and(|password| connect.password.as_deref() == Some(password.as_bytes()));
+            if !matches {
+                return Err(("bad username or password", 4));
+            }
+        }
+        if connect
+            .will
+            .as_ref()
+            .is_some_and(|(topic, ..)| topic.starts_with(&self.settings.protected))
+        {
+            return Err(("will under the service's topics", 5));
+        }
+        Ok(())
+    }
+
+    /// Makes room for one more client: true if there is (or now is) room.
+    fn make_room(&self) -> bool {
+        let Ok(clients) = self.clients.lock() else {
+            return false;
+        };
+        if clients.by_id.len() < self.settings.max_clients {
+            return true;
+        }
+        // A write pending for a second is a client that stopped reading, not a slow moment.
+        let stalled_before = self.now_us().saturating_sub(1_000_000);
+        let stalled = clients
+            .by_id
+            .values()
+            .map(|c| (c, c.stalled_since.load(Ordering::Relaxed)))
+            .filter(|(_, since)| *since != 0 && *since <= stalled_before)
+            .min_by_key(|(_, since)| *since)
+            .map(|(c, _)| c);
+        match stalled {
+            Some(client) => {
+                client.disconnect.cancel();
+                Counters::bump(&self.counters.mqtt_slow_clients);
+                true
+            }
+            None => false,
+        }
+    }
+
+    fn register(&self) -> Option<(u64, Arc<AtomicU64>, CancellationToken)> {
+        let mut clients = self.clients.lock().ok()?;
+        clients.next += 1;
+        let id = clients.next;
+        let stalled_since = Arc::new(AtomicU64::new(0));
+        let disconnect = CancellationToken::new();
+        clients.by_id.insert(
+            id,
+            Client {
+                stalled_since: stalled_since.clone(),
+                disconnect: disconnect.clone(),
+            },
+        );
+        Some((id, stalled_since, disconnect))
+    }
+
+    fn unregister(&self, id: u64) {
+        if let Ok(mut clients) = self.clients.lock() {
+            clients.by_id.remove(&id);
+        }
+    }
+
+    /// One client, from its CONNECT to its disconnection.
+    async fn serve<S>(&self, mut stream: S, listener: &Listener, peer: SocketAddr)
+    where
+        S: AsyncRead + AsyncWrite + Unpin,
+    {
+        let mut buffer = Vec::with_capacity(4096);
+        let first = tokio::time::timeout(HANDSHAKE, read_packet(&mut stream, &mut buffer)).await;
+        let Ok(Ok(Some((CONNECT, len)))) = first else {
+            return self.refused(peer, "no CONNECT");
+        };
+        let mut connect = match Connect::parse(buffer.get(..len).unwrap_or_default()) {
+            Ok(connect) => connect,
+            Err(error) => return self.refused(peer, &error.to_string()),
+        };
+        buffer.drain(..len);
+        if let Err((why, code)) = self.admit(&connect, listener) {
+            let _ = stream.write_all(&packet::connack(code)).await;
+            return self.refused(peer, why);
+        }
+        if !self.make_room() {
+            let _ = stream.write_all(&packet::connack(3)).await;
+            return self.refused(peer, "connection limit reached");
+        }
+        let Ok(mut broker) = TcpStream::connect(self.settings.broker).await else {
+            let _ = stream.write_all(&packet::connack(3)).await;
+            return self.refused(peer, "broker not reachable");
+        };
+        let _ = broker.set_nodelay(true);
+        let max = self.settings.max_keep_alive_s;
+        if connect.keep_alive_s == 0 || connect.keep_alive_s > max {
+            connect.keep_alive_s = max;
+        }
+        connect.username = Some(self.settings.broker_user.clone());
+        connect.password = Some(self.settings.broker_password.clone().into_bytes());
+        if broker.write_all(&connect.encode()).await.is_err() {
+            return;
+        }
+        let Some((id, stalled_since, disconnect)) = self.register() else {
+            return;
+        };
+        let (client_read, client_write) = tokio::io::split(stream);
+        let (broker_read, broker_write) = broker.into_split();
+        tokio::select! {
+            () = self.upstream(client_read, broker_write, buffer, peer) => {}
+            () = self.downstream(broker_read, client_write, &stalled_since, peer) => {}
+            () = disconnect.cancelled() => {
+                warn!(%peer, "MQTT client disconnected to make room: it stopped reading");
+            }
+        }
+        self.unregister(id);
+    }
+
+    /// Client to broker, packet by packet: a publish under the protected prefix (or a second
+    /// CONNECT) ends the connection.
+    async fn upstream(
+        &self,
+        mut client: impl AsyncRead + Unpin,
+        mut broker: impl AsyncWrite + Unpin,
+        mut buffer: Vec<u8>,
+        peer: SocketAddr,
+    ) {
+        loop {
+            let (kind, len) = match read_packet(&mut client, &mut buffer).await {
+                Ok(Some(packet)) => packet,
+                Ok(None) => return,
+                Err(error) => return self.refused(peer, &error.to_string()),
+            };
+            let Some(bytes) = buffer.get(..len) else {
+                return;
+            };
+            if kind == CONNECT {
+                return self.refused(peer, "second CONNECT");
+            }
+            if kind == PUBLISH {
+                match packet::publish_topic(bytes) {
+                    Ok(topic) if !topic.starts_with(&self.settings.protected) => {}
+                    Ok(_) => return self.refused(peer, "publish under the service's topics"),
+                    Err(error) => return self.refused(peer, &error.to_string()),
+                }
+            }
+            if broker.write_all(bytes).await.is_err() {
+                return;
+            }
+            buffer.drain(..len);
+        }
+    }
+
+    /// Broker to client: a client that takes nothing for the stall limit is disconnected
+    /// (what it did not read is dropped).
+    async fn downstream(
+        &self,
+        mut broker: impl AsyncRead + Unpin,
+        mut client: impl AsyncWrite + Unpin,
+        stalled_since: &AtomicU64,
+        peer: SocketAddr,
+    ) {
+        let mut chunk = vec![0u8; 16 * 1024];
+        loop {
+            let n = match broker.read(&mut chunk).await {
+                Ok(0) | Err(_) => return,
+                Ok(n) => n,
+            };
+            let Some(data) = chunk.get(..n) else {
+                return;
+            };
+            stalled_since.store(self.now_us(), Ordering::Relaxed);
+            let written =
+                tokio::time::timeout(self.settings.stall_limit, client.write_all(data)).await;
+            stalled_since.store(0, Ordering::Relaxed);
+            match written {
+                Ok(Ok(())) => {}
+                Ok(Err(_)) => return,
+                Err(_) => {
+                    let count = Counters::bump(&self.counters.mqtt_slow_clients);
+                    if worth_logging(count) {
+                        warn!(%peer, count, "MQTT client stopped reading: disconnected, its data dropped");
+                    }
+                    return;
+                }
+            }
+        }
+    }
+}
+
+/// Reads until `buffer` starts with a whole packet; its type and length, `None` at the end of
+/// the stream.
+async fn read_packet(
+    stream: &mut (impl AsyncRead + Unpin),
+    buffer: &mut Vec<u8>,
+) -> Result<Option<(u8, usize)>, packet::PacketError> {
+    loop {
+        if let Some(found) = packet::frame(buffer)? {
+            return Ok(Some(found));
+        }
+        let mut chunk = [0u8; 4096];
+        match stream.read(&mut chunk).await {
+            Ok(0) | Err(_) => return Ok(None),
+            Ok(n) => buffer.extend_from_slice(chunk.get(..n).unwrap_or_default()),
+        }
+    }
+}

@@ -1,0 +1,513 @@
+//! The embedded MQTT broker (rumqttd), on its own thread, behind the [`gate`]: the broker
+//! listens only on loopback, on a port and with a password only the gate knows; the
+//! listeners of the configuration file are the gate's.
+
+pub mod gate;
+pub mod packet;
+pub mod tls;
+
+use anyhow::{Context, Result, bail};
+use rumqttd::{ConnectionSettings, ServerSettings, TlsConfig};
+use std::collections::HashMap;
+use std::net::{Ipv4Addr, SocketAddr};
+use std::path::Path;
+use std::time::Duration;
+
+/// The broker configuration shipped in the repository.
+pub const DEFAULT_CONFIG: &str = include_str!("../../config/rumqttd.toml");
+
+/// The password of the shipped configuration's commented-out network listeners.
+const PLACEHOLDER_PASSWORD: &str = "change-me";
+/// The shortest password a listener may have.
+const MIN_PASSWORD: usize = 10;
+
+/// A checked broker configuration: the broker's settings and the gate's listeners.
+pub struct BrokerConfig {
+    pub broker: rumqttd::Config,
+    pub listeners: Vec<gate::Listener>,
+    /// A client that takes nothing for this long is disconnected (5 s).
+    pub stall_limit: Duration,
+}
+
+/// Reads a broker configuration (the shipped one when `path` is `None`) and checks it.
+pub fn load(path: Option<&Path>) -> Result<BrokerConfig> {
+    let text = match path {
+        Some(path) => std::fs::read_to_string(path)
+            .with_context(|| format!("reading the broker configuration {}", path.display()))?,
+        None => DEFAULT_CONFIG.to_owned(),
+    };
+    parse(&text)
+}
+
+/// Parses and checks a broker configuration's text.
+pub fn parse(text: &str) -> Result<BrokerConfig> {
+    let raw: toml::Table = toml::from_str(text).context("in the broker configuration")?;
+    check_sections(&raw)?;
+    let broker: rumqttd::Config = toml::from_str(text).context("in the broker configuration")?;
+    let listeners = broker
+        .v4
+        .iter()
+        .flat_map(|servers| servers.values())
+        .map(listener)
+        .collect::<Result<Vec<_>>>()?;
+    if listeners.is_empty() {
+        bail!("the broker configuration has no [v4.x] listener");
+    }
+    Ok(BrokerConfig {
+        broker,
+        listeners,
+        stall_limit: Duration::from_secs(5),
+    })
+}
+
+/// Sections the gate cannot guard are refused: MQTT 5 and websocket listeners (the gate
+/// speaks MQTT 3.1.1 over TCP), bridges and clusters (outside connections), and a console or
+/// Prometheus endpoint off loopback (neither has credentials).
+fn check_sections(raw: &toml::Table) -> Result<()> {
+    for section in ["v5", "ws", "bridge", "cluster"] {
+        if raw.contains_key(section) {
+            bail!(
+                "broker configuration: [{section}] is not supported: clients reach the broker \
+                 through the service's gate, which serves MQTT 3.1.1 listeners ([v4.x]) only"
+            );
+        }
+    }
+    let loopback = |value: Option<&toml::Value>| {
+        value
+            .and_then(toml::Value::as_str)
+            .and_then(|listen| listen.parse::<SocketAddr>().ok())
+            .is_some_and(|address| address.ip().is_loopback())
+    };
+    if let Some(console) = raw.get("console").and_then(toml::Value::as_table) {
+        if !loopback(console.get("listen")) {
+            bail!(
+                "broker configuration: [console] must listen on 127.0.0.1: it has no credentials"
+            );
+        }
+    }
+    if let Some(prometheus) = raw.get("prometheus").and_then(toml::Value::as_table) {
+        if prometheus.contains_key("port") || !loopback(prometheus.get("listen")) {
+            bail!(
+                "broker configuration: [prometheus] must set `listen` to a 127.0.0.1 address: \
+                 it has no credentials"
+            );
+        }
+    }
+    Ok(())
+}
+
+/// A listener of the file as the gate serves it; refused if it is reachable from the network
+/// without credentials, or with a weak or placeholder password.
+fn listener(server: &ServerSettings) -> Result<gate::Listener> {
+    let auth = server
+        .connections
+        .auth
+        .clone()
+        .filter(|auth| !auth.is_empty());
+    if !server.listen.ip().is_loopback() && auth.is_none() {
+        bail!(
+            "broker listener `{}` on {} is reachable from the network without credentials; \
+             add `connections.auth = {{ user = \"password\" }}` or listen on 127.0.0.1",
+            server.name,
+            server.listen
+        );
+    }
+    for (user, password) in auth.iter().flatten() {
+        if password == PLACEHOLDER_PASSWORD {
+            bail!(
+                "broker listener `{}`: user `{user}` still has the placeholder password \
+                 `{PLACEHOLDER_PASSWORD}`; choose one",
+                server.name
+            );
+        }
+        if password.chars().count() < MIN_PASSWORD {
+            bail!(
+                "broker listener `{}`: user `{user}`'s password is shorter than {MIN_PASSWORD} \
+                 characters",
+                server.name
+            );
+        }
+    }
+    let tls = match &server.tls {
+        None => None,
+        Some(TlsConfig::Rustls {
+            capath: None,
+            certpath,
+            keypath,
+        }) => Some(tls::Files {
+            cert: certpath.into(),
+            key: keypath.into(),
+        }),
+        Some(_) => bail!(
+            "broker listener `{}`: TLS takes `certpath` and `keypath` (PEM) only; client \
+             certificates (`capath`) and PKCS#12 are not supported",
+            server.name
+        ),
+    };
+    Ok(gate::Listener {
+        name: server.name.clone(),
+        listen: server.listen,
+        auth,
+        tls,
+    })
+}
+
+/// An in-process connection to the embedded broker: what the service publishes goes straight
+/// into the broker's router, with no TCP connection and no system call per message.
+pub struct Link {
+    pub tx: rumqttd::local::LinkTx,
+    pub rx: rumqttd::local::LinkRx,
+}
+
+/// The running broker.
+pub struct Broker {
+    /// The service's link, under an id nobody can guess.
+    pub link: Link,
+    /// Links to switch to should the broker drop the service's.
+    pub spares: Vec<Link>,
+    /// The gate's view: the file's listeners and the broker's own.
+    pub gate: gate::Settings,
+}
+
+/// Client ids the service uses; the gate refuses them to clients.
+pub const SERVICE_IDS: &str = "aer-raspi";
+
+/// The broker and its gate as the service runs them, with the topic root `aer/` protected
+/// (tests and benchmarks; the service derives the root from its configuration).
+pub async fn start(
+    config: BrokerConfig,
+    counters: std::sync::Arc<aer_host::counters::Counters>,
+    cancel: tokio_util::sync::CancellationToken,
+) -> Result<Broker> {
+    let broker = spawn(config, SERVICE_IDS, "aer/")?;
+    gate::start(broker.gate.clone(), counters, cancel).await?;
+    Ok(broker)
+}
+
+/// Links kept in reserve for the service.
+const SPARE_LINKS: usize = 2;
+
+/// Starts the broker on a thread of its own (rumqttd's `start` blocks) with one listener, on
+/// loopback, for the gate; waits (up to 2 s) until it is bound and turns Nagle's algorithm
+/// off on it (see [`nodelay`]). `reserved_ids` prefixes the service's link ids, which the
+/// gate refuses to clients; `protected` is the topic prefix only the service publishes under.
+pub fn spawn(config: BrokerConfig, reserved_ids: &str, protected: &str) -> Result<Broker> {
+    let BrokerConfig {
+        mut broker,
+        listeners,
+        stall_limit,
+    } = config;
+    let internal = SocketAddr::from((Ipv4Addr::LOCALHOST, free_port()?));
+    let (user, password) = ("aer-gate".to_owned(), secret()?);
+    let template = broker
+        .v4
+        .iter()
+        .flat_map(|servers| servers.values())
+        .next()
+        .map(|server| server.connections.clone());
+    let connections = ConnectionSettings {
+        auth: Some(HashMap::from([(user.clone(), password.clone())])),
+        external_auth: None,
+        ..template.context("no [v4.x] listener")?
+    };
+    broker.v4 = Some(HashMap::from([(
+        "gate".to_owned(),
+        ServerSettings {
+            name: "v4-gate".into(),
+            listen: internal,
+            tls: None,
+            next_connection_delay_ms: 1,
+            connections,
+        },
+    )]));
+    broker.console = None;
+    let max_clients = broker
+        .router
+        .max_connections
+        .saturating_sub(1 + SPARE_LINKS)
+        .max(1);
+    let mut rumqttd = rumqttd::Broker::new(broker);
+    let link = |suffix: &str| -> Result<Link> {
+        let id = format!("{reserved_ids}-{suffix}-{}", secret()?);
+        let (tx, rx) = rumqttd
+            .link(&id)
+            .context("connecting to the embedded broker's router")?;
+        Ok(Link { tx, rx })
+    };
+    let service = link("service")?;
+    let spares = (0..SPARE_LINKS)
+        .map(|_| link("spare"))
+        .collect::<Result<Vec<_>>>()?;
+    std::thread::Builder::new()
+        .name("mqtt-broker".into())
+        .spawn(move || {
+            if let Err(error) = rumqttd.start() {
+                tracing::error!(%error, "embedded MQTT broker stopped");
+            }
+        })
+        .context("starting the broker thread")?;
+    nodelay::wait_and_set(&[internal], Duration::from_secs(2));
+    Ok(Broker {
+        link: service,
+        spares,
+        gate: gate::Settings {
+            listeners,
+            broker: internal,
+            broker_user: user,
+            broker_password: password,
+            protected: protected.to_owned(),
+            reserved_ids: reserved_ids.to_owned(),
+            max_clients,
+            stall_limit,
+            max_keep_alive_s: 60,
+        },
+    })
+}
+
+/// A port free on loopback now (the broker binds it a moment later).
+fn free_port() -> Result<u16> {
+    let socket = std::net::TcpListener::bind((Ipv4Addr::LOCALHOST, 0))
+        .context("finding a free port for the broker")?;
+    Ok(socket.local_addr()?.port())
+}
+
+/// 128 random bits as hex, from the operating system.
+fn secret() -> Result<String> {
+    let mut bytes = [0u8; 16];
+    getrandom::fill(&mut bytes).map_err(|e| anyhow::anyhow!("no randomness: {e}"))?;
+    Ok(bytes.iter().map(|b| format!("{b:02x}")).collect())
+}
+
+/// The addresses clients connect to.
+pub fn listeners(config: &BrokerConfig) -> Vec<SocketAddr> {
+    config.listeners.iter().map(|l| l.listen).collect()
+}
+
+/// rumqttd never sets TCP_NODELAY on the connections it accepts, so Nagle's algorithm holds a
+/// small publish back until the subscriber has acknowledged the previous one, which it delays
+/// by up to 40 ms: the p99 latency to a subscriber was 35 ms. Linux copies TCP_NODELAY from a
+/// listening socket to every socket it accepts, so setting it on the broker's listeners fixes
+/// every connection. The listeners are found among this process's open files by their address.
+pub mod nodelay {
+    use std::net::SocketAddr;
+    use std::time::{Duration, Instant};
+
+    /// Sets TCP_NODELAY on the listening sockets of this process bound to `addresses`, retrying
+    /// until all are found or `patience` runs out (the broker binds on its own thread). Returns
+    /// how many were set.
+    pub fn wait_and_set(addresses: &[SocketAddr], patience: Duration) -> usize {
+        let deadline = Instant::now() + patience;
+        loop {
+            let set = set_on_listeners(addresses);
+            if set >= addresses.len() || Instant::now() >= deadline {
+                if set < addresses.len() {
+                    tracing::warn!(
+                        ?addresses,
+                        set,
+                        "not every broker listener is bound yet: subscribers there may see \
+                         Nagle delays of up to 40 ms"
+                    );
+                }
+                return set;
+            }
+            std::thread::sleep(Duration::from_millis(5));
+        }
+    }
+
+    /// One pass over this process's open files.
+    #[cfg(target_os = "linux")]
+    pub fn set_on_listeners(addresses: &[SocketAddr]) -> usize {
+        let Ok(entries) = std::fs::read_dir("/proc/self/fd") else {
+            return 0;
+        };
+        entries
+            .filter_map(|entry| entry.ok()?.file_name().to_str()?.parse::<i32>().ok())
+            .filter(|&fd| listening_on(fd).is_some_and(|local| addresses.contains(&local)))
+            .filter(|&fd| set_nodelay(fd))
+            .count()
+    }
+
+    /// Elsewhere the listeners keep the system's default.
+    #[cfg(not(target_os = "linux"))]
+    pub fn set_on_listeners(_: &[SocketAddr]) -> usize {
+        0
+    }
+
+    /// The local address of `fd` if it is a listening TCP socket. An fd closed (or reused)
+    /// since the directory was read fails these calls or is some other socket of this process,
+    /// for which TCP_NODELAY is harmless.
+    #[cfg(target_os = "linux")]
+    fn listening_on(fd: i32) -> Option<SocketAddr> {
+        let mut accepting: libc::c_int = 0;
+        let mut len = std::mem::size_of::<libc::c_int>() as libc::socklen_t;
+        // SAFETY: the pointers are to live locals of the sizes given.
+        let listening = unsafe {
+            libc::getsockopt(
+                fd,
+                libc::SOL_SOCKET,
+                libc::SO_ACCEPTCONN,
+                std::ptr::from_mut(&mut accepting).cast(),
+                &mut len,
+            )
+        } == 0
+            && accepting == 1;
+        if !listening {
+            return None;
+        }
+        // SAFETY: an all-zero sockaddr_storage is a valid value.
+        let mut storage: libc::sockaddr_storage = unsafe { std::mem::zeroed() };
+        let mut len = std::mem::size_of::<libc::sockaddr_storage>() as libc::socklen_t;
+        // SAFETY: storage is large enough for any address and len says so.
+        let named =
+            unsafe { libc::getsockname(fd, std::ptr::from_mut(&mut storage).cast(), &mut len) }
+                == 0;
+        if !named {
+            return None;
+        }
+        match libc::c_int::from(storage.ss_family) {
+            libc::AF_INET => {
+                // SAFETY: the family says the storage holds a sockaddr_in.
+                let v4: libc::sockaddr_in = unsafe {
+                    std::ptr::from_ref(&storage)
+                        .cast::<libc::sockaddr_in>()
+                        .read()
+                };
+                Some(SocketAddr::from((
+                    v4.sin_addr.s_addr.to_ne_bytes(),
+                    u16::from_be(v4.sin_port),
+                )))
+            }
+            libc::AF_INET6 => {
+                // SAFETY: the family says the storage holds a sockaddr_in6.
+                let v6: libc::sockaddr_in6 = unsafe {
+                    std::ptr::from_ref(&storage)
+                        .cast::<libc::sockaddr_in6>()
+                        .read()
+                };
+                Some(SocketAddr::from((
+                    v6.sin6_addr.s6_addr,
+                    u16::from_be(v6.sin6_port),
+                )))
+            }
+            _ => None,
+        }
+    }
+
+    #[cfg(target_os = "linux")]
+    fn set_nodelay(fd: i32) -> bool {
+        let on: libc::c_int = 1;
+        // SAFETY: the pointer is to a live local of the size given.
+        unsafe {
+            libc::setsockopt(
+                fd,
+                libc::IPPROTO_TCP,
+                libc::TCP_NODELAY,
+                std::ptr::from_ref(&on).cast(),
+                std::mem::size_of::<libc::c_int>() as libc::socklen_t,
+            ) == 0
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_shipped_broker_config_is_loopback_only_with_small_segments() {
+        let config = load(None).unwrap();
+        let router = &config.broker.router;
+        assert!(router.max_segment_size * router.max_segment_count <= 1 << 20);
+        assert!(config.listeners.iter().all(|l| l.listen.ip().is_loopback()));
+    }
+
+    #[cfg(target_os = "linux")]
+    #[test]
+    fn accepted_connections_have_nagle_off() {
+        use std::net::{TcpListener, TcpStream};
+        let listener = TcpListener::bind("127.0.0.1:0").unwrap();
+        let other = TcpListener::bind("127.0.0.1:0").unwrap();
+        let address = listener.local_addr().unwrap();
+        assert_eq!(nodelay::set_on_listeners(&[address]), 1);
+        let _client = TcpStream::connect(address).unwrap();
+        let (accepted, _) = listener.accept().unwrap();
+        assert!(accepted.nodelay().unwrap(), "inherited from the listener");
+        // Only the listeners asked for.
+        let _client = TcpStream::connect(other.local_addr().unwrap()).unwrap();
+        let (accepted, _) = other.accept().unwrap();
+        assert!(!accepted.nodelay().unwrap());
+    }
+
+    #[test]
+    fn a_network_listener_without_credentials_is_refused() {
+        let open = DEFAULT_CONFIG.replace("127.0.0.1:1883", "0.0.0.0:1883");
+        let error = parse(&open).err().unwrap().to_string();
+        assert!(
+            error.contains("0.0.0.0:1883") && error.contains("credentials"),
+            "{error}"
+        );
+        let with_auth = |password: &str| {
+            open.replacen(
+                "    dynamic_filters = true",
+                &format!("    dynamic_filters = true\n    auth = {{ pit = \"{password}\" }}"),
+                1,
+            )
+        };
+        assert!(parse(&with_auth("Xq7-fast-laps")).is_ok());
+        let weak = parse(&with_auth("x")).err().unwrap().to_string();
+        assert!(weak.contains("shorter than"), "{weak}");
+    }
+
+    #[test]
+    fn sections_the_gate_cannot_guard_are_refused() {
+        let refused = |extra: &str| {
+            parse(&format!("{DEFAULT_CONFIG}\n{extra}"))
+                .err()
+                .map(|e| e.to_string())
+        };
+        let console = refused("[console]\nlisten = \"0.0.0.0:3030\"\n").unwrap();
+        assert!(console.contains("[console]"), "{console}");
+        assert!(refused("[console]\nlisten = \"127.0.0.1:3030\"\n").is_none());
+        let prometheus =
+            refused("[prometheus]\nlisten = \"0.0.0.0:9042\"\ninterval = 1\n").unwrap();
+        assert!(prometheus.contains("[prometheus]"), "{prometheus}");
+        let ws =
+            "[ws.1]\nname = \"ws\"\nlisten = \"127.0.0.1:8083\"\nnext_connection_delay_ms = 1\n";
+        assert!(refused(ws).unwrap().contains("[ws]"));
+        let bridge = "[bridge]\nname = \"b\"\naddr = \"example.org:1883\"\n";
+        assert!(refused(bridge).unwrap().contains("[bridge]"));
+    }
+
+    /// The shipped file with the commented-out block that starts at `header` uncommented.
+    fn uncommented(header: &str) -> String {
+        let mut inside = false;
+        let mut text = String::new();
+        for line in DEFAULT_CONFIG.lines() {
+            inside = (inside || line == header) && line.starts_with('#');
+            let line = if inside {
+                line.strip_prefix("# ").unwrap_or(line)
+            } else {
+                line
+            };
+            text.push_str(line);
+            text.push('\n');
+        }
+        text
+    }
+
+    #[test]
+    fn the_shipped_network_listener_works_once_its_password_is_chosen() {
+        let text = uncommented("# [v4.2]");
+        let error = parse(&text).err().unwrap().to_string();
+        assert!(error.contains("placeholder"), "{error}");
+        let chosen = text.replace("\"change-me\"", "\"Xq7-fast-laps\"");
+        let config = parse(&chosen).unwrap();
+        assert_eq!(listeners(&config).len(), 2);
+        let pit = config
+            .listeners
+            .iter()
+            .find(|l| l.name == "v4-pit")
+            .unwrap();
+        assert!(pit.tls.is_some(), "the pit listener speaks TLS");
+    }
+}

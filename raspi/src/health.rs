@@ -1,0 +1,60 @@
+//! What is failing right now, part by part, for the status topic and the log: each part
+//! records its error when it fails and clears it when it works again.
+
+use aer_host::status::Problems;
+use std::sync::Mutex;
+
+/// One part's current error, if any.
+#[derive(Debug, Default)]
+pub struct PartHealth {
+    error: Mutex<Option<String>>,
+}
+
+impl PartHealth {
+    /// The part failed with `error`.
+    pub fn failed(&self, error: &str) {
+        if let Ok(mut slot) = self.error.lock() {
+            *slot = Some(error.to_owned());
+        }
+    }
+
+    /// The part works; true if it was failing until now.
+    pub fn recovered(&self) -> bool {
+        self.error
+            .lock()
+            .is_ok_and(|mut slot| slot.take().is_some())
+    }
+
+    /// The current error.
+    pub fn error(&self) -> Option<String> {
+        self.error.lock().ok().and_then(|slot| slot.clone())
+    }
+}
+
+/// Every part's health.
+#[derive(Debug, Default)]
+pub struct Health {
+    /// The local store's writes.
+    pub store: PartHealth,
+    /// A damaged store moved aside at start-up: where it went and why.
+    pub store_recovered: PartHealth,
+    /// The raw log's writes.
+    pub raw_log: PartHealth,
+    /// Forwarding to TDengine.
+    pub forward: PartHealth,
+    /// The service's own link to the broker.
+    pub mqtt: PartHealth,
+}
+
+impl Health {
+    /// The problems as the status reports them.
+    pub fn problems(&self) -> Problems {
+        Problems {
+            store: self.store.error(),
+            store_recovered: self.store_recovered.error(),
+            raw_log: self.raw_log.error(),
+            forward: self.forward.error(),
+            mqtt: self.mqtt.error(),
+        }
+    }
+}
