@@ -51,7 +51,7 @@ class CarDbcOpensElsewhere(unittest.TestCase):
     def test_enums_and_comments_survive(self):
         mcu1 = self.cantools.get_message_by_name("MCU1")
         self.assertEqual(str(mcu1.get_signal_by_name("MCU_MainState").choices[3]), "RUN")
-        self.assertIn("100x off", mcu1.get_signal_by_name("MCU_ActualTorque").comment)
+        self.assertIn("260 Nm maximum", mcu1.get_signal_by_name("MCU_ActualTorque").comment)
         imd = self.cantools.get_message_by_name("IMD_InfoVoltage")
         self.assertTrue(imd.is_extended_frame)
         self.assertEqual(imd.frame_id, 0x18FF03F4)

@@ -20,7 +20,7 @@ const MAX_STEPS: usize = 50;
 /// The store's budget.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Budget {
-    /// The most the store may take on disk (its pages in use, WAL included).
+    /// The most the store may take on disk (its pages in use).
     pub max_bytes: u64,
     /// Rows older than this go, forwarded or not.
     pub max_age: Option<Duration>,
@@ -121,8 +121,10 @@ impl Retention {
         Ok(removed)
     }
 
+    /// Over the size budget (pages in use; the WAL, at most a checkpoint's worth, aside) or
+    /// under the free-space floor.
     fn over_budget(&self, db: &Connection) -> rusqlite::Result<bool> {
-        let used = used_bytes(db)? + wal_bytes(&self.path);
+        let used = used_bytes(db)?;
         let free = (self.free_space)(&self.path).unwrap_or(u64::MAX);
         Ok(used > self.budget.max_bytes || free < self.budget.min_free_bytes)
     }
@@ -139,15 +141,17 @@ impl Retention {
                     |row| row.get(0),
                 )
                 .optional()?;
-            let oldest: Option<i64> = db.query_row(
-                &format!("SELECT min(id) FROM \"{}\"", table.name),
+            let bounds: (Option<i64>, Option<i64>) = db.query_row(
+                &format!("SELECT min(id), max(id) FROM \"{}\"", table.name),
                 [],
-                |row| row.get(0),
+                |row| Ok((row.get(0)?, row.get(1)?)),
             )?;
-            let Some(oldest) = oldest else {
+            let (Some(oldest), Some(newest)) = bounds else {
                 continue;
             };
-            let through = oldest + CHUNK_ROWS - 1;
+            // A twentieth of the table a step: the budget is met without overshooting it.
+            let step = ((newest - oldest + 1) / 20).clamp(100, CHUNK_ROWS);
+            let through = oldest + step - 1;
             removed += match (forwarded, forwarded_only) {
                 (Some(cursor), true) if cursor >= oldest => {
                     delete_through(db, table.name, through.min(cursor))?
@@ -220,10 +224,4 @@ fn used_bytes(db: &Connection) -> rusqlite::Result<u64> {
     };
     let pages = pragma("page_count")?.saturating_sub(pragma("freelist_count")?);
     Ok(pages * pragma("page_size")?)
-}
-
-fn wal_bytes(path: &std::path::Path) -> u64 {
-    let mut wal = path.as_os_str().to_owned();
-    wal.push("-wal");
-    std::fs::metadata(PathBuf::from(wal)).map_or(0, |m| m.len())
 }
