@@ -68,11 +68,7 @@ async fn broker_and_subscriber(
                         let _ = tx.send(());
                     }
                 }
-                Event::Incoming(Packet::Publish(_)) => {
-                    if seen_tx.send(()).is_err() {
-                        return;
-                    }
-                }
+                Event::Incoming(Packet::Publish(_)) if seen_tx.send(()).is_err() => return,
                 _ => {}
             }
         }
