@@ -44,8 +44,10 @@ pub struct Problems {
     pub store_recovered: Option<String>,
     /// The raw log's last write error, while writes fail.
     pub raw_log: Option<String>,
-    /// Forwarding to TDengine.
+    /// Forwarding to TDengine is failing (an outage).
     pub forward: Option<String>,
+    /// Rows TDengine refused, set aside in the store (`forward_set_aside`) with the reason.
+    pub forward_refused: Option<String>,
     /// The service's own link to the broker.
     pub mqtt: Option<String>,
 }

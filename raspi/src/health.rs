@@ -40,8 +40,10 @@ pub struct Health {
     pub store_recovered: PartHealth,
     /// The raw log's writes.
     pub raw_log: PartHealth,
-    /// Forwarding to TDengine.
+    /// Forwarding to TDengine: an outage, cleared once it works again.
     pub forward: PartHealth,
+    /// Rows TDengine refused (set aside in the store): stays until the service restarts.
+    pub forward_refused: PartHealth,
     /// The service's own link to the broker.
     pub mqtt: PartHealth,
 }
@@ -54,6 +56,7 @@ impl Health {
             store_recovered: self.store_recovered.error(),
             raw_log: self.raw_log.error(),
             forward: self.forward.error(),
+            forward_refused: self.forward_refused.error(),
             mqtt: self.mqtt.error(),
         }
     }

@@ -114,6 +114,9 @@ pub async fn start(
                     continue;
                 };
                 let _ = stream.set_nodelay(true);
+                // A small send buffer: a client that stops reading shows within a moment,
+                // rather than after megabytes of kernel buffer.
+                let _ = socket2::SockRef::from(&stream).set_send_buffer_size(CLIENT_SEND_BUFFER);
                 let (gate, listener, acceptor) = (gate.clone(), listener.clone(), acceptor.clone());
                 tokio::spawn(async move {
                     match acceptor {
@@ -131,6 +134,9 @@ pub async fn start(
     }
     Ok(())
 }
+
+/// Bytes the kernel may hold for a client before a write waits.
+const CLIENT_SEND_BUFFER: usize = 64 * 1024;
 
 /// How long a new client has for TLS and its CONNECT.
 const HANDSHAKE: Duration = Duration::from_secs(10);

@@ -163,6 +163,8 @@ pub struct Link {
 pub struct Broker {
     /// The service's link, under an id nobody can guess.
     pub link: Link,
+    /// That id.
+    pub service_id: String,
     /// Links to switch to should the broker drop the service's.
     pub spares: Vec<Link>,
     /// The gate's view: the file's listeners and the broker's own.
@@ -227,16 +229,16 @@ pub fn spawn(config: BrokerConfig, reserved_ids: &str, protected: &str) -> Resul
         .saturating_sub(1 + SPARE_LINKS)
         .max(1);
     let mut rumqttd = rumqttd::Broker::new(broker);
-    let link = |suffix: &str| -> Result<Link> {
-        let id = format!("{reserved_ids}-{suffix}-{}", secret()?);
+    let link = |id: &str| -> Result<Link> {
         let (tx, rx) = rumqttd
-            .link(&id)
+            .link(id)
             .context("connecting to the embedded broker's router")?;
         Ok(Link { tx, rx })
     };
-    let service = link("service")?;
+    let service_id = format!("{reserved_ids}-{}", secret()?);
+    let service = link(&service_id)?;
     let spares = (0..SPARE_LINKS)
-        .map(|_| link("spare"))
+        .map(|_| link(&format!("{reserved_ids}-{}", secret()?)))
         .collect::<Result<Vec<_>>>()?;
     std::thread::Builder::new()
         .name("mqtt-broker".into())
@@ -249,6 +251,7 @@ pub fn spawn(config: BrokerConfig, reserved_ids: &str, protected: &str) -> Resul
     nodelay::wait_and_set(&[internal], Duration::from_secs(2));
     Ok(Broker {
         link: service,
+        service_id,
         spares,
         gate: gate::Settings {
             listeners,

@@ -260,8 +260,8 @@ impl Worker<'_> {
             .fetch_add(rows.len() as u64, Ordering::Relaxed)
             + rows.len() as u64;
         let first = rows.first().map(|(_, e)| e.as_str()).unwrap_or_default();
-        self.health.forward.failed(&format!(
-            "TDengine refused {count} row(s), set aside in the store: {first}"
+        self.health.forward_refused.failed(&format!(
+            "TDengine refused {count} row(s), set aside in the store (forward_set_aside): {first}"
         ));
         warn!(
             rows = rows.len(),

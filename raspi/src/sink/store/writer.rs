@@ -85,7 +85,8 @@ impl StoreWriter {
     }
 
     /// Writes every queued row and stops the writer, once every other sender is dropped. A
-    /// store that keeps failing is given [`STOP_GRACE`], then its rows are counted as dropped.
+    /// store that keeps failing is given a few seconds (`STOP_GRACE`), then its rows are
+    /// counted as dropped.
     pub fn finish(mut self) {
         self.sender.take();
         if let Some(thread) = self.thread.take() {

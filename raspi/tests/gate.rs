@@ -1,0 +1,374 @@
+//! The broker's gate against clients that misbehave: spoofing the car's topics, taking the
+//! service's client id, subscribing and never reading, and TLS on a network listener.
+
+use aer_host::counters::Counters;
+use aer_raspi::broker::{self, packet};
+use aer_raspi::health::Health;
+use aer_raspi::sink::mqtt as publish;
+use rumqttc::{AsyncClient, ConnectReturnCode, ConnectionError, Event, MqttOptions, Packet, QoS};
+use std::sync::Arc;
+use std::time::Duration;
+use tokio::io::{AsyncReadExt, AsyncWriteExt};
+use tokio::net::TcpStream;
+use tokio::sync::mpsc;
+use tokio_util::sync::CancellationToken;
+
+fn free_port() -> u16 {
+    std::net::TcpListener::bind("127.0.0.1:0")
+        .and_then(|l| l.local_addr())
+        .map(|a| a.port())
+        .expect("a free port")
+}
+
+struct Service {
+    port: u16,
+    counters: Arc<Counters>,
+    health: Arc<Health>,
+    publisher: publish::Publisher,
+    broker_address: std::net::SocketAddr,
+    broker_password: String,
+    service_id: String,
+}
+
+/// The service's broker (the shipped configuration on a free port, `edit`ed) with its
+/// publisher connected.
+async fn service(edit: impl FnOnce(&mut broker::BrokerConfig)) -> Service {
+    let port = free_port();
+    let text = broker::DEFAULT_CONFIG.replace("127.0.0.1:1883", &format!("127.0.0.1:{port}"));
+    let mut config = broker::parse(&text).expect("broker config");
+    edit(&mut config);
+    let counters = Arc::new(Counters::default());
+    let health = Arc::new(Health::default());
+    let broker = broker::start(config, counters.clone(), CancellationToken::new())
+        .await
+        .expect("broker");
+    let (broker_address, broker_password) =
+        (broker.gate.broker, broker.gate.broker_password.clone());
+    let service_id = broker.service_id.clone();
+    let (publisher, driver) = publish::embedded(
+        broker.link,
+        broker.spares,
+        10_000,
+        "aer/car1".into(),
+        counters.clone(),
+        health.clone(),
+    );
+    let (up_tx, mut up) = tokio::sync::watch::channel(false);
+    tokio::spawn(publish::drive(driver, up_tx));
+    let _ = tokio::time::timeout(Duration::from_secs(10), up.wait_for(|u| *u)).await;
+    Service {
+        port,
+        counters,
+        health,
+        publisher,
+        broker_address,
+        broker_password,
+        service_id,
+    }
+}
+
+/// A rumqttc client subscribed to `filter`; every publish it receives (topic, payload) goes
+/// to the channel. Returns once the subscription is acknowledged.
+async fn subscriber(
+    port: u16,
+    id: &str,
+    filter: &str,
+) -> (AsyncClient, mpsc::UnboundedReceiver<(String, Vec<u8>)>) {
+    let (client, mut events) = AsyncClient::new(MqttOptions::new(id, "127.0.0.1", port), 100);
+    client
+        .subscribe(filter, QoS::AtMostOnce)
+        .await
+        .expect("subscribe");
+    let (tx, rx) = mpsc::unbounded_channel();
+    let (subscribed_tx, subscribed) = tokio::sync::oneshot::channel();
+    tokio::spawn(async move {
+        let mut subscribed_tx = Some(subscribed_tx);
+        while let Ok(event) = events.poll().await {
+            match event {
+                Event::Incoming(Packet::SubAck(_)) => {
+                    if let Some(done) = subscribed_tx.take() {
+                        let _ = done.send(());
+                    }
+                }
+                Event::Incoming(Packet::Publish(p)) => {
+                    let _ = tx.send((p.topic.to_string(), p.payload.to_vec()));
+                }
+                _ => {}
+            }
+        }
+    });
+    tokio::time::timeout(Duration::from_secs(10), subscribed)
+        .await
+        .expect("subscribed in time")
+        .expect("alive");
+    (client, rx)
+}
+
+/// The service publishes a marker on its metrics topic; waits (bounded) until `rx` has it.
+async fn service_still_publishes(
+    service: &Service,
+    rx: &mut mpsc::UnboundedReceiver<(String, Vec<u8>)>,
+    marker: &str,
+) -> bool {
+    let topic = "aer/car1/probe";
+    tokio::time::timeout(Duration::from_secs(10), async {
+        loop {
+            service
+                .publisher
+                .publish_json(topic.trim_start_matches("aer/car1/"), &marker, false);
+            service.publisher.flush();
+            let deadline = tokio::time::Instant::now() + Duration::from_millis(200);
+            while let Ok(Some((t, payload))) = tokio::time::timeout_at(deadline, rx.recv()).await {
+                if t == topic && payload == format!("{marker:?}").into_bytes() {
+                    return;
+                }
+            }
+        }
+    })
+    .await
+    .is_ok()
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn no_client_can_publish_under_the_cars_topics() {
+    let service = service(|_| {}).await;
+    let (_watcher, mut seen) = subscriber(service.port, "watcher", "aer/#").await;
+    // A spoofer publishes fake telemetry and a retained status.
+    for (topic, retain) in [("aer/car1/telemetry", false), ("aer/car1/status", true)] {
+        let (spoofer, mut events) = AsyncClient::new(
+            MqttOptions::new(format!("spoofer-{retain}"), "127.0.0.1", service.port),
+            10,
+        );
+        spoofer
+            .publish(topic, QoS::AtLeastOnce, retain, b"{\"soc\": 100}".to_vec())
+            .await
+            .expect("queued");
+        // The gate cuts the connection at the publish (MQTT 3.1.1 has no per-message refusal).
+        let cut = tokio::time::timeout(Duration::from_secs(10), async {
+            loop {
+                match events.poll().await {
+                    Err(_) => return true,
+                    Ok(Event::Incoming(Packet::PubAck(_))) => return false,
+                    Ok(_) => {}
+                }
+            }
+        })
+        .await
+        .expect("answered in time");
+        assert!(cut, "{topic}: the publish was not refused");
+    }
+    assert!(service.counters.snapshot().mqtt_refused >= 2);
+    // Publishing elsewhere is fine (the pit crew's own topics).
+    let (pit, mut events) =
+        AsyncClient::new(MqttOptions::new("pit-notes", "127.0.0.1", service.port), 10);
+    pit.publish("pit/notes", QoS::AtLeastOnce, false, b"tyres".to_vec())
+        .await
+        .expect("queued");
+    let acked = tokio::time::timeout(Duration::from_secs(10), async {
+        loop {
+            if let Ok(Event::Incoming(Packet::PubAck(_))) = events.poll().await {
+                return;
+            }
+        }
+    })
+    .await;
+    assert!(acked.is_ok());
+    // The watcher saw only the service: the service's probe arrives, the spoofs never did.
+    assert!(service_still_publishes(&service, &mut seen, "after-spoof").await);
+    while let Ok((topic, payload)) = seen.try_recv() {
+        assert!(
+            !payload.windows(11).any(|w| w == b"{\"soc\": 100"),
+            "a spoofed message reached a subscriber on {topic}"
+        );
+    }
+    // A new subscriber gets no spoofed retained status either.
+    let (_late, mut late) = subscriber(service.port, "late", "aer/car1/status").await;
+    assert!(
+        tokio::time::timeout(Duration::from_millis(500), late.recv())
+            .await
+            .is_err(),
+        "no retained status from a spoofer"
+    );
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_services_client_ids_are_refused_and_its_link_survives_a_takeover() {
+    let service = service(|_| {}).await;
+    let (_watcher, mut seen) = subscriber(service.port, "watcher", "aer/#").await;
+    // Through the gate: the service's ids are refused outright.
+    let (_thief, mut events) = AsyncClient::new(
+        MqttOptions::new(service.service_id.clone(), "127.0.0.1", service.port),
+        10,
+    );
+    let refused = tokio::time::timeout(Duration::from_secs(10), events.poll())
+        .await
+        .expect("answered");
+    assert!(
+        matches!(
+            refused,
+            Err(ConnectionError::ConnectionRefused(
+                ConnectReturnCode::BadClientId
+            ))
+        ),
+        "{refused:?}"
+    );
+    assert!(service_still_publishes(&service, &mut seen, "after-refusal").await);
+    // Straight at the broker (only possible with the gate's own password): the broker drops
+    // the service's link for the newcomer, and the service carries on on a spare.
+    let mut options = MqttOptions::new(
+        service.service_id.clone(),
+        service.broker_address.ip().to_string(),
+        service.broker_address.port(),
+    );
+    options.set_credentials("aer-gate", service.broker_password.clone());
+    let (_direct, mut direct_events) = AsyncClient::new(options, 10);
+    tokio::spawn(async move { while direct_events.poll().await.is_ok() {} });
+    assert!(service_still_publishes(&service, &mut seen, "after-takeover").await);
+    let problem = service
+        .health
+        .mqtt
+        .error()
+        .expect("the takeover is reported");
+    assert!(problem.contains("spare"), "{problem}");
+}
+
+/// A client that connects, subscribes to everything and never reads again.
+async fn idle_subscriber(port: u16, index: usize) -> Option<TcpStream> {
+    let socket = tokio::net::TcpSocket::new_v4().ok()?;
+    socket.set_recv_buffer_size(4096).ok()?;
+    let mut stream = socket
+        .connect(std::net::SocketAddr::from(([127, 0, 0, 1], port)))
+        .await
+        .ok()?;
+    let connect = packet::Connect {
+        client_id: format!("idle-{index}"),
+        clean_session: true,
+        keep_alive_s: 0,
+        will: None,
+        username: None,
+        password: None,
+    };
+    stream.write_all(&connect.encode()).await.ok()?;
+    let mut connack = [0u8; 4];
+    stream.read_exact(&mut connack).await.ok()?;
+    if connack[3] != 0 {
+        return None;
+    }
+    // SUBSCRIBE, packet id 1, `aer/#` at QoS 0.
+    let body = [&[0u8, 1, 0, 5][..], b"aer/#", &[0]].concat();
+    stream
+        .write_all(&packet::with_header(0x82, &body))
+        .await
+        .ok()?;
+    Some(stream)
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn subscribers_that_never_read_cannot_crowd_out_the_dashboards() {
+    // Room for 8 clients (12 connections less the service's links), stalls noticed in 1 s.
+    let service = service(|config| {
+        config.broker.router.max_connections = 12;
+        config.stall_limit = Duration::from_secs(1);
+    })
+    .await;
+    let (flood_stop, flood) = tokio::sync::watch::channel(false);
+    // The service keeps publishing (about 100 kB/s), as a car does.
+    let publisher = service.publisher.clone();
+    tokio::spawn(async move {
+        let payload = "x".repeat(1_000);
+        while !*flood.borrow() {
+            for _ in 0..10 {
+                publisher.publish_json("telemetry_flood", &payload, false);
+            }
+            publisher.flush();
+            tokio::time::sleep(Duration::from_millis(100)).await;
+        }
+    });
+    let mut idle = Vec::new();
+    for index in 0..20 {
+        if let Some(stream) = idle_subscriber(service.port, index).await {
+            idle.push(stream);
+        }
+    }
+    assert!(!idle.is_empty());
+    // A dashboard that reads: it gets in (a stalled client makes room) and gets data.
+    let got_data = tokio::time::timeout(Duration::from_secs(30), async {
+        loop {
+            let (client, mut events) = AsyncClient::new(
+                MqttOptions::new("dashboard", "127.0.0.1", service.port),
+                100,
+            );
+            let _ = client.subscribe("aer/#", QoS::AtMostOnce).await;
+            loop {
+                match events.poll().await {
+                    Ok(Event::Incoming(Packet::Publish(_))) => return,
+                    Ok(_) => {}
+                    Err(_) => break,
+                }
+            }
+        }
+    })
+    .await;
+    let _ = flood_stop.send(true);
+    assert!(got_data.is_ok(), "the dashboard never got data");
+    let counters = service.counters.snapshot();
+    assert!(counters.mqtt_slow_clients > 0, "{counters:?}");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn network_listeners_speak_tls() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let certified = rcgen::generate_simple_self_signed(vec!["localhost".into()]).expect("cert");
+    let (cert, key) = (dir.path().join("cert.pem"), dir.path().join("key.pem"));
+    std::fs::write(&cert, certified.cert.pem()).expect("cert");
+    std::fs::write(&key, certified.signing_key.serialize_pem()).expect("key");
+    let (cert_path, key_path) = (cert.clone(), key.clone());
+    let service = service(move |config| {
+        for listener in &mut config.listeners {
+            listener.tls = Some(broker::tls::Files {
+                cert: cert_path.clone(),
+                key: key_path.clone(),
+            });
+        }
+    })
+    .await;
+    // A TLS client that trusts the certificate is served.
+    let mut roots = rustls::RootCertStore::empty();
+    roots.add(certified.cert.der().clone()).expect("root");
+    let config = rustls::ClientConfig::builder_with_provider(Arc::new(
+        rustls::crypto::ring::default_provider(),
+    ))
+    .with_safe_default_protocol_versions()
+    .expect("versions")
+    .with_root_certificates(roots)
+    .with_no_client_auth();
+    let connector = tokio_rustls::TlsConnector::from(Arc::new(config));
+    let tcp = TcpStream::connect(("127.0.0.1", service.port))
+        .await
+        .expect("tcp");
+    let name = rustls::pki_types::ServerName::try_from("localhost").expect("name");
+    let mut tls = connector.connect(name, tcp).await.expect("TLS handshake");
+    let connect = packet::Connect {
+        client_id: "pit-laptop".into(),
+        clean_session: true,
+        keep_alive_s: 30,
+        will: None,
+        username: None,
+        password: None,
+    };
+    tls.write_all(&connect.encode()).await.expect("connect");
+    let mut connack = [0u8; 4];
+    tls.read_exact(&mut connack).await.expect("connack");
+    assert_eq!(connack, packet::connack(0), "accepted over TLS");
+    // A plaintext client on the TLS listener gets nothing.
+    let mut plain = TcpStream::connect(("127.0.0.1", service.port))
+        .await
+        .expect("tcp");
+    plain.write_all(&connect.encode()).await.expect("write");
+    let mut answer = [0u8; 4];
+    let read = tokio::time::timeout(Duration::from_secs(15), plain.read(&mut answer)).await;
+    assert!(
+        !matches!(read, Ok(Ok(4)) if answer == packet::connack(0)),
+        "plaintext must not be served on a TLS listener"
+    );
+}
