@@ -50,7 +50,8 @@ enum Command {
         packets: Option<u64>,
     },
     /// Replay the bundled session at recorded speed, looping until Ctrl-C, with the embedded
-    /// broker on 127.0.0.1:1883 and the local store aer-demo.sqlite.
+    /// broker on 127.0.0.1:1883, the local store aer-demo.sqlite and the raw log in
+    /// aer-demo-raw/.
     Demo,
     /// Print raw log segments as candump -l text (every frame, losslessly), oldest first; a
     /// folder means every segment in it.
@@ -77,11 +78,13 @@ fn main() -> Result<()> {
         return aer_raspi::rawlog::export::candump(paths, std::io::stdout().lock());
     }
     let mut config = Config::load(cli.config.as_deref(), |key| std::env::var(key).ok())?;
-    if matches!(cli.command, Command::Demo)
-        && std::env::var_os("AER_STORE_PATH").is_none()
-        && cli.config.is_none()
-    {
-        config.store.path = "aer-demo.sqlite".into();
+    if matches!(cli.command, Command::Demo) && cli.config.is_none() {
+        if std::env::var_os("AER_STORE_PATH").is_none() {
+            config.store.path = "aer-demo.sqlite".into();
+        }
+        if std::env::var_os("AER_RAW_LOG_DIR").is_none() {
+            config.raw_log.dir = "aer-demo-raw".into();
+        }
     }
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
