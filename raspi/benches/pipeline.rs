@@ -3,8 +3,9 @@
 //! process into the embedded broker, written to the SQLite store), against today's design
 //! (serde_json of the whole struct plus one line-protocol string per packet,
 //! vehicle-facts.md) on the same packets. The `ingest` figures start from parsed frames; the
-//! `replay` figure adds the replay source (reading the log's text) and its channel, as the
-//! service runs.
+//! `replay` figure adds the replay source (reading the log's text) and its channel; the `raw
+//! log` figure adds the black-box raw log of every frame (encoded by ingest, written and
+//! synced by its thread), as the service runs by default.
 //!
 //! Run on one core (pipeline, store writer, MQTT client and broker share it):
 //! `taskset -c 0 cargo bench -p aer-raspi --bench pipeline`.
@@ -15,7 +16,11 @@ use aer_host::config::BrokerConfig;
 use aer_host::counters::Counters;
 use aer_host::ingest::decode_log;
 use aer_raspi::broker;
+use aer_raspi::health::Health;
 use aer_raspi::ingest::Stage;
+use aer_raspi::rawlog::RawTap;
+use aer_raspi::rawlog::segments::Budget;
+use aer_raspi::rawlog::writer::{RawWriter, Settings};
 use aer_raspi::sink::Sink;
 use aer_raspi::sink::mqtt as publish;
 use aer_raspi::sink::store::{self as store, StoreSink};
@@ -143,22 +148,46 @@ fn bench(c: &mut Criterion) {
     // A running service: the store is open (tables created) before the clock starts; the
     // clock stops once its writer has committed the last row.
     let path = dir.path().join("bench.sqlite");
-    let service = || {
+    let raw_dir = dir.path().join("raw");
+    let service = |raw_log: bool| {
         let _ = std::fs::remove_file(&path);
+        let _ = std::fs::remove_dir_all(&raw_dir);
         let writer =
             store::StoreWriter::start(store::open(&path).expect("store"), counters.clone());
         let sinks: Vec<Box<dyn Sink>> = vec![
             Box::new(publisher.clone()),
             Box::new(StoreSink::new(writer.sender().expect("store open"), "car1")),
         ];
-        (
-            Stage::new(counters.clone(), sinks, Replies::default()),
-            writer,
-        )
+        let mut stage = Stage::new(counters.clone(), sinks, Replies::default());
+        let mut raw = None;
+        if raw_log {
+            let settings = Settings {
+                dir: raw_dir.clone(),
+                segment_bytes: 16 << 20,
+                segment_age: Duration::from_secs(3600),
+                sync_every: Duration::from_secs(1),
+                budget: Budget {
+                    max_bytes: u64::MAX,
+                    max_age: None,
+                    min_free_bytes: 0,
+                },
+            };
+            let (raw_writer, blocks) =
+                RawWriter::start(settings, counters.clone(), Arc::new(Health::default()))
+                    .expect("raw log");
+            stage = stage.with_raw_log(RawTap::new(blocks, counters.clone()));
+            raw = Some(raw_writer);
+        }
+        Service { stage, writer, raw }
     };
     let session = inputs(SESSION);
     let telemetry_only = inputs(&telemetry_log);
-    let ingest = |(mut stage, writer): (Stage, store::StoreWriter), inputs: &[Input]| {
+    let ingest = |service: Service, inputs: &[Input]| {
+        let Service {
+            mut stage,
+            writer,
+            raw,
+        } = service;
         runtime.block_on(async {
             for input in inputs {
                 stage.take(input.clone());
@@ -167,11 +196,14 @@ fn bench(c: &mut Criterion) {
         });
         drop(stage);
         writer.finish();
+        if let Some(raw) = raw {
+            raw.finish();
+        }
     };
-    let replay = |(stage, writer): (Stage, store::StoreWriter), log: &str| {
-        let (stage, _) = runtime.block_on(stage.replay_all(log.as_bytes(), &counters));
+    let replay = |service: Service, log: &str| {
+        let (stage, _) = runtime.block_on(service.stage.replay_all(log.as_bytes(), &counters));
         drop(stage);
-        writer.finish();
+        service.writer.finish();
     };
 
     let mut group = c.benchmark_group("pipeline");
@@ -180,12 +212,26 @@ fn bench(c: &mut Criterion) {
     group.bench_function(
         "ours: session, packets + every CAN frame, ingest + MQTT + store",
         |b| {
-            b.iter_batched(service, |s| ingest(s, &session), BatchSize::PerIteration);
+            b.iter_batched(
+                || service(false),
+                |s| ingest(s, &session),
+                BatchSize::PerIteration,
+            );
+        },
+    );
+    group.bench_function(
+        "ours: session, packets + every CAN frame, ingest + MQTT + store + raw log",
+        |b| {
+            b.iter_batched(
+                || service(true),
+                |s| ingest(s, &session),
+                BatchSize::PerIteration,
+            );
         },
     );
     group.bench_function("ours: packets only, ingest + MQTT + store", |b| {
         b.iter_batched(
-            service,
+            || service(false),
             |s| ingest(s, &telemetry_only),
             BatchSize::PerIteration,
         );
@@ -193,7 +239,11 @@ fn bench(c: &mut Criterion) {
     group.bench_function(
         "ours: session from the log's text, replay + ingest + MQTT + store",
         |b| {
-            b.iter_batched(service, |s| replay(s, SESSION), BatchSize::PerIteration);
+            b.iter_batched(
+                || service(false),
+                |s| replay(s, SESSION),
+                BatchSize::PerIteration,
+            );
         },
     );
     group.bench_function("today: JSON + line protocol", |b| {
@@ -220,6 +270,13 @@ fn bench(c: &mut Criterion) {
     group.finish();
     let dropped = counters.snapshot().publish_dropped;
     assert_eq!(dropped, 0, "the benchmark must not drop MQTT messages");
+}
+
+/// The service's parts a benchmark round runs: ingest, the store's writer, the raw log's.
+struct Service {
+    stage: Stage,
+    writer: store::StoreWriter,
+    raw: Option<RawWriter>,
 }
 
 criterion_group!(benches, bench);

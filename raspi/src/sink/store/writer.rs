@@ -62,6 +62,7 @@ impl StoreWriter {
             counters,
             health: options.health,
             retention: options.retention,
+            stop_by: None,
         };
         let thread = std::thread::Builder::new()
             .name("store-writer".into())
@@ -101,9 +102,17 @@ struct Writer {
     counters: Arc<Counters>,
     health: Arc<Health>,
     retention: Option<Retention>,
+    /// When the service stops, the time by which a failing store's rows are given up.
+    stop_by: Option<Instant>,
 }
 
 impl Writer {
+    /// Starts the stop grace period, once.
+    fn stopping(&mut self) {
+        self.stop_by
+            .get_or_insert_with(|| Instant::now() + STOP_GRACE);
+    }
+
     fn run(mut self) {
         let mut batch: Vec<Row> = Vec::with_capacity(BATCH_ROWS);
         loop {
@@ -123,10 +132,13 @@ impl Writer {
     }
 
     /// Commits `batch`, retrying with backoff while the store fails; once the service is
-    /// stopping (`open` false) it gives up after [`STOP_GRACE`].
+    /// stopping (`open` false) every remaining batch shares one [`STOP_GRACE`], so a full
+    /// queue cannot multiply it.
     fn write(&mut self, batch: &mut Vec<Row>, open: bool) {
         let mut backoff = RETRY_START;
-        let mut stop_by = (!open).then(|| Instant::now() + STOP_GRACE);
+        if !open {
+            self.stopping();
+        }
         loop {
             match commit(&mut self.db, batch) {
                 Ok(()) => {
@@ -150,9 +162,10 @@ impl Writer {
                     }
                 }
             }
-            if stop_by.is_none() && self.queue.is_closed() {
-                stop_by = Some(Instant::now() + STOP_GRACE);
+            if self.queue.is_closed() {
+                self.stopping();
             }
+            let stop_by = self.stop_by;
             if let Some(deadline) = stop_by {
                 if Instant::now() >= deadline {
                     self.counters
