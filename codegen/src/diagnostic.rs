@@ -85,6 +85,8 @@ pub enum Code {
     Renamed,
     /// W0205: a CAN FD length that is not a frame length.
     FdLength,
+    /// W0206: a file with no messages (empty, or cut short at a line boundary).
+    NoMessages,
 }
 
 impl Code {
@@ -126,6 +128,7 @@ impl Code {
             Code::UnusableValues => "W0203",
             Code::Renamed => "W0204",
             Code::FdLength => "W0205",
+            Code::NoMessages => "W0206",
         }
     }
 

@@ -312,3 +312,21 @@ fn the_cli_prints_the_same_diagnostics_and_fails() {
         "{stderr}"
     );
 }
+
+#[test]
+fn a_file_without_messages_is_a_warning_and_the_cars_schema_refuses_it() {
+    let diags = diagnose("");
+    assert_eq!(diags.len(), 1, "{diags:#?}");
+    assert_eq!(diags[0].code, "W0206");
+    assert_eq!(diags[0].severity, Severity::Warning);
+
+    let dir = tempfile::tempdir().expect("temp dir");
+    std::fs::write(dir.path().join("aer.dbc"), HEADER).expect("dbc");
+    match aer_codegen::CarSchema::load(dir.path()) {
+        Err(aer_codegen::Error::DeniedWarnings(warnings)) => {
+            assert!(warnings.iter().any(|w| w.code == "W0206"), "{warnings:#?}");
+        }
+        Err(other) => panic!("expected the warning denied, got {other}"),
+        Ok(_) => panic!("an empty schema must not load as the car's"),
+    }
+}

@@ -1,7 +1,7 @@
 //! Enums from value tables: `VAL_TABLE_`s become named types, and a signal's `VAL_` list shares
 //! the table's type when they name the same values.
 
-use std::collections::HashSet;
+use std::collections::{HashMap, HashSet};
 
 use super::Builder;
 use crate::diagnostic::Code;
@@ -48,21 +48,15 @@ impl Builder<'_, '_> {
         kept.sort_by_key(|(v, _)| *v);
         kept.dedup_by_key(|(v, _)| *v);
         let raw = s.raw_int();
-        let table_match = self
-            .loaded
-            .dbc
-            .value_tables
-            .iter()
-            .position(|t| sorted_values(&t.descriptions) == kept);
-        if let Some(ti) = table_match {
-            let name = camel(&self.loaded.dbc.value_tables[ti].name);
-            if let Some(i) = enums.iter().position(|e| e.type_name == name) {
-                let e = &mut enums[i];
-                let (a, b) = e.repr.range();
-                let (c, d) = raw.range();
-                e.repr = IntType::smallest_for(a.min(c), b.max(d));
-                return Some(i);
-            }
+        if let Some((i, e)) = self
+            .table_enums
+            .get(&kept)
+            .and_then(|&i| Some((i, enums.get_mut(i)?)))
+        {
+            let (a, b) = e.repr.range();
+            let (c, d) = raw.range();
+            e.repr = IntType::smallest_for(a.min(c), b.max(d));
+            return Some(i);
         }
         if kept.is_empty() {
             self.r.report(
@@ -81,10 +75,18 @@ impl Builder<'_, '_> {
         Some(enums.len() - 1)
     }
 
+    /// An enum for each `VAL_TABLE_`, and which of them a `VAL_` list with the same values
+    /// shares (the first table with those values; the first enum of that table's name).
     pub(super) fn value_tables(&mut self) -> Vec<EnumType> {
-        self.loaded
-            .dbc
-            .value_tables
+        let tables = &self.loaded.dbc.value_tables;
+        let mut first_of_name: HashMap<String, usize> = HashMap::new();
+        for (i, t) in tables.iter().enumerate() {
+            let first = *first_of_name.entry(camel(&t.name)).or_insert(i);
+            self.table_enums
+                .entry(sorted_values(&t.descriptions))
+                .or_insert(first);
+        }
+        tables
             .iter()
             .map(|t| {
                 let kept = sorted_values(&t.descriptions);

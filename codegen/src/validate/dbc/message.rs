@@ -42,7 +42,7 @@ impl<'a> Builder<'a, '_> {
         Some(Message {
             fd: self.is_fd(msg.id, len),
             cycle_time_ms: self.cycle_time(msg.id),
-            comment: self.loaded.dbc.message_comment(msg.id).map(str::to_owned),
+            comment: self.index.message_comment(msg.id).map(str::to_owned),
             name: frame.name,
             type_name: frame.type_name,
             id: frame.id,
@@ -166,18 +166,11 @@ impl<'a> Builder<'a, '_> {
 
     /// The message's full name: Vector keeps names over 32 characters in an attribute.
     pub(super) fn long_message_name(&self, msg: &can_dbc::Message) -> String {
-        self.loaded
-            .dbc
-            .attribute_values_message
+        self.index
+            .message_attributes("SystemMessageLongSymbol", msg.id)
             .iter()
-            .find_map(|a| match &a.value {
-                AttributeValue::String(long)
-                    if a.name == "SystemMessageLongSymbol"
-                        && a.message_id == msg.id
-                        && !long.is_empty() =>
-                {
-                    Some(long.clone())
-                }
+            .find_map(|value| match value {
+                AttributeValue::String(long) if !long.is_empty() => Some(long.clone()),
                 _ => None,
             })
             .unwrap_or_else(|| msg.name.clone())
@@ -185,36 +178,22 @@ impl<'a> Builder<'a, '_> {
 
     /// The signal's full name (see [`Self::long_message_name`]).
     fn long_signal_name(&self, msg: &can_dbc::Message, sig: &can_dbc::Signal) -> String {
-        self.loaded
-            .dbc
-            .attribute_values_signal
+        self.index
+            .signal_attributes("SystemSignalLongSymbol", msg.id, &sig.name)
             .iter()
-            .find_map(|a| match &a.value {
-                AttributeValue::String(long)
-                    if a.name == "SystemSignalLongSymbol"
-                        && a.message_id == msg.id
-                        && a.signal_name == sig.name
-                        && !long.is_empty() =>
-                {
-                    Some(long.clone())
-                }
+            .find_map(|value| match value {
+                AttributeValue::String(long) if !long.is_empty() => Some(long.clone()),
                 _ => None,
             })
             .unwrap_or_else(|| sig.name.clone())
     }
 
     fn message_attribute(&self, name: &str, id: MessageId) -> Option<&'a AttributeValue> {
-        let dbc = &self.loaded.dbc;
-        dbc.attribute_values_message
-            .iter()
-            .find(|a| a.name == name && a.message_id == id)
-            .map(|a| &a.value)
-            .or_else(|| {
-                dbc.attribute_defaults
-                    .iter()
-                    .find(|d| d.name == name)
-                    .map(|d| &d.value)
-            })
+        self.index
+            .message_attributes(name, id)
+            .first()
+            .copied()
+            .or_else(|| self.index.attribute_default(name))
     }
 
     fn is_fd(&self, id: MessageId, len: usize) -> bool {

@@ -10,8 +10,10 @@
 //! `enums` and `mux` resolve value tables and multiplexing.
 
 mod enums;
+mod index;
 mod message;
 mod mux;
+mod overlap;
 mod signal;
 
 use std::collections::HashMap;
@@ -21,6 +23,7 @@ use crate::diagnostic::{Code, Diagnostics, Reporter};
 use crate::load::dbc::LoadedDbc;
 use crate::model::{Database, Node};
 use crate::naming::camel;
+use index::DbcIndex;
 
 /// Type names the generated module defines itself.
 const RESERVED_TYPES: [&str; 1] = ["AnyMessage"];
@@ -33,7 +36,21 @@ pub fn validate(
     loaded: &LoadedDbc,
 ) -> Result<(Database, Vec<crate::diagnostic::Diagnostic>), Diagnostics> {
     let mut r = Reporter::new(path, &loaded.text);
-    let mut db = Builder { loaded, r: &mut r }.build();
+    let mut db = Builder {
+        loaded,
+        index: DbcIndex::new(&loaded.dbc),
+        table_enums: HashMap::new(),
+        r: &mut r,
+    }
+    .build();
+    if db.messages.is_empty() && !r.has_errors() {
+        r.report(
+            Code::NoMessages,
+            1,
+            "the file defines no messages".to_owned(),
+            "check that it is the whole file: an empty or cut-short DBC generates an empty codec",
+        );
+    }
     db.name = path
         .file_stem()
         .and_then(|s| s.to_str())
@@ -48,6 +65,9 @@ pub fn validate(
 
 struct Builder<'a, 'r> {
     loaded: &'a LoadedDbc,
+    index: DbcIndex<'a>,
+    /// A `VAL_TABLE_`'s values (sorted, see `enums`) -> the index of the enum they share.
+    table_enums: HashMap<Vec<(i128, String)>, usize>,
     r: &'r mut Reporter<'a>,
 }
 
@@ -118,12 +138,7 @@ impl<'a> Builder<'a, '_> {
             .iter()
             .map(|n| Node {
                 name: n.0.clone(),
-                comment: dbc.comments.iter().find_map(|c| match c {
-                    can_dbc::Comment::Node { name, comment } if *name == n.0 => {
-                        Some(comment.clone())
-                    }
-                    _ => None,
-                }),
+                comment: self.index.node_comment(&n.0).map(str::to_owned),
             })
             .collect()
     }

@@ -1,11 +1,11 @@
 //! Multiplexing: conditions from `mN` indicators and `SG_MUL_VAL_` lines, the order in which
 //! multiplexors must be decoded, and overlaps between signals that can share a frame.
 
-use std::collections::{BTreeSet, HashMap, HashSet};
+use std::collections::{BTreeSet, HashMap};
 
 use can_dbc::MultiplexIndicator;
 
-use super::{Builder, Draft};
+use super::{Builder, Draft, overlap};
 use crate::diagnostic::Code;
 use crate::model::{MuxCondition, Signal};
 
@@ -77,13 +77,7 @@ impl<'a> Builder<'a, '_> {
         where_: &str,
         selectors: &Selectors,
     ) -> Result<Option<MuxCondition>, Reported> {
-        let extended: Vec<&can_dbc::ExtendedMultiplex> = self
-            .loaded
-            .dbc
-            .extended_multiplex
-            .iter()
-            .filter(|e| e.message_id == msg.id && e.signal_name == d.sig.name)
-            .collect();
+        let extended = self.index.extended_multiplex(msg.id, &d.sig.name);
         // An SG_MUL_VAL_ line defines the condition whatever the indicator says (tools that
         // dump extended multiplexing often write a nested multiplexor as plain `M`).
         let value = match d.sig.multiplexer_indicator {
@@ -210,28 +204,16 @@ impl<'a> Builder<'a, '_> {
         line: usize,
         signals: &[Signal],
     ) -> Option<Vec<usize>> {
-        let mut order = Vec::with_capacity(signals.len());
-        let mut done = vec![false; signals.len()];
-        while order.len() < signals.len() {
-            let before = order.len();
-            for (i, s) in signals.iter().enumerate() {
-                let ready = s.mux.as_ref().is_none_or(|m| done[m.selector]);
-                if !done[i] && ready {
-                    done[i] = true;
-                    order.push(i);
-                }
-            }
-            if order.len() == before {
-                self.r.report(
-                    Code::Multiplexing,
-                    line,
-                    format!("the multiplexors of message `{}` select each other in a cycle", msg.name),
-                    "a multiplexor must not be selected, directly or indirectly, by a signal it selects",
-                );
-                return None;
-            }
+        let order = overlap::decode_order(signals);
+        if order.is_none() {
+            self.r.report(
+                Code::Multiplexing,
+                line,
+                format!("the multiplexors of message `{}` select each other in a cycle", msg.name),
+                "a multiplexor must not be selected, directly or indirectly, by a signal it selects",
+            );
         }
-        Some(order)
+        order
     }
 
     /// Reports signals that share bits and can be present in the same frame.
@@ -241,56 +223,29 @@ impl<'a> Builder<'a, '_> {
         drafts: &[Draft<'a>],
         signals: &[Signal],
     ) {
-        let bits: Vec<BTreeSet<u32>> = signals
-            .iter()
-            .map(|s| s.bits().into_iter().collect())
-            .collect();
-        let mut reported = HashSet::new();
-        for a in 0..signals.len() {
-            for b in a + 1..signals.len() {
-                if bits[a].is_disjoint(&bits[b]) || exclusive(signals, a, b) || !reported.insert(b)
-                {
-                    continue;
-                }
-                let shared: Vec<u32> = bits[a].intersection(&bits[b]).copied().collect();
-                self.r.report(
-                    Code::SignalOverlap,
-                    drafts[b].line,
-                    format!(
-                        "signals `{}` and `{}` of message `{}` overlap in bit(s) {:?}",
-                        signals[a].name, signals[b].name, msg.name, shared
-                    ),
-                    "move one of them, or make them alternatives of the same multiplexor",
-                );
-            }
+        for (a, b) in overlap::overlaps(signals) {
+            let (Some(first), Some(second), Some(draft)) =
+                (signals.get(a), signals.get(b), drafts.get(b))
+            else {
+                continue;
+            };
+            let theirs: BTreeSet<u32> = first.bits().into_iter().collect();
+            let shared: Vec<u32> = second
+                .bits()
+                .into_iter()
+                .filter(|bit| theirs.contains(bit))
+                .collect::<BTreeSet<u32>>()
+                .into_iter()
+                .collect();
+            self.r.report(
+                Code::SignalOverlap,
+                draft.line,
+                format!(
+                    "signals `{}` and `{}` of message `{}` overlap in bit(s) {:?}",
+                    first.name, second.name, msg.name, shared
+                ),
+                "move one of them, or make them alternatives of the same multiplexor",
+            );
         }
     }
-}
-
-/// True when two signals can never be in the same frame: some multiplexor selects them with
-/// disjoint values.
-fn exclusive(signals: &[Signal], a: usize, b: usize) -> bool {
-    let path = |mut i: usize| {
-        let mut conds = Vec::new();
-        let mut guard = 0;
-        while let Some(m) = signals.get(i).and_then(|s| s.mux.as_ref()) {
-            conds.push(m);
-            i = m.selector;
-            guard += 1;
-            if guard > signals.len() {
-                break;
-            }
-        }
-        conds
-    };
-    let (pa, pb) = (path(a), path(b));
-    pa.iter().any(|ca| {
-        pb.iter().any(|cb| {
-            ca.selector == cb.selector
-                && ca
-                    .ranges
-                    .iter()
-                    .all(|&(lo1, hi1)| cb.ranges.iter().all(|&(lo2, hi2)| hi1 < lo2 || hi2 < lo1))
-        })
-    })
 }

@@ -3,7 +3,7 @@
 
 use can_dbc::{
     AttributeValue, ByteOrder as DbcByteOrder, MultiplexIndicator, NumericValue,
-    SignalExtendedValueType, ValueDescription, ValueType,
+    SignalExtendedValueType, ValueType,
 };
 
 use super::{Builder, Draft, Frame};
@@ -48,8 +48,7 @@ impl<'a> Builder<'a, '_> {
             max,
             unit: sig.unit.clone(),
             comment: self
-                .loaded
-                .dbc
+                .index
                 .signal_comment(msg.id, &sig.name)
                 .map(str::to_owned),
             receivers: sig
@@ -249,19 +248,7 @@ impl<'a> Builder<'a, '_> {
             Encoding::Float32 | Encoding::Float64 => return Some(PhysType::F64),
             _ => {}
         }
-        let choices = self
-            .loaded
-            .dbc
-            .value_descriptions
-            .iter()
-            .find_map(|v| match v {
-                ValueDescription::Signal {
-                    message_id,
-                    name,
-                    value_descriptions,
-                } if *message_id == frame.msg.id && *name == s.name => Some(value_descriptions),
-                _ => None,
-            });
+        let choices = self.index.value_descriptions(frame.msg.id, &s.name);
         if let Some(choices) = choices.filter(|c| !c.is_empty()) {
             let val_line = self
                 .loaded
@@ -290,12 +277,10 @@ impl<'a> Builder<'a, '_> {
 
     /// Whether the schema sets [`PHYS_TYPE_ATTRIBUTE`] to `"f32"` for the signal.
     fn wants_f32(&self, frame: &Frame<'_>, s: &Signal) -> bool {
-        self.loaded.dbc.attribute_values_signal.iter().any(|a| {
-            a.name == PHYS_TYPE_ATTRIBUTE
-                && a.message_id == frame.msg.id
-                && a.signal_name == s.name
-                && matches!(&a.value, AttributeValue::String(v) if v == "f32")
-        })
+        self.index
+            .signal_attributes(PHYS_TYPE_ATTRIBUTE, frame.msg.id, &s.name)
+            .iter()
+            .any(|value| matches!(value, AttributeValue::String(v) if v == "f32"))
     }
 
     /// f32, when its 24-bit mantissa holds every raw value.
