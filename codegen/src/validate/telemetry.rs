@@ -188,7 +188,6 @@ fn field(
         }
         (None, Some(wire), None) => {
             field.wire = wire_type(r, &name, wire)?;
-            field.phys = own_phys(&field);
         }
         (None, None, Some(enum_name)) => {
             let index = find_enum(r, db, &name, enum_name)?;
@@ -206,6 +205,10 @@ fn field(
         }
     }
     check_scaling(r, &field, spec.scale.as_ref().map_or(line, line_of))?;
+    if spec.wire.is_some() {
+        // Only once the scaling is known to be usable: the type follows from it.
+        field.phys = own_phys(&field);
+    }
     check_range(r, &field, line)?;
     Some(field)
 }
@@ -298,6 +301,20 @@ fn check_scaling(r: &mut Reporter<'_>, field: &TelemetryField, scale_line: usize
         );
         return None;
     }
+    if field.wire != WireType::F32 {
+        if let Some(problem) = resolution_problem(field) {
+            r.report(
+                Code::BadScale,
+                scale_line,
+                format!(
+                    "field `{name}` has scale {} and offset {}: {problem}",
+                    field.scale, field.offset
+                ),
+                "use a scale and offset that keep physical values within f64 and apart",
+            );
+            return None;
+        }
+    }
     if field.wire == WireType::F32
         && (field.scale != 1.0 || field.offset != 0.0)
         && field.source.is_none()
@@ -313,16 +330,33 @@ fn check_scaling(r: &mut Reporter<'_>, field: &TelemetryField, scale_line: usize
     Some(())
 }
 
+/// Why an integer field's physical values are unusable: beyond f64, or so far from zero that
+/// neighbouring raw values give the same f64 (so encoding could not find the raw value).
+fn resolution_problem(field: &TelemetryField) -> Option<&'static str> {
+    let (lo, hi) = field.wire.range();
+    let (a, b) = physical_extremes(lo, hi, field.scale, field.offset);
+    if !a.is_finite() || !b.is_finite() {
+        return Some("its physical values overflow f64");
+    }
+    // One raw step must stay above f64's resolution at the largest magnitude.
+    if field.scale.abs() <= a.abs().max(b.abs()) * f64::EPSILON * 2.0 {
+        return Some("f64 cannot tell neighbouring raw values apart");
+    }
+    None
+}
+
+/// The physical values of raw `lo` and `hi`, in f64.
+fn physical_extremes(lo: i128, hi: i128, scale: f64, offset: f64) -> (f64, f64) {
+    (lo as f64 * scale + offset, hi as f64 * scale + offset)
+}
+
 /// `min`/`max` within what the wire type holds at the field's scale.
 fn check_range(r: &mut Reporter<'_>, field: &TelemetryField, line: usize) -> Option<()> {
     let (Some(lo), Some(hi)) = (field.min, field.max) else {
         return Some(());
     };
     let (raw_lo, raw_hi) = field.wire.range();
-    let (a, b) = (
-        raw_lo as f64 * field.scale + field.offset,
-        raw_hi as f64 * field.scale + field.offset,
-    );
+    let (a, b) = physical_extremes(raw_lo, raw_hi, field.scale, field.offset);
     let tol = field.scale.abs() / 2.0;
     if field.wire != WireType::F32 && (lo < a.min(b) - tol || hi > a.max(b) + tol || lo > hi) {
         r.report(
@@ -481,21 +515,35 @@ fn enum_wire(db: &Database, index: usize) -> Option<WireType> {
     })
 }
 
-/// Physical type of a field with its own wire type: exact integers where the scaling allows,
-/// `f32` where it holds every raw value exactly enough (24-bit mantissa), `f64` otherwise.
+/// Physical type of a field with its own wire type: exact integers where the scaling allows
+/// (and they fit 128 bits), `f32` where it holds every raw value exactly enough (24-bit
+/// mantissa) and within its range, `f64` otherwise.
 fn own_phys(f: &TelemetryField) -> PhysType {
+    let (lo, hi) = f.wire.range();
     match f.wire {
         WireType::Flag => PhysType::Bool,
         WireType::F32 => PhysType::F32,
-        w if f.scale.fract() == 0.0 && f.offset.fract() == 0.0 => {
-            let (lo, hi) = w.range();
-            let (a, b) = (
-                lo * f.scale as i128 + f.offset as i128,
-                hi * f.scale as i128 + f.offset as i128,
-            );
-            PhysType::Int(IntType::smallest_for(a.min(b), a.max(b)))
+        _ if f.scale.fract() == 0.0 && f.offset.fract() == 0.0 => {
+            match (exact_physical(lo, f), exact_physical(hi, f)) {
+                (Some(a), Some(b)) => PhysType::Int(IntType::smallest_for(a.min(b), a.max(b))),
+                _ => PhysType::F64,
+            }
         }
-        w if w.bits() <= 24 => PhysType::F32,
+        w if w.bits() <= 24 => {
+            let (a, b) = physical_extremes(lo, hi, f.scale, f.offset);
+            if a.abs().max(b.abs()) <= f64::from(f32::MAX) {
+                PhysType::F32
+            } else {
+                PhysType::F64
+            }
+        }
         _ => PhysType::F64,
     }
+}
+
+/// `raw * scale + offset` in integers, for whole scale and offset; `None` beyond 128 bits.
+fn exact_physical(raw: i128, f: &TelemetryField) -> Option<i128> {
+    let whole = |v: f64| (v.abs() < 1.7e38).then_some(v as i128);
+    raw.checked_mul(whole(f.scale)?)?
+        .checked_add(whole(f.offset)?)
 }

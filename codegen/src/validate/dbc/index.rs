@@ -5,7 +5,8 @@
 use std::collections::HashMap;
 
 use can_dbc::{
-    AttributeValue, Comment, Dbc, ExtendedMultiplex, MessageId, ValDescription, ValueDescription,
+    AttributeValue, Comment, Dbc, ExtendedMultiplex, MessageId, SignalExtendedValueType,
+    ValDescription, ValueDescription,
 };
 
 /// By message, then by signal name as written in the `SG_` line. (Nested rather than keyed by
@@ -26,6 +27,7 @@ pub(super) struct DbcIndex<'a> {
     signal_attributes: HashMap<&'a str, BySignal<'a, Vec<&'a AttributeValue>>>,
     attribute_defaults: HashMap<&'a str, &'a AttributeValue>,
     extended_multiplex: BySignal<'a, Vec<&'a ExtendedMultiplex>>,
+    value_types: BySignal<'a, &'a SignalExtendedValueType>,
 }
 
 impl<'a> DbcIndex<'a> {
@@ -104,7 +106,24 @@ impl<'a> DbcIndex<'a> {
                 .or_default()
                 .push(e);
         }
+        for v in &dbc.signal_extended_value_type_list {
+            index
+                .value_types
+                .entry(v.message_id)
+                .or_default()
+                .entry(v.signal_name.as_str())
+                .or_insert(&v.signal_extended_value_type);
+        }
         index
+    }
+
+    /// The signal's `SIG_VALTYPE_` (IEEE float), if any.
+    pub(super) fn value_type(
+        &self,
+        id: MessageId,
+        signal: &str,
+    ) -> Option<&'a SignalExtendedValueType> {
+        self.value_types.get(&id)?.get(signal).copied()
     }
 
     pub(super) fn node_comment(&self, node: &str) -> Option<&'a str> {

@@ -138,13 +138,7 @@ impl<'a> Builder<'a, '_> {
         where_: &str,
     ) -> Option<Encoding> {
         let sig = d.sig;
-        let ext = self
-            .loaded
-            .dbc
-            .signal_extended_value_type_list
-            .iter()
-            .find(|e| e.message_id == frame.msg.id && e.signal_name == sig.name)
-            .map(|e| &e.signal_extended_value_type);
+        let ext = self.index.value_type(frame.msg.id, &sig.name);
         let encoding = match (ext, &sig.value_type) {
             (Some(SignalExtendedValueType::IEEEfloat32Bit), _) => Encoding::Float32,
             (Some(SignalExtendedValueType::IEEEdouble64bit), _) => Encoding::Float64,
@@ -177,6 +171,18 @@ impl<'a> Builder<'a, '_> {
                 Code::BadFactor,
                 d.line,
                 format!("{where_} has factor {} and offset {}; the factor must be a non-zero finite number", sig.factor, sig.offset),
+                "fix the `(factor,offset)` pair in the SG_ line",
+            );
+            return None;
+        }
+        if float_len.is_none() && !physical_extremes_finite(len, encoding, sig.factor, sig.offset) {
+            self.r.report(
+                Code::BadFactor,
+                d.line,
+                format!(
+                    "{where_} has factor {} and offset {}; its physical values overflow f64",
+                    sig.factor, sig.offset
+                ),
                 "fix the `(factor,offset)` pair in the SG_ line",
             );
             return None;
@@ -321,4 +327,14 @@ fn numeric(v: &NumericValue) -> f64 {
         NumericValue::Int(i) => i as f64,
         NumericValue::Double(d) => d,
     }
+}
+
+/// Whether every raw value of an integer signal has a finite physical value.
+fn physical_extremes_finite(len: u32, encoding: Encoding, factor: f64, offset: f64) -> bool {
+    let len = len.clamp(1, 64);
+    let (lo, hi) = match encoding {
+        Encoding::Signed => (-(2f64.powi(len as i32 - 1)), 2f64.powi(len as i32 - 1)),
+        _ => (0.0, 2f64.powi(len as i32)),
+    };
+    (lo * factor + offset).is_finite() && (hi * factor + offset).is_finite()
 }
