@@ -72,11 +72,22 @@ pub fn render_runtime(source: &str, telemetry: bool) -> Result<String, askama::E
 }
 
 pub fn render_can(db: &Database, source: &str, fingerprint: u32) -> Result<String, askama::Error> {
+    // Which signals use each enum, in one pass (not a pass over every signal per enum).
+    let mut users: Vec<Vec<String>> = vec![Vec::new(); db.enums.len()];
+    for m in &db.messages {
+        for s in &m.signals {
+            if let PhysType::Enum(index) = s.phys {
+                if let Some(list) = users.get_mut(index) {
+                    list.push(format!("`{}.{}`", m.name, s.name));
+                }
+            }
+        }
+    }
     let enums = db
         .enums
         .iter()
-        .enumerate()
-        .map(|(i, e)| enum_view(db, i, e))
+        .zip(users)
+        .map(|(e, users)| enum_view(e, &users))
         .collect();
     let messages = db.messages.iter().map(|m| message_view(db, m)).collect();
     CanTemplate {
@@ -89,17 +100,8 @@ pub fn render_can(db: &Database, source: &str, fingerprint: u32) -> Result<Strin
     .render()
 }
 
-fn enum_view(db: &Database, index: usize, e: &EnumType) -> EnumView {
-    let users: Vec<String> = db
-        .messages
-        .iter()
-        .flat_map(|m| {
-            m.signals
-                .iter()
-                .filter(|s| s.phys == PhysType::Enum(index))
-                .map(move |s| format!("`{}.{}`", m.name, s.name))
-        })
-        .collect();
+/// `users`: the signals whose type it is, as `` `Message.Signal` ``.
+fn enum_view(e: &EnumType, users: &[String]) -> EnumView {
     EnumView {
         name: e.type_name.clone(),
         repr: e.repr.rust(),
