@@ -39,6 +39,8 @@ pub struct Variant {
 pub struct Message {
     pub name: String,
     pub type_name: String,
+    /// Its snake-case name, unique in the database: SQL table, MQTT topic, metadata static.
+    pub item_name: String,
     pub id: u32,
     pub extended: bool,
     /// Payload length in bytes (up to 64 for CAN FD).

@@ -89,11 +89,6 @@ pub fn camel(name: &str) -> String {
     s
 }
 
-/// `SCREAMING_SNAKE_CASE` constant name.
-pub fn screaming(name: &str) -> String {
-    snake(name).trim_end_matches('_').to_ascii_uppercase()
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -111,7 +106,6 @@ mod tests {
         assert_eq!(camel("ExampleMessage"), "ExampleMessage");
         assert_eq!(camel("ignition off"), "IgnitionOff");
         assert_eq!(camel("3rd gear"), "V3rdGear");
-        assert_eq!(screaming("GearLeverPos_Sts"), "GEAR_LEVER_POS_STS");
     }
 
     #[test]

@@ -186,12 +186,12 @@ impl {{ m.type_name }} {
 {%- for s in m.signals %}
 
     /// Physical value of `{{ s.name.0 }}` for a raw value.
-    pub fn {{ s.field }}_from_raw(raw: {{ s.raw_ty }}) -> {{ s.phys_ty }} {
+    pub fn {{ s.stem }}_from_raw(raw: {{ s.raw_ty }}) -> {{ s.phys_ty }} {
         {% call signal::from_raw(s) %}{% endcall %}
     }
 
     /// Raw value of `{{ s.name.0 }}` for a physical value, range-checked.
-    pub fn {{ s.field }}_to_raw(v: {{ s.phys_ty }}) -> Result<{{ s.raw_ty }}, EncodeError> {
+    pub fn {{ s.stem }}_to_raw(v: {{ s.phys_ty }}) -> Result<{{ s.raw_ty }}, EncodeError> {
         {%- call signal::to_raw(s) %}{% endcall %}
     }
 {%- endfor %}

@@ -14,11 +14,11 @@ bits::sign_extend({{ bits }}, {{ len }}){% if let Some(ty) = narrow %} as {{ ty 
 
 {%- macro bits_from_raw(s, from_self) -%}
 {%- match s.raw -%}
-{%- when RawCodec::F32 -%} u64::from(Self::{{ s.field }}_to_raw({% if from_self %}self.{{ s.field }}{% else %}v{% endif %})?.to_bits())
-{%- when RawCodec::F64 -%} Self::{{ s.field }}_to_raw({% if from_self %}self.{{ s.field }}{% else %}v{% endif %})?.to_bits()
-{%- when RawCodec::Signed { .. } -%} Self::{{ s.field }}_to_raw({% if from_self %}self.{{ s.field }}{% else %}v{% endif %})? as u64
-{%- when RawCodec::Unsigned64 -%} Self::{{ s.field }}_to_raw({% if from_self %}self.{{ s.field }}{% else %}v{% endif %})?
-{%- when RawCodec::Unsigned { .. } -%} u64::from(Self::{{ s.field }}_to_raw({% if from_self %}self.{{ s.field }}{% else %}v{% endif %})?)
+{%- when RawCodec::F32 -%} u64::from(Self::{{ s.stem }}_to_raw({% if from_self %}self.{{ s.field }}{% else %}v{% endif %})?.to_bits())
+{%- when RawCodec::F64 -%} Self::{{ s.stem }}_to_raw({% if from_self %}self.{{ s.field }}{% else %}v{% endif %})?.to_bits()
+{%- when RawCodec::Signed { .. } -%} Self::{{ s.stem }}_to_raw({% if from_self %}self.{{ s.field }}{% else %}v{% endif %})? as u64
+{%- when RawCodec::Unsigned64 -%} Self::{{ s.stem }}_to_raw({% if from_self %}self.{{ s.field }}{% else %}v{% endif %})?
+{%- when RawCodec::Unsigned { .. } -%} u64::from(Self::{{ s.stem }}_to_raw({% if from_self %}self.{{ s.field }}{% else %}v{% endif %})?)
 {%- endmatch -%}
 {%- endmacro -%}
 
@@ -35,18 +35,18 @@ matches!({{ c.selector }}, {% if c.selector_optional %}Some({{ c.patterns() }}){
 {%- match s.presence -%}
 {%- when Presence::Always -%}
 {%- if s.is_multiplexor %}
-        let {{ s.field }}_bits = {{ s.read_expr() }};
-        let {{ s.field }} = Self::{{ s.field }}_from_raw({% call raw_from_bits(s, s.bits_local()) %}{% endcall %});
+        let {{ s.stem }}_bits = {{ s.read_expr() }};
+        let {{ s.field }} = Self::{{ s.stem }}_from_raw({% call raw_from_bits(s, s.bits_local()) %}{% endcall %});
 {%- else %}
-        let {{ s.field }} = Self::{{ s.field }}_from_raw({% call raw_from_bits(s, s.read_expr()) %}{% endcall %});
+        let {{ s.field }} = Self::{{ s.stem }}_from_raw({% call raw_from_bits(s, s.read_expr()) %}{% endcall %});
 {%- endif -%}
 {%- when Presence::When(c) -%}
 {%- if s.is_multiplexor %}
-        let {{ s.field }}_bits = if {% call condition(c) %}{% endcall %} { Some({{ s.read_expr() }}) } else { None };
-        let {{ s.field }} = {{ s.field }}_bits.map(|bits| Self::{{ s.field }}_from_raw({% call raw_from_bits(s, "bits") %}{% endcall %}));
+        let {{ s.stem }}_bits = if {% call condition(c) %}{% endcall %} { Some({{ s.read_expr() }}) } else { None };
+        let {{ s.field }} = {{ s.stem }}_bits.map(|bits| Self::{{ s.stem }}_from_raw({% call raw_from_bits(s, "bits") %}{% endcall %}));
 {%- else %}
         let {{ s.field }} = if {% call condition(c) %}{% endcall %} {
-            Some(Self::{{ s.field }}_from_raw({% call raw_from_bits(s, s.read_expr()) %}{% endcall %}))
+            Some(Self::{{ s.stem }}_from_raw({% call raw_from_bits(s, s.read_expr()) %}{% endcall %}))
         } else {
             None
         };
@@ -60,15 +60,15 @@ matches!({{ c.selector }}, {% if c.selector_optional %}Some({{ c.patterns() }}){
 {%- match s.presence -%}
 {%- when Presence::Always -%}
 {%- if s.is_multiplexor %}
-        let {{ s.field }}_bits = {% call bits_from_raw(s, true) %}{% endcall %};
+        let {{ s.stem }}_bits = {% call bits_from_raw(s, true) %}{% endcall %};
         {% call write(s, s.bits_local()) %}{% endcall %}
 {%- else %}
         bits::write_{{ s.placement.order }}(out, {{ s.placement.start }}, {{ s.placement.len }}, {% call bits_from_raw(s, true) %}{% endcall %});
 {%- endif -%}
 {%- when Presence::When(c) -%}
 {%- if s.is_multiplexor %}
-        let {{ s.field }}_bits = {% call checked(s, c) %}{% endcall %};
-        if let Some(bits) = {{ s.field }}_bits {
+        let {{ s.stem }}_bits = {% call checked(s, c) %}{% endcall %};
+        if let Some(bits) = {{ s.stem }}_bits {
             {% call write(s, "bits") %}{% endcall %}
         }
 {%- else %}

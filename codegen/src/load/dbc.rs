@@ -31,6 +31,8 @@ pub struct LineIndex {
     pub message_attributes: HashMap<(String, u64), usize>,
     /// (attribute name, raw message id, signal) -> line of a `BA_ "name" SG_ id sig` assignment.
     pub signal_attributes: HashMap<(String, u64, String), usize>,
+    /// Value table name -> line of its `VAL_TABLE_`.
+    pub value_tables: HashMap<String, usize>,
 }
 
 impl LineIndex {
@@ -83,6 +85,12 @@ impl LineIndex {
                         }
                         _ => {}
                     }
+                }
+                Some("VAL_TABLE_") => {
+                    if let Some(name) = tokens.next() {
+                        index.value_tables.entry(name.to_owned()).or_insert(n);
+                    }
+                    current_message = None;
                 }
                 Some(t) if !t.is_empty() => current_message = None,
                 _ => {}

@@ -3,7 +3,6 @@
 use askama::Template;
 
 use crate::model::{Database, PhysType, Telemetry};
-use crate::naming::{screaming, snake};
 
 #[derive(Template)]
 #[template(path = "mqtt.rs", escape = "none")]
@@ -69,8 +68,8 @@ pub fn render(db: &Database, t: &Telemetry, source: &str) -> Result<String, aska
             .messages
             .iter()
             .map(|m| MessageTopic {
-                const_name: screaming(&m.name),
-                suffix: format!("can/{}", snake(&m.name).trim_end_matches('_')),
+                const_name: m.item_name.to_ascii_uppercase(),
+                suffix: format!("can/{}", m.item_name),
                 type_name: m.type_name.clone(),
             })
             .collect(),

@@ -5,7 +5,6 @@
 use askama::Template;
 
 use crate::model::{Database, IntType, PhysType, Telemetry};
-use crate::naming::snake;
 
 #[derive(Template)]
 #[template(path = "tables.rs", escape = "none")]
@@ -253,7 +252,7 @@ pub(crate) fn tables(db: &Database, t: &Telemetry) -> Vec<Table> {
                 .map(|s| Column::new(s.field.trim_end_matches('_'), ColumnType::of(db, s.phys))),
         );
         let mut table = Table::new(
-            format!("can_{}", snake(&m.name).trim_end_matches('_')),
+            format!("can_{}", m.item_name),
             format!(
                 "CAN message `{}` (0x{:X}), one row per frame; multiplexed signals are NULL when absent.",
                 m.name, m.id

@@ -131,7 +131,7 @@ fn message_view(db: &Database, m: &Message) -> MessageView {
     MessageView {
         type_name: m.type_name.clone(),
         name: StrLit(m.name.clone()),
-        meta_static: format!("{}_SIGNALS", crate::naming::screaming(&m.type_name)),
+        meta_static: format!("{}_SIGNALS", m.item_name.to_ascii_uppercase()),
         docs: message_docs(m),
         id: format!("0x{:X}", m.id),
         extended: m.extended,

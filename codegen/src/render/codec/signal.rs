@@ -12,6 +12,9 @@ pub struct SignalView {
     /// The message's name, for errors that name the signal.
     pub message: StrLit,
     pub field: String,
+    /// What its conversion functions and raw-bits local are named after: the field without
+    /// a keyword's trailing `_` (`type_` -> `type_from_raw`, not `type__from_raw`).
+    pub stem: String,
     /// Position in the message's signal list (and its metadata array).
     pub index: usize,
     pub docs: Vec<String>,
@@ -191,6 +194,7 @@ impl SignalView {
             name: StrLit(s.name.clone()),
             message: StrLit(m.name.clone()),
             field: s.field.clone(),
+            stem: s.field.trim_end_matches('_').to_owned(),
             index,
             docs: docs(m, s),
             raw_ty: raw_type(s),
@@ -220,7 +224,7 @@ impl SignalView {
 
     /// The local holding a multiplexor's bits.
     pub fn bits_local(&self) -> String {
-        format!("{}_bits", self.field)
+        format!("{}_bits", self.stem)
     }
 
     /// The call reading the signal's bits from `data`.
@@ -280,7 +284,9 @@ fn presence(m: &Message, s: &Signal) -> Presence {
     };
     let selector = m.signals.get(c.selector);
     Presence::When(MuxCondition {
-        selector: selector.map_or("selector".to_owned(), |x| format!("{}_bits", x.field)),
+        selector: selector.map_or("selector".to_owned(), |x| {
+            format!("{}_bits", x.field.trim_end_matches('_'))
+        }),
         selector_optional: selector.is_some_and(|x| x.mux.is_some()),
         ranges: c.ranges.clone(),
     })

@@ -1,9 +1,9 @@
 //! Enums from value tables: `VAL_TABLE_`s become named types, and a signal's `VAL_` list shares
 //! the table's type when they name the same values.
 
-use std::collections::{HashMap, HashSet};
+use std::collections::HashSet;
 
-use super::Builder;
+use super::{Builder, first_free};
 use crate::diagnostic::Code;
 use crate::model::Encoding;
 use crate::model::{EnumType, IntType, Signal, Variant};
@@ -66,39 +66,74 @@ impl Builder<'_, '_> {
                 "remove its VAL_ line",
             );
         }
+        let wanted = format!("{type_name}{}", camel(&s.name));
+        let name = self.claim_type_name(&wanted, [], line, || format!("the enum of {where_}"));
         enums.push(EnumType {
-            type_name: format!("{type_name}{}", camel(&s.name)),
+            type_name: name,
             variants: variants(&kept),
             repr: raw,
         });
-        let _ = where_;
         Some(enums.len() - 1)
     }
 
-    /// An enum for each `VAL_TABLE_`, and which of them a `VAL_` list with the same values
-    /// shares (the first table with those values; the first enum of that table's name).
+    /// An enum for each `VAL_TABLE_` (each with its own type name), and which of them a `VAL_`
+    /// list with the same values shares (the first table with those values).
     pub(super) fn value_tables(&mut self) -> Vec<EnumType> {
         let tables = &self.loaded.dbc.value_tables;
-        let mut first_of_name: HashMap<String, usize> = HashMap::new();
+        let mut enums = Vec::with_capacity(tables.len());
         for (i, t) in tables.iter().enumerate() {
-            let first = *first_of_name.entry(camel(&t.name)).or_insert(i);
-            self.table_enums
-                .entry(sorted_values(&t.descriptions))
-                .or_insert(first);
+            let kept = sorted_values(&t.descriptions);
+            let lo = kept.first().map_or(0, |(v, _)| *v);
+            let hi = kept.last().map_or(0, |(v, _)| *v);
+            let line = self
+                .loaded
+                .lines
+                .value_tables
+                .get(&t.name)
+                .copied()
+                .unwrap_or(1);
+            let name = self.claim_type_name(&camel(&t.name), [], line, || {
+                format!("value table `{}`", t.name)
+            });
+            self.table_enums.entry(kept.clone()).or_insert(i);
+            enums.push(EnumType {
+                type_name: name,
+                variants: variants(&kept),
+                repr: IntType::smallest_for(lo.min(0), hi),
+            });
         }
-        tables
-            .iter()
-            .map(|t| {
-                let kept = sorted_values(&t.descriptions);
-                let lo = kept.first().map_or(0, |(v, _)| *v);
-                let hi = kept.last().map_or(0, |(v, _)| *v);
-                EnumType {
-                    type_name: camel(&t.name),
-                    variants: variants(&kept),
-                    repr: IntType::smallest_for(lo.min(0), hi),
-                }
-            })
-            .collect()
+        enums
+    }
+
+    /// Takes `wanted` as a Rust type name, or the first free variant of it (with a W0204 that
+    /// names `what` was renamed).
+    pub(super) fn claim_type_name(
+        &mut self,
+        wanted: &str,
+        suffixes: impl IntoIterator<Item = String>,
+        line: usize,
+        what: impl FnOnce() -> String,
+    ) -> String {
+        let name = first_free(wanted, suffixes, |n| !self.taken.type_names.contains_key(n));
+        if name != wanted {
+            let first = self.taken.type_names.get(wanted).copied().unwrap_or(0);
+            let taken_by = if first == 0 {
+                "a name the generated code uses itself".to_owned()
+            } else {
+                format!("a name already taken (line {first})")
+            };
+            self.r.report(
+                Code::Renamed,
+                line,
+                format!(
+                    "{} would be the Rust type `{wanted}`, {taken_by}; it is `{name}`",
+                    what()
+                ),
+                "keep message, value-table and signal names distinct after conversion to CamelCase",
+            );
+        }
+        self.taken.type_names.insert(name.clone(), line);
+        name
     }
 }
 

@@ -4,10 +4,18 @@ use std::collections::HashMap;
 
 use can_dbc::{AttributeValue, MessageId};
 
-use super::{Builder, Draft, Frame};
+use super::{Builder, Draft, Frame, first_free};
 use crate::diagnostic::Code;
 use crate::model::{EnumType, Message, Signal};
 use crate::naming::{is_keyword, snake};
+
+/// Field names the store's tables use for their own columns.
+const RESERVED_FIELDS: [&str; 4] = ["ts", "car_id", "bus", "schema_fingerprint"];
+
+/// The generated code's local for a field's raw bits.
+fn bits_local(field: &str) -> String {
+    format!("{}_bits", field.trim_end_matches('_'))
+}
 
 /// Payload lengths a CAN FD frame can carry.
 const FD_LENGTHS: [usize; 15] = [0, 1, 2, 3, 4, 5, 6, 7, 8, 12, 16, 20, 24, 32, 48];
@@ -45,6 +53,7 @@ impl<'a> Builder<'a, '_> {
             comment: self.index.message_comment(msg.id).map(str::to_owned),
             name: frame.name,
             type_name: frame.type_name,
+            item_name: frame.item_name,
             id: frame.id,
             extended: frame.extended,
             len,
@@ -118,8 +127,8 @@ impl<'a> Builder<'a, '_> {
         name: &str,
         fields: &mut HashMap<String, (String, usize)>,
     ) -> Option<String> {
-        let mut field = snake(name);
-        if let Some((other, other_line)) = fields.get(&field).cloned() {
+        let wanted = snake(name);
+        if let Some((other, other_line)) = fields.get(&wanted).cloned() {
             if other == name {
                 self.r.report(
                     Code::DuplicateSignal,
@@ -129,16 +138,36 @@ impl<'a> Builder<'a, '_> {
                 );
                 return None;
             }
-            let renamed = format!("{field}_{}", fields.len());
+        }
+        // A field also takes the name of its raw bits' local in the generated code
+        // (`<field>_bits`); the store's fixed columns are taken from the start.
+        let free = |f: &str| {
+            !RESERVED_FIELDS.contains(&f)
+                && !fields.contains_key(f)
+                && !fields.contains_key(&bits_local(f))
+        };
+        let field = first_free(&wanted, [], free);
+        if field != wanted {
+            let why = match fields
+                .get(&wanted)
+                .or_else(|| fields.get(&bits_local(&wanted)))
+            {
+                Some((other, other_line)) => {
+                    format!("signal `{other}` (line {other_line}) already takes it")
+                }
+                None => "the store reserves it for its own column".to_owned(),
+            };
             self.r.report(
                 Code::Renamed,
                 d.line,
-                format!("signals `{other}` (line {other_line}) and `{name}` would both be the Rust field `{field}`; this one is `{renamed}`"),
+                format!(
+                    "signal `{name}` would be the Rust field `{wanted}`, but {why}; it is `{field}`"
+                ),
                 "keep signal names distinct after conversion to snake_case",
             );
-            field = renamed;
         }
         fields.insert(field.clone(), (name.to_owned(), d.line));
+        fields.insert(bits_local(&field), (name.to_owned(), d.line));
         if is_keyword(&d.sig.name) || is_keyword(&field) || field.ends_with('_') {
             self.r.report(
                 Code::KeywordName,

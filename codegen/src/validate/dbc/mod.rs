@@ -22,11 +22,32 @@ use std::path::Path;
 use crate::diagnostic::{Code, Diagnostics, Reporter};
 use crate::load::dbc::LoadedDbc;
 use crate::model::{Database, Node};
-use crate::naming::camel;
+use crate::naming::{camel, snake};
 use index::DbcIndex;
 
-/// Type names the generated module defines itself.
-const RESERVED_TYPES: [&str; 1] = ["AnyMessage"];
+/// Type names the generated module defines or imports itself, and the prelude's that its code
+/// uses: a message or enum with one of these names would shadow them.
+const RESERVED_TYPES: [&str; 19] = [
+    "AnyMessage",
+    "ByteOrder",
+    "CanMessage",
+    "DecodeError",
+    "EncodeError",
+    "MessageMeta",
+    "SignalMeta",
+    "SignalSource",
+    "SignalVisitor",
+    "Value",
+    "Option",
+    "Result",
+    "Some",
+    "None",
+    "Ok",
+    "Err",
+    "From",
+    "Default",
+    "Iterator",
+];
 
 pub use signal::PHYS_TYPE_ATTRIBUTE;
 
@@ -39,6 +60,7 @@ pub fn validate(
     let mut db = Builder {
         loaded,
         index: DbcIndex::new(&loaded.dbc),
+        taken: Taken::default(),
         table_enums: HashMap::new(),
         r: &mut r,
     }
@@ -66,6 +88,7 @@ pub fn validate(
 struct Builder<'a, 'r> {
     loaded: &'a LoadedDbc,
     index: DbcIndex<'a>,
+    taken: Taken,
     /// A `VAL_TABLE_`'s values (sorted, see `enums`) -> the index of the enum they share.
     table_enums: HashMap<Vec<(i128, String)>, usize>,
     r: &'r mut Reporter<'a>,
@@ -89,6 +112,8 @@ struct Frame<'a> {
     /// Its full name (Vector keeps names over 32 characters in an attribute).
     name: String,
     type_name: String,
+    /// Unique snake-case name for its SQL table, topic and metadata static.
+    item_name: String,
 }
 
 /// Ids and names already taken, with the line that took them.
@@ -96,28 +121,44 @@ struct Frame<'a> {
 struct Taken {
     ids: HashMap<(u32, bool), usize>,
     names: HashMap<String, usize>,
+    /// Rust type names (messages and enums share one namespace).
     type_names: HashMap<String, usize>,
+    /// Per-message item names in snake case (SQL tables, topics, metadata statics).
+    item_names: HashMap<String, usize>,
+}
+
+/// `wanted` if `is_free` says so, else `wanted` with the first of `suffixes` that is: the same
+/// schema always gives the same names.
+fn first_free(
+    wanted: &str,
+    suffixes: impl IntoIterator<Item = String>,
+    is_free: impl Fn(&str) -> bool,
+) -> String {
+    if is_free(wanted) {
+        return wanted.to_owned();
+    }
+    suffixes
+        .into_iter()
+        .map(|suffix| format!("{wanted}{suffix}"))
+        .chain((2u64..).map(|n| format!("{wanted}{n}")))
+        .find(|name| is_free(name))
+        .unwrap_or_else(|| wanted.to_owned())
 }
 
 impl<'a> Builder<'a, '_> {
     fn build(mut self) -> Database {
         let dbc = &self.loaded.dbc;
-        let mut enums = self.value_tables();
-        let mut taken = Taken::default();
-        for name in enums
-            .iter()
-            .map(|e| e.type_name.as_str())
-            .chain(RESERVED_TYPES)
-        {
-            taken.type_names.insert(name.to_owned(), 0);
+        for name in RESERVED_TYPES {
+            self.taken.type_names.insert(name.to_owned(), 0);
         }
+        let mut enums = self.value_tables();
         let mut messages = Vec::new();
         for (index, msg) in dbc.messages.iter().enumerate() {
             // Vector's container for signals not yet placed in a frame; it never goes on a bus.
             if msg.name == "VECTOR__INDEPENDENT_SIG_MSG" {
                 continue;
             }
-            let Some(frame) = self.identify(index, msg, &mut taken) else {
+            let Some(frame) = self.identify(index, msg) else {
                 continue;
             };
             if let Some(m) = self.message(frame, &mut enums) {
@@ -144,12 +185,7 @@ impl<'a> Builder<'a, '_> {
     }
 
     /// Checks the message's id and names against the limits and what earlier messages took.
-    fn identify(
-        &mut self,
-        index: usize,
-        msg: &'a can_dbc::Message,
-        taken: &mut Taken,
-    ) -> Option<Frame<'a>> {
+    fn identify(&mut self, index: usize, msg: &'a can_dbc::Message) -> Option<Frame<'a>> {
         let (line, written_id) = self
             .loaded
             .lines
@@ -158,7 +194,7 @@ impl<'a> Builder<'a, '_> {
             .copied()
             .unwrap_or((0, u64::from(msg.id.raw())));
         let (id, extended) = self.check_id(line, written_id, &msg.name)?;
-        if let Some(first) = taken.ids.insert((id, extended), line) {
+        if let Some(first) = self.taken.ids.insert((id, extended), line) {
             self.r.report(
                 Code::DuplicateId,
                 line,
@@ -171,7 +207,7 @@ impl<'a> Builder<'a, '_> {
             return None;
         }
         let name = self.long_message_name(msg);
-        if let Some(first) = taken.names.insert(name.clone(), line) {
+        if let Some(first) = self.taken.names.insert(name.clone(), line) {
             self.r.report(
                 Code::DuplicateMessageName,
                 line,
@@ -180,18 +216,22 @@ impl<'a> Builder<'a, '_> {
             );
             return None;
         }
-        let mut type_name = camel(&name);
-        if let Some(first) = taken.type_names.get(&type_name).copied() {
-            let renamed = format!("{type_name}0x{id:X}");
+        let type_name = self.claim_type_name(&camel(&name), [format!("0x{id:X}")], line, || {
+            format!("message `{name}`")
+        });
+        let wanted_item = snake(&type_name).trim_end_matches('_').to_owned();
+        let item_name = first_free(&wanted_item, [format!("_0x{id:x}")], |n| {
+            !self.taken.item_names.contains_key(n)
+        });
+        if item_name != wanted_item {
             self.r.report(
                 Code::Renamed,
                 line,
-                format!("message `{name}` would be named `{type_name}` in Rust, a name already taken (line {first}); it is named `{renamed}`"),
-                "keep message and value-table names distinct after conversion to CamelCase",
+                format!("message `{name}` would have the table, topic and constant name `{wanted_item}`, already taken; it is `{item_name}`"),
+                "keep message names distinct after conversion to snake_case",
             );
-            type_name = renamed;
         }
-        taken.type_names.insert(type_name.clone(), line);
+        self.taken.item_names.insert(item_name.clone(), line);
         Some(Frame {
             msg,
             line,
@@ -200,6 +240,7 @@ impl<'a> Builder<'a, '_> {
             extended,
             name,
             type_name,
+            item_name,
         })
     }
 
