@@ -1,6 +1,8 @@
-//! Generates, for each benchmarked DBC file, our codec and dbc-codegen 0.4.0's code for the same
-//! file, plus a small per-message harness for the peer (its getters and `new` are per message,
-//! so there is no generic way to call them).
+//! Generates, for each benchmarked DBC file, our codec, dbc-codegen 0.4.0's code and cantools'
+//! C for the same file, plus small per-message harnesses for the peers (their getters and
+//! constructors are per message, so there is no generic way to call them). The C comes from the
+//! cantools in the project's venv (`tools/cantools_c_peer.py`; `AER_PYTHON` overrides the
+//! interpreter) and is compiled with gcc -O2, harness and codec in one translation unit.
 
 use std::fmt::Write as _;
 
@@ -22,12 +24,14 @@ fn main() {
 
         let ours = out.join(format!("ours_{name}"));
         std::fs::create_dir_all(&ours).expect("out dir");
-        let runtime = aer_codegen::render::codec::render_runtime(path, false).expect("render runtime");
+        let runtime =
+            aer_codegen::render::codec::render_runtime(path, false).expect("render runtime");
         let can = aer_codegen::render::codec::render_can(&db, path, 0).expect("render messages");
         std::fs::write(ours.join("runtime.rs"), runtime).expect("write");
         std::fs::write(ours.join("can.rs"), can).expect("write");
 
-        let text = aer_codegen::load::dbc::decode_text(&std::fs::read(path).expect("read DBC")).expect("text");
+        let text = aer_codegen::load::dbc::decode_text(&std::fs::read(path).expect("read DBC"))
+            .expect("text");
         let peer = out.join(format!("peer_{name}.rs"));
         dbc_codegen::Config::builder()
             .dbc_name(name)
@@ -38,10 +42,11 @@ fn main() {
 
         let harness = out.join(format!("peer_harness_{name}.rs"));
         std::fs::write(&harness, peer_harness(&db)).expect("write harness");
+        let c = cantools_c(name, path, &out);
         // `#[path]` (not `include!`) so the files keep their inner doc comments and attributes.
         writeln!(
             index,
-            "pub mod {name} {{\n  pub mod ours {{\n    #[path = {:?}] pub mod runtime;\n    #[path = {:?}] pub mod can;\n  }}\n  #[path = {:?}] pub mod peer;\n  #[path = {:?}] pub mod peer_harness;\n}}",
+            "pub mod {name} {{\n  pub mod ours {{\n    #[path = {:?}] pub mod runtime;\n    #[path = {:?}] pub mod can;\n  }}\n  #[path = {:?}] pub mod peer;\n  #[path = {:?}] pub mod peer_harness;\n{c}}}",
             ours.join("runtime.rs"),
             ours.join("can.rs"),
             peer,
@@ -52,10 +57,48 @@ fn main() {
     std::fs::write(out.join("codecs.rs"), index).expect("write index");
 }
 
+/// cantools' C for `dbc`, with its harness, compiled into a static library; declares the
+/// harness's functions in `module`.
+fn cantools_c(name: &str, dbc: &str, out: &Path) -> String {
+    let python = std::env::var("AER_PYTHON").unwrap_or_else(|_| "../.venv/bin/python".to_owned());
+    println!("cargo::rerun-if-env-changed=AER_PYTHON");
+    println!("cargo::rerun-if-changed=../tools/cantools_c_peer.py");
+    let dir = out.join(format!("c_{name}"));
+    let status = std::process::Command::new(&python)
+        .args(["../tools/cantools_c_peer.py", dbc, name])
+        .arg(&dir)
+        .status()
+        .unwrap_or_else(|e| panic!("running {python} (the project's venv, made by .ci/run: python3 -m venv .venv && .venv/bin/pip install -r tools/requirements.txt): {e}"));
+    assert!(status.success(), "cantools could not generate C for {dbc}");
+    cc::Build::new()
+        .file(dir.join(format!("{name}_harness.c")))
+        .include(&dir)
+        .opt_level(2)
+        .warnings(false)
+        .compile(&format!("cantools_{name}"));
+    format!(
+        "  pub mod c {{
+    unsafe extern \"C\" {{
+      pub fn {name}_c_decode(id: u32, extended: i32, data: *const u8, len: usize, sink: *mut f64) -> i32;
+      pub fn {name}_c_values(id: u32, extended: i32, data: *const u8, len: usize, values: *mut f64, cap: usize) -> i32;
+      pub fn {name}_c_encode(id: u32, extended: i32, values: *const f64, out: *mut u8, size: usize) -> i32;
+    }}
+    pub use {name}_c_decode as decode;
+    pub use {name}_c_values as values;
+    pub use {name}_c_encode as encode;
+  }}
+"
+    )
+}
+
 /// dbc-codegen's field naming: heck snake case, prefixed with `x` for keywords and names not
 /// starting with a letter.
 fn peer_name(name: &str, camel: bool) -> String {
-    let cased = if camel { name.to_upper_camel_case() } else { name.to_snake_case() };
+    let cased = if camel {
+        name.to_upper_camel_case()
+    } else {
+        name.to_snake_case()
+    };
     if !name.starts_with(|c: char| c.is_ascii_alphabetic()) || KEYWORDS.contains(&name) {
         format!("x{cased}")
     } else {
@@ -70,13 +113,24 @@ const KEYWORDS: [&str; 5] = ["type", "match", "move", "ref", "self"];
 fn peer_harness(db: &aer_codegen::model::Database) -> String {
     let mut decode = String::new();
     let mut prepare = String::new();
-    for m in db.messages.iter().filter(|m| m.signals.iter().all(|s| s.mux.is_none())) {
+    for m in db
+        .messages
+        .iter()
+        .filter(|m| m.signals.iter().all(|s| s.mux.is_none()))
+    {
         let ty = peer_name(&m.name, true);
-        let getters: Vec<String> = m.signals.iter().map(|s| format!("m.{}()", peer_name(&s.name, false))).collect();
+        let getters: Vec<String> = m
+            .signals
+            .iter()
+            .map(|s| format!("m.{}()", peer_name(&s.name, false)))
+            .collect();
         let _ = writeln!(
             decode,
             "      Ok(super::peer::Messages::{ty}(m)) => {{ {} }}",
-            getters.iter().map(|g| format!("black_box({g});")).collect::<String>()
+            getters
+                .iter()
+                .map(|g| format!("black_box({g});"))
+                .collect::<String>()
         );
         let args: Vec<String> = (0..getters.len()).map(|i| format!("v.{i}")).collect();
         let _ = writeln!(

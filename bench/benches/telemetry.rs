@@ -90,7 +90,11 @@ fn bench(c: &mut Criterion) {
     telemetry.pack(header, &mut packed);
     let today = today();
     let today_bytes = today.to_bytes().expect("serializes");
-    eprintln!("packet: {} bytes generated, {} bytes today", Telemetry::LEN, today_bytes.len());
+    eprintln!(
+        "packet: {} bytes generated, {} bytes today",
+        Telemetry::LEN,
+        today_bytes.len()
+    );
 
     let mut group = c.benchmark_group("telemetry/pack");
     group.bench_function("generated (firmware packer)", |b| {
@@ -110,10 +114,27 @@ fn bench(c: &mut Criterion) {
                 put(&v.to_le_bytes());
             }
             put(&t.imd_status.to_le_bytes());
-            for v in [t.pack_voltage, t.pack_current, t.soc, t.discharge_limit, t.charge_limit, t.low_cell_volt, t.high_cell_volt, t.avg_cell_volt, t.motor_speed, t.motor_torque, t.max_motor_torque] {
+            for v in [
+                t.pack_voltage,
+                t.pack_current,
+                t.soc,
+                t.discharge_limit,
+                t.charge_limit,
+                t.low_cell_volt,
+                t.high_cell_volt,
+                t.avg_cell_volt,
+                t.motor_speed,
+                t.motor_torque,
+                t.max_motor_torque,
+            ] {
                 put(&v.to_le_bytes());
             }
-            put(&[t.motor_direction, t.motor_state, t.mcu_main_state, t.mcu_work_mode]);
+            put(&[
+                t.motor_direction,
+                t.motor_state,
+                t.mcu_main_state,
+                t.mcu_work_mode,
+            ]);
             for v in [t.mcu_voltage, t.mcu_phase_current, t.mcu_current] {
                 put(&v.to_le_bytes());
             }
@@ -137,9 +158,13 @@ fn bench(c: &mut Criterion) {
             black_box(frame.to_telemetry())
         })
     });
-    group.bench_function("generated (no_std unpack)", |b| b.iter(|| black_box(Telemetry::unpack(black_box(&packed)))));
+    group.bench_function("generated (no_std unpack)", |b| {
+        b.iter(|| black_box(Telemetry::unpack(black_box(&packed))))
+    });
     group.bench_function("today (Deku, f32 struct)", |b| {
-        b.iter(|| black_box(TodayFrame::from_bytes((black_box(&today_bytes[..]), 0)).expect("decodes")))
+        b.iter(|| {
+            black_box(TodayFrame::from_bytes((black_box(&today_bytes[..]), 0)).expect("decodes"))
+        })
     });
     group.finish();
 }
