@@ -223,13 +223,20 @@ async fn the_services_client_ids_are_refused_and_its_link_survives_a_takeover() 
     options.set_credentials("aer-gate", service.broker_password.clone());
     let (_direct, mut direct_events) = AsyncClient::new(options, 10);
     tokio::spawn(async move { while direct_events.poll().await.is_ok() {} });
-    assert!(service_still_publishes(&service, &mut seen, "after-takeover").await);
-    let problem = service
-        .health
-        .mqtt
-        .error()
-        .expect("the takeover is reported");
+    // Wait (bounded) until the service has noticed and moved to a spare: under load the
+    // broker may take a while to hand the id over.
+    let problem = tokio::time::timeout(Duration::from_secs(60), async {
+        loop {
+            if let Some(problem) = service.health.mqtt.error() {
+                return problem;
+            }
+            tokio::time::sleep(Duration::from_millis(20)).await;
+        }
+    })
+    .await
+    .expect("the takeover is reported");
     assert!(problem.contains("spare"), "{problem}");
+    assert!(service_still_publishes(&service, &mut seen, "after-takeover").await);
 }
 
 /// A client that connects, subscribes to everything and never reads again.
