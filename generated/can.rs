@@ -10071,6 +10071,36 @@ impl AnyMessage {
         }
     }
 
+    /// Decodes a payload by id and hands every present signal's physical value to `visitor`,
+    /// without building an `AnyMessage`: one dispatch on the id, for readers that want every
+    /// value (a logger, a store, a bridge to JSON).
+    pub fn decode_visit(
+        id: u32,
+        extended: bool,
+        data: &[u8],
+        visitor: &mut impl SignalVisitor,
+    ) -> Result<(), DecodeError> {
+        match (id, extended) {
+            (0xA0, false) => CcmStatus::decode(data).map(|m| m.visit(visitor)),
+            (0x101, false) => Vcu1::decode(data).map(|m| m.visit(visitor)),
+            (0x105, false) => Mcu1::decode(data).map(|m| m.visit(visitor)),
+            (0x106, false) => Mcu2::decode(data).map(|m| m.visit(visitor)),
+            (0x107, false) => Mcu3::decode(data).map(|m| m.visit(visitor)),
+            (0x1A0, false) => Bms1::decode(data).map(|m| m.visit(visitor)),
+            (0x1A1, false) => Bms2::decode(data).map(|m| m.visit(visitor)),
+            (0x6B0, false) => OrionPackStatus::decode(data).map(|m| m.visit(visitor)),
+            (0x6B1, false) => OrionLimits::decode(data).map(|m| m.visit(visitor)),
+            (0x6B2, false) => OrionCellVoltages::decode(data).map(|m| m.visit(visitor)),
+            (0x222, false) => PccStatus::decode(data).map(|m| m.visit(visitor)),
+            (0x18FF01F4, true) => ImdInfoGeneral::decode(data).map(|m| m.visit(visitor)),
+            (0x18FF02F4, true) => ImdInfoIsolationDetail::decode(data).map(|m| m.visit(visitor)),
+            (0x18FF03F4, true) => ImdInfoVoltage::decode(data).map(|m| m.visit(visitor)),
+            (0x18FF04F4, true) => ImdInfoItSystem::decode(data).map(|m| m.visit(visitor)),
+            (0x18EFF417, true) => ImdRequest::decode(data).map(|m| m.visit(visitor)),
+            _ => Err(DecodeError::UnknownId { id, extended }),
+        }
+    }
+
     /// Decodes an `embedded-can` frame.
     pub fn from_frame(frame: &impl embedded_can::Frame) -> Result<Self, DecodeError> {
         let (id, extended) = runtime::raw_id(frame.id());

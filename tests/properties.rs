@@ -103,6 +103,32 @@ proptest! {
         }
     }
 
+    /// `decode_visit` hands over exactly what `decode` then `visit` gives, in the same order,
+    /// and fails exactly as `decode` does (short payloads, unknown ids).
+    #[test]
+    fn decode_visit_is_decode_then_visit(index in 0..MESSAGES.len(), bytes in prop::collection::vec(any::<u8>(), 0..=64), other_id in any::<u32>()) {
+        let meta = MESSAGES[index];
+        for (id, extended) in [(meta.id, meta.extended), (other_id & 0x7FF, false)] {
+            let mut visited = Collect(Vec::new());
+            let direct = AnyMessage::decode_visit(id, extended, &bytes, &mut visited);
+            match AnyMessage::decode(id, extended, &bytes) {
+                Ok(message) => {
+                    prop_assert_eq!(direct, Ok(()));
+                    let expected = values(&message);
+                    prop_assert_eq!(visited.0.len(), expected.len());
+                    for ((s1, v1), (s2, v2)) in visited.0.iter().zip(&expected) {
+                        prop_assert!(std::ptr::eq(*s1, *s2));
+                        prop_assert_eq!(v1, v2);
+                    }
+                }
+                Err(error) => {
+                    prop_assert_eq!(direct, Err(error));
+                    prop_assert!(visited.0.is_empty());
+                }
+            }
+        }
+    }
+
     /// Physical values anywhere in a signal's range survive encode -> decode within half a raw
     /// step.
     #[test]

@@ -249,6 +249,28 @@ impl AnyMessage {
 {%- endif %}
     }
 
+    /// Decodes a payload by id and hands every present signal's physical value to `visitor`,
+    /// without building an `AnyMessage`: one dispatch on the id, for readers that want every
+    /// value (a logger, a store, a bridge to JSON).
+    pub fn decode_visit(
+        id: u32,
+        extended: bool,
+        data: &[u8],
+        {% if messages.is_empty() %}_visitor{% else %}visitor{% endif %}: &mut impl SignalVisitor,
+    ) -> Result<(), DecodeError> {
+{%- if messages.is_empty() %}
+        let _ = data;
+        Err(DecodeError::UnknownId { id, extended })
+{%- else %}
+        match (id, extended) {
+{%- for m in messages %}
+            ({{ m.id }}, {{ m.extended }}) => {{ m.type_name }}::decode(data).map(|m| m.visit(visitor)),
+{%- endfor %}
+            _ => Err(DecodeError::UnknownId { id, extended }),
+        }
+{%- endif %}
+    }
+
     /// Decodes an `embedded-can` frame.
     pub fn from_frame(frame: &impl embedded_can::Frame) -> Result<Self, DecodeError> {
         let (id, extended) = runtime::raw_id(frame.id());
