@@ -1,6 +1,8 @@
 //! Faults on the way in: every kind is counted, logged, and the pipeline goes on. Plus the
 //! start-up error for an unwritable store, and the forwarder's behaviour without TDengine.
 
+mod common;
+
 use aer::telemetry::Telemetry;
 use aer_host::candump::LoggedFrame;
 use aer_host::counters::{Counters, ServiceCounters};
@@ -160,17 +162,7 @@ fn the_cursor_gives_no_duplicates_and_no_gaps_across_failures_and_restarts() {
     let counters = Arc::new(Counters::default());
     let writer = store::StoreWriter::start(store::open(&path).expect("store"), counters.clone());
     let sender = writer.sender().expect("sender");
-    let row = |seq: u16| store::Row {
-        car_id: "car1".into(),
-        ts_us: 1_000 + u64::from(seq),
-        data: store::RowData::Telemetry {
-            header: aer::telemetry::TelemetryHeader {
-                sequence: seq,
-                timestamp_us: 0,
-            },
-            telemetry: aer::telemetry::Telemetry::default(),
-        },
-    };
+    let row = common::telemetry_row;
     for seq in 0..12 {
         sender.send(row(seq));
     }

@@ -4,7 +4,7 @@
 //! cursor moves on. An outage sets nothing aside.
 
 use aer::tables::{ColumnType, TABLES};
-use aer_host::counters::Counters;
+use aer_host::counters::{Counters, ServiceCounters};
 use aer_raspi::config::TdengineConfig;
 use aer_raspi::forward::{Destination, Worker, next_batch};
 use aer_raspi::health::Health;
@@ -167,35 +167,17 @@ async fn a_poisoned_batch_is_split_its_bad_rows_set_aside_and_the_rest_forwarded
     let fake = FakeTdengine::default();
     let counters = Counters::default();
     let health = Health::default();
-    let config = TdengineConfig::default();
-    let worker = Worker {
-        config: &config,
-        tables: (0..TABLES.len()).collect(),
-        counters: &counters,
-        health: &health,
-    };
-    let cancel = CancellationToken::new();
-    let connect = || {
-        let fake = fake.clone();
-        async move { Ok::<_, String>(fake) }
-    };
     // Runs until every row has been dealt with (bounded), then stops.
-    let run = worker.run(&path, connect, &cancel);
-    let done = async {
-        while counters.snapshot().forwarded + counters.snapshot().forward_set_aside < total as u64 {
-            tokio::task::yield_now().await;
-        }
-        cancel.cancel();
-    };
-    let finished = tokio::time::timeout(Duration::from_secs(60), async {
-        tokio::join!(run, done);
-    })
+    let finished = forward_until(
+        &path,
+        &TdengineConfig::default(),
+        &fake,
+        &counters,
+        &health,
+        |c| c.forwarded + c.forward_set_aside >= total as u64,
+    )
     .await;
-    assert!(
-        finished.is_ok(),
-        "the forwarder stalled: {:?}",
-        counters.snapshot()
-    );
+    assert!(finished, "the forwarder stalled: {:?}", counters.snapshot());
 
     let snapshot = counters.snapshot();
     assert_eq!(
@@ -231,29 +213,11 @@ async fn an_outage_sets_nothing_aside_and_moves_no_cursor() {
         dsn: "taos+ws://root:s3cret@pit:6041".into(),
         ..TdengineConfig::default()
     };
-    let worker = Worker {
-        config: &config,
-        tables: (0..TABLES.len()).collect(),
-        counters: &counters,
-        health: &health,
-    };
-    let cancel = CancellationToken::new();
-    let connect = || {
-        let fake = fake.clone();
-        async move { Ok::<_, String>(fake) }
-    };
-    let run = worker.run(&path, connect, &cancel);
-    let done = async {
-        while counters.snapshot().forward_errors == 0 {
-            tokio::task::yield_now().await;
-        }
-        cancel.cancel();
-    };
-    tokio::time::timeout(Duration::from_secs(30), async {
-        tokio::join!(run, done);
+    let noticed = forward_until(&path, &config, &fake, &counters, &health, |c| {
+        c.forward_errors > 0
     })
-    .await
-    .expect("the outage is noticed");
+    .await;
+    assert!(noticed, "the outage is noticed");
     assert_eq!(counters.snapshot().forward_set_aside, 0);
     assert_eq!(waiting(&path), before, "every row still waits");
     let problem = health.forward.error().expect("reported");
@@ -261,4 +225,39 @@ async fn an_outage_sets_nothing_aside_and_moves_no_cursor() {
         problem.contains("unreachable") && !problem.contains("s3cret"),
         "{problem}"
     );
+}
+
+/// Runs a worker over every table against `fake` until `done` holds for the counters, then
+/// stops it; false if that did not happen within a minute.
+async fn forward_until(
+    path: &std::path::Path,
+    config: &TdengineConfig,
+    fake: &FakeTdengine,
+    counters: &Counters,
+    health: &Health,
+    done: impl Fn(&ServiceCounters) -> bool,
+) -> bool {
+    let worker = Worker {
+        config,
+        tables: (0..TABLES.len()).collect(),
+        counters,
+        health,
+    };
+    let cancel = CancellationToken::new();
+    let connect = || {
+        let fake = fake.clone();
+        async move { Ok::<_, String>(fake) }
+    };
+    let run = worker.run(path, connect, &cancel);
+    let watch = async {
+        while !done(&counters.snapshot()) {
+            tokio::task::yield_now().await;
+        }
+        cancel.cancel();
+    };
+    tokio::time::timeout(Duration::from_secs(60), async {
+        tokio::join!(run, watch);
+    })
+    .await
+    .is_ok()
 }

@@ -3,6 +3,8 @@
 //! reaches MQTT; a store that works again takes rows again; a damaged store file is moved
 //! aside at start-up; the raw log keeps every frame; retention keeps the store in its budget.
 
+mod common;
+
 use aer::mqtt::TELEMETRY;
 use aer_host::counters::Counters;
 use aer_host::rawlog::SegmentReader;
@@ -203,17 +205,7 @@ fn a_store_that_works_again_takes_rows_again_and_clears_its_error() {
         },
     );
     let sender = writer.sender().expect("open");
-    let row = |seq: u16| store::Row {
-        car_id: "car1".into(),
-        ts_us: 1_000 + u64::from(seq),
-        data: store::RowData::Telemetry {
-            header: aer::telemetry::TelemetryHeader {
-                sequence: seq,
-                timestamp_us: 0,
-            },
-            telemetry: aer::telemetry::Telemetry::default(),
-        },
-    };
+    let row = common::telemetry_row;
     for seq in 0..10 {
         assert!(sender.send(row(seq)));
     }
