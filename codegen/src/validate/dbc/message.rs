@@ -46,7 +46,7 @@ impl<'a> Builder<'a, '_> {
         let mut signals = self.signals(&frame, len, &drafts, enums)?;
         self.resolve_multiplexing(msg, frame.written_id, &drafts, &mut signals)?;
         let eval_order = self.eval_order(msg, frame.line, &signals)?;
-        self.check_overlaps(msg, &drafts, &signals);
+        self.check_overlaps(msg, &drafts, &signals, &eval_order);
         Some(Message {
             fd: self.is_fd(msg.id, len),
             cycle_time_ms: self.cycle_time(msg.id),

@@ -216,14 +216,16 @@ impl<'a> Builder<'a, '_> {
         order
     }
 
-    /// Reports signals that share bits and can be present in the same frame.
+    /// Reports signals that share bits and can be present in the same frame (`order`: the
+    /// decoding order).
     pub(super) fn check_overlaps(
         &mut self,
         msg: &can_dbc::Message,
         drafts: &[Draft<'a>],
         signals: &[Signal],
+        order: &[usize],
     ) {
-        for (a, b) in overlap::overlaps(signals) {
+        for (a, b) in overlap::overlaps(signals, order) {
             let (Some(first), Some(second), Some(draft)) =
                 (signals.get(a), signals.get(b), drafts.get(b))
             else {
