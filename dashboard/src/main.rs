@@ -55,12 +55,7 @@ enum Command {
 }
 
 fn main() -> Result<()> {
-    tracing_subscriber::fmt()
-        .with_env_filter(
-            tracing_subscriber::EnvFilter::try_from_default_env()
-                .unwrap_or_else(|_| "info,wgpu=warn,iced=warn".into()),
-        )
-        .init();
+    aer_host::logging::init("info,wgpu=warn,iced=warn", &[]);
     let cli = Cli::parse();
     let mut config = Config::load(cli.config.as_deref(), |key| std::env::var(key).ok())?;
     match cli.command.unwrap_or(Command::Run {

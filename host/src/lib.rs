@@ -8,12 +8,14 @@
 //! - [`counters`]: the service's counters, one set for counting and publishing;
 //! - [`status`]: the service's status and metrics payloads and their typed topics;
 //! - [`config`]: reading configuration files and the broker settings both tiers use;
-//! - [`clock`]: timestamps as the topics carry them.
+//! - [`clock`]: timestamps as the topics carry them;
+//! - [`logging`]: log output fit for a terminal and for the journal.
 
 pub mod candump;
 pub mod clock;
 pub mod config;
 pub mod counters;
 pub mod ingest;
+pub mod logging;
 pub mod rawlog;
 pub mod status;

@@ -62,17 +62,22 @@ enum Command {
     },
 }
 
+/// What rumqttd logs as errors when a client simply leaves. Every client reaches the broker
+/// through the service's gate, which logs clients coming and going (at debug) and reports
+/// the ones it refuses or disconnects itself.
+const BROKER_ROUTINE: &[aer_host::logging::Routine] = &[
+    aer_host::logging::Routine {
+        target: "rumqttd::server::broker",
+        messages: &["router-drop", "disconnected", "connection-stop"],
+    },
+    aer_host::logging::Routine {
+        target: "rumqttd::router",
+        messages: &["no-connection id", "Connection is already disconnected"],
+    },
+];
+
 fn main() -> Result<()> {
-    tracing_subscriber::fmt()
-        .with_env_filter(
-            tracing_subscriber::EnvFilter::try_from_default_env()
-                // rumqttd logs every client disconnect as an error inside its `remote_link`
-                // span; keep its other warnings (a listener that cannot bind, for one).
-                .unwrap_or_else(|_| {
-                    "info,rumqttd=warn,rumqttd::server::broker[remote_link]=off".into()
-                }),
-        )
-        .init();
+    aer_host::logging::init("info,rumqttd=warn", BROKER_ROUTINE);
     let cli = Cli::parse();
     if let Command::RawExport { paths } = &cli.command {
         return aer_raspi::rawlog::export::candump(paths, std::io::stdout().lock());

@@ -23,7 +23,7 @@ use std::time::{Duration, Instant};
 use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt};
 use tokio::net::{TcpListener, TcpStream};
 use tokio_util::sync::CancellationToken;
-use tracing::{info, warn};
+use tracing::{debug, info, warn};
 
 /// A listener clients connect to.
 #[derive(Debug, Clone)]
@@ -267,6 +267,9 @@ impl Gate {
         let Some((id, stalled_since, disconnect)) = self.register() else {
             return;
         };
+        // Clients come and go all day (a laptop's Wi-Fi, a dashboard restarted): not news.
+        let client = connect.client_id.clone();
+        debug!(%peer, client, listener = listener.name, "MQTT client connected");
         let (client_read, client_write) = tokio::io::split(stream);
         let (broker_read, broker_write) = broker.into_split();
         tokio::select! {
@@ -276,6 +279,7 @@ impl Gate {
                 warn!(%peer, "MQTT client disconnected to make room: it stopped reading");
             }
         }
+        debug!(%peer, client, "MQTT client gone");
         self.unregister(id);
     }
 
