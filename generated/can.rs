@@ -7674,7 +7674,7 @@ pub struct ImdInfoGeneral {
     pub imd_r_iso_corrected: u16,
     /// Status of the isolation measurement (Bender codes).
     ///
-    /// `IMD_RIsoStatus`: 8 bits from bit 16 (Intel), unsigned, range [0.0, 255.0].
+    /// `IMD_RIsoStatus`: 8 bits from bit 16 (Intel), unsigned, range [0.0, 255.0], unit `code`.
     #[cfg_attr(feature = "serde", serde(rename = "IMD_RIsoStatus"))]
     pub imd_r_iso_status: u8,
     /// `IMD_MeasurementCounter`: 8 bits from bit 24 (Intel), unsigned, range [0.0, 255.0].
@@ -7740,7 +7740,7 @@ static IMD_INFO_GENERAL_SIGNALS: [SignalMeta; 15] = [
     SignalMeta {
         name: "IMD_RIsoStatus",
         index: 1,
-        unit: "",
+        unit: "code",
         comment: "Status of the isolation measurement (Bender codes).",
         start_bit: 16,
         len: 8,

@@ -8,6 +8,7 @@ use std::format;
 use std::string::String;
 
 use super::can::AnyMessage;
+use super::runtime::SignalMeta;
 
 /// The type of a column, and how each database spells it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -67,7 +68,7 @@ pub struct Column {
 }
 
 /// A table of the car's data.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Table {
     pub name: &'static str,
     /// Position in [`TABLES`].
@@ -77,6 +78,9 @@ pub struct Table {
     /// `ts` first, then one per packet field or message signal, in schema order (so signal
     /// `i` of a message is column `1 + i`).
     pub columns: &'static [Column],
+    /// What the schema says about the packet's fields or the message's signals (unit,
+    /// comment, range, value labels), which fill the last `signals.len()` columns in order.
+    pub signals: &'static [SignalMeta],
     pub tdengine: TdengineTable,
     pub sqlite: SqliteTable,
 }
@@ -422,6 +426,7 @@ pub static TELEMETRY: Table = Table {
             ty: ColumnType::Bool,
         },
     ],
+    signals: super::telemetry::Telemetry::FIELDS,
     tdengine: TdengineTable {
         create: "CREATE STABLE IF NOT EXISTS `telemetry` (`ts` TIMESTAMP, `sequence` SMALLINT UNSIGNED, `timestamp_us` INT UNSIGNED, `apps_travel` FLOAT, `bse_front` FLOAT, `bse_rear` FLOAT, `imd_resistance` SMALLINT UNSIGNED, `imd_status` TINYINT UNSIGNED, `pack_voltage` FLOAT, `pack_current` FLOAT, `soc` FLOAT, `discharge_limit` SMALLINT UNSIGNED, `charge_limit` SMALLINT UNSIGNED, `low_cell_volt` FLOAT, `high_cell_volt` FLOAT, `avg_cell_volt` FLOAT, `pack_temp` TINYINT, `motor_speed` FLOAT, `motor_torque` FLOAT, `max_motor_torque` FLOAT, `motor_direction` TINYINT UNSIGNED, `motor_state` TINYINT UNSIGNED, `mcu_main_state` TINYINT UNSIGNED, `mcu_work_mode` TINYINT UNSIGNED, `mcu_voltage` FLOAT, `mcu_phase_current` FLOAT, `mcu_current` FLOAT, `motor_temp` SMALLINT, `mcu_temp` SMALLINT, `mcu_warning_level` TINYINT UNSIGNED, `vehicle_state` TINYINT UNSIGNED, `ready_to_drive` BOOL, `torque_command` FLOAT, `shocktravel1` FLOAT, `shocktravel2` FLOAT, `shocktravel3` FLOAT, `shocktravel4` FLOAT, `can_rx_dropped` TINYINT UNSIGNED, `can_tx_dropped` TINYINT UNSIGNED, `can_decode_errors` TINYINT UNSIGNED, `telemetry_superseded` TINYINT UNSIGNED, `pedal_bus_errors` TINYINT UNSIGNED, `can_bus_off_events` TINYINT UNSIGNED, `can1_error_passive` BOOL, `can1_bus_off` BOOL, `can2_error_passive` BOOL, `can2_bus_off` BOOL, `dc_main_wire_over_volt_fault` BOOL, `motor_phase_curr_fault` BOOL, `mcu_over_hot_fault` BOOL, `resolver_fault` BOOL, `phase_curr_sensor_fault` BOOL, `motor_over_spd_fault` BOOL, `drv_motor_over_hot_fault` BOOL, `dc_main_wire_over_curr_fault` BOOL, `drv_motor_over_cool_fault` BOOL, `dc_low_volt_warning` BOOL, `mcu_12v_low_volt_warning` BOOL, `motor_stall_fault` BOOL, `motor_open_phase_fault` BOOL, `fault_over_current` BOOL, `fault_under_voltage` BOOL, `fault_over_temperature` BOOL, `fault_apps` BOOL, `fault_bse` BOOL, `fault_bpps` BOOL, `fault_apps_brake_plausibility` BOOL, `fault_low_battery_voltage` BOOL, `fault_pedal_signal_lost` BOOL, `fault_sensors_stale` BOOL, `fault_bms_timeout` BOOL, `fault_inverter_timeout` BOOL, `fault_pcc_timeout` BOOL, `fault_inverter_fault` BOOL, `fault_inverter_warning` BOOL, `fault_pcc_error` BOOL) TAGS (`car_id` VARCHAR(32), `schema_fingerprint` INT UNSIGNED)",
         insert: "INSERT INTO ? USING `telemetry` TAGS (?, ?) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
@@ -536,6 +541,7 @@ pub static CAN_CCM_STATUS: Table = Table {
             ty: ColumnType::Bool,
         },
     ],
+    signals: super::can::CcmStatus::META.signals,
     tdengine: TdengineTable {
         create: "CREATE STABLE IF NOT EXISTS `can_ccm_status` (`ts` TIMESTAMP, `ccm_vehicle_state` TINYINT UNSIGNED, `ccm_fault_over_current` BOOL, `ccm_fault_under_voltage` BOOL, `ccm_fault_over_temperature` BOOL, `ccm_fault_apps` BOOL, `ccm_fault_bse` BOOL, `ccm_fault_bpps` BOOL, `ccm_fault_apps_brake_plausibility` BOOL, `ccm_fault_low_battery_voltage` BOOL, `ccm_schema_fingerprint` INT UNSIGNED, `ccm_rolling_counter` TINYINT UNSIGNED, `ccm_ready_to_drive` BOOL, `ccm_fault_pedal_signal_lost` BOOL, `ccm_fault_sensors_stale` BOOL, `ccm_fault_bms_timeout` BOOL, `ccm_fault_inverter_timeout` BOOL, `ccm_fault_pcc_timeout` BOOL, `ccm_fault_inverter_fault` BOOL, `ccm_fault_inverter_warning` BOOL, `ccm_fault_pcc_error` BOOL) TAGS (`car_id` VARCHAR(32), `bus` VARCHAR(16), `schema_fingerprint` INT UNSIGNED)",
         insert: "INSERT INTO ? USING `can_ccm_status` TAGS (?, ?, ?) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
@@ -642,6 +648,7 @@ pub static CAN_VCU1: Table = Table {
             ty: ColumnType::U8,
         },
     ],
+    signals: super::can::Vcu1::META.signals,
     tdengine: TdengineTable {
         create: "CREATE STABLE IF NOT EXISTS `can_vcu1` (`ts` TIMESTAMP, `vcu_torque_req` DOUBLE, `vcu_motor_spd_req` SMALLINT UNSIGNED, `vcu_authentication_status` TINYINT UNSIGNED, `vcu_change_gear_alarm` BOOL, `vcu_vehicle_state` BOOL, `vcu_brake_pedal_sts` TINYINT UNSIGNED, `vcu_bms_main_relay_cmd` BOOL, `vcu_gear_lever_pos_sts` TINYINT UNSIGNED, `vcu_gear_lever_pos_sts_f` BOOL, `vcu_ac_control_cmd` BOOL, `vcu_work_mode` BOOL, `vcu_motor_mode` TINYINT UNSIGNED, `vcu_warning_level` TINYINT UNSIGNED, `vcu_key_position` TINYINT UNSIGNED, `vcu_rolling_counter` TINYINT UNSIGNED, `vcu_bms_aux_relay_cmd` BOOL, `vcu_power_reduce_req` TINYINT UNSIGNED, `vcu_check_sum` TINYINT UNSIGNED) TAGS (`car_id` VARCHAR(32), `bus` VARCHAR(16), `schema_fingerprint` INT UNSIGNED)",
         insert: "INSERT INTO ? USING `can_vcu1` TAGS (?, ?, ?) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
@@ -712,6 +719,7 @@ pub static CAN_MCU1: Table = Table {
             ty: ColumnType::U8,
         },
     ],
+    signals: super::can::Mcu1::META.signals,
     tdengine: TdengineTable {
         create: "CREATE STABLE IF NOT EXISTS `can_mcu1` (`ts` TIMESTAMP, `mcu_motor_speed` DOUBLE, `mcu_actual_torque` DOUBLE, `mcu_max_motor_torque` DOUBLE, `mcu_max_motor_brake_torque` DOUBLE, `mcu_main_state` TINYINT UNSIGNED, `mcu_rotate_direction` TINYINT UNSIGNED, `mcu1_rolling_counter` TINYINT UNSIGNED, `mcu_motor_state` TINYINT UNSIGNED, `mcu_work_mode` TINYINT UNSIGNED) TAGS (`car_id` VARCHAR(32), `bus` VARCHAR(16), `schema_fingerprint` INT UNSIGNED)",
         insert: "INSERT INTO ? USING `can_mcu1` TAGS (?, ?, ?) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
@@ -830,6 +838,7 @@ pub static CAN_MCU2: Table = Table {
             ty: ColumnType::Bool,
         },
     ],
+    signals: super::can::Mcu2::META.signals,
     tdengine: TdengineTable {
         create: "CREATE STABLE IF NOT EXISTS `can_mcu2` (`ts` TIMESTAMP, `mcu_motor_temp` SMALLINT, `mcu_inverter_temp` SMALLINT, `mcu_dc_main_wire_over_curr_fault` BOOL, `mcu_motor_phase_curr_fault` BOOL, `mcu_over_hot_fault` BOOL, `mcu_resolver_fault` BOOL, `mcu_phase_curr_sensor_fault` BOOL, `mcu_motor_over_spd_fault` BOOL, `mcu_drv_motor_over_hot_fault` BOOL, `mcu_dc_main_wire_over_volt_fault` BOOL, `mcu_drv_motor_over_cool_fault` BOOL, `mcu_motor_system_state` BOOL, `mcu_temp_sensor_state` BOOL, `mcu_motor_temp_sensor_state` BOOL, `mcu_dc_volt_sensor_state` BOOL, `mcu_dc_low_volt_warning` BOOL, `mcu_12v_low_volt_warning` BOOL, `mcu2_rolling_counter` TINYINT UNSIGNED, `mcu_warning_level` TINYINT UNSIGNED, `mcu_motor_open_phase_fault` BOOL, `mcu_motor_stall_fault` BOOL) TAGS (`car_id` VARCHAR(32), `bus` VARCHAR(16), `schema_fingerprint` INT UNSIGNED)",
         insert: "INSERT INTO ? USING `can_mcu2` TAGS (?, ?, ?) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
@@ -876,6 +885,7 @@ pub static CAN_MCU3: Table = Table {
             ty: ColumnType::F64,
         },
     ],
+    signals: super::can::Mcu3::META.signals,
     tdengine: TdengineTable {
         create: "CREATE STABLE IF NOT EXISTS `can_mcu3` (`ts` TIMESTAMP, `mcu_dc_voltage` DOUBLE, `mcu_dc_current` DOUBLE, `mcu_phase_current` DOUBLE) TAGS (`car_id` VARCHAR(32), `bus` VARCHAR(16), `schema_fingerprint` INT UNSIGNED)",
         insert: "INSERT INTO ? USING `can_mcu3` TAGS (?, ?, ?) VALUES (?, ?, ?, ?)",
@@ -918,6 +928,7 @@ pub static CAN_BMS1: Table = Table {
             ty: ColumnType::Bool,
         },
     ],
+    signals: super::can::Bms1::META.signals,
     tdengine: TdengineTable {
         create: "CREATE STABLE IF NOT EXISTS `can_bms1` (`ts` TIMESTAMP, `bms_precharge_relay_fb` BOOL, `bms_precharge_finish_sts` BOOL) TAGS (`car_id` VARCHAR(32), `bus` VARCHAR(16), `schema_fingerprint` INT UNSIGNED)",
         insert: "INSERT INTO ? USING `can_bms1` TAGS (?, ?, ?) VALUES (?, ?, ?)",
@@ -956,6 +967,7 @@ pub static CAN_BMS2: Table = Table {
             ty: ColumnType::F64,
         },
     ],
+    signals: super::can::Bms2::META.signals,
     tdengine: TdengineTable {
         create: "CREATE STABLE IF NOT EXISTS `can_bms2` (`ts` TIMESTAMP, `bms_allow_max_discharge` DOUBLE) TAGS (`car_id` VARCHAR(32), `bus` VARCHAR(16), `schema_fingerprint` INT UNSIGNED)",
         insert: "INSERT INTO ? USING `can_bms2` TAGS (?, ?, ?) VALUES (?, ?)",
@@ -1006,6 +1018,7 @@ pub static CAN_ORION_PACK_STATUS: Table = Table {
             ty: ColumnType::U16,
         },
     ],
+    signals: super::can::OrionPackStatus::META.signals,
     tdengine: TdengineTable {
         create: "CREATE STABLE IF NOT EXISTS `can_orion_pack_status` (`ts` TIMESTAMP, `orion_pack_current` DOUBLE, `orion_pack_inst_voltage` DOUBLE, `orion_pack_soc` DOUBLE, `orion_relay_state` SMALLINT UNSIGNED) TAGS (`car_id` VARCHAR(32), `bus` VARCHAR(16), `schema_fingerprint` INT UNSIGNED)",
         insert: "INSERT INTO ? USING `can_orion_pack_status` TAGS (?, ?, ?) VALUES (?, ?, ?, ?, ?)",
@@ -1056,6 +1069,7 @@ pub static CAN_ORION_LIMITS: Table = Table {
             ty: ColumnType::I8,
         },
     ],
+    signals: super::can::OrionLimits::META.signals,
     tdengine: TdengineTable {
         create: "CREATE STABLE IF NOT EXISTS `can_orion_limits` (`ts` TIMESTAMP, `orion_pack_dcl` SMALLINT UNSIGNED, `orion_pack_ccl` SMALLINT UNSIGNED, `orion_high_temperature` TINYINT, `orion_low_temperature` TINYINT) TAGS (`car_id` VARCHAR(32), `bus` VARCHAR(16), `schema_fingerprint` INT UNSIGNED)",
         insert: "INSERT INTO ? USING `can_orion_limits` TAGS (?, ?, ?) VALUES (?, ?, ?, ?, ?)",
@@ -1106,6 +1120,7 @@ pub static CAN_ORION_CELL_VOLTAGES: Table = Table {
             ty: ColumnType::U8,
         },
     ],
+    signals: super::can::OrionCellVoltages::META.signals,
     tdengine: TdengineTable {
         create: "CREATE STABLE IF NOT EXISTS `can_orion_cell_voltages` (`ts` TIMESTAMP, `orion_low_cell_voltage` DOUBLE, `orion_high_cell_voltage` DOUBLE, `orion_avg_cell_voltage` DOUBLE, `orion_low_cell_id` TINYINT UNSIGNED) TAGS (`car_id` VARCHAR(32), `bus` VARCHAR(16), `schema_fingerprint` INT UNSIGNED)",
         insert: "INSERT INTO ? USING `can_orion_cell_voltages` TAGS (?, ?, ?) VALUES (?, ?, ?, ?, ?)",
@@ -1176,6 +1191,7 @@ pub static CAN_PCC_STATUS: Table = Table {
             ty: ColumnType::F64,
         },
     ],
+    signals: super::can::PccStatus::META.signals,
     tdengine: TdengineTable {
         create: "CREATE STABLE IF NOT EXISTS `can_pcc_status` (`ts` TIMESTAMP, `pcc_state` TINYINT UNSIGNED, `pcc_error_too_fast` BOOL, `pcc_error_too_slow` BOOL, `pcc_error_bms_timeout` BOOL, `pcc_error_shutdown` BOOL, `pcc_error_undefined_state` BOOL, `pcc_accumulator_voltage` DOUBLE, `pcc_tractive_voltage` DOUBLE, `pcc_precharge_progress` DOUBLE) TAGS (`car_id` VARCHAR(32), `bus` VARCHAR(16), `schema_fingerprint` INT UNSIGNED)",
         insert: "INSERT INTO ? USING `can_pcc_status` TAGS (?, ?, ?) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
@@ -1270,6 +1286,7 @@ pub static CAN_IMD_INFO_GENERAL: Table = Table {
             ty: ColumnType::U8,
         },
     ],
+    signals: super::can::ImdInfoGeneral::META.signals,
     tdengine: TdengineTable {
         create: "CREATE STABLE IF NOT EXISTS `can_imd_info_general` (`ts` TIMESTAMP, `imd_r_iso_corrected` SMALLINT UNSIGNED, `imd_r_iso_status` TINYINT UNSIGNED, `imd_measurement_counter` TINYINT UNSIGNED, `imd_device_error` BOOL, `imd_hv_pos_connection_failure` BOOL, `imd_hv_neg_connection_failure` BOOL, `imd_earth_connection_failure` BOOL, `imd_iso_alarm` BOOL, `imd_iso_warning` BOOL, `imd_iso_outdated` BOOL, `imd_unbalance_alarm` BOOL, `imd_undervoltage_alarm` BOOL, `imd_unsafe_to_start` BOOL, `imd_earthlift_open` BOOL, `imd_device_activity` TINYINT UNSIGNED) TAGS (`car_id` VARCHAR(32), `bus` VARCHAR(16), `schema_fingerprint` INT UNSIGNED)",
         insert: "INSERT INTO ? USING `can_imd_info_general` TAGS (?, ?, ?) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
@@ -1324,6 +1341,7 @@ pub static CAN_IMD_INFO_ISOLATION_DETAIL: Table = Table {
             ty: ColumnType::U8,
         },
     ],
+    signals: super::can::ImdInfoIsolationDetail::META.signals,
     tdengine: TdengineTable {
         create: "CREATE STABLE IF NOT EXISTS `can_imd_info_isolation_detail` (`ts` TIMESTAMP, `imd_r_iso_negative` SMALLINT UNSIGNED, `imd_r_iso_positive` SMALLINT UNSIGNED, `imd_r_iso_original` SMALLINT UNSIGNED, `imd_iso_measurement_counter` TINYINT UNSIGNED, `imd_iso_quality` TINYINT UNSIGNED) TAGS (`car_id` VARCHAR(32), `bus` VARCHAR(16), `schema_fingerprint` INT UNSIGNED)",
         insert: "INSERT INTO ? USING `can_imd_info_isolation_detail` TAGS (?, ?, ?) VALUES (?, ?, ?, ?, ?, ?)",
@@ -1378,6 +1396,7 @@ pub static CAN_IMD_INFO_VOLTAGE: Table = Table {
             ty: ColumnType::U8,
         },
     ],
+    signals: super::can::ImdInfoVoltage::META.signals,
     tdengine: TdengineTable {
         create: "CREATE STABLE IF NOT EXISTS `can_imd_info_voltage` (`ts` TIMESTAMP, `imd_hv_system_voltage` DOUBLE, `imd_hv_neg_to_earth_voltage` DOUBLE, `imd_hv_pos_to_earth_voltage` DOUBLE, `imd_voltage_measurement_counter` TINYINT UNSIGNED, `imd_voltage_quality` TINYINT UNSIGNED) TAGS (`car_id` VARCHAR(32), `bus` VARCHAR(16), `schema_fingerprint` INT UNSIGNED)",
         insert: "INSERT INTO ? USING `can_imd_info_voltage` TAGS (?, ?, ?) VALUES (?, ?, ?, ?, ?, ?)",
@@ -1432,6 +1451,7 @@ pub static CAN_IMD_INFO_IT_SYSTEM: Table = Table {
             ty: ColumnType::F64,
         },
     ],
+    signals: super::can::ImdInfoItSystem::META.signals,
     tdengine: TdengineTable {
         create: "CREATE STABLE IF NOT EXISTS `can_imd_info_it_system` (`ts` TIMESTAMP, `imd_capacity` SMALLINT UNSIGNED, `imd_capacity_measurement_counter` TINYINT UNSIGNED, `imd_unbalance` TINYINT UNSIGNED, `imd_unbalance_measurement_counter` TINYINT UNSIGNED, `imd_voltage_frequency` DOUBLE) TAGS (`car_id` VARCHAR(32), `bus` VARCHAR(16), `schema_fingerprint` INT UNSIGNED)",
         insert: "INSERT INTO ? USING `can_imd_info_it_system` TAGS (?, ?, ?) VALUES (?, ?, ?, ?, ?, ?)",
@@ -1474,6 +1494,7 @@ pub static CAN_IMD_REQUEST: Table = Table {
             ty: ColumnType::U32,
         },
     ],
+    signals: super::can::ImdRequest::META.signals,
     tdengine: TdengineTable {
         create: "CREATE STABLE IF NOT EXISTS `can_imd_request` (`ts` TIMESTAMP, `imd_request_index` TINYINT UNSIGNED, `imd_request_data` INT UNSIGNED) TAGS (`car_id` VARCHAR(32), `bus` VARCHAR(16), `schema_fingerprint` INT UNSIGNED)",
         insert: "INSERT INTO ? USING `can_imd_request` TAGS (?, ?, ?) VALUES (?, ?, ?)",
@@ -1528,6 +1549,13 @@ pub fn for_message(message: &AnyMessage) -> &'static Table {
 }
 
 impl Table {
+    /// The schema's description of column `index`, for the packet's fields and the message's
+    /// signals (not for `ts` or the packet header).
+    pub fn signal(&self, index: usize) -> Option<&'static SignalMeta> {
+        let first = self.columns.len().checked_sub(self.signals.len())?;
+        self.signals.get(index.checked_sub(first)?)
+    }
+
     /// The local (SQLite) row's columns: tags, then columns.
     pub fn local_columns(&self) -> impl Iterator<Item = &'static Column> + use<> {
         self.tags.iter().chain(self.columns)

@@ -17,7 +17,7 @@ use super::runtime::{self, ByteOrder, SignalMeta, SignalVisitor, Value};
 /// Fingerprint of this layout and of the CAN database it references: the first four bytes of
 /// every packet, so a receiver built from another schema rejects the packet instead of
 /// mis-decoding it.
-pub const TELEMETRY_FINGERPRINT: u32 = 0xA462BF31;
+pub const TELEMETRY_FINGERPRINT: u32 = 0x56EED8B3;
 
 /// The header fields a sender chooses (the fingerprint is fixed).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -36,9 +36,9 @@ pub struct TelemetryHeader {
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct Telemetry {
-    /// Accelerator pedal travel, 0 released, 1 fully pressed.
+    /// Accelerator pedal travel, 0 released, 100 fully pressed.
     ///
-    /// Wire: `u8` at byte 10, physical = raw * 0.004.
+    /// Wire: `u8` at byte 10, physical = raw * 0.4, unit `%`.
     pub apps_travel: f32,
     /// Front brake system encoder voltage (valid 0.5-4.5 V).
     ///
@@ -54,7 +54,7 @@ pub struct Telemetry {
     pub imd_resistance: u16,
     /// Status of the isolation measurement (Bender codes).
     ///
-    /// Wire: `u8` at byte 17, mirrors `IMD_InfoGeneral.IMD_RIsoStatus`.
+    /// Wire: `u8` at byte 17, unit `code`, mirrors `IMD_InfoGeneral.IMD_RIsoStatus`.
     pub imd_status: u8,
     /// Instantaneous pack voltage.
     ///
@@ -150,27 +150,27 @@ pub struct Telemetry {
     pub shocktravel4: f32,
     /// CAN frames the CCM dropped because a receive queue was full (since start-up, wrapping at 256).
     ///
-    /// Wire: `u8` at byte 61.
+    /// Wire: `u8` at byte 61, unit `frames`.
     pub can_rx_dropped: u8,
     /// CAN frames the CCM could not queue because every mailbox was busy (since start-up, wrapping at 256).
     ///
-    /// Wire: `u8` at byte 62.
+    /// Wire: `u8` at byte 62, unit `frames`.
     pub can_tx_dropped: u8,
     /// Received frames of known ids that failed to decode, plus frames of unknown ids (since start-up, wrapping at 256).
     ///
-    /// Wire: `u8` at byte 63.
+    /// Wire: `u8` at byte 63, unit `frames`.
     pub can_decode_errors: u8,
     /// Telemetry packets abandoned because the next one was due first, so no or slow flow control (since start-up, wrapping at 256).
     ///
-    /// Wire: `u8` at byte 64.
+    /// Wire: `u8` at byte 64, unit `packets`.
     pub telemetry_superseded: u8,
     /// Failed I2C transactions with the pedal sensors' converter (since start-up, wrapping at 256).
     ///
-    /// Wire: `u8` at byte 65.
+    /// Wire: `u8` at byte 65, unit `errors`.
     pub pedal_bus_errors: u8,
     /// Times either of the CCM's CAN controllers went bus-off (since start-up, wrapping at 256); each recovers by itself after 128 x 11 recessive bits.
     ///
-    /// Wire: `u8` at byte 66.
+    /// Wire: `u8` at byte 66, unit `events`.
     pub can_bus_off_events: u8,
     /// The CCM's CAN1 controller is error-passive (an error counter above 127).
     ///
@@ -358,16 +358,16 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
     SignalMeta {
         name: "apps_travel",
         index: 0,
-        unit: "",
-        comment: "Accelerator pedal travel, 0 released, 1 fully pressed.",
+        unit: "%",
+        comment: "Accelerator pedal travel, 0 released, 100 fully pressed.",
         start_bit: 80,
         len: 8,
         byte_order: ByteOrder::LittleEndian,
         signed: false,
-        factor: 0.004,
+        factor: 0.4,
         offset: 0.0,
         min: Some(0.0),
-        max: Some(1.02),
+        max: Some(102.0),
         labels: &[],
         multiplexed: false,
     },
@@ -422,7 +422,7 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
     SignalMeta {
         name: "imd_status",
         index: 4,
-        unit: "",
+        unit: "code",
         comment: "Status of the isolation measurement (Bender codes).",
         start_bit: 136,
         len: 8,
@@ -920,7 +920,7 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
     SignalMeta {
         name: "can_rx_dropped",
         index: 34,
-        unit: "",
+        unit: "frames",
         comment: "CAN frames the CCM dropped because a receive queue was full (since start-up, wrapping at 256).",
         start_bit: 488,
         len: 8,
@@ -936,7 +936,7 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
     SignalMeta {
         name: "can_tx_dropped",
         index: 35,
-        unit: "",
+        unit: "frames",
         comment: "CAN frames the CCM could not queue because every mailbox was busy (since start-up, wrapping at 256).",
         start_bit: 496,
         len: 8,
@@ -952,7 +952,7 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
     SignalMeta {
         name: "can_decode_errors",
         index: 36,
-        unit: "",
+        unit: "frames",
         comment: "Received frames of known ids that failed to decode, plus frames of unknown ids (since start-up, wrapping at 256).",
         start_bit: 504,
         len: 8,
@@ -968,7 +968,7 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
     SignalMeta {
         name: "telemetry_superseded",
         index: 37,
-        unit: "",
+        unit: "packets",
         comment: "Telemetry packets abandoned because the next one was due first, so no or slow flow control (since start-up, wrapping at 256).",
         start_bit: 512,
         len: 8,
@@ -984,7 +984,7 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
     SignalMeta {
         name: "pedal_bus_errors",
         index: 38,
-        unit: "",
+        unit: "errors",
         comment: "Failed I2C transactions with the pedal sensors' converter (since start-up, wrapping at 256).",
         start_bit: 520,
         len: 8,
@@ -1000,7 +1000,7 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
     SignalMeta {
         name: "can_bus_off_events",
         index: 39,
-        unit: "",
+        unit: "events",
         comment: "Times either of the CCM's CAN controllers went bus-off (since start-up, wrapping at 256); each recovers by itself after 128 x 11 recessive bits.",
         start_bit: 528,
         len: 8,
@@ -1554,7 +1554,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 73] = [
     },
     FieldDisplay {
         group: "pedals",
-        label: "bse_front",
+        label: "Front brake sensor",
         warn: None,
         critical: None,
         warn_below: None,
@@ -1562,7 +1562,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 73] = [
     },
     FieldDisplay {
         group: "pedals",
-        label: "bse_rear",
+        label: "Rear brake sensor",
         warn: None,
         critical: None,
         warn_below: None,
@@ -1578,7 +1578,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 73] = [
     },
     FieldDisplay {
         group: "safety",
-        label: "imd_status",
+        label: "Isolation status",
         warn: None,
         critical: None,
         warn_below: None,
@@ -1586,7 +1586,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 73] = [
     },
     FieldDisplay {
         group: "accumulator",
-        label: "pack_voltage",
+        label: "Pack voltage",
         warn: None,
         critical: None,
         warn_below: None,
@@ -1610,7 +1610,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 73] = [
     },
     FieldDisplay {
         group: "accumulator",
-        label: "discharge_limit",
+        label: "Discharge limit",
         warn: None,
         critical: None,
         warn_below: None,
@@ -1618,7 +1618,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 73] = [
     },
     FieldDisplay {
         group: "accumulator",
-        label: "charge_limit",
+        label: "Charge limit",
         warn: None,
         critical: None,
         warn_below: None,
@@ -1626,7 +1626,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 73] = [
     },
     FieldDisplay {
         group: "accumulator",
-        label: "low_cell_volt",
+        label: "Lowest cell",
         warn: None,
         critical: None,
         warn_below: None,
@@ -1634,7 +1634,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 73] = [
     },
     FieldDisplay {
         group: "accumulator",
-        label: "high_cell_volt",
+        label: "Highest cell",
         warn: None,
         critical: None,
         warn_below: None,
@@ -1642,7 +1642,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 73] = [
     },
     FieldDisplay {
         group: "accumulator",
-        label: "avg_cell_volt",
+        label: "Average cell",
         warn: None,
         critical: None,
         warn_below: None,
@@ -1658,7 +1658,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 73] = [
     },
     FieldDisplay {
         group: "motor",
-        label: "motor_speed",
+        label: "Motor speed",
         warn: None,
         critical: None,
         warn_below: None,
@@ -1666,7 +1666,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 73] = [
     },
     FieldDisplay {
         group: "motor",
-        label: "motor_torque",
+        label: "Motor torque",
         warn: None,
         critical: None,
         warn_below: None,
@@ -1674,7 +1674,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 73] = [
     },
     FieldDisplay {
         group: "motor",
-        label: "max_motor_torque",
+        label: "Available torque",
         warn: None,
         critical: None,
         warn_below: None,
@@ -1682,7 +1682,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 73] = [
     },
     FieldDisplay {
         group: "motor",
-        label: "motor_direction",
+        label: "Motor direction",
         warn: None,
         critical: None,
         warn_below: None,
@@ -1690,7 +1690,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 73] = [
     },
     FieldDisplay {
         group: "motor",
-        label: "motor_state",
+        label: "Motor state",
         warn: None,
         critical: None,
         warn_below: None,
@@ -1698,7 +1698,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 73] = [
     },
     FieldDisplay {
         group: "inverter",
-        label: "mcu_main_state",
+        label: "Inverter state",
         warn: None,
         critical: None,
         warn_below: None,
@@ -1706,7 +1706,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 73] = [
     },
     FieldDisplay {
         group: "inverter",
-        label: "mcu_work_mode",
+        label: "Inverter mode",
         warn: None,
         critical: None,
         warn_below: None,
@@ -1714,7 +1714,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 73] = [
     },
     FieldDisplay {
         group: "inverter",
-        label: "mcu_voltage",
+        label: "Inverter DC voltage",
         warn: None,
         critical: None,
         warn_below: None,
@@ -1722,7 +1722,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 73] = [
     },
     FieldDisplay {
         group: "inverter",
-        label: "mcu_phase_current",
+        label: "Phase current",
         warn: None,
         critical: None,
         warn_below: None,
@@ -1730,7 +1730,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 73] = [
     },
     FieldDisplay {
         group: "inverter",
-        label: "mcu_current",
+        label: "Inverter DC current",
         warn: None,
         critical: None,
         warn_below: None,
@@ -1754,7 +1754,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 73] = [
     },
     FieldDisplay {
         group: "inverter",
-        label: "mcu_warning_level",
+        label: "Inverter warning level",
         warn: None,
         critical: None,
         warn_below: None,
@@ -1786,7 +1786,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 73] = [
     },
     FieldDisplay {
         group: "chassis",
-        label: "shocktravel1",
+        label: "Shock travel FL",
         warn: None,
         critical: None,
         warn_below: None,
@@ -1794,7 +1794,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 73] = [
     },
     FieldDisplay {
         group: "chassis",
-        label: "shocktravel2",
+        label: "Shock travel FR",
         warn: None,
         critical: None,
         warn_below: None,
@@ -1802,7 +1802,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 73] = [
     },
     FieldDisplay {
         group: "chassis",
-        label: "shocktravel3",
+        label: "Shock travel RL",
         warn: None,
         critical: None,
         warn_below: None,
@@ -1810,7 +1810,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 73] = [
     },
     FieldDisplay {
         group: "chassis",
-        label: "shocktravel4",
+        label: "Shock travel RR",
         warn: None,
         critical: None,
         warn_below: None,
@@ -1818,7 +1818,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 73] = [
     },
     FieldDisplay {
         group: "diagnostics",
-        label: "can_rx_dropped",
+        label: "CAN frames dropped (rx)",
         warn: None,
         critical: None,
         warn_below: None,
@@ -1826,7 +1826,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 73] = [
     },
     FieldDisplay {
         group: "diagnostics",
-        label: "can_tx_dropped",
+        label: "CAN frames dropped (tx)",
         warn: None,
         critical: None,
         warn_below: None,
@@ -1834,7 +1834,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 73] = [
     },
     FieldDisplay {
         group: "diagnostics",
-        label: "can_decode_errors",
+        label: "CAN decode errors",
         warn: None,
         critical: None,
         warn_below: None,
@@ -1842,7 +1842,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 73] = [
     },
     FieldDisplay {
         group: "diagnostics",
-        label: "telemetry_superseded",
+        label: "Telemetry superseded",
         warn: None,
         critical: None,
         warn_below: None,
@@ -1850,7 +1850,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 73] = [
     },
     FieldDisplay {
         group: "diagnostics",
-        label: "pedal_bus_errors",
+        label: "Pedal bus errors",
         warn: None,
         critical: None,
         warn_below: None,
@@ -1858,7 +1858,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 73] = [
     },
     FieldDisplay {
         group: "diagnostics",
-        label: "can_bus_off_events",
+        label: "CAN bus-off events",
         warn: None,
         critical: None,
         warn_below: None,
@@ -3057,12 +3057,12 @@ impl Telemetry {
 
     /// Physical value of `apps_travel` for a raw wire value.
     pub fn apps_travel_from_raw(raw: u8) -> f32 {
-        (f64::from(raw) * 0.004) as f32
+        (f64::from(raw) * 0.4) as f32
     }
 
     /// Wire value of `apps_travel`, and whether it had to be saturated.
     pub fn apps_travel_to_raw(v: f32) -> (u8, bool) {
-        let raw = runtime::round(f64::from(v) / 0.004);
+        let raw = runtime::round(f64::from(v) / 0.4);
         if raw.is_nan() {
             return (0, true);
         }

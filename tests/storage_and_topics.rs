@@ -92,6 +92,34 @@ fn every_can_message_has_a_table_found_without_searching() {
     }
 }
 
+/// Exports label their columns from the table itself: every value column finds its field or
+/// signal (unit, comment, value labels); `ts` and the packet header have none.
+#[test]
+fn every_value_column_finds_what_the_schema_says_about_it() {
+    for table in TABLES {
+        let values = table.columns.len() - table.signals.len();
+        for (i, column) in table.columns.iter().enumerate() {
+            match table.signal(i) {
+                Some(meta) => {
+                    assert!(i >= values, "{}.{}", table.name, column.name);
+                    // Columns carry the Rust field's name: snake case of the signal's.
+                    let snake = meta.name.to_ascii_lowercase().replace('_', "");
+                    assert_eq!(snake, column.name.replace('_', ""), "{}", table.name);
+                }
+                None => assert!(i < values, "{}.{} has no signal", table.name, column.name),
+            }
+        }
+    }
+    let soc = tables::TELEMETRY.signal(
+        tables::TELEMETRY
+            .columns
+            .iter()
+            .position(|c| c.name == "soc")
+            .unwrap_or(0),
+    );
+    assert_eq!(soc.map(|m| m.unit), Some("%"));
+}
+
 #[test]
 fn a_live_database_lacking_columns_gets_alter_statements() {
     let t = &tables::TELEMETRY;

@@ -94,7 +94,7 @@ proptest! {
 
 fn sample() -> Telemetry {
     let (_, mut t) = Telemetry::unpack(&packet(&[0u8; Telemetry::LEN])).expect("valid");
-    t.apps_travel = 0.5;
+    t.apps_travel = 50.0;
     t.motor_speed = 4000.0;
     t.motor_temp = 85;
     t.pack_current = -12.5;
@@ -118,7 +118,7 @@ fn physical_values_survive_the_wire_at_the_sensors_resolution() {
         .expect("decodes")
         .to_telemetry();
     assert_eq!(h, header);
-    assert!((back.apps_travel - 0.5).abs() <= 0.002);
+    assert!((back.apps_travel - 50.0).abs() <= 0.2);
     assert_eq!(back.motor_speed, 4000.0);
     assert_eq!(back.motor_temp, 85);
     assert_eq!(back.pack_current, -12.5);

@@ -231,7 +231,8 @@ impl Control {
     pub fn snapshot(&self, sensors: &SensorReading, link: LinkCounters) -> Telemetry {
         let mut snapshot = self.bus.mirror;
         snapshot.apply(&AnyMessage::CcmStatus(self.status()));
-        snapshot.apps_travel = sensors.apps.travel;
+        // Travel is a fraction inside the CCM; people read the throttle in percent.
+        snapshot.apps_travel = sensors.apps.travel * 100.0;
         snapshot.bse_front = sensors.brakes.front_v;
         snapshot.bse_rear = sensors.brakes.rear_v;
         let [fl, fr, rl, rr] = sensors.shock_mm;

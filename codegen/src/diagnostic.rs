@@ -87,6 +87,10 @@ pub enum Code {
     FdLength,
     /// W0206: a file with no messages (empty, or cut short at a line boundary).
     NoMessages,
+    /// W0207: a telemetry field without a human label.
+    MissingLabel,
+    /// W0208: a numeric telemetry field without a unit.
+    MissingUnit,
 }
 
 impl Code {
@@ -129,6 +133,8 @@ impl Code {
             Code::Renamed => "W0204",
             Code::FdLength => "W0205",
             Code::NoMessages => "W0206",
+            Code::MissingLabel => "W0207",
+            Code::MissingUnit => "W0208",
         }
     }
 

@@ -142,7 +142,10 @@ impl CarSchema {
         }
         let yaml = schema_dir.join("telemetry.yaml");
         let loaded = load::telemetry::load(&yaml)?;
-        let telemetry = validate::telemetry::validate(&yaml, &loaded, &db)?;
+        let (telemetry, warnings) = validate::telemetry::validate(&yaml, &loaded, &db)?;
+        if !warnings.is_empty() {
+            return Err(Error::DeniedWarnings(warnings));
+        }
         Ok(Self { db, telemetry })
     }
 
@@ -185,6 +188,14 @@ impl CarSchema {
                 render::tables::render_sqlite_sql(db, t, "schema/")?,
             ),
             file("mqtt.rs", render::mqtt::render(db, t, "schema/")?),
+            file(
+                "docs/can.md",
+                render::docs::render_can(db, dbc, fingerprint::database(db))?,
+            ),
+            file(
+                "docs/telemetry.md",
+                render::docs::render_telemetry(db, t, yaml, fingerprint::telemetry(db, t))?,
+            ),
             file(
                 "examples/decode.rs",
                 render::standalone::DecodeExample { krate: "aer" }.render()?,

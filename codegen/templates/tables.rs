@@ -8,6 +8,7 @@ use std::format;
 use std::string::String;
 
 use super::can::AnyMessage;
+use super::runtime::SignalMeta;
 
 /// The type of a column, and how each database spells it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -67,7 +68,7 @@ pub struct Column {
 }
 
 /// A table of the car's data.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Table {
     pub name: &'static str,
     /// Position in [`TABLES`].
@@ -77,6 +78,9 @@ pub struct Table {
     /// `ts` first, then one per packet field or message signal, in schema order (so signal
     /// `i` of a message is column `1 + i`).
     pub columns: &'static [Column],
+    /// What the schema says about the packet's fields or the message's signals (unit,
+    /// comment, range, value labels), which fill the last `signals.len()` columns in order.
+    pub signals: &'static [SignalMeta],
     pub tdengine: TdengineTable,
     pub sqlite: SqliteTable,
 }
@@ -117,6 +121,7 @@ pub static {{ t.const_name }}: Table = Table {
         Column { name: "{{ c.name }}", ty: ColumnType::{{ c.ty.variant() }} },
 {%- endfor %}
     ],
+    signals: {{ t.signals() }},
     tdengine: TdengineTable {
         create: "{{ t.tdengine_create() }}",
         insert: "{{ t.tdengine_insert() }}",
@@ -147,6 +152,13 @@ pub fn for_message(message: &AnyMessage) -> &'static Table {
 }
 
 impl Table {
+    /// The schema's description of column `index`, for the packet's fields and the message's
+    /// signals (not for `ts` or the packet header).
+    pub fn signal(&self, index: usize) -> Option<&'static SignalMeta> {
+        let first = self.columns.len().checked_sub(self.signals.len())?;
+        self.signals.get(index.checked_sub(first)?)
+    }
+
     /// The local (SQLite) row's columns: tags, then columns.
     pub fn local_columns(&self) -> impl Iterator<Item = &'static Column> + use<> {
         self.tags.iter().chain(self.columns)

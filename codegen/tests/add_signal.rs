@@ -9,6 +9,7 @@ use aer_codegen::model::{Placement, WireType};
 
 const SHOCKTRAVEL5: &str = "  - name: shocktravel5
     group: chassis
+    label: Shock travel 5
     type: u16
     scale: 0.01
     unit: mm
@@ -137,8 +138,8 @@ fn telemetry_mistakes_are_reported_with_lines() {
             "no message `MCU9`",
         ),
         (
-            "    type: u8\n    scale: 0.004",
-            "    type: u9\n    scale: 0.004",
+            "    type: u8\n    scale: 0.4",
+            "    type: u9\n    scale: 0.4",
             "E0204",
             "unknown type `u9`",
         ),
@@ -161,8 +162,8 @@ fn telemetry_mistakes_are_reported_with_lines() {
             "range [0, 900]",
         ),
         (
-            "display: { label: Current, warn: 250, critical: 300 }",
-            "display: { label: Current, warn: 350, critical: 300 }",
+            "display: { warn: 250, critical: 300 }",
+            "display: { warn: 350, critical: 300 }",
             "E0214",
             "warn above critical (350 > 300)",
         ),
@@ -240,4 +241,48 @@ fn telemetry_mistakes_are_reported_with_lines() {
             .any(|d| d.code == "E0209" && d.message.contains("ISO-TP carries at most 4095")),
         "{diags}"
     );
+}
+
+/// The car's schema labels every field and gives every number a unit: people read them in
+/// the pit view, the exports and the bus documentation. Leaving one out is a warning, and
+/// the car's schema denies warnings.
+#[test]
+fn a_field_without_label_or_unit_is_refused_for_the_car() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    schema_with_shocktravel5(dir.path());
+    let path = dir.path().join("telemetry.yaml");
+    let yaml = std::fs::read_to_string(&path).expect("read");
+    for (from, code, text) in [
+        (
+            "    label: Shock travel 5\n",
+            "W0207",
+            "`shocktravel5` has no label",
+        ),
+        (
+            "    unit: mm\n    min: 0\n    max: 76.2\n    description: Fifth",
+            "W0208",
+            "`shocktravel5` has no unit",
+        ),
+    ] {
+        let edited = yaml.replacen(from, from.split_once('\n').map_or("", |(_, rest)| rest), 1);
+        assert_ne!(edited, yaml, "fixture moved: {from}");
+        std::fs::write(&path, &edited).expect("write");
+        let Err(aer_codegen::Error::DeniedWarnings(warnings)) = CarSchema::load(dir.path()) else {
+            panic!("{code} was not denied");
+        };
+        assert!(
+            warnings
+                .iter()
+                .any(|w| w.code == code && w.message.contains(text)),
+            "{code}: {warnings:?}"
+        );
+        let line = edited
+            .lines()
+            .position(|l| l == "  - name: shocktravel5")
+            .map(|i| i + 1);
+        assert!(
+            warnings.iter().all(|w| Some(w.line) == line),
+            "{warnings:?}"
+        );
+    }
 }

@@ -32,7 +32,8 @@ fn telemetry(field: &str) -> Result<CarSchema, Diagnostics> {
     let path = Path::new("telemetry.yaml");
     let loaded = aer_codegen::load::telemetry::parse(path, yaml)?;
     let db = car_dbc();
-    let telemetry = aer_codegen::validate::telemetry::validate(path, &loaded, &db)?;
+    // Labels and units (warnings) are beside the point here.
+    let (telemetry, _) = aer_codegen::validate::telemetry::validate(path, &loaded, &db)?;
     let schema = CarSchema { db, telemetry };
     schema.files().expect("a valid schema renders");
     Ok(schema)

@@ -50,6 +50,9 @@ pub struct FieldSpec {
     pub max: Option<f64>,
     #[serde(default, rename = "enum")]
     pub enum_name: Option<Spanned<String>>,
+    /// The name people read (pit view, exports, bus documentation).
+    #[serde(default)]
+    pub label: Option<String>,
     #[serde(default)]
     pub display: Option<DisplaySpec>,
 }
@@ -57,8 +60,6 @@ pub struct FieldSpec {
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct DisplaySpec {
-    #[serde(default)]
-    pub label: Option<String>,
     #[serde(default)]
     pub warn: Option<f64>,
     #[serde(default)]

@@ -138,6 +138,15 @@ pub struct Table {
 }
 
 impl Table {
+    /// The path of the schema's description of the values (the packet's fields or the
+    /// message's signals), which fill the last columns.
+    pub fn signals(&self) -> String {
+        match &self.message {
+            Some(message) => format!("super::can::{message}::META.signals"),
+            None => "super::telemetry::Telemetry::FIELDS".to_owned(),
+        }
+    }
+
     fn new(name: String, doc: String, tags: Vec<Column>, columns: Vec<Column>) -> Self {
         Self {
             const_name: name.to_ascii_uppercase(),

@@ -5,7 +5,7 @@ use std::path::Path;
 
 use serde_saphyr::Spanned;
 
-use crate::diagnostic::{Code, Diagnostics, Reporter};
+use crate::diagnostic::{Code, Diagnostic, Diagnostics, Reporter};
 use crate::load::telemetry::{FieldSpec, LoadedTelemetry, PacketSpec};
 use crate::model::{
     Database, Display, Encoding, ISOTP_MAX_LEN, IntType, PhysType, Placement, Signal,
@@ -25,7 +25,7 @@ pub fn validate(
     path: &Path,
     loaded: &LoadedTelemetry,
     db: &Database,
-) -> Result<Telemetry, Diagnostics> {
+) -> Result<(Telemetry, Vec<Diagnostic>), Diagnostics> {
     let mut r = Reporter::new(path, &loaded.text);
     let packet = &loaded.file.packet.value;
     check_ids(&mut r, packet, db);
@@ -42,7 +42,7 @@ pub fn validate(
     if r.has_errors() {
         return Err(Diagnostics(r.diagnostics));
     }
-    Ok(Telemetry {
+    let telemetry = Telemetry {
         type_name: camel(&packet.name.value),
         description: packet.description.clone(),
         tx_id: packet.tx_id.value as u16,
@@ -50,7 +50,8 @@ pub fn validate(
         period_ms: packet.period_ms,
         fields,
         len,
-    })
+    };
+    Ok((telemetry, r.diagnostics))
 }
 
 /// The ISO-TP ids: standard, distinct, and not used by a DBC message.
@@ -210,21 +211,52 @@ fn field(
         field.phys = own_phys(&field);
     }
     check_range(r, &field, line)?;
+    check_described(r, &field, line);
     Some(field)
+}
+
+/// People read every field by its label and unit (pit view, exports, bus documentation), so
+/// each is asked for; the car's schema denies warnings, so there they are required.
+fn check_described(r: &mut Reporter<'_>, field: &TelemetryField, line: usize) {
+    let name = &field.name;
+    if field
+        .display
+        .label
+        .as_deref()
+        .is_none_or(|l| l.trim().is_empty())
+    {
+        r.report(
+            Code::MissingLabel,
+            line,
+            format!("field `{name}` has no label"),
+            "add `label:` with the name people should read, such as `label: Front brake pressure`",
+        );
+    }
+    let numeric =
+        !matches!(field.phys, PhysType::Bool | PhysType::Enum(_)) && field.wire != WireType::Flag;
+    if numeric && field.unit.trim().is_empty() {
+        r.report(
+            Code::MissingUnit,
+            line,
+            format!("field `{name}` has no unit"),
+            match field.source {
+                Some(_) => "give the referenced signal a unit in aer.dbc",
+                None => "add `unit:` (for a count, what is counted, such as `unit: frames`)",
+            },
+        );
+    }
 }
 
 /// The dashboard hints, with thresholds in a sensible order.
 fn display(r: &mut Reporter<'_>, spec: &FieldSpec, line: usize) -> Option<Display> {
-    let display = spec
-        .display
-        .as_ref()
-        .map_or_else(Display::default, |d| Display {
-            label: d.label.clone(),
-            warn: d.warn,
-            critical: d.critical,
-            warn_below: d.warn_below,
-            critical_below: d.critical_below,
-        });
+    let thresholds = spec.display.as_ref();
+    let display = Display {
+        label: spec.label.clone(),
+        warn: thresholds.and_then(|d| d.warn),
+        critical: thresholds.and_then(|d| d.critical),
+        warn_below: thresholds.and_then(|d| d.warn_below),
+        critical_below: thresholds.and_then(|d| d.critical_below),
+    };
     if let Some(problem) = threshold_problem(&display) {
         r.report(
             Code::Thresholds,

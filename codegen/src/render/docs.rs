@@ -1,0 +1,316 @@
+//! Renders the bus documentation: Markdown pages for the team's mdBook site, one for the CAN
+//! matrix and one for the telemetry packet's layout, from the same model as the code, so the
+//! documentation cannot drift from what the car sends.
+
+use askama::Template;
+
+use crate::model::{
+    ByteOrder, Database, Encoding, Message, Placement, Signal, TELEMETRY_HEADER_LEN, Telemetry,
+    TelemetryField, WireType,
+};
+use crate::render::meta::labels;
+
+#[derive(Template)]
+#[template(path = "docs/can.md", escape = "none")]
+pub struct CanMatrix<'a> {
+    pub source: &'a str,
+    pub fingerprint: u32,
+    pub messages: Vec<MessageDoc>,
+}
+
+#[derive(Template)]
+#[template(path = "docs/telemetry.md", escape = "none")]
+pub struct TelemetryLayout<'a> {
+    pub source: &'a str,
+    pub fingerprint: u32,
+    pub name: String,
+    pub description: String,
+    pub tx_id: String,
+    pub flow_control_id: String,
+    pub period_ms: u32,
+    pub len: usize,
+    pub frames: IsoTpFrames,
+    pub rows: Vec<FieldDoc>,
+}
+
+/// How many CAN frames one packet takes with ISO-TP over classic CAN (normal addressing):
+/// a single frame carries 7 bytes; otherwise a first frame carries 6, each consecutive frame
+/// 7, and the receiver answers the first frame with one flow control frame (block size 0).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct IsoTpFrames {
+    pub consecutive: usize,
+    pub flow_control: usize,
+}
+
+impl IsoTpFrames {
+    pub fn for_len(len: usize) -> Self {
+        if len <= 7 {
+            Self {
+                consecutive: 0,
+                flow_control: 0,
+            }
+        } else {
+            Self {
+                consecutive: (len - 6).div_ceil(7),
+                flow_control: 1,
+            }
+        }
+    }
+
+    /// Every frame on the bus for one packet.
+    pub fn total(&self) -> usize {
+        1 + self.consecutive + self.flow_control
+    }
+}
+
+pub struct MessageDoc {
+    pub name: String,
+    pub anchor: String,
+    pub id: String,
+    pub len: usize,
+    pub sender: String,
+    pub cycle: String,
+    pub comment: String,
+    pub signals: Vec<SignalDoc>,
+}
+
+pub struct SignalDoc {
+    pub name: String,
+    pub bits: String,
+    pub byte_order: &'static str,
+    pub kind: &'static str,
+    pub scaling: String,
+    pub range: String,
+    pub unit: String,
+    pub receivers: String,
+    pub presence: String,
+    pub values: String,
+    pub comment: String,
+}
+
+pub struct FieldDoc {
+    pub offset: String,
+    pub size: String,
+    pub name: String,
+    pub label: String,
+    pub wire: &'static str,
+    pub scaling: String,
+    pub range: String,
+    pub unit: String,
+    pub source: String,
+    pub values: String,
+    pub description: String,
+}
+
+/// Text for a Markdown table cell: one line, pipes escaped.
+fn cell(text: &str) -> String {
+    text.split_whitespace()
+        .collect::<Vec<_>>()
+        .join(" ")
+        .replace('|', "\\|")
+}
+
+fn range(min: Option<f64>, max: Option<f64>) -> String {
+    match (min, max) {
+        (Some(min), Some(max)) => format!("{min} .. {max}"),
+        (Some(min), None) => format!(">= {min}"),
+        (None, Some(max)) => format!("<= {max}"),
+        (None, None) => String::new(),
+    }
+}
+
+fn scaling(factor: f64, offset: f64) -> String {
+    if offset == 0.0 {
+        format!("x {factor}")
+    } else {
+        format!("x {factor} + {offset}")
+    }
+}
+
+fn values(db: &Database, phys: crate::model::PhysType) -> String {
+    let labels = labels(db, phys);
+    let text: Vec<String> = labels
+        .iter()
+        .map(|(value, label)| format!("{value} = {}", label.0))
+        .collect();
+    cell(&text.join(", "))
+}
+
+fn id(id: u32, extended: bool) -> String {
+    if extended {
+        format!("0x{id:08X} (ext.)")
+    } else {
+        format!("0x{id:03X}")
+    }
+}
+
+fn signal_doc(db: &Database, message: &Message, s: &Signal) -> SignalDoc {
+    let presence = match &s.mux {
+        Some(mux) => {
+            let selector = message
+                .signals
+                .get(mux.selector)
+                .map_or("?", |m| m.name.as_str());
+            let ranges: Vec<String> = mux
+                .ranges
+                .iter()
+                .map(|&(lo, hi)| {
+                    if lo == hi {
+                        lo.to_string()
+                    } else {
+                        format!("{lo}..{hi}")
+                    }
+                })
+                .collect();
+            format!("when {selector} = {}", ranges.join(", "))
+        }
+        None if s.is_multiplexor => "multiplexor".to_owned(),
+        None => String::new(),
+    };
+    SignalDoc {
+        name: cell(&s.name),
+        bits: format!("{} \\| {}", s.start_bit, s.len),
+        byte_order: match s.byte_order {
+            ByteOrder::LittleEndian => "Intel",
+            ByteOrder::BigEndian => "Motorola",
+        },
+        kind: match s.encoding {
+            Encoding::Unsigned => "unsigned",
+            Encoding::Signed => "signed",
+            Encoding::Float32 => "float32",
+            Encoding::Float64 => "float64",
+        },
+        scaling: scaling(s.factor, s.offset),
+        range: range(s.min, s.max),
+        unit: cell(&s.unit),
+        receivers: cell(&s.receivers.join(", ")),
+        presence,
+        values: values(db, s.phys),
+        comment: cell(s.comment.as_deref().unwrap_or_default()),
+    }
+}
+
+pub fn render_can(db: &Database, source: &str, fingerprint: u32) -> askama::Result<String> {
+    let messages = db
+        .messages
+        .iter()
+        .map(|m| MessageDoc {
+            name: cell(&m.name),
+            anchor: m.name.to_lowercase(),
+            id: id(m.id, m.extended),
+            len: m.len,
+            sender: cell(m.transmitter.as_deref().unwrap_or("-")),
+            cycle: m
+                .cycle_time_ms
+                .map_or_else(|| "on event".to_owned(), |ms| format!("{ms} ms")),
+            comment: cell(m.comment.as_deref().unwrap_or_default()),
+            signals: m.signals.iter().map(|s| signal_doc(db, m, s)).collect(),
+        })
+        .collect();
+    CanMatrix {
+        source,
+        fingerprint,
+        messages,
+    }
+    .render()
+}
+
+fn field_doc(db: &Database, f: &TelemetryField) -> FieldDoc {
+    let (offset, size) = match f.placement {
+        Placement::Bytes(offset) => (offset.to_string(), f.wire.bytes().to_string()),
+        Placement::Bit(offset, bit) => (format!("{offset}.{bit}"), "1 bit".to_owned()),
+    };
+    let wire = match f.wire {
+        WireType::Flag => "flag",
+        other => other.rust(),
+    };
+    FieldDoc {
+        offset,
+        size,
+        name: cell(&f.name),
+        label: cell(f.display.label.as_deref().unwrap_or(&f.name)),
+        wire,
+        scaling: scaling(f.scale, f.offset),
+        range: range(f.min, f.max),
+        unit: cell(&f.unit),
+        source: f
+            .source
+            .as_deref()
+            .map_or_else(String::new, |s| format!("`{s}`")),
+        values: values(db, f.phys),
+        description: cell(&f.description),
+    }
+}
+
+pub fn render_telemetry(
+    db: &Database,
+    t: &Telemetry,
+    source: &str,
+    fingerprint: u32,
+) -> askama::Result<String> {
+    let header = [
+        ("0", "4", "fingerprint", "Schema fingerprint", "u32"),
+        ("4", "2", "sequence", "Sequence number", "u16"),
+        ("6", "4", "timestamp_us", "CCM time", "u32"),
+    ];
+    debug_assert_eq!(TELEMETRY_HEADER_LEN, 10);
+    let mut rows: Vec<FieldDoc> = header
+        .iter()
+        .map(|&(offset, size, name, label, wire)| FieldDoc {
+            offset: offset.into(),
+            size: size.into(),
+            name: name.into(),
+            label: label.into(),
+            wire,
+            scaling: String::new(),
+            range: String::new(),
+            unit: if name == "timestamp_us" {
+                "us".into()
+            } else {
+                String::new()
+            },
+            source: "header".into(),
+            values: String::new(),
+            description: match name {
+                "fingerprint" => {
+                    format!("Always 0x{fingerprint:08X} for this layout; the Pi refuses any other.")
+                }
+                "sequence" => "Counts packets, wrapping at 65,536; a gap is a lost packet.".into(),
+                _ => {
+                    "The CCM's clock when the snapshot was taken (wraps after 71.6 minutes).".into()
+                }
+            },
+        })
+        .collect();
+    rows.extend(t.fields.iter().map(|f| field_doc(db, f)));
+    TelemetryLayout {
+        source,
+        fingerprint,
+        name: t.type_name.clone(),
+        description: cell(&t.description),
+        tx_id: format!("0x{:03X}", t.tx_id),
+        flow_control_id: format!("0x{:03X}", t.flow_control_id),
+        period_ms: t.period_ms,
+        len: t.len,
+        frames: IsoTpFrames::for_len(t.len),
+        rows,
+    }
+    .render()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::IsoTpFrames;
+
+    #[test]
+    fn iso_tp_frame_counts_follow_the_first_and_consecutive_frame_payloads() {
+        // 7 bytes fit a single frame; 8..=13 need a first frame (6) and one consecutive (7).
+        assert_eq!(IsoTpFrames::for_len(7).total(), 1);
+        assert_eq!(IsoTpFrames::for_len(8).total(), 3);
+        assert_eq!(IsoTpFrames::for_len(13).total(), 3);
+        assert_eq!(IsoTpFrames::for_len(14).total(), 4);
+        // The team's 118-byte layout: 17 data frames and a flow control (docs/schema.md).
+        assert_eq!(IsoTpFrames::for_len(118).total(), 18);
+        assert_eq!(IsoTpFrames::for_len(72).total(), 12);
+    }
+}
