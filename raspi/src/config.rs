@@ -1,6 +1,7 @@
 //! The service configuration: one TOML file (every key optional), then environment overrides.
 //! The `[mqtt]` section and its variables are the dashboard's too (`aer_host::config`).
 
+use crate::sink::store::session::Metadata;
 use aer_host::config::{BrokerConfig, apply_car_env, read_or_default};
 use anyhow::Result;
 use serde::Deserialize;
@@ -20,6 +21,9 @@ pub struct Config {
     pub raw_log: RawLogConfig,
     pub retention: RetentionConfig,
     pub tdengine: TdengineConfig,
+    /// Who drives, where, which run: stored with the session's data and carried into every
+    /// export (the command line's `--driver` etc. override it).
+    pub session: Metadata,
 }
 
 #[derive(Debug, Clone, PartialEq, Deserialize)]
@@ -113,6 +117,7 @@ impl Default for Config {
             raw_log: RawLogConfig::default(),
             retention: RetentionConfig::default(),
             tdengine: TdengineConfig::default(),
+            session: Metadata::default(),
         }
     }
 }

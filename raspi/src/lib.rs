@@ -9,6 +9,7 @@
 pub mod broker;
 pub mod config;
 pub mod disk;
+pub mod export;
 pub mod forward;
 pub mod health;
 pub mod ingest;

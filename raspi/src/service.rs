@@ -12,11 +12,12 @@ use crate::rawlog::{RawTap, segments};
 use crate::sink::Sink;
 use crate::sink::mqtt::{self, Publisher};
 use crate::sink::store::{
-    self, Budget, Retention, StoreSink, StoreWriter, WhenFull, WriterOptions,
+    self, Budget, Retention, StoreSink, StoreWriter, WhenFull, WriterOptions, session,
 };
 use crate::source::replay::{ReplayOptions, replay, replay_segment};
 use crate::source::{self, Replies};
 use crate::{broker, forward, report};
+use aer_host::clock;
 use aer_host::counters::Counters;
 use aer_host::rawlog::SegmentReader;
 use anyhow::{Context, Result};
@@ -45,6 +46,18 @@ pub enum Job {
     Demo,
 }
 
+impl Job {
+    /// What the session records as its source.
+    pub fn source_name(&self) -> &'static str {
+        match self {
+            Self::Live => "live",
+            Self::Replay { .. } => "replay",
+            Self::Synthetic { .. } => "synthetic",
+            Self::Demo => "demo",
+        }
+    }
+}
+
 /// The MQTT side: the publisher, the task keeping its connection, and the address
 /// subscribers use.
 struct Mqtt {
@@ -63,7 +76,7 @@ pub async fn serve(config: Config, job: Job) -> Result<()> {
     let cancel = CancellationToken::new();
     // The store first: a bad path must stop the service before anything else starts (a
     // damaged file is moved aside and reported instead).
-    let writer = start_store(&config, &job, &counters, &health)?;
+    let (writer, session) = start_store(&config, &job, &counters, &health)?;
     let raw_log = start_raw_log(&config, &job, &counters, &health)?;
     let mqtt = start_mqtt(&config, &counters, &health, &cancel).await?;
     let reporter = tokio::spawn(report::run(
@@ -106,7 +119,12 @@ pub async fn serve(config: Config, job: Job) -> Result<()> {
     // The source is done (or stopped): stop the rest, writing and sending what is left, each
     // part within its time.
     cancel.cancel();
-    finish_blocking("local store", move || writer.finish()).await;
+    let store_path = config.store.path.clone();
+    finish_blocking("local store", move || {
+        writer.finish();
+        end_session(&store_path, session);
+    })
+    .await;
     if let Some(raw_writer) = raw_writer {
         finish_blocking("raw log", move || raw_writer.finish()).await;
     }
@@ -140,18 +158,28 @@ async fn finish_blocking(part: &str, finish: impl FnOnce() + Send + 'static) {
     }
 }
 
-/// Opens (or recovers) the store and starts its writer with the retention budget.
+/// Opens (or recovers) the store, opens this run's session in it and starts its writer with
+/// the retention budget.
 fn start_store(
     config: &Config,
     job: &Job,
     counters: &Arc<Counters>,
     health: &Arc<Health>,
-) -> Result<StoreWriter> {
+) -> Result<(StoreWriter, Option<i64>)> {
     let (db, recovered) = store::open_or_recover(&config.store.path)?;
     if let Some(report) = recovered {
         health.store_recovered.failed(&report);
     }
     info!(path = %config.store.path.display(), "local store open");
+    // The data matters more than its label: a session that cannot be recorded is logged and
+    // the service runs on.
+    let session = session::begin(&db, &config.session, job.source_name(), now_us())
+        .inspect_err(|error| warn!(%error, "cannot record the session"))
+        .ok();
+    if let Some(id) = session {
+        let m = &config.session;
+        info!(id, driver = m.driver, track = m.track, run = ?m.run, "session open");
+    }
     let retention = &config.retention;
     let budget = Budget {
         max_bytes: config.store.max_bytes,
@@ -159,7 +187,7 @@ fn start_store(
         min_free_bytes: retention.min_free_bytes,
         interval: Duration::from_secs(retention.check_seconds.max(1)),
     };
-    Ok(StoreWriter::with_options(
+    let writer = StoreWriter::with_options(
         db,
         counters.clone(),
         WriterOptions {
@@ -173,7 +201,21 @@ fn start_store(
                 WhenFull::Drop
             },
         },
-    ))
+    );
+    Ok((writer, session))
+}
+
+fn now_us() -> i64 {
+    i64::try_from(clock::now_us()).unwrap_or(i64::MAX)
+}
+
+/// Closes the session once the writer has committed its last rows.
+fn end_session(path: &std::path::Path, session: Option<i64>) {
+    let Some(id) = session else { return };
+    let ended = rusqlite::Connection::open(path).and_then(|db| session::end(&db, now_us()));
+    if let Err(error) = ended {
+        warn!(%error, id, "cannot close the session");
+    }
 }
 
 fn max_age(days: u64) -> Option<Duration> {

@@ -4,13 +4,15 @@
 //! keeps their frames.
 //!
 //! [`schema`] opens, checks and migrates the file, [`row`] turns records into rows, [`queue`]
-//! holds them for the [`writer`] thread, [`retention`] keeps the file within its budget;
+//! holds them for the [`writer`] thread, [`retention`] keeps the file within its budget,
+//! [`session`] records who drove which run and which rows it made;
 //! [`StoreSink`] is what ingest hands records to.
 
 pub mod queue;
 pub mod retention;
 pub mod row;
 pub mod schema;
+pub mod session;
 pub mod writer;
 
 pub use queue::{RowSender, WhenFull};

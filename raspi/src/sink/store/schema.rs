@@ -6,6 +6,7 @@
 //! at most the last second's rows plus whatever waited in the writer's queue; a kill of the
 //! process loses the same, and nothing already committed.
 
+use super::session;
 use aer::tables::{TABLES, Table};
 use rusqlite::{Connection, OpenFlags};
 use std::path::{Path, PathBuf};
@@ -81,17 +82,25 @@ pub fn open(path: &Path) -> Result<Connection, StoreError> {
         .map_err(schema_error)?;
     db.pragma_update(None, "synchronous", "FULL")
         .map_err(schema_error)?;
+    create_tables(&db).map_err(schema_error)?;
+    Ok(db)
+}
+
+/// Creates the generated tables (adding columns an older store lacks), the forwarder's and
+/// the sessions' tables.
+pub fn create_tables(db: &Connection) -> rusqlite::Result<()> {
     for table in TABLES {
-        db.execute(table.sqlite.create, []).map_err(schema_error)?;
+        db.execute(table.sqlite.create, [])?;
         // Stores from before 2026-11 indexed `ts`; the index cost a page write per table per
         // commit and nothing reads it.
-        db.execute(&format!("DROP INDEX IF EXISTS \"{}_ts\"", table.name), [])
-            .map_err(schema_error)?;
-        migrate(&db, table).map_err(schema_error)?;
+        db.execute(&format!("DROP INDEX IF EXISTS \"{}_ts\"", table.name), [])?;
+        migrate(db, table)?;
     }
-    db.execute(CURSOR_TABLE, []).map_err(schema_error)?;
-    db.execute(SET_ASIDE_TABLE, []).map_err(schema_error)?;
-    Ok(db)
+    db.execute(CURSOR_TABLE, [])?;
+    db.execute(SET_ASIDE_TABLE, [])?;
+    db.execute(session::SESSIONS_TABLE, [])?;
+    db.execute(session::SESSION_ROWS_TABLE, [])?;
+    Ok(())
 }
 
 /// Opens the store; a damaged one is moved aside (`<file>.damaged-<unix seconds>`, with its

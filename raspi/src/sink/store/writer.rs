@@ -6,6 +6,7 @@
 use super::queue::{BATCH_ROWS, BATCH_WAIT, QUEUE_ROWS, Queue, RowSender, WhenFull};
 use super::retention::Retention;
 use super::row::Row;
+use super::session;
 use crate::health::Health;
 use aer::tables::TABLES;
 use aer_host::counters::{Counters, worth_logging};
@@ -188,15 +189,20 @@ impl Writer {
     }
 }
 
-fn commit(db: &mut Connection, batch: &[Row]) -> rusqlite::Result<()> {
+/// Inserts `batch` in one transaction and records the row ids in the open session, if any.
+pub fn commit(db: &mut Connection, batch: &[Row]) -> rusqlite::Result<()> {
     let transaction = db.transaction()?;
+    // The row ids each table got in this batch, for the open session's record.
+    let mut ids: Vec<Option<(i64, i64)>> = vec![None; TABLES.len()];
     {
         // Each table's statement is prepared once per batch, not looked up per row.
         let mut statements: Vec<Option<rusqlite::CachedStatement<'_>>> =
             TABLES.iter().map(|_| None).collect();
         for row in batch {
             let table = row.table();
-            let Some(slot) = statements.get_mut(table.index) else {
+            let (Some(slot), Some(range)) =
+                (statements.get_mut(table.index), ids.get_mut(table.index))
+            else {
                 continue;
             };
             let statement = match slot {
@@ -205,6 +211,15 @@ fn commit(db: &mut Connection, batch: &[Row]) -> rusqlite::Result<()> {
             };
             row.bind(statement)?;
             statement.raw_execute()?;
+            let id = transaction.last_insert_rowid();
+            *range = Some(range.map_or((id, id), |(first, _)| (first, id)));
+        }
+    }
+    if let Some(session) = session::current(&transaction)? {
+        for (table, range) in TABLES.iter().zip(ids) {
+            if let Some((first, last)) = range {
+                session::record_rows(&transaction, session, table.name, first, last)?;
+            }
         }
     }
     transaction.commit()

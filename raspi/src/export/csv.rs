@@ -1,0 +1,112 @@
+//! CSV: one file per table (header = the column names, one line per row, empty for NULL,
+//! `ts` in microseconds since the epoch), `columns.csv` beside them with each column's type,
+//! unit, label and description, and `session.csv` with the session's metadata.
+
+use super::describe;
+use super::load::{TableData, Values};
+use super::{ExportError, Written};
+use std::fmt::Write as _;
+use std::path::Path;
+
+/// Writes the CSV files of `tables` (those with rows) into `dir`.
+pub fn write(
+    dir: &Path,
+    tables: &[TableData],
+    metadata: &[(String, String)],
+) -> Result<Vec<Written>, ExportError> {
+    std::fs::create_dir_all(dir).map_err(|e| ExportError::write(dir, e))?;
+    let mut written = Vec::new();
+    let mut columns = writer(&dir.join("columns.csv"))?;
+    columns.write_record([
+        "table",
+        "column",
+        "type",
+        "unit",
+        "label",
+        "description",
+        "values",
+    ])?;
+    for data in tables.iter().filter(|t| t.rows > 0) {
+        let path = dir.join(format!("{}.csv", data.table.name));
+        table(&path, data)?;
+        written.push(Written::file(&path, data.rows)?);
+        for (column, d) in describe::columns(data.table) {
+            let values: Vec<String> = d
+                .values
+                .iter()
+                .map(|(value, label)| format!("{value}={label}"))
+                .collect();
+            columns.write_record([
+                data.table.name,
+                column.name,
+                &column.ty.tdengine(),
+                d.unit,
+                d.label,
+                d.description,
+                &values.join("; "),
+            ])?;
+        }
+    }
+    columns.flush().map_err(|e| ExportError::write(dir, e))?;
+    written.push(Written::file(&dir.join("columns.csv"), 0)?);
+    let path = dir.join("session.csv");
+    let mut session = writer(&path)?;
+    session.write_record(["key", "value"])?;
+    for (key, value) in metadata {
+        session.write_record([key, value])?;
+    }
+    session.flush().map_err(|e| ExportError::write(&path, e))?;
+    written.push(Written::file(&path, 0)?);
+    Ok(written)
+}
+
+fn writer(path: &Path) -> Result<csv::Writer<std::fs::File>, ExportError> {
+    let file = std::fs::File::create(path).map_err(|e| ExportError::write(path, e))?;
+    Ok(csv::Writer::from_writer(file))
+}
+
+fn table(path: &Path, data: &TableData) -> Result<(), ExportError> {
+    let mut out = writer(path)?;
+    out.write_record(data.table.local_columns().map(|c| c.name))?;
+    let mut field = String::new();
+    for row in 0..data.rows {
+        for values in &data.values {
+            field.clear();
+            cell(&mut field, values, row);
+            out.write_field(&field)?;
+        }
+        out.write_record(None::<&[u8]>)?;
+    }
+    out.flush().map_err(|e| ExportError::write(path, e))
+}
+
+/// Row `row` of a column as text: integers exactly, floats as the shortest text that reads
+/// back to the same value (`f32` as `f32`), flags as `true`/`false`, NULL as nothing.
+fn cell(out: &mut String, values: &Values, row: usize) {
+    let _ = match values {
+        Values::Bool(v) => match v.get(row).copied().flatten() {
+            Some(b) => write!(out, "{b}"),
+            None => Ok(()),
+        },
+        Values::Int(v) => match v.get(row).copied().flatten() {
+            Some(i) => write!(out, "{i}"),
+            None => Ok(()),
+        },
+        Values::UInt(v) => match v.get(row).copied().flatten() {
+            Some(i) => write!(out, "{i}"),
+            None => Ok(()),
+        },
+        Values::F32(v) => match v.get(row).copied().flatten() {
+            Some(f) => write!(out, "{f}"),
+            None => Ok(()),
+        },
+        Values::F64(v) => match v.get(row).copied().flatten() {
+            Some(f) => write!(out, "{f}"),
+            None => Ok(()),
+        },
+        Values::Text(v) => match v.get(row).and_then(|t| t.as_deref()) {
+            Some(t) => write!(out, "{t}"),
+            None => Ok(()),
+        },
+    };
+}

@@ -1,0 +1,185 @@
+//! MCAP for Foxglove and PlotJuggler: one channel per table (the telemetry packet, each CAN
+//! message) on the topic the live service publishes it on, JSON messages in receive-time
+//! order, each channel with a JSON Schema generated from the schema (labels, units, enum
+//! values), and the session's metadata as an MCAP metadata record.
+
+use super::describe;
+use super::load::{TableData, Values};
+use super::{ExportError, Written};
+use aer::tables::{Column, ColumnType};
+use std::collections::BTreeMap;
+use std::io::{BufWriter, Write as _};
+use std::path::Path;
+
+/// The live topic of a table below `root` (`aer/<car>`): `telemetry` or `can/<message>`.
+pub fn topic(root: &str, table: &str) -> String {
+    match table.strip_prefix("can_") {
+        Some(message) => format!("{root}/can/{message}"),
+        None => format!("{root}/{table}"),
+    }
+}
+
+/// Writes `tables` (those with rows) into the MCAP file `path`.
+pub fn write(
+    path: &Path,
+    tables: &[TableData],
+    metadata: &[(String, String)],
+    topic_root: &str,
+) -> Result<Written, ExportError> {
+    if let Some(dir) = path.parent() {
+        std::fs::create_dir_all(dir).map_err(|e| ExportError::write(dir, e))?;
+    }
+    let file = std::fs::File::create(path).map_err(|e| ExportError::write(path, e))?;
+    let mut out = mcap::Writer::new(BufWriter::new(file))?;
+    let mut channels = Vec::with_capacity(tables.len());
+    for data in tables {
+        if data.rows == 0 {
+            channels.push(0);
+            continue;
+        }
+        let schema = describe::json_schema(data.table, data.table.name);
+        let schema_id =
+            out.add_schema(data.table.name, "jsonschema", schema.to_string().as_bytes())?;
+        let channel_metadata = BTreeMap::from([("table".to_owned(), data.table.name.to_owned())]);
+        channels.push(out.add_channel(
+            schema_id,
+            &topic(topic_root, data.table.name),
+            "json",
+            &channel_metadata,
+        )?);
+    }
+    // Every row of every table, in receive-time order (ties in table, then arrival, order).
+    let mut order: Vec<(i64, usize, usize)> = tables
+        .iter()
+        .enumerate()
+        .flat_map(|(t, data)| {
+            data.timestamps()
+                .iter()
+                .enumerate()
+                .map(move |(row, ts)| (ts.unwrap_or(0), t, row))
+        })
+        .collect();
+    order.sort_unstable();
+    let described: Vec<Vec<_>> = tables
+        .iter()
+        .map(|data| describe::columns(data.table))
+        .collect();
+    let mut sequences = vec![0u32; tables.len()];
+    let mut json = Vec::with_capacity(4096);
+    for &(ts, t, row) in &order {
+        let (Some(data), Some(described), Some(&channel_id), Some(sequence)) = (
+            tables.get(t),
+            described.get(t),
+            channels.get(t),
+            sequences.get_mut(t),
+        ) else {
+            continue;
+        };
+        json.clear();
+        message(&mut json, data, described, row);
+        *sequence = sequence.wrapping_add(1);
+        let nanos = u64::try_from(ts).unwrap_or(0).saturating_mul(1000);
+        out.write_to_known_channel(
+            &mcap::records::MessageHeader {
+                channel_id,
+                sequence: *sequence,
+                log_time: nanos,
+                publish_time: nanos,
+            },
+            &json,
+        )?;
+    }
+    out.write_metadata(&mcap::records::Metadata {
+        name: "session".into(),
+        metadata: metadata.iter().cloned().collect(),
+    })?;
+    out.finish()?;
+    drop(out);
+    Written::file(path, order.len())
+}
+
+/// One row as a JSON object: `ts` in seconds (as on the MQTT topics), then every column, with
+/// `<name>_label` after each enum value that has a name.
+fn message(
+    out: &mut Vec<u8>,
+    data: &TableData,
+    described: &[(&Column, describe::Description)],
+    row: usize,
+) {
+    out.push(b'{');
+    let mut first = true;
+    for ((column, d), values) in described.iter().zip(&data.values) {
+        if !first {
+            out.push(b',');
+        }
+        first = false;
+        let _ = write!(out, "\"{}\":", column.name);
+        if column.ty == ColumnType::Timestamp {
+            match data.timestamps().get(row).copied().flatten() {
+                Some(us) => {
+                    let _ = write!(out, "{}", us as f64 / 1e6);
+                }
+                None => out.extend_from_slice(b"null"),
+            }
+            continue;
+        }
+        let raw = value(out, values, row);
+        if !d.values.is_empty() {
+            let _ = write!(out, ",\"{}_label\":", column.name);
+            let label = raw.and_then(|raw| {
+                d.values
+                    .iter()
+                    .find(|(value, _)| *value == i128::from(raw))
+                    .map(|(_, label)| *label)
+            });
+            match label {
+                Some(label) => {
+                    let _ = serde_json::to_writer(&mut *out, label);
+                }
+                None => out.extend_from_slice(b"null"),
+            }
+        }
+    }
+    out.push(b'}');
+}
+
+/// Writes row `row` of a column as JSON (NULL, and a float that is not finite, as `null`);
+/// returns the integer, for enum labels.
+fn value(out: &mut Vec<u8>, values: &Values, row: usize) -> Option<i64> {
+    let mut integer = None;
+    let written = match values {
+        Values::Bool(v) => v.get(row).copied().flatten().map(|b| {
+            let _ = write!(out, "{b}");
+        }),
+        Values::Int(v) => v.get(row).copied().flatten().map(|i| {
+            integer = Some(i);
+            let _ = write!(out, "{i}");
+        }),
+        Values::UInt(v) => v.get(row).copied().flatten().map(|u| {
+            let _ = write!(out, "{u}");
+        }),
+        Values::F32(v) => v
+            .get(row)
+            .copied()
+            .flatten()
+            .filter(|f| f.is_finite())
+            .map(|f| {
+                let _ = write!(out, "{f}");
+            }),
+        Values::F64(v) => v
+            .get(row)
+            .copied()
+            .flatten()
+            .filter(|f| f.is_finite())
+            .map(|f| {
+                let _ = write!(out, "{f}");
+            }),
+        Values::Text(v) => v.get(row).and_then(|t| t.as_deref()).map(|t| {
+            let _ = serde_json::to_writer(&mut *out, t);
+        }),
+    };
+    if written.is_none() {
+        out.extend_from_slice(b"null");
+    }
+    integer
+}

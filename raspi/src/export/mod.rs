@@ -1,0 +1,214 @@
+//! Session exports: the store's rows (or a recorded log's, decoded) as files engineers open
+//! after a test day: MCAP for Foxglove and PlotJuggler, Parquet for pandas/polars, CSV for
+//! spreadsheets. Each carries the session's metadata (driver, track, run, notes) and what
+//! every column means (label, unit, values), all from the generated schema.
+//!
+//! [`load`] selects and reads the rows, [`describe`] says what each column is, and [`mcap`],
+//! [`parquet`] and [`csv`] write them.
+
+pub mod csv;
+pub mod describe;
+pub mod load;
+pub mod mcap;
+pub mod parquet;
+
+use crate::sink::store::session::{self, Session};
+use load::{Selection, TableData};
+use rusqlite::Connection;
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+use thiserror::Error;
+
+/// Why an export failed.
+#[derive(Debug, Error)]
+pub enum ExportError {
+    #[error("cannot read {path}: {source}")]
+    Read {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("cannot write {path}: {source}")]
+    Write {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("reading the store: {0}")]
+    Store(#[from] rusqlite::Error),
+    #[error("no session {0} in the store (`aer-raspi session list` shows them)")]
+    NoSession(i64),
+    #[error("writing CSV: {0}")]
+    Csv(#[from] ::csv::Error),
+    #[error("writing Parquet: {0}")]
+    Parquet(#[from] ::parquet::errors::ParquetError),
+    #[error("writing MCAP: {0}")]
+    Mcap(#[from] ::mcap::McapError),
+    #[error("internal error: {0}")]
+    Internal(&'static str),
+}
+
+impl ExportError {
+    fn write(path: &Path, source: std::io::Error) -> Self {
+        Self::Write {
+            path: path.to_owned(),
+            source,
+        }
+    }
+}
+
+/// The export formats.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, clap::ValueEnum)]
+pub enum Format {
+    Mcap,
+    Parquet,
+    Csv,
+}
+
+/// A file written, with the rows it holds.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Written {
+    pub path: PathBuf,
+    pub bytes: u64,
+    pub rows: usize,
+}
+
+impl Written {
+    fn file(path: &Path, rows: usize) -> Result<Self, ExportError> {
+        let bytes = std::fs::metadata(path)
+            .map_err(|e| ExportError::write(path, e))?
+            .len();
+        Ok(Self {
+            path: path.to_owned(),
+            bytes,
+            rows,
+        })
+    }
+}
+
+/// What one format's export wrote, and how long it took.
+#[derive(Debug, Clone)]
+pub struct FormatReport {
+    pub format: Format,
+    pub files: Vec<Written>,
+    pub elapsed: Duration,
+}
+
+/// What an export wrote.
+#[derive(Debug, Clone)]
+pub struct Report {
+    /// Rows selected, per table with any.
+    pub rows: Vec<(&'static str, usize)>,
+    /// Reading the rows from the store.
+    pub load: Duration,
+    pub formats: Vec<FormatReport>,
+}
+
+/// An export's settings.
+#[derive(Debug, Clone)]
+pub struct Request {
+    pub selection: Selection,
+    pub formats: Vec<Format>,
+    pub out_dir: PathBuf,
+    /// `aer/<car>`: MCAP channels take the live topics' names.
+    pub topic_root: String,
+    /// Metadata for an export of a log (which has no session of its own), or extra keys.
+    pub extra: Vec<(String, String)>,
+}
+
+/// The metadata every export carries: the session's (if one was chosen), what was selected,
+/// the schema's fingerprints, and `extra`.
+fn metadata(
+    session: Option<&Session>,
+    selection: Selection,
+    extra: &[(String, String)],
+) -> Vec<(String, String)> {
+    let mut out = Vec::new();
+    if let Some(s) = session {
+        out.push(("session".into(), s.id.to_string()));
+        out.push(("driver".into(), s.metadata.driver.clone()));
+        out.push(("track".into(), s.metadata.track.clone()));
+        out.push((
+            "run".into(),
+            s.metadata.run.map(|r| r.to_string()).unwrap_or_default(),
+        ));
+        out.push(("notes".into(), s.metadata.notes.clone()));
+        out.push(("source".into(), s.source.clone()));
+        out.push(("started_us".into(), s.started_us.to_string()));
+        out.push((
+            "ended_us".into(),
+            s.ended_us.map(|t| t.to_string()).unwrap_or_default(),
+        ));
+    }
+    if let Some(from) = selection.from_us {
+        out.push(("from_us".into(), from.to_string()));
+    }
+    if let Some(to) = selection.to_us {
+        out.push(("to_us".into(), to.to_string()));
+    }
+    out.push((
+        "telemetry_fingerprint".into(),
+        format!("0x{:08X}", aer::telemetry::TELEMETRY_FINGERPRINT),
+    ));
+    out.push((
+        "can_fingerprint".into(),
+        format!("0x{:08X}", aer::can::SCHEMA_FINGERPRINT),
+    ));
+    for (key, value) in extra {
+        match out.iter_mut().find(|(k, _)| k == key) {
+            Some(slot) => slot.1.clone_from(value),
+            None => out.push((key.clone(), value.clone())),
+        }
+    }
+    out
+}
+
+/// Exports the selected rows of `db` in every requested format.
+pub fn export(db: &Connection, request: &Request) -> Result<Report, ExportError> {
+    let session = match request.selection.session {
+        Some(id) => Some(session::get(db, id)?.ok_or(ExportError::NoSession(id))?),
+        None => None,
+    };
+    let started = Instant::now();
+    let tables = load::tables(db, request.selection)?;
+    let load = started.elapsed();
+    let metadata = metadata(session.as_ref(), request.selection, &request.extra);
+    let mut formats = Vec::new();
+    for &format in &request.formats {
+        let started = Instant::now();
+        let files = write(format, &tables, &metadata, request)?;
+        formats.push(FormatReport {
+            format,
+            files,
+            elapsed: started.elapsed(),
+        });
+    }
+    Ok(Report {
+        rows: tables
+            .iter()
+            .filter(|t| t.rows > 0)
+            .map(|t| (t.table.name, t.rows))
+            .collect(),
+        load,
+        formats,
+    })
+}
+
+fn write(
+    format: Format,
+    tables: &[TableData],
+    metadata: &[(String, String)],
+    request: &Request,
+) -> Result<Vec<Written>, ExportError> {
+    let dir = &request.out_dir;
+    match format {
+        Format::Mcap => Ok(vec![mcap::write(
+            &dir.join("session.mcap"),
+            tables,
+            metadata,
+            &request.topic_root,
+        )?]),
+        Format::Parquet => parquet::write(&dir.join("parquet"), tables, metadata),
+        Format::Csv => csv::write(&dir.join("csv"), tables, metadata),
+    }
+}

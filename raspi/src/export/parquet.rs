@@ -1,0 +1,194 @@
+//! Parquet: one file per table, one column per generated column, with the Parquet logical
+//! type that reads back (in Arrow, pandas, polars) as exactly the generated column type:
+//! `u8` as UInt8, `f32` as Float32, `ts` as a UTC timestamp in microseconds, tags as
+//! strings. Units, labels and the session's metadata go into the file's key-value metadata.
+//! Written column by column with the parquet crate's own writer (no Arrow: less to build).
+
+use super::describe;
+use super::load::{TableData, Values};
+use super::{ExportError, Written};
+use aer::tables::{Column, ColumnType};
+use parquet::data_type::{
+    BoolType, ByteArray, ByteArrayType, DoubleType, FloatType, Int32Type, Int64Type,
+};
+use parquet::file::metadata::KeyValue;
+use parquet::file::properties::WriterProperties;
+use parquet::file::writer::SerializedFileWriter;
+use parquet::schema::parser::parse_message_type;
+use std::path::Path;
+use std::sync::Arc;
+
+/// Writes one Parquet file per table with rows into `dir`.
+pub fn write(
+    dir: &Path,
+    tables: &[TableData],
+    metadata: &[(String, String)],
+) -> Result<Vec<Written>, ExportError> {
+    std::fs::create_dir_all(dir).map_err(|e| ExportError::write(dir, e))?;
+    let mut written = Vec::new();
+    for data in tables.iter().filter(|t| t.rows > 0) {
+        let path = dir.join(format!("{}.parquet", data.table.name));
+        table(&path, data, metadata)?;
+        written.push(Written::file(&path, data.rows)?);
+    }
+    Ok(written)
+}
+
+/// The Parquet type of a column: physical type and logical annotation.
+fn parquet_type(ty: ColumnType) -> &'static str {
+    match ty {
+        ColumnType::Timestamp => "INT64 {} (TIMESTAMP(MICROS,true))",
+        ColumnType::Bool => "BOOLEAN {}",
+        ColumnType::I8 => "INT32 {} (INTEGER(8,true))",
+        ColumnType::I16 => "INT32 {} (INTEGER(16,true))",
+        ColumnType::I32 => "INT32 {} (INTEGER(32,true))",
+        ColumnType::I64 => "INT64 {} (INTEGER(64,true))",
+        ColumnType::U8 => "INT32 {} (INTEGER(8,false))",
+        ColumnType::U16 => "INT32 {} (INTEGER(16,false))",
+        ColumnType::U32 => "INT32 {} (INTEGER(32,false))",
+        ColumnType::U64 => "INT64 {} (INTEGER(64,false))",
+        ColumnType::F32 => "FLOAT {}",
+        ColumnType::F64 => "DOUBLE {}",
+        ColumnType::VarChar(_) => "BINARY {} (STRING)",
+    }
+}
+
+fn message_type(data: &TableData) -> String {
+    let tags = data.table.tags.len();
+    let fields: Vec<String> = data
+        .table
+        .local_columns()
+        .enumerate()
+        .map(|(i, c): (usize, &Column)| {
+            // Tags and `ts` are always there; values may be NULL.
+            let repetition = if i <= tags { "REQUIRED" } else { "OPTIONAL" };
+            format!(
+                "  {repetition} {};",
+                parquet_type(c.ty).replace("{}", c.name)
+            )
+        })
+        .collect();
+    format!("message {} {{\n{}\n}}", data.table.name, fields.join("\n"))
+}
+
+fn key_values(data: &TableData, metadata: &[(String, String)]) -> Vec<KeyValue> {
+    let mut out: Vec<KeyValue> = metadata
+        .iter()
+        .map(|(k, v)| KeyValue::new(format!("aer.{k}"), v.clone()))
+        .collect();
+    for (column, d) in describe::columns(data.table) {
+        if !d.unit.is_empty() {
+            out.push(KeyValue::new(
+                format!("aer.unit.{}", column.name),
+                d.unit.to_owned(),
+            ));
+        }
+        out.push(KeyValue::new(
+            format!("aer.label.{}", column.name),
+            d.label.to_owned(),
+        ));
+    }
+    out
+}
+
+fn table(path: &Path, data: &TableData, metadata: &[(String, String)]) -> Result<(), ExportError> {
+    let schema = Arc::new(parse_message_type(&message_type(data))?);
+    let properties = WriterProperties::builder()
+        .set_created_by(format!("aer-raspi {}", env!("CARGO_PKG_VERSION")))
+        .set_key_value_metadata(Some(key_values(data, metadata)))
+        .build();
+    let file = std::fs::File::create(path).map_err(|e| ExportError::write(path, e))?;
+    let mut writer = SerializedFileWriter::new(file, schema, Arc::new(properties))?;
+    let mut group = writer.next_row_group()?;
+    let mut columns = data.columns();
+    while let Some(mut column) = group.next_column()? {
+        let Some((described, values)) = columns.next() else {
+            return Err(ExportError::Internal("more Parquet columns than values"));
+        };
+        let wide = matches!(described.ty, ColumnType::Timestamp | ColumnType::I64);
+        match values {
+            Values::Bool(v) => {
+                let (present, levels) = split(v, |b| b);
+                column
+                    .typed::<BoolType>()
+                    .write_batch(&present, Some(&levels), None)?;
+            }
+            Values::Int(v) if wide => {
+                let (present, levels) = split(v, |i| i);
+                column
+                    .typed::<Int64Type>()
+                    .write_batch(&present, Some(&levels), None)?;
+            }
+            Values::Int(v) => {
+                // Unsigned 32-bit values keep their bits in Parquet's INT32.
+                let (present, levels) = split(v, |i| i as i32);
+                column
+                    .typed::<Int32Type>()
+                    .write_batch(&present, Some(&levels), None)?;
+            }
+            Values::UInt(v) => {
+                let (present, levels) = split(v, |u| u as i64);
+                column
+                    .typed::<Int64Type>()
+                    .write_batch(&present, Some(&levels), None)?;
+            }
+            Values::F32(v) => {
+                let (present, levels) = split(v, |f| f);
+                column
+                    .typed::<FloatType>()
+                    .write_batch(&present, Some(&levels), None)?;
+            }
+            Values::F64(v) => {
+                let (present, levels) = split(v, |f| f);
+                column
+                    .typed::<DoubleType>()
+                    .write_batch(&present, Some(&levels), None)?;
+            }
+            Values::Text(v) => {
+                let present: Vec<ByteArray> = v
+                    .iter()
+                    .flatten()
+                    .map(|s| ByteArray::from(s.as_str()))
+                    .collect();
+                let levels: Vec<i16> = v.iter().map(|s| i16::from(s.is_some())).collect();
+                column
+                    .typed::<ByteArrayType>()
+                    .write_batch(&present, Some(&levels), None)?;
+            }
+        }
+        column.close()?;
+    }
+    group.close()?;
+    writer.close()?;
+    Ok(())
+}
+
+/// The present values (converted) and the definition levels (1 present, 0 NULL).
+fn split<T: Copy, U>(values: &[Option<T>], convert: impl Fn(T) -> U) -> (Vec<U>, Vec<i16>) {
+    let present = values.iter().flatten().map(|&v| convert(v)).collect();
+    let levels = values.iter().map(|v| i16::from(v.is_some())).collect();
+    (present, levels)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::parquet_type;
+    use aer::tables::{ColumnType, TABLES};
+
+    #[test]
+    fn every_generated_column_type_has_a_parquet_type_that_parses() {
+        for table in TABLES {
+            for column in table.local_columns() {
+                let text = format!(
+                    "message t {{ OPTIONAL {}; }}",
+                    parquet_type(column.ty).replace("{}", "c")
+                );
+                assert!(
+                    parquet::schema::parser::parse_message_type(&text).is_ok(),
+                    "{text}"
+                );
+            }
+        }
+        assert!(parquet_type(ColumnType::U8).contains("INTEGER(8,false)"));
+    }
+}

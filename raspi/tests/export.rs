@@ -1,0 +1,185 @@
+//! Session exports read back by independent readers: the bundled session is stored as the
+//! service stores it (a second session after it must stay out of the export), exported as
+//! MCAP, Parquet and CSV, and `tools/check_exports.py` reads the files with Foxglove's `mcap`
+//! package, `polars` and Python's `csv`, comparing row counts, column types and every value
+//! with the store. The Python readers come from the project's venv (`tools/requirements.txt`,
+//! which `.ci/run` installs); without them the comparison says SKIPPED, unless
+//! `AER_REQUIRE_PYTHON` is set (CI sets it), when it fails.
+
+use aer::tables::TABLES;
+use aer_host::counters::Counters;
+use aer_host::ingest::{Ingest, Record};
+use aer_raspi::export::load::Selection;
+use aer_raspi::export::{self, Format, Request};
+use aer_raspi::service::DEMO_LOG;
+use aer_raspi::sink::store::session::{self, Metadata};
+use aer_raspi::sink::store::{self, row, writer};
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::sync::Arc;
+
+/// The bundled session's rows, as the service makes them.
+fn session_rows(limit: usize) -> Vec<row::Row> {
+    let mut ingest = Ingest::new(Arc::new(Counters::default()));
+    let car: Arc<str> = "car1".into();
+    let mut buses: Vec<Arc<str>> = Vec::new();
+    let mut rows = Vec::new();
+    for line in DEMO_LOG.lines().take(limit) {
+        let frame = aer_host::candump::parse_line(line, |name| {
+            let index = buses.iter().position(|b| &**b == name).unwrap_or_else(|| {
+                buses.push(name.into());
+                buses.len() - 1
+            });
+            u8::try_from(index).expect("few buses")
+        })
+        .expect("the bundled log parses");
+        ingest.on_frame(
+            &frame,
+            |record| {
+                if matches!(record, Record::Telemetry { .. } | Record::Can { .. }) {
+                    rows.push(row::row(&record, &car, &buses));
+                }
+            },
+            |_, _| {},
+        );
+    }
+    rows
+}
+
+fn python() -> Option<PathBuf> {
+    let venv = Path::new(env!("CARGO_MANIFEST_DIR")).join("../.venv/bin/python");
+    let python = std::env::var_os("AER_PYTHON").map_or(venv, PathBuf::from);
+    let usable = Command::new(&python)
+        .args(["-c", "import mcap, polars"])
+        .output()
+        .is_ok_and(|o| o.status.success());
+    if usable {
+        return Some(python);
+    }
+    assert!(
+        std::env::var_os("AER_REQUIRE_PYTHON").is_none(),
+        "AER_REQUIRE_PYTHON is set but {} cannot import mcap and polars",
+        python.display()
+    );
+    eprintln!(
+        "SKIPPED: reading the exports back needs {} with mcap and polars \
+         (python3 -m venv .venv && .venv/bin/pip install -r tools/requirements.txt)",
+        python.display()
+    );
+    None
+}
+
+#[test]
+fn a_session_exported_in_every_format_reads_back_equal_to_the_store() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let store_path = dir.path().join("store.sqlite");
+    let mut db = store::open(&store_path).expect("store");
+    let metadata = Metadata {
+        driver: "Ana \"fast\" Lima".into(),
+        track: "Skidpad, lot B".into(),
+        run: Some(3),
+        notes: "dry; 12 C\nnew rear tyres".into(),
+    };
+    let id = session::begin(&db, &metadata, "replay", 1).expect("session");
+    let rows = session_rows(usize::MAX);
+    for batch in rows.chunks(5000) {
+        writer::commit(&mut db, batch).expect("commit");
+    }
+    // A second session: none of its rows may appear in the first one's export.
+    session::begin(&db, &Metadata::default(), "replay", 2).expect("session");
+    writer::commit(&mut db, &session_rows(3000)).expect("commit");
+
+    let out = dir.path().join("export");
+    let request = Request {
+        selection: Selection {
+            session: Some(id),
+            ..Selection::default()
+        },
+        formats: vec![Format::Mcap, Format::Parquet, Format::Csv],
+        out_dir: out.clone(),
+        topic_root: "aer/car1".into(),
+        extra: Vec::new(),
+    };
+    let report = export::export(&db, &request).expect("export");
+    let exported: usize = report.rows.iter().map(|(_, n)| n).sum();
+    assert_eq!(exported, rows.len(), "every row of the session, no other");
+    for format in &report.formats {
+        assert!(
+            !format.files.is_empty(),
+            "{:?} wrote nothing",
+            format.format
+        );
+        let rows_in_files: usize = format.files.iter().map(|f| f.rows).sum();
+        assert_eq!(rows_in_files, rows.len(), "{:?}", format.format);
+    }
+
+    let types: HashMap<&str, Vec<(&str, String)>> = TABLES
+        .iter()
+        .map(|t| {
+            let columns = t
+                .local_columns()
+                .map(|c| (c.name, format!("{:?}", c.ty)))
+                .collect();
+            (t.name, columns)
+        })
+        .collect();
+    let types_path = dir.path().join("types.json");
+    std::fs::write(&types_path, serde_json::to_string(&types).expect("json")).expect("write");
+    let Some(python) = python() else { return };
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("../tools/check_exports.py");
+    let result = Command::new(python)
+        .arg(script)
+        .arg("--store")
+        .arg(&store_path)
+        .arg("--out")
+        .arg(&out)
+        .arg("--types")
+        .arg(&types_path)
+        .args(["--session", &id.to_string()])
+        .output()
+        .expect("run check_exports.py");
+    let stdout = String::from_utf8_lossy(&result.stdout);
+    let stderr = String::from_utf8_lossy(&result.stderr);
+    assert!(result.status.success(), "{stdout}\n{stderr}");
+    println!("{stdout}");
+    assert!(stdout.contains(&format!("{} rows", rows.len())), "{stdout}");
+}
+
+/// The command line exports a recorded log straight away, with the session flags as its
+/// metadata, and takes the same rows the service would have stored.
+#[test]
+fn a_recorded_log_exports_without_a_store() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let log = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/session.log");
+    let out = dir.path().join("export");
+    let result = Command::new(env!("CARGO_BIN_EXE_aer-raspi"))
+        .args(["--driver", "Ben", "--run", "7", "export", "--format", "csv"])
+        .arg("--log")
+        .arg(&log)
+        .arg("--out")
+        .arg(&out)
+        .env("AER_STORE_PATH", dir.path().join("unused.sqlite"))
+        .output()
+        .expect("aer-raspi export");
+    assert!(
+        result.status.success(),
+        "{}",
+        String::from_utf8_lossy(&result.stderr)
+    );
+    let expected = session_rows(usize::MAX).len();
+    let mut lines = 0;
+    for table in TABLES {
+        if let Ok(text) =
+            std::fs::read_to_string(out.join("csv").join(format!("{}.csv", table.name)))
+        {
+            lines += text.lines().count() - 1;
+        }
+    }
+    assert_eq!(lines, expected);
+    let session = std::fs::read_to_string(out.join("csv/session.csv")).expect("session.csv");
+    assert!(
+        session.contains("driver,Ben") && session.contains("run,7"),
+        "{session}"
+    );
+}
