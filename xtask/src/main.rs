@@ -1,9 +1,11 @@
 //! Project tasks that need more than `cargo build`: `cargo xtask firmware` builds the
-//! flashable images, `cargo xtask m7-check` runs the portable code on an emulated Cortex-M7.
+//! flashable images, `cargo xtask m7-check` runs the portable code on an emulated Cortex-M7,
+//! `cargo xtask pi-package` builds the Debian packages for the car's Pi and a pit laptop.
 
 mod ihex;
 mod image;
 mod m7_check;
+mod package;
 mod session;
 
 use anyhow::{Context, Result, bail};
@@ -16,7 +18,7 @@ use std::process::Command;
 const TARGET: &str = "thumbv7em-none-eabihf";
 
 #[derive(Parser)]
-#[command(about = "Project tasks: firmware images and Cortex-M7 checks")]
+#[command(about = "Project tasks: firmware images, Cortex-M7 checks, the Pi's Debian packages")]
 struct Cli {
     #[command(subcommand)]
     task: Task,
@@ -36,6 +38,16 @@ enum Task {
         /// Seconds QEMU may run before the check fails.
         #[arg(long, default_value_t = 300)]
         timeout: u64,
+    },
+    /// Build the Debian packages of the Pi service and the dashboard (aer-raspi,
+    /// aer-dashboard, aer-car-display) for the car's Pi (arm64) and a pit laptop (amd64).
+    PiPackage {
+        /// The architectures (default: both).
+        #[arg(long = "arch", value_enum)]
+        arches: Vec<package::Arch>,
+        /// Where the .deb files go.
+        #[arg(long, default_value = "target/pi-package")]
+        out: PathBuf,
     },
 }
 
@@ -76,6 +88,14 @@ fn main() -> Result<()> {
             Ok(())
         }
         Task::M7Check { timeout } => m7_check::run(&workspace_root(), TARGET, timeout),
+        Task::PiPackage { arches, out } => {
+            let arches = if arches.is_empty() {
+                vec![package::Arch::Arm64, package::Arch::Amd64]
+            } else {
+                arches
+            };
+            package::run(&arches, &out)
+        }
     }
 }
 
