@@ -164,6 +164,24 @@ pub struct MuxCondition {
     pub ranges: Vec<(u64, u64)>,
 }
 
+impl MuxCondition {
+    /// The ranges as text: a single value alone, a range as `lo{to}hi`, joined by
+    /// `separator` (`1 | 4..=7` in a pattern, `1, 4..7` in the documentation).
+    pub fn describe(ranges: &[(u64, u64)], to: &str, separator: &str) -> String {
+        ranges
+            .iter()
+            .map(|&(lo, hi)| {
+                if lo == hi {
+                    lo.to_string()
+                } else {
+                    format!("{lo}{to}{hi}")
+                }
+            })
+            .collect::<Vec<_>>()
+            .join(separator)
+    }
+}
+
 #[derive(Debug, Clone, PartialEq)]
 pub struct Signal {
     pub name: String,

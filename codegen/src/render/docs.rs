@@ -151,18 +151,8 @@ fn signal_doc(db: &Database, message: &Message, s: &Signal) -> SignalDoc {
                 .signals
                 .get(mux.selector)
                 .map_or("?", |m| m.name.as_str());
-            let ranges: Vec<String> = mux
-                .ranges
-                .iter()
-                .map(|&(lo, hi)| {
-                    if lo == hi {
-                        lo.to_string()
-                    } else {
-                        format!("{lo}..{hi}")
-                    }
-                })
-                .collect();
-            format!("when {selector} = {}", ranges.join(", "))
+            let ranges = crate::model::MuxCondition::describe(&mux.ranges, "..", ", ");
+            format!("when {selector} = {ranges}")
         }
         None if s.is_multiplexor => "multiplexor".to_owned(),
         None => String::new(),

@@ -15,7 +15,6 @@ pub fn write(
     metadata: &[(String, String)],
 ) -> Result<Vec<Written>, ExportError> {
     std::fs::create_dir_all(dir).map_err(|e| ExportError::write(dir, e))?;
-    let mut written = Vec::new();
     let mut columns = writer(&dir.join("columns.csv"))?;
     columns.write_record([
         "table",
@@ -26,10 +25,8 @@ pub fn write(
         "description",
         "values",
     ])?;
-    for data in tables.iter().filter(|t| t.rows > 0) {
-        let path = dir.join(format!("{}.csv", data.table.name));
-        table(&path, data)?;
-        written.push(Written::file(&path, data.rows)?);
+    let mut written = super::per_table(dir, tables, "csv", |path, data| {
+        table(path, data)?;
         for (column, d) in describe::columns(data.table) {
             let values: Vec<String> = d
                 .values
@@ -46,7 +43,8 @@ pub fn write(
                 &values.join("; "),
             ])?;
         }
-    }
+        Ok(())
+    })?;
     columns.flush().map_err(|e| ExportError::write(dir, e))?;
     written.push(Written::file(&dir.join("columns.csv"), 0)?);
     let path = dir.join("session.csv");

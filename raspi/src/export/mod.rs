@@ -86,6 +86,24 @@ impl Written {
     }
 }
 
+/// Creates `dir` and writes each table with rows to `dir/<table>.<extension>` with
+/// `write_table` (the layout of the per-table formats).
+fn per_table(
+    dir: &Path,
+    tables: &[TableData],
+    extension: &str,
+    mut write_table: impl FnMut(&Path, &TableData) -> Result<(), ExportError>,
+) -> Result<Vec<Written>, ExportError> {
+    std::fs::create_dir_all(dir).map_err(|e| ExportError::write(dir, e))?;
+    let mut written = Vec::new();
+    for data in tables.iter().filter(|t| t.rows > 0) {
+        let path = dir.join(format!("{}.{extension}", data.table.name));
+        write_table(&path, data)?;
+        written.push(Written::file(&path, data.rows)?);
+    }
+    Ok(written)
+}
+
 /// What one format's export wrote, and how long it took.
 #[derive(Debug, Clone)]
 pub struct FormatReport {

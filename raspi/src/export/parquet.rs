@@ -24,14 +24,9 @@ pub fn write(
     tables: &[TableData],
     metadata: &[(String, String)],
 ) -> Result<Vec<Written>, ExportError> {
-    std::fs::create_dir_all(dir).map_err(|e| ExportError::write(dir, e))?;
-    let mut written = Vec::new();
-    for data in tables.iter().filter(|t| t.rows > 0) {
-        let path = dir.join(format!("{}.parquet", data.table.name));
-        table(&path, data, metadata)?;
-        written.push(Written::file(&path, data.rows)?);
-    }
-    Ok(written)
+    super::per_table(dir, tables, "parquet", |path, data| {
+        table(path, data, metadata)
+    })
 }
 
 /// The Parquet type of a column: physical type and logical annotation.

@@ -22,6 +22,8 @@ pub struct Release {
     pub date: String,
     /// The commit's day (YYYY-MM-DD), the manual pages' date.
     pub day: String,
+    /// The years the repository's history spans (`2024-2026`), for the copyright notice.
+    pub years: String,
     /// The commit's time (Unix seconds): SOURCE_DATE_EPOCH, so that a rebuild of the same
     /// commit gives the same archive.
     pub epoch: String,
@@ -36,7 +38,10 @@ impl Release {
                 .output()
                 .context("running git log")?;
             if !output.status.success() {
-                bail!("git log failed: {}", String::from_utf8_lossy(&output.stderr));
+                bail!(
+                    "git log failed: {}",
+                    String::from_utf8_lossy(&output.stderr)
+                );
             }
             Ok(String::from_utf8_lossy(&output.stdout).trim().to_owned())
         };
@@ -46,8 +51,30 @@ impl Release {
             date: git("%aD")?,
             day: git("%as")?,
             epoch: git("%ct")?,
+            years: years(root)?,
         })
     }
+}
+
+/// The years from the repository's first commit to its last.
+fn years(root: &Path) -> Result<String> {
+    let output = Command::new("git")
+        .current_dir(root)
+        .args(["log", "--format=%ad", "--date=format:%Y"])
+        .output()
+        .context("running git log")?;
+    let text = String::from_utf8_lossy(&output.stdout);
+    let years: Vec<u32> = text
+        .lines()
+        .filter_map(|y| y.trim().parse().ok())
+        .collect();
+    let last = *years.first().context("git log gave no commit year")?;
+    let first = years.last().copied().unwrap_or(last);
+    Ok(if first == last {
+        last.to_string()
+    } else {
+        format!("{first}-{last}")
+    })
 }
 
 /// DEBIAN/control of `package`.
@@ -70,11 +97,7 @@ pub fn control(
     let mut text = String::new();
     let _ = writeln!(text, "Package: {}", package.name);
     let _ = writeln!(text, "Version: {}", release.version);
-    let _ = writeln!(
-        text,
-        "Architecture: {}",
-        arch.map_or("all", Arch::debian)
-    );
+    let _ = writeln!(text, "Architecture: {}", arch.map_or("all", Arch::debian));
     let _ = writeln!(text, "Maintainer: {MAINTAINER}");
     let _ = writeln!(text, "Installed-Size: {installed_kib}");
     if !depends.is_empty() {
@@ -113,7 +136,12 @@ pub fn changelog(package: &Package, release: &Release) -> String {
 
 /// The machine-readable copyright file: the project's licence, then every Rust crate the
 /// package's binaries contain, with its own licence (from `cargo tree`).
-pub fn copyright(root: &Path, package: &Package, arch: Option<Arch>) -> Result<String> {
+pub fn copyright(
+    root: &Path,
+    package: &Package,
+    arch: Option<Arch>,
+    release: &Release,
+) -> Result<String> {
     let mut text = format!(
         "Format: https://www.debian.org/doc/packaging-manuals/copyright-format/1.0/\n\
 Upstream-Name: aer\n\
@@ -121,8 +149,9 @@ Upstream-Contact: {MAINTAINER}\n\
 Source: {HOMEPAGE}\n\
 \n\
 Files: *\n\
-Copyright: Anteater Electric Racing\n\
-License: MIT\n"
+Copyright: {years} Anteater Electric Racing\n\
+License: MIT\n",
+        years = release.years
     );
     let crates = match arch {
         Some(arch) if package.binary => linked_crates(root, package.name, arch)?,
@@ -170,7 +199,10 @@ fn linked_crates(root: &Path, package: &str, arch: Arch) -> Result<Vec<String>> 
         .output()
         .context("running cargo tree")?;
     if !output.status.success() {
-        bail!("cargo tree failed: {}", String::from_utf8_lossy(&output.stderr));
+        bail!(
+            "cargo tree failed: {}",
+            String::from_utf8_lossy(&output.stderr)
+        );
     }
     let mut lines: Vec<String> = String::from_utf8_lossy(&output.stdout)
         .lines()
@@ -191,7 +223,7 @@ fn linked_crates(root: &Path, package: &str, arch: Arch) -> Result<Vec<String>> 
 }
 
 /// The Depends entries for the shared libraries `binary` links: libc6 at the newest glibc
-/// symbol version it uses, libgcc-s1 for the unwinder. Any other library is refused, so a
+/// symbol version it uses, libgcc-s1 for the unwinder, zlib1g. Any other library is refused, so a
 /// new dependency cannot reach the car without a line here.
 pub fn libraries(binary: &Path) -> Result<Vec<String>> {
     let readelf = |flag: &str| -> Result<String> {
@@ -220,9 +252,17 @@ pub fn libraries(binary: &Path) -> Result<Vec<String>> {
             continue;
         };
         match name {
-            "libc.so.6" | "libm.so.6" | "libpthread.so.0" | "libdl.so.2" | "librt.so.1"
-            | "ld-linux-aarch64.so.1" | "ld-linux-x86-64.so.2" => libc = true,
+            "libc.so.6"
+            | "libm.so.6"
+            | "libpthread.so.0"
+            | "libdl.so.2"
+            | "librt.so.1"
+            | "ld-linux-aarch64.so.1"
+            | "ld-linux-x86-64.so.2" => libc = true,
             "libgcc_s.so.1" => depends.push("libgcc-s1".to_owned()),
+            // libz-sys links the system's zlib where its headers are installed (the build
+            // machine), and builds its own copy otherwise (the arm64 cross build).
+            "libz.so.1" => depends.push("zlib1g".to_owned()),
             other => bail!(
                 "{} links {other}: add its Debian package to xtask/src/package/control.rs",
                 binary.display()
@@ -289,6 +329,7 @@ mod tests {
             commit: "abc1234".into(),
             date: "Tue, 24 Nov 2026 08:00:00 +0000".into(),
             day: "2026-11-24".into(),
+            years: "2025-2026".into(),
             epoch: "1795507200".into(),
         };
         let package = &super::super::PACKAGES[2];
@@ -301,6 +342,7 @@ mod tests {
         let description = text.split_once("Description: ").unwrap().1;
         assert!(description.lines().skip(1).all(|l| l.starts_with(' ')));
         assert!(!text.ends_with(" .\n"), "{text}");
-        assert!(text.lines().all(|l| l.len() <= 80), "{text}");
+        // The extended description fits an 80-column terminal (lintian's limit).
+        assert!(description.lines().all(|l| l.len() <= 80), "{text}");
     }
 }

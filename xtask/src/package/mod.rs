@@ -138,7 +138,10 @@ configuration in /etc/aer) and brings the CAN links up at 500 kbit/s through sys
                 source: Source::Readme,
                 executable: false,
             },
-            file("usr/share/doc/aer-raspi/pi-service.md", "docs/pi-service.md"),
+            file(
+                "usr/share/doc/aer-raspi/pi-service.md",
+                "docs/pi-service.md",
+            ),
             file(
                 "usr/share/lintian/overrides/aer-raspi",
                 "packaging/pi/aer-raspi.lintian-overrides",
@@ -169,7 +172,10 @@ display full-screen.",
                 source: Source::Binary("aer-dashboard"),
                 executable: true,
             },
-            file("etc/aer/aer-dashboard.toml", "dashboard/config/aer-dashboard.toml"),
+            file(
+                "etc/aer/aer-dashboard.toml",
+                "dashboard/config/aer-dashboard.toml",
+            ),
             file(
                 "usr/lib/systemd/user/aer-dashboard.service",
                 "packaging/pi/aer-dashboard.service",
@@ -183,7 +189,10 @@ display full-screen.",
                 source: Source::Readme,
                 executable: false,
             },
-            file("usr/share/doc/aer-dashboard/dashboard.md", "docs/dashboard.md"),
+            file(
+                "usr/share/doc/aer-dashboard/dashboard.md",
+                "docs/dashboard.md",
+            ),
             file(
                 "usr/share/lintian/overrides/aer-dashboard",
                 "packaging/pi/aer-dashboard.lintian-overrides",
@@ -258,13 +267,14 @@ pub fn run(arches: &[Arch], out: &Path) -> Result<()> {
             written.push(stage::build_deb(&staged, &out, &release)?);
         }
     }
-    println!("{:<52} {:>12} {:>14}", "package", "size (B)", "installed (KiB)");
+    println!(
+        "{:<52} {:>12} {:>14}",
+        "package", "size (B)", "installed (KiB)"
+    );
     for deb in &written {
         println!(
             "{:<52} {:>12} {:>14}",
-            deb.file_name,
-            deb.bytes,
-            deb.installed_kib
+            deb.file_name, deb.bytes, deb.installed_kib
         );
     }
     Ok(())
@@ -279,7 +289,13 @@ fn build_binaries(root: &Path, arch: Arch) -> Result<()> {
     let mut command = cargo();
     command
         .current_dir(root)
-        .args(["build", "--profile", PROFILE, "--target", arch.rust_target()])
+        .args([
+            "build",
+            "--profile",
+            PROFILE,
+            "--target",
+            arch.rust_target(),
+        ])
         .args(["--package", "aer-raspi", "--bin", "aer-raspi"])
         .args(["--package", "aer-dashboard", "--bin", "aer-dashboard"]);
     if arch == Arch::Arm64 {

@@ -64,15 +64,30 @@ pub fn stage(
         put(&dir, entry.path, &bytes, entry.executable)?;
     }
     let doc = format!("usr/share/doc/{}", package.name);
-    let copyright = control::copyright(root, package, arch)?;
-    put(&dir, &format!("{doc}/copyright"), copyright.as_bytes(), false)?;
+    let copyright = control::copyright(root, package, arch, release)?;
+    put(
+        &dir,
+        &format!("{doc}/copyright"),
+        copyright.as_bytes(),
+        false,
+    )?;
     let changelog = gzip(control::changelog(package, release).as_bytes())?;
-    put(&dir, &format!("{doc}/changelog.Debian.gz"), &changelog, false)?;
+    put(
+        &dir,
+        &format!("{doc}/changelog.Debian.gz"),
+        &changelog,
+        false,
+    )?;
     for (binary, _) in package.manuals {
         let page = manuals
             .get(binary)
             .with_context(|| format!("no manual page for {binary}"))?;
-        put(&dir, &format!("usr/share/man/man1/{binary}.1.gz"), page, false)?;
+        put(
+            &dir,
+            &format!("usr/share/man/man1/{binary}.1.gz"),
+            page,
+            false,
+        )?;
     }
 
     let files = list_files(&dir)?;

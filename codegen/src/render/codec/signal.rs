@@ -77,17 +77,7 @@ pub struct MuxCondition {
 impl MuxCondition {
     /// `1 | 4..=7`.
     pub fn patterns(&self) -> String {
-        self.ranges
-            .iter()
-            .map(|&(lo, hi)| {
-                if lo == hi {
-                    lo.to_string()
-                } else {
-                    format!("{lo}..={hi}")
-                }
-            })
-            .collect::<Vec<_>>()
-            .join(" | ")
+        crate::model::MuxCondition::describe(&self.ranges, "..=", " | ")
     }
 }
 
