@@ -50,6 +50,9 @@ pub struct Problems {
     pub forward_refused: Option<String>,
     /// The service's own link to the broker.
     pub mqtt: Option<String>,
+    /// CAN interfaces that cannot be opened or read, each with its error
+    /// (`can0: No such device (os error 19)`).
+    pub can: Option<String>,
 }
 
 /// The ingest service's counters, published every second.

@@ -2,6 +2,7 @@
 //! records its error when it fails and clears it when it works again.
 
 use aer_host::status::Problems;
+use std::collections::BTreeMap;
 use std::sync::Mutex;
 
 /// One part's current error, if any.
@@ -31,6 +32,40 @@ impl PartHealth {
     }
 }
 
+/// The CAN interfaces that cannot be opened or read now, each with its error.
+#[derive(Debug, Default)]
+pub struct BusHealth {
+    errors: Mutex<BTreeMap<String, String>>,
+}
+
+impl BusHealth {
+    /// `interface` failed with `error`.
+    pub fn failed(&self, interface: &str, error: &str) {
+        if let Ok(mut errors) = self.errors.lock() {
+            errors.insert(interface.to_owned(), error.to_owned());
+        }
+    }
+
+    /// `interface` works.
+    pub fn recovered(&self, interface: &str) {
+        if let Ok(mut errors) = self.errors.lock() {
+            errors.remove(interface);
+        }
+    }
+
+    /// `can0: No such device; can1: ...`, or `None` when every interface works.
+    pub fn error(&self) -> Option<String> {
+        let errors = self.errors.lock().ok()?;
+        (!errors.is_empty()).then(|| {
+            errors
+                .iter()
+                .map(|(interface, error)| format!("{interface}: {error}"))
+                .collect::<Vec<_>>()
+                .join("; ")
+        })
+    }
+}
+
 /// Every part's health.
 #[derive(Debug, Default)]
 pub struct Health {
@@ -46,6 +81,8 @@ pub struct Health {
     pub forward_refused: PartHealth,
     /// The service's own link to the broker.
     pub mqtt: PartHealth,
+    /// The CAN interfaces `run` reads.
+    pub can: BusHealth,
 }
 
 impl Health {
@@ -58,6 +95,32 @@ impl Health {
             forward: self.forward.error(),
             forward_refused: self.forward_refused.error(),
             mqtt: self.mqtt.error(),
+            can: self.can.error(),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn each_failing_interface_shows_until_it_recovers() {
+        let health = Health::default();
+        assert_eq!(health.problems().can, None);
+        health.can.failed("can1", "No such device");
+        health.can.failed("can0", "Network is down");
+        health.can.failed("can0", "No such device");
+        assert_eq!(
+            health.problems().can.as_deref(),
+            Some("can0: No such device; can1: No such device")
+        );
+        health.can.recovered("can0");
+        assert_eq!(
+            health.problems().can.as_deref(),
+            Some("can1: No such device")
+        );
+        health.can.recovered("can1");
+        assert_eq!(health.problems().can, None);
     }
 }

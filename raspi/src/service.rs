@@ -99,7 +99,15 @@ pub async fn serve(config: Config, job: Job) -> Result<()> {
     stop_on_signals(cancel.clone())?;
 
     let (inputs, batches) = source::channel();
-    let replies = start_source(&config, &job, inputs, &counters, &cancel, &mqtt.address)?;
+    let replies = start_source(
+        &config,
+        &job,
+        inputs,
+        &counters,
+        &health,
+        &cancel,
+        &mqtt.address,
+    )?;
     let mut sinks: Vec<Box<dyn Sink>> = vec![Box::new(mqtt.publisher.clone())];
     if let Some(rows) = writer.sender() {
         sinks.push(Box::new(StoreSink::new(rows, &config.car_id)));
@@ -337,12 +345,13 @@ fn start_source(
     job: &Job,
     inputs: source::Sender,
     counters: &Arc<Counters>,
+    health: &Arc<Health>,
     cancel: &CancellationToken,
     broker_address: &str,
 ) -> Result<Replies> {
     let (counters, cancel) = (counters.clone(), cancel.clone());
     match job.clone() {
-        Job::Live => return start_live(config, inputs, &cancel),
+        Job::Live => return start_live(config, inputs, health, &cancel),
         Job::Replay { file, fast } => {
             let options = ReplayOptions {
                 fast,
@@ -407,6 +416,7 @@ fn start_source(
 fn start_live(
     config: &Config,
     inputs: source::Sender,
+    health: &Arc<Health>,
     cancel: &CancellationToken,
 ) -> Result<Replies> {
     Ok(source::socketcan::start(
@@ -414,12 +424,18 @@ fn start_live(
         &config.can.telemetry_interface,
         config.can.isotp,
         inputs,
+        health,
         cancel,
     ))
 }
 
 #[cfg(not(target_os = "linux"))]
-fn start_live(_: &Config, _: source::Sender, _: &CancellationToken) -> Result<Replies> {
+fn start_live(
+    _: &Config,
+    _: source::Sender,
+    _: &Arc<Health>,
+    _: &CancellationToken,
+) -> Result<Replies> {
     anyhow::bail!("SocketCAN needs Linux; use `replay` or `synthetic` here")
 }
 

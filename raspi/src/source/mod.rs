@@ -3,6 +3,8 @@
 //! names its buses and sends what it reads, in batches, to a [`Sender`], until the channel
 //! closes or its cancellation token fires.
 
+#[cfg(target_os = "linux")]
+mod failures;
 pub mod replay;
 #[cfg(target_os = "linux")]
 pub mod socketcan;

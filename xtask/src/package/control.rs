@@ -64,10 +64,7 @@ fn years(root: &Path) -> Result<String> {
         .output()
         .context("running git log")?;
     let text = String::from_utf8_lossy(&output.stdout);
-    let years: Vec<u32> = text
-        .lines()
-        .filter_map(|y| y.trim().parse().ok())
-        .collect();
+    let years: Vec<u32> = text.lines().filter_map(|y| y.trim().parse().ok()).collect();
     let last = *years.first().context("git log gave no commit year")?;
     let first = years.last().copied().unwrap_or(last);
     Ok(if first == last {
