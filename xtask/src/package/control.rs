@@ -1,7 +1,7 @@
 //! The packages' metadata: version, maintainer, the control file, the changelog, the
 //! copyright file, and the shared libraries a binary needs.
 
-use super::{Arch, Package};
+use super::{Arch, Package, stdout_of};
 use anyhow::{Context, Result, bail};
 use std::fmt::Write as _;
 use std::path::Path;
@@ -31,40 +31,34 @@ pub struct Release {
 
 impl Release {
     pub fn from_repository(root: &Path) -> Result<Self> {
-        let git = |format: &str| -> Result<String> {
-            let output = Command::new("git")
-                .current_dir(root)
-                .args(["log", "-1", &format!("--format={format}")])
-                .output()
-                .context("running git log")?;
-            if !output.status.success() {
-                bail!(
-                    "git log failed: {}",
-                    String::from_utf8_lossy(&output.stderr)
-                );
-            }
-            Ok(String::from_utf8_lossy(&output.stdout).trim().to_owned())
+        let git = |args: &[&str]| stdout_of(Command::new("git").current_dir(root).args(args));
+        let head = git(&["log", "-1", "--format=%h%n%aD%n%as%n%ct"])?;
+        let mut fields = head.lines().map(str::to_owned);
+        let mut field = || {
+            fields
+                .next()
+                .context("git log gave fewer fields than asked")
         };
+        let (commit, date, day, epoch) = (field()?, field()?, field()?, field()?);
+        // Newest first: the last line is the first commit's year.
+        let years = git(&["log", "--format=%ad", "--date=format:%Y"])?;
         Ok(Self {
             version: format!("{}-1", env!("CARGO_PKG_VERSION")),
-            commit: git("%h")?,
-            date: git("%aD")?,
-            day: git("%as")?,
-            epoch: git("%ct")?,
-            years: years(root)?,
+            commit,
+            date,
+            day,
+            epoch,
+            years: span(&years)?,
         })
     }
 }
 
-/// The years from the repository's first commit to its last.
-fn years(root: &Path) -> Result<String> {
-    let output = Command::new("git")
-        .current_dir(root)
-        .args(["log", "--format=%ad", "--date=format:%Y"])
-        .output()
-        .context("running git log")?;
-    let text = String::from_utf8_lossy(&output.stdout);
-    let years: Vec<u32> = text.lines().filter_map(|y| y.trim().parse().ok()).collect();
+/// `first-last` (or one year) from commit years listed newest first.
+fn span(years: &str) -> Result<String> {
+    let years: Vec<u32> = years
+        .lines()
+        .filter_map(|y| y.trim().parse().ok())
+        .collect();
     let last = *years.first().context("git log gave no commit year")?;
     let first = years.last().copied().unwrap_or(last);
     Ok(if first == last {
@@ -188,20 +182,14 @@ const MIT: &str = "\nLicense: MIT
 
 /// `crate version: licence` of every crate linked into `package`'s binary for `arch`.
 fn linked_crates(root: &Path, package: &str, arch: Arch) -> Result<Vec<String>> {
-    let output = crate::cargo()
-        .current_dir(root)
-        .args(["tree", "--package", package, "--edges", "normal"])
-        .args(["--target", arch.rust_target(), "--prefix", "none"])
-        .args(["--format", "{p}: {l}"])
-        .output()
-        .context("running cargo tree")?;
-    if !output.status.success() {
-        bail!(
-            "cargo tree failed: {}",
-            String::from_utf8_lossy(&output.stderr)
-        );
-    }
-    let mut lines: Vec<String> = String::from_utf8_lossy(&output.stdout)
+    let tree = stdout_of(
+        crate::cargo()
+            .current_dir(root)
+            .args(["tree", "--package", package, "--edges", "normal"])
+            .args(["--target", arch.rust_target(), "--prefix", "none"])
+            .args(["--format", "{p}: {l}"]),
+    )?;
+    let mut lines: Vec<String> = tree
         .lines()
         // `(*)` marks a crate listed before; local crates show their path.
         .map(|line| line.trim_end_matches(" (*)").trim())
@@ -223,20 +211,9 @@ fn linked_crates(root: &Path, package: &str, arch: Arch) -> Result<Vec<String>> 
 /// symbol version it uses, libgcc-s1 for the unwinder, zlib1g. Any other library is refused, so a
 /// new dependency cannot reach the car without a line here.
 pub fn libraries(binary: &Path) -> Result<Vec<String>> {
-    let readelf = |flag: &str| -> Result<String> {
-        let output = Command::new("readelf")
-            .args(["--wide", flag])
-            .arg(binary)
-            .output()
-            .context("running readelf (binutils)")?;
-        if !output.status.success() {
-            bail!(
-                "readelf {flag} {}: {}",
-                binary.display(),
-                String::from_utf8_lossy(&output.stderr)
-            );
-        }
-        Ok(String::from_utf8_lossy(&output.stdout).into_owned())
+    let readelf = |flag: &str| {
+        stdout_of(Command::new("readelf").args(["--wide", flag]).arg(binary))
+            .with_context(|| format!("reading {} (binutils' readelf)", binary.display()))
     };
     let mut depends = Vec::new();
     let mut libc = false;

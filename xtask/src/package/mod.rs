@@ -280,6 +280,21 @@ pub fn run(arches: &[Arch], out: &Path) -> Result<()> {
     Ok(())
 }
 
+/// Runs `command` and returns what it printed; fails with what it said on stderr.
+fn stdout_of(command: &mut Command) -> Result<String> {
+    let program = command.get_program().to_string_lossy().into_owned();
+    let output = command
+        .output()
+        .with_context(|| format!("running {program}"))?;
+    if !output.status.success() {
+        bail!(
+            "{program} failed: {}",
+            String::from_utf8_lossy(&output.stderr).trim()
+        );
+    }
+    Ok(String::from_utf8_lossy(&output.stdout).into_owned())
+}
+
 /// Where cargo leaves the packaged binaries for `arch`.
 fn binary_dir(root: &Path, arch: Arch) -> PathBuf {
     root.join("target").join(arch.rust_target()).join(PROFILE)

@@ -1,7 +1,7 @@
 //! Lays out one package's tree (files, modes, DEBIAN/) and turns it into a .deb.
 
 use super::control::{self, Release};
-use super::{Arch, Package, Source, binary_dir};
+use super::{Arch, Package, Source, binary_dir, stdout_of};
 use anyhow::{Context, Result, bail};
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
@@ -90,13 +90,14 @@ pub fn stage(
         )?;
     }
 
-    let files = list_files(&dir)?;
-    let mut installed_kib = 0;
-    for path in &files {
-        let bytes = std::fs::metadata(dir.join(path))?.len();
-        installed_kib += bytes.div_ceil(1024);
-    }
-    installed_kib += count_dirs(&dir)?;
+    let tree = walk(&dir)?;
+    let files: Vec<String> = tree.files.iter().map(|(path, _)| path.clone()).collect();
+    let installed_kib = tree
+        .files
+        .iter()
+        .map(|(_, bytes)| bytes.div_ceil(1024))
+        .sum::<u64>()
+        + tree.dirs.len() as u64;
     libraries.dedup();
 
     let debian = dir.join("DEBIAN");
@@ -117,8 +118,11 @@ pub fn stage(
             put(&dir, &format!("DEBIAN/{script}"), &read(&source)?, true)?;
         }
     }
-    set_dir_modes(&debian)?;
-    set_dir_modes(&dir)?;
+    // Directories 0755, whatever the umask.
+    for folder in tree.dirs.iter().chain([&dir, &debian]) {
+        std::fs::set_permissions(folder, std::fs::Permissions::from_mode(0o755))
+            .with_context(|| format!("setting the mode of {}", folder.display()))?;
+    }
     Ok(Staged {
         dir,
         file_name: format!("{}_{}_{arch_name}.deb", package.name, release.version),
@@ -167,20 +171,23 @@ pub fn pi_config(defaults: &str) -> Result<String> {
 # The service (systemctl status aer-raspi) reads it; the store and the raw log live in\n\
 # /var/lib/aer. Apply a change: sudo systemctl restart aer-raspi\n#\n",
     );
-    let mut body = defaults.to_owned();
-    for (from, to) in CHANGES {
-        let found = body.lines().filter(|line| line.trim() == from).count();
+    let mut found = [0; CHANGES.len()];
+    for line in defaults.lines() {
+        let change = CHANGES.iter().position(|(from, _)| line.trim() == *from);
+        match change {
+            Some(index) => {
+                found[index] += 1;
+                text.push_str(CHANGES[index].1);
+            }
+            None => text.push_str(line),
+        }
+        text.push('\n');
+    }
+    for ((from, _), found) in CHANGES.iter().zip(found) {
         if found != 1 {
             bail!("raspi/config/aer-raspi.toml: expected one line `{from}`, found {found}");
         }
-        body = body
-            .lines()
-            .map(|line| if line.trim() == from { to } else { line })
-            .collect::<Vec<_>>()
-            .join("\n");
-        body.push('\n');
     }
-    text.push_str(&body);
     Ok(text)
 }
 
@@ -190,17 +197,7 @@ pub fn manuals(bin_dir: &Path, release: &Release, packages: &[Package]) -> Resul
     let mut pages = Manuals::new();
     for (binary, summary) in packages.iter().flat_map(|p| p.manuals) {
         let path = bin_dir.join(binary);
-        let help = |args: &[&str]| -> Result<String> {
-            let output = Command::new(&path)
-                .args(args)
-                .arg("--help")
-                .output()
-                .with_context(|| format!("running {} --help", path.display()))?;
-            if !output.status.success() {
-                bail!("{} {} --help failed", binary, args.join(" "));
-            }
-            Ok(String::from_utf8_lossy(&output.stdout).into_owned())
-        };
+        let help = |args: &[&str]| stdout_of(Command::new(&path).args(args).arg("--help"));
         let top = help(&[])?;
         let mut page = String::new();
         let _ = writeln!(
@@ -277,60 +274,48 @@ fn put(dir: &Path, path: &str, bytes: &[u8], executable: bool) -> Result<()> {
         .with_context(|| format!("setting the mode of {}", target.display()))
 }
 
-/// Every file under `dir` (DEBIAN excluded), relative, sorted.
-fn list_files(dir: &Path) -> Result<Vec<String>> {
-    let mut files = Vec::new();
+/// What a staged package holds (its DEBIAN folder aside).
+struct Tree {
+    /// Every file, relative to the package's root, sorted, with its size.
+    files: Vec<(String, u64)>,
+    /// Every folder below the root.
+    dirs: Vec<PathBuf>,
+}
+
+fn walk(dir: &Path) -> Result<Tree> {
+    let mut tree = Tree {
+        files: Vec::new(),
+        dirs: Vec::new(),
+    };
     let mut pending = vec![dir.to_path_buf()];
     while let Some(current) = pending.pop() {
         for entry in std::fs::read_dir(&current)? {
-            let path = entry?.path();
-            if path.is_dir() {
+            let entry = entry?;
+            let path = entry.path();
+            if entry.file_type()?.is_dir() {
                 if path != dir.join("DEBIAN") {
+                    tree.dirs.push(path.clone());
                     pending.push(path);
                 }
             } else if let Ok(relative) = path.strip_prefix(dir) {
-                files.push(relative.to_string_lossy().into_owned());
+                let bytes = entry.metadata()?.len();
+                tree.files
+                    .push((relative.to_string_lossy().into_owned(), bytes));
             }
         }
     }
-    files.sort();
-    Ok(files)
-}
-
-fn count_dirs(dir: &Path) -> Result<u64> {
-    let mut count = 0;
-    for entry in std::fs::read_dir(dir)? {
-        let path = entry?.path();
-        if path.is_dir() {
-            count += 1 + count_dirs(&path)?;
-        }
-    }
-    Ok(count)
-}
-
-/// Directories 0755, whatever the umask.
-fn set_dir_modes(dir: &Path) -> Result<()> {
-    std::fs::set_permissions(dir, std::fs::Permissions::from_mode(0o755))?;
-    for entry in std::fs::read_dir(dir)? {
-        let path = entry?.path();
-        if path.is_dir() {
-            set_dir_modes(&path)?;
-        }
-    }
-    Ok(())
+    tree.files.sort();
+    Ok(tree)
 }
 
 fn md5sums(dir: &Path, files: &[String]) -> Result<Vec<u8>> {
-    let output = Command::new("md5sum")
-        .current_dir(dir)
-        .arg("--")
-        .args(files)
-        .output()
-        .context("running md5sum")?;
-    if !output.status.success() {
-        bail!("md5sum failed: {}", String::from_utf8_lossy(&output.stderr));
-    }
-    Ok(output.stdout)
+    stdout_of(
+        Command::new("md5sum")
+            .current_dir(dir)
+            .arg("--")
+            .args(files),
+    )
+    .map(String::into_bytes)
 }
 
 /// gzip -9n: no name or time in the header, so the same input gives the same bytes.

@@ -467,21 +467,8 @@ fn docs(m: &Message, s: &Signal) -> Vec<String> {
     docs.push(facts);
     if let Some(c) = &s.mux {
         let selector = m.signals.get(c.selector).map_or("?", |x| x.name.as_str());
-        let values: Vec<String> = c
-            .ranges
-            .iter()
-            .map(|&(lo, hi)| {
-                if lo == hi {
-                    lo.to_string()
-                } else {
-                    format!("{lo}-{hi}")
-                }
-            })
-            .collect();
-        docs.push(format!(
-            "Present only when `{selector}` is {}.",
-            values.join(", ")
-        ));
+        let values = crate::model::MuxCondition::describe(&c.ranges, "-", ", ");
+        docs.push(format!("Present only when `{selector}` is {values}."));
     }
     docs
 }
