@@ -5,7 +5,7 @@
 use crate::bus::{BusInputs, BusState};
 use crate::chassis::WheelSpeed;
 use crate::config::{CONTROL_PERIOD_MS, SAMPLE_TIMEOUT_MS};
-use crate::drive::{TorqueInputs, TorquePath};
+use crate::torque_path::{TorqueInputs, TorquePath};
 use crate::faults::{Fault, FaultInputs, FaultMonitor};
 use crate::inverter::{DriveCommand, Vcu1Builder, bms1_frame, bms2_frame};
 use crate::io::{ControlOutputs, DriverCounters, DriverInputs, OutFrame};
@@ -67,11 +67,6 @@ impl Control {
     /// The last control step's outputs (the reset outputs before the first step).
     pub fn last_outputs(&self) -> ControlOutputs {
         self.last
-    }
-
-    /// The torque path (for diagnostics: the power limiter's efficiency estimate).
-    pub fn torque_path(&self) -> &TorquePath {
-        &self.torque_path
     }
 
     /// Updates the firmware's counters (reported in telemetry).

@@ -2,7 +2,7 @@
 //! counters and bus health, and the control step's outputs and frames.
 
 use crate::ads1115::Conversions;
-use crate::drive::TorqueCommand;
+use crate::torque_path::TorqueCommand;
 use crate::faults::FaultMap;
 use crate::thermal::Cooling;
 use crate::vehicle::{State, VehicleOutputs};

@@ -4,7 +4,7 @@
 //!
 //! Data flow: 1 kHz sensor samples ([`apps`], [`brakes`], [`chassis`]) and CAN frames
 //! ([`bus`], every value kept with its arrival time) -> 100 Hz control ([`faults`],
-//! [`vehicle`], [`drive`]: [`launch`] or [`traction`], [`power`], then the independent
+//! [`vehicle`], [`torque_path`]: [`launch`] or [`traction`], [`power`], then the independent
 //! [`monitor`]; [`thermal`]) -> inverter frames ([`inverter`]), CCM status, and the telemetry
 //! packet over ISO-TP ([`telemetry`]); [`watchdog`] supervises the tasks.
 //!
@@ -18,10 +18,9 @@ pub mod apps;
 pub mod brakes;
 pub mod bus;
 pub mod chassis;
+mod ccm;
 pub mod config;
 pub mod control;
-mod controller;
-pub mod drive;
 pub mod faults;
 pub mod inverter;
 mod io;
@@ -31,9 +30,10 @@ pub mod power;
 pub mod sensors;
 pub mod telemetry;
 pub mod thermal;
+pub mod torque_path;
 pub mod traction;
 pub mod vehicle;
 pub mod watchdog;
 
-pub use controller::Ccm;
+pub use ccm::Ccm;
 pub use io::{BusHealth, ControlOutputs, DriverCounters, DriverInputs, OutFrame, SensorSample};

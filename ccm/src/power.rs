@@ -21,9 +21,9 @@
 //! that settles near sqrt(demand x limit), above the limit (87-115 kW at 3,300-5,000 rpm).
 
 use crate::config::{
-    DRIVETRAIN_EFFICIENCY, MOTOR_MAX_TORQUE_NM, POWER_CEILING_MIN_RAD_S, POWER_LIMIT_W,
-    POWER_SETTLED_FRACTION, POWER_TARGET_W, POWER_TRIM_FLOOR, POWER_TRIM_GAIN, POWER_TRIM_RELAX_S,
-    SOC_DERATE_END, SOC_DERATE_START,
+    DRIVETRAIN_EFFICIENCY, MOTOR_MAX_TORQUE_NM, POWER_CEILING_MIN_RAD_S, POWER_SETTLED_FRACTION,
+    POWER_TARGET_W, POWER_TRIM_FLOOR, POWER_TRIM_GAIN, POWER_TRIM_RELAX_S, SOC_DERATE_END,
+    SOC_DERATE_START,
 };
 
 /// The fixed limits: motor maximum, power and SOC derating.
@@ -31,17 +31,19 @@ use crate::config::{
 pub struct PowerLimits {
     /// Largest torque ever commanded (Nm).
     pub max_torque_nm: f32,
-    /// Electrical power limit (W, pack voltage x current).
-    pub power_limit_w: f32,
+    /// DC power the limiter holds the car at (W, pack voltage x current): the rules' limit
+    /// less a margin for measurement error and the 100 ms averaging (the independent torque
+    /// monitor checks the rules' limit itself).
+    pub power_target_w: f32,
     /// SOC (0..1) where derating starts, and where torque reaches zero.
     pub soc_derate: (f32, f32),
 }
 
 impl PowerLimits {
-    /// The car: 260 Nm, 80 kW, derating 20 % -> 5 %.
+    /// The car: 260 Nm, the power target below 80 kW, derating 20 % -> 5 %.
     pub const CAR: Self = Self {
         max_torque_nm: MOTOR_MAX_TORQUE_NM,
-        power_limit_w: POWER_LIMIT_W,
+        power_target_w: POWER_TARGET_W,
         soc_derate: (SOC_DERATE_START, SOC_DERATE_END),
     };
 
@@ -72,6 +74,8 @@ impl PowerLimits {
 #[derive(Debug, Clone, PartialEq)]
 pub struct PowerLimiter {
     period_s: f32,
+    /// The DC power it holds the car at (W).
+    target_w: f32,
     /// Efficiency estimate k, within `DRIVETRAIN_EFFICIENCY`.
     efficiency: f32,
     /// The measured power of the last step (W).
@@ -79,10 +83,12 @@ pub struct PowerLimiter {
 }
 
 impl PowerLimiter {
-    /// A limiter stepped every `period_ms`, starting at the lowest efficiency.
-    pub fn new(period_ms: u32) -> Self {
+    /// A limiter stepped every `period_ms` that holds the DC power at `target_w`, starting at
+    /// the lowest efficiency.
+    pub fn new(period_ms: u32, target_w: f32) -> Self {
         Self {
             period_s: period_ms as f32 / 1_000.0,
+            target_w,
             efficiency: DRIVETRAIN_EFFICIENCY.0,
             last_measured_w: f32::NAN,
         }
@@ -97,23 +103,24 @@ impl PowerLimiter {
     /// trimming with the DC power measured now (`measured_w`, battery to inverter) while the
     /// driver asks for `demand_nm`.
     pub fn step(&mut self, motor_rad_s: f32, measured_w: f32, demand_nm: f32) -> f32 {
-        let ceiling_before = ceiling(self.efficiency, POWER_TARGET_W, motor_rad_s);
+        let target = self.target_w;
+        let ceiling_before = ceiling(self.efficiency, target, motor_rad_s);
         let binds = demand_nm >= ceiling_before;
         let (low, high) = DRIVETRAIN_EFFICIENCY;
         // At steady state under the ceiling the measurement reads at least low / high of the
         // target (k >= low, true efficiency <= high); below that it has not caught up yet.
-        let caught_up = measured_w >= POWER_TRIM_FLOOR * low / high * POWER_TARGET_W
-            && (measured_w - self.last_measured_w).abs() <= POWER_SETTLED_FRACTION * POWER_TARGET_W;
+        let caught_up = measured_w >= POWER_TRIM_FLOOR * low / high * target
+            && (measured_w - self.last_measured_w).abs() <= POWER_SETTLED_FRACTION * target;
         self.last_measured_w = measured_w;
-        let error = (POWER_TARGET_W - measured_w) / POWER_TARGET_W;
-        if measured_w > POWER_TARGET_W || (binds && caught_up && error.is_finite()) {
+        let error = (target - measured_w) / target;
+        if measured_w > target || (binds && caught_up && error.is_finite()) {
             self.efficiency += POWER_TRIM_GAIN * error * self.period_s;
         } else if !binds || !measured_w.is_finite() {
             let relax = (self.period_s / POWER_TRIM_RELAX_S).min(1.0);
             self.efficiency += (low - self.efficiency) * relax;
         }
         self.efficiency = self.efficiency.clamp(low, high);
-        ceiling(self.efficiency, POWER_TARGET_W, motor_rad_s)
+        ceiling(self.efficiency, target, motor_rad_s)
     }
 }
 

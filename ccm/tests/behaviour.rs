@@ -607,7 +607,7 @@ fn the_power_ceiling_starts_safe_trims_up_only_when_settled_and_down_at_once() {
     use aer_ccm::config::{DRIVETRAIN_EFFICIENCY, POWER_TARGET_W};
     use aer_ccm::power::PowerLimiter;
     let (lowest, highest) = DRIVETRAIN_EFFICIENCY;
-    let mut limiter = PowerLimiter::new(10);
+    let mut limiter = PowerLimiter::new(10, POWER_TARGET_W);
     let omega = 350.0;
     let first = limiter.step(omega, 0.0, 260.0);
     assert!(
@@ -641,7 +641,7 @@ fn the_power_ceiling_starts_safe_trims_up_only_when_settled_and_down_at_once() {
 
 #[test]
 fn the_torque_request_has_a_rest_deadband_and_reaches_the_maximum() {
-    use aer_ccm::drive::torque_request;
+    use aer_ccm::torque_path::torque_request;
     assert_eq!(torque_request(0.0), 0.0);
     assert_eq!(
         torque_request(0.019),

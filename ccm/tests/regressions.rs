@@ -63,7 +63,7 @@ fn launch_control_only_ever_takes_torque_away() {
     rig.tick(&Tick::driving(0.0, 0.0));
     for pedal in [0.3, 0.6, 0.9] {
         let outputs = rig.hold(&Tick::driving(pedal, 875.0), 50);
-        let request = aer_ccm::drive::torque_request(pedal);
+        let request = aer_ccm::torque_path::torque_request(pedal);
         assert!(
             outputs.torque.torque_nm <= request + 0.5,
             "{pedal}: {:?}",

@@ -12,7 +12,7 @@ use aer_ccm::watchdog::{Supervisor, Task};
 /// units, compared with voltage x current), SOC_START 0.2, SOC_END 0.05.
 const PLAN: PowerLimits = PowerLimits {
     max_torque_nm: 260.0,
-    power_limit_w: 90.0,
+    power_target_w: 90.0,
     soc_derate: (0.2, 0.05),
 };
 
@@ -36,7 +36,7 @@ fn power_limit_case_2_clamps_to_the_motor_maximum() {
 /// instantaneous demand; the ceiling at the lowest efficiency keeps P <= target at any speed.
 #[test]
 fn power_limit_case_3_deviation_the_ceiling_comes_from_speed_not_from_the_last_measurement() {
-    let mut limiter = PowerLimiter::new(10);
+    let mut limiter = PowerLimiter::new(10, PowerLimits::CAR.power_target_w);
     let motor_rad_s = 400.0;
     // 200 Nm at 400 rad/s is 80 kW of shaft power: above what the target allows.
     let ceiling = limiter.step(motor_rad_s, 120.0, 200.0);

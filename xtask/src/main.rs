@@ -105,13 +105,22 @@ fn workspace_root() -> PathBuf {
         .map_or_else(|| PathBuf::from("."), Path::to_path_buf)
 }
 
+/// Cargo's build directory: `CARGO_TARGET_DIR` when set (relative to the workspace, as cargo
+/// reads it), else `<workspace>/target`.
+pub(crate) fn target_dir(root: &Path) -> PathBuf {
+    match std::env::var_os("CARGO_TARGET_DIR") {
+        Some(dir) if !dir.is_empty() => root.join(dir),
+        _ => root.join("target"),
+    }
+}
+
 pub(crate) fn cargo() -> Command {
     Command::new(std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into()))
 }
 
 fn firmware() -> Result<()> {
     let root = workspace_root();
-    let out_dir = root.join("target/firmware");
+    let out_dir = target_dir(&root).join("firmware");
     std::fs::create_dir_all(&out_dir).with_context(|| format!("creating {}", out_dir.display()))?;
     for firmware in &FIRMWARE {
         let status = cargo()
@@ -130,8 +139,7 @@ fn firmware() -> Result<()> {
         if !status.success() {
             bail!("building the {} firmware failed", firmware.name);
         }
-        let elf_path = root
-            .join("target")
+        let elf_path = target_dir(&root)
             .join(TARGET)
             .join("release")
             .join(firmware.name);

@@ -13,7 +13,6 @@ use crate::bus::BusState;
 use crate::chassis::PulseTimer;
 use crate::config::WHEEL_TEETH;
 use crate::control::Control;
-use crate::drive::TorquePath;
 use crate::io::{ControlOutputs, DriverCounters, DriverInputs, OutFrame, SensorSample};
 use crate::sensors::Sensors;
 use crate::telemetry::TelemetryLink;
@@ -65,11 +64,6 @@ impl Ccm {
     /// The brakes as last sampled.
     pub fn brakes(&self) -> BrakeReading {
         self.sensors.reading().brakes
-    }
-
-    /// The torque path (for diagnostics: the power limiter's efficiency estimate).
-    pub fn torque_path(&self) -> &TorquePath {
-        self.control.torque_path()
     }
 
     /// Updates the firmware's counters (reported in telemetry).

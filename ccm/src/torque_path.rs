@@ -43,8 +43,6 @@ pub struct TorqueCommand {
     pub torque_nm: f32,
     /// What the torque monitor allows (Nm).
     pub allowed_nm: f32,
-    /// The power ceiling this step (Nm).
-    pub power_ceiling_nm: f32,
     /// Launch control state.
     pub launch: LaunchState,
     /// Slip the active controller saw.
@@ -56,7 +54,6 @@ impl TorqueCommand {
     pub const ZERO: Self = Self {
         torque_nm: 0.0,
         allowed_nm: 0.0,
-        power_ceiling_nm: 0.0,
         launch: LaunchState::Off,
         slip: 0.0,
     };
@@ -78,13 +75,8 @@ impl TorquePath {
             launch: LaunchControl::new(period_ms),
             traction: TractionControl::new(period_ms),
             limits,
-            power: PowerLimiter::new(period_ms),
+            power: PowerLimiter::new(period_ms, limits.power_target_w),
         }
-    }
-
-    /// The power limiter (its efficiency estimate, for diagnostics).
-    pub fn power_limiter(&self) -> &PowerLimiter {
-        &self.power
     }
 
     /// One step.
@@ -141,7 +133,6 @@ impl TorquePath {
                 0.0
             },
             allowed_nm: allowed,
-            power_ceiling_nm: power_ceiling,
             launch: self.launch.state(),
             slip,
         }
