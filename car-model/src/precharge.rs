@@ -5,9 +5,11 @@ use aer_flexcan::CanFrame;
 use aer_pcc::bms::BmsLink;
 use aer_pcc::{Inputs, Precharge, PrechargeConfig, Relays, State};
 
-/// The precharge circuit: the tractive system's capacitance charges through the precharge
-/// resistor (or directly through AIR+) and discharges through the discharge resistor when
-/// the relays open.
+/// The precharge circuit as the team's board wires it: a closed shutdown circuit closes AIR-
+/// and the precharge relay itself, so the tractive system's capacitance charges through the
+/// precharge resistor; the PCC's one output closes AIR+, which bypasses the resistor, and
+/// AIR+ is powered through the shutdown circuit too. An open shutdown circuit drops every
+/// relay, and the capacitance discharges through the discharge resistor.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PrechargePlant {
     /// Pack voltage (V).
@@ -18,15 +20,22 @@ pub struct PrechargePlant {
     pub precharge_tau_ms: f32,
     /// R x C through the discharge resistor (ms).
     pub discharge_tau_ms: f32,
+    /// The shutdown circuit is closed (the car's hardware, not the PCC).
+    pub shutdown_closed: bool,
 }
 
 impl PrechargePlant {
+    /// True when AIR+ is closed: the PCC commands it and the shutdown circuit powers it.
+    pub fn air_plus_closed(&self, relays: Relays) -> bool {
+        self.shutdown_closed && relays.air_plus
+    }
+
     /// Advances the circuit by `dt_ms` with `relays` applied. Backward Euler: stable for any
     /// step, and plain arithmetic, so host and Cortex-M7 compute the same bits.
     pub fn advance(&mut self, relays: Relays, dt_ms: f32) {
-        let (target, tau) = if relays.air_minus && relays.air_plus {
+        let (target, tau) = if self.air_plus_closed(relays) {
             (self.accumulator_v, 0.0)
-        } else if relays.air_minus && relays.precharge {
+        } else if self.shutdown_closed {
             (self.accumulator_v, self.precharge_tau_ms)
         } else {
             (0.0, self.discharge_tau_ms)
@@ -59,6 +68,7 @@ impl PccNode {
                 tractive_v: 0.0,
                 precharge_tau_ms: 3_800.0,
                 discharge_tau_ms: 500.0,
+                shutdown_closed: true,
             },
             relays: Relays::ALL_OPEN,
         }
@@ -78,11 +88,11 @@ impl PccNode {
         shutdown_open: bool,
     ) -> Option<CanFrame> {
         self.plant.accumulator_v = accumulator_v;
+        self.plant.shutdown_closed = !shutdown_open;
         let inputs = Inputs {
             now_ms,
             accumulator_v,
             tractive_v: self.plant.tractive_v,
-            shutdown_open,
             bms_last_seen_ms: self.bms.last_seen_ms(),
             charger_safety: self.bms.charger_safety(),
         };
@@ -102,7 +112,7 @@ impl PccNode {
 
     /// The accumulator is connected to the tractive system through AIR+ (full power).
     pub fn connected(&self) -> bool {
-        self.relays.air_plus && self.relays.air_minus
+        self.plant.air_plus_closed(self.relays)
     }
 
     /// The PCC's state.

@@ -50,7 +50,11 @@ pub enum Condition {
     BmsLost,
     /// The inverter is silent.
     InverterLost,
-    /// The PCC is not connecting the accumulator (not ONLINE).
+    /// The PCC does not hold AIR+ closed (not ONLINE or CHARGING). On the team's board an
+    /// open shutdown circuit drops AIR- and AIR+ in hardware at once; the PCC, which has no
+    /// input that reads the shutdown circuit, knows only once the tractive system has fallen
+    /// away (`PrechargeConfig::online_min_percent`), and the CCM only from the PCC's status.
+    /// The deadline counts from when the PCC knows.
     PccNotOnline,
     /// CAN1 is off for the CCM.
     Can1Off,
@@ -125,7 +129,7 @@ impl Condition {
             Self::SamplingStopped => plan.is_active(now_ms, Fault::SamplingStopped),
             Self::BmsLost => plan.is_active(now_ms, Fault::BmsSilent),
             Self::InverterLost => plan.is_active(now_ms, Fault::InverterSilent),
-            Self::PccNotOnline => !car.pcc.connected(),
+            Self::PccNotOnline => !car.pcc.relays().air_plus,
             Self::Can1Off => plan.is_active(now_ms, Fault::BusOff(0)),
             Self::Can2Off => plan.is_active(now_ms, Fault::BusOff(1)),
         }

@@ -1,11 +1,13 @@
 //! The CCM's sensors as the firmware reads them: the pedal converter's alternating
-//! conversions, the brake pressure sensors, the shock potentiometers and the front
+//! conversions (the ADS1115 front-end: the slower of the board's two pedal options, whose
+//! conversions can stop arriving), the brake pressure sensors, the shock potentiometers and the front
 //! wheel-speed gear teeth, with the injected faults applied.
 
 use crate::faults::{Fault, FaultPlan};
 use crate::rng::Rng;
 use aer_ccm::SensorSample;
-use aer_ccm::apps::{AppsCalibration, counts_to_volts, volts_to_counts};
+use aer_ccm::ads1115::{counts_to_volts, volts_to_counts};
+use aer_ccm::apps::AppsCalibration;
 use aer_ccm::chassis::shock_raw_for_volts;
 use aer_ccm::config::{
     APPS1_SUPPLY_V, APPS2_SUPPLY_V, BSE_FULL_SCALE_PSI, BSE_VALID_V, SHOCK_SPAN_V,
@@ -41,7 +43,7 @@ impl PedalSignals {
     pub fn travels(&self, calibration: &AppsCalibration) -> [f32; 2] {
         let [a, b] = self.counts;
         let map = |counts: i16, (rest, full): (f32, f32)| {
-            ((f32::from(counts) - rest) / (full - rest)).clamp(0.0, 1.0)
+            ((counts_to_volts(counts) - rest) / (full - rest)).clamp(0.0, 1.0)
         };
         [map(a, calibration.apps1), map(b, calibration.apps2)]
     }
@@ -50,8 +52,7 @@ impl PedalSignals {
     pub fn out_of_range(&self) -> bool {
         let [a, b] = self.counts;
         let outside = |counts: i16, supply: f32| {
-            let volts = counts_to_volts(f32::from(counts));
-            !(0.1 * supply..=0.9 * supply).contains(&volts)
+            !(0.1 * supply..=0.9 * supply).contains(&counts_to_volts(counts))
         };
         outside(a, APPS1_SUPPLY_V) || outside(b, APPS2_SUPPLY_V)
     }
@@ -78,14 +79,14 @@ impl Sensors {
     /// The pedal sensors' signals for `pedal` travel at `now_ms`, faults applied.
     pub fn pedal_signals(&mut self, pedal: f32, plan: &FaultPlan, now_ms: u32) -> PedalSignals {
         let calibration = self.calibration;
-        let ideal = |(rest, full): (f32, f32)| (rest + pedal * (full - rest)) as i16;
+        let ideal = |(rest, full): (f32, f32)| volts_to_counts(rest + pedal * (full - rest));
         let mut counts = [ideal(calibration.apps1), ideal(calibration.apps2)];
         let supplies = [APPS1_SUPPLY_V, APPS2_SUPPLY_V];
         for (sensor, (count, supply)) in counts.iter_mut().zip(supplies).enumerate() {
             if plan.is_active(now_ms, Fault::PedalSensorOpen(sensor)) {
                 *count = 0;
             } else if plan.is_active(now_ms, Fault::PedalSensorShorted(sensor)) {
-                *count = volts_to_counts(supply) as i16;
+                *count = volts_to_counts(supply);
             }
             let stuck = self.stuck.get_mut(sensor);
             if plan.is_active(now_ms, Fault::PedalSensorStuck(sensor)) {
@@ -109,7 +110,7 @@ impl Sensors {
         plan: &FaultPlan,
         now_ms: u32,
     ) -> SensorSample {
-        let mut apps_raw = [None, None];
+        let mut apps_v = [None, None];
         self.conversion_phase += CONVERSIONS_PER_MS;
         if self.conversion_phase >= 1.0 {
             self.conversion_phase -= 1.0;
@@ -118,9 +119,9 @@ impl Sensors {
             if !plan.is_active(now_ms, Fault::PedalConverterLost) {
                 let noise = self.rng.below(3) as i16 - 1;
                 if let (Some(slot), Some(counts)) =
-                    (apps_raw.get_mut(channel), pedal.counts.get(channel))
+                    (apps_v.get_mut(channel), pedal.counts.get(channel))
                 {
-                    *slot = Some(counts.saturating_add(noise));
+                    *slot = Some(counts_to_volts(counts.saturating_add(noise)));
                 }
             }
         }
@@ -144,7 +145,7 @@ impl Sensors {
         let front = 25.0 - 2.0 * accel_m_s2;
         let rear = 25.0 + 2.0 * accel_m_s2;
         SensorSample {
-            apps_raw,
+            apps_v,
             brake_v,
             shock_raw: [travel(front), travel(front), travel(rear), travel(rear)],
         }

@@ -10,6 +10,8 @@
 //! ([`crate::apps`]) turns that into a fault, instead of the last good counts being
 //! repeated as if the pedal were still where it was.
 
+use crate::apps::PedalVolts;
+use crate::config::ADS1115_FULL_SCALE_V;
 use embedded_hal::i2c::I2c;
 
 /// I2C address with ADDR tied to ground.
@@ -31,6 +33,22 @@ pub const fn config_for(channel: u8) -> u16 {
 /// New conversions of channel 0 (APPS1) and 1 (APPS2) delivered by one poll; `None` where
 /// nothing new arrived.
 pub type Conversions = [Option<i16>; 2];
+
+/// Volts at the input for ADS1115 counts at the configured full-scale range.
+pub fn counts_to_volts(counts: i16) -> f32 {
+    f32::from(counts) * ADS1115_FULL_SCALE_V / 32_768.0
+}
+
+/// ADS1115 counts for `volts` at the input (nearest, saturating).
+pub fn volts_to_counts(volts: f32) -> i16 {
+    (volts * 32_768.0 / ADS1115_FULL_SCALE_V) as i16
+}
+
+/// A poll's conversions as the pedal channel reads them (volts at the sensors: the ADS1115
+/// reads them directly, without a divider).
+pub fn pedal_volts(conversions: Conversions) -> PedalVolts {
+    conversions.map(|counts| counts.map(counts_to_volts))
+}
 
 /// The two pedal channels, read alternately.
 #[derive(Debug)]

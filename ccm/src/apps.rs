@@ -1,40 +1,36 @@
-//! Accelerator pedal position sensors (APPS): two sensors through the ADS1115, filtered,
-//! calibrated to 0..1, checked for wiring faults, disagreement and lost conversions, and the
-//! APPS/brake plausibility latch.
+//! Accelerator pedal position sensors (APPS): two sensors, read in volts at the sensor
+//! whichever front-end the board has (the on-chip ADC, [`crate::analog`], or an ADS1115,
+//! [`crate::ads1115`]),
+//! filtered, calibrated to 0..1, checked for wiring faults, disagreement and lost conversions,
+//! and the APPS/brake plausibility latch.
 
-use crate::ads1115::Conversions;
 use crate::config::{
-    ADS1115_FULL_SCALE_V, APPS_BRAKE_RESET, APPS_BRAKE_TRIP, APPS_IMPLAUSIBLE, APPS1_SUPPLY_V,
-    APPS2_SUPPLY_V, PEDAL_CONVERSION_TIMEOUT_MS, PEDAL_FILTER_HZ, SENSOR_FAULT_GAP_MS,
-    SENSOR_FAULT_PERSIST_MS,
+    APPS_BRAKE_RESET, APPS_BRAKE_TRIP, APPS_IMPLAUSIBLE, APPS1_SUPPLY_V, APPS2_SUPPLY_V,
+    PEDAL_CONVERSION_TIMEOUT_MS, PEDAL_FILTER_HZ, SENSOR_FAULT_GAP_MS, SENSOR_FAULT_PERSIST_MS,
 };
 use aer_control::{LowPass, Persist};
 
-/// Raw ADS1115 counts at pedal rest and full travel, measured on the installed pedal.
+/// New readings of APPS1 and APPS2 (volts at the sensor) delivered by one sample; `None`
+/// where nothing new arrived (the front-end is slower than the sample rate, or lost).
+pub type PedalVolts = [Option<f32>; 2];
+
+/// Sensor voltages at pedal rest and full travel, measured on the installed pedal (the
+/// bring-up image's pedal calibration step prints them).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct AppsCalibration {
-    /// APPS1 (3.3 V sensor) at rest and at full travel.
+    /// APPS1 (3.3 V sensor) at rest and at full travel (V).
     pub apps1: (f32, f32),
-    /// APPS2 (5 V sensor) at rest and at full travel.
+    /// APPS2 (5 V sensor) at rest and at full travel (V).
     pub apps2: (f32, f32),
 }
 
 impl AppsCalibration {
-    /// Placeholder calibration (assumed: 0.5-2.8 V and 0.75-4.2 V); measure the car's pedal.
+    /// Placeholder calibration (assumed: 0.5-2.8 V and 0.75-4.2 V); measure the car's pedal
+    /// with the bring-up image.
     pub const DEFAULT: Self = Self {
-        apps1: (volts_to_counts(0.5), volts_to_counts(2.8)),
-        apps2: (volts_to_counts(0.75), volts_to_counts(4.2)),
+        apps1: (0.5, 2.8),
+        apps2: (0.75, 4.2),
     };
-}
-
-/// ADS1115 counts for `volts` at the configured full-scale range.
-pub const fn volts_to_counts(volts: f32) -> f32 {
-    volts * 32_768.0 / ADS1115_FULL_SCALE_V
-}
-
-/// Volts for ADS1115 counts.
-pub fn counts_to_volts(counts: f32) -> f32 {
-    counts * ADS1115_FULL_SCALE_V / 32_768.0
 }
 
 /// What the pedal reads this sample.
@@ -83,12 +79,12 @@ impl Channel {
         }
     }
 
-    /// Filters a new conversion, if any; returns the filtered counts.
-    fn update(&mut self, raw: Option<i16>, now_ms: u32) -> f32 {
-        match raw {
-            Some(raw) => {
+    /// Filters a new reading, if any; returns the filtered volts.
+    fn update(&mut self, volts: Option<f32>, now_ms: u32) -> f32 {
+        match volts {
+            Some(volts) => {
                 self.converted_ms = Some(now_ms);
-                self.filter.update(f32::from(raw))
+                self.filter.update(volts)
             }
             None => {
                 self.converted_ms.get_or_insert(now_ms);
@@ -133,25 +129,22 @@ impl Apps {
         self.reading
     }
 
-    /// Feeds the conversions that arrived this sample (`None`: nothing new on that channel).
+    /// Feeds the readings that arrived this sample (`None`: nothing new on that channel).
     pub fn update(
         &mut self,
-        conversions: Conversions,
+        readings: PedalVolts,
         brakes_engaged: bool,
         now_ms: u32,
     ) -> AppsReading {
-        let [raw1, raw2] = conversions;
+        let [new1, new2] = readings;
         let [sensor1, sensor2] = &mut self.sensors;
-        let counts1 = sensor1.update(raw1, now_ms);
-        let counts2 = sensor2.update(raw2, now_ms);
+        let volts1 = sensor1.update(new1, now_ms);
+        let volts2 = sensor2.update(new2, now_ms);
         let signal_lost = sensor1.lost(now_ms) || sensor2.lost(now_ms);
-        let apps1 = map(counts1, self.calibration.apps1);
-        let apps2 = map(counts2, self.calibration.apps2);
-        let in_range = |counts: f32, supply: f32| {
-            let volts = counts_to_volts(counts);
-            (0.1 * supply..=0.9 * supply).contains(&volts)
-        };
-        let bad_range = !(in_range(counts1, APPS1_SUPPLY_V) && in_range(counts2, APPS2_SUPPLY_V));
+        let apps1 = map(volts1, self.calibration.apps1);
+        let apps2 = map(volts2, self.calibration.apps2);
+        let in_range = |volts: f32, supply: f32| (0.1 * supply..=0.9 * supply).contains(&volts);
+        let bad_range = !(in_range(volts1, APPS1_SUPPLY_V) && in_range(volts2, APPS2_SUPPLY_V));
         // A sample or two back inside the limits (noise, the filter gliding through) does not
         // restart the 100 ms: only a clean stretch does.
         let out_of_range = self
@@ -190,11 +183,11 @@ impl Apps {
     }
 }
 
-/// Linear map of `counts` from (rest, full) to 0..1, clamped.
-fn map(counts: f32, (rest, full): (f32, f32)) -> f32 {
+/// Linear map of `volts` from (rest, full) to 0..1, clamped.
+fn map(volts: f32, (rest, full): (f32, f32)) -> f32 {
     let span = full - rest;
     if span == 0.0 {
         return 0.0;
     }
-    ((counts - rest) / span).clamp(0.0, 1.0)
+    ((volts - rest) / span).clamp(0.0, 1.0)
 }

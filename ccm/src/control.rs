@@ -5,7 +5,6 @@
 use crate::bus::{BusInputs, BusState};
 use crate::chassis::WheelSpeed;
 use crate::config::{CONTROL_PERIOD_MS, SAMPLE_TIMEOUT_MS};
-use crate::torque_path::{TorqueInputs, TorquePath};
 use crate::faults::{Fault, FaultInputs, FaultMonitor};
 use crate::inverter::{DriveCommand, Vcu1Builder, bms1_frame, bms2_frame};
 use crate::io::{ControlOutputs, DriverCounters, DriverInputs, OutFrame};
@@ -13,6 +12,7 @@ use crate::power::PowerLimits;
 use crate::sensors::SensorReading;
 use crate::telemetry::LinkCounters;
 use crate::thermal::cooling;
+use crate::torque_path::{TorqueInputs, TorquePath};
 use crate::vehicle::{Vehicle, VehicleInputs};
 use aer::can::{AnyMessage, Bms1, Bms2, CcmStatus, PrechargeState, SCHEMA_FINGERPRINT, Vcu1};
 use aer::runtime::EncodeError;

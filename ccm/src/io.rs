@@ -1,18 +1,18 @@
 //! What goes in and out of the CCM's steps: sensor samples, driver inputs, the firmware's
 //! counters and bus health, and the control step's outputs and frames.
 
-use crate::ads1115::Conversions;
-use crate::torque_path::TorqueCommand;
+use crate::apps::PedalVolts;
 use crate::faults::FaultMap;
 use crate::thermal::Cooling;
+use crate::torque_path::TorqueCommand;
 use crate::vehicle::{State, VehicleOutputs};
 
 /// One 1 kHz sensor sample.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct SensorSample {
-    /// New ADS1115 conversions of APPS1 and APPS2 since the last sample (`None` on a channel
-    /// with nothing new: the converter is slower than the sample rate, or lost).
-    pub apps_raw: Conversions,
+    /// New readings of APPS1 and APPS2 since the last sample, volts at the sensors (`None` on
+    /// a channel with nothing new: the converter is slower than the sample rate, or lost).
+    pub apps_v: PedalVolts,
     /// Front and rear brake sensor voltages (after the divider).
     pub brake_v: (f32, f32),
     /// Raw 12-bit readings of the four shock potentiometers (FL, FR, RL, RR).

@@ -14,11 +14,12 @@
 #![no_std]
 
 pub mod ads1115;
+pub mod analog;
 pub mod apps;
 pub mod brakes;
 pub mod bus;
-pub mod chassis;
 mod ccm;
+pub mod chassis;
 pub mod config;
 pub mod control;
 pub mod faults;

@@ -50,7 +50,7 @@ impl Sensors {
         let brakes = self
             .brakes
             .update(sample.brake_v.0, sample.brake_v.1, now_ms);
-        self.apps.update(sample.apps_raw, brakes.engaged, now_ms);
+        self.apps.update(sample.apps_v, brakes.engaged, now_ms);
         self.shock_mm = sample.shock_raw.map(shock_travel_mm);
     }
 

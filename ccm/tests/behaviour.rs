@@ -2,7 +2,7 @@
 
 use aer::can::{AnyMessage, PccStatus, PrechargeState, Vcu1};
 use aer::telemetry::Telemetry;
-use aer_ccm::apps::{Apps, AppsCalibration, volts_to_counts};
+use aer_ccm::apps::{Apps, AppsCalibration};
 use aer_ccm::brakes::{Brakes, volts_for};
 use aer_ccm::faults::{Fault, FaultMap};
 use aer_ccm::inverter::{DriveCommand, Vcu1Builder, checksum};
@@ -17,8 +17,8 @@ use embedded_can::{Frame, StandardId};
 const CAL: AppsCalibration = AppsCalibration::DEFAULT;
 
 /// Raw counts for a pedal travel on each sensor.
-fn pedal(travel1: f32, travel2: f32) -> (i16, i16) {
-    let raw = |(rest, full): (f32, f32), t: f32| (rest + t * (full - rest)) as i16;
+fn pedal(travel1: f32, travel2: f32) -> (f32, f32) {
+    let raw = |(rest, full): (f32, f32), t: f32| rest + t * (full - rest);
     (raw(CAL.apps1, travel1), raw(CAL.apps2, travel2))
 }
 
@@ -40,7 +40,7 @@ fn apps_maps_the_calibration_to_0_1_and_takes_the_lower_sensor() {
 fn apps_range_fault_needs_more_than_100_ms() {
     let mut apps = Apps::new(CAL, 1);
     // 0.2 V on APPS1: below 10 % of 3.3 V (an open wire pulls the signal low).
-    let low = volts_to_counts(0.2) as i16;
+    let low = 0.2;
     let (_, b) = pedal(0.0, 0.0);
     for t in 0..=100 {
         assert!(
@@ -434,7 +434,7 @@ fn the_telemetry_packet_reaches_an_iso_tp_receiver_intact() {
     for t in 0..20 {
         ccm.sample(
             &SensorSample {
-                apps_raw: [Some(a), Some(b)],
+                apps_v: [Some(a), Some(b)],
                 brake_v: (volts_for(10.0), volts_for(10.0)),
                 shock_raw: [4095, 4081, 4067, 4053],
             },

@@ -53,7 +53,7 @@ fn ccm_control(iterations: u32) {
 fn ccm_sample(iterations: u32) {
     let mut ccm = Ccm::new(AppsCalibration::DEFAULT);
     let sample = SensorSample {
-        apps_raw: [Some(4_000), Some(6_000)],
+        apps_v: [Some(0.75), Some(1.125)],
         brake_v: (0.6, 0.6),
         shock_raw: [4000; 4],
     };
@@ -82,7 +82,6 @@ fn pcc_step(iterations: u32) {
             now_ms: i * 10,
             accumulator_v: 400.0,
             tractive_v: (i % 400) as f32,
-            shutdown_open: false,
             bms_last_seen_ms: Some(i * 10),
             charger_safety: false,
         });

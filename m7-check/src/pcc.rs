@@ -98,6 +98,7 @@ fn run(scenario: &Scenario, out: &mut impl Write) -> core::fmt::Result {
         tractive_v: 0.0,
         precharge_tau_ms: scenario.precharge_tau_ms,
         discharge_tau_ms: 400.0,
+        shutdown_closed: true,
     };
     let mut accumulator = VoltageChannel::new(vf, TASK_PERIOD_MS);
     let mut tractive = VoltageChannel::new(vf, TASK_PERIOD_MS);
@@ -120,6 +121,7 @@ fn run(scenario: &Scenario, out: &mut impl Write) -> core::fmt::Result {
         if scenario.name == "noisy-pack-lost" && now_ms >= 15_000 {
             plant.accumulator_v = 0.0;
         }
+        plant.shutdown_closed = !within(scenario.shutdown_open, now_ms);
         plant.advance(relays, TASK_PERIOD_MS as f32);
         let ripple = if now_ms % 20 == 0 { 0.6 } else { -0.6 };
         accumulator_pulses.run(
@@ -147,7 +149,6 @@ fn run(scenario: &Scenario, out: &mut impl Write) -> core::fmt::Result {
             now_ms,
             accumulator_v: accumulator.sample(now_ms * 1_000),
             tractive_v: tractive.sample(now_ms * 1_000),
-            shutdown_open: within(scenario.shutdown_open, now_ms),
             bms_last_seen_ms: bms.last_seen_ms(),
             charger_safety: bms.charger_safety(),
         };

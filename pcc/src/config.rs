@@ -32,6 +32,17 @@ pub struct PrechargeConfig {
     /// Tractive-system voltage below which it counts as discharged (60 V DC: the rules'
     /// limit for low voltage).
     pub discharged_v: f32,
+    /// A rise in progress (above the lowest seen in STANDBY) that shows the hardware has
+    /// started precharging (the shutdown circuit closed AIR- and the precharge relay); the
+    /// precharge timer starts when it is seen. 5 % is reached about 0.05 time constants
+    /// (0.2 s on the car) after the start, well above the converters' noise.
+    pub start_percent: f32,
+    /// In PRECHARGE, progress this far below its highest value means the precharge path
+    /// opened (the shutdown circuit) or the tractive system is loaded down.
+    pub precharge_drop_percent: f32,
+    /// In ONLINE and CHARGING, progress below this means the tractive system is no longer
+    /// connected to the pack (the shutdown circuit opened) or is shorted: AIR+ is released.
+    pub online_min_percent: f32,
 }
 
 impl PrechargeConfig {
@@ -45,6 +56,9 @@ impl PrechargeConfig {
         standby_settle_ms: 200,
         bms_timeout_ms: 1_500,
         discharged_v: 60.0,
+        start_percent: 5.0,
+        precharge_drop_percent: 10.0,
+        online_min_percent: 80.0,
     };
 }
 

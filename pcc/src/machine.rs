@@ -1,19 +1,27 @@
 //! The precharge state machine.
 //!
 //! ```text
-//!            shutdown closed, pack >= min, BMS alive, all for 200 ms
+//!            pack >= min and BMS alive for 200 ms, and the tractive system rising
 //!  STANDBY ------------------------------------------------------> PRECHARGE
 //!     ^                                                             |  |  |
 //!     | TS < 60 V                      target held, after min time |  |  | too fast / too slow /
-//!     |                                                             v  |  | shutdown / BMS timeout
+//!     |                                                             v  |  | TS falls away / BMS timeout
 //!  DISCHARGE <-- pack lost --  ONLINE <-- charger safety off --  CHARGING |
 //!                               (and PRECHARGE, CHARGING)                 v
 //!                                                                       ERROR
 //! ```
-//! ERROR opens everything. Its precharge-timing and BMS-timeout causes latch until the PCC is
+//! On the team's board the shutdown circuit closes AIR- and the precharge relay itself, and the
+//! PCC has no input that reads it: precharge starts in hardware, and the PCC sees it as the
+//! tractive-system voltage rising. The only output is AIR+ ([`Relays`]), high in ONLINE and
+//! CHARGING alone. A shutdown circuit that opens shows as the tractive system falling away from
+//! the pack (AIR- and the precharge relay drop out): that is an error, so AIR+ is released
+//! before the shutdown circuit can close again and start a new precharge, which a still-high
+//! AIR+ would bypass.
+//!
+//! ERROR holds AIR+ open. Its precharge-timing and BMS-timeout causes latch until the PCC is
 //! reset (power cycle after the cause is found); a shutdown-only error clears once the
-//! shutdown circuit has been closed again for the settle time and the tractive system is
-//! below 60 V, so switching the car off with the shutdown circuit needs no power cycle.
+//! tractive system has been below 60 V for the settle time, so switching the car off with the
+//! shutdown circuit needs no power cycle.
 //!
 //! Time is a free-running millisecond counter that may wrap; every comparison is on
 //! differences, so a wrap (after 49.7 days) changes nothing.
@@ -32,8 +40,6 @@ pub struct Inputs {
     pub accumulator_v: f32,
     /// Filtered tractive-system voltage (V).
     pub tractive_v: f32,
-    /// The active-high Shutdown_in signal: the shutdown circuit is open.
-    pub shutdown_open: bool,
     /// When the last BMS frame arrived (`None` before the first).
     pub bms_last_seen_ms: Option<u32>,
     /// The BMS reports its charger-safety output on.
@@ -52,6 +58,13 @@ pub struct Precharge {
     conditions: Persist,
     /// Since when progress has been at or above the target during this precharge.
     at_target_since_ms: Option<u32>,
+    /// The highest progress seen during this precharge (%).
+    peak_percent: f32,
+    /// The lowest progress seen during this STANDBY (%): precharge has started once progress
+    /// rises above it, so a tractive system still discharging is not taken for one charging.
+    trough_percent: f32,
+    /// Since when the tractive system has been falling away while energised.
+    falling_since_ms: Option<u32>,
     progress_percent: f32,
     accumulator_v: f32,
     tractive_v: f32,
@@ -67,6 +80,9 @@ impl Precharge {
             entered_ms: now_ms,
             conditions: Persist::default(),
             at_target_since_ms: None,
+            peak_percent: 0.0,
+            trough_percent: f32::MAX,
+            falling_since_ms: None,
             progress_percent: 0.0,
             accumulator_v: 0.0,
             tractive_v: 0.0,
@@ -132,7 +148,7 @@ impl Precharge {
 
         if self.state.is_energised() {
             // Faults first: whatever else happens this period, they open everything.
-            if inputs.shutdown_open {
+            if self.falling_away(now) {
                 self.errors.shutdown = true;
             }
             if !bms_alive {
@@ -150,8 +166,16 @@ impl Precharge {
 
         match self.state {
             State::Standby => {
-                let ready = !inputs.shutdown_open && pack_present && bms_alive;
-                if self.held_for(ready, now, self.config.standby_settle_ms) {
+                let ready = self.held_for(
+                    pack_present && bms_alive,
+                    now,
+                    self.config.standby_settle_ms,
+                );
+                // The hardware started precharging: the shutdown circuit closed.
+                self.trough_percent = self.trough_percent.min(self.progress_percent);
+                let rising =
+                    self.progress_percent >= self.trough_percent + self.config.start_percent;
+                if ready && rising {
                     self.enter(State::Precharge, now);
                 }
             }
@@ -165,9 +189,8 @@ impl Precharge {
                 }
             }
             State::Error => {
-                let recovered = !self.errors.needs_reset()
-                    && !inputs.shutdown_open
-                    && self.tractive_v < self.config.discharged_v;
+                let recovered =
+                    !self.errors.needs_reset() && self.tractive_v < self.config.discharged_v;
                 if self.held_for(recovered, now, self.config.standby_settle_ms) {
                     self.errors = Errors::default();
                     self.enter(State::Standby, now);
@@ -175,6 +198,27 @@ impl Precharge {
             }
         }
         self.relays()
+    }
+
+    /// True once the tractive system has been falling away from the pack for the hold time:
+    /// in PRECHARGE, progress more than the allowed drop below its peak; in ONLINE and
+    /// CHARGING, below the online minimum. Either means AIR- or the precharge path opened
+    /// (the shutdown circuit) or the tractive system is being loaded down (a short).
+    fn falling_away(&mut self, now: u32) -> bool {
+        let progress = self.progress_percent;
+        let falling = match self.state {
+            State::Precharge => {
+                self.peak_percent = self.peak_percent.max(progress);
+                progress < self.peak_percent - self.config.precharge_drop_percent
+            }
+            _ => progress < self.config.online_min_percent,
+        };
+        if !falling {
+            self.falling_since_ms = None;
+            return false;
+        }
+        let since = *self.falling_since_ms.get_or_insert(now);
+        now.wrapping_sub(since) >= self.config.target_hold_ms
     }
 
     fn precharge(&mut self, now: u32, charger_safety: bool) {
@@ -218,6 +262,9 @@ impl Precharge {
         self.entered_ms = now;
         self.conditions.reset();
         self.at_target_since_ms = None;
+        self.peak_percent = 0.0;
+        self.trough_percent = f32::MAX;
+        self.falling_since_ms = None;
     }
 }
 

@@ -1,55 +1,35 @@
-//! The relay outputs, derived from the state alone so no path can leave one closed by
+//! The PCC's one relay output, derived from the state alone so no path can leave it high by
 //! accident.
+//!
+//! On the team's board the PCC switches one thing: the line that closes AIR+ (pin 11, "Close
+//! AIR+" in the team's firmware). AIR- and the precharge relay are closed by the shutdown
+//! circuit itself, so precharge starts in hardware when the shutdown circuit closes; the PCC
+//! watches the tractive-system voltage rise and closes AIR+, bypassing the precharge resistor,
+//! only once precharge is complete. Closing it any earlier bypasses the resistor at pack voltage.
 
 use crate::state::State;
 
-/// Commanded relay and shutdown-control outputs (`true` = energised / closed).
+/// The commanded output (`true` = high = AIR+ closed).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct Relays {
-    /// Accumulator isolation relay, positive side: bypasses the precharge resistor.
+    /// Close AIR+ (pin 11): connects the pack to the tractive system without the precharge
+    /// resistor. High only in ONLINE and CHARGING.
     pub air_plus: bool,
-    /// Accumulator isolation relay, negative side.
-    pub air_minus: bool,
-    /// Precharge relay: feeds the tractive system through the precharge resistor.
-    pub precharge: bool,
-    /// Shutdown relay in position 1 (tractive system connected); released it sits in
-    /// position 2, where the tractive system discharges.
-    pub shutdown: bool,
 }
 
 impl Relays {
-    /// Every relay open and the tractive system discharging: the state at reset, in ERROR,
-    /// in DISCHARGE and in STANDBY.
-    pub const ALL_OPEN: Self = Self {
-        air_plus: false,
-        air_minus: false,
-        precharge: false,
-        shutdown: false,
-    };
+    /// AIR+ open: the state at reset and in STANDBY, PRECHARGE, DISCHARGE and ERROR.
+    pub const ALL_OPEN: Self = Self { air_plus: false };
 
-    /// The outputs for `state`.
+    /// The output for `state`.
     pub const fn for_state(state: State) -> Self {
-        match state {
-            State::Standby | State::Discharge | State::Error => Self::ALL_OPEN,
-            // AIR- and the precharge relay charge the tractive system through the resistor.
-            State::Precharge => Self {
-                air_plus: false,
-                air_minus: true,
-                precharge: true,
-                shutdown: true,
-            },
-            // AIR+ bypasses the resistor; the precharge relay opens.
-            State::Online | State::Charging => Self {
-                air_plus: true,
-                air_minus: true,
-                precharge: false,
-                shutdown: true,
-            },
+        Self {
+            air_plus: matches!(state, State::Online | State::Charging),
         }
     }
 
-    /// True when nothing connects the accumulator to the tractive system.
+    /// True when the PCC holds AIR+ open.
     pub const fn all_open(&self) -> bool {
-        !self.air_plus && !self.air_minus && !self.precharge && !self.shutdown
+        !self.air_plus
     }
 }

@@ -13,7 +13,7 @@ pub enum State {
     Online,
     /// Precharge complete with the BMS's charger safety on: connected for charging.
     Charging,
-    /// A fault: everything open.
+    /// A fault: AIR+ open.
     Error,
 }
 
@@ -46,7 +46,9 @@ pub struct Errors {
     pub too_slow: bool,
     /// 0x04: no BMS frame for the timeout while energised.
     pub bms_timeout: bool,
-    /// 0x08: the shutdown input opened while energised.
+    /// 0x08: the tractive system fell away from the pack while energised: the shutdown
+    /// circuit opened (it drops AIR- and the precharge relay) or the tractive system is
+    /// loaded down.
     pub shutdown: bool,
     /// 0x80: the PCC restarted after its watchdog expired (a hang or a panic), so the state
     /// it was in is not known.

@@ -1,5 +1,5 @@
 //! What the PCC does when it fails itself (issue 12): a control loop that hangs or panics
-//! stops servicing the watchdog, the PCC restarts with every relay open, and after a
+//! stops servicing the watchdog, the PCC restarts with AIR+ open, and after a
 //! watchdog restart it stays in ERROR ("undefined state") until it is power-cycled.
 //!
 //! The watchdog itself (WDOG1, 0.5 s) and the panic handler are hardware; here a model of
@@ -18,7 +18,6 @@ fn inputs(now_ms: u32, tractive_v: f32) -> Inputs {
         now_ms,
         accumulator_v: 400.0,
         tractive_v,
-        shutdown_open: false,
         bms_last_seen_ms: Some(now_ms),
         charger_safety: false,
     }
@@ -68,21 +67,32 @@ impl Board {
 }
 
 #[test]
-fn a_hang_in_precharge_opens_the_relays_within_the_watchdog_timeout() {
-    // Before: no watchdog; a hang in PRECHARGE kept AIR- and the precharge relay closed with
-    // the too-slow timer dead.
+fn a_hang_online_releases_air_plus_within_the_watchdog_timeout() {
+    // Before: no watchdog; a hung loop kept its outputs for ever. AIR+ is the only output,
+    // high only in ONLINE and CHARGING: hang there.
     let mut board = Board::new();
     let mut t = 0;
-    while board.pcc.state() != State::Precharge {
+    // The hardware starts precharging at 0.3 s: 5 % at first, 95 % well inside the time
+    // window.
+    let mut started = None;
+    while board.pcc.state() != State::Online {
         t += 1;
-        board.tick(t, false, 0.0);
-        assert!(t < 1_000, "reaches PRECHARGE");
+        let tractive_v = match started {
+            Some(at) if t - at > PrechargeConfig::CAR.min_time_ms + 100 => 380.0,
+            _ if t > 300 => 20.0,
+            _ => 0.0,
+        };
+        board.tick(t, false, tractive_v);
+        if started.is_none() && board.pcc.state() == State::Precharge {
+            started = Some(t);
+        }
+        assert!(t < 20_000, "reaches ONLINE");
     }
-    assert!(board.relays.air_minus && board.relays.precharge);
+    assert!(board.relays.air_plus);
     let hung_at = t;
     let mut closed_until = hung_at;
     for now in hung_at + 1..hung_at + 2_000 {
-        board.tick(now, now < hung_at + 1_500, 0.0);
+        board.tick(now, now < hung_at + 1_500, 380.0);
         if !board.relays.all_open() {
             closed_until = now;
         }
@@ -90,9 +100,10 @@ fn a_hang_in_precharge_opens_the_relays_within_the_watchdog_timeout() {
     assert!(board.restarts >= 1, "the watchdog restarted the board");
     assert!(
         closed_until - hung_at <= WATCHDOG_TIMEOUT_MS + TASK_PERIOD_MS,
-        "relays closed {} ms into the hang",
+        "AIR+ held {} ms into the hang",
         closed_until - hung_at
     );
+    assert_eq!(board.pcc.state(), State::Error, "and it stays off");
 }
 
 #[test]

@@ -21,7 +21,6 @@ impl Bench {
                 now_ms: start_ms,
                 accumulator_v: PACK_V,
                 tractive_v: 0.0,
-                shutdown_open: false,
                 bms_last_seen_ms: Some(start_ms),
                 charger_safety: false,
             },
@@ -51,11 +50,13 @@ impl Bench {
         self.inputs.tractive_v = PACK_V * percent / 100.0;
     }
 
-    /// Runs STANDBY -> PRECHARGE; returns the time precharge started.
+    /// Runs STANDBY -> PRECHARGE (the hardware starts precharging as the settle time ends);
+    /// returns the time precharge started.
     fn start_precharge(&mut self) -> u32 {
         let t0 = self.inputs.now_ms;
         self.at_with_bms(t0);
         let start = t0.wrapping_add(CONFIG.standby_settle_ms);
+        self.set_progress(CONFIG.start_percent);
         self.at_with_bms(start);
         assert_eq!(self.state(), State::Precharge);
         start
@@ -95,21 +96,12 @@ impl Bench {
     }
 }
 
-const PRECHARGING: Relays = Relays {
-    air_plus: false,
-    air_minus: true,
-    precharge: true,
-    shutdown: true,
-};
-const CONNECTED: Relays = Relays {
-    air_plus: true,
-    air_minus: true,
-    precharge: false,
-    shutdown: true,
-};
+/// During precharge AIR+ stays open: the hardware charges through the resistor.
+const PRECHARGING: Relays = Relays::ALL_OPEN;
+const CONNECTED: Relays = Relays { air_plus: true };
 
 #[test]
-fn reset_is_standby_with_every_relay_open() {
+fn reset_is_standby_with_air_plus_open() {
     let pcc = Precharge::new(CONFIG, 0);
     assert_eq!(pcc.state(), State::Standby);
     assert_eq!(pcc.relays(), Relays::ALL_OPEN);
@@ -120,6 +112,8 @@ fn reset_is_standby_with_every_relay_open() {
 fn standby_starts_precharge_after_the_settle_time_exactly() {
     let mut bench = Bench::ready();
     assert_eq!(bench.at_with_bms(1_000), Relays::ALL_OPEN);
+    // The hardware started precharging at once.
+    bench.set_progress(CONFIG.start_percent);
     assert_eq!(
         bench.at_with_bms(1_199),
         Relays::ALL_OPEN,
@@ -131,26 +125,53 @@ fn standby_starts_precharge_after_the_settle_time_exactly() {
 }
 
 #[test]
-fn standby_waits_for_each_condition_and_restarts_the_settle_time() {
-    // Shutdown circuit open.
+fn standby_starts_precharge_only_once_the_tractive_system_rises() {
+    // The shutdown circuit is open: the hardware does not precharge, the PCC waits (no
+    // too-slow error for a car that is simply switched off).
     let mut bench = Bench::ready();
-    bench.inputs.shutdown_open = true;
     bench.at_with_bms(1_000);
-    bench.at_with_bms(5_000);
+    bench.at_with_bms(60_000);
     assert_eq!(bench.state(), State::Standby);
-    bench.inputs.shutdown_open = false;
-    bench.at_with_bms(5_010);
-    bench.at_with_bms(5_209);
-    assert_eq!(
-        bench.state(),
-        State::Standby,
-        "settle time counts from the closing"
-    );
-    bench.at_with_bms(5_210);
+    bench.set_progress(CONFIG.start_percent - 0.01);
+    bench.at_with_bms(60_010);
+    assert_eq!(bench.state(), State::Standby, "just below the start");
+    bench.set_progress(CONFIG.start_percent);
+    assert_eq!(bench.at_with_bms(60_020), PRECHARGING);
     assert_eq!(bench.state(), State::Precharge);
+    // The timer runs from the rise: the target 1 ms before the minimum time from there is
+    // too fast.
+    bench.set_progress(CONFIG.target_percent);
+    bench.at_with_bms(60_020 + CONFIG.min_time_ms - 1);
+    bench.at_with_bms(60_020 + CONFIG.min_time_ms - 1 + CONFIG.target_hold_ms);
+    assert!(bench.pcc.errors().too_fast);
+    assert_eq!(bench.pcc.relays(), Relays::ALL_OPEN);
+}
 
-    // Pack voltage just below, then at, the minimum.
+#[test]
+fn a_tractive_system_still_discharging_is_not_a_precharge_start() {
+    // Back in STANDBY after a shutdown error with the tractive system at 50 V and falling:
+    // no rise, no precharge; the hardware's new precharge from 10 V is one.
     let mut bench = Bench::ready();
+    bench.inputs.tractive_v = 50.0;
+    bench.at_with_bms(1_000);
+    for (t, volts) in [(1_300, 40.0), (1_600, 25.0), (1_900, 10.0)] {
+        bench.inputs.tractive_v = volts;
+        bench.at_with_bms(t);
+        assert_eq!(bench.state(), State::Standby, "{volts} V, falling");
+    }
+    bench.inputs.tractive_v = 10.0 + PACK_V * CONFIG.start_percent / 100.0 - 0.01;
+    bench.at_with_bms(1_910);
+    assert_eq!(bench.state(), State::Standby, "just below the rise");
+    bench.inputs.tractive_v = 10.0 + PACK_V * CONFIG.start_percent / 100.0;
+    bench.at_with_bms(1_920);
+    assert_eq!(bench.state(), State::Precharge);
+}
+
+#[test]
+fn standby_waits_for_each_condition_and_restarts_the_settle_time() {
+    // Pack voltage just below, then at, the minimum (the tractive system already rising).
+    let mut bench = Bench::ready();
+    bench.set_progress(CONFIG.start_percent);
     bench.inputs.accumulator_v = CONFIG.min_accumulator_v - 0.01;
     bench.at_with_bms(1_000);
     bench.at_with_bms(2_000);
@@ -162,6 +183,7 @@ fn standby_waits_for_each_condition_and_restarts_the_settle_time() {
 
     // No BMS frame yet, then a stale one, then a fresh one.
     let mut bench = Bench::ready();
+    bench.set_progress(CONFIG.start_percent);
     bench.inputs.bms_last_seen_ms = None;
     bench.at(1_000);
     bench.at(3_000);
@@ -173,10 +195,11 @@ fn standby_waits_for_each_condition_and_restarts_the_settle_time() {
 
     // A glitch during the settle time restarts it.
     let mut bench = Bench::ready();
+    bench.set_progress(CONFIG.start_percent);
     bench.at_with_bms(1_000);
-    bench.inputs.shutdown_open = true;
+    bench.inputs.accumulator_v = 0.0;
     bench.at_with_bms(1_150);
-    bench.inputs.shutdown_open = false;
+    bench.inputs.accumulator_v = PACK_V;
     bench.at_with_bms(1_160);
     bench.at_with_bms(1_359);
     assert_eq!(bench.state(), State::Standby);
@@ -290,12 +313,24 @@ fn charger_safety_chooses_charging_and_switches_with_online() {
 }
 
 #[test]
-fn the_shutdown_input_opens_everything_in_the_same_period_in_every_energised_state() {
+fn the_tractive_system_falling_away_releases_air_plus_after_the_hold_in_every_energised_state() {
     for energised in [State::Precharge, State::Online, State::Charging] {
         let (mut bench, now) = Bench::in_state(energised);
-        bench.inputs.shutdown_open = true;
+        // The shutdown circuit opens: AIR- and the precharge path drop out, the tractive
+        // system falls away from the pack.
+        let (high, fallen) = if energised == State::Precharge {
+            (50.0, 50.0 - CONFIG.precharge_drop_percent - 0.01)
+        } else {
+            (100.0, CONFIG.online_min_percent - 0.01)
+        };
+        bench.set_progress(high);
+        bench.at_with_bms(now + 1);
+        bench.set_progress(fallen);
+        bench.at_with_bms(now + 2);
+        bench.at_with_bms(now + 1 + CONFIG.target_hold_ms);
+        assert_eq!(bench.state(), energised, "1 ms before the hold ends");
         assert_eq!(
-            bench.at_with_bms(now + 1),
+            bench.at_with_bms(now + 2 + CONFIG.target_hold_ms),
             Relays::ALL_OPEN,
             "{energised:?}"
         );
@@ -311,7 +346,7 @@ fn the_shutdown_input_opens_everything_in_the_same_period_in_every_energised_sta
 }
 
 #[test]
-fn a_bms_timeout_opens_everything_one_ms_after_the_limit() {
+fn a_bms_timeout_releases_air_plus_one_ms_after_the_limit() {
     for energised in [State::Precharge, State::Online, State::Charging] {
         let (mut bench, now) = Bench::in_state(energised);
         let seen = now;
@@ -321,7 +356,10 @@ fn a_bms_timeout_opens_everything_one_ms_after_the_limit() {
         } else {
             100.0
         });
-        assert_ne!(bench.at(seen + CONFIG.bms_timeout_ms), Relays::ALL_OPEN);
+        assert_eq!(
+            bench.at(seen + CONFIG.bms_timeout_ms),
+            Relays::for_state(energised)
+        );
         assert_eq!(bench.state(), energised, "at the timeout");
         assert_eq!(bench.at(seen + CONFIG.bms_timeout_ms + 1), Relays::ALL_OPEN);
         assert_eq!(bench.state(), State::Error);
@@ -371,17 +409,36 @@ fn a_measurement_that_is_not_a_number_counts_as_no_pack() {
 }
 
 #[test]
-fn a_shutdown_error_clears_after_the_circuit_closes_and_the_bus_is_discharged() {
+fn progress_at_the_limits_is_not_falling_away() {
+    for energised in [State::Precharge, State::Online, State::Charging] {
+        let (mut bench, now) = Bench::in_state(energised);
+        let (high, lowest) = if energised == State::Precharge {
+            (50.0, 50.0 - CONFIG.precharge_drop_percent)
+        } else {
+            (100.0, CONFIG.online_min_percent)
+        };
+        bench.set_progress(high);
+        bench.at_with_bms(now + 1);
+        bench.set_progress(lowest);
+        bench.at_with_bms(now + 2);
+        bench.at_with_bms(now + 1_000);
+        assert_eq!(bench.state(), energised);
+        assert_eq!(bench.pcc.errors(), Errors::default());
+    }
+}
+
+#[test]
+fn a_shutdown_error_clears_after_the_bus_is_discharged() {
     let mut bench = Bench::ready();
     let done = bench.online();
-    bench.inputs.shutdown_open = true;
-    bench.at_with_bms(done + 10);
-    assert_eq!(bench.state(), State::Error);
-
-    // Closed again, but the tractive system still holds 100 V: no recovery.
-    bench.inputs.shutdown_open = false;
     bench.inputs.tractive_v = 100.0;
-    bench.at_with_bms(done + 20);
+    bench.at_with_bms(done + 10);
+    bench.at_with_bms(done + 10 + CONFIG.target_hold_ms);
+    assert_eq!(bench.state(), State::Error);
+    assert!(bench.pcc.errors().shutdown);
+
+    // The tractive system still holds 100 V: no recovery.
+    bench.at_with_bms(done + 40);
     bench.at_with_bms(done + 1_000);
     assert_eq!(bench.state(), State::Error);
 

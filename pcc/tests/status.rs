@@ -10,7 +10,6 @@ fn inputs(now_ms: u32, accumulator_v: f32, tractive_v: f32) -> Inputs {
         now_ms,
         accumulator_v,
         tractive_v,
-        shutdown_open: false,
         bms_last_seen_ms: Some(now_ms),
         charger_safety: false,
     }
@@ -40,9 +39,10 @@ fn error_bits_sit_where_vehicle_facts_put_them() {
     let mut pcc = Precharge::new(PrechargeConfig::CAR, 0);
     pcc.step(&inputs(0, 400.0, 0.0));
     pcc.step(&inputs(200, 400.0, 0.0));
-    // Target at once: too fast (0x01).
+    // The tractive system jumps to the target as precharge starts: too fast (0x01).
     pcc.step(&inputs(210, 400.0, 400.0));
     pcc.step(&inputs(230, 400.0, 400.0));
+    pcc.step(&inputs(250, 400.0, 400.0));
     let frame: CanFrame = pcc.status_frame().unwrap();
     assert_eq!(frame.data()[0], 5, "ERROR");
     assert_eq!(frame.data()[1], 0x01);

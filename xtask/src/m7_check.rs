@@ -22,7 +22,9 @@ pub fn run(root: &Path, target: &str, timeout_s: u64) -> Result<()> {
     if !status.success() {
         bail!("building the Cortex-M7 check failed");
     }
-    let elf = crate::target_dir(root).join(target).join("release/m7-check");
+    let elf = crate::target_dir(root)
+        .join(target)
+        .join("release/m7-check");
     let started = Instant::now();
     let emulated = qemu(&elf, Duration::from_secs(timeout_s))?;
     let elapsed = started.elapsed();

@@ -6,6 +6,7 @@ mod ihex;
 mod image;
 mod m7_check;
 mod package;
+mod pins;
 mod session;
 
 use anyhow::{Context, Result, bail};
@@ -29,6 +30,13 @@ enum Task {
     /// Build the firmware (release) and write target/firmware/<name>.hex for
     /// teensy_loader_cli, printing flash and RAM use.
     Firmware,
+    /// Print the default boards' pin maps (aer-boards), one line per signal:
+    /// `<board> <pin> <signal> <mode>`.
+    Pins {
+        /// Print the Markdown table of docs/firmware.md instead, with each pin's source.
+        #[arg(long)]
+        markdown: bool,
+    },
     /// Record a driving session of the CCM logic as a candump log (raspi/data/session.log, the
     /// Pi demo's input).
     SessionLog,
@@ -81,6 +89,17 @@ const FIRMWARE: [Firmware; 2] = [
 fn main() -> Result<()> {
     match Cli::parse().task {
         Task::Firmware => firmware(),
+        Task::Pins { markdown } => {
+            print!(
+                "{}",
+                if markdown {
+                    pins::markdown()
+                } else {
+                    pins::listing()
+                }
+            );
+            Ok(())
+        }
         Task::SessionLog => {
             let path = workspace_root().join("raspi/data/session.log");
             let frames = session::write(&path)?;

@@ -216,9 +216,7 @@ impl Rig {
                 Mcu3::encode,
             );
         }
-        let raw = |(rest, full): (f32, f32), t: f32| {
-            (rest + t * (full - rest)).clamp(-32_768.0, 32_767.0) as i16
-        };
+        let raw = |(rest, full): (f32, f32), t: f32| rest + t * (full - rest);
         let conversions = if tick.converter {
             [
                 Some(raw(CAL.apps1, tick.pedal.0)),
@@ -228,7 +226,7 @@ impl Rig {
             [None, None]
         };
         let sample = SensorSample {
-            apps_raw: conversions,
+            apps_v: conversions,
             brake_v: (volts_for(tick.brake_psi.0), volts_for(tick.brake_psi.1)),
             shock_raw: [4000; 4],
         };

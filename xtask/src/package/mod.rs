@@ -297,7 +297,9 @@ fn stdout_of(command: &mut Command) -> Result<String> {
 
 /// Where cargo leaves the packaged binaries for `arch`.
 fn binary_dir(root: &Path, arch: Arch) -> PathBuf {
-    crate::target_dir(root).join(arch.rust_target()).join(PROFILE)
+    crate::target_dir(root)
+        .join(arch.rust_target())
+        .join(PROFILE)
 }
 
 fn build_binaries(root: &Path, arch: Arch) -> Result<()> {

@@ -296,7 +296,7 @@ mod app {
                 .map(|input| cx.local.adc.read_blocking(input));
             let volts = |counts: u16| f32::from(counts) * board::ADC_REFERENCE_V / 4095.0;
             let sample = SensorSample {
-                apps_raw: cx.local.ads.poll(),
+                apps_v: aer_ccm::ads1115::pedal_volts(cx.local.ads.poll()),
                 brake_v: (
                     volts(brake_front) * board::BRAKE_DIVIDER,
                     volts(brake_rear) * board::BRAKE_DIVIDER,

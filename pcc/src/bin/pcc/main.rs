@@ -11,13 +11,17 @@
 //! All decisions are in the `aer_pcc` library; this file only moves data between it and the
 //! hardware.
 //!
-//! Failing safe: every relay output is low (open) from reset until a control step closes
-//! it; the relay pads get the internal 100 kOhm pull-down before they become outputs (the
-//! board still needs external pull-downs: between reset and init the pins are inputs with
-//! only the pad keeper). WDOG1 (0.5 s) is serviced only by an on-time control loop, so a
-//! hang restarts the PCC; the panic handler opens every relay before anything else and then
-//! lets the watchdog restart it. After a watchdog restart the PCC starts in ERROR with the
-//! "undefined state" cause latched until a power cycle.
+//! The board (`aer_boards::pcc::COMP_CAR`, typed in `board.rs`) has one relay output: pin 11
+//! closes AIR+. AIR- and the precharge relay are the shutdown circuit's.
+//!
+//! Failing safe: pin 11 is low (AIR+ open) from reset until a control step in ONLINE or
+//! CHARGING raises it; its pad gets the internal 100 kOhm pull-down before it becomes an
+//! output (between reset and init it is an input with only the pad keeper, so the board's
+//! driver stage needs its own pull-down: check it on the bench). WDOG1 (0.5 s) is serviced
+//! only by an on-time control loop, so a hang restarts the PCC, and a restart leaves pin 11 an
+//! input again; the panic handler drives pin 11 low before anything else and then lets the
+//! watchdog restart it. After a watchdog restart the PCC starts in ERROR with the "undefined
+//! state" cause latched until a power cycle.
 #![no_std]
 #![no_main]
 
@@ -26,18 +30,16 @@ mod board;
 use core::panic::PanicInfo;
 use teensy4_bsp::ral;
 
-/// Opens every relay, then waits for the watchdog. Runs with whatever state the code had
-/// when it panicked, so it touches nothing but the relay pins' write-only clear registers.
+/// Opens AIR+, then waits for the watchdog. Runs with whatever state the code had when it
+/// panicked, so it touches nothing but pin 11's write-only clear register.
 #[panic_handler]
 fn panic(_: &PanicInfo<'_>) -> ! {
-    // SAFETY: DR_CLEAR registers are write-only and only clear the given bits; the masks
-    // are the relay pins (board.rs), which are outputs from init onwards, so this can only
-    // drive relays open. Nothing else in the program can run after a panic.
+    // SAFETY: DR_CLEAR is write-only and only clears the given bits; the mask is pin 11
+    // (board.rs), an output from init onwards, so this can only open AIR+. Nothing else in
+    // the program can run after a panic.
     unsafe {
-        let gpio4 = ral::gpio::GPIO4::instance();
-        ral::write_reg!(ral::gpio, gpio4, DR_CLEAR, board::RELAYS_GPIO4_MASK);
         let gpio2 = ral::gpio::GPIO2::instance();
-        ral::write_reg!(ral::gpio, gpio2, DR_CLEAR, board::SHUTDOWN_GPIO2_MASK);
+        ral::write_reg!(ral::gpio, gpio2, DR_CLEAR, board::AIR_PLUS_GPIO2_MASK);
     }
     loop {
         cortex_m::asm::nop();
@@ -78,25 +80,19 @@ mod app {
     /// Status frames that could not be encoded (clamped values make this a codec defect).
     static STATUS_ENCODE_FAILURES: AtomicU32 = AtomicU32::new(0);
 
-    /// The relay driver outputs.
+    /// The board's one relay output: pin 11, close AIR+.
     pub struct RelayPins {
         air_plus: gpio::Output,
-        air_minus: gpio::Output,
-        precharge: gpio::Output,
-        shutdown: gpio::Output,
     }
 
     impl RelayPins {
         fn apply(&mut self, relays: Relays) {
-            set(&self.air_plus, relays.air_plus);
-            set(&self.air_minus, relays.air_minus);
-            set(&self.precharge, relays.precharge);
-            set(&self.shutdown, relays.shutdown);
+            if relays.air_plus {
+                self.air_plus.set();
+            } else {
+                self.air_plus.clear();
+            }
         }
-    }
-
-    fn set(pin: &gpio::Output, high: bool) {
-        if high { pin.set() } else { pin.clear() }
     }
 
     #[shared]
@@ -110,8 +106,8 @@ mod app {
     struct Local {
         accumulator_edges: gpio::Input,
         tractive_edges: gpio::Input,
-        shutdown_in: gpio::Input,
         relays: RelayPins,
+        led: gpio::Output,
         rx_producer: Producer<'static, CanFrame>,
         rx_consumer: Consumer<'static, CanFrame>,
         wdog: ral::wdog::WDOG1,
@@ -124,39 +120,28 @@ mod app {
             pins,
             mut gpio1,
             mut gpio2,
-            mut gpio4,
             mut gpt1,
             ccm,
             ..
         } = bsp::t40(cx.device);
         let mut pins = board::pins(pins);
 
-        // Relays first, driven open, before anything else can run. The pads get a pull-down
-        // first; a pin on the wrong port is a build-time mistake in board.rs; the outputs then
-        // stay unconfigured (relays open) and the PCC halts.
+        // AIR+ first, driven low, before anything else can run. The pad gets a pull-down
+        // first; a pin on the wrong port is a build-time mistake in board.rs: the output then
+        // stays unconfigured (low through the pull-down) and the PCC halts.
         let pull_down = Config::modify().set_pull_keeper(Some(PullKeeper::Pulldown100k));
         iomuxc::configure(&mut pins.air_plus, pull_down);
-        iomuxc::configure(&mut pins.air_minus, pull_down);
-        iomuxc::configure(&mut pins.precharge, pull_down);
-        iomuxc::configure(&mut pins.shutdown_control, pull_down);
-        let (Ok(air_plus), Ok(air_minus), Ok(precharge), Ok(shutdown)) = (
-            gpio4.output(pins.air_plus),
-            gpio4.output(pins.air_minus),
-            gpio4.output(pins.precharge),
-            gpio2.output(pins.shutdown_control),
-        ) else {
+        let Ok(air_plus) = gpio2.output(pins.air_plus) else {
             halt_safe()
         };
-        let mut relays = RelayPins {
-            air_plus,
-            air_minus,
-            precharge,
-            shutdown,
-        };
+        let mut relays = RelayPins { air_plus };
         relays.apply(Relays::ALL_OPEN);
-        let Ok(shutdown_in) = gpio2.input(pins.shutdown_in) else {
+        let Ok(led) = gpio2.output(pins.led) else {
             halt_safe()
         };
+        // The V/F converters' outputs read low when a converter is unplugged.
+        iomuxc::configure(&mut pins.accumulator_freq, pull_down);
+        iomuxc::configure(&mut pins.tractive_freq, pull_down);
 
         // 1 MHz monotonic from PERCLK: microsecond edge stamps and the 10 ms schedule.
         gpt1.set_clock_source(hal::gpt::ClockSource::PeripheralClock);
@@ -219,8 +204,8 @@ mod app {
             Local {
                 accumulator_edges,
                 tractive_edges,
-                shutdown_in,
                 relays,
+                led,
                 rx_producer,
                 rx_consumer,
                 wdog,
@@ -280,7 +265,7 @@ mod app {
         });
     }
 
-    #[task(priority = 1, local = [relays, shutdown_in, rx_consumer, wdog, watchdog_reset],
+    #[task(priority = 1, local = [relays, led, rx_consumer, wdog, watchdog_reset],
            shared = [accumulator, tractive, can])]
     async fn control(mut cx: control::Context) {
         let start = Mono::now();
@@ -306,12 +291,15 @@ mod app {
                 now_ms,
                 accumulator_v: cx.shared.accumulator.lock(|channel| channel.sample(now_us)),
                 tractive_v: cx.shared.tractive.lock(|channel| channel.sample(now_us)),
-                shutdown_open: cx.local.shutdown_in.is_set(),
                 bms_last_seen_ms: bms.last_seen_ms(),
                 charger_safety: bms.charger_safety(),
             };
             let relays = pcc.step(&inputs);
             cx.local.relays.apply(relays);
+            // Heartbeat: 1 Hz while the loop runs, so a hung PCC shows on the bench.
+            if now_ms % 1_000 < TASK_PERIOD_MS {
+                cx.local.led.toggle();
+            }
 
             match pcc.status_frame::<CanFrame>() {
                 Some(frame) => {
