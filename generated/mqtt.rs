@@ -95,7 +95,7 @@ impl TelemetryRecord {
     /// written directly: keys are constants and numbers are formatted in place, where serde
     /// escapes every key and goes through its flattening serializer.
     pub fn to_json(&self, ts: f64) -> Vec<u8> {
-        let mut payload = Vec::with_capacity(3258);
+        let mut payload = Vec::with_capacity(3288);
         let out = &mut payload;
         out.extend_from_slice(b"{\"ts\":");
         json_float(out, ts);
@@ -183,14 +183,14 @@ impl TelemetryRecord {
         json_int(out, self.telemetry.pedal_bus_errors);
         out.extend_from_slice(b",\"can_bus_off_events\":");
         json_int(out, self.telemetry.can_bus_off_events);
-        out.extend_from_slice(b",\"can1_error_passive\":");
-        json_bool(out, self.telemetry.can1_error_passive);
-        out.extend_from_slice(b",\"can1_bus_off\":");
-        json_bool(out, self.telemetry.can1_bus_off);
-        out.extend_from_slice(b",\"can2_error_passive\":");
-        json_bool(out, self.telemetry.can2_error_passive);
-        out.extend_from_slice(b",\"can2_bus_off\":");
-        json_bool(out, self.telemetry.can2_bus_off);
+        out.extend_from_slice(b",\"vehicle_bus_error_passive\":");
+        json_bool(out, self.telemetry.vehicle_bus_error_passive);
+        out.extend_from_slice(b",\"vehicle_bus_bus_off\":");
+        json_bool(out, self.telemetry.vehicle_bus_bus_off);
+        out.extend_from_slice(b",\"inverter_bus_error_passive\":");
+        json_bool(out, self.telemetry.inverter_bus_error_passive);
+        out.extend_from_slice(b",\"inverter_bus_bus_off\":");
+        json_bool(out, self.telemetry.inverter_bus_bus_off);
         out.extend_from_slice(b",\"dc_main_wire_over_volt_fault\":");
         json_bool(out, self.telemetry.dc_main_wire_over_volt_fault);
         out.extend_from_slice(b",\"motor_phase_curr_fault\":");

@@ -17,7 +17,7 @@ use super::runtime::{self, ByteOrder, SignalMeta, SignalVisitor, Value};
 /// Fingerprint of this layout and of the CAN database it references: the first four bytes of
 /// every packet, so a receiver built from another schema rejects the packet instead of
 /// mis-decoding it.
-pub const TELEMETRY_FINGERPRINT: u32 = 0x56EED8B3;
+pub const TELEMETRY_FINGERPRINT: u32 = 0xCB5D5B2B;
 
 /// The header fields a sender chooses (the fingerprint is fixed).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -172,22 +172,22 @@ pub struct Telemetry {
     ///
     /// Wire: `u8` at byte 66, unit `events`.
     pub can_bus_off_events: u8,
-    /// The CCM's CAN1 controller is error-passive (an error counter above 127).
+    /// The CCM's vehicle-bus controller (FlexCAN3: BMS, charger, PCC, IMD, the Pi) is error-passive (an error counter above 127).
     ///
     /// Wire: flag in bit 1 of byte 67.
-    pub can1_error_passive: bool,
-    /// The CCM's CAN1 controller is bus-off.
+    pub vehicle_bus_error_passive: bool,
+    /// The CCM's vehicle-bus controller (FlexCAN3) is bus-off.
     ///
     /// Wire: flag in bit 2 of byte 67.
-    pub can1_bus_off: bool,
-    /// The CCM's CAN2 controller is error-passive (an error counter above 127).
+    pub vehicle_bus_bus_off: bool,
+    /// The CCM's inverter-bus controller (FlexCAN2) is error-passive (an error counter above 127).
     ///
     /// Wire: flag in bit 3 of byte 67.
-    pub can2_error_passive: bool,
-    /// The CCM's CAN2 controller is bus-off.
+    pub inverter_bus_error_passive: bool,
+    /// The CCM's inverter-bus controller (FlexCAN2) is bus-off.
     ///
     /// Wire: flag in bit 4 of byte 67.
-    pub can2_bus_off: bool,
+    pub inverter_bus_bus_off: bool,
     /// Wire: flag in bit 5 of byte 67, mirrors `MCU2.MCU_DcMainWireOverVoltFault`.
     pub dc_main_wire_over_volt_fault: bool,
     /// Wire: flag in bit 6 of byte 67, mirrors `MCU2.MCU_MotorPhaseCurrFault`.
@@ -1014,10 +1014,10 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
         multiplexed: false,
     },
     SignalMeta {
-        name: "can1_error_passive",
+        name: "vehicle_bus_error_passive",
         index: 40,
         unit: "",
-        comment: "The CCM's CAN1 controller is error-passive (an error counter above 127).",
+        comment: "The CCM's vehicle-bus controller (FlexCAN3: BMS, charger, PCC, IMD, the Pi) is error-passive (an error counter above 127).",
         start_bit: 537,
         len: 1,
         byte_order: ByteOrder::LittleEndian,
@@ -1030,10 +1030,10 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
         multiplexed: false,
     },
     SignalMeta {
-        name: "can1_bus_off",
+        name: "vehicle_bus_bus_off",
         index: 41,
         unit: "",
-        comment: "The CCM's CAN1 controller is bus-off.",
+        comment: "The CCM's vehicle-bus controller (FlexCAN3) is bus-off.",
         start_bit: 538,
         len: 1,
         byte_order: ByteOrder::LittleEndian,
@@ -1046,10 +1046,10 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
         multiplexed: false,
     },
     SignalMeta {
-        name: "can2_error_passive",
+        name: "inverter_bus_error_passive",
         index: 42,
         unit: "",
-        comment: "The CCM's CAN2 controller is error-passive (an error counter above 127).",
+        comment: "The CCM's inverter-bus controller (FlexCAN2) is error-passive (an error counter above 127).",
         start_bit: 539,
         len: 1,
         byte_order: ByteOrder::LittleEndian,
@@ -1062,10 +1062,10 @@ static TELEMETRY_FIELDS: [SignalMeta; 73] = [
         multiplexed: false,
     },
     SignalMeta {
-        name: "can2_bus_off",
+        name: "inverter_bus_bus_off",
         index: 43,
         unit: "",
-        comment: "The CCM's CAN2 controller is bus-off.",
+        comment: "The CCM's inverter-bus controller (FlexCAN2) is bus-off.",
         start_bit: 540,
         len: 1,
         byte_order: ByteOrder::LittleEndian,
@@ -1866,7 +1866,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 73] = [
     },
     FieldDisplay {
         group: "diagnostics",
-        label: "CAN1 error-passive",
+        label: "Vehicle bus error-passive",
         warn: Some(0.0),
         critical: None,
         warn_below: None,
@@ -1874,7 +1874,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 73] = [
     },
     FieldDisplay {
         group: "diagnostics",
-        label: "CAN1 bus-off",
+        label: "Vehicle bus bus-off",
         warn: Some(0.0),
         critical: None,
         warn_below: None,
@@ -1882,7 +1882,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 73] = [
     },
     FieldDisplay {
         group: "diagnostics",
-        label: "CAN2 error-passive",
+        label: "Inverter bus error-passive",
         warn: Some(0.0),
         critical: None,
         warn_below: None,
@@ -1890,7 +1890,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 73] = [
     },
     FieldDisplay {
         group: "diagnostics",
-        label: "CAN2 bus-off",
+        label: "Inverter bus bus-off",
         warn: Some(0.0),
         critical: None,
         warn_below: None,
@@ -2174,10 +2174,10 @@ impl Default for Telemetry {
             telemetry_superseded: 0,
             pedal_bus_errors: 0,
             can_bus_off_events: 0,
-            can1_error_passive: false,
-            can1_bus_off: false,
-            can2_error_passive: false,
-            can2_bus_off: false,
+            vehicle_bus_error_passive: false,
+            vehicle_bus_bus_off: false,
+            inverter_bus_error_passive: false,
+            inverter_bus_bus_off: false,
             dc_main_wire_over_volt_fault: false,
             motor_phase_curr_fault: false,
             mcu_over_hot_fault: false,
@@ -2357,28 +2357,29 @@ impl Telemetry {
         let (raw, clamped) = Self::can_bus_off_events_to_raw(self.can_bus_off_events);
         saturated += u8::from(clamped);
         runtime::put(out, 66, &raw.to_le_bytes());
-        let (raw, clamped) = Self::can1_error_passive_to_raw(self.can1_error_passive);
+        let (raw, clamped) = Self::vehicle_bus_error_passive_to_raw(self.vehicle_bus_error_passive);
         saturated += u8::from(clamped);
         if raw {
             if let Some(b) = out.get_mut(67) {
                 *b |= 1 << 1;
             }
         }
-        let (raw, clamped) = Self::can1_bus_off_to_raw(self.can1_bus_off);
+        let (raw, clamped) = Self::vehicle_bus_bus_off_to_raw(self.vehicle_bus_bus_off);
         saturated += u8::from(clamped);
         if raw {
             if let Some(b) = out.get_mut(67) {
                 *b |= 1 << 2;
             }
         }
-        let (raw, clamped) = Self::can2_error_passive_to_raw(self.can2_error_passive);
+        let (raw, clamped) =
+            Self::inverter_bus_error_passive_to_raw(self.inverter_bus_error_passive);
         saturated += u8::from(clamped);
         if raw {
             if let Some(b) = out.get_mut(67) {
                 *b |= 1 << 3;
             }
         }
-        let (raw, clamped) = Self::can2_bus_off_to_raw(self.can2_bus_off);
+        let (raw, clamped) = Self::inverter_bus_bus_off_to_raw(self.inverter_bus_bus_off);
         saturated += u8::from(clamped);
         if raw {
             if let Some(b) = out.get_mut(67) {
@@ -2719,16 +2720,16 @@ impl Telemetry {
                 can_bus_off_events: Self::can_bus_off_events_from_raw(u8::from_le_bytes(
                     runtime::take(data, 66),
                 )),
-                can1_error_passive: Self::can1_error_passive_from_raw(
+                vehicle_bus_error_passive: Self::vehicle_bus_error_passive_from_raw(
                     data.get(67).is_some_and(|b| b & (1 << 1) != 0),
                 ),
-                can1_bus_off: Self::can1_bus_off_from_raw(
+                vehicle_bus_bus_off: Self::vehicle_bus_bus_off_from_raw(
                     data.get(67).is_some_and(|b| b & (1 << 2) != 0),
                 ),
-                can2_error_passive: Self::can2_error_passive_from_raw(
+                inverter_bus_error_passive: Self::inverter_bus_error_passive_from_raw(
                     data.get(67).is_some_and(|b| b & (1 << 3) != 0),
                 ),
-                can2_bus_off: Self::can2_bus_off_from_raw(
+                inverter_bus_bus_off: Self::inverter_bus_bus_off_from_raw(
                     data.get(67).is_some_and(|b| b & (1 << 4) != 0),
                 ),
                 dc_main_wire_over_volt_fault: Self::dc_main_wire_over_volt_fault_from_raw(
@@ -2987,13 +2988,13 @@ impl Telemetry {
         visitor.signal(&TELEMETRY_FIELDS[38], Value::from(v), None);
         let v = self.can_bus_off_events;
         visitor.signal(&TELEMETRY_FIELDS[39], Value::from(v), None);
-        let v = self.can1_error_passive;
+        let v = self.vehicle_bus_error_passive;
         visitor.signal(&TELEMETRY_FIELDS[40], Value::from(v), None);
-        let v = self.can1_bus_off;
+        let v = self.vehicle_bus_bus_off;
         visitor.signal(&TELEMETRY_FIELDS[41], Value::from(v), None);
-        let v = self.can2_error_passive;
+        let v = self.inverter_bus_error_passive;
         visitor.signal(&TELEMETRY_FIELDS[42], Value::from(v), None);
-        let v = self.can2_bus_off;
+        let v = self.inverter_bus_bus_off;
         visitor.signal(&TELEMETRY_FIELDS[43], Value::from(v), None);
         let v = self.dc_main_wire_over_volt_fault;
         visitor.signal(&TELEMETRY_FIELDS[44], Value::from(v), None);
@@ -3559,43 +3560,43 @@ impl Telemetry {
         (v, false)
     }
 
-    /// Physical value of `can1_error_passive` for a raw wire value.
-    pub fn can1_error_passive_from_raw(raw: bool) -> bool {
+    /// Physical value of `vehicle_bus_error_passive` for a raw wire value.
+    pub fn vehicle_bus_error_passive_from_raw(raw: bool) -> bool {
         raw
     }
 
-    /// Wire value of `can1_error_passive`, and whether it had to be saturated.
-    pub fn can1_error_passive_to_raw(v: bool) -> (bool, bool) {
+    /// Wire value of `vehicle_bus_error_passive`, and whether it had to be saturated.
+    pub fn vehicle_bus_error_passive_to_raw(v: bool) -> (bool, bool) {
         (v, false)
     }
 
-    /// Physical value of `can1_bus_off` for a raw wire value.
-    pub fn can1_bus_off_from_raw(raw: bool) -> bool {
+    /// Physical value of `vehicle_bus_bus_off` for a raw wire value.
+    pub fn vehicle_bus_bus_off_from_raw(raw: bool) -> bool {
         raw
     }
 
-    /// Wire value of `can1_bus_off`, and whether it had to be saturated.
-    pub fn can1_bus_off_to_raw(v: bool) -> (bool, bool) {
+    /// Wire value of `vehicle_bus_bus_off`, and whether it had to be saturated.
+    pub fn vehicle_bus_bus_off_to_raw(v: bool) -> (bool, bool) {
         (v, false)
     }
 
-    /// Physical value of `can2_error_passive` for a raw wire value.
-    pub fn can2_error_passive_from_raw(raw: bool) -> bool {
+    /// Physical value of `inverter_bus_error_passive` for a raw wire value.
+    pub fn inverter_bus_error_passive_from_raw(raw: bool) -> bool {
         raw
     }
 
-    /// Wire value of `can2_error_passive`, and whether it had to be saturated.
-    pub fn can2_error_passive_to_raw(v: bool) -> (bool, bool) {
+    /// Wire value of `inverter_bus_error_passive`, and whether it had to be saturated.
+    pub fn inverter_bus_error_passive_to_raw(v: bool) -> (bool, bool) {
         (v, false)
     }
 
-    /// Physical value of `can2_bus_off` for a raw wire value.
-    pub fn can2_bus_off_from_raw(raw: bool) -> bool {
+    /// Physical value of `inverter_bus_bus_off` for a raw wire value.
+    pub fn inverter_bus_bus_off_from_raw(raw: bool) -> bool {
         raw
     }
 
-    /// Wire value of `can2_bus_off`, and whether it had to be saturated.
-    pub fn can2_bus_off_to_raw(v: bool) -> (bool, bool) {
+    /// Wire value of `inverter_bus_bus_off`, and whether it had to be saturated.
+    pub fn inverter_bus_bus_off_to_raw(v: bool) -> (bool, bool) {
         (v, false)
     }
 

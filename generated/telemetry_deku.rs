@@ -153,14 +153,18 @@ impl TelemetryFrame {
             ),
             pedal_bus_errors: Telemetry::pedal_bus_errors_from_raw(self.pedal_bus_errors),
             can_bus_off_events: Telemetry::can_bus_off_events_from_raw(self.can_bus_off_events),
-            can1_error_passive: Telemetry::can1_error_passive_from_raw(
+            vehicle_bus_error_passive: Telemetry::vehicle_bus_error_passive_from_raw(
                 self.flags[0] & (1 << 1) != 0,
             ),
-            can1_bus_off: Telemetry::can1_bus_off_from_raw(self.flags[0] & (1 << 2) != 0),
-            can2_error_passive: Telemetry::can2_error_passive_from_raw(
+            vehicle_bus_bus_off: Telemetry::vehicle_bus_bus_off_from_raw(
+                self.flags[0] & (1 << 2) != 0,
+            ),
+            inverter_bus_error_passive: Telemetry::inverter_bus_error_passive_from_raw(
                 self.flags[0] & (1 << 3) != 0,
             ),
-            can2_bus_off: Telemetry::can2_bus_off_from_raw(self.flags[0] & (1 << 4) != 0),
+            inverter_bus_bus_off: Telemetry::inverter_bus_bus_off_from_raw(
+                self.flags[0] & (1 << 4) != 0,
+            ),
             dc_main_wire_over_volt_fault: Telemetry::dc_main_wire_over_volt_fault_from_raw(
                 self.flags[0] & (1 << 5) != 0,
             ),
@@ -242,16 +246,16 @@ impl TelemetryFrame {
         if Telemetry::ready_to_drive_to_raw(t.ready_to_drive).0 {
             flags[0] |= 1 << 0;
         }
-        if Telemetry::can1_error_passive_to_raw(t.can1_error_passive).0 {
+        if Telemetry::vehicle_bus_error_passive_to_raw(t.vehicle_bus_error_passive).0 {
             flags[0] |= 1 << 1;
         }
-        if Telemetry::can1_bus_off_to_raw(t.can1_bus_off).0 {
+        if Telemetry::vehicle_bus_bus_off_to_raw(t.vehicle_bus_bus_off).0 {
             flags[0] |= 1 << 2;
         }
-        if Telemetry::can2_error_passive_to_raw(t.can2_error_passive).0 {
+        if Telemetry::inverter_bus_error_passive_to_raw(t.inverter_bus_error_passive).0 {
             flags[0] |= 1 << 3;
         }
-        if Telemetry::can2_bus_off_to_raw(t.can2_bus_off).0 {
+        if Telemetry::inverter_bus_bus_off_to_raw(t.inverter_bus_bus_off).0 {
             flags[0] |= 1 << 4;
         }
         if Telemetry::dc_main_wire_over_volt_fault_to_raw(t.dc_main_wire_over_volt_fault).0 {

@@ -5,6 +5,10 @@
 //! other channel, so it never blocks waiting for a conversion. Each channel updates about
 //! every 2.3 ms.
 //!
+//! A failed transaction backs the driver off for [`ERROR_BACKOFF_POLLS`] polls, so a converter
+//! or bus that fails (each failure bounded in time by the I2C controller's pin-low timeout)
+//! costs at most one transaction every 10 ms instead of two every millisecond.
+//!
 //! A poll reports only conversions that finished since the last one. A converter that stops
 //! answering therefore delivers nothing, and the pedal channel's freshness check
 //! ([`crate::apps`]) turns that into a fault, instead of the last good counts being
@@ -16,6 +20,10 @@ use embedded_hal::i2c::I2c;
 
 /// I2C address with ADDR tied to ground.
 pub const ADDRESS: u8 = 0x48;
+
+/// Polls skipped after a failed transaction (at 1 kHz: the converter is retried every 10 ms,
+/// well inside the pedal channel's 20 ms conversion timeout once it answers again).
+pub const ERROR_BACKOFF_POLLS: u8 = 9;
 
 const REG_CONVERSION: u8 = 0x00;
 const REG_CONFIG: u8 = 0x01;
@@ -58,6 +66,8 @@ pub struct Ads1115<B> {
     converting: Option<u8>,
     /// The channel to start next.
     next: u8,
+    /// Polls still to skip after a failure.
+    backoff: u8,
     /// I2C transactions that failed (counted; the firmware reports them in telemetry).
     pub bus_errors: u32,
 }
@@ -69,6 +79,7 @@ impl<B: I2c> Ads1115<B> {
             bus,
             converting: None,
             next: 0,
+            backoff: 0,
             bus_errors: 0,
         }
     }
@@ -79,6 +90,10 @@ impl<B: I2c> Ads1115<B> {
     /// also reads "done", and its result register still holds an old value.
     pub fn poll(&mut self) -> Conversions {
         let mut fresh = [None, None];
+        if self.backoff > 0 {
+            self.backoff -= 1;
+            return fresh;
+        }
         if let Some(channel) = self.converting {
             match self.read_finished() {
                 Ok(Some(counts)) => {
@@ -127,5 +142,6 @@ impl<B: I2c> Ads1115<B> {
 
     fn count_error(&mut self) {
         self.bus_errors = self.bus_errors.wrapping_add(1);
+        self.backoff = ERROR_BACKOFF_POLLS;
     }
 }

@@ -244,12 +244,13 @@ impl Control {
             wrap(self.bus.decode_errors.wrapping_add(self.bus.unknown_ids));
         snapshot.telemetry_superseded = wrap(link.superseded);
         snapshot.pedal_bus_errors = wrap(driver.pedal_bus_errors);
-        let [can1, can2] = driver.buses;
-        snapshot.can_bus_off_events = wrap(can1.bus_off_events.wrapping_add(can2.bus_off_events));
-        snapshot.can1_error_passive = can1.error_passive;
-        snapshot.can1_bus_off = can1.bus_off;
-        snapshot.can2_error_passive = can2.error_passive;
-        snapshot.can2_bus_off = can2.bus_off;
+        let [vehicle, inverter] = driver.buses;
+        snapshot.can_bus_off_events =
+            wrap(vehicle.bus_off_events.wrapping_add(inverter.bus_off_events));
+        snapshot.vehicle_bus_error_passive = vehicle.error_passive;
+        snapshot.vehicle_bus_bus_off = vehicle.bus_off;
+        snapshot.inverter_bus_error_passive = inverter.error_passive;
+        snapshot.inverter_bus_bus_off = inverter.bus_off;
         snapshot
     }
 }

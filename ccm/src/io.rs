@@ -88,6 +88,6 @@ pub struct DriverCounters {
     pub tx_dropped: u32,
     /// Failed I2C transactions with the pedal converter.
     pub pedal_bus_errors: u32,
-    /// CAN1 and CAN2.
+    /// The vehicle bus (FlexCAN3: BMS, charger, PCC, the Pi) and the inverter bus (FlexCAN2).
     pub buses: [BusHealth; 2],
 }

@@ -1,6 +1,6 @@
 //! The ADS1115 driver against a simulated converter on an in-memory I2C bus.
 
-use aer_ccm::ads1115::{ADDRESS, Ads1115, config_for};
+use aer_ccm::ads1115::{ADDRESS, Ads1115, ERROR_BACKOFF_POLLS, config_for};
 use embedded_hal::i2c::{ErrorKind, ErrorType, I2c, Operation};
 use std::cell::Cell;
 use std::rc::Rc;
@@ -14,6 +14,8 @@ struct Simulated {
     latency: u32,
     result: i16,
     fail: bool,
+    /// Transactions attempted, shared with the test.
+    transactions: Rc<Cell<u32>>,
     writes: Vec<Vec<u8>>,
     /// Start commands (config writes) still to refuse, shared with the test.
     refuse_starts: Rc<Cell<u32>>,
@@ -34,6 +36,7 @@ impl I2c for Simulated {
         operations: &mut [Operation<'_>],
     ) -> Result<(), Self::Error> {
         assert_eq!(address, ADDRESS);
+        self.transactions.set(self.transactions.get() + 1);
         if self.fail {
             return Err(ErrorKind::Other);
         }
@@ -92,6 +95,7 @@ fn converter(latency: u32) -> Simulated {
         latency,
         result: 0,
         fail: false,
+        transactions: Rc::default(),
         writes: Vec::new(),
         refuse_starts: Rc::default(),
         unread: false,
@@ -121,11 +125,44 @@ fn a_converter_that_stops_answering_delivers_nothing_and_is_counted() {
     // Issue 12: the driver previously repeated the last good counts, freezing the throttle.
     let mut failing = converter(0);
     failing.fail = true;
+    let transactions = Rc::clone(&failing.transactions);
     let mut broken = Ads1115::new(failing);
-    for _ in 0..10 {
+    for _ in 0..100 {
         assert_eq!(broken.poll(), [None, None]);
     }
-    assert_eq!(broken.bus_errors, 10, "every failed start is counted");
+    // A stuck bus (each transaction ended by the controller's timeout) costs one attempt per
+    // backoff period, not two transactions every millisecond: the sensor task cannot starve
+    // the others.
+    let period = u32::from(ERROR_BACKOFF_POLLS) + 1;
+    assert_eq!(
+        broken.bus_errors,
+        100 / period,
+        "every failed start is counted"
+    );
+    assert_eq!(transactions.get(), 100 / period);
+}
+
+#[test]
+fn a_converter_that_answers_again_delivers_again_after_the_backoff() {
+    let sim = converter(0);
+    let refuse = Rc::clone(&sim.refuse_starts);
+    let transactions = Rc::clone(&sim.transactions);
+    let mut ads = Ads1115::new(sim);
+    refuse.set(1);
+    assert_eq!(ads.poll(), [None, None], "the start is refused");
+    assert_eq!(ads.bus_errors, 1);
+    let after_failure = transactions.get();
+    for _ in 0..ERROR_BACKOFF_POLLS {
+        assert_eq!(ads.poll(), [None, None]);
+    }
+    assert_eq!(
+        transactions.get(),
+        after_failure,
+        "no transaction while backing off"
+    );
+    let delivered: usize = (0..20).map(|_| ads.poll().iter().flatten().count()).sum();
+    assert!(delivered >= 5, "{delivered}");
+    assert_eq!(ads.bus_errors, 1);
 }
 
 #[test]
@@ -137,13 +174,13 @@ fn a_start_that_was_not_acknowledged_is_never_read_back() {
     let stale = Rc::clone(&sim.stale_reads);
     let mut ads = Ads1115::new(sim);
     let mut delivered = 0;
-    for poll in 0..40 {
-        if poll % 7 == 3 {
+    for poll in 0..200 {
+        if poll % 20 == 3 {
             refuse.set(1);
         }
         delivered += ads.poll().iter().flatten().count();
     }
-    assert!(delivered > 10, "{delivered}");
+    assert!(delivered > 50, "{delivered}");
     assert_eq!(stale.get(), 0, "result read without a new conversion");
     assert!(ads.bus_errors >= 5);
 }

@@ -220,8 +220,8 @@ fn can_controller_health_and_drops_reach_telemetry() {
         ],
     });
     let snapshot = rig.ccm.snapshot();
-    assert!(snapshot.can1_error_passive && !snapshot.can1_bus_off);
-    assert!(snapshot.can2_bus_off && !snapshot.can2_error_passive);
+    assert!(snapshot.vehicle_bus_error_passive && !snapshot.vehicle_bus_bus_off);
+    assert!(snapshot.inverter_bus_bus_off && !snapshot.inverter_bus_error_passive);
     assert_eq!(snapshot.can_bus_off_events, 3);
     assert_eq!(snapshot.can_tx_dropped, 4);
     assert_eq!(snapshot.pedal_bus_errors, 44, "300 wraps at 256");

@@ -1,7 +1,7 @@
 //! A small FlexCAN driver for the i.MX RT1062 (Teensy 4.0 and 4.1), shared by the CCM and PCC
 //! firmware. imxrt-hal 0.6 has none.
 //!
-//! What it does: classic CAN (no CAN FD) on CAN1 or CAN2 from the 24 MHz oscillator, exact
+//! What it does: classic CAN (no CAN FD) on CAN1, CAN2 or CAN3 from the 24 MHz oscillator, exact
 //! bit timing ([`timing`]), reception through the 6-deep hardware RX FIFO (ordered, with a
 //! hardware overflow flag that is counted), transmission from 7 mailboxes. Frames with the same
 //! identifier leave in the order they were queued: a frame is refused with
@@ -16,11 +16,16 @@
 //! itself is the controller's automatic one (CTRL1.BOFFREC clear): after 128 occurrences of
 //! 11 recessive bits it is error-active again.
 //!
+//! CAN3 is the CAN FD-capable instance with a register block of its own; with MCR.FDEN clear it
+//! is a classic controller whose registers this driver uses sit at the same offsets as on
+//! CAN1/CAN2 (checked at compile time against imxrt-ral's two register blocks, [`can3`]).
+//!
 //! Register facts are from the i.MX RT1060 reference manual, chapter "FlexCAN"; the errata
-//! workaround is ERR005829 (a mailbox armed during arbitration can be skipped unless the first
-//! free mailbox is written inactive twice afterwards).
+//! workarounds are ERR005829 (a mailbox armed during arbitration can be skipped unless the first
+//! free mailbox is written inactive twice afterwards) and ERR006032 (see [`Flexcan::abort`]).
 #![no_std]
 
+pub mod can3;
 mod frame;
 pub mod timing;
 
@@ -53,6 +58,8 @@ const MCR_AEN: u32 = 1 << 12;
 // ESR1: entered bus-off (write 1 to clear), and the fault confinement field.
 const ESR1_BOFFINT: u32 = 1 << 2;
 const ESR1_FLTCONF_SHIFT: u32 = 4;
+// CTRL1: internal loopback.
+const CTRL1_LPB: u32 = 1 << 12;
 // CTRL2: store received remote frames instead of answering them automatically.
 const CTRL2_RRS: u32 = 1 << 17;
 // IFLAG1 bits while the RX FIFO is on: frame available, almost full, overflow.
@@ -132,7 +139,23 @@ pub struct BusStatus {
     pub tx_dropped: u32,
 }
 
-/// A started FlexCAN controller. `N` is the instance number (1 or 2).
+impl Flexcan<3> {
+    /// Clocks, resets and starts FlexCAN3 in classic CAN mode at `bitrate` on the Teensy 4.1's
+    /// pins 31 (TX) and 30 (RX), receiving every frame, as [`Flexcan::new`] does for CAN1/CAN2.
+    pub fn new_can3(
+        regs: ral::can3::CAN3,
+        mut tx: can3::TxPad,
+        mut rx: can3::RxPad,
+        ccm: &ral::ccm::CCM,
+        bitrate: u32,
+    ) -> Result<Self, InitError> {
+        enable_clock::<3>(ccm)?;
+        can3::mux_pins(&mut tx, &mut rx);
+        Self::start(can3::classic_view(regs), bitrate)
+    }
+}
+
+/// A started FlexCAN controller. `N` is the instance number (1, 2 or 3).
 pub struct Flexcan<const N: u8> {
     regs: ral::can::Instance<N>,
     rx_fifo_overflows: u32,
@@ -157,10 +180,14 @@ impl<const N: u8> Flexcan<N> {
         TX: Pin<Signal = Tx, Module = Const<N>>,
         RX: Pin<Signal = Rx, Module = Const<N>>,
     {
-        let timing = BitTiming::for_bitrate(CAN_CLOCK_HZ, bitrate).map_err(InitError::Bitrate)?;
         enable_clock::<N>(ccm)?;
         imxrt_iomuxc::flexcan::prepare(&mut tx);
         imxrt_iomuxc::flexcan::prepare(&mut rx);
+        Self::start(regs, bitrate)
+    }
+
+    fn start(regs: ral::can::Instance<N>, bitrate: u32) -> Result<Self, InitError> {
+        let timing = BitTiming::for_bitrate(CAN_CLOCK_HZ, bitrate).map_err(InitError::Bitrate)?;
         let mut can = Self {
             regs,
             rx_fifo_overflows: 0,
@@ -171,7 +198,31 @@ impl<const N: u8> Flexcan<N> {
         Ok(can)
     }
 
+    /// Switches the controller's internal loopback on or off (CTRL1.LPB, with self-reception
+    /// while it is on): frames sent are received by this controller and nothing reaches the
+    /// bus. The bring-up images use it to test a controller without a second node.
+    pub fn set_loopback(&mut self, on: bool) -> Result<(), InitError> {
+        ral::modify_reg!(ral::can, self.regs, MCR, |mcr| mcr | MCR_FRZ | MCR_HALT);
+        self.wait_mcr(MCR_FRZACK, true, "enter freeze mode")?;
+        ral::modify_reg!(ral::can, self.regs, CTRL1, |ctrl1| if on {
+            ctrl1 | CTRL1_LPB
+        } else {
+            ctrl1 & !CTRL1_LPB
+        });
+        ral::modify_reg!(ral::can, self.regs, MCR, |mcr| if on {
+            mcr & !MCR_SRXDIS
+        } else {
+            mcr | MCR_SRXDIS
+        });
+        ral::modify_reg!(ral::can, self.regs, MCR, |mcr| mcr & !(MCR_FRZ | MCR_HALT));
+        self.wait_mcr(MCR_FRZACK, false, "leave freeze mode")?;
+        self.wait_mcr(MCR_NOTRDY, false, "synchronise to the bus")
+    }
+
     fn configure(&mut self, timing: BitTiming) -> Result<(), InitError> {
+        // CAN3 only: classic CAN (FDEN is reserved and zero on CAN1/CAN2). Writable only while
+        // the module is disabled, and left at its reset value by every later MCR write.
+        ral::modify_reg!(ral::can, self.regs, MCR, |mcr| mcr & !can3::MCR_FDEN);
         ral::modify_reg!(ral::can, self.regs, MCR, |mcr| mcr & !MCR_MDIS);
         self.wait_mcr(MCR_LPMACK, false, "leave low-power mode")?;
         ral::modify_reg!(ral::can, self.regs, MCR, |mcr| mcr | MCR_SOFTRST);
@@ -191,7 +242,8 @@ impl<const N: u8> Flexcan<N> {
         // RX FIFO, individual masks, no self-reception, user mode, warnings, transmit abort,
         // buffers 0..=15.
         let maxmb = u32::try_from(LAST_MB).unwrap_or(15);
-        let mcr = ral::read_reg!(ral::can, self.regs, MCR) & !(MCR_SUPV | 0x7F | (0b11 << 8));
+        let mcr = ral::read_reg!(ral::can, self.regs, MCR)
+            & !(MCR_SUPV | 0x7F | (0b11 << 8) | can3::MCR_FDEN);
         ral::write_reg!(
             ral::can,
             self.regs,
@@ -382,12 +434,14 @@ impl<const N: u8> Flexcan<N> {
     }
 }
 
-/// Selects the 24 MHz oscillator for the CAN clock root and ungates instance `N`'s clocks.
+/// Selects the 24 MHz oscillator for the CAN clock root (shared by all three instances) and
+/// ungates instance `N`'s clocks: CCGR0 CG7/CG8 (CAN1), CG9/CG10 (CAN2), CCGR7 CG3/CG4 (CAN3).
 fn enable_clock<const N: u8>(ccm: &ral::ccm::CCM) -> Result<(), InitError> {
     ral::modify_reg!(ral::ccm, ccm, CSCMR2, CAN_CLK_SEL: 1, CAN_CLK_PODF: 0);
     match N {
         1 => ral::modify_reg!(ral::ccm, ccm, CCGR0, CG7: 0b11, CG8: 0b11),
         2 => ral::modify_reg!(ral::ccm, ccm, CCGR0, CG9: 0b11, CG10: 0b11),
+        3 => ral::modify_reg!(ral::ccm, ccm, CCGR7, CG3: 0b11, CG4: 0b11),
         _ => return Err(InitError::WrongPins),
     }
     Ok(())

@@ -1,21 +1,25 @@
 //! CCM firmware for the Teensy 4.1 (RTIC 2).
 //!
 //! Tasks, highest priority first:
-//! - `wheel_edge` (GPIO3 interrupt, 5): time-stamps front wheel-speed pulses into lock-free
+//! - `wheel_edge` (GPIO4 interrupt, 5): time-stamps front wheel-speed pulses into lock-free
 //!   timers; it shares no resource, so no lock ever masks it.
-//! - `sensors` (1 kHz, 4): on-chip ADC (brakes, shocks) and the ADS1115 (pedals).
-//! - `can1_receive` / `can2_receive` (CAN interrupts, 3): drain the FlexCAN FIFOs into bounded
-//!   queues (overflows counted); the Pi's ISO-TP flow control (0x777) goes straight to the
-//!   telemetry sender.
+//! - `sensors` (1 kHz, 4): on-chip ADC (pedals, brakes, shocks), or the ADS1115 for the pedals
+//!   on that board option (every I2C transaction bounded by the controller's pin-low timeout,
+//!   and a failing converter backed off, so a stuck bus cannot starve the other tasks).
+//! - `vehicle_receive` (CAN3) / `inverter_receive` (CAN2) (interrupts, 3): drain the FlexCAN
+//!   FIFOs into bounded queues (overflows counted); the Pi's ISO-TP flow control (0x777) goes
+//!   straight to the telemetry sender.
 //! - `control` (100 Hz, 2): CAN intake, bus health, state machine, torque, outputs;
 //!   VCU1/BMS1/BMS2 every 20 ms (a VCU1 still pending replaces the older one), CCM_Status
 //!   every 100 ms.
-//! - `telemetry` (100 Hz, 1): snapshot -> generated packer -> ISO-TP on 0x666.
+//! - `telemetry` (100 Hz, 1): snapshot -> generated packer -> ISO-TP on 0x666 on CAN3.
 //! - `watchdog` (10 Hz, 1): feeds WDOG1 (1 s timeout) only while every task's heartbeat is
 //!   younger than 100 ms.
 //!
 //! Every decision is in the `aer_ccm` library; this file moves data between it and the
-//! hardware. Torque is zero until the first control step says otherwise.
+//! hardware, whose pins come from `board.rs` (checked against `aer_boards::ccm`). Torque is
+//! zero until the first control step says otherwise. The LED on pin 13 blinks at 1 Hz while
+//! the control task runs.
 //!
 //! Shared state is split by writer, so each lock's ceiling is only as high as its users:
 //! `sensors` (written at 4; read by control and telemetry), `link` (the receive interrupts at
@@ -34,7 +38,9 @@ mod app {
     use crate::pwm::PwmBlock;
     use aer::can::CcmStatus;
     use aer::telemetry::Telemetry;
+    #[cfg(feature = "pedals-ads1115")]
     use aer_ccm::ads1115::Ads1115;
+    use aer_ccm::analog;
     use aer_ccm::apps::AppsCalibration;
     use aer_ccm::chassis::PulseTimer;
     use aer_ccm::config::WHEEL_TEETH;
@@ -54,7 +60,10 @@ mod app {
     use rtic_monotonics::imxrt::prelude::*;
     use teensy4_bsp::{
         board as bsp,
-        hal::{self, adc, flexpwm, gpio},
+        hal::{
+            self, adc, flexpwm, gpio,
+            iomuxc::{self, Config, PullKeeper},
+        },
         ral,
     };
 
@@ -68,7 +77,8 @@ mod app {
     /// Frames not sent: every mailbox busy (bus-off or flooded bus), or the frame could not
     /// be encoded. Reported in telemetry with the controllers' own drops.
     static TX_NOT_SENT: AtomicU32 = AtomicU32::new(0);
-    /// Failed I2C transactions with the pedal converter (copied from the sensors task).
+    /// Failed I2C transactions with the pedal converter (copied from the sensors task; stays 0
+    /// with the pedals on the on-chip ADC).
     static PEDAL_BUS_ERRORS: AtomicU32 = AtomicU32::new(0);
     /// Front wheel pulse times: written only by `wheel_edge`, read by `control`.
     static WHEELS: [PulseTimer; 2] = [PulseTimer::new(), PulseTimer::new()];
@@ -78,102 +88,123 @@ mod app {
         sensors: Sensors,
         link: TelemetryLink,
         control: Control,
-        can1: Flexcan<1>,
-        can2: Flexcan<2>,
+        vehicle_can: Flexcan<3>,
+        inverter_can: Flexcan<2>,
         supervisor: Supervisor,
     }
+
+    /// The pedal front-end: the on-chip ADC's two inputs, or the ADS1115.
+    #[cfg(not(feature = "pedals-ads1115"))]
+    type PedalFrontEnd = [adc::AnalogInput; 2];
+    #[cfg(feature = "pedals-ads1115")]
+    type PedalFrontEnd = Ads1115<hal::lpi2c::Lpi2c>;
 
     #[local]
     struct Local {
         adc: adc::Adc,
+        /// BSE1, BSE2, shocks 1-4.
         analog: [adc::AnalogInput; 6],
-        ads: Ads1115<hal::lpi2c::Lpi2c>,
+        pedals: PedalFrontEnd,
         wheel_left: gpio::Input,
         wheel_right: gpio::Input,
         ready_to_move: gpio::Input,
         launch: gpio::Input,
         brake_light: gpio::Output,
-        cooling: PwmBlock,
+        led: gpio::Output,
+        pumps: PwmBlock,
+        fan: PwmBlock,
         buzzer: PwmBlock,
-        can1_rx: Producer<'static, CanFrame>,
-        can2_rx: Producer<'static, CanFrame>,
-        can1_frames: Consumer<'static, CanFrame>,
-        can2_frames: Consumer<'static, CanFrame>,
+        vehicle_rx: Producer<'static, CanFrame>,
+        inverter_rx: Producer<'static, CanFrame>,
+        vehicle_frames: Consumer<'static, CanFrame>,
+        inverter_frames: Consumer<'static, CanFrame>,
         wdog: ral::wdog::WDOG1,
     }
 
     #[init(local = [
-        queue1: Queue<CanFrame, RX_QUEUE> = Queue::new(),
-        queue2: Queue<CanFrame, RX_QUEUE> = Queue::new(),
+        vehicle_queue: Queue<CanFrame, RX_QUEUE> = Queue::new(),
+        inverter_queue: Queue<CanFrame, RX_QUEUE> = Queue::new(),
     ])]
     fn init(cx: init::Context) -> (Shared, Local) {
         let bsp::Resources {
             pins,
             mut gpio2,
-            mut gpio3,
             mut gpio4,
             mut gpt1,
             ccm,
             adc1,
             lpi2c1,
+            flexpwm1,
             flexpwm2,
-            flexpwm4,
+            flexpwm3,
             ..
         } = bsp::t41(cx.device);
-        let pins = board::pins(pins);
+        let mut pins = board::pins(pins);
 
         let Ok(brake_light) = gpio2.output(pins.brake_light) else {
             halt()
         };
+        let Ok(led) = gpio2.output(pins.led) else {
+            halt()
+        };
+        // The buttons read low (off) when a wire is open; the wheel-speed sensors' open
+        // collectors need the pull-up.
+        let pull_down = Config::modify().set_pull_keeper(Some(PullKeeper::Pulldown100k));
+        let pull_up = Config::modify().set_pull_keeper(Some(PullKeeper::Pullup22k));
+        iomuxc::configure(&mut pins.ready_to_move, pull_down);
+        iomuxc::configure(&mut pins.launch, pull_down);
+        iomuxc::configure(&mut pins.wheels.0, pull_up);
+        iomuxc::configure(&mut pins.wheels.1, pull_up);
         let (Ok(ready_to_move), Ok(launch)) =
             (gpio2.input(pins.ready_to_move), gpio4.input(pins.launch))
         else {
             halt()
         };
         let (Ok(wheel_left), Ok(wheel_right)) =
-            (gpio3.input(pins.wheels.0), gpio3.input(pins.wheels.1))
+            (gpio4.input(pins.wheels.0), gpio4.input(pins.wheels.1))
         else {
             halt()
         };
         let rising = Some(gpio::Trigger::RisingEdge);
-        if gpio3.set_interrupt(&wheel_left, rising).is_err()
-            || gpio3.set_interrupt(&wheel_right, rising).is_err()
+        if gpio4.set_interrupt(&wheel_left, rising).is_err()
+            || gpio4.set_interrupt(&wheel_right, rising).is_err()
         {
             halt();
         }
 
-        let (fan_pin, pump_pin) = pins.cooling;
-        let mut fan_pin = fan_pin;
-        let mut pump_pin = pump_pin;
+        let (mut pump1, mut pump2) = pins.pumps;
+        let mut fan_pin = pins.fan;
         let mut buzzer_pin = pins.buzzer;
+        hal::iomuxc::flexpwm::prepare(&mut pump1);
+        hal::iomuxc::flexpwm::prepare(&mut pump2);
         hal::iomuxc::flexpwm::prepare(&mut fan_pin);
-        hal::iomuxc::flexpwm::prepare(&mut pump_pin);
         hal::iomuxc::flexpwm::prepare(&mut buzzer_pin);
-        let Some(cooling) = PwmBlock::new(flexpwm4, flexpwm::SM::SM2, board::COOLING_PWM_HZ) else {
-            halt()
-        };
-        let Some(buzzer) = PwmBlock::new(flexpwm2, flexpwm::SM::SM0, board::BUZZER_HZ) else {
+        let (Some(pumps), Some(fan), Some(buzzer)) = (
+            PwmBlock::new(flexpwm3, flexpwm::SM::SM1, board::PUMP_PWM_HZ),
+            PwmBlock::new(flexpwm1, flexpwm::SM::SM3, board::FAN_PWM_HZ),
+            PwmBlock::new(flexpwm2, flexpwm::SM::SM0, board::BUZZER_HZ),
+        ) else {
             halt()
         };
 
         let mut adc = adc1;
         adc.set_resolution(adc::ResolutionBits::Res12);
-        let (brake_front, brake_rear) = pins.brakes;
-        let (fl, fr, rl, rr) = pins.shocks;
-        let (Ok(a0), Ok(a1), Ok(a2), Ok(a3), Ok(a6), Ok(a7)) = (
-            adc.input::<_, 1>(brake_front),
-            adc.input::<_, 1>(brake_rear),
-            adc.input::<_, 1>(fl),
-            adc.input::<_, 1>(fr),
-            adc.input::<_, 1>(rl),
-            adc.input::<_, 1>(rr),
+        let (bse1, bse2) = pins.brakes;
+        let (s1, s2, s3, s4) = pins.shocks;
+        let (Ok(a3), Ok(a2), Ok(a6), Ok(a7), Ok(a8), Ok(a9)) = (
+            adc.input::<_, 1>(bse1),
+            adc.input::<_, 1>(bse2),
+            adc.input::<_, 1>(s1),
+            adc.input::<_, 1>(s2),
+            adc.input::<_, 1>(s3),
+            adc.input::<_, 1>(s4),
         ) else {
             halt()
         };
-
-        let (scl, sda) = pins.i2c;
-        let i2c = bsp::lpi2c(lpi2c1, scl, sda, bsp::Lpi2cClockSpeed::KHz400);
-        let ads = Ads1115::new(i2c);
+        let pedals = pedal_front_end(&mut adc, pins.pedals, lpi2c1);
+        // Thermistor 1 has no telemetry field yet: the bring-up image reads it, this one
+        // leaves the pad alone.
+        let _thermistor = pins.thermistor;
 
         gpt1.set_clock_source(hal::gpt::ClockSource::PeripheralClock);
         gpt1.set_divider(bsp::PERCLK_FREQUENCY / 1_000_000);
@@ -184,27 +215,27 @@ mod app {
         );
 
         // SAFETY: the BSP does not hand out FlexCAN or WDOG1; nothing else uses them.
-        let (can1_regs, can2_regs, wdog) = unsafe {
+        let (can3_regs, can2_regs, wdog) = unsafe {
             (
-                ral::can::CAN1::instance(),
+                ral::can3::CAN3::instance(),
                 ral::can::CAN2::instance(),
                 ral::wdog::WDOG1::instance(),
             )
         };
-        let (tx1, rx1) = pins.can1;
-        let (tx2, rx2) = pins.can2;
-        let (Ok(mut can1), Ok(mut can2)) = (
-            Flexcan::new(can1_regs, tx1, rx1, &ccm, board::CAN_BITRATE),
+        let (tx3, rx3) = pins.vehicle_can;
+        let (tx2, rx2) = pins.inverter_can;
+        let (Ok(mut vehicle_can), Ok(mut inverter_can)) = (
+            Flexcan::new_can3(can3_regs, tx3, rx3, &ccm, board::CAN_BITRATE),
             Flexcan::new(can2_regs, tx2, rx2, &ccm, board::CAN_BITRATE),
         ) else {
             halt()
         };
-        can1.enable_rx_interrupt();
-        can2.enable_rx_interrupt();
+        vehicle_can.enable_rx_interrupt();
+        inverter_can.enable_rx_interrupt();
         start_watchdog(&wdog);
 
-        let (can1_rx, can1_frames) = cx.local.queue1.split();
-        let (can2_rx, can2_frames) = cx.local.queue2.split();
+        let (vehicle_rx, vehicle_frames) = cx.local.vehicle_queue.split();
+        let (inverter_rx, inverter_frames) = cx.local.inverter_queue.split();
         if sensors::spawn().is_err()
             || control::spawn().is_err()
             || telemetry::spawn().is_err()
@@ -217,29 +248,70 @@ mod app {
                 sensors: Sensors::new(AppsCalibration::DEFAULT),
                 link: TelemetryLink::new(),
                 control: Control::new(),
-                can1,
-                can2,
+                vehicle_can,
+                inverter_can,
                 supervisor: Supervisor::default(),
             },
             Local {
                 adc,
-                analog: [a0, a1, a2, a3, a6, a7],
-                ads,
+                analog: [a3, a2, a6, a7, a8, a9],
+                pedals,
                 wheel_left,
                 wheel_right,
                 ready_to_move,
                 launch,
                 brake_light,
-                cooling,
+                led,
+                pumps,
+                fan,
                 buzzer,
-                can1_rx,
-                can2_rx,
-                can1_frames,
-                can2_frames,
+                vehicle_rx,
+                inverter_rx,
+                vehicle_frames,
+                inverter_frames,
                 wdog,
             },
         )
     }
+
+    /// APPS1 (A5) and APPS2 (A4) on the on-chip ADC.
+    #[cfg(not(feature = "pedals-ads1115"))]
+    fn pedal_front_end(
+        adc: &mut adc::Adc,
+        (apps1, apps2): board::PedalPins,
+        _: ral::lpi2c::LPI2C1,
+    ) -> PedalFrontEnd {
+        let (Ok(apps1), Ok(apps2)) = (adc.input::<_, 1>(apps1), adc.input::<_, 1>(apps2)) else {
+            halt()
+        };
+        [apps1, apps2]
+    }
+
+    /// The ADS1115 on LPI2C1 (SCL 19, SDA 18), with the controller's pin-low timeout on:
+    /// SCL or SDA held low for about 1 ms ends the transaction with an error instead of a
+    /// wait without end (imxrt-hal's blocking I2C has no timeout of its own).
+    #[cfg(feature = "pedals-ads1115")]
+    fn pedal_front_end(
+        _: &mut adc::Adc,
+        (scl, sda): board::PedalPins,
+        lpi2c1: ral::lpi2c::LPI2C1,
+    ) -> PedalFrontEnd {
+        let mut i2c = bsp::lpi2c(lpi2c1, scl, sda, bsp::Lpi2cClockSpeed::KHz400);
+        i2c.disabled(|_| {
+            // SAFETY: LPI2C1 is owned by `i2c` and disabled inside this closure; only its
+            // timeout configuration changes.
+            let regs = unsafe { ral::lpi2c::LPI2C1::instance() };
+            // TIMECFG = 1: the timeout watches SDA as well as SCL.
+            ral::modify_reg!(ral::lpi2c, regs, MCFGR1, TIMECFG: 1);
+            ral::modify_reg!(ral::lpi2c, regs, MCFGR3, PINLOW: I2C_PIN_LOW_TIMEOUT);
+        });
+        Ads1115::new(i2c)
+    }
+
+    /// MCFGR3.PINLOW in units of 256 LPI2C clock cycles (8 MHz, prescaler 1 at 400 kHz):
+    /// 32 x 32 us = about 1 ms.
+    #[cfg(feature = "pedals-ads1115")]
+    const I2C_PIN_LOW_TIMEOUT: u32 = 32;
 
     /// Start-up failed (a pin on the wrong port, a controller that does not start): outputs
     /// stay unconfigured (no torque is ever commanded) and the watchdog is never started.
@@ -270,7 +342,7 @@ mod app {
         ral::write_reg!(ral::wdog, wdog, WSR, 0xAAAA);
     }
 
-    #[task(binds = GPIO3_COMBINED_16_31, priority = 5, local = [wheel_left, wheel_right])]
+    #[task(binds = GPIO4_COMBINED_0_15, priority = 5, local = [wheel_left, wheel_right])]
     fn wheel_edge(cx: wheel_edge::Context) {
         let now = now_us();
         let [left, right] = &WHEELS;
@@ -284,26 +356,26 @@ mod app {
         }
     }
 
-    #[task(priority = 4, local = [adc, analog, ads], shared = [sensors, supervisor])]
+    #[task(priority = 4, local = [adc, analog, pedals], shared = [sensors, supervisor])]
     async fn sensors(mut cx: sensors::Context) {
         let mut next = Mono::now();
         loop {
             next += 1u64.millis();
-            let [brake_front, brake_rear, fl, fr, rl, rr] = cx
+            let adc = &mut cx.local.adc;
+            let [bse1, bse2, s1, s2, s3, s4] = cx
                 .local
                 .analog
                 .each_mut()
-                .map(|input| cx.local.adc.read_blocking(input));
-            let volts = |counts: u16| f32::from(counts) * board::ADC_REFERENCE_V / 4095.0;
+                .map(|input| adc.read_blocking(input));
+            let divider = board::REVISION.adc_divider;
             let sample = SensorSample {
-                apps_v: aer_ccm::ads1115::pedal_volts(cx.local.ads.poll()),
+                apps_v: read_pedals(adc, cx.local.pedals),
                 brake_v: (
-                    volts(brake_front) * board::BRAKE_DIVIDER,
-                    volts(brake_rear) * board::BRAKE_DIVIDER,
+                    analog::sensor_volts(bse1, divider),
+                    analog::sensor_volts(bse2, divider),
                 ),
-                shock_raw: [fl, fr, rl, rr],
+                shock_raw: [s1, s2, s3, s4],
             };
-            PEDAL_BUS_ERRORS.store(cx.local.ads.bus_errors, Ordering::Relaxed);
             let now = now_ms();
             cx.shared
                 .sensors
@@ -313,6 +385,22 @@ mod app {
                 .lock(|supervisor| supervisor.beat(Task::Sensors, now));
             Mono::delay_until(next).await;
         }
+    }
+
+    #[cfg(not(feature = "pedals-ads1115"))]
+    fn read_pedals(
+        adc: &mut adc::Adc,
+        [apps1, apps2]: &mut PedalFrontEnd,
+    ) -> aer_ccm::apps::PedalVolts {
+        let counts = [adc.read_blocking(apps1), adc.read_blocking(apps2)];
+        analog::pedal_volts(counts, board::REVISION.adc_divider)
+    }
+
+    #[cfg(feature = "pedals-ads1115")]
+    fn read_pedals(_: &mut adc::Adc, ads: &mut PedalFrontEnd) -> aer_ccm::apps::PedalVolts {
+        let volts = aer_ccm::ads1115::pedal_volts(ads.poll());
+        PEDAL_BUS_ERRORS.store(ads.bus_errors, Ordering::Relaxed);
+        volts
     }
 
     /// Drains a FIFO; the Pi's flow control goes to the telemetry sender at once.
@@ -335,18 +423,18 @@ mod app {
         StandardId::new(Telemetry::FLOW_CONTROL_ID).unwrap_or(StandardId::MAX)
     }
 
-    #[task(binds = CAN1, priority = 3, local = [can1_rx], shared = [can1, link])]
-    fn can1_receive(mut cx: can1_receive::Context) {
-        let queue = cx.local.can1_rx;
+    #[task(binds = CAN3, priority = 3, local = [vehicle_rx], shared = [vehicle_can, link])]
+    fn vehicle_receive(mut cx: vehicle_receive::Context) {
+        let queue = cx.local.vehicle_rx;
         let link = &mut cx.shared.link;
-        cx.shared.can1.lock(|can| drain(can, queue, link));
+        cx.shared.vehicle_can.lock(|can| drain(can, queue, link));
     }
 
-    #[task(binds = CAN2, priority = 3, local = [can2_rx], shared = [can2, link])]
-    fn can2_receive(mut cx: can2_receive::Context) {
-        let queue = cx.local.can2_rx;
+    #[task(binds = CAN2, priority = 3, local = [inverter_rx], shared = [inverter_can, link])]
+    fn inverter_receive(mut cx: inverter_receive::Context) {
+        let queue = cx.local.inverter_rx;
         let link = &mut cx.shared.link;
-        cx.shared.can2.lock(|can| drain(can, queue, link));
+        cx.shared.inverter_can.lock(|can| drain(can, queue, link));
     }
 
     /// How a frame is queued: behind a pending one with its identifier, or replacing it.
@@ -387,8 +475,9 @@ mod app {
     }
 
     #[task(priority = 2,
-           local = [ready_to_move, launch, brake_light, cooling, buzzer, can1_frames, can2_frames],
-           shared = [sensors, control, can1, can2, supervisor])]
+           local = [ready_to_move, launch, brake_light, led, pumps, fan, buzzer, vehicle_frames,
+                    inverter_frames],
+           shared = [sensors, control, vehicle_can, inverter_can, supervisor])]
     async fn control(mut cx: control::Context) {
         let mut next = Mono::now();
         let mut step: u32 = 0;
@@ -396,34 +485,35 @@ mod app {
             next += u64::from(CONTROL_PERIOD_MS).millis();
             let now = now_ms();
             let now_micros = now_us();
-            let (frames1, frames2) = (&mut cx.local.can1_frames, &mut cx.local.can2_frames);
+            let (vehicle_frames, inverter_frames) =
+                (&mut cx.local.vehicle_frames, &mut cx.local.inverter_frames);
             let driver = DriverInputs {
                 ready_to_move: cx.local.ready_to_move.is_set(),
                 launch: cx.local.launch.is_set(),
             };
-            let bus1 = cx.shared.can1.lock(|can| can.check_errors());
-            let bus2 = cx.shared.can2.lock(|can| can.check_errors());
+            let vehicle = cx.shared.vehicle_can.lock(|can| can.check_errors());
+            let inverter = cx.shared.inverter_can.lock(|can| can.check_errors());
             let counters = DriverCounters {
                 rx_dropped: RX_QUEUE_OVERFLOWS
                     .load(Ordering::Relaxed)
-                    .wrapping_add(bus1.rx_fifo_overflows)
-                    .wrapping_add(bus2.rx_fifo_overflows),
+                    .wrapping_add(vehicle.rx_fifo_overflows)
+                    .wrapping_add(inverter.rx_fifo_overflows),
                 tx_dropped: TX_NOT_SENT
                     .load(Ordering::Relaxed)
-                    .wrapping_add(bus1.tx_dropped)
-                    .wrapping_add(bus2.tx_dropped),
+                    .wrapping_add(vehicle.tx_dropped)
+                    .wrapping_add(inverter.tx_dropped),
                 pedal_bus_errors: PEDAL_BUS_ERRORS.load(Ordering::Relaxed),
-                buses: [health(&bus1), health(&bus2)],
+                buses: [health(&vehicle), health(&inverter)],
             };
             let sensors = cx.shared.sensors.lock(|sensors| sensors.reading());
             let [left, right] = &WHEELS;
             let wheels = [left.speed(WHEEL_TEETH), right.speed(WHEEL_TEETH)];
             let (outputs, inverter, status) = cx.shared.control.lock(|control| {
                 control.set_driver_counters(counters);
-                while let Some(frame) = frames1.dequeue() {
+                while let Some(frame) = vehicle_frames.dequeue() {
                     control.on_frame(&frame, now);
                 }
-                while let Some(frame) = frames2.dequeue() {
+                while let Some(frame) = inverter_frames.dequeue() {
                     control.on_frame(&frame, now);
                 }
                 let outputs = control.step(&sensors, wheels, driver, now, now_micros);
@@ -438,12 +528,19 @@ mod app {
             } else {
                 cx.local.brake_light.clear();
             }
+            // Both pumps run together; the fan is FlexPWM1 SM3's B output.
             cx.local
-                .cooling
-                .set_duty(flexpwm::Channel::A, outputs.cooling.fan);
+                .pumps
+                .set_duty(flexpwm::Channel::A, outputs.cooling.pump);
             cx.local
-                .cooling
+                .pumps
                 .set_duty(flexpwm::Channel::B, outputs.cooling.pump);
+            cx.local
+                .fan
+                .set_duty(flexpwm::Channel::B, outputs.cooling.fan);
+            if now % 1_000 < CONTROL_PERIOD_MS {
+                cx.local.led.toggle();
+            }
             cx.local.buzzer.set_duty(
                 flexpwm::Channel::A,
                 if outputs.vehicle.rtd_sound { 0.5 } else { 0.0 },
@@ -453,7 +550,7 @@ mod app {
                 Some(Ok(frames)) => {
                     // A torque command never waits behind an older one: it replaces it.
                     for (id, data) in frames {
-                        send(&mut cx.shared.can2, id, &data, Queueing::Replacing);
+                        send(&mut cx.shared.inverter_can, id, &data, Queueing::Replacing);
                     }
                 }
                 Some(Err(_)) => {
@@ -464,8 +561,18 @@ mod app {
             if let Some(status) = status {
                 let mut data = [0u8; CcmStatus::LEN];
                 if status.encode(&mut data).is_ok() {
-                    send(&mut cx.shared.can1, CcmStatus::ID, &data, Queueing::Behind);
-                    send(&mut cx.shared.can2, CcmStatus::ID, &data, Queueing::Behind);
+                    send(
+                        &mut cx.shared.vehicle_can,
+                        CcmStatus::ID,
+                        &data,
+                        Queueing::Behind,
+                    );
+                    send(
+                        &mut cx.shared.inverter_can,
+                        CcmStatus::ID,
+                        &data,
+                        Queueing::Behind,
+                    );
                 } else {
                     TX_NOT_SENT.fetch_add(2, Ordering::Relaxed);
                 }
@@ -479,7 +586,7 @@ mod app {
         }
     }
 
-    #[task(priority = 1, shared = [sensors, control, link, can1, supervisor])]
+    #[task(priority = 1, shared = [sensors, control, link, vehicle_can, supervisor])]
     async fn telemetry(mut cx: telemetry::Context) {
         let mut next = Mono::now();
         loop {
@@ -504,7 +611,10 @@ mod app {
                 let queued = StandardId::new(Telemetry::TX_ID)
                     .and_then(|id| CanFrame::new(id, frame.as_slice()))
                     .is_some_and(|can_frame| {
-                        cx.shared.can1.lock(|can| can.transmit(&can_frame)).is_ok()
+                        cx.shared
+                            .vehicle_can
+                            .lock(|can| can.transmit(&can_frame))
+                            .is_ok()
                     });
                 if queued {
                     cx.shared.link.lock(|link| link.sent(now));

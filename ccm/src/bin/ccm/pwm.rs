@@ -13,16 +13,26 @@ pub struct PwmBlock {
 }
 
 impl PwmBlock {
-    /// Configures and starts `sm` at about `hz`, outputs off. Returns `None` when `hz` needs
-    /// more than 32,767 counts even at a prescaler of 4.
+    /// Configures and starts `sm` at about `hz`, outputs off, with the smallest prescaler
+    /// whose period fits the 16-bit counter. Returns `None` when `hz` needs more than 32,767
+    /// counts even at a prescaler of 128.
     pub fn new(mut pwm: Pwm, sm: SM, hz: u32) -> Option<Self> {
+        const PRESCALERS: [(Prescaler, u32); 8] = [
+            (Prescaler::Prescaler1, 1),
+            (Prescaler::Prescaler2, 2),
+            (Prescaler::Prescaler4, 4),
+            (Prescaler::Prescaler8, 8),
+            (Prescaler::Prescaler16, 16),
+            (Prescaler::Prescaler32, 32),
+            (Prescaler::Prescaler64, 64),
+            (Prescaler::Prescaler128, 128),
+        ];
         let counts = board::IPG_FREQUENCY.checked_div(hz)?;
-        let (prescaler, divider) = if counts <= 32_767 {
-            (Prescaler::Prescaler1, 1)
-        } else {
-            (Prescaler::Prescaler4, 4)
-        };
-        let period = i16::try_from(counts / divider).ok()?;
+        let (prescaler, period) = PRESCALERS.iter().find_map(|&(prescaler, divider)| {
+            i16::try_from(counts / divider)
+                .ok()
+                .map(|period| (prescaler, period))
+        })?;
         pwm.set_debug_enable(sm, true);
         pwm.set_wait_enable(sm, true);
         pwm.set_clock_select(sm, ClockSelect::Ipg);
