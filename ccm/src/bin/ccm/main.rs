@@ -15,6 +15,10 @@
 //! - `telemetry` (100 Hz, 1): snapshot -> generated packer -> ISO-TP on 0x666 on CAN3.
 //! - `watchdog` (10 Hz, 1): feeds WDOG1 (1 s timeout) only while every task's heartbeat is
 //!   younger than 100 ms.
+//! - `usb` (USB interrupt, 1): the USB serial console. `control` logs state changes, faults
+//!   and bus errors into a bounded buffer (a full one drops lines and counts them; nothing
+//!   waits for the host); typing `bootloader`, or `teensy_loader_cli -s` (134 baud), reboots
+//!   into the bootloader.
 //!
 //! Every decision is in the `aer_ccm` library; this file moves data between it and the
 //! hardware, whose pins come from `board.rs` (checked against `aer_boards::ccm`). Torque is
@@ -49,10 +53,13 @@ mod app {
         WATCHDOG_CHECK_MS,
     };
     use aer_ccm::control::Control;
+    use aer_ccm::faults::{Fault, FaultMap};
     use aer_ccm::sensors::Sensors;
     use aer_ccm::telemetry::TelemetryLink;
     use aer_ccm::watchdog::{Supervisor, Task};
     use aer_ccm::{BusHealth, DriverCounters, DriverInputs, SensorSample};
+    use aer_console::usb::{Bus, EndpointState, Memory, UsbConsole};
+    use aer_console::{Command, LineReader, LogBuffer, Watch, bringup::ResetCause};
     use aer_flexcan::{BusStatus, CanFrame, FaultState, Flexcan};
     use core::sync::atomic::{AtomicU32, Ordering};
     use embedded_can::{Frame, Id, StandardId};
@@ -91,7 +98,11 @@ mod app {
         vehicle_can: Flexcan<3>,
         inverter_can: Flexcan<2>,
         supervisor: Supervisor,
+        log: LogBuffer<LOG_BYTES>,
     }
+
+    /// Bytes of log waiting for the host.
+    const LOG_BYTES: usize = 4_096;
 
     /// The pedal front-end: the on-chip ADC's two inputs, or the ADS1115.
     #[cfg(not(feature = "pedals-ads1115"))]
@@ -119,11 +130,16 @@ mod app {
         vehicle_frames: Consumer<'static, CanFrame>,
         inverter_frames: Consumer<'static, CanFrame>,
         wdog: ral::wdog::WDOG1,
+        usb: Option<UsbConsole>,
+        typed: LineReader<64>,
     }
 
     #[init(local = [
         vehicle_queue: Queue<CanFrame, RX_QUEUE> = Queue::new(),
         inverter_queue: Queue<CanFrame, RX_QUEUE> = Queue::new(),
+        usb_memory: Memory = Memory::new(),
+        usb_state: EndpointState = EndpointState::max_endpoints(),
+        usb_bus: Option<Bus> = None,
     ])]
     fn init(cx: init::Context) -> (Shared, Local) {
         let bsp::Resources {
@@ -137,6 +153,7 @@ mod app {
             flexpwm1,
             flexpwm2,
             flexpwm3,
+            usb,
             ..
         } = bsp::t41(cx.device);
         let mut pins = board::pins(pins);
@@ -215,13 +232,34 @@ mod app {
         );
 
         // SAFETY: the BSP does not hand out FlexCAN or WDOG1; nothing else uses them.
-        let (can3_regs, can2_regs, wdog) = unsafe {
+        let (can3_regs, can2_regs, wdog, src) = unsafe {
             (
                 ral::can3::CAN3::instance(),
                 ral::can::CAN2::instance(),
                 ral::wdog::WDOG1::instance(),
+                ral::src::SRC::instance(),
             )
         };
+        // Why this start (SRC_SRSR, sticky: cleared so the next start is judged on its own).
+        let srsr = ral::read_reg!(ral::src, src, SRSR);
+        ral::write_reg!(ral::src, src, SRSR, srsr);
+        // The console is a convenience: without it the CCM runs as before.
+        let usb = UsbConsole::new(
+            usb,
+            cx.local.usb_memory,
+            cx.local.usb_state,
+            cx.local.usb_bus,
+            "AER CCM",
+        )
+        .ok();
+        let mut log = LogBuffer::new();
+        log.line(format_args!(
+            "AER CCM, board {}, schema {:#010x}, telemetry {:#010x}",
+            board::REVISION.name,
+            aer::can::SCHEMA_FINGERPRINT,
+            aer::telemetry::TELEMETRY_FINGERPRINT
+        ));
+        log.line(format_args!("{}", ResetCause(srsr)));
         let (tx3, rx3) = pins.vehicle_can;
         let (tx2, rx2) = pins.inverter_can;
         let (Ok(mut vehicle_can), Ok(mut inverter_can)) = (
@@ -251,6 +289,7 @@ mod app {
                 vehicle_can,
                 inverter_can,
                 supervisor: Supervisor::default(),
+                log,
             },
             Local {
                 adc,
@@ -270,8 +309,89 @@ mod app {
                 vehicle_frames,
                 inverter_frames,
                 wdog,
+                usb,
+                typed: LineReader::new(),
             },
         )
+    }
+
+    /// The USB console: log out, typed bytes in. The race image obeys `bootloader` only.
+    #[task(binds = USB_OTG1, priority = 1, local = [usb, typed], shared = [log])]
+    fn usb(mut cx: usb::Context) {
+        let Some(usb) = cx.local.usb.as_mut() else {
+            return;
+        };
+        let typed = cx.local.typed;
+        cx.shared.log.lock(|log| {
+            let mut bootloader = false;
+            usb.poll(log, |byte| {
+                if let Some(line) = typed.push(byte) {
+                    bootloader |= matches!(Command::parse(line), Ok(Command::Bootloader));
+                }
+            });
+            if bootloader {
+                aer_console::usb::reboot_to_bootloader();
+            }
+        });
+    }
+
+    /// Logs what changed this control step: the vehicle state, the fault map, either bus's
+    /// fault confinement state; every 5 s the drop counters.
+    fn log_changes(
+        log: &mut LogBuffer<LOG_BYTES>,
+        watches: &mut Watches,
+        now: u32,
+        outputs: &aer_ccm::ControlOutputs,
+        counters: &DriverCounters,
+        buses: [FaultState; 2],
+    ) {
+        if let Some(state) = watches.state.changed(outputs.vehicle.state) {
+            log.line(format_args!("t={now} ms vehicle {state:?}"));
+        }
+        if let Some(faults) = watches.faults.changed(outputs.faults) {
+            log.line(format_args!(
+                "t={now} ms faults {:#06x}:{}",
+                faults.bits(),
+                FaultNames(faults)
+            ));
+        }
+        if let Some([vehicle, inverter]) = watches.buses.changed(buses) {
+            log.line(format_args!(
+                "t={now} ms vehicle bus (CAN3) {vehicle:?}, inverter bus (CAN2) {inverter:?}"
+            ));
+        }
+        if now % 5_000 < CONTROL_PERIOD_MS {
+            let dropped = log.dropped();
+            log.line(format_args!(
+                "t={now} ms rx dropped {}, tx dropped {}, pedal bus errors {}, bus-off events {}/{}, log lines dropped {dropped}",
+                counters.rx_dropped,
+                counters.tx_dropped,
+                counters.pedal_bus_errors,
+                counters.buses[0].bus_off_events,
+                counters.buses[1].bus_off_events,
+            ));
+        }
+    }
+
+    /// What `log_changes` compares against.
+    pub struct Watches {
+        state: Watch<aer_ccm::vehicle::State>,
+        faults: Watch<FaultMap>,
+        buses: Watch<[FaultState; 2]>,
+    }
+
+    /// The active faults' names.
+    struct FaultNames(FaultMap);
+
+    impl core::fmt::Display for FaultNames {
+        fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+            for fault in Fault::ALL {
+                if self.0.has(fault) {
+                    write!(f, " {fault:?}")?;
+                }
+            }
+            Ok(())
+        }
     }
 
     /// APPS1 (A5) and APPS2 (A4) on the on-chip ADC.
@@ -476,8 +596,13 @@ mod app {
 
     #[task(priority = 2,
            local = [ready_to_move, launch, brake_light, led, pumps, fan, buzzer, vehicle_frames,
-                    inverter_frames],
-           shared = [sensors, control, vehicle_can, inverter_can, supervisor])]
+                    inverter_frames,
+                    watches: Watches = Watches {
+                        state: Watch::new(),
+                        faults: Watch::new(),
+                        buses: Watch::new(),
+                    }],
+           shared = [sensors, control, vehicle_can, inverter_can, supervisor, log])]
     async fn control(mut cx: control::Context) {
         let mut next = Mono::now();
         let mut step: u32 = 0;
@@ -491,19 +616,19 @@ mod app {
                 ready_to_move: cx.local.ready_to_move.is_set(),
                 launch: cx.local.launch.is_set(),
             };
-            let vehicle = cx.shared.vehicle_can.lock(|can| can.check_errors());
-            let inverter = cx.shared.inverter_can.lock(|can| can.check_errors());
+            let vehicle_bus = cx.shared.vehicle_can.lock(|can| can.check_errors());
+            let inverter_bus = cx.shared.inverter_can.lock(|can| can.check_errors());
             let counters = DriverCounters {
                 rx_dropped: RX_QUEUE_OVERFLOWS
                     .load(Ordering::Relaxed)
-                    .wrapping_add(vehicle.rx_fifo_overflows)
-                    .wrapping_add(inverter.rx_fifo_overflows),
+                    .wrapping_add(vehicle_bus.rx_fifo_overflows)
+                    .wrapping_add(inverter_bus.rx_fifo_overflows),
                 tx_dropped: TX_NOT_SENT
                     .load(Ordering::Relaxed)
-                    .wrapping_add(vehicle.tx_dropped)
-                    .wrapping_add(inverter.tx_dropped),
+                    .wrapping_add(vehicle_bus.tx_dropped)
+                    .wrapping_add(inverter_bus.tx_dropped),
                 pedal_bus_errors: PEDAL_BUS_ERRORS.load(Ordering::Relaxed),
-                buses: [health(&vehicle), health(&inverter)],
+                buses: [health(&vehicle_bus), health(&inverter_bus)],
             };
             let sensors = cx.shared.sensors.lock(|sensors| sensors.reading());
             let [left, right] = &WHEELS;
@@ -522,6 +647,17 @@ mod app {
                 let status = (step % (STATUS_PERIOD_MS / CONTROL_PERIOD_MS) == 0)
                     .then(|| control.next_status());
                 (outputs, inverter, status)
+            });
+            let watches = &mut cx.local.watches;
+            cx.shared.log.lock(|log| {
+                log_changes(
+                    log,
+                    watches,
+                    now,
+                    &outputs,
+                    &counters,
+                    [vehicle_bus.state, inverter_bus.state],
+                )
             });
             if outputs.brake_light {
                 cx.local.brake_light.set();

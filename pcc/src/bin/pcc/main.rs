@@ -6,7 +6,11 @@
 //!   queue; a full queue drops the frame and counts it.
 //! - `control` (every 10 ms, priority 1): samples the voltages, feeds BMS frames to the link
 //!   monitor, steps the state machine, applies the relays in the same period, sends the
-//!   status frame 0x222, and services the watchdog if the loop is on schedule.
+//!   status frame 0x222, logs state changes, and services the watchdog if the loop is on
+//!   schedule.
+//! - `usb` (USB interrupt, priority 1): the USB serial console. The log is a bounded buffer
+//!   (a full one drops lines and counts them; nothing waits for the host); typing
+//!   `bootloader`, or `teensy_loader_cli -s` (134 baud), reboots into the bootloader.
 //!
 //! All decisions are in the `aer_pcc` library; this file only moves data between it and the
 //! hardware.
@@ -49,6 +53,8 @@ fn panic(_: &PanicInfo<'_>) -> ! {
 #[rtic::app(device = teensy4_bsp, peripherals = true, dispatchers = [KPP])]
 mod app {
     use crate::board;
+    use aer_console::usb::{Bus, Memory, UsbConsole};
+    use aer_console::{Command, LineReader, LogBuffer, Watch, bringup::ResetCause};
     use aer_flexcan::{CanFrame, Flexcan};
     use aer_pcc::watchdog::{LoopMonitor, reset_by_watchdog};
     use aer_pcc::{
@@ -95,11 +101,15 @@ mod app {
         }
     }
 
+    /// Bytes of log waiting for the host.
+    const LOG_BYTES: usize = 4_096;
+
     #[shared]
     struct Shared {
         accumulator: VoltageChannel,
         tractive: VoltageChannel,
         can: Flexcan<{ board::CAN_INSTANCE }>,
+        log: LogBuffer<LOG_BYTES>,
     }
 
     #[local]
@@ -112,9 +122,16 @@ mod app {
         rx_consumer: Consumer<'static, CanFrame>,
         wdog: ral::wdog::WDOG1,
         watchdog_reset: bool,
+        usb: Option<UsbConsole>,
+        typed: LineReader<64>,
     }
 
-    #[init(local = [rx_queue: Queue<CanFrame, RX_QUEUE> = Queue::new()])]
+    #[init(local = [
+        rx_queue: Queue<CanFrame, RX_QUEUE> = Queue::new(),
+        usb_memory: Memory = Memory::new(),
+        usb_state: aer_console::usb::EndpointState = aer_console::usb::EndpointState::max_endpoints(),
+        usb_bus: Option<Bus> = None,
+    ])]
     fn init(cx: init::Context) -> (Shared, Local) {
         let bsp::Resources {
             pins,
@@ -122,6 +139,7 @@ mod app {
             mut gpio2,
             mut gpt1,
             ccm,
+            usb,
             ..
         } = bsp::t40(cx.device);
         let mut pins = board::pins(pins);
@@ -189,12 +207,30 @@ mod app {
 
         start_watchdog(&wdog);
 
+        // The console is a convenience: without it the PCC runs as before.
+        let usb = UsbConsole::new(
+            usb,
+            cx.local.usb_memory,
+            cx.local.usb_state,
+            cx.local.usb_bus,
+            "AER PCC",
+        )
+        .ok();
+        let mut log = LogBuffer::new();
+        log.line(format_args!(
+            "AER PCC, board {}, schema {:#010x}",
+            board::REVISION.name,
+            aer::can::SCHEMA_FINGERPRINT
+        ));
+        log.line(format_args!("{}", ResetCause(srsr)));
+
         let (rx_producer, rx_consumer) = cx.local.rx_queue.split();
         let vf = VfConfig::PCC_BOARD;
         let shared = Shared {
             accumulator: VoltageChannel::new(vf, TASK_PERIOD_MS),
             tractive: VoltageChannel::new(vf, TASK_PERIOD_MS),
             can,
+            log,
         };
         if control::spawn().is_err() {
             halt_safe();
@@ -210,8 +246,30 @@ mod app {
                 rx_consumer,
                 wdog,
                 watchdog_reset,
+                usb,
+                typed: LineReader::new(),
             },
         )
+    }
+
+    /// The USB console: log out, typed bytes in. The race image obeys `bootloader` only.
+    #[task(binds = USB_OTG1, priority = 1, local = [usb, typed], shared = [log])]
+    fn usb(mut cx: usb::Context) {
+        let Some(usb) = cx.local.usb.as_mut() else {
+            return;
+        };
+        let typed = cx.local.typed;
+        cx.shared.log.lock(|log| {
+            let mut bootloader = false;
+            usb.poll(log, |byte| {
+                if let Some(line) = typed.push(byte) {
+                    bootloader |= matches!(Command::parse(line), Ok(Command::Bootloader));
+                }
+            });
+            if bootloader {
+                aer_console::usb::reboot_to_bootloader();
+            }
+        });
     }
 
     /// WDOG1 with a 0.5 s timeout (WT = 0), enabled. The power-down counter is switched off
@@ -265,8 +323,9 @@ mod app {
         });
     }
 
-    #[task(priority = 1, local = [relays, led, rx_consumer, wdog, watchdog_reset],
-           shared = [accumulator, tractive, can])]
+    #[task(priority = 1, local = [relays, led, rx_consumer, wdog, watchdog_reset,
+                                  state: Watch<(aer_pcc::State, aer_pcc::Errors)> = Watch::new()],
+           shared = [accumulator, tractive, can, log])]
     async fn control(mut cx: control::Context) {
         let start = Mono::now();
         let start_ms = (start.as_ticks() / 1_000) as u32;
@@ -296,6 +355,30 @@ mod app {
             };
             let relays = pcc.step(&inputs);
             cx.local.relays.apply(relays);
+            if let Some((state, errors)) = cx.local.state.changed((pcc.state(), pcc.errors())) {
+                cx.shared.log.lock(|log| {
+                    log.line(format_args!(
+                        "t={now_ms} ms state {state:?}, AIR+ {}, errors {errors:?}, accumulator {:.1} V, tractive {:.1} V",
+                        if relays.air_plus { "closed" } else { "open" },
+                        pcc.accumulator_v(),
+                        pcc.tractive_v()
+                    ))
+                });
+            }
+            if now_ms % 5_000 < TASK_PERIOD_MS {
+                let status = cx.shared.can.lock(|can| can.status());
+                cx.shared.log.lock(|log| {
+                    let dropped = log.dropped();
+                    log.line(format_args!(
+                        "t={now_ms} ms CAN {:?} tx errors {} rx errors {}, rx queue overflows {}, status not sent {}, log lines dropped {dropped}",
+                        status.state,
+                        status.tx_errors,
+                        status.rx_errors,
+                        RX_QUEUE_OVERFLOWS.load(Ordering::Relaxed),
+                        TX_BUSY.load(Ordering::Relaxed),
+                    ))
+                });
+            }
             // Heartbeat: 1 Hz while the loop runs, so a hung PCC shows on the bench.
             if now_ms % 1_000 < TASK_PERIOD_MS {
                 cx.local.led.toggle();

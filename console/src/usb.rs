@@ -1,0 +1,131 @@
+//! The Teensy's USB CDC serial device: the console's log out, typed bytes in.
+//!
+//! It enumerates as PJRC's Teensy USB serial (16C0:0483), so `teensy_loader_cli -s` finds it
+//! and reboots the board into its bootloader by setting the line rate to 134 baud, without
+//! the program button. Poll it from the USB_OTG1 interrupt at the lowest priority: it only
+//! copies bytes between the host and the console's buffers, and never waits.
+
+pub use teensy4_bsp::usbd::EndpointState;
+
+use crate::REBOOT_BAUD;
+use crate::log::LogBuffer;
+use teensy4_bsp::usbd::{
+    BusAdapter, EndpointMemory, Speed,
+    gpt::{Instance::Gpt0, Mode},
+};
+use usb_device::{
+    LangID,
+    bus::UsbBusAllocator,
+    device::{StringDescriptors, UsbDevice, UsbDeviceBuilder, UsbDeviceState, UsbVidPid},
+};
+use usbd_serial::SerialPort;
+
+/// PJRC's USB serial identity, which `teensy_loader_cli -s` looks for.
+pub const VID_PID: UsbVidPid = UsbVidPid(0x16C0, 0x0483);
+
+/// Endpoint memory for the device (static: the USB controller reads it by DMA).
+pub type Memory = EndpointMemory<1024>;
+/// The device's bus, kept in a static slot.
+pub type Bus = UsbBusAllocator<BusAdapter>;
+
+/// The console's USB device.
+pub struct UsbConsole {
+    device: UsbDevice<'static, BusAdapter>,
+    serial: SerialPort<'static, BusAdapter>,
+    configured: bool,
+}
+
+/// Why the device could not be built.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct UsbError;
+
+impl UsbConsole {
+    /// Builds the device on USB1, naming itself `product`. The GPT0 timer of the USB block
+    /// interrupts every 10 ms, so the log drains while the host is idle too.
+    pub fn new(
+        usb: teensy4_bsp::usbd::Instances<1>,
+        memory: &'static Memory,
+        state: &'static EndpointState,
+        slot: &'static mut Option<Bus>,
+        product: &'static str,
+    ) -> Result<Self, UsbError> {
+        let adapter = BusAdapter::with_speed(usb, memory, state, Speed::LowFull);
+        adapter.set_interrupts(true);
+        adapter.gpt_mut(Gpt0, |gpt| {
+            gpt.stop();
+            gpt.clear_elapsed();
+            gpt.set_interrupt_enabled(true);
+            gpt.set_mode(Mode::Repeat);
+            gpt.set_load(10_000);
+            gpt.reset();
+            gpt.run();
+        });
+        let bus: &'static Bus = slot.insert(UsbBusAllocator::new(adapter));
+        let serial = SerialPort::new(bus);
+        let device = UsbDeviceBuilder::new(bus, VID_PID)
+            .strings(&[StringDescriptors::new(LangID::EN_US)
+                .manufacturer("AER")
+                .product(product)])
+            .map_err(|_| UsbError)?
+            .device_class(usbd_serial::USB_CLASS_CDC)
+            .build();
+        Ok(Self {
+            device,
+            serial,
+            configured: false,
+        })
+    }
+
+    /// Services the device: sends what `log` holds (as much as the host takes), hands every
+    /// received byte to `typed`, and reboots into the bootloader when the host asks for it.
+    pub fn poll<const N: usize>(&mut self, log: &mut LogBuffer<N>, mut typed: impl FnMut(u8)) {
+        self.device.bus().gpt_mut(Gpt0, |gpt| {
+            while gpt.is_elapsed() {
+                gpt.clear_elapsed();
+            }
+        });
+        if self.device.poll(&mut [&mut self.serial]) {
+            if self.device.state() == UsbDeviceState::Configured {
+                if !self.configured {
+                    self.device.bus().configure();
+                }
+                self.configured = true;
+            } else {
+                self.configured = false;
+            }
+            let mut input = [0u8; 64];
+            if let Ok(count) = self.serial.read(&mut input) {
+                input.iter().take(count).for_each(|&byte| typed(byte));
+            }
+        }
+        if self.serial.line_coding().data_rate() == REBOOT_BAUD {
+            reboot_to_bootloader();
+        }
+        if self.configured {
+            let mut chunk = [0u8; 64];
+            while !log.is_empty() {
+                let count = log.peek(&mut chunk);
+                match self.serial.write(chunk.get(..count).unwrap_or(&[])) {
+                    Ok(written) if written > 0 => log.consume(written),
+                    _ => break,
+                }
+            }
+        }
+    }
+}
+
+/// Hands the chip to the Teensy's bootloader: a breakpoint with immediate 251, which PJRC's
+/// own firmware executes for a soft reboot on a Teensy 4 that is not locked.
+pub fn reboot_to_bootloader() -> ! {
+    cortex_m_bkpt_251();
+    loop {
+        core::hint::spin_loop();
+    }
+}
+
+fn cortex_m_bkpt_251() {
+    // SAFETY: a breakpoint instruction, nothing else. The Teensy's bootloader chip watches the
+    // core's debug port and starts the bootloader on it (PJRC's own soft reboot). Should it
+    // not, the breakpoint escalates to a HardFault and the watchdog restarts the chip.
+    unsafe { core::arch::asm!("bkpt #251") };
+}
