@@ -116,6 +116,19 @@ impl<B: I2c> Ads1115<B> {
         fresh
     }
 
+    /// The config register as the converter holds it (the bring-up image prints it: a fitted
+    /// ADS1115 answers 0x8583 after reset, or this driver's last conversion's word).
+    pub fn read_config(&mut self) -> Result<u16, B::Error> {
+        let mut config = [0u8; 2];
+        self.bus.write_read(ADDRESS, &[REG_CONFIG], &mut config)?;
+        Ok(u16::from_be_bytes(config))
+    }
+
+    /// The bus, for a scan of the addresses that answer.
+    pub fn bus(&mut self) -> &mut B {
+        &mut self.bus
+    }
+
     fn read_finished(&mut self) -> Result<Option<i16>, ()> {
         let mut config = [0u8; 2];
         self.bus

@@ -134,6 +134,60 @@ impl HvGate {
     }
 }
 
+/// What a bus delivered since the last report: frames per identifier (the first
+/// [`HEARD_IDS`] identifiers; the rest counted together).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Heard {
+    ids: [(u32, u32); HEARD_IDS],
+    distinct: usize,
+    others: u32,
+}
+
+/// Identifiers a report lists per bus.
+pub const HEARD_IDS: usize = 8;
+
+impl Heard {
+    /// Counts a frame with raw identifier `id`.
+    pub fn frame(&mut self, id: u32) {
+        let known = self
+            .ids
+            .iter_mut()
+            .take(self.distinct)
+            .find(|(seen, _)| *seen == id);
+        match known {
+            Some((_, count)) => *count = count.saturating_add(1),
+            None => match self.ids.get_mut(self.distinct) {
+                Some(slot) => {
+                    *slot = (id, 1);
+                    self.distinct += 1;
+                }
+                None => self.others = self.others.saturating_add(1),
+            },
+        }
+    }
+
+    /// Frames counted.
+    pub fn total(&self) -> u32 {
+        self.ids
+            .iter()
+            .take(self.distinct)
+            .fold(self.others, |sum, (_, count)| sum.saturating_add(*count))
+    }
+}
+
+impl fmt::Display for Heard {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{} frames", self.total())?;
+        for (id, count) in self.ids.iter().take(self.distinct) {
+            write!(f, ", {id:#05x} x{count}")?;
+        }
+        if self.others > 0 {
+            write!(f, ", {} more of other ids", self.others)?;
+        }
+        Ok(())
+    }
+}
+
 /// Samples averaged for one calibration point (1 s at 1 kHz).
 pub const CALIBRATION_SAMPLES: u32 = 1_000;
 
@@ -278,6 +332,23 @@ mod tests {
         assert_eq!(
             format!("{cal}"),
             "pedal calibration: AppsCalibration { apps1: (0.500, 2.800), apps2: (0.750, 4.200) }"
+        );
+    }
+
+    #[test]
+    fn heard_frames_are_listed_per_id_up_to_a_limit() {
+        let mut heard = Heard::default();
+        for id in [0x222, 0x6B0, 0x222] {
+            heard.frame(id);
+        }
+        assert_eq!(format!("{heard}"), "3 frames, 0x222 x2, 0x6b0 x1");
+        for id in 0..20 {
+            heard.frame(0x100 + id);
+        }
+        assert_eq!(heard.total(), 23);
+        assert!(
+            format!("{heard}").ends_with(", 14 more of other ids"),
+            "{heard}"
         );
     }
 

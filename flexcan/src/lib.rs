@@ -98,6 +98,19 @@ pub enum TxError {
     Busy,
 }
 
+/// Why a controller's self-test failed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SelfTestError {
+    /// Entering or leaving loopback mode timed out.
+    Init(InitError),
+    /// Every mailbox was busy.
+    TxBusy,
+    /// The frame never came back.
+    NothingReceived,
+    /// Another frame came back.
+    Mismatch(CanFrame),
+}
+
 /// Fault confinement state of the controller (ESR1.FLTCONF).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum FaultState {
@@ -217,6 +230,30 @@ impl<const N: u8> Flexcan<N> {
         ral::modify_reg!(ral::can, self.regs, MCR, |mcr| mcr & !(MCR_FRZ | MCR_HALT));
         self.wait_mcr(MCR_FRZACK, false, "leave freeze mode")?;
         self.wait_mcr(MCR_NOTRDY, false, "synchronise to the bus")
+    }
+
+    /// The controller's self-test: internal loopback on, `frame` sent, and the same frame
+    /// received back within the polling limit; loopback off again either way. Frames already
+    /// waiting in the receive FIFO are drained first (and lost to the caller: run it on the
+    /// bench, not while driving).
+    pub fn self_test(&mut self, frame: &CanFrame) -> Result<(), SelfTestError> {
+        self.set_loopback(true).map_err(SelfTestError::Init)?;
+        while self.receive().is_some() {}
+        let result = match self.transmit(frame) {
+            Err(TxError::Busy) => Err(SelfTestError::TxBusy),
+            Ok(()) => (0..POLL_LIMIT).find_map(|_| self.receive()).map_or(
+                Err(SelfTestError::NothingReceived),
+                |received| {
+                    if received == *frame {
+                        Ok(())
+                    } else {
+                        Err(SelfTestError::Mismatch(received))
+                    }
+                },
+            ),
+        };
+        self.set_loopback(false).map_err(SelfTestError::Init)?;
+        result
     }
 
     fn configure(&mut self, timing: BitTiming) -> Result<(), InitError> {

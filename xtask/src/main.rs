@@ -27,7 +27,8 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Task {
-    /// Build the firmware (release) and write target/firmware/<name>.hex for
+    /// Build the firmware (release): the race images and the bench bring-up images of both
+    /// boards, written as target/firmware/{ccm,pcc,ccm-bringup,pcc-bringup}.hex for
     /// teensy_loader_cli, printing flash and RAM use.
     Firmware,
     /// Print the default boards' pin maps (aer-boards), one line per signal:
@@ -71,7 +72,7 @@ struct Firmware {
     flash: Region,
 }
 
-const FIRMWARE: [Firmware; 2] = [
+const FIRMWARE: [Firmware; 4] = [
     Firmware {
         name: "ccm",
         package: "aer-ccm",
@@ -82,6 +83,18 @@ const FIRMWARE: [Firmware; 2] = [
         name: "pcc",
         package: "aer-pcc",
         board: "Teensy 4.0",
+        flash: FLASH_T40,
+    },
+    Firmware {
+        name: "ccm-bringup",
+        package: "aer-ccm",
+        board: "Teensy 4.1, bench bring-up",
+        flash: FLASH_T41,
+    },
+    Firmware {
+        name: "pcc-bringup",
+        package: "aer-pcc",
+        board: "Teensy 4.0, bench bring-up",
         flash: FLASH_T40,
     },
 ];

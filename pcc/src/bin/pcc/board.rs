@@ -37,6 +37,9 @@ const _: () = {
     check(accumulator, 14, Mode::InputPullDown);
     check(tractive, 15, Mode::InputPullDown);
     check(BOARD.led, 13, Mode::Output);
+    let [thermistor1, thermistor2] = BOARD.thermistors;
+    check(thermistor1, 21, Mode::Analog(7));
+    check(thermistor2, 22, Mode::Analog(8));
 };
 
 /// The board's signals, taken from the Teensy 4.0 pins. Ports: pins 11 and 13 are GPIO2,
@@ -54,6 +57,8 @@ pub struct Pins {
     pub air_plus: pins::P11,
     /// The on-board LED (pin 13).
     pub led: pins::P13,
+    /// Precharge-resistor thermistors (A7 = pin 21, A8 = pin 22).
+    pub thermistors: (pins::P21, pins::P22),
 }
 
 /// GPIO2 bit of the AIR+ output on pin 11: the panic handler clears it without the HAL.
@@ -68,5 +73,6 @@ pub fn pins(pins: pins::Pins) -> Pins {
         tractive_freq: pins.p15,
         air_plus: pins.p11,
         led: pins.p13,
+        thermistors: (pins.p21, pins.p22),
     }
 }

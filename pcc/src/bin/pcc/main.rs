@@ -157,6 +157,8 @@ mod app {
         let Ok(led) = gpio2.output(pins.led) else {
             halt_safe()
         };
+        // The thermistors are read by the bring-up image only.
+        let _thermistors = pins.thermistors;
         // The V/F converters' outputs read low when a converter is unplugged.
         iomuxc::configure(&mut pins.accumulator_freq, pull_down);
         iomuxc::configure(&mut pins.tractive_freq, pull_down);
