@@ -78,6 +78,8 @@ pub(crate) mod code {
 }
 
 const CODE_SHIFT: u32 = 24;
+/// The CODE field of a C/S word.
+pub(crate) const CODE_MASK: u32 = 0xF << CODE_SHIFT;
 const SRR: u32 = 1 << 22;
 const IDE: u32 = 1 << 21;
 const RTR: u32 = 1 << 20;

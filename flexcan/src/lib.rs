@@ -58,6 +58,16 @@ const MCR_AEN: u32 = 1 << 12;
 // ESR1: entered bus-off (write 1 to clear), and the fault confinement field.
 const ESR1_BOFFINT: u32 = 1 << 2;
 const ESR1_FLTCONF_SHIFT: u32 = 4;
+// DBG1: the protocol state machine (CFSM) and the bit in the current field (CBN), for
+// ERR006032. States: intermission after a received or a sent frame, bus idle.
+const DBG1_CFSM_MASK: u32 = 0x3F;
+const DBG1_CBN_SHIFT: u32 = 24;
+const DBG1_CBN_MASK: u32 = 0x1F;
+const CFSM_RX_INTERMISSION: u32 = 0x2F;
+const CFSM_TX_INTERMISSION: u32 = 0x14;
+const CFSM_BUS_IDLE: u32 = 0x02;
+/// Spin iterations after bus idle is seen before the buffer is deactivated (NXP's SDK: 200).
+const ERR006032_IDLE_DELAY: u32 = 200;
 // CTRL1: internal loopback.
 const CTRL1_LPB: u32 = 1 << 12;
 // CTRL2: store received remote frames instead of answering them automatically.
@@ -432,11 +442,23 @@ impl<const N: u8> Flexcan<N> {
     /// Aborts the pending frame in `mb` (RM "Transmission abort mechanism"): clear the
     /// buffer's flag, write ABORT, wait for the flag (at most the rest of a frame on the
     /// wire), then read whether it was aborted or sent. Leaves the buffer free.
+    ///
+    /// ERR006032 first: aborting or deactivating a buffer while the bus is idle can send a
+    /// frame with a wrong identifier or payload, so an abort never lands in that window (see
+    /// [`Self::deactivate_if_bus_idle`]). Call it with this controller's interrupt masked (the
+    /// firmware holds the controller's lock), as the workaround requires.
     fn abort(&mut self, mb: usize) {
         let Some(bit) = u32::try_from(mb).ok().and_then(|mb| 1u32.checked_shl(mb)) else {
             return;
         };
         ral::write_reg!(ral::can, self.regs, IFLAG1, bit);
+        if self.deactivate_if_bus_idle(mb) {
+            // Whether the frame still left cannot be known: count it as not sent.
+            self.tx_dropped = self.tx_dropped.wrapping_add(1);
+            ral::write_reg!(ral::can, self.regs, IFLAG1, bit);
+            self.write_mb_word(mb, 0, frame::cs_with_code(code::TX_INACTIVE));
+            return;
+        }
         self.write_mb_word(mb, 0, frame::cs_with_code(code::TX_ABORT));
         let finished =
             (0..POLL_LIMIT).any(|_| ral::read_reg!(ral::can, self.regs, IFLAG1) & bit != 0);
@@ -449,6 +471,34 @@ impl<const N: u8> Flexcan<N> {
         }
         // Park the buffer whatever happened, so `transmit` can reuse it.
         self.write_mb_word(mb, 0, frame::cs_with_code(code::TX_INACTIVE));
+    }
+
+    /// ERR006032's workaround, as NXP's SDK applies it on every FlexCAN instance of the
+    /// i.MX RT1060: read the protocol state (DBG1.CFSM). In the third bit of an intermission
+    /// (DBG1.CBN = 3) after a received or sent frame, wait until it ends; if the bus is then
+    /// idle, wait a little more and deactivate the buffer by writing code 0 rather than
+    /// aborting it. Returns true when it deactivated the buffer (no abort must follow).
+    ///
+    /// DBG1 is at 0x58 on CAN1/CAN2 (imxrt-ral's block); imxrt-ral's CAN3 block leaves that
+    /// offset out, while NXP's SDK reads it there on FlexCAN3 as well.
+    fn deactivate_if_bus_idle(&mut self, mb: usize) -> bool {
+        let dbg1 = ral::read_reg!(ral::can, self.regs, DBG1);
+        let state = dbg1 & DBG1_CFSM_MASK;
+        if matches!(state, CFSM_RX_INTERMISSION | CFSM_TX_INTERMISSION)
+            && (dbg1 >> DBG1_CBN_SHIFT) & DBG1_CBN_MASK == 3
+        {
+            let _ = (0..POLL_LIMIT)
+                .any(|_| ral::read_reg!(ral::can, self.regs, DBG1) & DBG1_CFSM_MASK != state);
+        }
+        if ral::read_reg!(ral::can, self.regs, DBG1) & DBG1_CFSM_MASK != CFSM_BUS_IDLE {
+            return false;
+        }
+        for _ in 0..ERR006032_IDLE_DELAY {
+            core::hint::spin_loop();
+        }
+        let cs = self.read_mb_word(mb, 0);
+        self.write_mb_word(mb, 0, cs & !frame::CODE_MASK);
+        true
     }
 
     fn mb_word_ptr(&self, mb: usize, word: usize) -> *mut u32 {
