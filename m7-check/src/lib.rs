@@ -7,6 +7,7 @@
 //! decoded value.
 #![no_std]
 
+mod bringup;
 mod ccm;
 mod codec;
 mod cost;
@@ -24,6 +25,7 @@ pub fn run(out: &mut impl core::fmt::Write) -> core::fmt::Result {
     isotp::transfers(out)?;
     pcc::scenarios(out)?;
     ccm::session(out)?;
+    bringup::checks(out)?;
     writeln!(out, "done")
 }
 
