@@ -105,8 +105,9 @@ impl Revision {
     }
 }
 
-/// The team's comp-car CCM (Anteater-Electric-Racing/embedded-mz, `fsae-ccm/`, April 2026),
-/// pedals on the on-chip ADC as the team's code reads them.
+/// The team's comp-car CCM (Anteater-Electric-Racing/embedded-mz at 0c18690, `fsae-ccm/`,
+/// April 2026), pedals on the on-chip ADC as the team's code reads them (the divider:
+/// `fsae-ccm/src/utils/utils.h:68`, ADC_VOLTAGE_DIVIDER).
 pub const COMP_CAR: Revision = Revision {
     name: "ccm comp car (embedded-mz, April 2026), pedals on the on-chip ADC",
     inverter_can: [
@@ -114,13 +115,13 @@ pub const COMP_CAR: Revision = Revision {
             1,
             "inverter-can-tx",
             Mode::CanTx(2),
-            "embedded-mz fsae-ccm: FlexCAN_T4 CAN2, default pins 1/0 (the inverter)",
+            "embedded-mz@0c18690 fsae-ccm/src/peripherals/can.cpp:21,32-36 (FlexCAN_T4 CAN2, default pins 1/0)",
         ),
         Pin::team(
             0,
             "inverter-can-rx",
             Mode::CanRx(2),
-            "embedded-mz fsae-ccm: FlexCAN_T4 CAN2, default pins 1/0 (the inverter)",
+            "embedded-mz@0c18690 fsae-ccm/src/peripherals/can.cpp:21,32-36 (FlexCAN_T4 CAN2, default pins 1/0)",
         ),
     ],
     vehicle_can: [
@@ -128,13 +129,13 @@ pub const COMP_CAR: Revision = Revision {
             31,
             "vehicle-can-tx",
             Mode::CanTx(3),
-            "embedded-mz fsae-ccm: FlexCAN_T4 CAN3, default pins 31/30 (BMS, PCC, Pi, ISO-TP)",
+            "embedded-mz@0c18690 fsae-ccm/src/peripherals/can.cpp:22,38-45 (FlexCAN_T4 CAN3, default pins 31/30; ISO-TP written on CAN3)",
         ),
         Pin::team(
             30,
             "vehicle-can-rx",
             Mode::CanRx(3),
-            "embedded-mz fsae-ccm: FlexCAN_T4 CAN3, default pins 31/30 (BMS, PCC, Pi, ISO-TP)",
+            "embedded-mz@0c18690 fsae-ccm/src/peripherals/can.cpp:22,38-45 (FlexCAN_T4 CAN3, default pins 31/30; ISO-TP written on CAN3)",
         ),
     ],
     pedals: Pedals::OnChipAdc {
@@ -143,13 +144,13 @@ pub const COMP_CAR: Revision = Revision {
                 19,
                 "apps1",
                 Mode::Analog(5),
-                "embedded-mz fsae-ccm: APPS 1 on A5",
+                "embedded-mz@0c18690 fsae-ccm/src/peripherals/adc.cpp:21,46 (APPS_1_INDEX 5 = A5)",
             ),
             Pin::team(
                 18,
                 "apps2",
                 Mode::Analog(4),
-                "embedded-mz fsae-ccm: APPS 2 on A4",
+                "embedded-mz@0c18690 fsae-ccm/src/peripherals/adc.cpp:22,46 (APPS_2_INDEX 4 = A4)",
             ),
         ],
     },
@@ -158,13 +159,13 @@ pub const COMP_CAR: Revision = Revision {
             17,
             "bse1",
             Mode::Analog(3),
-            "embedded-mz fsae-ccm: BSE 1 on A3 (front: assumed, check on the bench)",
+            "embedded-mz@0c18690 fsae-ccm/src/peripherals/adc.cpp:23,46 (BSE_1_INDEX 3 = A3; front: assumed, check on the bench)",
         ),
         Pin::team(
             16,
             "bse2",
             Mode::Analog(2),
-            "embedded-mz fsae-ccm: BSE 2 on A2 (rear: assumed, check on the bench)",
+            "embedded-mz@0c18690 fsae-ccm/src/peripherals/adc.cpp:24,46 (BSE_2_INDEX 2 = A2; rear: assumed, check on the bench)",
         ),
     ],
     shocks: [
@@ -172,52 +173,52 @@ pub const COMP_CAR: Revision = Revision {
             20,
             "shock1",
             Mode::Analog(6),
-            "embedded-mz fsae-ccm: linear potentiometer 1 on A6",
+            "embedded-mz@0c18690 fsae-ccm/src/peripherals/adc.cpp:25,46 (SUSP_TRAV_LINPOT1 6 = A6)",
         ),
         Pin::team(
             21,
             "shock2",
             Mode::Analog(7),
-            "embedded-mz fsae-ccm: linear potentiometer 2 on A7",
+            "embedded-mz@0c18690 fsae-ccm/src/peripherals/adc.cpp:26,46 (SUSP_TRAV_LINPOT2 7 = A7)",
         ),
         Pin::team(
             22,
             "shock3",
             Mode::Analog(8),
-            "embedded-mz fsae-ccm: linear potentiometer 3 on A8",
+            "embedded-mz@0c18690 fsae-ccm/src/peripherals/adc.cpp:27,46 (SUSP_TRAV_LINPOT3 8 = A8)",
         ),
         Pin::team(
             23,
             "shock4",
             Mode::Analog(9),
-            "embedded-mz fsae-ccm: linear potentiometer 4 on A9",
+            "embedded-mz@0c18690 fsae-ccm/src/peripherals/adc.cpp:28,46 (SUSP_TRAV_LINPOT4 9 = A9)",
         ),
     ],
     thermistor: Pin::team(
         14,
         "thermistor1",
         Mode::Analog(0),
-        "embedded-mz fsae-ccm: thermistor 1 on A0 (thermistors 2-4 are indexed past the team's ADC table: not fitted)",
+        "embedded-mz@0c18690 fsae-ccm/src/peripherals/adc.cpp:20,46 (THERMISTOR_1_INDEX 0 = A0; thermistors 2-4, lines 29-31, index past the 10-entry table: not fitted)",
     ),
     wheel_speed: [
         Pin::team(
             2,
             "wheel-speed1",
             Mode::InputPullUp,
-            "embedded-mz fsae-ccm: wheel speed 1 on pin 2, INPUT_PULLUP (bypass.h's TSSI bypass on pin 2 is not used)",
+            "embedded-mz@0c18690 fsae-ccm/src/utils/utils.h:55, peripherals/gpio.cpp:12 (INPUT_PULLUP; vehicle/controls/bypass.h:3 puts a TSSI bypass here, unused)",
         ),
         Pin::team(
             3,
             "wheel-speed2",
             Mode::InputPullUp,
-            "embedded-mz fsae-ccm: wheel speed 2 on pin 3, INPUT_PULLUP (bypass.h's TSSI feedback on pin 3 is not used)",
+            "embedded-mz@0c18690 fsae-ccm/src/utils/utils.h:56, peripherals/gpio.cpp:13 (INPUT_PULLUP; vehicle/controls/bypass.h:4 puts TSSI feedback here, unused)",
         ),
     ],
     ready_to_move: Pin::team(
         36,
         "ready-to-move",
         Mode::InputPullDown,
-        "embedded-mz fsae-ccm: ready-to-move button on pin 36, INPUT_PULLDOWN, 500 ms debounce",
+        "embedded-mz@0c18690 fsae-ccm/src/utils/utils.h:57, peripherals/gpio.cpp:14 (INPUT_PULLDOWN), vehicle/devices/rtm.cpp:3 (500 ms debounce)",
     ),
     launch: Pin::assumed(
         33,
@@ -229,27 +230,27 @@ pub const COMP_CAR: Revision = Revision {
         9,
         "brake-light",
         Mode::Output,
-        "embedded-mz fsae-ccm: brake light output on pin 9",
+        "embedded-mz@0c18690 fsae-ccm/src/utils/utils.h:58, peripherals/gpio.cpp:15 (OUTPUT)",
     ),
     pumps: [
         Pin::team(
             29,
             "pump1",
             Mode::Pwm(25_000),
-            "embedded-mz fsae-ccm: pump 1 on pin 29, 25 kHz (Koolance), 8-bit duty",
+            "embedded-mz@0c18690 fsae-ccm/src/vehicle/devices/thermal.cpp:4,6,8 (25 kHz, 8-bit duty)",
         ),
         Pin::team(
             28,
             "pump2",
             Mode::Pwm(25_000),
-            "embedded-mz fsae-ccm: pump 2 on pin 28, 25 kHz (Koolance), 8-bit duty",
+            "embedded-mz@0c18690 fsae-ccm/src/vehicle/devices/thermal.cpp:4,6,9 (25 kHz, 8-bit duty)",
         ),
     ],
     fan: Pin::team(
         7,
         "fan",
         Mode::Pwm(500),
-        "embedded-mz fsae-ccm: fan on pin 7, 500 Hz",
+        "embedded-mz@0c18690 fsae-ccm/src/vehicle/devices/thermal.cpp:5,10 (500 Hz)",
     ),
     buzzer: Pin::assumed(
         4,

@@ -43,7 +43,8 @@ impl Revision {
     }
 }
 
-/// The team's comp-car PCC (Anteater-Electric-Racing/embedded-mz, `fsae-pcc/`, April 2026).
+/// The team's comp-car PCC (Anteater-Electric-Racing/embedded-mz at 0c18690, `fsae-pcc/`,
+/// April 2026).
 pub const COMP_CAR: Revision = Revision {
     name: "pcc comp car (embedded-mz, April 2026)",
     can: [
@@ -51,34 +52,35 @@ pub const COMP_CAR: Revision = Revision {
             1,
             "vehicle-can-tx",
             Mode::CanTx(2),
-            "embedded-mz fsae-pcc: FlexCAN_T4 on CAN2 (default pins 1/0), 500 kbit/s",
+            "embedded-mz@0c18690 fsae-pcc/src/can.cpp:46,53-56 (FlexCAN_T4 CAN2, default pins 1/0, 500 kbit/s)",
         ),
         Pin::team(
             0,
             "vehicle-can-rx",
             Mode::CanRx(2),
-            "embedded-mz fsae-pcc: FlexCAN_T4 on CAN2 (default pins 1/0), 500 kbit/s",
+            "embedded-mz@0c18690 fsae-pcc/src/can.cpp:46,53-56 (FlexCAN_T4 CAN2, default pins 1/0, 500 kbit/s)",
         ),
     ],
     air_plus: Pin::team(
         11,
         "air-plus-close",
         Mode::OutputPullDown,
-        "embedded-mz fsae-pcc: SHUTDOWN_CTRL_PIN 11, HIGH in ONLINE/CHARGING (\"Close AIR+\"), LOW otherwise; \
-         the team leaves it an input and switches the pad's pull: check the driver stage on the bench",
+        "embedded-mz@0c18690 fsae-pcc/src/utils.h:12 (SHUTDOWN_CTRL_PIN 11), precharge.cpp:205,298,309,329 (LOW in STANDBY, HIGH \
+         in ONLINE and CHARGING: \"Close AIR+\", LOW in ERROR); gpio.cpp:8 leaves it an INPUT, so the team switches \
+         the pad's pull: check the driver stage on the bench",
     ),
     voltage_freq: [
         Pin::team(
             14,
             "accumulator-vf",
             Mode::InputPullDown,
-            "embedded-mz fsae-pcc: accumulator V/F converter on pin 14, INPUT_PULLDOWN",
+            "embedded-mz@0c18690 fsae-pcc/src/utils.h:15, gpio.cpp:9 (INPUT_PULLDOWN)",
         ),
         Pin::team(
             15,
             "tractive-vf",
             Mode::InputPullDown,
-            "embedded-mz fsae-pcc: tractive-system V/F converter on pin 15, INPUT_PULLDOWN",
+            "embedded-mz@0c18690 fsae-pcc/src/utils.h:16, gpio.cpp:10 (INPUT_PULLDOWN)",
         ),
     ],
     thermistors: [
@@ -86,13 +88,13 @@ pub const COMP_CAR: Revision = Revision {
             21,
             "thermistor-1",
             Mode::Analog(7),
-            "embedded-mz fsae-pcc: analogRead(7) = A7 = pin 21",
+            "embedded-mz@0c18690 fsae-pcc/src/precharge.cpp:19,416 (analogRead(7) = A7 = pin 21)",
         ),
         Pin::team(
             22,
             "thermistor-2",
             Mode::Analog(8),
-            "embedded-mz fsae-pcc: analogRead(8) = A8 = pin 22",
+            "embedded-mz@0c18690 fsae-pcc/src/precharge.cpp:20,417 (analogRead(8) = A8 = pin 22)",
         ),
     ],
     led: Pin::teensy(

@@ -1,7 +1,7 @@
 //! The precharge state machine.
 //!
 //! ```text
-//!            pack >= min and BMS alive for 200 ms, and the tractive system rising
+//!            pack >= min, BMS alive, and the tractive system rising
 //!  STANDBY ------------------------------------------------------> PRECHARGE
 //!     ^                                                             |  |  |
 //!     | TS < 60 V                      target held, after min time |  |  | too fast / too slow /
@@ -166,16 +166,13 @@ impl Precharge {
 
         match self.state {
             State::Standby => {
-                let ready = self.held_for(
-                    pack_present && bms_alive,
-                    now,
-                    self.config.standby_settle_ms,
-                );
-                // The hardware started precharging: the shutdown circuit closed.
+                // The hardware started precharging (the shutdown circuit closed): the timer
+                // starts now, at the rise, not after a settle time that would shorten the
+                // measured precharge.
                 self.trough_percent = self.trough_percent.min(self.progress_percent);
                 let rising =
                     self.progress_percent >= self.trough_percent + self.config.start_percent;
-                if ready && rising {
+                if pack_present && bms_alive && rising {
                     self.enter(State::Precharge, now);
                 }
             }

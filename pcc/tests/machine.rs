@@ -109,18 +109,14 @@ fn reset_is_standby_with_air_plus_open() {
 }
 
 #[test]
-fn standby_starts_precharge_after_the_settle_time_exactly() {
+fn standby_starts_precharge_at_the_first_rise() {
     let mut bench = Bench::ready();
     assert_eq!(bench.at_with_bms(1_000), Relays::ALL_OPEN);
-    // The hardware started precharging at once.
+    bench.set_progress(CONFIG.start_percent - 0.01);
+    bench.at_with_bms(1_010);
+    assert_eq!(bench.state(), State::Standby, "just below the rise");
     bench.set_progress(CONFIG.start_percent);
-    assert_eq!(
-        bench.at_with_bms(1_199),
-        Relays::ALL_OPEN,
-        "1 ms before the settle time"
-    );
-    assert_eq!(bench.state(), State::Standby);
-    assert_eq!(bench.at_with_bms(1_200), PRECHARGING, "at the settle time");
+    assert_eq!(bench.at_with_bms(1_020), PRECHARGING, "at the rise");
     assert_eq!(bench.state(), State::Precharge);
 }
 
@@ -168,42 +164,33 @@ fn a_tractive_system_still_discharging_is_not_a_precharge_start() {
 }
 
 #[test]
-fn standby_waits_for_each_condition_and_restarts_the_settle_time() {
-    // Pack voltage just below, then at, the minimum (the tractive system already rising).
+fn standby_needs_the_pack_and_a_live_bms_when_the_rise_is_seen() {
+    // Pack voltage just below the minimum: no precharge however the tractive system moves.
     let mut bench = Bench::ready();
-    bench.set_progress(CONFIG.start_percent);
     bench.inputs.accumulator_v = CONFIG.min_accumulator_v - 0.01;
     bench.at_with_bms(1_000);
+    bench.inputs.tractive_v = 30.0;
     bench.at_with_bms(2_000);
     assert_eq!(bench.state(), State::Standby);
+    // At the minimum, the rise counts.
+    let mut bench = Bench::ready();
     bench.inputs.accumulator_v = CONFIG.min_accumulator_v;
-    bench.at_with_bms(2_000);
-    bench.at_with_bms(2_200);
+    bench.at_with_bms(1_000);
+    bench.inputs.tractive_v = CONFIG.min_accumulator_v * CONFIG.start_percent / 100.0;
+    bench.at_with_bms(1_010);
     assert_eq!(bench.state(), State::Precharge);
 
-    // No BMS frame yet, then a stale one, then a fresh one.
+    // No BMS frame yet, then a stale one: the rise is not a start; a fresh frame makes it one.
     let mut bench = Bench::ready();
-    bench.set_progress(CONFIG.start_percent);
     bench.inputs.bms_last_seen_ms = None;
     bench.at(1_000);
-    bench.at(3_000);
+    bench.set_progress(CONFIG.start_percent);
+    bench.at(1_010);
     assert_eq!(bench.state(), State::Standby);
     bench.inputs.bms_last_seen_ms = Some(3_000 - CONFIG.bms_timeout_ms - 1);
     bench.at(3_000);
-    bench.at(3_300);
     assert_eq!(bench.state(), State::Standby);
-
-    // A glitch during the settle time restarts it.
-    let mut bench = Bench::ready();
-    bench.set_progress(CONFIG.start_percent);
-    bench.at_with_bms(1_000);
-    bench.inputs.accumulator_v = 0.0;
-    bench.at_with_bms(1_150);
-    bench.inputs.accumulator_v = PACK_V;
-    bench.at_with_bms(1_160);
-    bench.at_with_bms(1_359);
-    assert_eq!(bench.state(), State::Standby);
-    bench.at_with_bms(1_360);
+    bench.at_with_bms(3_010);
     assert_eq!(bench.state(), State::Precharge);
 }
 
