@@ -2,7 +2,7 @@
 //!
 //! Portable, `no_std` and host-tested: the bounded log ([`log`]), typed commands
 //! ([`command`]) and the bring-up images' checks ([`bringup`]). Behind the `firmware` feature,
-//! [`usb`] is the Teensy's USB CDC device that carries them, with the reboot into the
+//! `usb` is the Teensy's USB CDC device that carries them, with the reboot into the
 //! bootloader that `teensy_loader_cli -s` asks for.
 #![no_std]
 

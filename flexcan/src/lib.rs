@@ -22,7 +22,8 @@
 //!
 //! Register facts are from the i.MX RT1060 reference manual, chapter "FlexCAN"; the errata
 //! workarounds are ERR005829 (a mailbox armed during arbitration can be skipped unless the first
-//! free mailbox is written inactive twice afterwards) and ERR006032 (see [`Flexcan::abort`]).
+//! free mailbox is written inactive twice afterwards) and ERR006032 (a pending mailbox is never
+//! aborted while the bus is idle: [`Flexcan::transmit_latest`], [`Flexcan::check_errors`]).
 #![no_std]
 
 pub mod can3;
