@@ -150,6 +150,19 @@ pub const fn same_mode(a: Mode, b: Mode) -> bool {
     }
 }
 
+/// Fails the build (used in a constant) when a firmware's typed pin `number` in `mode` is not
+/// what the board description says for `pin`.
+pub const fn check(pin: Pin, number: u8, mode: Mode) {
+    assert!(
+        pin.number == number,
+        "board.rs and aer-boards disagree on a pin number"
+    );
+    assert!(
+        same_mode(pin.mode, mode),
+        "board.rs and aer-boards disagree on a pin's mode"
+    );
+}
+
 /// True when no pin number appears twice in `pins`.
 pub const fn distinct(pins: &[Pin]) -> bool {
     let mut i = 0;

@@ -8,7 +8,9 @@
 pub use teensy4_bsp::usbd::EndpointState;
 
 use crate::REBOOT_BAUD;
-use crate::log::LogBuffer;
+use crate::log::{LineReader, LogBuffer};
+use core::sync::atomic::{AtomicU32, Ordering};
+use teensy4_bsp::hal::gpio::Input;
 use teensy4_bsp::usbd::{
     BusAdapter, EndpointMemory, Speed,
     gpt::{Instance::Gpt0, Mode},
@@ -110,6 +112,34 @@ impl UsbConsole {
                     _ => break,
                 }
             }
+        }
+    }
+}
+
+impl UsbConsole {
+    /// [`poll`](Self::poll), with the typed bytes gathered into lines by `reader`: each
+    /// complete line goes to `on_line`.
+    pub fn poll_lines<const N: usize, const L: usize>(
+        &mut self,
+        log: &mut LogBuffer<N>,
+        reader: &mut LineReader<L>,
+        mut on_line: impl FnMut(&str),
+    ) {
+        self.poll(log, |byte| {
+            if let Some(line) = reader.push(byte) {
+                on_line(line);
+            }
+        });
+    }
+}
+
+/// Counts a rising edge on each of `inputs` whose interrupt flag is set (and clears it): the
+/// body of a GPIO edge interrupt.
+pub fn count_rising_edges(inputs: &[Input], counters: &[AtomicU32]) {
+    for (input, edges) in inputs.iter().zip(counters) {
+        if input.is_triggered() {
+            input.clear_triggered();
+            edges.fetch_add(1, Ordering::Relaxed);
         }
     }
 }

@@ -323,14 +323,9 @@ mod app {
 
     #[task(binds = GPIO4_COMBINED_0_15, priority = 2, shared = [wheels])]
     fn wheel_edge(mut cx: wheel_edge::Context) {
-        cx.shared.wheels.lock(|wheels| {
-            for (input, edges) in wheels.iter().zip(&WHEEL_EDGES) {
-                if input.is_triggered() {
-                    input.clear_triggered();
-                    edges.fetch_add(1, Ordering::Relaxed);
-                }
-            }
-        });
+        cx.shared
+            .wheels
+            .lock(|wheels| aer_console::usb::count_rising_edges(wheels, &WHEEL_EDGES));
     }
 
     #[task(binds = USB_OTG1, priority = 1, local = [usb, typed, lines_in], shared = [log])]
@@ -340,13 +335,11 @@ mod app {
         };
         let (typed, lines_in) = (cx.local.typed, cx.local.lines_in);
         cx.shared.log.lock(|log| {
-            usb.poll(log, |byte| {
-                if let Some(line) = typed.push(byte) {
-                    let mut owned = Line::new();
-                    // Typing faster than the bench loop takes commands drops the line.
-                    if owned.push_str(line).is_ok() {
-                        let _dropped = lines_in.enqueue(owned);
-                    }
+            usb.poll_lines(log, typed, |line| {
+                // Typing faster than the bench loop takes commands drops the line.
+                let mut owned = Line::new();
+                if owned.push_str(line).is_ok() {
+                    let _dropped = lines_in.enqueue(owned);
                 }
             });
         });

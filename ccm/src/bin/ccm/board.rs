@@ -7,7 +7,7 @@ use aer_boards::ccm::Revision;
 use aer_boards::ccm::{COMP_CAR as BOARD, Pedals};
 #[cfg(feature = "pedals-ads1115")]
 use aer_boards::ccm::{COMP_CAR_ADS1115 as BOARD, Pedals};
-use aer_boards::{Mode, Pin};
+use aer_boards::{Mode, check};
 use teensy4_bsp::pins::t41 as pins;
 
 /// The board revision this image is built for.
@@ -15,18 +15,6 @@ pub const REVISION: Revision = BOARD;
 
 /// CAN bit rate of both buses.
 pub const CAN_BITRATE: u32 = 500_000;
-
-/// Fails the build when a typed pin below is not the description's (number and mode).
-const fn check(pin: Pin, number: u8, mode: Mode) {
-    assert!(
-        pin.number == number,
-        "board.rs and aer-boards disagree on a pin number"
-    );
-    assert!(
-        aer_boards::same_mode(pin.mode, mode),
-        "board.rs and aer-boards disagree on a pin's mode"
-    );
-}
 
 const _: () = {
     let [tx, rx] = BOARD.inverter_can;

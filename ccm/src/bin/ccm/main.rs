@@ -323,15 +323,11 @@ mod app {
         };
         let typed = cx.local.typed;
         cx.shared.log.lock(|log| {
-            let mut bootloader = false;
-            usb.poll(log, |byte| {
-                if let Some(line) = typed.push(byte) {
-                    bootloader |= matches!(Command::parse(line), Ok(Command::Bootloader));
+            usb.poll_lines(log, typed, |line| {
+                if matches!(Command::parse(line), Ok(Command::Bootloader)) {
+                    aer_console::usb::reboot_to_bootloader();
                 }
             });
-            if bootloader {
-                aer_console::usb::reboot_to_bootloader();
-            }
         });
     }
 

@@ -233,14 +233,9 @@ mod app {
 
     #[task(binds = GPIO1_COMBINED_16_31, priority = 2, shared = [vf])]
     fn vf_edge(mut cx: vf_edge::Context) {
-        cx.shared.vf.lock(|vf| {
-            for (input, edges) in vf.iter().zip(&EDGES) {
-                if input.is_triggered() {
-                    input.clear_triggered();
-                    edges.fetch_add(1, Ordering::Relaxed);
-                }
-            }
-        });
+        cx.shared
+            .vf
+            .lock(|vf| aer_console::usb::count_rising_edges(vf, &EDGES));
     }
 
     #[task(binds = USB_OTG1, priority = 1, local = [usb, typed, lines_in], shared = [log])]
@@ -250,12 +245,11 @@ mod app {
         };
         let (typed, lines_in) = (cx.local.typed, cx.local.lines_in);
         cx.shared.log.lock(|log| {
-            usb.poll(log, |byte| {
-                if let Some(line) = typed.push(byte) {
-                    let mut owned = Line::new();
-                    if owned.push_str(line).is_err() || lines_in.enqueue(owned).is_err() {
-                        // Typing faster than 10 ms per command: the line is dropped.
-                    }
+            usb.poll_lines(log, typed, |line| {
+                // Typing faster than the bench loop takes commands drops the line.
+                let mut owned = Line::new();
+                if owned.push_str(line).is_ok() {
+                    let _dropped = lines_in.enqueue(owned);
                 }
             });
         });

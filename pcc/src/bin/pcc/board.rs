@@ -3,7 +3,7 @@
 //! firmware and `cargo xtask pins` cannot disagree.
 
 use aer_boards::pcc::{COMP_CAR as BOARD, Revision};
-use aer_boards::{Mode, Pin};
+use aer_boards::{Mode, check};
 use teensy4_bsp::hal::iomuxc::gpio::Pin as GpioPin;
 use teensy4_bsp::pins::t40 as pins;
 
@@ -15,18 +15,6 @@ pub const CAN_BITRATE: u32 = 500_000;
 
 /// The FlexCAN instance wired to the transceiver.
 pub const CAN_INSTANCE: u8 = 2;
-
-/// Fails the build when a typed pin below is not the description's (number and mode).
-const fn check(pin: Pin, number: u8, mode: Mode) {
-    assert!(
-        pin.number == number,
-        "board.rs and aer-boards disagree on a pin number"
-    );
-    assert!(
-        aer_boards::same_mode(pin.mode, mode),
-        "board.rs and aer-boards disagree on a pin's mode"
-    );
-}
 
 const _: () = {
     let [tx, rx] = BOARD.can;
