@@ -8,6 +8,8 @@
 //! only once precharge is complete. Closing it any earlier bypasses the resistor at pack voltage.
 
 use crate::state::State;
+use aer_boards::Pin;
+use aer_boards::pcc::Revision;
 
 /// The commanded output (`true` = high = AIR+ closed).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -26,6 +28,11 @@ impl Relays {
         Self {
             air_plus: matches!(state, State::Online | State::Charging),
         }
+    }
+
+    /// The level of every relay output of `board`: its pin and whether it is driven high.
+    pub const fn outputs(&self, board: &Revision) -> [(Pin, bool); 1] {
+        [(board.air_plus, self.air_plus)]
     }
 
     /// True when the PCC holds AIR+ open.

@@ -461,3 +461,32 @@ fn the_millisecond_counter_may_wrap_mid_precharge() {
     assert!(done < 10_000, "the counter wrapped");
     assert_eq!(bench.state(), State::Online);
 }
+
+#[test]
+fn through_the_board_map_pin_11_is_high_in_online_and_charging_only() {
+    use aer_boards::{Mode, pcc::COMP_CAR};
+    let states = [
+        State::Standby,
+        State::Precharge,
+        State::Discharge,
+        State::Online,
+        State::Charging,
+        State::Error,
+    ];
+    for state in states {
+        let outputs = Relays::for_state(state).outputs(&COMP_CAR);
+        let high = matches!(state, State::Online | State::Charging);
+        assert_eq!(outputs.len(), 1, "one relay output on the board");
+        for (pin, level) in outputs {
+            assert_eq!((pin.number, pin.mode), (11, Mode::OutputPullDown));
+            assert_eq!(level, high, "{state:?}");
+        }
+    }
+    // Whatever the state, the board's other outputs are not relay outputs.
+    let relay_pins = [COMP_CAR.air_plus.number];
+    for pin in COMP_CAR.pins() {
+        if matches!(pin.mode, Mode::Output | Mode::OutputPullDown) && pin.number != 13 {
+            assert!(relay_pins.contains(&pin.number), "{pin:?}");
+        }
+    }
+}

@@ -92,8 +92,11 @@ mod app {
     }
 
     impl RelayPins {
+        /// Drives the board's relay outputs (`Relays::outputs` over the board map: pin 11,
+        /// the typed pin checked against it in board.rs).
         fn apply(&mut self, relays: Relays) {
-            if relays.air_plus {
+            let [(_pin_11, high)] = relays.outputs(&board::REVISION);
+            if high {
                 self.air_plus.set();
             } else {
                 self.air_plus.clear();
