@@ -10,6 +10,7 @@ pub use teensy4_bsp::usbd::EndpointState;
 use crate::REBOOT_BAUD;
 use crate::log::{LineReader, LogBuffer};
 use core::sync::atomic::{AtomicU32, Ordering};
+use rtic_core::Mutex;
 use teensy4_bsp::hal::gpio::Input;
 use teensy4_bsp::usbd::{
     BusAdapter, EndpointMemory, Speed,
@@ -78,9 +79,10 @@ impl UsbConsole {
         })
     }
 
-    /// Services the device: sends what `log` holds (as much as the host takes), hands every
-    /// received byte to `typed`, and reboots into the bootloader when the host asks for it.
-    pub fn poll<const N: usize>(&mut self, log: &mut LogBuffer<N>, mut typed: impl FnMut(u8)) {
+    /// Services the device: offers `outgoing` to the host and returns how many of its bytes
+    /// were taken, hands every received byte to `typed`, and reboots into the bootloader when
+    /// the host asks for it.
+    pub fn poll(&mut self, outgoing: &[u8], mut typed: impl FnMut(u8)) -> usize {
         self.device.bus().gpt_mut(Gpt0, |gpt| {
             while gpt.is_elapsed() {
                 gpt.clear_elapsed();
@@ -103,35 +105,41 @@ impl UsbConsole {
         if self.serial.line_coding().data_rate() == REBOOT_BAUD {
             reboot_to_bootloader();
         }
-        if self.configured {
-            let mut chunk = [0u8; 64];
-            while !log.is_empty() {
-                let count = log.peek(&mut chunk);
-                match self.serial.write(chunk.get(..count).unwrap_or(&[])) {
-                    Ok(written) if written > 0 => log.consume(written),
-                    _ => break,
-                }
+        let mut sent = 0;
+        while self.configured && sent < outgoing.len() {
+            match self.serial.write(outgoing.get(sent..).unwrap_or(&[])) {
+                Ok(written) if written > 0 => sent += written,
+                _ => break,
             }
         }
+        sent
     }
-}
 
-impl UsbConsole {
-    /// [`poll`](Self::poll), with the typed bytes gathered into lines by `reader`: each
-    /// complete line goes to `on_line`.
-    pub fn poll_lines<const N: usize, const L: usize>(
+    /// [`poll`](Self::poll) for a log shared with the control tasks: the log's lock is held
+    /// only to copy up to [`STAGED_BYTES`] out and, after the USB work, to drop what the host
+    /// took, so a task that logs never waits for USB. Typed bytes are gathered into lines by
+    /// `reader`; each complete line goes to `on_line`.
+    pub fn serve<const N: usize, const L: usize>(
         &mut self,
-        log: &mut LogBuffer<N>,
+        log: &mut impl Mutex<T = LogBuffer<N>>,
         reader: &mut LineReader<L>,
         mut on_line: impl FnMut(&str),
     ) {
-        self.poll(log, |byte| {
+        let mut staged = [0u8; STAGED_BYTES];
+        let count = log.lock(|log| log.peek(&mut staged));
+        let sent = self.poll(staged.get(..count).unwrap_or(&[]), |byte| {
             if let Some(line) = reader.push(byte) {
                 on_line(line);
             }
         });
+        if sent > 0 {
+            log.lock(|log| log.consume(sent));
+        }
     }
 }
+
+/// Bytes of log copied out per USB poll.
+pub const STAGED_BYTES: usize = 512;
 
 /// Counts a rising edge on each of `inputs` whose interrupt flag is set (and clears it): the
 /// body of a GPIO edge interrupt.

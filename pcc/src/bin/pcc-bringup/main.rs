@@ -243,15 +243,13 @@ mod app {
         let Some(usb) = cx.local.usb.as_mut() else {
             return;
         };
-        let (typed, lines_in) = (cx.local.typed, cx.local.lines_in);
-        cx.shared.log.lock(|log| {
-            usb.poll_lines(log, typed, |line| {
-                // Typing faster than the bench loop takes commands drops the line.
-                let mut owned = Line::new();
-                if owned.push_str(line).is_ok() {
-                    let _dropped = lines_in.enqueue(owned);
-                }
-            });
+        let lines_in = cx.local.lines_in;
+        usb.serve(&mut cx.shared.log, cx.local.typed, |line| {
+            // Typing faster than the bench loop takes commands drops the line.
+            let mut owned = Line::new();
+            if owned.push_str(line).is_ok() {
+                let _dropped = lines_in.enqueue(owned);
+            }
         });
     }
 

@@ -263,13 +263,10 @@ mod app {
         let Some(usb) = cx.local.usb.as_mut() else {
             return;
         };
-        let typed = cx.local.typed;
-        cx.shared.log.lock(|log| {
-            usb.poll_lines(log, typed, |line| {
-                if matches!(Command::parse(line), Ok(Command::Bootloader)) {
-                    aer_console::usb::reboot_to_bootloader();
-                }
-            });
+        usb.serve(&mut cx.shared.log, cx.local.typed, |line| {
+            if matches!(Command::parse(line), Ok(Command::Bootloader)) {
+                aer_console::usb::reboot_to_bootloader();
+            }
         });
     }
 
