@@ -31,8 +31,10 @@ pub struct TelemetryHeader {
 
 /// Snapshot of the car's state, sent by the CCM every 10 ms.
 ///
-/// Every field must be given when building one (there is no `Default`): a field added to the
-/// schema is a compile error wherever the packet is filled, until it is filled too.
+/// There is no `Default`: a sender builds it with [`Telemetry::from_parts`] from the
+/// fields it mirrors from the buses and the ones it fills itself (every one named), so a field
+/// added to the schema is either filled from the bus by generated code or a compile error in the
+/// sender until it is filled.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct Telemetry {
@@ -2130,9 +2132,412 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 73] = [
     },
 ];
 
-impl Default for Telemetry {
-    /// Every value zero (`false`, an enum's raw 0), as before any data arrived.
-    fn default() -> Self {
+/// The fields of [`Telemetry`] that mirror a DBC signal (`signal:` in telemetry.yaml), as
+/// last received. [`TelemetryMirror::apply`] fills them from decoded frames, so a mirrored
+/// field added to the schema needs no code in the sender.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TelemetryMirror {
+    /// Corrected isolation resistance.
+    ///
+    /// Wire: `u16` at byte 15, unit `kOhm`, mirrors `IMD_InfoGeneral.IMD_RIsoCorrected`.
+    pub imd_resistance: u16,
+    /// Status of the isolation measurement (Bender codes).
+    ///
+    /// Wire: `u8` at byte 17, unit `code`, mirrors `IMD_InfoGeneral.IMD_RIsoStatus`.
+    pub imd_status: u8,
+    /// Instantaneous pack voltage.
+    ///
+    /// Wire: `u16` at byte 18, physical = raw * 0.1, unit `V`, mirrors `Orion_PackStatus.Orion_PackInstVoltage`.
+    pub pack_voltage: f32,
+    /// Pack current, positive when discharging.
+    ///
+    /// Wire: `i16` at byte 20, physical = raw * 0.1, unit `A`, mirrors `Orion_PackStatus.Orion_PackCurrent`.
+    pub pack_current: f32,
+    /// State of charge.
+    ///
+    /// Wire: `u8` at byte 22, physical = raw * 0.5, unit `%`, mirrors `Orion_PackStatus.Orion_PackSoc`.
+    pub soc: f32,
+    /// Discharge current limit.
+    ///
+    /// Wire: `u16` at byte 23, unit `A`, mirrors `Orion_Limits.Orion_PackDcl`.
+    pub discharge_limit: u16,
+    /// Charge current limit.
+    ///
+    /// Wire: `u16` at byte 25, unit `A`, mirrors `Orion_Limits.Orion_PackCcl`.
+    pub charge_limit: u16,
+    /// Wire: `u16` at byte 27, physical = raw * 0.0001, unit `V`, mirrors `Orion_CellVoltages.Orion_LowCellVoltage`.
+    pub low_cell_volt: f32,
+    /// Wire: `u16` at byte 29, physical = raw * 0.0001, unit `V`, mirrors `Orion_CellVoltages.Orion_HighCellVoltage`.
+    pub high_cell_volt: f32,
+    /// Wire: `u16` at byte 31, physical = raw * 0.0001, unit `V`, mirrors `Orion_CellVoltages.Orion_AvgCellVoltage`.
+    pub avg_cell_volt: f32,
+    /// Wire: `i8` at byte 33, unit `degC`, mirrors `Orion_Limits.Orion_HighTemperature`.
+    pub pack_temp: i8,
+    /// Motor speed.
+    ///
+    /// Wire: `u16` at byte 34, physical = raw * 0.25, unit `rpm`, mirrors `MCU1.MCU_MotorSpeed`.
+    pub motor_speed: f32,
+    /// Actual torque: 0.392 % of the 260 Nm maximum per bit, in Nm.
+    ///
+    /// Wire: `u8` at byte 36, physical = raw * 1.0192, unit `Nm`, mirrors `MCU1.MCU_ActualTorque`.
+    pub motor_torque: f32,
+    /// Torque the inverter can deliver now, in Nm.
+    ///
+    /// Wire: `u8` at byte 37, physical = raw * 1.0192, unit `Nm`, mirrors `MCU1.MCU_MaxMotorTorque`.
+    pub max_motor_torque: f32,
+    /// Wire: `u8` at byte 38, mirrors `MCU1.MCU_RotateDirection`.
+    pub motor_direction: MotorRotateDirection,
+    /// Wire: `u8` at byte 39, mirrors `MCU1.MCU_MotorState`.
+    pub motor_state: MotorMode,
+    /// Wire: `u8` at byte 40, mirrors `MCU1.MCU_MainState`.
+    pub mcu_main_state: McuMainState,
+    /// Wire: `u8` at byte 41, mirrors `MCU1.MCU_WorkMode`.
+    pub mcu_work_mode: McuWorkMode,
+    /// Wire: `u16` at byte 42, physical = raw * 0.01, unit `V`, mirrors `MCU3.MCU_DcVoltage`.
+    pub mcu_voltage: f32,
+    /// Wire: `u16` at byte 44, physical = raw * 0.01, unit `A`, mirrors `MCU3.MCU_PhaseCurrent`.
+    pub mcu_phase_current: f32,
+    /// Wire: `i16` at byte 46, physical = raw * 0.01, unit `A`, mirrors `MCU3.MCU_DcCurrent`.
+    pub mcu_current: f32,
+    /// Motor temperature.
+    ///
+    /// Wire: `u8` at byte 48, physical = raw - 40.0, unit `degC`, mirrors `MCU2.MCU_MotorTemp`.
+    pub motor_temp: i16,
+    /// Inverter temperature.
+    ///
+    /// Wire: `u8` at byte 49, physical = raw - 40.0, unit `degC`, mirrors `MCU2.MCU_InverterTemp`.
+    pub mcu_temp: i16,
+    /// Wire: `u8` at byte 50, mirrors `MCU2.MCU_WarningLevel`.
+    pub mcu_warning_level: McuWarningLevel,
+    /// Vehicle state machine of the CCM.
+    ///
+    /// Wire: `u8` at byte 51, mirrors `CCM_Status.CCM_VehicleState`.
+    pub vehicle_state: VehicleState,
+    /// Ready-to-drive sound completed and drive enabled.
+    ///
+    /// Wire: flag in bit 0 of byte 67, mirrors `CCM_Status.CCM_ReadyToDrive`.
+    pub ready_to_drive: bool,
+    /// Torque request: 0.392 % of MOTOR_MAX_TORQUE (260 Nm) per bit, given here directly in Nm.
+    ///
+    /// Wire: `u8` at byte 52, physical = raw * 1.0192, unit `Nm`, mirrors `VCU1.VCU_TorqueReq`.
+    pub torque_command: f32,
+    /// Wire: flag in bit 5 of byte 67, mirrors `MCU2.MCU_DcMainWireOverVoltFault`.
+    pub dc_main_wire_over_volt_fault: bool,
+    /// Wire: flag in bit 6 of byte 67, mirrors `MCU2.MCU_MotorPhaseCurrFault`.
+    pub motor_phase_curr_fault: bool,
+    /// Wire: flag in bit 7 of byte 67, mirrors `MCU2.MCU_OverHotFault`.
+    pub mcu_over_hot_fault: bool,
+    /// Wire: flag in bit 0 of byte 68, mirrors `MCU2.MCU_ResolverFault`.
+    pub resolver_fault: bool,
+    /// Wire: flag in bit 1 of byte 68, mirrors `MCU2.MCU_PhaseCurrSensorFault`.
+    pub phase_curr_sensor_fault: bool,
+    /// Wire: flag in bit 2 of byte 68, mirrors `MCU2.MCU_MotorOverSpdFault`.
+    pub motor_over_spd_fault: bool,
+    /// Wire: flag in bit 3 of byte 68, mirrors `MCU2.MCU_DrvMotorOverHotFault`.
+    pub drv_motor_over_hot_fault: bool,
+    /// Wire: flag in bit 4 of byte 68, mirrors `MCU2.MCU_DcMainWireOverCurrFault`.
+    pub dc_main_wire_over_curr_fault: bool,
+    /// Wire: flag in bit 5 of byte 68, mirrors `MCU2.MCU_DrvMotorOverCoolFault`.
+    pub drv_motor_over_cool_fault: bool,
+    /// Wire: flag in bit 6 of byte 68, mirrors `MCU2.MCU_DcLowVoltWarning`.
+    pub dc_low_volt_warning: bool,
+    /// Wire: flag in bit 7 of byte 68, mirrors `MCU2.MCU_12V_LowVoltWarning`.
+    pub mcu_12v_low_volt_warning: bool,
+    /// Wire: flag in bit 0 of byte 69, mirrors `MCU2.MCU_MotorStallFault`.
+    pub motor_stall_fault: bool,
+    /// Wire: flag in bit 1 of byte 69, mirrors `MCU2.MCU_MotorOpenPhaseFault`.
+    pub motor_open_phase_fault: bool,
+    /// Fault bitmap bit 0: pack over-current.
+    ///
+    /// Wire: flag in bit 2 of byte 69, mirrors `CCM_Status.CCM_FaultOverCurrent`.
+    pub fault_over_current: bool,
+    /// Fault bitmap bit 1: pack under-voltage.
+    ///
+    /// Wire: flag in bit 3 of byte 69, mirrors `CCM_Status.CCM_FaultUnderVoltage`.
+    pub fault_under_voltage: bool,
+    /// Fault bitmap bit 2: over-temperature.
+    ///
+    /// Wire: flag in bit 4 of byte 69, mirrors `CCM_Status.CCM_FaultOverTemperature`.
+    pub fault_over_temperature: bool,
+    /// Fault bitmap bit 3: accelerator pedal sensor out of range or implausible (T.4.2).
+    ///
+    /// Wire: flag in bit 5 of byte 69, mirrors `CCM_Status.CCM_FaultApps`.
+    pub fault_apps: bool,
+    /// Fault bitmap bit 4: brake system encoder out of range.
+    ///
+    /// Wire: flag in bit 6 of byte 69, mirrors `CCM_Status.CCM_FaultBse`.
+    pub fault_bse: bool,
+    /// Fault bitmap bit 5: brake pedal position sensor.
+    ///
+    /// Wire: flag in bit 7 of byte 69, mirrors `CCM_Status.CCM_FaultBpps`.
+    pub fault_bpps: bool,
+    /// Fault bitmap bit 6: throttle above 25 % with the brake pressed (EV.4.7); cleared below 5 %.
+    ///
+    /// Wire: flag in bit 0 of byte 70, mirrors `CCM_Status.CCM_FaultAppsBrakePlausibility`.
+    pub fault_apps_brake_plausibility: bool,
+    /// Fault bitmap bit 7: accumulator state of charge at or below 5 %, the end of the torque derating.
+    ///
+    /// Wire: flag in bit 1 of byte 70, mirrors `CCM_Status.CCM_FaultLowBatteryVoltage`.
+    pub fault_low_battery_voltage: bool,
+    /// Fault bitmap bit 8: the pedal converter delivered no conversion on a channel for 20 ms (T.4.2.10).
+    ///
+    /// Wire: flag in bit 2 of byte 70, mirrors `CCM_Status.CCM_FaultPedalSignalLost`.
+    pub fault_pedal_signal_lost: bool,
+    /// Fault bitmap bit 9: the 1 kHz sensor sample is older than 10 ms.
+    ///
+    /// Wire: flag in bit 3 of byte 70, mirrors `CCM_Status.CCM_FaultSensorsStale`.
+    pub fault_sensors_stale: bool,
+    /// Fault bitmap bit 10: a BMS frame the CCM acts on is older than its limit.
+    ///
+    /// Wire: flag in bit 4 of byte 70, mirrors `CCM_Status.CCM_FaultBmsTimeout`.
+    pub fault_bms_timeout: bool,
+    /// Fault bitmap bit 11: an inverter status frame is older than its limit.
+    ///
+    /// Wire: flag in bit 5 of byte 70, mirrors `CCM_Status.CCM_FaultInverterTimeout`.
+    pub fault_inverter_timeout: bool,
+    /// Fault bitmap bit 12: the precharge controller's status is older than 100 ms.
+    ///
+    /// Wire: flag in bit 6 of byte 70, mirrors `CCM_Status.CCM_FaultPccTimeout`.
+    pub fault_pcc_timeout: bool,
+    /// Fault bitmap bit 13: the inverter reports a fault (MCU2 fault bits or warning level HIGH).
+    ///
+    /// Wire: flag in bit 7 of byte 70, mirrors `CCM_Status.CCM_FaultInverterFault`.
+    pub fault_inverter_fault: bool,
+    /// Fault bitmap bit 14: the inverter reports a warning (low DC or 12 V, a sensor state, warning level LOW or MEDIUM).
+    ///
+    /// Wire: flag in bit 0 of byte 71, mirrors `CCM_Status.CCM_FaultInverterWarning`.
+    pub fault_inverter_warning: bool,
+    /// Fault bitmap bit 15: the precharge controller reports ERROR (or a state the schema does not know); its own error bits say why.
+    ///
+    /// Wire: flag in bit 1 of byte 71, mirrors `CCM_Status.CCM_FaultPccError`.
+    pub fault_pcc_error: bool,
+}
+
+impl TelemetryMirror {
+    /// Before any frame arrived: every value zero (`false`, an enum's raw 0).
+    pub const EMPTY: Self = Self {
+        imd_resistance: 0,
+        imd_status: 0,
+        pack_voltage: 0.0,
+        pack_current: 0.0,
+        soc: 0.0,
+        discharge_limit: 0,
+        charge_limit: 0,
+        low_cell_volt: 0.0,
+        high_cell_volt: 0.0,
+        avg_cell_volt: 0.0,
+        pack_temp: 0,
+        motor_speed: 0.0,
+        motor_torque: 0.0,
+        max_motor_torque: 0.0,
+        motor_direction: MotorRotateDirection::from_raw(0),
+        motor_state: MotorMode::from_raw(0),
+        mcu_main_state: McuMainState::from_raw(0),
+        mcu_work_mode: McuWorkMode::from_raw(0),
+        mcu_voltage: 0.0,
+        mcu_phase_current: 0.0,
+        mcu_current: 0.0,
+        motor_temp: 0,
+        mcu_temp: 0,
+        mcu_warning_level: McuWarningLevel::from_raw(0),
+        vehicle_state: VehicleState::from_raw(0),
+        ready_to_drive: false,
+        torque_command: 0.0,
+        dc_main_wire_over_volt_fault: false,
+        motor_phase_curr_fault: false,
+        mcu_over_hot_fault: false,
+        resolver_fault: false,
+        phase_curr_sensor_fault: false,
+        motor_over_spd_fault: false,
+        drv_motor_over_hot_fault: false,
+        dc_main_wire_over_curr_fault: false,
+        drv_motor_over_cool_fault: false,
+        dc_low_volt_warning: false,
+        mcu_12v_low_volt_warning: false,
+        motor_stall_fault: false,
+        motor_open_phase_fault: false,
+        fault_over_current: false,
+        fault_under_voltage: false,
+        fault_over_temperature: false,
+        fault_apps: false,
+        fault_bse: false,
+        fault_bpps: false,
+        fault_apps_brake_plausibility: false,
+        fault_low_battery_voltage: false,
+        fault_pedal_signal_lost: false,
+        fault_sensors_stale: false,
+        fault_bms_timeout: false,
+        fault_inverter_timeout: false,
+        fault_pcc_timeout: false,
+        fault_inverter_fault: false,
+        fault_inverter_warning: false,
+        fault_pcc_error: false,
+    };
+
+    /// Copies every field that mirrors a signal of `message`; other fields keep their value.
+    /// The sender calls this for each frame it decodes (and for the frames it sends itself).
+    pub fn apply(&mut self, message: &AnyMessage) {
+        match message {
+            AnyMessage::CcmStatus(m) => {
+                self.vehicle_state = m.ccm_vehicle_state;
+                self.ready_to_drive = m.ccm_ready_to_drive;
+                self.fault_over_current = m.ccm_fault_over_current;
+                self.fault_under_voltage = m.ccm_fault_under_voltage;
+                self.fault_over_temperature = m.ccm_fault_over_temperature;
+                self.fault_apps = m.ccm_fault_apps;
+                self.fault_bse = m.ccm_fault_bse;
+                self.fault_bpps = m.ccm_fault_bpps;
+                self.fault_apps_brake_plausibility = m.ccm_fault_apps_brake_plausibility;
+                self.fault_low_battery_voltage = m.ccm_fault_low_battery_voltage;
+                self.fault_pedal_signal_lost = m.ccm_fault_pedal_signal_lost;
+                self.fault_sensors_stale = m.ccm_fault_sensors_stale;
+                self.fault_bms_timeout = m.ccm_fault_bms_timeout;
+                self.fault_inverter_timeout = m.ccm_fault_inverter_timeout;
+                self.fault_pcc_timeout = m.ccm_fault_pcc_timeout;
+                self.fault_inverter_fault = m.ccm_fault_inverter_fault;
+                self.fault_inverter_warning = m.ccm_fault_inverter_warning;
+                self.fault_pcc_error = m.ccm_fault_pcc_error;
+            }
+            AnyMessage::Vcu1(m) => {
+                self.torque_command = m.vcu_torque_req as f32;
+            }
+            AnyMessage::Mcu1(m) => {
+                self.motor_speed = m.mcu_motor_speed as f32;
+                self.motor_torque = m.mcu_actual_torque as f32;
+                self.max_motor_torque = m.mcu_max_motor_torque as f32;
+                self.motor_direction = m.mcu_rotate_direction;
+                self.motor_state = m.mcu_motor_state;
+                self.mcu_main_state = m.mcu_main_state;
+                self.mcu_work_mode = m.mcu_work_mode;
+            }
+            AnyMessage::Mcu2(m) => {
+                self.motor_temp = m.mcu_motor_temp;
+                self.mcu_temp = m.mcu_inverter_temp;
+                self.mcu_warning_level = m.mcu_warning_level;
+                self.dc_main_wire_over_volt_fault = m.mcu_dc_main_wire_over_volt_fault;
+                self.motor_phase_curr_fault = m.mcu_motor_phase_curr_fault;
+                self.mcu_over_hot_fault = m.mcu_over_hot_fault;
+                self.resolver_fault = m.mcu_resolver_fault;
+                self.phase_curr_sensor_fault = m.mcu_phase_curr_sensor_fault;
+                self.motor_over_spd_fault = m.mcu_motor_over_spd_fault;
+                self.drv_motor_over_hot_fault = m.mcu_drv_motor_over_hot_fault;
+                self.dc_main_wire_over_curr_fault = m.mcu_dc_main_wire_over_curr_fault;
+                self.drv_motor_over_cool_fault = m.mcu_drv_motor_over_cool_fault;
+                self.dc_low_volt_warning = m.mcu_dc_low_volt_warning;
+                self.mcu_12v_low_volt_warning = m.mcu_12v_low_volt_warning;
+                self.motor_stall_fault = m.mcu_motor_stall_fault;
+                self.motor_open_phase_fault = m.mcu_motor_open_phase_fault;
+            }
+            AnyMessage::Mcu3(m) => {
+                self.mcu_voltage = m.mcu_dc_voltage as f32;
+                self.mcu_phase_current = m.mcu_phase_current as f32;
+                self.mcu_current = m.mcu_dc_current as f32;
+            }
+            AnyMessage::OrionPackStatus(m) => {
+                self.pack_voltage = m.orion_pack_inst_voltage as f32;
+                self.pack_current = m.orion_pack_current as f32;
+                self.soc = m.orion_pack_soc as f32;
+            }
+            AnyMessage::OrionLimits(m) => {
+                self.discharge_limit = m.orion_pack_dcl;
+                self.charge_limit = m.orion_pack_ccl;
+                self.pack_temp = m.orion_high_temperature;
+            }
+            AnyMessage::OrionCellVoltages(m) => {
+                self.low_cell_volt = m.orion_low_cell_voltage as f32;
+                self.high_cell_volt = m.orion_high_cell_voltage as f32;
+                self.avg_cell_volt = m.orion_avg_cell_voltage as f32;
+            }
+            AnyMessage::ImdInfoGeneral(m) => {
+                self.imd_resistance = m.imd_r_iso_corrected;
+                self.imd_status = m.imd_r_iso_status;
+            }
+            _ => {}
+        }
+    }
+}
+
+/// The fields of [`Telemetry`] the sender measures or counts itself (no `signal:` in
+/// telemetry.yaml). There is no `Default` and no constructor: the sender names every field, so a
+/// field added to the schema is a compile error in the sender until it fills it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TelemetryOwnFields {
+    /// Accelerator pedal travel, 0 released, 100 fully pressed.
+    ///
+    /// Wire: `u8` at byte 10, physical = raw * 0.4, unit `%`.
+    pub apps_travel: f32,
+    /// Front brake system encoder voltage (valid 0.5-4.5 V).
+    ///
+    /// Wire: `u16` at byte 11, physical = raw * 0.001, unit `V`.
+    pub bse_front: f32,
+    /// Rear brake system encoder voltage (valid 0.5-4.5 V).
+    ///
+    /// Wire: `u16` at byte 13, physical = raw * 0.001, unit `V`.
+    pub bse_rear: f32,
+    /// Front-left shock travel.
+    ///
+    /// Wire: `u16` at byte 53, physical = raw * 0.01, unit `mm`.
+    pub shocktravel1: f32,
+    /// Front-right shock travel.
+    ///
+    /// Wire: `u16` at byte 55, physical = raw * 0.01, unit `mm`.
+    pub shocktravel2: f32,
+    /// Rear-left shock travel.
+    ///
+    /// Wire: `u16` at byte 57, physical = raw * 0.01, unit `mm`.
+    pub shocktravel3: f32,
+    /// Rear-right shock travel.
+    ///
+    /// Wire: `u16` at byte 59, physical = raw * 0.01, unit `mm`.
+    pub shocktravel4: f32,
+    /// CAN frames the CCM dropped because a receive queue was full (since start-up, wrapping at 256).
+    ///
+    /// Wire: `u8` at byte 61, unit `frames`.
+    pub can_rx_dropped: u8,
+    /// CAN frames the CCM could not queue because every mailbox was busy (since start-up, wrapping at 256).
+    ///
+    /// Wire: `u8` at byte 62, unit `frames`.
+    pub can_tx_dropped: u8,
+    /// Received frames of known ids that failed to decode, plus frames of unknown ids (since start-up, wrapping at 256).
+    ///
+    /// Wire: `u8` at byte 63, unit `frames`.
+    pub can_decode_errors: u8,
+    /// Telemetry packets abandoned because the next one was due first, so no or slow flow control (since start-up, wrapping at 256).
+    ///
+    /// Wire: `u8` at byte 64, unit `packets`.
+    pub telemetry_superseded: u8,
+    /// Failed I2C transactions with the pedal sensors' converter (since start-up, wrapping at 256).
+    ///
+    /// Wire: `u8` at byte 65, unit `errors`.
+    pub pedal_bus_errors: u8,
+    /// Times either of the CCM's CAN controllers went bus-off (since start-up, wrapping at 256); each recovers by itself after 128 x 11 recessive bits.
+    ///
+    /// Wire: `u8` at byte 66, unit `events`.
+    pub can_bus_off_events: u8,
+    /// The CCM's vehicle-bus controller (FlexCAN3: BMS, charger, PCC, IMD, the Pi) is error-passive (an error counter above 127).
+    ///
+    /// Wire: flag in bit 1 of byte 67.
+    pub vehicle_bus_error_passive: bool,
+    /// The CCM's vehicle-bus controller (FlexCAN3) is bus-off.
+    ///
+    /// Wire: flag in bit 2 of byte 67.
+    pub vehicle_bus_bus_off: bool,
+    /// The CCM's inverter-bus controller (FlexCAN2) is error-passive (an error counter above 127).
+    ///
+    /// Wire: flag in bit 3 of byte 67.
+    pub inverter_bus_error_passive: bool,
+    /// The CCM's inverter-bus controller (FlexCAN2) is bus-off.
+    ///
+    /// Wire: flag in bit 4 of byte 67.
+    pub inverter_bus_bus_off: bool,
+}
+
+#[cfg(feature = "host")]
+impl Telemetry {
+    /// Every value zero (`false`, an enum's raw 0): what a receiver shows before the first
+    /// packet. Receivers only (feature `host`): the firmware builds without it, so a sender
+    /// cannot start a packet from zeros and leave a new field unfilled.
+    pub fn zeroed() -> Self {
         Self {
             apps_travel: 0.0,
             bse_front: 0.0,
@@ -2595,22 +3000,32 @@ impl Telemetry {
         saturated
     }
 
-    /// Reads a packet, checking its length and fingerprint. Unknown enum values decode as
-    /// `Unknown(raw)`.
-    pub fn unpack(data: &[u8]) -> Result<(TelemetryHeader, Self), TelemetryError> {
+    /// Checks a packet's fingerprint, then its length. The fingerprint comes first, whatever
+    /// the length: a schema change usually changes the length too, and the receiver must still
+    /// say "another schema" (with both fingerprints) rather than "wrong length".
+    pub fn check(data: &[u8]) -> Result<(), TelemetryError> {
+        if let Some(bytes) = data.first_chunk::<4>() {
+            let found = u32::from_le_bytes(*bytes);
+            if found != TELEMETRY_FINGERPRINT {
+                return Err(TelemetryError::FingerprintMismatch {
+                    expected: TELEMETRY_FINGERPRINT,
+                    found,
+                });
+            }
+        }
         if data.len() != Self::LEN {
             return Err(TelemetryError::WrongLength {
                 expected: Self::LEN,
                 actual: data.len(),
             });
         }
-        let found = u32::from_le_bytes(runtime::take(data, 0));
-        if found != TELEMETRY_FINGERPRINT {
-            return Err(TelemetryError::FingerprintMismatch {
-                expected: TELEMETRY_FINGERPRINT,
-                found,
-            });
-        }
+        Ok(())
+    }
+
+    /// Reads a packet, checking its fingerprint and length ([`Self::check`]). Unknown enum
+    /// values decode as `Unknown(raw)`.
+    pub fn unpack(data: &[u8]) -> Result<(TelemetryHeader, Self), TelemetryError> {
+        Self::check(data)?;
         let header = TelemetryHeader {
             sequence: u16::from_le_bytes(runtime::take(data, 4)),
             timestamp_us: u32::from_le_bytes(runtime::take(data, 6)),
@@ -2823,86 +3238,82 @@ impl Telemetry {
         ))
     }
 
-    /// Copies every field that mirrors a DBC signal (`signal:` in telemetry.yaml) from a
-    /// decoded message; other fields keep their value. The sender calls this for each frame it
-    /// decodes, so a new mirrored field is filled without code changes.
-    pub fn apply(&mut self, message: &AnyMessage) {
-        match message {
-            AnyMessage::CcmStatus(m) => {
-                self.vehicle_state = m.ccm_vehicle_state;
-                self.ready_to_drive = m.ccm_ready_to_drive;
-                self.fault_over_current = m.ccm_fault_over_current;
-                self.fault_under_voltage = m.ccm_fault_under_voltage;
-                self.fault_over_temperature = m.ccm_fault_over_temperature;
-                self.fault_apps = m.ccm_fault_apps;
-                self.fault_bse = m.ccm_fault_bse;
-                self.fault_bpps = m.ccm_fault_bpps;
-                self.fault_apps_brake_plausibility = m.ccm_fault_apps_brake_plausibility;
-                self.fault_low_battery_voltage = m.ccm_fault_low_battery_voltage;
-                self.fault_pedal_signal_lost = m.ccm_fault_pedal_signal_lost;
-                self.fault_sensors_stale = m.ccm_fault_sensors_stale;
-                self.fault_bms_timeout = m.ccm_fault_bms_timeout;
-                self.fault_inverter_timeout = m.ccm_fault_inverter_timeout;
-                self.fault_pcc_timeout = m.ccm_fault_pcc_timeout;
-                self.fault_inverter_fault = m.ccm_fault_inverter_fault;
-                self.fault_inverter_warning = m.ccm_fault_inverter_warning;
-                self.fault_pcc_error = m.ccm_fault_pcc_error;
-            }
-            AnyMessage::Vcu1(m) => {
-                self.torque_command = m.vcu_torque_req as f32;
-            }
-            AnyMessage::Mcu1(m) => {
-                self.motor_speed = m.mcu_motor_speed as f32;
-                self.motor_torque = m.mcu_actual_torque as f32;
-                self.max_motor_torque = m.mcu_max_motor_torque as f32;
-                self.motor_direction = m.mcu_rotate_direction;
-                self.motor_state = m.mcu_motor_state;
-                self.mcu_main_state = m.mcu_main_state;
-                self.mcu_work_mode = m.mcu_work_mode;
-            }
-            AnyMessage::Mcu2(m) => {
-                self.motor_temp = m.mcu_motor_temp;
-                self.mcu_temp = m.mcu_inverter_temp;
-                self.mcu_warning_level = m.mcu_warning_level;
-                self.dc_main_wire_over_volt_fault = m.mcu_dc_main_wire_over_volt_fault;
-                self.motor_phase_curr_fault = m.mcu_motor_phase_curr_fault;
-                self.mcu_over_hot_fault = m.mcu_over_hot_fault;
-                self.resolver_fault = m.mcu_resolver_fault;
-                self.phase_curr_sensor_fault = m.mcu_phase_curr_sensor_fault;
-                self.motor_over_spd_fault = m.mcu_motor_over_spd_fault;
-                self.drv_motor_over_hot_fault = m.mcu_drv_motor_over_hot_fault;
-                self.dc_main_wire_over_curr_fault = m.mcu_dc_main_wire_over_curr_fault;
-                self.drv_motor_over_cool_fault = m.mcu_drv_motor_over_cool_fault;
-                self.dc_low_volt_warning = m.mcu_dc_low_volt_warning;
-                self.mcu_12v_low_volt_warning = m.mcu_12v_low_volt_warning;
-                self.motor_stall_fault = m.mcu_motor_stall_fault;
-                self.motor_open_phase_fault = m.mcu_motor_open_phase_fault;
-            }
-            AnyMessage::Mcu3(m) => {
-                self.mcu_voltage = m.mcu_dc_voltage as f32;
-                self.mcu_phase_current = m.mcu_phase_current as f32;
-                self.mcu_current = m.mcu_dc_current as f32;
-            }
-            AnyMessage::OrionPackStatus(m) => {
-                self.pack_voltage = m.orion_pack_inst_voltage as f32;
-                self.pack_current = m.orion_pack_current as f32;
-                self.soc = m.orion_pack_soc as f32;
-            }
-            AnyMessage::OrionLimits(m) => {
-                self.discharge_limit = m.orion_pack_dcl;
-                self.charge_limit = m.orion_pack_ccl;
-                self.pack_temp = m.orion_high_temperature;
-            }
-            AnyMessage::OrionCellVoltages(m) => {
-                self.low_cell_volt = m.orion_low_cell_voltage as f32;
-                self.high_cell_volt = m.orion_high_cell_voltage as f32;
-                self.avg_cell_volt = m.orion_avg_cell_voltage as f32;
-            }
-            AnyMessage::ImdInfoGeneral(m) => {
-                self.imd_resistance = m.imd_r_iso_corrected;
-                self.imd_status = m.imd_r_iso_status;
-            }
-            _ => {}
+    /// The packet from what the sender mirrored from the buses and what it measured itself.
+    pub fn from_parts(mirror: &TelemetryMirror, own: TelemetryOwnFields) -> Self {
+        Self {
+            apps_travel: own.apps_travel,
+            bse_front: own.bse_front,
+            bse_rear: own.bse_rear,
+            imd_resistance: mirror.imd_resistance,
+            imd_status: mirror.imd_status,
+            pack_voltage: mirror.pack_voltage,
+            pack_current: mirror.pack_current,
+            soc: mirror.soc,
+            discharge_limit: mirror.discharge_limit,
+            charge_limit: mirror.charge_limit,
+            low_cell_volt: mirror.low_cell_volt,
+            high_cell_volt: mirror.high_cell_volt,
+            avg_cell_volt: mirror.avg_cell_volt,
+            pack_temp: mirror.pack_temp,
+            motor_speed: mirror.motor_speed,
+            motor_torque: mirror.motor_torque,
+            max_motor_torque: mirror.max_motor_torque,
+            motor_direction: mirror.motor_direction,
+            motor_state: mirror.motor_state,
+            mcu_main_state: mirror.mcu_main_state,
+            mcu_work_mode: mirror.mcu_work_mode,
+            mcu_voltage: mirror.mcu_voltage,
+            mcu_phase_current: mirror.mcu_phase_current,
+            mcu_current: mirror.mcu_current,
+            motor_temp: mirror.motor_temp,
+            mcu_temp: mirror.mcu_temp,
+            mcu_warning_level: mirror.mcu_warning_level,
+            vehicle_state: mirror.vehicle_state,
+            ready_to_drive: mirror.ready_to_drive,
+            torque_command: mirror.torque_command,
+            shocktravel1: own.shocktravel1,
+            shocktravel2: own.shocktravel2,
+            shocktravel3: own.shocktravel3,
+            shocktravel4: own.shocktravel4,
+            can_rx_dropped: own.can_rx_dropped,
+            can_tx_dropped: own.can_tx_dropped,
+            can_decode_errors: own.can_decode_errors,
+            telemetry_superseded: own.telemetry_superseded,
+            pedal_bus_errors: own.pedal_bus_errors,
+            can_bus_off_events: own.can_bus_off_events,
+            vehicle_bus_error_passive: own.vehicle_bus_error_passive,
+            vehicle_bus_bus_off: own.vehicle_bus_bus_off,
+            inverter_bus_error_passive: own.inverter_bus_error_passive,
+            inverter_bus_bus_off: own.inverter_bus_bus_off,
+            dc_main_wire_over_volt_fault: mirror.dc_main_wire_over_volt_fault,
+            motor_phase_curr_fault: mirror.motor_phase_curr_fault,
+            mcu_over_hot_fault: mirror.mcu_over_hot_fault,
+            resolver_fault: mirror.resolver_fault,
+            phase_curr_sensor_fault: mirror.phase_curr_sensor_fault,
+            motor_over_spd_fault: mirror.motor_over_spd_fault,
+            drv_motor_over_hot_fault: mirror.drv_motor_over_hot_fault,
+            dc_main_wire_over_curr_fault: mirror.dc_main_wire_over_curr_fault,
+            drv_motor_over_cool_fault: mirror.drv_motor_over_cool_fault,
+            dc_low_volt_warning: mirror.dc_low_volt_warning,
+            mcu_12v_low_volt_warning: mirror.mcu_12v_low_volt_warning,
+            motor_stall_fault: mirror.motor_stall_fault,
+            motor_open_phase_fault: mirror.motor_open_phase_fault,
+            fault_over_current: mirror.fault_over_current,
+            fault_under_voltage: mirror.fault_under_voltage,
+            fault_over_temperature: mirror.fault_over_temperature,
+            fault_apps: mirror.fault_apps,
+            fault_bse: mirror.fault_bse,
+            fault_bpps: mirror.fault_bpps,
+            fault_apps_brake_plausibility: mirror.fault_apps_brake_plausibility,
+            fault_low_battery_voltage: mirror.fault_low_battery_voltage,
+            fault_pedal_signal_lost: mirror.fault_pedal_signal_lost,
+            fault_sensors_stale: mirror.fault_sensors_stale,
+            fault_bms_timeout: mirror.fault_bms_timeout,
+            fault_inverter_timeout: mirror.fault_inverter_timeout,
+            fault_pcc_timeout: mirror.fault_pcc_timeout,
+            fault_inverter_fault: mirror.fault_inverter_fault,
+            fault_inverter_warning: mirror.fault_inverter_warning,
+            fault_pcc_error: mirror.fault_pcc_error,
         }
     }
 

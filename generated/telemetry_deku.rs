@@ -83,24 +83,12 @@ impl core::fmt::Display for TelemetryDecodeError {
 impl core::error::Error for TelemetryDecodeError {}
 
 impl TelemetryFrame {
-    /// Decodes a packet, checking its length and fingerprint.
+    /// Decodes a packet, checking its fingerprint and length as the firmware's own reader does
+    /// ([`Telemetry::check`]: another schema's packet is named as such whatever its length).
     pub fn decode(bytes: &[u8]) -> Result<Self, TelemetryDecodeError> {
-        if bytes.len() != Telemetry::LEN {
-            return Err(TelemetryDecodeError::Packet(TelemetryError::WrongLength {
-                expected: Telemetry::LEN,
-                actual: bytes.len(),
-            }));
-        }
+        Telemetry::check(bytes).map_err(TelemetryDecodeError::Packet)?;
         let (_, frame) = Self::from_bytes((bytes, 0))
             .map_err(|e| TelemetryDecodeError::Malformed(e.to_string()))?;
-        if frame.fingerprint != TELEMETRY_FINGERPRINT {
-            return Err(TelemetryDecodeError::Packet(
-                TelemetryError::FingerprintMismatch {
-                    expected: TELEMETRY_FINGERPRINT,
-                    found: frame.fingerprint,
-                },
-            ));
-        }
         Ok(frame)
     }
 

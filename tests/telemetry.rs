@@ -239,7 +239,7 @@ fn the_packet_is_compact_and_documented() {
 #[test]
 fn apply_copies_every_mirrored_signal_of_a_decoded_message() {
     use aer::can::{AnyMessage, Mcu1, McuMainState, OrionPackStatus};
-    let mut telemetry = Telemetry::default();
+    let mut telemetry = aer::telemetry::TelemetryMirror::EMPTY;
     assert_eq!(telemetry.motor_speed, 0.0);
     assert_eq!(telemetry.mcu_main_state, McuMainState::from_raw(0));
 
@@ -286,7 +286,7 @@ fn the_direct_json_writer_writes_null_where_serde_does() {
     let telemetry = Telemetry {
         soc: f32::NAN,
         motor_speed: f32::INFINITY,
-        ..Telemetry::default()
+        ..Telemetry::zeroed()
     };
     let record = TelemetryRecord {
         header: TelemetryHeader {

@@ -1,5 +1,5 @@
 //! What the CCM keeps from the CAN buses: every decoded frame updates the telemetry mirror
-//! (generated `Telemetry::apply`), and the messages the control logic acts on are kept with
+//! (generated `TelemetryMirror::apply`), and the messages the control logic acts on are kept with
 //! their arrival time, so the control step only ever uses fresh values.
 
 use crate::config::{
@@ -10,7 +10,7 @@ use aer::can::{
     AnyMessage, Mcu1, Mcu2, Mcu3, OrionCellVoltages, OrionLimits, OrionPackStatus, PccStatus,
 };
 use aer::runtime::DecodeError;
-use aer::telemetry::Telemetry;
+use aer::telemetry::TelemetryMirror;
 use embedded_can::{Frame, Id};
 
 /// The latest value of one message and when it arrived (ms).
@@ -81,10 +81,10 @@ pub struct BusInputs {
 }
 
 /// Latest values from the buses.
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Clone)]
 pub struct BusState {
-    /// Every field mirrored from a DBC signal, as last received.
-    pub mirror: Telemetry,
+    /// Every telemetry field mirrored from a DBC signal, as last received.
+    pub mirror: TelemetryMirror,
     /// PCC_Status.
     pub pcc: Received<PccStatus>,
     /// Orion_PackStatus.
@@ -103,6 +103,23 @@ pub struct BusState {
     pub decode_errors: u32,
     /// Frames whose id the schema does not know: counted and ignored.
     pub unknown_ids: u32,
+}
+
+impl Default for BusState {
+    fn default() -> Self {
+        Self {
+            mirror: TelemetryMirror::EMPTY,
+            pcc: Received::default(),
+            pack: Received::default(),
+            limits: Received::default(),
+            cells: Received::default(),
+            mcu1: Received::default(),
+            mcu2: Received::default(),
+            mcu3: Received::default(),
+            decode_errors: 0,
+            unknown_ids: 0,
+        }
+    }
 }
 
 impl BusState {

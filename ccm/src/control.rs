@@ -16,7 +16,7 @@ use crate::torque_path::{TorqueInputs, TorquePath};
 use crate::vehicle::{Vehicle, VehicleInputs};
 use aer::can::{AnyMessage, Bms1, Bms2, CcmStatus, PrechargeState, SCHEMA_FINGERPRINT, Vcu1};
 use aer::runtime::EncodeError;
-use aer::telemetry::Telemetry;
+use aer::telemetry::{Telemetry, TelemetryOwnFields};
 use embedded_can::Frame;
 
 /// The control step's state.
@@ -222,36 +222,41 @@ impl Control {
     }
 
     /// The telemetry snapshot: everything mirrored from the buses plus the CCM's own sensors,
-    /// state and counters.
+    /// state and counters. Every own field is named here (the generated `TelemetryOwnFields`
+    /// has no `Default`), so a field added to the schema does not build until it is filled.
     pub fn snapshot(&self, sensors: &SensorReading, link: LinkCounters) -> Telemetry {
-        let mut snapshot = self.bus.mirror;
-        snapshot.apply(&AnyMessage::CcmStatus(self.status()));
-        // Travel is a fraction inside the CCM; people read the throttle in percent.
-        snapshot.apps_travel = sensors.apps.travel * 100.0;
-        snapshot.bse_front = sensors.brakes.front_v;
-        snapshot.bse_rear = sensors.brakes.rear_v;
-        let [fl, fr, rl, rr] = sensors.shock_mm;
-        snapshot.shocktravel1 = fl;
-        snapshot.shocktravel2 = fr;
-        snapshot.shocktravel3 = rl;
-        snapshot.shocktravel4 = rr;
+        let mut mirror = self.bus.mirror;
+        mirror.apply(&AnyMessage::CcmStatus(self.status()));
         // Counters wrap at 8 bits on the wire; at 100 packets/s the Pi sees every increment.
         let wrap = |count: u32| (count & 0xFF) as u8;
         let driver = &self.driver;
-        snapshot.can_rx_dropped = wrap(driver.rx_dropped);
-        snapshot.can_tx_dropped = wrap(driver.tx_dropped);
-        snapshot.can_decode_errors =
-            wrap(self.bus.decode_errors.wrapping_add(self.bus.unknown_ids));
-        snapshot.telemetry_superseded = wrap(link.superseded);
-        snapshot.pedal_bus_errors = wrap(driver.pedal_bus_errors);
         let [vehicle, inverter] = driver.buses;
-        snapshot.can_bus_off_events =
-            wrap(vehicle.bus_off_events.wrapping_add(inverter.bus_off_events));
-        snapshot.vehicle_bus_error_passive = vehicle.error_passive;
-        snapshot.vehicle_bus_bus_off = vehicle.bus_off;
-        snapshot.inverter_bus_error_passive = inverter.error_passive;
-        snapshot.inverter_bus_bus_off = inverter.bus_off;
-        snapshot
+        let [fl, fr, rl, rr] = sensors.shock_mm;
+        Telemetry::from_parts(
+            &mirror,
+            TelemetryOwnFields {
+                // Travel is a fraction inside the CCM; people read the throttle in percent.
+                apps_travel: sensors.apps.travel * 100.0,
+                bse_front: sensors.brakes.front_v,
+                bse_rear: sensors.brakes.rear_v,
+                shocktravel1: fl,
+                shocktravel2: fr,
+                shocktravel3: rl,
+                shocktravel4: rr,
+                can_rx_dropped: wrap(driver.rx_dropped),
+                can_tx_dropped: wrap(driver.tx_dropped),
+                can_decode_errors: wrap(self.bus.decode_errors.wrapping_add(self.bus.unknown_ids)),
+                telemetry_superseded: wrap(link.superseded),
+                pedal_bus_errors: wrap(driver.pedal_bus_errors),
+                can_bus_off_events: wrap(
+                    vehicle.bus_off_events.wrapping_add(inverter.bus_off_events),
+                ),
+                vehicle_bus_error_passive: vehicle.error_passive,
+                vehicle_bus_bus_off: vehicle.bus_off,
+                inverter_bus_error_passive: inverter.error_passive,
+                inverter_bus_bus_off: inverter.bus_off,
+            },
+        )
     }
 }
 

@@ -468,7 +468,7 @@ fn the_telemetry_packet_reaches_an_iso_tp_receiver_intact() {
     assert_eq!(ccm.link().counters().sent, 1);
     // The mirror is the generated apply(): a CCM_Status decoded elsewhere reads the same.
     let status = ccm.status();
-    let mut from_status = Telemetry::default();
+    let mut from_status = aer::telemetry::TelemetryMirror::EMPTY;
     from_status.apply(&AnyMessage::CcmStatus(status));
     assert_eq!(from_status.vehicle_state, telemetry.vehicle_state);
 }

@@ -30,8 +30,10 @@ pub struct TelemetryHeader {
 
 /// {{ t.description }}
 ///
-/// Every field must be given when building one (there is no `Default`): a field added to the
-/// schema is a compile error wherever the packet is filled, until it is filled too.
+/// There is no `Default`: a sender builds it with [`{{ t.type_name }}::from_parts`] from the
+/// fields it mirrors from the buses and the ones it fills itself (every one named), so a field
+/// added to the schema is either filled from the bus by generated code or a compile error in the
+/// sender until it is filled.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct {{ t.type_name }} {
@@ -129,9 +131,68 @@ static TELEMETRY_DISPLAY: [FieldDisplay; {{ fields.len() }}] = [
 {%- endfor %}
 ];
 
-impl Default for {{ t.type_name }} {
-    /// Every value zero (`false`, an enum's raw 0), as before any data arrived.
-    fn default() -> Self {
+/// The fields of [`{{ t.type_name }}`] that mirror a DBC signal (`signal:` in telemetry.yaml), as
+/// last received. [`{{ t.type_name }}Mirror::apply`] fills them from decoded frames, so a mirrored
+/// field added to the schema needs no code in the sender.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct {{ t.type_name }}Mirror {
+{%- for f in fields %}
+{%- if f.mirrored %}
+{%- for d in f.docs %}
+    ///{% if !d.is_empty() %} {{ d }}{% endif %}
+{%- endfor %}
+    pub {{ f.name }}: {{ f.phys_ty }},
+{%- endif %}
+{%- endfor %}
+}
+
+impl {{ t.type_name }}Mirror {
+    /// Before any frame arrived: every value zero (`false`, an enum's raw 0).
+    pub const EMPTY: Self = Self {
+{%- for f in fields %}
+{%- if f.mirrored %}
+        {{ f.name }}: {% call field::default(f) %}{% endcall %},
+{%- endif %}
+{%- endfor %}
+    };
+
+    /// Copies every field that mirrors a signal of `message`; other fields keep their value.
+    /// The sender calls this for each frame it decodes (and for the frames it sends itself).
+    pub fn apply(&mut self, message: &AnyMessage) {
+        match message {
+{%- for arm in mirrors %}
+            AnyMessage::{{ arm.variant }}(m) => {
+{%- for copy in arm.copies %}
+                {%- call field::mirror(copy) %}{% endcall %}
+{%- endfor %}
+            }
+{%- endfor %}
+            _ => {}
+        }
+    }
+}
+
+/// The fields of [`{{ t.type_name }}`] the sender measures or counts itself (no `signal:` in
+/// telemetry.yaml). There is no `Default` and no constructor: the sender names every field, so a
+/// field added to the schema is a compile error in the sender until it fills it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct {{ t.type_name }}OwnFields {
+{%- for f in fields %}
+{%- if !f.mirrored %}
+{%- for d in f.docs %}
+    ///{% if !d.is_empty() %} {{ d }}{% endif %}
+{%- endfor %}
+    pub {{ f.name }}: {{ f.phys_ty }},
+{%- endif %}
+{%- endfor %}
+}
+
+#[cfg(feature = "host")]
+impl {{ t.type_name }} {
+    /// Every value zero (`false`, an enum's raw 0): what a receiver shows before the first
+    /// packet. Receivers only (feature `host`): the firmware builds without it, so a sender
+    /// cannot start a packet from zeros and leave a new field unfilled.
+    pub fn zeroed() -> Self {
         Self {
 {%- for f in fields %}
             {{ f.name }}: {% call field::default(f) %}{% endcall %},
@@ -168,22 +229,32 @@ impl {{ t.type_name }} {
         saturated
     }
 
-    /// Reads a packet, checking its length and fingerprint. Unknown enum values decode as
-    /// `Unknown(raw)`.
-    pub fn unpack(data: &[u8]) -> Result<(TelemetryHeader, Self), TelemetryError> {
+    /// Checks a packet's fingerprint, then its length. The fingerprint comes first, whatever
+    /// the length: a schema change usually changes the length too, and the receiver must still
+    /// say "another schema" (with both fingerprints) rather than "wrong length".
+    pub fn check(data: &[u8]) -> Result<(), TelemetryError> {
+        if let Some(bytes) = data.first_chunk::<4>() {
+            let found = u32::from_le_bytes(*bytes);
+            if found != TELEMETRY_FINGERPRINT {
+                return Err(TelemetryError::FingerprintMismatch {
+                    expected: TELEMETRY_FINGERPRINT,
+                    found,
+                });
+            }
+        }
         if data.len() != Self::LEN {
             return Err(TelemetryError::WrongLength {
                 expected: Self::LEN,
                 actual: data.len(),
             });
         }
-        let found = u32::from_le_bytes(runtime::take(data, 0));
-        if found != TELEMETRY_FINGERPRINT {
-            return Err(TelemetryError::FingerprintMismatch {
-                expected: TELEMETRY_FINGERPRINT,
-                found,
-            });
-        }
+        Ok(())
+    }
+
+    /// Reads a packet, checking its fingerprint and length ([`Self::check`]). Unknown enum
+    /// values decode as `Unknown(raw)`.
+    pub fn unpack(data: &[u8]) -> Result<(TelemetryHeader, Self), TelemetryError> {
+        Self::check(data)?;
         let header = TelemetryHeader {
             sequence: u16::from_le_bytes(runtime::take(data, 4)),
             timestamp_us: u32::from_le_bytes(runtime::take(data, 6)),
@@ -198,19 +269,12 @@ impl {{ t.type_name }} {
         ))
     }
 
-    /// Copies every field that mirrors a DBC signal (`signal:` in telemetry.yaml) from a
-    /// decoded message; other fields keep their value. The sender calls this for each frame it
-    /// decodes, so a new mirrored field is filled without code changes.
-    pub fn apply(&mut self, message: &AnyMessage) {
-        match message {
-{%- for arm in mirrors %}
-            AnyMessage::{{ arm.variant }}(m) => {
-{%- for copy in arm.copies %}
-                {%- call field::mirror(copy) %}{% endcall %}
+    /// The packet from what the sender mirrored from the buses and what it measured itself.
+    pub fn from_parts(mirror: &{{ t.type_name }}Mirror, own: {{ t.type_name }}OwnFields) -> Self {
+        Self {
+{%- for f in fields %}
+            {{ f.name }}: {% if f.mirrored %}mirror{% else %}own{% endif %}.{{ f.name }},
 {%- endfor %}
-            }
-{%- endfor %}
-            _ => {}
         }
     }
 

@@ -51,22 +51,12 @@ impl core::fmt::Display for {{ t.type_name }}DecodeError {
 impl core::error::Error for {{ t.type_name }}DecodeError {}
 
 impl {{ t.type_name }}Frame {
-    /// Decodes a packet, checking its length and fingerprint.
+    /// Decodes a packet, checking its fingerprint and length as the firmware's own reader does
+    /// ([`{{ t.type_name }}::check`]: another schema's packet is named as such whatever its length).
     pub fn decode(bytes: &[u8]) -> Result<Self, {{ t.type_name }}DecodeError> {
-        if bytes.len() != {{ t.type_name }}::LEN {
-            return Err({{ t.type_name }}DecodeError::Packet(TelemetryError::WrongLength {
-                expected: {{ t.type_name }}::LEN,
-                actual: bytes.len(),
-            }));
-        }
+        {{ t.type_name }}::check(bytes).map_err({{ t.type_name }}DecodeError::Packet)?;
         let (_, frame) = Self::from_bytes((bytes, 0))
             .map_err(|e| {{ t.type_name }}DecodeError::Malformed(e.to_string()))?;
-        if frame.fingerprint != TELEMETRY_FINGERPRINT {
-            return Err({{ t.type_name }}DecodeError::Packet(TelemetryError::FingerprintMismatch {
-                expected: TELEMETRY_FINGERPRINT,
-                found: frame.fingerprint,
-            }));
-        }
         Ok(frame)
     }
 

@@ -202,7 +202,7 @@ mod tests {
                     sequence: 7,
                     timestamp_us: 99,
                 },
-                telemetry: Telemetry::default(),
+                telemetry: Telemetry::zeroed(),
             },
         };
         let payload = TELEMETRY.encode(&sample).unwrap();

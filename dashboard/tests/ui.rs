@@ -40,7 +40,7 @@ fn driving() -> Telemetry {
         mcu_temp: 80,
         vehicle_state: VehicleState::Driving,
         ready_to_drive: true,
-        ..Telemetry::default()
+        ..Telemetry::zeroed()
     }
 }
 

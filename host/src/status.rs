@@ -53,6 +53,10 @@ pub struct Problems {
     /// CAN interfaces that cannot be opened or read, each with its error
     /// (`can0: No such device (os error 19)`).
     pub can: Option<String>,
+    /// The firmware sends telemetry of another schema (both fingerprints), while its latest
+    /// packets are of another schema.
+    #[serde(default)]
+    pub firmware: Option<String>,
 }
 
 /// The ingest service's counters, published every second.
@@ -80,6 +84,14 @@ pub fn status(car_id: &str, counters: &Counters, problems: Problems) -> Status {
     let mismatched = counters.mismatched_fingerprint.load(Ordering::Relaxed);
     let last = counters.last_packet_us.load(Ordering::Relaxed);
     let ours = aer::telemetry::TELEMETRY_FINGERPRINT;
+    let mut problems = problems;
+    if seen != 0 && seen != u64::from(ours) {
+        problems.firmware = Some(format!(
+            "telemetry of another schema: the firmware sends {seen:#010x}, this service \
+             decodes {ours:#010x}; flash the CCM and install the service from the same commit \
+             (the packets are kept in the raw log)"
+        ));
+    }
     Status {
         service: "aer-raspi".to_owned(),
         car_id: car_id.to_owned(),
@@ -126,5 +138,19 @@ mod tests {
         assert_eq!(after.last_packet_ts, Some(2.5));
         let round_trip = STATUS.decode(&STATUS.encode(&after).unwrap()).unwrap();
         assert_eq!(round_trip, after);
+        assert_eq!(after.problems.firmware, None);
+    }
+
+    #[test]
+    fn firmware_of_another_schema_is_a_problem_naming_both_fingerprints() {
+        let counters = Counters::default();
+        counters
+            .firmware_fingerprint
+            .store(0xDEAD_BEEF, Ordering::Relaxed);
+        let status = status("car1", &counters, Problems::default());
+        let problem = status.problems.firmware.expect("a problem");
+        let ours = format!("{:#010x}", aer::telemetry::TELEMETRY_FINGERPRINT);
+        assert!(problem.contains("0xdeadbeef") && problem.contains(&ours), "{problem}");
+        assert_eq!(status.fingerprint_match, Some(false));
     }
 }

@@ -96,6 +96,8 @@ impl Health {
             forward_refused: self.forward_refused.error(),
             mqtt: self.mqtt.error(),
             can: self.can.error(),
+            // The status fills it from what the ingest counted.
+            firmware: None,
         }
     }
 }

@@ -33,9 +33,11 @@ pub async fn run(
         publisher.publish_on(&METRICS, &metrics, false);
         if console {
             println!(
-                "packets {:>7} ({:>4}/s)  frames {:>8}  raw {:>8}  stored {:>8}  published {:>8}  dropped mqtt {} store {} raw {}  errors isotp {} decode {} unknown {} bad-lines {}",
+                "packets {:>7} ({:>4}/s)  rejected {} (another schema {})  frames {:>8}  raw {:>8}  stored {:>8}  published {:>8}  dropped mqtt {} store {} raw {}  errors isotp {} decode {} unknown {} bad-lines {}",
                 now.packets,
                 metrics.packets_per_s,
+                now.fingerprint_mismatches + now.packet_errors,
+                now.fingerprint_mismatches,
                 now.frames,
                 now.raw_frames,
                 now.stored,

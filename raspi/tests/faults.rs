@@ -94,7 +94,7 @@ async fn every_fault_is_counted_and_the_rest_still_decodes() {
     lines.insert(12, "(1795348800.015000) can0 7AB#0102".into());
     lines.insert(13, "(1795348800.015000) can1 105#0102".into());
     // 6. a packet from firmware built from another schema: same layout, other fingerprint.
-    let foreign = foreign_packet_lines();
+    let foreign = foreign_packet_lines(Telemetry::LEN);
     let at = lines.len();
     lines.splice(at..at, foreign);
 
@@ -111,16 +111,19 @@ async fn every_fault_is_counted_and_the_rest_still_decodes() {
     assert_eq!(snapshot.stored, snapshot.packets + snapshot.messages);
 }
 
-/// A telemetry packet whose fingerprint is not ours, as the frames a CCM would send.
-fn foreign_packet_lines() -> Vec<String> {
-    let mut packet = [0u8; Telemetry::LEN];
-    Telemetry::default().pack(
+/// A telemetry packet of `len` bytes whose fingerprint is not ours, as the frames a CCM built
+/// from another schema would send (a field added or removed changes the length).
+fn foreign_packet_lines(len: usize) -> Vec<String> {
+    let mut ours = [0u8; Telemetry::LEN];
+    Telemetry::zeroed().pack(
         aer::telemetry::TelemetryHeader {
             sequence: 9,
             timestamp_us: 0,
         },
-        &mut packet,
+        &mut ours,
     );
+    let mut packet = ours.to_vec();
+    packet.resize(len, 0);
     packet[..4].copy_from_slice(&0xDEAD_BEEFu32.to_le_bytes());
     let mut sender: aer_isotp::Sender<128> = aer_isotp::Sender::new(aer_isotp::Config::CAR);
     sender.start(&packet).expect("start");
@@ -142,6 +145,36 @@ fn foreign_packet_lines() -> Vec<String> {
         ts += 250;
     }
     lines
+}
+
+/// A CCM flashed from another schema is named as such, with both fingerprints on the status,
+/// whether the schema change kept the packet's length or not; nothing is counted as malformed.
+#[tokio::test]
+async fn a_packet_of_another_schema_is_named_whatever_its_length() {
+    for len in [Telemetry::LEN, Telemetry::LEN + 2, Telemetry::LEN - 3] {
+        let counters = Arc::new(Counters::default());
+        let stage = Stage::new(counters.clone(), Vec::new(), Replies::default());
+        let text = foreign_packet_lines(len).join("\n");
+        let (stage, _) = stage.replay_all(text.as_bytes(), &counters).await;
+        drop(stage);
+        let snapshot = counters.snapshot();
+        assert_eq!(
+            (snapshot.fingerprint_mismatches, snapshot.packet_errors),
+            (1, 0),
+            "{len} bytes: {snapshot:?}"
+        );
+        let status = aer_host::status::status("car1", &counters, Default::default());
+        assert_eq!(status.undecodable_packets, 1, "{len} bytes");
+        assert_eq!(status.undecodable_fingerprint.as_deref(), Some("0xdeadbeef"));
+        assert_eq!(status.fingerprint_match, Some(false));
+        let problem = status.problems.firmware.expect("the status names the mismatch");
+        assert!(
+            problem.contains("another schema")
+                && problem.contains("0xdeadbeef")
+                && problem.contains(&status.telemetry_fingerprint),
+            "{problem}"
+        );
+    }
 }
 
 #[test]
@@ -268,7 +301,7 @@ async fn kernel_reassembled_packets_take_the_same_path() {
     let mut packet = [0u8; Telemetry::LEN];
     Telemetry {
         soc: 77.5,
-        ..Telemetry::default()
+        ..Telemetry::zeroed()
     }
     .pack(
         aer::telemetry::TelemetryHeader {

@@ -106,7 +106,7 @@ mod tests {
     #[test]
     fn raising_and_clearing_is_recorded_with_times() {
         let mut alarms = Alarms::new(Schema::TELEMETRY);
-        let mut telemetry = Telemetry::default();
+        let mut telemetry = Telemetry::zeroed();
         alarms.update(1.0, &values(&telemetry));
         assert!(alarms.active().is_empty());
         assert_eq!(alarms.history().count(), 0);
@@ -129,7 +129,7 @@ mod tests {
     #[test]
     fn the_history_is_bounded() {
         let mut alarms = Alarms::new(Schema::TELEMETRY);
-        let mut telemetry = Telemetry::default();
+        let mut telemetry = Telemetry::zeroed();
         for i in 0..HISTORY_LEN * 2 {
             telemetry.fault_apps = i % 2 == 0;
             alarms.update(i as f64, &values(&telemetry));

@@ -181,7 +181,7 @@ mod tests {
         let telemetry = Telemetry {
             soc: 64.5,
             vehicle_state: aer::can::VehicleState::Driving,
-            ..Telemetry::default()
+            ..Telemetry::zeroed()
         };
         let mut values = Vec::new();
         read(&telemetry, &mut values);

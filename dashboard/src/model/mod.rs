@@ -357,7 +357,7 @@ mod tests {
         let mut dashboard = Dashboard::new(&Config::default());
         let t0 = Instant::now();
         assert_eq!(dashboard.freshness(t0), Freshness::NoData);
-        dashboard.telemetry(&packet(1, 10.0, Telemetry::default()), t0);
+        dashboard.telemetry(&packet(1, 10.0, Telemetry::zeroed()), t0);
         assert_eq!(
             dashboard.freshness(t0 + Duration::from_millis(200)),
             Freshness::Fresh
@@ -378,7 +378,7 @@ mod tests {
             pack_current: 150.0,
             motor_temp: 90,
             mcu_temp: 80,
-            ..Telemetry::default()
+            ..Telemetry::zeroed()
         };
         dashboard.telemetry(&packet(1, 10.0, telemetry), Instant::now());
         let speed = dashboard.speed_kmh().unwrap();

@@ -12,7 +12,7 @@ pub fn telemetry_row(seq: u16) -> store::Row {
                 sequence: seq,
                 timestamp_us: 0,
             },
-            telemetry: aer::telemetry::Telemetry::default(),
+            telemetry: aer::telemetry::Telemetry::zeroed(),
         },
     }
 }

@@ -17,6 +17,8 @@ pub struct FieldView {
     pub placement: FieldPlacement,
     pub conversion: FieldConversion,
     pub is_enum: bool,
+    /// The field mirrors a DBC signal (generated code fills it from frames).
+    pub mirrored: bool,
     pub default: FieldDefault,
     pub meta: MetaView,
     pub display: DisplayView,
@@ -99,6 +101,7 @@ impl FieldView {
             },
             conversion: conversion(f),
             is_enum: matches!(f.phys, PhysType::Enum(_)),
+            mirrored: f.source.is_some(),
             default: match f.phys {
                 PhysType::Bool => FieldDefault::False,
                 PhysType::Int(_) => FieldDefault::Zero,
