@@ -123,10 +123,14 @@ def check_csv(path, table, columns, rows):
             if not same(ty, row[index], value):
                 fail(f"{path}: {name} = {cell!r}, stored {row[index]!r}")
                 return
-    # polars reads the same file with the same shape.
-    df = pl.read_csv(path, infer_schema_length=None)
+    # polars reads the same file with its default settings (type inference from the first 100
+    # rows), with the same shape and every float column as floats.
+    df = pl.read_csv(path)
     if df.height != len(rows) or df.width != len(columns):
         fail(f"{path}: polars reads {df.shape}")
+    for name, ty in columns:
+        if ty in ("F32", "F64") and not df.schema[name].is_float():
+            fail(f"{path}: polars reads {name} as {df.schema[name]}, not a float")
 
 
 def check_mcap(path, types, db, session, meta):

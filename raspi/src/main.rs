@@ -7,9 +7,12 @@ use aer_raspi::export::{self, Format};
 use aer_raspi::service::{Job, serve};
 use aer_raspi::sink::store;
 use aer_raspi::sink::store::session::{self, Changes};
-use anyhow::{Context, Result};
+use anyhow::{Context, Result, bail};
 use clap::{Args, Parser, Subcommand};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
+
+/// Where the demo records (without a config file or AER_STORE_PATH), and `export --demo` reads.
+const DEMO_STORE: &str = "aer-demo.sqlite";
 
 #[derive(Parser)]
 #[command(
@@ -155,6 +158,9 @@ struct ExportArgs {
     /// Where to write: DIR/session.mcap, DIR/parquet/<table>.parquet, DIR/csv/<table>.csv.
     #[arg(long)]
     out: PathBuf,
+    /// Read the store the demo records into (aer-demo.sqlite) instead of the configured one.
+    #[arg(long, conflicts_with = "log")]
+    demo: bool,
 }
 
 /// A time as microseconds since the Unix epoch.
@@ -182,7 +188,7 @@ fn main() -> Result<()> {
     }
     if matches!(cli.command, Command::Demo) && cli.config.is_none() {
         if std::env::var_os("AER_STORE_PATH").is_none() {
-            config.store.path = "aer-demo.sqlite".into();
+            config.store.path = DEMO_STORE.into();
         }
         if std::env::var_os("AER_RAW_LOG_DIR").is_none() {
             config.raw_log.dir = "aer-demo-raw".into();
@@ -275,11 +281,24 @@ fn export_command(config: &Config, args: &ExportArgs) -> Result<()> {
             (db, extra)
         }
         None => {
+            let path = if args.demo {
+                Path::new(DEMO_STORE)
+            } else {
+                config.store.path.as_path()
+            };
+            if !path.exists() {
+                let hint = if !args.demo && Path::new(DEMO_STORE).exists() {
+                    format!("; the demo recorded into {DEMO_STORE}: add --demo")
+                } else {
+                    String::new()
+                };
+                bail!("no store at {}{hint}", path.display());
+            }
             let db = rusqlite::Connection::open_with_flags(
-                &config.store.path,
+                path,
                 rusqlite::OpenFlags::SQLITE_OPEN_READ_ONLY,
             )
-            .with_context(|| format!("opening the store {}", config.store.path.display()))?;
+            .with_context(|| format!("opening the store {}", path.display()))?;
             (db, Vec::new())
         }
     };

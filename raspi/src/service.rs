@@ -30,8 +30,25 @@ use tokio_util::sync::CancellationToken;
 use tracing::{info, warn};
 
 /// The session the demo replays: recorded from the closed-loop car model with the CCM's own
-/// logic, telemetry packer and ISO-TP sender (`cargo xtask session-log`).
+/// logic, telemetry packer and ISO-TP sender (`cargo xtask session-log`). This copy is compiled
+/// in, for an installed service; [`demo_log`] prefers the repository's file.
 pub const DEMO_LOG: &str = include_str!("../data/session.log");
+
+/// The repository's session log, as `cargo xtask session-log` rewrites it.
+pub const DEMO_LOG_PATH: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/data/session.log");
+
+/// The session the demo replays and where it came from: the repository's file, read now, so a
+/// log just re-recorded with `cargo xtask session-log` plays without rebuilding; the compiled-in
+/// copy where there is no repository (an installed service).
+pub fn demo_log() -> (String, String) {
+    match std::fs::read_to_string(DEMO_LOG_PATH) {
+        Ok(text) => (text, DEMO_LOG_PATH.to_owned()),
+        Err(_) => (
+            DEMO_LOG.to_owned(),
+            "the session compiled into this binary".to_owned(),
+        ),
+    }
+}
 
 /// Where the frames come from.
 #[derive(Debug, Clone, PartialEq)]
@@ -390,7 +407,8 @@ fn start_source(
             });
         }
         Job::Demo => {
-            announce_demo(config, broker_address);
+            let (log, from) = demo_log();
+            announce_demo(config, broker_address, &from);
             let options = ReplayOptions {
                 fast: false,
                 restamp: true,
@@ -398,7 +416,7 @@ fn start_source(
             tokio::spawn(async move {
                 while !cancel.is_cancelled() && !inputs.is_closed() {
                     replay(
-                        DEMO_LOG.as_bytes(),
+                        log.as_bytes(),
                         inputs.clone(),
                         &counters,
                         options,
@@ -439,16 +457,17 @@ fn start_live(
     anyhow::bail!("SocketCAN needs Linux; use `replay` or `synthetic` here")
 }
 
-fn announce_demo(config: &Config, broker_address: &str) {
+fn announce_demo(config: &Config, broker_address: &str, from: &str) {
     let (host, port) = broker_address
         .rsplit_once(':')
         .unwrap_or((broker_address, "1883"));
     println!(
-        "aer-raspi demo: replaying the bundled session at recorded speed, looping until Ctrl-C.\n\
+        "aer-raspi demo: replaying {from} at recorded speed, looping until Ctrl-C.\n\
          Watch it:   mosquitto_sub -h {host} -p {port} -t 'aer/#' -v\n\
          Dashboard:  cargo run --release -p aer-dashboard (Tab: pit view)\n\
          Plot it:    PlotJuggler > Streaming > MQTT, broker {host}:{port}, topic aer/{car}/telemetry (JSON, timestamp field `ts`)\n\
-         Data file:  {file} (SQLite, tables from schema/)",
+         Data file:  {file} (SQLite, tables from schema/)\n\
+         Export it:  aer-raspi export --demo --session latest --out DIR (MCAP, Parquet, CSV)",
         car = config.car_id,
         file = std::fs::canonicalize(&config.store.path)
             .unwrap_or_else(|_| config.store.path.clone())

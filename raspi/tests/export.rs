@@ -183,3 +183,38 @@ fn a_recorded_log_exports_without_a_store() {
         "{session}"
     );
 }
+
+/// After the demo, `export` without flags says which flag reads the demo's store, and that
+/// flag exports it.
+#[test]
+fn the_demo_store_is_found_with_the_flag_the_error_names() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let db = store::open(&dir.path().join("aer-demo.sqlite")).expect("store");
+    session::begin(&db, &Metadata::default(), "demo", 1).expect("session");
+    let mut db = db;
+    writer::commit(&mut db, &session_rows(200)).expect("commit");
+    drop(db);
+    let export = |extra: &[&str]| {
+        Command::new(env!("CARGO_BIN_EXE_aer-raspi"))
+            .args(["export", "--session", "latest", "--format", "csv", "--out", "out"])
+            .args(extra)
+            .current_dir(dir.path())
+            .env_remove("AER_STORE_PATH")
+            .output()
+            .expect("aer-raspi export")
+    };
+    let without = export(&[]);
+    let stderr = String::from_utf8_lossy(&without.stderr);
+    assert!(!without.status.success());
+    assert!(
+        stderr.contains("no store at aer-local.sqlite") && stderr.contains("add --demo"),
+        "{stderr}"
+    );
+    let with = export(&["--demo"]);
+    assert!(
+        with.status.success(),
+        "{}",
+        String::from_utf8_lossy(&with.stderr)
+    );
+    assert!(dir.path().join("out/csv/telemetry.csv").exists());
+}

@@ -79,7 +79,9 @@ fn table(path: &Path, data: &TableData) -> Result<(), ExportError> {
 }
 
 /// Row `row` of a column as text: integers exactly, floats as the shortest text that reads
-/// back to the same value (`f32` as `f32`), flags as `true`/`false`, NULL as nothing.
+/// back to the same value (`f32` as `f32`) and always as a float (`0.0`, not `0`: readers that
+/// infer a column's type from its first rows, as polars and pandas do, must not take a float
+/// column for integers), flags as `true`/`false`, NULL as nothing.
 fn cell(out: &mut String, values: &Values, row: usize) {
     let _ = match values {
         Values::Bool(v) => match v.get(row).copied().flatten() {
@@ -95,11 +97,11 @@ fn cell(out: &mut String, values: &Values, row: usize) {
             None => Ok(()),
         },
         Values::F32(v) => match v.get(row).copied().flatten() {
-            Some(f) => write!(out, "{f}"),
+            Some(f) => float(out, f, f.is_finite()),
             None => Ok(()),
         },
         Values::F64(v) => match v.get(row).copied().flatten() {
-            Some(f) => write!(out, "{f}"),
+            Some(f) => float(out, f, f.is_finite()),
             None => Ok(()),
         },
         Values::Text(v) => match v.get(row).and_then(|t| t.as_deref()) {
@@ -107,4 +109,40 @@ fn cell(out: &mut String, values: &Values, row: usize) {
             None => Ok(()),
         },
     };
+}
+
+/// `value` in its shortest round-trip form, with `.0` added to a finite whole number (Rust
+/// writes `1.0_f32` as `1`, and never uses an exponent).
+fn float(out: &mut String, value: impl std::fmt::Display, finite: bool) -> std::fmt::Result {
+    let start = out.len();
+    write!(out, "{value}")?;
+    if finite && !out[start..].contains('.') {
+        out.push_str(".0");
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn floats_are_always_written_as_floats_and_read_back_equal() {
+        let values = Values::F32(vec![Some(0.0), Some(19.2), Some(-3.0), Some(1e20), None]);
+        let mut text = Vec::new();
+        for row in 0..5 {
+            let mut field = String::new();
+            cell(&mut field, &values, row);
+            text.push(field);
+        }
+        assert_eq!(text, ["0.0", "19.2", "-3.0", "100000000000000000000.0", ""]);
+        assert_eq!(text[1].parse::<f32>(), Ok(19.2));
+        let wide = Values::F64(vec![Some(203.84000000000003), Some(f64::NAN)]);
+        let mut field = String::new();
+        cell(&mut field, &wide, 0);
+        assert_eq!(field.parse::<f64>(), Ok(203.84000000000003));
+        field.clear();
+        cell(&mut field, &wide, 1);
+        assert_eq!(field, "NaN");
+    }
 }
