@@ -831,102 +831,82 @@ pub struct CcmStatus {
     /// Vehicle state machine of the CCM.
     ///
     /// `CCM_VehicleState`: 8 bits from bit 0 (Intel), unsigned, range [0.0, 5.0].
-    #[cfg_attr(feature = "serde", serde(rename = "CCM_VehicleState"))]
     pub ccm_vehicle_state: VehicleState,
     /// Fault bitmap bit 0: pack over-current.
     ///
     /// `CCM_FaultOverCurrent`: 1 bit from bit 8 (Intel), unsigned, range [0.0, 1.0].
-    #[cfg_attr(feature = "serde", serde(rename = "CCM_FaultOverCurrent"))]
     pub ccm_fault_over_current: bool,
     /// Fault bitmap bit 1: pack under-voltage.
     ///
     /// `CCM_FaultUnderVoltage`: 1 bit from bit 9 (Intel), unsigned, range [0.0, 1.0].
-    #[cfg_attr(feature = "serde", serde(rename = "CCM_FaultUnderVoltage"))]
     pub ccm_fault_under_voltage: bool,
     /// Fault bitmap bit 2: over-temperature.
     ///
     /// `CCM_FaultOverTemperature`: 1 bit from bit 10 (Intel), unsigned, range [0.0, 1.0].
-    #[cfg_attr(feature = "serde", serde(rename = "CCM_FaultOverTemperature"))]
     pub ccm_fault_over_temperature: bool,
     /// Fault bitmap bit 3: accelerator pedal sensor out of range or implausible (T.4.2).
     ///
     /// `CCM_FaultApps`: 1 bit from bit 11 (Intel), unsigned, range [0.0, 1.0].
-    #[cfg_attr(feature = "serde", serde(rename = "CCM_FaultApps"))]
     pub ccm_fault_apps: bool,
     /// Fault bitmap bit 4: brake system encoder out of range.
     ///
     /// `CCM_FaultBse`: 1 bit from bit 12 (Intel), unsigned, range [0.0, 1.0].
-    #[cfg_attr(feature = "serde", serde(rename = "CCM_FaultBse"))]
     pub ccm_fault_bse: bool,
     /// Fault bitmap bit 5: brake pedal position sensor.
     ///
     /// `CCM_FaultBpps`: 1 bit from bit 13 (Intel), unsigned, range [0.0, 1.0].
-    #[cfg_attr(feature = "serde", serde(rename = "CCM_FaultBpps"))]
     pub ccm_fault_bpps: bool,
     /// Fault bitmap bit 6: throttle above 25 % with the brake pressed (EV.4.7); cleared below 5 %.
     ///
     /// `CCM_FaultAppsBrakePlausibility`: 1 bit from bit 14 (Intel), unsigned, range [0.0, 1.0].
-    #[cfg_attr(feature = "serde", serde(rename = "CCM_FaultAppsBrakePlausibility"))]
     pub ccm_fault_apps_brake_plausibility: bool,
     /// Fault bitmap bit 7: accumulator state of charge at or below 5 %, the end of the torque derating.
     ///
     /// `CCM_FaultLowBatteryVoltage`: 1 bit from bit 15 (Intel), unsigned, range [0.0, 1.0].
-    #[cfg_attr(feature = "serde", serde(rename = "CCM_FaultLowBatteryVoltage"))]
     pub ccm_fault_low_battery_voltage: bool,
     /// Fingerprint of the schema the firmware was built from (aer::telemetry::TELEMETRY_FINGERPRINT, which covers aer.dbc and telemetry.yaml); receivers compare it with their own.
     ///
     /// `CCM_SchemaFingerprint`: 32 bits from bit 16 (Intel), unsigned, range [0.0, 4294967295.0].
-    #[cfg_attr(feature = "serde", serde(rename = "CCM_SchemaFingerprint"))]
     pub ccm_schema_fingerprint: u32,
     /// Increments every frame; a stuck value means a stuck CCM.
     ///
     /// `CCM_RollingCounter`: 4 bits from bit 48 (Intel), unsigned, range [0.0, 15.0].
-    #[cfg_attr(feature = "serde", serde(rename = "CCM_RollingCounter"))]
     pub ccm_rolling_counter: u8,
     /// Ready-to-drive sound completed and drive enabled.
     ///
     /// `CCM_ReadyToDrive`: 1 bit from bit 52 (Intel), unsigned, range [0.0, 1.0].
-    #[cfg_attr(feature = "serde", serde(rename = "CCM_ReadyToDrive"))]
     pub ccm_ready_to_drive: bool,
     /// Fault bitmap bit 8: the pedal converter delivered no conversion on a channel for 20 ms (T.4.2.10).
     ///
     /// `CCM_FaultPedalSignalLost`: 1 bit from bit 53 (Intel), unsigned, range [0.0, 1.0].
-    #[cfg_attr(feature = "serde", serde(rename = "CCM_FaultPedalSignalLost"))]
     pub ccm_fault_pedal_signal_lost: bool,
     /// Fault bitmap bit 9: the 1 kHz sensor sample is older than 10 ms.
     ///
     /// `CCM_FaultSensorsStale`: 1 bit from bit 54 (Intel), unsigned, range [0.0, 1.0].
-    #[cfg_attr(feature = "serde", serde(rename = "CCM_FaultSensorsStale"))]
     pub ccm_fault_sensors_stale: bool,
     /// Fault bitmap bit 10: a BMS frame the CCM acts on is older than its limit.
     ///
     /// `CCM_FaultBmsTimeout`: 1 bit from bit 55 (Intel), unsigned, range [0.0, 1.0].
-    #[cfg_attr(feature = "serde", serde(rename = "CCM_FaultBmsTimeout"))]
     pub ccm_fault_bms_timeout: bool,
     /// Fault bitmap bit 11: an inverter status frame is older than its limit.
     ///
     /// `CCM_FaultInverterTimeout`: 1 bit from bit 56 (Intel), unsigned, range [0.0, 1.0].
-    #[cfg_attr(feature = "serde", serde(rename = "CCM_FaultInverterTimeout"))]
     pub ccm_fault_inverter_timeout: bool,
     /// Fault bitmap bit 12: the precharge controller's status is older than 100 ms.
     ///
     /// `CCM_FaultPccTimeout`: 1 bit from bit 57 (Intel), unsigned, range [0.0, 1.0].
-    #[cfg_attr(feature = "serde", serde(rename = "CCM_FaultPccTimeout"))]
     pub ccm_fault_pcc_timeout: bool,
     /// Fault bitmap bit 13: the inverter reports a fault (MCU2 fault bits or warning level HIGH).
     ///
     /// `CCM_FaultInverterFault`: 1 bit from bit 58 (Intel), unsigned, range [0.0, 1.0].
-    #[cfg_attr(feature = "serde", serde(rename = "CCM_FaultInverterFault"))]
     pub ccm_fault_inverter_fault: bool,
     /// Fault bitmap bit 14: the inverter reports a warning (low DC or 12 V, a sensor state, warning level LOW or MEDIUM).
     ///
     /// `CCM_FaultInverterWarning`: 1 bit from bit 59 (Intel), unsigned, range [0.0, 1.0].
-    #[cfg_attr(feature = "serde", serde(rename = "CCM_FaultInverterWarning"))]
     pub ccm_fault_inverter_warning: bool,
     /// Fault bitmap bit 15: the precharge controller reports ERROR (or a state the schema does not know); its own error bits say why.
     ///
     /// `CCM_FaultPccError`: 1 bit from bit 60 (Intel), unsigned, range [0.0, 1.0].
-    #[cfg_attr(feature = "serde", serde(rename = "CCM_FaultPccError"))]
     pub ccm_fault_pcc_error: bool,
 }
 
@@ -2187,68 +2167,50 @@ pub struct Vcu1 {
     /// Torque request: 0.392 % of MOTOR_MAX_TORQUE (260 Nm) per bit, given here directly in Nm.
     ///
     /// `VCU_TorqueReq`: 8 bits from bit 7 (Motorola), unsigned, physical = raw * 1.0192, range [0.0, 259.896], unit `Nm`.
-    #[cfg_attr(feature = "serde", serde(rename = "VCU_TorqueReq"))]
     pub vcu_torque_req: f64,
     /// Speed request, used only in speed mode.
     ///
     /// `VCU_MotorSpdReq`: 16 bits from bit 15 (Motorola), unsigned, range [0.0, 65535.0], unit `rpm`.
-    #[cfg_attr(feature = "serde", serde(rename = "VCU_MotorSpdReq"))]
     pub vcu_motor_spd_req: u16,
     /// `VCU_AuthenticationStatus`: 2 bits from bit 30 (Motorola), unsigned, range [0.0, 3.0].
-    #[cfg_attr(feature = "serde", serde(rename = "VCU_AuthenticationStatus"))]
     pub vcu_authentication_status: u8,
     /// `VCU_ChangeGearAlarm`: 1 bit from bit 31 (Motorola), unsigned, range [0.0, 1.0].
-    #[cfg_attr(feature = "serde", serde(rename = "VCU_ChangeGearAlarm"))]
     pub vcu_change_gear_alarm: bool,
     /// 1 when the vehicle is ready.
     ///
     /// `VCU_VehicleState`: 1 bit from bit 32 (Motorola), unsigned, range [0.0, 1.0].
-    #[cfg_attr(feature = "serde", serde(rename = "VCU_VehicleState"))]
     pub vcu_vehicle_state: bool,
     /// `VCU_BrakePedalSts`: 2 bits from bit 34 (Motorola), unsigned, range [0.0, 3.0].
-    #[cfg_attr(feature = "serde", serde(rename = "VCU_BrakePedalSts"))]
     pub vcu_brake_pedal_sts: u8,
     /// `VCU_BmsMainRelayCmd`: 1 bit from bit 35 (Motorola), unsigned, range [0.0, 1.0].
-    #[cfg_attr(feature = "serde", serde(rename = "VCU_BmsMainRelayCmd"))]
     pub vcu_bms_main_relay_cmd: bool,
     /// `VCU_GearLeverPosSts`: 3 bits from bit 38 (Motorola), unsigned, range [0.0, 4.0].
-    #[cfg_attr(feature = "serde", serde(rename = "VCU_GearLeverPosSts"))]
     pub vcu_gear_lever_pos_sts: GearLeverPos,
     /// `VCU_GearLeverPosStsF`: 1 bit from bit 39 (Motorola), unsigned, range [0.0, 1.0].
-    #[cfg_attr(feature = "serde", serde(rename = "VCU_GearLeverPosStsF"))]
     pub vcu_gear_lever_pos_sts_f: bool,
     /// `VCU_AcControlCmd`: 1 bit from bit 40 (Motorola), unsigned, range [0.0, 1.0].
-    #[cfg_attr(feature = "serde", serde(rename = "VCU_AcControlCmd"))]
     pub vcu_ac_control_cmd: bool,
     /// 0 torque control, 1 speed control.
     ///
     /// `VCU_WorkMode`: 1 bit from bit 41 (Motorola), unsigned, range [0.0, 1.0].
-    #[cfg_attr(feature = "serde", serde(rename = "VCU_WorkMode"))]
     pub vcu_work_mode: bool,
     /// `VCU_MotorMode`: 2 bits from bit 43 (Motorola), unsigned, range [0.0, 2.0].
-    #[cfg_attr(feature = "serde", serde(rename = "VCU_MotorMode"))]
     pub vcu_motor_mode: MotorMode,
     /// `VCU_WarningLevel`: 2 bits from bit 45 (Motorola), unsigned, range [0.0, 3.0].
-    #[cfg_attr(feature = "serde", serde(rename = "VCU_WarningLevel"))]
     pub vcu_warning_level: McuWarningLevel,
     /// `VCU_KeyPosition`: 2 bits from bit 47 (Motorola), unsigned, range [0.0, 3.0].
-    #[cfg_attr(feature = "serde", serde(rename = "VCU_KeyPosition"))]
     pub vcu_key_position: KeyPosition,
     /// Must increment every frame or the inverter faults.
     ///
     /// `VCU_RollingCounter`: 4 bits from bit 51 (Motorola), unsigned, range [0.0, 15.0].
-    #[cfg_attr(feature = "serde", serde(rename = "VCU_RollingCounter"))]
     pub vcu_rolling_counter: u8,
     /// `VCU_BmsAuxRelayCmd`: 1 bit from bit 52 (Motorola), unsigned, range [0.0, 1.0].
-    #[cfg_attr(feature = "serde", serde(rename = "VCU_BmsAuxRelayCmd"))]
     pub vcu_bms_aux_relay_cmd: bool,
     /// `VCU_PowerReduceReq`: 3 bits from bit 55 (Motorola), unsigned, range [0.0, 7.0].
-    #[cfg_attr(feature = "serde", serde(rename = "VCU_PowerReduceReq"))]
     pub vcu_power_reduce_req: u8,
     /// (sum of bytes 0..6) XOR 0xFF.
     ///
     /// `VCU_CheckSum`: 8 bits from bit 63 (Motorola), unsigned, range [0.0, 255.0].
-    #[cfg_attr(feature = "serde", serde(rename = "VCU_CheckSum"))]
     pub vcu_check_sum: u8,
 }
 
@@ -3382,37 +3344,28 @@ pub struct Mcu1 {
     /// Motor speed.
     ///
     /// `MCU_MotorSpeed`: 16 bits from bit 7 (Motorola), unsigned, physical = raw * 0.25, range [0.0, 16383.75], unit `rpm`.
-    #[cfg_attr(feature = "serde", serde(rename = "MCU_MotorSpeed"))]
     pub mcu_motor_speed: f64,
     /// Actual torque: 0.392 % of the 260 Nm maximum per bit, in Nm.
     ///
     /// `MCU_ActualTorque`: 8 bits from bit 23 (Motorola), unsigned, physical = raw * 1.0192, range [0.0, 259.896], unit `Nm`.
-    #[cfg_attr(feature = "serde", serde(rename = "MCU_ActualTorque"))]
     pub mcu_actual_torque: f64,
     /// Torque the inverter can deliver now, in Nm.
     ///
     /// `MCU_MaxMotorTorque`: 8 bits from bit 31 (Motorola), unsigned, physical = raw * 1.0192, range [0.0, 259.896], unit `Nm`.
-    #[cfg_attr(feature = "serde", serde(rename = "MCU_MaxMotorTorque"))]
     pub mcu_max_motor_torque: f64,
     /// Brake (regen) torque the inverter can absorb now, in Nm.
     ///
     /// `MCU_MaxMotorBrakeTorque`: 8 bits from bit 39 (Motorola), unsigned, physical = raw * 1.0192, range [0.0, 259.896], unit `Nm`.
-    #[cfg_attr(feature = "serde", serde(rename = "MCU_MaxMotorBrakeTorque"))]
     pub mcu_max_motor_brake_torque: f64,
     /// `MCU_MainState`: 3 bits from bit 45 (Motorola), unsigned, range [0.0, 4.0].
-    #[cfg_attr(feature = "serde", serde(rename = "MCU_MainState"))]
     pub mcu_main_state: McuMainState,
     /// `MCU_RotateDirection`: 2 bits from bit 47 (Motorola), unsigned, range [0.0, 3.0].
-    #[cfg_attr(feature = "serde", serde(rename = "MCU_RotateDirection"))]
     pub mcu_rotate_direction: MotorRotateDirection,
     /// `MCU1_RollingCounter`: 4 bits from bit 51 (Motorola), unsigned, range [0.0, 15.0].
-    #[cfg_attr(feature = "serde", serde(rename = "MCU1_RollingCounter"))]
     pub mcu1_rolling_counter: u8,
     /// `MCU_MotorState`: 2 bits from bit 53 (Motorola), unsigned, range [0.0, 2.0].
-    #[cfg_attr(feature = "serde", serde(rename = "MCU_MotorState"))]
     pub mcu_motor_state: MotorMode,
     /// `MCU_WorkMode`: 2 bits from bit 55 (Motorola), unsigned, range [0.0, 2.0].
-    #[cfg_attr(feature = "serde", serde(rename = "MCU_WorkMode"))]
     pub mcu_work_mode: McuWorkMode,
 }
 
@@ -4062,69 +4015,48 @@ pub struct Mcu2 {
     /// Motor temperature.
     ///
     /// `MCU_MotorTemp`: 8 bits from bit 7 (Motorola), unsigned, physical = raw - 40.0, range [-40.0, 215.0], unit `degC`.
-    #[cfg_attr(feature = "serde", serde(rename = "MCU_MotorTemp"))]
     pub mcu_motor_temp: i16,
     /// Inverter temperature.
     ///
     /// `MCU_InverterTemp`: 8 bits from bit 15 (Motorola), unsigned, physical = raw - 40.0, range [-40.0, 215.0], unit `degC`.
-    #[cfg_attr(feature = "serde", serde(rename = "MCU_InverterTemp"))]
     pub mcu_inverter_temp: i16,
     /// `MCU_DcMainWireOverCurrFault`: 1 bit from bit 16 (Motorola), unsigned, range [0.0, 1.0].
-    #[cfg_attr(feature = "serde", serde(rename = "MCU_DcMainWireOverCurrFault"))]
     pub mcu_dc_main_wire_over_curr_fault: bool,
     /// `MCU_MotorPhaseCurrFault`: 1 bit from bit 17 (Motorola), unsigned, range [0.0, 1.0].
-    #[cfg_attr(feature = "serde", serde(rename = "MCU_MotorPhaseCurrFault"))]
     pub mcu_motor_phase_curr_fault: bool,
     /// `MCU_OverHotFault`: 1 bit from bit 18 (Motorola), unsigned, range [0.0, 1.0].
-    #[cfg_attr(feature = "serde", serde(rename = "MCU_OverHotFault"))]
     pub mcu_over_hot_fault: bool,
     /// `MCU_ResolverFault`: 1 bit from bit 19 (Motorola), unsigned, range [0.0, 1.0].
-    #[cfg_attr(feature = "serde", serde(rename = "MCU_ResolverFault"))]
     pub mcu_resolver_fault: bool,
     /// `MCU_PhaseCurrSensorFault`: 1 bit from bit 20 (Motorola), unsigned, range [0.0, 1.0].
-    #[cfg_attr(feature = "serde", serde(rename = "MCU_PhaseCurrSensorFault"))]
     pub mcu_phase_curr_sensor_fault: bool,
     /// `MCU_MotorOverSpdFault`: 1 bit from bit 21 (Motorola), unsigned, range [0.0, 1.0].
-    #[cfg_attr(feature = "serde", serde(rename = "MCU_MotorOverSpdFault"))]
     pub mcu_motor_over_spd_fault: bool,
     /// `MCU_DrvMotorOverHotFault`: 1 bit from bit 22 (Motorola), unsigned, range [0.0, 1.0].
-    #[cfg_attr(feature = "serde", serde(rename = "MCU_DrvMotorOverHotFault"))]
     pub mcu_drv_motor_over_hot_fault: bool,
     /// `MCU_DcMainWireOverVoltFault`: 1 bit from bit 23 (Motorola), unsigned, range [0.0, 1.0].
-    #[cfg_attr(feature = "serde", serde(rename = "MCU_DcMainWireOverVoltFault"))]
     pub mcu_dc_main_wire_over_volt_fault: bool,
     /// `MCU_DrvMotorOverCoolFault`: 1 bit from bit 24 (Motorola), unsigned, range [0.0, 1.0].
-    #[cfg_attr(feature = "serde", serde(rename = "MCU_DrvMotorOverCoolFault"))]
     pub mcu_drv_motor_over_cool_fault: bool,
     /// `MCU_MotorSystemState`: 1 bit from bit 25 (Motorola), unsigned, range [0.0, 1.0].
-    #[cfg_attr(feature = "serde", serde(rename = "MCU_MotorSystemState"))]
     pub mcu_motor_system_state: bool,
     /// `MCU_TempSensorState`: 1 bit from bit 26 (Motorola), unsigned, range [0.0, 1.0].
-    #[cfg_attr(feature = "serde", serde(rename = "MCU_TempSensorState"))]
     pub mcu_temp_sensor_state: bool,
     /// `MCU_MotorTempSensorState`: 1 bit from bit 27 (Motorola), unsigned, range [0.0, 1.0].
-    #[cfg_attr(feature = "serde", serde(rename = "MCU_MotorTempSensorState"))]
     pub mcu_motor_temp_sensor_state: bool,
     /// `MCU_DcVoltSensorState`: 1 bit from bit 28 (Motorola), unsigned, range [0.0, 1.0].
-    #[cfg_attr(feature = "serde", serde(rename = "MCU_DcVoltSensorState"))]
     pub mcu_dc_volt_sensor_state: bool,
     /// `MCU_DcLowVoltWarning`: 1 bit from bit 29 (Motorola), unsigned, range [0.0, 1.0].
-    #[cfg_attr(feature = "serde", serde(rename = "MCU_DcLowVoltWarning"))]
     pub mcu_dc_low_volt_warning: bool,
     /// `MCU_12V_LowVoltWarning`: 1 bit from bit 30 (Motorola), unsigned, range [0.0, 1.0].
-    #[cfg_attr(feature = "serde", serde(rename = "MCU_12V_LowVoltWarning"))]
     pub mcu_12v_low_volt_warning: bool,
     /// `MCU2_RollingCounter`: 4 bits from bit 51 (Motorola), unsigned, range [0.0, 15.0].
-    #[cfg_attr(feature = "serde", serde(rename = "MCU2_RollingCounter"))]
     pub mcu2_rolling_counter: u8,
     /// `MCU_WarningLevel`: 2 bits from bit 53 (Motorola), unsigned, range [0.0, 3.0].
-    #[cfg_attr(feature = "serde", serde(rename = "MCU_WarningLevel"))]
     pub mcu_warning_level: McuWarningLevel,
     /// `MCU_MotorOpenPhaseFault`: 1 bit from bit 54 (Motorola), unsigned, range [0.0, 1.0].
-    #[cfg_attr(feature = "serde", serde(rename = "MCU_MotorOpenPhaseFault"))]
     pub mcu_motor_open_phase_fault: bool,
     /// `MCU_MotorStallFault`: 1 bit from bit 55 (Motorola), unsigned, range [0.0, 1.0].
-    #[cfg_attr(feature = "serde", serde(rename = "MCU_MotorStallFault"))]
     pub mcu_motor_stall_fault: bool,
 }
 
@@ -5427,13 +5359,10 @@ impl CanMessage for Mcu2 {
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct Mcu3 {
     /// `MCU_DcVoltage`: 16 bits from bit 7 (Motorola), unsigned, physical = raw * 0.01, range [0.0, 655.35], unit `V`.
-    #[cfg_attr(feature = "serde", serde(rename = "MCU_DcVoltage"))]
     pub mcu_dc_voltage: f64,
     /// `MCU_DcCurrent`: 16 bits from bit 23 (Motorola), signed, physical = raw * 0.01, range [-327.68, 327.67], unit `A`.
-    #[cfg_attr(feature = "serde", serde(rename = "MCU_DcCurrent"))]
     pub mcu_dc_current: f64,
     /// `MCU_PhaseCurrent`: 16 bits from bit 39 (Motorola), unsigned, physical = raw * 0.01, range [0.0, 655.35], unit `A`.
-    #[cfg_attr(feature = "serde", serde(rename = "MCU_PhaseCurrent"))]
     pub mcu_phase_current: f64,
 }
 
@@ -5685,12 +5614,10 @@ pub struct Bms1 {
     /// Precharge relay feedback (closed = 1).
     ///
     /// `BMS_PrechargeRelayFb`: 1 bit from bit 26 (Motorola), unsigned, range [0.0, 1.0].
-    #[cfg_attr(feature = "serde", serde(rename = "BMS_PrechargeRelayFb"))]
     pub bms_precharge_relay_fb: bool,
     /// Precharge finished.
     ///
     /// `BMS_PrechargeFinishSts`: 1 bit from bit 28 (Motorola), unsigned, range [0.0, 1.0].
-    #[cfg_attr(feature = "serde", serde(rename = "BMS_PrechargeFinishSts"))]
     pub bms_precharge_finish_sts: bool,
 }
 
@@ -5885,7 +5812,6 @@ pub struct Bms2 {
     /// Allowed discharge current: raw = (I + 500) x 10.
     ///
     /// `BMS_AllowMaxDischarge`: 16 bits from bit 7 (Motorola), unsigned, physical = raw * 0.1 - 500.0, range [-500.0, 6053.5], unit `A`.
-    #[cfg_attr(feature = "serde", serde(rename = "BMS_AllowMaxDischarge"))]
     pub bms_allow_max_discharge: f64,
 }
 
@@ -6020,22 +5946,18 @@ pub struct OrionPackStatus {
     /// Pack current, positive when discharging.
     ///
     /// `Orion_PackCurrent`: 16 bits from bit 7 (Motorola), signed, physical = raw * 0.1, range [-3276.8, 3276.7], unit `A`.
-    #[cfg_attr(feature = "serde", serde(rename = "Orion_PackCurrent"))]
     pub orion_pack_current: f64,
     /// Instantaneous pack voltage.
     ///
     /// `Orion_PackInstVoltage`: 16 bits from bit 23 (Motorola), unsigned, physical = raw * 0.1, range [0.0, 6553.5], unit `V`.
-    #[cfg_attr(feature = "serde", serde(rename = "Orion_PackInstVoltage"))]
     pub orion_pack_inst_voltage: f64,
     /// State of charge.
     ///
     /// `Orion_PackSoc`: 8 bits from bit 39 (Motorola), unsigned, physical = raw * 0.5, range [0.0, 100.0], unit `%`.
-    #[cfg_attr(feature = "serde", serde(rename = "Orion_PackSoc"))]
     pub orion_pack_soc: f64,
     /// Orion relay state bitfield.
     ///
     /// `Orion_RelayState`: 16 bits from bit 47 (Motorola), unsigned, range [0.0, 65535.0].
-    #[cfg_attr(feature = "serde", serde(rename = "Orion_RelayState"))]
     pub orion_relay_state: u16,
 }
 
@@ -6360,18 +6282,14 @@ pub struct OrionLimits {
     /// Discharge current limit.
     ///
     /// `Orion_PackDcl`: 16 bits from bit 7 (Motorola), unsigned, range [0.0, 65535.0], unit `A`.
-    #[cfg_attr(feature = "serde", serde(rename = "Orion_PackDcl"))]
     pub orion_pack_dcl: u16,
     /// Charge current limit.
     ///
     /// `Orion_PackCcl`: 16 bits from bit 23 (Motorola), unsigned, range [0.0, 65535.0], unit `A`.
-    #[cfg_attr(feature = "serde", serde(rename = "Orion_PackCcl"))]
     pub orion_pack_ccl: u16,
     /// `Orion_HighTemperature`: 8 bits from bit 39 (Motorola), signed, range [-128.0, 127.0], unit `degC`.
-    #[cfg_attr(feature = "serde", serde(rename = "Orion_HighTemperature"))]
     pub orion_high_temperature: i8,
     /// `Orion_LowTemperature`: 8 bits from bit 47 (Motorola), signed, range [-128.0, 127.0], unit `degC`.
-    #[cfg_attr(feature = "serde", serde(rename = "Orion_LowTemperature"))]
     pub orion_low_temperature: i8,
 }
 
@@ -6680,18 +6598,14 @@ impl CanMessage for OrionLimits {
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct OrionCellVoltages {
     /// `Orion_LowCellVoltage`: 16 bits from bit 7 (Motorola), unsigned, physical = raw * 0.0001, range [0.0, 6.5535], unit `V`.
-    #[cfg_attr(feature = "serde", serde(rename = "Orion_LowCellVoltage"))]
     pub orion_low_cell_voltage: f64,
     /// `Orion_HighCellVoltage`: 16 bits from bit 23 (Motorola), unsigned, physical = raw * 0.0001, range [0.0, 6.5535], unit `V`.
-    #[cfg_attr(feature = "serde", serde(rename = "Orion_HighCellVoltage"))]
     pub orion_high_cell_voltage: f64,
     /// `Orion_AvgCellVoltage`: 16 bits from bit 39 (Motorola), unsigned, physical = raw * 0.0001, range [0.0, 6.5535], unit `V`.
-    #[cfg_attr(feature = "serde", serde(rename = "Orion_AvgCellVoltage"))]
     pub orion_avg_cell_voltage: f64,
     /// Id of the lowest cell.
     ///
     /// `Orion_LowCellId`: 8 bits from bit 55 (Motorola), unsigned, range [0.0, 255.0].
-    #[cfg_attr(feature = "serde", serde(rename = "Orion_LowCellId"))]
     pub orion_low_cell_id: u8,
 }
 
@@ -7025,47 +6939,38 @@ pub struct PccStatus {
     /// Precharge state machine.
     ///
     /// `PCC_State`: 8 bits from bit 0 (Intel), unsigned, range [0.0, 6.0].
-    #[cfg_attr(feature = "serde", serde(rename = "PCC_State"))]
     pub pcc_state: PrechargeState,
     /// Error bit 0x01: target reached faster than the minimum time (short or wrong measurement).
     ///
     /// `PCC_ErrorTooFast`: 1 bit from bit 8 (Intel), unsigned, range [0.0, 1.0].
-    #[cfg_attr(feature = "serde", serde(rename = "PCC_ErrorTooFast"))]
     pub pcc_error_too_fast: bool,
     /// Error bit 0x02: target not reached in time.
     ///
     /// `PCC_ErrorTooSlow`: 1 bit from bit 9 (Intel), unsigned, range [0.0, 1.0].
-    #[cfg_attr(feature = "serde", serde(rename = "PCC_ErrorTooSlow"))]
     pub pcc_error_too_slow: bool,
     /// Error bit 0x04: no BMS frame for 1.5 s.
     ///
     /// `PCC_ErrorBmsTimeout`: 1 bit from bit 10 (Intel), unsigned, range [0.0, 1.0].
-    #[cfg_attr(feature = "serde", serde(rename = "PCC_ErrorBmsTimeout"))]
     pub pcc_error_bms_timeout: bool,
     /// Error bit 0x08: the shutdown input opened while the tractive system was energised; clears once the shutdown circuit is closed again and the tractive system is discharged.
     ///
     /// `PCC_ErrorShutdown`: 1 bit from bit 11 (Intel), unsigned, range [0.0, 1.0].
-    #[cfg_attr(feature = "serde", serde(rename = "PCC_ErrorShutdown"))]
     pub pcc_error_shutdown: bool,
     /// Error bit 0x80: state machine in an undefined state.
     ///
     /// `PCC_ErrorUndefinedState`: 1 bit from bit 15 (Intel), unsigned, range [0.0, 1.0].
-    #[cfg_attr(feature = "serde", serde(rename = "PCC_ErrorUndefinedState"))]
     pub pcc_error_undefined_state: bool,
     /// Accumulator voltage from the V/F converter.
     ///
     /// `PCC_AccumulatorVoltage`: 16 bits from bit 16 (Intel), unsigned, physical = raw * 0.01, range [0.0, 655.35], unit `V`.
-    #[cfg_attr(feature = "serde", serde(rename = "PCC_AccumulatorVoltage"))]
     pub pcc_accumulator_voltage: f64,
     /// Tractive-system voltage from the V/F converter.
     ///
     /// `PCC_TractiveVoltage`: 16 bits from bit 32 (Intel), unsigned, physical = raw * 0.01, range [0.0, 655.35], unit `V`.
-    #[cfg_attr(feature = "serde", serde(rename = "PCC_TractiveVoltage"))]
     pub pcc_tractive_voltage: f64,
     /// Tractive-system voltage as a percentage of the accumulator voltage.
     ///
     /// `PCC_PrechargeProgress`: 16 bits from bit 48 (Intel), unsigned, physical = raw * 0.01, range [0.0, 655.35], unit `%`.
-    #[cfg_attr(feature = "serde", serde(rename = "PCC_PrechargeProgress"))]
     pub pcc_precharge_progress: f64,
 }
 
@@ -7670,53 +7575,38 @@ pub struct ImdInfoGeneral {
     /// Corrected isolation resistance.
     ///
     /// `IMD_RIsoCorrected`: 16 bits from bit 0 (Intel), unsigned, range [0.0, 65535.0], unit `kOhm`.
-    #[cfg_attr(feature = "serde", serde(rename = "IMD_RIsoCorrected"))]
     pub imd_r_iso_corrected: u16,
     /// Status of the isolation measurement (Bender codes).
     ///
     /// `IMD_RIsoStatus`: 8 bits from bit 16 (Intel), unsigned, range [0.0, 255.0], unit `code`.
-    #[cfg_attr(feature = "serde", serde(rename = "IMD_RIsoStatus"))]
     pub imd_r_iso_status: u8,
     /// `IMD_MeasurementCounter`: 8 bits from bit 24 (Intel), unsigned, range [0.0, 255.0].
-    #[cfg_attr(feature = "serde", serde(rename = "IMD_MeasurementCounter"))]
     pub imd_measurement_counter: u8,
     /// `IMD_DeviceError`: 1 bit from bit 32 (Intel), unsigned, range [0.0, 1.0].
-    #[cfg_attr(feature = "serde", serde(rename = "IMD_DeviceError"))]
     pub imd_device_error: bool,
     /// `IMD_HvPosConnectionFailure`: 1 bit from bit 33 (Intel), unsigned, range [0.0, 1.0].
-    #[cfg_attr(feature = "serde", serde(rename = "IMD_HvPosConnectionFailure"))]
     pub imd_hv_pos_connection_failure: bool,
     /// `IMD_HvNegConnectionFailure`: 1 bit from bit 34 (Intel), unsigned, range [0.0, 1.0].
-    #[cfg_attr(feature = "serde", serde(rename = "IMD_HvNegConnectionFailure"))]
     pub imd_hv_neg_connection_failure: bool,
     /// `IMD_EarthConnectionFailure`: 1 bit from bit 35 (Intel), unsigned, range [0.0, 1.0].
-    #[cfg_attr(feature = "serde", serde(rename = "IMD_EarthConnectionFailure"))]
     pub imd_earth_connection_failure: bool,
     /// `IMD_IsoAlarm`: 1 bit from bit 36 (Intel), unsigned, range [0.0, 1.0].
-    #[cfg_attr(feature = "serde", serde(rename = "IMD_IsoAlarm"))]
     pub imd_iso_alarm: bool,
     /// `IMD_IsoWarning`: 1 bit from bit 37 (Intel), unsigned, range [0.0, 1.0].
-    #[cfg_attr(feature = "serde", serde(rename = "IMD_IsoWarning"))]
     pub imd_iso_warning: bool,
     /// `IMD_IsoOutdated`: 1 bit from bit 38 (Intel), unsigned, range [0.0, 1.0].
-    #[cfg_attr(feature = "serde", serde(rename = "IMD_IsoOutdated"))]
     pub imd_iso_outdated: bool,
     /// `IMD_UnbalanceAlarm`: 1 bit from bit 39 (Intel), unsigned, range [0.0, 1.0].
-    #[cfg_attr(feature = "serde", serde(rename = "IMD_UnbalanceAlarm"))]
     pub imd_unbalance_alarm: bool,
     /// `IMD_UndervoltageAlarm`: 1 bit from bit 40 (Intel), unsigned, range [0.0, 1.0].
-    #[cfg_attr(feature = "serde", serde(rename = "IMD_UndervoltageAlarm"))]
     pub imd_undervoltage_alarm: bool,
     /// `IMD_UnsafeToStart`: 1 bit from bit 41 (Intel), unsigned, range [0.0, 1.0].
-    #[cfg_attr(feature = "serde", serde(rename = "IMD_UnsafeToStart"))]
     pub imd_unsafe_to_start: bool,
     /// `IMD_EarthliftOpen`: 1 bit from bit 42 (Intel), unsigned, range [0.0, 1.0].
-    #[cfg_attr(feature = "serde", serde(rename = "IMD_EarthliftOpen"))]
     pub imd_earthlift_open: bool,
     /// What the IMD is doing.
     ///
     /// `IMD_DeviceActivity`: 8 bits from bit 48 (Intel), unsigned, range [0.0, 2.0].
-    #[cfg_attr(feature = "serde", serde(rename = "IMD_DeviceActivity"))]
     pub imd_device_activity: ImdDeviceActivity,
 }
 
@@ -8659,19 +8549,14 @@ impl CanMessage for ImdInfoGeneral {
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct ImdInfoIsolationDetail {
     /// `IMD_RIsoNegative`: 16 bits from bit 0 (Intel), unsigned, range [0.0, 65535.0], unit `kOhm`.
-    #[cfg_attr(feature = "serde", serde(rename = "IMD_RIsoNegative"))]
     pub imd_r_iso_negative: u16,
     /// `IMD_RIsoPositive`: 16 bits from bit 16 (Intel), unsigned, range [0.0, 65535.0], unit `kOhm`.
-    #[cfg_attr(feature = "serde", serde(rename = "IMD_RIsoPositive"))]
     pub imd_r_iso_positive: u16,
     /// `IMD_RIsoOriginal`: 16 bits from bit 32 (Intel), unsigned, range [0.0, 65535.0], unit `kOhm`.
-    #[cfg_attr(feature = "serde", serde(rename = "IMD_RIsoOriginal"))]
     pub imd_r_iso_original: u16,
     /// `IMD_IsoMeasurementCounter`: 8 bits from bit 48 (Intel), unsigned, range [0.0, 255.0].
-    #[cfg_attr(feature = "serde", serde(rename = "IMD_IsoMeasurementCounter"))]
     pub imd_iso_measurement_counter: u8,
     /// `IMD_IsoQuality`: 8 bits from bit 56 (Intel), unsigned, range [0.0, 100.0], unit `%`.
-    #[cfg_attr(feature = "serde", serde(rename = "IMD_IsoQuality"))]
     pub imd_iso_quality: u8,
 }
 
@@ -9032,19 +8917,14 @@ impl CanMessage for ImdInfoIsolationDetail {
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct ImdInfoVoltage {
     /// `IMD_HvSystemVoltage`: 16 bits from bit 0 (Intel), unsigned, physical = raw * 0.05 - 1606.4, range [-1606.4, 1670.35], unit `V`.
-    #[cfg_attr(feature = "serde", serde(rename = "IMD_HvSystemVoltage"))]
     pub imd_hv_system_voltage: f64,
     /// `IMD_HvNegToEarthVoltage`: 16 bits from bit 16 (Intel), unsigned, physical = raw * 0.05 - 1606.4, range [-1606.4, 1670.35], unit `V`.
-    #[cfg_attr(feature = "serde", serde(rename = "IMD_HvNegToEarthVoltage"))]
     pub imd_hv_neg_to_earth_voltage: f64,
     /// `IMD_HvPosToEarthVoltage`: 16 bits from bit 32 (Intel), unsigned, physical = raw * 0.05 - 1606.4, range [-1606.4, 1670.35], unit `V`.
-    #[cfg_attr(feature = "serde", serde(rename = "IMD_HvPosToEarthVoltage"))]
     pub imd_hv_pos_to_earth_voltage: f64,
     /// `IMD_VoltageMeasurementCounter`: 8 bits from bit 48 (Intel), unsigned, range [0.0, 255.0].
-    #[cfg_attr(feature = "serde", serde(rename = "IMD_VoltageMeasurementCounter"))]
     pub imd_voltage_measurement_counter: u8,
     /// `IMD_VoltageQuality`: 8 bits from bit 56 (Intel), unsigned, range [0.0, 100.0], unit `%`.
-    #[cfg_attr(feature = "serde", serde(rename = "IMD_VoltageQuality"))]
     pub imd_voltage_quality: u8,
 }
 
@@ -9436,19 +9316,14 @@ impl CanMessage for ImdInfoVoltage {
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct ImdInfoItSystem {
     /// `IMD_Capacity`: 16 bits from bit 0 (Intel), unsigned, range [0.0, 65535.0], unit `nF`.
-    #[cfg_attr(feature = "serde", serde(rename = "IMD_Capacity"))]
     pub imd_capacity: u16,
     /// `IMD_CapacityMeasurementCounter`: 8 bits from bit 16 (Intel), unsigned, range [0.0, 255.0].
-    #[cfg_attr(feature = "serde", serde(rename = "IMD_CapacityMeasurementCounter"))]
     pub imd_capacity_measurement_counter: u8,
     /// `IMD_Unbalance`: 8 bits from bit 24 (Intel), unsigned, range [0.0, 100.0], unit `%`.
-    #[cfg_attr(feature = "serde", serde(rename = "IMD_Unbalance"))]
     pub imd_unbalance: u8,
     /// `IMD_UnbalanceMeasurementCounter`: 8 bits from bit 32 (Intel), unsigned, range [0.0, 255.0].
-    #[cfg_attr(feature = "serde", serde(rename = "IMD_UnbalanceMeasurementCounter"))]
     pub imd_unbalance_measurement_counter: u8,
     /// `IMD_VoltageFrequency`: 16 bits from bit 40 (Intel), unsigned, physical = raw * 0.1, range [0.0, 6553.5], unit `Hz`.
-    #[cfg_attr(feature = "serde", serde(rename = "IMD_VoltageFrequency"))]
     pub imd_voltage_frequency: f64,
 }
 
@@ -9820,10 +9695,8 @@ impl CanMessage for ImdInfoItSystem {
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct ImdRequest {
     /// `IMD_RequestIndex`: 8 bits from bit 0 (Intel), unsigned, range [0.0, 255.0].
-    #[cfg_attr(feature = "serde", serde(rename = "IMD_RequestIndex"))]
     pub imd_request_index: u8,
     /// `IMD_RequestData`: 32 bits from bit 8 (Intel), unsigned, range [0.0, 4294967295.0].
-    #[cfg_attr(feature = "serde", serde(rename = "IMD_RequestData"))]
     pub imd_request_data: u32,
 }
 

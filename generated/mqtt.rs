@@ -90,12 +90,13 @@ pub struct TelemetryRecord {
 pub const TELEMETRY: Topic<Sample<TelemetryRecord>> = Topic::new("telemetry");
 
 impl TelemetryRecord {
-    /// The telemetry topic's payload for this record at `ts`: the same JSON object as
-    /// `TELEMETRY.encode` (same keys in the same order, numbers that read back exactly),
-    /// written directly: keys are constants and numbers are formatted in place, where serde
-    /// escapes every key and goes through its flattening serializer.
+    /// The telemetry topic's payload for this record at `ts`, written directly (keys are
+    /// constants, numbers are formatted in place): the keys of `TELEMETRY.encode` in the same
+    /// order, each enum's name as `<name>_label` beside its number, and every scaled value
+    /// rounded to its scaling's resolution (`203.84`, not `203.84000000000003`).
+    /// `TELEMETRY.decode` reads it back.
     pub fn to_json(&self, ts: f64) -> Vec<u8> {
-        let mut payload = Vec::with_capacity(3288);
+        let mut payload = Vec::with_capacity(3624);
         let out = &mut payload;
         out.extend_from_slice(b"{\"ts\":");
         json_float(out, ts);
@@ -104,73 +105,85 @@ impl TelemetryRecord {
         out.extend_from_slice(b",\"timestamp_us\":");
         json_int(out, self.header.timestamp_us);
         out.extend_from_slice(b",\"apps_travel\":");
-        json_float(out, self.telemetry.apps_travel);
+        json_fixed(out, f64::from(self.telemetry.apps_travel), 1);
         out.extend_from_slice(b",\"bse_front\":");
-        json_float(out, self.telemetry.bse_front);
+        json_fixed(out, f64::from(self.telemetry.bse_front), 3);
         out.extend_from_slice(b",\"bse_rear\":");
-        json_float(out, self.telemetry.bse_rear);
+        json_fixed(out, f64::from(self.telemetry.bse_rear), 3);
         out.extend_from_slice(b",\"imd_resistance\":");
         json_int(out, self.telemetry.imd_resistance);
         out.extend_from_slice(b",\"imd_status\":");
         json_int(out, self.telemetry.imd_status);
         out.extend_from_slice(b",\"pack_voltage\":");
-        json_float(out, self.telemetry.pack_voltage);
+        json_fixed(out, f64::from(self.telemetry.pack_voltage), 1);
         out.extend_from_slice(b",\"pack_current\":");
-        json_float(out, self.telemetry.pack_current);
+        json_fixed(out, f64::from(self.telemetry.pack_current), 1);
         out.extend_from_slice(b",\"soc\":");
-        json_float(out, self.telemetry.soc);
+        json_fixed(out, f64::from(self.telemetry.soc), 1);
         out.extend_from_slice(b",\"discharge_limit\":");
         json_int(out, self.telemetry.discharge_limit);
         out.extend_from_slice(b",\"charge_limit\":");
         json_int(out, self.telemetry.charge_limit);
         out.extend_from_slice(b",\"low_cell_volt\":");
-        json_float(out, self.telemetry.low_cell_volt);
+        json_fixed(out, f64::from(self.telemetry.low_cell_volt), 4);
         out.extend_from_slice(b",\"high_cell_volt\":");
-        json_float(out, self.telemetry.high_cell_volt);
+        json_fixed(out, f64::from(self.telemetry.high_cell_volt), 4);
         out.extend_from_slice(b",\"avg_cell_volt\":");
-        json_float(out, self.telemetry.avg_cell_volt);
+        json_fixed(out, f64::from(self.telemetry.avg_cell_volt), 4);
         out.extend_from_slice(b",\"pack_temp\":");
         json_int(out, self.telemetry.pack_temp);
         out.extend_from_slice(b",\"motor_speed\":");
-        json_float(out, self.telemetry.motor_speed);
+        json_fixed(out, f64::from(self.telemetry.motor_speed), 2);
         out.extend_from_slice(b",\"motor_torque\":");
-        json_float(out, self.telemetry.motor_torque);
+        json_fixed(out, f64::from(self.telemetry.motor_torque), 4);
         out.extend_from_slice(b",\"max_motor_torque\":");
-        json_float(out, self.telemetry.max_motor_torque);
+        json_fixed(out, f64::from(self.telemetry.max_motor_torque), 4);
         out.extend_from_slice(b",\"motor_direction\":");
         json_int(out, self.telemetry.motor_direction.into_raw());
+        out.extend_from_slice(b",\"motor_direction_label\":");
+        json_label(out, self.telemetry.motor_direction.label());
         out.extend_from_slice(b",\"motor_state\":");
         json_int(out, self.telemetry.motor_state.into_raw());
+        out.extend_from_slice(b",\"motor_state_label\":");
+        json_label(out, self.telemetry.motor_state.label());
         out.extend_from_slice(b",\"mcu_main_state\":");
         json_int(out, self.telemetry.mcu_main_state.into_raw());
+        out.extend_from_slice(b",\"mcu_main_state_label\":");
+        json_label(out, self.telemetry.mcu_main_state.label());
         out.extend_from_slice(b",\"mcu_work_mode\":");
         json_int(out, self.telemetry.mcu_work_mode.into_raw());
+        out.extend_from_slice(b",\"mcu_work_mode_label\":");
+        json_label(out, self.telemetry.mcu_work_mode.label());
         out.extend_from_slice(b",\"mcu_voltage\":");
-        json_float(out, self.telemetry.mcu_voltage);
+        json_fixed(out, f64::from(self.telemetry.mcu_voltage), 2);
         out.extend_from_slice(b",\"mcu_phase_current\":");
-        json_float(out, self.telemetry.mcu_phase_current);
+        json_fixed(out, f64::from(self.telemetry.mcu_phase_current), 2);
         out.extend_from_slice(b",\"mcu_current\":");
-        json_float(out, self.telemetry.mcu_current);
+        json_fixed(out, f64::from(self.telemetry.mcu_current), 2);
         out.extend_from_slice(b",\"motor_temp\":");
         json_int(out, self.telemetry.motor_temp);
         out.extend_from_slice(b",\"mcu_temp\":");
         json_int(out, self.telemetry.mcu_temp);
         out.extend_from_slice(b",\"mcu_warning_level\":");
         json_int(out, self.telemetry.mcu_warning_level.into_raw());
+        out.extend_from_slice(b",\"mcu_warning_level_label\":");
+        json_label(out, self.telemetry.mcu_warning_level.label());
         out.extend_from_slice(b",\"vehicle_state\":");
         json_int(out, self.telemetry.vehicle_state.into_raw());
+        out.extend_from_slice(b",\"vehicle_state_label\":");
+        json_label(out, self.telemetry.vehicle_state.label());
         out.extend_from_slice(b",\"ready_to_drive\":");
         json_bool(out, self.telemetry.ready_to_drive);
         out.extend_from_slice(b",\"torque_command\":");
-        json_float(out, self.telemetry.torque_command);
+        json_fixed(out, f64::from(self.telemetry.torque_command), 4);
         out.extend_from_slice(b",\"shocktravel1\":");
-        json_float(out, self.telemetry.shocktravel1);
+        json_fixed(out, f64::from(self.telemetry.shocktravel1), 2);
         out.extend_from_slice(b",\"shocktravel2\":");
-        json_float(out, self.telemetry.shocktravel2);
+        json_fixed(out, f64::from(self.telemetry.shocktravel2), 2);
         out.extend_from_slice(b",\"shocktravel3\":");
-        json_float(out, self.telemetry.shocktravel3);
+        json_fixed(out, f64::from(self.telemetry.shocktravel3), 2);
         out.extend_from_slice(b",\"shocktravel4\":");
-        json_float(out, self.telemetry.shocktravel4);
+        json_fixed(out, f64::from(self.telemetry.shocktravel4), 2);
         out.extend_from_slice(b",\"can_rx_dropped\":");
         json_int(out, self.telemetry.can_rx_dropped);
         out.extend_from_slice(b",\"can_tx_dropped\":");
@@ -272,6 +285,80 @@ fn json_float<F: ryu::Float + Into<f64>>(out: &mut Vec<u8>, value: F) {
     }
 }
 
+/// `value` rounded to `decimals` places, the resolution its scaling gives it, without trailing
+/// zeros but always with a decimal point (`12.5`, `200.0`); `null` for NaN and infinities, and
+/// in full where it is too large for exact rounding.
+fn json_fixed(out: &mut Vec<u8>, value: f64, decimals: usize) {
+    const POWERS: [u64; 10] = [
+        1,
+        10,
+        100,
+        1_000,
+        10_000,
+        100_000,
+        1_000_000,
+        10_000_000,
+        100_000_000,
+        1_000_000_000,
+    ];
+    let Some(&power) = POWERS.get(decimals) else {
+        return json_float(out, value);
+    };
+    let scaled = (value * power as f64).round();
+    // 2^53: every integer below is exact in an f64.
+    if !(scaled.abs() < 9_007_199_254_740_992.0) {
+        return json_float(out, value);
+    }
+    let units = scaled as i64;
+    if units < 0 {
+        out.push(b'-');
+    }
+    let units = units.unsigned_abs();
+    json_int(out, units / power);
+    out.push(b'.');
+    let mut fraction = units % power;
+    let mut digits = [b'0'; 9];
+    for digit in digits.iter_mut().take(decimals).rev() {
+        *digit = b'0' + (fraction % 10) as u8;
+        fraction /= 10;
+    }
+    let end = digits
+        .iter()
+        .take(decimals)
+        .rposition(|&d| d != b'0')
+        .map_or(1, |last| last + 1);
+    out.extend_from_slice(digits.get(..end).unwrap_or(b"0"));
+}
+
+/// A string as JSON, escaped.
+fn json_str(out: &mut Vec<u8>, text: &str) {
+    out.push(b'"');
+    for c in text.chars() {
+        match c {
+            '"' => out.extend_from_slice(b"\\\""),
+            '\\' => out.extend_from_slice(b"\\\\"),
+            c if u32::from(c) < 0x20 => {
+                out.extend_from_slice(b"\\u00");
+                out.push(b"0123456789abcdef"[(u32::from(c) >> 4) as usize]);
+                out.push(b"0123456789abcdef"[(u32::from(c) & 0xF) as usize]);
+            }
+            c => {
+                let mut buffer = [0; 4];
+                out.extend_from_slice(c.encode_utf8(&mut buffer).as_bytes());
+            }
+        }
+    }
+    out.push(b'"');
+}
+
+/// An enum's name, or `null` for a value the schema does not name.
+fn json_label(out: &mut Vec<u8>, label: Option<&str>) {
+    match label {
+        Some(label) => json_str(out, label),
+        None => out.extend_from_slice(b"null"),
+    }
+}
+
 /// One topic per CAN message of the schema.
 pub mod can {
     use super::{Sample, Topic};
@@ -353,61 +440,514 @@ pub const SUFFIXES: [&str; 17] = [
     can::IMD_REQUEST.suffix(),
 ];
 
-/// A decoded CAN message as the payload of its own topic: the topic suffix and the JSON. Each
-/// arm goes through the message's typed topic, so the payload type cannot drift.
+/// A decoded CAN message as the payload of its own topic, received at `ts` on `bus`: the topic
+/// suffix and the JSON, written directly. Keys are the message type's fields in order (as its
+/// topic's `decode` reads them), after `ts` and `bus` (a message seen on two buses is told apart
+/// by it); each enum's name is `<name>_label` beside its number, scaled values are rounded to
+/// their resolution, and a multiplexed signal that is absent is left out.
 pub fn encode_message(
     message: &crate::can::AnyMessage,
     ts: f64,
-) -> Result<(&'static str, Vec<u8>), serde_json::Error> {
+    bus: &str,
+) -> (&'static str, Vec<u8>) {
     use crate::can::AnyMessage;
-    match *message {
-        AnyMessage::CcmStatus(value) => can::CCM_STATUS
-            .encode(&Sample { ts, value })
-            .map(|payload| (can::CCM_STATUS.suffix(), payload)),
-        AnyMessage::Vcu1(value) => can::VCU1
-            .encode(&Sample { ts, value })
-            .map(|payload| (can::VCU1.suffix(), payload)),
-        AnyMessage::Mcu1(value) => can::MCU1
-            .encode(&Sample { ts, value })
-            .map(|payload| (can::MCU1.suffix(), payload)),
-        AnyMessage::Mcu2(value) => can::MCU2
-            .encode(&Sample { ts, value })
-            .map(|payload| (can::MCU2.suffix(), payload)),
-        AnyMessage::Mcu3(value) => can::MCU3
-            .encode(&Sample { ts, value })
-            .map(|payload| (can::MCU3.suffix(), payload)),
-        AnyMessage::Bms1(value) => can::BMS1
-            .encode(&Sample { ts, value })
-            .map(|payload| (can::BMS1.suffix(), payload)),
-        AnyMessage::Bms2(value) => can::BMS2
-            .encode(&Sample { ts, value })
-            .map(|payload| (can::BMS2.suffix(), payload)),
-        AnyMessage::OrionPackStatus(value) => can::ORION_PACK_STATUS
-            .encode(&Sample { ts, value })
-            .map(|payload| (can::ORION_PACK_STATUS.suffix(), payload)),
-        AnyMessage::OrionLimits(value) => can::ORION_LIMITS
-            .encode(&Sample { ts, value })
-            .map(|payload| (can::ORION_LIMITS.suffix(), payload)),
-        AnyMessage::OrionCellVoltages(value) => can::ORION_CELL_VOLTAGES
-            .encode(&Sample { ts, value })
-            .map(|payload| (can::ORION_CELL_VOLTAGES.suffix(), payload)),
-        AnyMessage::PccStatus(value) => can::PCC_STATUS
-            .encode(&Sample { ts, value })
-            .map(|payload| (can::PCC_STATUS.suffix(), payload)),
-        AnyMessage::ImdInfoGeneral(value) => can::IMD_INFO_GENERAL
-            .encode(&Sample { ts, value })
-            .map(|payload| (can::IMD_INFO_GENERAL.suffix(), payload)),
-        AnyMessage::ImdInfoIsolationDetail(value) => can::IMD_INFO_ISOLATION_DETAIL
-            .encode(&Sample { ts, value })
-            .map(|payload| (can::IMD_INFO_ISOLATION_DETAIL.suffix(), payload)),
-        AnyMessage::ImdInfoVoltage(value) => can::IMD_INFO_VOLTAGE
-            .encode(&Sample { ts, value })
-            .map(|payload| (can::IMD_INFO_VOLTAGE.suffix(), payload)),
-        AnyMessage::ImdInfoItSystem(value) => can::IMD_INFO_IT_SYSTEM
-            .encode(&Sample { ts, value })
-            .map(|payload| (can::IMD_INFO_IT_SYSTEM.suffix(), payload)),
-        AnyMessage::ImdRequest(value) => can::IMD_REQUEST
-            .encode(&Sample { ts, value })
-            .map(|payload| (can::IMD_REQUEST.suffix(), payload)),
+    match message {
+        AnyMessage::CcmStatus(value) => (can::CCM_STATUS.suffix(), ccm_status_json(value, ts, bus)),
+        AnyMessage::Vcu1(value) => (can::VCU1.suffix(), vcu1_json(value, ts, bus)),
+        AnyMessage::Mcu1(value) => (can::MCU1.suffix(), mcu1_json(value, ts, bus)),
+        AnyMessage::Mcu2(value) => (can::MCU2.suffix(), mcu2_json(value, ts, bus)),
+        AnyMessage::Mcu3(value) => (can::MCU3.suffix(), mcu3_json(value, ts, bus)),
+        AnyMessage::Bms1(value) => (can::BMS1.suffix(), bms1_json(value, ts, bus)),
+        AnyMessage::Bms2(value) => (can::BMS2.suffix(), bms2_json(value, ts, bus)),
+        AnyMessage::OrionPackStatus(value) => (
+            can::ORION_PACK_STATUS.suffix(),
+            orion_pack_status_json(value, ts, bus),
+        ),
+        AnyMessage::OrionLimits(value) => (
+            can::ORION_LIMITS.suffix(),
+            orion_limits_json(value, ts, bus),
+        ),
+        AnyMessage::OrionCellVoltages(value) => (
+            can::ORION_CELL_VOLTAGES.suffix(),
+            orion_cell_voltages_json(value, ts, bus),
+        ),
+        AnyMessage::PccStatus(value) => (can::PCC_STATUS.suffix(), pcc_status_json(value, ts, bus)),
+        AnyMessage::ImdInfoGeneral(value) => (
+            can::IMD_INFO_GENERAL.suffix(),
+            imd_info_general_json(value, ts, bus),
+        ),
+        AnyMessage::ImdInfoIsolationDetail(value) => (
+            can::IMD_INFO_ISOLATION_DETAIL.suffix(),
+            imd_info_isolation_detail_json(value, ts, bus),
+        ),
+        AnyMessage::ImdInfoVoltage(value) => (
+            can::IMD_INFO_VOLTAGE.suffix(),
+            imd_info_voltage_json(value, ts, bus),
+        ),
+        AnyMessage::ImdInfoItSystem(value) => (
+            can::IMD_INFO_IT_SYSTEM.suffix(),
+            imd_info_it_system_json(value, ts, bus),
+        ),
+        AnyMessage::ImdRequest(value) => {
+            (can::IMD_REQUEST.suffix(), imd_request_json(value, ts, bus))
+        }
     }
+}
+
+fn ccm_status_json(value: &crate::can::CcmStatus, ts: f64, bus: &str) -> Vec<u8> {
+    let mut payload = Vec::with_capacity(1117 + bus.len());
+    let out = &mut payload;
+    out.extend_from_slice(b"{\"ts\":");
+    json_float(out, ts);
+    out.extend_from_slice(b",\"bus\":");
+    json_str(out, bus);
+    out.extend_from_slice(b",\"ccm_vehicle_state\":");
+    json_int(out, value.ccm_vehicle_state.into_raw());
+    out.extend_from_slice(b",\"ccm_vehicle_state_label\":");
+    json_label(out, value.ccm_vehicle_state.label());
+    out.extend_from_slice(b",\"ccm_fault_over_current\":");
+    json_bool(out, value.ccm_fault_over_current);
+    out.extend_from_slice(b",\"ccm_fault_under_voltage\":");
+    json_bool(out, value.ccm_fault_under_voltage);
+    out.extend_from_slice(b",\"ccm_fault_over_temperature\":");
+    json_bool(out, value.ccm_fault_over_temperature);
+    out.extend_from_slice(b",\"ccm_fault_apps\":");
+    json_bool(out, value.ccm_fault_apps);
+    out.extend_from_slice(b",\"ccm_fault_bse\":");
+    json_bool(out, value.ccm_fault_bse);
+    out.extend_from_slice(b",\"ccm_fault_bpps\":");
+    json_bool(out, value.ccm_fault_bpps);
+    out.extend_from_slice(b",\"ccm_fault_apps_brake_plausibility\":");
+    json_bool(out, value.ccm_fault_apps_brake_plausibility);
+    out.extend_from_slice(b",\"ccm_fault_low_battery_voltage\":");
+    json_bool(out, value.ccm_fault_low_battery_voltage);
+    out.extend_from_slice(b",\"ccm_schema_fingerprint\":");
+    json_int(out, value.ccm_schema_fingerprint);
+    out.extend_from_slice(b",\"ccm_rolling_counter\":");
+    json_int(out, value.ccm_rolling_counter);
+    out.extend_from_slice(b",\"ccm_ready_to_drive\":");
+    json_bool(out, value.ccm_ready_to_drive);
+    out.extend_from_slice(b",\"ccm_fault_pedal_signal_lost\":");
+    json_bool(out, value.ccm_fault_pedal_signal_lost);
+    out.extend_from_slice(b",\"ccm_fault_sensors_stale\":");
+    json_bool(out, value.ccm_fault_sensors_stale);
+    out.extend_from_slice(b",\"ccm_fault_bms_timeout\":");
+    json_bool(out, value.ccm_fault_bms_timeout);
+    out.extend_from_slice(b",\"ccm_fault_inverter_timeout\":");
+    json_bool(out, value.ccm_fault_inverter_timeout);
+    out.extend_from_slice(b",\"ccm_fault_pcc_timeout\":");
+    json_bool(out, value.ccm_fault_pcc_timeout);
+    out.extend_from_slice(b",\"ccm_fault_inverter_fault\":");
+    json_bool(out, value.ccm_fault_inverter_fault);
+    out.extend_from_slice(b",\"ccm_fault_inverter_warning\":");
+    json_bool(out, value.ccm_fault_inverter_warning);
+    out.extend_from_slice(b",\"ccm_fault_pcc_error\":");
+    json_bool(out, value.ccm_fault_pcc_error);
+    out.push(b'}');
+    payload
+}
+
+fn vcu1_json(value: &crate::can::Vcu1, ts: f64, bus: &str) -> Vec<u8> {
+    let mut payload = Vec::with_capacity(1124 + bus.len());
+    let out = &mut payload;
+    out.extend_from_slice(b"{\"ts\":");
+    json_float(out, ts);
+    out.extend_from_slice(b",\"bus\":");
+    json_str(out, bus);
+    out.extend_from_slice(b",\"vcu_torque_req\":");
+    json_fixed(out, f64::from(value.vcu_torque_req), 4);
+    out.extend_from_slice(b",\"vcu_motor_spd_req\":");
+    json_int(out, value.vcu_motor_spd_req);
+    out.extend_from_slice(b",\"vcu_authentication_status\":");
+    json_int(out, value.vcu_authentication_status);
+    out.extend_from_slice(b",\"vcu_change_gear_alarm\":");
+    json_bool(out, value.vcu_change_gear_alarm);
+    out.extend_from_slice(b",\"vcu_vehicle_state\":");
+    json_bool(out, value.vcu_vehicle_state);
+    out.extend_from_slice(b",\"vcu_brake_pedal_sts\":");
+    json_int(out, value.vcu_brake_pedal_sts);
+    out.extend_from_slice(b",\"vcu_bms_main_relay_cmd\":");
+    json_bool(out, value.vcu_bms_main_relay_cmd);
+    out.extend_from_slice(b",\"vcu_gear_lever_pos_sts\":");
+    json_int(out, value.vcu_gear_lever_pos_sts.into_raw());
+    out.extend_from_slice(b",\"vcu_gear_lever_pos_sts_label\":");
+    json_label(out, value.vcu_gear_lever_pos_sts.label());
+    out.extend_from_slice(b",\"vcu_gear_lever_pos_sts_f\":");
+    json_bool(out, value.vcu_gear_lever_pos_sts_f);
+    out.extend_from_slice(b",\"vcu_ac_control_cmd\":");
+    json_bool(out, value.vcu_ac_control_cmd);
+    out.extend_from_slice(b",\"vcu_work_mode\":");
+    json_bool(out, value.vcu_work_mode);
+    out.extend_from_slice(b",\"vcu_motor_mode\":");
+    json_int(out, value.vcu_motor_mode.into_raw());
+    out.extend_from_slice(b",\"vcu_motor_mode_label\":");
+    json_label(out, value.vcu_motor_mode.label());
+    out.extend_from_slice(b",\"vcu_warning_level\":");
+    json_int(out, value.vcu_warning_level.into_raw());
+    out.extend_from_slice(b",\"vcu_warning_level_label\":");
+    json_label(out, value.vcu_warning_level.label());
+    out.extend_from_slice(b",\"vcu_key_position\":");
+    json_int(out, value.vcu_key_position.into_raw());
+    out.extend_from_slice(b",\"vcu_key_position_label\":");
+    json_label(out, value.vcu_key_position.label());
+    out.extend_from_slice(b",\"vcu_rolling_counter\":");
+    json_int(out, value.vcu_rolling_counter);
+    out.extend_from_slice(b",\"vcu_bms_aux_relay_cmd\":");
+    json_bool(out, value.vcu_bms_aux_relay_cmd);
+    out.extend_from_slice(b",\"vcu_power_reduce_req\":");
+    json_int(out, value.vcu_power_reduce_req);
+    out.extend_from_slice(b",\"vcu_check_sum\":");
+    json_int(out, value.vcu_check_sum);
+    out.push(b'}');
+    payload
+}
+
+fn mcu1_json(value: &crate::can::Mcu1, ts: f64, bus: &str) -> Vec<u8> {
+    let mut payload = Vec::with_capacity(700 + bus.len());
+    let out = &mut payload;
+    out.extend_from_slice(b"{\"ts\":");
+    json_float(out, ts);
+    out.extend_from_slice(b",\"bus\":");
+    json_str(out, bus);
+    out.extend_from_slice(b",\"mcu_motor_speed\":");
+    json_fixed(out, f64::from(value.mcu_motor_speed), 2);
+    out.extend_from_slice(b",\"mcu_actual_torque\":");
+    json_fixed(out, f64::from(value.mcu_actual_torque), 4);
+    out.extend_from_slice(b",\"mcu_max_motor_torque\":");
+    json_fixed(out, f64::from(value.mcu_max_motor_torque), 4);
+    out.extend_from_slice(b",\"mcu_max_motor_brake_torque\":");
+    json_fixed(out, f64::from(value.mcu_max_motor_brake_torque), 4);
+    out.extend_from_slice(b",\"mcu_main_state\":");
+    json_int(out, value.mcu_main_state.into_raw());
+    out.extend_from_slice(b",\"mcu_main_state_label\":");
+    json_label(out, value.mcu_main_state.label());
+    out.extend_from_slice(b",\"mcu_rotate_direction\":");
+    json_int(out, value.mcu_rotate_direction.into_raw());
+    out.extend_from_slice(b",\"mcu_rotate_direction_label\":");
+    json_label(out, value.mcu_rotate_direction.label());
+    out.extend_from_slice(b",\"mcu1_rolling_counter\":");
+    json_int(out, value.mcu1_rolling_counter);
+    out.extend_from_slice(b",\"mcu_motor_state\":");
+    json_int(out, value.mcu_motor_state.into_raw());
+    out.extend_from_slice(b",\"mcu_motor_state_label\":");
+    json_label(out, value.mcu_motor_state.label());
+    out.extend_from_slice(b",\"mcu_work_mode\":");
+    json_int(out, value.mcu_work_mode.into_raw());
+    out.extend_from_slice(b",\"mcu_work_mode_label\":");
+    json_label(out, value.mcu_work_mode.label());
+    out.push(b'}');
+    payload
+}
+
+fn mcu2_json(value: &crate::can::Mcu2, ts: f64, bus: &str) -> Vec<u8> {
+    let mut payload = Vec::with_capacity(1198 + bus.len());
+    let out = &mut payload;
+    out.extend_from_slice(b"{\"ts\":");
+    json_float(out, ts);
+    out.extend_from_slice(b",\"bus\":");
+    json_str(out, bus);
+    out.extend_from_slice(b",\"mcu_motor_temp\":");
+    json_int(out, value.mcu_motor_temp);
+    out.extend_from_slice(b",\"mcu_inverter_temp\":");
+    json_int(out, value.mcu_inverter_temp);
+    out.extend_from_slice(b",\"mcu_dc_main_wire_over_curr_fault\":");
+    json_bool(out, value.mcu_dc_main_wire_over_curr_fault);
+    out.extend_from_slice(b",\"mcu_motor_phase_curr_fault\":");
+    json_bool(out, value.mcu_motor_phase_curr_fault);
+    out.extend_from_slice(b",\"mcu_over_hot_fault\":");
+    json_bool(out, value.mcu_over_hot_fault);
+    out.extend_from_slice(b",\"mcu_resolver_fault\":");
+    json_bool(out, value.mcu_resolver_fault);
+    out.extend_from_slice(b",\"mcu_phase_curr_sensor_fault\":");
+    json_bool(out, value.mcu_phase_curr_sensor_fault);
+    out.extend_from_slice(b",\"mcu_motor_over_spd_fault\":");
+    json_bool(out, value.mcu_motor_over_spd_fault);
+    out.extend_from_slice(b",\"mcu_drv_motor_over_hot_fault\":");
+    json_bool(out, value.mcu_drv_motor_over_hot_fault);
+    out.extend_from_slice(b",\"mcu_dc_main_wire_over_volt_fault\":");
+    json_bool(out, value.mcu_dc_main_wire_over_volt_fault);
+    out.extend_from_slice(b",\"mcu_drv_motor_over_cool_fault\":");
+    json_bool(out, value.mcu_drv_motor_over_cool_fault);
+    out.extend_from_slice(b",\"mcu_motor_system_state\":");
+    json_bool(out, value.mcu_motor_system_state);
+    out.extend_from_slice(b",\"mcu_temp_sensor_state\":");
+    json_bool(out, value.mcu_temp_sensor_state);
+    out.extend_from_slice(b",\"mcu_motor_temp_sensor_state\":");
+    json_bool(out, value.mcu_motor_temp_sensor_state);
+    out.extend_from_slice(b",\"mcu_dc_volt_sensor_state\":");
+    json_bool(out, value.mcu_dc_volt_sensor_state);
+    out.extend_from_slice(b",\"mcu_dc_low_volt_warning\":");
+    json_bool(out, value.mcu_dc_low_volt_warning);
+    out.extend_from_slice(b",\"mcu_12v_low_volt_warning\":");
+    json_bool(out, value.mcu_12v_low_volt_warning);
+    out.extend_from_slice(b",\"mcu2_rolling_counter\":");
+    json_int(out, value.mcu2_rolling_counter);
+    out.extend_from_slice(b",\"mcu_warning_level\":");
+    json_int(out, value.mcu_warning_level.into_raw());
+    out.extend_from_slice(b",\"mcu_warning_level_label\":");
+    json_label(out, value.mcu_warning_level.label());
+    out.extend_from_slice(b",\"mcu_motor_open_phase_fault\":");
+    json_bool(out, value.mcu_motor_open_phase_fault);
+    out.extend_from_slice(b",\"mcu_motor_stall_fault\":");
+    json_bool(out, value.mcu_motor_stall_fault);
+    out.push(b'}');
+    payload
+}
+
+fn mcu3_json(value: &crate::can::Mcu3, ts: f64, bus: &str) -> Vec<u8> {
+    let mut payload = Vec::with_capacity(193 + bus.len());
+    let out = &mut payload;
+    out.extend_from_slice(b"{\"ts\":");
+    json_float(out, ts);
+    out.extend_from_slice(b",\"bus\":");
+    json_str(out, bus);
+    out.extend_from_slice(b",\"mcu_dc_voltage\":");
+    json_fixed(out, f64::from(value.mcu_dc_voltage), 2);
+    out.extend_from_slice(b",\"mcu_dc_current\":");
+    json_fixed(out, f64::from(value.mcu_dc_current), 2);
+    out.extend_from_slice(b",\"mcu_phase_current\":");
+    json_fixed(out, f64::from(value.mcu_phase_current), 2);
+    out.push(b'}');
+    payload
+}
+
+fn bms1_json(value: &crate::can::Bms1, ts: f64, bus: &str) -> Vec<u8> {
+    let mut payload = Vec::with_capacity(166 + bus.len());
+    let out = &mut payload;
+    out.extend_from_slice(b"{\"ts\":");
+    json_float(out, ts);
+    out.extend_from_slice(b",\"bus\":");
+    json_str(out, bus);
+    out.extend_from_slice(b",\"bms_precharge_relay_fb\":");
+    json_bool(out, value.bms_precharge_relay_fb);
+    out.extend_from_slice(b",\"bms_precharge_finish_sts\":");
+    json_bool(out, value.bms_precharge_finish_sts);
+    out.push(b'}');
+    payload
+}
+
+fn bms2_json(value: &crate::can::Bms2, ts: f64, bus: &str) -> Vec<u8> {
+    let mut payload = Vec::with_capacity(115 + bus.len());
+    let out = &mut payload;
+    out.extend_from_slice(b"{\"ts\":");
+    json_float(out, ts);
+    out.extend_from_slice(b",\"bus\":");
+    json_str(out, bus);
+    out.extend_from_slice(b",\"bms_allow_max_discharge\":");
+    json_fixed(out, f64::from(value.bms_allow_max_discharge), 1);
+    out.push(b'}');
+    payload
+}
+
+fn orion_pack_status_json(value: &crate::can::OrionPackStatus, ts: f64, bus: &str) -> Vec<u8> {
+    let mut payload = Vec::with_capacity(248 + bus.len());
+    let out = &mut payload;
+    out.extend_from_slice(b"{\"ts\":");
+    json_float(out, ts);
+    out.extend_from_slice(b",\"bus\":");
+    json_str(out, bus);
+    out.extend_from_slice(b",\"orion_pack_current\":");
+    json_fixed(out, f64::from(value.orion_pack_current), 1);
+    out.extend_from_slice(b",\"orion_pack_inst_voltage\":");
+    json_fixed(out, f64::from(value.orion_pack_inst_voltage), 1);
+    out.extend_from_slice(b",\"orion_pack_soc\":");
+    json_fixed(out, f64::from(value.orion_pack_soc), 1);
+    out.extend_from_slice(b",\"orion_relay_state\":");
+    json_int(out, value.orion_relay_state);
+    out.push(b'}');
+    payload
+}
+
+fn orion_limits_json(value: &crate::can::OrionLimits, ts: f64, bus: &str) -> Vec<u8> {
+    let mut payload = Vec::with_capacity(247 + bus.len());
+    let out = &mut payload;
+    out.extend_from_slice(b"{\"ts\":");
+    json_float(out, ts);
+    out.extend_from_slice(b",\"bus\":");
+    json_str(out, bus);
+    out.extend_from_slice(b",\"orion_pack_dcl\":");
+    json_int(out, value.orion_pack_dcl);
+    out.extend_from_slice(b",\"orion_pack_ccl\":");
+    json_int(out, value.orion_pack_ccl);
+    out.extend_from_slice(b",\"orion_high_temperature\":");
+    json_int(out, value.orion_high_temperature);
+    out.extend_from_slice(b",\"orion_low_temperature\":");
+    json_int(out, value.orion_low_temperature);
+    out.push(b'}');
+    payload
+}
+
+fn orion_cell_voltages_json(value: &crate::can::OrionCellVoltages, ts: f64, bus: &str) -> Vec<u8> {
+    let mut payload = Vec::with_capacity(260 + bus.len());
+    let out = &mut payload;
+    out.extend_from_slice(b"{\"ts\":");
+    json_float(out, ts);
+    out.extend_from_slice(b",\"bus\":");
+    json_str(out, bus);
+    out.extend_from_slice(b",\"orion_low_cell_voltage\":");
+    json_fixed(out, f64::from(value.orion_low_cell_voltage), 4);
+    out.extend_from_slice(b",\"orion_high_cell_voltage\":");
+    json_fixed(out, f64::from(value.orion_high_cell_voltage), 4);
+    out.extend_from_slice(b",\"orion_avg_cell_voltage\":");
+    json_fixed(out, f64::from(value.orion_avg_cell_voltage), 4);
+    out.extend_from_slice(b",\"orion_low_cell_id\":");
+    json_int(out, value.orion_low_cell_id);
+    out.push(b'}');
+    payload
+}
+
+fn pcc_status_json(value: &crate::can::PccStatus, ts: f64, bus: &str) -> Vec<u8> {
+    let mut payload = Vec::with_capacity(546 + bus.len());
+    let out = &mut payload;
+    out.extend_from_slice(b"{\"ts\":");
+    json_float(out, ts);
+    out.extend_from_slice(b",\"bus\":");
+    json_str(out, bus);
+    out.extend_from_slice(b",\"pcc_state\":");
+    json_int(out, value.pcc_state.into_raw());
+    out.extend_from_slice(b",\"pcc_state_label\":");
+    json_label(out, value.pcc_state.label());
+    out.extend_from_slice(b",\"pcc_error_too_fast\":");
+    json_bool(out, value.pcc_error_too_fast);
+    out.extend_from_slice(b",\"pcc_error_too_slow\":");
+    json_bool(out, value.pcc_error_too_slow);
+    out.extend_from_slice(b",\"pcc_error_bms_timeout\":");
+    json_bool(out, value.pcc_error_bms_timeout);
+    out.extend_from_slice(b",\"pcc_error_shutdown\":");
+    json_bool(out, value.pcc_error_shutdown);
+    out.extend_from_slice(b",\"pcc_error_undefined_state\":");
+    json_bool(out, value.pcc_error_undefined_state);
+    out.extend_from_slice(b",\"pcc_accumulator_voltage\":");
+    json_fixed(out, f64::from(value.pcc_accumulator_voltage), 2);
+    out.extend_from_slice(b",\"pcc_tractive_voltage\":");
+    json_fixed(out, f64::from(value.pcc_tractive_voltage), 2);
+    out.extend_from_slice(b",\"pcc_precharge_progress\":");
+    json_fixed(out, f64::from(value.pcc_precharge_progress), 2);
+    out.push(b'}');
+    payload
+}
+
+fn imd_info_general_json(value: &crate::can::ImdInfoGeneral, ts: f64, bus: &str) -> Vec<u8> {
+    let mut payload = Vec::with_capacity(841 + bus.len());
+    let out = &mut payload;
+    out.extend_from_slice(b"{\"ts\":");
+    json_float(out, ts);
+    out.extend_from_slice(b",\"bus\":");
+    json_str(out, bus);
+    out.extend_from_slice(b",\"imd_r_iso_corrected\":");
+    json_int(out, value.imd_r_iso_corrected);
+    out.extend_from_slice(b",\"imd_r_iso_status\":");
+    json_int(out, value.imd_r_iso_status);
+    out.extend_from_slice(b",\"imd_measurement_counter\":");
+    json_int(out, value.imd_measurement_counter);
+    out.extend_from_slice(b",\"imd_device_error\":");
+    json_bool(out, value.imd_device_error);
+    out.extend_from_slice(b",\"imd_hv_pos_connection_failure\":");
+    json_bool(out, value.imd_hv_pos_connection_failure);
+    out.extend_from_slice(b",\"imd_hv_neg_connection_failure\":");
+    json_bool(out, value.imd_hv_neg_connection_failure);
+    out.extend_from_slice(b",\"imd_earth_connection_failure\":");
+    json_bool(out, value.imd_earth_connection_failure);
+    out.extend_from_slice(b",\"imd_iso_alarm\":");
+    json_bool(out, value.imd_iso_alarm);
+    out.extend_from_slice(b",\"imd_iso_warning\":");
+    json_bool(out, value.imd_iso_warning);
+    out.extend_from_slice(b",\"imd_iso_outdated\":");
+    json_bool(out, value.imd_iso_outdated);
+    out.extend_from_slice(b",\"imd_unbalance_alarm\":");
+    json_bool(out, value.imd_unbalance_alarm);
+    out.extend_from_slice(b",\"imd_undervoltage_alarm\":");
+    json_bool(out, value.imd_undervoltage_alarm);
+    out.extend_from_slice(b",\"imd_unsafe_to_start\":");
+    json_bool(out, value.imd_unsafe_to_start);
+    out.extend_from_slice(b",\"imd_earthlift_open\":");
+    json_bool(out, value.imd_earthlift_open);
+    out.extend_from_slice(b",\"imd_device_activity\":");
+    json_int(out, value.imd_device_activity.into_raw());
+    out.extend_from_slice(b",\"imd_device_activity_label\":");
+    json_label(out, value.imd_device_activity.label());
+    out.push(b'}');
+    payload
+}
+
+fn imd_info_isolation_detail_json(
+    value: &crate::can::ImdInfoIsolationDetail,
+    ts: f64,
+    bus: &str,
+) -> Vec<u8> {
+    let mut payload = Vec::with_capacity(300 + bus.len());
+    let out = &mut payload;
+    out.extend_from_slice(b"{\"ts\":");
+    json_float(out, ts);
+    out.extend_from_slice(b",\"bus\":");
+    json_str(out, bus);
+    out.extend_from_slice(b",\"imd_r_iso_negative\":");
+    json_int(out, value.imd_r_iso_negative);
+    out.extend_from_slice(b",\"imd_r_iso_positive\":");
+    json_int(out, value.imd_r_iso_positive);
+    out.extend_from_slice(b",\"imd_r_iso_original\":");
+    json_int(out, value.imd_r_iso_original);
+    out.extend_from_slice(b",\"imd_iso_measurement_counter\":");
+    json_int(out, value.imd_iso_measurement_counter);
+    out.extend_from_slice(b",\"imd_iso_quality\":");
+    json_int(out, value.imd_iso_quality);
+    out.push(b'}');
+    payload
+}
+
+fn imd_info_voltage_json(value: &crate::can::ImdInfoVoltage, ts: f64, bus: &str) -> Vec<u8> {
+    let mut payload = Vec::with_capacity(329 + bus.len());
+    let out = &mut payload;
+    out.extend_from_slice(b"{\"ts\":");
+    json_float(out, ts);
+    out.extend_from_slice(b",\"bus\":");
+    json_str(out, bus);
+    out.extend_from_slice(b",\"imd_hv_system_voltage\":");
+    json_fixed(out, f64::from(value.imd_hv_system_voltage), 2);
+    out.extend_from_slice(b",\"imd_hv_neg_to_earth_voltage\":");
+    json_fixed(out, f64::from(value.imd_hv_neg_to_earth_voltage), 2);
+    out.extend_from_slice(b",\"imd_hv_pos_to_earth_voltage\":");
+    json_fixed(out, f64::from(value.imd_hv_pos_to_earth_voltage), 2);
+    out.extend_from_slice(b",\"imd_voltage_measurement_counter\":");
+    json_int(out, value.imd_voltage_measurement_counter);
+    out.extend_from_slice(b",\"imd_voltage_quality\":");
+    json_int(out, value.imd_voltage_quality);
+    out.push(b'}');
+    payload
+}
+
+fn imd_info_it_system_json(value: &crate::can::ImdInfoItSystem, ts: f64, bus: &str) -> Vec<u8> {
+    let mut payload = Vec::with_capacity(315 + bus.len());
+    let out = &mut payload;
+    out.extend_from_slice(b"{\"ts\":");
+    json_float(out, ts);
+    out.extend_from_slice(b",\"bus\":");
+    json_str(out, bus);
+    out.extend_from_slice(b",\"imd_capacity\":");
+    json_int(out, value.imd_capacity);
+    out.extend_from_slice(b",\"imd_capacity_measurement_counter\":");
+    json_int(out, value.imd_capacity_measurement_counter);
+    out.extend_from_slice(b",\"imd_unbalance\":");
+    json_int(out, value.imd_unbalance);
+    out.extend_from_slice(b",\"imd_unbalance_measurement_counter\":");
+    json_int(out, value.imd_unbalance_measurement_counter);
+    out.extend_from_slice(b",\"imd_voltage_frequency\":");
+    json_fixed(out, f64::from(value.imd_voltage_frequency), 1);
+    out.push(b'}');
+    payload
+}
+
+fn imd_request_json(value: &crate::can::ImdRequest, ts: f64, bus: &str) -> Vec<u8> {
+    let mut payload = Vec::with_capacity(153 + bus.len());
+    let out = &mut payload;
+    out.extend_from_slice(b"{\"ts\":");
+    json_float(out, ts);
+    out.extend_from_slice(b",\"bus\":");
+    json_str(out, bus);
+    out.extend_from_slice(b",\"imd_request_index\":");
+    json_int(out, value.imd_request_index);
+    out.extend_from_slice(b",\"imd_request_data\":");
+    json_int(out, value.imd_request_data);
+    out.push(b'}');
+    payload
 }

@@ -51,12 +51,18 @@ fn a_new_telemetry_field_fails_the_ccm_build_until_the_ccm_fills_it() {
 
     let unfilled = check_ccm(copy.path());
     let stderr = String::from_utf8_lossy(&unfilled.stderr);
-    assert!(!unfilled.status.success(), "the CCM built with an unfilled field:\n{stderr}");
+    assert!(
+        !unfilled.status.success(),
+        "the CCM built with an unfilled field:\n{stderr}"
+    );
     assert!(
         stderr.contains("missing field `steering_angle` in initializer of `TelemetryOwnFields`"),
         "the error names the new field:\n{stderr}"
     );
-    assert!(stderr.contains("ccm/src/control.rs"), "in the CCM's snapshot:\n{stderr}");
+    assert!(
+        stderr.contains("ccm/src/control.rs"),
+        "in the CCM's snapshot:\n{stderr}"
+    );
     assert!(
         !stderr.contains("max_brake_torque"),
         "a mirrored field needs no code in the CCM:\n{stderr}"
@@ -64,7 +70,10 @@ fn a_new_telemetry_field_fails_the_ccm_build_until_the_ccm_fills_it() {
 
     let control = copy.path().join("ccm/src/control.rs");
     let code = std::fs::read_to_string(&control).expect("control.rs");
-    assert!(code.contains("shocktravel4: rr,"), "the snapshot fills shocktravel4");
+    assert!(
+        code.contains("shocktravel4: rr,"),
+        "the snapshot fills shocktravel4"
+    );
     let code = code.replacen(
         "shocktravel4: rr,",
         "shocktravel4: rr,\n                steering_angle: 0.0,",
@@ -84,7 +93,15 @@ fn a_new_telemetry_field_fails_the_ccm_build_until_the_ccm_fills_it() {
 fn check_ccm(workspace: &Path) -> Output {
     let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
     Command::new(cargo)
-        .args(["check", "--quiet", "--offline", "--locked", "-p", "aer-ccm", "--lib"])
+        .args([
+            "check",
+            "--quiet",
+            "--offline",
+            "--locked",
+            "-p",
+            "aer-ccm",
+            "--lib",
+        ])
         .current_dir(workspace)
         .env("CARGO_TARGET_DIR", target_dir().join("lockstep"))
         .env_remove("RUSTFLAGS")

@@ -1,7 +1,7 @@
 //! The generated TDengine schema and MQTT topics: what the Pi creates, migrates and publishes.
 
 use aer::can::{AnyMessage, Mcu1, McuMainState};
-use aer::mqtt::{self, Sample, TelemetryRecord};
+use aer::mqtt::{self, TelemetryRecord};
 use aer::tables::{self, ColumnType, TABLES};
 use aer::telemetry::{Telemetry, TelemetryHeader};
 
@@ -163,8 +163,14 @@ fn topics_live_under_the_car_prefix() {
     );
 }
 
+/// Within float noise: a published number is the exact decimal of a value on its scaling's
+/// grid, so it differs from the decoded `f64` by representation error only.
+fn same_number(published: f64, decoded: f64) -> bool {
+    (published - decoded).abs() <= 1e-9 * decoded.abs().max(1.0)
+}
+
 #[test]
-fn payloads_are_flat_json_with_ts_in_seconds() {
+fn payloads_are_flat_json_with_ts_in_seconds_enum_names_and_no_float_noise() {
     let (_, mut snapshot) = Telemetry::unpack(&{
         let mut b = [0u8; Telemetry::LEN];
         b[..4].copy_from_slice(&aer::telemetry::TELEMETRY_FINGERPRINT.to_le_bytes());
@@ -173,37 +179,126 @@ fn payloads_are_flat_json_with_ts_in_seconds() {
     .expect("valid");
     snapshot.mcu_main_state = McuMainState::Run;
     snapshot.motor_speed = 1234.5;
-    let sample = Sample {
-        ts: 1_763_683_200.25,
-        value: TelemetryRecord {
-            header: TelemetryHeader {
-                sequence: 9,
-                timestamp_us: 77,
-            },
-            telemetry: snapshot,
+    snapshot.motor_torque = Telemetry::motor_torque_from_raw(200);
+    let record = TelemetryRecord {
+        header: TelemetryHeader {
+            sequence: 9,
+            timestamp_us: 77,
         },
+        telemetry: snapshot,
     };
-    let bytes = mqtt::TELEMETRY.encode(&sample).expect("serializes");
+    let bytes = record.to_json(1_763_683_200.25);
+    let text = String::from_utf8(bytes.clone()).expect("UTF-8");
     let json: serde_json::Value = serde_json::from_slice(&bytes).expect("JSON");
     assert_eq!(json["ts"], 1_763_683_200.25);
     assert_eq!(json["sequence"], 9);
     assert_eq!(json["motor_speed"], 1234.5);
-    assert_eq!(json["mcu_main_state"], 3, "enums as numbers, for plots");
-    assert_eq!(json["fault_bse"], false);
-    assert_eq!(mqtt::TELEMETRY.decode(&bytes).expect("reads back"), sample);
-
-    let frame = Mcu1::decode(&[0x10, 0, 100, 0, 0, 3 << 3, 0, 0]).expect("decodes");
-    let bytes = mqtt::can::MCU1
-        .encode(&Sample {
-            ts: 1.5,
-            value: frame,
-        })
-        .expect("serializes");
-    let json: serde_json::Value = serde_json::from_slice(&bytes).expect("JSON");
+    assert_eq!(json["mcu_main_state"], 3, "the number, for plots");
     assert_eq!(
-        json["MCU_MainState"], 3,
-        "CAN payload keys are the DBC signal names"
+        json["mcu_main_state_label"], "RUN",
+        "and the name, for people"
     );
-    assert_eq!(json["MCU_MotorSpeed"], 1024.0);
+    assert!(
+        text.contains("\"motor_torque\":203.84,"),
+        "to the resolution of 1.0192 Nm: {text}"
+    );
+    assert!(text.contains("\"apps_travel\":0.0,"), "{text}");
+    assert_eq!(json["fault_bse"], false);
+    let read = mqtt::TELEMETRY.decode(&bytes).expect("reads back");
+    assert_eq!(read.value.header, record.header);
+    assert_eq!(read.value.telemetry.mcu_main_state, McuMainState::Run);
+    assert!(same_number(
+        f64::from(read.value.telemetry.motor_torque),
+        f64::from(snapshot.motor_torque)
+    ));
+
+    let frame = Mcu1::decode(&[0x10, 0, 200, 0, 0, 3 << 3, 0, 0]).expect("decodes");
+    let (suffix, bytes) = mqtt::encode_message(&AnyMessage::Mcu1(frame), 1.5, "can1");
+    assert_eq!(suffix, mqtt::can::MCU1.suffix());
+    let text = String::from_utf8(bytes.clone()).expect("UTF-8");
+    let json: serde_json::Value = serde_json::from_slice(&bytes).expect("JSON");
     assert_eq!(json["ts"], 1.5);
+    assert_eq!(
+        json["bus"], "can1",
+        "a message seen on two buses says which"
+    );
+    assert_eq!(
+        json["mcu_main_state"], 3,
+        "keys are the snake_case names, as in the store"
+    );
+    assert_eq!(json["mcu_main_state_label"], "RUN");
+    assert_eq!(json["mcu_motor_speed"], 1024.0);
+    assert!(text.contains("\"mcu_actual_torque\":203.84,"), "{text}");
+    let read = mqtt::can::MCU1
+        .decode(&bytes)
+        .expect("the typed topic reads it");
+    assert_eq!(read.value.mcu_main_state, frame.mcu_main_state);
+    assert!(same_number(
+        read.value.mcu_actual_torque,
+        frame.mcu_actual_torque
+    ));
+}
+
+proptest::proptest! {
+    /// Every message of the schema, any payload: the published JSON has `ts`, `bus`, and every
+    /// signal present under its store column's name with the decoded value (within float
+    /// noise), each enum's name beside it.
+    #[test]
+    fn every_message_publishes_what_it_decoded(
+        index in 0..aer::can::MESSAGES.len(),
+        data in proptest::collection::vec(proptest::num::u8::ANY, 64),
+    ) {
+        let meta = aer::can::MESSAGES[index];
+        let table = TABLES[index + 1];
+        proptest::prop_assert_eq!(table.signals.len(), meta.signals.len());
+        let Ok(message) = AnyMessage::decode(meta.id, meta.extended, &data[..meta.len]) else {
+            return Ok(()); // a multiplexor value the schema does not know
+        };
+        let (_, bytes) = mqtt::encode_message(&message, 12.25, "can0");
+        let published: serde_json::Value = serde_json::from_slice(&bytes).expect("valid JSON");
+        proptest::prop_assert_eq!(&published["ts"], 12.25);
+        proptest::prop_assert_eq!(&published["bus"], "can0");
+        let mut decoded = Vec::new();
+        message.visit(&mut Collect(&mut decoded));
+        for (signal, value, label) in decoded {
+            let key = table.columns[1 + usize::from(signal.index)].name;
+            let out = &published[key];
+            match out {
+                serde_json::Value::Bool(b) => proptest::prop_assert_eq!(*b, value.to_f64() != 0.0),
+                _ => {
+                    let got = out.as_f64().expect("a number");
+                    proptest::prop_assert!(
+                        same_number(got, value.to_f64()),
+                        "{}: {} vs {:?}", key, got, value
+                    );
+                }
+            }
+            if !signal.labels.is_empty() {
+                proptest::prop_assert_eq!(
+                    &published[format!("{key}_label").as_str()],
+                    &serde_json::json!(label)
+                );
+            }
+        }
+    }
+}
+
+/// Every signal present: its metadata, value and label.
+struct Collect<'a>(
+    &'a mut Vec<(
+        &'static aer::runtime::SignalMeta,
+        aer::runtime::Value,
+        Option<&'static str>,
+    )>,
+);
+
+impl aer::runtime::SignalVisitor for Collect<'_> {
+    fn signal(
+        &mut self,
+        meta: &'static aer::runtime::SignalMeta,
+        value: aer::runtime::Value,
+        label: Option<&'static str>,
+    ) {
+        self.0.push((meta, value, label));
+    }
 }

@@ -53,8 +53,10 @@ proptest! {
         prop_assert_eq!(&packed[..], &expected[..]);
     }
 
-    /// The telemetry topic's direct JSON writer says what serde says: the same keys in the
-    /// same order, and numbers that read back to the same record.
+    /// The telemetry topic's direct JSON writer has serde's keys in serde's order, with each
+    /// enum's name (`<key>_label`, the schema's label) right after its number; the topic reads
+    /// it back to the same record (numbers to within an `f32` step: they are written to their
+    /// scaling's resolution), and publishing what it read gives the same bytes.
     #[test]
     fn the_direct_json_writer_matches_serde(
         body in prop::collection::vec(any::<u8>(), Telemetry::LEN),
@@ -67,9 +69,24 @@ proptest! {
         let sample = Sample { ts, value: record.clone() };
         let direct = record.to_json(ts);
         let serde = TELEMETRY.encode(&sample).expect("serde");
-        prop_assert_eq!(keys(&direct).len(), 3 + Telemetry::FIELDS.len());
-        prop_assert_eq!(keys(&direct), keys(&serde));
-        prop_assert_eq!(TELEMETRY.decode(&direct).expect("reads back"), sample);
+        let values: Vec<String> = keys(&direct).into_iter().filter(|k| !k.ends_with("_label")).collect();
+        prop_assert_eq!(values.len(), 3 + Telemetry::FIELDS.len());
+        prop_assert_eq!(values, keys(&serde));
+        let read = TELEMETRY.decode(&direct).expect("reads back");
+        prop_assert_eq!(read.ts, ts);
+        prop_assert_eq!(read.value.header, record.header);
+        let (mut want, mut got) = (Vec::new(), Vec::new());
+        record.telemetry.visit(&mut Collect(&mut want));
+        read.value.telemetry.visit(&mut Collect(&mut got));
+        for ((meta, a, label_a), (_, b, label_b)) in want.iter().zip(&got) {
+            prop_assert_eq!(label_a, label_b, "{}", meta.name);
+            let (a, b) = (a.to_f64(), b.to_f64());
+            prop_assert!(
+                a == b || (a - b).abs() <= 1e-6 * a.abs().max(1.0),
+                "{}: {} read back as {}", meta.name, a, b
+            );
+        }
+        prop_assert_eq!(read.value.to_json(ts), direct);
     }
 
     /// The reverse: Deku writes from a snapshot exactly what the firmware packs.
@@ -307,5 +324,14 @@ fn the_direct_json_writer_writes_null_where_serde_does() {
     )
     .expect("valid JSON");
     assert!(direct["soc"].is_null() && direct["motor_speed"].is_null());
-    assert_eq!(direct, serde);
+    assert!(serde["soc"].is_null() && serde["motor_speed"].is_null());
+}
+
+/// Every field's metadata, value and label, in schema order.
+struct Collect<'a>(&'a mut Vec<(&'static SignalMeta, Value, Option<&'static str>)>);
+
+impl SignalVisitor for Collect<'_> {
+    fn signal(&mut self, meta: &'static SignalMeta, value: Value, label: Option<&'static str>) {
+        self.0.push((meta, value, label));
+    }
 }

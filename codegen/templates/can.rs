@@ -104,9 +104,7 @@ pub struct {{ m.type_name }} {
     ///{% if !d.is_empty() %} {{ d }}{% endif %}
 {%- endfor %}
 {%- if s.optional() %}
-    #[cfg_attr(feature = "serde", serde(rename = {{ s.name }}, default, skip_serializing_if = "Option::is_none"))]
-{%- else %}
-    #[cfg_attr(feature = "serde", serde(rename = {{ s.name }}))]
+    #[cfg_attr(feature = "serde", serde(default, skip_serializing_if = "Option::is_none"))]
 {%- endif %}
     pub {{ s.field }}: {{ s.field_ty() }},
 {%- endfor %}

@@ -89,11 +89,29 @@ pub struct TelemetryRecord {
 /// The telemetry packet, every 10 ms.
 pub const TELEMETRY: Topic<Sample<TelemetryRecord>> = Topic::new("telemetry");
 
+{%- macro value(f, v) %}
+{%- match f.kind %}
+{%- when JsonKind::Bool %}
+    json_bool(out, {{ v }});
+{%- when JsonKind::Enum %}
+    json_int(out, {{ v }}.into_raw());
+    out.extend_from_slice(b",\"{{ f.name }}_label\":");
+    json_label(out, {{ v }}.label());
+{%- when JsonKind::Int %}
+    json_int(out, {{ v }});
+{%- when JsonKind::Fixed(decimals) %}
+    json_fixed(out, f64::from({{ v }}), {{ decimals }});
+{%- when JsonKind::Float %}
+    json_float(out, {{ v }});
+{%- endmatch %}
+{%- endmacro %}
+
 impl TelemetryRecord {
-    /// The telemetry topic's payload for this record at `ts`: the same JSON object as
-    /// `TELEMETRY.encode` (same keys in the same order, numbers that read back exactly),
-    /// written directly: keys are constants and numbers are formatted in place, where serde
-    /// escapes every key and goes through its flattening serializer.
+    /// The telemetry topic's payload for this record at `ts`, written directly (keys are
+    /// constants, numbers are formatted in place): the keys of `TELEMETRY.encode` in the same
+    /// order, each enum's name as `<name>_label` beside its number, and every scaled value
+    /// rounded to its scaling's resolution (`203.84`, not `203.84000000000003`).
+    /// `TELEMETRY.decode` reads it back.
     pub fn to_json(&self, ts: f64) -> Vec<u8> {
         let mut payload = Vec::with_capacity({{ json_capacity }});
         let out = &mut payload;
@@ -105,16 +123,7 @@ impl TelemetryRecord {
         json_int(out, self.header.timestamp_us);
 {%- for f in json_fields %}
         out.extend_from_slice(b",\"{{ f.name }}\":");
-{%- match f.kind %}
-{%- when JsonKind::Bool %}
-        json_bool(out, self.telemetry.{{ f.name }});
-{%- when JsonKind::Enum %}
-        json_int(out, self.telemetry.{{ f.name }}.into_raw());
-{%- when JsonKind::Int %}
-        json_int(out, self.telemetry.{{ f.name }});
-{%- when JsonKind::Float %}
-        json_float(out, self.telemetry.{{ f.name }});
-{%- endmatch %}
+        {%- call value(f, "self.telemetry." ~ f.name) %}{% endcall %}
 {%- endfor %}
         out.push(b'}');
         payload
@@ -140,6 +149,84 @@ fn json_float<F: ryu::Float + Into<f64>>(out: &mut Vec<u8>, value: F) {
         out.extend_from_slice(b"null");
     }
 }
+{%- if json_fixed %}
+
+/// `value` rounded to `decimals` places, the resolution its scaling gives it, without trailing
+/// zeros but always with a decimal point (`12.5`, `200.0`); `null` for NaN and infinities, and
+/// in full where it is too large for exact rounding.
+fn json_fixed(out: &mut Vec<u8>, value: f64, decimals: usize) {
+    const POWERS: [u64; 10] = [
+        1,
+        10,
+        100,
+        1_000,
+        10_000,
+        100_000,
+        1_000_000,
+        10_000_000,
+        100_000_000,
+        1_000_000_000,
+    ];
+    let Some(&power) = POWERS.get(decimals) else {
+        return json_float(out, value);
+    };
+    let scaled = (value * power as f64).round();
+    // 2^53: every integer below is exact in an f64.
+    if !(scaled.abs() < 9_007_199_254_740_992.0) {
+        return json_float(out, value);
+    }
+    let units = scaled as i64;
+    if units < 0 {
+        out.push(b'-');
+    }
+    let units = units.unsigned_abs();
+    json_int(out, units / power);
+    out.push(b'.');
+    let mut fraction = units % power;
+    let mut digits = [b'0'; 9];
+    for digit in digits.iter_mut().take(decimals).rev() {
+        *digit = b'0' + (fraction % 10) as u8;
+        fraction /= 10;
+    }
+    let end = digits
+        .iter()
+        .take(decimals)
+        .rposition(|&d| d != b'0')
+        .map_or(1, |last| last + 1);
+    out.extend_from_slice(digits.get(..end).unwrap_or(b"0"));
+}
+{%- endif %}
+
+/// A string as JSON, escaped.
+fn json_str(out: &mut Vec<u8>, text: &str) {
+    out.push(b'"');
+    for c in text.chars() {
+        match c {
+            '"' => out.extend_from_slice(b"\\\""),
+            '\\' => out.extend_from_slice(b"\\\\"),
+            c if u32::from(c) < 0x20 => {
+                out.extend_from_slice(b"\\u00");
+                out.push(b"0123456789abcdef"[(u32::from(c) >> 4) as usize]);
+                out.push(b"0123456789abcdef"[(u32::from(c) & 0xF) as usize]);
+            }
+            c => {
+                let mut buffer = [0; 4];
+                out.extend_from_slice(c.encode_utf8(&mut buffer).as_bytes());
+            }
+        }
+    }
+    out.push(b'"');
+}
+{%- if json_enum %}
+
+/// An enum's name, or `null` for a value the schema does not name.
+fn json_label(out: &mut Vec<u8>, label: Option<&str>) {
+    match label {
+        Some(label) => json_str(out, label),
+        None => out.extend_from_slice(b"null"),
+    }
+}
+{%- endif %}
 
 /// One topic per CAN message of the schema.
 pub mod can {
@@ -160,18 +247,40 @@ pub const SUFFIXES: [&str; {{ messages.len() + 1 }}] = [
 {%- endfor %}
 ];
 
-/// A decoded CAN message as the payload of its own topic: the topic suffix and the JSON. Each
-/// arm goes through the message's typed topic, so the payload type cannot drift.
-pub fn encode_message(
-    message: &crate::can::AnyMessage,
-    ts: f64,
-) -> Result<(&'static str, Vec<u8>), serde_json::Error> {
+/// A decoded CAN message as the payload of its own topic, received at `ts` on `bus`: the topic
+/// suffix and the JSON, written directly. Keys are the message type's fields in order (as its
+/// topic's `decode` reads them), after `ts` and `bus` (a message seen on two buses is told apart
+/// by it); each enum's name is `<name>_label` beside its number, scaled values are rounded to
+/// their resolution, and a multiplexed signal that is absent is left out.
+pub fn encode_message(message: &crate::can::AnyMessage, ts: f64, bus: &str) -> (&'static str, Vec<u8>) {
     use crate::can::AnyMessage;
-    match *message {
+    match message {
 {%- for m in messages %}
-        AnyMessage::{{ m.type_name }}(value) => can::{{ m.const_name }}
-            .encode(&Sample { ts, value })
-            .map(|payload| (can::{{ m.const_name }}.suffix(), payload)),
+        AnyMessage::{{ m.type_name }}(value) => (can::{{ m.const_name }}.suffix(), {{ m.writer }}(value, ts, bus)),
 {%- endfor %}
     }
 }
+{%- for m in messages %}
+
+fn {{ m.writer }}(value: &crate::can::{{ m.type_name }}, ts: f64, bus: &str) -> Vec<u8> {
+    let mut payload = Vec::with_capacity({{ m.json_capacity }} + bus.len());
+    let out = &mut payload;
+    out.extend_from_slice(b"{\"ts\":");
+    json_float(out, ts);
+    out.extend_from_slice(b",\"bus\":");
+    json_str(out, bus);
+{%- for f in m.fields %}
+{%- if f.optional %}
+    if let Some(v) = value.{{ f.name }} {
+        out.extend_from_slice(b",\"{{ f.name }}\":");
+        {%- call value(f, "v") %}{% endcall %}
+    }
+{%- else %}
+    out.extend_from_slice(b",\"{{ f.name }}\":");
+    {%- call value(f, "value." ~ f.name) %}{% endcall %}
+{%- endif %}
+{%- endfor %}
+    out.push(b'}');
+    payload
+}
+{%- endfor %}

@@ -150,7 +150,10 @@ mod tests {
         let status = status("car1", &counters, Problems::default());
         let problem = status.problems.firmware.expect("a problem");
         let ours = format!("{:#010x}", aer::telemetry::TELEMETRY_FINGERPRINT);
-        assert!(problem.contains("0xdeadbeef") && problem.contains(&ours), "{problem}");
+        assert!(
+            problem.contains("0xdeadbeef") && problem.contains(&ours),
+            "{problem}"
+        );
         assert_eq!(status.fingerprint_match, Some(false));
     }
 }

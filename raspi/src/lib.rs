@@ -8,6 +8,7 @@
 
 pub mod broker;
 pub mod config;
+pub mod describe;
 pub mod disk;
 pub mod export;
 pub mod forward;

@@ -96,6 +96,11 @@ pub async fn serve(config: Config, job: Job) -> Result<()> {
     let (writer, session) = start_store(&config, &job, &counters, &health)?;
     let raw_log = start_raw_log(&config, &job, &counters, &health)?;
     let mqtt = start_mqtt(&config, &counters, &health, &cancel).await?;
+    // What every key of every topic means (label, unit, value names), retained, once.
+    for (suffix, schema) in crate::describe::topic_schemas() {
+        mqtt.publisher
+            .publish_json(&format!("schema/{suffix}"), &schema, true);
+    }
     let reporter = tokio::spawn(report::run(
         mqtt.publisher.clone(),
         config.car_id.clone(),
@@ -415,14 +420,7 @@ fn start_source(
             };
             tokio::spawn(async move {
                 while !cancel.is_cancelled() && !inputs.is_closed() {
-                    replay(
-                        log.as_bytes(),
-                        inputs.clone(),
-                        &counters,
-                        options,
-                        &cancel,
-                    )
-                    .await;
+                    replay(log.as_bytes(), inputs.clone(), &counters, options, &cancel).await;
                 }
             });
         }

@@ -24,6 +24,44 @@ use tokio_util::sync::CancellationToken;
 
 const SESSION: &str = include_str!("../data/session.log");
 
+/// What the `mosquitto_sub -v` lines showed.
+#[derive(Debug, Default)]
+struct MosquittoSeen {
+    vehicle_state_names: std::collections::BTreeSet<String>,
+    pcc_state_names: std::collections::BTreeSet<String>,
+    ccm_status_buses: std::collections::BTreeSet<String>,
+    /// The first line with a number of more than 9 decimals.
+    noisy: Option<String>,
+}
+
+impl MosquittoSeen {
+    fn read(&mut self, line: &str) {
+        let Some((topic, payload)) = line.split_once(' ') else {
+            return;
+        };
+        let Ok(json) = serde_json::from_str::<serde_json::Value>(payload) else {
+            return;
+        };
+        let text = |key: &str| json[key].as_str().map(str::to_owned);
+        match topic {
+            "aer/car1/telemetry" => self.vehicle_state_names.extend(text("vehicle_state_label")),
+            "aer/car1/can/pcc_status" => self.pcc_state_names.extend(text("pcc_state_label")),
+            "aer/car1/can/ccm_status" => self.ccm_status_buses.extend(text("bus")),
+            _ => {}
+        }
+        let noisy = payload
+            .split(|c: char| !c.is_ascii_digit() && c != '.')
+            .any(|number| {
+                number
+                    .split_once('.')
+                    .is_some_and(|(_, decimals)| decimals.len() > 9)
+            });
+        if noisy && self.noisy.is_none() {
+            self.noisy = Some(line.to_owned());
+        }
+    }
+}
+
 fn free_port() -> u16 {
     std::net::TcpListener::bind("127.0.0.1:0")
         .and_then(|l| l.local_addr())
@@ -158,8 +196,10 @@ async fn every_packet_reaches_both_subscribers_and_the_store() {
     };
     let mosquitto_reader = std::thread::spawn(move || {
         let mut telemetry = 0usize;
+        let mut seen = MosquittoSeen::default();
         for line in lines {
             let Ok(line) = line else { break };
+            seen.read(&line);
             if line.starts_with("aer/car1/telemetry ") {
                 telemetry += 1;
                 if telemetry == 4_500 {
@@ -167,7 +207,7 @@ async fn every_packet_reaches_both_subscribers_and_the_store() {
                 }
             }
         }
-        telemetry
+        (telemetry, seen)
     });
 
     // The store, then the replay.
@@ -227,12 +267,22 @@ async fn every_packet_reaches_both_subscribers_and_the_store() {
         );
         assert!((sample.ts - *ts_us as f64 / 1e6).abs() < 1e-6);
     }
-    let seen = tokio::task::spawn_blocking(move || mosquitto_reader.join().expect("reader"))
-        .await
-        .expect("join");
+    let (seen, what) =
+        tokio::task::spawn_blocking(move || mosquitto_reader.join().expect("reader"))
+            .await
+            .expect("join");
     let _ = mosquitto.kill();
     let _ = mosquitto.wait();
     assert_eq!(seen, 4_500, "mosquitto_sub: every packet");
+    // What people read with mosquitto_sub: names, not only numbers; no float noise; the bus.
+    assert_eq!(what.noisy, None, "a number written past its resolution");
+    assert!(what.vehicle_state_names.contains("DRIVING"), "{what:?}");
+    assert!(what.pcc_state_names.contains("ONLINE"), "{what:?}");
+    assert_eq!(
+        what.ccm_status_buses,
+        ["can0".to_owned(), "can1".to_owned()].into(),
+        "CCM_Status on both buses, told apart"
+    );
 
     // The store holds every row, with the decoded values.
     let db = rusqlite::Connection::open(&path).expect("reopen");

@@ -196,7 +196,15 @@ fn the_demo_store_is_found_with_the_flag_the_error_names() {
     drop(db);
     let export = |extra: &[&str]| {
         Command::new(env!("CARGO_BIN_EXE_aer-raspi"))
-            .args(["export", "--session", "latest", "--format", "csv", "--out", "out"])
+            .args([
+                "export",
+                "--session",
+                "latest",
+                "--format",
+                "csv",
+                "--out",
+                "out",
+            ])
             .args(extra)
             .current_dir(dir.path())
             .env_remove("AER_STORE_PATH")

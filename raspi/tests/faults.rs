@@ -165,9 +165,15 @@ async fn a_packet_of_another_schema_is_named_whatever_its_length() {
         );
         let status = aer_host::status::status("car1", &counters, Default::default());
         assert_eq!(status.undecodable_packets, 1, "{len} bytes");
-        assert_eq!(status.undecodable_fingerprint.as_deref(), Some("0xdeadbeef"));
+        assert_eq!(
+            status.undecodable_fingerprint.as_deref(),
+            Some("0xdeadbeef")
+        );
         assert_eq!(status.fingerprint_match, Some(false));
-        let problem = status.problems.firmware.expect("the status names the mismatch");
+        let problem = status
+            .problems
+            .firmware
+            .expect("the status names the mismatch");
         assert!(
             problem.contains("another schema")
                 && problem.contains("0xdeadbeef")

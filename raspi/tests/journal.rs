@@ -74,6 +74,30 @@ fn piped_output_has_no_colour_codes_and_subscribers_leaving_are_not_errors() {
             received += 1;
         }
     }
+    // Every topic's description is retained: a late subscriber finds labels and units.
+    let topics = aer::mqtt::SUFFIXES.len();
+    let schemas = Command::new("mosquitto_sub")
+        .args(["-h", "127.0.0.1", "-p", &port.to_string(), "-v"])
+        .args([
+            "-t",
+            "aer/+/schema/#",
+            "-C",
+            &topics.to_string(),
+            "-W",
+            "10",
+        ])
+        .output()
+        .expect("mosquitto_sub");
+    let schemas = String::from_utf8_lossy(&schemas.stdout);
+    assert_eq!(schemas.lines().count(), topics, "{schemas}");
+    let mcu1 = schemas
+        .lines()
+        .find(|l| l.contains("/schema/can/mcu1 "))
+        .expect("the description of can/mcu1");
+    assert!(
+        mcu1.contains("\"unit\":\"rpm\"") && mcu1.contains("MCU_MotorSpeed"),
+        "{mcu1}"
+    );
     let status = Command::new("kill")
         .args(["-TERM", &service.id().to_string()])
         .status()

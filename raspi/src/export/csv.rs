@@ -2,9 +2,9 @@
 //! `ts` in microseconds since the epoch), `columns.csv` beside them with each column's type,
 //! unit, label and description, and `session.csv` with the session's metadata.
 
-use super::describe;
 use super::load::{TableData, Values};
 use super::{ExportError, Written};
+use crate::describe;
 use std::fmt::Write as _;
 use std::path::Path;
 

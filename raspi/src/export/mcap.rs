@@ -3,9 +3,9 @@
 //! order, each channel with a JSON Schema generated from the schema (labels, units, enum
 //! values), and the session's metadata as an MCAP metadata record.
 
-use super::describe;
 use super::load::{TableData, Values};
 use super::{ExportError, Written};
+use crate::describe;
 use aer::tables::{Column, ColumnType};
 use std::collections::BTreeMap;
 use std::io::{BufWriter, Write as _};

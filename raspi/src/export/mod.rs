@@ -7,7 +7,6 @@
 //! [`parquet`] and [`csv`] write them.
 
 pub mod csv;
-pub mod describe;
 pub mod load;
 pub mod mcap;
 pub mod parquet;

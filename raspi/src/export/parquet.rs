@@ -4,9 +4,9 @@
 //! strings. Units, labels and the session's metadata go into the file's key-value metadata.
 //! Written column by column with the parquet crate's own writer (no Arrow: less to build).
 
-use super::describe;
 use super::load::{TableData, Values};
 use super::{ExportError, Written};
+use crate::describe;
 use aer::tables::{Column, ColumnType};
 use parquet::data_type::{
     BoolType, ByteArray, ByteArrayType, DoubleType, FloatType, Int32Type, Int64Type,

@@ -242,9 +242,10 @@ impl Publisher {
         }
     }
 
-    /// Publishes one record on its typed topic. Into the embedded broker, the newest record
-    /// goes out with the next one or at [`Self::flush`]: call it before waiting for input.
-    pub fn publish(&self, record: &Record) {
+    /// Publishes one record on its typed topic (`buses` names the bus numbers records carry).
+    /// Into the embedded broker, the newest record goes out with the next one or at
+    /// [`Self::flush`]: call it before waiting for input.
+    pub fn publish(&self, record: &Record, buses: &[Arc<str>]) {
         let (topic, payload) = match record {
             Record::Telemetry {
                 ts_us,
@@ -258,22 +259,20 @@ impl Publisher {
                 };
                 (
                     self.telemetry_topic.clone(),
-                    Ok(record.to_json(seconds(*ts_us))),
+                    record.to_json(seconds(*ts_us)),
                 )
             }
-            Record::Can { ts_us, message, .. } => match encode_message(message, seconds(*ts_us)) {
-                Ok((suffix, payload)) => (format!("{}/{suffix}", self.prefix).into(), Ok(payload)),
-                Err(error) => (bytes::Bytes::new(), Err(error)),
-            },
-        };
-        match payload {
-            Ok(payload) => self.send(topic, payload, false, false),
-            Err(error) => {
-                // Serialising generated types cannot fail short of a bug; count it as a drop.
-                let count = Counters::bump(&self.counters.publish_dropped);
-                warn!(%error, count, "record could not be serialised");
+            Record::Can {
+                ts_us,
+                bus,
+                message,
+            } => {
+                let bus = super::bus_name(buses, *bus);
+                let (suffix, payload) = encode_message(message, seconds(*ts_us), &bus);
+                (format!("{}/{suffix}", self.prefix).into(), payload)
             }
-        }
+        };
+        self.send(topic, payload, false, false);
     }
 
     /// Hands every published record to the broker now.
@@ -301,8 +300,8 @@ impl Publisher {
         }
     }
 
-    /// Publishes any JSON value on `<prefix>/<suffix>` (outside the typed topics: probes and
-    /// the benchmark's stand-in for today's payload).
+    /// Publishes any JSON value on `<prefix>/<suffix>` (outside the typed topics: the retained
+    /// `schema/...` descriptions, probes and the benchmark's stand-in for today's payload).
     pub fn publish_json(&self, suffix: &str, value: &impl Serialize, retain: bool) {
         if let Ok(payload) = serde_json::to_vec(value) {
             self.send(
@@ -369,8 +368,8 @@ fn push(tx: &mut LinkTx, packet: rumqttd::protocol::Packet) -> bool {
 }
 
 impl super::Sink for Publisher {
-    fn accept(&mut self, record: &Record, _: &[Arc<str>]) {
-        self.publish(record);
+    fn accept(&mut self, record: &Record, buses: &[Arc<str>]) {
+        self.publish(record, buses);
     }
 
     fn flush(&mut self) {

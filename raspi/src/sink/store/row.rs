@@ -57,10 +57,7 @@ pub fn row(record: &Record, car_id: &Arc<str>, bus_names: &[Arc<str>]) -> Row {
             car_id: car_id.clone(),
             ts_us: *ts_us,
             data: RowData::Can {
-                bus: bus_names
-                    .get(usize::from(*bus))
-                    .cloned()
-                    .unwrap_or_else(|| format!("bus{bus}").into()),
+                bus: crate::sink::bus_name(bus_names, *bus),
                 message: *message,
             },
         },

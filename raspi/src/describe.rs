@@ -1,7 +1,8 @@
 //! What each exported column means, from the generated schema: label, unit, description and
-//! value labels, for the CSV sidecar, the Parquet metadata and the MCAP JSON Schemas.
+//! value labels, for the CSV sidecar, the Parquet metadata, the MCAP JSON Schemas and the
+//! retained `schema/...` topics that describe each MQTT topic's payload.
 
-use aer::tables::{Column, ColumnType, Table};
+use aer::tables::{Column, ColumnType, TABLES, Table};
 use aer::telemetry::Telemetry;
 use serde_json::{Map, Value, json};
 
@@ -88,10 +89,42 @@ fn json_type(ty: ColumnType) -> &'static str {
 /// on the MQTT topics), titled with the label, described with the unit and the schema's
 /// comment; enum columns list their values and get a `<name>_label` string beside them.
 pub fn json_schema(table: &'static Table, title: &str) -> Value {
+    schema_of(table, title, columns(table))
+}
+
+/// The JSON Schema of a table's MQTT payloads, as [`json_schema`] without the columns the topic
+/// itself says (the car, the schema fingerprint): `ts`, `bus` on CAN topics, then the values.
+pub fn topic_schema(table: &'static Table, title: &str) -> Value {
+    let described = columns(table)
+        .into_iter()
+        .filter(|(column, _)| column.name == "bus" || !is_tag(table, column.name))
+        .collect();
+    schema_of(table, title, described)
+}
+
+/// Each MQTT topic's suffix (`telemetry`, `can/mcu1`) with the JSON Schema of its payloads,
+/// which the service publishes, retained, on `schema/<suffix>`: a subscriber finds the label,
+/// unit, description and value names of every key there, once, instead of in every payload.
+pub fn topic_schemas() -> Vec<(&'static str, Value)> {
+    TABLES
+        .iter()
+        .zip(aer::mqtt::SUFFIXES)
+        .map(|(table, suffix)| (suffix, topic_schema(table, suffix)))
+        .collect()
+}
+
+fn is_tag(table: &Table, name: &str) -> bool {
+    table.tags.iter().any(|tag| tag.name == name)
+}
+
+fn schema_of(
+    table: &'static Table,
+    title: &str,
+    described: Vec<(&'static Column, Description)>,
+) -> Value {
     let mut properties = Map::new();
-    let tags = table.tags.len();
-    for (index, (column, d)) in columns(table).into_iter().enumerate() {
-        let required = index <= tags;
+    for (column, d) in described {
+        let required = column.name == "ts" || is_tag(table, column.name);
         let ty = json_type(column.ty);
         let mut property = Map::new();
         property.insert(
@@ -113,7 +146,7 @@ pub fn json_schema(table: &'static Table, title: &str) -> Value {
             text = format!("{text} [{unit}]").trim().to_owned();
         }
         property.insert("description".into(), json!(text));
-        if !d.values.is_empty() {
+        let label = (!d.values.is_empty()).then(|| {
             let one_of: Vec<Value> = d
                 .values
                 .iter()
@@ -121,17 +154,17 @@ pub fn json_schema(table: &'static Table, title: &str) -> Value {
                 .collect();
             property.insert("oneOf".into(), json!(one_of));
             let labels: Vec<&str> = d.values.iter().map(|(_, label)| *label).collect();
-            properties.insert(
-                format!("{}_label", column.name),
-                json!({
-                    "type": ["string", "null"],
-                    "title": format!("{} (name)", d.label),
-                    "description": format!("The value of `{}` by name.", column.name),
-                    "enum": labels,
-                }),
-            );
-        }
+            json!({
+                "type": ["string", "null"],
+                "title": format!("{} (name)", d.label),
+                "description": format!("The value of `{}` by name.", column.name),
+                "enum": labels,
+            })
+        });
         properties.insert(column.name.into(), Value::Object(property));
+        if let Some(label) = label {
+            properties.insert(format!("{}_label", column.name), label);
+        }
     }
     json!({
         "$schema": "https://json-schema.org/draft/2020-12/schema",
@@ -175,5 +208,36 @@ mod tests {
         assert_eq!(schema["properties"]["soc"]["unit"], "%");
         assert_eq!(schema["properties"]["soc"]["title"], "SOC");
         assert!(schema["properties"]["vehicle_state_label"]["enum"].is_array());
+    }
+
+    #[test]
+    fn each_topic_has_its_table_s_schema_without_the_topic_s_own_tags() {
+        let schemas = super::topic_schemas();
+        assert_eq!(schemas.len(), TABLES.len());
+        for ((suffix, schema), table) in schemas.iter().zip(TABLES) {
+            assert_eq!(
+                suffix.replace('/', "_"),
+                table.name,
+                "topic and table agree"
+            );
+            let properties = schema["properties"].as_object().expect("properties");
+            assert!(!properties.contains_key("car_id"), "{suffix}");
+            assert!(!properties.contains_key("schema_fingerprint"), "{suffix}");
+            assert_eq!(
+                properties.contains_key("bus"),
+                suffix.starts_with("can/"),
+                "{suffix}"
+            );
+        }
+        let (_, mcu1) = schemas
+            .iter()
+            .find(|(suffix, _)| *suffix == "can/mcu1")
+            .expect("can/mcu1");
+        assert_eq!(mcu1["properties"]["mcu_motor_speed"]["unit"], "rpm");
+        assert_eq!(
+            mcu1["properties"]["mcu_motor_speed"]["title"],
+            "MCU_MotorSpeed"
+        );
+        assert!(mcu1["properties"]["mcu_main_state_label"]["enum"].is_array());
     }
 }
