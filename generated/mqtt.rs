@@ -105,39 +105,39 @@ impl TelemetryRecord {
         out.extend_from_slice(b",\"timestamp_us\":");
         json_int(out, self.header.timestamp_us);
         out.extend_from_slice(b",\"apps_travel\":");
-        json_fixed(out, f64::from(self.telemetry.apps_travel), 1);
+        json_fixed(out, self.telemetry.apps_travel, 1);
         out.extend_from_slice(b",\"bse_front\":");
-        json_fixed(out, f64::from(self.telemetry.bse_front), 3);
+        json_fixed(out, self.telemetry.bse_front, 3);
         out.extend_from_slice(b",\"bse_rear\":");
-        json_fixed(out, f64::from(self.telemetry.bse_rear), 3);
+        json_fixed(out, self.telemetry.bse_rear, 3);
         out.extend_from_slice(b",\"imd_resistance\":");
         json_int(out, self.telemetry.imd_resistance);
         out.extend_from_slice(b",\"imd_status\":");
         json_int(out, self.telemetry.imd_status);
         out.extend_from_slice(b",\"pack_voltage\":");
-        json_fixed(out, f64::from(self.telemetry.pack_voltage), 1);
+        json_fixed(out, self.telemetry.pack_voltage, 1);
         out.extend_from_slice(b",\"pack_current\":");
-        json_fixed(out, f64::from(self.telemetry.pack_current), 1);
+        json_fixed(out, self.telemetry.pack_current, 1);
         out.extend_from_slice(b",\"soc\":");
-        json_fixed(out, f64::from(self.telemetry.soc), 1);
+        json_fixed(out, self.telemetry.soc, 1);
         out.extend_from_slice(b",\"discharge_limit\":");
         json_int(out, self.telemetry.discharge_limit);
         out.extend_from_slice(b",\"charge_limit\":");
         json_int(out, self.telemetry.charge_limit);
         out.extend_from_slice(b",\"low_cell_volt\":");
-        json_fixed(out, f64::from(self.telemetry.low_cell_volt), 4);
+        json_fixed(out, self.telemetry.low_cell_volt, 4);
         out.extend_from_slice(b",\"high_cell_volt\":");
-        json_fixed(out, f64::from(self.telemetry.high_cell_volt), 4);
+        json_fixed(out, self.telemetry.high_cell_volt, 4);
         out.extend_from_slice(b",\"avg_cell_volt\":");
-        json_fixed(out, f64::from(self.telemetry.avg_cell_volt), 4);
+        json_fixed(out, self.telemetry.avg_cell_volt, 4);
         out.extend_from_slice(b",\"pack_temp\":");
         json_int(out, self.telemetry.pack_temp);
         out.extend_from_slice(b",\"motor_speed\":");
-        json_fixed(out, f64::from(self.telemetry.motor_speed), 2);
+        json_fixed(out, self.telemetry.motor_speed, 2);
         out.extend_from_slice(b",\"motor_torque\":");
-        json_fixed(out, f64::from(self.telemetry.motor_torque), 4);
+        json_fixed(out, self.telemetry.motor_torque, 4);
         out.extend_from_slice(b",\"max_motor_torque\":");
-        json_fixed(out, f64::from(self.telemetry.max_motor_torque), 4);
+        json_fixed(out, self.telemetry.max_motor_torque, 4);
         out.extend_from_slice(b",\"motor_direction\":");
         json_int(out, self.telemetry.motor_direction.into_raw());
         out.extend_from_slice(b",\"motor_direction_label\":");
@@ -155,11 +155,11 @@ impl TelemetryRecord {
         out.extend_from_slice(b",\"mcu_work_mode_label\":");
         json_label(out, self.telemetry.mcu_work_mode.label());
         out.extend_from_slice(b",\"mcu_voltage\":");
-        json_fixed(out, f64::from(self.telemetry.mcu_voltage), 2);
+        json_fixed(out, self.telemetry.mcu_voltage, 2);
         out.extend_from_slice(b",\"mcu_phase_current\":");
-        json_fixed(out, f64::from(self.telemetry.mcu_phase_current), 2);
+        json_fixed(out, self.telemetry.mcu_phase_current, 2);
         out.extend_from_slice(b",\"mcu_current\":");
-        json_fixed(out, f64::from(self.telemetry.mcu_current), 2);
+        json_fixed(out, self.telemetry.mcu_current, 2);
         out.extend_from_slice(b",\"motor_temp\":");
         json_int(out, self.telemetry.motor_temp);
         out.extend_from_slice(b",\"mcu_temp\":");
@@ -175,15 +175,15 @@ impl TelemetryRecord {
         out.extend_from_slice(b",\"ready_to_drive\":");
         json_bool(out, self.telemetry.ready_to_drive);
         out.extend_from_slice(b",\"torque_command\":");
-        json_fixed(out, f64::from(self.telemetry.torque_command), 4);
+        json_fixed(out, self.telemetry.torque_command, 4);
         out.extend_from_slice(b",\"shocktravel1\":");
-        json_fixed(out, f64::from(self.telemetry.shocktravel1), 2);
+        json_fixed(out, self.telemetry.shocktravel1, 2);
         out.extend_from_slice(b",\"shocktravel2\":");
-        json_fixed(out, f64::from(self.telemetry.shocktravel2), 2);
+        json_fixed(out, self.telemetry.shocktravel2, 2);
         out.extend_from_slice(b",\"shocktravel3\":");
-        json_fixed(out, f64::from(self.telemetry.shocktravel3), 2);
+        json_fixed(out, self.telemetry.shocktravel3, 2);
         out.extend_from_slice(b",\"shocktravel4\":");
-        json_fixed(out, f64::from(self.telemetry.shocktravel4), 2);
+        json_fixed(out, self.telemetry.shocktravel4, 2);
         out.extend_from_slice(b",\"can_rx_dropped\":");
         json_int(out, self.telemetry.can_rx_dropped);
         out.extend_from_slice(b",\"can_tx_dropped\":");
@@ -288,7 +288,8 @@ fn json_float<F: ryu::Float + Into<f64>>(out: &mut Vec<u8>, value: F) {
 /// `value` rounded to `decimals` places, the resolution its scaling gives it, without trailing
 /// zeros but always with a decimal point (`12.5`, `200.0`); `null` for NaN and infinities, and
 /// in full where it is too large for exact rounding.
-fn json_fixed(out: &mut Vec<u8>, value: f64, decimals: usize) {
+fn json_fixed(out: &mut Vec<u8>, value: impl Into<f64>, decimals: usize) {
+    let value: f64 = value.into();
     const POWERS: [u64; 10] = [
         1,
         10,
@@ -306,7 +307,7 @@ fn json_fixed(out: &mut Vec<u8>, value: f64, decimals: usize) {
     };
     let scaled = (value * power as f64).round();
     // 2^53: every integer below is exact in an f64.
-    if !(scaled.abs() < 9_007_199_254_740_992.0) {
+    if !scaled.is_finite() || scaled.abs() >= 9_007_199_254_740_992.0 {
         return json_float(out, value);
     }
     let units = scaled as i64;
@@ -555,7 +556,7 @@ fn vcu1_json(value: &crate::can::Vcu1, ts: f64, bus: &str) -> Vec<u8> {
     out.extend_from_slice(b",\"bus\":");
     json_str(out, bus);
     out.extend_from_slice(b",\"vcu_torque_req\":");
-    json_fixed(out, f64::from(value.vcu_torque_req), 4);
+    json_fixed(out, value.vcu_torque_req, 4);
     out.extend_from_slice(b",\"vcu_motor_spd_req\":");
     json_int(out, value.vcu_motor_spd_req);
     out.extend_from_slice(b",\"vcu_authentication_status\":");
@@ -610,13 +611,13 @@ fn mcu1_json(value: &crate::can::Mcu1, ts: f64, bus: &str) -> Vec<u8> {
     out.extend_from_slice(b",\"bus\":");
     json_str(out, bus);
     out.extend_from_slice(b",\"mcu_motor_speed\":");
-    json_fixed(out, f64::from(value.mcu_motor_speed), 2);
+    json_fixed(out, value.mcu_motor_speed, 2);
     out.extend_from_slice(b",\"mcu_actual_torque\":");
-    json_fixed(out, f64::from(value.mcu_actual_torque), 4);
+    json_fixed(out, value.mcu_actual_torque, 4);
     out.extend_from_slice(b",\"mcu_max_motor_torque\":");
-    json_fixed(out, f64::from(value.mcu_max_motor_torque), 4);
+    json_fixed(out, value.mcu_max_motor_torque, 4);
     out.extend_from_slice(b",\"mcu_max_motor_brake_torque\":");
-    json_fixed(out, f64::from(value.mcu_max_motor_brake_torque), 4);
+    json_fixed(out, value.mcu_max_motor_brake_torque, 4);
     out.extend_from_slice(b",\"mcu_main_state\":");
     json_int(out, value.mcu_main_state.into_raw());
     out.extend_from_slice(b",\"mcu_main_state_label\":");
@@ -702,11 +703,11 @@ fn mcu3_json(value: &crate::can::Mcu3, ts: f64, bus: &str) -> Vec<u8> {
     out.extend_from_slice(b",\"bus\":");
     json_str(out, bus);
     out.extend_from_slice(b",\"mcu_dc_voltage\":");
-    json_fixed(out, f64::from(value.mcu_dc_voltage), 2);
+    json_fixed(out, value.mcu_dc_voltage, 2);
     out.extend_from_slice(b",\"mcu_dc_current\":");
-    json_fixed(out, f64::from(value.mcu_dc_current), 2);
+    json_fixed(out, value.mcu_dc_current, 2);
     out.extend_from_slice(b",\"mcu_phase_current\":");
-    json_fixed(out, f64::from(value.mcu_phase_current), 2);
+    json_fixed(out, value.mcu_phase_current, 2);
     out.push(b'}');
     payload
 }
@@ -734,7 +735,7 @@ fn bms2_json(value: &crate::can::Bms2, ts: f64, bus: &str) -> Vec<u8> {
     out.extend_from_slice(b",\"bus\":");
     json_str(out, bus);
     out.extend_from_slice(b",\"bms_allow_max_discharge\":");
-    json_fixed(out, f64::from(value.bms_allow_max_discharge), 1);
+    json_fixed(out, value.bms_allow_max_discharge, 1);
     out.push(b'}');
     payload
 }
@@ -747,11 +748,11 @@ fn orion_pack_status_json(value: &crate::can::OrionPackStatus, ts: f64, bus: &st
     out.extend_from_slice(b",\"bus\":");
     json_str(out, bus);
     out.extend_from_slice(b",\"orion_pack_current\":");
-    json_fixed(out, f64::from(value.orion_pack_current), 1);
+    json_fixed(out, value.orion_pack_current, 1);
     out.extend_from_slice(b",\"orion_pack_inst_voltage\":");
-    json_fixed(out, f64::from(value.orion_pack_inst_voltage), 1);
+    json_fixed(out, value.orion_pack_inst_voltage, 1);
     out.extend_from_slice(b",\"orion_pack_soc\":");
-    json_fixed(out, f64::from(value.orion_pack_soc), 1);
+    json_fixed(out, value.orion_pack_soc, 1);
     out.extend_from_slice(b",\"orion_relay_state\":");
     json_int(out, value.orion_relay_state);
     out.push(b'}');
@@ -785,11 +786,11 @@ fn orion_cell_voltages_json(value: &crate::can::OrionCellVoltages, ts: f64, bus:
     out.extend_from_slice(b",\"bus\":");
     json_str(out, bus);
     out.extend_from_slice(b",\"orion_low_cell_voltage\":");
-    json_fixed(out, f64::from(value.orion_low_cell_voltage), 4);
+    json_fixed(out, value.orion_low_cell_voltage, 4);
     out.extend_from_slice(b",\"orion_high_cell_voltage\":");
-    json_fixed(out, f64::from(value.orion_high_cell_voltage), 4);
+    json_fixed(out, value.orion_high_cell_voltage, 4);
     out.extend_from_slice(b",\"orion_avg_cell_voltage\":");
-    json_fixed(out, f64::from(value.orion_avg_cell_voltage), 4);
+    json_fixed(out, value.orion_avg_cell_voltage, 4);
     out.extend_from_slice(b",\"orion_low_cell_id\":");
     json_int(out, value.orion_low_cell_id);
     out.push(b'}');
@@ -818,11 +819,11 @@ fn pcc_status_json(value: &crate::can::PccStatus, ts: f64, bus: &str) -> Vec<u8>
     out.extend_from_slice(b",\"pcc_error_undefined_state\":");
     json_bool(out, value.pcc_error_undefined_state);
     out.extend_from_slice(b",\"pcc_accumulator_voltage\":");
-    json_fixed(out, f64::from(value.pcc_accumulator_voltage), 2);
+    json_fixed(out, value.pcc_accumulator_voltage, 2);
     out.extend_from_slice(b",\"pcc_tractive_voltage\":");
-    json_fixed(out, f64::from(value.pcc_tractive_voltage), 2);
+    json_fixed(out, value.pcc_tractive_voltage, 2);
     out.extend_from_slice(b",\"pcc_precharge_progress\":");
-    json_fixed(out, f64::from(value.pcc_precharge_progress), 2);
+    json_fixed(out, value.pcc_precharge_progress, 2);
     out.push(b'}');
     payload
 }
@@ -903,11 +904,11 @@ fn imd_info_voltage_json(value: &crate::can::ImdInfoVoltage, ts: f64, bus: &str)
     out.extend_from_slice(b",\"bus\":");
     json_str(out, bus);
     out.extend_from_slice(b",\"imd_hv_system_voltage\":");
-    json_fixed(out, f64::from(value.imd_hv_system_voltage), 2);
+    json_fixed(out, value.imd_hv_system_voltage, 2);
     out.extend_from_slice(b",\"imd_hv_neg_to_earth_voltage\":");
-    json_fixed(out, f64::from(value.imd_hv_neg_to_earth_voltage), 2);
+    json_fixed(out, value.imd_hv_neg_to_earth_voltage, 2);
     out.extend_from_slice(b",\"imd_hv_pos_to_earth_voltage\":");
-    json_fixed(out, f64::from(value.imd_hv_pos_to_earth_voltage), 2);
+    json_fixed(out, value.imd_hv_pos_to_earth_voltage, 2);
     out.extend_from_slice(b",\"imd_voltage_measurement_counter\":");
     json_int(out, value.imd_voltage_measurement_counter);
     out.extend_from_slice(b",\"imd_voltage_quality\":");
@@ -932,7 +933,7 @@ fn imd_info_it_system_json(value: &crate::can::ImdInfoItSystem, ts: f64, bus: &s
     out.extend_from_slice(b",\"imd_unbalance_measurement_counter\":");
     json_int(out, value.imd_unbalance_measurement_counter);
     out.extend_from_slice(b",\"imd_voltage_frequency\":");
-    json_fixed(out, f64::from(value.imd_voltage_frequency), 1);
+    json_fixed(out, value.imd_voltage_frequency, 1);
     out.push(b'}');
     payload
 }

@@ -100,7 +100,7 @@ pub const TELEMETRY: Topic<Sample<TelemetryRecord>> = Topic::new("telemetry");
 {%- when JsonKind::Int %}
     json_int(out, {{ v }});
 {%- when JsonKind::Fixed(decimals) %}
-    json_fixed(out, f64::from({{ v }}), {{ decimals }});
+    json_fixed(out, {{ v }}, {{ decimals }});
 {%- when JsonKind::Float %}
     json_float(out, {{ v }});
 {%- endmatch %}
@@ -154,7 +154,8 @@ fn json_float<F: ryu::Float + Into<f64>>(out: &mut Vec<u8>, value: F) {
 /// `value` rounded to `decimals` places, the resolution its scaling gives it, without trailing
 /// zeros but always with a decimal point (`12.5`, `200.0`); `null` for NaN and infinities, and
 /// in full where it is too large for exact rounding.
-fn json_fixed(out: &mut Vec<u8>, value: f64, decimals: usize) {
+fn json_fixed(out: &mut Vec<u8>, value: impl Into<f64>, decimals: usize) {
+    let value: f64 = value.into();
     const POWERS: [u64; 10] = [
         1,
         10,
@@ -172,7 +173,7 @@ fn json_fixed(out: &mut Vec<u8>, value: f64, decimals: usize) {
     };
     let scaled = (value * power as f64).round();
     // 2^53: every integer below is exact in an f64.
-    if !(scaled.abs() < 9_007_199_254_740_992.0) {
+    if !scaled.is_finite() || scaled.abs() >= 9_007_199_254_740_992.0 {
         return json_float(out, value);
     }
     let units = scaled as i64;
