@@ -158,6 +158,16 @@ pub struct SignalMeta {
     pub multiplexed: bool,
 }
 
+impl SignalMeta {
+    /// The name the schema gives raw value `raw`, if any.
+    pub fn label_of(&self, raw: i128) -> Option<&'static str> {
+        self.labels
+            .iter()
+            .find(|(value, _)| *value == raw)
+            .map(|(_, label)| *label)
+    }
+}
+
 /// What the schema says about one message.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct MessageMeta {
@@ -229,11 +239,6 @@ impl Value {
             Some(1) => Some(true),
             _ => None,
         }
-    }
-
-    /// The raw value `(self - offset) / factor`, rounded to nearest, as an integer of type `T`.
-    pub fn unscale<T: TryFrom<i128>>(self, factor: f64, offset: f64) -> Option<T> {
-        Value::Float(round((self.to_f64() - offset) / factor)).to_int()
     }
 }
 

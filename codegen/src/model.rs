@@ -200,6 +200,10 @@ pub struct Signal {
     pub comment: Option<String>,
     pub receivers: Vec<String>,
     pub phys: PhysType,
+    /// Named raw values of a scaled signal (`VAL_` on a signal whose factor or offset is not
+    /// the identity): its value stays a number, as cantools decodes it, and these are only
+    /// recognised. A signal with identity scaling gets an enum type instead.
+    pub value_labels: Vec<(i128, String)>,
     pub mux: Option<MuxCondition>,
     pub is_multiplexor: bool,
 }

@@ -192,6 +192,15 @@ impl {{ m.type_name }} {
     pub fn {{ s.stem }}_to_raw(v: {{ s.phys_ty }}) -> Result<{{ s.raw_ty }}, EncodeError> {
         {%- call signal::to_raw(s) %}{% endcall %}
     }
+{%- if let Some(named) = s.named %}
+
+    /// The name `{{ s.name.0 }}`'s value descriptions give the physical value `v`, if any: the
+    /// value stays a number (as cantools decodes it), and this recognises the named ones.
+    pub fn {{ s.stem }}_label(v: {{ s.phys_ty }}) -> Option<&'static str> {
+        let raw = runtime::round({{ named.scaling.invert(named.to_f64.of("v")) }});
+        {{ m.meta_static }}[{{ s.index }}].label_of(raw as i128)
+    }
+{%- endif %}
 {%- endfor %}
 }
 

@@ -104,6 +104,10 @@ pub const TELEMETRY: Topic<Sample<TelemetryRecord>> = Topic::new("telemetry");
 {%- when JsonKind::Float %}
     json_float(out, {{ v }});
 {%- endmatch %}
+{%- if let Some(name_of) = f.label_fn %}
+    out.extend_from_slice(b",\"{{ f.name }}_label\":");
+    json_label(out, {{ name_of }}({{ v }}));
+{%- endif %}
 {%- endmacro %}
 
 impl TelemetryRecord {

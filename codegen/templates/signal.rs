@@ -90,12 +90,7 @@ match ({% call condition(c) %}{% endcall %}, self.{{ s.field }}) {
 
 {%- macro value(s) -%}
 {%- match s.value -%}
-{%- when ValueKind::Enum { scale, .. } -%}
-{%- match scale -%}
-{%- when EnumScale::Identity -%} Value::from(v.into_raw())
-{%- when EnumScale::Int { factor, offset } -%} Value::Int(i128::from(v.into_raw()) * {{ factor }} + {{ offset }})
-{%- when EnumScale::Float { scaling } -%} Value::Float({{ scaling.apply("v.into_raw() as f64") }})
-{%- endmatch -%}
+{%- when ValueKind::Enum { .. } -%} Value::from(v.into_raw())
 {%- else -%} Value::from(v)
 {%- endmatch -%}
 {%- endmacro -%}
@@ -103,7 +98,10 @@ match ({% call condition(c) %}{% endcall %}, self.{{ s.field }}) {
 {%- macro label(s) -%}
 {%- match s.value -%}
 {%- when ValueKind::Enum { .. } -%} v.label()
+{%- else -%}
+{%- if s.named.is_some() -%} Self::{{ s.stem }}_label(v)
 {%- else -%} None
+{%- endif -%}
 {%- endmatch -%}
 {%- endmacro -%}
 
@@ -126,11 +124,7 @@ match ({% call condition(c) %}{% endcall %}, self.{{ s.field }}) {
 {%- when ValueKind::Int { ty } -%} v.to_int::<{{ ty }}>()
 {%- when ValueKind::F32 -%} Some(v.to_f32())
 {%- when ValueKind::F64 -%} Some(v.to_f64())
-{%- when ValueKind::Enum { repr, scale } -%}
-{%- match scale -%}
-{%- when EnumScale::Identity -%} v.to_int::<{{ repr }}>().map({{ s.phys_ty }}::from_raw)
-{%- else -%} v.unscale::<{{ repr }}>({{ s.meta.factor }}, {{ s.meta.offset }}).map({{ s.phys_ty }}::from_raw)
-{%- endmatch -%}
+{%- when ValueKind::Enum { repr } -%} v.to_int::<{{ repr }}>().map({{ s.phys_ty }}::from_raw)
 {%- endmatch -%}
 {%- endmacro -%}
 
@@ -201,6 +195,10 @@ EncodeError::OutOfRange { message: {{ s.message }}, signal: {{ s.name }} }
         runtime::check_range(f64::from(u8::from(v)), {{ check.min }}, {{ check.max }}, {{ check.tolerance }}, {{ s.message }}, {{ s.name }})?;
 {%- when PhysAsF64::Number(to_f64) %}
         runtime::check_range({{ to_f64.of("v") }}, {{ check.min }}, {{ check.max }}, {{ check.tolerance }}, {{ s.message }}, {{ s.name }})?;
+{%- when PhysAsF64::NamedNumber(to_f64) %}
+        if Self::{{ s.stem }}_label(v).is_none() {
+            runtime::check_range({{ to_f64.of("v") }}, {{ check.min }}, {{ check.max }}, {{ check.tolerance }}, {{ s.message }}, {{ s.name }})?;
+        }
 {%- when PhysAsF64::UnknownEnum { scaling } %}
         if let {{ s.phys_ty }}::Unknown(raw) = v {
             runtime::check_range({{ scaling.apply("raw as f64") }}, {{ check.min }}, {{ check.max }}, {{ check.tolerance }}, {{ s.message }}, {{ s.name }})?;

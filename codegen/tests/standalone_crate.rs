@@ -16,7 +16,35 @@ fn manifest_dir() -> &'static Path {
     Path::new(env!("CARGO_MANIFEST_DIR"))
 }
 
-/// Generates and builds the crate once per test run; returns the example binaries.
+/// A user's program for a vendor's scaled signals with a "255 = SNA" sentinel (Tesla's pedal,
+/// for one): the value is the physical number, as cantools decodes it, the names are recognised,
+/// and an unnamed value out of range is refused as out of range. It runs when the crate is built.
+const SENTINELS: &str = r#"
+use tricky_can::can::Sentinels;
+use tricky_can::runtime::EncodeError;
+
+fn main() {
+    let pedal = Sentinels::decode(&[100, 60]).expect("decodes");
+    assert_eq!(pedal.pedal_position, 40.0, "40 %, not Unknown(100)");
+    assert_eq!(pedal.temperature, 20);
+    assert_eq!(Sentinels::pedal_position_label(pedal.pedal_position), None);
+    let sna = Sentinels::decode(&[255, 255]).expect("decodes");
+    assert_eq!(Sentinels::pedal_position_label(sna.pedal_position), Some("SNA"));
+    assert_eq!(Sentinels::temperature_label(sna.temperature), Some("SNA"));
+    let mut out = [0u8; 2];
+    // A named value encodes whatever the range says (as in cantools); 140 % is out of range.
+    assert_eq!(sna.encode(&mut out), Ok(2));
+    assert_eq!(out, [255, 255]);
+    let too_far = Sentinels { pedal_position: 140.0, temperature: 20 };
+    assert_eq!(
+        too_far.encode(&mut out),
+        Err(EncodeError::OutOfRange { message: "Sentinels", signal: "PedalPosition" })
+    );
+}
+"#;
+
+/// Generates and builds the crate once per test run (running the sentinels example); returns
+/// the decode and encode example binaries.
 fn examples() -> &'static (PathBuf, PathBuf) {
     static BUILT: OnceLock<(PathBuf, PathBuf)> = OnceLock::new();
     BUILT.get_or_init(|| {
@@ -24,6 +52,7 @@ fn examples() -> &'static (PathBuf, PathBuf) {
         let dbc = manifest_dir().join("tests/dbc/tricky.dbc");
         aer_codegen::generate_crate(&dbc, &root, &aer_codegen::CrateOptions::default())
             .expect("tricky.dbc generates");
+        std::fs::write(root.join("examples/sentinels.rs"), SENTINELS).expect("write example");
         let target = Path::new(env!("CARGO_TARGET_TMPDIR")).join("tricky_can_target");
         let status = Command::new(env!("CARGO"))
             // The optional serde derives must compile too (multiplexed Options, enums, i128).
@@ -34,6 +63,12 @@ fn examples() -> &'static (PathBuf, PathBuf) {
             .expect("run cargo");
         assert!(status.success(), "the generated crate must build");
         let bin = |name: &str| target.join("debug/examples").join(name);
+        let sentinels = Command::new(bin("sentinels")).output().expect("run sentinels");
+        assert!(
+            sentinels.status.success(),
+            "{}",
+            String::from_utf8_lossy(&sentinels.stderr)
+        );
         (bin("decode"), bin("encode"))
     })
 }

@@ -8,7 +8,8 @@ use crate::model::{
     ByteOrder, Database, Encoding, Message, Placement, Signal, TELEMETRY_HEADER_LEN, Telemetry,
     TelemetryField, WireType,
 };
-use crate::render::meta::labels;
+use crate::render::fragment::StrLit;
+use crate::render::meta::{labels, signal_labels};
 
 #[derive(Template)]
 #[template(path = "docs/can.md", escape = "none")]
@@ -127,8 +128,7 @@ fn scaling(factor: f64, offset: f64) -> String {
     }
 }
 
-fn values(db: &Database, phys: crate::model::PhysType) -> String {
-    let labels = labels(db, phys);
+fn values(labels: Vec<(i128, StrLit)>) -> String {
     let text: Vec<String> = labels
         .iter()
         .map(|(value, label)| format!("{value} = {}", label.0))
@@ -175,7 +175,7 @@ fn signal_doc(db: &Database, message: &Message, s: &Signal) -> SignalDoc {
         unit: cell(&s.unit),
         receivers: cell(&s.receivers.join(", ")),
         presence,
-        values: values(db, s.phys),
+        values: values(signal_labels(db, s)),
         comment: cell(s.comment.as_deref().unwrap_or_default()),
     }
 }
@@ -227,7 +227,7 @@ fn field_doc(db: &Database, f: &TelemetryField) -> FieldDoc {
             .source
             .as_deref()
             .map_or_else(String::new, |s| format!("`{s}`")),
-        values: values(db, f.phys),
+        values: values(labels(db, f.phys)),
         description: cell(&f.description),
     }
 }

@@ -2,7 +2,7 @@
 //! (`templates/meta.rs` spells it out).
 
 use super::fragment::{FloatLit, OptionLit, StrLit};
-use crate::model::{Database, PhysType};
+use crate::model::{Database, PhysType, Signal};
 
 pub struct MetaView {
     pub name: StrLit,
@@ -22,6 +22,18 @@ pub struct MetaView {
     /// Named raw values of an enum.
     pub labels: Vec<(i128, StrLit)>,
     pub multiplexed: bool,
+}
+
+/// The named raw values of a signal: its enum's, or those a scaled signal only recognises.
+pub fn signal_labels(db: &Database, s: &Signal) -> Vec<(i128, StrLit)> {
+    if s.value_labels.is_empty() {
+        labels(db, s.phys)
+    } else {
+        s.value_labels
+            .iter()
+            .map(|(value, label)| (*value, StrLit(label.clone())))
+            .collect()
+    }
 }
 
 /// The named raw values of an enum type (none for other types).

@@ -46,6 +46,9 @@ pub struct JsonField {
     pub kind: JsonKind,
     /// A multiplexed signal: the key is left out when the signal is absent.
     pub optional: bool,
+    /// A scaled signal with named values: the function that names a value, for
+    /// `<name>_label` beside the number.
+    pub label_fn: Option<String>,
 }
 
 pub enum JsonKind {
@@ -84,7 +87,7 @@ fn kind(phys: PhysType, float_on_wire: bool, factor: f64, offset: f64) -> JsonKi
     }
 }
 
-fn signal_field(signal: &Signal) -> JsonField {
+fn signal_field(type_name: &str, signal: &Signal) -> JsonField {
     JsonField {
         name: signal.field.clone(),
         kind: kind(
@@ -94,6 +97,12 @@ fn signal_field(signal: &Signal) -> JsonField {
             signal.offset,
         ),
         optional: signal.mux.is_some(),
+        label_fn: (!signal.value_labels.is_empty()).then(|| {
+            format!(
+                "crate::can::{type_name}::{}_label",
+                signal.field.trim_end_matches('_')
+            )
+        }),
     }
 }
 
@@ -122,13 +131,18 @@ pub fn render(db: &Database, t: &Telemetry, source: &str) -> Result<String, aska
             name: f.name.clone(),
             kind: kind(f.phys, f.wire == WireType::F32, f.scale, f.offset),
             optional: false,
+            label_fn: None,
         })
         .collect();
     let messages: Vec<MessageTopic> = db
         .messages
         .iter()
         .map(|m| {
-            let fields: Vec<JsonField> = m.signals.iter().map(signal_field).collect();
+            let fields: Vec<JsonField> = m
+                .signals
+                .iter()
+                .map(|s| signal_field(&m.type_name, s))
+                .collect();
             MessageTopic {
                 const_name: m.item_name.to_ascii_uppercase(),
                 suffix: format!("can/{}", m.item_name),
@@ -148,7 +162,7 @@ pub fn render(db: &Database, t: &Telemetry, source: &str) -> Result<String, aska
         source,
         telemetry_type: &t.type_name,
         json_bool: all().any(|f| matches!(f.kind, JsonKind::Bool)),
-        json_enum: all().any(|f| matches!(f.kind, JsonKind::Enum)),
+        json_enum: all().any(|f| matches!(f.kind, JsonKind::Enum) || f.label_fn.is_some()),
         json_fixed: all().any(|f| matches!(f.kind, JsonKind::Fixed(_))),
         json_capacity: capacity(&json_fields),
         json_fields,

@@ -8,7 +8,7 @@ use super::doc_lines;
 use super::fragment::{OptionLit, StrLit};
 use crate::model::{Database, EnumType, Message, PhysType};
 use signal::{
-    Conversion, EnumScale, Fit, FloatWire, PhysAsF64, Presence, RawCodec, SignalView, ValueKind,
+    Conversion, Fit, FloatWire, PhysAsF64, Presence, RawCodec, SignalView, ValueKind,
 };
 
 #[derive(Template)]

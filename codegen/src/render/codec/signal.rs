@@ -4,7 +4,7 @@
 
 use crate::model::{ByteOrder, Database, Encoding, IntType, Message, PhysType, Signal, be_linear};
 use crate::render::fragment::{FloatLit, IntScaling, OptionLit, Scaling, StrLit, ToF64, int_arith};
-use crate::render::meta::{MetaView, labels};
+use crate::render::meta::{MetaView, signal_labels};
 use crate::render::{doc_lines, phys_rust};
 
 pub struct SignalView {
@@ -28,7 +28,16 @@ pub struct SignalView {
     /// The schema's range, checked before encoding.
     pub range: Option<RangeCheck>,
     pub value: ValueKind,
+    /// A scaled signal with named raw values: its value stays a number and
+    /// `<stem>_label(v)` recognises the named ones.
+    pub named: Option<NamedValues>,
     pub meta: MetaView,
+}
+
+/// How `<stem>_label(v)` finds the raw value of a physical one.
+pub struct NamedValues {
+    pub scaling: Scaling,
+    pub to_f64: ToF64,
 }
 
 /// Where a signal's bits sit in the payload.
@@ -144,6 +153,9 @@ pub struct RangeCheck {
 pub enum PhysAsF64 {
     Bool,
     Number(ToF64),
+    /// A scaled signal with named values: only values without a name are checked (a named
+    /// value is valid whatever the range says, as in cantools).
+    NamedNumber(ToF64),
     /// Only unnamed enum values are checked (a named value is valid whatever the range says,
     /// as in cantools), scaled from their raw value.
     UnknownEnum {
@@ -159,22 +171,9 @@ pub enum ValueKind {
     },
     F32,
     F64,
+    /// Its raw value (enums are only made for signals with identity scaling).
     Enum {
         repr: &'static str,
-        scale: EnumScale,
-    },
-}
-
-/// How an enum's raw value scales into the visited value.
-pub enum EnumScale {
-    Identity,
-    /// Exact in integers.
-    Int {
-        factor: i128,
-        offset: i128,
-    },
-    Float {
-        scaling: Scaling,
     },
 }
 
@@ -196,6 +195,7 @@ impl SignalView {
             conversion: conversion(db, s),
             range: range_check(s),
             value: value_kind(db, s),
+            named: named_values(s),
             meta: meta(db, index, s),
         }
     }
@@ -369,11 +369,18 @@ fn conversion(db: &Database, s: &Signal) -> Conversion {
 
 fn range_check(s: &Signal) -> Option<RangeCheck> {
     let (min, max) = (s.min?, s.max?);
+    let number = |to_f64| {
+        if s.value_labels.is_empty() {
+            PhysAsF64::Number(to_f64)
+        } else {
+            PhysAsF64::NamedNumber(to_f64)
+        }
+    };
     let value = match s.phys {
         PhysType::Bool => PhysAsF64::Bool,
-        PhysType::Int(t) => PhysAsF64::Number(to_f64(t)),
-        PhysType::F32 => PhysAsF64::Number(ToF64::From),
-        PhysType::F64 => PhysAsF64::Number(ToF64::Same),
+        PhysType::Int(t) => number(to_f64(t)),
+        PhysType::F32 => number(ToF64::From),
+        PhysType::F64 => number(ToF64::Same),
         PhysType::Enum(_) => PhysAsF64::UnknownEnum {
             scaling: scaling(s),
         },
@@ -386,28 +393,29 @@ fn range_check(s: &Signal) -> Option<RangeCheck> {
     })
 }
 
+fn named_values(s: &Signal) -> Option<NamedValues> {
+    if s.value_labels.is_empty() {
+        return None;
+    }
+    Some(NamedValues {
+        scaling: scaling(s),
+        to_f64: match s.phys {
+            PhysType::Int(t) => to_f64(t),
+            PhysType::F32 => ToF64::From,
+            _ => ToF64::Same,
+        },
+    })
+}
+
 fn value_kind(db: &Database, s: &Signal) -> ValueKind {
     match s.phys {
         PhysType::Bool => ValueKind::Bool,
         PhysType::Int(t) => ValueKind::Int { ty: t.rust() },
         PhysType::F32 => ValueKind::F32,
         PhysType::F64 => ValueKind::F64,
-        PhysType::Enum(i) => {
-            let scaling = scaling(s);
-            ValueKind::Enum {
-                repr: db.enums.get(i).map_or("u64", |e| e.repr.rust()),
-                scale: if scaling.is_identity() {
-                    EnumScale::Identity
-                } else if scaling.is_integral() {
-                    EnumScale::Int {
-                        factor: s.factor as i128,
-                        offset: s.offset as i128,
-                    }
-                } else {
-                    EnumScale::Float { scaling }
-                },
-            }
-        }
+        PhysType::Enum(i) => ValueKind::Enum {
+            repr: db.enums.get(i).map_or("u64", |e| e.repr.rust()),
+        },
     }
 }
 
@@ -428,7 +436,7 @@ fn meta(db: &Database, index: usize, s: &Signal) -> MetaView {
         offset: FloatLit(s.offset),
         min: OptionLit(s.min.map(FloatLit)),
         max: OptionLit(s.max.map(FloatLit)),
-        labels: labels(db, s.phys),
+        labels: signal_labels(db, s),
         multiplexed: s.mux.is_some(),
     }
 }
@@ -465,6 +473,18 @@ fn docs(m: &Message, s: &Signal) -> Vec<String> {
     }
     facts.push('.');
     docs.push(facts);
+    if !s.value_labels.is_empty() {
+        let named: Vec<String> = s
+            .value_labels
+            .iter()
+            .map(|(raw, label)| format!("raw {raw} = {}", label.replace('`', "'")))
+            .collect();
+        docs.push(format!(
+            "Named values ({}): the value stays a number; `{}_label` names it.",
+            named.join(", "),
+            s.field.trim_end_matches('_')
+        ));
+    }
     if let Some(c) = &s.mux {
         let selector = m.signals.get(c.selector).map_or("?", |x| x.name.as_str());
         let values = crate::model::MuxCondition::describe(&c.ranges, "-", ", ");

@@ -21,32 +21,7 @@ impl Builder<'_, '_> {
         type_name: &str,
         enums: &mut Vec<EnumType>,
     ) -> Option<usize> {
-        let (lo, hi) = s.raw_range();
-        let mut kept = Vec::new();
-        for c in choices {
-            let v = i128::from(c.id);
-            // VAL_ values are written as raw bit patterns or as signed raw values; accept both.
-            let v = if s.encoding == Encoding::Signed && v > hi && v < (1i128 << s.len) {
-                v - (1i128 << s.len)
-            } else {
-                v
-            };
-            if v < lo || v > hi {
-                self.r.report(
-                    Code::UnusableValues,
-                    line,
-                    format!(
-                        "{where_} names value {} (`{}`), which its {}-bit raw value can never hold",
-                        c.id, c.description, s.len
-                    ),
-                    "remove the value from the VAL_ line or fix the signal's length or sign",
-                );
-                continue;
-            }
-            kept.push((v, c.description.clone()));
-        }
-        kept.sort_by_key(|(v, _)| *v);
-        kept.dedup_by_key(|(v, _)| *v);
+        let kept = self.named_values(s, choices, line, where_);
         let raw = s.raw_int();
         if let Some((i, e)) = self
             .table_enums
@@ -74,6 +49,44 @@ impl Builder<'_, '_> {
             repr: raw,
         });
         Some(enums.len() - 1)
+    }
+
+    /// A signal's value descriptions as raw values, sorted and without repeats; values its raw
+    /// bits cannot hold are reported and left out.
+    pub(super) fn named_values(
+        &mut self,
+        s: &Signal,
+        choices: &[can_dbc::ValDescription],
+        line: usize,
+        where_: &str,
+    ) -> Vec<(i128, String)> {
+        let (lo, hi) = s.raw_range();
+        let mut kept = Vec::new();
+        for c in choices {
+            let v = i128::from(c.id);
+            // VAL_ values are written as raw bit patterns or as signed raw values; accept both.
+            let v = if s.encoding == Encoding::Signed && v > hi && v < (1i128 << s.len) {
+                v - (1i128 << s.len)
+            } else {
+                v
+            };
+            if v < lo || v > hi {
+                self.r.report(
+                    Code::UnusableValues,
+                    line,
+                    format!(
+                        "{where_} names value {} (`{}`), which its {}-bit raw value can never hold",
+                        c.id, c.description, s.len
+                    ),
+                    "remove the value from the VAL_ line or fix the signal's length or sign",
+                );
+                continue;
+            }
+            kept.push((v, c.description.clone()));
+        }
+        kept.sort_by_key(|(v, _)| *v);
+        kept.dedup_by_key(|(v, _)| *v);
+        kept
     }
 
     /// An enum for each `VAL_TABLE_` (each with its own type name), and which of them a `VAL_`

@@ -351,6 +351,7 @@ mod tests {
             comment: None,
             receivers: Vec::new(),
             phys: PhysType::F64,
+            value_labels: Vec::new(),
             mux,
             is_multiplexor: false,
         }

@@ -58,6 +58,7 @@ impl<'a> Builder<'a, '_> {
                 .cloned()
                 .collect(),
             phys: PhysType::F64,
+            value_labels: Vec::new(),
             mux: None,
             is_multiplexor: matches!(
                 sig.multiplexer_indicator,
@@ -66,7 +67,7 @@ impl<'a> Builder<'a, '_> {
             ),
         };
         self.check_range(&s, d.line, &where_);
-        s.phys = self.phys_type(frame, &s, d.line, &where_, enums)?;
+        s.phys = self.phys_type(frame, &mut s, d.line, &where_, enums)?;
         Some(s)
     }
 
@@ -237,11 +238,14 @@ impl<'a> Builder<'a, '_> {
     }
 
     /// The Rust type of the physical value: f32 where asked and exact, an enum for named
-    /// values, bool for a plain flag, an integer for whole scaling, f64 otherwise.
+    /// values of an unscaled signal, bool for a plain flag, an integer for whole scaling, f64
+    /// otherwise. A scaled signal with named values stays a number (as cantools decodes it:
+    /// a "255 = SNA" sentinel must not turn a 40 % pedal into `Unknown(100)`); its names go to
+    /// `value_labels`.
     fn phys_type(
         &mut self,
         frame: &Frame<'_>,
-        s: &Signal,
+        s: &mut Signal,
         line: usize,
         where_: &str,
         enums: &mut Vec<EnumType>,
@@ -263,9 +267,13 @@ impl<'a> Builder<'a, '_> {
                 .get(&(frame.written_id, s.name.clone()))
                 .copied()
                 .unwrap_or(line);
-            return self
-                .enum_for(s, choices, val_line, where_, &frame.type_name, enums)
-                .map(PhysType::Enum);
+            if s.factor != 1.0 || s.offset != 0.0 {
+                s.value_labels = self.named_values(s, choices, val_line, where_);
+            } else {
+                return self
+                    .enum_for(s, choices, val_line, where_, &frame.type_name, enums)
+                    .map(PhysType::Enum);
+            }
         }
         if s.len == 1 && s.encoding == Encoding::Unsigned && s.factor == 1.0 && s.offset == 0.0 {
             return Some(PhysType::Bool);
