@@ -5905,7 +5905,7 @@ impl Bms2 {
     /// Raw value of `BMS_AllowMaxDischarge` for a physical value, range-checked.
     pub fn bms_allow_max_discharge_to_raw(v: f64) -> Result<u16, EncodeError> {
         runtime::check_range(v, -500.0, 6053.5, 1e-7, "BMS2", "BMS_AllowMaxDischarge")?;
-        let raw = runtime::round((v - -500.0) / 0.1);
+        let raw = runtime::round((v + 500.0) / 0.1);
         if (0.0..65536.0).contains(&raw) {
             Ok(raw as u16)
         } else {
@@ -9189,7 +9189,7 @@ impl ImdInfoVoltage {
             "IMD_InfoVoltage",
             "IMD_HvSystemVoltage",
         )?;
-        let raw = runtime::round((v - -1606.4) / 0.05);
+        let raw = runtime::round((v + 1606.4) / 0.05);
         if (0.0..65536.0).contains(&raw) {
             Ok(raw as u16)
         } else {
@@ -9215,7 +9215,7 @@ impl ImdInfoVoltage {
             "IMD_InfoVoltage",
             "IMD_HvNegToEarthVoltage",
         )?;
-        let raw = runtime::round((v - -1606.4) / 0.05);
+        let raw = runtime::round((v + 1606.4) / 0.05);
         if (0.0..65536.0).contains(&raw) {
             Ok(raw as u16)
         } else {
@@ -9241,7 +9241,7 @@ impl ImdInfoVoltage {
             "IMD_InfoVoltage",
             "IMD_HvPosToEarthVoltage",
         )?;
-        let raw = runtime::round((v - -1606.4) / 0.05);
+        let raw = runtime::round((v + 1606.4) / 0.05);
         if (0.0..65536.0).contains(&raw) {
             Ok(raw as u16)
         } else {

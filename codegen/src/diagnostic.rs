@@ -93,6 +93,48 @@ pub enum Code {
     MissingUnit,
 }
 
+/// Every code, for [`Code::parse`].
+const ALL: [Code; 38] = [
+    Code::DbcUnreadable,
+    Code::DbcEncoding,
+    Code::DbcSyntax,
+    Code::IdOutOfRange,
+    Code::DuplicateId,
+    Code::DuplicateMessageName,
+    Code::FrameLength,
+    Code::SignalLength,
+    Code::SignalOutsideFrame,
+    Code::SignalOverlap,
+    Code::DuplicateSignal,
+    Code::FloatLength,
+    Code::BadFactor,
+    Code::Multiplexing,
+    Code::RangeInverted,
+    Code::MuxValueOutOfRange,
+    Code::F32TooNarrow,
+    Code::TelemetryUnreadable,
+    Code::TelemetrySyntax,
+    Code::UnknownSignal,
+    Code::UnknownWireType,
+    Code::FieldKind,
+    Code::FieldName,
+    Code::UnknownEnum,
+    Code::PacketTooLong,
+    Code::SignalTooWide,
+    Code::BadScale,
+    Code::IsoTpIds,
+    Code::FieldRange,
+    Code::Thresholds,
+    Code::KeywordName,
+    Code::RangeBeyondRaw,
+    Code::UnusableValues,
+    Code::Renamed,
+    Code::FdLength,
+    Code::NoMessages,
+    Code::MissingLabel,
+    Code::MissingUnit,
+];
+
 impl Code {
     /// The stable code, such as `E0103`.
     pub fn as_str(self) -> &'static str {
@@ -139,6 +181,28 @@ impl Code {
     }
 
     /// Errors stop generation; warnings do not.
+    /// The code for `text` (`E0107`), if there is one.
+    pub fn parse(text: &str) -> Option<Code> {
+        ALL.iter().copied().find(|code| code.as_str() == text)
+    }
+
+    /// What the generator does with a finding of this code that `--allow` lets through, for
+    /// the errors it can handle safely in a vendor's file the team cannot fix (`None`: it
+    /// cannot be allowed).
+    pub fn when_allowed(self) -> Option<&'static str> {
+        match self {
+            Code::SignalOverlap => Some(
+                "allowed: each signal is decoded from its bits as written; encoding writes the \
+                 signals in order, so the later one's bits win",
+            ),
+            Code::IdOutOfRange => Some(
+                "allowed: a standard id above 0x7FF is taken as a 29-bit extended id (as \
+                 SocketCAN tools do); an id above 29 bits leaves its message out",
+            ),
+            _ => None,
+        }
+    }
+
     pub fn severity(self) -> Severity {
         if self.as_str().starts_with('W') {
             Severity::Warning
@@ -204,6 +268,8 @@ impl fmt::Display for Diagnostic {
 pub struct Reporter<'a> {
     file: &'a Path,
     lines: Vec<&'a str>,
+    /// Error codes let through as warnings (`--allow`; only codes with [`Code::when_allowed`]).
+    allowed: Vec<Code>,
     pub diagnostics: Vec<Diagnostic>,
 }
 
@@ -212,8 +278,25 @@ impl<'a> Reporter<'a> {
         Self {
             file,
             lines: text.lines().collect(),
+            allowed: Vec::new(),
             diagnostics: Vec::new(),
         }
+    }
+
+    /// Lets `allowed` through as warnings, each saying how it is handled; codes that cannot
+    /// be handled safely stay errors.
+    pub fn allowing(mut self, allowed: &[Code]) -> Self {
+        self.allowed = allowed
+            .iter()
+            .copied()
+            .filter(|code| code.when_allowed().is_some())
+            .collect();
+        self
+    }
+
+    /// True when findings of `code` are let through.
+    pub fn allows(&self, code: Code) -> bool {
+        self.allowed.contains(&code)
     }
 
     /// Records a finding at `line` (1-based; 0 for the whole file); its code says how severe.
@@ -222,13 +305,17 @@ impl<'a> Reporter<'a> {
             .checked_sub(1)
             .and_then(|i| self.lines.get(i))
             .map(|s| (*s).to_owned());
+        let (severity, help) = match code.when_allowed().filter(|_| self.allows(code)) {
+            Some(handled) => (Severity::Warning, handled.to_owned()),
+            None => (code.severity(), help.into()),
+        };
         self.diagnostics.push(Diagnostic {
-            severity: code.severity(),
+            severity,
             code,
             file: self.file.to_owned(),
             line,
             message,
-            help: help.into(),
+            help,
             source_line,
         });
     }
@@ -254,4 +341,23 @@ pub fn render_all(diags: &[Diagnostic]) -> String {
     let warnings = diags.len() - errors;
     out.push_str(&format!("{errors} error(s), {warnings} warning(s)"));
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{ALL, Code};
+
+    #[test]
+    fn every_code_parses_back_and_only_safe_ones_can_be_allowed() {
+        for code in ALL {
+            assert_eq!(Code::parse(code.as_str()), Some(code));
+        }
+        let allowable: Vec<&str> = ALL
+            .iter()
+            .filter(|c| c.when_allowed().is_some())
+            .map(|c| c.as_str())
+            .collect();
+        assert_eq!(allowable, ["E0101", "E0107"]);
+        assert_eq!(Code::parse("E9999"), None);
+    }
 }

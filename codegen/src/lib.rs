@@ -57,8 +57,18 @@ pub struct Report {
 
 /// Loads and validates a DBC file: the model plus any warnings, or every error found.
 pub fn load_dbc(path: &Path) -> Result<(Database, Vec<Diagnostic>), Diagnostics> {
+    load_dbc_allowing(path, &[])
+}
+
+/// [`load_dbc`], letting the errors in `allow` through as warnings where the generator can
+/// handle them safely ([`diagnostic::Code::when_allowed`] says how): for a vendor's file with
+/// known defects that the team cannot fix.
+pub fn load_dbc_allowing(
+    path: &Path,
+    allow: &[diagnostic::Code],
+) -> Result<(Database, Vec<Diagnostic>), Diagnostics> {
     let loaded = load::dbc::load(path)?;
-    validate::dbc::validate(path, &loaded)
+    validate::dbc::validate(path, &loaded, allow)
 }
 
 /// Renders the codec modules and crate root for `db`. `source` names the schema in headers.
@@ -227,11 +237,13 @@ pub struct CrateOptions {
     pub name: Option<String>,
     /// Leave out the `[workspace]` table, for crates built as members of a workspace.
     pub workspace_member: bool,
+    /// Errors let through as warnings (see [`load_dbc_allowing`]).
+    pub allow: Vec<diagnostic::Code>,
 }
 
 /// Writes a standalone Cargo crate (codec plus decode/encode examples) for any DBC file.
 pub fn generate_crate(dbc: &Path, out_dir: &Path, options: &CrateOptions) -> Result<Report, Error> {
-    let (db, warnings) = load_dbc(dbc)?;
+    let (db, warnings) = load_dbc_allowing(dbc, &options.allow)?;
     let stem = dbc.file_stem().and_then(|s| s.to_str()).unwrap_or("dbc");
     let name = options
         .name

@@ -5,7 +5,18 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
-use aer_codegen::diagnostic::render_all;
+use aer_codegen::diagnostic::{Code, render_all};
+
+/// A diagnostic code that `--allow` can let through.
+fn allowable(text: &str) -> Result<Code, String> {
+    let code = Code::parse(text).ok_or_else(|| format!("`{text}` is not a diagnostic code"))?;
+    match code.when_allowed() {
+        Some(_) => Ok(code),
+        None => Err(format!(
+            "{code} cannot be allowed: the generator cannot handle it safely (E0107 and E0101 can)"
+        )),
+    }
+}
 
 #[derive(Parser)]
 #[command(
@@ -28,6 +39,11 @@ enum Command {
         /// Treat warnings as errors (the car's own schema is built this way).
         #[arg(long)]
         deny_warnings: bool,
+        /// Let an error through as a warning where the generator can handle it safely, for a
+        /// vendor's file with known defects (repeatable): E0107 (overlapping signals, decoded
+        /// as written), E0101 (a standard id above 0x7FF, taken as a 29-bit extended id).
+        #[arg(long = "allow", value_name = "CODE", value_parser = allowable)]
+        allow: Vec<Code>,
     },
     /// Writes a standalone Cargo crate for any DBC: the codec plus `decode`/`encode` examples.
     Crate {
@@ -43,6 +59,9 @@ enum Command {
         /// Leave out the `[workspace]` table (for crates built as workspace members).
         #[arg(long)]
         workspace_member: bool,
+        /// As for `check`: generate despite these errors, each reported and handled safely.
+        #[arg(long = "allow", value_name = "CODE", value_parser = allowable)]
+        allow: Vec<Code>,
     },
     /// Regenerates the contract crate sources from a schema directory (what build.rs does).
     Generate {
@@ -58,10 +77,11 @@ fn main() -> ExitCode {
         Command::Check {
             files,
             deny_warnings,
+            allow,
         } => {
             let mut failed = false;
             for file in &files {
-                match aer_codegen::load_dbc(file) {
+                match aer_codegen::load_dbc_allowing(file, &allow) {
                     Ok((db, warnings)) => {
                         if !warnings.is_empty() {
                             eprintln!("{}", render_all(&warnings));
@@ -93,10 +113,12 @@ fn main() -> ExitCode {
             out,
             name,
             workspace_member,
+            allow,
         } => {
             let options = aer_codegen::CrateOptions {
                 name,
                 workspace_member,
+                allow,
             };
             report(aer_codegen::generate_crate(&dbc, &out, &options), &out)
         }

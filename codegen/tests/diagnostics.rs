@@ -18,7 +18,7 @@ fn diagnose(body: &str) -> Vec<Diagnostic> {
     let path = Path::new("car.dbc");
     match aer_codegen::load::dbc::parse(path, text) {
         Err(d) => d.0,
-        Ok(loaded) => match aer_codegen::validate::dbc::validate(path, &loaded) {
+        Ok(loaded) => match aer_codegen::validate::dbc::validate(path, &loaded, &[]) {
             Ok((_, warnings)) => warnings,
             Err(d) => d.0,
         },

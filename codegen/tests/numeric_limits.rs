@@ -20,7 +20,7 @@ tx_id: 0x666\n  flow_control_id: 0x777\n  period_ms: 10\n\nfields:\n";
 fn car_dbc() -> aer_codegen::model::Database {
     let path = Path::new("aer.dbc");
     let loaded = aer_codegen::load::dbc::parse(path, DBC.to_owned()).expect("parses");
-    aer_codegen::validate::dbc::validate(path, &loaded)
+    aer_codegen::validate::dbc::validate(path, &loaded, &[])
         .expect("valid")
         .0
 }
@@ -107,7 +107,7 @@ fn a_factor_whose_physical_values_overflow_is_an_error_in_a_dbc() {
     let text = DBC.replace("(0.1,0)", "(1e305,0)");
     let path = Path::new("vendor.dbc");
     let loaded = aer_codegen::load::dbc::parse(path, text).expect("parses");
-    let Err(diags) = aer_codegen::validate::dbc::validate(path, &loaded) else {
+    let Err(diags) = aer_codegen::validate::dbc::validate(path, &loaded, &[]) else {
         panic!("accepted a factor that overflows");
     };
     assert_eq!(diags.0[0].code, "E0113");
@@ -183,7 +183,7 @@ proptest! {
         );
         let path = Path::new("vendor.dbc");
         if let Ok(loaded) = aer_codegen::load::dbc::parse(path, text) {
-            if let Ok((db, _)) = aer_codegen::validate::dbc::validate(path, &loaded) {
+            if let Ok((db, _)) = aer_codegen::validate::dbc::validate(path, &loaded, &[]) {
                 aer_codegen::codec_files(&db, "vendor.dbc", "Test codec.", "vendor_can")
                     .expect("a valid DBC renders");
             }

@@ -63,7 +63,9 @@ fn examples() -> &'static (PathBuf, PathBuf) {
             .expect("run cargo");
         assert!(status.success(), "the generated crate must build");
         let bin = |name: &str| target.join("debug/examples").join(name);
-        let sentinels = Command::new(bin("sentinels")).output().expect("run sentinels");
+        let sentinels = Command::new(bin("sentinels"))
+            .output()
+            .expect("run sentinels");
         assert!(
             sentinels.status.success(),
             "{}",
@@ -358,4 +360,68 @@ fn bad_json_lines_give_one_error_line_each() {
     // Enum values by name; -5 as 24-bit two's complement, Motorola from bit 0 of byte 1
     // (the frame cantools encodes for the same values).
     assert_eq!(lines[6], "(0.000000) can0 106#0101FFFFF60000FF");
+}
+
+/// A vendor's file with known defects (overlapping signals, a 29-bit id without the extended
+/// flag): refused by default, generated with `--allow`, each defect reported as a warning that
+/// says how it is handled; the crate decodes the frames as written.
+#[test]
+fn a_vendor_file_with_allowed_defects_generates_and_decodes_as_written() {
+    use aer_codegen::diagnostic::Code;
+    let dbc = manifest_dir().join("tests/dbc/vendor_defects.dbc");
+    let refused = aer_codegen::load_dbc(&dbc).expect_err("errors by default");
+    let codes: Vec<&str> = refused.0.iter().map(|d| d.code.as_str()).collect();
+    assert_eq!(codes, ["E0107", "E0101"], "{refused}");
+
+    let root = Path::new(env!("CARGO_TARGET_TMPDIR")).join("vendor_defects_can");
+    let options = aer_codegen::CrateOptions {
+        allow: vec![Code::SignalOverlap, Code::IdOutOfRange],
+        ..Default::default()
+    };
+    let report = aer_codegen::generate_crate(&dbc, &root, &options).expect("generates");
+    let warned: Vec<(&str, &str)> = report
+        .warnings
+        .iter()
+        .map(|d| (d.code.as_str(), d.help.as_str()))
+        .collect();
+    assert!(
+        warned
+            .iter()
+            .any(|(c, h)| *c == "E0107" && h.contains("as written")),
+        "{warned:?}"
+    );
+    assert!(
+        warned
+            .iter()
+            .any(|(c, h)| *c == "E0101" && h.contains("extended")),
+        "{warned:?}"
+    );
+    let target = Path::new(env!("CARGO_TARGET_TMPDIR")).join("tricky_can_target");
+    let status = Command::new(env!("CARGO"))
+        .args(["build", "--quiet", "--example", "decode"])
+        .current_dir(&root)
+        .env("CARGO_TARGET_DIR", &target)
+        .status()
+        .expect("run cargo");
+    assert!(status.success(), "the generated crate must build");
+    let lines = run(
+        &target.join("debug/examples/decode"),
+        "(1.000000) can0 12C#ABCD\n(1.000000) can0 18FEF100#2A\n(1.000000) can0 12C#AB\n",
+    );
+    let json: Vec<Json> = lines
+        .iter()
+        .map(|l| serde_json::from_str(l).expect("JSON"))
+        .collect();
+    assert_eq!(json[0]["signals"]["Low"], 0xAB);
+    assert_eq!(
+        json[0]["signals"]["Straddling"], 0xDA,
+        "bits 4-11 as written"
+    );
+    assert_eq!(json[1]["name"], "UnflaggedExtended");
+    assert_eq!(json[1]["extended"], true);
+    assert_eq!(json[1]["signals"]["Value"], 42);
+    assert!(
+        json[2]["error"].is_string(),
+        "a short frame is an error line, not a panic"
+    );
 }

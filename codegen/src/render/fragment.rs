@@ -135,15 +135,21 @@ pub struct Unscaled<T> {
 impl<T: fmt::Display> fmt::Display for Unscaled<T> {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         let Scaling { factor, offset } = self.scaling;
+        // `v + 40.0` rather than `v - -40.0`.
+        let (sign, magnitude) = if offset < 0.0 {
+            ('+', -offset)
+        } else {
+            ('-', offset)
+        };
         match (factor != 1.0, offset != 0.0) {
             (false, false) => write!(f, "{}", self.operand),
-            (false, true) => write!(f, "({} - {})", self.operand, FloatLit(offset)),
+            (false, true) => write!(f, "{} {sign} {}", self.operand, FloatLit(magnitude)),
             (true, false) => write!(f, "{} / {}", self.operand, FloatLit(factor)),
             (true, true) => write!(
                 f,
-                "({} - {}) / {}",
+                "({} {sign} {}) / {}",
                 self.operand,
-                FloatLit(offset),
+                FloatLit(magnitude),
                 FloatLit(factor)
             ),
         }
@@ -236,7 +242,9 @@ mod tests {
         assert_eq!(s(0.5, 0.0).apply("raw").to_string(), "raw * 0.5");
         assert_eq!(s(1.0, -40.0).apply("raw").to_string(), "raw + -40.0");
         assert_eq!(s(0.5, 2.0).invert("v").to_string(), "(v - 2.0) / 0.5");
-        assert_eq!(s(1.0, 2.0).invert("v").to_string(), "(v - 2.0)");
+        assert_eq!(s(1.0, 2.0).invert("v").to_string(), "v - 2.0");
+        assert_eq!(s(1.0, -40.0).invert("v").to_string(), "v + 40.0");
+        assert_eq!(s(0.5, -40.0).invert("v").to_string(), "(v + 40.0) / 0.5");
         assert_eq!(s(0.5, 0.0).invert("v").to_string(), "v / 0.5");
         assert_eq!(s(0.25, -40.0).doc(), ", physical = raw * 0.25 - 40.0");
     }

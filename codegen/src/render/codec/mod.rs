@@ -7,9 +7,7 @@ use askama::Template;
 use super::doc_lines;
 use super::fragment::{OptionLit, StrLit};
 use crate::model::{Database, EnumType, Message, PhysType};
-use signal::{
-    Conversion, Fit, FloatWire, PhysAsF64, Presence, RawCodec, SignalView, ValueKind,
-};
+use signal::{Conversion, Fit, FloatWire, PhysAsF64, Presence, RawCodec, SignalView, ValueKind};
 
 #[derive(Template)]
 #[template(path = "runtime.rs", escape = "none")]

@@ -55,8 +55,9 @@ pub use signal::PHYS_TYPE_ATTRIBUTE;
 pub fn validate(
     path: &Path,
     loaded: &LoadedDbc,
+    allow: &[Code],
 ) -> Result<(Database, Vec<crate::diagnostic::Diagnostic>), Diagnostics> {
-    let mut r = Reporter::new(path, &loaded.text);
+    let mut r = Reporter::new(path, &loaded.text).allowing(allow);
     let mut db = Builder {
         loaded,
         index: DbcIndex::new(&loaded.dbc),
@@ -260,6 +261,7 @@ impl<'a> Builder<'a, '_> {
             }
             u32::try_from(id).ok().map(|id| (id, true))
         } else if written > 0x7FF {
+            let extended = self.r.allows(Code::IdOutOfRange) && written <= 0x1FFF_FFFF;
             self.r.report(
                 Code::IdOutOfRange,
                 line,
@@ -268,7 +270,9 @@ impl<'a> Builder<'a, '_> {
                 ),
                 "for a 29-bit id add 2147483648 (bit 31, Vector's extended-frame flag) to the id",
             );
-            None
+            extended
+                .then(|| u32::try_from(written).ok().map(|id| (id, true)))
+                .flatten()
         } else {
             u32::try_from(written).ok().map(|id| (id, false))
         }
