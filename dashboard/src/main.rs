@@ -39,8 +39,8 @@ enum Command {
         #[arg(long)]
         fullscreen: bool,
     },
-    /// Render both views, filled from a recorded session, to DIR/driver.png and DIR/pit.png
-    /// without a display.
+    /// Render both views, filled from a recorded session, without a display, each at 800x480
+    /// and 1280x800 (DIR/driver-800x480.png, DIR/pit-1280x800.png, ...).
     Screenshot {
         /// Where to write the PNG files.
         #[arg(long)]

@@ -101,8 +101,11 @@ pub fn write_png(path: &Path, rgba: &[u8], size: Size) -> Result<()> {
         .with_context(|| format!("writing {}", path.display()))
 }
 
-/// Renders both views of `session` at `at` seconds into `dir` (`driver.png`, `pit.png`);
-/// returns the files written.
+/// The screens both views must fit: the car's display and a laptop window.
+pub const SIZES: [Size; 2] = [DRIVER_SIZE, PIT_SIZE];
+
+/// Renders both views of `session` at `at` seconds into `dir`, each at every size in [`SIZES`]
+/// (`driver-800x480.png`, `pit-1280x800.png`, ...); returns the files written.
 pub fn both_views(
     config: &Config,
     session: &Session,
@@ -113,14 +116,13 @@ pub fn both_views(
     let (model, now) = replayed(config, session, at);
     let mut offscreen = Offscreen::new()?;
     let mut written = Vec::new();
-    for (view, size, name) in [
-        (View::Driver, DRIVER_SIZE, "driver.png"),
-        (View::Pit, PIT_SIZE, "pit.png"),
-    ] {
-        let app = App::with_model(config, model.clone(), view, now);
-        let path = dir.join(name);
-        write_png(&path, &offscreen.render(&app, size), size)?;
-        written.push(path);
+    for (view, name) in [(View::Driver, "driver"), (View::Pit, "pit")] {
+        for size in SIZES {
+            let app = App::with_model(config, model.clone(), view, now);
+            let path = dir.join(format!("{name}-{}x{}.png", size.width, size.height));
+            write_png(&path, &offscreen.render(&app, size), size)?;
+            written.push(path);
+        }
     }
     Ok(written)
 }

@@ -328,3 +328,65 @@ fn keys_switch_the_view_and_mark_laps() {
     assert_eq!(app.current_view(), View::Pit);
     let _: Element<'_, Message> = app.view();
 }
+
+/// The demo replays the bundled session in a loop, its times carrying on: each loop is one
+/// run (start, drive, back to OFF), and the driver's lap timer closes a lap at each loop.
+#[test]
+fn the_demo_course_closes_a_lap_each_loop() {
+    use aer_dashboard::session::{BUNDLED_SESSION, load};
+    let session = load(BUNDLED_SESSION, "car1");
+    let mut model = Dashboard::new(&Config::default());
+    let t0 = Instant::now();
+    let first = session.samples.first().map(|s| s.ts).expect("packets");
+    let length = session.samples.last().map(|s| s.ts).expect("packets") - first + 0.01;
+    for pass in 0..3 {
+        for sample in &session.samples {
+            let mut sample = sample.clone();
+            sample.ts += f64::from(pass) * length;
+            let now = t0 + Duration::from_secs_f64(sample.ts - first);
+            model.telemetry(&sample, now);
+        }
+    }
+    let laps = model.laps();
+    assert_eq!(
+        laps.completed(),
+        2,
+        "a lap closed at each of the two loop restarts"
+    );
+    let last = laps.last().expect("a lap");
+    assert!(
+        (25.0..45.0).contains(&last),
+        "one run of the demo: {last} s"
+    );
+    assert_eq!(laps.best(), Some(last), "every loop is the same run");
+}
+
+/// The pit view on the car's 800x480 display and on a 1280x800 laptop: the same fields, fault
+/// names in full, the Pi's counters with their units, a status code in hex.
+#[test]
+fn the_pit_view_fits_both_screens() {
+    let t0 = Instant::now();
+    let mut car = driving();
+    car.fault_apps_brake_plausibility = true;
+    let app = app_with(View::Pit, car, t0);
+    for size in [DRIVER_SIZE, PIT_SIZE] {
+        let simulate = || Simulator::with_size(Settings::default(), size, app.view());
+        assert!(
+            simulate().find("APPS/brake plausibility").is_ok(),
+            "{size:?}: the fault's whole name"
+        );
+        assert!(
+            simulate().find("0x00").is_ok(),
+            "{size:?}: the IMD code in hex"
+        );
+        assert!(
+            simulate().find("Throttle").is_ok() && simulate().find("Fault history").is_ok(),
+            "{size:?}: fields and fault history"
+        );
+        let units = simulate().find(|candidate: Candidate<'_>| match candidate {
+            Candidate::Text { content, .. } if content.contains("lost 0 packets") => Some(()),
+            _ => None,
+        });
+        assert!(units.is_ok(), "{size:?}: counts with their units");
+    }
+}

@@ -107,12 +107,30 @@ impl Field {
                 None => format!("unknown ({})", value.value),
             };
         }
+        if self.is_code() {
+            // A vendor's status code without names in the schema: in hex, as manuals list them.
+            return format!("0x{:02X}", value.value as i64);
+        }
         format!("{:.*}", decimals(self.meta.factor), value.value)
     }
 
-    /// The unit as the driver reads it (`degC` is shown as `°C`).
+    /// The unit as the driver reads it (`degC` is shown as `°C`; a status code has none, its
+    /// value is shown in hex).
     pub fn unit(&self) -> &'static str {
+        if self.is_code() {
+            return "";
+        }
         display_unit(self.meta.unit)
+    }
+
+    /// What the schema says about the field (its description), for a tooltip.
+    pub fn description(&self) -> &'static str {
+        self.meta.comment
+    }
+
+    /// A status code (unit `code`) whose values the schema does not name.
+    fn is_code(&self) -> bool {
+        self.meta.unit == "code" && self.meta.labels.is_empty()
     }
 }
 

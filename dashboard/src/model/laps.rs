@@ -1,47 +1,77 @@
 //! The lap timer. The schema has no lap beacon, so a lap ends when the car has covered the
-//! configured lap length (distance integrated from its speed) or when someone marks it (key
-//! `L`). Times are packet times, so a replay times laps as they were driven.
+//! configured lap length (distance integrated from its speed), when someone marks it (key
+//! `L`), or when the run ends: the car leaves DRIVING, or stands still for [`STOP_S`]. An
+//! autocross, acceleration or skidpad run is timed from the car's first movement to its stop
+//! (the demo's session is one such run, so each loop of the demo closes a lap); an endurance
+//! stint needs the lap length. Times are packet times, so a replay times laps as they were
+//! driven.
 
 /// Gaps between packets longer than this are not integrated (the car was not seen).
 const MAX_STEP_S: f64 = 0.5;
+/// Below this speed the car stands still (m/s, 1.8 km/h).
+const MOVING_M_S: f64 = 0.5;
+/// Standing still this long ends the run; the run's time ends when the car stopped (s).
+pub const STOP_S: f64 = 3.0;
 
 /// Lap times so far and the lap in progress.
 #[derive(Debug, Clone, PartialEq)]
 pub struct LapTimer {
     lap_length_m: Option<f64>,
-    /// Start of the lap in progress (s), once the car first drove.
+    /// Start of the lap in progress (s), while a run is on.
     start: Option<f64>,
+    /// When the car last came to a standstill during the run.
+    stopped_at: Option<f64>,
     distance_m: f64,
     last_ts: Option<f64>,
     laps: Vec<f64>,
 }
 
 impl LapTimer {
-    /// A timer that ends laps every `lap_length_m` metres (or only by hand with `None`).
+    /// A timer that ends laps every `lap_length_m` metres (with `None`: at the end of a run
+    /// or by hand).
     pub fn new(lap_length_m: Option<f64>) -> Self {
         Self {
             lap_length_m,
             start: None,
+            stopped_at: None,
             distance_m: 0.0,
             last_ts: None,
             laps: Vec::new(),
         }
     }
 
-    /// Takes one packet: its time (s), the car's speed (m/s) and whether it is in DRIVING. The
-    /// first lap starts the first time the car is driving.
+    /// Takes one packet: its time (s), the car's speed (m/s) and whether it is in DRIVING. A
+    /// run (and its first lap) starts when the car first moves in DRIVING.
     pub fn update(&mut self, ts: f64, speed_m_s: f64, driving: bool) {
         let previous = self.last_ts.replace(ts);
+        let moving = speed_m_s.is_finite() && speed_m_s >= MOVING_M_S;
         let Some(start) = self.start else {
-            if driving {
+            if driving && moving {
                 self.start = Some(ts);
+                self.stopped_at = None;
+                self.distance_m = 0.0;
             }
             return;
         };
         if ts < start {
             // Time went backwards: a replay restarted.
+            let laps = std::mem::take(&mut self.laps);
             *self = Self::new(self.lap_length_m);
+            self.laps = laps;
             return self.update(ts, speed_m_s, driving);
+        }
+        if !driving {
+            self.end_run(ts);
+            return;
+        }
+        if moving {
+            self.stopped_at = None;
+        } else {
+            let stopped = *self.stopped_at.get_or_insert(ts);
+            if ts - stopped >= STOP_S {
+                self.end_run(stopped);
+                return;
+            }
         }
         let step = previous.map_or(0.0, |p| ts - p);
         if (0.0..=MAX_STEP_S).contains(&step) && speed_m_s.is_finite() {
@@ -62,6 +92,7 @@ impl LapTimer {
         } else {
             self.start = Some(ts);
         }
+        self.stopped_at = None;
         self.distance_m = 0.0;
     }
 
@@ -71,10 +102,23 @@ impl LapTimer {
         }
     }
 
+    /// The run ended at `ts`: its last lap is complete, and the next starts with the next run.
+    fn end_run(&mut self, ts: f64) {
+        self.complete(ts);
+        self.start = None;
+        self.stopped_at = None;
+        self.distance_m = 0.0;
+    }
+
     /// The lap in progress: its number (from 1) and time so far at `ts`.
     pub fn current(&self, ts: f64) -> Option<(usize, f64)> {
         self.start
             .map(|start| (self.laps.len() + 1, (ts - start).max(0.0)))
+    }
+
+    /// Laps completed so far.
+    pub fn completed(&self) -> usize {
+        self.laps.len()
     }
 
     /// The last completed lap's time.
@@ -103,8 +147,8 @@ mod tests {
         let mut timer = LapTimer::new(Some(100.0));
         timer.update(0.0, 0.0, false);
         assert_eq!(timer.current(0.0), None);
-        timer.update(1.0, 0.0, true);
-        // 10 m/s for 10 s = 100 m: the lap ends at 11.0 s.
+        // Moving from 1.0 s: 10 m/s for 10 s = 100 m, the lap ends at 11.0 s.
+        timer.update(1.0, 10.0, true);
         for i in 1..=1_500 {
             timer.update(1.0 + f64::from(i) * 0.01, 10.0, true);
         }
@@ -132,6 +176,26 @@ mod tests {
         assert_eq!(timer.last(), Some(73.0));
         assert_eq!(format_lap(61.54), "1:01.5");
         assert_eq!(format_lap(9.96), "0:10.0");
+    }
+
+    #[test]
+    fn a_run_ends_when_the_car_leaves_driving_or_stands_still() {
+        let mut timer = LapTimer::new(None);
+        timer.update(0.0, 0.0, true);
+        assert_eq!(timer.current(0.0), None, "ready but not moving: no run yet");
+        timer.update(2.0, 5.0, true);
+        timer.update(30.0, 5.0, true);
+        timer.update(32.0, 5.0, false);
+        assert_eq!(timer.last(), Some(30.0), "left DRIVING at 32 s");
+        assert_eq!(timer.current(33.0), None, "the next run has not started");
+        // The second run stops at 50 s and stands: it ended when it stopped.
+        timer.update(40.0, 3.0, true);
+        timer.update(50.0, 0.0, true);
+        timer.update(52.0, 0.0, true);
+        assert_eq!(timer.completed(), 1, "2 s standing is a pause, not the end");
+        timer.update(53.0, 0.0, true);
+        assert_eq!(timer.last(), Some(10.0));
+        assert_eq!(timer.best(), Some(10.0));
     }
 
     #[test]

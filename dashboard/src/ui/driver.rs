@@ -144,7 +144,8 @@ fn lap(model: &Dashboard, now: Instant, stale: bool) -> Element<'_, Message> {
     let laps = model.laps();
     let current = model.car_time(now).and_then(|ts| laps.current(ts));
     let color = if stale { style::STALE } else { style::TEXT };
-    let heading = current.map_or("LAP".to_owned(), |(n, _)| format!("LAP {n}"));
+    // Between runs the next lap's number waits with no time.
+    let heading = format!("LAP {}", current.map_or(laps.completed() + 1, |(n, _)| n));
     let time = current.map_or("-:--.-".to_owned(), |(_, t)| format_lap(t));
     let last = laps.last().map_or("-:--.-".to_owned(), format_lap);
     let best = laps.best().map_or("-:--.-".to_owned(), format_lap);

@@ -7,26 +7,48 @@ use crate::model::fields::{Field, heading};
 use crate::model::health::{Connection, SchemaMatch, fingerprint};
 use crate::model::{Dashboard, Freshness};
 use aer::telemetry::Level;
-use iced::widget::{button, canvas, column, container, row, scrollable, space, text};
+use iced::widget::{
+    button, canvas, column, container, responsive, row, scrollable, space, text, tooltip,
+};
 use iced::{Alignment, Element, Fill, FillPortion, Length};
 use std::time::Instant;
 
-/// The pit view at `now`.
+/// Below this width (the car's 800x480 display, a small window) the pit view gives the
+/// fields and the plots half the screen each, one panel under the other, and puts the link
+/// line's schema check on its own line.
+const NARROW_WIDTH: f32 = 1100.0;
+
+/// The pit view at `now`, laid out for the space it gets.
 pub fn view(model: &Dashboard, now: Instant) -> Element<'_, Message> {
+    responsive(move |size| layout(model, now, size.width < NARROW_WIDTH)).into()
+}
+
+fn layout(model: &Dashboard, now: Instant, narrow: bool) -> Element<'_, Message> {
     let freshness = model.freshness(now);
-    let mut screen = column![link(model, now)].spacing(8);
+    let stale = freshness != Freshness::Fresh;
+    let mut screen = column![link(model, now, narrow)].spacing(8);
     if let Some(banner) = status_banner(model, freshness, now) {
         screen = screen.push(banner);
     }
-    let body = row![
-        scrollable(fields(model, freshness != Freshness::Fresh)).width(FillPortion(3)),
-        column![plots(model), fault_history(model)]
-            .spacing(8)
-            .width(FillPortion(2)),
-    ]
-    .spacing(8)
-    .height(Fill);
-    container(screen.push(body))
+    let body = if narrow {
+        // Scrollbars beside the panels, not over their right edge.
+        row![
+            scrollable(fields(model, stale, narrow))
+                .spacing(4)
+                .width(FillPortion(1)),
+            scrollable(column![plots(model), fault_history(model, narrow)].spacing(8))
+                .spacing(4)
+                .width(FillPortion(1)),
+        ]
+    } else {
+        row![
+            scrollable(fields(model, stale, narrow)).width(FillPortion(3)),
+            column![plots(model), fault_history(model, narrow)]
+                .spacing(8)
+                .width(FillPortion(2)),
+        ]
+    };
+    container(screen.push(body.spacing(8).height(Fill)))
         .padding(10)
         .width(Fill)
         .height(Fill)
@@ -35,7 +57,7 @@ pub fn view(model: &Dashboard, now: Instant) -> Element<'_, Message> {
 }
 
 /// The link panel: connection, packet rate and losses here, and what the Pi reports.
-fn link(model: &Dashboard, now: Instant) -> Element<'_, Message> {
+fn link(model: &Dashboard, now: Instant, narrow: bool) -> Element<'_, Message> {
     let health = model.health();
     let (connection, connection_color) = match &health.connection {
         Connection::Connecting => ("connecting".to_owned(), style::WARN),
@@ -73,7 +95,7 @@ fn link(model: &Dashboard, now: Instant) -> Element<'_, Message> {
         ),
     };
     let here = format!(
-        "{} packets/s   lost {}   unreadable {}",
+        "{} packets/s   lost {} packets   unreadable {} payloads",
         health.rate(now),
         health.lost,
         health.undecodable
@@ -82,7 +104,7 @@ fn link(model: &Dashboard, now: Instant) -> Element<'_, Message> {
         || "Pi: no metrics yet".to_owned(),
         |m| {
             format!(
-                "Pi: ISO-TP errors {}   decode errors {}   fingerprint rejects {}   MQTT drops {}   store lag {}",
+                "Pi: ISO-TP errors {}   decode errors {}   fingerprint rejects {}   MQTT drops {}   store lag {} rows",
                 m.counters.isotp_errors,
                 m.counters.decode_errors + m.counters.packet_errors,
                 m.counters.fingerprint_mismatches,
@@ -103,18 +125,20 @@ fn link(model: &Dashboard, now: Instant) -> Element<'_, Message> {
     } else {
         style::DIM
     };
-    let mut panel = column![
-        row![
-            text("LINK").size(16).color(style::DIM),
-            text(connection).size(16).color(connection_color),
-            text(here).size(16),
-            space::horizontal(),
-            text(schema).size(16).color(schema_color),
-        ]
-        .spacing(16),
-        text(pi).size(14).color(pi_color),
+    let first = row![
+        text("LINK").size(16).color(style::DIM),
+        text(connection).size(16).color(connection_color),
+        text(here).size(16),
     ]
+    .spacing(16);
+    let schema = text(schema).size(16).color(schema_color);
+    let mut panel = if narrow {
+        column![first, schema]
+    } else {
+        column![row![first, space::horizontal(), schema]]
+    }
     .spacing(2);
+    panel = panel.push(text(pi).size(14).color(pi_color));
     if let Some(error) = &health.last_error {
         panel = panel.push(
             text(format!("last unreadable payload: {error}"))
@@ -129,8 +153,9 @@ fn link(model: &Dashboard, now: Instant) -> Element<'_, Message> {
         .into()
 }
 
-/// Every field of the schema, one panel per group; a click plots the field.
-fn fields(model: &Dashboard, stale: bool) -> Element<'_, Message> {
+/// Every field of the schema, one panel per group (side by side when there is room, else
+/// one under the other at full width); a click plots the field.
+fn fields(model: &Dashboard, stale: bool, narrow: bool) -> Element<'_, Message> {
     let schema = model.schema();
     let values = model.field_values();
     let panels = schema.groups().into_iter().map(|(group, members)| {
@@ -144,11 +169,15 @@ fn fields(model: &Dashboard, stale: bool) -> Element<'_, Message> {
                 .spacing(1),
         )
         .padding(8)
-        .width(Length::Fixed(238.0))
+        .width(if narrow { Fill } else { Length::Fixed(238.0) })
         .style(style::panel)
         .into()
     });
-    row(panels).spacing(8).wrap().vertical_spacing(8).into()
+    if narrow {
+        column(panels).spacing(8).into()
+    } else {
+        row(panels).spacing(8).wrap().vertical_spacing(8).into()
+    }
 }
 
 fn field_row<'a>(
@@ -170,12 +199,25 @@ fn field_row<'a>(
     ]
     .spacing(6)
     .align_y(Alignment::Center);
-    button(content)
+    let row = button(content)
         .padding([1, 4])
         .width(Fill)
         .style(style::field_row(plotted))
-        .on_press(Message::TogglePlot(field.index))
-        .into()
+        .on_press(Message::TogglePlot(field.index));
+    // What the schema says about the field, on hover.
+    let about = field.description();
+    if about.is_empty() {
+        return row.into();
+    }
+    tooltip(
+        row,
+        container(text(about).size(13))
+            .padding(6)
+            .max_width(320)
+            .style(style::panel),
+        tooltip::Position::Bottom,
+    )
+    .into()
 }
 
 /// The picked fields over the history window.
@@ -220,8 +262,9 @@ fn plots(model: &Dashboard) -> Element<'_, Message> {
     column(charts).spacing(8).into()
 }
 
-/// Raised and cleared faults with their times, newest first.
-fn fault_history(model: &Dashboard) -> Element<'_, Message> {
+/// Raised and cleared faults with their times, newest first; names wrap rather than being cut.
+/// Narrow, it is part of a scrolling column and shows the newest 20.
+fn fault_history(model: &Dashboard, narrow: bool) -> Element<'_, Message> {
     let entries = model.alarms().history().take(100).map(|event| {
         let (what, color) = match event.level {
             Level::Normal => ("cleared", style::GOOD),
@@ -231,19 +274,21 @@ fn fault_history(model: &Dashboard) -> Element<'_, Message> {
         row![
             text(clock(event.ts)).size(14).color(style::DIM).width(96),
             text(what).size(14).color(color).width(70),
-            text(event.label).size(14),
+            text(event.label).size(14).width(Fill),
         ]
         .into()
     });
     let list: Element<'_, Message> = if model.alarms().history().next().is_none() {
         text("none").size(14).color(style::DIM).into()
+    } else if narrow {
+        column(entries.take(20)).spacing(1).into()
     } else {
         scrollable(column(entries).spacing(1)).height(Fill).into()
     };
     container(column![text("Fault history").size(17).color(style::DIM), list].spacing(4))
         .padding(8)
         .width(Fill)
-        .height(Fill)
+        .height(if narrow { Length::Shrink } else { Fill })
         .style(style::panel)
         .into()
 }

@@ -67,7 +67,13 @@ impl<Message> canvas::Program<Message> for Plot {
             &line,
             Stroke::default().with_color(self.color).with_width(2.0),
         );
-        for (value, at) in [(high, area.y), (low, area.y + area.height - 14.0)] {
+        // Too short for two labels, the plot keeps the top one rather than overlap them.
+        let labels = if area.height >= 32.0 {
+            vec![(high, area.y), (low, area.y + area.height - 14.0)]
+        } else {
+            vec![(high, area.y)]
+        };
+        for (value, at) in labels {
             frame.fill_text(Text {
                 content: compact(value),
                 position: Point::new(4.0, at),
