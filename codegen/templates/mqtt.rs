@@ -205,6 +205,12 @@ fn json_fixed(out: &mut Vec<u8>, value: impl Into<f64>, decimals: usize) {
 /// A string as JSON, escaped.
 fn json_str(out: &mut Vec<u8>, text: &str) {
     out.push(b'"');
+    // Labels and bus names almost never need escaping: copy them whole.
+    if !text.bytes().any(|b| b == b'"' || b == b'\\' || b < 0x20) {
+        out.extend_from_slice(text.as_bytes());
+        out.push(b'"');
+        return;
+    }
     for c in text.chars() {
         match c {
             '"' => out.extend_from_slice(b"\\\""),
