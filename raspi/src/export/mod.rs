@@ -3,7 +3,7 @@
 //! spreadsheets. Each carries the session's metadata (driver, track, run, notes) and what
 //! every column means (label, unit, values), all from the generated schema.
 //!
-//! [`load`] selects and reads the rows, [`describe`] says what each column is, and [`mcap`],
+//! [`load`] selects and reads the rows, [`describe`](crate::describe) says what each column is, and [`mcap`],
 //! [`parquet`] and [`csv`] write them.
 
 pub mod csv;
