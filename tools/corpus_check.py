@@ -21,7 +21,6 @@ import glob
 import json
 import os
 import random
-import shutil
 import subprocess
 import sys
 
@@ -97,6 +96,11 @@ def main():
             capture_output=True, text=True)
         if r.returncode == 0:
             generated[f] = name
+            # Example names must differ between packages: cargo puts every package's examples
+            # in one folder, where two `decode`s overwrite each other.
+            for kind in ("decode", "encode"):
+                os.replace(os.path.join(out, "examples", f"{kind}.rs"),
+                           os.path.join(out, "examples", f"{name}_{kind}.rs"))
         else:
             gen_failed.append((f, r.stderr.strip()[:2000]))
 
@@ -107,27 +111,24 @@ def main():
         ws.write("]\n")
         # ~80 crates x 2 binaries: without debug info they take a tenth of the disk.
         ws.write("\n[profile.dev]\ndebug = false\n")
-    # One parallel build of everything; then, since example binaries of different packages
-    # share names, a no-op build per package re-links its examples into place to copy them out.
+    # One parallel build of everything (an earlier run's binary must not stand in for one
+    # that fails to build now).
+    for name in generated.values():
+        for kind in ("decode", "encode"):
+            stale = os.path.join(args.work, "target", "debug", "examples", f"{name}_{kind}")
+            if os.path.exists(stale):
+                os.remove(stale)
     build = subprocess.run(["cargo", "build", "--examples", "--keep-going", "--quiet"],
                            cwd=args.work, capture_output=True, text=True)
     if build.returncode != 0:
         print(build.stderr[-6000:], file=sys.stderr)
-    bin_dir = os.path.join(args.work, "bin")
-    os.makedirs(bin_dir, exist_ok=True)
     by_name = {}
     for name in generated.values():
-        r = subprocess.run(["cargo", "build", "--quiet", "--examples", "--package", name],
-                           cwd=args.work, capture_output=True, text=True)
-        if r.returncode != 0:
-            continue
         found = {}
         for kind in ("decode", "encode"):
-            src = os.path.join(args.work, "target", "debug", "examples", kind)
-            dst = os.path.join(bin_dir, f"{name}-{kind}")
-            shutil.copyfile(src, dst)
-            os.chmod(dst, 0o755)
-            found[kind] = dst
+            path = os.path.join(args.work, "target", "debug", "examples", f"{name}_{kind}")
+            if os.path.exists(path):
+                found[kind] = path
         by_name[name] = found
 
     frames = mismatches = exact = encodes = refused = 0
