@@ -41,6 +41,12 @@ counters! {
     frames,
     /// Log lines that were not frames (truncated, garbage).
     bad_lines,
+    /// CAN error frames the interfaces reported (bus errors, error passive, bus off).
+    can_error_frames,
+    /// CAN and ISO-TP sockets reopened after a read failed or their interface went away.
+    can_reopened,
+    /// Frames (ISO-TP: packets) the kernel dropped because a socket's receive queue was full.
+    can_rx_overflows,
     /// Telemetry packets decoded.
     packets,
     /// DBC messages decoded.

@@ -373,7 +373,7 @@ fn start_source(
 ) -> Result<Replies> {
     let (counters, cancel) = (counters.clone(), cancel.clone());
     match job.clone() {
-        Job::Live => return start_live(config, inputs, health, &cancel),
+        Job::Live => return start_live(config, inputs, &counters, health, &cancel),
         Job::Replay { file, fast } => {
             let options = ReplayOptions {
                 fast,
@@ -432,6 +432,7 @@ fn start_source(
 fn start_live(
     config: &Config,
     inputs: source::Sender,
+    counters: &Arc<Counters>,
     health: &Arc<Health>,
     cancel: &CancellationToken,
 ) -> Result<Replies> {
@@ -440,6 +441,7 @@ fn start_live(
         &config.can.telemetry_interface,
         config.can.isotp,
         inputs,
+        counters,
         health,
         cancel,
     ))
@@ -449,6 +451,7 @@ fn start_live(
 fn start_live(
     _: &Config,
     _: source::Sender,
+    _: &Arc<Counters>,
     _: &Arc<Health>,
     _: &CancellationToken,
 ) -> Result<Replies> {
