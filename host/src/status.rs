@@ -44,6 +44,10 @@ pub struct Problems {
     pub store_recovered: Option<String>,
     /// The raw log's last write error, while writes fail.
     pub raw_log: Option<String>,
+    /// The disk is under the free-space floor and pruning cannot lift it: the session being
+    /// recorded is kept, a full disk drops rows (counted) until space is made.
+    #[serde(default)]
+    pub disk: Option<String>,
     /// Forwarding to TDengine is failing (an outage).
     pub forward: Option<String>,
     /// Rows TDengine refused, set aside in the store (`forward_set_aside`) with the reason.

@@ -75,6 +75,8 @@ pub struct Health {
     pub store_recovered: PartHealth,
     /// The raw log's writes.
     pub raw_log: PartHealth,
+    /// The store's file system under its free-space floor with nothing left to prune.
+    pub disk: PartHealth,
     /// Forwarding to TDengine: an outage, cleared once it works again.
     pub forward: PartHealth,
     /// Rows TDengine refused (set aside in the store): stays until the service restarts.
@@ -92,6 +94,7 @@ impl Health {
             store: self.store.error(),
             store_recovered: self.store_recovered.error(),
             raw_log: self.raw_log.error(),
+            disk: self.disk.error(),
             forward: self.forward.error(),
             forward_refused: self.forward_refused.error(),
             mqtt: self.mqtt.error(),

@@ -17,7 +17,7 @@ use aer_raspi::rawlog::writer::{RawWriter, Settings};
 use aer_raspi::sink::Sink;
 use aer_raspi::sink::mqtt as publish;
 use aer_raspi::sink::store::{
-    self as store, Budget, Retention, StoreSink, StoreWriter, WhenFull, WriterOptions,
+    self as store, Budget, Retention, StoreSink, StoreWriter, WhenFull, WriterOptions, session,
 };
 use aer_raspi::source::Replies;
 use rumqttc::{AsyncClient, Event, MqttOptions, Packet, QoS};
@@ -327,13 +327,11 @@ fn the_raw_log_keeps_every_frame_and_reads_back_as_the_log() {
     );
 }
 
-#[test]
-fn retention_keeps_the_store_within_its_budget_forwarded_rows_first() {
-    let dir = tempfile::tempdir().expect("temp dir");
-    let path = dir.path().join("s.sqlite");
+/// Replays the bundled session into the store at `path` (in the session open there, if any).
+fn record_session(path: &std::path::Path) {
     let counters = Arc::new(Counters::default());
     let writer = StoreWriter::with_options(
-        store::open(&path).expect("store"),
+        store::open(path).expect("store"),
         counters.clone(),
         WriterOptions {
             when_full: WhenFull::Wait,
@@ -352,21 +350,31 @@ fn retention_keeps_the_store_within_its_budget_forwarded_rows_first() {
     let (stage, _) = runtime.block_on(stage.replay_all(SESSION.as_bytes(), &counters));
     drop(stage);
     writer.finish();
-    let db = store::open(&path).expect("store");
-    let telemetry_rows = |db: &Connection| -> i64 {
-        db.query_row("SELECT count(*) FROM telemetry", [], |r| r.get(0))
-            .expect("count")
+}
+
+fn telemetry_rows(db: &Connection) -> i64 {
+    db.query_row("SELECT count(*) FROM telemetry", [], |r| r.get(0))
+        .expect("count")
+}
+
+/// Bytes of the store's pages in use.
+fn used(db: &Connection) -> u64 {
+    let pragma = |name: &str| -> i64 {
+        db.query_row(&format!("PRAGMA {name}"), [], |r| r.get(0))
+            .expect("pragma")
     };
+    ((pragma("page_count") - pragma("freelist_count")) * pragma("page_size")) as u64
+}
+
+#[test]
+fn retention_keeps_the_store_within_its_budget_forwarded_rows_first() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let path = dir.path().join("s.sqlite");
+    record_session(&path);
+    let db = store::open(&path).expect("store");
     assert_eq!(telemetry_rows(&db), PACKETS as i64);
     // The first 1,000 telemetry rows were forwarded.
     aer_raspi::forward::advance(&db, 0, 1_000).expect("cursor");
-    let used = |db: &Connection| -> u64 {
-        let pragma = |name: &str| -> i64 {
-            db.query_row(&format!("PRAGMA {name}"), [], |r| r.get(0))
-                .expect("pragma")
-        };
-        ((pragma("page_count") - pragma("freelist_count")) * pragma("page_size")) as u64
-    };
     let before = used(&db);
     let budget = Budget {
         max_bytes: before * 9 / 10,
@@ -374,29 +382,16 @@ fn retention_keeps_the_store_within_its_budget_forwarded_rows_first() {
         min_free_bytes: 0,
         interval: Duration::ZERO,
     };
-    let removed = Retention::new(path.clone(), budget)
+    let pruned = Retention::new(path.clone(), budget)
         .with_free_space(|_| None)
         .prune(&db)
         .expect("prune");
-    assert!(removed > 0);
+    assert!(pruned.rows > 0);
     assert!(used(&db) <= before * 9 / 10, "within the budget");
     let oldest: i64 = db
         .query_row("SELECT min(id) FROM telemetry", [], |r| r.get(0))
         .expect("oldest");
     assert!(oldest > 1_000, "the forwarded telemetry went first");
-    // The free-space floor: while the disk is short, the oldest rows go.
-    let floor = Budget {
-        max_bytes: u64::MAX,
-        max_age: None,
-        min_free_bytes: 1 << 30,
-        interval: Duration::ZERO,
-    };
-    let left = telemetry_rows(&db);
-    let removed = Retention::new(path.clone(), floor)
-        .with_free_space(|_| Some(0))
-        .prune(&db)
-        .expect("prune");
-    assert!(removed > 0 && telemetry_rows(&db) < left);
     // Age: everything older than a second goes (the session is from the past).
     let by_age = Budget {
         max_bytes: u64::MAX,
@@ -409,4 +404,79 @@ fn retention_keeps_the_store_within_its_budget_forwarded_rows_first() {
         .prune(&db)
         .expect("prune");
     assert_eq!(telemetry_rows(&db), 0);
+}
+
+#[test]
+fn the_free_space_floor_never_takes_the_session_being_recorded() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let path = dir.path().join("s.sqlite");
+    let begin = |source: &str| {
+        let db = store::open(&path).expect("store");
+        session::begin(&db, &session::Metadata::default(), source, 0).expect("session")
+    };
+    let last_session = begin("earlier");
+    record_session(&path);
+    let current = begin("live");
+    record_session(&path);
+    let db = store::open(&path).expect("store");
+    let current_rows = session::rows(&db, current, "telemetry")
+        .expect("rows")
+        .expect("the session has telemetry");
+    assert_eq!(current_rows.1 - current_rows.0 + 1, PACKETS as i64);
+    let floor = 1 << 30;
+    let at_floor = Budget {
+        max_bytes: u64::MAX,
+        max_age: None,
+        min_free_bytes: floor,
+        interval: Duration::ZERO,
+    };
+
+    // A card smaller than the floor: removing the earlier session cannot lift it, so nothing
+    // goes and the disk is reported low.
+    let pruned = Retention::new(path.clone(), at_floor.clone())
+        .with_free_space(|_| Some(0))
+        .prune(&db)
+        .expect("prune");
+    assert_eq!(pruned.rows, 0, "nothing pruned that could not help");
+    let why = pruned.disk_low.expect("the disk is reported low");
+    assert!(why.contains("session being recorded is kept"), "{why}");
+    assert_eq!(telemetry_rows(&db), 2 * PACKETS as i64);
+
+    // Short by a quarter of the store: the earlier session's oldest rows go, enough of them
+    // to reach the floor, and none of the current session's.
+    let short = used(&db) / 4;
+    let pruned = Retention::new(path.clone(), at_floor.clone())
+        .with_free_space(move |_| Some(floor - short))
+        .prune(&db)
+        .expect("prune");
+    assert_eq!(pruned.disk_low, None, "the floor is reached");
+    assert!(pruned.rows > 0);
+    let oldest: i64 = db
+        .query_row("SELECT min(id) FROM telemetry", [], |r| r.get(0))
+        .expect("oldest");
+    assert!(
+        oldest > 1 && oldest < current_rows.0,
+        "only earlier rows went"
+    );
+    let earlier = session::rows(&db, last_session, "telemetry")
+        .expect("rows")
+        .expect("recorded");
+    assert!(oldest <= earlier.1, "the earlier session is not all gone");
+    let kept: i64 = db
+        .query_row(
+            "SELECT count(*) FROM telemetry WHERE id >= ?1",
+            [current_rows.0],
+            |r| r.get(0),
+        )
+        .expect("count");
+    assert_eq!(kept, PACKETS as i64, "the current session keeps every row");
+
+    // Shorter than everything earlier can give: nothing goes, the disk is low.
+    let left = telemetry_rows(&db);
+    let pruned = Retention::new(path.clone(), at_floor)
+        .with_free_space(move |_| Some(floor / 2))
+        .prune(&db)
+        .expect("prune");
+    assert!(pruned.disk_low.is_some());
+    assert_eq!((pruned.rows, telemetry_rows(&db)), (0, left));
 }

@@ -63,6 +63,7 @@ impl RawWriter {
             retry_at: None,
             backoff: RETRY_START,
             pruned_at: None,
+            started_us: now_us(),
         };
         let thread = std::thread::Builder::new()
             .name("raw-log".into())
@@ -94,6 +95,8 @@ struct Segment {
 
 struct Writer {
     settings: Settings,
+    /// When this run began: its segments are never removed for the free-space floor.
+    started_us: u64,
     counters: Arc<Counters>,
     health: Arc<Health>,
     segment: Option<Segment>,
@@ -214,6 +217,7 @@ impl Writer {
             &self.settings.dir,
             &self.settings.budget,
             current,
+            Some(self.started_us),
             now_us(),
             crate::disk::free_bytes,
         );

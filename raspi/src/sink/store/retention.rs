@@ -1,8 +1,17 @@
 //! Keeps the store within its budget: rows older than the age limit go, and while the store is
-//! over its size budget or the disk below its free-space floor, the oldest rows go, the ones
-//! already forwarded to TDengine first. Freed pages go back to the file system. Runs on the
-//! writer thread between batches, so it never races a write.
+//! over its size budget the oldest rows go, the ones already forwarded to TDengine first.
+//! Freed pages go back to the file system. Runs on the writer thread between batches, so it
+//! never races a write.
+//!
+//! The free-space floor is different: the store is not the only thing on the card, so pruning
+//! may not be able to reach it (a card smaller than the floor, other files filling it). Below
+//! the floor only rows recorded before the session being recorded go, oldest (forwarded)
+//! first, and only when removing them can bring the free space back over the floor. Otherwise
+//! nothing is removed: the status and the journal say the disk is low, live telemetry and the
+//! raw log go on, and a truly full disk is handled by the writer (rows dropped and counted).
 
+use super::session;
+use crate::health::Health;
 use aer::tables::TABLES;
 use aer_host::clock::now_us;
 use aer_host::counters::Counters;
@@ -42,6 +51,15 @@ pub struct Retention {
     free_space: FreeSpace,
 }
 
+/// What one pass did.
+#[derive(Debug, Clone, PartialEq, Eq, Default)]
+pub struct Pruned {
+    /// Rows removed.
+    pub rows: u64,
+    /// Why the disk stays under the free-space floor, when pruning cannot lift it.
+    pub disk_low: Option<String>,
+}
+
 impl Retention {
     /// Retention of the store at `path` within `budget`.
     pub fn new(path: PathBuf, budget: Budget) -> Self {
@@ -62,8 +80,9 @@ impl Retention {
         self
     }
 
-    /// Prunes if the interval has passed since the last check.
-    pub fn maybe_prune(&mut self, db: &Connection, counters: &Counters) {
+    /// Prunes if the interval has passed since the last check; reports a disk that stays low
+    /// on `health` (and once in the journal).
+    pub fn maybe_prune(&mut self, db: &Connection, counters: &Counters, health: &Health) {
         if self
             .last
             .is_some_and(|last| last.elapsed() < self.budget.interval)
@@ -72,96 +91,215 @@ impl Retention {
         }
         self.last = Some(Instant::now());
         match self.prune(db) {
-            Ok(0) => {}
-            Ok(rows) => {
-                counters.pruned_rows.fetch_add(rows, Ordering::Relaxed);
-                info!(rows, "store pruned to its budget");
+            Ok(pruned) => {
+                if pruned.rows > 0 {
+                    counters
+                        .pruned_rows
+                        .fetch_add(pruned.rows, Ordering::Relaxed);
+                    info!(rows = pruned.rows, "store pruned to its budget");
+                }
+                match pruned.disk_low {
+                    Some(why) => {
+                        if health.disk.error().is_none() {
+                            warn!(reason = %why, "disk low: the session being recorded is kept, live telemetry and the raw log go on");
+                        }
+                        health.disk.failed(&why);
+                    }
+                    None => {
+                        if health.disk.recovered() {
+                            info!("disk space back above the floor");
+                        }
+                    }
+                }
             }
             Err(error) => warn!(%error, "store retention failed; retrying at the next check"),
         }
     }
 
-    /// One pass: the age limit, then the size budget and the free-space floor. Returns the
-    /// rows removed.
-    pub fn prune(&self, db: &Connection) -> rusqlite::Result<u64> {
-        let mut removed = 0;
+    /// One pass: the age limit, the size budget, then the free-space floor.
+    pub fn prune(&self, db: &Connection) -> rusqlite::Result<Pruned> {
+        let mut pruned = Pruned::default();
         if let Some(max_age) = self.budget.max_age {
             let cutoff = now_us().saturating_sub(max_age.as_micros() as u64);
             for table in TABLES {
                 let Some(last_old) = last_id_before(db, table.name, cutoff)? else {
                     continue;
                 };
-                removed += delete_through(db, table.name, last_old)?;
+                pruned.rows += delete_through(db, table.name, last_old)?;
             }
         }
         for _ in 0..MAX_STEPS {
-            if !self.over_budget(db)? {
+            if used_bytes(db)? <= self.budget.max_bytes {
                 break;
             }
-            let mut step = self.drop_oldest(db, true)?;
+            let step = drop_oldest_either(db, &Kept::default())?;
             if step == 0 {
-                step = self.drop_oldest(db, false)?;
-                if step > 0 {
-                    warn!(
-                        rows = step,
-                        "store over budget with nothing forwarded left to prune: oldest rows pruned (the raw log still has their frames)"
-                    );
-                }
+                break;
             }
+            pruned.rows += step;
+        }
+        let (rows, disk_low) = self.lift_to_floor(db)?;
+        pruned.rows += rows;
+        pruned.disk_low = disk_low;
+        if pruned.rows > 0 {
+            // Give the freed pages back (a store made before auto_vacuum keeps reusing them).
+            db.execute_batch("PRAGMA incremental_vacuum")?;
+            db.query_row("PRAGMA wal_checkpoint(TRUNCATE)", [], |_| Ok(()))?;
+        }
+        Ok(pruned)
+    }
+
+    /// Below the free-space floor: removes rows recorded before the current session while
+    /// that can lift the free space over the floor. Returns the rows removed and, if the disk
+    /// stays low, why.
+    fn lift_to_floor(&self, db: &Connection) -> rusqlite::Result<(u64, Option<String>)> {
+        let floor = self.budget.min_free_bytes;
+        let Some(free) = (self.free_space)(&self.path) else {
+            return Ok((0, None));
+        };
+        if free >= floor {
+            return Ok((0, None));
+        }
+        let kept = Kept::current_session(db)?;
+        let used = used_bytes(db)?;
+        let (older, all) = kept.older_rows(db)?;
+        // Rows are about the same size across the store: their share of the pages in use is
+        // what removing them gives back.
+        let freeable = if all == 0 {
+            0
+        } else {
+            u64::try_from(u128::from(used) * u128::from(older) / u128::from(all)).unwrap_or(used)
+        };
+        let low = |free: u64| {
+            format!(
+                "{} MB free, under the {} MB floor; the session being recorded is kept",
+                free / 1_000_000,
+                floor / 1_000_000
+            )
+        };
+        if free.saturating_add(freeable) < floor {
+            return Ok((0, Some(low(free))));
+        }
+        let mut removed = 0;
+        for _ in 0..MAX_STEPS {
+            // Pages freed in this pass go back to the file system at its end.
+            let freed = used.saturating_sub(used_bytes(db)?);
+            if free.saturating_add(freed) >= floor {
+                return Ok((removed, None));
+            }
+            let step = drop_oldest_either(db, &kept)?;
             if step == 0 {
                 break;
             }
             removed += step;
         }
-        if removed > 0 {
-            // Give the freed pages back (a store made before auto_vacuum keeps reusing them).
-            db.execute_batch("PRAGMA incremental_vacuum")?;
-            db.query_row("PRAGMA wal_checkpoint(TRUNCATE)", [], |_| Ok(()))?;
+        let now_free = free.saturating_add(used.saturating_sub(used_bytes(db)?));
+        Ok((removed, (now_free < floor).then(|| low(now_free))))
+    }
+}
+
+/// The rows the free-space floor may not remove: per table, the first row id of the session
+/// being recorded.
+#[derive(Debug, Default)]
+struct Kept {
+    first_ids: Vec<(&'static str, i64)>,
+}
+
+impl Kept {
+    /// The open session's rows (none kept when no session is open).
+    fn current_session(db: &Connection) -> rusqlite::Result<Self> {
+        let mut first_ids = Vec::new();
+        if let Some(id) = session::current(db)? {
+            for table in TABLES {
+                // A table the session has no rows in yet: all of its rows are older.
+                if let Some((first, _)) = session::rows(db, id, table.name)? {
+                    first_ids.push((table.name, first));
+                }
+            }
         }
-        Ok(removed)
+        Ok(Self { first_ids })
     }
 
-    /// Over the size budget (pages in use; the WAL, at most a checkpoint's worth, aside) or
-    /// under the free-space floor.
-    fn over_budget(&self, db: &Connection) -> rusqlite::Result<bool> {
-        let used = used_bytes(db)?;
-        let free = (self.free_space)(&self.path).unwrap_or(u64::MAX);
-        Ok(used > self.budget.max_bytes || free < self.budget.min_free_bytes)
+    /// The first id kept in `table` (`i64::MAX`: none).
+    fn first_in(&self, table: &str) -> i64 {
+        self.first_ids
+            .iter()
+            .find(|(name, _)| *name == table)
+            .map_or(i64::MAX, |(_, first)| *first)
     }
 
-    /// Removes a chunk of the oldest rows of every table: only rows already forwarded to
-    /// TDengine if `forwarded_only`, else the oldest of all.
-    fn drop_oldest(&self, db: &Connection, forwarded_only: bool) -> rusqlite::Result<u64> {
-        let mut removed = 0;
+    /// Rows that may go, and all rows, over every table.
+    fn older_rows(&self, db: &Connection) -> rusqlite::Result<(u64, u64)> {
+        let (mut older, mut all) = (0u64, 0u64);
         for table in TABLES {
-            let forwarded: Option<i64> = db
-                .query_row(
-                    "SELECT last_id FROM forward_cursor WHERE table_name = ?1",
-                    [table.name],
-                    |row| row.get(0),
-                )
-                .optional()?;
-            let bounds: (Option<i64>, Option<i64>) = db.query_row(
-                &format!("SELECT min(id), max(id) FROM \"{}\"", table.name),
-                [],
+            let (may_go, total): (i64, i64) = db.query_row(
+                &format!(
+                    "SELECT count(*) FILTER (WHERE id < ?1), count(*) FROM \"{}\"",
+                    table.name
+                ),
+                [self.first_in(table.name)],
                 |row| Ok((row.get(0)?, row.get(1)?)),
             )?;
-            let (Some(oldest), Some(newest)) = bounds else {
-                continue;
-            };
-            // A twentieth of the table a step: the budget is met without overshooting it.
-            let step = ((newest - oldest + 1) / 20).clamp(100, CHUNK_ROWS);
-            let through = oldest + step - 1;
-            removed += match (forwarded, forwarded_only) {
-                (Some(cursor), true) if cursor >= oldest => {
-                    delete_through(db, table.name, through.min(cursor))?
-                }
-                (_, true) => 0,
-                (_, false) => delete_through(db, table.name, through)?,
-            };
+            older += u64::try_from(may_go).unwrap_or(0);
+            all += u64::try_from(total).unwrap_or(0);
         }
-        Ok(removed)
+        Ok((older, all))
     }
+}
+
+/// Removes a chunk of the oldest rows not `kept`, the ones already forwarded first (a warning
+/// says when rows not yet forwarded go). Returns the rows removed.
+fn drop_oldest_either(db: &Connection, kept: &Kept) -> rusqlite::Result<u64> {
+    let step = drop_oldest(db, true, kept)?;
+    if step > 0 {
+        return Ok(step);
+    }
+    let step = drop_oldest(db, false, kept)?;
+    if step > 0 {
+        warn!(
+            rows = step,
+            "store over budget with nothing forwarded left to prune: oldest rows pruned (the raw log still has their frames)"
+        );
+    }
+    Ok(step)
+}
+
+/// Removes a chunk of the oldest rows of every table, never those `kept`: only rows already
+/// forwarded to TDengine if `forwarded_only`, else the oldest of all.
+fn drop_oldest(db: &Connection, forwarded_only: bool, kept: &Kept) -> rusqlite::Result<u64> {
+    let mut removed = 0;
+    for table in TABLES {
+        let forwarded: Option<i64> = db
+            .query_row(
+                "SELECT last_id FROM forward_cursor WHERE table_name = ?1",
+                [table.name],
+                |row| row.get(0),
+            )
+            .optional()?;
+        let bounds: (Option<i64>, Option<i64>) = db.query_row(
+            &format!("SELECT min(id), max(id) FROM \"{}\"", table.name),
+            [],
+            |row| Ok((row.get(0)?, row.get(1)?)),
+        )?;
+        let (Some(oldest), Some(newest)) = bounds else {
+            continue;
+        };
+        let last_allowed = kept.first_in(table.name).saturating_sub(1);
+        if last_allowed < oldest {
+            continue;
+        }
+        // A twentieth of the table a step: the budget is met without overshooting it.
+        let step = ((newest - oldest + 1) / 20).clamp(100, CHUNK_ROWS);
+        let through = (oldest + step - 1).min(last_allowed);
+        removed += match (forwarded, forwarded_only) {
+            (Some(cursor), true) if cursor >= oldest => {
+                delete_through(db, table.name, through.min(cursor))?
+            }
+            (_, true) => 0,
+            (_, false) => delete_through(db, table.name, through)?,
+        };
+    }
+    Ok(removed)
 }
 
 /// The last row id of `table` written before `cutoff_us`: rows arrive in time order, so ids

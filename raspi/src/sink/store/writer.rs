@@ -124,7 +124,7 @@ impl Writer {
                 self.write(&mut batch, open);
             }
             if let Some(retention) = &mut self.retention {
-                retention.maybe_prune(&self.db, &self.counters);
+                retention.maybe_prune(&self.db, &self.counters, &self.health);
             }
             if !open {
                 return;
