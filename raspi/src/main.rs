@@ -316,7 +316,7 @@ fn export_command(config: &Config, args: &ExportArgs) -> Result<()> {
         ),
     };
     let formats = if args.formats.is_empty() {
-        vec![Format::Mcap, Format::Parquet, Format::Csv]
+        Format::all()
     } else {
         args.formats.clone()
     };

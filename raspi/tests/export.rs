@@ -96,7 +96,7 @@ fn a_session_exported_in_every_format_reads_back_equal_to_the_store() {
             session: Some(id),
             ..Selection::default()
         },
-        formats: vec![Format::Mcap, Format::Parquet, Format::Csv],
+        formats: Format::all(),
         out_dir: out.clone(),
         topic_root: "aer/car1".into(),
         extra: Vec::new(),

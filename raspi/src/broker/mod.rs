@@ -336,79 +336,34 @@ pub mod nodelay {
         0
     }
 
-    /// The local address of `fd` if it is a listening TCP socket. An fd closed (or reused)
-    /// since the directory was read fails these calls or is some other socket of this process,
-    /// for which TCP_NODELAY is harmless.
+    /// Runs `f` on the socket `fd`. An fd closed (or reused) since the directory was read
+    /// fails the calls `f` makes or is some other socket of this process, for which reading
+    /// its state or setting TCP_NODELAY is harmless.
+    #[cfg(target_os = "linux")]
+    fn on_socket<T>(fd: i32, f: impl FnOnce(socket2::SockRef<'_>) -> Option<T>) -> Option<T> {
+        if fd < 0 {
+            return None;
+        }
+        // SAFETY: `fd` is not -1, and the borrow ends with this call; an fd no longer open
+        // makes the socket calls fail with EBADF, which `f` turns into `None`.
+        let fd = unsafe { std::os::fd::BorrowedFd::borrow_raw(fd) };
+        f(socket2::SockRef::from(&fd))
+    }
+
+    /// The local address of `fd` if it is a listening TCP socket.
     #[cfg(target_os = "linux")]
     fn listening_on(fd: i32) -> Option<SocketAddr> {
-        let mut accepting: libc::c_int = 0;
-        let mut len = std::mem::size_of::<libc::c_int>() as libc::socklen_t;
-        // SAFETY: the pointers are to live locals of the sizes given.
-        let listening = unsafe {
-            libc::getsockopt(
-                fd,
-                libc::SOL_SOCKET,
-                libc::SO_ACCEPTCONN,
-                std::ptr::from_mut(&mut accepting).cast(),
-                &mut len,
-            )
-        } == 0
-            && accepting == 1;
-        if !listening {
-            return None;
-        }
-        // SAFETY: an all-zero sockaddr_storage is a valid value.
-        let mut storage: libc::sockaddr_storage = unsafe { std::mem::zeroed() };
-        let mut len = std::mem::size_of::<libc::sockaddr_storage>() as libc::socklen_t;
-        // SAFETY: storage is large enough for any address and len says so.
-        let named =
-            unsafe { libc::getsockname(fd, std::ptr::from_mut(&mut storage).cast(), &mut len) }
-                == 0;
-        if !named {
-            return None;
-        }
-        match libc::c_int::from(storage.ss_family) {
-            libc::AF_INET => {
-                // SAFETY: the family says the storage holds a sockaddr_in.
-                let v4: libc::sockaddr_in = unsafe {
-                    std::ptr::from_ref(&storage)
-                        .cast::<libc::sockaddr_in>()
-                        .read()
-                };
-                Some(SocketAddr::from((
-                    v4.sin_addr.s_addr.to_ne_bytes(),
-                    u16::from_be(v4.sin_port),
-                )))
+        on_socket(fd, |socket| {
+            if !socket.is_listener().ok()? {
+                return None;
             }
-            libc::AF_INET6 => {
-                // SAFETY: the family says the storage holds a sockaddr_in6.
-                let v6: libc::sockaddr_in6 = unsafe {
-                    std::ptr::from_ref(&storage)
-                        .cast::<libc::sockaddr_in6>()
-                        .read()
-                };
-                Some(SocketAddr::from((
-                    v6.sin6_addr.s6_addr,
-                    u16::from_be(v6.sin6_port),
-                )))
-            }
-            _ => None,
-        }
+            socket.local_addr().ok()?.as_socket()
+        })
     }
 
     #[cfg(target_os = "linux")]
     fn set_nodelay(fd: i32) -> bool {
-        let on: libc::c_int = 1;
-        // SAFETY: the pointer is to a live local of the size given.
-        unsafe {
-            libc::setsockopt(
-                fd,
-                libc::IPPROTO_TCP,
-                libc::TCP_NODELAY,
-                std::ptr::from_ref(&on).cast(),
-                std::mem::size_of::<libc::c_int>() as libc::socklen_t,
-            ) == 0
-        }
+        on_socket(fd, |socket| socket.set_tcp_nodelay(true).ok()).is_some()
     }
 }
 

@@ -64,6 +64,13 @@ pub enum Format {
     Csv,
 }
 
+impl Format {
+    /// Every format, in declaration order: what an export writes unless told otherwise.
+    pub fn all() -> Vec<Self> {
+        <Self as clap::ValueEnum>::value_variants().to_vec()
+    }
+}
+
 /// A file written, with the rows it holds.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Written {

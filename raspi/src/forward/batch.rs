@@ -4,7 +4,7 @@
 //! the whole batch waits for it.
 
 use super::cursor::Batch;
-use crate::sql::Mapping;
+use super::sql::Mapping;
 use std::future::Future;
 use std::ops::Range;
 

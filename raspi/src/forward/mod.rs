@@ -8,13 +8,14 @@
 
 pub mod batch;
 pub mod cursor;
+pub mod sql;
 
 pub use batch::{Destination, Sent};
 pub use cursor::{Batch, advance, next_batch, set_aside};
 
+use self::sql::Mapping;
 use crate::config::TdengineConfig;
 use crate::health::Health;
-use crate::sql::Mapping;
 use aer::tables::TABLES;
 use aer_host::counters::{Counters, worth_logging};
 use anyhow::{Context, Result};
