@@ -52,7 +52,8 @@ pub struct Receiver<const N: usize> {
     block_count: u8,
     last_us: u32,
     receiving: bool,
-    /// A message interrupted by a new first frame, reported after the new one is taken.
+    /// A message interrupted by a new first frame (or timed out before it), reported after the
+    /// new one is taken.
     interrupted: bool,
 }
 
@@ -95,6 +96,11 @@ impl<const N: usize> Receiver<N> {
     pub fn on_frame(&mut self, data: &[u8], now_us: u32) -> Result<Received<'_>, RxError> {
         let timed_out = self.poll(now_us);
         let pci = parse(data).map_err(RxError::Frame)?;
+        if timed_out.is_err() && matches!(pci, Pci::Single(_) | Pci::First { .. }) {
+            // The partial message timed out and a new one starts: the new one is taken, the
+            // lost one reported like an interrupted one.
+            self.interrupted = true;
+        }
         match pci {
             Pci::Single(payload) => {
                 self.note_interruption();
@@ -176,7 +182,8 @@ impl<const N: usize> Receiver<N> {
         }
     }
 
-    /// True (once) if a partial message was dropped because a new one started.
+    /// True (once) if a partial message was dropped because a new one started (mid-message,
+    /// or after the partial one timed out with no frame to report it).
     pub fn take_interrupted(&mut self) -> bool {
         core::mem::take(&mut self.interrupted)
     }

@@ -287,3 +287,25 @@ fn the_receiver_times_out_one_us_after_n_cr_and_counts_interruptions() {
     );
     assert!(!receiver.take_interrupted());
 }
+
+#[test]
+fn a_message_that_timed_out_is_counted_when_the_next_one_starts() {
+    // What a CCM that stopped mid-packet and resumed sends: the partial packet times out with
+    // no consecutive frame to report it, then a first frame starts the next one.
+    let mut receiver: Receiver<64> = Receiver::new(Config::CAR);
+    receiver.on_frame(&[0x10, 20, 1, 2, 3, 4, 5, 6], 0).unwrap();
+    let next = receiver.on_frame(&[0x10, 20, 1, 2, 3, 4, 5, 6], 2_000_000);
+    assert!(
+        matches!(next, Ok(Received::FlowControl(_))),
+        "the new one is taken"
+    );
+    assert!(receiver.take_interrupted(), "the timed-out one is counted");
+    assert!(!receiver.take_interrupted());
+    // A timed-out message is counted once: reported by `poll`, the next first frame adds
+    // nothing.
+    assert_eq!(receiver.poll(4_000_000), Err(RxError::Timeout));
+    receiver
+        .on_frame(&[0x10, 20, 1, 2, 3, 4, 5, 6], 4_000_001)
+        .unwrap();
+    assert!(!receiver.take_interrupted());
+}
