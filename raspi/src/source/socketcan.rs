@@ -23,7 +23,7 @@ use aer_host::counters::Counters;
 use embedded_can::{Frame as _, StandardId};
 use socketcan::SocketOptions as _;
 use std::io::ErrorKind;
-use std::os::fd::{AsRawFd as _, BorrowedFd};
+use std::os::fd::{AsRawFd, BorrowedFd};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 use tokio::sync::mpsc;
@@ -37,6 +37,10 @@ const READ_QUEUE: usize = 4_096;
 /// How often a reader checks that its interface is still the one it opened, and the kernel
 /// ISO-TP reader looks at the cancellation token: a stop takes at most this long.
 const WATCH: Duration = Duration::from_millis(250);
+/// The receive queue each socket asks for: about 2.5 s of the car's traffic, so a reader
+/// stalled for a moment loses nothing (the kernel caps it at `net.core.rmem_max`, which the
+/// package raises to this; what still overflows is counted).
+const RECEIVE_BUFFER: usize = 4 << 20;
 /// Between attempts to open a missing or failing interface.
 const RETRY: Duration = Duration::from_secs(1);
 
@@ -156,7 +160,9 @@ fn kernel_isotp(
                 let ifindex = i32::try_from(index).map_err(|_| missing(name))?;
                 let socket = socketcan_isotp::IsoTpSocket::open_if(ifindex, rx, tx)
                     .map_err(|err| err.to_string())?;
-                set_read_timeout(&socket, WATCH).map_err(|err| err.to_string())?;
+                with_options(&socket, |socket| socket.set_read_timeout(Some(WATCH)))
+                    .map_err(|err| err.to_string())?;
+                enlarge_receive_queue(&socket);
                 Ok((index, socket))
             });
         let (index, mut socket) = match opened {
@@ -243,11 +249,7 @@ struct QueueDrops {
 
 impl QueueDrops {
     /// Adds the drops since the last look at `socket` to `counter`.
-    fn count(
-        &mut self,
-        socket: &impl std::os::fd::AsRawFd,
-        counter: &std::sync::atomic::AtomicU64,
-    ) {
+    fn count(&mut self, socket: &impl AsRawFd, counter: &std::sync::atomic::AtomicU64) {
         let Some(drops) = queue_drops(socket) else {
             return;
         };
@@ -261,7 +263,7 @@ impl QueueDrops {
 
 /// The frames (or packets) the kernel dropped from `socket`'s receive queue since it was
 /// opened because the queue was full; `None` if the kernel does not say.
-fn queue_drops(socket: &impl std::os::fd::AsRawFd) -> Option<u64> {
+fn queue_drops(socket: &impl AsRawFd) -> Option<u64> {
     // SK_MEMINFO_VARS is 9 on every kernel since 4.6; room for more costs nothing.
     let mut info = [0u32; 16];
     let mut len = libc::socklen_t::try_from(std::mem::size_of_val(&info)).ok()?;
@@ -282,15 +284,17 @@ fn queue_drops(socket: &impl std::os::fd::AsRawFd) -> Option<u64> {
         .flatten()
 }
 
-/// Makes `socket`'s reads give up after `timeout`.
-fn set_read_timeout(
-    socket: &socketcan_isotp::IsoTpSocket,
-    timeout: Duration,
-) -> std::io::Result<()> {
+/// Runs `f` on `socket` as a socket2 socket, for the options the CAN crates do not offer.
+fn with_options<T>(socket: &impl AsRawFd, f: impl FnOnce(socket2::SockRef<'_>) -> T) -> T {
     // SAFETY: the descriptor is `socket`'s, open for as long as `socket`, which outlives
     // this borrow (it ends with the call).
     let fd = unsafe { BorrowedFd::borrow_raw(socket.as_raw_fd()) };
-    socket2::SockRef::from(&fd).set_read_timeout(Some(timeout))
+    f(socket2::SockRef::from(&fd))
+}
+
+/// Asks for [`RECEIVE_BUFFER`]; a smaller queue (the kernel's cap) still works.
+fn enlarge_receive_queue(socket: &impl AsRawFd) {
+    let _ = with_options(socket, |socket| socket.set_recv_buffer_size(RECEIVE_BUFFER));
 }
 
 /// Waits `wait` on this thread, or less once `cancel` fires.
@@ -313,6 +317,7 @@ fn open_raw(name: &str) -> Result<(u32, socketcan::tokio::CanSocket), String> {
     socket
         .set_error_filter_accept_all()
         .map_err(|err| err.to_string())?;
+    enlarge_receive_queue(&socket);
     Ok((index, socket))
 }
 

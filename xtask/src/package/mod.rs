@@ -127,6 +127,10 @@ configuration in /etc/aer) and brings the CAN links up at 500 kbit/s through sys
                 "usr/lib/modules-load.d/aer-can.conf",
                 "packaging/pi/aer-can.conf",
             ),
+            file(
+                "usr/lib/sysctl.d/60-aer-can.conf",
+                "packaging/pi/60-aer-can.conf",
+            ),
             Entry {
                 path: "etc/aer/aer-raspi.toml",
                 source: Source::PiConfig,
