@@ -14,20 +14,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 out=$(realpath "${1:-target/pi-package}")
 root=${2:-target/pi-boot-root}
-mirror=${DEBIAN_MIRROR:-http://deb.debian.org/debian}
-
-if [ ! -x "$root/usr/bin/apt-get" ]; then
-  rm -rf "$root"
-  echo "--- debootstrap bookworm into $root"
-  # Once more if the mirror fails the first time (a download, not a test).
-  for attempt in 1 2; do
-    debootstrap --variant=minbase --include=systemd,systemd-sysv,dbus,python3 \
-      bookworm "$root" "$mirror" > "$root.debootstrap.log" 2>&1 && break
-    tail -20 "$root.debootstrap.log"
-    rm -rf "$root"
-    [ "$attempt" = 2 ] && { echo "debootstrap failed" >&2; exit 1; }
-  done
-fi
+bash tools/debian_root.sh "$root"
 
 # nspawn keeps its mount propagation folder in /run and refuses to clean one that is not on
 # a tmpfs, which /run is not on every build machine.

@@ -1,0 +1,411 @@
+#!/usr/bin/env python3
+"""The virtual Pi's scenarios, run inside the guest (tools/virtual_pi.sh) as a systemd unit
+after aer-raspi.service: the package's service on real SocketCAN (vcan), real kernel ISO-TP
+and a real systemd, fed by can-utils.
+
+What is expected comes from the same build replaying the same log from a file
+(`aer-raspi replay --fast`, userspace ISO-TP, no SocketCAN): live and file must agree, row for
+row and message for message. Every result is a line on the console starting with `VPI `.
+Waits are for a condition with a deadline, never a fixed sleep.
+"""
+
+import json
+import os
+import sqlite3
+import subprocess
+import sys
+import time
+import tomllib
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+LOG = os.path.join(HERE, "session.log")
+CONFIG = "/etc/aer/aer-raspi.toml"
+PREFIX = "aer/car1"
+TELEMETRY_ID = "666"
+failures = []
+
+
+def say(line):
+    print(f"VPI {line}", flush=True)
+
+
+def check(name, ok, detail=""):
+    say(f"{'ok' if ok else 'FAILED'}: {name}{f' ({detail})' if detail else ''}")
+    if not ok:
+        failures.append(name)
+    return ok
+
+
+def run(*args, **kwargs):
+    return subprocess.run(args, check=True, capture_output=True, text=True, **kwargs).stdout
+
+
+def wait_for(what, predicate, timeout=60.0):
+    """Polls `predicate` until it returns a true value or `timeout` passes."""
+    deadline = time.monotonic() + timeout
+    while True:
+        value = predicate()
+        if value:
+            return value
+        if time.monotonic() > deadline:
+            say(f"gave up waiting for {what} after {timeout:.0f} s")
+            return value
+        time.sleep(0.1)
+
+
+def config():
+    with open(CONFIG, "rb") as f:
+        return tomllib.load(f)
+
+
+def store_path():
+    return config()["store"]["path"]
+
+
+def set_isotp(mode):
+    with open(CONFIG) as f:
+        text = f.read()
+    lines = [
+        f'isotp = "{mode}"' if line.startswith("isotp =") else line for line in text.splitlines()
+    ]
+    with open(CONFIG, "w") as f:
+        f.write("\n".join(lines) + "\n")
+
+
+def active():
+    return subprocess.run(["systemctl", "is-active", "--quiet", "aer-raspi"]).returncode == 0
+
+
+def latest(topic, timeout=10):
+    """The next message on `topic` (status and metrics come every second), as JSON."""
+    out = subprocess.run(
+        ["mosquitto_sub", "-h", "127.0.0.1", "-t", f"{PREFIX}/{topic}", "-C", "1", "-W", str(timeout)],
+        capture_output=True,
+        text=True,
+    ).stdout
+    try:
+        return json.loads(out)
+    except json.JSONDecodeError:
+        return None
+
+
+def counters():
+    """The service's counters (the metrics topic carries them at its top level)."""
+    return latest("metrics") or {}
+
+
+class Subscriber:
+    """Everything the broker publishes under the car's prefix, into a file."""
+
+    def __init__(self, name):
+        self.path = f"/root/{name}.mqtt"
+        self.file = open(self.path, "w")
+        self.process = subprocess.Popen(
+            ["mosquitto_sub", "-h", "127.0.0.1", "-v", "-t", f"{PREFIX}/#"], stdout=self.file
+        )
+        # The retained schema topics arrive as soon as the subscription is in place.
+        wait_for("the subscription", lambda: self.count("schema/") > 0, 30)
+
+    def lines(self):
+        with open(self.path, errors="replace") as f:
+            return f.read().splitlines()
+
+    def count(self, suffix):
+        start = f"{PREFIX}/{suffix}"
+        return sum(1 for line in self.lines() if line.startswith(start))
+
+    def close(self):
+        self.process.terminate()
+        self.process.wait()
+        self.file.close()
+
+
+def session_rows(path):
+    """Rows of the latest session in the store at `path`: telemetry, and CAN over all tables."""
+    db = sqlite3.connect(f"file:{path}?mode=ro", uri=True)
+    try:
+        session = db.execute("SELECT max(id) FROM sessions").fetchone()[0]
+        ranges = db.execute(
+            "SELECT table_name, first_id, last_id FROM session_rows WHERE session_id = ?", (session,)
+        ).fetchall()
+        telemetry, can = 0, 0
+        for table, first, last in ranges:
+            n = db.execute(
+                f'SELECT count(*) FROM "{table}" WHERE id BETWEEN ? AND ?', (first, last)
+            ).fetchone()[0]
+            if table == "telemetry":
+                telemetry += n
+            else:
+                can += n
+        return telemetry, can
+    finally:
+        db.close()
+
+
+def expected(log):
+    """What the service makes of `log` replayed from the file: (telemetry rows, CAN rows)."""
+    store = "/root/expected.sqlite"
+    for suffix in ("", "-wal", "-shm"):
+        if os.path.exists(store + suffix):
+            os.remove(store + suffix)
+    broker = "/root/rumqttd-expected.toml"
+    with open("/etc/aer/rumqttd.toml") as f:
+        text = f.read().replace("127.0.0.1:1883", "127.0.0.1:18830")
+    with open(broker, "w") as f:
+        f.write(text)
+    with open("/root/expected.toml", "w") as f:
+        f.write(
+            f'car_id = "car1"\n[store]\npath = "{store}"\n[raw_log]\nenabled = false\n'
+            f'[broker]\nembedded = true\nconfig = "{broker}"\n'
+        )
+    run("aer-raspi", "--config", "/root/expected.toml", "replay", "--fast", log)
+    return session_rows(store)
+
+
+def slice_of_log(seconds, name):
+    """The first `seconds` of the session, as a log of its own, cut before a telemetry packet's
+    first frame (a packet cut in half would be an ISO-TP error)."""
+    path = f"/root/{name}.log"
+    first_frame = f"{TELEMETRY_ID}#1"
+    with open(LOG) as src, open(path, "w") as out:
+        first = None
+        for line in src:
+            ts = float(line.split(")")[0].strip("("))
+            first = ts if first is None else first
+            if ts - first >= seconds and first_frame in line:
+                break
+            out.write(line)
+    return path
+
+
+def start_service():
+    run("systemctl", "start", "aer-raspi")
+    # Up once its broker answers (the retained status) and both buses are open.
+    status = wait_for(
+        "the service's status",
+        lambda: (s := latest("status", 5)) and s["problems"]["can"] is None and s,
+        60,
+    )
+    return check("aer-raspi runs with both buses open", active() and bool(status))
+
+
+def stop(how):
+    """Stops the service with SIGTERM (`systemctl stop`) or SIGINT; returns seconds taken."""
+    began = time.monotonic()
+    if how == "SIGTERM":
+        run("systemctl", "stop", "aer-raspi")
+    else:
+        run("systemctl", "kill", "-s", "SIGINT", "aer-raspi")
+        wait_for("the service to stop", lambda: not active(), 60)
+    return time.monotonic() - began
+
+
+def replay_live(log, name, want):
+    """Plays `log` at recorded speed on can0/can1 and checks every packet and frame arrived on
+    MQTT and in the store (in the rows the running session adds)."""
+    before = session_rows(store_path())
+    overflows = counters().get("can_rx_overflows", 0)
+    stored = tuple(b + w for b, w in zip(before, want))
+    sub = Subscriber(name)
+    began = time.monotonic()
+    run("canplayer", "-I", log)
+    played = time.monotonic() - began
+    wait_for(
+        "every row stored",
+        lambda: session_rows(store_path()) == stored and sub.count("telemetry ") >= want[0],
+        60,
+    )
+    sub.close()
+    got_mqtt = (sub.count("telemetry "), sub.count("can/"))
+    got_store = tuple(n - b for n, b in zip(session_rows(store_path()), before))
+    dropped = counters().get("can_rx_overflows", 0) - overflows
+    check(
+        f"{name}: every packet and frame on MQTT",
+        got_mqtt == want,
+        f"{got_mqtt} of {want}, played in {played:.1f} s, socket queue drops {dropped}",
+    )
+    check(f"{name}: every packet and frame in the store", got_store == want, f"{got_store} of {want}")
+    return sub
+
+
+def session_in(mode, want):
+    set_isotp(mode)
+    run("systemctl", "restart", "aer-raspi")
+    if not start_service():
+        return
+    before = counters()
+    replay_live(LOG, f"session-{mode}", want)
+    after = counters()
+    errors = after.get("isotp_errors", 0) - before.get("isotp_errors", 0)
+    check(f"{mode} ISO-TP: no ISO-TP errors on a clean bus", errors == 0, f"{errors}")
+    rows = session_rows(store_path())
+    took = stop("SIGTERM")
+    result = run("systemctl", "show", "-P", "Result", "aer-raspi").strip()
+    check(f"{mode} ISO-TP: SIGTERM stops it within 5 s, cleanly", took < 5 and result == "success", f"{took:.2f} s, {result}")
+    check(f"{mode} ISO-TP: nothing lost in stopping", session_rows(store_path()) == rows == want, f"{rows}")
+    if not start_service():
+        return
+    took = stop("SIGINT")
+    result = run("systemctl", "show", "-P", "Result", "aer-raspi").strip()
+    check(f"{mode} ISO-TP: SIGINT stops it within 5 s, cleanly", took < 5 and result == "success", f"{took:.2f} s, {result}")
+
+
+def interface_recreated(slice_log, want):
+    set_isotp("kernel")
+    if not start_service():
+        return
+    before = counters()
+    run("ip", "link", "del", "can0")
+    status = wait_for(
+        "can0 reported missing",
+        lambda: (s := latest("status", 5)) and s["problems"]["can"] and "can0" in s["problems"]["can"] and s,
+        30,
+    )
+    check("can0 deleted: the status names it", bool(status), status and status["problems"]["can"])
+    run("ip", "link", "add", "can0", "type", "vcan")
+    run("ip", "link", "set", "can0", "up")
+    status = wait_for("can0 reopened", lambda: (s := latest("status", 5)) and s["problems"]["can"] is None, 30)
+    check("can0 re-created: reopened, the status clear again", bool(status))
+    replay_live(slice_log, "after-recreate", want)
+    reopened = counters().get("can_reopened", 0) - before.get("can_reopened", 0)
+    check("the raw and ISO-TP sockets were reopened and counted", reopened >= 2, f"can_reopened +{reopened}")
+    stop("SIGTERM")
+
+
+def malformed_isotp(mode, slice_log, want):
+    """A consecutive frame out of sequence and a multi-frame cut short, then the CCM's traffic
+    again: each broken packet counted, every good one after them delivered."""
+    set_isotp(mode)
+    if not start_service():
+        return
+    before = counters().get("isotp_errors", 0)
+    # First frame of a 72-byte packet, then the second consecutive frame before the first.
+    run("cansend", "can0", f"{TELEMETRY_ID}#1048000102030405")
+    run("cansend", "can0", f"{TELEMETRY_ID}#2206070809101112")
+    # A first frame and then nothing: the kernel times out (N_Cr, 1 s); user space sees the
+    # next packet's first frame interrupt it.
+    run("cansend", "can0", f"{TELEMETRY_ID}#1048000102030405")
+    if mode == "kernel":
+        wait_for(
+            "the kernel's receive timeout",
+            lambda: counters().get("isotp_errors", 0) - before >= 2,
+            30,
+        )
+    replay_live(slice_log, f"after-malformed-{mode}", want)
+    errors = wait_for(
+        "the ISO-TP errors counted",
+        lambda: (n := counters().get("isotp_errors", 0) - before) >= 2 and n,
+        30,
+    )
+    check(f"{mode} ISO-TP: both malformed multi-frames counted as ISO-TP errors", errors == 2, f"isotp_errors +{errors}")
+    stop("SIGTERM")
+
+
+def flood_and_error_storm(slice_log, want):
+    """The telemetry bus flooded by cangen -g 0, then an error-frame storm, while telemetry
+    flows: the service stays up and answers, losses are counted, and it recovers fully."""
+    set_isotp("kernel")
+    if not start_service():
+        return
+    before = counters()
+    flood = subprocess.Popen(["cangen", "can0", "-g", "0", "-I", "7E5", "-L", "8", "-D", "i"])
+    sub = Subscriber("flood")
+    run("canplayer", "-I", slice_log)
+    status = latest("status", 10)
+    flood.terminate()
+    flood.wait()
+    wait_for("the backlog", lambda: (s := latest("metrics", 5)) and s["store_lag"] == 0, 60)
+    sub.close()
+    after = counters()
+    delta = {k: after.get(k, 0) - before.get(k, 0) for k in after}
+    check("flooded: the service answered throughout", active() and status is not None)
+    got = sub.count("telemetry ")
+    got_can = sub.count("can/")
+    overflows = delta.get("can_rx_overflows", 0)
+    check(
+        "flooded: every CAN message arrived or the kernel's drops were counted",
+        got_can == want[1] or (got_can < want[1] and overflows >= want[1] - got_can),
+        f"{got_can} of {want[1]} messages, {overflows} frames dropped by the full socket queue (counted)",
+    )
+    check(
+        "flooded: telemetry kept flowing, every packet arrived or its loss was counted",
+        got > 0 and got + delta.get("isotp_errors", 0) >= want[0],
+        f"{got} of {want[0]} packets, isotp_errors +{delta.get('isotp_errors', 0)}, "
+        f"frames +{delta.get('frames', 0)}, unknown ids +{delta.get('unknown_ids', 0)}, "
+        f"socket overflows +{delta.get('can_rx_overflows', 0)}, publish dropped +{delta.get('publish_dropped', 0)}",
+    )
+    storm = "/root/error-storm.log"
+    with open(storm, "w") as f:
+        for i in range(2000):
+            # CAN_ERR_FLAG | CAN_ERR_CRTL, controller problems: error passive.
+            f.write(f"({i / 1000:.6f}) can0 20000004#0000200000000000\n")
+    before = counters()
+    run("canplayer", "-t", "-I", storm)
+    frames = wait_for(
+        "the error frames counted",
+        lambda: (n := counters().get("can_error_frames", 0) - before.get("can_error_frames", 0)) >= 2000 and n,
+        30,
+    )
+    check("error-frame storm: every error frame counted", frames == 2000, f"can_error_frames +{frames}")
+    replay_live(slice_log, "after-storms", want)
+    stop("SIGTERM")
+
+
+def disk_smaller_than_floor(slice_log, want):
+    """The store on a file system smaller than the free-space floor: the session being
+    recorded keeps every row, the status says the disk is low."""
+    set_isotp("kernel")
+    floor = config()["retention"]["min_free_bytes"]
+    run("mount", "-t", "tmpfs", "-o", "size=256m,mode=0750", "tmpfs", "/var/lib/aer")
+    try:
+        run("chown", "aer:aer", "/var/lib/aer")
+        if not start_service():
+            return
+        replay_live(slice_log, "small-disk", want)
+        status = latest("status")
+        disk = status and status["problems"].get("disk")
+        check(f"a 256 MiB disk under the {floor >> 20} MiB floor: the status says the disk is low", bool(disk), disk)
+        journal = run("journalctl", "-u", "aer-raspi", "-b", "--no-pager", "-o", "cat")
+        check("and the journal", "disk low" in journal)
+        stop("SIGTERM")
+        check("the session kept every row through the stop", session_rows(store_path()) == want)
+    finally:
+        subprocess.run(["umount", "/var/lib/aer"])
+
+
+def main():
+    say(f"kernel {os.uname().release}, {run('systemctl', '--version').splitlines()[0]}")
+    modules = open("/proc/modules").read()
+    check("can-isotp loaded at boot (modules-load.d)", "can_isotp" in modules)
+    rmem_max = open("/proc/sys/net/core/rmem_max").read().strip()
+    check("CAN sockets may queue 4 MiB (sysctl.d)", rmem_max == "4194304", f"rmem_max {rmem_max}")
+    links = run("ip", "-brief", "link", "show", "type", "vcan")
+    check("can0 and can1 up (systemd-networkd)", "can0" in links and "can1" in links and "DOWN" not in links, links.replace("\n", "; "))
+    run("systemctl", "stop", "aer-raspi")
+    whole = expected(LOG)
+    short = slice_of_log(10, "first-10s")
+    part = expected(short)
+    say(f"expected from the file: the session {whole}, its first 10 s {part} (telemetry, CAN rows)")
+    session_in("kernel", whole)
+    session_in("userspace", whole)
+    interface_recreated(short, part)
+    malformed_isotp("kernel", short, part)
+    malformed_isotp("userspace", short, part)
+    flood_and_error_storm(short, part)
+    disk_smaller_than_floor(short, part)
+    journal = run("journalctl", "-u", "aer-raspi", "-b", "--no-pager", "-o", "cat")
+    check("no refused system call in the journal", "SIGSYS" not in journal and "Operation not permitted" not in journal)
+    if failures:
+        say(f"done: {len(failures)} scenario(s) failed: {'; '.join(failures)}")
+    else:
+        say("done: every scenario passed")
+
+
+if __name__ == "__main__":
+    try:
+        main()
+    except Exception as error:  # noqa: BLE001 - the console must say why it stopped
+        say(f"FAILED: the scenarios stopped: {error!r}")
+        if isinstance(error, subprocess.CalledProcessError):
+            say(f"stderr: {error.stderr}")
+        sys.exit(1)
