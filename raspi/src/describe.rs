@@ -88,13 +88,13 @@ fn json_type(ty: ColumnType) -> &'static str {
 /// The JSON Schema of a table's MCAP messages: one property per column (`ts` in seconds, as
 /// on the MQTT topics), titled with the label, described with the unit and the schema's
 /// comment; enum columns list their values and get a `<name>_label` string beside them.
-pub fn json_schema(table: &'static Table, title: &str) -> Value {
+pub(crate) fn json_schema(table: &'static Table, title: &str) -> Value {
     schema_of(table, title, columns(table))
 }
 
 /// The JSON Schema of a table's MQTT payloads, as [`json_schema`] without the columns the topic
 /// itself says (the car, the schema fingerprint): `ts`, `bus` on CAN topics, then the values.
-pub fn topic_schema(table: &'static Table, title: &str) -> Value {
+pub(crate) fn topic_schema(table: &'static Table, title: &str) -> Value {
     let described = columns(table)
         .into_iter()
         .filter(|(column, _)| column.name == "bus" || !is_tag(table, column.name))
@@ -105,7 +105,7 @@ pub fn topic_schema(table: &'static Table, title: &str) -> Value {
 /// Each MQTT topic's suffix (`telemetry`, `can/mcu1`) with the JSON Schema of its payloads,
 /// which the service publishes, retained, on `schema/<suffix>`: a subscriber finds the label,
 /// unit, description and value names of every key there, once, instead of in every payload.
-pub fn topic_schemas() -> Vec<(&'static str, Value)> {
+pub(crate) fn topic_schemas() -> Vec<(&'static str, Value)> {
     TABLES
         .iter()
         .zip(aer::mqtt::SUFFIXES)

@@ -5,7 +5,7 @@ use std::path::Path;
 /// Bytes an unprivileged writer can still use on the file system holding `path` (its folder
 /// if `path` does not exist yet); `None` if it cannot be read.
 #[cfg(unix)]
-pub fn free_bytes(path: &Path) -> Option<u64> {
+pub(crate) fn free_bytes(path: &Path) -> Option<u64> {
     let probe = if path.exists() {
         path
     } else {
@@ -17,7 +17,7 @@ pub fn free_bytes(path: &Path) -> Option<u64> {
 
 /// Not known off Unix: the floor is then never the reason to prune.
 #[cfg(not(unix))]
-pub fn free_bytes(_: &Path) -> Option<u64> {
+pub(crate) fn free_bytes(_: &Path) -> Option<u64> {
     None
 }
 

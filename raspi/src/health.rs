@@ -20,7 +20,7 @@ impl PartHealth {
     }
 
     /// The part works; true if it was failing until now.
-    pub fn recovered(&self) -> bool {
+    pub(crate) fn recovered(&self) -> bool {
         self.error
             .lock()
             .is_ok_and(|mut slot| slot.take().is_some())
@@ -47,7 +47,7 @@ impl BusHealth {
     }
 
     /// `interface` works.
-    pub fn recovered(&self, interface: &str) {
+    pub(crate) fn recovered(&self, interface: &str) {
         if let Ok(mut errors) = self.errors.lock() {
             errors.remove(interface);
         }

@@ -35,12 +35,12 @@ use tracing::{info, warn};
 pub const DEMO_LOG: &str = include_str!("../data/session.log");
 
 /// The repository's session log, as `cargo xtask session-log` rewrites it.
-pub const DEMO_LOG_PATH: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/data/session.log");
+pub(crate) const DEMO_LOG_PATH: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/data/session.log");
 
 /// The session the demo replays and where it came from: the repository's file, read now, so a
 /// log just re-recorded with `cargo xtask session-log` plays without rebuilding; the compiled-in
 /// copy where there is no repository (an installed service).
-pub fn demo_log() -> (String, String) {
+pub(crate) fn demo_log() -> (String, String) {
     match std::fs::read_to_string(DEMO_LOG_PATH) {
         Ok(text) => (text, DEMO_LOG_PATH.to_owned()),
         Err(_) => (
@@ -65,7 +65,7 @@ pub enum Job {
 
 impl Job {
     /// What the session records as its source.
-    pub fn source_name(&self) -> &'static str {
+    pub(crate) fn source_name(&self) -> &'static str {
         match self {
             Self::Live => "live",
             Self::Replay { .. } => "replay",

@@ -172,7 +172,7 @@ pub struct Broker {
 }
 
 /// Client ids the service uses; the gate refuses them to clients.
-pub const SERVICE_IDS: &str = "aer-raspi";
+pub(crate) const SERVICE_IDS: &str = "aer-raspi";
 
 /// The broker and its gate as the service runs them, with the topic root `aer/` protected
 /// (tests and benchmarks; the service derives the root from its configuration).
@@ -298,7 +298,7 @@ pub mod nodelay {
     /// Sets TCP_NODELAY on the listening sockets of this process bound to `addresses`, retrying
     /// until all are found or `patience` runs out (the broker binds on its own thread). Returns
     /// how many were set.
-    pub fn wait_and_set(addresses: &[SocketAddr], patience: Duration) -> usize {
+    pub(crate) fn wait_and_set(addresses: &[SocketAddr], patience: Duration) -> usize {
         let deadline = Instant::now() + patience;
         loop {
             let set = set_on_listeners(addresses);
@@ -319,7 +319,7 @@ pub mod nodelay {
 
     /// One pass over this process's open files.
     #[cfg(target_os = "linux")]
-    pub fn set_on_listeners(addresses: &[SocketAddr]) -> usize {
+    pub(crate) fn set_on_listeners(addresses: &[SocketAddr]) -> usize {
         let Ok(entries) = std::fs::read_dir("/proc/self/fd") else {
             return 0;
         };
@@ -332,7 +332,7 @@ pub mod nodelay {
 
     /// Elsewhere the listeners keep the system's default.
     #[cfg(not(target_os = "linux"))]
-    pub fn set_on_listeners(_: &[SocketAddr]) -> usize {
+    pub(crate) fn set_on_listeners(_: &[SocketAddr]) -> usize {
         0
     }
 

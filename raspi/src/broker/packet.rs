@@ -5,10 +5,10 @@
 use thiserror::Error;
 
 /// The largest packet the gate passes (the broker's own limit is lower).
-pub const MAX_PACKET: usize = 1 << 20;
+pub(crate) const MAX_PACKET: usize = 1 << 20;
 
-pub const CONNECT: u8 = 1;
-pub const PUBLISH: u8 = 3;
+pub(crate) const CONNECT: u8 = 1;
+pub(crate) const PUBLISH: u8 = 3;
 
 /// Why bytes are not the MQTT the gate accepts.
 #[derive(Debug, Clone, PartialEq, Eq, Error)]
@@ -184,7 +184,7 @@ impl Connect {
 }
 
 /// A PUBLISH packet's topic.
-pub fn publish_topic(packet: &[u8]) -> Result<String, PacketError> {
+pub(crate) fn publish_topic(packet: &[u8]) -> Result<String, PacketError> {
     Reader {
         bytes: body(packet)?,
         pos: 0,

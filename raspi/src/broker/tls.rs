@@ -16,7 +16,7 @@ pub struct Files {
 }
 
 /// An acceptor presenting `files`' certificate.
-pub fn acceptor(files: &Files) -> Result<TlsAcceptor> {
+pub(crate) fn acceptor(files: &Files) -> Result<TlsAcceptor> {
     let certs = CertificateDer::pem_file_iter(&files.cert)
         .and_then(|certs| certs.collect::<Result<Vec<_>, _>>())
         .with_context(|| format!("reading the certificate {}", files.cert.display()))?;

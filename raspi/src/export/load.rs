@@ -104,7 +104,7 @@ impl TableData {
     }
 
     /// The `ts` column (microseconds since the epoch).
-    pub fn timestamps(&self) -> &[Option<i64>] {
+    pub(crate) fn timestamps(&self) -> &[Option<i64>] {
         let ts = self.table.tags.len();
         match self.values.get(ts) {
             Some(Values::Int(v)) => v,

@@ -69,7 +69,11 @@ pub fn advance(db: &Connection, table: usize, last_id: i64) -> rusqlite::Result<
 }
 
 /// Records rows of `table` TDengine refused, with its reason; the rows stay in the store.
-pub fn set_aside(db: &Connection, table: usize, rows: &[(i64, String)]) -> rusqlite::Result<()> {
+pub(crate) fn set_aside(
+    db: &Connection,
+    table: usize,
+    rows: &[(i64, String)],
+) -> rusqlite::Result<()> {
     let Some(local) = TABLES.get(table) else {
         return Ok(());
     };

@@ -11,7 +11,8 @@ pub mod cursor;
 pub mod sql;
 
 pub use batch::{Destination, Sent};
-pub use cursor::{Batch, advance, next_batch, set_aside};
+use cursor::set_aside;
+pub use cursor::{Batch, advance, next_batch};
 
 use self::sql::Mapping;
 use crate::config::TdengineConfig;
@@ -37,7 +38,7 @@ const IDLE: Duration = Duration::from_millis(200);
 /// The SQL that prepares a database for this schema: the database (microsecond timestamps,
 /// the configured options) and every super table, qualified with the database name (a
 /// WebSocket connection has no current database).
-pub fn schema_statements(config: &TdengineConfig) -> Vec<String> {
+pub(crate) fn schema_statements(config: &TdengineConfig) -> Vec<String> {
     let database = &config.database;
     let mut statements = vec![format!(
         "CREATE DATABASE IF NOT EXISTS `{database}` PRECISION 'us' {}",
@@ -294,7 +295,7 @@ impl Worker<'_> {
 
 /// `dsn` (or a message quoting it) without credentials: the password in `user:password@`
 /// and any `token=` or `password=` parameter become `***`.
-pub fn redact(text: &str) -> String {
+pub(crate) fn redact(text: &str) -> String {
     let mut out = String::with_capacity(text.len());
     let mut rest = text;
     while let Some(at) = rest.find("://") {

@@ -7,7 +7,7 @@ use rusqlite::types::Value as Sql;
 use std::fmt::Write as _;
 
 /// TDengine refuses statements over 1 MB; stay well below.
-pub const MAX_STATEMENT_BYTES: usize = 900 * 1024;
+pub(crate) const MAX_STATEMENT_BYTES: usize = 900 * 1024;
 
 /// The literal for `value` in a column of type `ty`.
 pub fn literal(value: &Sql, ty: ColumnType) -> String {
@@ -25,7 +25,7 @@ pub fn literal(value: &Sql, ty: ColumnType) -> String {
 }
 
 /// A quoted string literal; backslashes and quotes escaped.
-pub fn quote(text: &str) -> String {
+pub(crate) fn quote(text: &str) -> String {
     let mut quoted = String::with_capacity(text.len() + 2);
     quoted.push('\'');
     for c in text.chars() {
@@ -68,7 +68,7 @@ impl Mapping {
 
     /// `INSERT` statements for `rows` (local rows without `id`), each under
     /// [`MAX_STATEMENT_BYTES`], grouped by sub-table.
-    pub fn inserts(&self, rows: &[Vec<Sql>]) -> Vec<String> {
+    pub(crate) fn inserts(&self, rows: &[Vec<Sql>]) -> Vec<String> {
         let database = &self.database;
         let columns: Vec<String> = self
             .table

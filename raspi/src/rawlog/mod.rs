@@ -51,7 +51,7 @@ impl RawTap {
     }
 
     /// Bus `index` is the interface `name` from now on.
-    pub fn name_bus(&mut self, index: u8, name: &Arc<str>) {
+    pub(crate) fn name_bus(&mut self, index: u8, name: &Arc<str>) {
         let index = usize::from(index);
         if self.buses.len() <= index {
             self.buses.resize(index + 1, Arc::from(""));

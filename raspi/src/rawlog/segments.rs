@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 /// Segment files end with this.
-pub const EXTENSION: &str = "aerraw";
+pub(crate) const EXTENSION: &str = "aerraw";
 
 /// The raw log's budget.
 #[derive(Debug, Clone, PartialEq)]

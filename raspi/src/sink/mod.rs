@@ -18,7 +18,7 @@ pub trait Sink: Send {
 }
 
 /// The name of bus number `bus` (`bus<N>` for a number no source announced).
-pub fn bus_name(buses: &[Arc<str>], bus: u8) -> Arc<str> {
+pub(crate) fn bus_name(buses: &[Arc<str>], bus: u8) -> Arc<str> {
     buses
         .get(usize::from(bus))
         .cloned()

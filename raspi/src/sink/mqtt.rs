@@ -288,7 +288,7 @@ impl Publisher {
     }
 
     /// Sends everything queued, then disconnects ([`drive`] then ends).
-    pub async fn disconnect(&self) {
+    pub(crate) async fn disconnect(&self) {
         match &self.connection {
             Connection::Remote(client) => {
                 let _ = client.disconnect().await;

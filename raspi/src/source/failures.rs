@@ -5,7 +5,7 @@
 use std::time::{Duration, Instant};
 
 /// How often a failure that goes on is reported again.
-pub const REPORT_EVERY: Duration = Duration::from_secs(60);
+pub(crate) const REPORT_EVERY: Duration = Duration::from_secs(60);
 
 /// Failures of one retried operation since it last worked.
 #[derive(Debug)]
@@ -45,7 +45,7 @@ impl Failures {
 
     /// It works again: returns how many failures there were, if any (to report the
     /// recovery), and starts afresh, so the next failure is reported at once.
-    pub fn recovered(&mut self) -> Option<u64> {
+    pub(crate) fn recovered(&mut self) -> Option<u64> {
         let total = self.total;
         *self = Self::new(self.every);
         (total > 0).then_some(total)

@@ -35,7 +35,7 @@ pub enum Input {
 pub type Batch = Vec<Input>;
 
 /// Inputs a batch holds before it is sent.
-pub const BATCH: usize = 256;
+pub(crate) const BATCH: usize = 256;
 /// Batches that may wait for ingest before a source waits in turn.
 const QUEUED_BATCHES: usize = 16;
 

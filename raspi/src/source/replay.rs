@@ -24,7 +24,7 @@ pub struct ReplayOptions {
 
 impl ReplayOptions {
     /// Flat out with the recorded timestamps (tests, benchmarks).
-    pub const FAST: Self = Self {
+    pub(crate) const FAST: Self = Self {
         fast: true,
         restamp: false,
     };
@@ -98,7 +98,7 @@ impl Pacer {
 /// Replays a raw log segment (`data`, its whole bytes) into `out` until its end, `cancel`, or
 /// nothing downstream listening. Damaged or cut-short blocks are counted (`bad_lines`),
 /// logged and skipped.
-pub async fn replay_segment(
+pub(crate) async fn replay_segment(
     data: &[u8],
     out: Sender,
     counters: &Counters,

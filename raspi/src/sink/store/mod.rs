@@ -18,7 +18,7 @@ pub mod writer;
 pub use queue::{RowSender, WhenFull};
 pub use retention::{Budget, Retention};
 pub use row::{Row, RowData};
-pub use schema::{CURSOR_TABLE, SET_ASIDE_TABLE, StoreError, open, open_or_recover};
+pub use schema::{StoreError, open, open_or_recover};
 pub use writer::{StoreWriter, WriterOptions};
 
 use super::Sink;

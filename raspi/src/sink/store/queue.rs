@@ -13,11 +13,11 @@ use tracing::warn;
 /// Rows per transaction at most, and the longest a row waits for its transaction: one commit
 /// a second writes each table's last page once a second instead of ten times (the main
 /// cause of the store's write amplification).
-pub const BATCH_ROWS: usize = 20_000;
-pub const BATCH_WAIT: Duration = Duration::from_secs(1);
+pub(crate) const BATCH_ROWS: usize = 20_000;
+pub(crate) const BATCH_WAIT: Duration = Duration::from_secs(1);
 /// Rows that may wait for the writer (two minutes of the car's traffic) before new ones are
 /// dropped.
-pub const QUEUE_ROWS: usize = 65_536;
+pub(crate) const QUEUE_ROWS: usize = 65_536;
 
 /// What a sender does when the queue is full.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -155,7 +155,7 @@ impl Queue {
     }
 
     /// The writer's commits fail (`true`) or work again: waiting senders stop waiting.
-    pub fn set_failing(&self, failing: bool) {
+    pub(crate) fn set_failing(&self, failing: bool) {
         self.failing.store(failing, Ordering::Relaxed);
         if failing {
             self.emptied.notify_all();
@@ -163,14 +163,14 @@ impl Queue {
     }
 
     /// True once every sender is gone (the service is stopping).
-    pub fn is_closed(&self) -> bool {
+    pub(crate) fn is_closed(&self) -> bool {
         self.state
             .lock()
             .map_or(true, |pending| pending.senders == 0)
     }
 
     /// Waits up to `timeout`, returning early once every sender is gone.
-    pub fn wait_closed(&self, timeout: Duration) {
+    pub(crate) fn wait_closed(&self, timeout: Duration) {
         let Ok(pending) = self.state.lock() else {
             return;
         };

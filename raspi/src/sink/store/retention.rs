@@ -82,7 +82,7 @@ impl Retention {
 
     /// Prunes if the interval has passed since the last check; reports a disk that stays low
     /// on `health` (and once in the journal).
-    pub fn maybe_prune(&mut self, db: &Connection, counters: &Counters, health: &Health) {
+    pub(crate) fn maybe_prune(&mut self, db: &Connection, counters: &Counters, health: &Health) {
         if self
             .last
             .is_some_and(|last| last.elapsed() < self.budget.interval)

@@ -43,10 +43,10 @@ pub enum StoreError {
 }
 
 /// The forwarder's persisted position per table.
-pub const CURSOR_TABLE: &str = "CREATE TABLE IF NOT EXISTS \"forward_cursor\" (\"table_name\" TEXT PRIMARY KEY, \"last_id\" INTEGER NOT NULL)";
+pub(crate) const CURSOR_TABLE: &str = "CREATE TABLE IF NOT EXISTS \"forward_cursor\" (\"table_name\" TEXT PRIMARY KEY, \"last_id\" INTEGER NOT NULL)";
 
 /// Rows TDengine refused, kept here (not forwarded again) with TDengine's reason.
-pub const SET_ASIDE_TABLE: &str = "CREATE TABLE IF NOT EXISTS \"forward_set_aside\" (\"table_name\" TEXT NOT NULL, \"row_id\" INTEGER NOT NULL, \"error\" TEXT NOT NULL, \"at_us\" INTEGER NOT NULL, PRIMARY KEY (\"table_name\", \"row_id\"))";
+pub(crate) const SET_ASIDE_TABLE: &str = "CREATE TABLE IF NOT EXISTS \"forward_set_aside\" (\"table_name\" TEXT NOT NULL, \"row_id\" INTEGER NOT NULL, \"error\" TEXT NOT NULL, \"at_us\" INTEGER NOT NULL, PRIMARY KEY (\"table_name\", \"row_id\"))";
 
 /// Opens (creating if needed) the store at `path` and brings its tables up to this schema:
 /// missing tables are created, missing columns added. Fails at once if the path is not
@@ -88,7 +88,7 @@ pub fn open(path: &Path) -> Result<Connection, StoreError> {
 
 /// Creates the generated tables (adding columns an older store lacks), the forwarder's and
 /// the sessions' tables.
-pub fn create_tables(db: &Connection) -> rusqlite::Result<()> {
+pub(crate) fn create_tables(db: &Connection) -> rusqlite::Result<()> {
     for table in TABLES {
         db.execute(table.sqlite.create, [])?;
         // Stores from before 2026-11 indexed `ts`; the index cost a page write per table per

@@ -11,10 +11,10 @@ use rusqlite::{Connection, OptionalExtension, params};
 use serde::Deserialize;
 
 /// One row per session.
-pub const SESSIONS_TABLE: &str = "CREATE TABLE IF NOT EXISTS \"sessions\" (\"id\" INTEGER PRIMARY KEY, \"started_us\" INTEGER NOT NULL, \"ended_us\" INTEGER, \"source\" TEXT NOT NULL, \"driver\" TEXT NOT NULL DEFAULT '', \"track\" TEXT NOT NULL DEFAULT '', \"run\" INTEGER, \"notes\" TEXT NOT NULL DEFAULT '')";
+pub(crate) const SESSIONS_TABLE: &str = "CREATE TABLE IF NOT EXISTS \"sessions\" (\"id\" INTEGER PRIMARY KEY, \"started_us\" INTEGER NOT NULL, \"ended_us\" INTEGER, \"source\" TEXT NOT NULL, \"driver\" TEXT NOT NULL DEFAULT '', \"track\" TEXT NOT NULL DEFAULT '', \"run\" INTEGER, \"notes\" TEXT NOT NULL DEFAULT '')";
 
 /// Each session's rows: per table, the first and last row id committed while it was open.
-pub const SESSION_ROWS_TABLE: &str = "CREATE TABLE IF NOT EXISTS \"session_rows\" (\"session_id\" INTEGER NOT NULL, \"table_name\" TEXT NOT NULL, \"first_id\" INTEGER NOT NULL, \"last_id\" INTEGER NOT NULL, PRIMARY KEY (\"session_id\", \"table_name\"))";
+pub(crate) const SESSION_ROWS_TABLE: &str = "CREATE TABLE IF NOT EXISTS \"session_rows\" (\"session_id\" INTEGER NOT NULL, \"table_name\" TEXT NOT NULL, \"first_id\" INTEGER NOT NULL, \"last_id\" INTEGER NOT NULL, PRIMARY KEY (\"session_id\", \"table_name\"))";
 
 /// What the pit records about a session. Every key is optional.
 #[derive(Debug, Clone, Default, PartialEq, Eq, Deserialize)]
@@ -156,7 +156,7 @@ pub fn list(db: &Connection) -> rusqlite::Result<Vec<Session>> {
 
 /// Records that rows `first_id..=last_id` of `table` were committed while session `id` was
 /// open (widening what is already recorded).
-pub fn record_rows(
+pub(crate) fn record_rows(
     db: &Connection,
     id: i64,
     table: &str,

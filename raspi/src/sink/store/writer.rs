@@ -24,10 +24,9 @@ const RETRY_MAX: Duration = Duration::from_secs(30);
 /// it holds (counted as dropped; the raw log has their frames).
 const STOP_GRACE: Duration = Duration::from_secs(3);
 
-/// The writer thread and its queue.
+/// The writer thread, and the sender it keeps until it finishes.
 pub struct StoreWriter {
     sender: Option<RowSender>,
-    queue: Arc<Queue>,
     thread: Option<JoinHandle<()>>,
 }
 
@@ -59,7 +58,7 @@ impl StoreWriter {
         );
         let writer = Writer {
             db,
-            queue: queue.clone(),
+            queue,
             counters,
             health: options.health,
             retention: options.retention,
@@ -71,7 +70,6 @@ impl StoreWriter {
             .ok();
         Self {
             sender: Some(sender),
-            queue,
             thread,
         }
     }
@@ -79,11 +77,6 @@ impl StoreWriter {
     /// A handle producers send rows with.
     pub fn sender(&self) -> Option<RowSender> {
         self.sender.clone()
-    }
-
-    /// Rows waiting for the writer.
-    pub fn backlog(&self) -> usize {
-        self.queue.len()
     }
 
     /// Writes every queued row and stops the writer, once every other sender is dropped. A
