@@ -16,10 +16,6 @@ out=$(realpath "${1:-target/pi-package}")
 root=${2:-target/pi-boot-root}
 bash tools/debian_root.sh "$root"
 
-# nspawn keeps its mount propagation folder in /run and refuses to clean one that is not on
-# a tmpfs, which /run is not on every build machine.
-mkdir -p /run/systemd/nspawn
-[ "$(stat -fc %T /run/systemd/nspawn)" = tmpfs ] || mount -t tmpfs tmpfs /run/systemd/nspawn
 # No system bus outside: no machine registration, no scope of its own.
 nspawn=(systemd-nspawn --quiet --keep-unit --register=no -D "$root")
 

@@ -23,9 +23,6 @@ console=target/virtual-pi.console
 bash tools/debian_root.sh "$base"
 rm -rf "$root"
 cp -a "$base" "$root"
-
-mkdir -p /run/systemd/nspawn
-[ "$(stat -fc %T /run/systemd/nspawn)" = tmpfs ] || mount -t tmpfs tmpfs /run/systemd/nspawn
 nspawn=(systemd-nspawn --quiet --keep-unit --register=no -D "$root")
 
 echo "--- install: Debian's kernel, can-utils, mosquitto-clients, the packages"
