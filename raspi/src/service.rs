@@ -31,7 +31,7 @@ use tracing::{info, warn};
 
 /// The session the demo replays: recorded from the closed-loop car model with the CCM's own
 /// logic, telemetry packer and ISO-TP sender (`cargo xtask session-log`). This copy is compiled
-/// in, for an installed service; [`demo_log`] prefers the repository's file.
+/// in, for an installed service; `demo_log` prefers the repository's file.
 pub const DEMO_LOG: &str = include_str!("../data/session.log");
 
 /// The repository's session log, as `cargo xtask session-log` rewrites it.

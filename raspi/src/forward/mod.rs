@@ -4,7 +4,7 @@
 //! timestamps (TDengine keeps one row per timestamp and sub-table), so nothing is duplicated.
 //! Rows TDengine refuses while it is up are found by splitting the batch ([`batch`]), set
 //! aside in the store with the reason, and counted; they never stall the rows after them.
-//! The DSN's credentials never reach the log ([`redact`]).
+//! The DSN's credentials never reach the log (`redact`).
 
 pub mod batch;
 pub mod cursor;

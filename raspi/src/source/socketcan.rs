@@ -1,15 +1,15 @@
-//! Live SocketCAN: every configured interface is read (and reopened with a 1 s backoff when
-//! missing or failing; the log says so at once, then once a minute, and the status names the
-//! interface until it works). A socket is bound to an interface index, and a CAN socket whose
-//! interface is deleted blocks for ever without an error (a USB adapter replugged, a CAN hat's
-//! driver reloaded: the new interface has a new index), so every reader checks the index
-//! behind its interface's name each [`WATCH`] and reopens when it changed; each reopening is
-//! counted (`can_reopened`). Error frames (bus errors, error passive, bus off) are counted
-//! (`can_error_frames`), never decoded. Frames the kernel drops because a socket's receive
-//! queue is full (a flooded bus, a reader behind) are counted too (`can_rx_overflows`, from
-//! the socket's `SO_MEMINFO`), so no loss between the wire and the service goes unseen. With kernel ISO-TP the telemetry arrives as whole packets from the
-//! can-isotp socket (which sends the flow control itself); otherwise ingest reassembles it
-//! from raw frames and its flow control goes out through this source's bus writer
+//! Live SocketCAN: every configured interface is read (and reopened with a 1 s backoff when missing
+//! or failing; the log says so at once, then once a minute, and the status names the interface
+//! until it works). A socket is bound to an interface index, and a CAN socket whose interface is
+//! deleted blocks for ever without an error (a USB adapter replugged, a CAN hat's driver reloaded:
+//! the new interface has a new index), so every reader checks the index behind its interface's name
+//! each `WATCH` (250 ms) and reopens when it changed; each reopening is counted (`can_reopened`).
+//! Error frames (bus errors, error passive, bus off) are counted (`can_error_frames`), never
+//! decoded. Frames the kernel drops because a socket's receive queue is full (a flooded bus, a
+//! reader behind) are counted too (`can_rx_overflows`, from the socket's `SO_MEMINFO`), so no loss
+//! between the wire and the service goes unseen. With kernel ISO-TP the telemetry arrives as whole
+//! packets from the can-isotp socket (which sends the flow control itself); otherwise ingest
+//! reassembles it from raw frames and its flow control goes out through this source's bus writer
 //! ([`Replies`]).
 
 use super::failures::{Failures, REPORT_EVERY};

@@ -31,7 +31,7 @@ pub enum WhenFull {
 
 /// Rows waiting for the writer. Producers wake the writer only when a batch is full, so a busy
 /// pipeline costs one wake-up per batch, not one per row; otherwise the writer takes what is
-/// there every [`BATCH_WAIT`].
+/// there every `BATCH_WAIT`.
 pub struct Queue {
     state: Mutex<Pending>,
     /// Signals the writer: a full batch, or the last sender gone.
@@ -141,7 +141,7 @@ impl Queue {
     }
 
     /// Waits until a batch is full, every sender is gone, or `wait` passed, then moves up to
-    /// [`BATCH_ROWS`] waiting rows into `batch` (which must be empty). Returns whether any
+    /// `BATCH_ROWS` waiting rows into `batch` (which must be empty). Returns whether any
     /// sender is left, or `None` if a producer panicked holding the lock.
     pub fn take(&self, batch: &mut Vec<Row>, wait: Duration) -> Option<bool> {
         let mut pending = self.state.lock().ok()?;

@@ -37,7 +37,7 @@ pub struct WriterOptions {
     pub retention: Option<Retention>,
     /// Where the writer reports failures.
     pub health: Arc<Health>,
-    /// Rows that may wait (default [`QUEUE_ROWS`]).
+    /// Rows that may wait (default `QUEUE_ROWS`).
     pub queue_rows: Option<usize>,
     /// What senders do when that many wait.
     pub when_full: WhenFull,
