@@ -194,6 +194,7 @@ fn kernel_isotp(
             match socket.read() {
                 Ok(packet) => {
                     if let Some(attempts) = failures.recovered() {
+                        health.can.recovered(&part);
                         info!(interface = %name, failed_attempts = attempts, "ISO-TP telemetry arriving again");
                     }
                     let input = Input::Packet {
@@ -220,6 +221,11 @@ fn kernel_isotp(
                         warn!(interface = %name, error = %err, count, "ISO-TP packet dropped by the kernel");
                     }
                 }
+                // The link went down (an administrator, systemd-networkd reconfiguring it):
+                // the socket stays bound and reads again once it is up.
+                Err(err) if err.raw_os_error() == Some(libc::ENETDOWN) => {
+                    link_down(&part, &err, health, &mut failures);
+                }
                 Err(err) => break err.to_string(),
             }
         };
@@ -228,6 +234,17 @@ fn kernel_isotp(
             error!(interface = %name, %error, attempts, "ISO-TP read failed; reopening every second");
         }
         sleep_unless_cancelled(RETRY, cancel);
+    }
+}
+
+/// A socket's link went down: reported (the status names it until frames come again), not
+/// reopened. Reopening would lose a second of traffic each time systemd-networkd or an
+/// administrator takes the link down and up, and the socket reads again by itself.
+fn link_down(part: &str, err: &std::io::Error, health: &Health, failures: &mut Failures) {
+    let error = err.to_string();
+    health.can.failed(part, &error);
+    if let Some(attempts) = failures.failed(Instant::now()) {
+        warn!(interface = %part, %error, attempts, "CAN link down; reading on when it is up");
     }
 }
 
@@ -371,6 +388,7 @@ async fn read_bus(
                     }
                     Ok(frame) => {
                         if let Some(attempts) = failures.recovered() {
+                            health.can.recovered(&name);
                             info!(interface = %name, failed_attempts = attempts, "CAN frames arriving again");
                         }
                         let logged = LoggedFrame::new(now_us(), bus, frame.id(), frame.data());
@@ -379,6 +397,9 @@ async fn read_bus(
                                 return;
                             }
                         }
+                    }
+                    Err(err) if err.raw_os_error() == Some(libc::ENETDOWN) => {
+                        link_down(&name, &err, &health, &mut failures);
                     }
                     Err(err) => break err.to_string(),
                 },
