@@ -285,7 +285,7 @@ fn the_raw_log_keeps_every_frame_and_reads_back_as_the_log() {
     let health = Arc::new(Health::default());
     let settings = Settings {
         dir: dir.path().join("raw"),
-        segment_bytes: 256 * 1024,
+        segment_bytes: 64 * 1024,
         segment_age: Duration::from_secs(3_600),
         sync_every: Duration::from_millis(100),
         budget: segments::Budget {
@@ -307,9 +307,21 @@ fn the_raw_log_keeps_every_frame_and_reads_back_as_the_log() {
     let snapshot = counters.snapshot();
     assert_eq!(snapshot.raw_frames, stats.frames);
     assert_eq!(snapshot.raw_dropped, 0);
-    // Several segments (256 KiB each), which together are the log, line for line.
+    // Several segments (64 KiB each), which together are the log, line for line.
     let segments = segments::list(&dir.path().join("raw"));
     assert!(segments.len() > 3, "{} segments", segments.len());
+    // Compressed: what keeps a season on the card (docs/pi-service.md, "Disk budget").
+    let bytes: u64 = segments.iter().map(|(_, len)| len).sum();
+    eprintln!(
+        "raw log: {bytes} bytes for {} frames ({:.2} per frame)",
+        stats.frames,
+        bytes as f64 / stats.frames as f64
+    );
+    assert!(
+        bytes < stats.frames * 4,
+        "{bytes} bytes for {} frames",
+        stats.frames
+    );
     let mut lines = Vec::new();
     for (path, _) in &segments {
         let data = std::fs::read(path).expect("segment");

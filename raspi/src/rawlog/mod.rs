@@ -21,9 +21,10 @@ use tracing::warn;
 /// A block is handed to the writer once it holds this many bytes (or at the next flush).
 const BLOCK_BYTES: usize = 32 * 1024;
 
-/// A block on its way to the writer: its bytes and how many frames it holds.
+/// A block on its way to the writer: its payload (not yet compressed: the writer joins
+/// blocks and compresses them together) and how many frames it holds.
 pub struct Block {
-    pub bytes: Vec<u8>,
+    pub payload: Vec<u8>,
     pub frames: u64,
 }
 
@@ -86,7 +87,7 @@ impl RawTap {
             return;
         }
         let block = Block {
-            bytes: block.finish(),
+            payload: block.into_payload(),
             frames,
         };
         match self.blocks.try_send(block) {

@@ -1,6 +1,8 @@
-//! The raw log's writer thread: appends blocks to the current segment, starts a new segment by
-//! size or age (and after a failure), syncs to disk every second, and keeps the folder within
-//! its budget. A write that fails (disk full, read-only, I/O error) drops that block, counts
+//! The raw log's writer thread: joins the blocks ingest hands it for up to a second (or
+//! 256 KiB), compresses them as one block and appends it to the current segment, starts a new
+//! segment by size or age (and after a failure), syncs to disk every second, and keeps the
+//! folder within its budget. Joining is what makes compression pay: ingest hands over a block
+//! per batch it reads, often a few hundred bytes, and zstd needs kilobytes of context. A write that fails (disk full, read-only, I/O error) drops that block, counts
 //! its frames, reports the error, and the next segment is tried after a backoff.
 
 use super::Block;
@@ -8,7 +10,7 @@ use super::segments::{self, Budget};
 use crate::health::Health;
 use aer_host::clock::now_us;
 use aer_host::counters::{Counters, worth_logging};
-use aer_host::rawlog::MAGIC;
+use aer_host::rawlog::{MAGIC, join, seal};
 use std::fs::File;
 use std::io::Write;
 use std::path::PathBuf;
@@ -19,8 +21,10 @@ use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 use tracing::{error, info};
 
-/// Blocks (32 KiB each) that may wait for the disk: 8 MiB, about five minutes of the car.
+/// Blocks (up to 32 KiB each) that may wait for the writer.
 const QUEUE_BLOCKS: usize = 256;
+/// Joined blocks are compressed and written once they hold this much (or are a second old).
+const JOIN_BYTES: usize = 256 * 1024;
 /// Backoff after a failed write: 1 s doubling to 30 s.
 const RETRY_START: Duration = Duration::from_secs(1);
 const RETRY_MAX: Duration = Duration::from_secs(30);
@@ -35,7 +39,8 @@ pub struct Settings {
     pub segment_bytes: u64,
     /// ... or is this old.
     pub segment_age: Duration,
-    /// Written data reaches the disk at least this often (what a power cut can lose).
+    /// Frames are written within this time of arriving and reach the disk within this time of
+    /// being written: a power cut loses at most twice this.
     pub sync_every: Duration,
     pub budget: Budget,
 }
@@ -60,6 +65,7 @@ impl RawWriter {
             counters,
             health,
             segment: None,
+            pending: None,
             retry_at: None,
             backoff: RETRY_START,
             pruned_at: None,
@@ -93,8 +99,16 @@ struct Segment {
     synced_at: Instant,
 }
 
+/// Blocks joined, waiting to be compressed and written.
+struct Pending {
+    payload: Vec<u8>,
+    frames: u64,
+    since: Instant,
+}
+
 struct Writer {
     settings: Settings,
+    pending: Option<Pending>,
     /// When this run began: its segments are never removed for the free-space floor.
     started_us: u64,
     counters: Arc<Counters>,
@@ -110,24 +124,44 @@ impl Writer {
     fn run(mut self, blocks: &Receiver<Block>) {
         loop {
             match blocks.recv_timeout(self.settings.sync_every) {
-                Ok(block) => self.append(block),
+                Ok(block) => self.take(block),
                 Err(RecvTimeoutError::Timeout) => {}
                 Err(RecvTimeoutError::Disconnected) => break,
             }
             self.maintain();
         }
+        self.write_pending();
         self.close();
     }
 
-    fn append(&mut self, block: Block) {
-        let result = match self.segment_for(block.bytes.len() as u64) {
-            Some(segment) => segment.file.write_all(&block.bytes).map(|()| {
-                segment.bytes += block.bytes.len() as u64;
+    /// Joins `block` to what waits; writes it all once there is enough.
+    fn take(&mut self, block: Block) {
+        let pending = self.pending.get_or_insert_with(|| Pending {
+            payload: Vec::with_capacity(JOIN_BYTES + 32 * 1024),
+            frames: 0,
+            since: Instant::now(),
+        });
+        join(&mut pending.payload, &block.payload);
+        pending.frames += block.frames;
+        if pending.payload.len() >= JOIN_BYTES {
+            self.write_pending();
+        }
+    }
+
+    /// Compresses what waits into one block and appends it.
+    fn write_pending(&mut self) {
+        let Some(pending) = self.pending.take() else {
+            return;
+        };
+        let block = seal(&pending.payload);
+        let result = match self.segment_for(block.len() as u64) {
+            Some(segment) => segment.file.write_all(&block).map(|()| {
+                segment.bytes += block.len() as u64;
                 segment.unsynced = true;
             }),
             None => {
                 // Still backing off after a failure.
-                self.dropped(block.frames);
+                self.dropped(pending.frames);
                 return;
             }
         };
@@ -135,14 +169,14 @@ impl Writer {
             Ok(()) => {
                 self.counters
                     .raw_frames
-                    .fetch_add(block.frames, Ordering::Relaxed);
+                    .fetch_add(pending.frames, Ordering::Relaxed);
                 if self.health.raw_log.recovered() {
                     info!("raw log writes again");
                 }
                 self.backoff = RETRY_START;
             }
             Err(error) => {
-                self.dropped(block.frames);
+                self.dropped(pending.frames);
                 self.failed(&error);
             }
         }
@@ -190,9 +224,16 @@ impl Writer {
         })
     }
 
-    /// Syncs what is due, prunes when due.
+    /// Writes, syncs and prunes what is due.
     fn maintain(&mut self) {
         let sync_every = self.settings.sync_every;
+        if self
+            .pending
+            .as_ref()
+            .is_some_and(|pending| pending.since.elapsed() >= sync_every)
+        {
+            self.write_pending();
+        }
         let sync = self
             .segment
             .as_mut()
