@@ -75,6 +75,10 @@ counters! {
     store_errors,
     /// Rows removed from the store to keep it within its budget.
     pruned_rows,
+    /// Rows of closed sessions compacted into the store's compressed blocks.
+    compacted_rows,
+    /// Compacted blocks that did not decode when read (their rows are not forwarded).
+    damaged_blocks,
     /// Frames written to the raw log.
     raw_frames,
     /// Frames the raw log could not keep (writer behind, disk full or failing).

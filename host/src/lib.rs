@@ -19,3 +19,4 @@ pub mod ingest;
 pub mod logging;
 pub mod rawlog;
 pub mod status;
+pub mod varint;

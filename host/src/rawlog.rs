@@ -13,8 +13,8 @@
 //!   0x01 bus:   index u8, name length u8, name (UTF-8)
 //!   0x02 frame: time since the previous record (zigzag LEB128, us), bus u8,
 //!               flags u8 (bit 0: extended id), id (LEB128), length u8 (0-8), data
-//!   0x03 time:  the next records count from this timestamp (u64 LE): where payloads
-//!               were joined ([`join`])
+//!   0x03 time:  time since the previous record (zigzag LEB128, us), where blocks were
+//!               joined ([`Joiner`]); the buses' names follow if they changed
 //! ```
 //!
 //! Every block names the buses it uses, so each one decodes on its own. A block cut short by a
@@ -23,6 +23,7 @@
 //! segments (uncompressed, before 2026-11) still read.
 
 use crate::candump::LoggedFrame;
+use crate::varint::{put_varint, read_varint, unzigzag, zigzag};
 use embedded_can::{ExtendedId, Id, StandardId};
 use std::sync::Arc;
 use thiserror::Error;
@@ -85,8 +86,12 @@ impl Frame {
 #[derive(Debug)]
 pub struct BlockEncoder {
     payload: Vec<u8>,
+    first_us: u64,
     last_us: u64,
     frames: u64,
+    /// The buses the payload names, and where its frames start (after their names).
+    buses: Vec<Arc<str>>,
+    frames_at: usize,
 }
 
 impl BlockEncoder {
@@ -102,9 +107,12 @@ impl BlockEncoder {
             payload.extend_from_slice(name.as_bytes());
         }
         Self {
+            frames_at: payload.len(),
             payload,
+            first_us,
             last_us: first_us,
             frames: 0,
+            buses: buses.to_vec(),
         }
     }
 
@@ -141,26 +149,81 @@ impl BlockEncoder {
         self.frames == 0
     }
 
-    /// The payload, to [`join`] with others before it is [`seal`]ed.
-    pub fn into_payload(self) -> Vec<u8> {
-        self.payload
-    }
-
     /// The block as it goes to disk ([`seal`]).
     pub fn finish(self) -> Vec<u8> {
         seal(&self.payload)
     }
 }
 
-/// Appends the payload `next` (from [`BlockEncoder::into_payload`]) to the payload `into`, so
-/// that many small blocks are compressed as one: compression needs a few kilobytes of context
-/// to pay. `next`'s frames keep their timestamps and its buses their names.
-pub fn join(into: &mut Vec<u8>, next: &[u8]) {
-    if !into.is_empty() {
-        // `next` starts with its first timestamp: a time record's operand.
-        into.push(TAG_TIME);
+/// Blocks joined into one payload, so that many small blocks are compressed as one:
+/// compression needs a few kilobytes of context to pay, and ingest hands over a block per
+/// batch it reads. Each joined block's frames keep their timestamps (the first frame's time
+/// since the previous block's last, or a time record) and its buses their names (named again
+/// only when they changed).
+#[derive(Debug, Default)]
+pub struct Joiner {
+    payload: Vec<u8>,
+    last_us: u64,
+    frames: u64,
+    buses: Vec<Arc<str>>,
+}
+
+impl Joiner {
+    /// Appends `block`'s frames.
+    pub fn push(&mut self, block: &BlockEncoder) {
+        let first_frame = block.payload.get(block.frames_at..block.frames_at + 2);
+        if self.payload.is_empty() {
+            self.payload.extend_from_slice(&block.payload);
+        } else if block.buses == self.buses && first_frame == Some(&[TAG_FRAME, 0]) {
+            // The block's first frame is at its start time: its time since the previous
+            // frame takes the place of that zero, as if one encoder had written both.
+            self.payload.push(TAG_FRAME);
+            put_varint(
+                &mut self.payload,
+                zigzag(block.first_us.wrapping_sub(self.last_us) as i64),
+            );
+            self.payload
+                .extend_from_slice(block.payload.get(block.frames_at + 2..).unwrap_or_default());
+        } else {
+            self.payload.push(TAG_TIME);
+            put_varint(
+                &mut self.payload,
+                zigzag(block.first_us.wrapping_sub(self.last_us) as i64),
+            );
+            let from = if block.buses == self.buses {
+                block.frames_at
+            } else {
+                8
+            };
+            self.payload
+                .extend_from_slice(block.payload.get(from..).unwrap_or_default());
+        }
+        if block.buses != self.buses {
+            self.buses.clone_from(&block.buses);
+        }
+        self.last_us = block.last_us;
+        self.frames += block.frames;
     }
-    into.extend_from_slice(next);
+
+    /// Bytes of payload so far.
+    pub fn len(&self) -> usize {
+        self.payload.len()
+    }
+
+    /// True before the first block.
+    pub fn is_empty(&self) -> bool {
+        self.payload.is_empty()
+    }
+
+    /// Frames joined so far.
+    pub fn frames(&self) -> u64 {
+        self.frames
+    }
+
+    /// The joined blocks as one block on disk ([`seal`]).
+    pub fn finish(self) -> Vec<u8> {
+        seal(&self.payload)
+    }
 }
 
 /// A payload as a block on disk: sync word, length, checksum, the payload compressed with
@@ -383,22 +446,19 @@ impl BlockReader {
     }
 
     fn time(&mut self) -> Result<(), RawError> {
-        let mut bytes = [0u8; 8];
-        bytes.copy_from_slice(self.bytes(8)?);
-        self.last_us = u64::from_le_bytes(bytes);
+        let delta = unzigzag(self.varint()?);
+        self.last_us = self.last_us.wrapping_add(delta as u64);
         Ok(())
     }
 
     fn varint(&mut self) -> Result<u64, RawError> {
-        let mut value = 0u64;
-        for shift in (0..64).step_by(7) {
-            let byte = self.byte()?;
-            value |= u64::from(byte & 0x7F) << shift;
-            if byte & 0x80 == 0 {
-                return Ok(value);
-            }
-        }
-        Err(self.damaged("varint too long"))
+        let (payload, pos) = (&self.payload, &mut self.pos);
+        read_varint(|| {
+            let byte = payload.get(*pos).copied();
+            *pos += 1;
+            byte
+        })
+        .ok_or(self.damaged("varint cut short or too long"))
     }
 
     fn bus(&mut self) -> Result<(), RawError> {
@@ -479,22 +539,6 @@ impl Iterator for BlockReader {
     }
 }
 
-fn put_varint(out: &mut Vec<u8>, mut value: u64) {
-    while value >= 0x80 {
-        out.push((value as u8 & 0x7F) | 0x80);
-        value >>= 7;
-    }
-    out.push(value as u8);
-}
-
-fn zigzag(value: i64) -> u64 {
-    ((value << 1) ^ (value >> 63)) as u64
-}
-
-fn unzigzag(value: u64) -> i64 {
-    ((value >> 1) as i64) ^ -((value & 1) as i64)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -512,11 +556,11 @@ mod tests {
     }
 
     fn sample_block(first: u64) -> (Vec<u8>, Vec<LoggedFrame>) {
-        let (payload, frames) = sample_payload(first);
-        (seal(&payload), frames)
+        let (encoder, frames) = sample_encoder(first);
+        (encoder.finish(), frames)
     }
 
-    fn sample_payload(first: u64) -> (Vec<u8>, Vec<LoggedFrame>) {
+    fn sample_encoder(first: u64) -> (BlockEncoder, Vec<LoggedFrame>) {
         let buses: Vec<Arc<str>> = vec!["can0".into(), "can1".into()];
         let frames = vec![
             frame(
@@ -543,7 +587,7 @@ mod tests {
         for f in &frames {
             encoder.push(f);
         }
-        (encoder.into_payload(), frames)
+        (encoder, frames)
     }
 
     #[test]
@@ -569,18 +613,27 @@ mod tests {
 
     #[test]
     fn joined_payloads_compress_and_keep_every_timestamp_and_bus() {
-        let mut joined = Vec::new();
+        let mut joined = Joiner::default();
         let mut expected = Vec::new();
-        for second in 0..100u64 {
-            let (payload, frames) = sample_payload(1_700_000_000_000_000 + second * 10_000);
-            join(&mut joined, &payload);
+        let mut plain = 0;
+        for block in 0..100u64 {
+            let (encoder, frames) = sample_encoder(1_700_000_000_000_000 + block * 10_000);
+            plain += encoder.len();
+            joined.push(&encoder);
             expected.extend(frames);
         }
-        let block = seal(&joined);
+        // The buses named again when they change.
+        let renamed: Vec<Arc<str>> = vec!["vcan0".into()];
+        let mut encoder = BlockEncoder::new(5, &renamed);
+        let frame = frame(5, 0, Id::Standard(StandardId::ZERO), &[7]);
+        encoder.push(&frame);
+        joined.push(&encoder);
+        expected.push(frame);
+        assert_eq!(joined.frames(), 301);
+        let block = joined.finish();
         assert!(
-            block.len() * 4 < joined.len(),
-            "{} bytes compressed to {}",
-            joined.len(),
+            block.len() * 8 < plain,
+            "{plain} bytes of blocks compressed to {}",
             block.len()
         );
         let read: Vec<LoggedFrame> = SegmentReader::new(&segment(&[block]))
@@ -592,7 +645,8 @@ mod tests {
 
     #[test]
     fn version_1_segments_still_read() {
-        let (payload, frames) = sample_payload(5_000);
+        let (encoder, frames) = sample_encoder(5_000);
+        let payload = encoder.payload;
         let mut data = b"AERRAW\x01\x00".to_vec();
         data.extend_from_slice(&SYNC);
         data.extend_from_slice(&(payload.len() as u32).to_le_bytes());
@@ -712,7 +766,7 @@ mod properties {
             let mut cuts: Vec<usize> = cuts.into_iter().map(|c| c % (frames.len() + 1)).collect();
             cuts.sort_unstable();
             let mut data = MAGIC.to_vec();
-            let mut all = Vec::new();
+            let mut all = Joiner::default();
             let mut start = 0;
             for end in cuts.into_iter().chain([frames.len()]) {
                 let Some(chunk) = frames.get(start..end) else { continue };
@@ -722,7 +776,7 @@ mod properties {
                         block.push(f);
                     }
                     if joined {
-                        join(&mut all, &block.into_payload());
+                        all.push(&block);
                     } else {
                         data.extend_from_slice(&block.finish());
                     }
@@ -730,7 +784,7 @@ mod properties {
                 start = end;
             }
             if !all.is_empty() {
-                data.extend_from_slice(&seal(&all));
+                data.extend_from_slice(&all.finish());
             }
             let read: Vec<LoggedFrame> = SegmentReader::new(&data)
                 .expect("header")

@@ -62,6 +62,9 @@ pub struct StoreConfig {
     pub path: PathBuf,
     /// The most the store may take on disk; the oldest rows (forwarded ones first) go beyond.
     pub max_bytes: u64,
+    /// Closed sessions are compacted into compressed blocks (about 3 bytes a row instead of
+    /// 87); false keeps every row as a plain SQL row.
+    pub compact: bool,
 }
 
 /// The black-box raw log: every frame, before decoding.
@@ -147,6 +150,7 @@ impl Default for StoreConfig {
         Self {
             path: "aer-local.sqlite".into(),
             max_bytes: 4 << 30,
+            compact: true,
         }
     }
 }

@@ -99,6 +99,10 @@ enum Command {
     /// Export a session (or a time range) from the local store, or a recorded log, as MCAP
     /// (Foxglove, PlotJuggler), Parquet (pandas, polars) and CSV.
     Export(ExportArgs),
+    /// Compact every closed session in the local store now (the running service does it by
+    /// itself, a block at a time): before copying the store off the car, or after a
+    /// `compact = false` season.
+    Compact,
     /// Print raw log segments as candump -l text (every frame, losslessly), oldest first; a
     /// folder means every segment in it.
     RawExport {
@@ -184,6 +188,7 @@ fn main() -> Result<()> {
     match &cli.command {
         Command::Session { action } => return session_command(&config, action, &cli.session),
         Command::Export(args) => return export_command(&config, args),
+        Command::Compact => return compact_command(&config),
         _ => {}
     }
     if matches!(cli.command, Command::Demo) && cli.config.is_none() {
@@ -204,7 +209,10 @@ fn main() -> Result<()> {
         Command::Replay { file, fast } => Job::Replay { file, fast },
         Command::Synthetic { rate, packets } => Job::Synthetic { rate, packets },
         Command::Demo => Job::Demo,
-        Command::RawExport { .. } | Command::Session { .. } | Command::Export(_) => {
+        Command::RawExport { .. }
+        | Command::Session { .. }
+        | Command::Export(_)
+        | Command::Compact => {
             return Ok(());
         }
     };
@@ -253,6 +261,25 @@ fn session_command(config: &Config, action: &SessionAction, flags: &SessionArgs)
             println!("session {id} open");
         }
     }
+    Ok(())
+}
+
+fn compact_command(config: &Config) -> Result<()> {
+    let path = &config.store.path;
+    let mut db = store::open(path)?;
+    let mut compaction = store::Compaction::everything_closed();
+    let mut rows = 0;
+    loop {
+        let step = compaction.step(&mut db)?;
+        if step == 0 {
+            break;
+        }
+        rows += step;
+    }
+    store::schema::release_free_pages(&db)?;
+    db.query_row("PRAGMA wal_checkpoint(TRUNCATE)", [], |_| Ok(()))?;
+    let bytes = std::fs::metadata(path).map(|m| m.len()).unwrap_or(0);
+    println!("{rows} rows compacted; {} is {bytes} bytes", path.display());
     Ok(())
 }
 

@@ -12,7 +12,7 @@ use crate::rawlog::{RawTap, segments};
 use crate::sink::Sink;
 use crate::sink::mqtt::{self, Publisher};
 use crate::sink::store::{
-    self, Budget, Retention, StoreSink, StoreWriter, WhenFull, WriterOptions, session,
+    self, Budget, Compaction, Retention, StoreSink, StoreWriter, WhenFull, WriterOptions, session,
 };
 use crate::source::replay::{ReplayOptions, replay, replay_segment};
 use crate::source::{self, Replies};
@@ -222,6 +222,7 @@ fn start_store(
         counters.clone(),
         WriterOptions {
             retention: Some(Retention::new(config.store.path.clone(), budget)),
+            compaction: config.store.compact.then(Compaction::default),
             health: health.clone(),
             queue_rows: None,
             // A replay is not live: it waits for the store rather than dropping rows.

@@ -3,16 +3,17 @@
 //! a recorded log into a store in memory first.
 
 use super::ExportError;
-use crate::sink::store::{row, schema, session};
+use crate::sink::store::{compact, row, schema, session};
 use aer::tables::{Column, ColumnType, TABLES, Table};
 use aer_host::candump::parse_line;
 use aer_host::counters::Counters;
 use aer_host::ingest::{Ingest, Record};
 use aer_host::rawlog::SegmentReader;
 use rusqlite::Connection;
-use rusqlite::types::ValueRef;
+use rusqlite::types::{Value, ValueRef};
 use std::path::Path;
 use std::sync::Arc;
+use tracing::warn;
 
 /// Which rows: a session's, and/or those within a time range (microseconds since the epoch,
 /// inclusive).
@@ -128,43 +129,29 @@ fn table(
         Some(id) => session::rows(db, id, table.name)?.unwrap_or((1, 0)),
         None => (i64::MIN, i64::MAX),
     };
-    let names: Vec<String> = table
-        .local_columns()
-        .map(|c| format!("\"{}\"", c.name))
-        .collect();
-    let sql = format!(
-        "SELECT {} FROM \"{}\" WHERE id BETWEEN ?1 AND ?2 AND ts BETWEEN ?3 AND ?4 ORDER BY id",
-        names.join(", "),
-        table.name
+    // Closed sessions are compacted into blocks: read through the store's own reader.
+    let stored = compact::rows_between(db, table, first, last, usize::MAX)?;
+    for damaged in &stored.damaged {
+        warn!(error = %damaged, "a compacted block does not decode: its rows are missing from the export");
+    }
+    let (from, to) = (
+        selection.from_us.unwrap_or(i64::MIN),
+        selection.to_us.unwrap_or(i64::MAX),
     );
-    let count: usize = db.query_row(
-        &format!(
-            "SELECT count(*) FROM \"{}\" WHERE id BETWEEN ?1 AND ?2 AND ts BETWEEN ?3 AND ?4",
-            table.name
-        ),
-        rusqlite::params![
-            first,
-            last,
-            selection.from_us.unwrap_or(i64::MIN),
-            selection.to_us.unwrap_or(i64::MAX)
-        ],
-        |r| r.get(0),
-    )?;
+    let ts_at = table.tags.len();
+    let in_time = |values: &Vec<Value>| match values.get(ts_at) {
+        Some(Value::Integer(ts)) => (from..=to).contains(ts),
+        _ => false,
+    };
+    let count = stored.rows.iter().filter(|(_, v)| in_time(v)).count();
     let mut values: Vec<Values> = table
         .local_columns()
         .map(|c| Values::for_type(c.ty, count))
         .collect();
-    let mut statement = db.prepare(&sql)?;
-    let mut rows = statement.query(rusqlite::params![
-        first,
-        last,
-        selection.from_us.unwrap_or(i64::MIN),
-        selection.to_us.unwrap_or(i64::MAX)
-    ])?;
     let mut n = 0;
-    while let Some(row) = rows.next()? {
-        for (i, column) in values.iter_mut().enumerate() {
-            column.push(row.get_ref(i)?);
+    for (_, row) in stored.rows.iter().filter(|(_, v)| in_time(v)) {
+        for (column, value) in values.iter_mut().zip(row) {
+            column.push(ValueRef::from(value));
         }
         n += 1;
     }

@@ -1,6 +1,7 @@
 //! The forwarder's position in the store: per table, the last row TDengine has (or that was
 //! set aside), persisted in the store itself so an outage or a reboot loses nothing.
 
+use crate::sink::store::compact::{self, BlockError};
 use aer::tables::TABLES;
 use aer_host::clock::now_us;
 use rusqlite::Connection;
@@ -13,12 +14,15 @@ pub struct Batch {
     pub ids: Vec<i64>,
     /// Each row's values without `id`: tags, then columns.
     pub rows: Vec<Vec<Sql>>,
+    /// Compacted blocks after the cursor that did not decode: their rows cannot be sent.
+    pub damaged: Vec<BlockError>,
+    damaged_through: Option<i64>,
 }
 
 impl Batch {
-    /// The last row's id (the cursor once the batch is done).
+    /// The cursor once the batch is done: its last row, or past the damaged blocks it met.
     pub fn last_id(&self) -> Option<i64> {
-        self.ids.last().copied()
+        self.ids.last().copied().max(self.damaged_through)
     }
 }
 
@@ -37,22 +41,14 @@ pub fn next_batch(db: &Connection, table: usize, limit: usize) -> rusqlite::Resu
             rusqlite::Error::QueryReturnedNoRows => Ok(0),
             other => Err(other),
         })?;
-    let mut statement = db.prepare_cached(&format!(
-        "SELECT * FROM \"{}\" WHERE id > ?1 ORDER BY id LIMIT ?2",
-        local.name
-    ))?;
-    let width = local.local_columns().count() + 1;
-    let mut batch = Batch::default();
-    let mut rows = statement.query(rusqlite::params![cursor, limit as i64])?;
-    while let Some(row) = rows.next()? {
-        batch.ids.push(row.get(0)?);
-        batch.rows.push(
-            (1..width)
-                .map(|i| row.get::<_, Sql>(i))
-                .collect::<rusqlite::Result<Vec<_>>>()?,
-        );
-    }
-    Ok(batch)
+    let stored = compact::rows_between(db, local, cursor.saturating_add(1), i64::MAX, limit)?;
+    let (ids, rows) = stored.rows.into_iter().unzip();
+    Ok(Batch {
+        ids,
+        rows,
+        damaged: stored.damaged,
+        damaged_through: stored.damaged_through,
+    })
 }
 
 /// Moves `table`'s cursor to `last_id`.

@@ -236,9 +236,20 @@ impl Worker<'_> {
                     continue;
                 }
             };
+            for damaged in &batch.damaged {
+                let count = Counters::bump(&self.counters.damaged_blocks);
+                warn!(error = %damaged, count, "a compacted block does not decode: its rows are not forwarded");
+            }
             let Some(last) = batch.last_id() else {
                 continue;
             };
+            if batch.ids.is_empty() {
+                // Only damaged blocks: move past them.
+                if let Err(error) = advance(db, table, last) {
+                    warn!(%error, "forwarder cursor not saved");
+                }
+                continue;
+            }
             let mapping = Mapping::new(local, &self.config.database);
             let sent = batch::send(destination, &mapping, &batch).await?;
             if !sent.set_aside.is_empty() {

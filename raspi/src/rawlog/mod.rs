@@ -21,10 +21,10 @@ use tracing::warn;
 /// A block is handed to the writer once it holds this many bytes (or at the next flush).
 const BLOCK_BYTES: usize = 32 * 1024;
 
-/// A block on its way to the writer: its payload (not yet compressed: the writer joins
-/// blocks and compresses them together) and how many frames it holds.
+/// A block on its way to the writer, not yet compressed: the writer joins blocks and
+/// compresses them together.
 pub struct Block {
-    pub payload: Vec<u8>,
+    pub encoder: BlockEncoder,
     pub frames: u64,
 }
 
@@ -87,7 +87,7 @@ impl RawTap {
             return;
         }
         let block = Block {
-            payload: block.into_payload(),
+            encoder: block,
             frames,
         };
         match self.blocks.try_send(block) {

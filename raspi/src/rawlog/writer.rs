@@ -10,7 +10,7 @@ use super::segments::{self, Budget};
 use crate::health::Health;
 use aer_host::clock::now_us;
 use aer_host::counters::{Counters, worth_logging};
-use aer_host::rawlog::{MAGIC, join, seal};
+use aer_host::rawlog::{Joiner, MAGIC};
 use std::fs::File;
 use std::io::Write;
 use std::path::PathBuf;
@@ -101,8 +101,7 @@ struct Segment {
 
 /// Blocks joined, waiting to be compressed and written.
 struct Pending {
-    payload: Vec<u8>,
-    frames: u64,
+    joined: Joiner,
     since: Instant,
 }
 
@@ -137,13 +136,11 @@ impl Writer {
     /// Joins `block` to what waits; writes it all once there is enough.
     fn take(&mut self, block: Block) {
         let pending = self.pending.get_or_insert_with(|| Pending {
-            payload: Vec::with_capacity(JOIN_BYTES + 32 * 1024),
-            frames: 0,
+            joined: Joiner::default(),
             since: Instant::now(),
         });
-        join(&mut pending.payload, &block.payload);
-        pending.frames += block.frames;
-        if pending.payload.len() >= JOIN_BYTES {
+        pending.joined.push(&block.encoder);
+        if pending.joined.len() >= JOIN_BYTES {
             self.write_pending();
         }
     }
@@ -153,7 +150,8 @@ impl Writer {
         let Some(pending) = self.pending.take() else {
             return;
         };
-        let block = seal(&pending.payload);
+        let frames = pending.joined.frames();
+        let block = pending.joined.finish();
         let result = match self.segment_for(block.len() as u64) {
             Some(segment) => segment.file.write_all(&block).map(|()| {
                 segment.bytes += block.len() as u64;
@@ -161,7 +159,7 @@ impl Writer {
             }),
             None => {
                 // Still backing off after a failure.
-                self.dropped(pending.frames);
+                self.dropped(frames);
                 return;
             }
         };
@@ -169,14 +167,14 @@ impl Writer {
             Ok(()) => {
                 self.counters
                     .raw_frames
-                    .fetch_add(pending.frames, Ordering::Relaxed);
+                    .fetch_add(frames, Ordering::Relaxed);
                 if self.health.raw_log.recovered() {
                     info!("raw log writes again");
                 }
                 self.backoff = RETRY_START;
             }
             Err(error) => {
-                self.dropped(pending.frames);
+                self.dropped(frames);
                 self.failed(&error);
             }
         }

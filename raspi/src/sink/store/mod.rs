@@ -5,9 +5,11 @@
 //!
 //! [`schema`] opens, checks and migrates the file, [`row`] turns records into rows, [`queue`]
 //! holds them for the [`writer`] thread, [`retention`] keeps the file within its budget,
-//! [`session`] records who drove which run and which rows it made;
+//! [`session`] records who drove which run and which rows it made, [`compact`] packs closed
+//! sessions into compressed blocks and reads them back;
 //! [`StoreSink`] is what ingest hands records to.
 
+pub mod compact;
 pub mod queue;
 pub mod retention;
 pub mod row;
@@ -15,6 +17,7 @@ pub mod schema;
 pub mod session;
 pub mod writer;
 
+pub use compact::Compaction;
 pub use queue::{RowSender, WhenFull};
 pub use retention::{Budget, Retention};
 pub use row::{Row, RowData};

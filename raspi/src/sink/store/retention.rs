@@ -10,7 +10,7 @@
 //! nothing is removed: the status and the journal say the disk is low, live telemetry and the
 //! raw log go on, and a truly full disk is handled by the writer (rows dropped and counted).
 
-use super::session;
+use super::{compact, session};
 use crate::health::Health;
 use aer::tables::TABLES;
 use aer_host::clock::now_us;
@@ -143,7 +143,7 @@ impl Retention {
         pruned.disk_low = disk_low;
         if pruned.rows > 0 {
             // Give the freed pages back (a store made before auto_vacuum keeps reusing them).
-            db.execute_batch("PRAGMA incremental_vacuum")?;
+            super::schema::release_free_pages(db)?;
             db.query_row("PRAGMA wal_checkpoint(TRUNCATE)", [], |_| Ok(()))?;
         }
         Ok(pruned)
@@ -240,8 +240,10 @@ impl Kept {
                 [self.first_in(table.name)],
                 |row| Ok((row.get(0)?, row.get(1)?)),
             )?;
-            older += u64::try_from(may_go).unwrap_or(0);
-            all += u64::try_from(total).unwrap_or(0);
+            let (blocks_older, blocks_all) =
+                compact::block_rows(db, table.name, self.first_in(table.name))?;
+            older += u64::try_from(may_go).unwrap_or(0) + blocks_older;
+            all += u64::try_from(total).unwrap_or(0) + blocks_all;
         }
         Ok((older, all))
     }
@@ -276,21 +278,18 @@ fn drop_oldest(db: &Connection, forwarded_only: bool, kept: &Kept) -> rusqlite::
                 |row| row.get(0),
             )
             .optional()?;
-        let bounds: (Option<i64>, Option<i64>) = db.query_row(
-            &format!("SELECT min(id), max(id) FROM \"{}\"", table.name),
-            [],
-            |row| Ok((row.get(0)?, row.get(1)?)),
-        )?;
-        let (Some(oldest), Some(newest)) = bounds else {
+        let (Some(oldest), Some(newest)) = compact::id_bounds(db, table.name)? else {
             continue;
         };
         let last_allowed = kept.first_in(table.name).saturating_sub(1);
         if last_allowed < oldest {
             continue;
         }
-        // A twentieth of the table a step: the budget is met without overshooting it.
+        // A twentieth of the table a step: the budget is met without overshooting it; a
+        // compacted block goes whole.
         let step = ((newest - oldest + 1) / 20).clamp(100, CHUNK_ROWS);
-        let through = (oldest + step - 1).min(last_allowed);
+        let block_end = compact::oldest_block_end(db, table.name)?.unwrap_or(i64::MIN);
+        let through = (oldest + step - 1).max(block_end).min(last_allowed);
         removed += match (forwarded, forwarded_only) {
             (Some(cursor), true) if cursor >= oldest => {
                 delete_through(db, table.name, through.min(cursor))?
@@ -302,18 +301,20 @@ fn drop_oldest(db: &Connection, forwarded_only: bool, kept: &Kept) -> rusqlite::
     Ok(removed)
 }
 
-/// The last row id of `table` written before `cutoff_us`: rows arrive in time order, so ids
-/// are searched (the store keeps no time index, which would cost a write per commit).
+/// The last row id of `table` written before `cutoff_us` (of a compacted block, the last of
+/// the newest block wholly before it): rows arrive in time order, so ids are searched (the
+/// store keeps no time index, which would cost a write per commit).
 fn last_id_before(db: &Connection, table: &str, cutoff_us: u64) -> rusqlite::Result<Option<i64>> {
+    let cutoff = i64::try_from(cutoff_us).unwrap_or(i64::MAX);
+    let in_blocks = compact::last_id_of_blocks_before(db, table, cutoff)?;
     let bounds: (Option<i64>, Option<i64>) = db.query_row(
         &format!("SELECT min(id), max(id) FROM \"{table}\""),
         [],
         |row| Ok((row.get(0)?, row.get(1)?)),
     )?;
     let (Some(mut lo), Some(mut hi)) = bounds else {
-        return Ok(None);
+        return Ok(in_blocks);
     };
-    let cutoff = i64::try_from(cutoff_us).unwrap_or(i64::MAX);
     let ts_at = |id: i64| -> rusqlite::Result<Option<i64>> {
         db.query_row(
             &format!("SELECT ts FROM \"{table}\" WHERE id >= ?1 ORDER BY id LIMIT 1"),
@@ -323,7 +324,7 @@ fn last_id_before(db: &Connection, table: &str, cutoff_us: u64) -> rusqlite::Res
         .optional()
     };
     if ts_at(lo)?.is_none_or(|ts| ts >= cutoff) {
-        return Ok(None);
+        return Ok(in_blocks);
     }
     // Invariant: the row at or after `lo` is older than the cutoff.
     while lo < hi {
@@ -337,9 +338,10 @@ fn last_id_before(db: &Connection, table: &str, cutoff_us: u64) -> rusqlite::Res
     Ok(Some(lo))
 }
 
-/// Deletes `table`'s rows with ids up to `last`, a chunk at a time.
+/// Deletes `table`'s rows with ids up to `last`, a chunk at a time, and its compacted blocks
+/// that end by then.
 fn delete_through(db: &Connection, table: &str, last: i64) -> rusqlite::Result<u64> {
-    let mut removed = 0u64;
+    let mut removed = compact::delete_blocks_through(db, table, last)?;
     loop {
         let deleted = db.execute(
             &format!(

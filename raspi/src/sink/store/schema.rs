@@ -6,7 +6,7 @@
 //! at most the last second's rows plus whatever waited in the writer's queue; a kill of the
 //! process loses the same, and nothing already committed.
 
-use super::session;
+use super::{compact, session};
 use aer::tables::{TABLES, Table};
 use rusqlite::{Connection, OpenFlags};
 use std::path::{Path, PathBuf};
@@ -100,6 +100,17 @@ pub(crate) fn create_tables(db: &Connection) -> rusqlite::Result<()> {
     db.execute(SET_ASIDE_TABLE, [])?;
     db.execute(session::SESSIONS_TABLE, [])?;
     db.execute(session::SESSION_ROWS_TABLE, [])?;
+    db.execute(compact::BLOCKS_TABLE, [])?;
+    Ok(())
+}
+
+/// Gives the store's free pages back to the file system. `PRAGMA incremental_vacuum` frees
+/// one page per step of its statement: it must be stepped to the end, which
+/// `execute_batch` does not do.
+pub fn release_free_pages(db: &Connection) -> rusqlite::Result<()> {
+    let mut statement = db.prepare("PRAGMA incremental_vacuum")?;
+    let mut rows = statement.query([])?;
+    while rows.next()?.is_some() {}
     Ok(())
 }
 

@@ -3,6 +3,7 @@
 //! reported; while it fails the queue fills and new rows are dropped and counted, but nothing
 //! upstream waits. Between batches it applies the retention budget.
 
+use super::compact::Compaction;
 use super::queue::{BATCH_ROWS, BATCH_WAIT, QUEUE_ROWS, Queue, RowSender, WhenFull};
 use super::retention::Retention;
 use super::row::Row;
@@ -15,7 +16,7 @@ use std::sync::Arc;
 use std::sync::atomic::Ordering;
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
-use tracing::{error, info};
+use tracing::{error, info, warn};
 
 /// Backoff after a failed commit: 1 s doubling to 30 s.
 const RETRY_START: Duration = Duration::from_secs(1);
@@ -35,6 +36,8 @@ pub struct StoreWriter {
 pub struct WriterOptions {
     /// Keeps the store within its budget.
     pub retention: Option<Retention>,
+    /// Compacts closed sessions into compressed blocks.
+    pub compaction: Option<Compaction>,
     /// Where the writer reports failures.
     pub health: Arc<Health>,
     /// Rows that may wait (default `QUEUE_ROWS`).
@@ -62,6 +65,7 @@ impl StoreWriter {
             counters,
             health: options.health,
             retention: options.retention,
+            compaction: options.compaction,
             stop_by: None,
         };
         let thread = std::thread::Builder::new()
@@ -96,6 +100,7 @@ struct Writer {
     counters: Arc<Counters>,
     health: Arc<Health>,
     retention: Option<Retention>,
+    compaction: Option<Compaction>,
     /// When the service stops, the time by which a failing store's rows are given up.
     stop_by: Option<Instant>,
 }
@@ -119,9 +124,27 @@ impl Writer {
             if let Some(retention) = &mut self.retention {
                 retention.maybe_prune(&self.db, &self.counters, &self.health);
             }
-            if !open {
+            if open {
+                self.compact();
+            } else {
                 return;
             }
+        }
+    }
+
+    /// Compacts closed sessions' rows, if due (never while stopping: a stop stays quick, and
+    /// the next start goes on).
+    fn compact(&mut self) {
+        let Some(compaction) = &mut self.compaction else {
+            return;
+        };
+        match compaction.maybe_step(&mut self.db) {
+            Ok(rows) => {
+                self.counters
+                    .compacted_rows
+                    .fetch_add(rows, Ordering::Relaxed);
+            }
+            Err(error) => warn!(%error, "compacting a closed session failed; retrying"),
         }
     }
 
