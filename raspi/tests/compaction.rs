@@ -236,3 +236,99 @@ fn a_damaged_block_is_reported_and_skipped() {
     assert_eq!(batch.damaged.len(), 1);
     assert_eq!(batch.ids.first().copied(), Some(first_id + rows));
 }
+
+#[test]
+fn the_free_space_floor_counts_compacted_history_at_its_real_size() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let path = dir.path().join("store.sqlite");
+    record_session(&path);
+    compact_all(&mut store::open(&path).expect("store"));
+    // The next session is recorded, plain, beside the first one's blocks, with later ids
+    // (SQLite would reuse the ids of an emptied table without AUTOINCREMENT).
+    let next = record_session(&path);
+    let db = store::open(&path).expect("store");
+    let (first_new, _) = session::rows(&db, next, "telemetry")
+        .expect("rows")
+        .expect("telemetry rows");
+    let last_compacted: i64 = db
+        .query_row(
+            "SELECT max(last_id) FROM compacted WHERE table_name = 'telemetry'",
+            [],
+            |r| r.get(0),
+        )
+        .expect("blocks");
+    assert!(
+        first_new > last_compacted,
+        "{first_new} after {last_compacted}"
+    );
+    let blocks: i64 = db
+        .query_row("SELECT sum(length(data)) FROM compacted", [], |r| r.get(0))
+        .expect("blocks");
+    let blocks = blocks as u64;
+    let free = 1_000_000_000u64;
+    let retention = |floor: u64| {
+        Retention::new(
+            path.clone(),
+            Budget {
+                max_bytes: u64::MAX,
+                max_age: None,
+                min_free_bytes: floor,
+                interval: Duration::ZERO,
+            },
+        )
+        .with_free_space(move |_| Some(free))
+    };
+    // Removing every block could not lift the free space over this floor: nothing goes.
+    let pruned = retention(free + 2 * blocks).prune(&db).expect("prune");
+    assert_eq!(pruned.rows, 0);
+    assert!(pruned.disk_low.is_some());
+    // This floor the blocks can reach: the oldest go, the session being recorded stays.
+    let plain = plain_rows(&db);
+    let pruned = retention(free + blocks / 4).prune(&db).expect("prune");
+    assert!(pruned.rows > 0);
+    assert_eq!(pruned.disk_low, None);
+    assert_eq!(plain_rows(&db), plain);
+}
+
+#[test]
+fn a_store_from_before_autoincrement_is_rebuilt_once_with_its_rows_and_ids() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let path = dir.path().join("store.sqlite");
+    {
+        let db = Connection::open(&path).expect("old store");
+        db.execute_batch(
+            "CREATE TABLE \"can_bms2\" (\"id\" INTEGER PRIMARY KEY, \"car_id\" TEXT NOT NULL, \
+             \"bus\" TEXT NOT NULL, \"schema_fingerprint\" INTEGER NOT NULL, \"ts\" INTEGER NOT NULL, \
+             \"gone\" REAL); \
+             INSERT INTO can_bms2 VALUES (7, 'car1', 'can0', 1, 100, 1.5); \
+             INSERT INTO can_bms2 VALUES (9, 'car1', 'can0', 1, 200, 2.5); \
+             CREATE TABLE forward_cursor (table_name TEXT PRIMARY KEY, last_id INTEGER NOT NULL); \
+             INSERT INTO forward_cursor VALUES ('can_bms2', 40);",
+        )
+        .expect("old tables");
+    }
+    let db = store::open(&path).expect("store");
+    let sql: String = db
+        .query_row(
+            "SELECT sql FROM sqlite_master WHERE name = 'can_bms2'",
+            [],
+            |r| r.get(0),
+        )
+        .expect("ddl");
+    assert!(sql.contains("AUTOINCREMENT"), "{sql}");
+    let ids: Vec<i64> = db
+        .prepare("SELECT id FROM can_bms2 ORDER BY id")
+        .expect("select")
+        .query_map([], |r| r.get(0))
+        .expect("ids")
+        .collect::<Result<_, _>>()
+        .expect("ids");
+    assert_eq!(ids, [7, 9]);
+    // New rows come after the forwarder's cursor, never under it.
+    db.execute(
+        "INSERT INTO can_bms2 (car_id, bus, schema_fingerprint, ts) VALUES ('car1', 'can0', 1, 300)",
+        [],
+    )
+    .expect("insert");
+    assert_eq!(db.last_insert_rowid(), 41);
+}

@@ -192,7 +192,9 @@ impl Table {
     }
 
     /// `CREATE TABLE IF NOT EXISTS ...`: a row id, then tags and columns; tags and `ts` are
-    /// required.
+    /// required. Row ids are never reused (`AUTOINCREMENT`), even once every row of a table
+    /// was pruned or compacted: the forwarder's cursor and the sessions' row ranges count on
+    /// them only growing.
     pub fn sqlite_create(&self) -> String {
         let defs: Vec<String> = self
             .local_columns()
@@ -208,7 +210,7 @@ impl Table {
             })
             .collect();
         format!(
-            "CREATE TABLE IF NOT EXISTS \"{}\" (\"id\" INTEGER PRIMARY KEY, {})",
+            "CREATE TABLE IF NOT EXISTS \"{}\" (\"id\" INTEGER PRIMARY KEY AUTOINCREMENT, {})",
             self.name,
             defs.join(", ")
         )

@@ -186,22 +186,14 @@ pub(crate) fn delete_blocks_through(
     Ok(u64::try_from(rows).unwrap_or(0))
 }
 
-/// Rows held in `table`'s blocks below id `before`, and in all its blocks.
-pub(crate) fn block_rows(
-    db: &Connection,
-    table: &str,
-    before: i64,
-) -> rusqlite::Result<(u64, u64)> {
-    let (older, all): (i64, i64) = db.query_row(
-        "SELECT coalesce(sum(rows) FILTER (WHERE last_id < ?2), 0), coalesce(sum(rows), 0) \
-         FROM compacted WHERE table_name = ?1",
-        params![table, before],
-        |row| Ok((row.get(0)?, row.get(1)?)),
+/// Bytes the blocks' data takes.
+pub(crate) fn block_bytes(db: &Connection) -> rusqlite::Result<u64> {
+    let bytes: i64 = db.query_row(
+        "SELECT coalesce(sum(length(data)), 0) FROM compacted",
+        [],
+        |row| row.get(0),
     )?;
-    Ok((
-        u64::try_from(older).unwrap_or(0),
-        u64::try_from(all).unwrap_or(0),
-    ))
+    Ok(u64::try_from(bytes).unwrap_or(0))
 }
 
 /// The writer's compaction: a block at a time, between batches, while closed sessions have

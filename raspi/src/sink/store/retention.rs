@@ -163,13 +163,18 @@ impl Retention {
         let kept = Kept::current_session(db)?;
         let used = used_bytes(db)?;
         let (older, all) = kept.older_rows(db)?;
-        // Rows are about the same size across the store: their share of the pages in use is
-        // what removing them gives back.
-        let freeable = if all == 0 {
-            0
-        } else {
-            u64::try_from(u128::from(used) * u128::from(older) / u128::from(all)).unwrap_or(used)
-        };
+        // Compacted blocks all precede the open session and give back what they take. Plain
+        // rows are about the same size across the store: their share of the rest is what
+        // removing them gives back.
+        let blocks = compact::block_bytes(db)?;
+        let plain = used.saturating_sub(blocks);
+        let freeable = blocks
+            + if all == 0 {
+                0
+            } else {
+                u64::try_from(u128::from(plain) * u128::from(older) / u128::from(all))
+                    .unwrap_or(plain)
+            };
         let low = |free: u64| {
             format!(
                 "{} MB free, under the {} MB floor; the session being recorded is kept",
@@ -228,7 +233,7 @@ impl Kept {
             .map_or(i64::MAX, |(_, first)| *first)
     }
 
-    /// Rows that may go, and all rows, over every table.
+    /// Plain rows that may go, and all plain rows, over every table.
     fn older_rows(&self, db: &Connection) -> rusqlite::Result<(u64, u64)> {
         let (mut older, mut all) = (0u64, 0u64);
         for table in TABLES {
@@ -240,10 +245,8 @@ impl Kept {
                 [self.first_in(table.name)],
                 |row| Ok((row.get(0)?, row.get(1)?)),
             )?;
-            let (blocks_older, blocks_all) =
-                compact::block_rows(db, table.name, self.first_in(table.name))?;
-            older += u64::try_from(may_go).unwrap_or(0) + blocks_older;
-            all += u64::try_from(total).unwrap_or(0) + blocks_all;
+            older += u64::try_from(may_go).unwrap_or(0);
+            all += u64::try_from(total).unwrap_or(0);
         }
         Ok((older, all))
     }

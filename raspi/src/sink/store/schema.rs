@@ -101,6 +101,79 @@ pub(crate) fn create_tables(db: &Connection) -> rusqlite::Result<()> {
     db.execute(session::SESSIONS_TABLE, [])?;
     db.execute(session::SESSION_ROWS_TABLE, [])?;
     db.execute(compact::BLOCKS_TABLE, [])?;
+    for table in TABLES {
+        ids_after_everything_seen(db, table)?;
+    }
+    Ok(())
+}
+
+/// Stores from before 2026-11-25 made row ids without `AUTOINCREMENT`: SQLite reuses the ids
+/// of a table whose rows were all removed (pruned by age, compacted), which the forwarder's
+/// cursor would then skip. Such a table is rebuilt once, ids kept.
+fn rebuild_with_autoincrement(db: &Connection, table: &Table) -> rusqlite::Result<()> {
+    let sql: String = db.query_row(
+        "SELECT sql FROM sqlite_master WHERE type = 'table' AND name = ?1",
+        [table.name],
+        |row| row.get(0),
+    )?;
+    if sql.contains("AUTOINCREMENT") {
+        return Ok(());
+    }
+    info!(
+        table = table.name,
+        "rebuilding the table so its row ids are never reused (once)"
+    );
+    let mut statement = db.prepare("SELECT name FROM pragma_table_info(?1)")?;
+    let names: Vec<String> = statement
+        .query_map([table.name], |row| row.get(0))?
+        .collect::<rusqlite::Result<_>>()?;
+    // The columns both tables have (a column the schema no longer has is left behind).
+    let names: Vec<String> = names
+        .iter()
+        .filter(|n| *n == "id" || table.local_columns().any(|c| c.name == n.as_str()))
+        .map(|n| format!("\"{n}\""))
+        .collect();
+    let old = format!("{}_before_autoincrement", table.name);
+    db.execute_batch(&format!(
+        "SAVEPOINT rebuild; \
+         ALTER TABLE \"{name}\" RENAME TO \"{old}\"; \
+         {create}; \
+         INSERT INTO \"{name}\" ({columns}) SELECT {columns} FROM \"{old}\"; \
+         DROP TABLE \"{old}\"; \
+         RELEASE rebuild;",
+        name = table.name,
+        create = table.sqlite.create,
+        columns = names.join(", "),
+    ))
+}
+
+/// New rows of `table` get ids after every id it ever had: its rows, its compacted blocks and
+/// the forwarder's cursor (a table emptied before its ids were made never to repeat). Writes
+/// only when that is not already so, so opening a store someone is writing to stays read-only.
+fn ids_after_everything_seen(db: &Connection, table: &Table) -> rusqlite::Result<()> {
+    let (seq, seen): (Option<i64>, i64) = db.query_row(
+        "SELECT (SELECT seq FROM sqlite_sequence WHERE name = ?1), max( \
+           coalesce((SELECT max(last_id) FROM compacted WHERE table_name = ?1), 0), \
+           coalesce((SELECT last_id FROM forward_cursor WHERE table_name = ?1), 0))",
+        [table.name],
+        |row| Ok((row.get(0)?, row.get(1)?)),
+    )?;
+    match seq {
+        Some(seq) if seq >= seen => {}
+        Some(_) => {
+            db.execute(
+                "UPDATE sqlite_sequence SET seq = ?2 WHERE name = ?1",
+                rusqlite::params![table.name, seen],
+            )?;
+        }
+        None if seen > 0 => {
+            db.execute(
+                "INSERT INTO sqlite_sequence (name, seq) VALUES (?1, ?2)",
+                rusqlite::params![table.name, seen],
+            )?;
+        }
+        None => {}
+    }
     Ok(())
 }
 
@@ -171,6 +244,7 @@ fn move_aside(path: &Path) -> Result<PathBuf, StoreError> {
 
 /// Adds the columns a store created by an older build lacks.
 fn migrate(db: &Connection, table: &Table) -> rusqlite::Result<()> {
+    rebuild_with_autoincrement(db, table)?;
     let mut statement = db.prepare("SELECT name FROM pragma_table_info(?1)")?;
     let existing: Vec<String> = statement
         .query_map([table.name], |row| row.get(0))?
