@@ -53,6 +53,17 @@ fn interface_index(name: &str) -> Option<u32> {
     std::fs::read_to_string(path).ok()?.trim().parse().ok()
 }
 
+/// True when the interface called `name` is up (`IFF_UP` in sysfs's flags).
+fn interface_up(name: &str) -> bool {
+    let path = std::path::Path::new("/sys/class/net")
+        .join(name)
+        .join("flags");
+    std::fs::read_to_string(path)
+        .ok()
+        .and_then(|flags| u32::from_str_radix(flags.trim().trim_start_matches("0x"), 16).ok())
+        .is_some_and(|flags| flags & 0x1 != 0)
+}
+
 /// Why an interface cannot be opened, when it is not there.
 fn missing(name: &str) -> String {
     format!("no interface called {name}")
@@ -186,6 +197,7 @@ fn kernel_isotp(
             announced = true;
         }
         let mut drops = QueueDrops::default();
+        let mut link_is_down = false;
         let error = loop {
             if cancel.is_cancelled() {
                 return;
@@ -211,6 +223,10 @@ fn kernel_isotp(
                     if interface_index(name) != Some(index) {
                         break format!("the interface went away (it had index {index})");
                     }
+                    if link_is_down && interface_up(name) {
+                        link_is_down = false;
+                        link_up(&part, health, &mut failures);
+                    }
                 }
                 // A packet the kernel gave up on (a lost or repeated consecutive frame, the
                 // sender gone quiet mid-packet): counted like userspace reassembly's errors;
@@ -224,6 +240,7 @@ fn kernel_isotp(
                 // The link went down (an administrator, systemd-networkd reconfiguring it):
                 // the socket stays bound and reads again once it is up.
                 Err(err) if err.raw_os_error() == Some(libc::ENETDOWN) => {
+                    link_is_down = true;
                     link_down(&part, &err, health, &mut failures);
                 }
                 Err(err) => break err.to_string(),
@@ -237,14 +254,24 @@ fn kernel_isotp(
     }
 }
 
-/// A socket's link went down: reported (the status names it until frames come again), not
-/// reopened. Reopening would lose a second of traffic each time systemd-networkd or an
-/// administrator takes the link down and up, and the socket reads again by itself.
+/// A socket's link went down: reported (the status names it until the link is up again or
+/// frames come), not reopened. Reopening would lose a second of traffic each time
+/// systemd-networkd or an administrator takes the link down and up, and the socket reads
+/// again by itself.
 fn link_down(part: &str, err: &std::io::Error, health: &Health, failures: &mut Failures) {
     let error = err.to_string();
     health.can.failed(part, &error);
     if let Some(attempts) = failures.failed(Instant::now()) {
         warn!(interface = %part, %error, attempts, "CAN link down; reading on when it is up");
+    }
+}
+
+/// The link of a socket reported down is up again: the status clears at once, not only at
+/// the next frame (a quiet bus would leave it reported for ever).
+fn link_up(part: &str, health: &Health, failures: &mut Failures) {
+    health.can.recovered(part);
+    if let Some(attempts) = failures.recovered() {
+        info!(interface = %part, failed_attempts = attempts, "CAN link up again");
     }
 }
 
@@ -379,6 +406,7 @@ async fn read_bus(
         let mut watch = tokio::time::interval(WATCH);
         watch.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
         let mut drops = QueueDrops::default();
+        let mut link_is_down = false;
         let error = loop {
             tokio::select! {
                 () = cancel.cancelled() => return,
@@ -399,6 +427,7 @@ async fn read_bus(
                         }
                     }
                     Err(err) if err.raw_os_error() == Some(libc::ENETDOWN) => {
+                        link_is_down = true;
                         link_down(&name, &err, &health, &mut failures);
                     }
                     Err(err) => break err.to_string(),
@@ -416,6 +445,10 @@ async fn read_bus(
                     drops.count(&socket, &counters.can_rx_overflows);
                     if interface_index(&name) != Some(index) {
                         break format!("the interface went away (it had index {index})");
+                    }
+                    if link_is_down && interface_up(&name) {
+                        link_is_down = false;
+                        link_up(&name, &health, &mut failures);
                     }
                 }
             }

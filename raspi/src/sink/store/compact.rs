@@ -69,8 +69,25 @@ pub struct StoredRows {
 }
 
 /// Reads up to `limit` rows of `table` with ids in `first..=last`, from blocks and plain rows
-/// alike, in id order.
+/// alike, in id order, from one snapshot of the store: the writer may be compacting rows from
+/// one into the other meanwhile, and a reader that saw both states would miss them.
 pub fn rows_between(
+    db: &Connection,
+    table: &Table,
+    first: i64,
+    last: i64,
+    limit: usize,
+) -> rusqlite::Result<StoredRows> {
+    // A savepoint outside a transaction is a read transaction; inside one, it nests.
+    db.execute_batch("SAVEPOINT aer_rows_between")?;
+    let rows = read_rows(db, table, first, last, limit);
+    let released = db.execute_batch("RELEASE aer_rows_between");
+    let rows = rows?;
+    released?;
+    Ok(rows)
+}
+
+fn read_rows(
     db: &Connection,
     table: &Table,
     first: i64,
