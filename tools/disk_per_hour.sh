@@ -9,17 +9,8 @@
 set -euo pipefail
 bin=$(realpath "$1"); dir=$2; secs=${3:-45}
 mkdir -p "$dir"; dir=$(realpath "$dir"); rm -rf "${dir:?}"/*
-cat > "$dir/cfg.toml" <<EOT
-car_id = "car1"
-[store]
-path = "$dir/store.sqlite"
-[raw_log]
-dir = "$dir/raw"
-[broker]
-embedded = false
-[mqtt]
-port = 9
-EOT
+source "$(dirname "$0")/pi_measure.sh"
+measure_config "$dir"
 sed "s|$dir/store.sqlite|$dir/empty.sqlite|" "$dir/cfg.toml" > "$dir/empty.toml"
 "$bin" --config "$dir/empty.toml" session list > /dev/null
 sqlite3 "$dir/empty.sqlite" "PRAGMA wal_checkpoint(TRUNCATE)" > /dev/null

@@ -7,17 +7,8 @@
 set -euo pipefail
 bin=$(realpath "$1"); dir=$2; secs=$3
 mkdir -p "$dir"; dir=$(realpath "$dir"); rm -rf "${dir:?}"/*
-cat > "$dir/cfg.toml" <<EOT
-car_id = "car1"
-[store]
-path = "$dir/store.sqlite"
-[raw_log]
-dir = "$dir/raw"
-[broker]
-embedded = false
-[mqtt]
-port = 9
-EOT
+source "$(dirname "$0")/pi_measure.sh"
+measure_config "$dir"
 size() { du -cb "$@" 2>/dev/null | tail -1 | awk '{print $1}'; }
 "$bin" --config "$dir/cfg.toml" synthetic --rate 100 > "$dir/run.log" 2>&1 &
 pid=$!

@@ -4,51 +4,28 @@
 //! is never touched, retention still removes the oldest data first, and a damaged block is
 //! reported and skipped, not fatal.
 
+mod common;
+
 use aer::tables::TABLES;
-use aer_host::counters::Counters;
 use aer_raspi::export::load::{self, Selection};
 use aer_raspi::forward::next_batch;
-use aer_raspi::ingest::Stage;
-use aer_raspi::sink::Sink;
-use aer_raspi::sink::store::{
-    self as store, Budget, Compaction, Retention, StoreSink, StoreWriter, WhenFull, WriterOptions,
-    compact, session,
-};
-use aer_raspi::source::Replies;
+use aer_raspi::sink::store::{self as store, Budget, Compaction, Retention, compact, session};
 use rusqlite::Connection;
 use std::path::Path;
-use std::sync::Arc;
 use std::time::Duration;
-
-const SESSION: &str = include_str!("../data/session.log");
 /// The bundled session's length.
 const SESSION_SECONDS: f64 = 45.0;
 
 /// Replays the bundled session into the store at `path`, in a session of its own.
 fn record_session(path: &Path) -> i64 {
-    let db = store::open(path).expect("store");
-    let id = session::begin(&db, &session::Metadata::default(), "replay", 1).expect("session");
-    let counters = Arc::new(Counters::default());
-    let writer = StoreWriter::with_options(
-        db,
-        counters.clone(),
-        WriterOptions {
-            when_full: WhenFull::Wait,
-            ..WriterOptions::default()
-        },
-    );
-    let runtime = tokio::runtime::Builder::new_current_thread()
-        .enable_all()
-        .build()
-        .expect("runtime");
-    let sinks: Vec<Box<dyn Sink>> = vec![Box::new(StoreSink::new(
-        writer.sender().expect("open"),
-        "car1",
-    ))];
-    let stage = Stage::new(counters.clone(), sinks, Replies::default());
-    let (stage, _) = runtime.block_on(stage.replay_all(SESSION.as_bytes(), &counters));
-    drop(stage);
-    writer.finish();
+    let id = session::begin(
+        &store::open(path).expect("store"),
+        &session::Metadata::default(),
+        "replay",
+        1,
+    )
+    .expect("session");
+    common::record_session(path);
     id
 }
 

@@ -17,7 +17,7 @@ use aer_raspi::rawlog::writer::{RawWriter, Settings};
 use aer_raspi::sink::Sink;
 use aer_raspi::sink::mqtt as publish;
 use aer_raspi::sink::store::{
-    self as store, Budget, Retention, StoreSink, StoreWriter, WhenFull, WriterOptions, session,
+    self as store, Budget, Retention, StoreSink, StoreWriter, WriterOptions, session,
 };
 use aer_raspi::source::Replies;
 use rumqttc::{AsyncClient, Event, MqttOptions, Packet, QoS};
@@ -339,31 +339,6 @@ fn the_raw_log_keeps_every_frame_and_reads_back_as_the_log() {
     );
 }
 
-/// Replays the bundled session into the store at `path` (in the session open there, if any).
-fn record_session(path: &std::path::Path) {
-    let counters = Arc::new(Counters::default());
-    let writer = StoreWriter::with_options(
-        store::open(path).expect("store"),
-        counters.clone(),
-        WriterOptions {
-            when_full: WhenFull::Wait,
-            ..WriterOptions::default()
-        },
-    );
-    let runtime = tokio::runtime::Builder::new_current_thread()
-        .enable_all()
-        .build()
-        .expect("runtime");
-    let sinks: Vec<Box<dyn Sink>> = vec![Box::new(StoreSink::new(
-        writer.sender().expect("open"),
-        "car1",
-    ))];
-    let stage = Stage::new(counters.clone(), sinks, Replies::default());
-    let (stage, _) = runtime.block_on(stage.replay_all(SESSION.as_bytes(), &counters));
-    drop(stage);
-    writer.finish();
-}
-
 fn telemetry_rows(db: &Connection) -> i64 {
     db.query_row("SELECT count(*) FROM telemetry", [], |r| r.get(0))
         .expect("count")
@@ -382,7 +357,7 @@ fn used(db: &Connection) -> u64 {
 fn retention_keeps_the_store_within_its_budget_forwarded_rows_first() {
     let dir = tempfile::tempdir().expect("temp dir");
     let path = dir.path().join("s.sqlite");
-    record_session(&path);
+    common::record_session(&path);
     let db = store::open(&path).expect("store");
     assert_eq!(telemetry_rows(&db), PACKETS as i64);
     // The first 1,000 telemetry rows were forwarded.
@@ -427,9 +402,9 @@ fn the_free_space_floor_never_takes_the_session_being_recorded() {
         session::begin(&db, &session::Metadata::default(), source, 0).expect("session")
     };
     let last_session = begin("earlier");
-    record_session(&path);
+    common::record_session(&path);
     let current = begin("live");
-    record_session(&path);
+    common::record_session(&path);
     let db = store::open(&path).expect("store");
     let current_rows = session::rows(&db, current, "telemetry")
         .expect("rows")

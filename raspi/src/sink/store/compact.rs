@@ -122,23 +122,7 @@ fn read_rows(
             }
         }
     }
-    let names: Vec<String> = columns.iter().map(|c| format!("\"{c}\"")).collect();
-    let mut plain = db.prepare_cached(&format!(
-        "SELECT id, {} FROM \"{}\" WHERE id BETWEEN ?1 AND ?2 ORDER BY id LIMIT ?3",
-        names.join(", "),
-        table.name
-    ))?;
-    let mut found = plain.query(params![
-        first,
-        last,
-        i64::try_from(limit).unwrap_or(i64::MAX)
-    ])?;
-    while let Some(row) = found.next()? {
-        let values = (1..=columns.len())
-            .map(|i| row.get::<_, Value>(i))
-            .collect::<rusqlite::Result<Vec<_>>>()?;
-        out.rows.push((row.get(0)?, values));
-    }
+    out.rows.extend(plain_rows(db, table, first, last, limit)?);
     out.rows.sort_by_key(|(id, _)| *id);
     out.rows.truncate(limit);
     Ok(out)
@@ -287,21 +271,7 @@ impl Compaction {
 /// Moves up to [`BLOCK_ROWS`] of `table`'s oldest plain rows with ids up to `through` into a
 /// block; returns how many.
 fn compact_block(db: &Connection, table: &Table, through: i64) -> rusqlite::Result<u64> {
-    let columns: Vec<&str> = table.local_columns().map(|c| c.name).collect();
-    let names: Vec<String> = columns.iter().map(|c| format!("\"{c}\"")).collect();
-    let mut statement = db.prepare_cached(&format!(
-        "SELECT id, {} FROM \"{}\" WHERE id <= ?1 ORDER BY id LIMIT ?2",
-        names.join(", "),
-        table.name
-    ))?;
-    let mut found = statement.query(params![through, BLOCK_ROWS as i64])?;
-    let mut rows: Vec<(i64, Vec<Value>)> = Vec::new();
-    while let Some(row) = found.next()? {
-        let values = (1..=columns.len())
-            .map(|i| row.get::<_, Value>(i))
-            .collect::<rusqlite::Result<Vec<_>>>()?;
-        rows.push((row.get(0)?, values));
-    }
+    let rows = plain_rows(db, table, i64::MIN, through, BLOCK_ROWS)?;
     let (Some((first_id, _)), Some((last_id, _))) = (rows.first(), rows.last()) else {
         return Ok(0);
     };
@@ -314,8 +284,9 @@ fn compact_block(db: &Connection, table: &Table, through: i64) -> rusqlite::Resu
     let (first_ts, last_ts) = (ts(rows.first()), ts(rows.last()));
     let data = zstd::bulk::compress(&encode(&rows), ZSTD_LEVEL)
         .map_err(|e| rusqlite::Error::ToSqlConversionFailure(Box::new(e)))?;
-    let mut header = vec!["id"];
-    header.extend(&columns);
+    let header: Vec<&str> = std::iter::once("id")
+        .chain(table.local_columns().map(|c| c.name))
+        .collect();
     db.execute(
         "INSERT INTO compacted (table_name, first_id, last_id, first_ts, last_ts, rows, columns, data) \
          VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8)",
@@ -335,6 +306,39 @@ fn compact_block(db: &Connection, table: &Table, through: i64) -> rusqlite::Resu
         params![first_id, last_id],
     )?;
     Ok(rows.len() as u64)
+}
+
+/// Up to `limit` of `table`'s plain rows with ids in `first..=last`, in id order: each id and
+/// its values in the table's local column order.
+fn plain_rows(
+    db: &Connection,
+    table: &Table,
+    first: i64,
+    last: i64,
+    limit: usize,
+) -> rusqlite::Result<Vec<(i64, Vec<Value>)>> {
+    let names: Vec<String> = table
+        .local_columns()
+        .map(|c| format!("\"{}\"", c.name))
+        .collect();
+    let mut statement = db.prepare_cached(&format!(
+        "SELECT id, {} FROM \"{}\" WHERE id BETWEEN ?1 AND ?2 ORDER BY id LIMIT ?3",
+        names.join(", "),
+        table.name
+    ))?;
+    let mut found = statement.query(params![
+        first,
+        last,
+        i64::try_from(limit).unwrap_or(i64::MAX)
+    ])?;
+    let mut rows = Vec::new();
+    while let Some(row) = found.next()? {
+        let values = (1..=names.len())
+            .map(|i| row.get::<_, Value>(i))
+            .collect::<rusqlite::Result<Vec<_>>>()?;
+        rows.push((row.get(0)?, values));
+    }
+    Ok(rows)
 }
 
 /// The block data of `rows` (id, then values), column by column.
