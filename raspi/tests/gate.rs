@@ -239,6 +239,19 @@ async fn the_services_client_ids_are_refused_and_its_link_survives_a_takeover() 
     assert!(service_still_publishes(&service, &mut seen, "after-takeover").await);
 }
 
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn clients_sharing_an_id_each_keep_their_connection() {
+    // The gate gives each connection its own id on the broker (a client id that reconnects
+    // after a failed connection attempt poisoned rumqttd's will handlers, after which nobody
+    // could connect): so two pit laptops with one configured id both stay connected, where
+    // the broker would have taken the first one over.
+    let service = service(|_| {}).await;
+    let (_first, mut first_seen) = subscriber(service.port, "pit-laptop", "aer/#").await;
+    let (_second, mut second_seen) = subscriber(service.port, "pit-laptop", "aer/#").await;
+    assert!(service_still_publishes(&service, &mut second_seen, "to-the-second").await);
+    assert!(service_still_publishes(&service, &mut first_seen, "to-the-first").await);
+}
+
 /// A client that connects, subscribes to everything and never reads again.
 async fn idle_subscriber(port: u16, index: usize) -> Option<TcpStream> {
     let socket = tokio::net::TcpSocket::new_v4().ok()?;

@@ -6,6 +6,13 @@
 //! - refuses a will, and disconnects any publish, under the protected topic prefix: only the
 //!   service publishes there;
 //! - caps the keep-alive, so a dead client's slot frees within a minute and a half;
+//! - gives every connection its own client id on the broker (the client's own, `-gate` and a
+//!   serial number). rumqttd 0.20 keeps a will handler per client id, and when a connection
+//!   fails between its CONNECT and CONNACK (a client gone while connecting) the handler is left
+//!   behind; the next connection with that id panics on it while holding the handlers' lock,
+//!   which poisons it, and from then on every new connection panics: the pit can no longer
+//!   connect until the service restarts. Unique ids never meet a stale handler. Two clients
+//!   with one id therefore no longer take each other over; each keeps its own session;
 //! - disconnects a client that stops reading what it subscribed to (its data is dropped, not
 //!   queued), and at the connection limit makes room by disconnecting one that stalled;
 //! - speaks TLS on listeners that have certificates.
@@ -75,6 +82,8 @@ struct Gate {
     counters: Arc<Counters>,
     clients: Mutex<Clients>,
     started: Instant,
+    /// Connections passed to the broker: the serial in their broker-side client ids.
+    connections: AtomicU64,
 }
 
 /// Binds every listener (so a taken port fails at start-up) and serves them until `cancel`.
@@ -100,6 +109,7 @@ pub async fn start(
         counters,
         clients: Mutex::new(Clients::default()),
         started: Instant::now(),
+        connections: AtomicU64::new(0),
     });
     for (socket, acceptor, listener) in bound {
         let (gate, cancel) = (gate.clone(), cancel.clone());
@@ -259,6 +269,8 @@ impl Gate {
         if connect.keep_alive_s == 0 || connect.keep_alive_s > max {
             connect.keep_alive_s = max;
         }
+        let serial = self.connections.fetch_add(1, Ordering::Relaxed);
+        connect.client_id = format!("{}-gate{serial}", connect.client_id);
         connect.username = Some(self.settings.broker_user.clone());
         connect.password = Some(self.settings.broker_password.clone().into_bytes());
         if broker.write_all(&connect.encode()).await.is_err() {
