@@ -10,7 +10,7 @@ use super::runtime::{
 /// Fingerprint of the schema's wire layout (ids, bit positions, types, scaling, value names).
 /// Sent by the firmware and checked by receivers, so a mismatched flash is detected instead of
 /// mis-decoded.
-pub const SCHEMA_FINGERPRINT: u32 = 0x480F5E33;
+pub const SCHEMA_FINGERPRINT: u32 = 0xA7B512D5;
 
 /// Values of `MCU1.MCU_RotateDirection`.
 ///
@@ -817,6 +817,273 @@ impl serde::Serialize for ImdDeviceActivity {
 
 #[cfg(feature = "serde")]
 impl<'de> serde::Deserialize<'de> for ImdDeviceActivity {
+    fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        <u8 as serde::Deserialize>::deserialize(deserializer).map(Self::from_raw)
+    }
+}
+
+/// Values of `DTI_Control.DTI_ControlMode`.
+///
+/// `Unknown` holds any raw value the schema does not name; decoding never fails on one.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum DtiControlMode {
+    /// SPEED (raw 1)
+    Speed,
+    /// CURRENT (raw 2)
+    Current,
+    /// CURRENT_BRAKE (raw 3)
+    CurrentBrake,
+    /// POSITION (raw 4)
+    Position,
+    /// NONE (raw 7)
+    None,
+    /// A raw value the schema does not name.
+    Unknown(u8),
+}
+
+impl DtiControlMode {
+    /// The variant for a raw value.
+    pub const fn from_raw(raw: u8) -> Self {
+        match raw {
+            1 => Self::Speed,
+            2 => Self::Current,
+            3 => Self::CurrentBrake,
+            4 => Self::Position,
+            7 => Self::None,
+            other => Self::Unknown(other),
+        }
+    }
+
+    /// The raw value on the wire.
+    pub const fn into_raw(self) -> u8 {
+        match self {
+            Self::Speed => 1,
+            Self::Current => 2,
+            Self::CurrentBrake => 3,
+            Self::Position => 4,
+            Self::None => 7,
+            Self::Unknown(raw) => raw,
+        }
+    }
+
+    /// The name the schema gives this value.
+    pub const fn label(self) -> Option<&'static str> {
+        match self {
+            Self::Speed => Some("SPEED"),
+            Self::Current => Some("CURRENT"),
+            Self::CurrentBrake => Some("CURRENT_BRAKE"),
+            Self::Position => Some("POSITION"),
+            Self::None => Some("NONE"),
+            Self::Unknown(_) => None,
+        }
+    }
+}
+
+impl From<u8> for DtiControlMode {
+    fn from(raw: u8) -> Self {
+        Self::from_raw(raw)
+    }
+}
+
+impl From<DtiControlMode> for u8 {
+    fn from(value: DtiControlMode) -> Self {
+        value.into_raw()
+    }
+}
+
+/// Serialized as the raw number (what plots and databases want); labels are in the metadata.
+#[cfg(feature = "serde")]
+impl serde::Serialize for DtiControlMode {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        serde::Serialize::serialize(&self.into_raw(), serializer)
+    }
+}
+
+#[cfg(feature = "serde")]
+impl<'de> serde::Deserialize<'de> for DtiControlMode {
+    fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        <u8 as serde::Deserialize>::deserialize(deserializer).map(Self::from_raw)
+    }
+}
+
+/// Values of `DTI_Temperatures.DTI_FaultCode`.
+///
+/// `Unknown` holds any raw value the schema does not name; decoding never fails on one.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum DtiFaultCode {
+    /// NONE (raw 0)
+    None,
+    /// OVERVOLTAGE (raw 1)
+    Overvoltage,
+    /// UNDERVOLTAGE (raw 2)
+    Undervoltage,
+    /// GATE_DRIVER (raw 3)
+    GateDriver,
+    /// OVERCURRENT (raw 4)
+    Overcurrent,
+    /// CONTROLLER_OVERTEMP (raw 5)
+    ControllerOvertemp,
+    /// MOTOR_OVERTEMP (raw 6)
+    MotorOvertemp,
+    /// SENSOR_WIRE (raw 7)
+    SensorWire,
+    /// SENSOR_GENERAL (raw 8)
+    SensorGeneral,
+    /// CAN_COMMAND (raw 9)
+    CanCommand,
+    /// ANALOG_INPUT (raw 10)
+    AnalogInput,
+    /// A raw value the schema does not name.
+    Unknown(u8),
+}
+
+impl DtiFaultCode {
+    /// The variant for a raw value.
+    pub const fn from_raw(raw: u8) -> Self {
+        match raw {
+            0 => Self::None,
+            1 => Self::Overvoltage,
+            2 => Self::Undervoltage,
+            3 => Self::GateDriver,
+            4 => Self::Overcurrent,
+            5 => Self::ControllerOvertemp,
+            6 => Self::MotorOvertemp,
+            7 => Self::SensorWire,
+            8 => Self::SensorGeneral,
+            9 => Self::CanCommand,
+            10 => Self::AnalogInput,
+            other => Self::Unknown(other),
+        }
+    }
+
+    /// The raw value on the wire.
+    pub const fn into_raw(self) -> u8 {
+        match self {
+            Self::None => 0,
+            Self::Overvoltage => 1,
+            Self::Undervoltage => 2,
+            Self::GateDriver => 3,
+            Self::Overcurrent => 4,
+            Self::ControllerOvertemp => 5,
+            Self::MotorOvertemp => 6,
+            Self::SensorWire => 7,
+            Self::SensorGeneral => 8,
+            Self::CanCommand => 9,
+            Self::AnalogInput => 10,
+            Self::Unknown(raw) => raw,
+        }
+    }
+
+    /// The name the schema gives this value.
+    pub const fn label(self) -> Option<&'static str> {
+        match self {
+            Self::None => Some("NONE"),
+            Self::Overvoltage => Some("OVERVOLTAGE"),
+            Self::Undervoltage => Some("UNDERVOLTAGE"),
+            Self::GateDriver => Some("GATE_DRIVER"),
+            Self::Overcurrent => Some("OVERCURRENT"),
+            Self::ControllerOvertemp => Some("CONTROLLER_OVERTEMP"),
+            Self::MotorOvertemp => Some("MOTOR_OVERTEMP"),
+            Self::SensorWire => Some("SENSOR_WIRE"),
+            Self::SensorGeneral => Some("SENSOR_GENERAL"),
+            Self::CanCommand => Some("CAN_COMMAND"),
+            Self::AnalogInput => Some("ANALOG_INPUT"),
+            Self::Unknown(_) => None,
+        }
+    }
+}
+
+impl From<u8> for DtiFaultCode {
+    fn from(raw: u8) -> Self {
+        Self::from_raw(raw)
+    }
+}
+
+impl From<DtiFaultCode> for u8 {
+    fn from(value: DtiFaultCode) -> Self {
+        value.into_raw()
+    }
+}
+
+/// Serialized as the raw number (what plots and databases want); labels are in the metadata.
+#[cfg(feature = "serde")]
+impl serde::Serialize for DtiFaultCode {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        serde::Serialize::serialize(&self.into_raw(), serializer)
+    }
+}
+
+#[cfg(feature = "serde")]
+impl<'de> serde::Deserialize<'de> for DtiFaultCode {
+    fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        <u8 as serde::Deserialize>::deserialize(deserializer).map(Self::from_raw)
+    }
+}
+
+/// Values of `DTI_SetDriveEnable.DTI_DriveEnableCmd`, `DTI_Flags.DTI_DriveEnabled`.
+///
+/// `Unknown` holds any raw value the schema does not name; decoding never fails on one.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum DtiDriveEnable {
+    /// DISABLED (raw 0)
+    Disabled,
+    /// ENABLED (raw 1)
+    Enabled,
+    /// A raw value the schema does not name.
+    Unknown(u8),
+}
+
+impl DtiDriveEnable {
+    /// The variant for a raw value.
+    pub const fn from_raw(raw: u8) -> Self {
+        match raw {
+            0 => Self::Disabled,
+            1 => Self::Enabled,
+            other => Self::Unknown(other),
+        }
+    }
+
+    /// The raw value on the wire.
+    pub const fn into_raw(self) -> u8 {
+        match self {
+            Self::Disabled => 0,
+            Self::Enabled => 1,
+            Self::Unknown(raw) => raw,
+        }
+    }
+
+    /// The name the schema gives this value.
+    pub const fn label(self) -> Option<&'static str> {
+        match self {
+            Self::Disabled => Some("DISABLED"),
+            Self::Enabled => Some("ENABLED"),
+            Self::Unknown(_) => None,
+        }
+    }
+}
+
+impl From<u8> for DtiDriveEnable {
+    fn from(raw: u8) -> Self {
+        Self::from_raw(raw)
+    }
+}
+
+impl From<DtiDriveEnable> for u8 {
+    fn from(value: DtiDriveEnable) -> Self {
+        value.into_raw()
+    }
+}
+
+/// Serialized as the raw number (what plots and databases want); labels are in the metadata.
+#[cfg(feature = "serde")]
+impl serde::Serialize for DtiDriveEnable {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        serde::Serialize::serialize(&self.into_raw(), serializer)
+    }
+}
+
+#[cfg(feature = "serde")]
+impl<'de> serde::Deserialize<'de> for DtiDriveEnable {
     fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
         <u8 as serde::Deserialize>::deserialize(deserializer).map(Self::from_raw)
     }
@@ -9877,8 +10144,5283 @@ impl CanMessage for ImdRequest {
     }
 }
 
+/// DTI packet 0x01. Sets the AC (phase) current and puts the controller in current control.
+///
+/// `DTI_SetCurrent`: extended id 0x141, 2 bytes, sent by CCM.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct DtiSetCurrent {
+    /// Peak AC current; the sign is the direction.
+    ///
+    /// `DTI_CurrentCmd`: 16 bits from bit 7 (Motorola), signed, physical = raw * 0.1, range [-3276.8, 3276.7], unit `A`.
+    pub dti_current_cmd: f64,
+}
+
+static DTI_SET_CURRENT_SIGNALS: [SignalMeta; 1] = [SignalMeta {
+    name: "DTI_CurrentCmd",
+    index: 0,
+    unit: "A",
+    comment: "Peak AC current; the sign is the direction.",
+    start_bit: 7,
+    len: 16,
+    byte_order: ByteOrder::BigEndian,
+    signed: true,
+    factor: 0.1,
+    offset: 0.0,
+    min: Some(-3276.8),
+    max: Some(3276.7),
+    labels: &[],
+    multiplexed: false,
+}];
+
+impl DtiSetCurrent {
+    pub const META: &'static MessageMeta = &MessageMeta {
+        name: "DTI_SetCurrent",
+        id: 0x141,
+        extended: true,
+        len: 2,
+        cycle_time_ms: None,
+        comment: "DTI packet 0x01. Sets the AC (phase) current and puts the controller in current control.",
+        signals: &DTI_SET_CURRENT_SIGNALS,
+    };
+    pub const ID: u32 = 0x141;
+    pub const EXTENDED: bool = true;
+    pub const LEN: usize = 2;
+
+    /// Decodes a payload of at least [`Self::LEN`] bytes. Values outside the schema's range are
+    /// decoded as they are; only a short payload fails.
+    pub fn decode(data: &[u8]) -> Result<Self, DecodeError> {
+        let data = runtime::payload::<2>(data, "DTI_SetCurrent")?;
+        let dti_current_cmd = Self::dti_current_cmd_from_raw(bits::sign_extend(
+            bits::read_be(data, 0, 16),
+            16,
+        ) as i16);
+        Ok(Self { dti_current_cmd })
+    }
+
+    /// Encodes into the first [`Self::LEN`] bytes of `out` and returns that length. Fails, naming
+    /// the signal, when a value is outside its range or its multiplexor disagrees.
+    pub fn encode(&self, out: &mut [u8]) -> Result<usize, EncodeError> {
+        let out = runtime::payload_mut::<2>(out, "DTI_SetCurrent")?;
+        bits::write_be(
+            out,
+            0,
+            16,
+            Self::dti_current_cmd_to_raw(self.dti_current_cmd)? as u64,
+        );
+        Ok(Self::LEN)
+    }
+
+    /// Calls `visitor` with every present signal's physical value.
+    pub fn visit(&self, visitor: &mut impl SignalVisitor) {
+        let v = self.dti_current_cmd;
+        visitor.signal(&DTI_SET_CURRENT_SIGNALS[0], Value::from(v), None);
+    }
+
+    /// Builds the message from physical values looked up by signal.
+    pub fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
+        Ok(Self {
+            dti_current_cmd: {
+                let v = source.value(&DTI_SET_CURRENT_SIGNALS[0]).ok_or(
+                    EncodeError::MissingSignal {
+                        message: "DTI_SetCurrent",
+                        signal: "DTI_CurrentCmd",
+                    },
+                )?;
+                Some(v.to_f64()).ok_or(EncodeError::InvalidValue {
+                    message: "DTI_SetCurrent",
+                    signal: "DTI_CurrentCmd",
+                })?
+            },
+        })
+    }
+
+    /// Physical value of `DTI_CurrentCmd` for a raw value.
+    pub fn dti_current_cmd_from_raw(raw: i16) -> f64 {
+        f64::from(raw) * 0.1
+    }
+
+    /// Raw value of `DTI_CurrentCmd` for a physical value, range-checked.
+    pub fn dti_current_cmd_to_raw(v: f64) -> Result<i16, EncodeError> {
+        runtime::check_range(v, -3276.8, 3276.7, 1e-7, "DTI_SetCurrent", "DTI_CurrentCmd")?;
+        let raw = runtime::round(v / 0.1);
+        if (-32768.0..32768.0).contains(&raw) {
+            Ok(raw as i16)
+        } else {
+            Err(EncodeError::OutOfRange {
+                message: "DTI_SetCurrent",
+                signal: "DTI_CurrentCmd",
+            })
+        }
+    }
+}
+
+impl CanMessage for DtiSetCurrent {
+    const META: &'static MessageMeta = Self::META;
+
+    fn decode(data: &[u8]) -> Result<Self, DecodeError> {
+        Self::decode(data)
+    }
+
+    fn encode(&self, out: &mut [u8]) -> Result<usize, EncodeError> {
+        self.encode(out)
+    }
+
+    fn visit(&self, visitor: &mut impl SignalVisitor) {
+        self.visit(visitor)
+    }
+
+    fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
+        Self::from_signals(source)
+    }
+}
+
+/// DTI packet 0x02. Sets the brake (regenerative) current and puts the controller in brake-current control.
+///
+/// `DTI_SetBrakeCurrent`: extended id 0x241, 2 bytes, sent by CCM.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct DtiSetBrakeCurrent {
+    /// Peak AC brake current, positive only.
+    ///
+    /// `DTI_BrakeCurrentCmd`: 16 bits from bit 7 (Motorola), signed, physical = raw * 0.1, range [0.0, 3276.7], unit `A`.
+    pub dti_brake_current_cmd: f64,
+}
+
+static DTI_SET_BRAKE_CURRENT_SIGNALS: [SignalMeta; 1] = [SignalMeta {
+    name: "DTI_BrakeCurrentCmd",
+    index: 0,
+    unit: "A",
+    comment: "Peak AC brake current, positive only.",
+    start_bit: 7,
+    len: 16,
+    byte_order: ByteOrder::BigEndian,
+    signed: true,
+    factor: 0.1,
+    offset: 0.0,
+    min: Some(0.0),
+    max: Some(3276.7),
+    labels: &[],
+    multiplexed: false,
+}];
+
+impl DtiSetBrakeCurrent {
+    pub const META: &'static MessageMeta = &MessageMeta {
+        name: "DTI_SetBrakeCurrent",
+        id: 0x241,
+        extended: true,
+        len: 2,
+        cycle_time_ms: None,
+        comment: "DTI packet 0x02. Sets the brake (regenerative) current and puts the controller in brake-current control.",
+        signals: &DTI_SET_BRAKE_CURRENT_SIGNALS,
+    };
+    pub const ID: u32 = 0x241;
+    pub const EXTENDED: bool = true;
+    pub const LEN: usize = 2;
+
+    /// Decodes a payload of at least [`Self::LEN`] bytes. Values outside the schema's range are
+    /// decoded as they are; only a short payload fails.
+    pub fn decode(data: &[u8]) -> Result<Self, DecodeError> {
+        let data = runtime::payload::<2>(data, "DTI_SetBrakeCurrent")?;
+        let dti_brake_current_cmd = Self::dti_brake_current_cmd_from_raw(bits::sign_extend(
+            bits::read_be(data, 0, 16),
+            16,
+        ) as i16);
+        Ok(Self {
+            dti_brake_current_cmd,
+        })
+    }
+
+    /// Encodes into the first [`Self::LEN`] bytes of `out` and returns that length. Fails, naming
+    /// the signal, when a value is outside its range or its multiplexor disagrees.
+    pub fn encode(&self, out: &mut [u8]) -> Result<usize, EncodeError> {
+        let out = runtime::payload_mut::<2>(out, "DTI_SetBrakeCurrent")?;
+        bits::write_be(
+            out,
+            0,
+            16,
+            Self::dti_brake_current_cmd_to_raw(self.dti_brake_current_cmd)? as u64,
+        );
+        Ok(Self::LEN)
+    }
+
+    /// Calls `visitor` with every present signal's physical value.
+    pub fn visit(&self, visitor: &mut impl SignalVisitor) {
+        let v = self.dti_brake_current_cmd;
+        visitor.signal(&DTI_SET_BRAKE_CURRENT_SIGNALS[0], Value::from(v), None);
+    }
+
+    /// Builds the message from physical values looked up by signal.
+    pub fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
+        Ok(Self {
+            dti_brake_current_cmd: {
+                let v = source.value(&DTI_SET_BRAKE_CURRENT_SIGNALS[0]).ok_or(
+                    EncodeError::MissingSignal {
+                        message: "DTI_SetBrakeCurrent",
+                        signal: "DTI_BrakeCurrentCmd",
+                    },
+                )?;
+                Some(v.to_f64()).ok_or(EncodeError::InvalidValue {
+                    message: "DTI_SetBrakeCurrent",
+                    signal: "DTI_BrakeCurrentCmd",
+                })?
+            },
+        })
+    }
+
+    /// Physical value of `DTI_BrakeCurrentCmd` for a raw value.
+    pub fn dti_brake_current_cmd_from_raw(raw: i16) -> f64 {
+        f64::from(raw) * 0.1
+    }
+
+    /// Raw value of `DTI_BrakeCurrentCmd` for a physical value, range-checked.
+    pub fn dti_brake_current_cmd_to_raw(v: f64) -> Result<i16, EncodeError> {
+        runtime::check_range(
+            v,
+            0.0,
+            3276.7,
+            1e-7,
+            "DTI_SetBrakeCurrent",
+            "DTI_BrakeCurrentCmd",
+        )?;
+        let raw = runtime::round(v / 0.1);
+        if (-32768.0..32768.0).contains(&raw) {
+            Ok(raw as i16)
+        } else {
+            Err(EncodeError::OutOfRange {
+                message: "DTI_SetBrakeCurrent",
+                signal: "DTI_BrakeCurrentCmd",
+            })
+        }
+    }
+}
+
+impl CanMessage for DtiSetBrakeCurrent {
+    const META: &'static MessageMeta = Self::META;
+
+    fn decode(data: &[u8]) -> Result<Self, DecodeError> {
+        Self::decode(data)
+    }
+
+    fn encode(&self, out: &mut [u8]) -> Result<usize, EncodeError> {
+        self.encode(out)
+    }
+
+    fn visit(&self, visitor: &mut impl SignalVisitor) {
+        self.visit(visitor)
+    }
+
+    fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
+        Self::from_signals(source)
+    }
+}
+
+/// DTI packet 0x03. Sets the speed in electrical rpm and puts the controller in speed control.
+///
+/// `DTI_SetErpm`: extended id 0x341, 4 bytes, sent by CCM.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct DtiSetErpm {
+    /// Electrical rpm: motor rpm x pole pairs.
+    ///
+    /// `DTI_ErpmCmd`: 32 bits from bit 7 (Motorola), signed, range [-2147483648.0, 2147483647.0], unit `rpm`.
+    pub dti_erpm_cmd: i32,
+}
+
+static DTI_SET_ERPM_SIGNALS: [SignalMeta; 1] = [SignalMeta {
+    name: "DTI_ErpmCmd",
+    index: 0,
+    unit: "rpm",
+    comment: "Electrical rpm: motor rpm x pole pairs.",
+    start_bit: 7,
+    len: 32,
+    byte_order: ByteOrder::BigEndian,
+    signed: true,
+    factor: 1.0,
+    offset: 0.0,
+    min: Some(-2147483648.0),
+    max: Some(2147483647.0),
+    labels: &[],
+    multiplexed: false,
+}];
+
+impl DtiSetErpm {
+    pub const META: &'static MessageMeta = &MessageMeta {
+        name: "DTI_SetErpm",
+        id: 0x341,
+        extended: true,
+        len: 4,
+        cycle_time_ms: None,
+        comment: "DTI packet 0x03. Sets the speed in electrical rpm and puts the controller in speed control.",
+        signals: &DTI_SET_ERPM_SIGNALS,
+    };
+    pub const ID: u32 = 0x341;
+    pub const EXTENDED: bool = true;
+    pub const LEN: usize = 4;
+
+    /// Decodes a payload of at least [`Self::LEN`] bytes. Values outside the schema's range are
+    /// decoded as they are; only a short payload fails.
+    pub fn decode(data: &[u8]) -> Result<Self, DecodeError> {
+        let data = runtime::payload::<4>(data, "DTI_SetErpm")?;
+        let dti_erpm_cmd =
+            Self::dti_erpm_cmd_from_raw(bits::sign_extend(bits::read_be(data, 0, 32), 32) as i32);
+        Ok(Self { dti_erpm_cmd })
+    }
+
+    /// Encodes into the first [`Self::LEN`] bytes of `out` and returns that length. Fails, naming
+    /// the signal, when a value is outside its range or its multiplexor disagrees.
+    pub fn encode(&self, out: &mut [u8]) -> Result<usize, EncodeError> {
+        let out = runtime::payload_mut::<4>(out, "DTI_SetErpm")?;
+        bits::write_be(
+            out,
+            0,
+            32,
+            Self::dti_erpm_cmd_to_raw(self.dti_erpm_cmd)? as u64,
+        );
+        Ok(Self::LEN)
+    }
+
+    /// Calls `visitor` with every present signal's physical value.
+    pub fn visit(&self, visitor: &mut impl SignalVisitor) {
+        let v = self.dti_erpm_cmd;
+        visitor.signal(&DTI_SET_ERPM_SIGNALS[0], Value::from(v), None);
+    }
+
+    /// Builds the message from physical values looked up by signal.
+    pub fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
+        Ok(Self {
+            dti_erpm_cmd: {
+                let v =
+                    source
+                        .value(&DTI_SET_ERPM_SIGNALS[0])
+                        .ok_or(EncodeError::MissingSignal {
+                            message: "DTI_SetErpm",
+                            signal: "DTI_ErpmCmd",
+                        })?;
+                v.to_int::<i32>().ok_or(EncodeError::InvalidValue {
+                    message: "DTI_SetErpm",
+                    signal: "DTI_ErpmCmd",
+                })?
+            },
+        })
+    }
+
+    /// Physical value of `DTI_ErpmCmd` for a raw value.
+    pub fn dti_erpm_cmd_from_raw(raw: i32) -> i32 {
+        raw
+    }
+
+    /// Raw value of `DTI_ErpmCmd` for a physical value, range-checked.
+    pub fn dti_erpm_cmd_to_raw(v: i32) -> Result<i32, EncodeError> {
+        runtime::check_range(
+            f64::from(v),
+            -2147483648.0,
+            2147483647.0,
+            1e-6,
+            "DTI_SetErpm",
+            "DTI_ErpmCmd",
+        )?;
+        Ok(v)
+    }
+}
+
+impl CanMessage for DtiSetErpm {
+    const META: &'static MessageMeta = Self::META;
+
+    fn decode(data: &[u8]) -> Result<Self, DecodeError> {
+        Self::decode(data)
+    }
+
+    fn encode(&self, out: &mut [u8]) -> Result<usize, EncodeError> {
+        self.encode(out)
+    }
+
+    fn visit(&self, visitor: &mut impl SignalVisitor) {
+        self.visit(visitor)
+    }
+
+    fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
+        Self::from_signals(source)
+    }
+}
+
+/// DTI packet 0x04. Sets the rotor position and puts the controller in position control.
+///
+/// `DTI_SetPosition`: extended id 0x441, 2 bytes, sent by CCM.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct DtiSetPosition {
+    /// Rotor position.
+    ///
+    /// `DTI_PositionCmd`: 16 bits from bit 7 (Motorola), signed, physical = raw * 0.1, range [0.0, 360.0], unit `deg`.
+    pub dti_position_cmd: f64,
+}
+
+static DTI_SET_POSITION_SIGNALS: [SignalMeta; 1] = [SignalMeta {
+    name: "DTI_PositionCmd",
+    index: 0,
+    unit: "deg",
+    comment: "Rotor position.",
+    start_bit: 7,
+    len: 16,
+    byte_order: ByteOrder::BigEndian,
+    signed: true,
+    factor: 0.1,
+    offset: 0.0,
+    min: Some(0.0),
+    max: Some(360.0),
+    labels: &[],
+    multiplexed: false,
+}];
+
+impl DtiSetPosition {
+    pub const META: &'static MessageMeta = &MessageMeta {
+        name: "DTI_SetPosition",
+        id: 0x441,
+        extended: true,
+        len: 2,
+        cycle_time_ms: None,
+        comment: "DTI packet 0x04. Sets the rotor position and puts the controller in position control.",
+        signals: &DTI_SET_POSITION_SIGNALS,
+    };
+    pub const ID: u32 = 0x441;
+    pub const EXTENDED: bool = true;
+    pub const LEN: usize = 2;
+
+    /// Decodes a payload of at least [`Self::LEN`] bytes. Values outside the schema's range are
+    /// decoded as they are; only a short payload fails.
+    pub fn decode(data: &[u8]) -> Result<Self, DecodeError> {
+        let data = runtime::payload::<2>(data, "DTI_SetPosition")?;
+        let dti_position_cmd = Self::dti_position_cmd_from_raw(bits::sign_extend(
+            bits::read_be(data, 0, 16),
+            16,
+        ) as i16);
+        Ok(Self { dti_position_cmd })
+    }
+
+    /// Encodes into the first [`Self::LEN`] bytes of `out` and returns that length. Fails, naming
+    /// the signal, when a value is outside its range or its multiplexor disagrees.
+    pub fn encode(&self, out: &mut [u8]) -> Result<usize, EncodeError> {
+        let out = runtime::payload_mut::<2>(out, "DTI_SetPosition")?;
+        bits::write_be(
+            out,
+            0,
+            16,
+            Self::dti_position_cmd_to_raw(self.dti_position_cmd)? as u64,
+        );
+        Ok(Self::LEN)
+    }
+
+    /// Calls `visitor` with every present signal's physical value.
+    pub fn visit(&self, visitor: &mut impl SignalVisitor) {
+        let v = self.dti_position_cmd;
+        visitor.signal(&DTI_SET_POSITION_SIGNALS[0], Value::from(v), None);
+    }
+
+    /// Builds the message from physical values looked up by signal.
+    pub fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
+        Ok(Self {
+            dti_position_cmd: {
+                let v = source.value(&DTI_SET_POSITION_SIGNALS[0]).ok_or(
+                    EncodeError::MissingSignal {
+                        message: "DTI_SetPosition",
+                        signal: "DTI_PositionCmd",
+                    },
+                )?;
+                Some(v.to_f64()).ok_or(EncodeError::InvalidValue {
+                    message: "DTI_SetPosition",
+                    signal: "DTI_PositionCmd",
+                })?
+            },
+        })
+    }
+
+    /// Physical value of `DTI_PositionCmd` for a raw value.
+    pub fn dti_position_cmd_from_raw(raw: i16) -> f64 {
+        f64::from(raw) * 0.1
+    }
+
+    /// Raw value of `DTI_PositionCmd` for a physical value, range-checked.
+    pub fn dti_position_cmd_to_raw(v: f64) -> Result<i16, EncodeError> {
+        runtime::check_range(v, 0.0, 360.0, 1e-7, "DTI_SetPosition", "DTI_PositionCmd")?;
+        let raw = runtime::round(v / 0.1);
+        if (-32768.0..32768.0).contains(&raw) {
+            Ok(raw as i16)
+        } else {
+            Err(EncodeError::OutOfRange {
+                message: "DTI_SetPosition",
+                signal: "DTI_PositionCmd",
+            })
+        }
+    }
+}
+
+impl CanMessage for DtiSetPosition {
+    const META: &'static MessageMeta = Self::META;
+
+    fn decode(data: &[u8]) -> Result<Self, DecodeError> {
+        Self::decode(data)
+    }
+
+    fn encode(&self, out: &mut [u8]) -> Result<usize, EncodeError> {
+        self.encode(out)
+    }
+
+    fn visit(&self, visitor: &mut impl SignalVisitor) {
+        self.visit(visitor)
+    }
+
+    fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
+        Self::from_signals(source)
+    }
+}
+
+/// DTI packet 0x05. Sets the AC current as a share of the controller's configured maximum AC current (current control).
+///
+/// `DTI_SetRelativeCurrent`: extended id 0x541, 2 bytes, every 10 ms, sent by CCM.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct DtiSetRelativeCurrent {
+    /// Share of the configured maximum AC current; the sign is the direction.
+    ///
+    /// `DTI_RelativeCurrentCmd`: 16 bits from bit 7 (Motorola), signed, physical = raw * 0.1, range [-100.0, 100.0], unit `%`.
+    pub dti_relative_current_cmd: f64,
+}
+
+static DTI_SET_RELATIVE_CURRENT_SIGNALS: [SignalMeta; 1] = [SignalMeta {
+    name: "DTI_RelativeCurrentCmd",
+    index: 0,
+    unit: "%",
+    comment: "Share of the configured maximum AC current; the sign is the direction.",
+    start_bit: 7,
+    len: 16,
+    byte_order: ByteOrder::BigEndian,
+    signed: true,
+    factor: 0.1,
+    offset: 0.0,
+    min: Some(-100.0),
+    max: Some(100.0),
+    labels: &[],
+    multiplexed: false,
+}];
+
+impl DtiSetRelativeCurrent {
+    pub const META: &'static MessageMeta = &MessageMeta {
+        name: "DTI_SetRelativeCurrent",
+        id: 0x541,
+        extended: true,
+        len: 2,
+        cycle_time_ms: Some(10),
+        comment: "DTI packet 0x05. Sets the AC current as a share of the controller's configured maximum AC current (current control).",
+        signals: &DTI_SET_RELATIVE_CURRENT_SIGNALS,
+    };
+    pub const ID: u32 = 0x541;
+    pub const EXTENDED: bool = true;
+    pub const LEN: usize = 2;
+    pub const CYCLE_TIME_MS: u32 = 10;
+
+    /// Decodes a payload of at least [`Self::LEN`] bytes. Values outside the schema's range are
+    /// decoded as they are; only a short payload fails.
+    pub fn decode(data: &[u8]) -> Result<Self, DecodeError> {
+        let data = runtime::payload::<2>(data, "DTI_SetRelativeCurrent")?;
+        let dti_relative_current_cmd = Self::dti_relative_current_cmd_from_raw(bits::sign_extend(
+            bits::read_be(data, 0, 16),
+            16,
+        ) as i16);
+        Ok(Self {
+            dti_relative_current_cmd,
+        })
+    }
+
+    /// Encodes into the first [`Self::LEN`] bytes of `out` and returns that length. Fails, naming
+    /// the signal, when a value is outside its range or its multiplexor disagrees.
+    pub fn encode(&self, out: &mut [u8]) -> Result<usize, EncodeError> {
+        let out = runtime::payload_mut::<2>(out, "DTI_SetRelativeCurrent")?;
+        bits::write_be(
+            out,
+            0,
+            16,
+            Self::dti_relative_current_cmd_to_raw(self.dti_relative_current_cmd)? as u64,
+        );
+        Ok(Self::LEN)
+    }
+
+    /// Calls `visitor` with every present signal's physical value.
+    pub fn visit(&self, visitor: &mut impl SignalVisitor) {
+        let v = self.dti_relative_current_cmd;
+        visitor.signal(&DTI_SET_RELATIVE_CURRENT_SIGNALS[0], Value::from(v), None);
+    }
+
+    /// Builds the message from physical values looked up by signal.
+    pub fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
+        Ok(Self {
+            dti_relative_current_cmd: {
+                let v = source.value(&DTI_SET_RELATIVE_CURRENT_SIGNALS[0]).ok_or(
+                    EncodeError::MissingSignal {
+                        message: "DTI_SetRelativeCurrent",
+                        signal: "DTI_RelativeCurrentCmd",
+                    },
+                )?;
+                Some(v.to_f64()).ok_or(EncodeError::InvalidValue {
+                    message: "DTI_SetRelativeCurrent",
+                    signal: "DTI_RelativeCurrentCmd",
+                })?
+            },
+        })
+    }
+
+    /// Physical value of `DTI_RelativeCurrentCmd` for a raw value.
+    pub fn dti_relative_current_cmd_from_raw(raw: i16) -> f64 {
+        f64::from(raw) * 0.1
+    }
+
+    /// Raw value of `DTI_RelativeCurrentCmd` for a physical value, range-checked.
+    pub fn dti_relative_current_cmd_to_raw(v: f64) -> Result<i16, EncodeError> {
+        runtime::check_range(
+            v,
+            -100.0,
+            100.0,
+            1e-7,
+            "DTI_SetRelativeCurrent",
+            "DTI_RelativeCurrentCmd",
+        )?;
+        let raw = runtime::round(v / 0.1);
+        if (-32768.0..32768.0).contains(&raw) {
+            Ok(raw as i16)
+        } else {
+            Err(EncodeError::OutOfRange {
+                message: "DTI_SetRelativeCurrent",
+                signal: "DTI_RelativeCurrentCmd",
+            })
+        }
+    }
+}
+
+impl CanMessage for DtiSetRelativeCurrent {
+    const META: &'static MessageMeta = Self::META;
+
+    fn decode(data: &[u8]) -> Result<Self, DecodeError> {
+        Self::decode(data)
+    }
+
+    fn encode(&self, out: &mut [u8]) -> Result<usize, EncodeError> {
+        self.encode(out)
+    }
+
+    fn visit(&self, visitor: &mut impl SignalVisitor) {
+        self.visit(visitor)
+    }
+
+    fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
+        Self::from_signals(source)
+    }
+}
+
+/// DTI packet 0x06. Sets the brake current as a share of the configured maximum brake current.
+///
+/// `DTI_SetRelativeBrakeCurrent`: extended id 0x641, 2 bytes, sent by CCM.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct DtiSetRelativeBrakeCurrent {
+    /// Share of the configured maximum AC brake current.
+    ///
+    /// `DTI_RelativeBrakeCurrentCmd`: 16 bits from bit 7 (Motorola), signed, physical = raw * 0.1, range [0.0, 100.0], unit `%`.
+    pub dti_relative_brake_current_cmd: f64,
+}
+
+static DTI_SET_RELATIVE_BRAKE_CURRENT_SIGNALS: [SignalMeta; 1] = [SignalMeta {
+    name: "DTI_RelativeBrakeCurrentCmd",
+    index: 0,
+    unit: "%",
+    comment: "Share of the configured maximum AC brake current.",
+    start_bit: 7,
+    len: 16,
+    byte_order: ByteOrder::BigEndian,
+    signed: true,
+    factor: 0.1,
+    offset: 0.0,
+    min: Some(0.0),
+    max: Some(100.0),
+    labels: &[],
+    multiplexed: false,
+}];
+
+impl DtiSetRelativeBrakeCurrent {
+    pub const META: &'static MessageMeta = &MessageMeta {
+        name: "DTI_SetRelativeBrakeCurrent",
+        id: 0x641,
+        extended: true,
+        len: 2,
+        cycle_time_ms: None,
+        comment: "DTI packet 0x06. Sets the brake current as a share of the configured maximum brake current.",
+        signals: &DTI_SET_RELATIVE_BRAKE_CURRENT_SIGNALS,
+    };
+    pub const ID: u32 = 0x641;
+    pub const EXTENDED: bool = true;
+    pub const LEN: usize = 2;
+
+    /// Decodes a payload of at least [`Self::LEN`] bytes. Values outside the schema's range are
+    /// decoded as they are; only a short payload fails.
+    pub fn decode(data: &[u8]) -> Result<Self, DecodeError> {
+        let data = runtime::payload::<2>(data, "DTI_SetRelativeBrakeCurrent")?;
+        let dti_relative_brake_current_cmd = Self::dti_relative_brake_current_cmd_from_raw(
+            bits::sign_extend(bits::read_be(data, 0, 16), 16) as i16,
+        );
+        Ok(Self {
+            dti_relative_brake_current_cmd,
+        })
+    }
+
+    /// Encodes into the first [`Self::LEN`] bytes of `out` and returns that length. Fails, naming
+    /// the signal, when a value is outside its range or its multiplexor disagrees.
+    pub fn encode(&self, out: &mut [u8]) -> Result<usize, EncodeError> {
+        let out = runtime::payload_mut::<2>(out, "DTI_SetRelativeBrakeCurrent")?;
+        bits::write_be(
+            out,
+            0,
+            16,
+            Self::dti_relative_brake_current_cmd_to_raw(self.dti_relative_brake_current_cmd)?
+                as u64,
+        );
+        Ok(Self::LEN)
+    }
+
+    /// Calls `visitor` with every present signal's physical value.
+    pub fn visit(&self, visitor: &mut impl SignalVisitor) {
+        let v = self.dti_relative_brake_current_cmd;
+        visitor.signal(
+            &DTI_SET_RELATIVE_BRAKE_CURRENT_SIGNALS[0],
+            Value::from(v),
+            None,
+        );
+    }
+
+    /// Builds the message from physical values looked up by signal.
+    pub fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
+        Ok(Self {
+            dti_relative_brake_current_cmd: {
+                let v = source
+                    .value(&DTI_SET_RELATIVE_BRAKE_CURRENT_SIGNALS[0])
+                    .ok_or(EncodeError::MissingSignal {
+                        message: "DTI_SetRelativeBrakeCurrent",
+                        signal: "DTI_RelativeBrakeCurrentCmd",
+                    })?;
+                Some(v.to_f64()).ok_or(EncodeError::InvalidValue {
+                    message: "DTI_SetRelativeBrakeCurrent",
+                    signal: "DTI_RelativeBrakeCurrentCmd",
+                })?
+            },
+        })
+    }
+
+    /// Physical value of `DTI_RelativeBrakeCurrentCmd` for a raw value.
+    pub fn dti_relative_brake_current_cmd_from_raw(raw: i16) -> f64 {
+        f64::from(raw) * 0.1
+    }
+
+    /// Raw value of `DTI_RelativeBrakeCurrentCmd` for a physical value, range-checked.
+    pub fn dti_relative_brake_current_cmd_to_raw(v: f64) -> Result<i16, EncodeError> {
+        runtime::check_range(
+            v,
+            0.0,
+            100.0,
+            1e-7,
+            "DTI_SetRelativeBrakeCurrent",
+            "DTI_RelativeBrakeCurrentCmd",
+        )?;
+        let raw = runtime::round(v / 0.1);
+        if (-32768.0..32768.0).contains(&raw) {
+            Ok(raw as i16)
+        } else {
+            Err(EncodeError::OutOfRange {
+                message: "DTI_SetRelativeBrakeCurrent",
+                signal: "DTI_RelativeBrakeCurrentCmd",
+            })
+        }
+    }
+}
+
+impl CanMessage for DtiSetRelativeBrakeCurrent {
+    const META: &'static MessageMeta = Self::META;
+
+    fn decode(data: &[u8]) -> Result<Self, DecodeError> {
+        Self::decode(data)
+    }
+
+    fn encode(&self, out: &mut [u8]) -> Result<usize, EncodeError> {
+        self.encode(out)
+    }
+
+    fn visit(&self, visitor: &mut impl SignalVisitor) {
+        self.visit(visitor)
+    }
+
+    fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
+        Self::from_signals(source)
+    }
+}
+
+/// DTI packet 0x07. Sets the controller's four digital outputs.
+///
+/// `DTI_SetDigitalOutputs`: extended id 0x741, 1 bytes, sent by CCM.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct DtiSetDigitalOutputs {
+    /// `DTI_DigitalOut1Cmd`: 1 bit from bit 0 (Intel), unsigned, range [0.0, 1.0].
+    pub dti_digital_out1_cmd: bool,
+    /// `DTI_DigitalOut2Cmd`: 1 bit from bit 1 (Intel), unsigned, range [0.0, 1.0].
+    pub dti_digital_out2_cmd: bool,
+    /// `DTI_DigitalOut3Cmd`: 1 bit from bit 2 (Intel), unsigned, range [0.0, 1.0].
+    pub dti_digital_out3_cmd: bool,
+    /// `DTI_DigitalOut4Cmd`: 1 bit from bit 3 (Intel), unsigned, range [0.0, 1.0].
+    pub dti_digital_out4_cmd: bool,
+}
+
+static DTI_SET_DIGITAL_OUTPUTS_SIGNALS: [SignalMeta; 4] = [
+    SignalMeta {
+        name: "DTI_DigitalOut1Cmd",
+        index: 0,
+        unit: "",
+        comment: "",
+        start_bit: 0,
+        len: 1,
+        byte_order: ByteOrder::LittleEndian,
+        signed: false,
+        factor: 1.0,
+        offset: 0.0,
+        min: Some(0.0),
+        max: Some(1.0),
+        labels: &[],
+        multiplexed: false,
+    },
+    SignalMeta {
+        name: "DTI_DigitalOut2Cmd",
+        index: 1,
+        unit: "",
+        comment: "",
+        start_bit: 1,
+        len: 1,
+        byte_order: ByteOrder::LittleEndian,
+        signed: false,
+        factor: 1.0,
+        offset: 0.0,
+        min: Some(0.0),
+        max: Some(1.0),
+        labels: &[],
+        multiplexed: false,
+    },
+    SignalMeta {
+        name: "DTI_DigitalOut3Cmd",
+        index: 2,
+        unit: "",
+        comment: "",
+        start_bit: 2,
+        len: 1,
+        byte_order: ByteOrder::LittleEndian,
+        signed: false,
+        factor: 1.0,
+        offset: 0.0,
+        min: Some(0.0),
+        max: Some(1.0),
+        labels: &[],
+        multiplexed: false,
+    },
+    SignalMeta {
+        name: "DTI_DigitalOut4Cmd",
+        index: 3,
+        unit: "",
+        comment: "",
+        start_bit: 3,
+        len: 1,
+        byte_order: ByteOrder::LittleEndian,
+        signed: false,
+        factor: 1.0,
+        offset: 0.0,
+        min: Some(0.0),
+        max: Some(1.0),
+        labels: &[],
+        multiplexed: false,
+    },
+];
+
+impl DtiSetDigitalOutputs {
+    pub const META: &'static MessageMeta = &MessageMeta {
+        name: "DTI_SetDigitalOutputs",
+        id: 0x741,
+        extended: true,
+        len: 1,
+        cycle_time_ms: None,
+        comment: "DTI packet 0x07. Sets the controller's four digital outputs.",
+        signals: &DTI_SET_DIGITAL_OUTPUTS_SIGNALS,
+    };
+    pub const ID: u32 = 0x741;
+    pub const EXTENDED: bool = true;
+    pub const LEN: usize = 1;
+
+    /// Decodes a payload of at least [`Self::LEN`] bytes. Values outside the schema's range are
+    /// decoded as they are; only a short payload fails.
+    pub fn decode(data: &[u8]) -> Result<Self, DecodeError> {
+        let data = runtime::payload::<1>(data, "DTI_SetDigitalOutputs")?;
+        let dti_digital_out1_cmd =
+            Self::dti_digital_out1_cmd_from_raw(bits::read_le(data, 0, 1) as u8);
+        let dti_digital_out2_cmd =
+            Self::dti_digital_out2_cmd_from_raw(bits::read_le(data, 1, 1) as u8);
+        let dti_digital_out3_cmd =
+            Self::dti_digital_out3_cmd_from_raw(bits::read_le(data, 2, 1) as u8);
+        let dti_digital_out4_cmd =
+            Self::dti_digital_out4_cmd_from_raw(bits::read_le(data, 3, 1) as u8);
+        Ok(Self {
+            dti_digital_out1_cmd,
+            dti_digital_out2_cmd,
+            dti_digital_out3_cmd,
+            dti_digital_out4_cmd,
+        })
+    }
+
+    /// Encodes into the first [`Self::LEN`] bytes of `out` and returns that length. Fails, naming
+    /// the signal, when a value is outside its range or its multiplexor disagrees.
+    pub fn encode(&self, out: &mut [u8]) -> Result<usize, EncodeError> {
+        let out = runtime::payload_mut::<1>(out, "DTI_SetDigitalOutputs")?;
+        bits::write_le(
+            out,
+            0,
+            1,
+            u64::from(Self::dti_digital_out1_cmd_to_raw(
+                self.dti_digital_out1_cmd,
+            )?),
+        );
+        bits::write_le(
+            out,
+            1,
+            1,
+            u64::from(Self::dti_digital_out2_cmd_to_raw(
+                self.dti_digital_out2_cmd,
+            )?),
+        );
+        bits::write_le(
+            out,
+            2,
+            1,
+            u64::from(Self::dti_digital_out3_cmd_to_raw(
+                self.dti_digital_out3_cmd,
+            )?),
+        );
+        bits::write_le(
+            out,
+            3,
+            1,
+            u64::from(Self::dti_digital_out4_cmd_to_raw(
+                self.dti_digital_out4_cmd,
+            )?),
+        );
+        Ok(Self::LEN)
+    }
+
+    /// Calls `visitor` with every present signal's physical value.
+    pub fn visit(&self, visitor: &mut impl SignalVisitor) {
+        let v = self.dti_digital_out1_cmd;
+        visitor.signal(&DTI_SET_DIGITAL_OUTPUTS_SIGNALS[0], Value::from(v), None);
+        let v = self.dti_digital_out2_cmd;
+        visitor.signal(&DTI_SET_DIGITAL_OUTPUTS_SIGNALS[1], Value::from(v), None);
+        let v = self.dti_digital_out3_cmd;
+        visitor.signal(&DTI_SET_DIGITAL_OUTPUTS_SIGNALS[2], Value::from(v), None);
+        let v = self.dti_digital_out4_cmd;
+        visitor.signal(&DTI_SET_DIGITAL_OUTPUTS_SIGNALS[3], Value::from(v), None);
+    }
+
+    /// Builds the message from physical values looked up by signal.
+    pub fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
+        Ok(Self {
+            dti_digital_out1_cmd: {
+                let v = source.value(&DTI_SET_DIGITAL_OUTPUTS_SIGNALS[0]).ok_or(
+                    EncodeError::MissingSignal {
+                        message: "DTI_SetDigitalOutputs",
+                        signal: "DTI_DigitalOut1Cmd",
+                    },
+                )?;
+                v.to_bool().ok_or(EncodeError::InvalidValue {
+                    message: "DTI_SetDigitalOutputs",
+                    signal: "DTI_DigitalOut1Cmd",
+                })?
+            },
+            dti_digital_out2_cmd: {
+                let v = source.value(&DTI_SET_DIGITAL_OUTPUTS_SIGNALS[1]).ok_or(
+                    EncodeError::MissingSignal {
+                        message: "DTI_SetDigitalOutputs",
+                        signal: "DTI_DigitalOut2Cmd",
+                    },
+                )?;
+                v.to_bool().ok_or(EncodeError::InvalidValue {
+                    message: "DTI_SetDigitalOutputs",
+                    signal: "DTI_DigitalOut2Cmd",
+                })?
+            },
+            dti_digital_out3_cmd: {
+                let v = source.value(&DTI_SET_DIGITAL_OUTPUTS_SIGNALS[2]).ok_or(
+                    EncodeError::MissingSignal {
+                        message: "DTI_SetDigitalOutputs",
+                        signal: "DTI_DigitalOut3Cmd",
+                    },
+                )?;
+                v.to_bool().ok_or(EncodeError::InvalidValue {
+                    message: "DTI_SetDigitalOutputs",
+                    signal: "DTI_DigitalOut3Cmd",
+                })?
+            },
+            dti_digital_out4_cmd: {
+                let v = source.value(&DTI_SET_DIGITAL_OUTPUTS_SIGNALS[3]).ok_or(
+                    EncodeError::MissingSignal {
+                        message: "DTI_SetDigitalOutputs",
+                        signal: "DTI_DigitalOut4Cmd",
+                    },
+                )?;
+                v.to_bool().ok_or(EncodeError::InvalidValue {
+                    message: "DTI_SetDigitalOutputs",
+                    signal: "DTI_DigitalOut4Cmd",
+                })?
+            },
+        })
+    }
+
+    /// Physical value of `DTI_DigitalOut1Cmd` for a raw value.
+    pub fn dti_digital_out1_cmd_from_raw(raw: u8) -> bool {
+        raw != 0
+    }
+
+    /// Raw value of `DTI_DigitalOut1Cmd` for a physical value, range-checked.
+    pub fn dti_digital_out1_cmd_to_raw(v: bool) -> Result<u8, EncodeError> {
+        runtime::check_range(
+            f64::from(u8::from(v)),
+            0.0,
+            1.0,
+            1e-6,
+            "DTI_SetDigitalOutputs",
+            "DTI_DigitalOut1Cmd",
+        )?;
+        Ok(u8::from(v))
+    }
+
+    /// Physical value of `DTI_DigitalOut2Cmd` for a raw value.
+    pub fn dti_digital_out2_cmd_from_raw(raw: u8) -> bool {
+        raw != 0
+    }
+
+    /// Raw value of `DTI_DigitalOut2Cmd` for a physical value, range-checked.
+    pub fn dti_digital_out2_cmd_to_raw(v: bool) -> Result<u8, EncodeError> {
+        runtime::check_range(
+            f64::from(u8::from(v)),
+            0.0,
+            1.0,
+            1e-6,
+            "DTI_SetDigitalOutputs",
+            "DTI_DigitalOut2Cmd",
+        )?;
+        Ok(u8::from(v))
+    }
+
+    /// Physical value of `DTI_DigitalOut3Cmd` for a raw value.
+    pub fn dti_digital_out3_cmd_from_raw(raw: u8) -> bool {
+        raw != 0
+    }
+
+    /// Raw value of `DTI_DigitalOut3Cmd` for a physical value, range-checked.
+    pub fn dti_digital_out3_cmd_to_raw(v: bool) -> Result<u8, EncodeError> {
+        runtime::check_range(
+            f64::from(u8::from(v)),
+            0.0,
+            1.0,
+            1e-6,
+            "DTI_SetDigitalOutputs",
+            "DTI_DigitalOut3Cmd",
+        )?;
+        Ok(u8::from(v))
+    }
+
+    /// Physical value of `DTI_DigitalOut4Cmd` for a raw value.
+    pub fn dti_digital_out4_cmd_from_raw(raw: u8) -> bool {
+        raw != 0
+    }
+
+    /// Raw value of `DTI_DigitalOut4Cmd` for a physical value, range-checked.
+    pub fn dti_digital_out4_cmd_to_raw(v: bool) -> Result<u8, EncodeError> {
+        runtime::check_range(
+            f64::from(u8::from(v)),
+            0.0,
+            1.0,
+            1e-6,
+            "DTI_SetDigitalOutputs",
+            "DTI_DigitalOut4Cmd",
+        )?;
+        Ok(u8::from(v))
+    }
+}
+
+impl CanMessage for DtiSetDigitalOutputs {
+    const META: &'static MessageMeta = Self::META;
+
+    fn decode(data: &[u8]) -> Result<Self, DecodeError> {
+        Self::decode(data)
+    }
+
+    fn encode(&self, out: &mut [u8]) -> Result<usize, EncodeError> {
+        self.encode(out)
+    }
+
+    fn visit(&self, visitor: &mut impl SignalVisitor) {
+        self.visit(visitor)
+    }
+
+    fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
+        Self::from_signals(source)
+    }
+}
+
+/// DTI packet 0x08. Limits the AC (phase) current below the controller's configured maximum.
+///
+/// `DTI_SetMaxCurrentAc`: extended id 0x841, 2 bytes, sent by CCM.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct DtiSetMaxCurrentAc {
+    /// Peak AC current limit, positive.
+    ///
+    /// `DTI_MaxCurrentAcCmd`: 16 bits from bit 7 (Motorola), signed, physical = raw * 0.1, range [0.0, 3276.7], unit `A`.
+    pub dti_max_current_ac_cmd: f64,
+}
+
+static DTI_SET_MAX_CURRENT_AC_SIGNALS: [SignalMeta; 1] = [SignalMeta {
+    name: "DTI_MaxCurrentAcCmd",
+    index: 0,
+    unit: "A",
+    comment: "Peak AC current limit, positive.",
+    start_bit: 7,
+    len: 16,
+    byte_order: ByteOrder::BigEndian,
+    signed: true,
+    factor: 0.1,
+    offset: 0.0,
+    min: Some(0.0),
+    max: Some(3276.7),
+    labels: &[],
+    multiplexed: false,
+}];
+
+impl DtiSetMaxCurrentAc {
+    pub const META: &'static MessageMeta = &MessageMeta {
+        name: "DTI_SetMaxCurrentAc",
+        id: 0x841,
+        extended: true,
+        len: 2,
+        cycle_time_ms: None,
+        comment: "DTI packet 0x08. Limits the AC (phase) current below the controller's configured maximum.",
+        signals: &DTI_SET_MAX_CURRENT_AC_SIGNALS,
+    };
+    pub const ID: u32 = 0x841;
+    pub const EXTENDED: bool = true;
+    pub const LEN: usize = 2;
+
+    /// Decodes a payload of at least [`Self::LEN`] bytes. Values outside the schema's range are
+    /// decoded as they are; only a short payload fails.
+    pub fn decode(data: &[u8]) -> Result<Self, DecodeError> {
+        let data = runtime::payload::<2>(data, "DTI_SetMaxCurrentAc")?;
+        let dti_max_current_ac_cmd = Self::dti_max_current_ac_cmd_from_raw(bits::sign_extend(
+            bits::read_be(data, 0, 16),
+            16,
+        ) as i16);
+        Ok(Self {
+            dti_max_current_ac_cmd,
+        })
+    }
+
+    /// Encodes into the first [`Self::LEN`] bytes of `out` and returns that length. Fails, naming
+    /// the signal, when a value is outside its range or its multiplexor disagrees.
+    pub fn encode(&self, out: &mut [u8]) -> Result<usize, EncodeError> {
+        let out = runtime::payload_mut::<2>(out, "DTI_SetMaxCurrentAc")?;
+        bits::write_be(
+            out,
+            0,
+            16,
+            Self::dti_max_current_ac_cmd_to_raw(self.dti_max_current_ac_cmd)? as u64,
+        );
+        Ok(Self::LEN)
+    }
+
+    /// Calls `visitor` with every present signal's physical value.
+    pub fn visit(&self, visitor: &mut impl SignalVisitor) {
+        let v = self.dti_max_current_ac_cmd;
+        visitor.signal(&DTI_SET_MAX_CURRENT_AC_SIGNALS[0], Value::from(v), None);
+    }
+
+    /// Builds the message from physical values looked up by signal.
+    pub fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
+        Ok(Self {
+            dti_max_current_ac_cmd: {
+                let v = source.value(&DTI_SET_MAX_CURRENT_AC_SIGNALS[0]).ok_or(
+                    EncodeError::MissingSignal {
+                        message: "DTI_SetMaxCurrentAc",
+                        signal: "DTI_MaxCurrentAcCmd",
+                    },
+                )?;
+                Some(v.to_f64()).ok_or(EncodeError::InvalidValue {
+                    message: "DTI_SetMaxCurrentAc",
+                    signal: "DTI_MaxCurrentAcCmd",
+                })?
+            },
+        })
+    }
+
+    /// Physical value of `DTI_MaxCurrentAcCmd` for a raw value.
+    pub fn dti_max_current_ac_cmd_from_raw(raw: i16) -> f64 {
+        f64::from(raw) * 0.1
+    }
+
+    /// Raw value of `DTI_MaxCurrentAcCmd` for a physical value, range-checked.
+    pub fn dti_max_current_ac_cmd_to_raw(v: f64) -> Result<i16, EncodeError> {
+        runtime::check_range(
+            v,
+            0.0,
+            3276.7,
+            1e-7,
+            "DTI_SetMaxCurrentAc",
+            "DTI_MaxCurrentAcCmd",
+        )?;
+        let raw = runtime::round(v / 0.1);
+        if (-32768.0..32768.0).contains(&raw) {
+            Ok(raw as i16)
+        } else {
+            Err(EncodeError::OutOfRange {
+                message: "DTI_SetMaxCurrentAc",
+                signal: "DTI_MaxCurrentAcCmd",
+            })
+        }
+    }
+}
+
+impl CanMessage for DtiSetMaxCurrentAc {
+    const META: &'static MessageMeta = Self::META;
+
+    fn decode(data: &[u8]) -> Result<Self, DecodeError> {
+        Self::decode(data)
+    }
+
+    fn encode(&self, out: &mut [u8]) -> Result<usize, EncodeError> {
+        self.encode(out)
+    }
+
+    fn visit(&self, visitor: &mut impl SignalVisitor) {
+        self.visit(visitor)
+    }
+
+    fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
+        Self::from_signals(source)
+    }
+}
+
+/// DTI packet 0x09. Limits the AC brake current below the controller's configured maximum.
+///
+/// `DTI_SetMaxBrakeCurrentAc`: extended id 0x941, 2 bytes, sent by CCM.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct DtiSetMaxBrakeCurrentAc {
+    /// Peak AC brake current limit, negative.
+    ///
+    /// `DTI_MaxBrakeCurrentAcCmd`: 16 bits from bit 7 (Motorola), signed, physical = raw * 0.1, range [-3276.8, 0.0], unit `A`.
+    pub dti_max_brake_current_ac_cmd: f64,
+}
+
+static DTI_SET_MAX_BRAKE_CURRENT_AC_SIGNALS: [SignalMeta; 1] = [SignalMeta {
+    name: "DTI_MaxBrakeCurrentAcCmd",
+    index: 0,
+    unit: "A",
+    comment: "Peak AC brake current limit, negative.",
+    start_bit: 7,
+    len: 16,
+    byte_order: ByteOrder::BigEndian,
+    signed: true,
+    factor: 0.1,
+    offset: 0.0,
+    min: Some(-3276.8),
+    max: Some(0.0),
+    labels: &[],
+    multiplexed: false,
+}];
+
+impl DtiSetMaxBrakeCurrentAc {
+    pub const META: &'static MessageMeta = &MessageMeta {
+        name: "DTI_SetMaxBrakeCurrentAc",
+        id: 0x941,
+        extended: true,
+        len: 2,
+        cycle_time_ms: None,
+        comment: "DTI packet 0x09. Limits the AC brake current below the controller's configured maximum.",
+        signals: &DTI_SET_MAX_BRAKE_CURRENT_AC_SIGNALS,
+    };
+    pub const ID: u32 = 0x941;
+    pub const EXTENDED: bool = true;
+    pub const LEN: usize = 2;
+
+    /// Decodes a payload of at least [`Self::LEN`] bytes. Values outside the schema's range are
+    /// decoded as they are; only a short payload fails.
+    pub fn decode(data: &[u8]) -> Result<Self, DecodeError> {
+        let data = runtime::payload::<2>(data, "DTI_SetMaxBrakeCurrentAc")?;
+        let dti_max_brake_current_ac_cmd = Self::dti_max_brake_current_ac_cmd_from_raw(
+            bits::sign_extend(bits::read_be(data, 0, 16), 16) as i16,
+        );
+        Ok(Self {
+            dti_max_brake_current_ac_cmd,
+        })
+    }
+
+    /// Encodes into the first [`Self::LEN`] bytes of `out` and returns that length. Fails, naming
+    /// the signal, when a value is outside its range or its multiplexor disagrees.
+    pub fn encode(&self, out: &mut [u8]) -> Result<usize, EncodeError> {
+        let out = runtime::payload_mut::<2>(out, "DTI_SetMaxBrakeCurrentAc")?;
+        bits::write_be(
+            out,
+            0,
+            16,
+            Self::dti_max_brake_current_ac_cmd_to_raw(self.dti_max_brake_current_ac_cmd)? as u64,
+        );
+        Ok(Self::LEN)
+    }
+
+    /// Calls `visitor` with every present signal's physical value.
+    pub fn visit(&self, visitor: &mut impl SignalVisitor) {
+        let v = self.dti_max_brake_current_ac_cmd;
+        visitor.signal(
+            &DTI_SET_MAX_BRAKE_CURRENT_AC_SIGNALS[0],
+            Value::from(v),
+            None,
+        );
+    }
+
+    /// Builds the message from physical values looked up by signal.
+    pub fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
+        Ok(Self {
+            dti_max_brake_current_ac_cmd: {
+                let v = source
+                    .value(&DTI_SET_MAX_BRAKE_CURRENT_AC_SIGNALS[0])
+                    .ok_or(EncodeError::MissingSignal {
+                        message: "DTI_SetMaxBrakeCurrentAc",
+                        signal: "DTI_MaxBrakeCurrentAcCmd",
+                    })?;
+                Some(v.to_f64()).ok_or(EncodeError::InvalidValue {
+                    message: "DTI_SetMaxBrakeCurrentAc",
+                    signal: "DTI_MaxBrakeCurrentAcCmd",
+                })?
+            },
+        })
+    }
+
+    /// Physical value of `DTI_MaxBrakeCurrentAcCmd` for a raw value.
+    pub fn dti_max_brake_current_ac_cmd_from_raw(raw: i16) -> f64 {
+        f64::from(raw) * 0.1
+    }
+
+    /// Raw value of `DTI_MaxBrakeCurrentAcCmd` for a physical value, range-checked.
+    pub fn dti_max_brake_current_ac_cmd_to_raw(v: f64) -> Result<i16, EncodeError> {
+        runtime::check_range(
+            v,
+            -3276.8,
+            0.0,
+            1e-7,
+            "DTI_SetMaxBrakeCurrentAc",
+            "DTI_MaxBrakeCurrentAcCmd",
+        )?;
+        let raw = runtime::round(v / 0.1);
+        if (-32768.0..32768.0).contains(&raw) {
+            Ok(raw as i16)
+        } else {
+            Err(EncodeError::OutOfRange {
+                message: "DTI_SetMaxBrakeCurrentAc",
+                signal: "DTI_MaxBrakeCurrentAcCmd",
+            })
+        }
+    }
+}
+
+impl CanMessage for DtiSetMaxBrakeCurrentAc {
+    const META: &'static MessageMeta = Self::META;
+
+    fn decode(data: &[u8]) -> Result<Self, DecodeError> {
+        Self::decode(data)
+    }
+
+    fn encode(&self, out: &mut [u8]) -> Result<usize, EncodeError> {
+        self.encode(out)
+    }
+
+    fn visit(&self, visitor: &mut impl SignalVisitor) {
+        self.visit(visitor)
+    }
+
+    fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
+        Self::from_signals(source)
+    }
+}
+
+/// DTI packet 0x0A. Limits the DC (battery) current the controller draws: the BMS's discharge limit.
+///
+/// `DTI_SetMaxCurrentDc`: extended id 0xA41, 2 bytes, every 10 ms, sent by CCM.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct DtiSetMaxCurrentDc {
+    /// DC current limit, positive.
+    ///
+    /// `DTI_MaxCurrentDcCmd`: 16 bits from bit 7 (Motorola), signed, physical = raw * 0.1, range [0.0, 3276.7], unit `A`.
+    pub dti_max_current_dc_cmd: f64,
+}
+
+static DTI_SET_MAX_CURRENT_DC_SIGNALS: [SignalMeta; 1] = [SignalMeta {
+    name: "DTI_MaxCurrentDcCmd",
+    index: 0,
+    unit: "A",
+    comment: "DC current limit, positive.",
+    start_bit: 7,
+    len: 16,
+    byte_order: ByteOrder::BigEndian,
+    signed: true,
+    factor: 0.1,
+    offset: 0.0,
+    min: Some(0.0),
+    max: Some(3276.7),
+    labels: &[],
+    multiplexed: false,
+}];
+
+impl DtiSetMaxCurrentDc {
+    pub const META: &'static MessageMeta = &MessageMeta {
+        name: "DTI_SetMaxCurrentDc",
+        id: 0xA41,
+        extended: true,
+        len: 2,
+        cycle_time_ms: Some(10),
+        comment: "DTI packet 0x0A. Limits the DC (battery) current the controller draws: the BMS's discharge limit.",
+        signals: &DTI_SET_MAX_CURRENT_DC_SIGNALS,
+    };
+    pub const ID: u32 = 0xA41;
+    pub const EXTENDED: bool = true;
+    pub const LEN: usize = 2;
+    pub const CYCLE_TIME_MS: u32 = 10;
+
+    /// Decodes a payload of at least [`Self::LEN`] bytes. Values outside the schema's range are
+    /// decoded as they are; only a short payload fails.
+    pub fn decode(data: &[u8]) -> Result<Self, DecodeError> {
+        let data = runtime::payload::<2>(data, "DTI_SetMaxCurrentDc")?;
+        let dti_max_current_dc_cmd = Self::dti_max_current_dc_cmd_from_raw(bits::sign_extend(
+            bits::read_be(data, 0, 16),
+            16,
+        ) as i16);
+        Ok(Self {
+            dti_max_current_dc_cmd,
+        })
+    }
+
+    /// Encodes into the first [`Self::LEN`] bytes of `out` and returns that length. Fails, naming
+    /// the signal, when a value is outside its range or its multiplexor disagrees.
+    pub fn encode(&self, out: &mut [u8]) -> Result<usize, EncodeError> {
+        let out = runtime::payload_mut::<2>(out, "DTI_SetMaxCurrentDc")?;
+        bits::write_be(
+            out,
+            0,
+            16,
+            Self::dti_max_current_dc_cmd_to_raw(self.dti_max_current_dc_cmd)? as u64,
+        );
+        Ok(Self::LEN)
+    }
+
+    /// Calls `visitor` with every present signal's physical value.
+    pub fn visit(&self, visitor: &mut impl SignalVisitor) {
+        let v = self.dti_max_current_dc_cmd;
+        visitor.signal(&DTI_SET_MAX_CURRENT_DC_SIGNALS[0], Value::from(v), None);
+    }
+
+    /// Builds the message from physical values looked up by signal.
+    pub fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
+        Ok(Self {
+            dti_max_current_dc_cmd: {
+                let v = source.value(&DTI_SET_MAX_CURRENT_DC_SIGNALS[0]).ok_or(
+                    EncodeError::MissingSignal {
+                        message: "DTI_SetMaxCurrentDc",
+                        signal: "DTI_MaxCurrentDcCmd",
+                    },
+                )?;
+                Some(v.to_f64()).ok_or(EncodeError::InvalidValue {
+                    message: "DTI_SetMaxCurrentDc",
+                    signal: "DTI_MaxCurrentDcCmd",
+                })?
+            },
+        })
+    }
+
+    /// Physical value of `DTI_MaxCurrentDcCmd` for a raw value.
+    pub fn dti_max_current_dc_cmd_from_raw(raw: i16) -> f64 {
+        f64::from(raw) * 0.1
+    }
+
+    /// Raw value of `DTI_MaxCurrentDcCmd` for a physical value, range-checked.
+    pub fn dti_max_current_dc_cmd_to_raw(v: f64) -> Result<i16, EncodeError> {
+        runtime::check_range(
+            v,
+            0.0,
+            3276.7,
+            1e-7,
+            "DTI_SetMaxCurrentDc",
+            "DTI_MaxCurrentDcCmd",
+        )?;
+        let raw = runtime::round(v / 0.1);
+        if (-32768.0..32768.0).contains(&raw) {
+            Ok(raw as i16)
+        } else {
+            Err(EncodeError::OutOfRange {
+                message: "DTI_SetMaxCurrentDc",
+                signal: "DTI_MaxCurrentDcCmd",
+            })
+        }
+    }
+}
+
+impl CanMessage for DtiSetMaxCurrentDc {
+    const META: &'static MessageMeta = Self::META;
+
+    fn decode(data: &[u8]) -> Result<Self, DecodeError> {
+        Self::decode(data)
+    }
+
+    fn encode(&self, out: &mut [u8]) -> Result<usize, EncodeError> {
+        self.encode(out)
+    }
+
+    fn visit(&self, visitor: &mut impl SignalVisitor) {
+        self.visit(visitor)
+    }
+
+    fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
+        Self::from_signals(source)
+    }
+}
+
+/// DTI packet 0x0B. Limits the DC current the controller returns to the battery: the BMS's charge limit.
+///
+/// `DTI_SetMaxBrakeCurrentDc`: extended id 0xB41, 2 bytes, every 10 ms, sent by CCM.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct DtiSetMaxBrakeCurrentDc {
+    /// DC brake current limit, negative.
+    ///
+    /// `DTI_MaxBrakeCurrentDcCmd`: 16 bits from bit 7 (Motorola), signed, physical = raw * 0.1, range [-3276.8, 0.0], unit `A`.
+    pub dti_max_brake_current_dc_cmd: f64,
+}
+
+static DTI_SET_MAX_BRAKE_CURRENT_DC_SIGNALS: [SignalMeta; 1] = [SignalMeta {
+    name: "DTI_MaxBrakeCurrentDcCmd",
+    index: 0,
+    unit: "A",
+    comment: "DC brake current limit, negative.",
+    start_bit: 7,
+    len: 16,
+    byte_order: ByteOrder::BigEndian,
+    signed: true,
+    factor: 0.1,
+    offset: 0.0,
+    min: Some(-3276.8),
+    max: Some(0.0),
+    labels: &[],
+    multiplexed: false,
+}];
+
+impl DtiSetMaxBrakeCurrentDc {
+    pub const META: &'static MessageMeta = &MessageMeta {
+        name: "DTI_SetMaxBrakeCurrentDc",
+        id: 0xB41,
+        extended: true,
+        len: 2,
+        cycle_time_ms: Some(10),
+        comment: "DTI packet 0x0B. Limits the DC current the controller returns to the battery: the BMS's charge limit.",
+        signals: &DTI_SET_MAX_BRAKE_CURRENT_DC_SIGNALS,
+    };
+    pub const ID: u32 = 0xB41;
+    pub const EXTENDED: bool = true;
+    pub const LEN: usize = 2;
+    pub const CYCLE_TIME_MS: u32 = 10;
+
+    /// Decodes a payload of at least [`Self::LEN`] bytes. Values outside the schema's range are
+    /// decoded as they are; only a short payload fails.
+    pub fn decode(data: &[u8]) -> Result<Self, DecodeError> {
+        let data = runtime::payload::<2>(data, "DTI_SetMaxBrakeCurrentDc")?;
+        let dti_max_brake_current_dc_cmd = Self::dti_max_brake_current_dc_cmd_from_raw(
+            bits::sign_extend(bits::read_be(data, 0, 16), 16) as i16,
+        );
+        Ok(Self {
+            dti_max_brake_current_dc_cmd,
+        })
+    }
+
+    /// Encodes into the first [`Self::LEN`] bytes of `out` and returns that length. Fails, naming
+    /// the signal, when a value is outside its range or its multiplexor disagrees.
+    pub fn encode(&self, out: &mut [u8]) -> Result<usize, EncodeError> {
+        let out = runtime::payload_mut::<2>(out, "DTI_SetMaxBrakeCurrentDc")?;
+        bits::write_be(
+            out,
+            0,
+            16,
+            Self::dti_max_brake_current_dc_cmd_to_raw(self.dti_max_brake_current_dc_cmd)? as u64,
+        );
+        Ok(Self::LEN)
+    }
+
+    /// Calls `visitor` with every present signal's physical value.
+    pub fn visit(&self, visitor: &mut impl SignalVisitor) {
+        let v = self.dti_max_brake_current_dc_cmd;
+        visitor.signal(
+            &DTI_SET_MAX_BRAKE_CURRENT_DC_SIGNALS[0],
+            Value::from(v),
+            None,
+        );
+    }
+
+    /// Builds the message from physical values looked up by signal.
+    pub fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
+        Ok(Self {
+            dti_max_brake_current_dc_cmd: {
+                let v = source
+                    .value(&DTI_SET_MAX_BRAKE_CURRENT_DC_SIGNALS[0])
+                    .ok_or(EncodeError::MissingSignal {
+                        message: "DTI_SetMaxBrakeCurrentDc",
+                        signal: "DTI_MaxBrakeCurrentDcCmd",
+                    })?;
+                Some(v.to_f64()).ok_or(EncodeError::InvalidValue {
+                    message: "DTI_SetMaxBrakeCurrentDc",
+                    signal: "DTI_MaxBrakeCurrentDcCmd",
+                })?
+            },
+        })
+    }
+
+    /// Physical value of `DTI_MaxBrakeCurrentDcCmd` for a raw value.
+    pub fn dti_max_brake_current_dc_cmd_from_raw(raw: i16) -> f64 {
+        f64::from(raw) * 0.1
+    }
+
+    /// Raw value of `DTI_MaxBrakeCurrentDcCmd` for a physical value, range-checked.
+    pub fn dti_max_brake_current_dc_cmd_to_raw(v: f64) -> Result<i16, EncodeError> {
+        runtime::check_range(
+            v,
+            -3276.8,
+            0.0,
+            1e-7,
+            "DTI_SetMaxBrakeCurrentDc",
+            "DTI_MaxBrakeCurrentDcCmd",
+        )?;
+        let raw = runtime::round(v / 0.1);
+        if (-32768.0..32768.0).contains(&raw) {
+            Ok(raw as i16)
+        } else {
+            Err(EncodeError::OutOfRange {
+                message: "DTI_SetMaxBrakeCurrentDc",
+                signal: "DTI_MaxBrakeCurrentDcCmd",
+            })
+        }
+    }
+}
+
+impl CanMessage for DtiSetMaxBrakeCurrentDc {
+    const META: &'static MessageMeta = Self::META;
+
+    fn decode(data: &[u8]) -> Result<Self, DecodeError> {
+        Self::decode(data)
+    }
+
+    fn encode(&self, out: &mut [u8]) -> Result<usize, EncodeError> {
+        self.encode(out)
+    }
+
+    fn visit(&self, visitor: &mut impl SignalVisitor) {
+        self.visit(visitor)
+    }
+
+    fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
+        Self::from_signals(source)
+    }
+}
+
+/// DTI packet 0x0C. Enables or disables the drive; the controller produces no current while disabled. Sent periodically.
+///
+/// `DTI_SetDriveEnable`: extended id 0xC41, 1 bytes, every 10 ms, sent by CCM.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct DtiSetDriveEnable {
+    /// 1 enables the drive, 0 disables it.
+    ///
+    /// `DTI_DriveEnableCmd`: 8 bits from bit 0 (Intel), unsigned, range [0.0, 1.0].
+    pub dti_drive_enable_cmd: DtiDriveEnable,
+}
+
+static DTI_SET_DRIVE_ENABLE_SIGNALS: [SignalMeta; 1] = [SignalMeta {
+    name: "DTI_DriveEnableCmd",
+    index: 0,
+    unit: "",
+    comment: "1 enables the drive, 0 disables it.",
+    start_bit: 0,
+    len: 8,
+    byte_order: ByteOrder::LittleEndian,
+    signed: false,
+    factor: 1.0,
+    offset: 0.0,
+    min: Some(0.0),
+    max: Some(1.0),
+    labels: &[(0, "DISABLED"), (1, "ENABLED")],
+    multiplexed: false,
+}];
+
+impl DtiSetDriveEnable {
+    pub const META: &'static MessageMeta = &MessageMeta {
+        name: "DTI_SetDriveEnable",
+        id: 0xC41,
+        extended: true,
+        len: 1,
+        cycle_time_ms: Some(10),
+        comment: "DTI packet 0x0C. Enables or disables the drive; the controller produces no current while disabled. Sent periodically.",
+        signals: &DTI_SET_DRIVE_ENABLE_SIGNALS,
+    };
+    pub const ID: u32 = 0xC41;
+    pub const EXTENDED: bool = true;
+    pub const LEN: usize = 1;
+    pub const CYCLE_TIME_MS: u32 = 10;
+
+    /// Decodes a payload of at least [`Self::LEN`] bytes. Values outside the schema's range are
+    /// decoded as they are; only a short payload fails.
+    pub fn decode(data: &[u8]) -> Result<Self, DecodeError> {
+        let data = runtime::payload::<1>(data, "DTI_SetDriveEnable")?;
+        let dti_drive_enable_cmd =
+            Self::dti_drive_enable_cmd_from_raw(bits::read_le(data, 0, 8) as u8);
+        Ok(Self {
+            dti_drive_enable_cmd,
+        })
+    }
+
+    /// Encodes into the first [`Self::LEN`] bytes of `out` and returns that length. Fails, naming
+    /// the signal, when a value is outside its range or its multiplexor disagrees.
+    pub fn encode(&self, out: &mut [u8]) -> Result<usize, EncodeError> {
+        let out = runtime::payload_mut::<1>(out, "DTI_SetDriveEnable")?;
+        bits::write_le(
+            out,
+            0,
+            8,
+            u64::from(Self::dti_drive_enable_cmd_to_raw(
+                self.dti_drive_enable_cmd,
+            )?),
+        );
+        Ok(Self::LEN)
+    }
+
+    /// Calls `visitor` with every present signal's physical value.
+    pub fn visit(&self, visitor: &mut impl SignalVisitor) {
+        let v = self.dti_drive_enable_cmd;
+        visitor.signal(
+            &DTI_SET_DRIVE_ENABLE_SIGNALS[0],
+            Value::from(v.into_raw()),
+            v.label(),
+        );
+    }
+
+    /// Builds the message from physical values looked up by signal.
+    pub fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
+        Ok(Self {
+            dti_drive_enable_cmd: {
+                let v = source.value(&DTI_SET_DRIVE_ENABLE_SIGNALS[0]).ok_or(
+                    EncodeError::MissingSignal {
+                        message: "DTI_SetDriveEnable",
+                        signal: "DTI_DriveEnableCmd",
+                    },
+                )?;
+                v.to_int::<u8>()
+                    .map(DtiDriveEnable::from_raw)
+                    .ok_or(EncodeError::InvalidValue {
+                        message: "DTI_SetDriveEnable",
+                        signal: "DTI_DriveEnableCmd",
+                    })?
+            },
+        })
+    }
+
+    /// Physical value of `DTI_DriveEnableCmd` for a raw value.
+    pub fn dti_drive_enable_cmd_from_raw(raw: u8) -> DtiDriveEnable {
+        DtiDriveEnable::from_raw(raw)
+    }
+
+    /// Raw value of `DTI_DriveEnableCmd` for a physical value, range-checked.
+    pub fn dti_drive_enable_cmd_to_raw(v: DtiDriveEnable) -> Result<u8, EncodeError> {
+        if let DtiDriveEnable::Unknown(raw) = v {
+            runtime::check_range(
+                raw as f64,
+                0.0,
+                1.0,
+                1e-6,
+                "DTI_SetDriveEnable",
+                "DTI_DriveEnableCmd",
+            )?;
+        }
+        Ok(v.into_raw())
+    }
+}
+
+impl CanMessage for DtiSetDriveEnable {
+    const META: &'static MessageMeta = Self::META;
+
+    fn decode(data: &[u8]) -> Result<Self, DecodeError> {
+        Self::decode(data)
+    }
+
+    fn encode(&self, out: &mut [u8]) -> Result<usize, EncodeError> {
+        self.encode(out)
+    }
+
+    fn visit(&self, visitor: &mut impl SignalVisitor) {
+        self.visit(visitor)
+    }
+
+    fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
+        Self::from_signals(source)
+    }
+}
+
+/// DTI packet 0x1F. Controller status: control mode, target current, rotor position.
+///
+/// `DTI_Control`: extended id 0x1F41, 8 bytes, every 100 ms, sent by DTI.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct DtiControl {
+    /// `DTI_ControlMode`: 8 bits from bit 0 (Intel), unsigned, range [0.0, 255.0].
+    pub dti_control_mode: DtiControlMode,
+    /// Target quadrature (torque-producing) current, peak.
+    ///
+    /// `DTI_TargetIq`: 16 bits from bit 15 (Motorola), signed, physical = raw * 0.1, range [-3276.8, 3276.7], unit `A`.
+    pub dti_target_iq: f64,
+    /// `DTI_MotorPosition`: 16 bits from bit 31 (Motorola), signed, physical = raw * 0.1, range [-3276.8, 3276.7], unit `deg`.
+    pub dti_motor_position: f64,
+    /// Non-zero while the motor is standing still.
+    ///
+    /// `DTI_MotorStill`: 8 bits from bit 40 (Intel), unsigned, range [0.0, 255.0].
+    pub dti_motor_still: u8,
+}
+
+static DTI_CONTROL_SIGNALS: [SignalMeta; 4] = [
+    SignalMeta {
+        name: "DTI_ControlMode",
+        index: 0,
+        unit: "",
+        comment: "",
+        start_bit: 0,
+        len: 8,
+        byte_order: ByteOrder::LittleEndian,
+        signed: false,
+        factor: 1.0,
+        offset: 0.0,
+        min: Some(0.0),
+        max: Some(255.0),
+        labels: &[
+            (1, "SPEED"),
+            (2, "CURRENT"),
+            (3, "CURRENT_BRAKE"),
+            (4, "POSITION"),
+            (7, "NONE"),
+        ],
+        multiplexed: false,
+    },
+    SignalMeta {
+        name: "DTI_TargetIq",
+        index: 1,
+        unit: "A",
+        comment: "Target quadrature (torque-producing) current, peak.",
+        start_bit: 15,
+        len: 16,
+        byte_order: ByteOrder::BigEndian,
+        signed: true,
+        factor: 0.1,
+        offset: 0.0,
+        min: Some(-3276.8),
+        max: Some(3276.7),
+        labels: &[],
+        multiplexed: false,
+    },
+    SignalMeta {
+        name: "DTI_MotorPosition",
+        index: 2,
+        unit: "deg",
+        comment: "",
+        start_bit: 31,
+        len: 16,
+        byte_order: ByteOrder::BigEndian,
+        signed: true,
+        factor: 0.1,
+        offset: 0.0,
+        min: Some(-3276.8),
+        max: Some(3276.7),
+        labels: &[],
+        multiplexed: false,
+    },
+    SignalMeta {
+        name: "DTI_MotorStill",
+        index: 3,
+        unit: "",
+        comment: "Non-zero while the motor is standing still.",
+        start_bit: 40,
+        len: 8,
+        byte_order: ByteOrder::LittleEndian,
+        signed: false,
+        factor: 1.0,
+        offset: 0.0,
+        min: Some(0.0),
+        max: Some(255.0),
+        labels: &[],
+        multiplexed: false,
+    },
+];
+
+impl DtiControl {
+    pub const META: &'static MessageMeta = &MessageMeta {
+        name: "DTI_Control",
+        id: 0x1F41,
+        extended: true,
+        len: 8,
+        cycle_time_ms: Some(100),
+        comment: "DTI packet 0x1F. Controller status: control mode, target current, rotor position.",
+        signals: &DTI_CONTROL_SIGNALS,
+    };
+    pub const ID: u32 = 0x1F41;
+    pub const EXTENDED: bool = true;
+    pub const LEN: usize = 8;
+    pub const CYCLE_TIME_MS: u32 = 100;
+
+    /// Decodes a payload of at least [`Self::LEN`] bytes. Values outside the schema's range are
+    /// decoded as they are; only a short payload fails.
+    pub fn decode(data: &[u8]) -> Result<Self, DecodeError> {
+        let data = runtime::payload::<8>(data, "DTI_Control")?;
+        let dti_control_mode = Self::dti_control_mode_from_raw(bits::read_le(data, 0, 8) as u8);
+        let dti_target_iq =
+            Self::dti_target_iq_from_raw(bits::sign_extend(bits::read_be(data, 8, 16), 16) as i16);
+        let dti_motor_position = Self::dti_motor_position_from_raw(bits::sign_extend(
+            bits::read_be(data, 24, 16),
+            16,
+        ) as i16);
+        let dti_motor_still = Self::dti_motor_still_from_raw(bits::read_le(data, 40, 8) as u8);
+        Ok(Self {
+            dti_control_mode,
+            dti_target_iq,
+            dti_motor_position,
+            dti_motor_still,
+        })
+    }
+
+    /// Encodes into the first [`Self::LEN`] bytes of `out` and returns that length. Fails, naming
+    /// the signal, when a value is outside its range or its multiplexor disagrees.
+    pub fn encode(&self, out: &mut [u8]) -> Result<usize, EncodeError> {
+        let out = runtime::payload_mut::<8>(out, "DTI_Control")?;
+        bits::write_le(
+            out,
+            0,
+            8,
+            u64::from(Self::dti_control_mode_to_raw(self.dti_control_mode)?),
+        );
+        bits::write_be(
+            out,
+            8,
+            16,
+            Self::dti_target_iq_to_raw(self.dti_target_iq)? as u64,
+        );
+        bits::write_be(
+            out,
+            24,
+            16,
+            Self::dti_motor_position_to_raw(self.dti_motor_position)? as u64,
+        );
+        bits::write_le(
+            out,
+            40,
+            8,
+            u64::from(Self::dti_motor_still_to_raw(self.dti_motor_still)?),
+        );
+        Ok(Self::LEN)
+    }
+
+    /// Calls `visitor` with every present signal's physical value.
+    pub fn visit(&self, visitor: &mut impl SignalVisitor) {
+        let v = self.dti_control_mode;
+        visitor.signal(
+            &DTI_CONTROL_SIGNALS[0],
+            Value::from(v.into_raw()),
+            v.label(),
+        );
+        let v = self.dti_target_iq;
+        visitor.signal(&DTI_CONTROL_SIGNALS[1], Value::from(v), None);
+        let v = self.dti_motor_position;
+        visitor.signal(&DTI_CONTROL_SIGNALS[2], Value::from(v), None);
+        let v = self.dti_motor_still;
+        visitor.signal(&DTI_CONTROL_SIGNALS[3], Value::from(v), None);
+    }
+
+    /// Builds the message from physical values looked up by signal.
+    pub fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
+        Ok(Self {
+            dti_control_mode: {
+                let v =
+                    source
+                        .value(&DTI_CONTROL_SIGNALS[0])
+                        .ok_or(EncodeError::MissingSignal {
+                            message: "DTI_Control",
+                            signal: "DTI_ControlMode",
+                        })?;
+                v.to_int::<u8>()
+                    .map(DtiControlMode::from_raw)
+                    .ok_or(EncodeError::InvalidValue {
+                        message: "DTI_Control",
+                        signal: "DTI_ControlMode",
+                    })?
+            },
+            dti_target_iq: {
+                let v =
+                    source
+                        .value(&DTI_CONTROL_SIGNALS[1])
+                        .ok_or(EncodeError::MissingSignal {
+                            message: "DTI_Control",
+                            signal: "DTI_TargetIq",
+                        })?;
+                Some(v.to_f64()).ok_or(EncodeError::InvalidValue {
+                    message: "DTI_Control",
+                    signal: "DTI_TargetIq",
+                })?
+            },
+            dti_motor_position: {
+                let v =
+                    source
+                        .value(&DTI_CONTROL_SIGNALS[2])
+                        .ok_or(EncodeError::MissingSignal {
+                            message: "DTI_Control",
+                            signal: "DTI_MotorPosition",
+                        })?;
+                Some(v.to_f64()).ok_or(EncodeError::InvalidValue {
+                    message: "DTI_Control",
+                    signal: "DTI_MotorPosition",
+                })?
+            },
+            dti_motor_still: {
+                let v =
+                    source
+                        .value(&DTI_CONTROL_SIGNALS[3])
+                        .ok_or(EncodeError::MissingSignal {
+                            message: "DTI_Control",
+                            signal: "DTI_MotorStill",
+                        })?;
+                v.to_int::<u8>().ok_or(EncodeError::InvalidValue {
+                    message: "DTI_Control",
+                    signal: "DTI_MotorStill",
+                })?
+            },
+        })
+    }
+
+    /// Physical value of `DTI_ControlMode` for a raw value.
+    pub fn dti_control_mode_from_raw(raw: u8) -> DtiControlMode {
+        DtiControlMode::from_raw(raw)
+    }
+
+    /// Raw value of `DTI_ControlMode` for a physical value, range-checked.
+    pub fn dti_control_mode_to_raw(v: DtiControlMode) -> Result<u8, EncodeError> {
+        if let DtiControlMode::Unknown(raw) = v {
+            runtime::check_range(
+                raw as f64,
+                0.0,
+                255.0,
+                1e-6,
+                "DTI_Control",
+                "DTI_ControlMode",
+            )?;
+        }
+        Ok(v.into_raw())
+    }
+
+    /// Physical value of `DTI_TargetIq` for a raw value.
+    pub fn dti_target_iq_from_raw(raw: i16) -> f64 {
+        f64::from(raw) * 0.1
+    }
+
+    /// Raw value of `DTI_TargetIq` for a physical value, range-checked.
+    pub fn dti_target_iq_to_raw(v: f64) -> Result<i16, EncodeError> {
+        runtime::check_range(v, -3276.8, 3276.7, 1e-7, "DTI_Control", "DTI_TargetIq")?;
+        let raw = runtime::round(v / 0.1);
+        if (-32768.0..32768.0).contains(&raw) {
+            Ok(raw as i16)
+        } else {
+            Err(EncodeError::OutOfRange {
+                message: "DTI_Control",
+                signal: "DTI_TargetIq",
+            })
+        }
+    }
+
+    /// Physical value of `DTI_MotorPosition` for a raw value.
+    pub fn dti_motor_position_from_raw(raw: i16) -> f64 {
+        f64::from(raw) * 0.1
+    }
+
+    /// Raw value of `DTI_MotorPosition` for a physical value, range-checked.
+    pub fn dti_motor_position_to_raw(v: f64) -> Result<i16, EncodeError> {
+        runtime::check_range(v, -3276.8, 3276.7, 1e-7, "DTI_Control", "DTI_MotorPosition")?;
+        let raw = runtime::round(v / 0.1);
+        if (-32768.0..32768.0).contains(&raw) {
+            Ok(raw as i16)
+        } else {
+            Err(EncodeError::OutOfRange {
+                message: "DTI_Control",
+                signal: "DTI_MotorPosition",
+            })
+        }
+    }
+
+    /// Physical value of `DTI_MotorStill` for a raw value.
+    pub fn dti_motor_still_from_raw(raw: u8) -> u8 {
+        raw
+    }
+
+    /// Raw value of `DTI_MotorStill` for a physical value, range-checked.
+    pub fn dti_motor_still_to_raw(v: u8) -> Result<u8, EncodeError> {
+        runtime::check_range(
+            f64::from(v),
+            0.0,
+            255.0,
+            1e-6,
+            "DTI_Control",
+            "DTI_MotorStill",
+        )?;
+        Ok(v)
+    }
+}
+
+impl CanMessage for DtiControl {
+    const META: &'static MessageMeta = Self::META;
+
+    fn decode(data: &[u8]) -> Result<Self, DecodeError> {
+        Self::decode(data)
+    }
+
+    fn encode(&self, out: &mut [u8]) -> Result<usize, EncodeError> {
+        self.encode(out)
+    }
+
+    fn visit(&self, visitor: &mut impl SignalVisitor) {
+        self.visit(visitor)
+    }
+
+    fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
+        Self::from_signals(source)
+    }
+}
+
+/// DTI packet 0x20. Controller status: speed, duty cycle and DC input voltage.
+///
+/// `DTI_Speed`: extended id 0x2041, 8 bytes, every 10 ms, sent by DTI.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct DtiSpeed {
+    /// Electrical rpm: motor rpm x pole pairs.
+    ///
+    /// `DTI_Erpm`: 32 bits from bit 7 (Motorola), signed, range [-2147483648.0, 2147483647.0], unit `rpm`.
+    pub dti_erpm: i32,
+    /// `DTI_DutyCycle`: 16 bits from bit 39 (Motorola), signed, physical = raw * 0.1, range [-3276.8, 3276.7], unit `%`.
+    pub dti_duty_cycle: f64,
+    /// DC input (tractive system) voltage.
+    ///
+    /// `DTI_InputVoltage`: 16 bits from bit 55 (Motorola), signed, range [-32768.0, 32767.0], unit `V`.
+    pub dti_input_voltage: i16,
+}
+
+static DTI_SPEED_SIGNALS: [SignalMeta; 3] = [
+    SignalMeta {
+        name: "DTI_Erpm",
+        index: 0,
+        unit: "rpm",
+        comment: "Electrical rpm: motor rpm x pole pairs.",
+        start_bit: 7,
+        len: 32,
+        byte_order: ByteOrder::BigEndian,
+        signed: true,
+        factor: 1.0,
+        offset: 0.0,
+        min: Some(-2147483648.0),
+        max: Some(2147483647.0),
+        labels: &[],
+        multiplexed: false,
+    },
+    SignalMeta {
+        name: "DTI_DutyCycle",
+        index: 1,
+        unit: "%",
+        comment: "",
+        start_bit: 39,
+        len: 16,
+        byte_order: ByteOrder::BigEndian,
+        signed: true,
+        factor: 0.1,
+        offset: 0.0,
+        min: Some(-3276.8),
+        max: Some(3276.7),
+        labels: &[],
+        multiplexed: false,
+    },
+    SignalMeta {
+        name: "DTI_InputVoltage",
+        index: 2,
+        unit: "V",
+        comment: "DC input (tractive system) voltage.",
+        start_bit: 55,
+        len: 16,
+        byte_order: ByteOrder::BigEndian,
+        signed: true,
+        factor: 1.0,
+        offset: 0.0,
+        min: Some(-32768.0),
+        max: Some(32767.0),
+        labels: &[],
+        multiplexed: false,
+    },
+];
+
+impl DtiSpeed {
+    pub const META: &'static MessageMeta = &MessageMeta {
+        name: "DTI_Speed",
+        id: 0x2041,
+        extended: true,
+        len: 8,
+        cycle_time_ms: Some(10),
+        comment: "DTI packet 0x20. Controller status: speed, duty cycle and DC input voltage.",
+        signals: &DTI_SPEED_SIGNALS,
+    };
+    pub const ID: u32 = 0x2041;
+    pub const EXTENDED: bool = true;
+    pub const LEN: usize = 8;
+    pub const CYCLE_TIME_MS: u32 = 10;
+
+    /// Decodes a payload of at least [`Self::LEN`] bytes. Values outside the schema's range are
+    /// decoded as they are; only a short payload fails.
+    pub fn decode(data: &[u8]) -> Result<Self, DecodeError> {
+        let data = runtime::payload::<8>(data, "DTI_Speed")?;
+        let dti_erpm =
+            Self::dti_erpm_from_raw(bits::sign_extend(bits::read_be(data, 0, 32), 32) as i32);
+        let dti_duty_cycle = Self::dti_duty_cycle_from_raw(bits::sign_extend(
+            bits::read_be(data, 32, 16),
+            16,
+        ) as i16);
+        let dti_input_voltage = Self::dti_input_voltage_from_raw(bits::sign_extend(
+            bits::read_be(data, 48, 16),
+            16,
+        ) as i16);
+        Ok(Self {
+            dti_erpm,
+            dti_duty_cycle,
+            dti_input_voltage,
+        })
+    }
+
+    /// Encodes into the first [`Self::LEN`] bytes of `out` and returns that length. Fails, naming
+    /// the signal, when a value is outside its range or its multiplexor disagrees.
+    pub fn encode(&self, out: &mut [u8]) -> Result<usize, EncodeError> {
+        let out = runtime::payload_mut::<8>(out, "DTI_Speed")?;
+        bits::write_be(out, 0, 32, Self::dti_erpm_to_raw(self.dti_erpm)? as u64);
+        bits::write_be(
+            out,
+            32,
+            16,
+            Self::dti_duty_cycle_to_raw(self.dti_duty_cycle)? as u64,
+        );
+        bits::write_be(
+            out,
+            48,
+            16,
+            Self::dti_input_voltage_to_raw(self.dti_input_voltage)? as u64,
+        );
+        Ok(Self::LEN)
+    }
+
+    /// Calls `visitor` with every present signal's physical value.
+    pub fn visit(&self, visitor: &mut impl SignalVisitor) {
+        let v = self.dti_erpm;
+        visitor.signal(&DTI_SPEED_SIGNALS[0], Value::from(v), None);
+        let v = self.dti_duty_cycle;
+        visitor.signal(&DTI_SPEED_SIGNALS[1], Value::from(v), None);
+        let v = self.dti_input_voltage;
+        visitor.signal(&DTI_SPEED_SIGNALS[2], Value::from(v), None);
+    }
+
+    /// Builds the message from physical values looked up by signal.
+    pub fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
+        Ok(Self {
+            dti_erpm: {
+                let v = source
+                    .value(&DTI_SPEED_SIGNALS[0])
+                    .ok_or(EncodeError::MissingSignal {
+                        message: "DTI_Speed",
+                        signal: "DTI_Erpm",
+                    })?;
+                v.to_int::<i32>().ok_or(EncodeError::InvalidValue {
+                    message: "DTI_Speed",
+                    signal: "DTI_Erpm",
+                })?
+            },
+            dti_duty_cycle: {
+                let v = source
+                    .value(&DTI_SPEED_SIGNALS[1])
+                    .ok_or(EncodeError::MissingSignal {
+                        message: "DTI_Speed",
+                        signal: "DTI_DutyCycle",
+                    })?;
+                Some(v.to_f64()).ok_or(EncodeError::InvalidValue {
+                    message: "DTI_Speed",
+                    signal: "DTI_DutyCycle",
+                })?
+            },
+            dti_input_voltage: {
+                let v = source
+                    .value(&DTI_SPEED_SIGNALS[2])
+                    .ok_or(EncodeError::MissingSignal {
+                        message: "DTI_Speed",
+                        signal: "DTI_InputVoltage",
+                    })?;
+                v.to_int::<i16>().ok_or(EncodeError::InvalidValue {
+                    message: "DTI_Speed",
+                    signal: "DTI_InputVoltage",
+                })?
+            },
+        })
+    }
+
+    /// Physical value of `DTI_Erpm` for a raw value.
+    pub fn dti_erpm_from_raw(raw: i32) -> i32 {
+        raw
+    }
+
+    /// Raw value of `DTI_Erpm` for a physical value, range-checked.
+    pub fn dti_erpm_to_raw(v: i32) -> Result<i32, EncodeError> {
+        runtime::check_range(
+            f64::from(v),
+            -2147483648.0,
+            2147483647.0,
+            1e-6,
+            "DTI_Speed",
+            "DTI_Erpm",
+        )?;
+        Ok(v)
+    }
+
+    /// Physical value of `DTI_DutyCycle` for a raw value.
+    pub fn dti_duty_cycle_from_raw(raw: i16) -> f64 {
+        f64::from(raw) * 0.1
+    }
+
+    /// Raw value of `DTI_DutyCycle` for a physical value, range-checked.
+    pub fn dti_duty_cycle_to_raw(v: f64) -> Result<i16, EncodeError> {
+        runtime::check_range(v, -3276.8, 3276.7, 1e-7, "DTI_Speed", "DTI_DutyCycle")?;
+        let raw = runtime::round(v / 0.1);
+        if (-32768.0..32768.0).contains(&raw) {
+            Ok(raw as i16)
+        } else {
+            Err(EncodeError::OutOfRange {
+                message: "DTI_Speed",
+                signal: "DTI_DutyCycle",
+            })
+        }
+    }
+
+    /// Physical value of `DTI_InputVoltage` for a raw value.
+    pub fn dti_input_voltage_from_raw(raw: i16) -> i16 {
+        raw
+    }
+
+    /// Raw value of `DTI_InputVoltage` for a physical value, range-checked.
+    pub fn dti_input_voltage_to_raw(v: i16) -> Result<i16, EncodeError> {
+        runtime::check_range(
+            f64::from(v),
+            -32768.0,
+            32767.0,
+            1e-6,
+            "DTI_Speed",
+            "DTI_InputVoltage",
+        )?;
+        Ok(v)
+    }
+}
+
+impl CanMessage for DtiSpeed {
+    const META: &'static MessageMeta = Self::META;
+
+    fn decode(data: &[u8]) -> Result<Self, DecodeError> {
+        Self::decode(data)
+    }
+
+    fn encode(&self, out: &mut [u8]) -> Result<usize, EncodeError> {
+        self.encode(out)
+    }
+
+    fn visit(&self, visitor: &mut impl SignalVisitor) {
+        self.visit(visitor)
+    }
+
+    fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
+        Self::from_signals(source)
+    }
+}
+
+/// DTI packet 0x21. Controller status: AC and DC current.
+///
+/// `DTI_Currents`: extended id 0x2141, 8 bytes, every 10 ms, sent by DTI.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct DtiCurrents {
+    /// Peak AC (phase) current.
+    ///
+    /// `DTI_AcCurrent`: 16 bits from bit 7 (Motorola), signed, physical = raw * 0.1, range [-3276.8, 3276.7], unit `A`.
+    pub dti_ac_current: f64,
+    /// DC (battery) current; negative while braking.
+    ///
+    /// `DTI_DcCurrent`: 16 bits from bit 23 (Motorola), signed, physical = raw * 0.1, range [-3276.8, 3276.7], unit `A`.
+    pub dti_dc_current: f64,
+}
+
+static DTI_CURRENTS_SIGNALS: [SignalMeta; 2] = [
+    SignalMeta {
+        name: "DTI_AcCurrent",
+        index: 0,
+        unit: "A",
+        comment: "Peak AC (phase) current.",
+        start_bit: 7,
+        len: 16,
+        byte_order: ByteOrder::BigEndian,
+        signed: true,
+        factor: 0.1,
+        offset: 0.0,
+        min: Some(-3276.8),
+        max: Some(3276.7),
+        labels: &[],
+        multiplexed: false,
+    },
+    SignalMeta {
+        name: "DTI_DcCurrent",
+        index: 1,
+        unit: "A",
+        comment: "DC (battery) current; negative while braking.",
+        start_bit: 23,
+        len: 16,
+        byte_order: ByteOrder::BigEndian,
+        signed: true,
+        factor: 0.1,
+        offset: 0.0,
+        min: Some(-3276.8),
+        max: Some(3276.7),
+        labels: &[],
+        multiplexed: false,
+    },
+];
+
+impl DtiCurrents {
+    pub const META: &'static MessageMeta = &MessageMeta {
+        name: "DTI_Currents",
+        id: 0x2141,
+        extended: true,
+        len: 8,
+        cycle_time_ms: Some(10),
+        comment: "DTI packet 0x21. Controller status: AC and DC current.",
+        signals: &DTI_CURRENTS_SIGNALS,
+    };
+    pub const ID: u32 = 0x2141;
+    pub const EXTENDED: bool = true;
+    pub const LEN: usize = 8;
+    pub const CYCLE_TIME_MS: u32 = 10;
+
+    /// Decodes a payload of at least [`Self::LEN`] bytes. Values outside the schema's range are
+    /// decoded as they are; only a short payload fails.
+    pub fn decode(data: &[u8]) -> Result<Self, DecodeError> {
+        let data = runtime::payload::<8>(data, "DTI_Currents")?;
+        let dti_ac_current =
+            Self::dti_ac_current_from_raw(bits::sign_extend(bits::read_be(data, 0, 16), 16) as i16);
+        let dti_dc_current = Self::dti_dc_current_from_raw(bits::sign_extend(
+            bits::read_be(data, 16, 16),
+            16,
+        ) as i16);
+        Ok(Self {
+            dti_ac_current,
+            dti_dc_current,
+        })
+    }
+
+    /// Encodes into the first [`Self::LEN`] bytes of `out` and returns that length. Fails, naming
+    /// the signal, when a value is outside its range or its multiplexor disagrees.
+    pub fn encode(&self, out: &mut [u8]) -> Result<usize, EncodeError> {
+        let out = runtime::payload_mut::<8>(out, "DTI_Currents")?;
+        bits::write_be(
+            out,
+            0,
+            16,
+            Self::dti_ac_current_to_raw(self.dti_ac_current)? as u64,
+        );
+        bits::write_be(
+            out,
+            16,
+            16,
+            Self::dti_dc_current_to_raw(self.dti_dc_current)? as u64,
+        );
+        Ok(Self::LEN)
+    }
+
+    /// Calls `visitor` with every present signal's physical value.
+    pub fn visit(&self, visitor: &mut impl SignalVisitor) {
+        let v = self.dti_ac_current;
+        visitor.signal(&DTI_CURRENTS_SIGNALS[0], Value::from(v), None);
+        let v = self.dti_dc_current;
+        visitor.signal(&DTI_CURRENTS_SIGNALS[1], Value::from(v), None);
+    }
+
+    /// Builds the message from physical values looked up by signal.
+    pub fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
+        Ok(Self {
+            dti_ac_current: {
+                let v =
+                    source
+                        .value(&DTI_CURRENTS_SIGNALS[0])
+                        .ok_or(EncodeError::MissingSignal {
+                            message: "DTI_Currents",
+                            signal: "DTI_AcCurrent",
+                        })?;
+                Some(v.to_f64()).ok_or(EncodeError::InvalidValue {
+                    message: "DTI_Currents",
+                    signal: "DTI_AcCurrent",
+                })?
+            },
+            dti_dc_current: {
+                let v =
+                    source
+                        .value(&DTI_CURRENTS_SIGNALS[1])
+                        .ok_or(EncodeError::MissingSignal {
+                            message: "DTI_Currents",
+                            signal: "DTI_DcCurrent",
+                        })?;
+                Some(v.to_f64()).ok_or(EncodeError::InvalidValue {
+                    message: "DTI_Currents",
+                    signal: "DTI_DcCurrent",
+                })?
+            },
+        })
+    }
+
+    /// Physical value of `DTI_AcCurrent` for a raw value.
+    pub fn dti_ac_current_from_raw(raw: i16) -> f64 {
+        f64::from(raw) * 0.1
+    }
+
+    /// Raw value of `DTI_AcCurrent` for a physical value, range-checked.
+    pub fn dti_ac_current_to_raw(v: f64) -> Result<i16, EncodeError> {
+        runtime::check_range(v, -3276.8, 3276.7, 1e-7, "DTI_Currents", "DTI_AcCurrent")?;
+        let raw = runtime::round(v / 0.1);
+        if (-32768.0..32768.0).contains(&raw) {
+            Ok(raw as i16)
+        } else {
+            Err(EncodeError::OutOfRange {
+                message: "DTI_Currents",
+                signal: "DTI_AcCurrent",
+            })
+        }
+    }
+
+    /// Physical value of `DTI_DcCurrent` for a raw value.
+    pub fn dti_dc_current_from_raw(raw: i16) -> f64 {
+        f64::from(raw) * 0.1
+    }
+
+    /// Raw value of `DTI_DcCurrent` for a physical value, range-checked.
+    pub fn dti_dc_current_to_raw(v: f64) -> Result<i16, EncodeError> {
+        runtime::check_range(v, -3276.8, 3276.7, 1e-7, "DTI_Currents", "DTI_DcCurrent")?;
+        let raw = runtime::round(v / 0.1);
+        if (-32768.0..32768.0).contains(&raw) {
+            Ok(raw as i16)
+        } else {
+            Err(EncodeError::OutOfRange {
+                message: "DTI_Currents",
+                signal: "DTI_DcCurrent",
+            })
+        }
+    }
+}
+
+impl CanMessage for DtiCurrents {
+    const META: &'static MessageMeta = Self::META;
+
+    fn decode(data: &[u8]) -> Result<Self, DecodeError> {
+        Self::decode(data)
+    }
+
+    fn encode(&self, out: &mut [u8]) -> Result<usize, EncodeError> {
+        self.encode(out)
+    }
+
+    fn visit(&self, visitor: &mut impl SignalVisitor) {
+        self.visit(visitor)
+    }
+
+    fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
+        Self::from_signals(source)
+    }
+}
+
+/// DTI packet 0x22. Controller status: temperatures and the active fault.
+///
+/// `DTI_Temperatures`: extended id 0x2241, 8 bytes, every 100 ms, sent by DTI.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct DtiTemperatures {
+    /// Controller (IGBT) temperature.
+    ///
+    /// `DTI_ControllerTemp`: 16 bits from bit 7 (Motorola), signed, physical = raw * 0.1, range [-3276.8, 3276.7], unit `degC`.
+    pub dti_controller_temp: f64,
+    /// Motor temperature from its sensor.
+    ///
+    /// `DTI_MotorTemp`: 16 bits from bit 23 (Motorola), signed, physical = raw * 0.1, range [-3276.8, 3276.7], unit `degC`.
+    pub dti_motor_temp: f64,
+    /// The active fault; 0 none. The controller stops driving while one is active.
+    ///
+    /// `DTI_FaultCode`: 8 bits from bit 32 (Intel), unsigned, range [0.0, 255.0].
+    pub dti_fault_code: DtiFaultCode,
+}
+
+static DTI_TEMPERATURES_SIGNALS: [SignalMeta; 3] = [
+    SignalMeta {
+        name: "DTI_ControllerTemp",
+        index: 0,
+        unit: "degC",
+        comment: "Controller (IGBT) temperature.",
+        start_bit: 7,
+        len: 16,
+        byte_order: ByteOrder::BigEndian,
+        signed: true,
+        factor: 0.1,
+        offset: 0.0,
+        min: Some(-3276.8),
+        max: Some(3276.7),
+        labels: &[],
+        multiplexed: false,
+    },
+    SignalMeta {
+        name: "DTI_MotorTemp",
+        index: 1,
+        unit: "degC",
+        comment: "Motor temperature from its sensor.",
+        start_bit: 23,
+        len: 16,
+        byte_order: ByteOrder::BigEndian,
+        signed: true,
+        factor: 0.1,
+        offset: 0.0,
+        min: Some(-3276.8),
+        max: Some(3276.7),
+        labels: &[],
+        multiplexed: false,
+    },
+    SignalMeta {
+        name: "DTI_FaultCode",
+        index: 2,
+        unit: "",
+        comment: "The active fault; 0 none. The controller stops driving while one is active.",
+        start_bit: 32,
+        len: 8,
+        byte_order: ByteOrder::LittleEndian,
+        signed: false,
+        factor: 1.0,
+        offset: 0.0,
+        min: Some(0.0),
+        max: Some(255.0),
+        labels: &[
+            (0, "NONE"),
+            (1, "OVERVOLTAGE"),
+            (2, "UNDERVOLTAGE"),
+            (3, "GATE_DRIVER"),
+            (4, "OVERCURRENT"),
+            (5, "CONTROLLER_OVERTEMP"),
+            (6, "MOTOR_OVERTEMP"),
+            (7, "SENSOR_WIRE"),
+            (8, "SENSOR_GENERAL"),
+            (9, "CAN_COMMAND"),
+            (10, "ANALOG_INPUT"),
+        ],
+        multiplexed: false,
+    },
+];
+
+impl DtiTemperatures {
+    pub const META: &'static MessageMeta = &MessageMeta {
+        name: "DTI_Temperatures",
+        id: 0x2241,
+        extended: true,
+        len: 8,
+        cycle_time_ms: Some(100),
+        comment: "DTI packet 0x22. Controller status: temperatures and the active fault.",
+        signals: &DTI_TEMPERATURES_SIGNALS,
+    };
+    pub const ID: u32 = 0x2241;
+    pub const EXTENDED: bool = true;
+    pub const LEN: usize = 8;
+    pub const CYCLE_TIME_MS: u32 = 100;
+
+    /// Decodes a payload of at least [`Self::LEN`] bytes. Values outside the schema's range are
+    /// decoded as they are; only a short payload fails.
+    pub fn decode(data: &[u8]) -> Result<Self, DecodeError> {
+        let data = runtime::payload::<8>(data, "DTI_Temperatures")?;
+        let dti_controller_temp = Self::dti_controller_temp_from_raw(bits::sign_extend(
+            bits::read_be(data, 0, 16),
+            16,
+        ) as i16);
+        let dti_motor_temp = Self::dti_motor_temp_from_raw(bits::sign_extend(
+            bits::read_be(data, 16, 16),
+            16,
+        ) as i16);
+        let dti_fault_code = Self::dti_fault_code_from_raw(bits::read_le(data, 32, 8) as u8);
+        Ok(Self {
+            dti_controller_temp,
+            dti_motor_temp,
+            dti_fault_code,
+        })
+    }
+
+    /// Encodes into the first [`Self::LEN`] bytes of `out` and returns that length. Fails, naming
+    /// the signal, when a value is outside its range or its multiplexor disagrees.
+    pub fn encode(&self, out: &mut [u8]) -> Result<usize, EncodeError> {
+        let out = runtime::payload_mut::<8>(out, "DTI_Temperatures")?;
+        bits::write_be(
+            out,
+            0,
+            16,
+            Self::dti_controller_temp_to_raw(self.dti_controller_temp)? as u64,
+        );
+        bits::write_be(
+            out,
+            16,
+            16,
+            Self::dti_motor_temp_to_raw(self.dti_motor_temp)? as u64,
+        );
+        bits::write_le(
+            out,
+            32,
+            8,
+            u64::from(Self::dti_fault_code_to_raw(self.dti_fault_code)?),
+        );
+        Ok(Self::LEN)
+    }
+
+    /// Calls `visitor` with every present signal's physical value.
+    pub fn visit(&self, visitor: &mut impl SignalVisitor) {
+        let v = self.dti_controller_temp;
+        visitor.signal(&DTI_TEMPERATURES_SIGNALS[0], Value::from(v), None);
+        let v = self.dti_motor_temp;
+        visitor.signal(&DTI_TEMPERATURES_SIGNALS[1], Value::from(v), None);
+        let v = self.dti_fault_code;
+        visitor.signal(
+            &DTI_TEMPERATURES_SIGNALS[2],
+            Value::from(v.into_raw()),
+            v.label(),
+        );
+    }
+
+    /// Builds the message from physical values looked up by signal.
+    pub fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
+        Ok(Self {
+            dti_controller_temp: {
+                let v = source.value(&DTI_TEMPERATURES_SIGNALS[0]).ok_or(
+                    EncodeError::MissingSignal {
+                        message: "DTI_Temperatures",
+                        signal: "DTI_ControllerTemp",
+                    },
+                )?;
+                Some(v.to_f64()).ok_or(EncodeError::InvalidValue {
+                    message: "DTI_Temperatures",
+                    signal: "DTI_ControllerTemp",
+                })?
+            },
+            dti_motor_temp: {
+                let v = source.value(&DTI_TEMPERATURES_SIGNALS[1]).ok_or(
+                    EncodeError::MissingSignal {
+                        message: "DTI_Temperatures",
+                        signal: "DTI_MotorTemp",
+                    },
+                )?;
+                Some(v.to_f64()).ok_or(EncodeError::InvalidValue {
+                    message: "DTI_Temperatures",
+                    signal: "DTI_MotorTemp",
+                })?
+            },
+            dti_fault_code: {
+                let v = source.value(&DTI_TEMPERATURES_SIGNALS[2]).ok_or(
+                    EncodeError::MissingSignal {
+                        message: "DTI_Temperatures",
+                        signal: "DTI_FaultCode",
+                    },
+                )?;
+                v.to_int::<u8>()
+                    .map(DtiFaultCode::from_raw)
+                    .ok_or(EncodeError::InvalidValue {
+                        message: "DTI_Temperatures",
+                        signal: "DTI_FaultCode",
+                    })?
+            },
+        })
+    }
+
+    /// Physical value of `DTI_ControllerTemp` for a raw value.
+    pub fn dti_controller_temp_from_raw(raw: i16) -> f64 {
+        f64::from(raw) * 0.1
+    }
+
+    /// Raw value of `DTI_ControllerTemp` for a physical value, range-checked.
+    pub fn dti_controller_temp_to_raw(v: f64) -> Result<i16, EncodeError> {
+        runtime::check_range(
+            v,
+            -3276.8,
+            3276.7,
+            1e-7,
+            "DTI_Temperatures",
+            "DTI_ControllerTemp",
+        )?;
+        let raw = runtime::round(v / 0.1);
+        if (-32768.0..32768.0).contains(&raw) {
+            Ok(raw as i16)
+        } else {
+            Err(EncodeError::OutOfRange {
+                message: "DTI_Temperatures",
+                signal: "DTI_ControllerTemp",
+            })
+        }
+    }
+
+    /// Physical value of `DTI_MotorTemp` for a raw value.
+    pub fn dti_motor_temp_from_raw(raw: i16) -> f64 {
+        f64::from(raw) * 0.1
+    }
+
+    /// Raw value of `DTI_MotorTemp` for a physical value, range-checked.
+    pub fn dti_motor_temp_to_raw(v: f64) -> Result<i16, EncodeError> {
+        runtime::check_range(
+            v,
+            -3276.8,
+            3276.7,
+            1e-7,
+            "DTI_Temperatures",
+            "DTI_MotorTemp",
+        )?;
+        let raw = runtime::round(v / 0.1);
+        if (-32768.0..32768.0).contains(&raw) {
+            Ok(raw as i16)
+        } else {
+            Err(EncodeError::OutOfRange {
+                message: "DTI_Temperatures",
+                signal: "DTI_MotorTemp",
+            })
+        }
+    }
+
+    /// Physical value of `DTI_FaultCode` for a raw value.
+    pub fn dti_fault_code_from_raw(raw: u8) -> DtiFaultCode {
+        DtiFaultCode::from_raw(raw)
+    }
+
+    /// Raw value of `DTI_FaultCode` for a physical value, range-checked.
+    pub fn dti_fault_code_to_raw(v: DtiFaultCode) -> Result<u8, EncodeError> {
+        if let DtiFaultCode::Unknown(raw) = v {
+            runtime::check_range(
+                raw as f64,
+                0.0,
+                255.0,
+                1e-6,
+                "DTI_Temperatures",
+                "DTI_FaultCode",
+            )?;
+        }
+        Ok(v.into_raw())
+    }
+}
+
+impl CanMessage for DtiTemperatures {
+    const META: &'static MessageMeta = Self::META;
+
+    fn decode(data: &[u8]) -> Result<Self, DecodeError> {
+        Self::decode(data)
+    }
+
+    fn encode(&self, out: &mut [u8]) -> Result<usize, EncodeError> {
+        self.encode(out)
+    }
+
+    fn visit(&self, visitor: &mut impl SignalVisitor) {
+        self.visit(visitor)
+    }
+
+    fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
+        Self::from_signals(source)
+    }
+}
+
+/// DTI packet 0x23. Controller status: field-oriented control currents.
+///
+/// `DTI_FocCurrents`: extended id 0x2341, 8 bytes, every 100 ms, sent by DTI.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct DtiFocCurrents {
+    /// Direct-axis current.
+    ///
+    /// `DTI_FocId`: 32 bits from bit 7 (Motorola), signed, physical = raw * 0.01, range [-21474836.48, 21474836.47], unit `A`.
+    pub dti_foc_id: f64,
+    /// Quadrature-axis current.
+    ///
+    /// `DTI_FocIq`: 32 bits from bit 39 (Motorola), signed, physical = raw * 0.01, range [-21474836.48, 21474836.47], unit `A`.
+    pub dti_foc_iq: f64,
+}
+
+static DTI_FOC_CURRENTS_SIGNALS: [SignalMeta; 2] = [
+    SignalMeta {
+        name: "DTI_FocId",
+        index: 0,
+        unit: "A",
+        comment: "Direct-axis current.",
+        start_bit: 7,
+        len: 32,
+        byte_order: ByteOrder::BigEndian,
+        signed: true,
+        factor: 0.01,
+        offset: 0.0,
+        min: Some(-21474836.48),
+        max: Some(21474836.47),
+        labels: &[],
+        multiplexed: false,
+    },
+    SignalMeta {
+        name: "DTI_FocIq",
+        index: 1,
+        unit: "A",
+        comment: "Quadrature-axis current.",
+        start_bit: 39,
+        len: 32,
+        byte_order: ByteOrder::BigEndian,
+        signed: true,
+        factor: 0.01,
+        offset: 0.0,
+        min: Some(-21474836.48),
+        max: Some(21474836.47),
+        labels: &[],
+        multiplexed: false,
+    },
+];
+
+impl DtiFocCurrents {
+    pub const META: &'static MessageMeta = &MessageMeta {
+        name: "DTI_FocCurrents",
+        id: 0x2341,
+        extended: true,
+        len: 8,
+        cycle_time_ms: Some(100),
+        comment: "DTI packet 0x23. Controller status: field-oriented control currents.",
+        signals: &DTI_FOC_CURRENTS_SIGNALS,
+    };
+    pub const ID: u32 = 0x2341;
+    pub const EXTENDED: bool = true;
+    pub const LEN: usize = 8;
+    pub const CYCLE_TIME_MS: u32 = 100;
+
+    /// Decodes a payload of at least [`Self::LEN`] bytes. Values outside the schema's range are
+    /// decoded as they are; only a short payload fails.
+    pub fn decode(data: &[u8]) -> Result<Self, DecodeError> {
+        let data = runtime::payload::<8>(data, "DTI_FocCurrents")?;
+        let dti_foc_id =
+            Self::dti_foc_id_from_raw(bits::sign_extend(bits::read_be(data, 0, 32), 32) as i32);
+        let dti_foc_iq =
+            Self::dti_foc_iq_from_raw(bits::sign_extend(bits::read_be(data, 32, 32), 32) as i32);
+        Ok(Self {
+            dti_foc_id,
+            dti_foc_iq,
+        })
+    }
+
+    /// Encodes into the first [`Self::LEN`] bytes of `out` and returns that length. Fails, naming
+    /// the signal, when a value is outside its range or its multiplexor disagrees.
+    pub fn encode(&self, out: &mut [u8]) -> Result<usize, EncodeError> {
+        let out = runtime::payload_mut::<8>(out, "DTI_FocCurrents")?;
+        bits::write_be(out, 0, 32, Self::dti_foc_id_to_raw(self.dti_foc_id)? as u64);
+        bits::write_be(
+            out,
+            32,
+            32,
+            Self::dti_foc_iq_to_raw(self.dti_foc_iq)? as u64,
+        );
+        Ok(Self::LEN)
+    }
+
+    /// Calls `visitor` with every present signal's physical value.
+    pub fn visit(&self, visitor: &mut impl SignalVisitor) {
+        let v = self.dti_foc_id;
+        visitor.signal(&DTI_FOC_CURRENTS_SIGNALS[0], Value::from(v), None);
+        let v = self.dti_foc_iq;
+        visitor.signal(&DTI_FOC_CURRENTS_SIGNALS[1], Value::from(v), None);
+    }
+
+    /// Builds the message from physical values looked up by signal.
+    pub fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
+        Ok(Self {
+            dti_foc_id: {
+                let v = source.value(&DTI_FOC_CURRENTS_SIGNALS[0]).ok_or(
+                    EncodeError::MissingSignal {
+                        message: "DTI_FocCurrents",
+                        signal: "DTI_FocId",
+                    },
+                )?;
+                Some(v.to_f64()).ok_or(EncodeError::InvalidValue {
+                    message: "DTI_FocCurrents",
+                    signal: "DTI_FocId",
+                })?
+            },
+            dti_foc_iq: {
+                let v = source.value(&DTI_FOC_CURRENTS_SIGNALS[1]).ok_or(
+                    EncodeError::MissingSignal {
+                        message: "DTI_FocCurrents",
+                        signal: "DTI_FocIq",
+                    },
+                )?;
+                Some(v.to_f64()).ok_or(EncodeError::InvalidValue {
+                    message: "DTI_FocCurrents",
+                    signal: "DTI_FocIq",
+                })?
+            },
+        })
+    }
+
+    /// Physical value of `DTI_FocId` for a raw value.
+    pub fn dti_foc_id_from_raw(raw: i32) -> f64 {
+        f64::from(raw) * 0.01
+    }
+
+    /// Raw value of `DTI_FocId` for a physical value, range-checked.
+    pub fn dti_foc_id_to_raw(v: f64) -> Result<i32, EncodeError> {
+        runtime::check_range(
+            v,
+            -21474836.48,
+            21474836.47,
+            1e-8,
+            "DTI_FocCurrents",
+            "DTI_FocId",
+        )?;
+        let raw = runtime::round(v / 0.01);
+        if (-2147483648.0..2147483648.0).contains(&raw) {
+            Ok(raw as i32)
+        } else {
+            Err(EncodeError::OutOfRange {
+                message: "DTI_FocCurrents",
+                signal: "DTI_FocId",
+            })
+        }
+    }
+
+    /// Physical value of `DTI_FocIq` for a raw value.
+    pub fn dti_foc_iq_from_raw(raw: i32) -> f64 {
+        f64::from(raw) * 0.01
+    }
+
+    /// Raw value of `DTI_FocIq` for a physical value, range-checked.
+    pub fn dti_foc_iq_to_raw(v: f64) -> Result<i32, EncodeError> {
+        runtime::check_range(
+            v,
+            -21474836.48,
+            21474836.47,
+            1e-8,
+            "DTI_FocCurrents",
+            "DTI_FocIq",
+        )?;
+        let raw = runtime::round(v / 0.01);
+        if (-2147483648.0..2147483648.0).contains(&raw) {
+            Ok(raw as i32)
+        } else {
+            Err(EncodeError::OutOfRange {
+                message: "DTI_FocCurrents",
+                signal: "DTI_FocIq",
+            })
+        }
+    }
+}
+
+impl CanMessage for DtiFocCurrents {
+    const META: &'static MessageMeta = Self::META;
+
+    fn decode(data: &[u8]) -> Result<Self, DecodeError> {
+        Self::decode(data)
+    }
+
+    fn encode(&self, out: &mut [u8]) -> Result<usize, EncodeError> {
+        self.encode(out)
+    }
+
+    fn visit(&self, visitor: &mut impl SignalVisitor) {
+        self.visit(visitor)
+    }
+
+    fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
+        Self::from_signals(source)
+    }
+}
+
+/// DTI packet 0x24. Controller status: inputs, outputs, drive enable, active limits and the CAN map version.
+///
+/// `DTI_Flags`: extended id 0x2441, 8 bytes, every 10 ms, sent by DTI.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct DtiFlags {
+    /// `DTI_ThrottleInput`: 8 bits from bit 0 (Intel), signed, range [-128.0, 127.0], unit `%`.
+    pub dti_throttle_input: i8,
+    /// `DTI_BrakeInput`: 8 bits from bit 8 (Intel), signed, range [-128.0, 127.0], unit `%`.
+    pub dti_brake_input: i8,
+    /// `DTI_DigitalIn1`: 1 bit from bit 16 (Intel), unsigned, range [0.0, 1.0].
+    pub dti_digital_in1: bool,
+    /// `DTI_DigitalIn2`: 1 bit from bit 17 (Intel), unsigned, range [0.0, 1.0].
+    pub dti_digital_in2: bool,
+    /// `DTI_DigitalIn3`: 1 bit from bit 18 (Intel), unsigned, range [0.0, 1.0].
+    pub dti_digital_in3: bool,
+    /// `DTI_DigitalIn4`: 1 bit from bit 19 (Intel), unsigned, range [0.0, 1.0].
+    pub dti_digital_in4: bool,
+    /// `DTI_DigitalOut1`: 1 bit from bit 20 (Intel), unsigned, range [0.0, 1.0].
+    pub dti_digital_out1: bool,
+    /// `DTI_DigitalOut2`: 1 bit from bit 21 (Intel), unsigned, range [0.0, 1.0].
+    pub dti_digital_out2: bool,
+    /// `DTI_DigitalOut3`: 1 bit from bit 22 (Intel), unsigned, range [0.0, 1.0].
+    pub dti_digital_out3: bool,
+    /// `DTI_DigitalOut4`: 1 bit from bit 23 (Intel), unsigned, range [0.0, 1.0].
+    pub dti_digital_out4: bool,
+    /// 1 while the drive is enabled.
+    ///
+    /// `DTI_DriveEnabled`: 8 bits from bit 24 (Intel), unsigned, range [0.0, 255.0].
+    pub dti_drive_enabled: DtiDriveEnable,
+    /// Current limited: capacitor temperature.
+    ///
+    /// `DTI_LimitCapacitorTemp`: 1 bit from bit 32 (Intel), unsigned, range [0.0, 1.0].
+    pub dti_limit_capacitor_temp: bool,
+    /// Current limited: DC current limit (the team's code calls this bit a DC temperature limit; the other sources agree on current).
+    ///
+    /// `DTI_LimitDcCurrent`: 1 bit from bit 33 (Intel), unsigned, range [0.0, 1.0].
+    pub dti_limit_dc_current: bool,
+    /// Current limited because the drive is not enabled (not the drive enable state).
+    ///
+    /// `DTI_LimitDriveEnable`: 1 bit from bit 34 (Intel), unsigned, range [0.0, 1.0].
+    pub dti_limit_drive_enable: bool,
+    /// Current limited: IGBT temperature rising fast.
+    ///
+    /// `DTI_LimitIgbtAccelTemp`: 1 bit from bit 35 (Intel), unsigned, range [0.0, 1.0].
+    pub dti_limit_igbt_accel_temp: bool,
+    /// Current limited: IGBT temperature.
+    ///
+    /// `DTI_LimitIgbtTemp`: 1 bit from bit 36 (Intel), unsigned, range [0.0, 1.0].
+    pub dti_limit_igbt_temp: bool,
+    /// Current limited: DC input voltage out of its window.
+    ///
+    /// `DTI_LimitInputVoltage`: 1 bit from bit 37 (Intel), unsigned, range [0.0, 1.0].
+    pub dti_limit_input_voltage: bool,
+    /// Current limited: motor temperature rising fast.
+    ///
+    /// `DTI_LimitMotorAccelTemp`: 1 bit from bit 38 (Intel), unsigned, range [0.0, 1.0].
+    pub dti_limit_motor_accel_temp: bool,
+    /// Current limited: motor temperature.
+    ///
+    /// `DTI_LimitMotorTemp`: 1 bit from bit 39 (Intel), unsigned, range [0.0, 1.0].
+    pub dti_limit_motor_temp: bool,
+    /// Current limited: below the minimum speed.
+    ///
+    /// `DTI_LimitRpmMin`: 1 bit from bit 40 (Intel), unsigned, range [0.0, 1.0].
+    pub dti_limit_rpm_min: bool,
+    /// Current limited: above the maximum speed.
+    ///
+    /// `DTI_LimitRpmMax`: 1 bit from bit 41 (Intel), unsigned, range [0.0, 1.0].
+    pub dti_limit_rpm_max: bool,
+    /// Current limited: power limit.
+    ///
+    /// `DTI_LimitPower`: 1 bit from bit 42 (Intel), unsigned, range [0.0, 1.0].
+    pub dti_limit_power: bool,
+    /// The controller's CAN map version; this schema describes map 2.5 (the version with packets 0x1F, 0x25 and 0x26). Check it on the bench.
+    ///
+    /// `DTI_CanMapVersion`: 8 bits from bit 56 (Intel), unsigned, range [0.0, 255.0].
+    pub dti_can_map_version: u8,
+}
+
+static DTI_FLAGS_SIGNALS: [SignalMeta; 23] = [
+    SignalMeta {
+        name: "DTI_ThrottleInput",
+        index: 0,
+        unit: "%",
+        comment: "",
+        start_bit: 0,
+        len: 8,
+        byte_order: ByteOrder::LittleEndian,
+        signed: true,
+        factor: 1.0,
+        offset: 0.0,
+        min: Some(-128.0),
+        max: Some(127.0),
+        labels: &[],
+        multiplexed: false,
+    },
+    SignalMeta {
+        name: "DTI_BrakeInput",
+        index: 1,
+        unit: "%",
+        comment: "",
+        start_bit: 8,
+        len: 8,
+        byte_order: ByteOrder::LittleEndian,
+        signed: true,
+        factor: 1.0,
+        offset: 0.0,
+        min: Some(-128.0),
+        max: Some(127.0),
+        labels: &[],
+        multiplexed: false,
+    },
+    SignalMeta {
+        name: "DTI_DigitalIn1",
+        index: 2,
+        unit: "",
+        comment: "",
+        start_bit: 16,
+        len: 1,
+        byte_order: ByteOrder::LittleEndian,
+        signed: false,
+        factor: 1.0,
+        offset: 0.0,
+        min: Some(0.0),
+        max: Some(1.0),
+        labels: &[],
+        multiplexed: false,
+    },
+    SignalMeta {
+        name: "DTI_DigitalIn2",
+        index: 3,
+        unit: "",
+        comment: "",
+        start_bit: 17,
+        len: 1,
+        byte_order: ByteOrder::LittleEndian,
+        signed: false,
+        factor: 1.0,
+        offset: 0.0,
+        min: Some(0.0),
+        max: Some(1.0),
+        labels: &[],
+        multiplexed: false,
+    },
+    SignalMeta {
+        name: "DTI_DigitalIn3",
+        index: 4,
+        unit: "",
+        comment: "",
+        start_bit: 18,
+        len: 1,
+        byte_order: ByteOrder::LittleEndian,
+        signed: false,
+        factor: 1.0,
+        offset: 0.0,
+        min: Some(0.0),
+        max: Some(1.0),
+        labels: &[],
+        multiplexed: false,
+    },
+    SignalMeta {
+        name: "DTI_DigitalIn4",
+        index: 5,
+        unit: "",
+        comment: "",
+        start_bit: 19,
+        len: 1,
+        byte_order: ByteOrder::LittleEndian,
+        signed: false,
+        factor: 1.0,
+        offset: 0.0,
+        min: Some(0.0),
+        max: Some(1.0),
+        labels: &[],
+        multiplexed: false,
+    },
+    SignalMeta {
+        name: "DTI_DigitalOut1",
+        index: 6,
+        unit: "",
+        comment: "",
+        start_bit: 20,
+        len: 1,
+        byte_order: ByteOrder::LittleEndian,
+        signed: false,
+        factor: 1.0,
+        offset: 0.0,
+        min: Some(0.0),
+        max: Some(1.0),
+        labels: &[],
+        multiplexed: false,
+    },
+    SignalMeta {
+        name: "DTI_DigitalOut2",
+        index: 7,
+        unit: "",
+        comment: "",
+        start_bit: 21,
+        len: 1,
+        byte_order: ByteOrder::LittleEndian,
+        signed: false,
+        factor: 1.0,
+        offset: 0.0,
+        min: Some(0.0),
+        max: Some(1.0),
+        labels: &[],
+        multiplexed: false,
+    },
+    SignalMeta {
+        name: "DTI_DigitalOut3",
+        index: 8,
+        unit: "",
+        comment: "",
+        start_bit: 22,
+        len: 1,
+        byte_order: ByteOrder::LittleEndian,
+        signed: false,
+        factor: 1.0,
+        offset: 0.0,
+        min: Some(0.0),
+        max: Some(1.0),
+        labels: &[],
+        multiplexed: false,
+    },
+    SignalMeta {
+        name: "DTI_DigitalOut4",
+        index: 9,
+        unit: "",
+        comment: "",
+        start_bit: 23,
+        len: 1,
+        byte_order: ByteOrder::LittleEndian,
+        signed: false,
+        factor: 1.0,
+        offset: 0.0,
+        min: Some(0.0),
+        max: Some(1.0),
+        labels: &[],
+        multiplexed: false,
+    },
+    SignalMeta {
+        name: "DTI_DriveEnabled",
+        index: 10,
+        unit: "",
+        comment: "1 while the drive is enabled.",
+        start_bit: 24,
+        len: 8,
+        byte_order: ByteOrder::LittleEndian,
+        signed: false,
+        factor: 1.0,
+        offset: 0.0,
+        min: Some(0.0),
+        max: Some(255.0),
+        labels: &[(0, "DISABLED"), (1, "ENABLED")],
+        multiplexed: false,
+    },
+    SignalMeta {
+        name: "DTI_LimitCapacitorTemp",
+        index: 11,
+        unit: "",
+        comment: "Current limited: capacitor temperature.",
+        start_bit: 32,
+        len: 1,
+        byte_order: ByteOrder::LittleEndian,
+        signed: false,
+        factor: 1.0,
+        offset: 0.0,
+        min: Some(0.0),
+        max: Some(1.0),
+        labels: &[],
+        multiplexed: false,
+    },
+    SignalMeta {
+        name: "DTI_LimitDcCurrent",
+        index: 12,
+        unit: "",
+        comment: "Current limited: DC current limit (the team's code calls this bit a DC temperature limit; the other sources agree on current).",
+        start_bit: 33,
+        len: 1,
+        byte_order: ByteOrder::LittleEndian,
+        signed: false,
+        factor: 1.0,
+        offset: 0.0,
+        min: Some(0.0),
+        max: Some(1.0),
+        labels: &[],
+        multiplexed: false,
+    },
+    SignalMeta {
+        name: "DTI_LimitDriveEnable",
+        index: 13,
+        unit: "",
+        comment: "Current limited because the drive is not enabled (not the drive enable state).",
+        start_bit: 34,
+        len: 1,
+        byte_order: ByteOrder::LittleEndian,
+        signed: false,
+        factor: 1.0,
+        offset: 0.0,
+        min: Some(0.0),
+        max: Some(1.0),
+        labels: &[],
+        multiplexed: false,
+    },
+    SignalMeta {
+        name: "DTI_LimitIgbtAccelTemp",
+        index: 14,
+        unit: "",
+        comment: "Current limited: IGBT temperature rising fast.",
+        start_bit: 35,
+        len: 1,
+        byte_order: ByteOrder::LittleEndian,
+        signed: false,
+        factor: 1.0,
+        offset: 0.0,
+        min: Some(0.0),
+        max: Some(1.0),
+        labels: &[],
+        multiplexed: false,
+    },
+    SignalMeta {
+        name: "DTI_LimitIgbtTemp",
+        index: 15,
+        unit: "",
+        comment: "Current limited: IGBT temperature.",
+        start_bit: 36,
+        len: 1,
+        byte_order: ByteOrder::LittleEndian,
+        signed: false,
+        factor: 1.0,
+        offset: 0.0,
+        min: Some(0.0),
+        max: Some(1.0),
+        labels: &[],
+        multiplexed: false,
+    },
+    SignalMeta {
+        name: "DTI_LimitInputVoltage",
+        index: 16,
+        unit: "",
+        comment: "Current limited: DC input voltage out of its window.",
+        start_bit: 37,
+        len: 1,
+        byte_order: ByteOrder::LittleEndian,
+        signed: false,
+        factor: 1.0,
+        offset: 0.0,
+        min: Some(0.0),
+        max: Some(1.0),
+        labels: &[],
+        multiplexed: false,
+    },
+    SignalMeta {
+        name: "DTI_LimitMotorAccelTemp",
+        index: 17,
+        unit: "",
+        comment: "Current limited: motor temperature rising fast.",
+        start_bit: 38,
+        len: 1,
+        byte_order: ByteOrder::LittleEndian,
+        signed: false,
+        factor: 1.0,
+        offset: 0.0,
+        min: Some(0.0),
+        max: Some(1.0),
+        labels: &[],
+        multiplexed: false,
+    },
+    SignalMeta {
+        name: "DTI_LimitMotorTemp",
+        index: 18,
+        unit: "",
+        comment: "Current limited: motor temperature.",
+        start_bit: 39,
+        len: 1,
+        byte_order: ByteOrder::LittleEndian,
+        signed: false,
+        factor: 1.0,
+        offset: 0.0,
+        min: Some(0.0),
+        max: Some(1.0),
+        labels: &[],
+        multiplexed: false,
+    },
+    SignalMeta {
+        name: "DTI_LimitRpmMin",
+        index: 19,
+        unit: "",
+        comment: "Current limited: below the minimum speed.",
+        start_bit: 40,
+        len: 1,
+        byte_order: ByteOrder::LittleEndian,
+        signed: false,
+        factor: 1.0,
+        offset: 0.0,
+        min: Some(0.0),
+        max: Some(1.0),
+        labels: &[],
+        multiplexed: false,
+    },
+    SignalMeta {
+        name: "DTI_LimitRpmMax",
+        index: 20,
+        unit: "",
+        comment: "Current limited: above the maximum speed.",
+        start_bit: 41,
+        len: 1,
+        byte_order: ByteOrder::LittleEndian,
+        signed: false,
+        factor: 1.0,
+        offset: 0.0,
+        min: Some(0.0),
+        max: Some(1.0),
+        labels: &[],
+        multiplexed: false,
+    },
+    SignalMeta {
+        name: "DTI_LimitPower",
+        index: 21,
+        unit: "",
+        comment: "Current limited: power limit.",
+        start_bit: 42,
+        len: 1,
+        byte_order: ByteOrder::LittleEndian,
+        signed: false,
+        factor: 1.0,
+        offset: 0.0,
+        min: Some(0.0),
+        max: Some(1.0),
+        labels: &[],
+        multiplexed: false,
+    },
+    SignalMeta {
+        name: "DTI_CanMapVersion",
+        index: 22,
+        unit: "",
+        comment: "The controller's CAN map version; this schema describes map 2.5 (the version with packets 0x1F, 0x25 and 0x26). Check it on the bench.",
+        start_bit: 56,
+        len: 8,
+        byte_order: ByteOrder::LittleEndian,
+        signed: false,
+        factor: 1.0,
+        offset: 0.0,
+        min: Some(0.0),
+        max: Some(255.0),
+        labels: &[],
+        multiplexed: false,
+    },
+];
+
+impl DtiFlags {
+    pub const META: &'static MessageMeta = &MessageMeta {
+        name: "DTI_Flags",
+        id: 0x2441,
+        extended: true,
+        len: 8,
+        cycle_time_ms: Some(10),
+        comment: "DTI packet 0x24. Controller status: inputs, outputs, drive enable, active limits and the CAN map version.",
+        signals: &DTI_FLAGS_SIGNALS,
+    };
+    pub const ID: u32 = 0x2441;
+    pub const EXTENDED: bool = true;
+    pub const LEN: usize = 8;
+    pub const CYCLE_TIME_MS: u32 = 10;
+
+    /// Decodes a payload of at least [`Self::LEN`] bytes. Values outside the schema's range are
+    /// decoded as they are; only a short payload fails.
+    pub fn decode(data: &[u8]) -> Result<Self, DecodeError> {
+        let data = runtime::payload::<8>(data, "DTI_Flags")?;
+        let dti_throttle_input = Self::dti_throttle_input_from_raw(bits::sign_extend(
+            bits::read_le(data, 0, 8),
+            8,
+        ) as i8);
+        let dti_brake_input =
+            Self::dti_brake_input_from_raw(bits::sign_extend(bits::read_le(data, 8, 8), 8) as i8);
+        let dti_digital_in1 = Self::dti_digital_in1_from_raw(bits::read_le(data, 16, 1) as u8);
+        let dti_digital_in2 = Self::dti_digital_in2_from_raw(bits::read_le(data, 17, 1) as u8);
+        let dti_digital_in3 = Self::dti_digital_in3_from_raw(bits::read_le(data, 18, 1) as u8);
+        let dti_digital_in4 = Self::dti_digital_in4_from_raw(bits::read_le(data, 19, 1) as u8);
+        let dti_digital_out1 = Self::dti_digital_out1_from_raw(bits::read_le(data, 20, 1) as u8);
+        let dti_digital_out2 = Self::dti_digital_out2_from_raw(bits::read_le(data, 21, 1) as u8);
+        let dti_digital_out3 = Self::dti_digital_out3_from_raw(bits::read_le(data, 22, 1) as u8);
+        let dti_digital_out4 = Self::dti_digital_out4_from_raw(bits::read_le(data, 23, 1) as u8);
+        let dti_drive_enabled = Self::dti_drive_enabled_from_raw(bits::read_le(data, 24, 8) as u8);
+        let dti_limit_capacitor_temp =
+            Self::dti_limit_capacitor_temp_from_raw(bits::read_le(data, 32, 1) as u8);
+        let dti_limit_dc_current =
+            Self::dti_limit_dc_current_from_raw(bits::read_le(data, 33, 1) as u8);
+        let dti_limit_drive_enable =
+            Self::dti_limit_drive_enable_from_raw(bits::read_le(data, 34, 1) as u8);
+        let dti_limit_igbt_accel_temp =
+            Self::dti_limit_igbt_accel_temp_from_raw(bits::read_le(data, 35, 1) as u8);
+        let dti_limit_igbt_temp =
+            Self::dti_limit_igbt_temp_from_raw(bits::read_le(data, 36, 1) as u8);
+        let dti_limit_input_voltage =
+            Self::dti_limit_input_voltage_from_raw(bits::read_le(data, 37, 1) as u8);
+        let dti_limit_motor_accel_temp =
+            Self::dti_limit_motor_accel_temp_from_raw(bits::read_le(data, 38, 1) as u8);
+        let dti_limit_motor_temp =
+            Self::dti_limit_motor_temp_from_raw(bits::read_le(data, 39, 1) as u8);
+        let dti_limit_rpm_min = Self::dti_limit_rpm_min_from_raw(bits::read_le(data, 40, 1) as u8);
+        let dti_limit_rpm_max = Self::dti_limit_rpm_max_from_raw(bits::read_le(data, 41, 1) as u8);
+        let dti_limit_power = Self::dti_limit_power_from_raw(bits::read_le(data, 42, 1) as u8);
+        let dti_can_map_version =
+            Self::dti_can_map_version_from_raw(bits::read_le(data, 56, 8) as u8);
+        Ok(Self {
+            dti_throttle_input,
+            dti_brake_input,
+            dti_digital_in1,
+            dti_digital_in2,
+            dti_digital_in3,
+            dti_digital_in4,
+            dti_digital_out1,
+            dti_digital_out2,
+            dti_digital_out3,
+            dti_digital_out4,
+            dti_drive_enabled,
+            dti_limit_capacitor_temp,
+            dti_limit_dc_current,
+            dti_limit_drive_enable,
+            dti_limit_igbt_accel_temp,
+            dti_limit_igbt_temp,
+            dti_limit_input_voltage,
+            dti_limit_motor_accel_temp,
+            dti_limit_motor_temp,
+            dti_limit_rpm_min,
+            dti_limit_rpm_max,
+            dti_limit_power,
+            dti_can_map_version,
+        })
+    }
+
+    /// Encodes into the first [`Self::LEN`] bytes of `out` and returns that length. Fails, naming
+    /// the signal, when a value is outside its range or its multiplexor disagrees.
+    pub fn encode(&self, out: &mut [u8]) -> Result<usize, EncodeError> {
+        let out = runtime::payload_mut::<8>(out, "DTI_Flags")?;
+        bits::write_le(
+            out,
+            0,
+            8,
+            Self::dti_throttle_input_to_raw(self.dti_throttle_input)? as u64,
+        );
+        bits::write_le(
+            out,
+            8,
+            8,
+            Self::dti_brake_input_to_raw(self.dti_brake_input)? as u64,
+        );
+        bits::write_le(
+            out,
+            16,
+            1,
+            u64::from(Self::dti_digital_in1_to_raw(self.dti_digital_in1)?),
+        );
+        bits::write_le(
+            out,
+            17,
+            1,
+            u64::from(Self::dti_digital_in2_to_raw(self.dti_digital_in2)?),
+        );
+        bits::write_le(
+            out,
+            18,
+            1,
+            u64::from(Self::dti_digital_in3_to_raw(self.dti_digital_in3)?),
+        );
+        bits::write_le(
+            out,
+            19,
+            1,
+            u64::from(Self::dti_digital_in4_to_raw(self.dti_digital_in4)?),
+        );
+        bits::write_le(
+            out,
+            20,
+            1,
+            u64::from(Self::dti_digital_out1_to_raw(self.dti_digital_out1)?),
+        );
+        bits::write_le(
+            out,
+            21,
+            1,
+            u64::from(Self::dti_digital_out2_to_raw(self.dti_digital_out2)?),
+        );
+        bits::write_le(
+            out,
+            22,
+            1,
+            u64::from(Self::dti_digital_out3_to_raw(self.dti_digital_out3)?),
+        );
+        bits::write_le(
+            out,
+            23,
+            1,
+            u64::from(Self::dti_digital_out4_to_raw(self.dti_digital_out4)?),
+        );
+        bits::write_le(
+            out,
+            24,
+            8,
+            u64::from(Self::dti_drive_enabled_to_raw(self.dti_drive_enabled)?),
+        );
+        bits::write_le(
+            out,
+            32,
+            1,
+            u64::from(Self::dti_limit_capacitor_temp_to_raw(
+                self.dti_limit_capacitor_temp,
+            )?),
+        );
+        bits::write_le(
+            out,
+            33,
+            1,
+            u64::from(Self::dti_limit_dc_current_to_raw(
+                self.dti_limit_dc_current,
+            )?),
+        );
+        bits::write_le(
+            out,
+            34,
+            1,
+            u64::from(Self::dti_limit_drive_enable_to_raw(
+                self.dti_limit_drive_enable,
+            )?),
+        );
+        bits::write_le(
+            out,
+            35,
+            1,
+            u64::from(Self::dti_limit_igbt_accel_temp_to_raw(
+                self.dti_limit_igbt_accel_temp,
+            )?),
+        );
+        bits::write_le(
+            out,
+            36,
+            1,
+            u64::from(Self::dti_limit_igbt_temp_to_raw(self.dti_limit_igbt_temp)?),
+        );
+        bits::write_le(
+            out,
+            37,
+            1,
+            u64::from(Self::dti_limit_input_voltage_to_raw(
+                self.dti_limit_input_voltage,
+            )?),
+        );
+        bits::write_le(
+            out,
+            38,
+            1,
+            u64::from(Self::dti_limit_motor_accel_temp_to_raw(
+                self.dti_limit_motor_accel_temp,
+            )?),
+        );
+        bits::write_le(
+            out,
+            39,
+            1,
+            u64::from(Self::dti_limit_motor_temp_to_raw(
+                self.dti_limit_motor_temp,
+            )?),
+        );
+        bits::write_le(
+            out,
+            40,
+            1,
+            u64::from(Self::dti_limit_rpm_min_to_raw(self.dti_limit_rpm_min)?),
+        );
+        bits::write_le(
+            out,
+            41,
+            1,
+            u64::from(Self::dti_limit_rpm_max_to_raw(self.dti_limit_rpm_max)?),
+        );
+        bits::write_le(
+            out,
+            42,
+            1,
+            u64::from(Self::dti_limit_power_to_raw(self.dti_limit_power)?),
+        );
+        bits::write_le(
+            out,
+            56,
+            8,
+            u64::from(Self::dti_can_map_version_to_raw(self.dti_can_map_version)?),
+        );
+        Ok(Self::LEN)
+    }
+
+    /// Calls `visitor` with every present signal's physical value.
+    pub fn visit(&self, visitor: &mut impl SignalVisitor) {
+        let v = self.dti_throttle_input;
+        visitor.signal(&DTI_FLAGS_SIGNALS[0], Value::from(v), None);
+        let v = self.dti_brake_input;
+        visitor.signal(&DTI_FLAGS_SIGNALS[1], Value::from(v), None);
+        let v = self.dti_digital_in1;
+        visitor.signal(&DTI_FLAGS_SIGNALS[2], Value::from(v), None);
+        let v = self.dti_digital_in2;
+        visitor.signal(&DTI_FLAGS_SIGNALS[3], Value::from(v), None);
+        let v = self.dti_digital_in3;
+        visitor.signal(&DTI_FLAGS_SIGNALS[4], Value::from(v), None);
+        let v = self.dti_digital_in4;
+        visitor.signal(&DTI_FLAGS_SIGNALS[5], Value::from(v), None);
+        let v = self.dti_digital_out1;
+        visitor.signal(&DTI_FLAGS_SIGNALS[6], Value::from(v), None);
+        let v = self.dti_digital_out2;
+        visitor.signal(&DTI_FLAGS_SIGNALS[7], Value::from(v), None);
+        let v = self.dti_digital_out3;
+        visitor.signal(&DTI_FLAGS_SIGNALS[8], Value::from(v), None);
+        let v = self.dti_digital_out4;
+        visitor.signal(&DTI_FLAGS_SIGNALS[9], Value::from(v), None);
+        let v = self.dti_drive_enabled;
+        visitor.signal(&DTI_FLAGS_SIGNALS[10], Value::from(v.into_raw()), v.label());
+        let v = self.dti_limit_capacitor_temp;
+        visitor.signal(&DTI_FLAGS_SIGNALS[11], Value::from(v), None);
+        let v = self.dti_limit_dc_current;
+        visitor.signal(&DTI_FLAGS_SIGNALS[12], Value::from(v), None);
+        let v = self.dti_limit_drive_enable;
+        visitor.signal(&DTI_FLAGS_SIGNALS[13], Value::from(v), None);
+        let v = self.dti_limit_igbt_accel_temp;
+        visitor.signal(&DTI_FLAGS_SIGNALS[14], Value::from(v), None);
+        let v = self.dti_limit_igbt_temp;
+        visitor.signal(&DTI_FLAGS_SIGNALS[15], Value::from(v), None);
+        let v = self.dti_limit_input_voltage;
+        visitor.signal(&DTI_FLAGS_SIGNALS[16], Value::from(v), None);
+        let v = self.dti_limit_motor_accel_temp;
+        visitor.signal(&DTI_FLAGS_SIGNALS[17], Value::from(v), None);
+        let v = self.dti_limit_motor_temp;
+        visitor.signal(&DTI_FLAGS_SIGNALS[18], Value::from(v), None);
+        let v = self.dti_limit_rpm_min;
+        visitor.signal(&DTI_FLAGS_SIGNALS[19], Value::from(v), None);
+        let v = self.dti_limit_rpm_max;
+        visitor.signal(&DTI_FLAGS_SIGNALS[20], Value::from(v), None);
+        let v = self.dti_limit_power;
+        visitor.signal(&DTI_FLAGS_SIGNALS[21], Value::from(v), None);
+        let v = self.dti_can_map_version;
+        visitor.signal(&DTI_FLAGS_SIGNALS[22], Value::from(v), None);
+    }
+
+    /// Builds the message from physical values looked up by signal.
+    pub fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
+        Ok(Self {
+            dti_throttle_input: {
+                let v = source
+                    .value(&DTI_FLAGS_SIGNALS[0])
+                    .ok_or(EncodeError::MissingSignal {
+                        message: "DTI_Flags",
+                        signal: "DTI_ThrottleInput",
+                    })?;
+                v.to_int::<i8>().ok_or(EncodeError::InvalidValue {
+                    message: "DTI_Flags",
+                    signal: "DTI_ThrottleInput",
+                })?
+            },
+            dti_brake_input: {
+                let v = source
+                    .value(&DTI_FLAGS_SIGNALS[1])
+                    .ok_or(EncodeError::MissingSignal {
+                        message: "DTI_Flags",
+                        signal: "DTI_BrakeInput",
+                    })?;
+                v.to_int::<i8>().ok_or(EncodeError::InvalidValue {
+                    message: "DTI_Flags",
+                    signal: "DTI_BrakeInput",
+                })?
+            },
+            dti_digital_in1: {
+                let v = source
+                    .value(&DTI_FLAGS_SIGNALS[2])
+                    .ok_or(EncodeError::MissingSignal {
+                        message: "DTI_Flags",
+                        signal: "DTI_DigitalIn1",
+                    })?;
+                v.to_bool().ok_or(EncodeError::InvalidValue {
+                    message: "DTI_Flags",
+                    signal: "DTI_DigitalIn1",
+                })?
+            },
+            dti_digital_in2: {
+                let v = source
+                    .value(&DTI_FLAGS_SIGNALS[3])
+                    .ok_or(EncodeError::MissingSignal {
+                        message: "DTI_Flags",
+                        signal: "DTI_DigitalIn2",
+                    })?;
+                v.to_bool().ok_or(EncodeError::InvalidValue {
+                    message: "DTI_Flags",
+                    signal: "DTI_DigitalIn2",
+                })?
+            },
+            dti_digital_in3: {
+                let v = source
+                    .value(&DTI_FLAGS_SIGNALS[4])
+                    .ok_or(EncodeError::MissingSignal {
+                        message: "DTI_Flags",
+                        signal: "DTI_DigitalIn3",
+                    })?;
+                v.to_bool().ok_or(EncodeError::InvalidValue {
+                    message: "DTI_Flags",
+                    signal: "DTI_DigitalIn3",
+                })?
+            },
+            dti_digital_in4: {
+                let v = source
+                    .value(&DTI_FLAGS_SIGNALS[5])
+                    .ok_or(EncodeError::MissingSignal {
+                        message: "DTI_Flags",
+                        signal: "DTI_DigitalIn4",
+                    })?;
+                v.to_bool().ok_or(EncodeError::InvalidValue {
+                    message: "DTI_Flags",
+                    signal: "DTI_DigitalIn4",
+                })?
+            },
+            dti_digital_out1: {
+                let v = source
+                    .value(&DTI_FLAGS_SIGNALS[6])
+                    .ok_or(EncodeError::MissingSignal {
+                        message: "DTI_Flags",
+                        signal: "DTI_DigitalOut1",
+                    })?;
+                v.to_bool().ok_or(EncodeError::InvalidValue {
+                    message: "DTI_Flags",
+                    signal: "DTI_DigitalOut1",
+                })?
+            },
+            dti_digital_out2: {
+                let v = source
+                    .value(&DTI_FLAGS_SIGNALS[7])
+                    .ok_or(EncodeError::MissingSignal {
+                        message: "DTI_Flags",
+                        signal: "DTI_DigitalOut2",
+                    })?;
+                v.to_bool().ok_or(EncodeError::InvalidValue {
+                    message: "DTI_Flags",
+                    signal: "DTI_DigitalOut2",
+                })?
+            },
+            dti_digital_out3: {
+                let v = source
+                    .value(&DTI_FLAGS_SIGNALS[8])
+                    .ok_or(EncodeError::MissingSignal {
+                        message: "DTI_Flags",
+                        signal: "DTI_DigitalOut3",
+                    })?;
+                v.to_bool().ok_or(EncodeError::InvalidValue {
+                    message: "DTI_Flags",
+                    signal: "DTI_DigitalOut3",
+                })?
+            },
+            dti_digital_out4: {
+                let v = source
+                    .value(&DTI_FLAGS_SIGNALS[9])
+                    .ok_or(EncodeError::MissingSignal {
+                        message: "DTI_Flags",
+                        signal: "DTI_DigitalOut4",
+                    })?;
+                v.to_bool().ok_or(EncodeError::InvalidValue {
+                    message: "DTI_Flags",
+                    signal: "DTI_DigitalOut4",
+                })?
+            },
+            dti_drive_enabled: {
+                let v = source
+                    .value(&DTI_FLAGS_SIGNALS[10])
+                    .ok_or(EncodeError::MissingSignal {
+                        message: "DTI_Flags",
+                        signal: "DTI_DriveEnabled",
+                    })?;
+                v.to_int::<u8>()
+                    .map(DtiDriveEnable::from_raw)
+                    .ok_or(EncodeError::InvalidValue {
+                        message: "DTI_Flags",
+                        signal: "DTI_DriveEnabled",
+                    })?
+            },
+            dti_limit_capacitor_temp: {
+                let v = source
+                    .value(&DTI_FLAGS_SIGNALS[11])
+                    .ok_or(EncodeError::MissingSignal {
+                        message: "DTI_Flags",
+                        signal: "DTI_LimitCapacitorTemp",
+                    })?;
+                v.to_bool().ok_or(EncodeError::InvalidValue {
+                    message: "DTI_Flags",
+                    signal: "DTI_LimitCapacitorTemp",
+                })?
+            },
+            dti_limit_dc_current: {
+                let v = source
+                    .value(&DTI_FLAGS_SIGNALS[12])
+                    .ok_or(EncodeError::MissingSignal {
+                        message: "DTI_Flags",
+                        signal: "DTI_LimitDcCurrent",
+                    })?;
+                v.to_bool().ok_or(EncodeError::InvalidValue {
+                    message: "DTI_Flags",
+                    signal: "DTI_LimitDcCurrent",
+                })?
+            },
+            dti_limit_drive_enable: {
+                let v = source
+                    .value(&DTI_FLAGS_SIGNALS[13])
+                    .ok_or(EncodeError::MissingSignal {
+                        message: "DTI_Flags",
+                        signal: "DTI_LimitDriveEnable",
+                    })?;
+                v.to_bool().ok_or(EncodeError::InvalidValue {
+                    message: "DTI_Flags",
+                    signal: "DTI_LimitDriveEnable",
+                })?
+            },
+            dti_limit_igbt_accel_temp: {
+                let v = source
+                    .value(&DTI_FLAGS_SIGNALS[14])
+                    .ok_or(EncodeError::MissingSignal {
+                        message: "DTI_Flags",
+                        signal: "DTI_LimitIgbtAccelTemp",
+                    })?;
+                v.to_bool().ok_or(EncodeError::InvalidValue {
+                    message: "DTI_Flags",
+                    signal: "DTI_LimitIgbtAccelTemp",
+                })?
+            },
+            dti_limit_igbt_temp: {
+                let v = source
+                    .value(&DTI_FLAGS_SIGNALS[15])
+                    .ok_or(EncodeError::MissingSignal {
+                        message: "DTI_Flags",
+                        signal: "DTI_LimitIgbtTemp",
+                    })?;
+                v.to_bool().ok_or(EncodeError::InvalidValue {
+                    message: "DTI_Flags",
+                    signal: "DTI_LimitIgbtTemp",
+                })?
+            },
+            dti_limit_input_voltage: {
+                let v = source
+                    .value(&DTI_FLAGS_SIGNALS[16])
+                    .ok_or(EncodeError::MissingSignal {
+                        message: "DTI_Flags",
+                        signal: "DTI_LimitInputVoltage",
+                    })?;
+                v.to_bool().ok_or(EncodeError::InvalidValue {
+                    message: "DTI_Flags",
+                    signal: "DTI_LimitInputVoltage",
+                })?
+            },
+            dti_limit_motor_accel_temp: {
+                let v = source
+                    .value(&DTI_FLAGS_SIGNALS[17])
+                    .ok_or(EncodeError::MissingSignal {
+                        message: "DTI_Flags",
+                        signal: "DTI_LimitMotorAccelTemp",
+                    })?;
+                v.to_bool().ok_or(EncodeError::InvalidValue {
+                    message: "DTI_Flags",
+                    signal: "DTI_LimitMotorAccelTemp",
+                })?
+            },
+            dti_limit_motor_temp: {
+                let v = source
+                    .value(&DTI_FLAGS_SIGNALS[18])
+                    .ok_or(EncodeError::MissingSignal {
+                        message: "DTI_Flags",
+                        signal: "DTI_LimitMotorTemp",
+                    })?;
+                v.to_bool().ok_or(EncodeError::InvalidValue {
+                    message: "DTI_Flags",
+                    signal: "DTI_LimitMotorTemp",
+                })?
+            },
+            dti_limit_rpm_min: {
+                let v = source
+                    .value(&DTI_FLAGS_SIGNALS[19])
+                    .ok_or(EncodeError::MissingSignal {
+                        message: "DTI_Flags",
+                        signal: "DTI_LimitRpmMin",
+                    })?;
+                v.to_bool().ok_or(EncodeError::InvalidValue {
+                    message: "DTI_Flags",
+                    signal: "DTI_LimitRpmMin",
+                })?
+            },
+            dti_limit_rpm_max: {
+                let v = source
+                    .value(&DTI_FLAGS_SIGNALS[20])
+                    .ok_or(EncodeError::MissingSignal {
+                        message: "DTI_Flags",
+                        signal: "DTI_LimitRpmMax",
+                    })?;
+                v.to_bool().ok_or(EncodeError::InvalidValue {
+                    message: "DTI_Flags",
+                    signal: "DTI_LimitRpmMax",
+                })?
+            },
+            dti_limit_power: {
+                let v = source
+                    .value(&DTI_FLAGS_SIGNALS[21])
+                    .ok_or(EncodeError::MissingSignal {
+                        message: "DTI_Flags",
+                        signal: "DTI_LimitPower",
+                    })?;
+                v.to_bool().ok_or(EncodeError::InvalidValue {
+                    message: "DTI_Flags",
+                    signal: "DTI_LimitPower",
+                })?
+            },
+            dti_can_map_version: {
+                let v = source
+                    .value(&DTI_FLAGS_SIGNALS[22])
+                    .ok_or(EncodeError::MissingSignal {
+                        message: "DTI_Flags",
+                        signal: "DTI_CanMapVersion",
+                    })?;
+                v.to_int::<u8>().ok_or(EncodeError::InvalidValue {
+                    message: "DTI_Flags",
+                    signal: "DTI_CanMapVersion",
+                })?
+            },
+        })
+    }
+
+    /// Physical value of `DTI_ThrottleInput` for a raw value.
+    pub fn dti_throttle_input_from_raw(raw: i8) -> i8 {
+        raw
+    }
+
+    /// Raw value of `DTI_ThrottleInput` for a physical value, range-checked.
+    pub fn dti_throttle_input_to_raw(v: i8) -> Result<i8, EncodeError> {
+        runtime::check_range(
+            f64::from(v),
+            -128.0,
+            127.0,
+            1e-6,
+            "DTI_Flags",
+            "DTI_ThrottleInput",
+        )?;
+        Ok(v)
+    }
+
+    /// Physical value of `DTI_BrakeInput` for a raw value.
+    pub fn dti_brake_input_from_raw(raw: i8) -> i8 {
+        raw
+    }
+
+    /// Raw value of `DTI_BrakeInput` for a physical value, range-checked.
+    pub fn dti_brake_input_to_raw(v: i8) -> Result<i8, EncodeError> {
+        runtime::check_range(
+            f64::from(v),
+            -128.0,
+            127.0,
+            1e-6,
+            "DTI_Flags",
+            "DTI_BrakeInput",
+        )?;
+        Ok(v)
+    }
+
+    /// Physical value of `DTI_DigitalIn1` for a raw value.
+    pub fn dti_digital_in1_from_raw(raw: u8) -> bool {
+        raw != 0
+    }
+
+    /// Raw value of `DTI_DigitalIn1` for a physical value, range-checked.
+    pub fn dti_digital_in1_to_raw(v: bool) -> Result<u8, EncodeError> {
+        runtime::check_range(
+            f64::from(u8::from(v)),
+            0.0,
+            1.0,
+            1e-6,
+            "DTI_Flags",
+            "DTI_DigitalIn1",
+        )?;
+        Ok(u8::from(v))
+    }
+
+    /// Physical value of `DTI_DigitalIn2` for a raw value.
+    pub fn dti_digital_in2_from_raw(raw: u8) -> bool {
+        raw != 0
+    }
+
+    /// Raw value of `DTI_DigitalIn2` for a physical value, range-checked.
+    pub fn dti_digital_in2_to_raw(v: bool) -> Result<u8, EncodeError> {
+        runtime::check_range(
+            f64::from(u8::from(v)),
+            0.0,
+            1.0,
+            1e-6,
+            "DTI_Flags",
+            "DTI_DigitalIn2",
+        )?;
+        Ok(u8::from(v))
+    }
+
+    /// Physical value of `DTI_DigitalIn3` for a raw value.
+    pub fn dti_digital_in3_from_raw(raw: u8) -> bool {
+        raw != 0
+    }
+
+    /// Raw value of `DTI_DigitalIn3` for a physical value, range-checked.
+    pub fn dti_digital_in3_to_raw(v: bool) -> Result<u8, EncodeError> {
+        runtime::check_range(
+            f64::from(u8::from(v)),
+            0.0,
+            1.0,
+            1e-6,
+            "DTI_Flags",
+            "DTI_DigitalIn3",
+        )?;
+        Ok(u8::from(v))
+    }
+
+    /// Physical value of `DTI_DigitalIn4` for a raw value.
+    pub fn dti_digital_in4_from_raw(raw: u8) -> bool {
+        raw != 0
+    }
+
+    /// Raw value of `DTI_DigitalIn4` for a physical value, range-checked.
+    pub fn dti_digital_in4_to_raw(v: bool) -> Result<u8, EncodeError> {
+        runtime::check_range(
+            f64::from(u8::from(v)),
+            0.0,
+            1.0,
+            1e-6,
+            "DTI_Flags",
+            "DTI_DigitalIn4",
+        )?;
+        Ok(u8::from(v))
+    }
+
+    /// Physical value of `DTI_DigitalOut1` for a raw value.
+    pub fn dti_digital_out1_from_raw(raw: u8) -> bool {
+        raw != 0
+    }
+
+    /// Raw value of `DTI_DigitalOut1` for a physical value, range-checked.
+    pub fn dti_digital_out1_to_raw(v: bool) -> Result<u8, EncodeError> {
+        runtime::check_range(
+            f64::from(u8::from(v)),
+            0.0,
+            1.0,
+            1e-6,
+            "DTI_Flags",
+            "DTI_DigitalOut1",
+        )?;
+        Ok(u8::from(v))
+    }
+
+    /// Physical value of `DTI_DigitalOut2` for a raw value.
+    pub fn dti_digital_out2_from_raw(raw: u8) -> bool {
+        raw != 0
+    }
+
+    /// Raw value of `DTI_DigitalOut2` for a physical value, range-checked.
+    pub fn dti_digital_out2_to_raw(v: bool) -> Result<u8, EncodeError> {
+        runtime::check_range(
+            f64::from(u8::from(v)),
+            0.0,
+            1.0,
+            1e-6,
+            "DTI_Flags",
+            "DTI_DigitalOut2",
+        )?;
+        Ok(u8::from(v))
+    }
+
+    /// Physical value of `DTI_DigitalOut3` for a raw value.
+    pub fn dti_digital_out3_from_raw(raw: u8) -> bool {
+        raw != 0
+    }
+
+    /// Raw value of `DTI_DigitalOut3` for a physical value, range-checked.
+    pub fn dti_digital_out3_to_raw(v: bool) -> Result<u8, EncodeError> {
+        runtime::check_range(
+            f64::from(u8::from(v)),
+            0.0,
+            1.0,
+            1e-6,
+            "DTI_Flags",
+            "DTI_DigitalOut3",
+        )?;
+        Ok(u8::from(v))
+    }
+
+    /// Physical value of `DTI_DigitalOut4` for a raw value.
+    pub fn dti_digital_out4_from_raw(raw: u8) -> bool {
+        raw != 0
+    }
+
+    /// Raw value of `DTI_DigitalOut4` for a physical value, range-checked.
+    pub fn dti_digital_out4_to_raw(v: bool) -> Result<u8, EncodeError> {
+        runtime::check_range(
+            f64::from(u8::from(v)),
+            0.0,
+            1.0,
+            1e-6,
+            "DTI_Flags",
+            "DTI_DigitalOut4",
+        )?;
+        Ok(u8::from(v))
+    }
+
+    /// Physical value of `DTI_DriveEnabled` for a raw value.
+    pub fn dti_drive_enabled_from_raw(raw: u8) -> DtiDriveEnable {
+        DtiDriveEnable::from_raw(raw)
+    }
+
+    /// Raw value of `DTI_DriveEnabled` for a physical value, range-checked.
+    pub fn dti_drive_enabled_to_raw(v: DtiDriveEnable) -> Result<u8, EncodeError> {
+        if let DtiDriveEnable::Unknown(raw) = v {
+            runtime::check_range(
+                raw as f64,
+                0.0,
+                255.0,
+                1e-6,
+                "DTI_Flags",
+                "DTI_DriveEnabled",
+            )?;
+        }
+        Ok(v.into_raw())
+    }
+
+    /// Physical value of `DTI_LimitCapacitorTemp` for a raw value.
+    pub fn dti_limit_capacitor_temp_from_raw(raw: u8) -> bool {
+        raw != 0
+    }
+
+    /// Raw value of `DTI_LimitCapacitorTemp` for a physical value, range-checked.
+    pub fn dti_limit_capacitor_temp_to_raw(v: bool) -> Result<u8, EncodeError> {
+        runtime::check_range(
+            f64::from(u8::from(v)),
+            0.0,
+            1.0,
+            1e-6,
+            "DTI_Flags",
+            "DTI_LimitCapacitorTemp",
+        )?;
+        Ok(u8::from(v))
+    }
+
+    /// Physical value of `DTI_LimitDcCurrent` for a raw value.
+    pub fn dti_limit_dc_current_from_raw(raw: u8) -> bool {
+        raw != 0
+    }
+
+    /// Raw value of `DTI_LimitDcCurrent` for a physical value, range-checked.
+    pub fn dti_limit_dc_current_to_raw(v: bool) -> Result<u8, EncodeError> {
+        runtime::check_range(
+            f64::from(u8::from(v)),
+            0.0,
+            1.0,
+            1e-6,
+            "DTI_Flags",
+            "DTI_LimitDcCurrent",
+        )?;
+        Ok(u8::from(v))
+    }
+
+    /// Physical value of `DTI_LimitDriveEnable` for a raw value.
+    pub fn dti_limit_drive_enable_from_raw(raw: u8) -> bool {
+        raw != 0
+    }
+
+    /// Raw value of `DTI_LimitDriveEnable` for a physical value, range-checked.
+    pub fn dti_limit_drive_enable_to_raw(v: bool) -> Result<u8, EncodeError> {
+        runtime::check_range(
+            f64::from(u8::from(v)),
+            0.0,
+            1.0,
+            1e-6,
+            "DTI_Flags",
+            "DTI_LimitDriveEnable",
+        )?;
+        Ok(u8::from(v))
+    }
+
+    /// Physical value of `DTI_LimitIgbtAccelTemp` for a raw value.
+    pub fn dti_limit_igbt_accel_temp_from_raw(raw: u8) -> bool {
+        raw != 0
+    }
+
+    /// Raw value of `DTI_LimitIgbtAccelTemp` for a physical value, range-checked.
+    pub fn dti_limit_igbt_accel_temp_to_raw(v: bool) -> Result<u8, EncodeError> {
+        runtime::check_range(
+            f64::from(u8::from(v)),
+            0.0,
+            1.0,
+            1e-6,
+            "DTI_Flags",
+            "DTI_LimitIgbtAccelTemp",
+        )?;
+        Ok(u8::from(v))
+    }
+
+    /// Physical value of `DTI_LimitIgbtTemp` for a raw value.
+    pub fn dti_limit_igbt_temp_from_raw(raw: u8) -> bool {
+        raw != 0
+    }
+
+    /// Raw value of `DTI_LimitIgbtTemp` for a physical value, range-checked.
+    pub fn dti_limit_igbt_temp_to_raw(v: bool) -> Result<u8, EncodeError> {
+        runtime::check_range(
+            f64::from(u8::from(v)),
+            0.0,
+            1.0,
+            1e-6,
+            "DTI_Flags",
+            "DTI_LimitIgbtTemp",
+        )?;
+        Ok(u8::from(v))
+    }
+
+    /// Physical value of `DTI_LimitInputVoltage` for a raw value.
+    pub fn dti_limit_input_voltage_from_raw(raw: u8) -> bool {
+        raw != 0
+    }
+
+    /// Raw value of `DTI_LimitInputVoltage` for a physical value, range-checked.
+    pub fn dti_limit_input_voltage_to_raw(v: bool) -> Result<u8, EncodeError> {
+        runtime::check_range(
+            f64::from(u8::from(v)),
+            0.0,
+            1.0,
+            1e-6,
+            "DTI_Flags",
+            "DTI_LimitInputVoltage",
+        )?;
+        Ok(u8::from(v))
+    }
+
+    /// Physical value of `DTI_LimitMotorAccelTemp` for a raw value.
+    pub fn dti_limit_motor_accel_temp_from_raw(raw: u8) -> bool {
+        raw != 0
+    }
+
+    /// Raw value of `DTI_LimitMotorAccelTemp` for a physical value, range-checked.
+    pub fn dti_limit_motor_accel_temp_to_raw(v: bool) -> Result<u8, EncodeError> {
+        runtime::check_range(
+            f64::from(u8::from(v)),
+            0.0,
+            1.0,
+            1e-6,
+            "DTI_Flags",
+            "DTI_LimitMotorAccelTemp",
+        )?;
+        Ok(u8::from(v))
+    }
+
+    /// Physical value of `DTI_LimitMotorTemp` for a raw value.
+    pub fn dti_limit_motor_temp_from_raw(raw: u8) -> bool {
+        raw != 0
+    }
+
+    /// Raw value of `DTI_LimitMotorTemp` for a physical value, range-checked.
+    pub fn dti_limit_motor_temp_to_raw(v: bool) -> Result<u8, EncodeError> {
+        runtime::check_range(
+            f64::from(u8::from(v)),
+            0.0,
+            1.0,
+            1e-6,
+            "DTI_Flags",
+            "DTI_LimitMotorTemp",
+        )?;
+        Ok(u8::from(v))
+    }
+
+    /// Physical value of `DTI_LimitRpmMin` for a raw value.
+    pub fn dti_limit_rpm_min_from_raw(raw: u8) -> bool {
+        raw != 0
+    }
+
+    /// Raw value of `DTI_LimitRpmMin` for a physical value, range-checked.
+    pub fn dti_limit_rpm_min_to_raw(v: bool) -> Result<u8, EncodeError> {
+        runtime::check_range(
+            f64::from(u8::from(v)),
+            0.0,
+            1.0,
+            1e-6,
+            "DTI_Flags",
+            "DTI_LimitRpmMin",
+        )?;
+        Ok(u8::from(v))
+    }
+
+    /// Physical value of `DTI_LimitRpmMax` for a raw value.
+    pub fn dti_limit_rpm_max_from_raw(raw: u8) -> bool {
+        raw != 0
+    }
+
+    /// Raw value of `DTI_LimitRpmMax` for a physical value, range-checked.
+    pub fn dti_limit_rpm_max_to_raw(v: bool) -> Result<u8, EncodeError> {
+        runtime::check_range(
+            f64::from(u8::from(v)),
+            0.0,
+            1.0,
+            1e-6,
+            "DTI_Flags",
+            "DTI_LimitRpmMax",
+        )?;
+        Ok(u8::from(v))
+    }
+
+    /// Physical value of `DTI_LimitPower` for a raw value.
+    pub fn dti_limit_power_from_raw(raw: u8) -> bool {
+        raw != 0
+    }
+
+    /// Raw value of `DTI_LimitPower` for a physical value, range-checked.
+    pub fn dti_limit_power_to_raw(v: bool) -> Result<u8, EncodeError> {
+        runtime::check_range(
+            f64::from(u8::from(v)),
+            0.0,
+            1.0,
+            1e-6,
+            "DTI_Flags",
+            "DTI_LimitPower",
+        )?;
+        Ok(u8::from(v))
+    }
+
+    /// Physical value of `DTI_CanMapVersion` for a raw value.
+    pub fn dti_can_map_version_from_raw(raw: u8) -> u8 {
+        raw
+    }
+
+    /// Raw value of `DTI_CanMapVersion` for a physical value, range-checked.
+    pub fn dti_can_map_version_to_raw(v: u8) -> Result<u8, EncodeError> {
+        runtime::check_range(
+            f64::from(v),
+            0.0,
+            255.0,
+            1e-6,
+            "DTI_Flags",
+            "DTI_CanMapVersion",
+        )?;
+        Ok(v)
+    }
+}
+
+impl CanMessage for DtiFlags {
+    const META: &'static MessageMeta = Self::META;
+
+    fn decode(data: &[u8]) -> Result<Self, DecodeError> {
+        Self::decode(data)
+    }
+
+    fn encode(&self, out: &mut [u8]) -> Result<usize, EncodeError> {
+        self.encode(out)
+    }
+
+    fn visit(&self, visitor: &mut impl SignalVisitor) {
+        self.visit(visitor)
+    }
+
+    fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
+        Self::from_signals(source)
+    }
+}
+
+/// DTI packet 0x25. Controller status: configured and available AC current limits.
+///
+/// `DTI_AcLimits`: extended id 0x2541, 8 bytes, every 100 ms, sent by DTI.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct DtiAcLimits {
+    /// Configured maximum AC current.
+    ///
+    /// `DTI_MaxAcCurrent`: 16 bits from bit 7 (Motorola), signed, physical = raw * 0.1, range [-3276.8, 3276.7], unit `A`.
+    pub dti_max_ac_current: f64,
+    /// Maximum AC current available now, after every limit.
+    ///
+    /// `DTI_AvailableMaxAcCurrent`: 16 bits from bit 23 (Motorola), signed, physical = raw * 0.1, range [-3276.8, 3276.7], unit `A`.
+    pub dti_available_max_ac_current: f64,
+    /// Configured minimum (brake) AC current, negative.
+    ///
+    /// `DTI_MinAcCurrent`: 16 bits from bit 39 (Motorola), signed, physical = raw * 0.1, range [-3276.8, 3276.7], unit `A`.
+    pub dti_min_ac_current: f64,
+    /// Minimum (brake) AC current available now.
+    ///
+    /// `DTI_AvailableMinAcCurrent`: 16 bits from bit 55 (Motorola), signed, physical = raw * 0.1, range [-3276.8, 3276.7], unit `A`.
+    pub dti_available_min_ac_current: f64,
+}
+
+static DTI_AC_LIMITS_SIGNALS: [SignalMeta; 4] = [
+    SignalMeta {
+        name: "DTI_MaxAcCurrent",
+        index: 0,
+        unit: "A",
+        comment: "Configured maximum AC current.",
+        start_bit: 7,
+        len: 16,
+        byte_order: ByteOrder::BigEndian,
+        signed: true,
+        factor: 0.1,
+        offset: 0.0,
+        min: Some(-3276.8),
+        max: Some(3276.7),
+        labels: &[],
+        multiplexed: false,
+    },
+    SignalMeta {
+        name: "DTI_AvailableMaxAcCurrent",
+        index: 1,
+        unit: "A",
+        comment: "Maximum AC current available now, after every limit.",
+        start_bit: 23,
+        len: 16,
+        byte_order: ByteOrder::BigEndian,
+        signed: true,
+        factor: 0.1,
+        offset: 0.0,
+        min: Some(-3276.8),
+        max: Some(3276.7),
+        labels: &[],
+        multiplexed: false,
+    },
+    SignalMeta {
+        name: "DTI_MinAcCurrent",
+        index: 2,
+        unit: "A",
+        comment: "Configured minimum (brake) AC current, negative.",
+        start_bit: 39,
+        len: 16,
+        byte_order: ByteOrder::BigEndian,
+        signed: true,
+        factor: 0.1,
+        offset: 0.0,
+        min: Some(-3276.8),
+        max: Some(3276.7),
+        labels: &[],
+        multiplexed: false,
+    },
+    SignalMeta {
+        name: "DTI_AvailableMinAcCurrent",
+        index: 3,
+        unit: "A",
+        comment: "Minimum (brake) AC current available now.",
+        start_bit: 55,
+        len: 16,
+        byte_order: ByteOrder::BigEndian,
+        signed: true,
+        factor: 0.1,
+        offset: 0.0,
+        min: Some(-3276.8),
+        max: Some(3276.7),
+        labels: &[],
+        multiplexed: false,
+    },
+];
+
+impl DtiAcLimits {
+    pub const META: &'static MessageMeta = &MessageMeta {
+        name: "DTI_AcLimits",
+        id: 0x2541,
+        extended: true,
+        len: 8,
+        cycle_time_ms: Some(100),
+        comment: "DTI packet 0x25. Controller status: configured and available AC current limits.",
+        signals: &DTI_AC_LIMITS_SIGNALS,
+    };
+    pub const ID: u32 = 0x2541;
+    pub const EXTENDED: bool = true;
+    pub const LEN: usize = 8;
+    pub const CYCLE_TIME_MS: u32 = 100;
+
+    /// Decodes a payload of at least [`Self::LEN`] bytes. Values outside the schema's range are
+    /// decoded as they are; only a short payload fails.
+    pub fn decode(data: &[u8]) -> Result<Self, DecodeError> {
+        let data = runtime::payload::<8>(data, "DTI_AcLimits")?;
+        let dti_max_ac_current = Self::dti_max_ac_current_from_raw(bits::sign_extend(
+            bits::read_be(data, 0, 16),
+            16,
+        ) as i16);
+        let dti_available_max_ac_current = Self::dti_available_max_ac_current_from_raw(
+            bits::sign_extend(bits::read_be(data, 16, 16), 16) as i16,
+        );
+        let dti_min_ac_current = Self::dti_min_ac_current_from_raw(bits::sign_extend(
+            bits::read_be(data, 32, 16),
+            16,
+        ) as i16);
+        let dti_available_min_ac_current = Self::dti_available_min_ac_current_from_raw(
+            bits::sign_extend(bits::read_be(data, 48, 16), 16) as i16,
+        );
+        Ok(Self {
+            dti_max_ac_current,
+            dti_available_max_ac_current,
+            dti_min_ac_current,
+            dti_available_min_ac_current,
+        })
+    }
+
+    /// Encodes into the first [`Self::LEN`] bytes of `out` and returns that length. Fails, naming
+    /// the signal, when a value is outside its range or its multiplexor disagrees.
+    pub fn encode(&self, out: &mut [u8]) -> Result<usize, EncodeError> {
+        let out = runtime::payload_mut::<8>(out, "DTI_AcLimits")?;
+        bits::write_be(
+            out,
+            0,
+            16,
+            Self::dti_max_ac_current_to_raw(self.dti_max_ac_current)? as u64,
+        );
+        bits::write_be(
+            out,
+            16,
+            16,
+            Self::dti_available_max_ac_current_to_raw(self.dti_available_max_ac_current)? as u64,
+        );
+        bits::write_be(
+            out,
+            32,
+            16,
+            Self::dti_min_ac_current_to_raw(self.dti_min_ac_current)? as u64,
+        );
+        bits::write_be(
+            out,
+            48,
+            16,
+            Self::dti_available_min_ac_current_to_raw(self.dti_available_min_ac_current)? as u64,
+        );
+        Ok(Self::LEN)
+    }
+
+    /// Calls `visitor` with every present signal's physical value.
+    pub fn visit(&self, visitor: &mut impl SignalVisitor) {
+        let v = self.dti_max_ac_current;
+        visitor.signal(&DTI_AC_LIMITS_SIGNALS[0], Value::from(v), None);
+        let v = self.dti_available_max_ac_current;
+        visitor.signal(&DTI_AC_LIMITS_SIGNALS[1], Value::from(v), None);
+        let v = self.dti_min_ac_current;
+        visitor.signal(&DTI_AC_LIMITS_SIGNALS[2], Value::from(v), None);
+        let v = self.dti_available_min_ac_current;
+        visitor.signal(&DTI_AC_LIMITS_SIGNALS[3], Value::from(v), None);
+    }
+
+    /// Builds the message from physical values looked up by signal.
+    pub fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
+        Ok(Self {
+            dti_max_ac_current: {
+                let v =
+                    source
+                        .value(&DTI_AC_LIMITS_SIGNALS[0])
+                        .ok_or(EncodeError::MissingSignal {
+                            message: "DTI_AcLimits",
+                            signal: "DTI_MaxAcCurrent",
+                        })?;
+                Some(v.to_f64()).ok_or(EncodeError::InvalidValue {
+                    message: "DTI_AcLimits",
+                    signal: "DTI_MaxAcCurrent",
+                })?
+            },
+            dti_available_max_ac_current: {
+                let v =
+                    source
+                        .value(&DTI_AC_LIMITS_SIGNALS[1])
+                        .ok_or(EncodeError::MissingSignal {
+                            message: "DTI_AcLimits",
+                            signal: "DTI_AvailableMaxAcCurrent",
+                        })?;
+                Some(v.to_f64()).ok_or(EncodeError::InvalidValue {
+                    message: "DTI_AcLimits",
+                    signal: "DTI_AvailableMaxAcCurrent",
+                })?
+            },
+            dti_min_ac_current: {
+                let v =
+                    source
+                        .value(&DTI_AC_LIMITS_SIGNALS[2])
+                        .ok_or(EncodeError::MissingSignal {
+                            message: "DTI_AcLimits",
+                            signal: "DTI_MinAcCurrent",
+                        })?;
+                Some(v.to_f64()).ok_or(EncodeError::InvalidValue {
+                    message: "DTI_AcLimits",
+                    signal: "DTI_MinAcCurrent",
+                })?
+            },
+            dti_available_min_ac_current: {
+                let v =
+                    source
+                        .value(&DTI_AC_LIMITS_SIGNALS[3])
+                        .ok_or(EncodeError::MissingSignal {
+                            message: "DTI_AcLimits",
+                            signal: "DTI_AvailableMinAcCurrent",
+                        })?;
+                Some(v.to_f64()).ok_or(EncodeError::InvalidValue {
+                    message: "DTI_AcLimits",
+                    signal: "DTI_AvailableMinAcCurrent",
+                })?
+            },
+        })
+    }
+
+    /// Physical value of `DTI_MaxAcCurrent` for a raw value.
+    pub fn dti_max_ac_current_from_raw(raw: i16) -> f64 {
+        f64::from(raw) * 0.1
+    }
+
+    /// Raw value of `DTI_MaxAcCurrent` for a physical value, range-checked.
+    pub fn dti_max_ac_current_to_raw(v: f64) -> Result<i16, EncodeError> {
+        runtime::check_range(v, -3276.8, 3276.7, 1e-7, "DTI_AcLimits", "DTI_MaxAcCurrent")?;
+        let raw = runtime::round(v / 0.1);
+        if (-32768.0..32768.0).contains(&raw) {
+            Ok(raw as i16)
+        } else {
+            Err(EncodeError::OutOfRange {
+                message: "DTI_AcLimits",
+                signal: "DTI_MaxAcCurrent",
+            })
+        }
+    }
+
+    /// Physical value of `DTI_AvailableMaxAcCurrent` for a raw value.
+    pub fn dti_available_max_ac_current_from_raw(raw: i16) -> f64 {
+        f64::from(raw) * 0.1
+    }
+
+    /// Raw value of `DTI_AvailableMaxAcCurrent` for a physical value, range-checked.
+    pub fn dti_available_max_ac_current_to_raw(v: f64) -> Result<i16, EncodeError> {
+        runtime::check_range(
+            v,
+            -3276.8,
+            3276.7,
+            1e-7,
+            "DTI_AcLimits",
+            "DTI_AvailableMaxAcCurrent",
+        )?;
+        let raw = runtime::round(v / 0.1);
+        if (-32768.0..32768.0).contains(&raw) {
+            Ok(raw as i16)
+        } else {
+            Err(EncodeError::OutOfRange {
+                message: "DTI_AcLimits",
+                signal: "DTI_AvailableMaxAcCurrent",
+            })
+        }
+    }
+
+    /// Physical value of `DTI_MinAcCurrent` for a raw value.
+    pub fn dti_min_ac_current_from_raw(raw: i16) -> f64 {
+        f64::from(raw) * 0.1
+    }
+
+    /// Raw value of `DTI_MinAcCurrent` for a physical value, range-checked.
+    pub fn dti_min_ac_current_to_raw(v: f64) -> Result<i16, EncodeError> {
+        runtime::check_range(v, -3276.8, 3276.7, 1e-7, "DTI_AcLimits", "DTI_MinAcCurrent")?;
+        let raw = runtime::round(v / 0.1);
+        if (-32768.0..32768.0).contains(&raw) {
+            Ok(raw as i16)
+        } else {
+            Err(EncodeError::OutOfRange {
+                message: "DTI_AcLimits",
+                signal: "DTI_MinAcCurrent",
+            })
+        }
+    }
+
+    /// Physical value of `DTI_AvailableMinAcCurrent` for a raw value.
+    pub fn dti_available_min_ac_current_from_raw(raw: i16) -> f64 {
+        f64::from(raw) * 0.1
+    }
+
+    /// Raw value of `DTI_AvailableMinAcCurrent` for a physical value, range-checked.
+    pub fn dti_available_min_ac_current_to_raw(v: f64) -> Result<i16, EncodeError> {
+        runtime::check_range(
+            v,
+            -3276.8,
+            3276.7,
+            1e-7,
+            "DTI_AcLimits",
+            "DTI_AvailableMinAcCurrent",
+        )?;
+        let raw = runtime::round(v / 0.1);
+        if (-32768.0..32768.0).contains(&raw) {
+            Ok(raw as i16)
+        } else {
+            Err(EncodeError::OutOfRange {
+                message: "DTI_AcLimits",
+                signal: "DTI_AvailableMinAcCurrent",
+            })
+        }
+    }
+}
+
+impl CanMessage for DtiAcLimits {
+    const META: &'static MessageMeta = Self::META;
+
+    fn decode(data: &[u8]) -> Result<Self, DecodeError> {
+        Self::decode(data)
+    }
+
+    fn encode(&self, out: &mut [u8]) -> Result<usize, EncodeError> {
+        self.encode(out)
+    }
+
+    fn visit(&self, visitor: &mut impl SignalVisitor) {
+        self.visit(visitor)
+    }
+
+    fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
+        Self::from_signals(source)
+    }
+}
+
+/// DTI packet 0x26. Controller status: configured and available DC current limits.
+///
+/// `DTI_DcLimits`: extended id 0x2641, 8 bytes, every 100 ms, sent by DTI.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct DtiDcLimits {
+    /// Configured maximum DC current.
+    ///
+    /// `DTI_MaxDcCurrent`: 16 bits from bit 7 (Motorola), signed, physical = raw * 0.1, range [-3276.8, 3276.7], unit `A`.
+    pub dti_max_dc_current: f64,
+    /// Maximum DC current available now, after every limit.
+    ///
+    /// `DTI_AvailableMaxDcCurrent`: 16 bits from bit 23 (Motorola), signed, physical = raw * 0.1, range [-3276.8, 3276.7], unit `A`.
+    pub dti_available_max_dc_current: f64,
+    /// Configured minimum (charging) DC current, negative.
+    ///
+    /// `DTI_MinDcCurrent`: 16 bits from bit 39 (Motorola), signed, physical = raw * 0.1, range [-3276.8, 3276.7], unit `A`.
+    pub dti_min_dc_current: f64,
+    /// Minimum (charging) DC current available now.
+    ///
+    /// `DTI_AvailableMinDcCurrent`: 16 bits from bit 55 (Motorola), signed, physical = raw * 0.1, range [-3276.8, 3276.7], unit `A`.
+    pub dti_available_min_dc_current: f64,
+}
+
+static DTI_DC_LIMITS_SIGNALS: [SignalMeta; 4] = [
+    SignalMeta {
+        name: "DTI_MaxDcCurrent",
+        index: 0,
+        unit: "A",
+        comment: "Configured maximum DC current.",
+        start_bit: 7,
+        len: 16,
+        byte_order: ByteOrder::BigEndian,
+        signed: true,
+        factor: 0.1,
+        offset: 0.0,
+        min: Some(-3276.8),
+        max: Some(3276.7),
+        labels: &[],
+        multiplexed: false,
+    },
+    SignalMeta {
+        name: "DTI_AvailableMaxDcCurrent",
+        index: 1,
+        unit: "A",
+        comment: "Maximum DC current available now, after every limit.",
+        start_bit: 23,
+        len: 16,
+        byte_order: ByteOrder::BigEndian,
+        signed: true,
+        factor: 0.1,
+        offset: 0.0,
+        min: Some(-3276.8),
+        max: Some(3276.7),
+        labels: &[],
+        multiplexed: false,
+    },
+    SignalMeta {
+        name: "DTI_MinDcCurrent",
+        index: 2,
+        unit: "A",
+        comment: "Configured minimum (charging) DC current, negative.",
+        start_bit: 39,
+        len: 16,
+        byte_order: ByteOrder::BigEndian,
+        signed: true,
+        factor: 0.1,
+        offset: 0.0,
+        min: Some(-3276.8),
+        max: Some(3276.7),
+        labels: &[],
+        multiplexed: false,
+    },
+    SignalMeta {
+        name: "DTI_AvailableMinDcCurrent",
+        index: 3,
+        unit: "A",
+        comment: "Minimum (charging) DC current available now.",
+        start_bit: 55,
+        len: 16,
+        byte_order: ByteOrder::BigEndian,
+        signed: true,
+        factor: 0.1,
+        offset: 0.0,
+        min: Some(-3276.8),
+        max: Some(3276.7),
+        labels: &[],
+        multiplexed: false,
+    },
+];
+
+impl DtiDcLimits {
+    pub const META: &'static MessageMeta = &MessageMeta {
+        name: "DTI_DcLimits",
+        id: 0x2641,
+        extended: true,
+        len: 8,
+        cycle_time_ms: Some(100),
+        comment: "DTI packet 0x26. Controller status: configured and available DC current limits.",
+        signals: &DTI_DC_LIMITS_SIGNALS,
+    };
+    pub const ID: u32 = 0x2641;
+    pub const EXTENDED: bool = true;
+    pub const LEN: usize = 8;
+    pub const CYCLE_TIME_MS: u32 = 100;
+
+    /// Decodes a payload of at least [`Self::LEN`] bytes. Values outside the schema's range are
+    /// decoded as they are; only a short payload fails.
+    pub fn decode(data: &[u8]) -> Result<Self, DecodeError> {
+        let data = runtime::payload::<8>(data, "DTI_DcLimits")?;
+        let dti_max_dc_current = Self::dti_max_dc_current_from_raw(bits::sign_extend(
+            bits::read_be(data, 0, 16),
+            16,
+        ) as i16);
+        let dti_available_max_dc_current = Self::dti_available_max_dc_current_from_raw(
+            bits::sign_extend(bits::read_be(data, 16, 16), 16) as i16,
+        );
+        let dti_min_dc_current = Self::dti_min_dc_current_from_raw(bits::sign_extend(
+            bits::read_be(data, 32, 16),
+            16,
+        ) as i16);
+        let dti_available_min_dc_current = Self::dti_available_min_dc_current_from_raw(
+            bits::sign_extend(bits::read_be(data, 48, 16), 16) as i16,
+        );
+        Ok(Self {
+            dti_max_dc_current,
+            dti_available_max_dc_current,
+            dti_min_dc_current,
+            dti_available_min_dc_current,
+        })
+    }
+
+    /// Encodes into the first [`Self::LEN`] bytes of `out` and returns that length. Fails, naming
+    /// the signal, when a value is outside its range or its multiplexor disagrees.
+    pub fn encode(&self, out: &mut [u8]) -> Result<usize, EncodeError> {
+        let out = runtime::payload_mut::<8>(out, "DTI_DcLimits")?;
+        bits::write_be(
+            out,
+            0,
+            16,
+            Self::dti_max_dc_current_to_raw(self.dti_max_dc_current)? as u64,
+        );
+        bits::write_be(
+            out,
+            16,
+            16,
+            Self::dti_available_max_dc_current_to_raw(self.dti_available_max_dc_current)? as u64,
+        );
+        bits::write_be(
+            out,
+            32,
+            16,
+            Self::dti_min_dc_current_to_raw(self.dti_min_dc_current)? as u64,
+        );
+        bits::write_be(
+            out,
+            48,
+            16,
+            Self::dti_available_min_dc_current_to_raw(self.dti_available_min_dc_current)? as u64,
+        );
+        Ok(Self::LEN)
+    }
+
+    /// Calls `visitor` with every present signal's physical value.
+    pub fn visit(&self, visitor: &mut impl SignalVisitor) {
+        let v = self.dti_max_dc_current;
+        visitor.signal(&DTI_DC_LIMITS_SIGNALS[0], Value::from(v), None);
+        let v = self.dti_available_max_dc_current;
+        visitor.signal(&DTI_DC_LIMITS_SIGNALS[1], Value::from(v), None);
+        let v = self.dti_min_dc_current;
+        visitor.signal(&DTI_DC_LIMITS_SIGNALS[2], Value::from(v), None);
+        let v = self.dti_available_min_dc_current;
+        visitor.signal(&DTI_DC_LIMITS_SIGNALS[3], Value::from(v), None);
+    }
+
+    /// Builds the message from physical values looked up by signal.
+    pub fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
+        Ok(Self {
+            dti_max_dc_current: {
+                let v =
+                    source
+                        .value(&DTI_DC_LIMITS_SIGNALS[0])
+                        .ok_or(EncodeError::MissingSignal {
+                            message: "DTI_DcLimits",
+                            signal: "DTI_MaxDcCurrent",
+                        })?;
+                Some(v.to_f64()).ok_or(EncodeError::InvalidValue {
+                    message: "DTI_DcLimits",
+                    signal: "DTI_MaxDcCurrent",
+                })?
+            },
+            dti_available_max_dc_current: {
+                let v =
+                    source
+                        .value(&DTI_DC_LIMITS_SIGNALS[1])
+                        .ok_or(EncodeError::MissingSignal {
+                            message: "DTI_DcLimits",
+                            signal: "DTI_AvailableMaxDcCurrent",
+                        })?;
+                Some(v.to_f64()).ok_or(EncodeError::InvalidValue {
+                    message: "DTI_DcLimits",
+                    signal: "DTI_AvailableMaxDcCurrent",
+                })?
+            },
+            dti_min_dc_current: {
+                let v =
+                    source
+                        .value(&DTI_DC_LIMITS_SIGNALS[2])
+                        .ok_or(EncodeError::MissingSignal {
+                            message: "DTI_DcLimits",
+                            signal: "DTI_MinDcCurrent",
+                        })?;
+                Some(v.to_f64()).ok_or(EncodeError::InvalidValue {
+                    message: "DTI_DcLimits",
+                    signal: "DTI_MinDcCurrent",
+                })?
+            },
+            dti_available_min_dc_current: {
+                let v =
+                    source
+                        .value(&DTI_DC_LIMITS_SIGNALS[3])
+                        .ok_or(EncodeError::MissingSignal {
+                            message: "DTI_DcLimits",
+                            signal: "DTI_AvailableMinDcCurrent",
+                        })?;
+                Some(v.to_f64()).ok_or(EncodeError::InvalidValue {
+                    message: "DTI_DcLimits",
+                    signal: "DTI_AvailableMinDcCurrent",
+                })?
+            },
+        })
+    }
+
+    /// Physical value of `DTI_MaxDcCurrent` for a raw value.
+    pub fn dti_max_dc_current_from_raw(raw: i16) -> f64 {
+        f64::from(raw) * 0.1
+    }
+
+    /// Raw value of `DTI_MaxDcCurrent` for a physical value, range-checked.
+    pub fn dti_max_dc_current_to_raw(v: f64) -> Result<i16, EncodeError> {
+        runtime::check_range(v, -3276.8, 3276.7, 1e-7, "DTI_DcLimits", "DTI_MaxDcCurrent")?;
+        let raw = runtime::round(v / 0.1);
+        if (-32768.0..32768.0).contains(&raw) {
+            Ok(raw as i16)
+        } else {
+            Err(EncodeError::OutOfRange {
+                message: "DTI_DcLimits",
+                signal: "DTI_MaxDcCurrent",
+            })
+        }
+    }
+
+    /// Physical value of `DTI_AvailableMaxDcCurrent` for a raw value.
+    pub fn dti_available_max_dc_current_from_raw(raw: i16) -> f64 {
+        f64::from(raw) * 0.1
+    }
+
+    /// Raw value of `DTI_AvailableMaxDcCurrent` for a physical value, range-checked.
+    pub fn dti_available_max_dc_current_to_raw(v: f64) -> Result<i16, EncodeError> {
+        runtime::check_range(
+            v,
+            -3276.8,
+            3276.7,
+            1e-7,
+            "DTI_DcLimits",
+            "DTI_AvailableMaxDcCurrent",
+        )?;
+        let raw = runtime::round(v / 0.1);
+        if (-32768.0..32768.0).contains(&raw) {
+            Ok(raw as i16)
+        } else {
+            Err(EncodeError::OutOfRange {
+                message: "DTI_DcLimits",
+                signal: "DTI_AvailableMaxDcCurrent",
+            })
+        }
+    }
+
+    /// Physical value of `DTI_MinDcCurrent` for a raw value.
+    pub fn dti_min_dc_current_from_raw(raw: i16) -> f64 {
+        f64::from(raw) * 0.1
+    }
+
+    /// Raw value of `DTI_MinDcCurrent` for a physical value, range-checked.
+    pub fn dti_min_dc_current_to_raw(v: f64) -> Result<i16, EncodeError> {
+        runtime::check_range(v, -3276.8, 3276.7, 1e-7, "DTI_DcLimits", "DTI_MinDcCurrent")?;
+        let raw = runtime::round(v / 0.1);
+        if (-32768.0..32768.0).contains(&raw) {
+            Ok(raw as i16)
+        } else {
+            Err(EncodeError::OutOfRange {
+                message: "DTI_DcLimits",
+                signal: "DTI_MinDcCurrent",
+            })
+        }
+    }
+
+    /// Physical value of `DTI_AvailableMinDcCurrent` for a raw value.
+    pub fn dti_available_min_dc_current_from_raw(raw: i16) -> f64 {
+        f64::from(raw) * 0.1
+    }
+
+    /// Raw value of `DTI_AvailableMinDcCurrent` for a physical value, range-checked.
+    pub fn dti_available_min_dc_current_to_raw(v: f64) -> Result<i16, EncodeError> {
+        runtime::check_range(
+            v,
+            -3276.8,
+            3276.7,
+            1e-7,
+            "DTI_DcLimits",
+            "DTI_AvailableMinDcCurrent",
+        )?;
+        let raw = runtime::round(v / 0.1);
+        if (-32768.0..32768.0).contains(&raw) {
+            Ok(raw as i16)
+        } else {
+            Err(EncodeError::OutOfRange {
+                message: "DTI_DcLimits",
+                signal: "DTI_AvailableMinDcCurrent",
+            })
+        }
+    }
+}
+
+impl CanMessage for DtiDcLimits {
+    const META: &'static MessageMeta = Self::META;
+
+    fn decode(data: &[u8]) -> Result<Self, DecodeError> {
+        Self::decode(data)
+    }
+
+    fn encode(&self, out: &mut [u8]) -> Result<usize, EncodeError> {
+        self.encode(out)
+    }
+
+    fn visit(&self, visitor: &mut impl SignalVisitor) {
+        self.visit(visitor)
+    }
+
+    fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
+        Self::from_signals(source)
+    }
+}
+
 /// Metadata of every message, in schema order.
-pub static MESSAGES: [&MessageMeta; 16] = [
+pub static MESSAGES: [&MessageMeta; 36] = [
     CcmStatus::META,
     Vcu1::META,
     Mcu1::META,
@@ -9895,6 +15437,26 @@ pub static MESSAGES: [&MessageMeta; 16] = [
     ImdInfoVoltage::META,
     ImdInfoItSystem::META,
     ImdRequest::META,
+    DtiSetCurrent::META,
+    DtiSetBrakeCurrent::META,
+    DtiSetErpm::META,
+    DtiSetPosition::META,
+    DtiSetRelativeCurrent::META,
+    DtiSetRelativeBrakeCurrent::META,
+    DtiSetDigitalOutputs::META,
+    DtiSetMaxCurrentAc::META,
+    DtiSetMaxBrakeCurrentAc::META,
+    DtiSetMaxCurrentDc::META,
+    DtiSetMaxBrakeCurrentDc::META,
+    DtiSetDriveEnable::META,
+    DtiControl::META,
+    DtiSpeed::META,
+    DtiCurrents::META,
+    DtiTemperatures::META,
+    DtiFocCurrents::META,
+    DtiFlags::META,
+    DtiAcLimits::META,
+    DtiDcLimits::META,
 ];
 
 /// Any message of the database: decode a frame without knowing its type in advance.
@@ -9916,6 +15478,26 @@ pub enum AnyMessage {
     ImdInfoVoltage(ImdInfoVoltage),
     ImdInfoItSystem(ImdInfoItSystem),
     ImdRequest(ImdRequest),
+    DtiSetCurrent(DtiSetCurrent),
+    DtiSetBrakeCurrent(DtiSetBrakeCurrent),
+    DtiSetErpm(DtiSetErpm),
+    DtiSetPosition(DtiSetPosition),
+    DtiSetRelativeCurrent(DtiSetRelativeCurrent),
+    DtiSetRelativeBrakeCurrent(DtiSetRelativeBrakeCurrent),
+    DtiSetDigitalOutputs(DtiSetDigitalOutputs),
+    DtiSetMaxCurrentAc(DtiSetMaxCurrentAc),
+    DtiSetMaxBrakeCurrentAc(DtiSetMaxBrakeCurrentAc),
+    DtiSetMaxCurrentDc(DtiSetMaxCurrentDc),
+    DtiSetMaxBrakeCurrentDc(DtiSetMaxBrakeCurrentDc),
+    DtiSetDriveEnable(DtiSetDriveEnable),
+    DtiControl(DtiControl),
+    DtiSpeed(DtiSpeed),
+    DtiCurrents(DtiCurrents),
+    DtiTemperatures(DtiTemperatures),
+    DtiFocCurrents(DtiFocCurrents),
+    DtiFlags(DtiFlags),
+    DtiAcLimits(DtiAcLimits),
+    DtiDcLimits(DtiDcLimits),
 }
 
 impl AnyMessage {
@@ -9940,6 +15522,32 @@ impl AnyMessage {
             (0x18FF03F4, true) => ImdInfoVoltage::decode(data).map(Self::ImdInfoVoltage),
             (0x18FF04F4, true) => ImdInfoItSystem::decode(data).map(Self::ImdInfoItSystem),
             (0x18EFF417, true) => ImdRequest::decode(data).map(Self::ImdRequest),
+            (0x141, true) => DtiSetCurrent::decode(data).map(Self::DtiSetCurrent),
+            (0x241, true) => DtiSetBrakeCurrent::decode(data).map(Self::DtiSetBrakeCurrent),
+            (0x341, true) => DtiSetErpm::decode(data).map(Self::DtiSetErpm),
+            (0x441, true) => DtiSetPosition::decode(data).map(Self::DtiSetPosition),
+            (0x541, true) => DtiSetRelativeCurrent::decode(data).map(Self::DtiSetRelativeCurrent),
+            (0x641, true) => {
+                DtiSetRelativeBrakeCurrent::decode(data).map(Self::DtiSetRelativeBrakeCurrent)
+            }
+            (0x741, true) => DtiSetDigitalOutputs::decode(data).map(Self::DtiSetDigitalOutputs),
+            (0x841, true) => DtiSetMaxCurrentAc::decode(data).map(Self::DtiSetMaxCurrentAc),
+            (0x941, true) => {
+                DtiSetMaxBrakeCurrentAc::decode(data).map(Self::DtiSetMaxBrakeCurrentAc)
+            }
+            (0xA41, true) => DtiSetMaxCurrentDc::decode(data).map(Self::DtiSetMaxCurrentDc),
+            (0xB41, true) => {
+                DtiSetMaxBrakeCurrentDc::decode(data).map(Self::DtiSetMaxBrakeCurrentDc)
+            }
+            (0xC41, true) => DtiSetDriveEnable::decode(data).map(Self::DtiSetDriveEnable),
+            (0x1F41, true) => DtiControl::decode(data).map(Self::DtiControl),
+            (0x2041, true) => DtiSpeed::decode(data).map(Self::DtiSpeed),
+            (0x2141, true) => DtiCurrents::decode(data).map(Self::DtiCurrents),
+            (0x2241, true) => DtiTemperatures::decode(data).map(Self::DtiTemperatures),
+            (0x2341, true) => DtiFocCurrents::decode(data).map(Self::DtiFocCurrents),
+            (0x2441, true) => DtiFlags::decode(data).map(Self::DtiFlags),
+            (0x2541, true) => DtiAcLimits::decode(data).map(Self::DtiAcLimits),
+            (0x2641, true) => DtiDcLimits::decode(data).map(Self::DtiDcLimits),
             _ => Err(DecodeError::UnknownId { id, extended }),
         }
     }
@@ -9970,6 +15578,26 @@ impl AnyMessage {
             (0x18FF03F4, true) => ImdInfoVoltage::decode(data).map(|m| m.visit(visitor)),
             (0x18FF04F4, true) => ImdInfoItSystem::decode(data).map(|m| m.visit(visitor)),
             (0x18EFF417, true) => ImdRequest::decode(data).map(|m| m.visit(visitor)),
+            (0x141, true) => DtiSetCurrent::decode(data).map(|m| m.visit(visitor)),
+            (0x241, true) => DtiSetBrakeCurrent::decode(data).map(|m| m.visit(visitor)),
+            (0x341, true) => DtiSetErpm::decode(data).map(|m| m.visit(visitor)),
+            (0x441, true) => DtiSetPosition::decode(data).map(|m| m.visit(visitor)),
+            (0x541, true) => DtiSetRelativeCurrent::decode(data).map(|m| m.visit(visitor)),
+            (0x641, true) => DtiSetRelativeBrakeCurrent::decode(data).map(|m| m.visit(visitor)),
+            (0x741, true) => DtiSetDigitalOutputs::decode(data).map(|m| m.visit(visitor)),
+            (0x841, true) => DtiSetMaxCurrentAc::decode(data).map(|m| m.visit(visitor)),
+            (0x941, true) => DtiSetMaxBrakeCurrentAc::decode(data).map(|m| m.visit(visitor)),
+            (0xA41, true) => DtiSetMaxCurrentDc::decode(data).map(|m| m.visit(visitor)),
+            (0xB41, true) => DtiSetMaxBrakeCurrentDc::decode(data).map(|m| m.visit(visitor)),
+            (0xC41, true) => DtiSetDriveEnable::decode(data).map(|m| m.visit(visitor)),
+            (0x1F41, true) => DtiControl::decode(data).map(|m| m.visit(visitor)),
+            (0x2041, true) => DtiSpeed::decode(data).map(|m| m.visit(visitor)),
+            (0x2141, true) => DtiCurrents::decode(data).map(|m| m.visit(visitor)),
+            (0x2241, true) => DtiTemperatures::decode(data).map(|m| m.visit(visitor)),
+            (0x2341, true) => DtiFocCurrents::decode(data).map(|m| m.visit(visitor)),
+            (0x2441, true) => DtiFlags::decode(data).map(|m| m.visit(visitor)),
+            (0x2541, true) => DtiAcLimits::decode(data).map(|m| m.visit(visitor)),
+            (0x2641, true) => DtiDcLimits::decode(data).map(|m| m.visit(visitor)),
             _ => Err(DecodeError::UnknownId { id, extended }),
         }
     }
@@ -10005,6 +15633,35 @@ impl AnyMessage {
             (0x18FF03F4, true) => ImdInfoVoltage::from_signals(source).map(Self::ImdInfoVoltage),
             (0x18FF04F4, true) => ImdInfoItSystem::from_signals(source).map(Self::ImdInfoItSystem),
             (0x18EFF417, true) => ImdRequest::from_signals(source).map(Self::ImdRequest),
+            (0x141, true) => DtiSetCurrent::from_signals(source).map(Self::DtiSetCurrent),
+            (0x241, true) => DtiSetBrakeCurrent::from_signals(source).map(Self::DtiSetBrakeCurrent),
+            (0x341, true) => DtiSetErpm::from_signals(source).map(Self::DtiSetErpm),
+            (0x441, true) => DtiSetPosition::from_signals(source).map(Self::DtiSetPosition),
+            (0x541, true) => {
+                DtiSetRelativeCurrent::from_signals(source).map(Self::DtiSetRelativeCurrent)
+            }
+            (0x641, true) => DtiSetRelativeBrakeCurrent::from_signals(source)
+                .map(Self::DtiSetRelativeBrakeCurrent),
+            (0x741, true) => {
+                DtiSetDigitalOutputs::from_signals(source).map(Self::DtiSetDigitalOutputs)
+            }
+            (0x841, true) => DtiSetMaxCurrentAc::from_signals(source).map(Self::DtiSetMaxCurrentAc),
+            (0x941, true) => {
+                DtiSetMaxBrakeCurrentAc::from_signals(source).map(Self::DtiSetMaxBrakeCurrentAc)
+            }
+            (0xA41, true) => DtiSetMaxCurrentDc::from_signals(source).map(Self::DtiSetMaxCurrentDc),
+            (0xB41, true) => {
+                DtiSetMaxBrakeCurrentDc::from_signals(source).map(Self::DtiSetMaxBrakeCurrentDc)
+            }
+            (0xC41, true) => DtiSetDriveEnable::from_signals(source).map(Self::DtiSetDriveEnable),
+            (0x1F41, true) => DtiControl::from_signals(source).map(Self::DtiControl),
+            (0x2041, true) => DtiSpeed::from_signals(source).map(Self::DtiSpeed),
+            (0x2141, true) => DtiCurrents::from_signals(source).map(Self::DtiCurrents),
+            (0x2241, true) => DtiTemperatures::from_signals(source).map(Self::DtiTemperatures),
+            (0x2341, true) => DtiFocCurrents::from_signals(source).map(Self::DtiFocCurrents),
+            (0x2441, true) => DtiFlags::from_signals(source).map(Self::DtiFlags),
+            (0x2541, true) => DtiAcLimits::from_signals(source).map(Self::DtiAcLimits),
+            (0x2641, true) => DtiDcLimits::from_signals(source).map(Self::DtiDcLimits),
             _ => Err(EncodeError::UnknownId { id, extended }),
         }
     }
@@ -10028,6 +15685,26 @@ impl AnyMessage {
             Self::ImdInfoVoltage(_) => ImdInfoVoltage::META,
             Self::ImdInfoItSystem(_) => ImdInfoItSystem::META,
             Self::ImdRequest(_) => ImdRequest::META,
+            Self::DtiSetCurrent(_) => DtiSetCurrent::META,
+            Self::DtiSetBrakeCurrent(_) => DtiSetBrakeCurrent::META,
+            Self::DtiSetErpm(_) => DtiSetErpm::META,
+            Self::DtiSetPosition(_) => DtiSetPosition::META,
+            Self::DtiSetRelativeCurrent(_) => DtiSetRelativeCurrent::META,
+            Self::DtiSetRelativeBrakeCurrent(_) => DtiSetRelativeBrakeCurrent::META,
+            Self::DtiSetDigitalOutputs(_) => DtiSetDigitalOutputs::META,
+            Self::DtiSetMaxCurrentAc(_) => DtiSetMaxCurrentAc::META,
+            Self::DtiSetMaxBrakeCurrentAc(_) => DtiSetMaxBrakeCurrentAc::META,
+            Self::DtiSetMaxCurrentDc(_) => DtiSetMaxCurrentDc::META,
+            Self::DtiSetMaxBrakeCurrentDc(_) => DtiSetMaxBrakeCurrentDc::META,
+            Self::DtiSetDriveEnable(_) => DtiSetDriveEnable::META,
+            Self::DtiControl(_) => DtiControl::META,
+            Self::DtiSpeed(_) => DtiSpeed::META,
+            Self::DtiCurrents(_) => DtiCurrents::META,
+            Self::DtiTemperatures(_) => DtiTemperatures::META,
+            Self::DtiFocCurrents(_) => DtiFocCurrents::META,
+            Self::DtiFlags(_) => DtiFlags::META,
+            Self::DtiAcLimits(_) => DtiAcLimits::META,
+            Self::DtiDcLimits(_) => DtiDcLimits::META,
         }
     }
 
@@ -10050,6 +15727,26 @@ impl AnyMessage {
             Self::ImdInfoVoltage(m) => m.encode(out),
             Self::ImdInfoItSystem(m) => m.encode(out),
             Self::ImdRequest(m) => m.encode(out),
+            Self::DtiSetCurrent(m) => m.encode(out),
+            Self::DtiSetBrakeCurrent(m) => m.encode(out),
+            Self::DtiSetErpm(m) => m.encode(out),
+            Self::DtiSetPosition(m) => m.encode(out),
+            Self::DtiSetRelativeCurrent(m) => m.encode(out),
+            Self::DtiSetRelativeBrakeCurrent(m) => m.encode(out),
+            Self::DtiSetDigitalOutputs(m) => m.encode(out),
+            Self::DtiSetMaxCurrentAc(m) => m.encode(out),
+            Self::DtiSetMaxBrakeCurrentAc(m) => m.encode(out),
+            Self::DtiSetMaxCurrentDc(m) => m.encode(out),
+            Self::DtiSetMaxBrakeCurrentDc(m) => m.encode(out),
+            Self::DtiSetDriveEnable(m) => m.encode(out),
+            Self::DtiControl(m) => m.encode(out),
+            Self::DtiSpeed(m) => m.encode(out),
+            Self::DtiCurrents(m) => m.encode(out),
+            Self::DtiTemperatures(m) => m.encode(out),
+            Self::DtiFocCurrents(m) => m.encode(out),
+            Self::DtiFlags(m) => m.encode(out),
+            Self::DtiAcLimits(m) => m.encode(out),
+            Self::DtiDcLimits(m) => m.encode(out),
         }
     }
 
@@ -10072,6 +15769,26 @@ impl AnyMessage {
             Self::ImdInfoVoltage(m) => m.visit(visitor),
             Self::ImdInfoItSystem(m) => m.visit(visitor),
             Self::ImdRequest(m) => m.visit(visitor),
+            Self::DtiSetCurrent(m) => m.visit(visitor),
+            Self::DtiSetBrakeCurrent(m) => m.visit(visitor),
+            Self::DtiSetErpm(m) => m.visit(visitor),
+            Self::DtiSetPosition(m) => m.visit(visitor),
+            Self::DtiSetRelativeCurrent(m) => m.visit(visitor),
+            Self::DtiSetRelativeBrakeCurrent(m) => m.visit(visitor),
+            Self::DtiSetDigitalOutputs(m) => m.visit(visitor),
+            Self::DtiSetMaxCurrentAc(m) => m.visit(visitor),
+            Self::DtiSetMaxBrakeCurrentAc(m) => m.visit(visitor),
+            Self::DtiSetMaxCurrentDc(m) => m.visit(visitor),
+            Self::DtiSetMaxBrakeCurrentDc(m) => m.visit(visitor),
+            Self::DtiSetDriveEnable(m) => m.visit(visitor),
+            Self::DtiControl(m) => m.visit(visitor),
+            Self::DtiSpeed(m) => m.visit(visitor),
+            Self::DtiCurrents(m) => m.visit(visitor),
+            Self::DtiTemperatures(m) => m.visit(visitor),
+            Self::DtiFocCurrents(m) => m.visit(visitor),
+            Self::DtiFlags(m) => m.visit(visitor),
+            Self::DtiAcLimits(m) => m.visit(visitor),
+            Self::DtiDcLimits(m) => m.visit(visitor),
         }
     }
 
@@ -10094,6 +15811,26 @@ impl AnyMessage {
             Self::ImdInfoVoltage(m) => m.to_frame(),
             Self::ImdInfoItSystem(m) => m.to_frame(),
             Self::ImdRequest(m) => m.to_frame(),
+            Self::DtiSetCurrent(m) => m.to_frame(),
+            Self::DtiSetBrakeCurrent(m) => m.to_frame(),
+            Self::DtiSetErpm(m) => m.to_frame(),
+            Self::DtiSetPosition(m) => m.to_frame(),
+            Self::DtiSetRelativeCurrent(m) => m.to_frame(),
+            Self::DtiSetRelativeBrakeCurrent(m) => m.to_frame(),
+            Self::DtiSetDigitalOutputs(m) => m.to_frame(),
+            Self::DtiSetMaxCurrentAc(m) => m.to_frame(),
+            Self::DtiSetMaxBrakeCurrentAc(m) => m.to_frame(),
+            Self::DtiSetMaxCurrentDc(m) => m.to_frame(),
+            Self::DtiSetMaxBrakeCurrentDc(m) => m.to_frame(),
+            Self::DtiSetDriveEnable(m) => m.to_frame(),
+            Self::DtiControl(m) => m.to_frame(),
+            Self::DtiSpeed(m) => m.to_frame(),
+            Self::DtiCurrents(m) => m.to_frame(),
+            Self::DtiTemperatures(m) => m.to_frame(),
+            Self::DtiFocCurrents(m) => m.to_frame(),
+            Self::DtiFlags(m) => m.to_frame(),
+            Self::DtiAcLimits(m) => m.to_frame(),
+            Self::DtiDcLimits(m) => m.to_frame(),
         }
     }
 }

@@ -423,11 +423,87 @@ pub mod can {
 
     /// Frames of `ImdRequest`.
     pub const IMD_REQUEST: Topic<Sample<crate::can::ImdRequest>> = Topic::new("can/imd_request");
+
+    /// Frames of `DtiSetCurrent`.
+    pub const DTI_SET_CURRENT: Topic<Sample<crate::can::DtiSetCurrent>> =
+        Topic::new("can/dti_set_current");
+
+    /// Frames of `DtiSetBrakeCurrent`.
+    pub const DTI_SET_BRAKE_CURRENT: Topic<Sample<crate::can::DtiSetBrakeCurrent>> =
+        Topic::new("can/dti_set_brake_current");
+
+    /// Frames of `DtiSetErpm`.
+    pub const DTI_SET_ERPM: Topic<Sample<crate::can::DtiSetErpm>> = Topic::new("can/dti_set_erpm");
+
+    /// Frames of `DtiSetPosition`.
+    pub const DTI_SET_POSITION: Topic<Sample<crate::can::DtiSetPosition>> =
+        Topic::new("can/dti_set_position");
+
+    /// Frames of `DtiSetRelativeCurrent`.
+    pub const DTI_SET_RELATIVE_CURRENT: Topic<Sample<crate::can::DtiSetRelativeCurrent>> =
+        Topic::new("can/dti_set_relative_current");
+
+    /// Frames of `DtiSetRelativeBrakeCurrent`.
+    pub const DTI_SET_RELATIVE_BRAKE_CURRENT: Topic<
+        Sample<crate::can::DtiSetRelativeBrakeCurrent>,
+    > = Topic::new("can/dti_set_relative_brake_current");
+
+    /// Frames of `DtiSetDigitalOutputs`.
+    pub const DTI_SET_DIGITAL_OUTPUTS: Topic<Sample<crate::can::DtiSetDigitalOutputs>> =
+        Topic::new("can/dti_set_digital_outputs");
+
+    /// Frames of `DtiSetMaxCurrentAc`.
+    pub const DTI_SET_MAX_CURRENT_AC: Topic<Sample<crate::can::DtiSetMaxCurrentAc>> =
+        Topic::new("can/dti_set_max_current_ac");
+
+    /// Frames of `DtiSetMaxBrakeCurrentAc`.
+    pub const DTI_SET_MAX_BRAKE_CURRENT_AC: Topic<Sample<crate::can::DtiSetMaxBrakeCurrentAc>> =
+        Topic::new("can/dti_set_max_brake_current_ac");
+
+    /// Frames of `DtiSetMaxCurrentDc`.
+    pub const DTI_SET_MAX_CURRENT_DC: Topic<Sample<crate::can::DtiSetMaxCurrentDc>> =
+        Topic::new("can/dti_set_max_current_dc");
+
+    /// Frames of `DtiSetMaxBrakeCurrentDc`.
+    pub const DTI_SET_MAX_BRAKE_CURRENT_DC: Topic<Sample<crate::can::DtiSetMaxBrakeCurrentDc>> =
+        Topic::new("can/dti_set_max_brake_current_dc");
+
+    /// Frames of `DtiSetDriveEnable`.
+    pub const DTI_SET_DRIVE_ENABLE: Topic<Sample<crate::can::DtiSetDriveEnable>> =
+        Topic::new("can/dti_set_drive_enable");
+
+    /// Frames of `DtiControl`.
+    pub const DTI_CONTROL: Topic<Sample<crate::can::DtiControl>> = Topic::new("can/dti_control");
+
+    /// Frames of `DtiSpeed`.
+    pub const DTI_SPEED: Topic<Sample<crate::can::DtiSpeed>> = Topic::new("can/dti_speed");
+
+    /// Frames of `DtiCurrents`.
+    pub const DTI_CURRENTS: Topic<Sample<crate::can::DtiCurrents>> = Topic::new("can/dti_currents");
+
+    /// Frames of `DtiTemperatures`.
+    pub const DTI_TEMPERATURES: Topic<Sample<crate::can::DtiTemperatures>> =
+        Topic::new("can/dti_temperatures");
+
+    /// Frames of `DtiFocCurrents`.
+    pub const DTI_FOC_CURRENTS: Topic<Sample<crate::can::DtiFocCurrents>> =
+        Topic::new("can/dti_foc_currents");
+
+    /// Frames of `DtiFlags`.
+    pub const DTI_FLAGS: Topic<Sample<crate::can::DtiFlags>> = Topic::new("can/dti_flags");
+
+    /// Frames of `DtiAcLimits`.
+    pub const DTI_AC_LIMITS: Topic<Sample<crate::can::DtiAcLimits>> =
+        Topic::new("can/dti_ac_limits");
+
+    /// Frames of `DtiDcLimits`.
+    pub const DTI_DC_LIMITS: Topic<Sample<crate::can::DtiDcLimits>> =
+        Topic::new("can/dti_dc_limits");
 }
 
 /// Every topic suffix of the schema: telemetry, then the CAN messages (for subscriptions and
 /// documentation).
-pub const SUFFIXES: [&str; 17] = [
+pub const SUFFIXES: [&str; 37] = [
     TELEMETRY.suffix(),
     can::CCM_STATUS.suffix(),
     can::VCU1.suffix(),
@@ -445,6 +521,26 @@ pub const SUFFIXES: [&str; 17] = [
     can::IMD_INFO_VOLTAGE.suffix(),
     can::IMD_INFO_IT_SYSTEM.suffix(),
     can::IMD_REQUEST.suffix(),
+    can::DTI_SET_CURRENT.suffix(),
+    can::DTI_SET_BRAKE_CURRENT.suffix(),
+    can::DTI_SET_ERPM.suffix(),
+    can::DTI_SET_POSITION.suffix(),
+    can::DTI_SET_RELATIVE_CURRENT.suffix(),
+    can::DTI_SET_RELATIVE_BRAKE_CURRENT.suffix(),
+    can::DTI_SET_DIGITAL_OUTPUTS.suffix(),
+    can::DTI_SET_MAX_CURRENT_AC.suffix(),
+    can::DTI_SET_MAX_BRAKE_CURRENT_AC.suffix(),
+    can::DTI_SET_MAX_CURRENT_DC.suffix(),
+    can::DTI_SET_MAX_BRAKE_CURRENT_DC.suffix(),
+    can::DTI_SET_DRIVE_ENABLE.suffix(),
+    can::DTI_CONTROL.suffix(),
+    can::DTI_SPEED.suffix(),
+    can::DTI_CURRENTS.suffix(),
+    can::DTI_TEMPERATURES.suffix(),
+    can::DTI_FOC_CURRENTS.suffix(),
+    can::DTI_FLAGS.suffix(),
+    can::DTI_AC_LIMITS.suffix(),
+    can::DTI_DC_LIMITS.suffix(),
 ];
 
 /// A decoded CAN message as the payload of its own topic, received at `ts` on `bus`: the topic
@@ -498,6 +594,79 @@ pub fn encode_message(
         AnyMessage::ImdRequest(value) => {
             (can::IMD_REQUEST.suffix(), imd_request_json(value, ts, bus))
         }
+        AnyMessage::DtiSetCurrent(value) => (
+            can::DTI_SET_CURRENT.suffix(),
+            dti_set_current_json(value, ts, bus),
+        ),
+        AnyMessage::DtiSetBrakeCurrent(value) => (
+            can::DTI_SET_BRAKE_CURRENT.suffix(),
+            dti_set_brake_current_json(value, ts, bus),
+        ),
+        AnyMessage::DtiSetErpm(value) => (
+            can::DTI_SET_ERPM.suffix(),
+            dti_set_erpm_json(value, ts, bus),
+        ),
+        AnyMessage::DtiSetPosition(value) => (
+            can::DTI_SET_POSITION.suffix(),
+            dti_set_position_json(value, ts, bus),
+        ),
+        AnyMessage::DtiSetRelativeCurrent(value) => (
+            can::DTI_SET_RELATIVE_CURRENT.suffix(),
+            dti_set_relative_current_json(value, ts, bus),
+        ),
+        AnyMessage::DtiSetRelativeBrakeCurrent(value) => (
+            can::DTI_SET_RELATIVE_BRAKE_CURRENT.suffix(),
+            dti_set_relative_brake_current_json(value, ts, bus),
+        ),
+        AnyMessage::DtiSetDigitalOutputs(value) => (
+            can::DTI_SET_DIGITAL_OUTPUTS.suffix(),
+            dti_set_digital_outputs_json(value, ts, bus),
+        ),
+        AnyMessage::DtiSetMaxCurrentAc(value) => (
+            can::DTI_SET_MAX_CURRENT_AC.suffix(),
+            dti_set_max_current_ac_json(value, ts, bus),
+        ),
+        AnyMessage::DtiSetMaxBrakeCurrentAc(value) => (
+            can::DTI_SET_MAX_BRAKE_CURRENT_AC.suffix(),
+            dti_set_max_brake_current_ac_json(value, ts, bus),
+        ),
+        AnyMessage::DtiSetMaxCurrentDc(value) => (
+            can::DTI_SET_MAX_CURRENT_DC.suffix(),
+            dti_set_max_current_dc_json(value, ts, bus),
+        ),
+        AnyMessage::DtiSetMaxBrakeCurrentDc(value) => (
+            can::DTI_SET_MAX_BRAKE_CURRENT_DC.suffix(),
+            dti_set_max_brake_current_dc_json(value, ts, bus),
+        ),
+        AnyMessage::DtiSetDriveEnable(value) => (
+            can::DTI_SET_DRIVE_ENABLE.suffix(),
+            dti_set_drive_enable_json(value, ts, bus),
+        ),
+        AnyMessage::DtiControl(value) => {
+            (can::DTI_CONTROL.suffix(), dti_control_json(value, ts, bus))
+        }
+        AnyMessage::DtiSpeed(value) => (can::DTI_SPEED.suffix(), dti_speed_json(value, ts, bus)),
+        AnyMessage::DtiCurrents(value) => (
+            can::DTI_CURRENTS.suffix(),
+            dti_currents_json(value, ts, bus),
+        ),
+        AnyMessage::DtiTemperatures(value) => (
+            can::DTI_TEMPERATURES.suffix(),
+            dti_temperatures_json(value, ts, bus),
+        ),
+        AnyMessage::DtiFocCurrents(value) => (
+            can::DTI_FOC_CURRENTS.suffix(),
+            dti_foc_currents_json(value, ts, bus),
+        ),
+        AnyMessage::DtiFlags(value) => (can::DTI_FLAGS.suffix(), dti_flags_json(value, ts, bus)),
+        AnyMessage::DtiAcLimits(value) => (
+            can::DTI_AC_LIMITS.suffix(),
+            dti_ac_limits_json(value, ts, bus),
+        ),
+        AnyMessage::DtiDcLimits(value) => (
+            can::DTI_DC_LIMITS.suffix(),
+            dti_dc_limits_json(value, ts, bus),
+        ),
     }
 }
 
@@ -955,6 +1124,386 @@ fn imd_request_json(value: &crate::can::ImdRequest, ts: f64, bus: &str) -> Vec<u
     json_int(out, value.imd_request_index);
     out.extend_from_slice(b",\"imd_request_data\":");
     json_int(out, value.imd_request_data);
+    out.push(b'}');
+    payload
+}
+
+fn dti_set_current_json(value: &crate::can::DtiSetCurrent, ts: f64, bus: &str) -> Vec<u8> {
+    let mut payload = Vec::with_capacity(107 + bus.len());
+    let out = &mut payload;
+    out.extend_from_slice(b"{\"ts\":");
+    json_float(out, ts);
+    out.extend_from_slice(b",\"bus\":");
+    json_str(out, bus);
+    out.extend_from_slice(b",\"dti_current_cmd\":");
+    json_fixed(out, value.dti_current_cmd, 1);
+    out.push(b'}');
+    payload
+}
+
+fn dti_set_brake_current_json(
+    value: &crate::can::DtiSetBrakeCurrent,
+    ts: f64,
+    bus: &str,
+) -> Vec<u8> {
+    let mut payload = Vec::with_capacity(113 + bus.len());
+    let out = &mut payload;
+    out.extend_from_slice(b"{\"ts\":");
+    json_float(out, ts);
+    out.extend_from_slice(b",\"bus\":");
+    json_str(out, bus);
+    out.extend_from_slice(b",\"dti_brake_current_cmd\":");
+    json_fixed(out, value.dti_brake_current_cmd, 1);
+    out.push(b'}');
+    payload
+}
+
+fn dti_set_erpm_json(value: &crate::can::DtiSetErpm, ts: f64, bus: &str) -> Vec<u8> {
+    let mut payload = Vec::with_capacity(104 + bus.len());
+    let out = &mut payload;
+    out.extend_from_slice(b"{\"ts\":");
+    json_float(out, ts);
+    out.extend_from_slice(b",\"bus\":");
+    json_str(out, bus);
+    out.extend_from_slice(b",\"dti_erpm_cmd\":");
+    json_int(out, value.dti_erpm_cmd);
+    out.push(b'}');
+    payload
+}
+
+fn dti_set_position_json(value: &crate::can::DtiSetPosition, ts: f64, bus: &str) -> Vec<u8> {
+    let mut payload = Vec::with_capacity(108 + bus.len());
+    let out = &mut payload;
+    out.extend_from_slice(b"{\"ts\":");
+    json_float(out, ts);
+    out.extend_from_slice(b",\"bus\":");
+    json_str(out, bus);
+    out.extend_from_slice(b",\"dti_position_cmd\":");
+    json_fixed(out, value.dti_position_cmd, 1);
+    out.push(b'}');
+    payload
+}
+
+fn dti_set_relative_current_json(
+    value: &crate::can::DtiSetRelativeCurrent,
+    ts: f64,
+    bus: &str,
+) -> Vec<u8> {
+    let mut payload = Vec::with_capacity(116 + bus.len());
+    let out = &mut payload;
+    out.extend_from_slice(b"{\"ts\":");
+    json_float(out, ts);
+    out.extend_from_slice(b",\"bus\":");
+    json_str(out, bus);
+    out.extend_from_slice(b",\"dti_relative_current_cmd\":");
+    json_fixed(out, value.dti_relative_current_cmd, 1);
+    out.push(b'}');
+    payload
+}
+
+fn dti_set_relative_brake_current_json(
+    value: &crate::can::DtiSetRelativeBrakeCurrent,
+    ts: f64,
+    bus: &str,
+) -> Vec<u8> {
+    let mut payload = Vec::with_capacity(122 + bus.len());
+    let out = &mut payload;
+    out.extend_from_slice(b"{\"ts\":");
+    json_float(out, ts);
+    out.extend_from_slice(b",\"bus\":");
+    json_str(out, bus);
+    out.extend_from_slice(b",\"dti_relative_brake_current_cmd\":");
+    json_fixed(out, value.dti_relative_brake_current_cmd, 1);
+    out.push(b'}');
+    payload
+}
+
+fn dti_set_digital_outputs_json(
+    value: &crate::can::DtiSetDigitalOutputs,
+    ts: f64,
+    bus: &str,
+) -> Vec<u8> {
+    let mut payload = Vec::with_capacity(256 + bus.len());
+    let out = &mut payload;
+    out.extend_from_slice(b"{\"ts\":");
+    json_float(out, ts);
+    out.extend_from_slice(b",\"bus\":");
+    json_str(out, bus);
+    out.extend_from_slice(b",\"dti_digital_out1_cmd\":");
+    json_bool(out, value.dti_digital_out1_cmd);
+    out.extend_from_slice(b",\"dti_digital_out2_cmd\":");
+    json_bool(out, value.dti_digital_out2_cmd);
+    out.extend_from_slice(b",\"dti_digital_out3_cmd\":");
+    json_bool(out, value.dti_digital_out3_cmd);
+    out.extend_from_slice(b",\"dti_digital_out4_cmd\":");
+    json_bool(out, value.dti_digital_out4_cmd);
+    out.push(b'}');
+    payload
+}
+
+fn dti_set_max_current_ac_json(
+    value: &crate::can::DtiSetMaxCurrentAc,
+    ts: f64,
+    bus: &str,
+) -> Vec<u8> {
+    let mut payload = Vec::with_capacity(114 + bus.len());
+    let out = &mut payload;
+    out.extend_from_slice(b"{\"ts\":");
+    json_float(out, ts);
+    out.extend_from_slice(b",\"bus\":");
+    json_str(out, bus);
+    out.extend_from_slice(b",\"dti_max_current_ac_cmd\":");
+    json_fixed(out, value.dti_max_current_ac_cmd, 1);
+    out.push(b'}');
+    payload
+}
+
+fn dti_set_max_brake_current_ac_json(
+    value: &crate::can::DtiSetMaxBrakeCurrentAc,
+    ts: f64,
+    bus: &str,
+) -> Vec<u8> {
+    let mut payload = Vec::with_capacity(120 + bus.len());
+    let out = &mut payload;
+    out.extend_from_slice(b"{\"ts\":");
+    json_float(out, ts);
+    out.extend_from_slice(b",\"bus\":");
+    json_str(out, bus);
+    out.extend_from_slice(b",\"dti_max_brake_current_ac_cmd\":");
+    json_fixed(out, value.dti_max_brake_current_ac_cmd, 1);
+    out.push(b'}');
+    payload
+}
+
+fn dti_set_max_current_dc_json(
+    value: &crate::can::DtiSetMaxCurrentDc,
+    ts: f64,
+    bus: &str,
+) -> Vec<u8> {
+    let mut payload = Vec::with_capacity(114 + bus.len());
+    let out = &mut payload;
+    out.extend_from_slice(b"{\"ts\":");
+    json_float(out, ts);
+    out.extend_from_slice(b",\"bus\":");
+    json_str(out, bus);
+    out.extend_from_slice(b",\"dti_max_current_dc_cmd\":");
+    json_fixed(out, value.dti_max_current_dc_cmd, 1);
+    out.push(b'}');
+    payload
+}
+
+fn dti_set_max_brake_current_dc_json(
+    value: &crate::can::DtiSetMaxBrakeCurrentDc,
+    ts: f64,
+    bus: &str,
+) -> Vec<u8> {
+    let mut payload = Vec::with_capacity(120 + bus.len());
+    let out = &mut payload;
+    out.extend_from_slice(b"{\"ts\":");
+    json_float(out, ts);
+    out.extend_from_slice(b",\"bus\":");
+    json_str(out, bus);
+    out.extend_from_slice(b",\"dti_max_brake_current_dc_cmd\":");
+    json_fixed(out, value.dti_max_brake_current_dc_cmd, 1);
+    out.push(b'}');
+    payload
+}
+
+fn dti_set_drive_enable_json(value: &crate::can::DtiSetDriveEnable, ts: f64, bus: &str) -> Vec<u8> {
+    let mut payload = Vec::with_capacity(168 + bus.len());
+    let out = &mut payload;
+    out.extend_from_slice(b"{\"ts\":");
+    json_float(out, ts);
+    out.extend_from_slice(b",\"bus\":");
+    json_str(out, bus);
+    out.extend_from_slice(b",\"dti_drive_enable_cmd\":");
+    json_int(out, value.dti_drive_enable_cmd.into_raw());
+    out.extend_from_slice(b",\"dti_drive_enable_cmd_label\":");
+    json_label(out, value.dti_drive_enable_cmd.label());
+    out.push(b'}');
+    payload
+}
+
+fn dti_control_json(value: &crate::can::DtiControl, ts: f64, bus: &str) -> Vec<u8> {
+    let mut payload = Vec::with_capacity(294 + bus.len());
+    let out = &mut payload;
+    out.extend_from_slice(b"{\"ts\":");
+    json_float(out, ts);
+    out.extend_from_slice(b",\"bus\":");
+    json_str(out, bus);
+    out.extend_from_slice(b",\"dti_control_mode\":");
+    json_int(out, value.dti_control_mode.into_raw());
+    out.extend_from_slice(b",\"dti_control_mode_label\":");
+    json_label(out, value.dti_control_mode.label());
+    out.extend_from_slice(b",\"dti_target_iq\":");
+    json_fixed(out, value.dti_target_iq, 1);
+    out.extend_from_slice(b",\"dti_motor_position\":");
+    json_fixed(out, value.dti_motor_position, 1);
+    out.extend_from_slice(b",\"dti_motor_still\":");
+    json_int(out, value.dti_motor_still);
+    out.push(b'}');
+    payload
+}
+
+fn dti_speed_json(value: &crate::can::DtiSpeed, ts: f64, bus: &str) -> Vec<u8> {
+    let mut payload = Vec::with_capacity(187 + bus.len());
+    let out = &mut payload;
+    out.extend_from_slice(b"{\"ts\":");
+    json_float(out, ts);
+    out.extend_from_slice(b",\"bus\":");
+    json_str(out, bus);
+    out.extend_from_slice(b",\"dti_erpm\":");
+    json_int(out, value.dti_erpm);
+    out.extend_from_slice(b",\"dti_duty_cycle\":");
+    json_fixed(out, value.dti_duty_cycle, 1);
+    out.extend_from_slice(b",\"dti_input_voltage\":");
+    json_int(out, value.dti_input_voltage);
+    out.push(b'}');
+    payload
+}
+
+fn dti_currents_json(value: &crate::can::DtiCurrents, ts: f64, bus: &str) -> Vec<u8> {
+    let mut payload = Vec::with_capacity(148 + bus.len());
+    let out = &mut payload;
+    out.extend_from_slice(b"{\"ts\":");
+    json_float(out, ts);
+    out.extend_from_slice(b",\"bus\":");
+    json_str(out, bus);
+    out.extend_from_slice(b",\"dti_ac_current\":");
+    json_fixed(out, value.dti_ac_current, 1);
+    out.extend_from_slice(b",\"dti_dc_current\":");
+    json_fixed(out, value.dti_dc_current, 1);
+    out.push(b'}');
+    payload
+}
+
+fn dti_temperatures_json(value: &crate::can::DtiTemperatures, ts: f64, bus: &str) -> Vec<u8> {
+    let mut payload = Vec::with_capacity(251 + bus.len());
+    let out = &mut payload;
+    out.extend_from_slice(b"{\"ts\":");
+    json_float(out, ts);
+    out.extend_from_slice(b",\"bus\":");
+    json_str(out, bus);
+    out.extend_from_slice(b",\"dti_controller_temp\":");
+    json_fixed(out, value.dti_controller_temp, 1);
+    out.extend_from_slice(b",\"dti_motor_temp\":");
+    json_fixed(out, value.dti_motor_temp, 1);
+    out.extend_from_slice(b",\"dti_fault_code\":");
+    json_int(out, value.dti_fault_code.into_raw());
+    out.extend_from_slice(b",\"dti_fault_code_label\":");
+    json_label(out, value.dti_fault_code.label());
+    out.push(b'}');
+    payload
+}
+
+fn dti_foc_currents_json(value: &crate::can::DtiFocCurrents, ts: f64, bus: &str) -> Vec<u8> {
+    let mut payload = Vec::with_capacity(140 + bus.len());
+    let out = &mut payload;
+    out.extend_from_slice(b"{\"ts\":");
+    json_float(out, ts);
+    out.extend_from_slice(b",\"bus\":");
+    json_str(out, bus);
+    out.extend_from_slice(b",\"dti_foc_id\":");
+    json_fixed(out, value.dti_foc_id, 2);
+    out.extend_from_slice(b",\"dti_foc_iq\":");
+    json_fixed(out, value.dti_foc_iq, 2);
+    out.push(b'}');
+    payload
+}
+
+fn dti_flags_json(value: &crate::can::DtiFlags, ts: f64, bus: &str) -> Vec<u8> {
+    let mut payload = Vec::with_capacity(1185 + bus.len());
+    let out = &mut payload;
+    out.extend_from_slice(b"{\"ts\":");
+    json_float(out, ts);
+    out.extend_from_slice(b",\"bus\":");
+    json_str(out, bus);
+    out.extend_from_slice(b",\"dti_throttle_input\":");
+    json_int(out, value.dti_throttle_input);
+    out.extend_from_slice(b",\"dti_brake_input\":");
+    json_int(out, value.dti_brake_input);
+    out.extend_from_slice(b",\"dti_digital_in1\":");
+    json_bool(out, value.dti_digital_in1);
+    out.extend_from_slice(b",\"dti_digital_in2\":");
+    json_bool(out, value.dti_digital_in2);
+    out.extend_from_slice(b",\"dti_digital_in3\":");
+    json_bool(out, value.dti_digital_in3);
+    out.extend_from_slice(b",\"dti_digital_in4\":");
+    json_bool(out, value.dti_digital_in4);
+    out.extend_from_slice(b",\"dti_digital_out1\":");
+    json_bool(out, value.dti_digital_out1);
+    out.extend_from_slice(b",\"dti_digital_out2\":");
+    json_bool(out, value.dti_digital_out2);
+    out.extend_from_slice(b",\"dti_digital_out3\":");
+    json_bool(out, value.dti_digital_out3);
+    out.extend_from_slice(b",\"dti_digital_out4\":");
+    json_bool(out, value.dti_digital_out4);
+    out.extend_from_slice(b",\"dti_drive_enabled\":");
+    json_int(out, value.dti_drive_enabled.into_raw());
+    out.extend_from_slice(b",\"dti_drive_enabled_label\":");
+    json_label(out, value.dti_drive_enabled.label());
+    out.extend_from_slice(b",\"dti_limit_capacitor_temp\":");
+    json_bool(out, value.dti_limit_capacitor_temp);
+    out.extend_from_slice(b",\"dti_limit_dc_current\":");
+    json_bool(out, value.dti_limit_dc_current);
+    out.extend_from_slice(b",\"dti_limit_drive_enable\":");
+    json_bool(out, value.dti_limit_drive_enable);
+    out.extend_from_slice(b",\"dti_limit_igbt_accel_temp\":");
+    json_bool(out, value.dti_limit_igbt_accel_temp);
+    out.extend_from_slice(b",\"dti_limit_igbt_temp\":");
+    json_bool(out, value.dti_limit_igbt_temp);
+    out.extend_from_slice(b",\"dti_limit_input_voltage\":");
+    json_bool(out, value.dti_limit_input_voltage);
+    out.extend_from_slice(b",\"dti_limit_motor_accel_temp\":");
+    json_bool(out, value.dti_limit_motor_accel_temp);
+    out.extend_from_slice(b",\"dti_limit_motor_temp\":");
+    json_bool(out, value.dti_limit_motor_temp);
+    out.extend_from_slice(b",\"dti_limit_rpm_min\":");
+    json_bool(out, value.dti_limit_rpm_min);
+    out.extend_from_slice(b",\"dti_limit_rpm_max\":");
+    json_bool(out, value.dti_limit_rpm_max);
+    out.extend_from_slice(b",\"dti_limit_power\":");
+    json_bool(out, value.dti_limit_power);
+    out.extend_from_slice(b",\"dti_can_map_version\":");
+    json_int(out, value.dti_can_map_version);
+    out.push(b'}');
+    payload
+}
+
+fn dti_ac_limits_json(value: &crate::can::DtiAcLimits, ts: f64, bus: &str) -> Vec<u8> {
+    let mut payload = Vec::with_capacity(268 + bus.len());
+    let out = &mut payload;
+    out.extend_from_slice(b"{\"ts\":");
+    json_float(out, ts);
+    out.extend_from_slice(b",\"bus\":");
+    json_str(out, bus);
+    out.extend_from_slice(b",\"dti_max_ac_current\":");
+    json_fixed(out, value.dti_max_ac_current, 1);
+    out.extend_from_slice(b",\"dti_available_max_ac_current\":");
+    json_fixed(out, value.dti_available_max_ac_current, 1);
+    out.extend_from_slice(b",\"dti_min_ac_current\":");
+    json_fixed(out, value.dti_min_ac_current, 1);
+    out.extend_from_slice(b",\"dti_available_min_ac_current\":");
+    json_fixed(out, value.dti_available_min_ac_current, 1);
+    out.push(b'}');
+    payload
+}
+
+fn dti_dc_limits_json(value: &crate::can::DtiDcLimits, ts: f64, bus: &str) -> Vec<u8> {
+    let mut payload = Vec::with_capacity(268 + bus.len());
+    let out = &mut payload;
+    out.extend_from_slice(b"{\"ts\":");
+    json_float(out, ts);
+    out.extend_from_slice(b",\"bus\":");
+    json_str(out, bus);
+    out.extend_from_slice(b",\"dti_max_dc_current\":");
+    json_fixed(out, value.dti_max_dc_current, 1);
+    out.extend_from_slice(b",\"dti_available_max_dc_current\":");
+    json_fixed(out, value.dti_available_max_dc_current, 1);
+    out.extend_from_slice(b",\"dti_min_dc_current\":");
+    json_fixed(out, value.dti_min_dc_current, 1);
+    out.extend_from_slice(b",\"dti_available_min_dc_current\":");
+    json_fixed(out, value.dti_available_min_dc_current, 1);
     out.push(b'}');
     payload
 }

@@ -1505,8 +1505,948 @@ pub static CAN_IMD_REQUEST: Table = Table {
     },
 };
 
+/// CAN message `DTI_SetCurrent` (0x141), one row per frame; multiplexed signals are NULL when absent.
+pub static CAN_DTI_SET_CURRENT: Table = Table {
+    name: "can_dti_set_current",
+    index: 17,
+    tags: &[
+        Column {
+            name: "car_id",
+            ty: ColumnType::VarChar(32),
+        },
+        Column {
+            name: "bus",
+            ty: ColumnType::VarChar(16),
+        },
+        Column {
+            name: "schema_fingerprint",
+            ty: ColumnType::U32,
+        },
+    ],
+    columns: &[
+        Column {
+            name: "ts",
+            ty: ColumnType::Timestamp,
+        },
+        Column {
+            name: "dti_current_cmd",
+            ty: ColumnType::F64,
+        },
+    ],
+    signals: super::can::DtiSetCurrent::META.signals,
+    tdengine: TdengineTable {
+        create: "CREATE STABLE IF NOT EXISTS `can_dti_set_current` (`ts` TIMESTAMP, `dti_current_cmd` DOUBLE) TAGS (`car_id` VARCHAR(32), `bus` VARCHAR(16), `schema_fingerprint` INT UNSIGNED)",
+        insert: "INSERT INTO ? USING `can_dti_set_current` TAGS (?, ?, ?) VALUES (?, ?)",
+    },
+    sqlite: SqliteTable {
+        create: r#"CREATE TABLE IF NOT EXISTS "can_dti_set_current" ("id" INTEGER PRIMARY KEY AUTOINCREMENT, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "dti_current_cmd" REAL)"#,
+        insert: r#"INSERT INTO "can_dti_set_current" ("car_id", "bus", "schema_fingerprint", "ts", "dti_current_cmd") VALUES (?1, ?2, ?3, ?4, ?5)"#,
+    },
+};
+
+/// CAN message `DTI_SetBrakeCurrent` (0x241), one row per frame; multiplexed signals are NULL when absent.
+pub static CAN_DTI_SET_BRAKE_CURRENT: Table = Table {
+    name: "can_dti_set_brake_current",
+    index: 18,
+    tags: &[
+        Column {
+            name: "car_id",
+            ty: ColumnType::VarChar(32),
+        },
+        Column {
+            name: "bus",
+            ty: ColumnType::VarChar(16),
+        },
+        Column {
+            name: "schema_fingerprint",
+            ty: ColumnType::U32,
+        },
+    ],
+    columns: &[
+        Column {
+            name: "ts",
+            ty: ColumnType::Timestamp,
+        },
+        Column {
+            name: "dti_brake_current_cmd",
+            ty: ColumnType::F64,
+        },
+    ],
+    signals: super::can::DtiSetBrakeCurrent::META.signals,
+    tdengine: TdengineTable {
+        create: "CREATE STABLE IF NOT EXISTS `can_dti_set_brake_current` (`ts` TIMESTAMP, `dti_brake_current_cmd` DOUBLE) TAGS (`car_id` VARCHAR(32), `bus` VARCHAR(16), `schema_fingerprint` INT UNSIGNED)",
+        insert: "INSERT INTO ? USING `can_dti_set_brake_current` TAGS (?, ?, ?) VALUES (?, ?)",
+    },
+    sqlite: SqliteTable {
+        create: r#"CREATE TABLE IF NOT EXISTS "can_dti_set_brake_current" ("id" INTEGER PRIMARY KEY AUTOINCREMENT, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "dti_brake_current_cmd" REAL)"#,
+        insert: r#"INSERT INTO "can_dti_set_brake_current" ("car_id", "bus", "schema_fingerprint", "ts", "dti_brake_current_cmd") VALUES (?1, ?2, ?3, ?4, ?5)"#,
+    },
+};
+
+/// CAN message `DTI_SetErpm` (0x341), one row per frame; multiplexed signals are NULL when absent.
+pub static CAN_DTI_SET_ERPM: Table = Table {
+    name: "can_dti_set_erpm",
+    index: 19,
+    tags: &[
+        Column {
+            name: "car_id",
+            ty: ColumnType::VarChar(32),
+        },
+        Column {
+            name: "bus",
+            ty: ColumnType::VarChar(16),
+        },
+        Column {
+            name: "schema_fingerprint",
+            ty: ColumnType::U32,
+        },
+    ],
+    columns: &[
+        Column {
+            name: "ts",
+            ty: ColumnType::Timestamp,
+        },
+        Column {
+            name: "dti_erpm_cmd",
+            ty: ColumnType::I32,
+        },
+    ],
+    signals: super::can::DtiSetErpm::META.signals,
+    tdengine: TdengineTable {
+        create: "CREATE STABLE IF NOT EXISTS `can_dti_set_erpm` (`ts` TIMESTAMP, `dti_erpm_cmd` INT) TAGS (`car_id` VARCHAR(32), `bus` VARCHAR(16), `schema_fingerprint` INT UNSIGNED)",
+        insert: "INSERT INTO ? USING `can_dti_set_erpm` TAGS (?, ?, ?) VALUES (?, ?)",
+    },
+    sqlite: SqliteTable {
+        create: r#"CREATE TABLE IF NOT EXISTS "can_dti_set_erpm" ("id" INTEGER PRIMARY KEY AUTOINCREMENT, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "dti_erpm_cmd" INTEGER)"#,
+        insert: r#"INSERT INTO "can_dti_set_erpm" ("car_id", "bus", "schema_fingerprint", "ts", "dti_erpm_cmd") VALUES (?1, ?2, ?3, ?4, ?5)"#,
+    },
+};
+
+/// CAN message `DTI_SetPosition` (0x441), one row per frame; multiplexed signals are NULL when absent.
+pub static CAN_DTI_SET_POSITION: Table = Table {
+    name: "can_dti_set_position",
+    index: 20,
+    tags: &[
+        Column {
+            name: "car_id",
+            ty: ColumnType::VarChar(32),
+        },
+        Column {
+            name: "bus",
+            ty: ColumnType::VarChar(16),
+        },
+        Column {
+            name: "schema_fingerprint",
+            ty: ColumnType::U32,
+        },
+    ],
+    columns: &[
+        Column {
+            name: "ts",
+            ty: ColumnType::Timestamp,
+        },
+        Column {
+            name: "dti_position_cmd",
+            ty: ColumnType::F64,
+        },
+    ],
+    signals: super::can::DtiSetPosition::META.signals,
+    tdengine: TdengineTable {
+        create: "CREATE STABLE IF NOT EXISTS `can_dti_set_position` (`ts` TIMESTAMP, `dti_position_cmd` DOUBLE) TAGS (`car_id` VARCHAR(32), `bus` VARCHAR(16), `schema_fingerprint` INT UNSIGNED)",
+        insert: "INSERT INTO ? USING `can_dti_set_position` TAGS (?, ?, ?) VALUES (?, ?)",
+    },
+    sqlite: SqliteTable {
+        create: r#"CREATE TABLE IF NOT EXISTS "can_dti_set_position" ("id" INTEGER PRIMARY KEY AUTOINCREMENT, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "dti_position_cmd" REAL)"#,
+        insert: r#"INSERT INTO "can_dti_set_position" ("car_id", "bus", "schema_fingerprint", "ts", "dti_position_cmd") VALUES (?1, ?2, ?3, ?4, ?5)"#,
+    },
+};
+
+/// CAN message `DTI_SetRelativeCurrent` (0x541), one row per frame; multiplexed signals are NULL when absent.
+pub static CAN_DTI_SET_RELATIVE_CURRENT: Table = Table {
+    name: "can_dti_set_relative_current",
+    index: 21,
+    tags: &[
+        Column {
+            name: "car_id",
+            ty: ColumnType::VarChar(32),
+        },
+        Column {
+            name: "bus",
+            ty: ColumnType::VarChar(16),
+        },
+        Column {
+            name: "schema_fingerprint",
+            ty: ColumnType::U32,
+        },
+    ],
+    columns: &[
+        Column {
+            name: "ts",
+            ty: ColumnType::Timestamp,
+        },
+        Column {
+            name: "dti_relative_current_cmd",
+            ty: ColumnType::F64,
+        },
+    ],
+    signals: super::can::DtiSetRelativeCurrent::META.signals,
+    tdengine: TdengineTable {
+        create: "CREATE STABLE IF NOT EXISTS `can_dti_set_relative_current` (`ts` TIMESTAMP, `dti_relative_current_cmd` DOUBLE) TAGS (`car_id` VARCHAR(32), `bus` VARCHAR(16), `schema_fingerprint` INT UNSIGNED)",
+        insert: "INSERT INTO ? USING `can_dti_set_relative_current` TAGS (?, ?, ?) VALUES (?, ?)",
+    },
+    sqlite: SqliteTable {
+        create: r#"CREATE TABLE IF NOT EXISTS "can_dti_set_relative_current" ("id" INTEGER PRIMARY KEY AUTOINCREMENT, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "dti_relative_current_cmd" REAL)"#,
+        insert: r#"INSERT INTO "can_dti_set_relative_current" ("car_id", "bus", "schema_fingerprint", "ts", "dti_relative_current_cmd") VALUES (?1, ?2, ?3, ?4, ?5)"#,
+    },
+};
+
+/// CAN message `DTI_SetRelativeBrakeCurrent` (0x641), one row per frame; multiplexed signals are NULL when absent.
+pub static CAN_DTI_SET_RELATIVE_BRAKE_CURRENT: Table = Table {
+    name: "can_dti_set_relative_brake_current",
+    index: 22,
+    tags: &[
+        Column {
+            name: "car_id",
+            ty: ColumnType::VarChar(32),
+        },
+        Column {
+            name: "bus",
+            ty: ColumnType::VarChar(16),
+        },
+        Column {
+            name: "schema_fingerprint",
+            ty: ColumnType::U32,
+        },
+    ],
+    columns: &[
+        Column {
+            name: "ts",
+            ty: ColumnType::Timestamp,
+        },
+        Column {
+            name: "dti_relative_brake_current_cmd",
+            ty: ColumnType::F64,
+        },
+    ],
+    signals: super::can::DtiSetRelativeBrakeCurrent::META.signals,
+    tdengine: TdengineTable {
+        create: "CREATE STABLE IF NOT EXISTS `can_dti_set_relative_brake_current` (`ts` TIMESTAMP, `dti_relative_brake_current_cmd` DOUBLE) TAGS (`car_id` VARCHAR(32), `bus` VARCHAR(16), `schema_fingerprint` INT UNSIGNED)",
+        insert: "INSERT INTO ? USING `can_dti_set_relative_brake_current` TAGS (?, ?, ?) VALUES (?, ?)",
+    },
+    sqlite: SqliteTable {
+        create: r#"CREATE TABLE IF NOT EXISTS "can_dti_set_relative_brake_current" ("id" INTEGER PRIMARY KEY AUTOINCREMENT, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "dti_relative_brake_current_cmd" REAL)"#,
+        insert: r#"INSERT INTO "can_dti_set_relative_brake_current" ("car_id", "bus", "schema_fingerprint", "ts", "dti_relative_brake_current_cmd") VALUES (?1, ?2, ?3, ?4, ?5)"#,
+    },
+};
+
+/// CAN message `DTI_SetDigitalOutputs` (0x741), one row per frame; multiplexed signals are NULL when absent.
+pub static CAN_DTI_SET_DIGITAL_OUTPUTS: Table = Table {
+    name: "can_dti_set_digital_outputs",
+    index: 23,
+    tags: &[
+        Column {
+            name: "car_id",
+            ty: ColumnType::VarChar(32),
+        },
+        Column {
+            name: "bus",
+            ty: ColumnType::VarChar(16),
+        },
+        Column {
+            name: "schema_fingerprint",
+            ty: ColumnType::U32,
+        },
+    ],
+    columns: &[
+        Column {
+            name: "ts",
+            ty: ColumnType::Timestamp,
+        },
+        Column {
+            name: "dti_digital_out1_cmd",
+            ty: ColumnType::Bool,
+        },
+        Column {
+            name: "dti_digital_out2_cmd",
+            ty: ColumnType::Bool,
+        },
+        Column {
+            name: "dti_digital_out3_cmd",
+            ty: ColumnType::Bool,
+        },
+        Column {
+            name: "dti_digital_out4_cmd",
+            ty: ColumnType::Bool,
+        },
+    ],
+    signals: super::can::DtiSetDigitalOutputs::META.signals,
+    tdengine: TdengineTable {
+        create: "CREATE STABLE IF NOT EXISTS `can_dti_set_digital_outputs` (`ts` TIMESTAMP, `dti_digital_out1_cmd` BOOL, `dti_digital_out2_cmd` BOOL, `dti_digital_out3_cmd` BOOL, `dti_digital_out4_cmd` BOOL) TAGS (`car_id` VARCHAR(32), `bus` VARCHAR(16), `schema_fingerprint` INT UNSIGNED)",
+        insert: "INSERT INTO ? USING `can_dti_set_digital_outputs` TAGS (?, ?, ?) VALUES (?, ?, ?, ?, ?)",
+    },
+    sqlite: SqliteTable {
+        create: r#"CREATE TABLE IF NOT EXISTS "can_dti_set_digital_outputs" ("id" INTEGER PRIMARY KEY AUTOINCREMENT, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "dti_digital_out1_cmd" INTEGER, "dti_digital_out2_cmd" INTEGER, "dti_digital_out3_cmd" INTEGER, "dti_digital_out4_cmd" INTEGER)"#,
+        insert: r#"INSERT INTO "can_dti_set_digital_outputs" ("car_id", "bus", "schema_fingerprint", "ts", "dti_digital_out1_cmd", "dti_digital_out2_cmd", "dti_digital_out3_cmd", "dti_digital_out4_cmd") VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8)"#,
+    },
+};
+
+/// CAN message `DTI_SetMaxCurrentAc` (0x841), one row per frame; multiplexed signals are NULL when absent.
+pub static CAN_DTI_SET_MAX_CURRENT_AC: Table = Table {
+    name: "can_dti_set_max_current_ac",
+    index: 24,
+    tags: &[
+        Column {
+            name: "car_id",
+            ty: ColumnType::VarChar(32),
+        },
+        Column {
+            name: "bus",
+            ty: ColumnType::VarChar(16),
+        },
+        Column {
+            name: "schema_fingerprint",
+            ty: ColumnType::U32,
+        },
+    ],
+    columns: &[
+        Column {
+            name: "ts",
+            ty: ColumnType::Timestamp,
+        },
+        Column {
+            name: "dti_max_current_ac_cmd",
+            ty: ColumnType::F64,
+        },
+    ],
+    signals: super::can::DtiSetMaxCurrentAc::META.signals,
+    tdengine: TdengineTable {
+        create: "CREATE STABLE IF NOT EXISTS `can_dti_set_max_current_ac` (`ts` TIMESTAMP, `dti_max_current_ac_cmd` DOUBLE) TAGS (`car_id` VARCHAR(32), `bus` VARCHAR(16), `schema_fingerprint` INT UNSIGNED)",
+        insert: "INSERT INTO ? USING `can_dti_set_max_current_ac` TAGS (?, ?, ?) VALUES (?, ?)",
+    },
+    sqlite: SqliteTable {
+        create: r#"CREATE TABLE IF NOT EXISTS "can_dti_set_max_current_ac" ("id" INTEGER PRIMARY KEY AUTOINCREMENT, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "dti_max_current_ac_cmd" REAL)"#,
+        insert: r#"INSERT INTO "can_dti_set_max_current_ac" ("car_id", "bus", "schema_fingerprint", "ts", "dti_max_current_ac_cmd") VALUES (?1, ?2, ?3, ?4, ?5)"#,
+    },
+};
+
+/// CAN message `DTI_SetMaxBrakeCurrentAc` (0x941), one row per frame; multiplexed signals are NULL when absent.
+pub static CAN_DTI_SET_MAX_BRAKE_CURRENT_AC: Table = Table {
+    name: "can_dti_set_max_brake_current_ac",
+    index: 25,
+    tags: &[
+        Column {
+            name: "car_id",
+            ty: ColumnType::VarChar(32),
+        },
+        Column {
+            name: "bus",
+            ty: ColumnType::VarChar(16),
+        },
+        Column {
+            name: "schema_fingerprint",
+            ty: ColumnType::U32,
+        },
+    ],
+    columns: &[
+        Column {
+            name: "ts",
+            ty: ColumnType::Timestamp,
+        },
+        Column {
+            name: "dti_max_brake_current_ac_cmd",
+            ty: ColumnType::F64,
+        },
+    ],
+    signals: super::can::DtiSetMaxBrakeCurrentAc::META.signals,
+    tdengine: TdengineTable {
+        create: "CREATE STABLE IF NOT EXISTS `can_dti_set_max_brake_current_ac` (`ts` TIMESTAMP, `dti_max_brake_current_ac_cmd` DOUBLE) TAGS (`car_id` VARCHAR(32), `bus` VARCHAR(16), `schema_fingerprint` INT UNSIGNED)",
+        insert: "INSERT INTO ? USING `can_dti_set_max_brake_current_ac` TAGS (?, ?, ?) VALUES (?, ?)",
+    },
+    sqlite: SqliteTable {
+        create: r#"CREATE TABLE IF NOT EXISTS "can_dti_set_max_brake_current_ac" ("id" INTEGER PRIMARY KEY AUTOINCREMENT, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "dti_max_brake_current_ac_cmd" REAL)"#,
+        insert: r#"INSERT INTO "can_dti_set_max_brake_current_ac" ("car_id", "bus", "schema_fingerprint", "ts", "dti_max_brake_current_ac_cmd") VALUES (?1, ?2, ?3, ?4, ?5)"#,
+    },
+};
+
+/// CAN message `DTI_SetMaxCurrentDc` (0xA41), one row per frame; multiplexed signals are NULL when absent.
+pub static CAN_DTI_SET_MAX_CURRENT_DC: Table = Table {
+    name: "can_dti_set_max_current_dc",
+    index: 26,
+    tags: &[
+        Column {
+            name: "car_id",
+            ty: ColumnType::VarChar(32),
+        },
+        Column {
+            name: "bus",
+            ty: ColumnType::VarChar(16),
+        },
+        Column {
+            name: "schema_fingerprint",
+            ty: ColumnType::U32,
+        },
+    ],
+    columns: &[
+        Column {
+            name: "ts",
+            ty: ColumnType::Timestamp,
+        },
+        Column {
+            name: "dti_max_current_dc_cmd",
+            ty: ColumnType::F64,
+        },
+    ],
+    signals: super::can::DtiSetMaxCurrentDc::META.signals,
+    tdengine: TdengineTable {
+        create: "CREATE STABLE IF NOT EXISTS `can_dti_set_max_current_dc` (`ts` TIMESTAMP, `dti_max_current_dc_cmd` DOUBLE) TAGS (`car_id` VARCHAR(32), `bus` VARCHAR(16), `schema_fingerprint` INT UNSIGNED)",
+        insert: "INSERT INTO ? USING `can_dti_set_max_current_dc` TAGS (?, ?, ?) VALUES (?, ?)",
+    },
+    sqlite: SqliteTable {
+        create: r#"CREATE TABLE IF NOT EXISTS "can_dti_set_max_current_dc" ("id" INTEGER PRIMARY KEY AUTOINCREMENT, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "dti_max_current_dc_cmd" REAL)"#,
+        insert: r#"INSERT INTO "can_dti_set_max_current_dc" ("car_id", "bus", "schema_fingerprint", "ts", "dti_max_current_dc_cmd") VALUES (?1, ?2, ?3, ?4, ?5)"#,
+    },
+};
+
+/// CAN message `DTI_SetMaxBrakeCurrentDc` (0xB41), one row per frame; multiplexed signals are NULL when absent.
+pub static CAN_DTI_SET_MAX_BRAKE_CURRENT_DC: Table = Table {
+    name: "can_dti_set_max_brake_current_dc",
+    index: 27,
+    tags: &[
+        Column {
+            name: "car_id",
+            ty: ColumnType::VarChar(32),
+        },
+        Column {
+            name: "bus",
+            ty: ColumnType::VarChar(16),
+        },
+        Column {
+            name: "schema_fingerprint",
+            ty: ColumnType::U32,
+        },
+    ],
+    columns: &[
+        Column {
+            name: "ts",
+            ty: ColumnType::Timestamp,
+        },
+        Column {
+            name: "dti_max_brake_current_dc_cmd",
+            ty: ColumnType::F64,
+        },
+    ],
+    signals: super::can::DtiSetMaxBrakeCurrentDc::META.signals,
+    tdengine: TdengineTable {
+        create: "CREATE STABLE IF NOT EXISTS `can_dti_set_max_brake_current_dc` (`ts` TIMESTAMP, `dti_max_brake_current_dc_cmd` DOUBLE) TAGS (`car_id` VARCHAR(32), `bus` VARCHAR(16), `schema_fingerprint` INT UNSIGNED)",
+        insert: "INSERT INTO ? USING `can_dti_set_max_brake_current_dc` TAGS (?, ?, ?) VALUES (?, ?)",
+    },
+    sqlite: SqliteTable {
+        create: r#"CREATE TABLE IF NOT EXISTS "can_dti_set_max_brake_current_dc" ("id" INTEGER PRIMARY KEY AUTOINCREMENT, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "dti_max_brake_current_dc_cmd" REAL)"#,
+        insert: r#"INSERT INTO "can_dti_set_max_brake_current_dc" ("car_id", "bus", "schema_fingerprint", "ts", "dti_max_brake_current_dc_cmd") VALUES (?1, ?2, ?3, ?4, ?5)"#,
+    },
+};
+
+/// CAN message `DTI_SetDriveEnable` (0xC41), one row per frame; multiplexed signals are NULL when absent.
+pub static CAN_DTI_SET_DRIVE_ENABLE: Table = Table {
+    name: "can_dti_set_drive_enable",
+    index: 28,
+    tags: &[
+        Column {
+            name: "car_id",
+            ty: ColumnType::VarChar(32),
+        },
+        Column {
+            name: "bus",
+            ty: ColumnType::VarChar(16),
+        },
+        Column {
+            name: "schema_fingerprint",
+            ty: ColumnType::U32,
+        },
+    ],
+    columns: &[
+        Column {
+            name: "ts",
+            ty: ColumnType::Timestamp,
+        },
+        Column {
+            name: "dti_drive_enable_cmd",
+            ty: ColumnType::U8,
+        },
+    ],
+    signals: super::can::DtiSetDriveEnable::META.signals,
+    tdengine: TdengineTable {
+        create: "CREATE STABLE IF NOT EXISTS `can_dti_set_drive_enable` (`ts` TIMESTAMP, `dti_drive_enable_cmd` TINYINT UNSIGNED) TAGS (`car_id` VARCHAR(32), `bus` VARCHAR(16), `schema_fingerprint` INT UNSIGNED)",
+        insert: "INSERT INTO ? USING `can_dti_set_drive_enable` TAGS (?, ?, ?) VALUES (?, ?)",
+    },
+    sqlite: SqliteTable {
+        create: r#"CREATE TABLE IF NOT EXISTS "can_dti_set_drive_enable" ("id" INTEGER PRIMARY KEY AUTOINCREMENT, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "dti_drive_enable_cmd" INTEGER)"#,
+        insert: r#"INSERT INTO "can_dti_set_drive_enable" ("car_id", "bus", "schema_fingerprint", "ts", "dti_drive_enable_cmd") VALUES (?1, ?2, ?3, ?4, ?5)"#,
+    },
+};
+
+/// CAN message `DTI_Control` (0x1F41), one row per frame; multiplexed signals are NULL when absent.
+pub static CAN_DTI_CONTROL: Table = Table {
+    name: "can_dti_control",
+    index: 29,
+    tags: &[
+        Column {
+            name: "car_id",
+            ty: ColumnType::VarChar(32),
+        },
+        Column {
+            name: "bus",
+            ty: ColumnType::VarChar(16),
+        },
+        Column {
+            name: "schema_fingerprint",
+            ty: ColumnType::U32,
+        },
+    ],
+    columns: &[
+        Column {
+            name: "ts",
+            ty: ColumnType::Timestamp,
+        },
+        Column {
+            name: "dti_control_mode",
+            ty: ColumnType::U8,
+        },
+        Column {
+            name: "dti_target_iq",
+            ty: ColumnType::F64,
+        },
+        Column {
+            name: "dti_motor_position",
+            ty: ColumnType::F64,
+        },
+        Column {
+            name: "dti_motor_still",
+            ty: ColumnType::U8,
+        },
+    ],
+    signals: super::can::DtiControl::META.signals,
+    tdengine: TdengineTable {
+        create: "CREATE STABLE IF NOT EXISTS `can_dti_control` (`ts` TIMESTAMP, `dti_control_mode` TINYINT UNSIGNED, `dti_target_iq` DOUBLE, `dti_motor_position` DOUBLE, `dti_motor_still` TINYINT UNSIGNED) TAGS (`car_id` VARCHAR(32), `bus` VARCHAR(16), `schema_fingerprint` INT UNSIGNED)",
+        insert: "INSERT INTO ? USING `can_dti_control` TAGS (?, ?, ?) VALUES (?, ?, ?, ?, ?)",
+    },
+    sqlite: SqliteTable {
+        create: r#"CREATE TABLE IF NOT EXISTS "can_dti_control" ("id" INTEGER PRIMARY KEY AUTOINCREMENT, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "dti_control_mode" INTEGER, "dti_target_iq" REAL, "dti_motor_position" REAL, "dti_motor_still" INTEGER)"#,
+        insert: r#"INSERT INTO "can_dti_control" ("car_id", "bus", "schema_fingerprint", "ts", "dti_control_mode", "dti_target_iq", "dti_motor_position", "dti_motor_still") VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8)"#,
+    },
+};
+
+/// CAN message `DTI_Speed` (0x2041), one row per frame; multiplexed signals are NULL when absent.
+pub static CAN_DTI_SPEED: Table = Table {
+    name: "can_dti_speed",
+    index: 30,
+    tags: &[
+        Column {
+            name: "car_id",
+            ty: ColumnType::VarChar(32),
+        },
+        Column {
+            name: "bus",
+            ty: ColumnType::VarChar(16),
+        },
+        Column {
+            name: "schema_fingerprint",
+            ty: ColumnType::U32,
+        },
+    ],
+    columns: &[
+        Column {
+            name: "ts",
+            ty: ColumnType::Timestamp,
+        },
+        Column {
+            name: "dti_erpm",
+            ty: ColumnType::I32,
+        },
+        Column {
+            name: "dti_duty_cycle",
+            ty: ColumnType::F64,
+        },
+        Column {
+            name: "dti_input_voltage",
+            ty: ColumnType::I16,
+        },
+    ],
+    signals: super::can::DtiSpeed::META.signals,
+    tdengine: TdengineTable {
+        create: "CREATE STABLE IF NOT EXISTS `can_dti_speed` (`ts` TIMESTAMP, `dti_erpm` INT, `dti_duty_cycle` DOUBLE, `dti_input_voltage` SMALLINT) TAGS (`car_id` VARCHAR(32), `bus` VARCHAR(16), `schema_fingerprint` INT UNSIGNED)",
+        insert: "INSERT INTO ? USING `can_dti_speed` TAGS (?, ?, ?) VALUES (?, ?, ?, ?)",
+    },
+    sqlite: SqliteTable {
+        create: r#"CREATE TABLE IF NOT EXISTS "can_dti_speed" ("id" INTEGER PRIMARY KEY AUTOINCREMENT, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "dti_erpm" INTEGER, "dti_duty_cycle" REAL, "dti_input_voltage" INTEGER)"#,
+        insert: r#"INSERT INTO "can_dti_speed" ("car_id", "bus", "schema_fingerprint", "ts", "dti_erpm", "dti_duty_cycle", "dti_input_voltage") VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7)"#,
+    },
+};
+
+/// CAN message `DTI_Currents` (0x2141), one row per frame; multiplexed signals are NULL when absent.
+pub static CAN_DTI_CURRENTS: Table = Table {
+    name: "can_dti_currents",
+    index: 31,
+    tags: &[
+        Column {
+            name: "car_id",
+            ty: ColumnType::VarChar(32),
+        },
+        Column {
+            name: "bus",
+            ty: ColumnType::VarChar(16),
+        },
+        Column {
+            name: "schema_fingerprint",
+            ty: ColumnType::U32,
+        },
+    ],
+    columns: &[
+        Column {
+            name: "ts",
+            ty: ColumnType::Timestamp,
+        },
+        Column {
+            name: "dti_ac_current",
+            ty: ColumnType::F64,
+        },
+        Column {
+            name: "dti_dc_current",
+            ty: ColumnType::F64,
+        },
+    ],
+    signals: super::can::DtiCurrents::META.signals,
+    tdengine: TdengineTable {
+        create: "CREATE STABLE IF NOT EXISTS `can_dti_currents` (`ts` TIMESTAMP, `dti_ac_current` DOUBLE, `dti_dc_current` DOUBLE) TAGS (`car_id` VARCHAR(32), `bus` VARCHAR(16), `schema_fingerprint` INT UNSIGNED)",
+        insert: "INSERT INTO ? USING `can_dti_currents` TAGS (?, ?, ?) VALUES (?, ?, ?)",
+    },
+    sqlite: SqliteTable {
+        create: r#"CREATE TABLE IF NOT EXISTS "can_dti_currents" ("id" INTEGER PRIMARY KEY AUTOINCREMENT, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "dti_ac_current" REAL, "dti_dc_current" REAL)"#,
+        insert: r#"INSERT INTO "can_dti_currents" ("car_id", "bus", "schema_fingerprint", "ts", "dti_ac_current", "dti_dc_current") VALUES (?1, ?2, ?3, ?4, ?5, ?6)"#,
+    },
+};
+
+/// CAN message `DTI_Temperatures` (0x2241), one row per frame; multiplexed signals are NULL when absent.
+pub static CAN_DTI_TEMPERATURES: Table = Table {
+    name: "can_dti_temperatures",
+    index: 32,
+    tags: &[
+        Column {
+            name: "car_id",
+            ty: ColumnType::VarChar(32),
+        },
+        Column {
+            name: "bus",
+            ty: ColumnType::VarChar(16),
+        },
+        Column {
+            name: "schema_fingerprint",
+            ty: ColumnType::U32,
+        },
+    ],
+    columns: &[
+        Column {
+            name: "ts",
+            ty: ColumnType::Timestamp,
+        },
+        Column {
+            name: "dti_controller_temp",
+            ty: ColumnType::F64,
+        },
+        Column {
+            name: "dti_motor_temp",
+            ty: ColumnType::F64,
+        },
+        Column {
+            name: "dti_fault_code",
+            ty: ColumnType::U8,
+        },
+    ],
+    signals: super::can::DtiTemperatures::META.signals,
+    tdengine: TdengineTable {
+        create: "CREATE STABLE IF NOT EXISTS `can_dti_temperatures` (`ts` TIMESTAMP, `dti_controller_temp` DOUBLE, `dti_motor_temp` DOUBLE, `dti_fault_code` TINYINT UNSIGNED) TAGS (`car_id` VARCHAR(32), `bus` VARCHAR(16), `schema_fingerprint` INT UNSIGNED)",
+        insert: "INSERT INTO ? USING `can_dti_temperatures` TAGS (?, ?, ?) VALUES (?, ?, ?, ?)",
+    },
+    sqlite: SqliteTable {
+        create: r#"CREATE TABLE IF NOT EXISTS "can_dti_temperatures" ("id" INTEGER PRIMARY KEY AUTOINCREMENT, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "dti_controller_temp" REAL, "dti_motor_temp" REAL, "dti_fault_code" INTEGER)"#,
+        insert: r#"INSERT INTO "can_dti_temperatures" ("car_id", "bus", "schema_fingerprint", "ts", "dti_controller_temp", "dti_motor_temp", "dti_fault_code") VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7)"#,
+    },
+};
+
+/// CAN message `DTI_FocCurrents` (0x2341), one row per frame; multiplexed signals are NULL when absent.
+pub static CAN_DTI_FOC_CURRENTS: Table = Table {
+    name: "can_dti_foc_currents",
+    index: 33,
+    tags: &[
+        Column {
+            name: "car_id",
+            ty: ColumnType::VarChar(32),
+        },
+        Column {
+            name: "bus",
+            ty: ColumnType::VarChar(16),
+        },
+        Column {
+            name: "schema_fingerprint",
+            ty: ColumnType::U32,
+        },
+    ],
+    columns: &[
+        Column {
+            name: "ts",
+            ty: ColumnType::Timestamp,
+        },
+        Column {
+            name: "dti_foc_id",
+            ty: ColumnType::F64,
+        },
+        Column {
+            name: "dti_foc_iq",
+            ty: ColumnType::F64,
+        },
+    ],
+    signals: super::can::DtiFocCurrents::META.signals,
+    tdengine: TdengineTable {
+        create: "CREATE STABLE IF NOT EXISTS `can_dti_foc_currents` (`ts` TIMESTAMP, `dti_foc_id` DOUBLE, `dti_foc_iq` DOUBLE) TAGS (`car_id` VARCHAR(32), `bus` VARCHAR(16), `schema_fingerprint` INT UNSIGNED)",
+        insert: "INSERT INTO ? USING `can_dti_foc_currents` TAGS (?, ?, ?) VALUES (?, ?, ?)",
+    },
+    sqlite: SqliteTable {
+        create: r#"CREATE TABLE IF NOT EXISTS "can_dti_foc_currents" ("id" INTEGER PRIMARY KEY AUTOINCREMENT, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "dti_foc_id" REAL, "dti_foc_iq" REAL)"#,
+        insert: r#"INSERT INTO "can_dti_foc_currents" ("car_id", "bus", "schema_fingerprint", "ts", "dti_foc_id", "dti_foc_iq") VALUES (?1, ?2, ?3, ?4, ?5, ?6)"#,
+    },
+};
+
+/// CAN message `DTI_Flags` (0x2441), one row per frame; multiplexed signals are NULL when absent.
+pub static CAN_DTI_FLAGS: Table = Table {
+    name: "can_dti_flags",
+    index: 34,
+    tags: &[
+        Column {
+            name: "car_id",
+            ty: ColumnType::VarChar(32),
+        },
+        Column {
+            name: "bus",
+            ty: ColumnType::VarChar(16),
+        },
+        Column {
+            name: "schema_fingerprint",
+            ty: ColumnType::U32,
+        },
+    ],
+    columns: &[
+        Column {
+            name: "ts",
+            ty: ColumnType::Timestamp,
+        },
+        Column {
+            name: "dti_throttle_input",
+            ty: ColumnType::I8,
+        },
+        Column {
+            name: "dti_brake_input",
+            ty: ColumnType::I8,
+        },
+        Column {
+            name: "dti_digital_in1",
+            ty: ColumnType::Bool,
+        },
+        Column {
+            name: "dti_digital_in2",
+            ty: ColumnType::Bool,
+        },
+        Column {
+            name: "dti_digital_in3",
+            ty: ColumnType::Bool,
+        },
+        Column {
+            name: "dti_digital_in4",
+            ty: ColumnType::Bool,
+        },
+        Column {
+            name: "dti_digital_out1",
+            ty: ColumnType::Bool,
+        },
+        Column {
+            name: "dti_digital_out2",
+            ty: ColumnType::Bool,
+        },
+        Column {
+            name: "dti_digital_out3",
+            ty: ColumnType::Bool,
+        },
+        Column {
+            name: "dti_digital_out4",
+            ty: ColumnType::Bool,
+        },
+        Column {
+            name: "dti_drive_enabled",
+            ty: ColumnType::U8,
+        },
+        Column {
+            name: "dti_limit_capacitor_temp",
+            ty: ColumnType::Bool,
+        },
+        Column {
+            name: "dti_limit_dc_current",
+            ty: ColumnType::Bool,
+        },
+        Column {
+            name: "dti_limit_drive_enable",
+            ty: ColumnType::Bool,
+        },
+        Column {
+            name: "dti_limit_igbt_accel_temp",
+            ty: ColumnType::Bool,
+        },
+        Column {
+            name: "dti_limit_igbt_temp",
+            ty: ColumnType::Bool,
+        },
+        Column {
+            name: "dti_limit_input_voltage",
+            ty: ColumnType::Bool,
+        },
+        Column {
+            name: "dti_limit_motor_accel_temp",
+            ty: ColumnType::Bool,
+        },
+        Column {
+            name: "dti_limit_motor_temp",
+            ty: ColumnType::Bool,
+        },
+        Column {
+            name: "dti_limit_rpm_min",
+            ty: ColumnType::Bool,
+        },
+        Column {
+            name: "dti_limit_rpm_max",
+            ty: ColumnType::Bool,
+        },
+        Column {
+            name: "dti_limit_power",
+            ty: ColumnType::Bool,
+        },
+        Column {
+            name: "dti_can_map_version",
+            ty: ColumnType::U8,
+        },
+    ],
+    signals: super::can::DtiFlags::META.signals,
+    tdengine: TdengineTable {
+        create: "CREATE STABLE IF NOT EXISTS `can_dti_flags` (`ts` TIMESTAMP, `dti_throttle_input` TINYINT, `dti_brake_input` TINYINT, `dti_digital_in1` BOOL, `dti_digital_in2` BOOL, `dti_digital_in3` BOOL, `dti_digital_in4` BOOL, `dti_digital_out1` BOOL, `dti_digital_out2` BOOL, `dti_digital_out3` BOOL, `dti_digital_out4` BOOL, `dti_drive_enabled` TINYINT UNSIGNED, `dti_limit_capacitor_temp` BOOL, `dti_limit_dc_current` BOOL, `dti_limit_drive_enable` BOOL, `dti_limit_igbt_accel_temp` BOOL, `dti_limit_igbt_temp` BOOL, `dti_limit_input_voltage` BOOL, `dti_limit_motor_accel_temp` BOOL, `dti_limit_motor_temp` BOOL, `dti_limit_rpm_min` BOOL, `dti_limit_rpm_max` BOOL, `dti_limit_power` BOOL, `dti_can_map_version` TINYINT UNSIGNED) TAGS (`car_id` VARCHAR(32), `bus` VARCHAR(16), `schema_fingerprint` INT UNSIGNED)",
+        insert: "INSERT INTO ? USING `can_dti_flags` TAGS (?, ?, ?) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+    },
+    sqlite: SqliteTable {
+        create: r#"CREATE TABLE IF NOT EXISTS "can_dti_flags" ("id" INTEGER PRIMARY KEY AUTOINCREMENT, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "dti_throttle_input" INTEGER, "dti_brake_input" INTEGER, "dti_digital_in1" INTEGER, "dti_digital_in2" INTEGER, "dti_digital_in3" INTEGER, "dti_digital_in4" INTEGER, "dti_digital_out1" INTEGER, "dti_digital_out2" INTEGER, "dti_digital_out3" INTEGER, "dti_digital_out4" INTEGER, "dti_drive_enabled" INTEGER, "dti_limit_capacitor_temp" INTEGER, "dti_limit_dc_current" INTEGER, "dti_limit_drive_enable" INTEGER, "dti_limit_igbt_accel_temp" INTEGER, "dti_limit_igbt_temp" INTEGER, "dti_limit_input_voltage" INTEGER, "dti_limit_motor_accel_temp" INTEGER, "dti_limit_motor_temp" INTEGER, "dti_limit_rpm_min" INTEGER, "dti_limit_rpm_max" INTEGER, "dti_limit_power" INTEGER, "dti_can_map_version" INTEGER)"#,
+        insert: r#"INSERT INTO "can_dti_flags" ("car_id", "bus", "schema_fingerprint", "ts", "dti_throttle_input", "dti_brake_input", "dti_digital_in1", "dti_digital_in2", "dti_digital_in3", "dti_digital_in4", "dti_digital_out1", "dti_digital_out2", "dti_digital_out3", "dti_digital_out4", "dti_drive_enabled", "dti_limit_capacitor_temp", "dti_limit_dc_current", "dti_limit_drive_enable", "dti_limit_igbt_accel_temp", "dti_limit_igbt_temp", "dti_limit_input_voltage", "dti_limit_motor_accel_temp", "dti_limit_motor_temp", "dti_limit_rpm_min", "dti_limit_rpm_max", "dti_limit_power", "dti_can_map_version") VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17, ?18, ?19, ?20, ?21, ?22, ?23, ?24, ?25, ?26, ?27)"#,
+    },
+};
+
+/// CAN message `DTI_AcLimits` (0x2541), one row per frame; multiplexed signals are NULL when absent.
+pub static CAN_DTI_AC_LIMITS: Table = Table {
+    name: "can_dti_ac_limits",
+    index: 35,
+    tags: &[
+        Column {
+            name: "car_id",
+            ty: ColumnType::VarChar(32),
+        },
+        Column {
+            name: "bus",
+            ty: ColumnType::VarChar(16),
+        },
+        Column {
+            name: "schema_fingerprint",
+            ty: ColumnType::U32,
+        },
+    ],
+    columns: &[
+        Column {
+            name: "ts",
+            ty: ColumnType::Timestamp,
+        },
+        Column {
+            name: "dti_max_ac_current",
+            ty: ColumnType::F64,
+        },
+        Column {
+            name: "dti_available_max_ac_current",
+            ty: ColumnType::F64,
+        },
+        Column {
+            name: "dti_min_ac_current",
+            ty: ColumnType::F64,
+        },
+        Column {
+            name: "dti_available_min_ac_current",
+            ty: ColumnType::F64,
+        },
+    ],
+    signals: super::can::DtiAcLimits::META.signals,
+    tdengine: TdengineTable {
+        create: "CREATE STABLE IF NOT EXISTS `can_dti_ac_limits` (`ts` TIMESTAMP, `dti_max_ac_current` DOUBLE, `dti_available_max_ac_current` DOUBLE, `dti_min_ac_current` DOUBLE, `dti_available_min_ac_current` DOUBLE) TAGS (`car_id` VARCHAR(32), `bus` VARCHAR(16), `schema_fingerprint` INT UNSIGNED)",
+        insert: "INSERT INTO ? USING `can_dti_ac_limits` TAGS (?, ?, ?) VALUES (?, ?, ?, ?, ?)",
+    },
+    sqlite: SqliteTable {
+        create: r#"CREATE TABLE IF NOT EXISTS "can_dti_ac_limits" ("id" INTEGER PRIMARY KEY AUTOINCREMENT, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "dti_max_ac_current" REAL, "dti_available_max_ac_current" REAL, "dti_min_ac_current" REAL, "dti_available_min_ac_current" REAL)"#,
+        insert: r#"INSERT INTO "can_dti_ac_limits" ("car_id", "bus", "schema_fingerprint", "ts", "dti_max_ac_current", "dti_available_max_ac_current", "dti_min_ac_current", "dti_available_min_ac_current") VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8)"#,
+    },
+};
+
+/// CAN message `DTI_DcLimits` (0x2641), one row per frame; multiplexed signals are NULL when absent.
+pub static CAN_DTI_DC_LIMITS: Table = Table {
+    name: "can_dti_dc_limits",
+    index: 36,
+    tags: &[
+        Column {
+            name: "car_id",
+            ty: ColumnType::VarChar(32),
+        },
+        Column {
+            name: "bus",
+            ty: ColumnType::VarChar(16),
+        },
+        Column {
+            name: "schema_fingerprint",
+            ty: ColumnType::U32,
+        },
+    ],
+    columns: &[
+        Column {
+            name: "ts",
+            ty: ColumnType::Timestamp,
+        },
+        Column {
+            name: "dti_max_dc_current",
+            ty: ColumnType::F64,
+        },
+        Column {
+            name: "dti_available_max_dc_current",
+            ty: ColumnType::F64,
+        },
+        Column {
+            name: "dti_min_dc_current",
+            ty: ColumnType::F64,
+        },
+        Column {
+            name: "dti_available_min_dc_current",
+            ty: ColumnType::F64,
+        },
+    ],
+    signals: super::can::DtiDcLimits::META.signals,
+    tdengine: TdengineTable {
+        create: "CREATE STABLE IF NOT EXISTS `can_dti_dc_limits` (`ts` TIMESTAMP, `dti_max_dc_current` DOUBLE, `dti_available_max_dc_current` DOUBLE, `dti_min_dc_current` DOUBLE, `dti_available_min_dc_current` DOUBLE) TAGS (`car_id` VARCHAR(32), `bus` VARCHAR(16), `schema_fingerprint` INT UNSIGNED)",
+        insert: "INSERT INTO ? USING `can_dti_dc_limits` TAGS (?, ?, ?) VALUES (?, ?, ?, ?, ?)",
+    },
+    sqlite: SqliteTable {
+        create: r#"CREATE TABLE IF NOT EXISTS "can_dti_dc_limits" ("id" INTEGER PRIMARY KEY AUTOINCREMENT, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "dti_max_dc_current" REAL, "dti_available_max_dc_current" REAL, "dti_min_dc_current" REAL, "dti_available_min_dc_current" REAL)"#,
+        insert: r#"INSERT INTO "can_dti_dc_limits" ("car_id", "bus", "schema_fingerprint", "ts", "dti_max_dc_current", "dti_available_max_dc_current", "dti_min_dc_current", "dti_available_min_dc_current") VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8)"#,
+    },
+};
+
 /// Every table: telemetry first, then one per CAN message in schema order.
-pub static TABLES: [&Table; 17] = [
+pub static TABLES: [&Table; 37] = [
     &TELEMETRY,
     &CAN_CCM_STATUS,
     &CAN_VCU1,
@@ -1524,6 +2464,26 @@ pub static TABLES: [&Table; 17] = [
     &CAN_IMD_INFO_VOLTAGE,
     &CAN_IMD_INFO_IT_SYSTEM,
     &CAN_IMD_REQUEST,
+    &CAN_DTI_SET_CURRENT,
+    &CAN_DTI_SET_BRAKE_CURRENT,
+    &CAN_DTI_SET_ERPM,
+    &CAN_DTI_SET_POSITION,
+    &CAN_DTI_SET_RELATIVE_CURRENT,
+    &CAN_DTI_SET_RELATIVE_BRAKE_CURRENT,
+    &CAN_DTI_SET_DIGITAL_OUTPUTS,
+    &CAN_DTI_SET_MAX_CURRENT_AC,
+    &CAN_DTI_SET_MAX_BRAKE_CURRENT_AC,
+    &CAN_DTI_SET_MAX_CURRENT_DC,
+    &CAN_DTI_SET_MAX_BRAKE_CURRENT_DC,
+    &CAN_DTI_SET_DRIVE_ENABLE,
+    &CAN_DTI_CONTROL,
+    &CAN_DTI_SPEED,
+    &CAN_DTI_CURRENTS,
+    &CAN_DTI_TEMPERATURES,
+    &CAN_DTI_FOC_CURRENTS,
+    &CAN_DTI_FLAGS,
+    &CAN_DTI_AC_LIMITS,
+    &CAN_DTI_DC_LIMITS,
 ];
 
 /// The table a message's frames are stored in.
@@ -1545,6 +2505,26 @@ pub fn for_message(message: &AnyMessage) -> &'static Table {
         AnyMessage::ImdInfoVoltage(_) => &CAN_IMD_INFO_VOLTAGE,
         AnyMessage::ImdInfoItSystem(_) => &CAN_IMD_INFO_IT_SYSTEM,
         AnyMessage::ImdRequest(_) => &CAN_IMD_REQUEST,
+        AnyMessage::DtiSetCurrent(_) => &CAN_DTI_SET_CURRENT,
+        AnyMessage::DtiSetBrakeCurrent(_) => &CAN_DTI_SET_BRAKE_CURRENT,
+        AnyMessage::DtiSetErpm(_) => &CAN_DTI_SET_ERPM,
+        AnyMessage::DtiSetPosition(_) => &CAN_DTI_SET_POSITION,
+        AnyMessage::DtiSetRelativeCurrent(_) => &CAN_DTI_SET_RELATIVE_CURRENT,
+        AnyMessage::DtiSetRelativeBrakeCurrent(_) => &CAN_DTI_SET_RELATIVE_BRAKE_CURRENT,
+        AnyMessage::DtiSetDigitalOutputs(_) => &CAN_DTI_SET_DIGITAL_OUTPUTS,
+        AnyMessage::DtiSetMaxCurrentAc(_) => &CAN_DTI_SET_MAX_CURRENT_AC,
+        AnyMessage::DtiSetMaxBrakeCurrentAc(_) => &CAN_DTI_SET_MAX_BRAKE_CURRENT_AC,
+        AnyMessage::DtiSetMaxCurrentDc(_) => &CAN_DTI_SET_MAX_CURRENT_DC,
+        AnyMessage::DtiSetMaxBrakeCurrentDc(_) => &CAN_DTI_SET_MAX_BRAKE_CURRENT_DC,
+        AnyMessage::DtiSetDriveEnable(_) => &CAN_DTI_SET_DRIVE_ENABLE,
+        AnyMessage::DtiControl(_) => &CAN_DTI_CONTROL,
+        AnyMessage::DtiSpeed(_) => &CAN_DTI_SPEED,
+        AnyMessage::DtiCurrents(_) => &CAN_DTI_CURRENTS,
+        AnyMessage::DtiTemperatures(_) => &CAN_DTI_TEMPERATURES,
+        AnyMessage::DtiFocCurrents(_) => &CAN_DTI_FOC_CURRENTS,
+        AnyMessage::DtiFlags(_) => &CAN_DTI_FLAGS,
+        AnyMessage::DtiAcLimits(_) => &CAN_DTI_AC_LIMITS,
+        AnyMessage::DtiDcLimits(_) => &CAN_DTI_DC_LIMITS,
     }
 }
 

@@ -49,6 +49,8 @@ pub enum Code {
     MuxValueOutOfRange,
     /// E0118: an f32 physical value for a raw value f32 cannot hold.
     F32TooNarrow,
+    /// E0119: an extended id without the node id its node declares (`NodeIdInCanId`).
+    NodeIdNotInId,
     /// E0201: the telemetry schema cannot be read.
     TelemetryUnreadable,
     /// E0202: the telemetry schema does not parse.
@@ -94,7 +96,7 @@ pub enum Code {
 }
 
 /// Every code, for [`Code::parse`].
-const ALL: [Code; 38] = [
+const ALL: [Code; 39] = [
     Code::DbcUnreadable,
     Code::DbcEncoding,
     Code::DbcSyntax,
@@ -112,6 +114,7 @@ const ALL: [Code; 38] = [
     Code::RangeInverted,
     Code::MuxValueOutOfRange,
     Code::F32TooNarrow,
+    Code::NodeIdNotInId,
     Code::TelemetryUnreadable,
     Code::TelemetrySyntax,
     Code::UnknownSignal,
@@ -156,6 +159,7 @@ impl Code {
             Code::RangeInverted => "E0115",
             Code::MuxValueOutOfRange => "E0116",
             Code::F32TooNarrow => "E0118",
+            Code::NodeIdNotInId => "E0119",
             Code::TelemetryUnreadable => "E0201",
             Code::TelemetrySyntax => "E0202",
             Code::UnknownSignal => "E0203",

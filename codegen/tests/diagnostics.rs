@@ -330,3 +330,60 @@ fn a_file_without_messages_is_a_warning_and_the_cars_schema_refuses_it() {
         Ok(_) => panic!("an empty schema must not load as the car's"),
     }
 }
+
+/// A DBC with a node that declares its id in its messages' CAN ids (`NodeIdInCanId` 0x41) and
+/// `messages` between it and a node without one.
+fn with_node_id(messages: &str) -> Vec<Diagnostic> {
+    let text = format!(
+        "VERSION \"\"\n\nNS_ :\n\tCM_\n\nBS_:\n\nBU_: CCM DTI\n\n{messages}\n\
+         BA_DEF_ BU_  \"NodeIdInCanId\" INT 0 255;\nBA_DEF_DEF_  \"NodeIdInCanId\" 0;\n\
+         BA_ \"NodeIdInCanId\" BU_ DTI 65;\n"
+    );
+    let path = Path::new("car.dbc");
+    let loaded = aer_codegen::load::dbc::parse(path, text).expect("parses");
+    match aer_codegen::validate::dbc::validate(path, &loaded, &[]) {
+        Ok((_, warnings)) => warnings,
+        Err(d) => d.0,
+    }
+}
+
+#[test]
+fn an_extended_id_without_its_nodes_declared_id_is_refused() {
+    // 0x80000000 + 0x2442: packet 0x24 of node 0x42 sent by DTI, and a command to DTI with
+    // node 0x65 in it, where DTI declares 0x41.
+    let diags = with_node_id(
+        "BO_ 2147492930 Flags: 8 DTI\n SG_ A : 0|8@1+ (1,0) [0|0] \"\" CCM\n\n\
+         BO_ 2147486821 Enable: 1 CCM\n SG_ B : 0|8@1+ (1,0) [0|0] \"\" DTI\n",
+    );
+    let refused: Vec<_> = diags.iter().filter(|d| d.code == "E0119").collect();
+    assert_eq!(refused.len(), 2, "{diags:#?}");
+    assert_eq!(refused[0].severity, Severity::Error);
+    assert!(
+        refused[0]
+            .message
+            .contains("`Flags` (id 0x2442) carries node id 0x42")
+    );
+    assert!(
+        refused[0]
+            .message
+            .contains("node `DTI` declares NodeIdInCanId 0x41")
+    );
+    assert!(
+        refused[1]
+            .message
+            .contains("`Enable` (id 0xC65) carries node id 0x65")
+    );
+}
+
+#[test]
+fn ids_that_carry_the_declared_node_id_pass_and_other_messages_are_not_checked() {
+    // Packet 0x24 from DTI and packet 0x0C to it, both with 0x41; a standard id and an
+    // extended id between nodes that declare nothing are not the rule's business.
+    let diags = with_node_id(
+        "BO_ 2147492929 Flags: 8 DTI\n SG_ A : 0|8@1+ (1,0) [0|0] \"\" CCM\n\n\
+         BO_ 2147486785 Enable: 1 CCM\n SG_ B : 0|8@1+ (1,0) [0|0] \"\" DTI\n\n\
+         BO_ 100 Status: 8 DTI\n SG_ C : 0|8@1+ (1,0) [0|0] \"\" CCM\n\n\
+         BO_ 2147483904 Other: 8 CCM\n SG_ D : 0|8@1+ (1,0) [0|0] \"\" Vector__XXX\n",
+    );
+    assert!(diags.iter().all(|d| d.code != "E0119"), "{diags:#?}");
+}

@@ -51,3 +51,63 @@ CREATE TABLE IF NOT EXISTS "can_imd_info_it_system" ("id" INTEGER PRIMARY KEY AU
 
 -- CAN message `IMD_Request` (0x18EFF417), one row per frame; multiplexed signals are NULL when absent.
 CREATE TABLE IF NOT EXISTS "can_imd_request" ("id" INTEGER PRIMARY KEY AUTOINCREMENT, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "imd_request_index" INTEGER, "imd_request_data" INTEGER);
+
+-- CAN message `DTI_SetCurrent` (0x141), one row per frame; multiplexed signals are NULL when absent.
+CREATE TABLE IF NOT EXISTS "can_dti_set_current" ("id" INTEGER PRIMARY KEY AUTOINCREMENT, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "dti_current_cmd" REAL);
+
+-- CAN message `DTI_SetBrakeCurrent` (0x241), one row per frame; multiplexed signals are NULL when absent.
+CREATE TABLE IF NOT EXISTS "can_dti_set_brake_current" ("id" INTEGER PRIMARY KEY AUTOINCREMENT, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "dti_brake_current_cmd" REAL);
+
+-- CAN message `DTI_SetErpm` (0x341), one row per frame; multiplexed signals are NULL when absent.
+CREATE TABLE IF NOT EXISTS "can_dti_set_erpm" ("id" INTEGER PRIMARY KEY AUTOINCREMENT, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "dti_erpm_cmd" INTEGER);
+
+-- CAN message `DTI_SetPosition` (0x441), one row per frame; multiplexed signals are NULL when absent.
+CREATE TABLE IF NOT EXISTS "can_dti_set_position" ("id" INTEGER PRIMARY KEY AUTOINCREMENT, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "dti_position_cmd" REAL);
+
+-- CAN message `DTI_SetRelativeCurrent` (0x541), one row per frame; multiplexed signals are NULL when absent.
+CREATE TABLE IF NOT EXISTS "can_dti_set_relative_current" ("id" INTEGER PRIMARY KEY AUTOINCREMENT, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "dti_relative_current_cmd" REAL);
+
+-- CAN message `DTI_SetRelativeBrakeCurrent` (0x641), one row per frame; multiplexed signals are NULL when absent.
+CREATE TABLE IF NOT EXISTS "can_dti_set_relative_brake_current" ("id" INTEGER PRIMARY KEY AUTOINCREMENT, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "dti_relative_brake_current_cmd" REAL);
+
+-- CAN message `DTI_SetDigitalOutputs` (0x741), one row per frame; multiplexed signals are NULL when absent.
+CREATE TABLE IF NOT EXISTS "can_dti_set_digital_outputs" ("id" INTEGER PRIMARY KEY AUTOINCREMENT, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "dti_digital_out1_cmd" INTEGER, "dti_digital_out2_cmd" INTEGER, "dti_digital_out3_cmd" INTEGER, "dti_digital_out4_cmd" INTEGER);
+
+-- CAN message `DTI_SetMaxCurrentAc` (0x841), one row per frame; multiplexed signals are NULL when absent.
+CREATE TABLE IF NOT EXISTS "can_dti_set_max_current_ac" ("id" INTEGER PRIMARY KEY AUTOINCREMENT, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "dti_max_current_ac_cmd" REAL);
+
+-- CAN message `DTI_SetMaxBrakeCurrentAc` (0x941), one row per frame; multiplexed signals are NULL when absent.
+CREATE TABLE IF NOT EXISTS "can_dti_set_max_brake_current_ac" ("id" INTEGER PRIMARY KEY AUTOINCREMENT, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "dti_max_brake_current_ac_cmd" REAL);
+
+-- CAN message `DTI_SetMaxCurrentDc` (0xA41), one row per frame; multiplexed signals are NULL when absent.
+CREATE TABLE IF NOT EXISTS "can_dti_set_max_current_dc" ("id" INTEGER PRIMARY KEY AUTOINCREMENT, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "dti_max_current_dc_cmd" REAL);
+
+-- CAN message `DTI_SetMaxBrakeCurrentDc` (0xB41), one row per frame; multiplexed signals are NULL when absent.
+CREATE TABLE IF NOT EXISTS "can_dti_set_max_brake_current_dc" ("id" INTEGER PRIMARY KEY AUTOINCREMENT, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "dti_max_brake_current_dc_cmd" REAL);
+
+-- CAN message `DTI_SetDriveEnable` (0xC41), one row per frame; multiplexed signals are NULL when absent.
+CREATE TABLE IF NOT EXISTS "can_dti_set_drive_enable" ("id" INTEGER PRIMARY KEY AUTOINCREMENT, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "dti_drive_enable_cmd" INTEGER);
+
+-- CAN message `DTI_Control` (0x1F41), one row per frame; multiplexed signals are NULL when absent.
+CREATE TABLE IF NOT EXISTS "can_dti_control" ("id" INTEGER PRIMARY KEY AUTOINCREMENT, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "dti_control_mode" INTEGER, "dti_target_iq" REAL, "dti_motor_position" REAL, "dti_motor_still" INTEGER);
+
+-- CAN message `DTI_Speed` (0x2041), one row per frame; multiplexed signals are NULL when absent.
+CREATE TABLE IF NOT EXISTS "can_dti_speed" ("id" INTEGER PRIMARY KEY AUTOINCREMENT, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "dti_erpm" INTEGER, "dti_duty_cycle" REAL, "dti_input_voltage" INTEGER);
+
+-- CAN message `DTI_Currents` (0x2141), one row per frame; multiplexed signals are NULL when absent.
+CREATE TABLE IF NOT EXISTS "can_dti_currents" ("id" INTEGER PRIMARY KEY AUTOINCREMENT, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "dti_ac_current" REAL, "dti_dc_current" REAL);
+
+-- CAN message `DTI_Temperatures` (0x2241), one row per frame; multiplexed signals are NULL when absent.
+CREATE TABLE IF NOT EXISTS "can_dti_temperatures" ("id" INTEGER PRIMARY KEY AUTOINCREMENT, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "dti_controller_temp" REAL, "dti_motor_temp" REAL, "dti_fault_code" INTEGER);
+
+-- CAN message `DTI_FocCurrents` (0x2341), one row per frame; multiplexed signals are NULL when absent.
+CREATE TABLE IF NOT EXISTS "can_dti_foc_currents" ("id" INTEGER PRIMARY KEY AUTOINCREMENT, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "dti_foc_id" REAL, "dti_foc_iq" REAL);
+
+-- CAN message `DTI_Flags` (0x2441), one row per frame; multiplexed signals are NULL when absent.
+CREATE TABLE IF NOT EXISTS "can_dti_flags" ("id" INTEGER PRIMARY KEY AUTOINCREMENT, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "dti_throttle_input" INTEGER, "dti_brake_input" INTEGER, "dti_digital_in1" INTEGER, "dti_digital_in2" INTEGER, "dti_digital_in3" INTEGER, "dti_digital_in4" INTEGER, "dti_digital_out1" INTEGER, "dti_digital_out2" INTEGER, "dti_digital_out3" INTEGER, "dti_digital_out4" INTEGER, "dti_drive_enabled" INTEGER, "dti_limit_capacitor_temp" INTEGER, "dti_limit_dc_current" INTEGER, "dti_limit_drive_enable" INTEGER, "dti_limit_igbt_accel_temp" INTEGER, "dti_limit_igbt_temp" INTEGER, "dti_limit_input_voltage" INTEGER, "dti_limit_motor_accel_temp" INTEGER, "dti_limit_motor_temp" INTEGER, "dti_limit_rpm_min" INTEGER, "dti_limit_rpm_max" INTEGER, "dti_limit_power" INTEGER, "dti_can_map_version" INTEGER);
+
+-- CAN message `DTI_AcLimits` (0x2541), one row per frame; multiplexed signals are NULL when absent.
+CREATE TABLE IF NOT EXISTS "can_dti_ac_limits" ("id" INTEGER PRIMARY KEY AUTOINCREMENT, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "dti_max_ac_current" REAL, "dti_available_max_ac_current" REAL, "dti_min_ac_current" REAL, "dti_available_min_ac_current" REAL);
+
+-- CAN message `DTI_DcLimits` (0x2641), one row per frame; multiplexed signals are NULL when absent.
+CREATE TABLE IF NOT EXISTS "can_dti_dc_limits" ("id" INTEGER PRIMARY KEY AUTOINCREMENT, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "dti_max_dc_current" REAL, "dti_available_max_dc_current" REAL, "dti_min_dc_current" REAL, "dti_available_min_dc_current" REAL);

@@ -52,3 +52,63 @@ CREATE STABLE IF NOT EXISTS `can_imd_info_it_system` (`ts` TIMESTAMP, `imd_capac
 
 -- CAN message `IMD_Request` (0x18EFF417), one row per frame; multiplexed signals are NULL when absent.
 CREATE STABLE IF NOT EXISTS `can_imd_request` (`ts` TIMESTAMP, `imd_request_index` TINYINT UNSIGNED, `imd_request_data` INT UNSIGNED) TAGS (`car_id` VARCHAR(32), `bus` VARCHAR(16), `schema_fingerprint` INT UNSIGNED);
+
+-- CAN message `DTI_SetCurrent` (0x141), one row per frame; multiplexed signals are NULL when absent.
+CREATE STABLE IF NOT EXISTS `can_dti_set_current` (`ts` TIMESTAMP, `dti_current_cmd` DOUBLE) TAGS (`car_id` VARCHAR(32), `bus` VARCHAR(16), `schema_fingerprint` INT UNSIGNED);
+
+-- CAN message `DTI_SetBrakeCurrent` (0x241), one row per frame; multiplexed signals are NULL when absent.
+CREATE STABLE IF NOT EXISTS `can_dti_set_brake_current` (`ts` TIMESTAMP, `dti_brake_current_cmd` DOUBLE) TAGS (`car_id` VARCHAR(32), `bus` VARCHAR(16), `schema_fingerprint` INT UNSIGNED);
+
+-- CAN message `DTI_SetErpm` (0x341), one row per frame; multiplexed signals are NULL when absent.
+CREATE STABLE IF NOT EXISTS `can_dti_set_erpm` (`ts` TIMESTAMP, `dti_erpm_cmd` INT) TAGS (`car_id` VARCHAR(32), `bus` VARCHAR(16), `schema_fingerprint` INT UNSIGNED);
+
+-- CAN message `DTI_SetPosition` (0x441), one row per frame; multiplexed signals are NULL when absent.
+CREATE STABLE IF NOT EXISTS `can_dti_set_position` (`ts` TIMESTAMP, `dti_position_cmd` DOUBLE) TAGS (`car_id` VARCHAR(32), `bus` VARCHAR(16), `schema_fingerprint` INT UNSIGNED);
+
+-- CAN message `DTI_SetRelativeCurrent` (0x541), one row per frame; multiplexed signals are NULL when absent.
+CREATE STABLE IF NOT EXISTS `can_dti_set_relative_current` (`ts` TIMESTAMP, `dti_relative_current_cmd` DOUBLE) TAGS (`car_id` VARCHAR(32), `bus` VARCHAR(16), `schema_fingerprint` INT UNSIGNED);
+
+-- CAN message `DTI_SetRelativeBrakeCurrent` (0x641), one row per frame; multiplexed signals are NULL when absent.
+CREATE STABLE IF NOT EXISTS `can_dti_set_relative_brake_current` (`ts` TIMESTAMP, `dti_relative_brake_current_cmd` DOUBLE) TAGS (`car_id` VARCHAR(32), `bus` VARCHAR(16), `schema_fingerprint` INT UNSIGNED);
+
+-- CAN message `DTI_SetDigitalOutputs` (0x741), one row per frame; multiplexed signals are NULL when absent.
+CREATE STABLE IF NOT EXISTS `can_dti_set_digital_outputs` (`ts` TIMESTAMP, `dti_digital_out1_cmd` BOOL, `dti_digital_out2_cmd` BOOL, `dti_digital_out3_cmd` BOOL, `dti_digital_out4_cmd` BOOL) TAGS (`car_id` VARCHAR(32), `bus` VARCHAR(16), `schema_fingerprint` INT UNSIGNED);
+
+-- CAN message `DTI_SetMaxCurrentAc` (0x841), one row per frame; multiplexed signals are NULL when absent.
+CREATE STABLE IF NOT EXISTS `can_dti_set_max_current_ac` (`ts` TIMESTAMP, `dti_max_current_ac_cmd` DOUBLE) TAGS (`car_id` VARCHAR(32), `bus` VARCHAR(16), `schema_fingerprint` INT UNSIGNED);
+
+-- CAN message `DTI_SetMaxBrakeCurrentAc` (0x941), one row per frame; multiplexed signals are NULL when absent.
+CREATE STABLE IF NOT EXISTS `can_dti_set_max_brake_current_ac` (`ts` TIMESTAMP, `dti_max_brake_current_ac_cmd` DOUBLE) TAGS (`car_id` VARCHAR(32), `bus` VARCHAR(16), `schema_fingerprint` INT UNSIGNED);
+
+-- CAN message `DTI_SetMaxCurrentDc` (0xA41), one row per frame; multiplexed signals are NULL when absent.
+CREATE STABLE IF NOT EXISTS `can_dti_set_max_current_dc` (`ts` TIMESTAMP, `dti_max_current_dc_cmd` DOUBLE) TAGS (`car_id` VARCHAR(32), `bus` VARCHAR(16), `schema_fingerprint` INT UNSIGNED);
+
+-- CAN message `DTI_SetMaxBrakeCurrentDc` (0xB41), one row per frame; multiplexed signals are NULL when absent.
+CREATE STABLE IF NOT EXISTS `can_dti_set_max_brake_current_dc` (`ts` TIMESTAMP, `dti_max_brake_current_dc_cmd` DOUBLE) TAGS (`car_id` VARCHAR(32), `bus` VARCHAR(16), `schema_fingerprint` INT UNSIGNED);
+
+-- CAN message `DTI_SetDriveEnable` (0xC41), one row per frame; multiplexed signals are NULL when absent.
+CREATE STABLE IF NOT EXISTS `can_dti_set_drive_enable` (`ts` TIMESTAMP, `dti_drive_enable_cmd` TINYINT UNSIGNED) TAGS (`car_id` VARCHAR(32), `bus` VARCHAR(16), `schema_fingerprint` INT UNSIGNED);
+
+-- CAN message `DTI_Control` (0x1F41), one row per frame; multiplexed signals are NULL when absent.
+CREATE STABLE IF NOT EXISTS `can_dti_control` (`ts` TIMESTAMP, `dti_control_mode` TINYINT UNSIGNED, `dti_target_iq` DOUBLE, `dti_motor_position` DOUBLE, `dti_motor_still` TINYINT UNSIGNED) TAGS (`car_id` VARCHAR(32), `bus` VARCHAR(16), `schema_fingerprint` INT UNSIGNED);
+
+-- CAN message `DTI_Speed` (0x2041), one row per frame; multiplexed signals are NULL when absent.
+CREATE STABLE IF NOT EXISTS `can_dti_speed` (`ts` TIMESTAMP, `dti_erpm` INT, `dti_duty_cycle` DOUBLE, `dti_input_voltage` SMALLINT) TAGS (`car_id` VARCHAR(32), `bus` VARCHAR(16), `schema_fingerprint` INT UNSIGNED);
+
+-- CAN message `DTI_Currents` (0x2141), one row per frame; multiplexed signals are NULL when absent.
+CREATE STABLE IF NOT EXISTS `can_dti_currents` (`ts` TIMESTAMP, `dti_ac_current` DOUBLE, `dti_dc_current` DOUBLE) TAGS (`car_id` VARCHAR(32), `bus` VARCHAR(16), `schema_fingerprint` INT UNSIGNED);
+
+-- CAN message `DTI_Temperatures` (0x2241), one row per frame; multiplexed signals are NULL when absent.
+CREATE STABLE IF NOT EXISTS `can_dti_temperatures` (`ts` TIMESTAMP, `dti_controller_temp` DOUBLE, `dti_motor_temp` DOUBLE, `dti_fault_code` TINYINT UNSIGNED) TAGS (`car_id` VARCHAR(32), `bus` VARCHAR(16), `schema_fingerprint` INT UNSIGNED);
+
+-- CAN message `DTI_FocCurrents` (0x2341), one row per frame; multiplexed signals are NULL when absent.
+CREATE STABLE IF NOT EXISTS `can_dti_foc_currents` (`ts` TIMESTAMP, `dti_foc_id` DOUBLE, `dti_foc_iq` DOUBLE) TAGS (`car_id` VARCHAR(32), `bus` VARCHAR(16), `schema_fingerprint` INT UNSIGNED);
+
+-- CAN message `DTI_Flags` (0x2441), one row per frame; multiplexed signals are NULL when absent.
+CREATE STABLE IF NOT EXISTS `can_dti_flags` (`ts` TIMESTAMP, `dti_throttle_input` TINYINT, `dti_brake_input` TINYINT, `dti_digital_in1` BOOL, `dti_digital_in2` BOOL, `dti_digital_in3` BOOL, `dti_digital_in4` BOOL, `dti_digital_out1` BOOL, `dti_digital_out2` BOOL, `dti_digital_out3` BOOL, `dti_digital_out4` BOOL, `dti_drive_enabled` TINYINT UNSIGNED, `dti_limit_capacitor_temp` BOOL, `dti_limit_dc_current` BOOL, `dti_limit_drive_enable` BOOL, `dti_limit_igbt_accel_temp` BOOL, `dti_limit_igbt_temp` BOOL, `dti_limit_input_voltage` BOOL, `dti_limit_motor_accel_temp` BOOL, `dti_limit_motor_temp` BOOL, `dti_limit_rpm_min` BOOL, `dti_limit_rpm_max` BOOL, `dti_limit_power` BOOL, `dti_can_map_version` TINYINT UNSIGNED) TAGS (`car_id` VARCHAR(32), `bus` VARCHAR(16), `schema_fingerprint` INT UNSIGNED);
+
+-- CAN message `DTI_AcLimits` (0x2541), one row per frame; multiplexed signals are NULL when absent.
+CREATE STABLE IF NOT EXISTS `can_dti_ac_limits` (`ts` TIMESTAMP, `dti_max_ac_current` DOUBLE, `dti_available_max_ac_current` DOUBLE, `dti_min_ac_current` DOUBLE, `dti_available_min_ac_current` DOUBLE) TAGS (`car_id` VARCHAR(32), `bus` VARCHAR(16), `schema_fingerprint` INT UNSIGNED);
+
+-- CAN message `DTI_DcLimits` (0x2641), one row per frame; multiplexed signals are NULL when absent.
+CREATE STABLE IF NOT EXISTS `can_dti_dc_limits` (`ts` TIMESTAMP, `dti_max_dc_current` DOUBLE, `dti_available_max_dc_current` DOUBLE, `dti_min_dc_current` DOUBLE, `dti_available_min_dc_current` DOUBLE) TAGS (`car_id` VARCHAR(32), `bus` VARCHAR(16), `schema_fingerprint` INT UNSIGNED);

@@ -13,6 +13,7 @@ mod enums;
 mod index;
 mod message;
 mod mux;
+mod node_id;
 mod overlap;
 mod signal;
 
@@ -63,6 +64,7 @@ pub fn validate(
         index: DbcIndex::new(&loaded.dbc),
         taken: Taken::default(),
         table_enums: HashMap::new(),
+        node_ids: node_id::declared(&loaded.dbc),
         r: &mut r,
     }
     .build();
@@ -92,6 +94,8 @@ struct Builder<'a, 'r> {
     taken: Taken,
     /// A `VAL_TABLE_`'s values (sorted, see `enums`) -> the index of the enum they share.
     table_enums: HashMap<Vec<(i128, String)>, usize>,
+    /// Nodes whose id is part of their messages' CAN ids (`node_id`).
+    node_ids: HashMap<&'a str, u8>,
     r: &'r mut Reporter<'a>,
 }
 
@@ -162,6 +166,7 @@ impl<'a> Builder<'a, '_> {
             let Some(frame) = self.identify(index, msg) else {
                 continue;
             };
+            self.check_node_id(&frame);
             if let Some(m) = self.message(frame, &mut enums) {
                 messages.push(m);
             }
