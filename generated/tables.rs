@@ -10,7 +10,10 @@ use std::string::String;
 use super::can::AnyMessage;
 use super::runtime::SignalMeta;
 
-/// The type of a column, and how each database spells it.
+/// The type of a column, and how each database spells it. (This item is Rust source the
+/// generator compiles and also copies verbatim into the generated `tables.rs`, as svd2rust
+/// does with its `generic.rs`: the DDL the generator writes and the runtime's spelling of the
+/// same types cannot drift apart.)
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum ColumnType {
     /// Microseconds since the Unix epoch.

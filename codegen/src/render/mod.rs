@@ -1,6 +1,7 @@
 //! Render: the model -> source files, through askama templates (one per output).
 
 pub mod codec;
+pub mod column_type;
 pub mod docs;
 pub mod fragment;
 pub mod meta;

@@ -10,6 +10,7 @@ use crate::model::{Database, IntType, PhysType, Telemetry};
 #[template(path = "tables.rs", escape = "none")]
 pub struct TablesRust<'a> {
     pub source: &'a str,
+    pub column_type: &'static str,
     pub tables: Vec<Table>,
 }
 
@@ -27,25 +28,10 @@ pub struct SqliteSql<'a> {
     pub tables: Vec<Table>,
 }
 
-/// The type of a column; each database spells it its own way.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum ColumnType {
-    /// Microseconds since the Unix epoch.
-    Timestamp,
-    Bool,
-    I8,
-    I16,
-    I32,
-    I64,
-    U8,
-    U16,
-    U32,
-    U64,
-    F32,
-    F64,
-    /// Text of at most this many bytes.
-    VarChar(u16),
-}
+pub use super::column_type::ColumnType;
+
+/// The generated `tables.rs` carries the same definition, copied from this file.
+const COLUMN_TYPE_SOURCE: &str = include_str!("column_type.rs");
 
 impl ColumnType {
     /// The type holding every physical value exactly.
@@ -80,33 +66,6 @@ impl ColumnType {
         match self {
             Self::VarChar(n) => format!("VarChar({n})"),
             other => format!("{other:?}"),
-        }
-    }
-
-    pub fn tdengine(self) -> String {
-        match self {
-            Self::Timestamp => "TIMESTAMP".into(),
-            Self::Bool => "BOOL".into(),
-            Self::I8 => "TINYINT".into(),
-            Self::I16 => "SMALLINT".into(),
-            Self::I32 => "INT".into(),
-            Self::I64 => "BIGINT".into(),
-            Self::U8 => "TINYINT UNSIGNED".into(),
-            Self::U16 => "SMALLINT UNSIGNED".into(),
-            Self::U32 => "INT UNSIGNED".into(),
-            Self::U64 => "BIGINT UNSIGNED".into(),
-            Self::F32 => "FLOAT".into(),
-            Self::F64 => "DOUBLE".into(),
-            Self::VarChar(n) => format!("VARCHAR({n})"),
-        }
-    }
-
-    /// SQLite's storage class: timestamps, flags and every integer fit its 64-bit INTEGER.
-    pub fn sqlite(self) -> &'static str {
-        match self {
-            Self::F32 | Self::F64 => "REAL",
-            Self::VarChar(_) => "TEXT",
-            _ => "INTEGER",
         }
     }
 }
@@ -280,6 +239,7 @@ pub(crate) fn tables(db: &Database, t: &Telemetry) -> Vec<Table> {
 pub fn render_rust(db: &Database, t: &Telemetry, source: &str) -> Result<String, askama::Error> {
     TablesRust {
         source,
+        column_type: COLUMN_TYPE_SOURCE,
         tables: tables(db, t),
     }
     .render()
