@@ -1,5 +1,6 @@
 //! A tier that was not updated after a schema change fails to compile instead of mis-decoding:
-//! a new telemetry field must be filled by the firmware, a topic only takes its own payload type,
+//! a new telemetry field must be filled by the firmware (on a copy of the repository, so the
+//! test holds whatever fields the live schema has), a topic only takes its own payload type,
 //! and code using a removed signal stops building. (`TRYBUILD=overwrite` refreshes the expected
 //! compiler output after an intended change.)
 
