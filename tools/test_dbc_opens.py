@@ -29,8 +29,15 @@ class CarDbcOpensElsewhere(unittest.TestCase):
         self.assertGreaterEqual(len(self.cantools.messages), 16)
         for m in self.cantools.messages:
             self.assertTrue(m.signals, m.name)
-            if m.name != "IMD_Request":  # sent on demand, not cyclic
+            # A message sent on demand says so (GenMsgSendType NoMsgSendType); every other one
+            # declares its cycle.
+            if m.send_type == "Cyclic":
                 self.assertIsNotNone(m.cycle_time, f"{m.name} has no GenMsgCycleTime")
+            else:
+                self.assertEqual(m.send_type, "NoMsgSendType", m.name)
+                self.assertIsNone(m.cycle_time, f"{m.name} is sent on demand but has a cycle time")
+        on_demand = {m.name for m in self.cantools.messages if m.send_type != "Cyclic"}
+        self.assertIn("IMD_Request", on_demand)
 
     def test_canmatrix_reads_the_same_layout(self):
         frames = {(f.arbitration_id.id, f.arbitration_id.extended): f for f in self.canmatrix.frames}
