@@ -74,6 +74,12 @@ fn cantools_c(name: &str, dbc: &str, out: &Path) -> String {
         .file(dir.join(format!("{name}_harness.c")))
         .include(&dir)
         .opt_level(2)
+        // As C users build it: `cc` compiles position-independent code, and with -fPIC gcc may
+        // not inline cantools' non-static per-signal functions (another definition could
+        // interpose them), so every signal's decode was a call. A static binary or firmware
+        // has no interposition; this flag says so while keeping the code linkable into Rust's
+        // PIE binaries (which `pic(false)` is not).
+        .flag("-fno-semantic-interposition")
         .warnings(false)
         .compile(&format!("cantools_{name}"));
     format!(
