@@ -6,23 +6,25 @@
 //! - refuses a will, and disconnects any publish, under the protected topic prefix: only the
 //!   service publishes there;
 //! - caps the keep-alive, so a dead client's slot frees within a minute and a half;
-//! - gives every connection its own client id on the broker (the client's own, `-gate` and a
-//!   serial number). rumqttd 0.20 keeps a will handler per client id, and when a connection
-//!   fails between its CONNECT and CONNACK (a client gone while connecting) the handler is left
-//!   behind; the next connection with that id panics on it while holding the handlers' lock,
-//!   which poisons it, and from then on every new connection panics: the pit can no longer
-//!   connect until the service restarts. Unique ids never meet a stale handler. Two clients
-//!   with one id therefore no longer take each other over; each keeps its own session;
+//! - waits for the broker's CONNACK before relaying anything, even if the client has gone
+//!   meanwhile, and never offers the broker again a client id it did not acknowledge.
+//!   rumqttd 0.20 keeps a will handler per client id; when a connection fails between its
+//!   CONNECT and CONNACK the handler is left behind, and the next connection with that id
+//!   panics on it while holding the handlers' lock. That poisons the lock, and from then on
+//!   every new connection panics: the pit could no longer connect until the service restarted.
+//!   Waiting for the CONNACK keeps a client that leaves while connecting from causing it; an
+//!   id the broker still did not acknowledge (no room, no answer) is rewritten from then on
+//!   (`<id>-gate<serial>`, a new one each time);
 //! - disconnects a client that stops reading what it subscribed to (its data is dropped, not
 //!   queued), and at the connection limit makes room by disconnecting one that stalled;
 //! - speaks TLS on listeners that have certificates.
 //!
 //! Everything refused is counted (`mqtt_refused`, `mqtt_slow_clients`) and logged.
 
-use super::packet::{self, CONNECT, Connect, PUBLISH};
+use super::packet::{self, CONNACK, CONNECT, Connect, PUBLISH};
 use super::tls;
 use aer_host::counters::{Counters, worth_logging};
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
 use std::net::SocketAddr;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
@@ -61,6 +63,8 @@ pub struct Settings {
     pub stall_limit: Duration,
     /// Keep-alive asked for by clients is capped at this (0, "never", included).
     pub max_keep_alive_s: u16,
+    /// How long the broker has to acknowledge a connection.
+    pub connack_timeout: Duration,
 }
 
 /// The connected clients, for the connection limit.
@@ -82,8 +86,10 @@ struct Gate {
     counters: Arc<Counters>,
     clients: Mutex<Clients>,
     started: Instant,
-    /// Connections passed to the broker: the serial in their broker-side client ids.
-    connections: AtomicU64,
+    /// Client ids the broker did not acknowledge: never offered to it again.
+    unacknowledged_ids: Mutex<HashSet<String>>,
+    /// The serial in rewritten client ids.
+    rewritten: AtomicU64,
 }
 
 /// Binds every listener (so a taken port fails at start-up) and serves them until `cancel`.
@@ -109,7 +115,8 @@ pub async fn start(
         counters,
         clients: Mutex::new(Clients::default()),
         started: Instant::now(),
-        connections: AtomicU64::new(0),
+        unacknowledged_ids: Mutex::new(HashSet::new()),
+        rewritten: AtomicU64::new(0),
     });
     for (socket, acceptor, listener) in bound {
         let (gate, cancel) = (gate.clone(), cancel.clone());
@@ -269,11 +276,34 @@ impl Gate {
         if connect.keep_alive_s == 0 || connect.keep_alive_s > max {
             connect.keep_alive_s = max;
         }
-        let serial = self.connections.fetch_add(1, Ordering::Relaxed);
-        connect.client_id = format!("{}-gate{serial}", connect.client_id);
+        let unacknowledged = self
+            .unacknowledged_ids
+            .lock()
+            .map_or(true, |ids| ids.contains(&connect.client_id));
+        if unacknowledged {
+            let serial = self.rewritten.fetch_add(1, Ordering::Relaxed);
+            connect.client_id = format!("{}-gate{serial}", connect.client_id);
+        }
         connect.username = Some(self.settings.broker_user.clone());
         connect.password = Some(self.settings.broker_password.clone().into_bytes());
         if broker.write_all(&connect.encode()).await.is_err() {
+            return;
+        }
+        let mut acknowledgement = Vec::with_capacity(16);
+        let answered = tokio::time::timeout(
+            self.settings.connack_timeout,
+            read_packet(&mut broker, &mut acknowledgement),
+        )
+        .await;
+        if !matches!(answered, Ok(Ok(Some((CONNACK, _))))) {
+            // A rewritten id is never offered again anyway.
+            if !unacknowledged && let Ok(mut ids) = self.unacknowledged_ids.lock() {
+                ids.insert(connect.client_id.clone());
+            }
+            let _ = stream.write_all(&packet::connack(3)).await;
+            return self.refused(peer, "the broker did not acknowledge the connection");
+        }
+        if stream.write_all(&acknowledgement).await.is_err() {
             return;
         }
         let Some((id, stalled_since, disconnect)) = self.register() else {

@@ -263,6 +263,7 @@ pub fn spawn(config: BrokerConfig, reserved_ids: &str, protected: &str) -> Resul
             max_clients,
             stall_limit,
             max_keep_alive_s: 60,
+            connack_timeout: Duration::from_secs(10),
         },
     })
 }

@@ -8,6 +8,7 @@ use thiserror::Error;
 pub(crate) const MAX_PACKET: usize = 1 << 20;
 
 pub(crate) const CONNECT: u8 = 1;
+pub(crate) const CONNACK: u8 = 2;
 pub(crate) const PUBLISH: u8 = 3;
 
 /// Why bytes are not the MQTT the gate accepts.
