@@ -351,12 +351,20 @@ fn with_node_id(messages: &str) -> Vec<Diagnostic> {
 fn an_extended_id_without_its_nodes_declared_id_is_refused() {
     // 0x80000000 + 0x2442: packet 0x24 of node 0x42 sent by DTI, and a command to DTI with
     // node 0x65 in it, where DTI declares 0x41.
+    // And a command written without the extended flag: a standard 0x141 would never reach it.
     let diags = with_node_id(
         "BO_ 2147492930 Flags: 8 DTI\n SG_ A : 0|8@1+ (1,0) [0|0] \"\" CCM\n\n\
-         BO_ 2147486821 Enable: 1 CCM\n SG_ B : 0|8@1+ (1,0) [0|0] \"\" DTI\n",
+         BO_ 2147486821 Enable: 1 CCM\n SG_ B : 0|8@1+ (1,0) [0|0] \"\" DTI\n\n\
+         BO_ 321 Current: 2 CCM\n SG_ C : 0|16@1+ (1,0) [0|0] \"\" DTI\n",
     );
     let refused: Vec<_> = diags.iter().filter(|d| d.code == "E0119").collect();
-    assert_eq!(refused.len(), 2, "{diags:#?}");
+    assert_eq!(refused.len(), 3, "{diags:#?}");
+    assert!(
+        refused[2]
+            .message
+            .contains("`Current` has the standard id 0x141, but node `DTI` declares"),
+        "{diags:#?}"
+    );
     assert_eq!(refused[0].severity, Severity::Error);
     assert!(
         refused[0]
@@ -377,13 +385,16 @@ fn an_extended_id_without_its_nodes_declared_id_is_refused() {
 
 #[test]
 fn ids_that_carry_the_declared_node_id_pass_and_other_messages_are_not_checked() {
-    // Packet 0x24 from DTI and packet 0x0C to it, both with 0x41; a standard id and an
-    // extended id between nodes that declare nothing are not the rule's business.
+    // Packet 0x24 from DTI and packet 0x0C to it, both with 0x41; messages between nodes that
+    // declare nothing (standard or extended) are not the rule's business.
     let diags = with_node_id(
         "BO_ 2147492929 Flags: 8 DTI\n SG_ A : 0|8@1+ (1,0) [0|0] \"\" CCM\n\n\
          BO_ 2147486785 Enable: 1 CCM\n SG_ B : 0|8@1+ (1,0) [0|0] \"\" DTI\n\n\
-         BO_ 100 Status: 8 DTI\n SG_ C : 0|8@1+ (1,0) [0|0] \"\" CCM\n\n\
+         BO_ 100 Status: 8 CCM\n SG_ C : 0|8@1+ (1,0) [0|0] \"\" Vector__XXX\n\n\
          BO_ 2147483904 Other: 8 CCM\n SG_ D : 0|8@1+ (1,0) [0|0] \"\" Vector__XXX\n",
     );
-    assert!(diags.iter().all(|d| d.code != "E0119"), "{diags:#?}");
+    assert!(
+        diags.iter().all(|d| d.severity != Severity::Error),
+        "{diags:#?}"
+    );
 }

@@ -1,8 +1,8 @@
 //! Node ids carried in CAN ids. A node whose `NodeIdInCanId` attribute is set (1 to 255) puts
 //! that id in the low byte of the extended id of every message it sends or receives, as the
 //! DTI inverters do (`(packet << 8) | node`). The id is then declared once, on the node, and a
-//! message whose id was not renumbered with it is refused instead of silently missing the
-//! inverter.
+//! message whose id was not renumbered with it, or lost its extended flag, is refused instead
+//! of silently missing the inverter.
 
 use std::collections::{BTreeSet, HashMap};
 
@@ -31,11 +31,12 @@ pub(super) fn declared(dbc: &Dbc) -> HashMap<&str, u8> {
 }
 
 impl Builder<'_, '_> {
-    /// An extended id between a node with a declared id and nodes without one must carry that
-    /// id in its low byte. (Between two nodes that both declare one, such as J1939 source and
-    /// destination addresses, the layout is the protocol's own: nothing is checked.)
+    /// A message between a node with a declared id and nodes without one must have an
+    /// extended id carrying that id in its low byte. (Between two nodes that both declare one,
+    /// such as J1939 source and destination addresses, the layout is the protocol's own:
+    /// nothing is checked.)
     pub(super) fn check_node_id(&mut self, frame: &Frame<'_>) {
-        if !frame.extended || self.node_ids.is_empty() {
+        if self.node_ids.is_empty() {
             return;
         }
         let msg = frame.msg;
@@ -55,6 +56,19 @@ impl Builder<'_, '_> {
         let (Some((node, node_id)), None) = (declaring.next(), declaring.next()) else {
             return;
         };
+        if !frame.extended {
+            self.r.report(
+                Code::NodeIdNotInId,
+                frame.line,
+                format!(
+                    "message `{}` has the standard id 0x{:X}, but node `{node}` declares \
+                     {ATTRIBUTE} 0x{node_id:02X}: its messages have extended ids carrying it",
+                    frame.name, frame.id
+                ),
+                "write the id as 0x80000000 + the 29-bit id, whose low byte is the node id",
+            );
+            return;
+        }
         let carried = frame.id & 0xFF;
         if carried != u32::from(node_id) {
             self.r.report(
