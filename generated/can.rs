@@ -10144,9 +10144,9 @@ impl CanMessage for ImdRequest {
     }
 }
 
-/// DTI packet 0x01. Sets the AC (phase) current and puts the controller in current control.
+/// DTI packet 0x01. Sets the AC (phase) current and puts the controller in current control. The CCM sends it every 10 ms: its torque request over the motor's torque constant.
 ///
-/// `DTI_SetCurrent`: extended id 0x141, 2 bytes, sent by CCM.
+/// `DTI_SetCurrent`: extended id 0x141, 2 bytes, every 10 ms, sent by CCM.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct DtiSetCurrent {
@@ -10179,13 +10179,14 @@ impl DtiSetCurrent {
         id: 0x141,
         extended: true,
         len: 2,
-        cycle_time_ms: None,
-        comment: "DTI packet 0x01. Sets the AC (phase) current and puts the controller in current control.",
+        cycle_time_ms: Some(10),
+        comment: "DTI packet 0x01. Sets the AC (phase) current and puts the controller in current control. The CCM sends it every 10 ms: its torque request over the motor's torque constant.",
         signals: &DTI_SET_CURRENT_SIGNALS,
     };
     pub const ID: u32 = 0x141;
     pub const EXTENDED: bool = true;
     pub const LEN: usize = 2;
+    pub const CYCLE_TIME_MS: u32 = 10;
 
     /// Decodes a payload of at least [`Self::LEN`] bytes. Values outside the schema's range are
     /// decoded as they are; only a short payload fails.
@@ -10677,7 +10678,7 @@ impl CanMessage for DtiSetPosition {
 
 /// DTI packet 0x05. Sets the AC current as a share of the controller's configured maximum AC current (current control).
 ///
-/// `DTI_SetRelativeCurrent`: extended id 0x541, 2 bytes, every 10 ms, sent by CCM.
+/// `DTI_SetRelativeCurrent`: extended id 0x541, 2 bytes, sent by CCM.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct DtiSetRelativeCurrent {
@@ -10710,14 +10711,13 @@ impl DtiSetRelativeCurrent {
         id: 0x541,
         extended: true,
         len: 2,
-        cycle_time_ms: Some(10),
+        cycle_time_ms: None,
         comment: "DTI packet 0x05. Sets the AC current as a share of the controller's configured maximum AC current (current control).",
         signals: &DTI_SET_RELATIVE_CURRENT_SIGNALS,
     };
     pub const ID: u32 = 0x541;
     pub const EXTENDED: bool = true;
     pub const LEN: usize = 2;
-    pub const CYCLE_TIME_MS: u32 = 10;
 
     /// Decodes a payload of at least [`Self::LEN`] bytes. Values outside the schema's range are
     /// decoded as they are; only a short payload fails.

@@ -10,16 +10,19 @@ use crate::params::ModelParams;
 use crate::powertrain::{Inverter, efficiency};
 use crate::precharge::PccNode;
 use crate::sensors::{PedalSignals, Sensors};
-use aer::can::Vcu1;
-use aer_ccm::SensorSample;
+use aer::can::AnyMessage;
 use aer_ccm::apps::AppsCalibration;
 use aer_ccm::vehicle::State;
+use aer_ccm::{InverterKind, SensorSample};
 use aer_flexcan::CanFrame;
 use aer_pcc::TASK_PERIOD_MS;
 use embedded_can::{Frame, Id};
 
-/// The torque the inverter reports it can deliver (the VCU1 frame's full scale, Nm).
+/// The torque the IFL100 reports it can deliver (the VCU1 frame's full scale, Nm).
 const INVERTER_MAX_TORQUE_NM: f32 = 259.896;
+/// Below this motor speed (rad/s) the DTI's DC current limit is not modelled as a torque
+/// limit (the DC current is small there anyway).
+const DC_LIMIT_MIN_RAD_S: f32 = 10.0;
 
 /// The car.
 #[derive(Debug, Clone)]
@@ -63,7 +66,7 @@ impl Car {
             params,
             plan,
             chassis: Chassis::new(mode),
-            inverter: Inverter::default(),
+            inverter: Inverter::new(params.inverter),
             pcc: PccNode::new(0, pack.voltage_v),
             pack,
             nodes: Nodes::new(
@@ -84,7 +87,10 @@ impl Car {
     /// Runs on with `params` (efficiency, measurement lag, the BMS's delay, jitter) and the
     /// faults in `plan`, from the state the car is in.
     pub fn retune(&mut self, params: ModelParams, plan: FaultPlan) {
-        self.params = params;
+        self.params = ModelParams {
+            inverter: self.params.inverter,
+            ..params
+        };
         self.plan = plan;
         self.nodes.retune(
             params.measurement_lag_ms,
@@ -108,7 +114,17 @@ impl Car {
             .pedal_signals(self.command.pedal, &self.plan, now_ms);
         let dc_live = self.pcc.connected();
         let rpm = self.chassis.motor_rpm();
-        self.inverter.step(now_ms, dc_live, rpm, 1.0);
+        self.inverter.faulted = self.plan.is_active(now_ms, Fault::InverterFaulted);
+        let rad_s = self.chassis.motor_rad_s();
+        // The DTI holds its DC current under the CCM's limit: a shaft torque ceiling.
+        let cap_nm = if self.inverter.kind == InverterKind::Dti && rad_s > DC_LIMIT_MIN_RAD_S {
+            self.inverter.dc_limit_a * self.pcc.plant.tractive_v * self.efficiency / rad_s
+        } else if self.inverter.kind == InverterKind::Dti && self.inverter.dc_limit_a <= 0.0 {
+            0.0
+        } else {
+            f32::INFINITY
+        };
+        self.inverter.step(now_ms, dc_live, rpm, cap_nm, 1.0);
         self.chassis
             .step(self.inverter.torque_nm, self.command.brake_psi, 0.001);
         self.efficiency = efficiency(self.params.efficiency, self.params.efficiency_droop, rpm);
@@ -152,6 +168,9 @@ impl Car {
         let dc_v = self.pcc.plant.tractive_v;
         let dc_a = if dc_v > 1.0 { self.power_w / dc_v } else { 0.0 };
         let measured = Measured {
+            inverter: self.inverter.kind,
+            drive_enabled: self.inverter.enabled(now_ms),
+            inverter_faulted: self.inverter.faulted,
             motor_rpm: self.chassis.motor_rpm(),
             torque_nm: self.inverter.torque_nm,
             max_torque_nm: INVERTER_MAX_TORQUE_NM,
@@ -176,16 +195,23 @@ impl Car {
             });
     }
 
-    /// A frame from the CCM reaches the car's nodes: the inverter takes VCU1.
+    /// A frame from the CCM reaches the car's nodes: the inverter takes its commands.
     pub fn receive(&mut self, frame: &CanFrame, now_ms: u32) {
-        let is_vcu1 = matches!(frame.id(), Id::Standard(id) if u32::from(id.as_raw()) == Vcu1::ID);
-        if !is_vcu1 {
-            return;
-        }
+        let (id, extended) = match frame.id() {
+            Id::Standard(id) => (u32::from(id.as_raw()), false),
+            Id::Extended(id) => (id.as_raw(), true),
+        };
         let mut data = [0u8; 8];
         if let Some(out) = data.get_mut(..frame.data().len()) {
             out.copy_from_slice(frame.data());
         }
-        self.inverter.on_vcu1(&data, now_ms);
+        match AnyMessage::decode(id, extended, frame.data()) {
+            Ok(message) => self.inverter.on_message(&message, &data, now_ms),
+            // The IFL100 counts a VCU1 it cannot read as refused, as it does a bad checksum.
+            Err(_) if !extended && id == aer::can::Vcu1::ID => {
+                self.inverter.refused_frames += 1;
+            }
+            Err(_) => {}
+        }
     }
 }

@@ -12,13 +12,11 @@ use crate::rules::Rules;
 use aer::can::{CcmStatus, PccStatus};
 use aer::telemetry::Telemetry;
 use aer_ccm::apps::AppsCalibration;
-use aer_ccm::config::{
-    CONTROL_PERIOD_MS, INVERTER_PERIOD_MS, STATUS_PERIOD_MS, TELEMETRY_PERIOD_MS,
-};
-use aer_ccm::{BusHealth, Ccm, ControlOutputs, DriverCounters, DriverInputs};
+use aer_ccm::config::{CONTROL_PERIOD_MS, STATUS_PERIOD_MS, TELEMETRY_PERIOD_MS};
+use aer_ccm::{BusHealth, Ccm, ControlOutputs, DriverCounters, DriverInputs, OutFrame};
 use aer_flexcan::CanFrame;
 use aer_isotp::{Config, Received, Receiver};
-use embedded_can::{Frame, Id, StandardId};
+use embedded_can::{ExtendedId, Frame, Id, StandardId};
 
 /// Sees every frame put on a bus.
 pub trait BusTap {
@@ -58,7 +56,7 @@ impl ClosedLoop {
     /// the car and drive `cycle`, and the faults in `plan`.
     pub fn new(params: ModelParams, mode: Mode, cycle: Cycle, plan: FaultPlan) -> Self {
         Self {
-            ccm: Ccm::new(AppsCalibration::DEFAULT),
+            ccm: Ccm::with_inverter(AppsCalibration::DEFAULT, params.inverter),
             car: Car::new(params, mode, cycle, plan),
             rules: Rules::new(params.frame_jitter_ms),
             pi: Receiver::new(Config::CAR),
@@ -188,10 +186,10 @@ impl ClosedLoop {
         );
         self.rules.control(now, &self.last);
 
-        if now % INVERTER_PERIOD_MS == 0 {
+        if now % self.ccm.inverter().command_period_ms() == 0 {
             if let Ok(frames) = self.ccm.inverter_frames() {
-                for (id, data) in frames {
-                    let Some(frame) = standard_frame(id, &data) else {
+                for out in frames.iter() {
+                    let Some(frame) = can_frame(out) else {
                         continue;
                     };
                     if !self.was_off[1] {
@@ -252,6 +250,14 @@ impl ClosedLoop {
 
 fn is_pcc_status(frame: &CanFrame) -> bool {
     matches!(frame.id(), Id::Standard(id) if u32::from(id.as_raw()) == PccStatus::ID)
+}
+
+fn can_frame(out: &OutFrame) -> Option<CanFrame> {
+    if out.extended {
+        CanFrame::new(ExtendedId::new(out.id)?, out.data())
+    } else {
+        standard_frame(out.id, out.data())
+    }
 }
 
 fn standard_frame(id: u32, data: &[u8]) -> Option<CanFrame> {

@@ -32,6 +32,9 @@ pub enum Fault {
     BmsSilent,
     /// The inverter stops sending (it still obeys commands).
     InverterSilent,
+    /// The inverter faults (the IFL100's over-heat bit, the DTI's fault code): it stops
+    /// driving and reports it.
+    InverterFaulted,
     /// The shutdown circuit opens: the PCC opens its relays and reports ERROR.
     ShutdownOpen,
     /// A bus is off for the CCM (0 = CAN1, 1 = CAN2): nothing in or out.
@@ -42,7 +45,7 @@ pub enum Fault {
 
 impl Fault {
     /// Every kind, with its first variant where it has several (for reports).
-    pub const KINDS: [Self; 11] = [
+    pub const KINDS: [Self; 12] = [
         Self::PedalConverterLost,
         Self::PedalSensorOpen(0),
         Self::PedalSensorShorted(1),
@@ -51,6 +54,7 @@ impl Fault {
         Self::SamplingStopped,
         Self::BmsSilent,
         Self::InverterSilent,
+        Self::InverterFaulted,
         Self::ShutdownOpen,
         Self::BusOff(0),
         Self::GarbledFrames(Node::Pcc),

@@ -1,13 +1,19 @@
-//! The other nodes' frames: the BMS, the inverter and the IMD, each message at its DBC cycle
-//! time, encoded with the generated codec (so at the wire's resolution and range), with the
-//! measurement's own lag, the BMS's delay, bus jitter, silence and garbling as injected.
+//! The other nodes' frames: the BMS, the inverter (the DTI HV-550's status packets or the
+//! IFL100's MCU1-3) and the IMD, each message at its DBC cycle time, encoded with the
+//! generated codec (so at the wire's resolution and range), with the measurement's own lag,
+//! the BMS's delay, bus jitter, silence and garbling as injected.
 
 use crate::faults::{Fault, FaultPlan, Node};
+use crate::params::powertrain::DTI_AVAILABLE_AC_A;
 use crate::rng::Rng;
 use aer::can::{
-    AnyMessage, ImdInfoGeneral, Mcu1, Mcu2, Mcu3, McuMainState, McuWarningLevel, McuWorkMode,
-    MotorMode, MotorRotateDirection, OrionCellVoltages, OrionLimits, OrionPackStatus,
+    AnyMessage, DtiAcLimits, DtiControl, DtiControlMode, DtiCurrents, DtiDcLimits, DtiDriveEnable,
+    DtiFaultCode, DtiFlags, DtiFocCurrents, DtiSpeed, DtiTemperatures, ImdInfoGeneral, Mcu1, Mcu2,
+    Mcu3, McuMainState, McuWarningLevel, McuWorkMode, MotorMode, MotorRotateDirection,
+    OrionCellVoltages, OrionLimits, OrionPackStatus,
 };
+use aer_ccm::InverterKind;
+use aer_ccm::config::{DTI_CAN_MAP_VERSION, MOTOR_POLE_PAIRS, MOTOR_TORQUE_PER_PEAK_A};
 use aer_flexcan::CanFrame;
 use embedded_can::Frame;
 
@@ -19,6 +25,12 @@ pub const CAN2: usize = 1;
 /// What the nodes measure this millisecond.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Measured {
+    /// The inverter the car carries.
+    pub inverter: InverterKind,
+    /// The DTI's drive is enabled.
+    pub drive_enabled: bool,
+    /// The inverter has a fault of its own.
+    pub inverter_faulted: bool,
     /// Motor speed (rpm).
     pub motor_rpm: f32,
     /// Motor torque (Nm).
@@ -122,11 +134,19 @@ impl Nodes {
         let inverter_up = !plan.is_active(now_ms, Fault::InverterSilent);
         let bms_up = !plan.is_active(now_ms, Fault::BmsSilent);
         let phase = now_ms % 100;
+        let inverter = if inverter_up {
+            match measured.inverter {
+                InverterKind::Dti => self.dti(measured, phase),
+                InverterKind::Ifl100 => self.ifl100(measured, phase),
+            }
+        } else {
+            None
+        };
+        if let Some(message) = inverter {
+            self.queue(now_ms, CAN2, Node::Inverter, &message, plan);
+        }
         let due = match (now_ms % 10, phase) {
-            (1, _) if inverter_up => Some((CAN2, Node::Inverter, self.mcu1(measured))),
-            (2, _) if inverter_up => Some((CAN2, Node::Inverter, self.mcu3())),
             (3, _) if bms_up => Some((CAN1, Node::Bms, self.pack_status())),
-            (_, 5) if inverter_up => Some((CAN2, Node::Inverter, self.mcu2(measured))),
             (_, 7) if bms_up => Some((CAN1, Node::Bms, limits(measured))),
             (_, 8) if bms_up => Some((CAN1, Node::Bms, cells(measured))),
             (_, 9) => Some((CAN1, Node::Imd, self.imd())),
@@ -196,6 +216,71 @@ impl Nodes {
         }
     }
 
+    /// The IFL100's frame due at `phase` (ms in the 100 ms cycle): MCU1 and MCU3 every
+    /// 10 ms, MCU2 every 100 ms.
+    fn ifl100(&self, measured: &Measured, phase: u32) -> Option<AnyMessage> {
+        match (phase % 10, phase) {
+            (1, _) => Some(self.mcu1(measured)),
+            (2, _) => Some(self.mcu3()),
+            (_, 5) => Some(self.mcu2(measured)),
+            _ => None,
+        }
+    }
+
+    /// The DTI's packet due at `phase`: speed, currents and flags every 10 ms, the others
+    /// every 100 ms (the periods the schema declares).
+    fn dti(&self, measured: &Measured, phase: u32) -> Option<AnyMessage> {
+        let (volts, amps) = self.dc_filtered;
+        let ac_a = measured.torque_nm / MOTOR_TORQUE_PER_PEAK_A;
+        match (phase % 10, phase) {
+            (1, _) => Some(AnyMessage::DtiSpeed(DtiSpeed {
+                dti_erpm: (measured.motor_rpm * MOTOR_POLE_PAIRS) as i32,
+                dti_duty_cycle: 0.0,
+                dti_input_voltage: volts.clamp(0.0, 32_767.0) as i16,
+            })),
+            (2, _) => Some(AnyMessage::DtiCurrents(DtiCurrents {
+                dti_ac_current: quantise(ac_a, 0.1, -3_276.8, 3_276.7),
+                dti_dc_current: quantise(amps, 0.1, -3_276.8, 3_276.7),
+            })),
+            (4, _) => Some(AnyMessage::DtiFlags(dti_flags(measured))),
+            (_, 5) => {
+                let (motor, inverter) = measured.temperatures_degc;
+                Some(AnyMessage::DtiTemperatures(DtiTemperatures {
+                    dti_controller_temp: quantise(inverter, 0.1, -3_276.8, 3_276.7),
+                    dti_motor_temp: quantise(motor, 0.1, -3_276.8, 3_276.7),
+                    dti_fault_code: if measured.inverter_faulted {
+                        DtiFaultCode::ControllerOvertemp
+                    } else {
+                        DtiFaultCode::None
+                    },
+                }))
+            }
+            (_, 6) => Some(AnyMessage::DtiAcLimits(DtiAcLimits {
+                dti_max_ac_current: f64::from(DTI_AVAILABLE_AC_A),
+                dti_available_max_ac_current: f64::from(DTI_AVAILABLE_AC_A),
+                dti_min_ac_current: 0.0,
+                dti_available_min_ac_current: 0.0,
+            })),
+            (_, 16) => Some(AnyMessage::DtiDcLimits(DtiDcLimits {
+                dti_max_dc_current: 300.0,
+                dti_available_max_dc_current: 300.0,
+                dti_min_dc_current: 0.0,
+                dti_available_min_dc_current: 0.0,
+            })),
+            (_, 26) => Some(AnyMessage::DtiControl(DtiControl {
+                dti_control_mode: DtiControlMode::Current,
+                dti_target_iq: quantise(ac_a, 0.1, -3_276.8, 3_276.7),
+                dti_motor_position: 0.0,
+                dti_motor_still: u8::from(measured.motor_rpm.abs() < 1.0),
+            })),
+            (_, 36) => Some(AnyMessage::DtiFocCurrents(DtiFocCurrents {
+                dti_foc_id: 0.0,
+                dti_foc_iq: quantise(ac_a, 0.01, -21_474_836.48, 21_474_836.47),
+            })),
+            _ => None,
+        }
+    }
+
     fn mcu1(&self, measured: &Measured) -> AnyMessage {
         AnyMessage::Mcu1(Mcu1 {
             mcu_motor_speed: quantise(measured.motor_rpm, 0.25, 0.0, 16_383.75),
@@ -221,7 +306,7 @@ impl Nodes {
             mcu_inverter_temp: inverter.clamp(-40.0, 215.0) as i16,
             mcu_dc_main_wire_over_curr_fault: false,
             mcu_motor_phase_curr_fault: false,
-            mcu_over_hot_fault: false,
+            mcu_over_hot_fault: measured.inverter_faulted,
             mcu_resolver_fault: false,
             mcu_phase_curr_sensor_fault: false,
             mcu_motor_over_spd_fault: false,
@@ -282,6 +367,39 @@ impl Nodes {
             imd_earthlift_open: false,
             imd_device_activity: aer::can::ImdDeviceActivity::Normal,
         })
+    }
+}
+
+/// DTI packet 0x24: drive enabled (and its limit bit while disabled), map 2.5.
+fn dti_flags(measured: &Measured) -> DtiFlags {
+    DtiFlags {
+        dti_throttle_input: 0,
+        dti_brake_input: 0,
+        dti_digital_in1: false,
+        dti_digital_in2: false,
+        dti_digital_in3: false,
+        dti_digital_in4: false,
+        dti_digital_out1: false,
+        dti_digital_out2: false,
+        dti_digital_out3: false,
+        dti_digital_out4: false,
+        dti_drive_enabled: if measured.drive_enabled {
+            DtiDriveEnable::Enabled
+        } else {
+            DtiDriveEnable::Disabled
+        },
+        dti_limit_capacitor_temp: false,
+        dti_limit_dc_current: false,
+        dti_limit_drive_enable: !measured.drive_enabled,
+        dti_limit_igbt_accel_temp: false,
+        dti_limit_igbt_temp: false,
+        dti_limit_input_voltage: false,
+        dti_limit_motor_accel_temp: false,
+        dti_limit_motor_temp: false,
+        dti_limit_rpm_min: false,
+        dti_limit_rpm_max: false,
+        dti_limit_power: false,
+        dti_can_map_version: DTI_CAN_MAP_VERSION,
     }
 }
 

@@ -1,6 +1,8 @@
 //! What a run of the model can vary: the physical uncertainties the CCM must cope with
 //! (drivetrain efficiency, measurement lag) and the car's fixed physical values.
 
+use aer_ccm::InverterKind;
+
 /// Parameters of one run.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ModelParams {
@@ -17,11 +19,14 @@ pub struct ModelParams {
     pub frame_jitter_ms: u32,
     /// Seed of the model's own randomness (jitter, autocross course).
     pub seed: u32,
+    /// The inverter the car carries, and the CCM drives (fixed for a run: a retune keeps
+    /// the one the run started with).
+    pub inverter: InverterKind,
 }
 
 impl ModelParams {
-    /// A nominal car: 91 % efficient, a 10 ms measurement lag, the BMS one period late, no
-    /// jitter.
+    /// A nominal comp car (DTI HV-550): 91 % efficient, a 10 ms measurement lag, the BMS one
+    /// period late, no jitter.
     pub const NOMINAL: Self = Self {
         efficiency: 0.91,
         efficiency_droop: 0.0,
@@ -29,6 +34,13 @@ impl ModelParams {
         bms_delay_periods: 1,
         frame_jitter_ms: 0,
         seed: 1,
+        inverter: InverterKind::Dti,
+    };
+
+    /// The nominal car on the HIMaC bench's IFL100.
+    pub const BENCH: Self = Self {
+        inverter: InverterKind::Ifl100,
+        ..Self::NOMINAL
     };
 }
 
@@ -68,8 +80,15 @@ pub mod chassis {
 pub mod powertrain {
     /// Time constant (ms) of the inverter's torque response to a new command.
     pub const TORQUE_RESPONSE_MS: f32 = 5.0;
-    /// The inverter drops to zero torque when no VCU1 arrived for this long (ms).
+    /// The IFL100 drops to zero torque when no VCU1 arrived for this long (ms, assumed).
     pub const VCU1_TIMEOUT_MS: u32 = 100;
+    /// The DTI drops its current, and its drive enable, when no current command or no drive
+    /// enable arrived for this long (ms, assumed: the DTI tool's CAN timeout, to be set and
+    /// checked on the bench).
+    pub const DTI_COMMAND_TIMEOUT_MS: u32 = 100;
+    /// The DTI's available AC current (A, peak) as the model reports it: the motor's maximum
+    /// torque over its torque constant.
+    pub const DTI_AVAILABLE_AC_A: f32 = 346.6;
     /// Motor speed (rpm) where the efficiency droop is reached, and the fastest the motor
     /// turns.
     pub const MAX_RPM: f32 = 6_500.0;

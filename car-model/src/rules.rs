@@ -6,18 +6,27 @@
 //!   is at most 100 ms old; the command never exceeds what the torque monitor allows;
 //! - after each [`Condition`] begins, and for as long as it lasts, the torque is zero once
 //!   the condition's allowed time has passed: in the CCM's command after that time plus one
-//!   control period, and in what the inverter is asked for after one VCU1 period more.
+//!   control period, and in what the inverter is asked for after one command period more.
 
 use crate::car::Car;
 use crate::faults::Fault;
 use aer::can::PrechargeState;
 use aer_ccm::ControlOutputs;
+use aer_ccm::InverterKind;
 use aer_ccm::config::{
     APPS_BRAKE_TRIP, APPS_IMPLAUSIBLE, BMS_PACK_TIMEOUT_MS, BRAKES_ENGAGED_PSI, CONTROL_PERIOD_MS,
-    INVERTER_PERIOD_MS, MCU1_TIMEOUT_MS, PCC_STATUS_TIMEOUT_MS, PEDAL_DEADBAND, POWER_LIMIT_W,
+    DTI_SPEED_TIMEOUT_MS, MCU1_TIMEOUT_MS, PCC_STATUS_TIMEOUT_MS, PEDAL_DEADBAND, POWER_LIMIT_W,
     SAMPLE_TIMEOUT_MS, SENSOR_FAULT_PERSIST_MS,
 };
 use aer_ccm::vehicle::State;
+
+/// How old the inverter's status may get before the CCM must stop (ms): its speed frame's
+/// freshness limit, the same for both inverters.
+const INVERTER_STATUS_TIMEOUT_MS: u32 = if MCU1_TIMEOUT_MS > DTI_SPEED_TIMEOUT_MS {
+    MCU1_TIMEOUT_MS
+} else {
+    DTI_SPEED_TIMEOUT_MS
+};
 
 /// Slack for the sensor path: the converter's 2.3 ms per channel and the 100 Hz filter.
 const SENSOR_SLACK_MS: u32 = 10;
@@ -25,6 +34,11 @@ const SENSOR_SLACK_MS: u32 = 10;
 /// counts: the CCM sees them through the converter's noise (a count or two) and its filter,
 /// and a difference hovering at the threshold is judged either way.
 const MEASUREMENT_TOLERANCE: f32 = 0.01;
+/// How many conditions there are.
+const CONDITIONS: usize = 13;
+/// The period of the status that carries an inverter's own fault (ms): MCU2 and DTI packet
+/// 0x22 are both sent every 100 ms.
+const INVERTER_FAULT_REPORT_MS: u32 = 100;
 /// Samples in the power window (1 ms each).
 const WINDOW: usize = 100;
 
@@ -50,6 +64,9 @@ pub enum Condition {
     BmsLost,
     /// The inverter is silent.
     InverterLost,
+    /// The inverter reports a fault of its own (it stops driving by itself; the CCM must
+    /// stop asking).
+    InverterFaulted,
     /// The PCC does not hold AIR+ closed (not ONLINE or CHARGING). On the team's board an
     /// open shutdown circuit drops AIR- and AIR+ in hardware at once; the PCC, which has no
     /// input that reads the shutdown circuit, knows only once the tractive system has fallen
@@ -64,7 +81,7 @@ pub enum Condition {
 
 impl Condition {
     /// Every condition.
-    pub const ALL: [Self; 12] = [
+    pub const ALL: [Self; CONDITIONS] = [
         Self::PedalReleased,
         Self::PedalImplausible,
         Self::PedalOutOfRange,
@@ -74,6 +91,7 @@ impl Condition {
         Self::SamplingStopped,
         Self::BmsLost,
         Self::InverterLost,
+        Self::InverterFaulted,
         Self::PccNotOnline,
         Self::Can1Off,
         Self::Can2Off,
@@ -90,7 +108,12 @@ impl Condition {
             Self::BrakeSensorFault => (SENSOR_FAULT_PERSIST_MS, "T.4.3.4"),
             Self::SamplingStopped => (SAMPLE_TIMEOUT_MS, "SAMPLE_TIMEOUT_MS"),
             Self::BmsLost => (BMS_PACK_TIMEOUT_MS, "BMS_PACK_TIMEOUT_MS"),
-            Self::InverterLost | Self::Can2Off => (MCU1_TIMEOUT_MS, "MCU1_TIMEOUT_MS"),
+            // The fault arrives in the 100 ms status (MCU2, DTI packet 0x22).
+            Self::InverterFaulted => (INVERTER_FAULT_REPORT_MS, "MCU2 / DTI 0x22 period"),
+            Self::InverterLost | Self::Can2Off => (
+                INVERTER_STATUS_TIMEOUT_MS,
+                "MCU1_TIMEOUT_MS, DTI_SPEED_TIMEOUT_MS",
+            ),
             // The CCM learns it from the PCC's status; if status frames are lost on the way,
             // their freshness limit. (With the bus up it takes two PCC periods; the fault
             // tests check that.)
@@ -129,6 +152,7 @@ impl Condition {
             Self::SamplingStopped => plan.is_active(now_ms, Fault::SamplingStopped),
             Self::BmsLost => plan.is_active(now_ms, Fault::BmsSilent),
             Self::InverterLost => plan.is_active(now_ms, Fault::InverterSilent),
+            Self::InverterFaulted => plan.is_active(now_ms, Fault::InverterFaulted),
             Self::PccNotOnline => !car.pcc.relays().air_plus,
             Self::Can1Off => plan.is_active(now_ms, Fault::BusOff(0)),
             Self::Can2Off => plan.is_active(now_ms, Fault::BusOff(1)),
@@ -180,7 +204,7 @@ pub struct Stats {
     /// Per condition (in [`Condition::ALL`] order): the longest time from its start to zero
     /// torque in the CCM's command and in the inverter's, among the times it happened long
     /// enough to see the cut (ms).
-    pub cut_ms: [(Option<u32>, Option<u32>); 12],
+    pub cut_ms: [(Option<u32>, Option<u32>); CONDITIONS],
 }
 
 /// Checks a run.
@@ -190,7 +214,7 @@ pub struct Rules {
     window: [f32; WINDOW],
     next: usize,
     filled: usize,
-    tracks: [Track; 12],
+    tracks: [Track; CONDITIONS],
     /// The last time CAN2 was off.
     can2_off_until: Option<u32>,
     last_pcc: Option<(PrechargeState, u32)>,
@@ -207,7 +231,7 @@ impl Rules {
             window: [0.0; WINDOW],
             next: 0,
             filled: 0,
-            tracks: [Track::default(); 12],
+            tracks: [Track::default(); CONDITIONS],
             can2_off_until: None,
             last_pcc: None,
             stats: Stats::default(),
@@ -261,15 +285,17 @@ impl Rules {
                 self.broke(now_ms, Broken::PowerAverage(average));
             }
         }
-        // While CAN2 is off, and until the next VCU1 after it is back, the CCM cannot reach
-        // the inverter: only the inverter's own VCU1 timeout (the `Can2Off` deadline) holds.
+        // While CAN2 is off, and until the next command after it is back, the CCM cannot
+        // reach the inverter: only the inverter's own command timeout (the `Can2Off`
+        // deadline) holds.
+        let inverter = car.params.inverter;
         let can2_off = Condition::Can2Off.holds(car, now_ms);
         if can2_off {
             self.can2_off_until = Some(now_ms);
         }
         let inverter_reachable = self
             .can2_off_until
-            .is_none_or(|until| now_ms.wrapping_sub(until) > INVERTER_PERIOD_MS);
+            .is_none_or(|until| now_ms.wrapping_sub(until) > inverter.command_period_ms());
         let mut late = None;
         let tracks = self.tracks.iter_mut().zip(self.stats.cut_ms.iter_mut());
         for (condition, (track, cut_ms)) in Condition::ALL.into_iter().zip(tracks) {
@@ -290,7 +316,7 @@ impl Rules {
                     track.inverter_cut = true;
                     record(&mut cut_ms.1, elapsed);
                 }
-            } else if elapsed > inverter_deadline(condition, self.jitter_ms)
+            } else if elapsed > inverter_deadline(condition, self.jitter_ms, inverter)
                 && (inverter_reachable || condition == Condition::Can2Off)
             {
                 late = Some(Broken::InverterNotCut(condition, inverter_nm));
@@ -359,12 +385,15 @@ pub fn command_deadline(condition: Condition, jitter_ms: u32) -> u32 {
     allowed + CONTROL_PERIOD_MS + SENSOR_SLACK_MS + jitter_ms
 }
 
-/// Deadline (ms after a condition's onset) for what the inverter is asked.
-pub fn inverter_deadline(condition: Condition, jitter_ms: u32) -> u32 {
-    match condition {
-        // The CCM cannot reach the inverter: the inverter's own VCU1 timeout stops it.
-        Condition::Can2Off => crate::params::powertrain::VCU1_TIMEOUT_MS + INVERTER_PERIOD_MS,
-        _ => command_deadline(condition, jitter_ms) + INVERTER_PERIOD_MS,
+/// Deadline (ms after a condition's onset) for what the `inverter` is asked.
+pub fn inverter_deadline(condition: Condition, jitter_ms: u32, inverter: InverterKind) -> u32 {
+    use crate::params::powertrain::{DTI_COMMAND_TIMEOUT_MS, VCU1_TIMEOUT_MS};
+    let period = inverter.command_period_ms();
+    match (condition, inverter) {
+        // The CCM cannot reach the inverter: the inverter's own command timeout stops it.
+        (Condition::Can2Off, InverterKind::Ifl100) => VCU1_TIMEOUT_MS + period,
+        (Condition::Can2Off, InverterKind::Dti) => DTI_COMMAND_TIMEOUT_MS + period,
+        _ => command_deadline(condition, jitter_ms) + period,
     }
 }
 

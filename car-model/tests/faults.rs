@@ -1,47 +1,51 @@
 //! Every injected fault, one at a time, while the car drives: the rules hold throughout
 //! (zero torque within each condition's time, no torque outside DRIVING, 80 kW), the CCM
-//! names the fault, and the car drives again once the fault is gone. The torque-off times
-//! are printed (`-- --nocapture`).
+//! names the fault, and the car drives again once the fault is gone; with either inverter
+//! (the comp car's DTI HV-550, the bench's IFL100). The torque-off times are printed
+//! (`-- --nocapture`).
 
 use aer_car_model::chassis::Mode;
 use aer_car_model::driver::Cycle;
 use aer_car_model::faults::{Fault, FaultPlan, Injection, Node};
 use aer_car_model::rules::Condition;
 use aer_car_model::{ClosedLoop, ModelParams, NoTap};
+use aer_ccm::InverterKind;
 use aer_ccm::faults::Fault as CcmFault;
 use aer_ccm::vehicle::State;
 use std::sync::OnceLock;
 
+/// Both cars: the comp car (DTI HV-550) and the bench car (IFL100).
+const CARS: [ModelParams; 2] = [ModelParams::NOMINAL, ModelParams::BENCH];
+
 /// A car on the skidpad (steady torque) after its start-up, shared by every case.
-fn driving() -> ClosedLoop {
-    static STARTED: OnceLock<ClosedLoop> = OnceLock::new();
-    STARTED
-        .get_or_init(|| {
-            let mut run = ClosedLoop::new(
-                ModelParams::NOMINAL,
-                Mode::Road,
-                Cycle::Skidpad,
-                FaultPlan::NONE,
-            );
+fn driving(inverter: InverterKind) -> ClosedLoop {
+    static STARTED: OnceLock<[ClosedLoop; 2]> = OnceLock::new();
+    let [dti, ifl100] = STARTED.get_or_init(|| {
+        CARS.map(|car| {
+            let mut run = ClosedLoop::new(car, Mode::Road, Cycle::Skidpad, FaultPlan::NONE);
             assert!(run.start_up(20_000));
             run.run_until(run.now_ms() + 3_000, &mut NoTap);
             run
         })
-        .clone()
+    });
+    match inverter {
+        InverterKind::Dti => dti.clone(),
+        InverterKind::Ifl100 => ifl100.clone(),
+    }
 }
 
 /// Injects `fault` for `duration_ms` two seconds from now and runs on until 15 s after it
 /// ended (time for a new precharge and start-up); returns the run and the union of the
 /// CCM's fault bits seen.
-fn inject(fault: Fault, duration_ms: u32) -> (ClosedLoop, u32) {
-    let mut run = driving();
+fn inject(inverter: InverterKind, fault: Fault, duration_ms: u32) -> (ClosedLoop, u32) {
+    let mut run = driving(inverter);
     let from_ms = run.now_ms() + 2_000;
     let plan = FaultPlan::NONE.with(Injection {
         fault,
         from_ms,
         until_ms: from_ms + duration_ms,
     });
-    run.retune(ModelParams::NOMINAL, plan);
+    run.retune(run.car.params, plan);
     let mut seen = 0;
     let end = from_ms + duration_ms + 15_000;
     while run.now_ms() < end {
@@ -62,7 +66,7 @@ fn assert_clean(run: &ClosedLoop, what: &str) {
 
 #[test]
 fn each_fault_cuts_torque_in_time_is_named_and_the_car_drives_again_afterwards() {
-    let cases: [(Fault, Option<CcmFault>); 13] = [
+    let cases: [(Fault, Option<CcmFault>); 14] = [
         (Fault::PedalConverterLost, Some(CcmFault::PedalSignalLost)),
         (Fault::PedalSensorOpen(0), Some(CcmFault::Apps)),
         (Fault::PedalSensorOpen(1), Some(CcmFault::Apps)),
@@ -72,13 +76,19 @@ fn each_fault_cuts_torque_in_time_is_named_and_the_car_drives_again_afterwards()
         (Fault::SamplingStopped, Some(CcmFault::SensorsStale)),
         (Fault::BmsSilent, Some(CcmFault::BmsTimeout)),
         (Fault::InverterSilent, Some(CcmFault::InverterTimeout)),
+        (Fault::InverterFaulted, Some(CcmFault::InverterFault)),
         (Fault::ShutdownOpen, Some(CcmFault::PccError)),
         (Fault::BusOff(0), Some(CcmFault::PccTimeout)),
         (Fault::BusOff(1), Some(CcmFault::InverterTimeout)),
         (Fault::GarbledFrames(Node::Inverter), None),
     ];
-    println!("fault                      condition            command cut ms  inverter cut ms");
-    for (fault, named) in cases {
+    println!(
+        "inverter fault                      condition            command cut ms  inverter cut ms"
+    );
+    for (inverter, (fault, named)) in [InverterKind::Dti, InverterKind::Ifl100]
+        .into_iter()
+        .flat_map(|inverter| cases.map(|case| (inverter, case)))
+    {
         // One second: shorter than the PCC's own 1.5 s BMS timeout, which latches until a
         // power cycle. The shutdown circuit stays open for two: the PCC's shutdown error
         // clears only once the tractive system has discharged below 60 V (about 1 s at the
@@ -90,12 +100,13 @@ fn each_fault_cuts_torque_in_time_is_named_and_the_car_drives_again_afterwards()
         } else {
             1_000
         };
-        let (run, seen) = inject(fault, duration_ms);
-        assert_clean(&run, &format!("{fault:?}"));
+        let (run, seen) = inject(inverter, fault, duration_ms);
+        let what = format!("{inverter:?}, {fault:?}");
+        assert_clean(&run, &what);
         if let Some(named) = named {
             assert!(
                 seen & named.mask() != 0,
-                "{fault:?}: {named:?} never raised ({seen:#x})"
+                "{what}: {named:?} never raised ({seen:#x})"
             );
         }
         let stats = run.rules.stats();
@@ -105,7 +116,8 @@ fn each_fault_cuts_torque_in_time_is_named_and_the_car_drives_again_afterwards()
             }
             if let (Some(command), Some(inverter)) = (command, inverter) {
                 println!(
-                    "{:<26} {:<20} {command:>14} {inverter:>16}",
+                    "{:<8} {:<26} {:<20} {command:>14} {inverter:>16}",
+                    format!("{:?}", run.car.params.inverter),
                     format!("{fault:?}"),
                     format!("{condition:?}")
                 );
@@ -125,7 +137,7 @@ fn each_fault_cuts_torque_in_time_is_named_and_the_car_drives_again_afterwards()
         assert_eq!(
             run.last_outputs().vehicle.state,
             State::Driving,
-            "{fault:?}: back to driving"
+            "{what}: back to driving"
         );
     }
 }
@@ -164,9 +176,11 @@ fn a_stuck_pedal_sensor_is_caught_when_the_pedal_moves_away_from_it() {
 
 #[test]
 fn garbled_frames_from_any_node_never_break_a_rule() {
-    for node in [Node::Pcc, Node::Bms, Node::Inverter, Node::Imd] {
-        let (run, _) = inject(Fault::GarbledFrames(node), 3_000);
-        assert_clean(&run, &format!("{node:?}"));
+    for inverter in [InverterKind::Dti, InverterKind::Ifl100] {
+        for node in [Node::Pcc, Node::Bms, Node::Inverter, Node::Imd] {
+            let (run, _) = inject(inverter, Fault::GarbledFrames(node), 3_000);
+            assert_clean(&run, &format!("{inverter:?}, {node:?}"));
+        }
     }
 }
 
@@ -183,8 +197,10 @@ fn faults_during_the_start_up_never_let_the_car_drive_unsafely() {
             from_ms: 3_000,
             until_ms: 6_000,
         });
-        let mut run = ClosedLoop::new(ModelParams::NOMINAL, Mode::Road, Cycle::Skidpad, plan);
-        run.run_until(30_000, &mut NoTap);
-        assert_clean(&run, &format!("{fault:?}"));
+        for car in CARS {
+            let mut run = ClosedLoop::new(car, Mode::Road, Cycle::Skidpad, plan);
+            run.run_until(30_000, &mut NoTap);
+            assert_clean(&run, &format!("{:?}, {fault:?}", car.inverter));
+        }
     }
 }

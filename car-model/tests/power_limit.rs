@@ -15,6 +15,9 @@ use aer_car_model::faults::FaultPlan;
 use aer_car_model::{ClosedLoop, ModelParams, NoTap};
 use aer_ccm::config::POWER_LIMIT_W;
 
+/// The comp car (DTI HV-550) and the bench car (IFL100).
+const CARS: [ModelParams; 2] = [ModelParams::NOMINAL, ModelParams::BENCH];
+
 /// Full throttle on the dyno: (worst 100 ms average, mean over the run) in W.
 fn dyno(started: &ClosedLoop, efficiency: f32, lag_ms: f32) -> (f32, f32, u32) {
     let mut run = started.clone();
@@ -23,7 +26,7 @@ fn dyno(started: &ClosedLoop, efficiency: f32, lag_ms: f32) -> (f32, f32, u32) {
             efficiency,
             measurement_lag_ms: lag_ms,
             bms_delay_periods: 1,
-            ..ModelParams::NOMINAL
+            ..started.car.params
         },
         FaultPlan::NONE,
     );
@@ -45,10 +48,13 @@ fn dyno(started: &ClosedLoop, efficiency: f32, lag_ms: f32) -> (f32, f32, u32) {
 
 #[test]
 fn every_100_ms_average_stays_within_80_kw_at_any_speed_efficiency_and_lag() {
-    println!("rpm   efficiency  lag ms  worst 100 ms kW  mean kW");
-    for rpm in [3_300.0, 4_000.0, 5_000.0, 6_000.0] {
+    println!("inverter rpm   efficiency  lag ms  worst 100 ms kW  mean kW");
+    for (car, rpm) in CARS
+        .iter()
+        .flat_map(|car| [3_300.0, 4_000.0, 5_000.0, 6_000.0].map(|rpm| (*car, rpm)))
+    {
         let mut started = ClosedLoop::new(
-            ModelParams::NOMINAL,
+            car,
             Mode::Dyno { rpm },
             Cycle::FullThrottle,
             FaultPlan::NONE,
@@ -58,7 +64,8 @@ fn every_100_ms_average_stays_within_80_kw_at_any_speed_efficiency_and_lag() {
             for lag_ms in [0.0, 20.0, 50.0] {
                 let (worst, mean, violations) = dyno(&started, efficiency, lag_ms);
                 println!(
-                    "{rpm:>5} {efficiency:>10} {lag_ms:>7} {:>16.1} {:>8.1}",
+                    "{:<8} {rpm:>5} {efficiency:>10} {lag_ms:>7} {:>16.1} {:>8.1}",
+                    format!("{:?}", car.inverter),
                     worst / 1e3,
                     mean / 1e3
                 );
@@ -75,12 +82,13 @@ fn every_100_ms_average_stays_within_80_kw_at_any_speed_efficiency_and_lag() {
 
 #[test]
 fn the_acceleration_event_holds_80_kw_with_any_efficiency_lag_and_jitter() {
-    let mut started = ClosedLoop::new(
-        ModelParams::NOMINAL,
-        Mode::Road,
-        Cycle::Acceleration,
-        FaultPlan::NONE,
-    );
+    for car in CARS {
+        acceleration(car);
+    }
+}
+
+fn acceleration(car: ModelParams) {
+    let mut started = ClosedLoop::new(car, Mode::Road, Cycle::Acceleration, FaultPlan::NONE);
     assert!(started.start_up(20_000));
     for efficiency in [0.85, 0.97] {
         for lag_ms in [0.0, 50.0] {
@@ -91,7 +99,7 @@ fn the_acceleration_event_holds_80_kw_with_any_efficiency_lag_and_jitter() {
                         efficiency,
                         measurement_lag_ms: lag_ms,
                         frame_jitter_ms: jitter_ms,
-                        ..ModelParams::NOMINAL
+                        ..car
                     },
                     FaultPlan::NONE,
                 );
@@ -101,7 +109,8 @@ fn the_acceleration_event_holds_80_kw_with_any_efficiency_lag_and_jitter() {
                 });
                 let seconds = (run.now_ms() - start) as f32 / 1_000.0;
                 println!(
-                    "acceleration: efficiency {efficiency}, lag {lag_ms} ms, jitter {jitter_ms} ms: 75 m in {seconds:.2} s, worst 100 ms {:.1} kW",
+                    "acceleration, {:?}: efficiency {efficiency}, lag {lag_ms} ms, jitter {jitter_ms} ms: 75 m in {seconds:.2} s, worst 100 ms {:.1} kW",
+                    car.inverter,
                     run.rules.stats().worst_100ms_w / 1e3
                 );
                 assert!(finished && seconds < 5.0, "{seconds} s");

@@ -3,6 +3,7 @@
 //! skidpad, autocross with throttle/brake overlaps) with a random drivetrain efficiency
 //! (0.85-0.97, also falling with speed), measurement lag (0-50 ms), BMS delay (0-2 periods)
 //! and bus jitter (0-3 ms), and up to three faults at random times for random durations.
+//! Each case runs with either inverter (the comp car's DTI HV-550 or the bench's IFL100).
 //! Checked every millisecond (see `aer_car_model::rules`):
 //! - every 100 ms average of accumulator power <= 80 kW;
 //! - zero torque within each condition's time after it begins: pedal released, APPS
@@ -18,25 +19,32 @@ use aer_car_model::chassis::Mode;
 use aer_car_model::driver::Cycle;
 use aer_car_model::faults::{Fault, FaultPlan, Injection, Node};
 use aer_car_model::{ClosedLoop, ModelParams, NoTap};
+use aer_ccm::InverterKind;
 use proptest::prelude::*;
 use std::sync::OnceLock;
 
 /// Length of each case after the start-up (ms).
 const RUN_MS: u32 = 15_000;
 
-fn started(cycle: Cycle) -> ClosedLoop {
-    static STARTED: OnceLock<[ClosedLoop; 3]> = OnceLock::new();
+fn started(cycle: Cycle, inverter: InverterKind) -> ClosedLoop {
+    static STARTED: OnceLock<[[ClosedLoop; 3]; 2]> = OnceLock::new();
     let all = STARTED.get_or_init(|| {
-        [Cycle::Acceleration, Cycle::Skidpad, Cycle::Autocross].map(|cycle| {
-            let mut run = ClosedLoop::new(ModelParams::NOMINAL, Mode::Road, cycle, FaultPlan::NONE);
-            assert!(run.start_up(20_000), "{cycle:?}: start-up");
-            run
+        [ModelParams::NOMINAL, ModelParams::BENCH].map(|params| {
+            [Cycle::Acceleration, Cycle::Skidpad, Cycle::Autocross].map(|cycle| {
+                let mut run = ClosedLoop::new(params, Mode::Road, cycle, FaultPlan::NONE);
+                assert!(run.start_up(20_000), "{cycle:?}: start-up");
+                run
+            })
         })
     });
+    let car = match inverter {
+        InverterKind::Dti => &all[0],
+        InverterKind::Ifl100 => &all[1],
+    };
     match cycle {
-        Cycle::Acceleration => all[0].clone(),
-        Cycle::Skidpad => all[1].clone(),
-        _ => all[2].clone(),
+        Cycle::Acceleration => car[0].clone(),
+        Cycle::Skidpad => car[1].clone(),
+        _ => car[2].clone(),
     }
 }
 
@@ -50,6 +58,7 @@ fn fault() -> impl Strategy<Value = Fault> {
         Just(Fault::SamplingStopped),
         Just(Fault::BmsSilent),
         Just(Fault::InverterSilent),
+        Just(Fault::InverterFaulted),
         Just(Fault::ShutdownOpen),
         (0usize..2).prop_map(Fault::BusOff),
         prop_oneof![
@@ -99,6 +108,8 @@ fn params() -> impl Strategy<Value = ModelParams> {
                     bms_delay_periods,
                     frame_jitter_ms,
                     seed,
+                    // The run keeps the inverter it started with.
+                    ..ModelParams::NOMINAL
                 }
             },
         )
@@ -125,10 +136,11 @@ proptest! {
     #[test]
     fn the_rules_hold_over_random_cycles_cars_and_faults(
         cycle in cycle(),
+        inverter in prop_oneof![Just(InverterKind::Dti), Just(InverterKind::Ifl100)],
         params in params(),
         injections in injections(),
     ) {
-        let mut run = started(cycle);
+        let mut run = started(cycle, inverter);
         let start = run.now_ms();
         let plan = injections.iter().fold(FaultPlan::NONE, |plan, (fault, at, length)| {
             let from_ms = start + at;

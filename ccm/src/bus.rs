@@ -3,11 +3,13 @@
 //! their arrival time, so the control step only ever uses fresh values.
 
 use crate::config::{
-    BMS_CELLS_TIMEOUT_MS, BMS_LIMITS_TIMEOUT_MS, BMS_PACK_TIMEOUT_MS, MCU1_TIMEOUT_MS,
-    MCU2_TIMEOUT_MS, MCU3_TIMEOUT_MS, PCC_STATUS_TIMEOUT_MS, START_UP_GRACE_MS,
+    BMS_CELLS_TIMEOUT_MS, BMS_LIMITS_TIMEOUT_MS, BMS_PACK_TIMEOUT_MS, PCC_STATUS_TIMEOUT_MS,
+    START_UP_GRACE_MS,
 };
+use crate::inverter::{InverterKind, InverterStatus};
 use aer::can::{
-    AnyMessage, Mcu1, Mcu2, Mcu3, OrionCellVoltages, OrionLimits, OrionPackStatus, PccStatus,
+    AnyMessage, DtiAcLimits, DtiCurrents, DtiFlags, DtiSpeed, DtiTemperatures, Mcu1, Mcu2, Mcu3,
+    OrionCellVoltages, OrionLimits, OrionPackStatus, PccStatus,
 };
 use aer::runtime::DecodeError;
 use aer::telemetry::TelemetryMirror;
@@ -55,7 +57,7 @@ pub struct LostNodes {
     pub pcc: bool,
     /// Any of the Orion BMS's three frames.
     pub bms: bool,
-    /// Any of the inverter's three frames.
+    /// Any of the inverter's status frames the CCM acts on.
     pub inverter: bool,
 }
 
@@ -70,12 +72,8 @@ pub struct BusInputs {
     pub limits: Option<OrionLimits>,
     /// Orion cell voltages.
     pub cells: Option<OrionCellVoltages>,
-    /// Inverter status 1: motor speed, torques, the inverter's available torque.
-    pub motor: Option<Mcu1>,
-    /// Inverter status 2: temperatures, fault bits, warning level.
-    pub inverter: Option<Mcu2>,
-    /// Inverter status 3: DC voltage and current.
-    pub dc_link: Option<Mcu3>,
+    /// The inverter's status, whichever inverter the CCM drives.
+    pub inverter: InverterStatus,
     /// Inputs gone stale.
     pub lost: LostNodes,
 }
@@ -99,6 +97,16 @@ pub struct BusState {
     pub mcu2: Received<Mcu2>,
     /// MCU3.
     pub mcu3: Received<Mcu3>,
+    /// DTI packet 0x20: speed, DC voltage.
+    pub dti_speed: Received<DtiSpeed>,
+    /// DTI packet 0x21: AC and DC current.
+    pub dti_currents: Received<DtiCurrents>,
+    /// DTI packet 0x22: temperatures, fault code.
+    pub dti_temperatures: Received<DtiTemperatures>,
+    /// DTI packet 0x24: drive enabled, limits, CAN map version.
+    pub dti_flags: Received<DtiFlags>,
+    /// DTI packet 0x25: AC current limits.
+    pub dti_ac_limits: Received<DtiAcLimits>,
     /// Frames of known ids that failed to decode (wrong length): counted and ignored.
     pub decode_errors: u32,
     /// Frames whose id the schema does not know: counted and ignored.
@@ -116,6 +124,11 @@ impl Default for BusState {
             mcu1: Received::default(),
             mcu2: Received::default(),
             mcu3: Received::default(),
+            dti_speed: Received::default(),
+            dti_currents: Received::default(),
+            dti_temperatures: Received::default(),
+            dti_flags: Received::default(),
+            dti_ac_limits: Received::default(),
             decode_errors: 0,
             unknown_ids: 0,
         }
@@ -151,30 +164,35 @@ impl BusState {
             AnyMessage::Mcu1(mcu1) => self.mcu1.store(mcu1, now_ms),
             AnyMessage::Mcu2(mcu2) => self.mcu2.store(mcu2, now_ms),
             AnyMessage::Mcu3(mcu3) => self.mcu3.store(mcu3, now_ms),
+            AnyMessage::DtiSpeed(speed) => self.dti_speed.store(speed, now_ms),
+            AnyMessage::DtiCurrents(currents) => self.dti_currents.store(currents, now_ms),
+            AnyMessage::DtiTemperatures(temperatures) => {
+                self.dti_temperatures.store(temperatures, now_ms);
+            }
+            AnyMessage::DtiFlags(flags) => self.dti_flags.store(flags, now_ms),
+            AnyMessage::DtiAcLimits(limits) => self.dti_ac_limits.store(limits, now_ms),
             _ => {}
         }
         self.mirror.apply(&message);
     }
 
-    /// The fresh values at `now_ms`, for a CCM that started at `started_ms`.
-    pub fn inputs(&self, now_ms: u32, started_ms: u32) -> BusInputs {
+    /// The fresh values at `now_ms`, for a CCM that started at `started_ms` and drives the
+    /// `inverter` (the other inverter's frames, should they appear, are ignored).
+    pub fn inputs(&self, now_ms: u32, started_ms: u32, inverter: InverterKind) -> BusInputs {
+        let status = inverter.status(self, now_ms, started_ms);
         let lost = LostNodes {
             pcc: self.pcc.lost(now_ms, PCC_STATUS_TIMEOUT_MS, started_ms),
             bms: self.pack.lost(now_ms, BMS_PACK_TIMEOUT_MS, started_ms)
                 || self.limits.lost(now_ms, BMS_LIMITS_TIMEOUT_MS, started_ms)
                 || self.cells.lost(now_ms, BMS_CELLS_TIMEOUT_MS, started_ms),
-            inverter: self.mcu1.lost(now_ms, MCU1_TIMEOUT_MS, started_ms)
-                || self.mcu2.lost(now_ms, MCU2_TIMEOUT_MS, started_ms)
-                || self.mcu3.lost(now_ms, MCU3_TIMEOUT_MS, started_ms),
+            inverter: status.lost,
         };
         BusInputs {
             pcc: self.pcc.fresh(now_ms, PCC_STATUS_TIMEOUT_MS),
             pack: self.pack.fresh(now_ms, BMS_PACK_TIMEOUT_MS),
             limits: self.limits.fresh(now_ms, BMS_LIMITS_TIMEOUT_MS),
             cells: self.cells.fresh(now_ms, BMS_CELLS_TIMEOUT_MS),
-            motor: self.mcu1.fresh(now_ms, MCU1_TIMEOUT_MS),
-            inverter: self.mcu2.fresh(now_ms, MCU2_TIMEOUT_MS),
-            dc_link: self.mcu3.fresh(now_ms, MCU3_TIMEOUT_MS),
+            inverter: status,
             lost,
         }
     }

@@ -13,7 +13,8 @@ use crate::bus::BusState;
 use crate::chassis::PulseTimer;
 use crate::config::WHEEL_TEETH;
 use crate::control::Control;
-use crate::io::{ControlOutputs, DriverCounters, DriverInputs, OutFrame, SensorSample};
+use crate::inverter::{InverterKind, OutFrames};
+use crate::io::{ControlOutputs, DriverCounters, DriverInputs, SensorSample};
 use crate::sensors::Sensors;
 use crate::telemetry::TelemetryLink;
 use aer::can::CcmStatus;
@@ -31,14 +32,25 @@ pub struct Ccm {
 }
 
 impl Ccm {
-    /// A CCM at reset (vehicle OFF, no torque) with the pedal `calibration`.
+    /// A CCM at reset (vehicle OFF, no torque) with the pedal `calibration`, driving the car's
+    /// configured inverter ([`INVERTER`](crate::config::INVERTER)).
     pub fn new(calibration: AppsCalibration) -> Self {
+        Self::with_inverter(calibration, crate::config::INVERTER)
+    }
+
+    /// A CCM at reset driving the `inverter`.
+    pub fn with_inverter(calibration: AppsCalibration, inverter: InverterKind) -> Self {
         Self {
             wheels: [PulseTimer::new(), PulseTimer::new()],
             sensors: Sensors::new(calibration),
             link: TelemetryLink::new(),
-            control: Control::new(),
+            control: Control::new(inverter),
         }
+    }
+
+    /// The inverter this CCM drives.
+    pub fn inverter(&self) -> InverterKind {
+        self.control.inverter()
     }
 
     /// What the buses delivered so far.
@@ -98,8 +110,8 @@ impl Ccm {
             .step(&self.sensors.reading(), wheels, driver, now_ms, now_us)
     }
 
-    /// VCU1, BMS1 and BMS2 for the inverter (every 20 ms), from the last control step.
-    pub fn inverter_frames(&mut self) -> Result<[OutFrame; 3], EncodeError> {
+    /// The inverter's commands for this period (see [`Control::inverter_frames`]).
+    pub fn inverter_frames(&mut self) -> Result<OutFrames, EncodeError> {
         self.control.inverter_frames()
     }
 

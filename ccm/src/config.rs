@@ -3,11 +3,26 @@
 //! physical parameters and rule limits, which the dashboard and the car model need too, come
 //! from `aer-params` and are re-exported here.
 
-use aer::can::{Mcu1, Mcu2, Mcu3, OrionCellVoltages, OrionLimits, OrionPackStatus, PccStatus};
+use crate::inverter::InverterKind;
+use aer::can::{
+    DtiAcLimits, DtiCurrents, DtiFlags, DtiSetCurrent, DtiSpeed, DtiTemperatures, Mcu1, Mcu2, Mcu3,
+    OrionCellVoltages, OrionLimits, OrionPackStatus, PccStatus, Vcu1,
+};
 
 pub use aer_params::{
-    DRIVETRAIN_EFFICIENCY, GEAR_RATIO, MOTOR_MAX_TORQUE_NM, POWER_LIMIT_W, SOC_DERATE_END,
-    SOC_DERATE_START, WHEEL_RADIUS_M,
+    DRIVETRAIN_EFFICIENCY, GEAR_RATIO, MOTOR_MAX_TORQUE_NM, MOTOR_POLE_PAIRS,
+    MOTOR_TORQUE_PER_PEAK_A, POWER_LIMIT_W, SOC_DERATE_END, SOC_DERATE_START, WHEEL_RADIUS_M,
+};
+
+// --- The car's configuration -------------------------------------------------------------
+
+/// The inverter the firmware drives: the comp car's DTI HV-550, or the HIMaC bench's IFL100
+/// with the `inverter-ifl100` feature (`cargo xtask firmware --bench`). The library and the car
+/// model take it as a value, so the tests drive both.
+pub const INVERTER: InverterKind = if cfg!(feature = "inverter-ifl100") {
+    InverterKind::Ifl100
+} else {
+    InverterKind::Dti
 };
 
 // --- Task rates --------------------------------------------------------------------------
@@ -16,8 +31,10 @@ pub use aer_params::{
 pub const ADC_PERIOD_MS: u32 = 1;
 /// Vehicle control (state machine, launch/traction control): 100 Hz.
 pub const CONTROL_PERIOD_MS: u32 = 10;
-/// VCU1 and BMS1/BMS2 to the inverter.
-pub const INVERTER_PERIOD_MS: u32 = 20;
+/// The IFL100's VCU1 and BMS1/BMS2 (every 20 ms).
+pub const IFL100_COMMAND_PERIOD_MS: u32 = Vcu1::CYCLE_TIME_MS;
+/// The DTI's current, drive enable and DC current limits (every 10 ms).
+pub const DTI_COMMAND_PERIOD_MS: u32 = DtiSetCurrent::CYCLE_TIME_MS;
 /// Telemetry packet to the Pi.
 pub const TELEMETRY_PERIOD_MS: u32 = 10;
 /// CCM_Status on both buses.
@@ -56,8 +73,28 @@ pub const MCU1_TIMEOUT_MS: u32 = 5 * Mcu1::CYCLE_TIME_MS;
 pub const MCU3_TIMEOUT_MS: u32 = 5 * Mcu3::CYCLE_TIME_MS;
 /// MCU2 (temperatures, fault bits; every 100 ms).
 pub const MCU2_TIMEOUT_MS: u32 = 5 * Mcu2::CYCLE_TIME_MS;
+/// DTI speed and DC voltage (packet 0x20, every 10 ms): the power ceiling needs the speed.
+pub const DTI_SPEED_TIMEOUT_MS: u32 = 5 * DtiSpeed::CYCLE_TIME_MS;
+/// DTI AC and DC current (0x21, every 10 ms): the power trim needs the DC current.
+pub const DTI_CURRENTS_TIMEOUT_MS: u32 = 5 * DtiCurrents::CYCLE_TIME_MS;
+/// DTI drive enabled, limits and map version (0x24, every 10 ms).
+pub const DTI_FLAGS_TIMEOUT_MS: u32 = 5 * DtiFlags::CYCLE_TIME_MS;
+/// DTI temperatures and fault code (0x22, every 100 ms).
+pub const DTI_TEMPERATURES_TIMEOUT_MS: u32 = 5 * DtiTemperatures::CYCLE_TIME_MS;
+/// DTI available AC current (0x25, every 100 ms): the inverter's available torque.
+pub const DTI_AC_LIMITS_TIMEOUT_MS: u32 = 5 * DtiAcLimits::CYCLE_TIME_MS;
 /// Missing nodes are not reported as lost during this long after start-up.
 pub const START_UP_GRACE_MS: u32 = 1_000;
+
+// --- DTI HV-550 ---------------------------------------------------------------------------
+
+/// The CAN map version the schema describes (2.5, reported as major x 10 + minor). Any other
+/// version is an inverter fault: its frames may not mean what the schema says.
+pub const DTI_CAN_MAP_VERSION: u8 = 25;
+/// The DTI reports "drive enabled" against the CCM's "disabled" (or the reverse) for longer
+/// than this (ms): it is not obeying, an inverter fault. Two command periods and a status
+/// period of slack.
+pub const DTI_ENABLE_MISMATCH_MS: u32 = 50;
 
 // --- Power limiting ----------------------------------------------------------------------
 

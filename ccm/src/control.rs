@@ -4,17 +4,19 @@
 
 use crate::bus::{BusInputs, BusState};
 use crate::chassis::WheelSpeed;
-use crate::config::{CONTROL_PERIOD_MS, SAMPLE_TIMEOUT_MS};
+use crate::config::{CONTROL_PERIOD_MS, DTI_FLAGS_TIMEOUT_MS, INVERTER, SAMPLE_TIMEOUT_MS};
 use crate::faults::{Fault, FaultInputs, FaultMonitor};
-use crate::inverter::{DriveCommand, Vcu1Builder, bms1_frame, bms2_frame};
-use crate::io::{ControlOutputs, DriverCounters, DriverInputs, OutFrame};
+use crate::inverter::dti::{self, EnableWatch};
+use crate::inverter::ifl100::{self, Vcu1Builder};
+use crate::inverter::{DriveCommand, InverterKind, OutFrames};
+use crate::io::{ControlOutputs, DriverCounters, DriverInputs};
 use crate::power::PowerLimits;
 use crate::sensors::SensorReading;
 use crate::telemetry::LinkCounters;
 use crate::thermal::cooling;
 use crate::torque_path::{TorqueInputs, TorquePath};
 use crate::vehicle::{Vehicle, VehicleInputs};
-use aer::can::{AnyMessage, Bms1, Bms2, CcmStatus, PrechargeState, SCHEMA_FINGERPRINT, Vcu1};
+use aer::can::{AnyMessage, CcmStatus, PrechargeState, SCHEMA_FINGERPRINT};
 use aer::runtime::EncodeError;
 use aer::telemetry::{Telemetry, TelemetryOwnFields};
 use embedded_can::Frame;
@@ -25,7 +27,11 @@ pub struct Control {
     vehicle: Vehicle,
     fault_monitor: FaultMonitor,
     torque_path: TorquePath,
+    inverter: InverterKind,
     vcu1: Vcu1Builder,
+    /// The drive enable last sent to the DTI, and the watch that it is obeyed.
+    enable_sent: bool,
+    enable_watch: EnableWatch,
     status_counter: u8,
     bus: BusState,
     last: ControlOutputs,
@@ -38,18 +44,21 @@ pub struct Control {
 
 impl Default for Control {
     fn default() -> Self {
-        Self::new()
+        Self::new(INVERTER)
     }
 }
 
 impl Control {
-    /// At reset: vehicle OFF, no torque.
-    pub fn new() -> Self {
+    /// At reset: vehicle OFF, no torque, driving the `inverter`.
+    pub fn new(inverter: InverterKind) -> Self {
         Self {
             vehicle: Vehicle::new(),
             fault_monitor: FaultMonitor::default(),
             torque_path: TorquePath::new(PowerLimits::CAR, CONTROL_PERIOD_MS),
+            inverter,
             vcu1: Vcu1Builder::default(),
+            enable_sent: false,
+            enable_watch: EnableWatch::default(),
             status_counter: 0,
             bus: BusState::default(),
             last: ControlOutputs::RESET,
@@ -57,6 +66,11 @@ impl Control {
             started_ms: None,
             stepped_ms: 0,
         }
+    }
+
+    /// The inverter this CCM drives.
+    pub fn inverter(&self) -> InverterKind {
+        self.inverter
     }
 
     /// What the buses delivered so far.
@@ -104,7 +118,13 @@ impl Control {
         let started = self.started(sensors.first_ms, now_ms);
         self.stepped_ms = now_ms;
         let (apps, brakes) = (sensors.apps, sensors.brakes);
-        let bus = self.bus.inputs(now_ms, started);
+        let mut bus = self.bus.inputs(now_ms, started, self.inverter);
+        if self.inverter == InverterKind::Dti {
+            let flags = self.bus.dti_flags.fresh(now_ms, DTI_FLAGS_TIMEOUT_MS);
+            bus.inverter.fault |=
+                self.enable_watch
+                    .disobeyed(self.enable_sent, flags.as_ref(), now_ms);
+        }
         let sampled = sensors.sampled_ms.unwrap_or(started);
         let sensors_stale = now_ms.wrapping_sub(sampled) > SAMPLE_TIMEOUT_MS;
         let faults = self.fault_monitor.evaluate(&FaultInputs {
@@ -129,20 +149,16 @@ impl Control {
             torque_enabled: vehicle.torque_enabled,
             faults,
             soc: bus.pack.map(|pack| pack.orion_pack_soc as f32 / 100.0),
-            motor_rad_s: bus
-                .motor
-                .map(|mcu1| aer_params::motor_rad_s(mcu1.mcu_motor_speed as f32)),
-            inverter_max_nm: bus.motor.map(|mcu1| mcu1.mcu_max_motor_torque as f32),
+            motor_rad_s: bus.inverter.motor_rpm.map(aer_params::motor_rad_s),
+            inverter_max_nm: bus.inverter.available_torque_nm,
             dc_power_w: dc_power_w(&bus),
             front_rad_s: (left.rad_per_s(now_us), right.rad_per_s(now_us)),
             launch_button: driver.launch,
         });
-        let temperatures = bus.inverter.map_or((f32::NAN, f32::NAN), |mcu2| {
-            (
-                f32::from(mcu2.mcu_inverter_temp),
-                f32::from(mcu2.mcu_motor_temp),
-            )
-        });
+        let temperatures = bus
+            .inverter
+            .temperatures_degc
+            .unwrap_or((f32::NAN, f32::NAN));
         let outputs = ControlOutputs {
             vehicle,
             torque,
@@ -154,35 +170,41 @@ impl Control {
         outputs
     }
 
-    /// VCU1, BMS1 and BMS2 for the inverter (every 20 ms), from the last control step (and
-    /// the brakes as it saw them). The VCU1 sent is mirrored into telemetry (the torque the
-    /// inverter was asked for).
-    pub fn inverter_frames(&mut self) -> Result<[OutFrame; 3], EncodeError> {
+    /// The inverter's commands for this period (every
+    /// [`InverterKind::command_period_ms`]), from the last control step and the brakes as it
+    /// saw them: the IFL100's VCU1, BMS1 and BMS2, or the DTI's current, drive enable and DC
+    /// current limits. The torque command sent is mirrored into telemetry.
+    pub fn inverter_frames(&mut self) -> Result<OutFrames, EncodeError> {
         let last = self.last;
+        let bus = self.bus.inputs(
+            self.stepped_ms,
+            self.started_ms.unwrap_or(self.stepped_ms),
+            self.inverter,
+        );
         let command = DriveCommand {
             torque_nm: last.torque.torque_nm,
             drive: last.vehicle.torque_enabled,
             main_relay: last.vehicle.precharge_complete,
+            precharging: bus.pcc.map(|status| status.pcc_state) == Some(PrechargeState::Precharge),
             brakes_engaged: last.brake_light,
+            // Without a fresh limit from the BMS the inverter may draw nothing.
+            discharge_limit_a: bus
+                .limits
+                .map_or(0.0, |limits| f32::from(limits.orion_pack_dcl)),
         };
-        let (vcu1, vcu1_data) = self.vcu1.next_frame(&command)?;
-        self.bus.mirror.apply(&AnyMessage::Vcu1(vcu1));
-        let bus = self
-            .bus
-            .inputs(self.stepped_ms, self.started_ms.unwrap_or(self.stepped_ms));
-        let precharging = bus.pcc.map(|status| status.pcc_state) == Some(PrechargeState::Precharge);
-        // Without a fresh limit from the BMS the inverter may draw nothing.
-        let discharge_limit = bus
-            .limits
-            .map_or(0.0, |limits| f32::from(limits.orion_pack_dcl));
-        Ok([
-            (Vcu1::ID, vcu1_data),
-            (
-                Bms1::ID,
-                bms1_frame(precharging, last.vehicle.precharge_complete)?,
-            ),
-            (Bms2::ID, bms2_frame(discharge_limit)?),
-        ])
+        match self.inverter {
+            InverterKind::Ifl100 => {
+                let (vcu1, frames) = ifl100::frames(&mut self.vcu1, &command)?;
+                self.bus.mirror.apply(&AnyMessage::Vcu1(vcu1));
+                Ok(frames)
+            }
+            InverterKind::Dti => {
+                let (current, frames) = dti::frames(&command)?;
+                self.enable_sent = command.drive;
+                self.bus.mirror.apply(&AnyMessage::DtiSetCurrent(current));
+                Ok(frames)
+            }
+        }
     }
 
     /// CCM_Status as it stands: state, faults, firmware fingerprint, rolling counter. Reading
@@ -260,13 +282,11 @@ impl Control {
     }
 }
 
-/// DC power into the drivetrain (W): the inverter's DC voltage x current (MCU3), or the BMS's
-/// pack power if that is higher (a cross-check: one wrong or saturated measurement cannot
-/// hide the power). `None` without a fresh MCU3.
+/// DC power into the drivetrain (W): the inverter's DC voltage x current, or the BMS's pack
+/// power if that is higher (a cross-check: one wrong or saturated measurement cannot hide the
+/// power). `None` without a fresh DC voltage and current from the inverter.
 fn dc_power_w(bus: &BusInputs) -> Option<f32> {
-    let inverter = bus
-        .dc_link
-        .map(|mcu3| (mcu3.mcu_dc_voltage * mcu3.mcu_dc_current) as f32)?;
+    let inverter = bus.inverter.dc_link.map(|(volts, amps)| volts * amps)?;
     let pack = bus
         .pack
         .map(|pack| (pack.orion_pack_inst_voltage * pack.orion_pack_current) as f32);

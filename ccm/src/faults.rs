@@ -5,7 +5,7 @@ use crate::apps::AppsReading;
 use crate::brakes::BrakeReading;
 use crate::bus::BusInputs;
 use crate::config::{MAX_TEMP_DEGC, MIN_CELL_V, SENSOR_FAULT_PERSIST_MS, SOC_DERATE_END};
-use aer::can::{Mcu2, McuWarningLevel, PrechargeState};
+use aer::can::PrechargeState;
 use aer_control::Persist;
 
 /// One fault bit. Bits 0-7 are the team's original bitmap (vehicle-facts.md); the rest are
@@ -39,10 +39,11 @@ pub enum Fault {
     InverterTimeout = 11,
     /// The PCC's status is older than 100 ms.
     PccTimeout = 12,
-    /// The inverter reports a fault (MCU2 fault bits, or warning level HIGH).
+    /// The inverter reports a fault: the IFL100's MCU2 fault bits or warning level HIGH; the
+    /// DTI's fault code, a CAN map other than the schema's, or drive enable not as commanded.
     InverterFault = 13,
-    /// The inverter reports a warning (low DC or 12 V, a sensor state, warning level
-    /// LOW or MEDIUM).
+    /// The inverter reports a warning: the IFL100's low DC or 12 V, a sensor state, warning
+    /// level LOW or MEDIUM; a DTI "limit active" bit.
     InverterWarning = 14,
     /// The PCC reports ERROR (or a state the schema does not know): the accumulator is
     /// disconnected; the PCC's own error bits say why.
@@ -147,41 +148,6 @@ impl FaultMap {
     }
 }
 
-/// What the inverter's MCU2 frame reports: (fault, warning).
-///
-/// The fault bits and warning level HIGH stop the car; the low-voltage warnings, the four
-/// sensor/system state bits and levels LOW/MEDIUM are warnings. (The state bits' polarity is
-/// not in the team's documentation; 1 is taken as "not normal" and only reported, since the
-/// inverter protects itself against its own sensor faults.)
-pub fn inverter_condition(mcu2: &Mcu2) -> (bool, bool) {
-    let fault = mcu2.mcu_dc_main_wire_over_curr_fault
-        || mcu2.mcu_motor_phase_curr_fault
-        || mcu2.mcu_over_hot_fault
-        || mcu2.mcu_resolver_fault
-        || mcu2.mcu_phase_curr_sensor_fault
-        || mcu2.mcu_motor_over_spd_fault
-        || mcu2.mcu_drv_motor_over_hot_fault
-        || mcu2.mcu_dc_main_wire_over_volt_fault
-        || mcu2.mcu_drv_motor_over_cool_fault
-        || mcu2.mcu_motor_stall_fault
-        || mcu2.mcu_motor_open_phase_fault
-        || matches!(
-            mcu2.mcu_warning_level,
-            McuWarningLevel::High | McuWarningLevel::Unknown(_)
-        );
-    let warning = mcu2.mcu_dc_low_volt_warning
-        || mcu2.mcu_12v_low_volt_warning
-        || mcu2.mcu_motor_system_state
-        || mcu2.mcu_temp_sensor_state
-        || mcu2.mcu_motor_temp_sensor_state
-        || mcu2.mcu_dc_volt_sensor_state
-        || matches!(
-            mcu2.mcu_warning_level,
-            McuWarningLevel::Low | McuWarningLevel::Medium
-        );
-    (fault, warning)
-}
-
 /// Everything the fault checks read in one control step.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct FaultInputs<'a> {
@@ -233,12 +199,13 @@ impl FaultMonitor {
         );
         let (motor_max, inverter_max, pack_max) = MAX_TEMP_DEGC;
         let hot = |degc: f32, max: f32| degc > max;
-        let over_temperature = bus.inverter.is_some_and(|mcu2| {
-            hot(f32::from(mcu2.mcu_motor_temp), motor_max)
-                || hot(f32::from(mcu2.mcu_inverter_temp), inverter_max)
-        }) || bus
-            .limits
-            .is_some_and(|limits| hot(f32::from(limits.orion_high_temperature), pack_max));
+        let over_temperature = bus
+            .inverter
+            .temperatures_degc
+            .is_some_and(|(inverter, motor)| hot(motor, motor_max) || hot(inverter, inverter_max))
+            || bus
+                .limits
+                .is_some_and(|limits| hot(f32::from(limits.orion_high_temperature), pack_max));
         map.set(
             Fault::OverTemperature,
             persists(&mut self.over_temperature, over_temperature),
@@ -258,11 +225,8 @@ impl FaultMonitor {
         map.set(Fault::BmsTimeout, bus.lost.bms);
         map.set(Fault::InverterTimeout, bus.lost.inverter);
         map.set(Fault::PccTimeout, bus.lost.pcc);
-        let (inverter_fault, inverter_warning) = bus
-            .inverter
-            .map_or((false, false), |mcu2| inverter_condition(&mcu2));
-        map.set(Fault::InverterFault, inverter_fault);
-        map.set(Fault::InverterWarning, inverter_warning);
+        map.set(Fault::InverterFault, bus.inverter.fault);
+        map.set(Fault::InverterWarning, bus.inverter.warning);
         let pcc_error = bus.pcc.is_some_and(|status| {
             matches!(
                 status.pcc_state,

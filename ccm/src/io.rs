@@ -62,9 +62,6 @@ impl ControlOutputs {
     };
 }
 
-/// A frame the CCM sends: id and 8 payload bytes.
-pub type OutFrame = (u32, [u8; 8]);
-
 /// One CAN controller's health, as the firmware reads it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct BusHealth {

@@ -37,4 +37,5 @@ pub mod vehicle;
 pub mod watchdog;
 
 pub use ccm::Ccm;
-pub use io::{BusHealth, ControlOutputs, DriverCounters, DriverInputs, OutFrame, SensorSample};
+pub use inverter::{InverterKind, OutFrame, OutFrames};
+pub use io::{BusHealth, ControlOutputs, DriverCounters, DriverInputs, SensorSample};

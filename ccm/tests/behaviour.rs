@@ -5,7 +5,8 @@ use aer::telemetry::Telemetry;
 use aer_ccm::apps::{Apps, AppsCalibration};
 use aer_ccm::brakes::{Brakes, volts_for};
 use aer_ccm::faults::{Fault, FaultMap};
-use aer_ccm::inverter::{DriveCommand, Vcu1Builder, checksum};
+use aer_ccm::inverter::DriveCommand;
+use aer_ccm::inverter::ifl100::{Vcu1Builder, checksum};
 use aer_ccm::thermal::cooling;
 use aer_ccm::traction::TractionControl;
 use aer_ccm::vehicle::{State, Vehicle, VehicleInputs};
@@ -311,7 +312,9 @@ fn vcu1_counts_and_carries_a_valid_checksum() {
         torque_nm: 101.92,
         drive: true,
         main_relay: true,
+        precharging: false,
         brakes_engaged: false,
+        discharge_limit_a: 300.0,
     };
     for expected_counter in (0..16).chain(0..4) {
         let (_, data) = builder.next_frame(&command).unwrap();
@@ -656,7 +659,7 @@ fn the_torque_request_has_a_rest_deadband_and_reaches_the_maximum() {
 #[test]
 fn inverter_fault_bits_stop_the_car_and_warnings_are_reported() {
     use aer::can::{Mcu2, McuWarningLevel};
-    use aer_ccm::faults::inverter_condition;
+    use aer_ccm::inverter::ifl100::condition as inverter_condition;
     let quiet = aer_m7_check_free_quiet_mcu2();
     assert_eq!(inverter_condition(&quiet), (false, false));
     let stall = Mcu2 {

@@ -5,12 +5,12 @@
 
 mod rig;
 
-use aer_ccm::config::{BMS_PACK_TIMEOUT_MS, MCU1_TIMEOUT_MS, PEDAL_CONVERSION_TIMEOUT_MS};
+use aer_ccm::config::{BMS_PACK_TIMEOUT_MS, PEDAL_CONVERSION_TIMEOUT_MS};
 use aer_ccm::faults::Fault;
 use aer_ccm::launch::LaunchState;
 use aer_ccm::vehicle::State;
 use aer_ccm::{BusHealth, DriverCounters};
-use rig::{Inverter, Rig, Tick};
+use rig::{INVERTERS, Inverter, Rig, Tick};
 
 /// Ticks (10 ms each) until `done`, at most `limit`; returns how many it took.
 fn ticks_until(
@@ -117,40 +117,45 @@ fn bms_silence_stops_torque_and_names_the_fault() {
 
 #[test]
 fn inverter_silence_stops_torque_and_names_the_fault() {
-    let mut rig = Rig::new();
-    rig.drive_away();
-    rig.hold(&Tick::driving(0.5, 1_000.0), 10);
-    let silent = Tick {
-        inverter: None,
-        ..Tick::driving(0.5, 1_000.0)
-    };
-    let ticks = ticks_until(&mut rig, &silent, 100, |outputs| {
-        outputs.torque.torque_nm == 0.0 && outputs.faults.has(Fault::InverterTimeout)
-    })
-    .expect("torque cut");
-    assert!(ticks * 10 <= MCU1_TIMEOUT_MS + 10, "{} ms", ticks * 10);
-    assert!(rig.ccm.snapshot().fault_inverter_timeout);
+    for inverter in INVERTERS {
+        let mut rig = Rig::with_inverter(inverter);
+        rig.drive_away();
+        rig.hold(&Tick::driving(0.5, 1_000.0), 10);
+        let silent = Tick {
+            inverter: None,
+            ..Tick::driving(0.5, 1_000.0)
+        };
+        let ticks = ticks_until(&mut rig, &silent, 100, |outputs| {
+            outputs.torque.torque_nm == 0.0 && outputs.faults.has(Fault::InverterTimeout)
+        })
+        .expect("torque cut");
+        let limit = inverter.status_timeout_ms();
+        assert!(ticks * 10 <= limit + 10, "{inverter:?}: {} ms", ticks * 10);
+        assert!(rig.ccm.snapshot().fault_inverter_timeout);
+    }
 }
 
 #[test]
 fn the_inverters_own_fault_bits_reach_the_fault_map() {
     // Before: MCU2's fault bits never reached the fault map.
-    let mut rig = Rig::new();
-    rig.drive_away();
-    rig.hold(&Tick::driving(0.5, 1_000.0), 10);
-    let faulty = Tick {
-        inverter: Some(Inverter {
-            rpm: 1_000.0,
-            dc: (380.0, 2.0),
-            fault: true,
-        }),
-        ..Tick::driving(0.5, 1_000.0)
-    };
-    let outputs = rig.tick(&faulty);
-    assert!(outputs.faults.has(Fault::InverterFault));
-    assert_eq!(outputs.torque.torque_nm, 0.0);
-    assert_eq!(outputs.vehicle.state, State::Fault);
-    assert!(rig.ccm.status().ccm_fault_inverter_fault);
+    for inverter in INVERTERS {
+        let mut rig = Rig::with_inverter(inverter);
+        rig.drive_away();
+        rig.hold(&Tick::driving(0.5, 1_000.0), 10);
+        let faulty = Tick {
+            inverter: Some(Inverter {
+                rpm: 1_000.0,
+                dc: (380.0, 2.0),
+                fault: true,
+            }),
+            ..Tick::driving(0.5, 1_000.0)
+        };
+        let outputs = rig.tick(&faulty);
+        assert!(outputs.faults.has(Fault::InverterFault), "{inverter:?}");
+        assert_eq!(outputs.torque.torque_nm, 0.0);
+        assert_eq!(outputs.vehicle.state, State::Fault);
+        assert!(rig.ccm.status().ccm_fault_inverter_fault);
+    }
 }
 
 #[test]

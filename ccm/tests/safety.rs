@@ -18,7 +18,7 @@ use aer_ccm::config::{DRIVETRAIN_EFFICIENCY, MOTOR_MAX_TORQUE_NM, POWER_LIMIT_W}
 use aer_ccm::power::PowerLimits;
 use aer_ccm::vehicle::State;
 use proptest::prelude::*;
-use rig::{Bms, Inverter, Rig, Tick};
+use rig::{Bms, INVERTERS, Inverter, Rig, Tick};
 
 fn tick() -> impl Strategy<Value = Tick> {
     let travel = prop_oneof![4 => 0.0f32..1.0, 1 => -0.3f32..1.3];
@@ -142,15 +142,18 @@ fn check(rig: &Rig, tick: &Tick, outputs: &ControlOutputs) -> Result<(), TestCas
     Ok(())
 }
 
-/// Runs `ticks` (after the scripted start into DRIVING if `from_driving`), checking every step.
+/// Runs `ticks` (after the scripted start into DRIVING if `from_driving`) with each inverter,
+/// checking every step.
 fn run(ticks: &[Tick], from_driving: bool) -> Result<(), TestCaseError> {
-    let mut rig = Rig::new();
-    if from_driving {
-        rig.drive_away();
-    }
-    for tick in ticks {
-        let outputs = rig.tick(tick);
-        check(&rig, tick, &outputs)?;
+    for inverter in INVERTERS {
+        let mut rig = Rig::with_inverter(inverter);
+        if from_driving {
+            rig.drive_away();
+        }
+        for tick in ticks {
+            let outputs = rig.tick(tick);
+            check(&rig, tick, &outputs)?;
+        }
     }
     Ok(())
 }
@@ -186,15 +189,17 @@ proptest! {
 
 #[test]
 fn the_scripted_start_up_delivers_torque_from_the_pedal() {
-    let mut rig = Rig::new();
-    rig.drive_away();
-    let outputs = rig.hold(&Tick::driving(0.5, 1_000.0), 20);
-    assert_eq!(outputs.vehicle.state, State::Driving);
-    // Half travel, above the 2 % deadband: (0.5 - 0.02) / 0.98 of 260 Nm.
-    let expected = (0.5 - 0.02) / 0.98 * 260.0;
-    assert!(
-        (outputs.torque.torque_nm - expected).abs() < 1.0,
-        "{:?}",
-        outputs.torque
-    );
+    for inverter in INVERTERS {
+        let mut rig = Rig::with_inverter(inverter);
+        rig.drive_away();
+        let outputs = rig.hold(&Tick::driving(0.5, 1_000.0), 20);
+        assert_eq!(outputs.vehicle.state, State::Driving, "{inverter:?}");
+        // Half travel, above the 2 % deadband: (0.5 - 0.02) / 0.98 of 260 Nm.
+        let expected = (0.5 - 0.02) / 0.98 * 260.0;
+        assert!(
+            (outputs.torque.torque_nm - expected).abs() < 1.0,
+            "{inverter:?}: {:?}",
+            outputs.torque
+        );
+    }
 }

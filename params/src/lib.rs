@@ -15,6 +15,13 @@ pub const POWER_LIMIT_W: f32 = 80_000.0;
 /// range (inverter and motor together, assumed): the power limiter must hold the limit for
 /// any efficiency in this range.
 pub const DRIVETRAIN_EFFICIENCY: (f32, f32) = (0.85, 0.97);
+/// Motor pole pairs: the DTI reports electrical rpm, motor rpm x pole pairs (assumed: an
+/// EMRAX 228, 20 poles; the team's code does not name the comp car's motor).
+pub const MOTOR_POLE_PAIRS: f32 = 10.0;
+/// Motor torque per ampere of peak AC (phase) current, the unit the DTI commands and reports
+/// (Nm/A, assumed: an EMRAX 228 HV's 1.06 Nm per A rms over sqrt 2). The CCM commands the DTI
+/// in amperes through it, so a wrong value scales the torque; measure it on the dyno.
+pub const MOTOR_TORQUE_PER_PEAK_A: f32 = 0.75;
 /// Motor revolutions per wheel revolution (assumed).
 pub const GEAR_RATIO: f32 = 3.5;
 

@@ -27,8 +27,9 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Task {
-    /// Build the firmware (release): the race images and the bench bring-up images of both
-    /// boards, written as target/firmware/{ccm,pcc,ccm-bringup,pcc-bringup}.hex for
+    /// Build the firmware (release): the race images (the CCM for the comp car's DTI), the
+    /// bench bring-up images of both boards and the CCM for the HIMaC bench's IFL100, written
+    /// as target/firmware/{ccm,pcc,ccm-bringup,pcc-bringup,ccm-ifl100}.hex (and .elf) for
     /// teensy_loader_cli, printing flash and RAM use.
     Firmware,
     /// Print the default boards' pin maps (aer-boards), one line per signal:
@@ -62,40 +63,61 @@ enum Task {
 
 /// A firmware image to build.
 struct Firmware {
-    /// Image and binary name.
+    /// Image name.
     name: &'static str,
+    /// Binary name.
+    bin: &'static str,
     /// Cargo package.
     package: &'static str,
+    /// Cargo features.
+    features: &'static str,
     /// Board.
     board: &'static str,
     /// The board's flash.
     flash: Region,
 }
 
-const FIRMWARE: [Firmware; 4] = [
+const FIRMWARE: [Firmware; 5] = [
     Firmware {
         name: "ccm",
+        bin: "ccm",
         package: "aer-ccm",
-        board: "Teensy 4.1",
+        features: "firmware",
+        board: "Teensy 4.1, comp car (DTI HV-550)",
         flash: FLASH_T41,
     },
     Firmware {
         name: "pcc",
+        bin: "pcc",
         package: "aer-pcc",
+        features: "firmware",
         board: "Teensy 4.0",
         flash: FLASH_T40,
     },
     Firmware {
         name: "ccm-bringup",
+        bin: "ccm-bringup",
         package: "aer-ccm",
+        features: "firmware",
         board: "Teensy 4.1, bench bring-up",
         flash: FLASH_T41,
     },
     Firmware {
         name: "pcc-bringup",
+        bin: "pcc-bringup",
         package: "aer-pcc",
+        features: "firmware",
         board: "Teensy 4.0, bench bring-up",
         flash: FLASH_T40,
+    },
+    // Last: the feature change rebuilds only the CCM crate.
+    Firmware {
+        name: "ccm-ifl100",
+        bin: "ccm",
+        package: "aer-ccm",
+        features: "firmware,inverter-ifl100",
+        board: "Teensy 4.1, HIMaC bench (IFL100)",
+        flash: FLASH_T41,
     },
 ];
 
@@ -163,9 +185,9 @@ fn firmware() -> Result<()> {
                 "--target",
                 TARGET,
                 "--features",
-                "firmware",
+                firmware.features,
             ])
-            .args(["--package", firmware.package, "--bin", firmware.name])
+            .args(["--package", firmware.package, "--bin", firmware.bin])
             .status()
             .context("running cargo build")?;
         if !status.success() {
@@ -174,9 +196,13 @@ fn firmware() -> Result<()> {
         let elf_path = target_dir(&root)
             .join(TARGET)
             .join("release")
-            .join(firmware.name);
+            .join(firmware.bin);
         let elf =
             std::fs::read(&elf_path).with_context(|| format!("reading {}", elf_path.display()))?;
+        // Kept beside the HEX file: two images share the `ccm` binary's build path.
+        let kept_elf = out_dir.join(format!("{}.elf", firmware.name));
+        std::fs::write(&kept_elf, &elf)
+            .with_context(|| format!("writing {}", kept_elf.display()))?;
         let image = Image::read(&elf).with_context(|| format!("reading {}", elf_path.display()))?;
         if image.outside(firmware.flash) > 0 {
             bail!(

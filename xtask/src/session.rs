@@ -54,6 +54,7 @@ pub fn write(path: &Path) -> Result<usize> {
         bms_delay_periods: 1,
         frame_jitter_ms: 1,
         seed: 7,
+        ..ModelParams::BENCH
     };
     let mut run = ClosedLoop::new(params, Mode::Road, Cycle::Autocross, FaultPlan::NONE);
     let mut log = Log::default();

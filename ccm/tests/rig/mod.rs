@@ -4,6 +4,7 @@
 //! withheld), ten 1 kHz sensor samples and the front wheels' pulses, then runs a control step.
 
 use aer::can::{
+    DtiAcLimits, DtiCurrents, DtiDriveEnable, DtiFaultCode, DtiFlags, DtiSpeed, DtiTemperatures,
     Mcu1, Mcu2, Mcu3, McuMainState, McuWarningLevel, McuWorkMode, MotorMode, MotorRotateDirection,
     OrionCellVoltages, OrionLimits, OrionPackStatus, PccStatus, PrechargeState,
 };
@@ -12,9 +13,9 @@ use aer_ccm::apps::AppsCalibration;
 use aer_ccm::brakes::volts_for;
 use aer_ccm::config::WHEEL_TEETH;
 use aer_ccm::vehicle::State;
-use aer_ccm::{Ccm, ControlOutputs, DriverInputs, SensorSample};
+use aer_ccm::{Ccm, ControlOutputs, DriverInputs, InverterKind, SensorSample};
 use aer_flexcan::CanFrame;
-use embedded_can::{Frame, StandardId};
+use embedded_can::{ExtendedId, Frame, Id, StandardId};
 
 pub const CAL: AppsCalibration = AppsCalibration::DEFAULT;
 
@@ -29,13 +30,13 @@ pub struct Bms {
     pub low_cell: f32,
 }
 
-/// What the inverter reports.
+/// What the inverter reports (as MCU1-3 or as the DTI's packets, whichever the CCM drives).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Inverter {
     pub rpm: f32,
-    /// DC voltage and current (MCU3).
+    /// DC voltage and current.
     pub dc: (f32, f32),
-    /// An MCU2 fault bit is set.
+    /// A fault: an MCU2 fault bit, or the DTI's fault code OVERCURRENT.
     pub fault: bool,
 }
 
@@ -121,14 +122,28 @@ pub struct Rig {
     wheel_teeth: f32,
 }
 
-fn std_frame(id: u32, data: &[u8]) -> CanFrame {
-    CanFrame::new(StandardId::new(id as u16).unwrap(), data).unwrap()
+fn can_frame(id: u32, extended: bool, data: &[u8]) -> CanFrame {
+    let id = if extended {
+        Id::Extended(ExtendedId::new(id).unwrap())
+    } else {
+        Id::Standard(StandardId::new(id as u16).unwrap())
+    };
+    CanFrame::new(id, data).unwrap()
 }
 
+/// Both inverters, for tests that must hold with either.
+pub const INVERTERS: [InverterKind; 2] = [InverterKind::Dti, InverterKind::Ifl100];
+
 impl Rig {
+    /// A CCM driving the car's configured inverter.
     pub fn new() -> Self {
+        Self::with_inverter(aer_ccm::config::INVERTER)
+    }
+
+    /// A CCM driving `inverter`; the rig's inverter frames are that inverter's.
+    pub fn with_inverter(inverter: InverterKind) -> Self {
         Self {
-            ccm: Ccm::new(CAL),
+            ccm: Ccm::with_inverter(CAL, inverter),
             now_ms: 0,
             pcc_online_at: None,
             soc: None,
@@ -143,12 +158,23 @@ impl Rig {
         message: M,
         encode: fn(&M, &mut [u8]) -> Result<usize, EncodeError>,
     ) -> bool {
+        self.send_as(id, false, message, encode)
+    }
+
+    fn send_as<M>(
+        &mut self,
+        id: u32,
+        extended: bool,
+        message: M,
+        encode: fn(&M, &mut [u8]) -> Result<usize, EncodeError>,
+    ) -> bool {
         let mut data = [0u8; 8];
-        let sent = encode(&message, &mut data).is_ok();
-        if sent {
-            self.ccm.on_frame(&std_frame(id, &data), self.now_ms);
+        let sent = encode(&message, &mut data);
+        if let Ok(len) = sent {
+            self.ccm
+                .on_frame(&can_frame(id, extended, &data[..len]), self.now_ms);
         }
-        sent
+        sent.is_ok()
     }
 
     pub fn tick(&mut self, tick: &Tick) -> ControlOutputs {
@@ -193,7 +219,56 @@ impl Rig {
                 OrionCellVoltages::encode,
             );
         }
-        if let Some(inverter) = tick.inverter {
+        match tick.inverter {
+            Some(inverter) if self.ccm.inverter() == InverterKind::Dti => self.dti(&inverter),
+            Some(inverter) => self.ifl100(&inverter),
+            None => {}
+        }
+        self.sensors(tick)
+    }
+
+    /// The DTI's status packets the CCM acts on.
+    fn dti(&mut self, inverter: &Inverter) {
+        let (volts, amps) = inverter.dc;
+        let speed = DtiSpeed {
+            dti_erpm: (inverter.rpm * aer_ccm::config::MOTOR_POLE_PAIRS).round() as i32,
+            dti_duty_cycle: 0.0,
+            dti_input_voltage: volts.round() as i16,
+        };
+        self.send_as(DtiSpeed::ID, true, speed, DtiSpeed::encode);
+        let currents = DtiCurrents {
+            dti_ac_current: 0.0,
+            dti_dc_current: f64::from((amps * 10.0).round() / 10.0),
+        };
+        self.send_as(DtiCurrents::ID, true, currents, DtiCurrents::encode);
+        let temperatures = DtiTemperatures {
+            dti_controller_temp: 35.0,
+            dti_motor_temp: 40.0,
+            dti_fault_code: if inverter.fault {
+                DtiFaultCode::Overcurrent
+            } else {
+                DtiFaultCode::None
+            },
+        };
+        self.send_as(
+            DtiTemperatures::ID,
+            true,
+            temperatures,
+            DtiTemperatures::encode,
+        );
+        self.send_as(DtiFlags::ID, true, dti_flags(), DtiFlags::encode);
+        let limits = DtiAcLimits {
+            dti_max_ac_current: 346.6,
+            dti_available_max_ac_current: 346.6,
+            dti_min_ac_current: 0.0,
+            dti_available_min_ac_current: 0.0,
+        };
+        self.send_as(DtiAcLimits::ID, true, limits, DtiAcLimits::encode);
+    }
+
+    /// The IFL100's MCU1-3.
+    fn ifl100(&mut self, inverter: &Inverter) {
+        {
             let mut mcu1 = mcu1();
             mcu1.mcu_motor_speed = f64::from((inverter.rpm * 4.0).round() / 4.0);
             self.send(Mcu1::ID, mcu1, Mcu1::encode);
@@ -216,6 +291,10 @@ impl Rig {
                 Mcu3::encode,
             );
         }
+    }
+
+    /// Ten sensor samples and wheel pulses, then the control step.
+    fn sensors(&mut self, tick: &Tick) -> ControlOutputs {
         let raw = |(rest, full): (f32, f32), t: f32| rest + t * (full - rest);
         let conversions = if tick.converter {
             [
@@ -305,6 +384,35 @@ pub fn pcc_status(state: PrechargeState) -> PccStatus {
         pcc_accumulator_voltage: 400.0,
         pcc_tractive_voltage: 399.0,
         pcc_precharge_progress: 99.75,
+    }
+}
+
+/// DTI packet 0x24 of a healthy DTI on map 2.5 with its drive disabled.
+pub fn dti_flags() -> DtiFlags {
+    DtiFlags {
+        dti_throttle_input: 0,
+        dti_brake_input: 0,
+        dti_digital_in1: false,
+        dti_digital_in2: false,
+        dti_digital_in3: false,
+        dti_digital_in4: false,
+        dti_digital_out1: false,
+        dti_digital_out2: false,
+        dti_digital_out3: false,
+        dti_digital_out4: false,
+        dti_drive_enabled: DtiDriveEnable::Disabled,
+        dti_limit_capacitor_temp: false,
+        dti_limit_dc_current: false,
+        dti_limit_drive_enable: true,
+        dti_limit_igbt_accel_temp: false,
+        dti_limit_igbt_temp: false,
+        dti_limit_input_voltage: false,
+        dti_limit_motor_accel_temp: false,
+        dti_limit_motor_temp: false,
+        dti_limit_rpm_min: false,
+        dti_limit_rpm_max: false,
+        dti_limit_power: false,
+        dti_can_map_version: 25,
     }
 }
 

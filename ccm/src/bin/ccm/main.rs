@@ -10,8 +10,9 @@
 //!   FIFOs into bounded queues (overflows counted); the Pi's ISO-TP flow control (0x777) goes
 //!   straight to the telemetry sender.
 //! - `control` (100 Hz, 2): CAN intake, bus health, state machine, torque, outputs;
-//!   VCU1/BMS1/BMS2 every 20 ms (a VCU1 still pending replaces the older one), CCM_Status
-//!   every 100 ms.
+//!   the inverter's commands every command period (the DTI's current, drive enable and DC
+//!   limits every 10 ms, or the bench IFL100's VCU1/BMS1/BMS2 every 20 ms; a command still
+//!   pending replaces the older one), CCM_Status every 100 ms.
 //! - `telemetry` (100 Hz, 1): snapshot -> generated packer -> ISO-TP on 0x666 on CAN3.
 //! - `watchdog` (10 Hz, 1): feeds WDOG1 (1 s timeout) only while every task's heartbeat is
 //!   younger than 100 ms.
@@ -49,8 +50,7 @@ mod app {
     use aer_ccm::chassis::PulseTimer;
     use aer_ccm::config::WHEEL_TEETH;
     use aer_ccm::config::{
-        CONTROL_PERIOD_MS, INVERTER_PERIOD_MS, STATUS_PERIOD_MS, TELEMETRY_PERIOD_MS,
-        WATCHDOG_CHECK_MS,
+        CONTROL_PERIOD_MS, INVERTER, STATUS_PERIOD_MS, TELEMETRY_PERIOD_MS, WATCHDOG_CHECK_MS,
     };
     use aer_ccm::control::Control;
     use aer_ccm::faults::{Fault, FaultMap};
@@ -62,7 +62,7 @@ mod app {
     use aer_console::{Command, LineReader, LogBuffer, Watch, bringup::ResetCause};
     use aer_flexcan::{BusStatus, CanFrame, FaultState, Flexcan};
     use core::sync::atomic::{AtomicU32, Ordering};
-    use embedded_can::{Frame, Id, StandardId};
+    use embedded_can::{ExtendedId, Frame, Id, StandardId};
     use heapless::spsc::{Consumer, Producer, Queue};
     use rtic_monotonics::imxrt::prelude::*;
     use teensy4_bsp::{
@@ -285,7 +285,7 @@ mod app {
             Shared {
                 sensors: Sensors::new(AppsCalibration::DEFAULT),
                 link: TelemetryLink::new(),
-                control: Control::new(),
+                control: Control::new(INVERTER),
                 vehicle_can,
                 inverter_can,
                 supervisor: Supervisor::default(),
@@ -563,10 +563,25 @@ mod app {
         data: &[u8],
         queueing: Queueing,
     ) {
-        let frame = u16::try_from(id)
-            .ok()
-            .and_then(StandardId::new)
-            .and_then(|id| CanFrame::new(id, data));
+        send_as(can, id, false, data, queueing);
+    }
+
+    fn send_as<const N: u8>(
+        can: &mut impl rtic::Mutex<T = Flexcan<N>>,
+        id: u32,
+        extended: bool,
+        data: &[u8],
+        queueing: Queueing,
+    ) {
+        let id = if extended {
+            ExtendedId::new(id).map(Id::Extended)
+        } else {
+            u16::try_from(id)
+                .ok()
+                .and_then(StandardId::new)
+                .map(Id::Standard)
+        };
+        let frame = id.and_then(|id| CanFrame::new(id, data));
         let sent = frame.is_some_and(|frame| {
             can.lock(|can| match queueing {
                 Queueing::Behind => can.transmit(&frame),
@@ -635,7 +650,7 @@ mod app {
                     control.on_frame(&frame, now);
                 }
                 let outputs = control.step(&sensors, wheels, driver, now, now_micros);
-                let inverter = (step % (INVERTER_PERIOD_MS / CONTROL_PERIOD_MS) == 0)
+                let inverter = (step % (INVERTER.command_period_ms() / CONTROL_PERIOD_MS) == 0)
                     .then(|| control.inverter_frames());
                 let status = (step % (STATUS_PERIOD_MS / CONTROL_PERIOD_MS) == 0)
                     .then(|| control.next_status());
@@ -678,12 +693,18 @@ mod app {
             match inverter {
                 Some(Ok(frames)) => {
                     // A torque command never waits behind an older one: it replaces it.
-                    for (id, data) in frames {
-                        send(&mut cx.shared.inverter_can, id, &data, Queueing::Replacing);
+                    for frame in frames.iter() {
+                        send_as(
+                            &mut cx.shared.inverter_can,
+                            frame.id,
+                            frame.extended,
+                            frame.data(),
+                            Queueing::Replacing,
+                        );
                     }
                 }
                 Some(Err(_)) => {
-                    TX_NOT_SENT.fetch_add(3, Ordering::Relaxed);
+                    TX_NOT_SENT.fetch_add(1, Ordering::Relaxed);
                 }
                 None => {}
             }

@@ -1,0 +1,238 @@
+//! The comp car's DTI HV-550 as the CCM drives it: the frames it sends (checked by decoding
+//! them with the generated codec), what it reads from the DTI's status, and the faults the
+//! DTI's own reports raise.
+
+mod rig;
+
+use aer::can::{
+    AnyMessage, DtiDriveEnable, DtiSetCurrent, DtiSetDriveEnable, DtiSetMaxBrakeCurrentDc,
+    DtiSetMaxCurrentDc,
+};
+use aer_ccm::config::{DTI_ENABLE_MISMATCH_MS, MOTOR_TORQUE_PER_PEAK_A};
+use aer_ccm::faults::Fault;
+use aer_ccm::inverter::{DriveCommand, dti};
+use aer_ccm::vehicle::State;
+use aer_ccm::{InverterKind, OutFrame};
+use embedded_can::Frame;
+use rig::{Rig, Tick, dti_flags};
+
+const NODE_ID: u32 = 0x41;
+
+fn command(torque_nm: f32, drive: bool) -> DriveCommand {
+    DriveCommand {
+        torque_nm,
+        drive,
+        main_relay: true,
+        precharging: false,
+        brakes_engaged: false,
+        discharge_limit_a: 250.0,
+    }
+}
+
+fn decode(frame: &OutFrame) -> AnyMessage {
+    assert!(frame.extended, "DTI commands use 29-bit ids");
+    assert_eq!(frame.id & 0xFF, NODE_ID, "the node id is the low byte");
+    AnyMessage::decode(frame.id, true, frame.data()).expect("decodes")
+}
+
+/// The period's frames as (current A, drive enable, DC limit A, DC brake limit A).
+fn sent(command: &DriveCommand) -> (f64, DtiDriveEnable, f64, f64) {
+    let (_, frames) = dti::frames(command).expect("encodes");
+    assert_eq!(frames.len(), 4);
+    let mut current = None;
+    let mut enable = None;
+    let mut dc = None;
+    let mut brake = None;
+    for frame in frames.iter() {
+        match decode(frame) {
+            AnyMessage::DtiSetCurrent(DtiSetCurrent { dti_current_cmd }) => {
+                current = Some(dti_current_cmd);
+            }
+            AnyMessage::DtiSetDriveEnable(DtiSetDriveEnable {
+                dti_drive_enable_cmd,
+            }) => enable = Some(dti_drive_enable_cmd),
+            AnyMessage::DtiSetMaxCurrentDc(DtiSetMaxCurrentDc {
+                dti_max_current_dc_cmd,
+            }) => dc = Some(dti_max_current_dc_cmd),
+            AnyMessage::DtiSetMaxBrakeCurrentDc(DtiSetMaxBrakeCurrentDc {
+                dti_max_brake_current_dc_cmd,
+            }) => brake = Some(dti_max_brake_current_dc_cmd),
+            other => panic!("unexpected {other:?}"),
+        }
+    }
+    (
+        current.unwrap(),
+        enable.unwrap(),
+        dc.unwrap(),
+        brake.unwrap(),
+    )
+}
+
+#[test]
+fn torque_becomes_ac_current_through_the_torque_constant_only_while_driving() {
+    let (current, enable, dc, brake) = sent(&command(150.0, true));
+    let expected = f64::from(150.0 / MOTOR_TORQUE_PER_PEAK_A);
+    assert!(
+        (current - expected).abs() <= 0.05,
+        "{current} A, 0.1 A steps"
+    );
+    assert_eq!(enable, DtiDriveEnable::Enabled);
+    assert_eq!(dc, 250.0, "the BMS's discharge limit");
+    assert_eq!(brake, 0.0, "no regeneration");
+
+    let (current, enable, _, _) = sent(&command(150.0, false));
+    assert_eq!(current, 0.0, "no current outside DRIVING");
+    assert_eq!(enable, DtiDriveEnable::Disabled);
+
+    for torque in [f32::NAN, f32::INFINITY, -50.0] {
+        let (current, _, _, _) = sent(&command(torque, true));
+        assert_eq!(current, 0.0, "{torque}");
+    }
+    let (current, _, _, _) = sent(&command(10_000.0, true));
+    assert!(current <= f64::from(dti::MAX_CURRENT_A) + 0.05, "{current}");
+
+    let (_, _, dc, _) = sent(&DriveCommand {
+        discharge_limit_a: f32::NAN,
+        ..command(100.0, true)
+    });
+    assert_eq!(dc, 0.0, "no limit known: no DC current");
+}
+
+#[test]
+fn the_ccm_sends_the_dti_its_commands_and_drive_enable_only_in_driving() {
+    let mut rig = Rig::with_inverter(InverterKind::Dti);
+    rig.hold(&Tick::CALM, 20);
+    let (_, enable, _, _) = frames_of(&mut rig);
+    assert_eq!(enable, DtiDriveEnable::Disabled);
+    rig.drive_away();
+    rig.hold(&Tick::driving(0.5, 1_000.0), 5);
+    let (current, enable, dc, _) = frames_of(&mut rig);
+    assert_eq!(enable, DtiDriveEnable::Enabled);
+    let torque = rig.ccm.last_outputs().torque.torque_nm;
+    assert!((current - f64::from(torque / MOTOR_TORQUE_PER_PEAK_A)).abs() <= 0.05);
+    assert_eq!(dc, 300.0, "the rig's BMS allows 300 A");
+
+    // The BMS falls silent: DC limit 0 at once (its limit is stale), then the fault.
+    let silent = Tick {
+        bms: None,
+        ..Tick::driving(0.5, 1_000.0)
+    };
+    rig.hold(&silent, 60);
+    let (current, enable, dc, _) = frames_of(&mut rig);
+    assert_eq!((current, enable, dc), (0.0, DtiDriveEnable::Disabled, 0.0));
+}
+
+fn frames_of(rig: &mut Rig) -> (f64, DtiDriveEnable, f64, f64) {
+    let frames = rig.ccm.inverter_frames().expect("encodes");
+    let mut out = (f64::NAN, DtiDriveEnable::Unknown(0xFF), f64::NAN, f64::NAN);
+    for frame in frames.iter() {
+        match decode(frame) {
+            AnyMessage::DtiSetCurrent(m) => out.0 = m.dti_current_cmd,
+            AnyMessage::DtiSetDriveEnable(m) => out.1 = m.dti_drive_enable_cmd,
+            AnyMessage::DtiSetMaxCurrentDc(m) => out.2 = m.dti_max_current_dc_cmd,
+            AnyMessage::DtiSetMaxBrakeCurrentDc(m) => out.3 = m.dti_max_brake_current_dc_cmd,
+            other => panic!("unexpected {other:?}"),
+        }
+    }
+    out
+}
+
+#[test]
+fn speed_power_and_available_torque_come_from_the_dtis_packets() {
+    let mut rig = Rig::with_inverter(InverterKind::Dti);
+    rig.hold(&Tick::driving(0.0, 3_000.0), 20);
+    let bus = rig.ccm.bus();
+    let status = InverterKind::Dti.status(bus, rig.now_ms, 0);
+    assert_eq!(status.motor_rpm, Some(3_000.0), "ERPM / 10 pole pairs");
+    assert_eq!(status.dc_link, Some((380.0, 2.0)));
+    let torque = status.available_torque_nm.unwrap();
+    assert!((torque - 346.6 * MOTOR_TORQUE_PER_PEAK_A).abs() < 0.01);
+    assert_eq!(status.temperatures_degc, Some((35.0, 40.0)));
+    assert!(!status.fault && !status.warning && !status.lost);
+    // The IFL100's view of the same bus: nothing it knows arrived.
+    let ifl100 = InverterKind::Ifl100.status(bus, rig.now_ms, 0);
+    assert!(ifl100.motor_rpm.is_none() && ifl100.dc_link.is_none());
+    let later = InverterKind::Ifl100.status(bus, rig.now_ms, rig.now_ms.wrapping_sub(1_001));
+    assert!(
+        later.lost,
+        "past the start-up grace the IFL100 counts as lost"
+    );
+}
+
+/// Feeds a DTI packet 0x24 to the rig's CCM.
+fn send_flags(rig: &mut Rig, flags: aer::can::DtiFlags) {
+    let mut data = [0u8; 8];
+    flags.encode(&mut data).unwrap();
+    let frame = aer_flexcan::CanFrame::new(
+        embedded_can::ExtendedId::new(aer::can::DtiFlags::ID).unwrap(),
+        &data,
+    )
+    .unwrap();
+    rig.ccm.on_frame(&frame, rig.now_ms);
+}
+
+#[test]
+fn a_wrong_can_map_is_a_fault_and_limits_are_warnings() {
+    let mut rig = Rig::with_inverter(InverterKind::Dti);
+    rig.drive_away();
+    rig.hold(&Tick::driving(0.5, 1_000.0), 5);
+    send_flags(
+        &mut rig,
+        aer::can::DtiFlags {
+            dti_limit_motor_temp: true,
+            ..dti_flags()
+        },
+    );
+    let outputs = rig
+        .ccm
+        .control(Default::default(), rig.now_ms, rig.now_ms * 1_000);
+    assert!(outputs.faults.has(Fault::InverterWarning));
+    assert!(!outputs.faults.has(Fault::InverterFault));
+    assert_eq!(outputs.vehicle.state, State::Driving, "a limit only warns");
+
+    send_flags(
+        &mut rig,
+        aer::can::DtiFlags {
+            dti_can_map_version: 24,
+            ..dti_flags()
+        },
+    );
+    let outputs = rig
+        .ccm
+        .control(Default::default(), rig.now_ms, rig.now_ms * 1_000);
+    assert!(
+        outputs.faults.has(Fault::InverterFault),
+        "map 2.4 is not the schema's"
+    );
+    assert_eq!(outputs.torque.torque_nm, 0.0);
+}
+
+#[test]
+fn a_dti_that_stays_enabled_after_the_ccm_disabled_it_is_a_fault() {
+    let mut rig = Rig::with_inverter(InverterKind::Dti);
+    rig.hold(&Tick::CALM, 20);
+    rig.ccm.inverter_frames().expect("encodes");
+    let enabled = aer::can::DtiFlags {
+        dti_drive_enabled: DtiDriveEnable::Enabled,
+        dti_limit_drive_enable: false,
+        ..dti_flags()
+    };
+    let start = rig.now_ms;
+    let mut faulted_after = None;
+    // Only the flags come (the other packets would say "disabled" again).
+    let quiet = Tick {
+        inverter: None,
+        ..Tick::CALM
+    };
+    for _ in 0..20 {
+        send_flags(&mut rig, enabled);
+        let outputs = rig.tick(&quiet);
+        if outputs.faults.has(Fault::InverterFault) {
+            faulted_after = Some(rig.now_ms - start);
+            break;
+        }
+    }
+    let after = faulted_after.expect("disobedience is a fault");
+    assert!(after > DTI_ENABLE_MISMATCH_MS, "{after} ms");
+    assert!(after <= DTI_ENABLE_MISMATCH_MS + 20, "{after} ms");
+}
