@@ -205,6 +205,30 @@ pub static TELEMETRY: Table = Table {
             ty: ColumnType::F32,
         },
         Column {
+            name: "torque_command",
+            ty: ColumnType::F32,
+        },
+        Column {
+            name: "motor_temp",
+            ty: ColumnType::I16,
+        },
+        Column {
+            name: "inverter_temp",
+            ty: ColumnType::I16,
+        },
+        Column {
+            name: "inverter_dc_voltage",
+            ty: ColumnType::F32,
+        },
+        Column {
+            name: "inverter_dc_current",
+            ty: ColumnType::F32,
+        },
+        Column {
+            name: "inverter_phase_current",
+            ty: ColumnType::F32,
+        },
+        Column {
             name: "motor_direction",
             ty: ColumnType::U8,
         },
@@ -221,27 +245,19 @@ pub static TELEMETRY: Table = Table {
             ty: ColumnType::U8,
         },
         Column {
-            name: "mcu_voltage",
-            ty: ColumnType::F32,
-        },
-        Column {
-            name: "mcu_phase_current",
-            ty: ColumnType::F32,
-        },
-        Column {
-            name: "mcu_current",
-            ty: ColumnType::F32,
-        },
-        Column {
-            name: "motor_temp",
-            ty: ColumnType::I16,
-        },
-        Column {
-            name: "mcu_temp",
-            ty: ColumnType::I16,
-        },
-        Column {
             name: "mcu_warning_level",
+            ty: ColumnType::U8,
+        },
+        Column {
+            name: "dti_drive_enabled",
+            ty: ColumnType::U8,
+        },
+        Column {
+            name: "dti_control_mode",
+            ty: ColumnType::U8,
+        },
+        Column {
+            name: "dti_fault_code",
             ty: ColumnType::U8,
         },
         Column {
@@ -251,10 +267,6 @@ pub static TELEMETRY: Table = Table {
         Column {
             name: "ready_to_drive",
             ty: ColumnType::Bool,
-        },
-        Column {
-            name: "torque_command",
-            ty: ColumnType::F32,
         },
         Column {
             name: "shocktravel1",
@@ -365,6 +377,46 @@ pub static TELEMETRY: Table = Table {
             ty: ColumnType::Bool,
         },
         Column {
+            name: "dti_limit_capacitor_temp",
+            ty: ColumnType::Bool,
+        },
+        Column {
+            name: "dti_limit_dc_current",
+            ty: ColumnType::Bool,
+        },
+        Column {
+            name: "dti_limit_igbt_accel_temp",
+            ty: ColumnType::Bool,
+        },
+        Column {
+            name: "dti_limit_igbt_temp",
+            ty: ColumnType::Bool,
+        },
+        Column {
+            name: "dti_limit_input_voltage",
+            ty: ColumnType::Bool,
+        },
+        Column {
+            name: "dti_limit_motor_accel_temp",
+            ty: ColumnType::Bool,
+        },
+        Column {
+            name: "dti_limit_motor_temp",
+            ty: ColumnType::Bool,
+        },
+        Column {
+            name: "dti_limit_rpm_min",
+            ty: ColumnType::Bool,
+        },
+        Column {
+            name: "dti_limit_rpm_max",
+            ty: ColumnType::Bool,
+        },
+        Column {
+            name: "dti_limit_power",
+            ty: ColumnType::Bool,
+        },
+        Column {
             name: "fault_over_current",
             ty: ColumnType::Bool,
         },
@@ -431,12 +483,12 @@ pub static TELEMETRY: Table = Table {
     ],
     signals: super::telemetry::Telemetry::FIELDS,
     tdengine: TdengineTable {
-        create: "CREATE STABLE IF NOT EXISTS `telemetry` (`ts` TIMESTAMP, `sequence` SMALLINT UNSIGNED, `timestamp_us` INT UNSIGNED, `apps_travel` FLOAT, `bse_front` FLOAT, `bse_rear` FLOAT, `imd_resistance` SMALLINT UNSIGNED, `imd_status` TINYINT UNSIGNED, `pack_voltage` FLOAT, `pack_current` FLOAT, `soc` FLOAT, `discharge_limit` SMALLINT UNSIGNED, `charge_limit` SMALLINT UNSIGNED, `low_cell_volt` FLOAT, `high_cell_volt` FLOAT, `avg_cell_volt` FLOAT, `pack_temp` TINYINT, `motor_speed` FLOAT, `motor_torque` FLOAT, `max_motor_torque` FLOAT, `motor_direction` TINYINT UNSIGNED, `motor_state` TINYINT UNSIGNED, `mcu_main_state` TINYINT UNSIGNED, `mcu_work_mode` TINYINT UNSIGNED, `mcu_voltage` FLOAT, `mcu_phase_current` FLOAT, `mcu_current` FLOAT, `motor_temp` SMALLINT, `mcu_temp` SMALLINT, `mcu_warning_level` TINYINT UNSIGNED, `vehicle_state` TINYINT UNSIGNED, `ready_to_drive` BOOL, `torque_command` FLOAT, `shocktravel1` FLOAT, `shocktravel2` FLOAT, `shocktravel3` FLOAT, `shocktravel4` FLOAT, `can_rx_dropped` TINYINT UNSIGNED, `can_tx_dropped` TINYINT UNSIGNED, `can_decode_errors` TINYINT UNSIGNED, `telemetry_superseded` TINYINT UNSIGNED, `pedal_bus_errors` TINYINT UNSIGNED, `can_bus_off_events` TINYINT UNSIGNED, `vehicle_bus_error_passive` BOOL, `vehicle_bus_bus_off` BOOL, `inverter_bus_error_passive` BOOL, `inverter_bus_bus_off` BOOL, `dc_main_wire_over_volt_fault` BOOL, `motor_phase_curr_fault` BOOL, `mcu_over_hot_fault` BOOL, `resolver_fault` BOOL, `phase_curr_sensor_fault` BOOL, `motor_over_spd_fault` BOOL, `drv_motor_over_hot_fault` BOOL, `dc_main_wire_over_curr_fault` BOOL, `drv_motor_over_cool_fault` BOOL, `dc_low_volt_warning` BOOL, `mcu_12v_low_volt_warning` BOOL, `motor_stall_fault` BOOL, `motor_open_phase_fault` BOOL, `fault_over_current` BOOL, `fault_under_voltage` BOOL, `fault_over_temperature` BOOL, `fault_apps` BOOL, `fault_bse` BOOL, `fault_bpps` BOOL, `fault_apps_brake_plausibility` BOOL, `fault_low_battery_voltage` BOOL, `fault_pedal_signal_lost` BOOL, `fault_sensors_stale` BOOL, `fault_bms_timeout` BOOL, `fault_inverter_timeout` BOOL, `fault_pcc_timeout` BOOL, `fault_inverter_fault` BOOL, `fault_inverter_warning` BOOL, `fault_pcc_error` BOOL) TAGS (`car_id` VARCHAR(32), `schema_fingerprint` INT UNSIGNED)",
-        insert: "INSERT INTO ? USING `telemetry` TAGS (?, ?) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+        create: "CREATE STABLE IF NOT EXISTS `telemetry` (`ts` TIMESTAMP, `sequence` SMALLINT UNSIGNED, `timestamp_us` INT UNSIGNED, `apps_travel` FLOAT, `bse_front` FLOAT, `bse_rear` FLOAT, `imd_resistance` SMALLINT UNSIGNED, `imd_status` TINYINT UNSIGNED, `pack_voltage` FLOAT, `pack_current` FLOAT, `soc` FLOAT, `discharge_limit` SMALLINT UNSIGNED, `charge_limit` SMALLINT UNSIGNED, `low_cell_volt` FLOAT, `high_cell_volt` FLOAT, `avg_cell_volt` FLOAT, `pack_temp` TINYINT, `motor_speed` FLOAT, `motor_torque` FLOAT, `max_motor_torque` FLOAT, `torque_command` FLOAT, `motor_temp` SMALLINT, `inverter_temp` SMALLINT, `inverter_dc_voltage` FLOAT, `inverter_dc_current` FLOAT, `inverter_phase_current` FLOAT, `motor_direction` TINYINT UNSIGNED, `motor_state` TINYINT UNSIGNED, `mcu_main_state` TINYINT UNSIGNED, `mcu_work_mode` TINYINT UNSIGNED, `mcu_warning_level` TINYINT UNSIGNED, `dti_drive_enabled` TINYINT UNSIGNED, `dti_control_mode` TINYINT UNSIGNED, `dti_fault_code` TINYINT UNSIGNED, `vehicle_state` TINYINT UNSIGNED, `ready_to_drive` BOOL, `shocktravel1` FLOAT, `shocktravel2` FLOAT, `shocktravel3` FLOAT, `shocktravel4` FLOAT, `can_rx_dropped` TINYINT UNSIGNED, `can_tx_dropped` TINYINT UNSIGNED, `can_decode_errors` TINYINT UNSIGNED, `telemetry_superseded` TINYINT UNSIGNED, `pedal_bus_errors` TINYINT UNSIGNED, `can_bus_off_events` TINYINT UNSIGNED, `vehicle_bus_error_passive` BOOL, `vehicle_bus_bus_off` BOOL, `inverter_bus_error_passive` BOOL, `inverter_bus_bus_off` BOOL, `dc_main_wire_over_volt_fault` BOOL, `motor_phase_curr_fault` BOOL, `mcu_over_hot_fault` BOOL, `resolver_fault` BOOL, `phase_curr_sensor_fault` BOOL, `motor_over_spd_fault` BOOL, `drv_motor_over_hot_fault` BOOL, `dc_main_wire_over_curr_fault` BOOL, `drv_motor_over_cool_fault` BOOL, `dc_low_volt_warning` BOOL, `mcu_12v_low_volt_warning` BOOL, `motor_stall_fault` BOOL, `motor_open_phase_fault` BOOL, `dti_limit_capacitor_temp` BOOL, `dti_limit_dc_current` BOOL, `dti_limit_igbt_accel_temp` BOOL, `dti_limit_igbt_temp` BOOL, `dti_limit_input_voltage` BOOL, `dti_limit_motor_accel_temp` BOOL, `dti_limit_motor_temp` BOOL, `dti_limit_rpm_min` BOOL, `dti_limit_rpm_max` BOOL, `dti_limit_power` BOOL, `fault_over_current` BOOL, `fault_under_voltage` BOOL, `fault_over_temperature` BOOL, `fault_apps` BOOL, `fault_bse` BOOL, `fault_bpps` BOOL, `fault_apps_brake_plausibility` BOOL, `fault_low_battery_voltage` BOOL, `fault_pedal_signal_lost` BOOL, `fault_sensors_stale` BOOL, `fault_bms_timeout` BOOL, `fault_inverter_timeout` BOOL, `fault_pcc_timeout` BOOL, `fault_inverter_fault` BOOL, `fault_inverter_warning` BOOL, `fault_pcc_error` BOOL) TAGS (`car_id` VARCHAR(32), `schema_fingerprint` INT UNSIGNED)",
+        insert: "INSERT INTO ? USING `telemetry` TAGS (?, ?) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
     },
     sqlite: SqliteTable {
-        create: r#"CREATE TABLE IF NOT EXISTS "telemetry" ("id" INTEGER PRIMARY KEY AUTOINCREMENT, "car_id" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "sequence" INTEGER, "timestamp_us" INTEGER, "apps_travel" REAL, "bse_front" REAL, "bse_rear" REAL, "imd_resistance" INTEGER, "imd_status" INTEGER, "pack_voltage" REAL, "pack_current" REAL, "soc" REAL, "discharge_limit" INTEGER, "charge_limit" INTEGER, "low_cell_volt" REAL, "high_cell_volt" REAL, "avg_cell_volt" REAL, "pack_temp" INTEGER, "motor_speed" REAL, "motor_torque" REAL, "max_motor_torque" REAL, "motor_direction" INTEGER, "motor_state" INTEGER, "mcu_main_state" INTEGER, "mcu_work_mode" INTEGER, "mcu_voltage" REAL, "mcu_phase_current" REAL, "mcu_current" REAL, "motor_temp" INTEGER, "mcu_temp" INTEGER, "mcu_warning_level" INTEGER, "vehicle_state" INTEGER, "ready_to_drive" INTEGER, "torque_command" REAL, "shocktravel1" REAL, "shocktravel2" REAL, "shocktravel3" REAL, "shocktravel4" REAL, "can_rx_dropped" INTEGER, "can_tx_dropped" INTEGER, "can_decode_errors" INTEGER, "telemetry_superseded" INTEGER, "pedal_bus_errors" INTEGER, "can_bus_off_events" INTEGER, "vehicle_bus_error_passive" INTEGER, "vehicle_bus_bus_off" INTEGER, "inverter_bus_error_passive" INTEGER, "inverter_bus_bus_off" INTEGER, "dc_main_wire_over_volt_fault" INTEGER, "motor_phase_curr_fault" INTEGER, "mcu_over_hot_fault" INTEGER, "resolver_fault" INTEGER, "phase_curr_sensor_fault" INTEGER, "motor_over_spd_fault" INTEGER, "drv_motor_over_hot_fault" INTEGER, "dc_main_wire_over_curr_fault" INTEGER, "drv_motor_over_cool_fault" INTEGER, "dc_low_volt_warning" INTEGER, "mcu_12v_low_volt_warning" INTEGER, "motor_stall_fault" INTEGER, "motor_open_phase_fault" INTEGER, "fault_over_current" INTEGER, "fault_under_voltage" INTEGER, "fault_over_temperature" INTEGER, "fault_apps" INTEGER, "fault_bse" INTEGER, "fault_bpps" INTEGER, "fault_apps_brake_plausibility" INTEGER, "fault_low_battery_voltage" INTEGER, "fault_pedal_signal_lost" INTEGER, "fault_sensors_stale" INTEGER, "fault_bms_timeout" INTEGER, "fault_inverter_timeout" INTEGER, "fault_pcc_timeout" INTEGER, "fault_inverter_fault" INTEGER, "fault_inverter_warning" INTEGER, "fault_pcc_error" INTEGER)"#,
-        insert: r#"INSERT INTO "telemetry" ("car_id", "schema_fingerprint", "ts", "sequence", "timestamp_us", "apps_travel", "bse_front", "bse_rear", "imd_resistance", "imd_status", "pack_voltage", "pack_current", "soc", "discharge_limit", "charge_limit", "low_cell_volt", "high_cell_volt", "avg_cell_volt", "pack_temp", "motor_speed", "motor_torque", "max_motor_torque", "motor_direction", "motor_state", "mcu_main_state", "mcu_work_mode", "mcu_voltage", "mcu_phase_current", "mcu_current", "motor_temp", "mcu_temp", "mcu_warning_level", "vehicle_state", "ready_to_drive", "torque_command", "shocktravel1", "shocktravel2", "shocktravel3", "shocktravel4", "can_rx_dropped", "can_tx_dropped", "can_decode_errors", "telemetry_superseded", "pedal_bus_errors", "can_bus_off_events", "vehicle_bus_error_passive", "vehicle_bus_bus_off", "inverter_bus_error_passive", "inverter_bus_bus_off", "dc_main_wire_over_volt_fault", "motor_phase_curr_fault", "mcu_over_hot_fault", "resolver_fault", "phase_curr_sensor_fault", "motor_over_spd_fault", "drv_motor_over_hot_fault", "dc_main_wire_over_curr_fault", "drv_motor_over_cool_fault", "dc_low_volt_warning", "mcu_12v_low_volt_warning", "motor_stall_fault", "motor_open_phase_fault", "fault_over_current", "fault_under_voltage", "fault_over_temperature", "fault_apps", "fault_bse", "fault_bpps", "fault_apps_brake_plausibility", "fault_low_battery_voltage", "fault_pedal_signal_lost", "fault_sensors_stale", "fault_bms_timeout", "fault_inverter_timeout", "fault_pcc_timeout", "fault_inverter_fault", "fault_inverter_warning", "fault_pcc_error") VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17, ?18, ?19, ?20, ?21, ?22, ?23, ?24, ?25, ?26, ?27, ?28, ?29, ?30, ?31, ?32, ?33, ?34, ?35, ?36, ?37, ?38, ?39, ?40, ?41, ?42, ?43, ?44, ?45, ?46, ?47, ?48, ?49, ?50, ?51, ?52, ?53, ?54, ?55, ?56, ?57, ?58, ?59, ?60, ?61, ?62, ?63, ?64, ?65, ?66, ?67, ?68, ?69, ?70, ?71, ?72, ?73, ?74, ?75, ?76, ?77, ?78)"#,
+        create: r#"CREATE TABLE IF NOT EXISTS "telemetry" ("id" INTEGER PRIMARY KEY AUTOINCREMENT, "car_id" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "sequence" INTEGER, "timestamp_us" INTEGER, "apps_travel" REAL, "bse_front" REAL, "bse_rear" REAL, "imd_resistance" INTEGER, "imd_status" INTEGER, "pack_voltage" REAL, "pack_current" REAL, "soc" REAL, "discharge_limit" INTEGER, "charge_limit" INTEGER, "low_cell_volt" REAL, "high_cell_volt" REAL, "avg_cell_volt" REAL, "pack_temp" INTEGER, "motor_speed" REAL, "motor_torque" REAL, "max_motor_torque" REAL, "torque_command" REAL, "motor_temp" INTEGER, "inverter_temp" INTEGER, "inverter_dc_voltage" REAL, "inverter_dc_current" REAL, "inverter_phase_current" REAL, "motor_direction" INTEGER, "motor_state" INTEGER, "mcu_main_state" INTEGER, "mcu_work_mode" INTEGER, "mcu_warning_level" INTEGER, "dti_drive_enabled" INTEGER, "dti_control_mode" INTEGER, "dti_fault_code" INTEGER, "vehicle_state" INTEGER, "ready_to_drive" INTEGER, "shocktravel1" REAL, "shocktravel2" REAL, "shocktravel3" REAL, "shocktravel4" REAL, "can_rx_dropped" INTEGER, "can_tx_dropped" INTEGER, "can_decode_errors" INTEGER, "telemetry_superseded" INTEGER, "pedal_bus_errors" INTEGER, "can_bus_off_events" INTEGER, "vehicle_bus_error_passive" INTEGER, "vehicle_bus_bus_off" INTEGER, "inverter_bus_error_passive" INTEGER, "inverter_bus_bus_off" INTEGER, "dc_main_wire_over_volt_fault" INTEGER, "motor_phase_curr_fault" INTEGER, "mcu_over_hot_fault" INTEGER, "resolver_fault" INTEGER, "phase_curr_sensor_fault" INTEGER, "motor_over_spd_fault" INTEGER, "drv_motor_over_hot_fault" INTEGER, "dc_main_wire_over_curr_fault" INTEGER, "drv_motor_over_cool_fault" INTEGER, "dc_low_volt_warning" INTEGER, "mcu_12v_low_volt_warning" INTEGER, "motor_stall_fault" INTEGER, "motor_open_phase_fault" INTEGER, "dti_limit_capacitor_temp" INTEGER, "dti_limit_dc_current" INTEGER, "dti_limit_igbt_accel_temp" INTEGER, "dti_limit_igbt_temp" INTEGER, "dti_limit_input_voltage" INTEGER, "dti_limit_motor_accel_temp" INTEGER, "dti_limit_motor_temp" INTEGER, "dti_limit_rpm_min" INTEGER, "dti_limit_rpm_max" INTEGER, "dti_limit_power" INTEGER, "fault_over_current" INTEGER, "fault_under_voltage" INTEGER, "fault_over_temperature" INTEGER, "fault_apps" INTEGER, "fault_bse" INTEGER, "fault_bpps" INTEGER, "fault_apps_brake_plausibility" INTEGER, "fault_low_battery_voltage" INTEGER, "fault_pedal_signal_lost" INTEGER, "fault_sensors_stale" INTEGER, "fault_bms_timeout" INTEGER, "fault_inverter_timeout" INTEGER, "fault_pcc_timeout" INTEGER, "fault_inverter_fault" INTEGER, "fault_inverter_warning" INTEGER, "fault_pcc_error" INTEGER)"#,
+        insert: r#"INSERT INTO "telemetry" ("car_id", "schema_fingerprint", "ts", "sequence", "timestamp_us", "apps_travel", "bse_front", "bse_rear", "imd_resistance", "imd_status", "pack_voltage", "pack_current", "soc", "discharge_limit", "charge_limit", "low_cell_volt", "high_cell_volt", "avg_cell_volt", "pack_temp", "motor_speed", "motor_torque", "max_motor_torque", "torque_command", "motor_temp", "inverter_temp", "inverter_dc_voltage", "inverter_dc_current", "inverter_phase_current", "motor_direction", "motor_state", "mcu_main_state", "mcu_work_mode", "mcu_warning_level", "dti_drive_enabled", "dti_control_mode", "dti_fault_code", "vehicle_state", "ready_to_drive", "shocktravel1", "shocktravel2", "shocktravel3", "shocktravel4", "can_rx_dropped", "can_tx_dropped", "can_decode_errors", "telemetry_superseded", "pedal_bus_errors", "can_bus_off_events", "vehicle_bus_error_passive", "vehicle_bus_bus_off", "inverter_bus_error_passive", "inverter_bus_bus_off", "dc_main_wire_over_volt_fault", "motor_phase_curr_fault", "mcu_over_hot_fault", "resolver_fault", "phase_curr_sensor_fault", "motor_over_spd_fault", "drv_motor_over_hot_fault", "dc_main_wire_over_curr_fault", "drv_motor_over_cool_fault", "dc_low_volt_warning", "mcu_12v_low_volt_warning", "motor_stall_fault", "motor_open_phase_fault", "dti_limit_capacitor_temp", "dti_limit_dc_current", "dti_limit_igbt_accel_temp", "dti_limit_igbt_temp", "dti_limit_input_voltage", "dti_limit_motor_accel_temp", "dti_limit_motor_temp", "dti_limit_rpm_min", "dti_limit_rpm_max", "dti_limit_power", "fault_over_current", "fault_under_voltage", "fault_over_temperature", "fault_apps", "fault_bse", "fault_bpps", "fault_apps_brake_plausibility", "fault_low_battery_voltage", "fault_pedal_signal_lost", "fault_sensors_stale", "fault_bms_timeout", "fault_inverter_timeout", "fault_pcc_timeout", "fault_inverter_fault", "fault_inverter_warning", "fault_pcc_error") VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17, ?18, ?19, ?20, ?21, ?22, ?23, ?24, ?25, ?26, ?27, ?28, ?29, ?30, ?31, ?32, ?33, ?34, ?35, ?36, ?37, ?38, ?39, ?40, ?41, ?42, ?43, ?44, ?45, ?46, ?47, ?48, ?49, ?50, ?51, ?52, ?53, ?54, ?55, ?56, ?57, ?58, ?59, ?60, ?61, ?62, ?63, ?64, ?65, ?66, ?67, ?68, ?69, ?70, ?71, ?72, ?73, ?74, ?75, ?76, ?77, ?78, ?79, ?80, ?81, ?82, ?83, ?84, ?85, ?86, ?87, ?88, ?89, ?90, ?91)"#,
     },
 };
 

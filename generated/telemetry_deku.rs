@@ -36,18 +36,21 @@ pub struct TelemetryFrame {
     pub motor_speed: u16,
     pub motor_torque: u8,
     pub max_motor_torque: u8,
+    pub torque_command: u8,
+    pub motor_temp: u8,
+    pub inverter_temp: u8,
+    pub inverter_dc_voltage: u16,
+    pub inverter_dc_current: i16,
+    pub inverter_phase_current: u16,
     pub motor_direction: u8,
     pub motor_state: u8,
     pub mcu_main_state: u8,
     pub mcu_work_mode: u8,
-    pub mcu_voltage: u16,
-    pub mcu_phase_current: u16,
-    pub mcu_current: i16,
-    pub motor_temp: u8,
-    pub mcu_temp: u8,
     pub mcu_warning_level: u8,
+    pub dti_drive_enabled: u8,
+    pub dti_control_mode: u8,
+    pub dti_fault_code: u8,
     pub vehicle_state: u8,
-    pub torque_command: u8,
     pub shocktravel1: u16,
     pub shocktravel2: u16,
     pub shocktravel3: u16,
@@ -58,7 +61,7 @@ pub struct TelemetryFrame {
     pub telemetry_superseded: u8,
     pub pedal_bus_errors: u8,
     pub can_bus_off_events: u8,
-    pub flags: [u8; 5],
+    pub flags: [u8; 6],
 }
 
 /// Why a packet could not be decoded.
@@ -116,19 +119,24 @@ impl TelemetryFrame {
             motor_speed: Telemetry::motor_speed_from_raw(self.motor_speed),
             motor_torque: Telemetry::motor_torque_from_raw(self.motor_torque),
             max_motor_torque: Telemetry::max_motor_torque_from_raw(self.max_motor_torque),
+            torque_command: Telemetry::torque_command_from_raw(self.torque_command),
+            motor_temp: Telemetry::motor_temp_from_raw(self.motor_temp),
+            inverter_temp: Telemetry::inverter_temp_from_raw(self.inverter_temp),
+            inverter_dc_voltage: Telemetry::inverter_dc_voltage_from_raw(self.inverter_dc_voltage),
+            inverter_dc_current: Telemetry::inverter_dc_current_from_raw(self.inverter_dc_current),
+            inverter_phase_current: Telemetry::inverter_phase_current_from_raw(
+                self.inverter_phase_current,
+            ),
             motor_direction: Telemetry::motor_direction_from_raw(self.motor_direction),
             motor_state: Telemetry::motor_state_from_raw(self.motor_state),
             mcu_main_state: Telemetry::mcu_main_state_from_raw(self.mcu_main_state),
             mcu_work_mode: Telemetry::mcu_work_mode_from_raw(self.mcu_work_mode),
-            mcu_voltage: Telemetry::mcu_voltage_from_raw(self.mcu_voltage),
-            mcu_phase_current: Telemetry::mcu_phase_current_from_raw(self.mcu_phase_current),
-            mcu_current: Telemetry::mcu_current_from_raw(self.mcu_current),
-            motor_temp: Telemetry::motor_temp_from_raw(self.motor_temp),
-            mcu_temp: Telemetry::mcu_temp_from_raw(self.mcu_temp),
             mcu_warning_level: Telemetry::mcu_warning_level_from_raw(self.mcu_warning_level),
+            dti_drive_enabled: Telemetry::dti_drive_enabled_from_raw(self.dti_drive_enabled),
+            dti_control_mode: Telemetry::dti_control_mode_from_raw(self.dti_control_mode),
+            dti_fault_code: Telemetry::dti_fault_code_from_raw(self.dti_fault_code),
             vehicle_state: Telemetry::vehicle_state_from_raw(self.vehicle_state),
             ready_to_drive: Telemetry::ready_to_drive_from_raw(self.flags[0] & (1 << 0) != 0),
-            torque_command: Telemetry::torque_command_from_raw(self.torque_command),
             shocktravel1: Telemetry::shocktravel1_from_raw(self.shocktravel1),
             shocktravel2: Telemetry::shocktravel2_from_raw(self.shocktravel2),
             shocktravel3: Telemetry::shocktravel3_from_raw(self.shocktravel3),
@@ -188,49 +196,73 @@ impl TelemetryFrame {
             motor_open_phase_fault: Telemetry::motor_open_phase_fault_from_raw(
                 self.flags[2] & (1 << 1) != 0,
             ),
-            fault_over_current: Telemetry::fault_over_current_from_raw(
+            dti_limit_capacitor_temp: Telemetry::dti_limit_capacitor_temp_from_raw(
                 self.flags[2] & (1 << 2) != 0,
             ),
-            fault_under_voltage: Telemetry::fault_under_voltage_from_raw(
+            dti_limit_dc_current: Telemetry::dti_limit_dc_current_from_raw(
                 self.flags[2] & (1 << 3) != 0,
             ),
-            fault_over_temperature: Telemetry::fault_over_temperature_from_raw(
+            dti_limit_igbt_accel_temp: Telemetry::dti_limit_igbt_accel_temp_from_raw(
                 self.flags[2] & (1 << 4) != 0,
             ),
-            fault_apps: Telemetry::fault_apps_from_raw(self.flags[2] & (1 << 5) != 0),
-            fault_bse: Telemetry::fault_bse_from_raw(self.flags[2] & (1 << 6) != 0),
-            fault_bpps: Telemetry::fault_bpps_from_raw(self.flags[2] & (1 << 7) != 0),
-            fault_apps_brake_plausibility: Telemetry::fault_apps_brake_plausibility_from_raw(
+            dti_limit_igbt_temp: Telemetry::dti_limit_igbt_temp_from_raw(
+                self.flags[2] & (1 << 5) != 0,
+            ),
+            dti_limit_input_voltage: Telemetry::dti_limit_input_voltage_from_raw(
+                self.flags[2] & (1 << 6) != 0,
+            ),
+            dti_limit_motor_accel_temp: Telemetry::dti_limit_motor_accel_temp_from_raw(
+                self.flags[2] & (1 << 7) != 0,
+            ),
+            dti_limit_motor_temp: Telemetry::dti_limit_motor_temp_from_raw(
                 self.flags[3] & (1 << 0) != 0,
             ),
-            fault_low_battery_voltage: Telemetry::fault_low_battery_voltage_from_raw(
-                self.flags[3] & (1 << 1) != 0,
+            dti_limit_rpm_min: Telemetry::dti_limit_rpm_min_from_raw(self.flags[3] & (1 << 1) != 0),
+            dti_limit_rpm_max: Telemetry::dti_limit_rpm_max_from_raw(self.flags[3] & (1 << 2) != 0),
+            dti_limit_power: Telemetry::dti_limit_power_from_raw(self.flags[3] & (1 << 3) != 0),
+            fault_over_current: Telemetry::fault_over_current_from_raw(
+                self.flags[3] & (1 << 4) != 0,
             ),
-            fault_pedal_signal_lost: Telemetry::fault_pedal_signal_lost_from_raw(
-                self.flags[3] & (1 << 2) != 0,
-            ),
-            fault_sensors_stale: Telemetry::fault_sensors_stale_from_raw(
-                self.flags[3] & (1 << 3) != 0,
-            ),
-            fault_bms_timeout: Telemetry::fault_bms_timeout_from_raw(self.flags[3] & (1 << 4) != 0),
-            fault_inverter_timeout: Telemetry::fault_inverter_timeout_from_raw(
+            fault_under_voltage: Telemetry::fault_under_voltage_from_raw(
                 self.flags[3] & (1 << 5) != 0,
             ),
-            fault_pcc_timeout: Telemetry::fault_pcc_timeout_from_raw(self.flags[3] & (1 << 6) != 0),
+            fault_over_temperature: Telemetry::fault_over_temperature_from_raw(
+                self.flags[3] & (1 << 6) != 0,
+            ),
+            fault_apps: Telemetry::fault_apps_from_raw(self.flags[3] & (1 << 7) != 0),
+            fault_bse: Telemetry::fault_bse_from_raw(self.flags[4] & (1 << 0) != 0),
+            fault_bpps: Telemetry::fault_bpps_from_raw(self.flags[4] & (1 << 1) != 0),
+            fault_apps_brake_plausibility: Telemetry::fault_apps_brake_plausibility_from_raw(
+                self.flags[4] & (1 << 2) != 0,
+            ),
+            fault_low_battery_voltage: Telemetry::fault_low_battery_voltage_from_raw(
+                self.flags[4] & (1 << 3) != 0,
+            ),
+            fault_pedal_signal_lost: Telemetry::fault_pedal_signal_lost_from_raw(
+                self.flags[4] & (1 << 4) != 0,
+            ),
+            fault_sensors_stale: Telemetry::fault_sensors_stale_from_raw(
+                self.flags[4] & (1 << 5) != 0,
+            ),
+            fault_bms_timeout: Telemetry::fault_bms_timeout_from_raw(self.flags[4] & (1 << 6) != 0),
+            fault_inverter_timeout: Telemetry::fault_inverter_timeout_from_raw(
+                self.flags[4] & (1 << 7) != 0,
+            ),
+            fault_pcc_timeout: Telemetry::fault_pcc_timeout_from_raw(self.flags[5] & (1 << 0) != 0),
             fault_inverter_fault: Telemetry::fault_inverter_fault_from_raw(
-                self.flags[3] & (1 << 7) != 0,
+                self.flags[5] & (1 << 1) != 0,
             ),
             fault_inverter_warning: Telemetry::fault_inverter_warning_from_raw(
-                self.flags[4] & (1 << 0) != 0,
+                self.flags[5] & (1 << 2) != 0,
             ),
-            fault_pcc_error: Telemetry::fault_pcc_error_from_raw(self.flags[4] & (1 << 1) != 0),
+            fault_pcc_error: Telemetry::fault_pcc_error_from_raw(self.flags[5] & (1 << 3) != 0),
         };
         (header, telemetry)
     }
 
     /// The wire form of a snapshot, as the firmware's packer writes it.
     pub fn from_telemetry(header: TelemetryHeader, t: &Telemetry) -> Self {
-        let mut flags = [0u8; 5];
+        let mut flags = [0u8; 6];
         if Telemetry::ready_to_drive_to_raw(t.ready_to_drive).0 {
             flags[0] |= 1 << 0;
         }
@@ -285,53 +317,83 @@ impl TelemetryFrame {
         if Telemetry::motor_open_phase_fault_to_raw(t.motor_open_phase_fault).0 {
             flags[2] |= 1 << 1;
         }
-        if Telemetry::fault_over_current_to_raw(t.fault_over_current).0 {
+        if Telemetry::dti_limit_capacitor_temp_to_raw(t.dti_limit_capacitor_temp).0 {
             flags[2] |= 1 << 2;
         }
-        if Telemetry::fault_under_voltage_to_raw(t.fault_under_voltage).0 {
+        if Telemetry::dti_limit_dc_current_to_raw(t.dti_limit_dc_current).0 {
             flags[2] |= 1 << 3;
         }
-        if Telemetry::fault_over_temperature_to_raw(t.fault_over_temperature).0 {
+        if Telemetry::dti_limit_igbt_accel_temp_to_raw(t.dti_limit_igbt_accel_temp).0 {
             flags[2] |= 1 << 4;
         }
-        if Telemetry::fault_apps_to_raw(t.fault_apps).0 {
+        if Telemetry::dti_limit_igbt_temp_to_raw(t.dti_limit_igbt_temp).0 {
             flags[2] |= 1 << 5;
         }
-        if Telemetry::fault_bse_to_raw(t.fault_bse).0 {
+        if Telemetry::dti_limit_input_voltage_to_raw(t.dti_limit_input_voltage).0 {
             flags[2] |= 1 << 6;
         }
-        if Telemetry::fault_bpps_to_raw(t.fault_bpps).0 {
+        if Telemetry::dti_limit_motor_accel_temp_to_raw(t.dti_limit_motor_accel_temp).0 {
             flags[2] |= 1 << 7;
         }
-        if Telemetry::fault_apps_brake_plausibility_to_raw(t.fault_apps_brake_plausibility).0 {
+        if Telemetry::dti_limit_motor_temp_to_raw(t.dti_limit_motor_temp).0 {
             flags[3] |= 1 << 0;
         }
-        if Telemetry::fault_low_battery_voltage_to_raw(t.fault_low_battery_voltage).0 {
+        if Telemetry::dti_limit_rpm_min_to_raw(t.dti_limit_rpm_min).0 {
             flags[3] |= 1 << 1;
         }
-        if Telemetry::fault_pedal_signal_lost_to_raw(t.fault_pedal_signal_lost).0 {
+        if Telemetry::dti_limit_rpm_max_to_raw(t.dti_limit_rpm_max).0 {
             flags[3] |= 1 << 2;
         }
-        if Telemetry::fault_sensors_stale_to_raw(t.fault_sensors_stale).0 {
+        if Telemetry::dti_limit_power_to_raw(t.dti_limit_power).0 {
             flags[3] |= 1 << 3;
         }
-        if Telemetry::fault_bms_timeout_to_raw(t.fault_bms_timeout).0 {
+        if Telemetry::fault_over_current_to_raw(t.fault_over_current).0 {
             flags[3] |= 1 << 4;
         }
-        if Telemetry::fault_inverter_timeout_to_raw(t.fault_inverter_timeout).0 {
+        if Telemetry::fault_under_voltage_to_raw(t.fault_under_voltage).0 {
             flags[3] |= 1 << 5;
         }
-        if Telemetry::fault_pcc_timeout_to_raw(t.fault_pcc_timeout).0 {
+        if Telemetry::fault_over_temperature_to_raw(t.fault_over_temperature).0 {
             flags[3] |= 1 << 6;
         }
-        if Telemetry::fault_inverter_fault_to_raw(t.fault_inverter_fault).0 {
+        if Telemetry::fault_apps_to_raw(t.fault_apps).0 {
             flags[3] |= 1 << 7;
         }
-        if Telemetry::fault_inverter_warning_to_raw(t.fault_inverter_warning).0 {
+        if Telemetry::fault_bse_to_raw(t.fault_bse).0 {
             flags[4] |= 1 << 0;
         }
-        if Telemetry::fault_pcc_error_to_raw(t.fault_pcc_error).0 {
+        if Telemetry::fault_bpps_to_raw(t.fault_bpps).0 {
             flags[4] |= 1 << 1;
+        }
+        if Telemetry::fault_apps_brake_plausibility_to_raw(t.fault_apps_brake_plausibility).0 {
+            flags[4] |= 1 << 2;
+        }
+        if Telemetry::fault_low_battery_voltage_to_raw(t.fault_low_battery_voltage).0 {
+            flags[4] |= 1 << 3;
+        }
+        if Telemetry::fault_pedal_signal_lost_to_raw(t.fault_pedal_signal_lost).0 {
+            flags[4] |= 1 << 4;
+        }
+        if Telemetry::fault_sensors_stale_to_raw(t.fault_sensors_stale).0 {
+            flags[4] |= 1 << 5;
+        }
+        if Telemetry::fault_bms_timeout_to_raw(t.fault_bms_timeout).0 {
+            flags[4] |= 1 << 6;
+        }
+        if Telemetry::fault_inverter_timeout_to_raw(t.fault_inverter_timeout).0 {
+            flags[4] |= 1 << 7;
+        }
+        if Telemetry::fault_pcc_timeout_to_raw(t.fault_pcc_timeout).0 {
+            flags[5] |= 1 << 0;
+        }
+        if Telemetry::fault_inverter_fault_to_raw(t.fault_inverter_fault).0 {
+            flags[5] |= 1 << 1;
+        }
+        if Telemetry::fault_inverter_warning_to_raw(t.fault_inverter_warning).0 {
+            flags[5] |= 1 << 2;
+        }
+        if Telemetry::fault_pcc_error_to_raw(t.fault_pcc_error).0 {
+            flags[5] |= 1 << 3;
         }
         Self {
             fingerprint: TELEMETRY_FINGERPRINT,
@@ -354,18 +416,24 @@ impl TelemetryFrame {
             motor_speed: Telemetry::motor_speed_to_raw(t.motor_speed).0,
             motor_torque: Telemetry::motor_torque_to_raw(t.motor_torque).0,
             max_motor_torque: Telemetry::max_motor_torque_to_raw(t.max_motor_torque).0,
+            torque_command: Telemetry::torque_command_to_raw(t.torque_command).0,
+            motor_temp: Telemetry::motor_temp_to_raw(t.motor_temp).0,
+            inverter_temp: Telemetry::inverter_temp_to_raw(t.inverter_temp).0,
+            inverter_dc_voltage: Telemetry::inverter_dc_voltage_to_raw(t.inverter_dc_voltage).0,
+            inverter_dc_current: Telemetry::inverter_dc_current_to_raw(t.inverter_dc_current).0,
+            inverter_phase_current: Telemetry::inverter_phase_current_to_raw(
+                t.inverter_phase_current,
+            )
+            .0,
             motor_direction: Telemetry::motor_direction_to_raw(t.motor_direction).0,
             motor_state: Telemetry::motor_state_to_raw(t.motor_state).0,
             mcu_main_state: Telemetry::mcu_main_state_to_raw(t.mcu_main_state).0,
             mcu_work_mode: Telemetry::mcu_work_mode_to_raw(t.mcu_work_mode).0,
-            mcu_voltage: Telemetry::mcu_voltage_to_raw(t.mcu_voltage).0,
-            mcu_phase_current: Telemetry::mcu_phase_current_to_raw(t.mcu_phase_current).0,
-            mcu_current: Telemetry::mcu_current_to_raw(t.mcu_current).0,
-            motor_temp: Telemetry::motor_temp_to_raw(t.motor_temp).0,
-            mcu_temp: Telemetry::mcu_temp_to_raw(t.mcu_temp).0,
             mcu_warning_level: Telemetry::mcu_warning_level_to_raw(t.mcu_warning_level).0,
+            dti_drive_enabled: Telemetry::dti_drive_enabled_to_raw(t.dti_drive_enabled).0,
+            dti_control_mode: Telemetry::dti_control_mode_to_raw(t.dti_control_mode).0,
+            dti_fault_code: Telemetry::dti_fault_code_to_raw(t.dti_fault_code).0,
             vehicle_state: Telemetry::vehicle_state_to_raw(t.vehicle_state).0,
-            torque_command: Telemetry::torque_command_to_raw(t.torque_command).0,
             shocktravel1: Telemetry::shocktravel1_to_raw(t.shocktravel1).0,
             shocktravel2: Telemetry::shocktravel2_to_raw(t.shocktravel2).0,
             shocktravel3: Telemetry::shocktravel3_to_raw(t.shocktravel3).0,

@@ -257,7 +257,6 @@ fn the_packet_is_compact_and_documented() {
 fn apply_copies_every_mirrored_signal_of_a_decoded_message() {
     use aer::can::{AnyMessage, Mcu1, McuMainState, OrionPackStatus};
     let mut telemetry = aer::telemetry::TelemetryMirror::EMPTY;
-    assert_eq!(telemetry.motor_speed, 0.0);
     assert_eq!(telemetry.mcu_main_state, McuMainState::from_raw(0));
 
     let mcu1 = Mcu1 {
@@ -278,13 +277,13 @@ fn apply_copies_every_mirrored_signal_of_a_decoded_message() {
     let AnyMessage::Mcu1(decoded) = decoded else {
         unreachable!()
     };
-    assert_eq!(telemetry.motor_speed, decoded.mcu_motor_speed as f32);
-    assert_eq!(telemetry.motor_torque, decoded.mcu_actual_torque as f32);
+    assert_eq!(telemetry.motor_direction, decoded.mcu_rotate_direction);
+    assert_eq!(telemetry.mcu_work_mode, decoded.mcu_work_mode);
     assert_eq!(telemetry.mcu_main_state, McuMainState::Run);
     assert_eq!(telemetry.motor_state, aer::can::MotorMode::Drive);
 
     // Another message leaves the motor fields alone and fills its own.
-    let before = telemetry.motor_speed;
+    let before = telemetry.mcu_main_state;
     let pack = OrionPackStatus {
         orion_pack_current: -12.5,
         orion_pack_inst_voltage: 398.7,
@@ -292,7 +291,7 @@ fn apply_copies_every_mirrored_signal_of_a_decoded_message() {
         orion_relay_state: 1,
     };
     telemetry.apply(&AnyMessage::OrionPackStatus(pack));
-    assert_eq!(telemetry.motor_speed, before);
+    assert_eq!(telemetry.mcu_main_state, before);
     assert_eq!(telemetry.pack_current, -12.5);
     assert_eq!(telemetry.soc, 80.5);
 }

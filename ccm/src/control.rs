@@ -4,7 +4,9 @@
 
 use crate::bus::{BusInputs, BusState};
 use crate::chassis::WheelSpeed;
-use crate::config::{CONTROL_PERIOD_MS, DTI_FLAGS_TIMEOUT_MS, INVERTER, SAMPLE_TIMEOUT_MS};
+use crate::config::{
+    CONTROL_PERIOD_MS, DTI_FLAGS_TIMEOUT_MS, INVERTER, MOTOR_TORQUE_PER_PEAK_A, SAMPLE_TIMEOUT_MS,
+};
 use crate::faults::{Fault, FaultInputs, FaultMonitor};
 use crate::inverter::dti::{self, EnableWatch};
 use crate::inverter::ifl100::{self, Vcu1Builder};
@@ -31,6 +33,8 @@ pub struct Control {
     vcu1: Vcu1Builder,
     /// The drive enable last sent to the DTI, and the watch that it is obeyed.
     enable_sent: bool,
+    /// The torque the inverter was last asked for (Nm), as its command carried it.
+    torque_sent_nm: f32,
     enable_watch: EnableWatch,
     status_counter: u8,
     bus: BusState,
@@ -58,6 +62,7 @@ impl Control {
             inverter,
             vcu1: Vcu1Builder::default(),
             enable_sent: false,
+            torque_sent_nm: 0.0,
             enable_watch: EnableWatch::default(),
             status_counter: 0,
             bus: BusState::default(),
@@ -173,7 +178,7 @@ impl Control {
     /// The inverter's commands for this period (every
     /// [`InverterKind::command_period_ms`]), from the last control step and the brakes as it
     /// saw them: the IFL100's VCU1, BMS1 and BMS2, or the DTI's current, drive enable and DC
-    /// current limits. The torque command sent is mirrored into telemetry.
+    /// current limits. The torque asked for is reported in telemetry.
     pub fn inverter_frames(&mut self) -> Result<OutFrames, EncodeError> {
         let last = self.last;
         let bus = self.bus.inputs(
@@ -195,13 +200,17 @@ impl Control {
         match self.inverter {
             InverterKind::Ifl100 => {
                 let (vcu1, frames) = ifl100::frames(&mut self.vcu1, &command)?;
-                self.bus.mirror.apply(&AnyMessage::Vcu1(vcu1));
+                self.torque_sent_nm = if vcu1.vcu_vehicle_state {
+                    vcu1.vcu_torque_req as f32
+                } else {
+                    0.0
+                };
                 Ok(frames)
             }
             InverterKind::Dti => {
                 let (current, frames) = dti::frames(&command)?;
                 self.enable_sent = command.drive;
-                self.bus.mirror.apply(&AnyMessage::DtiSetCurrent(current));
+                self.torque_sent_nm = current.dti_current_cmd as f32 * MOTOR_TORQUE_PER_PEAK_A;
                 Ok(frames)
             }
         }
@@ -254,6 +263,15 @@ impl Control {
         let driver = &self.driver;
         let [vehicle, inverter] = driver.buses;
         let [fl, fr, rl, rr] = sensors.shock_mm;
+        let status = self.inverter.status(
+            &self.bus,
+            self.stepped_ms,
+            self.started_ms.unwrap_or(self.stepped_ms),
+        );
+        let (inverter_temp, motor_temp) = status.temperatures_degc.unwrap_or((0.0, 0.0));
+        let (dc_volts, dc_amps) = status.dc_link.unwrap_or((0.0, 0.0));
+        // Whole degrees on the wire; a NaN or out-of-range reading saturates.
+        let degrees = |degc: f32| degc.clamp(-40.0, 215.0) as i16;
         Telemetry::from_parts(
             &mirror,
             TelemetryOwnFields {
@@ -265,6 +283,15 @@ impl Control {
                 shocktravel2: fr,
                 shocktravel3: rl,
                 shocktravel4: rr,
+                motor_speed: status.motor_rpm.unwrap_or(0.0),
+                motor_torque: status.torque_nm.unwrap_or(0.0),
+                max_motor_torque: status.available_torque_nm.unwrap_or(0.0),
+                torque_command: self.torque_sent_nm,
+                motor_temp: degrees(motor_temp),
+                inverter_temp: degrees(inverter_temp),
+                inverter_dc_voltage: dc_volts,
+                inverter_dc_current: dc_amps,
+                inverter_phase_current: status.phase_current_a.unwrap_or(0.0),
                 can_rx_dropped: wrap(driver.rx_dropped),
                 can_tx_dropped: wrap(driver.tx_dropped),
                 can_decode_errors: wrap(self.bus.decode_errors.wrapping_add(self.bus.unknown_ids)),

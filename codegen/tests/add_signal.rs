@@ -126,14 +126,14 @@ fn telemetry_mistakes_are_reported_with_lines() {
     let yaml = std::fs::read_to_string(&path).expect("read");
     let cases = [
         (
-            "signal: MCU1.MCU_MotorSpeed",
-            "signal: MCU1.MCU_MotorSpeeed",
+            "signal: MCU1.MCU_MotorState",
+            "signal: MCU1.MCU_MotorStatee",
             "E0203",
-            "has no signal `MCU_MotorSpeeed`",
+            "has no signal `MCU_MotorStatee`",
         ),
         (
-            "signal: MCU1.MCU_MotorSpeed",
-            "signal: MCU9.MCU_MotorSpeed",
+            "signal: MCU1.MCU_MotorState",
+            "signal: MCU9.MCU_MotorState",
             "E0203",
             "no message `MCU9`",
         ),

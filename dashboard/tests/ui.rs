@@ -37,7 +37,7 @@ fn driving() -> Telemetry {
         pack_current: 150.0,
         soc: 72.0,
         motor_temp: 90,
-        mcu_temp: 80,
+        inverter_temp: 80,
         vehicle_state: VehicleState::Driving,
         ready_to_drive: true,
         ..Telemetry::zeroed()
@@ -235,6 +235,28 @@ fn a_fault_flag_shows_its_name() {
     ));
     assert!(shows(&pit, "FAULT"));
     assert!(shows(&pit, "12:00:00.020"), "the packet's time of day");
+}
+
+#[test]
+fn the_dtis_fault_code_and_limits_read_in_words() {
+    use aer::can::{DtiDriveEnable, DtiFaultCode};
+    let t0 = Instant::now();
+    let mut limited = driving();
+    limited.dti_drive_enabled = DtiDriveEnable::Enabled;
+    limited.dti_limit_motor_temp = true;
+    // A limit is a warning the driver view names.
+    let driver = app_with(View::Driver, limited, t0);
+    assert!(shows(&driver, "DTI limit: motor temperature"));
+
+    let mut faulted = limited;
+    faulted.dti_fault_code = DtiFaultCode::ControllerOvertemp;
+    faulted.dti_drive_enabled = DtiDriveEnable::Disabled;
+    let pit = app_with(View::Pit, faulted, t0);
+    assert!(
+        shows_part(&pit, "CONTROLLER_OVERTEMP"),
+        "the fault code in words"
+    );
+    assert!(shows_part(&pit, "DISABLED"), "drive enable in words");
 }
 
 #[test]

@@ -285,7 +285,7 @@ fn the_raw_log_keeps_every_frame_and_reads_back_as_the_log() {
     let health = Arc::new(Health::default());
     let settings = Settings {
         dir: dir.path().join("raw"),
-        segment_bytes: 64 * 1024,
+        segment_bytes: 32 * 1024,
         segment_age: Duration::from_secs(3_600),
         sync_every: Duration::from_millis(100),
         budget: segments::Budget {
@@ -307,7 +307,7 @@ fn the_raw_log_keeps_every_frame_and_reads_back_as_the_log() {
     let snapshot = counters.snapshot();
     assert_eq!(snapshot.raw_frames, stats.frames);
     assert_eq!(snapshot.raw_dropped, 0);
-    // Several segments (64 KiB each), which together are the log, line for line.
+    // Several segments (32 KiB each), which together are the log, line for line.
     let segments = segments::list(&dir.path().join("raw"));
     assert!(segments.len() > 3, "{} segments", segments.len());
     // Compressed: what keeps a season on the card (docs/pi-service.md, "Disk budget").

@@ -3,7 +3,8 @@
 //! wire comes from the project's own code: the CCM's control logic, its generated telemetry
 //! packer and ISO-TP sender, the PCC's state machine; the Pi's flow control from the ISO-TP
 //! receiver; the other nodes' frames from the generated encoders, at their DBC cycle times.
-//! The model checks the rules on every millisecond; a session that breaks one is refused.
+//! The car is the comp car (the DTI HV-550 inverter). The model checks the rules on every
+//! millisecond; a session that breaks one is refused.
 
 use aer_car_model::chassis::Mode;
 use aer_car_model::driver::Cycle;
@@ -54,7 +55,7 @@ pub fn write(path: &Path) -> Result<usize> {
         bms_delay_periods: 1,
         frame_jitter_ms: 1,
         seed: 7,
-        ..ModelParams::BENCH
+        ..ModelParams::NOMINAL
     };
     let mut run = ClosedLoop::new(params, Mode::Road, Cycle::Autocross, FaultPlan::NONE);
     let mut log = Log::default();

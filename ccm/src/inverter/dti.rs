@@ -89,6 +89,9 @@ pub fn status(bus: &BusState, now_ms: u32, started_ms: u32) -> InverterStatus {
     let wrong_map = flags.is_some_and(|flags| flags.dti_can_map_version != DTI_CAN_MAP_VERSION);
     InverterStatus {
         motor_rpm: speed.map(|speed| speed.dti_erpm as f32 / MOTOR_POLE_PAIRS),
+        torque_nm: currents
+            .map(|currents| currents.dti_ac_current as f32 * MOTOR_TORQUE_PER_PEAK_A),
+        phase_current_a: currents.map(|currents| currents.dti_ac_current as f32),
         available_torque_nm: ac_limits.map(|limits| {
             (limits.dti_available_max_ac_current as f32 * MOTOR_TORQUE_PER_PEAK_A).max(0.0)
         }),

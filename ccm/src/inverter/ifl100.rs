@@ -122,6 +122,8 @@ pub fn status(bus: &BusState, now_ms: u32, started_ms: u32) -> InverterStatus {
     let (fault, warning) = inverter.map_or((false, false), |mcu2| condition(&mcu2));
     InverterStatus {
         motor_rpm: motor.map(|mcu1| mcu1.mcu_motor_speed as f32),
+        torque_nm: motor.map(|mcu1| mcu1.mcu_actual_torque as f32),
+        phase_current_a: dc_link.map(|mcu3| mcu3.mcu_phase_current as f32),
         available_torque_nm: motor.map(|mcu1| mcu1.mcu_max_motor_torque as f32),
         dc_link: dc_link.map(|mcu3| (mcu3.mcu_dc_voltage as f32, mcu3.mcu_dc_current as f32)),
         temperatures_degc: inverter.map(|mcu2| {

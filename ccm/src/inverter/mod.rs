@@ -56,6 +56,10 @@ impl InverterKind {
 pub struct InverterStatus {
     /// Motor speed (rpm).
     pub motor_rpm: Option<f32>,
+    /// Torque at the motor as the inverter reports it (Nm).
+    pub torque_nm: Option<f32>,
+    /// Motor phase current (A; the DTI's is the peak AC current).
+    pub phase_current_a: Option<f32>,
     /// The torque the inverter can deliver now, after its own limits (Nm).
     pub available_torque_nm: Option<f32>,
     /// DC link voltage (V) and current (A) as the inverter measures them.
@@ -74,6 +78,8 @@ impl InverterStatus {
     /// Nothing known and nothing reported: what a status with every frame stale reads as.
     pub const UNKNOWN: Self = Self {
         motor_rpm: None,
+        torque_nm: None,
+        phase_current_a: None,
         available_torque_nm: None,
         dc_link: None,
         temperatures_degc: None,

@@ -377,7 +377,7 @@ mod tests {
             pack_voltage: 400.0,
             pack_current: 150.0,
             motor_temp: 90,
-            mcu_temp: 80,
+            inverter_temp: 80,
             ..Telemetry::zeroed()
         };
         dashboard.telemetry(&packet(1, 10.0, telemetry), Instant::now());

@@ -37,7 +37,7 @@ impl BusTap for Collected {
 fn new_stint(stint: u32) -> ClosedLoop {
     let params = ModelParams {
         seed: stint.wrapping_add(1),
-        ..ModelParams::BENCH
+        ..ModelParams::NOMINAL
     };
     ClosedLoop::new(params, Mode::Road, Cycle::Autocross, FaultPlan::NONE)
 }
