@@ -3,7 +3,9 @@
 //! `tests/vectors/aer.jsonl` holds frames cantools encoded from random raw values, the physical
 //! values cantools decodes from them, and what cantools' strict encoder makes of those values
 //! (regenerate with `tools/cantools_vectors.py`). Decoding must match exactly; encoding must be
-//! byte-exact, or refuse exactly where cantools refuses.
+//! byte-exact, or refuse exactly where cantools refuses. `tests/vectors/session_dti.jsonl` is
+//! the same for every distinct DTI frame of the recorded comp-car session
+//! (`raspi/data/session.log`; `tools/cantools_vectors.py --candump`).
 
 use std::collections::BTreeMap;
 
@@ -22,8 +24,11 @@ struct Vector {
 }
 
 fn vectors() -> Vec<Vector> {
-    include_str!("vectors/aer.jsonl")
-        .lines()
+    parse(include_str!("vectors/aer.jsonl"))
+}
+
+fn parse(text: &str) -> Vec<Vector> {
+    text.lines()
         .map(|l| serde_json::from_str(l).expect("vector lines are valid JSON"))
         .collect()
 }
@@ -67,7 +72,11 @@ impl SignalSource for FromVector<'_> {
 fn decoding_matches_cantools_exactly() {
     let vectors = vectors();
     assert!(vectors.len() >= 1000, "too few vectors: {}", vectors.len());
-    for v in &vectors {
+    decodes_as_cantools_does(&vectors);
+}
+
+fn decodes_as_cantools_does(vectors: &[Vector]) {
+    for v in vectors {
         let message = AnyMessage::decode(v.id, v.extended, &unhex(&v.data))
             .unwrap_or_else(|e| panic!("{} {}: {e}", v.name, v.data));
         assert_eq!(message.meta().name, v.name);
@@ -96,8 +105,30 @@ fn decoding_matches_cantools_exactly() {
 
 #[test]
 fn encoding_matches_cantools_byte_for_byte() {
+    // The vectors include out-of-range values on purpose: both encoders must refuse them.
+    assert!(
+        encodes_as_cantools_does(&vectors()) > 0,
+        "no vector exercised a range refusal"
+    );
+}
+
+#[test]
+fn every_dti_frame_of_the_recorded_comp_car_session_matches_cantools() {
+    let vectors = parse(include_str!("vectors/session_dti.jsonl"));
+    let messages: std::collections::BTreeSet<&str> =
+        vectors.iter().map(|v| v.name.as_str()).collect();
+    // The CCM's four commands and the DTI's eight status packets.
+    assert_eq!(messages.len(), 12, "{messages:?}");
+    assert!(vectors.len() >= 1000, "too few frames: {}", vectors.len());
+    decodes_as_cantools_does(&vectors);
+    // Recorded frames are in range: cantools re-encodes every one, and so must we.
+    assert_eq!(encodes_as_cantools_does(&vectors), 0);
+}
+
+/// Checks every vector's encoding; returns how many both encoders refused.
+fn encodes_as_cantools_does(vectors: &[Vector]) -> usize {
     let mut refused = 0;
-    for v in &vectors() {
+    for v in vectors {
         let built = AnyMessage::from_signals(v.id, v.extended, &mut FromVector(&v.signals));
         let mut out = [0u8; 64];
         let encoded = built.and_then(|m| m.encode(&mut out).map(|n| hex(&out[..n])));
@@ -110,6 +141,5 @@ fn encoding_matches_cantools_byte_for_byte() {
             ),
         }
     }
-    // The vectors include out-of-range values on purpose: both encoders must refuse them.
-    assert!(refused > 0, "no vector exercised a range refusal");
+    refused
 }

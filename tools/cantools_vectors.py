@@ -13,7 +13,12 @@ vector is one JSON line:
 generated encoder must refuse them too. NaN and infinities become null (JSON has neither).
 Rounding ties cannot occur: physical values come from whole raw values.
 
+With --candump LOG, the vectors are instead every distinct frame of a recorded candump log
+(`(time) bus ID#DATA`) whose message name starts with --prefix, decoded and re-encoded the same
+way: the frames a real session carries, written to DIR/<log>_<prefix>.jsonl.
+
 Usage: cantools_vectors.py [--frames N] [--seed S] --out DIR FILE.dbc...
+       cantools_vectors.py --candump LOG [--prefix P] --out DIR FILE.dbc
 """
 
 import argparse
@@ -89,30 +94,61 @@ def number(v):
     return v
 
 
+def vector(msg, data):
+    """The vector for one frame, or None when cantools cannot decode it."""
+    try:
+        phys = msg.decode(data, decode_choices=False, scaling=True)
+    except Exception:
+        # cantools refuses frames whose multiplexor selects no signal; the generated codec
+        # decodes them (multiplexed fields absent). Not comparable: skip.
+        SKIPPED[0] += 1
+        return None
+    try:
+        encoded = msg.encode(phys, scaling=True, strict=True, padding=False).hex()
+    except Exception:
+        encoded = None
+    return {
+        "name": msg.name,
+        "id": msg.frame_id,
+        "extended": msg.is_extended_frame,
+        "data": data.hex(),
+        "signals": {k: number(v) for k, v in phys.items()},
+        "encoded": encoded,
+    }
+
+
 def vectors_for(db, rng, frames):
     for msg in db.messages:
         for _ in range(frames):
             raw = active_raw_values(rng, msg)
             try:
                 data = msg.encode(raw, scaling=False, strict=False, padding=False)
-                phys = msg.decode(data, decode_choices=False, scaling=True)
             except Exception:
-                # cantools refuses frames whose multiplexor selects no signal; the generated
-                # codec decodes them (multiplexed fields absent). Not comparable: skip.
                 SKIPPED[0] += 1
                 continue
-            try:
-                encoded = msg.encode(phys, scaling=True, strict=True, padding=False).hex()
-            except Exception:
-                encoded = None
-            yield {
-                "name": msg.name,
-                "id": msg.frame_id,
-                "extended": msg.is_extended_frame,
-                "data": data.hex(),
-                "signals": {k: number(v) for k, v in phys.items()},
-                "encoded": encoded,
-            }
+            v = vector(msg, data)
+            if v is not None:
+                yield v
+
+
+def vectors_from_log(db, log, prefix):
+    """Every distinct frame of a candump log of a message named `prefix...`, in log order."""
+    by_id = {(m.is_extended_frame, m.frame_id): m for m in db.messages}
+    seen = set()
+    with open(log) as f:
+        for line in f:
+            parts = line.split()
+            if len(parts) < 3 or "#" not in parts[2]:
+                continue
+            text_id, text_data = parts[2].split("#", 1)
+            key = (len(text_id) == 8, int(text_id, 16), text_data.lower())
+            msg = by_id.get(key[:2])
+            if key in seen or msg is None or not msg.name.startswith(prefix):
+                continue
+            seen.add(key)
+            v = vector(msg, bytes.fromhex(text_data))
+            if v is not None:
+                yield v
 
 
 def main():
@@ -121,8 +157,24 @@ def main():
     ap.add_argument("--out", required=True)
     ap.add_argument("--frames", type=int, default=200, help="frames per message")
     ap.add_argument("--seed", type=int, default=2026)
+    ap.add_argument("--candump", help="vectors from this candump log's frames instead")
+    ap.add_argument("--prefix", default="", help="with --candump: message names to keep")
     args = ap.parse_args()
     os.makedirs(args.out, exist_ok=True)
+    if args.candump:
+        if len(args.files) != 1:
+            ap.error("--candump takes one DBC file")
+        db = cantools.database.load_file(args.files[0], strict=True)
+        stem = os.path.splitext(os.path.basename(args.candump))[0]
+        suffix = "_" + args.prefix.rstrip("_").lower() if args.prefix else ""
+        out = os.path.join(args.out, stem + suffix + ".jsonl")
+        with open(out, "w") as f:
+            n = 0
+            for v in vectors_from_log(db, args.candump, args.prefix):
+                f.write(json.dumps(v, allow_nan=False) + "\n")
+                n += 1
+        print(f"{args.candump}: {n} distinct frames -> {out} ({SKIPPED[0]} cantools cannot decode skipped)")
+        return
     for path in args.files:
         stem = os.path.splitext(os.path.basename(path))[0]
         db = cantools.database.load_file(path, strict=True)
