@@ -236,3 +236,33 @@ fn a_dti_that_stays_enabled_after_the_ccm_disabled_it_is_a_fault() {
     assert!(after > DTI_ENABLE_MISMATCH_MS, "{after} ms");
     assert!(after <= DTI_ENABLE_MISMATCH_MS + 20, "{after} ms");
 }
+
+#[test]
+fn the_bench_check_names_node_map_drive_and_fault() {
+    use aer::can::{DtiFlags, DtiTemperatures};
+    use aer_ccm::inverter::dti::BenchCheck;
+    let mut check = BenchCheck::default();
+    assert_eq!(check.to_string(), "DTI: no status packet heard");
+    let mut data = [0u8; 8];
+    dti_flags().encode(&mut data).unwrap();
+    check.frame(DtiFlags::ID, true, &data);
+    let temperatures = DtiTemperatures {
+        dti_controller_temp: 30.0,
+        dti_motor_temp: 30.0,
+        dti_fault_code: aer::can::DtiFaultCode::Undervoltage,
+    };
+    temperatures.encode(&mut data).unwrap();
+    check.frame(DtiTemperatures::ID, true, &data);
+    assert_eq!(
+        check.to_string(),
+        "DTI node 0x41 (schema 0x41), CAN map 25 (schema 25), drive DISABLED, fault UNDERVOLTAGE"
+    );
+    // A DTI configured with another node id: its packets carry it.
+    let mut other = BenchCheck::default();
+    other.frame((DtiFlags::ID & !0xFF) | 0x65, true, &data);
+    other.frame(0x123, false, &data);
+    assert_eq!(
+        other.to_string(),
+        "DTI node 0x65 (schema 0x41), CAN map not heard"
+    );
+}

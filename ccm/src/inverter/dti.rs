@@ -154,3 +154,78 @@ impl EnableWatch {
             .is_some_and(|held| held > DTI_ENABLE_MISMATCH_MS)
     }
 }
+
+/// What the bring-up image reports of a DTI on the bench, from the frames it hears on the
+/// inverter bus: the node id its status packets carry, the CAN map version, drive enable and
+/// the fault code, each beside what the schema expects.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct BenchCheck {
+    node_id: Option<u8>,
+    other_node: bool,
+    map_version: Option<u8>,
+    drive: Option<DtiDriveEnable>,
+    fault: Option<DtiFaultCode>,
+}
+
+/// The DTI's status packet ids (0x1F-0x26), whatever the node id.
+const STATUS_PACKETS: core::ops::RangeInclusive<u32> = 0x1F..=0x26;
+
+impl BenchCheck {
+    /// The node id the schema's DTI ids carry.
+    pub const SCHEMA_NODE_ID: u8 = (DtiFlags::ID & 0xFF) as u8;
+
+    /// Looks at one received frame.
+    pub fn frame(&mut self, id: u32, extended: bool, data: &[u8]) {
+        if !extended || !STATUS_PACKETS.contains(&(id >> 8)) {
+            return;
+        }
+        let node = (id & 0xFF) as u8;
+        match self.node_id {
+            None => self.node_id = Some(node),
+            Some(seen) if seen != node => self.other_node = true,
+            Some(_) => {}
+        }
+        if node != Self::SCHEMA_NODE_ID {
+            return;
+        }
+        if id == DtiFlags::ID {
+            if let Ok(flags) = DtiFlags::decode(data) {
+                self.map_version = Some(flags.dti_can_map_version);
+                self.drive = Some(flags.dti_drive_enabled);
+            }
+        } else if id == aer::can::DtiTemperatures::ID {
+            if let Ok(temperatures) = aer::can::DtiTemperatures::decode(data) {
+                self.fault = Some(temperatures.dti_fault_code);
+            }
+        }
+    }
+}
+
+impl core::fmt::Display for BenchCheck {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        let Some(node) = self.node_id else {
+            return write!(f, "DTI: no status packet heard");
+        };
+        write!(
+            f,
+            "DTI node 0x{node:02x} (schema 0x{:02x}{})",
+            Self::SCHEMA_NODE_ID,
+            if self.other_node {
+                ", and other nodes"
+            } else {
+                ""
+            }
+        )?;
+        match self.map_version {
+            Some(version) => write!(f, ", CAN map {version} (schema {DTI_CAN_MAP_VERSION})")?,
+            None => write!(f, ", CAN map not heard")?,
+        }
+        if let Some(drive) = self.drive {
+            write!(f, ", drive {}", drive.label().unwrap_or("UNKNOWN"))?;
+        }
+        if let Some(fault) = self.fault {
+            write!(f, ", fault {}", fault.label().unwrap_or("UNKNOWN"))?;
+        }
+        Ok(())
+    }
+}

@@ -4,7 +4,8 @@
 //! At start: firmware, board revision and every pin with its source, schema fingerprints,
 //! reset cause (a `watchdog test` shows here after the reset), clocks. Every second: every
 //! analog input's counts and volts, the digital inputs' levels, edge counts and rates (wheel
-//! speed in Hz), both CAN controllers' state and what each heard, the outputs. Outputs move
+//! speed in Hz), both CAN controllers' state and what each heard (and, of a DTI on the
+//! inverter bus, its node id, CAN map version, drive enable and fault code), the outputs. Outputs move
 //! only on a typed `out <signal> ...`; `can` runs both controllers' loopback self-tests and
 //! starts heartbeats; `cal rest` / `cal full` record the pedal and print the calibration to
 //! put in `aer_ccm::apps::AppsCalibration`. `help` lists the commands.
@@ -23,6 +24,7 @@ mod app {
     use crate::board;
     use crate::pwm::PwmBlock;
     use aer_boards::Pin;
+    use aer_ccm::inverter::dti::BenchCheck;
     use aer_console::bringup::{
         AnalogReading, DigitalReading, Heard, PedalCalibration, ResetCause, edge_rate_hz,
     };
@@ -350,6 +352,7 @@ mod app {
         let mut feeding = true;
         let mut calibration = PedalCalibration::default();
         let mut heard = [Heard::default(); 2];
+        let mut dti = BenchCheck::default();
         let mut heartbeats = false;
         let mut heartbeat: u8 = 0;
         let mut wheels_before = [0u32; 2];
@@ -380,7 +383,10 @@ mod app {
             }
             for (can, heard) in [
                 bench.vehicle_can.as_mut().map(receive3),
-                bench.inverter_can.as_mut().map(receive2),
+                bench
+                    .inverter_can
+                    .as_mut()
+                    .map(|can| receive2(can, &mut dti)),
             ]
             .into_iter()
             .zip(heard.iter_mut())
@@ -428,10 +434,11 @@ mod app {
                     elapsed_ms,
                     (wheels_before, wheels_now, levels),
                     button_edges,
-                    &heard,
+                    (&heard, &dti),
                 );
                 wheels_before = wheels_now;
                 heard = [Heard::default(); 2];
+                dti = BenchCheck::default();
             }
             Mono::delay(1u64.millis()).await;
         }
@@ -441,8 +448,15 @@ mod app {
         core::array::from_fn(|_| can.receive().map(|frame| raw_id(&frame)))
     }
 
-    fn receive2(can: &mut Flexcan<2>) -> [Option<u32>; 8] {
-        core::array::from_fn(|_| can.receive().map(|frame| raw_id(&frame)))
+    /// The inverter bus also feeds the DTI check (node id, CAN map, drive, fault).
+    fn receive2(can: &mut Flexcan<2>, dti: &mut BenchCheck) -> [Option<u32>; 8] {
+        core::array::from_fn(|_| {
+            can.receive().map(|frame| {
+                let id = raw_id(&frame);
+                dti.frame(id, matches!(frame.id(), Id::Extended(_)), frame.data());
+                id
+            })
+        })
     }
 
     fn raw_id(frame: &CanFrame) -> u32 {
@@ -613,7 +627,7 @@ mod app {
         elapsed_ms: u32,
         (wheels_before, wheels_now, wheel_levels): WheelEdges,
         button_edges: [u32; 2],
-        heard: &[Heard; 2],
+        (heard, dti): (&[Heard; 2], &BenchCheck),
     ) {
         let divider = board::REVISION.adc_divider;
         let counts: [u16; ANALOG] = core::array::from_fn(|index| {
@@ -685,6 +699,7 @@ mod app {
             log.line(format_args!(
                 "CAN2 (inverter) {inverter:?}; heard {heard_inverter}"
             ));
+            log.line(format_args!("CAN2 (inverter) {dti}"));
             log.line(format_args!(
                 "brake light {}",
                 if bench.brake_light.is_set() {
