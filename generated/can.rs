@@ -1135,7 +1135,7 @@ pub struct CcmStatus {
     ///
     /// `CCM_SchemaFingerprint`: 32 bits from bit 16 (Intel), unsigned, range [0.0, 4294967295.0].
     pub ccm_schema_fingerprint: u32,
-    /// Increments every frame; a stuck value means a stuck CCM.
+    /// Increments every frame (CounterStep 1); a stuck value means a stuck CCM.
     ///
     /// `CCM_RollingCounter`: 4 bits from bit 48 (Intel), unsigned, range [0.0, 15.0].
     pub ccm_rolling_counter: u8,
@@ -1349,7 +1349,7 @@ static CCM_STATUS_SIGNALS: [SignalMeta; 20] = [
         name: "CCM_RollingCounter",
         index: 10,
         unit: "",
-        comment: "Increments every frame; a stuck value means a stuck CCM.",
+        comment: "Increments every frame (CounterStep 1); a stuck value means a stuck CCM.",
         start_bit: 48,
         len: 4,
         byte_order: ByteOrder::LittleEndian,
@@ -1516,6 +1516,12 @@ impl CcmStatus {
         cycle_time_ms: Some(100),
         comment: "CCM status, on both buses: vehicle state, latched faults and the schema fingerprint of the flashed firmware.",
         signals: &CCM_STATUS_SIGNALS,
+        counter: Some(runtime::CounterMeta {
+            signal: "CCM_RollingCounter",
+            bits: &[48, 49, 50, 51],
+            step: 1,
+        }),
+        checksum: None,
     };
     pub const ID: u32 = 0xA0;
     pub const EXTENDED: bool = false;
@@ -2475,7 +2481,7 @@ pub struct Vcu1 {
     pub vcu_bms_aux_relay_cmd: bool,
     /// `VCU_PowerReduceReq`: 3 bits from bit 55 (Motorola), unsigned, range [0.0, 7.0].
     pub vcu_power_reduce_req: u8,
-    /// (sum of bytes 0..6) XOR 0xFF.
+    /// (sum of bytes 0..6) XOR 0xFF (ChecksumAlgorithm SumXorFF).
     ///
     /// `VCU_CheckSum`: 8 bits from bit 63 (Motorola), unsigned, range [0.0, 255.0].
     pub vcu_check_sum: u8,
@@ -2758,7 +2764,7 @@ static VCU1_SIGNALS: [SignalMeta; 18] = [
         name: "VCU_CheckSum",
         index: 17,
         unit: "",
-        comment: "(sum of bytes 0..6) XOR 0xFF.",
+        comment: "(sum of bytes 0..6) XOR 0xFF (ChecksumAlgorithm SumXorFF).",
         start_bit: 63,
         len: 8,
         byte_order: ByteOrder::BigEndian,
@@ -2781,6 +2787,16 @@ impl Vcu1 {
         cycle_time_ms: Some(20),
         comment: "Vehicle control command to the inverter. RollingCounter must increment every frame; CheckSum = (sum of bytes 0..6) XOR 0xFF.",
         signals: &VCU1_SIGNALS,
+        counter: Some(runtime::CounterMeta {
+            signal: "VCU_RollingCounter",
+            bits: &[48, 49, 50, 51],
+            step: 1,
+        }),
+        checksum: Some(runtime::ChecksumMeta {
+            signal: "VCU_CheckSum",
+            byte: 7,
+            algorithm: runtime::ChecksumAlgorithm::SumXorFf,
+        }),
     };
     pub const ID: u32 = 0x101;
     pub const EXTENDED: bool = false;
@@ -3803,6 +3819,12 @@ impl Mcu1 {
         cycle_time_ms: Some(10),
         comment: "Inverter status 1: speed, torques and states.",
         signals: &MCU1_SIGNALS,
+        counter: Some(runtime::CounterMeta {
+            signal: "MCU1_RollingCounter",
+            bits: &[48, 49, 50, 51],
+            step: 1,
+        }),
+        checksum: None,
     };
     pub const ID: u32 = 0x105;
     pub const EXTENDED: bool = false;
@@ -4675,6 +4697,12 @@ impl Mcu2 {
         cycle_time_ms: Some(100),
         comment: "Inverter status 2: temperatures, faults and warnings.",
         signals: &MCU2_SIGNALS,
+        counter: Some(runtime::CounterMeta {
+            signal: "MCU2_RollingCounter",
+            bits: &[48, 49, 50, 51],
+            step: 1,
+        }),
+        checksum: None,
     };
     pub const ID: u32 = 0x106;
     pub const EXTENDED: bool = false;
@@ -5693,6 +5721,8 @@ impl Mcu3 {
         cycle_time_ms: Some(10),
         comment: "Inverter status 3: DC link and phase electrical values.",
         signals: &MCU3_SIGNALS,
+        counter: None,
+        checksum: None,
     };
     pub const ID: u32 = 0x107;
     pub const EXTENDED: bool = false;
@@ -5932,6 +5962,8 @@ impl Bms1 {
         cycle_time_ms: Some(100),
         comment: "BMS frame 1 as the inverter expects it from a BMS; emulated by the CCM.",
         signals: &BMS1_SIGNALS,
+        counter: None,
+        checksum: None,
     };
     pub const ID: u32 = 0x1A0;
     pub const EXTENDED: bool = false;
@@ -6108,6 +6140,8 @@ impl Bms2 {
         cycle_time_ms: Some(100),
         comment: "BMS frame 2 as the inverter expects it from a BMS; emulated by the CCM.",
         signals: &BMS2_SIGNALS,
+        counter: None,
+        checksum: None,
     };
     pub const ID: u32 = 0x1A1;
     pub const EXTENDED: bool = false;
@@ -6304,6 +6338,8 @@ impl OrionPackStatus {
         cycle_time_ms: Some(10),
         comment: "Orion BMS 2 pack status, as configured in the team's Orion profile.",
         signals: &ORION_PACK_STATUS_SIGNALS,
+        counter: None,
+        checksum: None,
     };
     pub const ID: u32 = 0x6B0;
     pub const EXTENDED: bool = false;
@@ -6636,6 +6672,8 @@ impl OrionLimits {
         cycle_time_ms: Some(100),
         comment: "Orion BMS 2 current limits and temperatures.",
         signals: &ORION_LIMITS_SIGNALS,
+        counter: None,
+        checksum: None,
     };
     pub const ID: u32 = 0x6B1;
     pub const EXTENDED: bool = false;
@@ -6952,6 +6990,8 @@ impl OrionCellVoltages {
         cycle_time_ms: Some(100),
         comment: "Orion BMS 2 cell voltages.",
         signals: &ORION_CELL_VOLTAGES_SIGNALS,
+        counter: None,
+        checksum: None,
     };
     pub const ID: u32 = 0x6B2;
     pub const EXTENDED: bool = false;
@@ -7405,6 +7445,8 @@ impl PccStatus {
         cycle_time_ms: Some(10),
         comment: "Precharge controller status, every 10 ms.",
         signals: &PCC_STATUS_SIGNALS,
+        counter: None,
+        checksum: None,
     };
     pub const ID: u32 = 0x222;
     pub const EXTENDED: bool = false;
@@ -8129,6 +8171,8 @@ impl ImdInfoGeneral {
         cycle_time_ms: Some(100),
         comment: "Bender IMD general information (J1939 PGN 0xFF01).",
         signals: &IMD_INFO_GENERAL_SIGNALS,
+        counter: None,
+        checksum: None,
     };
     pub const ID: u32 = 0x18FF01F4;
     pub const EXTENDED: bool = true;
@@ -8919,6 +8963,8 @@ impl ImdInfoIsolationDetail {
         cycle_time_ms: Some(100),
         comment: "Bender IMD isolation detail (J1939 PGN 0xFF02).",
         signals: &IMD_INFO_ISOLATION_DETAIL_SIGNALS,
+        counter: None,
+        checksum: None,
     };
     pub const ID: u32 = 0x18FF02F4;
     pub const EXTENDED: bool = true;
@@ -9287,6 +9333,8 @@ impl ImdInfoVoltage {
         cycle_time_ms: Some(100),
         comment: "Bender IMD voltages (J1939 PGN 0xFF03): raw offset 32128 at 0.05 V per bit.",
         signals: &IMD_INFO_VOLTAGE_SIGNALS,
+        counter: None,
+        checksum: None,
     };
     pub const ID: u32 = 0x18FF03F4;
     pub const EXTENDED: bool = true;
@@ -9686,6 +9734,8 @@ impl ImdInfoItSystem {
         cycle_time_ms: Some(100),
         comment: "Bender IMD IT-system values (J1939 PGN 0xFF04).",
         signals: &IMD_INFO_IT_SYSTEM_SIGNALS,
+        counter: None,
+        checksum: None,
     };
     pub const ID: u32 = 0x18FF04F4;
     pub const EXTENDED: bool = true;
@@ -10011,6 +10061,8 @@ impl ImdRequest {
         cycle_time_ms: None,
         comment: "Request to the Bender IMD (J1939 PGN 0xEF00 from the CCM, address 0x17, to the IMD, 0xF4).",
         signals: &IMD_REQUEST_SIGNALS,
+        counter: None,
+        checksum: None,
     };
     pub const ID: u32 = 0x18EFF417;
     pub const EXTENDED: bool = true;
@@ -10182,6 +10234,8 @@ impl DtiSetCurrent {
         cycle_time_ms: Some(10),
         comment: "DTI packet 0x01. Sets the AC (phase) current and puts the controller in current control. The CCM sends it every 10 ms: its torque request over the motor's torque constant.",
         signals: &DTI_SET_CURRENT_SIGNALS,
+        counter: None,
+        checksum: None,
     };
     pub const ID: u32 = 0x141;
     pub const EXTENDED: bool = true;
@@ -10314,6 +10368,8 @@ impl DtiSetBrakeCurrent {
         cycle_time_ms: None,
         comment: "DTI packet 0x02. Sets the brake (regenerative) current and puts the controller in brake-current control.",
         signals: &DTI_SET_BRAKE_CURRENT_SIGNALS,
+        counter: None,
+        checksum: None,
     };
     pub const ID: u32 = 0x241;
     pub const EXTENDED: bool = true;
@@ -10454,6 +10510,8 @@ impl DtiSetErpm {
         cycle_time_ms: None,
         comment: "DTI packet 0x03. Sets the speed in electrical rpm and puts the controller in speed control.",
         signals: &DTI_SET_ERPM_SIGNALS,
+        counter: None,
+        checksum: None,
     };
     pub const ID: u32 = 0x341;
     pub const EXTENDED: bool = true;
@@ -10583,6 +10641,8 @@ impl DtiSetPosition {
         cycle_time_ms: None,
         comment: "DTI packet 0x04. Sets the rotor position and puts the controller in position control.",
         signals: &DTI_SET_POSITION_SIGNALS,
+        counter: None,
+        checksum: None,
     };
     pub const ID: u32 = 0x441;
     pub const EXTENDED: bool = true;
@@ -10714,6 +10774,8 @@ impl DtiSetRelativeCurrent {
         cycle_time_ms: None,
         comment: "DTI packet 0x05. Sets the AC current as a share of the controller's configured maximum AC current (current control).",
         signals: &DTI_SET_RELATIVE_CURRENT_SIGNALS,
+        counter: None,
+        checksum: None,
     };
     pub const ID: u32 = 0x541;
     pub const EXTENDED: bool = true;
@@ -10854,6 +10916,8 @@ impl DtiSetRelativeBrakeCurrent {
         cycle_time_ms: None,
         comment: "DTI packet 0x06. Sets the brake current as a share of the configured maximum brake current.",
         signals: &DTI_SET_RELATIVE_BRAKE_CURRENT_SIGNALS,
+        counter: None,
+        checksum: None,
     };
     pub const ID: u32 = 0x641;
     pub const EXTENDED: bool = true;
@@ -11052,6 +11116,8 @@ impl DtiSetDigitalOutputs {
         cycle_time_ms: None,
         comment: "DTI packet 0x07. Sets the controller's four digital outputs.",
         signals: &DTI_SET_DIGITAL_OUTPUTS_SIGNALS,
+        counter: None,
+        checksum: None,
     };
     pub const ID: u32 = 0x741;
     pub const EXTENDED: bool = true;
@@ -11313,6 +11379,8 @@ impl DtiSetMaxCurrentAc {
         cycle_time_ms: None,
         comment: "DTI packet 0x08. Limits the AC (phase) current below the controller's configured maximum.",
         signals: &DTI_SET_MAX_CURRENT_AC_SIGNALS,
+        counter: None,
+        checksum: None,
     };
     pub const ID: u32 = 0x841;
     pub const EXTENDED: bool = true;
@@ -11453,6 +11521,8 @@ impl DtiSetMaxBrakeCurrentAc {
         cycle_time_ms: None,
         comment: "DTI packet 0x09. Limits the AC brake current below the controller's configured maximum.",
         signals: &DTI_SET_MAX_BRAKE_CURRENT_AC_SIGNALS,
+        counter: None,
+        checksum: None,
     };
     pub const ID: u32 = 0x941;
     pub const EXTENDED: bool = true;
@@ -11596,6 +11666,8 @@ impl DtiSetMaxCurrentDc {
         cycle_time_ms: Some(10),
         comment: "DTI packet 0x0A. Limits the DC (battery) current the controller draws: the BMS's discharge limit.",
         signals: &DTI_SET_MAX_CURRENT_DC_SIGNALS,
+        counter: None,
+        checksum: None,
     };
     pub const ID: u32 = 0xA41;
     pub const EXTENDED: bool = true;
@@ -11737,6 +11809,8 @@ impl DtiSetMaxBrakeCurrentDc {
         cycle_time_ms: Some(10),
         comment: "DTI packet 0x0B. Limits the DC current the controller returns to the battery: the BMS's charge limit.",
         signals: &DTI_SET_MAX_BRAKE_CURRENT_DC_SIGNALS,
+        counter: None,
+        checksum: None,
     };
     pub const ID: u32 = 0xB41;
     pub const EXTENDED: bool = true;
@@ -11881,6 +11955,8 @@ impl DtiSetDriveEnable {
         cycle_time_ms: Some(10),
         comment: "DTI packet 0x0C. Enables or disables the drive; the controller produces no current while disabled. Sent periodically.",
         signals: &DTI_SET_DRIVE_ENABLE_SIGNALS,
+        counter: None,
+        checksum: None,
     };
     pub const ID: u32 = 0xC41;
     pub const EXTENDED: bool = true;
@@ -12086,6 +12162,8 @@ impl DtiControl {
         cycle_time_ms: Some(100),
         comment: "DTI packet 0x1F. Controller status: control mode, target current, rotor position.",
         signals: &DTI_CONTROL_SIGNALS,
+        counter: None,
+        checksum: None,
     };
     pub const ID: u32 = 0x1F41;
     pub const EXTENDED: bool = true;
@@ -12394,6 +12472,8 @@ impl DtiSpeed {
         cycle_time_ms: Some(10),
         comment: "DTI packet 0x20. Controller status: speed, duty cycle and DC input voltage.",
         signals: &DTI_SPEED_SIGNALS,
+        counter: None,
+        checksum: None,
     };
     pub const ID: u32 = 0x2041;
     pub const EXTENDED: bool = true;
@@ -12629,6 +12709,8 @@ impl DtiCurrents {
         cycle_time_ms: Some(10),
         comment: "DTI packet 0x21. Controller status: AC and DC current.",
         signals: &DTI_CURRENTS_SIGNALS,
+        counter: None,
+        checksum: None,
     };
     pub const ID: u32 = 0x2141;
     pub const EXTENDED: bool = true;
@@ -12861,6 +12943,8 @@ impl DtiTemperatures {
         cycle_time_ms: Some(100),
         comment: "DTI packet 0x22. Controller status: temperatures and the active fault.",
         signals: &DTI_TEMPERATURES_SIGNALS,
+        counter: None,
+        checksum: None,
     };
     pub const ID: u32 = 0x2241;
     pub const EXTENDED: bool = true;
@@ -13123,6 +13207,8 @@ impl DtiFocCurrents {
         cycle_time_ms: Some(100),
         comment: "DTI packet 0x23. Controller status: field-oriented control currents.",
         signals: &DTI_FOC_CURRENTS_SIGNALS,
+        counter: None,
+        checksum: None,
     };
     pub const ID: u32 = 0x2341;
     pub const EXTENDED: bool = true;
@@ -13728,6 +13814,8 @@ impl DtiFlags {
         cycle_time_ms: Some(10),
         comment: "DTI packet 0x24. Controller status: inputs, outputs, drive enable, active limits and the CAN map version.",
         signals: &DTI_FLAGS_SIGNALS,
+        counter: None,
+        checksum: None,
     };
     pub const ID: u32 = 0x2441;
     pub const EXTENDED: bool = true;
@@ -14831,6 +14919,8 @@ impl DtiAcLimits {
         cycle_time_ms: Some(100),
         comment: "DTI packet 0x25. Controller status: configured and available AC current limits.",
         signals: &DTI_AC_LIMITS_SIGNALS,
+        counter: None,
+        checksum: None,
     };
     pub const ID: u32 = 0x2541;
     pub const EXTENDED: bool = true;
@@ -15175,6 +15265,8 @@ impl DtiDcLimits {
         cycle_time_ms: Some(100),
         comment: "DTI packet 0x26. Controller status: configured and available DC current limits.",
         signals: &DTI_DC_LIMITS_SIGNALS,
+        counter: None,
+        checksum: None,
     };
     pub const ID: u32 = 0x2641;
     pub const EXTENDED: bool = true;

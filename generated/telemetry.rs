@@ -177,7 +177,7 @@ pub struct Telemetry {
     ///
     /// Wire: `u8` at byte 65, unit `frames`.
     pub can_tx_dropped: u8,
-    /// Received frames of known ids that failed to decode, plus frames of unknown ids (since start-up, wrapping at 256).
+    /// Received frames refused (of known ids that failed to decode, or whose counter or checksum says they are not fresh, intact data) plus frames of unknown ids (since start-up, wrapping at 256).
     ///
     /// Wire: `u8` at byte 66, unit `frames`.
     pub can_decode_errors: u8,
@@ -1080,7 +1080,7 @@ static TELEMETRY_FIELDS: [SignalMeta; 86] = [
         name: "can_decode_errors",
         index: 39,
         unit: "frames",
-        comment: "Received frames of known ids that failed to decode, plus frames of unknown ids (since start-up, wrapping at 256).",
+        comment: "Received frames refused (of known ids that failed to decode, or whose counter or checksum says they are not fresh, intact data) plus frames of unknown ids (since start-up, wrapping at 256).",
         start_bit: 528,
         len: 8,
         byte_order: ByteOrder::LittleEndian,
@@ -2145,7 +2145,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
     },
     FieldDisplay {
         group: "diagnostics",
-        label: "CAN decode errors",
+        label: "CAN frames refused",
         warn: None,
         critical: None,
         warn_below: None,
@@ -2953,7 +2953,7 @@ pub struct TelemetryOwnFields {
     ///
     /// Wire: `u8` at byte 65, unit `frames`.
     pub can_tx_dropped: u8,
-    /// Received frames of known ids that failed to decode, plus frames of unknown ids (since start-up, wrapping at 256).
+    /// Received frames refused (of known ids that failed to decode, or whose counter or checksum says they are not fresh, intact data) plus frames of unknown ids (since start-up, wrapping at 256).
     ///
     /// Wire: `u8` at byte 66, unit `frames`.
     pub can_decode_errors: u8,

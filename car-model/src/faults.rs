@@ -35,6 +35,9 @@ pub enum Fault {
     /// The inverter faults (the IFL100's over-heat bit, the DTI's fault code): it stops
     /// driving and reports it.
     InverterFaulted,
+    /// The inverter's status is stuck: it repeats the frames of the moment it stuck (the
+    /// IFL100's counters stop moving; the DTI's packets carry none), and still obeys commands.
+    InverterStuck,
     /// The shutdown circuit opens: the PCC opens its relays and reports ERROR.
     ShutdownOpen,
     /// A bus is off for the CCM (0 = CAN1, 1 = CAN2): nothing in or out.
@@ -45,7 +48,7 @@ pub enum Fault {
 
 impl Fault {
     /// Every kind, with its first variant where it has several (for reports).
-    pub const KINDS: [Self; 12] = [
+    pub const KINDS: [Self; 13] = [
         Self::PedalConverterLost,
         Self::PedalSensorOpen(0),
         Self::PedalSensorShorted(1),
@@ -55,6 +58,7 @@ impl Fault {
         Self::BmsSilent,
         Self::InverterSilent,
         Self::InverterFaulted,
+        Self::InverterStuck,
         Self::ShutdownOpen,
         Self::BusOff(0),
         Self::GarbledFrames(Node::Pcc),

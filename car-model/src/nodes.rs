@@ -75,6 +75,11 @@ pub struct Nodes {
     /// Pack snapshots every 10 ms, newest first, for the BMS's delay.
     pack_history: [(f32, f32, f32); 4],
     counter: u8,
+    /// MCU1's and MCU2's rolling counters, each advanced on every frame it sends.
+    mcu_counters: (u8, u8),
+    /// While the inverter is stuck: what it measured (and its DC filter) when it stuck; it
+    /// repeats the frames of that moment.
+    frozen: Option<(Measured, (f32, f32))>,
 }
 
 impl Nodes {
@@ -91,6 +96,8 @@ impl Nodes {
             pack_filtered: (0.0, 0.0),
             pack_history: [(0.0, 0.0, 0.0); 4],
             counter: 0,
+            mcu_counters: (0, 0),
+            frozen: None,
         }
     }
 
@@ -134,10 +141,17 @@ impl Nodes {
         let inverter_up = !plan.is_active(now_ms, Fault::InverterSilent);
         let bms_up = !plan.is_active(now_ms, Fault::BmsSilent);
         let phase = now_ms % 100;
+        let stuck = plan.is_active(now_ms, Fault::InverterStuck);
+        if !stuck {
+            self.frozen = None;
+        } else if self.frozen.is_none() {
+            self.frozen = Some((*measured, self.dc_filtered));
+        }
+        let (seen, dc) = self.frozen.unwrap_or((*measured, self.dc_filtered));
         let inverter = if inverter_up {
             match measured.inverter {
-                InverterKind::Dti => self.dti(measured, phase),
-                InverterKind::Ifl100 => self.ifl100(measured, phase),
+                InverterKind::Dti => dti(&seen, dc, phase),
+                InverterKind::Ifl100 => self.ifl100(&seen, dc, phase, stuck),
             }
         } else {
             None
@@ -217,122 +231,27 @@ impl Nodes {
     }
 
     /// The IFL100's frame due at `phase` (ms in the 100 ms cycle): MCU1 and MCU3 every
-    /// 10 ms, MCU2 every 100 ms.
-    fn ifl100(&self, measured: &Measured, phase: u32) -> Option<AnyMessage> {
-        match (phase % 10, phase) {
-            (1, _) => Some(self.mcu1(measured)),
-            (2, _) => Some(self.mcu3()),
-            (_, 5) => Some(self.mcu2(measured)),
-            _ => None,
-        }
-    }
-
-    /// The DTI's packet due at `phase`: speed, currents and flags every 10 ms, the others
-    /// every 100 ms (the periods the schema declares).
-    fn dti(&self, measured: &Measured, phase: u32) -> Option<AnyMessage> {
-        let (volts, amps) = self.dc_filtered;
-        let ac_a = measured.torque_nm / MOTOR_TORQUE_PER_PEAK_A;
-        match (phase % 10, phase) {
-            (1, _) => Some(AnyMessage::DtiSpeed(DtiSpeed {
-                dti_erpm: (measured.motor_rpm * MOTOR_POLE_PAIRS) as i32,
-                dti_duty_cycle: 0.0,
-                dti_input_voltage: volts.clamp(0.0, 32_767.0) as i16,
-            })),
-            (2, _) => Some(AnyMessage::DtiCurrents(DtiCurrents {
-                dti_ac_current: quantise(ac_a, 0.1, -3_276.8, 3_276.7),
-                dti_dc_current: quantise(amps, 0.1, -3_276.8, 3_276.7),
-            })),
-            (4, _) => Some(AnyMessage::DtiFlags(dti_flags(measured))),
-            (_, 5) => {
-                let (motor, inverter) = measured.temperatures_degc;
-                Some(AnyMessage::DtiTemperatures(DtiTemperatures {
-                    dti_controller_temp: quantise(inverter, 0.1, -3_276.8, 3_276.7),
-                    dti_motor_temp: quantise(motor, 0.1, -3_276.8, 3_276.7),
-                    dti_fault_code: if measured.inverter_faulted {
-                        DtiFaultCode::ControllerOvertemp
-                    } else {
-                        DtiFaultCode::None
-                    },
-                }))
+    /// 10 ms, MCU2 every 100 ms; a `stuck` inverter's counters do not move.
+    fn ifl100(
+        &mut self,
+        measured: &Measured,
+        dc: (f32, f32),
+        phase: u32,
+        stuck: bool,
+    ) -> Option<AnyMessage> {
+        let advance = |counter: &mut u8| {
+            let now = *counter;
+            if !stuck {
+                *counter = (*counter + 1) & 0x0F;
             }
-            (_, 6) => Some(AnyMessage::DtiAcLimits(DtiAcLimits {
-                dti_max_ac_current: f64::from(DTI_AVAILABLE_AC_A),
-                dti_available_max_ac_current: f64::from(DTI_AVAILABLE_AC_A),
-                dti_min_ac_current: 0.0,
-                dti_available_min_ac_current: 0.0,
-            })),
-            (_, 16) => Some(AnyMessage::DtiDcLimits(DtiDcLimits {
-                dti_max_dc_current: 300.0,
-                dti_available_max_dc_current: 300.0,
-                dti_min_dc_current: 0.0,
-                dti_available_min_dc_current: 0.0,
-            })),
-            (_, 26) => Some(AnyMessage::DtiControl(DtiControl {
-                dti_control_mode: DtiControlMode::Current,
-                dti_target_iq: quantise(ac_a, 0.1, -3_276.8, 3_276.7),
-                dti_motor_position: 0.0,
-                dti_motor_still: u8::from(measured.motor_rpm.abs() < 1.0),
-            })),
-            (_, 36) => Some(AnyMessage::DtiFocCurrents(DtiFocCurrents {
-                dti_foc_id: 0.0,
-                dti_foc_iq: quantise(ac_a, 0.01, -21_474_836.48, 21_474_836.47),
-            })),
+            now
+        };
+        match (phase % 10, phase) {
+            (1, _) => Some(mcu1(measured, advance(&mut self.mcu_counters.0))),
+            (2, _) => Some(mcu3(dc)),
+            (_, 5) => Some(mcu2(measured, advance(&mut self.mcu_counters.1))),
             _ => None,
         }
-    }
-
-    fn mcu1(&self, measured: &Measured) -> AnyMessage {
-        AnyMessage::Mcu1(Mcu1 {
-            mcu_motor_speed: quantise(measured.motor_rpm, 0.25, 0.0, 16_383.75),
-            mcu_actual_torque: quantise(measured.torque_nm, 1.0192, 0.0, 259.896),
-            mcu_max_motor_torque: quantise(measured.max_torque_nm, 1.0192, 0.0, 259.896),
-            mcu_max_motor_brake_torque: 0.0,
-            mcu_main_state: if measured.running {
-                McuMainState::Run
-            } else {
-                McuMainState::Standby
-            },
-            mcu_rotate_direction: MotorRotateDirection::Forward,
-            mcu1_rolling_counter: self.counter & 0x0F,
-            mcu_motor_state: MotorMode::Drive,
-            mcu_work_mode: McuWorkMode::Torque,
-        })
-    }
-
-    fn mcu2(&self, measured: &Measured) -> AnyMessage {
-        let (motor, inverter) = measured.temperatures_degc;
-        AnyMessage::Mcu2(Mcu2 {
-            mcu_motor_temp: motor.clamp(-40.0, 215.0) as i16,
-            mcu_inverter_temp: inverter.clamp(-40.0, 215.0) as i16,
-            mcu_dc_main_wire_over_curr_fault: false,
-            mcu_motor_phase_curr_fault: false,
-            mcu_over_hot_fault: measured.inverter_faulted,
-            mcu_resolver_fault: false,
-            mcu_phase_curr_sensor_fault: false,
-            mcu_motor_over_spd_fault: false,
-            mcu_drv_motor_over_hot_fault: false,
-            mcu_dc_main_wire_over_volt_fault: false,
-            mcu_drv_motor_over_cool_fault: false,
-            mcu_motor_system_state: false,
-            mcu_temp_sensor_state: false,
-            mcu_motor_temp_sensor_state: false,
-            mcu_dc_volt_sensor_state: false,
-            mcu_dc_low_volt_warning: false,
-            mcu_12v_low_volt_warning: false,
-            mcu2_rolling_counter: self.counter & 0x0F,
-            mcu_warning_level: McuWarningLevel::None,
-            mcu_motor_open_phase_fault: false,
-            mcu_motor_stall_fault: false,
-        })
-    }
-
-    fn mcu3(&self) -> AnyMessage {
-        let (volts, amps) = self.dc_filtered;
-        AnyMessage::Mcu3(Mcu3 {
-            mcu_dc_voltage: quantise(volts, 0.01, 0.0, 655.35),
-            mcu_dc_current: quantise(amps, 0.01, -327.68, 327.67),
-            mcu_phase_current: quantise(amps * 1.4, 0.01, 0.0, 655.35),
-        })
     }
 
     fn pack_status(&self) -> AnyMessage {
@@ -367,6 +286,114 @@ impl Nodes {
             imd_earthlift_open: false,
             imd_device_activity: aer::can::ImdDeviceActivity::Normal,
         })
+    }
+}
+
+/// MCU1: speed, torques, state.
+fn mcu1(measured: &Measured, counter: u8) -> AnyMessage {
+    AnyMessage::Mcu1(Mcu1 {
+        mcu_motor_speed: quantise(measured.motor_rpm, 0.25, 0.0, 16_383.75),
+        mcu_actual_torque: quantise(measured.torque_nm, 1.0192, 0.0, 259.896),
+        mcu_max_motor_torque: quantise(measured.max_torque_nm, 1.0192, 0.0, 259.896),
+        mcu_max_motor_brake_torque: 0.0,
+        mcu_main_state: if measured.running {
+            McuMainState::Run
+        } else {
+            McuMainState::Standby
+        },
+        mcu_rotate_direction: MotorRotateDirection::Forward,
+        mcu1_rolling_counter: counter,
+        mcu_motor_state: MotorMode::Drive,
+        mcu_work_mode: McuWorkMode::Torque,
+    })
+}
+
+fn mcu2(measured: &Measured, counter: u8) -> AnyMessage {
+    let (motor, inverter) = measured.temperatures_degc;
+    AnyMessage::Mcu2(Mcu2 {
+        mcu_motor_temp: motor.clamp(-40.0, 215.0) as i16,
+        mcu_inverter_temp: inverter.clamp(-40.0, 215.0) as i16,
+        mcu_dc_main_wire_over_curr_fault: false,
+        mcu_motor_phase_curr_fault: false,
+        mcu_over_hot_fault: measured.inverter_faulted,
+        mcu_resolver_fault: false,
+        mcu_phase_curr_sensor_fault: false,
+        mcu_motor_over_spd_fault: false,
+        mcu_drv_motor_over_hot_fault: false,
+        mcu_dc_main_wire_over_volt_fault: false,
+        mcu_drv_motor_over_cool_fault: false,
+        mcu_motor_system_state: false,
+        mcu_temp_sensor_state: false,
+        mcu_motor_temp_sensor_state: false,
+        mcu_dc_volt_sensor_state: false,
+        mcu_dc_low_volt_warning: false,
+        mcu_12v_low_volt_warning: false,
+        mcu2_rolling_counter: counter,
+        mcu_warning_level: McuWarningLevel::None,
+        mcu_motor_open_phase_fault: false,
+        mcu_motor_stall_fault: false,
+    })
+}
+
+fn mcu3((volts, amps): (f32, f32)) -> AnyMessage {
+    AnyMessage::Mcu3(Mcu3 {
+        mcu_dc_voltage: quantise(volts, 0.01, 0.0, 655.35),
+        mcu_dc_current: quantise(amps, 0.01, -327.68, 327.67),
+        mcu_phase_current: quantise(amps * 1.4, 0.01, 0.0, 655.35),
+    })
+}
+
+/// The DTI's packet due at `phase` (ms in the 100 ms cycle): speed, currents and flags every
+/// 10 ms, the others every 100 ms (the periods the schema declares). `dc` is its filtered DC
+/// voltage and current.
+fn dti(measured: &Measured, (volts, amps): (f32, f32), phase: u32) -> Option<AnyMessage> {
+    let ac_a = measured.torque_nm / MOTOR_TORQUE_PER_PEAK_A;
+    match (phase % 10, phase) {
+        (1, _) => Some(AnyMessage::DtiSpeed(DtiSpeed {
+            dti_erpm: (measured.motor_rpm * MOTOR_POLE_PAIRS) as i32,
+            dti_duty_cycle: 0.0,
+            dti_input_voltage: volts.clamp(0.0, 32_767.0) as i16,
+        })),
+        (2, _) => Some(AnyMessage::DtiCurrents(DtiCurrents {
+            dti_ac_current: quantise(ac_a, 0.1, -3_276.8, 3_276.7),
+            dti_dc_current: quantise(amps, 0.1, -3_276.8, 3_276.7),
+        })),
+        (4, _) => Some(AnyMessage::DtiFlags(dti_flags(measured))),
+        (_, 5) => {
+            let (motor, inverter) = measured.temperatures_degc;
+            Some(AnyMessage::DtiTemperatures(DtiTemperatures {
+                dti_controller_temp: quantise(inverter, 0.1, -3_276.8, 3_276.7),
+                dti_motor_temp: quantise(motor, 0.1, -3_276.8, 3_276.7),
+                dti_fault_code: if measured.inverter_faulted {
+                    DtiFaultCode::ControllerOvertemp
+                } else {
+                    DtiFaultCode::None
+                },
+            }))
+        }
+        (_, 6) => Some(AnyMessage::DtiAcLimits(DtiAcLimits {
+            dti_max_ac_current: f64::from(DTI_AVAILABLE_AC_A),
+            dti_available_max_ac_current: f64::from(DTI_AVAILABLE_AC_A),
+            dti_min_ac_current: 0.0,
+            dti_available_min_ac_current: 0.0,
+        })),
+        (_, 16) => Some(AnyMessage::DtiDcLimits(DtiDcLimits {
+            dti_max_dc_current: 300.0,
+            dti_available_max_dc_current: 300.0,
+            dti_min_dc_current: 0.0,
+            dti_available_min_dc_current: 0.0,
+        })),
+        (_, 26) => Some(AnyMessage::DtiControl(DtiControl {
+            dti_control_mode: DtiControlMode::Current,
+            dti_target_iq: quantise(ac_a, 0.1, -3_276.8, 3_276.7),
+            dti_motor_position: 0.0,
+            dti_motor_still: u8::from(measured.motor_rpm.abs() < 1.0),
+        })),
+        (_, 36) => Some(AnyMessage::DtiFocCurrents(DtiFocCurrents {
+            dti_foc_id: 0.0,
+            dti_foc_iq: quantise(ac_a, 0.01, -21_474_836.48, 21_474_836.47),
+        })),
+        _ => None,
     }
 }
 

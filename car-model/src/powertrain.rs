@@ -13,9 +13,9 @@ use crate::params::powertrain::{
     TORQUE_RESPONSE_MS, VCU1_TIMEOUT_MS,
 };
 use aer::can::{AnyMessage, DtiDriveEnable, MotorMode, Vcu1};
+use aer::runtime::{CounterCheck, IntegrityError};
 use aer_ccm::InverterKind;
 use aer_ccm::config::MOTOR_TORQUE_PER_PEAK_A;
-use aer_ccm::inverter::ifl100::checksum;
 
 /// The inverter's view of its commands and the motor's state.
 #[derive(Debug, Clone, PartialEq)]
@@ -35,7 +35,8 @@ pub struct Inverter {
     pub dc_limit_a: f32,
     /// The inverter has a fault of its own (injected): it does not drive and reports it.
     pub faulted: bool,
-    last_counter: Option<u8>,
+    /// The last VCU1 counter accepted.
+    vcu1_counter: CounterCheck,
     /// VCU1 frames refused (bad checksum or rolling counter).
     pub refused_frames: u32,
     /// Torque at the shaft (Nm).
@@ -57,7 +58,7 @@ impl Inverter {
             last_enable_ms: None,
             dc_limit_a: 0.0,
             faulted: false,
-            last_counter: None,
+            vcu1_counter: CounterCheck::default(),
             refused_frames: 0,
             torque_nm: 0.0,
             motor_degc: COOLANT_DEGC,
@@ -100,20 +101,20 @@ impl Inverter {
     }
 
     /// A VCU1 payload from the CCM. Refused unless its checksum is right and its rolling
-    /// counter moved on, as the inverter does.
+    /// counter moved on (a counter that skipped, after frames were lost, is taken), as the
+    /// inverter does.
     pub fn on_vcu1(&mut self, data: &[u8; 8], now_ms: u32) {
         let Ok(vcu1) = Vcu1::decode(data) else {
             self.refused_frames += 1;
             return;
         };
-        let counter_moved = self
-            .last_counter
-            .is_none_or(|last| last != vcu1.vcu_rolling_counter);
-        if data.get(7) != Some(&checksum(data)) || !counter_moved {
-            self.refused_frames += 1;
-            return;
+        match Vcu1::META.verify(&mut self.vcu1_counter, data) {
+            Ok(()) | Err(IntegrityError::CounterJumped { .. }) => {}
+            Err(_) => {
+                self.refused_frames += 1;
+                return;
+            }
         }
-        self.last_counter = Some(vcu1.vcu_rolling_counter);
         self.command_nm = vcu1.vcu_torque_req as f32;
         self.drive = vcu1.vcu_vehicle_state && vcu1.vcu_motor_mode == MotorMode::Drive;
         self.last_command_ms = Some(now_ms);

@@ -62,7 +62,7 @@ pub enum Condition {
     SamplingStopped,
     /// The BMS is silent.
     BmsLost,
-    /// The inverter is silent.
+    /// The inverter is silent (or, for the IFL100, repeats a stuck frame).
     InverterLost,
     /// The inverter reports a fault of its own (it stops driving by itself; the CCM must
     /// stop asking).
@@ -151,7 +151,14 @@ impl Condition {
             Self::BrakeSensorFault => plan.is_active(now_ms, Fault::BrakeSensorNan),
             Self::SamplingStopped => plan.is_active(now_ms, Fault::SamplingStopped),
             Self::BmsLost => plan.is_active(now_ms, Fault::BmsSilent),
-            Self::InverterLost => plan.is_active(now_ms, Fault::InverterSilent),
+            // A stuck IFL100 repeats frames whose counters the CCM refuses: as good as silent.
+            // A stuck DTI's packets carry no counter, so the CCM cannot tell (only the power
+            // rule and the other conditions hold then).
+            Self::InverterLost => {
+                plan.is_active(now_ms, Fault::InverterSilent)
+                    || (plan.is_active(now_ms, Fault::InverterStuck)
+                        && car.params.inverter == InverterKind::Ifl100)
+            }
             Self::InverterFaulted => plan.is_active(now_ms, Fault::InverterFaulted),
             Self::PccNotOnline => !car.pcc.relays().air_plus,
             Self::Can1Off => plan.is_active(now_ms, Fault::BusOff(0)),

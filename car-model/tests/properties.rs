@@ -59,6 +59,7 @@ fn fault() -> impl Strategy<Value = Fault> {
         Just(Fault::BmsSilent),
         Just(Fault::InverterSilent),
         Just(Fault::InverterFaulted),
+        Just(Fault::InverterStuck),
         Just(Fault::ShutdownOpen),
         (0usize..2).prop_map(Fault::BusOff),
         prop_oneof![

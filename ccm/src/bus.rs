@@ -11,7 +11,7 @@ use aer::can::{
     AnyMessage, DtiAcLimits, DtiCurrents, DtiFlags, DtiSpeed, DtiTemperatures, Mcu1, Mcu2, Mcu3,
     OrionCellVoltages, OrionLimits, OrionPackStatus, PccStatus,
 };
-use aer::runtime::DecodeError;
+use aer::runtime::{CounterCheck, DecodeError};
 use aer::telemetry::TelemetryMirror;
 use embedded_can::{Frame, Id};
 
@@ -109,6 +109,14 @@ pub struct BusState {
     pub dti_ac_limits: Received<DtiAcLimits>,
     /// Frames of known ids that failed to decode (wrong length): counted and ignored.
     pub decode_errors: u32,
+    /// Frames refused by their counter or checksum (a repeated or skipped counter, a wrong
+    /// checksum): not fresh, intact data, so counted and ignored like a lost frame.
+    pub integrity_errors: u32,
+    /// The last counter accepted from MCU1: an inverter repeating its last frame is a stuck
+    /// inverter, not a fresh one.
+    mcu1_counter: CounterCheck,
+    /// The last counter accepted from MCU2.
+    mcu2_counter: CounterCheck,
     /// Frames whose id the schema does not know: counted and ignored.
     pub unknown_ids: u32,
 }
@@ -130,6 +138,9 @@ impl Default for BusState {
             dti_flags: Received::default(),
             dti_ac_limits: Received::default(),
             decode_errors: 0,
+            integrity_errors: 0,
+            mcu1_counter: CounterCheck::default(),
+            mcu2_counter: CounterCheck::default(),
             unknown_ids: 0,
         }
     }
@@ -156,6 +167,15 @@ impl BusState {
                 return;
             }
         };
+        let verdict = match &message {
+            AnyMessage::Mcu1(_) => Mcu1::META.verify(&mut self.mcu1_counter, frame.data()),
+            AnyMessage::Mcu2(_) => Mcu2::META.verify(&mut self.mcu2_counter, frame.data()),
+            _ => Ok(()),
+        };
+        if verdict.is_err() {
+            self.integrity_errors = self.integrity_errors.wrapping_add(1);
+            return;
+        }
         match message {
             AnyMessage::PccStatus(status) => self.pcc.store(status, now_ms),
             AnyMessage::OrionPackStatus(pack) => self.pack.store(pack, now_ms),

@@ -294,7 +294,12 @@ impl Control {
                 inverter_phase_current: status.phase_current_a.unwrap_or(0.0),
                 can_rx_dropped: wrap(driver.rx_dropped),
                 can_tx_dropped: wrap(driver.tx_dropped),
-                can_decode_errors: wrap(self.bus.decode_errors.wrapping_add(self.bus.unknown_ids)),
+                can_decode_errors: wrap(
+                    self.bus
+                        .decode_errors
+                        .wrapping_add(self.bus.integrity_errors)
+                        .wrapping_add(self.bus.unknown_ids),
+                ),
                 telemetry_superseded: wrap(link.superseded),
                 pedal_bus_errors: wrap(driver.pedal_bus_errors),
                 can_bus_off_events: wrap(

@@ -231,3 +231,63 @@ fn can_controller_health_and_drops_reach_telemetry() {
     assert_eq!(snapshot.can_tx_dropped, 4);
     assert_eq!(snapshot.pedal_bus_errors, 44, "300 wraps at 256");
 }
+
+#[test]
+fn a_stuck_inverter_repeating_its_frames_stops_torque_like_a_silent_one() {
+    // Before: the CCM ignored MCU1's and MCU2's counters, so an inverter that kept repeating
+    // its last frames was taken as fresh data (speed, available torque, temperatures).
+    use aer::can::{Mcu1, Mcu2, Mcu3};
+    use aer::runtime::CounterSender;
+    use aer_ccm::InverterKind;
+    use embedded_can::{Frame, StandardId};
+    let mut rig = Rig::with_inverter(InverterKind::Ifl100);
+    rig.drive_away();
+    rig.hold(&Tick::driving(0.5, 1_000.0), 10);
+    let frozen = |id: u32, encode: &dyn Fn(&mut [u8; 8])| {
+        let mut data = [0u8; 8];
+        encode(&mut data);
+        if let Some(meta) = aer::can::message_meta(id, false) {
+            meta.seal(&mut CounterSender::default(), &mut data);
+        }
+        aer_flexcan::CanFrame::new(StandardId::new(id as u16).unwrap(), &data).unwrap()
+    };
+    let mcu1 = frozen(Mcu1::ID, &|d| {
+        rig::mcu1().encode(d).unwrap();
+    });
+    let mcu2 = frozen(Mcu2::ID, &|d| {
+        rig::quiet_mcu2().encode(d).unwrap();
+    });
+    let mcu3 = frozen(Mcu3::ID, &|d| {
+        Mcu3 {
+            mcu_dc_voltage: 380.0,
+            mcu_dc_current: 2.0,
+            mcu_phase_current: 0.0,
+        }
+        .encode(d)
+        .unwrap();
+    });
+    let stuck = Tick {
+        inverter: None,
+        ..Tick::driving(0.5, 1_000.0)
+    };
+    let refused_before = rig.ccm.bus().integrity_errors;
+    let mut cut_after = None;
+    for tick in 1..=20u32 {
+        for frame in [&mcu1, &mcu2, &mcu3] {
+            rig.ccm.on_frame(frame, rig.now_ms);
+        }
+        let outputs = rig.tick(&stuck);
+        if outputs.torque.torque_nm == 0.0 && outputs.faults.has(Fault::InverterTimeout) {
+            cut_after = Some(tick * 10);
+            break;
+        }
+    }
+    let cut = cut_after.expect("a stuck inverter stops torque");
+    assert!(
+        cut <= InverterKind::Ifl100.status_timeout_ms() + 10,
+        "{cut} ms"
+    );
+    // Every repeat after the first was refused and counted (and reaches telemetry).
+    assert!(rig.ccm.bus().integrity_errors > refused_before + 5);
+    assert!(rig.ccm.snapshot().can_decode_errors > 0);
+}

@@ -51,6 +51,12 @@ pub enum Code {
     F32TooNarrow,
     /// E0119: an extended id without the node id its node declares (`NodeIdInCanId`).
     NodeIdNotInId,
+    /// E0120: a rolling counter (`CounterStep`) the codec cannot keep: not a small unsigned
+    /// integer, a step it cannot hold, multiplexed, or a second one in the message.
+    CounterInvalid,
+    /// E0121: a checksum (`ChecksumAlgorithm`) the codec cannot compute: an unknown algorithm,
+    /// not one whole byte, multiplexed, or a second one in the message.
+    ChecksumInvalid,
     /// E0201: the telemetry schema cannot be read.
     TelemetryUnreadable,
     /// E0202: the telemetry schema does not parse.
@@ -93,10 +99,12 @@ pub enum Code {
     MissingLabel,
     /// W0208: a numeric telemetry field without a unit.
     MissingUnit,
+    /// W0209: a cycle time on a message sent on demand (`GenMsgSendType` `NoMsgSendType`).
+    CycleTimeOnEvent,
 }
 
 /// Every code, for [`Code::parse`].
-const ALL: [Code; 39] = [
+const ALL: [Code; 42] = [
     Code::DbcUnreadable,
     Code::DbcEncoding,
     Code::DbcSyntax,
@@ -115,6 +123,8 @@ const ALL: [Code; 39] = [
     Code::MuxValueOutOfRange,
     Code::F32TooNarrow,
     Code::NodeIdNotInId,
+    Code::CounterInvalid,
+    Code::ChecksumInvalid,
     Code::TelemetryUnreadable,
     Code::TelemetrySyntax,
     Code::UnknownSignal,
@@ -136,6 +146,7 @@ const ALL: [Code; 39] = [
     Code::NoMessages,
     Code::MissingLabel,
     Code::MissingUnit,
+    Code::CycleTimeOnEvent,
 ];
 
 impl Code {
@@ -160,6 +171,8 @@ impl Code {
             Code::MuxValueOutOfRange => "E0116",
             Code::F32TooNarrow => "E0118",
             Code::NodeIdNotInId => "E0119",
+            Code::CounterInvalid => "E0120",
+            Code::ChecksumInvalid => "E0121",
             Code::TelemetryUnreadable => "E0201",
             Code::TelemetrySyntax => "E0202",
             Code::UnknownSignal => "E0203",
@@ -181,6 +194,7 @@ impl Code {
             Code::NoMessages => "W0206",
             Code::MissingLabel => "W0207",
             Code::MissingUnit => "W0208",
+            Code::CycleTimeOnEvent => "W0209",
         }
     }
 

@@ -47,12 +47,59 @@ pub struct Message {
     pub len: usize,
     pub fd: bool,
     pub cycle_time_ms: Option<u32>,
+    /// The rolling counter it carries, if the schema declares one.
+    pub counter: Option<Counter>,
+    /// The checksum it carries, if the schema declares one.
+    pub checksum: Option<Checksum>,
     pub transmitter: Option<String>,
     pub comment: Option<String>,
     /// In schema order; `mux` conditions only refer to earlier-decoded signals via `eval_order`.
     pub signals: Vec<Signal>,
     /// Indices into `signals` such that every multiplexor comes before the signals it selects.
     pub eval_order: Vec<usize>,
+}
+
+/// A message's rolling counter: one of its signals, advanced by `step` on every frame.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Counter {
+    /// Index into the message's signals.
+    pub signal: usize,
+    pub step: u8,
+}
+
+/// A message's checksum: one whole byte, over the payload's other bytes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Checksum {
+    /// Index into the message's signals.
+    pub signal: usize,
+    /// The payload byte it occupies.
+    pub byte: u8,
+    pub algorithm: ChecksumAlgorithm,
+}
+
+/// The checksum algorithms the runtime computes, by their schema names.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ChecksumAlgorithm {
+    /// `SumXorFF`: the bytes' sum, XOR 0xFF.
+    SumXorFf,
+    /// `Crc8SaeJ1850`: CRC-8, polynomial 0x1D, initial value and final XOR 0xFF.
+    Crc8SaeJ1850,
+}
+
+impl ChecksumAlgorithm {
+    /// Every algorithm with the name the schema uses for it.
+    pub const NAMES: [(&'static str, Self); 2] = [
+        ("SumXorFF", Self::SumXorFf),
+        ("Crc8SaeJ1850", Self::Crc8SaeJ1850),
+    ];
+
+    /// The runtime's variant name.
+    pub fn variant(self) -> &'static str {
+        match self {
+            Self::SumXorFf => "SumXorFf",
+            Self::Crc8SaeJ1850 => "Crc8SaeJ1850",
+        }
+    }
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -125,6 +125,8 @@ impl {{ m.type_name }} {
         cycle_time_ms: {{ m.cycle_time }},
         comment: {{ m.comment }},
         signals: &{{ m.meta_static }},
+        counter: {{ m.counter }},
+        checksum: {{ m.checksum }},
     };
     pub const ID: u32 = {{ m.id }};
     pub const EXTENDED: bool = {{ m.extended }};

@@ -182,6 +182,10 @@ pub struct MessageMeta {
     pub cycle_time_ms: Option<u32>,
     pub comment: &'static str,
     pub signals: &'static [SignalMeta],
+    /// The rolling counter the message carries, if the schema declares one.
+    pub counter: Option<CounterMeta>,
+    /// The checksum the message carries, if the schema declares one.
+    pub checksum: Option<ChecksumMeta>,
 }
 
 impl MessageMeta {
@@ -196,6 +200,217 @@ impl MessageMeta {
                 .ok()
                 .and_then(embedded_can::StandardId::new)
                 .map_or(embedded_can::Id::Standard(embedded_can::StandardId::ZERO), embedded_can::Id::Standard)
+        }
+    }
+}
+
+/// A message's rolling counter (the schema's `CounterStep` signal attribute): the sender adds
+/// `step` to it on every frame, modulo 2^bits.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct CounterMeta {
+    /// The counter signal's name.
+    pub signal: &'static str,
+    /// Where each of its bits sits (`byte * 8 + bit`, bit 0 the least significant of its
+    /// byte), the counter's least significant bit first; at most 8.
+    pub bits: &'static [u16],
+    /// What the sender adds on every frame.
+    pub step: u8,
+}
+
+impl CounterMeta {
+    /// The counter's value in `data` (bits beyond the payload read as 0).
+    pub fn read(&self, data: &[u8]) -> u8 {
+        self.bits.iter().enumerate().fold(0u8, |value, (i, &at)| {
+            let set = data
+                .get(usize::from(at / 8))
+                .is_some_and(|byte| byte & (1 << (at % 8)) != 0);
+            value | (u8::from(set) << (i % 8))
+        })
+    }
+
+    /// Writes `value` into the counter's bits of `data`.
+    pub fn write(&self, data: &mut [u8], value: u8) {
+        for (i, &at) in self.bits.iter().enumerate() {
+            if let Some(byte) = data.get_mut(usize::from(at / 8)) {
+                let mask = 1u8 << (at % 8);
+                if value & (1 << (i % 8)) != 0 {
+                    *byte |= mask;
+                } else {
+                    *byte &= !mask;
+                }
+            }
+        }
+    }
+
+    /// The value that follows `value`.
+    pub fn after(&self, value: u8) -> u8 {
+        let next = u16::from(value) + u16::from(self.step);
+        let modulus = 1u16 << self.bits.len().min(8);
+        (next % modulus) as u8
+    }
+}
+
+/// A checksum algorithm the schema can name (the `ChecksumAlgorithm` signal attribute). Each
+/// covers every payload byte but the checksum's own, in order.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ChecksumAlgorithm {
+    /// The bytes' sum (mod 256), XOR 0xFF.
+    SumXorFf,
+    /// CRC-8 SAE J1850: polynomial 0x1D, initial value 0xFF, final XOR 0xFF.
+    Crc8SaeJ1850,
+}
+
+impl ChecksumAlgorithm {
+    /// The checksum of `bytes`.
+    pub fn compute<'a>(self, bytes: impl Iterator<Item = &'a u8>) -> u8 {
+        match self {
+            Self::SumXorFf => bytes.fold(0u8, |sum, byte| sum.wrapping_add(*byte)) ^ 0xFF,
+            Self::Crc8SaeJ1850 => {
+                bytes.fold(0xFFu8, |crc, byte| {
+                    (0..8).fold(crc ^ byte, |crc, _| {
+                        if crc & 0x80 != 0 { (crc << 1) ^ 0x1D } else { crc << 1 }
+                    })
+                }) ^ 0xFF
+            }
+        }
+    }
+}
+
+/// A message's checksum: one byte of the payload.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ChecksumMeta {
+    /// The checksum signal's name.
+    pub signal: &'static str,
+    /// The payload byte it occupies.
+    pub byte: u8,
+    pub algorithm: ChecksumAlgorithm,
+}
+
+impl ChecksumMeta {
+    /// The checksum `data` should carry.
+    pub fn compute(&self, data: &[u8]) -> u8 {
+        let own = usize::from(self.byte);
+        self.algorithm.compute(
+            data.iter()
+                .enumerate()
+                .filter(move |(i, _)| *i != own)
+                .map(|(_, byte)| byte),
+        )
+    }
+}
+
+/// Why a received frame's counter or checksum says it is not fresh, intact data.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum IntegrityError {
+    /// The checksum byte does not match the payload.
+    Checksum {
+        message: &'static str,
+        expected: u8,
+        found: u8,
+    },
+    /// The counter did not move: the sender repeated a frame (or is stuck).
+    CounterRepeated { message: &'static str, value: u8 },
+    /// The counter skipped: frames were lost, or the frame is not the sender's next.
+    CounterJumped {
+        message: &'static str,
+        expected: u8,
+        found: u8,
+    },
+}
+
+impl fmt::Display for IntegrityError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::Checksum {
+                message,
+                expected,
+                found,
+            } => write!(
+                f,
+                "{message}: checksum 0x{found:02X}, the payload needs 0x{expected:02X}"
+            ),
+            Self::CounterRepeated { message, value } => {
+                write!(f, "{message}: counter repeated ({value})")
+            }
+            Self::CounterJumped {
+                message,
+                expected,
+                found,
+            } => write!(f, "{message}: counter {found}, expected {expected}"),
+        }
+    }
+}
+
+impl core::error::Error for IntegrityError {}
+
+/// The sender's side of one message's counter: the value its next frame carries.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct CounterSender {
+    next: u8,
+}
+
+/// The receiver's side of one message's counter: the last value accepted.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct CounterCheck {
+    last: Option<u8>,
+}
+
+impl CounterCheck {
+    /// Forgets the last value: the next frame is accepted whatever its counter (after the
+    /// sender restarted, or the receiver lost track on purpose).
+    pub fn reset(&mut self) {
+        self.last = None;
+    }
+}
+
+impl MessageMeta {
+    /// Fills the counter (advancing `sender`) and then the checksum into an encoded payload.
+    /// A message without them is left as it is.
+    pub fn seal(&self, sender: &mut CounterSender, data: &mut [u8]) {
+        if let Some(counter) = &self.counter {
+            counter.write(data, sender.next);
+            sender.next = counter.after(sender.next);
+        }
+        if let Some(checksum) = &self.checksum {
+            let value = checksum.compute(data);
+            if let Some(byte) = data.get_mut(usize::from(checksum.byte)) {
+                *byte = value;
+            }
+        }
+    }
+
+    /// Checks a received payload's checksum, then its counter against the last one `check`
+    /// accepted. A repeated counter is refused and leaves `check` as it was; a jump is
+    /// refused but followed (the frame after it is in sequence again), so one lost frame
+    /// costs one more. A message without them always passes.
+    pub fn verify(&self, check: &mut CounterCheck, data: &[u8]) -> Result<(), IntegrityError> {
+        if let Some(checksum) = &self.checksum {
+            let expected = checksum.compute(data);
+            let found = data.get(usize::from(checksum.byte)).copied().unwrap_or(0);
+            if found != expected {
+                return Err(IntegrityError::Checksum {
+                    message: self.name,
+                    expected,
+                    found,
+                });
+            }
+        }
+        let Some(counter) = &self.counter else {
+            return Ok(());
+        };
+        let found = counter.read(data);
+        let last = check.last.replace(found);
+        match last {
+            Some(last) if last == found => Err(IntegrityError::CounterRepeated {
+                message: self.name,
+                value: found,
+            }),
+            Some(last) if counter.after(last) != found => Err(IntegrityError::CounterJumped {
+                message: self.name,
+                expected: counter.after(last),
+                found,
+            }),
+            _ => Ok(()),
         }
     }
 }

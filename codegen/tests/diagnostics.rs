@@ -398,3 +398,179 @@ fn ids_that_carry_the_declared_node_id_pass_and_other_messages_are_not_checked()
         "{diags:#?}"
     );
 }
+
+/// `messages` with the counter, checksum and send-type attributes defined.
+fn with_integrity(messages: &str, values: &str) -> Vec<Diagnostic> {
+    let text = format!(
+        "VERSION \"\"\n\nNS_ :\n\tCM_\n\nBS_:\n\nBU_: CCM INV\n\n{messages}\n\
+         BA_DEF_ SG_  \"ChecksumAlgorithm\" ENUM  \"None\",\"SumXorFF\",\"Crc8SaeJ1850\";\n\
+         BA_DEF_ SG_  \"CounterStep\" INT 0 255;\n\
+         BA_DEF_ BO_  \"GenMsgCycleTime\" INT 0 65535;\n\
+         BA_DEF_ BO_  \"GenMsgSendType\" ENUM  \"Cyclic\",\"NoMsgSendType\";\n\
+         BA_DEF_DEF_  \"ChecksumAlgorithm\" \"None\";\nBA_DEF_DEF_  \"CounterStep\" 0;\n\
+         BA_DEF_DEF_  \"GenMsgCycleTime\" 0;\nBA_DEF_DEF_  \"GenMsgSendType\" \"Cyclic\";\n{values}"
+    );
+    let path = Path::new("car.dbc");
+    let loaded = aer_codegen::load::dbc::parse(path, text).expect("parses");
+    match aer_codegen::validate::dbc::validate(path, &loaded, &[]) {
+        Ok((_, warnings)) => warnings,
+        Err(d) => d.0,
+    }
+}
+
+const INTEGRITY_MESSAGES: &str = "BO_ 257 Cmd: 8 CCM\n SG_ Torque : 0|8@1+ (1,0) [0|255] \"\" INV\n \
+     SG_ Counter : 8|4@1+ (1,0) [0|15] \"\" INV\n SG_ Wide : 16|12@1+ (1,0) [0|0] \"\" INV\n \
+     SG_ Scaled : 28|4@1+ (2,0) [0|30] \"\" INV\n SG_ Sum : 56|8@1+ (1,0) [0|255] \"\" INV\n \
+     SG_ Split : 36|8@1+ (1,0) [0|255] \"\" INV\n";
+
+#[test]
+fn counters_and_checksums_the_codec_can_keep_pass() {
+    let diags = with_integrity(
+        INTEGRITY_MESSAGES,
+        "BA_ \"CounterStep\" SG_ 257 Counter 1;\nBA_ \"ChecksumAlgorithm\" SG_ 257 Sum 1;\n",
+    );
+    assert!(diags.is_empty(), "{diags:#?}");
+    // The model carries them: the counter's signal and step, the checksum's byte.
+    let text = format!(
+        "VERSION \"\"\n\nNS_ :\n\tCM_\n\nBS_:\n\nBU_: CCM INV\n\n{INTEGRITY_MESSAGES}\n\
+        BA_DEF_ SG_  \"ChecksumAlgorithm\" STRING ;\nBA_DEF_ SG_  \"CounterStep\" INT 0 255;\n\
+        BA_DEF_DEF_  \"ChecksumAlgorithm\" \"None\";\nBA_DEF_DEF_  \"CounterStep\" 0;\n\
+        BA_ \"CounterStep\" SG_ 257 Counter 3;\nBA_ \"ChecksumAlgorithm\" SG_ 257 Sum \"Crc8SaeJ1850\";\n"
+    );
+    let path = Path::new("car.dbc");
+    let loaded = aer_codegen::load::dbc::parse(path, text).expect("parses");
+    let (db, _) = aer_codegen::validate::dbc::validate(path, &loaded, &[]).expect("valid");
+    let m = &db.messages[0];
+    let counter = m.counter.expect("counter");
+    assert_eq!(
+        (m.signals[counter.signal].name.as_str(), counter.step),
+        ("Counter", 3)
+    );
+    let checksum = m.checksum.expect("checksum");
+    assert_eq!(checksum.byte, 7);
+    assert_eq!(
+        checksum.algorithm,
+        aer_codegen::model::ChecksumAlgorithm::Crc8SaeJ1850,
+        "a STRING attribute names the algorithm too"
+    );
+}
+
+#[test]
+fn counters_the_codec_cannot_keep_are_refused() {
+    let line_of = |signal: &str| {
+        INTEGRITY_MESSAGES
+            .lines()
+            .position(|l| l.contains(&format!("SG_ {signal} ")))
+            .expect("signal")
+            + 1
+            + header_lines()
+    };
+    for (values, signal, fragment) in [
+        (
+            "BA_ \"CounterStep\" SG_ 257 Wide 1;\n",
+            "Wide",
+            "12 bits wide",
+        ),
+        (
+            "BA_ \"CounterStep\" SG_ 257 Scaled 1;\n",
+            "Scaled",
+            "factor 1",
+        ),
+        (
+            "BA_ \"CounterStep\" SG_ 257 Counter 16;\n",
+            "Counter",
+            "step 16 does not fit its 4 bits",
+        ),
+        (
+            "BA_ \"CounterStep\" SG_ 257 Counter 1;\nBA_ \"CounterStep\" SG_ 257 Torque 1;\n",
+            "Counter",
+            "second rolling counter",
+        ),
+    ] {
+        let diags = with_integrity(INTEGRITY_MESSAGES, values);
+        let d = diags
+            .iter()
+            .find(|d| d.code == "E0120")
+            .unwrap_or_else(|| panic!("no E0120 for {values}: {diags:#?}"));
+        assert!(
+            d.message.contains(fragment),
+            "{fragment:?} not in {:?}",
+            d.message
+        );
+        assert_eq!(d.severity, Severity::Error);
+        if !fragment.starts_with("second") {
+            assert_eq!(d.line, line_of(signal), "{d:#?}");
+        }
+    }
+}
+
+#[test]
+fn checksums_the_codec_cannot_compute_are_refused() {
+    for (values, fragment) in [
+        (
+            "BA_ \"ChecksumAlgorithm\" SG_ 257 Split 1;\n",
+            "not one whole byte",
+        ),
+        (
+            "BA_ \"ChecksumAlgorithm\" SG_ 257 Counter 1;\n",
+            "not one whole byte",
+        ),
+        ("BA_ \"ChecksumAlgorithm\" SG_ 257 Scaled 2;\n", "factor 1"),
+        (
+            "BA_ \"ChecksumAlgorithm\" SG_ 257 Sum 1;\nBA_ \"ChecksumAlgorithm\" SG_ 257 Torque 1;\n",
+            "second checksum",
+        ),
+    ] {
+        let diags = with_integrity(INTEGRITY_MESSAGES, values);
+        let d = diags
+            .iter()
+            .find(|d| d.code == "E0121")
+            .unwrap_or_else(|| panic!("no E0121 for {values}: {diags:#?}"));
+        assert!(
+            d.message.contains(fragment),
+            "{fragment:?} not in {:?}",
+            d.message
+        );
+    }
+    // An algorithm the generator does not know (an ENUM index past the list).
+    let diags = with_integrity(
+        INTEGRITY_MESSAGES,
+        "BA_ \"ChecksumAlgorithm\" SG_ 257 Sum 7;\n",
+    );
+    let d = diags
+        .iter()
+        .find(|d| d.code == "E0121")
+        .unwrap_or_else(|| panic!("no E0121: {diags:#?}"));
+    assert!(d.message.contains("algorithm `#7`"), "{}", d.message);
+    assert!(d.help.contains("SumXorFF, Crc8SaeJ1850"), "{}", d.help);
+}
+
+#[test]
+fn a_cycle_time_on_a_message_sent_on_demand_is_a_warning() {
+    let diags = with_integrity(
+        INTEGRITY_MESSAGES,
+        "BA_ \"GenMsgCycleTime\" BO_ 257 20;\nBA_ \"GenMsgSendType\" BO_ 257 1;\n",
+    );
+    let d = diags
+        .iter()
+        .find(|d| d.code == "W0209")
+        .unwrap_or_else(|| panic!("no W0209: {diags:#?}"));
+    assert_eq!(d.severity, Severity::Warning);
+    assert!(
+        d.message.contains("`Cmd` is sent on demand"),
+        "{}",
+        d.message
+    );
+    assert_eq!(d.line, header_lines() + 1);
+    // Cyclic with a cycle time, or on demand without one: nothing to say.
+    for values in [
+        "BA_ \"GenMsgCycleTime\" BO_ 257 20;\n",
+        "BA_ \"GenMsgSendType\" BO_ 257 1;\n",
+    ] {
+        let diags = with_integrity(INTEGRITY_MESSAGES, values);
+        assert!(
+            diags.iter().all(|d| d.code != "W0209"),
+            "{values}: {diags:#?}"
+        );
+    }
+}

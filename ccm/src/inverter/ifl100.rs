@@ -7,22 +7,24 @@ use super::{DriveCommand, InverterStatus, OutFrame, OutFrames, finite_or_zero};
 use crate::bus::BusState;
 use crate::config::{MCU1_TIMEOUT_MS, MCU2_TIMEOUT_MS, MCU3_TIMEOUT_MS};
 use aer::can::{Bms1, Bms2, GearLeverPos, KeyPosition, Mcu2, McuWarningLevel, MotorMode, Vcu1};
-use aer::runtime::EncodeError;
+use aer::runtime::{CounterSender, EncodeError};
 
 /// Largest torque VCU1 can carry: 255 x 1.0192 Nm (0.392 % of 260 Nm per bit).
 pub const VCU1_MAX_TORQUE_NM: f32 = 259.896;
 
-/// Builds VCU1 frames; the rolling counter increments on every frame (mod 16).
+/// Builds VCU1 frames: the rolling counter (advancing on every frame) and the checksum are
+/// filled as the schema declares them (`CounterStep`, `ChecksumAlgorithm`).
 #[derive(Debug, Clone, Default)]
 pub struct Vcu1Builder {
-    rolling_counter: u8,
+    counter: CounterSender,
 }
 
 impl Vcu1Builder {
-    /// The next VCU1 message (checksum filled in) and its payload.
+    /// The next VCU1 message (as commanded; its counter and checksum are in the payload only)
+    /// and its payload.
     pub fn next_frame(&mut self, command: &DriveCommand) -> Result<(Vcu1, [u8; 8]), EncodeError> {
         let torque = finite_or_zero(command.torque_nm);
-        let mut vcu1 = Vcu1 {
+        let vcu1 = Vcu1 {
             vcu_torque_req: f64::from(torque.clamp(0.0, VCU1_MAX_TORQUE_NM)),
             vcu_motor_spd_req: 0,
             vcu_authentication_status: 0,
@@ -45,26 +47,17 @@ impl Vcu1Builder {
             },
             vcu_warning_level: McuWarningLevel::None,
             vcu_key_position: KeyPosition::On,
-            vcu_rolling_counter: self.rolling_counter,
+            // The counter and checksum are the schema's to fill (`seal`).
+            vcu_rolling_counter: 0,
             vcu_bms_aux_relay_cmd: command.main_relay,
             vcu_power_reduce_req: 0,
             vcu_check_sum: 0,
         };
         let mut data = [0u8; 8];
         vcu1.encode(&mut data)?;
-        vcu1.vcu_check_sum = checksum(&data);
-        vcu1.encode(&mut data)?;
-        self.rolling_counter = (self.rolling_counter + 1) & 0x0F;
+        Vcu1::META.seal(&mut self.counter, &mut data);
         Ok((vcu1, data))
     }
-}
-
-/// VCU1's checksum: (sum of bytes 0..6) XOR 0xFF.
-pub fn checksum(data: &[u8; 8]) -> u8 {
-    data.iter()
-        .take(7)
-        .fold(0u8, |sum, byte| sum.wrapping_add(*byte))
-        ^ 0xFF
 }
 
 /// BMS1: precharge relay feedback while precharging, "precharge finished" once online.

@@ -8,7 +8,7 @@ use aer::can::{
     Mcu1, Mcu2, Mcu3, McuMainState, McuWarningLevel, McuWorkMode, MotorMode, MotorRotateDirection,
     OrionCellVoltages, OrionLimits, OrionPackStatus, PccStatus, PrechargeState,
 };
-use aer::runtime::EncodeError;
+use aer::runtime::{CounterSender, EncodeError};
 use aer_ccm::apps::AppsCalibration;
 use aer_ccm::brakes::volts_for;
 use aer_ccm::config::WHEEL_TEETH;
@@ -120,6 +120,8 @@ pub struct Rig {
     /// SOC (0..1) as the CCM decodes it, once sent.
     pub soc: Option<f32>,
     wheel_teeth: f32,
+    /// Each sender's rolling counter, by message id, as the schema declares them.
+    counters: std::collections::HashMap<u32, CounterSender>,
 }
 
 fn can_frame(id: u32, extended: bool, data: &[u8]) -> CanFrame {
@@ -148,6 +150,7 @@ impl Rig {
             pcc_online_at: None,
             soc: None,
             wheel_teeth: 0.0,
+            counters: std::collections::HashMap::new(),
         }
     }
 
@@ -171,6 +174,10 @@ impl Rig {
         let mut data = [0u8; 8];
         let sent = encode(&message, &mut data);
         if let Ok(len) = sent {
+            // Counters and checksums as the sender fills them.
+            if let Some(meta) = aer::can::message_meta(id, extended) {
+                meta.seal(self.counters.entry(id).or_default(), &mut data[..len]);
+            }
             self.ccm
                 .on_frame(&can_frame(id, extended, &data[..len]), self.now_ms);
         }

@@ -5,8 +5,8 @@
 use askama::Template;
 
 use crate::model::{
-    ByteOrder, Database, Encoding, Message, Placement, Signal, TELEMETRY_HEADER_LEN, Telemetry,
-    TelemetryField, WireType,
+    ByteOrder, ChecksumAlgorithm, Database, Encoding, Message, Placement, Signal,
+    TELEMETRY_HEADER_LEN, Telemetry, TelemetryField, WireType,
 };
 use crate::render::fragment::StrLit;
 use crate::render::meta::{labels, signal_labels};
@@ -71,6 +71,8 @@ pub struct MessageDoc {
     pub len: usize,
     pub sender: String,
     pub cycle: String,
+    /// The counter and checksum it carries, as a sentence (empty without).
+    pub integrity: String,
     pub comment: String,
     pub signals: Vec<SignalDoc>,
 }
@@ -101,6 +103,41 @@ pub struct FieldDoc {
     pub source: String,
     pub values: String,
     pub description: String,
+}
+
+/// "Rolling counter `X` (+1 per frame); checksum `Y` (SumXorFF over the other bytes)."
+fn integrity(m: &Message) -> String {
+    let counter = m.counter.and_then(|c| {
+        let s = m.signals.get(c.signal)?;
+        Some(format!(
+            "rolling counter `{}` (+{} per frame)",
+            s.name, c.step
+        ))
+    });
+    let checksum = m.checksum.and_then(|c| {
+        let s = m.signals.get(c.signal)?;
+        let name = ChecksumAlgorithm::NAMES
+            .iter()
+            .find(|(_, a)| *a == c.algorithm)
+            .map_or("", |(n, _)| *n);
+        Some(format!(
+            "checksum `{}` ({name} over the other bytes)",
+            s.name
+        ))
+    });
+    let parts: Vec<String> = counter.into_iter().chain(checksum).collect();
+    if parts.is_empty() {
+        return String::new();
+    }
+    let text = parts.join("; ");
+    let capitalised =
+        text.get(..1).map_or(String::new(), str::to_uppercase) + text.get(1..).unwrap_or_default();
+    let refused = match (m.counter.is_some(), m.checksum.is_some()) {
+        (true, true) => "whose checksum is wrong or whose counter repeats or skips",
+        (true, false) => "whose counter repeats or skips",
+        _ => "whose checksum is wrong",
+    };
+    format!("{capitalised}. Receivers refuse a frame {refused}.")
 }
 
 /// Text for a Markdown table cell: one line, pipes escaped.
@@ -193,6 +230,7 @@ pub fn render_can(db: &Database, source: &str, fingerprint: u32) -> askama::Resu
             cycle: m
                 .cycle_time_ms
                 .map_or_else(|| "on event".to_owned(), |ms| format!("{ms} ms")),
+            integrity: integrity(m),
             comment: cell(m.comment.as_deref().unwrap_or_default()),
             signals: m.signals.iter().map(|s| signal_doc(db, m, s)).collect(),
         })

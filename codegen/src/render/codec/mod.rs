@@ -6,7 +6,7 @@ use askama::Template;
 
 use super::doc_lines;
 use super::fragment::{OptionLit, StrLit};
-use crate::model::{Database, EnumType, Message, PhysType};
+use crate::model::{ByteOrder, Database, EnumType, Message, PhysType};
 use signal::{Conversion, Fit, FloatWire, PhysAsF64, Presence, RawCodec, SignalView, ValueKind};
 
 #[derive(Template)]
@@ -51,6 +51,10 @@ pub struct MessageView {
     pub extended: bool,
     pub len: usize,
     pub cycle_time: OptionLit<u32>,
+    /// `Some(CounterMeta { .. })` or `None`.
+    pub counter: String,
+    /// `Some(ChecksumMeta { .. })` or `None`.
+    pub checksum: String,
     pub comment: StrLit,
     pub signals: Vec<SignalView>,
     /// Indices into `signals` in the order decode/encode must process them (multiplexors
@@ -135,6 +139,8 @@ fn message_view(db: &Database, m: &Message) -> MessageView {
         extended: m.extended,
         len: m.len,
         cycle_time: OptionLit(m.cycle_time_ms),
+        counter: counter_literal(m),
+        checksum: checksum_literal(m),
         comment: StrLit(m.comment.clone().unwrap_or_default()),
         signals: m
             .signals
@@ -144,6 +150,43 @@ fn message_view(db: &Database, m: &Message) -> MessageView {
             .collect(),
         order: m.eval_order.clone(),
     }
+}
+
+/// The message's `CounterMeta`: its bits, least significant first.
+fn counter_literal(m: &Message) -> String {
+    let Some((counter, signal)) = m
+        .counter
+        .and_then(|c| m.signals.get(c.signal).map(|s| (c, s)))
+    else {
+        return "None".to_owned();
+    };
+    let mut bits = signal.bits();
+    if signal.byte_order == ByteOrder::BigEndian {
+        bits.reverse();
+    }
+    let bits: Vec<String> = bits.iter().map(u32::to_string).collect();
+    format!(
+        "Some(runtime::CounterMeta {{ signal: {}, bits: &[{}], step: {} }})",
+        StrLit(signal.name.clone()),
+        bits.join(", "),
+        counter.step
+    )
+}
+
+/// The message's `ChecksumMeta`.
+fn checksum_literal(m: &Message) -> String {
+    let Some((checksum, signal)) = m
+        .checksum
+        .and_then(|c| m.signals.get(c.signal).map(|s| (c, s)))
+    else {
+        return "None".to_owned();
+    };
+    format!(
+        "Some(runtime::ChecksumMeta {{ signal: {}, byte: {}, algorithm: runtime::ChecksumAlgorithm::{} }})",
+        StrLit(signal.name.clone()),
+        checksum.byte,
+        checksum.algorithm.variant()
+    )
 }
 
 /// The schema's comment, then the wire facts.

@@ -47,9 +47,14 @@ impl<'a> Builder<'a, '_> {
         self.resolve_multiplexing(msg, frame.written_id, &drafts, &mut signals)?;
         let eval_order = self.eval_order(msg, frame.line, &signals)?;
         self.check_overlaps(msg, &drafts, &signals, &eval_order);
+        let (counter, checksum) = self.integrity(&frame, &drafts, &signals)?;
+        let cycle_time_ms = self.cycle_time(msg.id);
+        self.check_send_type(&frame, cycle_time_ms);
         Some(Message {
             fd: self.is_fd(msg.id, len),
-            cycle_time_ms: self.cycle_time(msg.id),
+            cycle_time_ms,
+            counter,
+            checksum,
             comment: self.index.message_comment(msg.id).map(str::to_owned),
             name: frame.name,
             type_name: frame.type_name,
@@ -217,7 +222,11 @@ impl<'a> Builder<'a, '_> {
             .unwrap_or_else(|| sig.name.clone())
     }
 
-    fn message_attribute(&self, name: &str, id: MessageId) -> Option<&'a AttributeValue> {
+    pub(super) fn message_attribute(
+        &self,
+        name: &str,
+        id: MessageId,
+    ) -> Option<&'a AttributeValue> {
         self.index
             .message_attributes(name, id)
             .first()

@@ -11,6 +11,7 @@
 
 mod enums;
 mod index;
+mod integrity;
 mod message;
 mod mux;
 mod node_id;
