@@ -6,7 +6,6 @@ use crate::config::{
     BMS_CELLS_TIMEOUT_MS, BMS_LIMITS_TIMEOUT_MS, BMS_PACK_TIMEOUT_MS, PCC_STATUS_TIMEOUT_MS,
     START_UP_GRACE_MS,
 };
-use crate::inverter::{InverterKind, InverterStatus};
 use aer::can::{
     AnyMessage, DtiAcLimits, DtiCurrents, DtiFlags, DtiSpeed, DtiTemperatures, Mcu1, Mcu2, Mcu3,
     OrionCellVoltages, OrionLimits, OrionPackStatus, PccStatus,
@@ -48,6 +47,44 @@ impl<T: Copy> Received<T> {
             None => now_ms.wrapping_sub(started_ms) > START_UP_GRACE_MS,
         }
     }
+}
+
+/// What the control step reads from the inverter, whichever it is.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct InverterStatus {
+    /// Motor speed (rpm).
+    pub motor_rpm: Option<f32>,
+    /// Torque at the motor as the inverter reports it (Nm).
+    pub torque_nm: Option<f32>,
+    /// Motor phase current (A; the DTI's is the peak AC current).
+    pub phase_current_a: Option<f32>,
+    /// The torque the inverter can deliver now, after its own limits (Nm).
+    pub available_torque_nm: Option<f32>,
+    /// DC link voltage (V) and current (A) as the inverter measures them.
+    pub dc_link: Option<(f32, f32)>,
+    /// Inverter and motor temperatures (degC).
+    pub temperatures_degc: Option<(f32, f32)>,
+    /// The inverter reports a fault (it will not drive, or it reports what it should not).
+    pub fault: bool,
+    /// The inverter reports a warning or a limit that only reduces what it delivers.
+    pub warning: bool,
+    /// A status frame the CCM acts on is older than its limit (or never came).
+    pub lost: bool,
+}
+
+impl InverterStatus {
+    /// Nothing known and nothing reported: what a status with every frame stale reads as.
+    pub const UNKNOWN: Self = Self {
+        motor_rpm: None,
+        torque_nm: None,
+        phase_current_a: None,
+        available_torque_nm: None,
+        dc_link: None,
+        temperatures_degc: None,
+        fault: false,
+        warning: false,
+        lost: true,
+    };
 }
 
 /// Which nodes the CCM has lost (an input older than its limit).
@@ -196,10 +233,9 @@ impl BusState {
         self.mirror.apply(&message);
     }
 
-    /// The fresh values at `now_ms`, for a CCM that started at `started_ms` and drives the
-    /// `inverter` (the other inverter's frames, should they appear, are ignored).
-    pub fn inputs(&self, now_ms: u32, started_ms: u32, inverter: InverterKind) -> BusInputs {
-        let status = inverter.status(self, now_ms, started_ms);
+    /// The fresh values at `now_ms`, for a CCM that started at `started_ms`, with the
+    /// inverter's `status` as read from these frames (`InverterKind::status`).
+    pub fn inputs(&self, now_ms: u32, started_ms: u32, status: InverterStatus) -> BusInputs {
         let lost = LostNodes {
             pcc: self.pcc.lost(now_ms, PCC_STATUS_TIMEOUT_MS, started_ms),
             bms: self.pack.lost(now_ms, BMS_PACK_TIMEOUT_MS, started_ms)

@@ -3,7 +3,6 @@
 //! physical parameters and rule limits, which the dashboard and the car model need too, come
 //! from `aer-params` and are re-exported here.
 
-use crate::inverter::InverterKind;
 use aer::can::{
     DtiAcLimits, DtiCurrents, DtiFlags, DtiSetCurrent, DtiSpeed, DtiTemperatures, Mcu1, Mcu2, Mcu3,
     OrionCellVoltages, OrionLimits, OrionPackStatus, PccStatus, Vcu1,
@@ -15,6 +14,15 @@ pub use aer_params::{
 };
 
 // --- The car's configuration -------------------------------------------------------------
+
+/// Which inverter the CCM drives (its frames and status: `inverter`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum InverterKind {
+    /// The comp car's DTI HV-550: extended ids, current commands, drive enable.
+    Dti,
+    /// The HIMaC bench's IFL100: VCU1 torque commands, MCU1-3 status, BMS1/BMS2 emulated.
+    Ifl100,
+}
 
 /// The inverter the firmware drives: the comp car's DTI HV-550, or the HIMaC bench's IFL100
 /// with the `inverter-ifl100` feature (`cargo xtask firmware --bench`). The library and the car

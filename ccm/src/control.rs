@@ -123,7 +123,8 @@ impl Control {
         let started = self.started(sensors.first_ms, now_ms);
         self.stepped_ms = now_ms;
         let (apps, brakes) = (sensors.apps, sensors.brakes);
-        let mut bus = self.bus.inputs(now_ms, started, self.inverter);
+        let status = self.inverter.status(&self.bus, now_ms, started);
+        let mut bus = self.bus.inputs(now_ms, started, status);
         if self.inverter == InverterKind::Dti {
             let flags = self.bus.dti_flags.fresh(now_ms, DTI_FLAGS_TIMEOUT_MS);
             bus.inverter.fault |=
@@ -181,11 +182,9 @@ impl Control {
     /// current limits. The torque asked for is reported in telemetry.
     pub fn inverter_frames(&mut self) -> Result<OutFrames, EncodeError> {
         let last = self.last;
-        let bus = self.bus.inputs(
-            self.stepped_ms,
-            self.started_ms.unwrap_or(self.stepped_ms),
-            self.inverter,
-        );
+        let started = self.started_ms.unwrap_or(self.stepped_ms);
+        let status = self.inverter.status(&self.bus, self.stepped_ms, started);
+        let bus = self.bus.inputs(self.stepped_ms, started, status);
         let command = DriveCommand {
             torque_nm: last.torque.torque_nm,
             drive: last.vehicle.torque_enabled,

@@ -83,6 +83,8 @@ pub enum Code {
     FieldRange,
     /// E0214: display thresholds in the wrong order.
     Thresholds,
+    /// E0215: a packet sent on a bus no DBC message names.
+    UnknownBus,
     /// W0201: a name that is a Rust keyword.
     KeywordName,
     /// W0202: a range the raw value cannot reach.
@@ -101,10 +103,12 @@ pub enum Code {
     MissingUnit,
     /// W0209: a cycle time on a message sent on demand (`GenMsgSendType` `NoMsgSendType`).
     CycleTimeOnEvent,
+    /// W0210: a bus loaded above the warning threshold at worst-case stuffing.
+    BusOverloaded,
 }
 
 /// Every code, for [`Code::parse`].
-const ALL: [Code; 42] = [
+const ALL: [Code; 44] = [
     Code::DbcUnreadable,
     Code::DbcEncoding,
     Code::DbcSyntax,
@@ -138,6 +142,7 @@ const ALL: [Code; 42] = [
     Code::IsoTpIds,
     Code::FieldRange,
     Code::Thresholds,
+    Code::UnknownBus,
     Code::KeywordName,
     Code::RangeBeyondRaw,
     Code::UnusableValues,
@@ -147,6 +152,7 @@ const ALL: [Code; 42] = [
     Code::MissingLabel,
     Code::MissingUnit,
     Code::CycleTimeOnEvent,
+    Code::BusOverloaded,
 ];
 
 impl Code {
@@ -186,6 +192,7 @@ impl Code {
             Code::IsoTpIds => "E0212",
             Code::FieldRange => "E0213",
             Code::Thresholds => "E0214",
+            Code::UnknownBus => "E0215",
             Code::KeywordName => "W0201",
             Code::RangeBeyondRaw => "W0202",
             Code::UnusableValues => "W0203",
@@ -195,6 +202,7 @@ impl Code {
             Code::MissingLabel => "W0207",
             Code::MissingUnit => "W0208",
             Code::CycleTimeOnEvent => "W0209",
+            Code::BusOverloaded => "W0210",
         }
     }
 

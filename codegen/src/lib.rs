@@ -5,6 +5,7 @@
 //! [`model`], [`render`] turns the model into source through askama templates, [`output`]
 //! writes it. Every emitter reads only the model.
 
+pub mod bus_load;
 pub mod diagnostic;
 pub mod fingerprint;
 pub mod load;
@@ -200,7 +201,12 @@ impl CarSchema {
             file("mqtt.rs", render::mqtt::render(db, t, "schema/")?),
             file(
                 "docs/can.md",
-                render::docs::render_can(db, dbc, fingerprint::database(db))?,
+                render::docs::render_can(
+                    db,
+                    &bus_load::loads(db, Some(t)),
+                    dbc,
+                    fingerprint::database(db),
+                )?,
             ),
             file(
                 "docs/telemetry.md",

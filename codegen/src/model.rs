@@ -9,6 +9,8 @@ pub struct Database {
     pub nodes: Vec<Node>,
     pub enums: Vec<EnumType>,
     pub messages: Vec<Message>,
+    /// The buses' bit rate (the `Baudrate` database attribute), if the schema gives it.
+    pub bit_rate: Option<u32>,
 }
 
 #[derive(Debug, Clone, PartialEq)]
@@ -51,6 +53,9 @@ pub struct Message {
     pub counter: Option<Counter>,
     /// The checksum it carries, if the schema declares one.
     pub checksum: Option<Checksum>,
+    /// The buses it is sent on (the `AerBus` message attribute, comma-separated); empty when
+    /// the schema does not say (the file is one bus).
+    pub buses: Vec<String>,
     pub transmitter: Option<String>,
     pub comment: Option<String>,
     /// In schema order; `mux` conditions only refer to earlier-decoded signals via `eval_order`.
@@ -311,6 +316,8 @@ pub struct Telemetry {
     pub tx_id: u16,
     pub flow_control_id: u16,
     pub period_ms: u32,
+    /// The bus it is sent on (one of the DBC's `AerBus` names), if the schema says.
+    pub bus: Option<String>,
     /// Every field, in schema order; `layout` says where each one sits.
     pub fields: Vec<TelemetryField>,
     /// Total packet length in bytes, header included.

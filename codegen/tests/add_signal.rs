@@ -174,6 +174,12 @@ fn telemetry_mistakes_are_reported_with_lines() {
             "not an 11-bit CAN id",
         ),
         (
+            "  bus: vehicle",
+            "  bus: vehicel",
+            "E0215",
+            "bus `vehicel`, which no DBC message names",
+        ),
+        (
             "    scale: 0.001\n    unit: V\n    min: 0\n    max: 5\n    description: Front",
             "    sacle: 0.001\n    unit: V\n    min: 0\n    max: 5\n    description: Front",
             "E0202",

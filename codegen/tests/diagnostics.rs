@@ -574,3 +574,54 @@ fn a_cycle_time_on_a_message_sent_on_demand_is_a_warning() {
         );
     }
 }
+
+#[test]
+fn a_bus_the_schema_overloads_is_a_warning_naming_its_load() {
+    // Three 8-byte frames every millisecond: 3 x 135 bits x 1,000 /s = 405 kbit/s of 500.
+    let messages = "BO_ 1 A: 8 CCM\n SG_ a : 0|8@1+ (1,0) [0|255] \"\" INV\n\n\
+                    BO_ 2 B: 8 CCM\n SG_ b : 0|8@1+ (1,0) [0|255] \"\" INV\n\n\
+                    BO_ 3 C: 8 CCM\n SG_ c : 0|8@1+ (1,0) [0|255] \"\" INV\n";
+    let cycles = "BA_ \"GenMsgCycleTime\" BO_ 1 1;\nBA_ \"GenMsgCycleTime\" BO_ 2 1;\n\
+                  BA_ \"GenMsgCycleTime\" BO_ 3 1;\n";
+    let diags = with_integrity(messages, cycles);
+    let d = diags
+        .iter()
+        .find(|d| d.code == "W0210")
+        .unwrap_or_else(|| panic!("no W0210: {diags:#?}"));
+    assert_eq!(d.severity, Severity::Warning);
+    assert!(
+        d.message.contains("bus `CAN` is 81 % loaded") && d.message.contains("405.0 kbit/s"),
+        "{}",
+        d.message
+    );
+    // Spread over two buses (AerBus), or at 10 ms, neither is above 50 %.
+    let spread = format!(
+        "{cycles}BA_DEF_ BO_  \"AerBus\" STRING ;\nBA_DEF_DEF_  \"AerBus\" \"\";\n\
+         BA_ \"AerBus\" BO_ 1 \"one\";\nBA_ \"AerBus\" BO_ 2 \"two\";\nBA_ \"AerBus\" BO_ 3 \"two\";\n"
+    );
+    let diags = with_integrity(messages, &spread);
+    let d = diags
+        .iter()
+        .find(|d| d.code == "W0210")
+        .unwrap_or_else(|| panic!("no W0210: {diags:#?}"));
+    assert!(
+        d.message.contains("bus `two` is 54 % loaded"),
+        "{}",
+        d.message
+    );
+    assert_eq!(
+        diags.iter().filter(|d| d.code == "W0210").count(),
+        1,
+        "{diags:#?}"
+    );
+    let relaxed = cycles.replace(" 1;\n", " 10;\n");
+    let diags = with_integrity(messages, &relaxed);
+    assert!(diags.iter().all(|d| d.code != "W0210"), "{diags:#?}");
+    // A faster bus (the Baudrate attribute) carries the 1 ms frames.
+    let fast = format!(
+        "{cycles}BA_DEF_  \"Baudrate\" INT 1 1000000;\nBA_DEF_DEF_  \"Baudrate\" 500000;\n\
+         BA_ \"Baudrate\" 1000000;\n"
+    );
+    let diags = with_integrity(messages, &fast);
+    assert!(diags.iter().all(|d| d.code != "W0210"), "{diags:#?}");
+}

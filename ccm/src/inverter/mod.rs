@@ -8,19 +8,12 @@ pub mod dti;
 pub mod ifl100;
 
 use crate::bus::BusState;
+pub use crate::bus::InverterStatus;
+pub use crate::config::InverterKind;
 use crate::config::{
     DTI_COMMAND_PERIOD_MS, DTI_SPEED_TIMEOUT_MS, IFL100_COMMAND_PERIOD_MS, MCU1_TIMEOUT_MS,
 };
 use aer::runtime::EncodeError;
-
-/// Which inverter the CCM drives.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum InverterKind {
-    /// The comp car's DTI HV-550: extended ids, current commands, drive enable.
-    Dti,
-    /// The HIMaC bench's IFL100: VCU1 torque commands, MCU1-3 status, BMS1/BMS2 emulated.
-    Ifl100,
-}
 
 impl InverterKind {
     /// How often the CCM sends the inverter its commands (ms): the cycle time the schema
@@ -49,44 +42,6 @@ impl InverterKind {
             Self::Ifl100 => ifl100::status(bus, now_ms, started_ms),
         }
     }
-}
-
-/// What the control step reads from the inverter, whichever it is.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct InverterStatus {
-    /// Motor speed (rpm).
-    pub motor_rpm: Option<f32>,
-    /// Torque at the motor as the inverter reports it (Nm).
-    pub torque_nm: Option<f32>,
-    /// Motor phase current (A; the DTI's is the peak AC current).
-    pub phase_current_a: Option<f32>,
-    /// The torque the inverter can deliver now, after its own limits (Nm).
-    pub available_torque_nm: Option<f32>,
-    /// DC link voltage (V) and current (A) as the inverter measures them.
-    pub dc_link: Option<(f32, f32)>,
-    /// Inverter and motor temperatures (degC).
-    pub temperatures_degc: Option<(f32, f32)>,
-    /// The inverter reports a fault (it will not drive, or it reports what it should not).
-    pub fault: bool,
-    /// The inverter reports a warning or a limit that only reduces what it delivers.
-    pub warning: bool,
-    /// A status frame the CCM acts on is older than its limit (or never came).
-    pub lost: bool,
-}
-
-impl InverterStatus {
-    /// Nothing known and nothing reported: what a status with every frame stale reads as.
-    pub const UNKNOWN: Self = Self {
-        motor_rpm: None,
-        torque_nm: None,
-        phase_current_a: None,
-        available_torque_nm: None,
-        dc_link: None,
-        temperatures_degc: None,
-        fault: false,
-        warning: false,
-        lost: true,
-    };
 }
 
 /// What the CCM asks of the inverter this period.

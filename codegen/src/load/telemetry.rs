@@ -24,6 +24,9 @@ pub struct PacketSpec {
     pub tx_id: Spanned<u32>,
     pub flow_control_id: Spanned<u32>,
     pub period_ms: u32,
+    /// The bus it is sent on: one of the DBC's `AerBus` names.
+    #[serde(default)]
+    pub bus: Option<Spanned<String>>,
 }
 
 #[derive(Debug, Deserialize)]

@@ -4,6 +4,7 @@
 
 use askama::Template;
 
+use crate::bus_load::{BusLoad, DEFAULT_BIT_RATE, WARN_LOAD};
 use crate::model::{
     ByteOrder, ChecksumAlgorithm, Database, Encoding, Message, Placement, Signal,
     TELEMETRY_HEADER_LEN, Telemetry, TelemetryField, WireType,
@@ -17,6 +18,10 @@ pub struct CanMatrix<'a> {
     pub source: &'a str,
     pub fingerprint: u32,
     pub messages: Vec<MessageDoc>,
+    pub loads: Vec<BusLoadDoc>,
+    /// The bit rate the loads are relative to, and where it comes from.
+    pub bit_rate: String,
+    pub warn_percent: String,
 }
 
 #[derive(Template)]
@@ -62,6 +67,15 @@ impl IsoTpFrames {
     pub fn total(&self) -> usize {
         1 + self.consecutive + self.flow_control
     }
+}
+
+pub struct BusLoadDoc {
+    pub bus: String,
+    pub messages: usize,
+    pub on_demand: usize,
+    pub frames_per_s: String,
+    pub kbit_per_s: String,
+    pub load: String,
 }
 
 pub struct MessageDoc {
@@ -217,7 +231,12 @@ fn signal_doc(db: &Database, message: &Message, s: &Signal) -> SignalDoc {
     }
 }
 
-pub fn render_can(db: &Database, source: &str, fingerprint: u32) -> askama::Result<String> {
+pub fn render_can(
+    db: &Database,
+    loads: &[BusLoad],
+    source: &str,
+    fingerprint: u32,
+) -> askama::Result<String> {
     let messages = db
         .messages
         .iter()
@@ -235,10 +254,33 @@ pub fn render_can(db: &Database, source: &str, fingerprint: u32) -> askama::Resu
             signals: m.signals.iter().map(|s| signal_doc(db, m, s)).collect(),
         })
         .collect();
+    let loads = loads
+        .iter()
+        .map(|l| BusLoadDoc {
+            bus: cell(&l.bus),
+            messages: l.messages,
+            on_demand: l.on_demand,
+            frames_per_s: format!("{:.0}", l.frames_per_s),
+            kbit_per_s: format!("{:.1}", l.bits_per_s / 1_000.0),
+            load: format!("{:.1} %", l.load * 100.0),
+        })
+        .collect();
+    let bit_rate = db.bit_rate.map_or_else(
+        || {
+            format!(
+                "{} kbit/s (assumed: the schema gives no `Baudrate`)",
+                DEFAULT_BIT_RATE / 1_000
+            )
+        },
+        |rate| format!("{} kbit/s", rate / 1_000),
+    );
     CanMatrix {
         source,
         fingerprint,
         messages,
+        loads,
+        bit_rate,
+        warn_percent: format!("{:.0}", WARN_LOAD * 100.0),
     }
     .render()
 }

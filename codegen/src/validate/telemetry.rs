@@ -42,16 +42,52 @@ pub fn validate(
     if r.has_errors() {
         return Err(Diagnostics(r.diagnostics));
     }
+    let bus = check_bus(&mut r, packet, db);
+    if r.has_errors() {
+        return Err(Diagnostics(r.diagnostics));
+    }
     let telemetry = Telemetry {
         type_name: camel(&packet.name.value),
         description: packet.description.clone(),
         tx_id: packet.tx_id.value as u16,
         flow_control_id: packet.flow_control_id.value as u16,
         period_ms: packet.period_ms,
+        bus,
         fields,
         len,
     };
+    // The packet's frames come on top of its bus's messages.
+    let line = packet
+        .bus
+        .as_ref()
+        .map_or_else(|| line_of(&loaded.file.packet), line_of);
+    let loads = crate::bus_load::loads(db, Some(&telemetry));
+    let own_bus = telemetry
+        .bus
+        .as_deref()
+        .unwrap_or(crate::bus_load::UNNAMED_BUS);
+    if let Some(load) = loads.iter().find(|l| l.bus == own_bus) {
+        crate::validate::dbc::report_overload(&mut r, load, line);
+    }
     Ok((telemetry, r.diagnostics))
+}
+
+/// The packet's bus: one the DBC's messages are sent on.
+fn check_bus(r: &mut Reporter<'_>, packet: &PacketSpec, db: &Database) -> Option<String> {
+    let bus = packet.bus.as_ref()?;
+    let known = db.messages.iter().any(|m| m.buses.contains(&bus.value));
+    if !known {
+        r.report(
+            Code::UnknownBus,
+            line_of(bus),
+            format!(
+                "the packet is sent on bus `{}`, which no DBC message names",
+                bus.value
+            ),
+            "use a bus name of the DBC's AerBus message attribute (the car's: vehicle)",
+        );
+    }
+    Some(bus.value.clone())
 }
 
 /// The ISO-TP ids: standard, distinct, and not used by a DBC message.

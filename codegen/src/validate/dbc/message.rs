@@ -55,6 +55,7 @@ impl<'a> Builder<'a, '_> {
             cycle_time_ms,
             counter,
             checksum,
+            buses: self.buses(msg.id),
             comment: self.index.message_comment(msg.id).map(str::to_owned),
             name: frame.name,
             type_name: frame.type_name,
@@ -195,6 +196,19 @@ impl<'a> Builder<'a, '_> {
                 Some(v.round() as u32)
             }
             _ => None,
+        }
+    }
+
+    /// The buses the `AerBus` attribute names (comma-separated), none when it is absent.
+    fn buses(&self, id: MessageId) -> Vec<String> {
+        match self.message_attribute("AerBus", id) {
+            Some(AttributeValue::String(names)) => names
+                .split(',')
+                .map(str::trim)
+                .filter(|name| !name.is_empty())
+                .map(str::to_owned)
+                .collect(),
+            _ => Vec::new(),
         }
     }
 

@@ -82,11 +82,57 @@ pub fn validate(
         .and_then(|s| s.to_str())
         .unwrap_or("dbc")
         .to_owned();
+    db.bit_rate = bit_rate(&loaded.dbc);
+    for load in crate::bus_load::loads(&db, None) {
+        report_overload(&mut r, &load, baudrate_line(&loaded.text));
+    }
     if r.has_errors() {
         Err(Diagnostics(r.diagnostics))
     } else {
         Ok((db, r.diagnostics))
     }
+}
+
+/// The `Baudrate` database attribute (bit/s), if given.
+fn bit_rate(dbc: &can_dbc::Dbc) -> Option<u32> {
+    dbc.attribute_values_database
+        .iter()
+        .find(|a| a.name == "Baudrate")
+        .and_then(|a| match a.value {
+            can_dbc::AttributeValue::Uint(v) => u32::try_from(v).ok(),
+            can_dbc::AttributeValue::Int(v) => u32::try_from(v).ok(),
+            can_dbc::AttributeValue::Double(v) if v >= 1.0 => Some(v as u32),
+            _ => None,
+        })
+        .filter(|rate| *rate > 0)
+}
+
+/// The line of `BA_ "Baudrate" ...`, else 0 (the file as a whole).
+fn baudrate_line(text: &str) -> usize {
+    text.lines()
+        .position(|l| l.trim_start().starts_with("BA_ \"Baudrate\""))
+        .map_or(0, |i| i + 1)
+}
+
+/// W0210 for a bus above the warning threshold.
+pub(crate) fn report_overload(r: &mut Reporter<'_>, load: &crate::bus_load::BusLoad, line: usize) {
+    if load.load <= crate::bus_load::WARN_LOAD {
+        return;
+    }
+    r.report(
+        Code::BusOverloaded,
+        line,
+        format!(
+            "bus `{}` is {:.0} % loaded at worst-case bit stuffing ({:.0} frames/s, {:.1} kbit/s), \
+             above the {:.0} % the generator allows without a warning",
+            load.bus,
+            load.load * 100.0,
+            load.frames_per_s,
+            load.bits_per_s / 1_000.0,
+            crate::bus_load::WARN_LOAD * 100.0
+        ),
+        "lengthen cycle times, merge signals into fewer frames, or move messages to another bus",
+    );
 }
 
 struct Builder<'a, 'r> {
@@ -177,6 +223,7 @@ impl<'a> Builder<'a, '_> {
             nodes: self.nodes(),
             enums,
             messages,
+            bit_rate: None,
         }
     }
 
