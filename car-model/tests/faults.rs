@@ -210,3 +210,58 @@ fn faults_during_the_start_up_never_let_the_car_drive_unsafely() {
         }
     }
 }
+
+#[test]
+fn round_the_autocross_course_every_single_fault_holds_the_rules_with_either_inverter() {
+    // The skidpad cases above measure the torque-off times at steady torque; here the pedal,
+    // brakes, speed and power all move (straights into the 80 kW limit, braking, corners,
+    // late foot changes) while each fault comes and goes.
+    for car in CARS {
+        let mut started = ClosedLoop::new(car, Mode::Road, Cycle::Autocross, FaultPlan::NONE);
+        assert!(started.start_up(20_000), "{:?}: start-up", car.inverter);
+        for fault in [
+            Fault::PedalConverterLost,
+            Fault::PedalSensorOpen(0),
+            Fault::PedalSensorShorted(1),
+            Fault::PedalSensorStuck(0),
+            Fault::BrakeSensorNan,
+            Fault::SamplingStopped,
+            Fault::BmsSilent,
+            Fault::InverterSilent,
+            Fault::InverterFaulted,
+            Fault::InverterStuck,
+            Fault::ShutdownOpen,
+            Fault::BusOff(0),
+            Fault::BusOff(1),
+            Fault::GarbledFrames(Node::Inverter),
+            Fault::GarbledFrames(Node::Bms),
+        ] {
+            let mut run = started.clone();
+            let from_ms = run.now_ms() + 4_000;
+            let duration_ms = if fault == Fault::ShutdownOpen {
+                2_000
+            } else {
+                1_000
+            };
+            run.retune(
+                car,
+                FaultPlan::NONE.with(Injection {
+                    fault,
+                    from_ms,
+                    until_ms: from_ms + duration_ms,
+                }),
+            );
+            run.run_until(from_ms + duration_ms, &mut NoTap);
+            let at_the_end_of_the_fault = run.car.chassis.distance_m;
+            run.run_until(from_ms + duration_ms + 20_000, &mut NoTap);
+            assert_clean(&run, &format!("autocross, {:?}, {fault:?}", car.inverter));
+            // And once the fault is gone, the driver starts again and drives on.
+            let driven = run.car.chassis.distance_m - at_the_end_of_the_fault;
+            assert!(
+                driven > 50.0,
+                "{:?}, {fault:?}: {driven} m after the fault",
+                car.inverter
+            );
+        }
+    }
+}
