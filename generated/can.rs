@@ -1091,7 +1091,7 @@ impl<'de> serde::Deserialize<'de> for DtiDriveEnable {
 
 /// CCM status, on both buses: vehicle state, latched faults and the schema fingerprint of the flashed firmware.
 ///
-/// `CCM_Status`: standard id 0xA0, 8 bytes, every 100 ms, sent by CCM.
+/// `CCM_Status`: standard id 0xA0, 8 bytes, every 100 ms, lost after 500 ms, sent by CCM.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct CcmStatus {
@@ -1514,6 +1514,7 @@ impl CcmStatus {
         extended: false,
         len: 8,
         cycle_time_ms: Some(100),
+        timeout_ms: Some(500),
         comment: "CCM status, on both buses: vehicle state, latched faults and the schema fingerprint of the flashed firmware.",
         signals: &CCM_STATUS_SIGNALS,
         counter: Some(runtime::CounterMeta {
@@ -1527,6 +1528,8 @@ impl CcmStatus {
     pub const EXTENDED: bool = false;
     pub const LEN: usize = 8;
     pub const CYCLE_TIME_MS: u32 = 100;
+    /// How old the last frame may be before receivers count the message lost.
+    pub const TIMEOUT_MS: u32 = 500;
 
     /// Decodes a payload of at least [`Self::LEN`] bytes. Values outside the schema's range are
     /// decoded as they are; only a short payload fails.
@@ -2433,7 +2436,7 @@ impl CanMessage for CcmStatus {
 
 /// Vehicle control command to the inverter. RollingCounter must increment every frame; CheckSum = (sum of bytes 0..6) XOR 0xFF.
 ///
-/// `VCU1`: standard id 0x101, 8 bytes, every 20 ms, sent by CCM.
+/// `VCU1`: standard id 0x101, 8 bytes, every 20 ms, lost after 100 ms, sent by CCM.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct Vcu1 {
@@ -2785,6 +2788,7 @@ impl Vcu1 {
         extended: false,
         len: 8,
         cycle_time_ms: Some(20),
+        timeout_ms: Some(100),
         comment: "Vehicle control command to the inverter. RollingCounter must increment every frame; CheckSum = (sum of bytes 0..6) XOR 0xFF.",
         signals: &VCU1_SIGNALS,
         counter: Some(runtime::CounterMeta {
@@ -2802,6 +2806,8 @@ impl Vcu1 {
     pub const EXTENDED: bool = false;
     pub const LEN: usize = 8;
     pub const CYCLE_TIME_MS: u32 = 20;
+    /// How old the last frame may be before receivers count the message lost.
+    pub const TIMEOUT_MS: u32 = 100;
 
     /// Decodes a payload of at least [`Self::LEN`] bytes. Values outside the schema's range are
     /// decoded as they are; only a short payload fails.
@@ -3620,7 +3626,7 @@ impl CanMessage for Vcu1 {
 
 /// Inverter status 1: speed, torques and states.
 ///
-/// `MCU1`: standard id 0x105, 8 bytes, every 10 ms, sent by INV.
+/// `MCU1`: standard id 0x105, 8 bytes, every 10 ms, lost after 50 ms, sent by INV.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct Mcu1 {
@@ -3817,6 +3823,7 @@ impl Mcu1 {
         extended: false,
         len: 8,
         cycle_time_ms: Some(10),
+        timeout_ms: Some(50),
         comment: "Inverter status 1: speed, torques and states.",
         signals: &MCU1_SIGNALS,
         counter: Some(runtime::CounterMeta {
@@ -3830,6 +3837,8 @@ impl Mcu1 {
     pub const EXTENDED: bool = false;
     pub const LEN: usize = 8;
     pub const CYCLE_TIME_MS: u32 = 10;
+    /// How old the last frame may be before receivers count the message lost.
+    pub const TIMEOUT_MS: u32 = 50;
 
     /// Decodes a payload of at least [`Self::LEN`] bytes. Values outside the schema's range are
     /// decoded as they are; only a short payload fails.
@@ -4297,7 +4306,7 @@ impl CanMessage for Mcu1 {
 
 /// Inverter status 2: temperatures, faults and warnings.
 ///
-/// `MCU2`: standard id 0x106, 8 bytes, every 100 ms, sent by INV.
+/// `MCU2`: standard id 0x106, 8 bytes, every 100 ms, lost after 500 ms, sent by INV.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct Mcu2 {
@@ -4695,6 +4704,7 @@ impl Mcu2 {
         extended: false,
         len: 8,
         cycle_time_ms: Some(100),
+        timeout_ms: Some(500),
         comment: "Inverter status 2: temperatures, faults and warnings.",
         signals: &MCU2_SIGNALS,
         counter: Some(runtime::CounterMeta {
@@ -4708,6 +4718,8 @@ impl Mcu2 {
     pub const EXTENDED: bool = false;
     pub const LEN: usize = 8;
     pub const CYCLE_TIME_MS: u32 = 100;
+    /// How old the last frame may be before receivers count the message lost.
+    pub const TIMEOUT_MS: u32 = 500;
 
     /// Decodes a payload of at least [`Self::LEN`] bytes. Values outside the schema's range are
     /// decoded as they are; only a short payload fails.
@@ -5649,7 +5661,7 @@ impl CanMessage for Mcu2 {
 
 /// Inverter status 3: DC link and phase electrical values.
 ///
-/// `MCU3`: standard id 0x107, 8 bytes, every 10 ms, sent by INV.
+/// `MCU3`: standard id 0x107, 8 bytes, every 10 ms, lost after 50 ms, sent by INV.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct Mcu3 {
@@ -5719,6 +5731,7 @@ impl Mcu3 {
         extended: false,
         len: 8,
         cycle_time_ms: Some(10),
+        timeout_ms: Some(50),
         comment: "Inverter status 3: DC link and phase electrical values.",
         signals: &MCU3_SIGNALS,
         counter: None,
@@ -5728,6 +5741,8 @@ impl Mcu3 {
     pub const EXTENDED: bool = false;
     pub const LEN: usize = 8;
     pub const CYCLE_TIME_MS: u32 = 10;
+    /// How old the last frame may be before receivers count the message lost.
+    pub const TIMEOUT_MS: u32 = 50;
 
     /// Decodes a payload of at least [`Self::LEN`] bytes. Values outside the schema's range are
     /// decoded as they are; only a short payload fails.
@@ -5904,7 +5919,7 @@ impl CanMessage for Mcu3 {
 
 /// BMS frame 1 as the inverter expects it from a BMS; emulated by the CCM.
 ///
-/// `BMS1`: standard id 0x1A0, 8 bytes, every 100 ms, sent by CCM.
+/// `BMS1`: standard id 0x1A0, 8 bytes, every 100 ms, lost after 500 ms, sent by CCM.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct Bms1 {
@@ -5960,6 +5975,7 @@ impl Bms1 {
         extended: false,
         len: 8,
         cycle_time_ms: Some(100),
+        timeout_ms: Some(500),
         comment: "BMS frame 1 as the inverter expects it from a BMS; emulated by the CCM.",
         signals: &BMS1_SIGNALS,
         counter: None,
@@ -5969,6 +5985,8 @@ impl Bms1 {
     pub const EXTENDED: bool = false;
     pub const LEN: usize = 8;
     pub const CYCLE_TIME_MS: u32 = 100;
+    /// How old the last frame may be before receivers count the message lost.
+    pub const TIMEOUT_MS: u32 = 500;
 
     /// Decodes a payload of at least [`Self::LEN`] bytes. Values outside the schema's range are
     /// decoded as they are; only a short payload fails.
@@ -6104,7 +6122,7 @@ impl CanMessage for Bms1 {
 
 /// BMS frame 2 as the inverter expects it from a BMS; emulated by the CCM.
 ///
-/// `BMS2`: standard id 0x1A1, 8 bytes, every 100 ms, sent by CCM.
+/// `BMS2`: standard id 0x1A1, 8 bytes, every 100 ms, lost after 500 ms, sent by CCM.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct Bms2 {
@@ -6138,6 +6156,7 @@ impl Bms2 {
         extended: false,
         len: 8,
         cycle_time_ms: Some(100),
+        timeout_ms: Some(500),
         comment: "BMS frame 2 as the inverter expects it from a BMS; emulated by the CCM.",
         signals: &BMS2_SIGNALS,
         counter: None,
@@ -6147,6 +6166,8 @@ impl Bms2 {
     pub const EXTENDED: bool = false;
     pub const LEN: usize = 8;
     pub const CYCLE_TIME_MS: u32 = 100;
+    /// How old the last frame may be before receivers count the message lost.
+    pub const TIMEOUT_MS: u32 = 500;
 
     /// Decodes a payload of at least [`Self::LEN`] bytes. Values outside the schema's range are
     /// decoded as they are; only a short payload fails.
@@ -6240,7 +6261,7 @@ impl CanMessage for Bms2 {
 
 /// Orion BMS 2 pack status, as configured in the team's Orion profile.
 ///
-/// `Orion_PackStatus`: standard id 0x6B0, 8 bytes, every 10 ms, sent by BMS.
+/// `Orion_PackStatus`: standard id 0x6B0, 8 bytes, every 10 ms, lost after 100 ms, sent by BMS.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct OrionPackStatus {
@@ -6336,6 +6357,7 @@ impl OrionPackStatus {
         extended: false,
         len: 8,
         cycle_time_ms: Some(10),
+        timeout_ms: Some(100),
         comment: "Orion BMS 2 pack status, as configured in the team's Orion profile.",
         signals: &ORION_PACK_STATUS_SIGNALS,
         counter: None,
@@ -6345,6 +6367,8 @@ impl OrionPackStatus {
     pub const EXTENDED: bool = false;
     pub const LEN: usize = 8;
     pub const CYCLE_TIME_MS: u32 = 10;
+    /// How old the last frame may be before receivers count the message lost.
+    pub const TIMEOUT_MS: u32 = 100;
 
     /// Decodes a payload of at least [`Self::LEN`] bytes. Values outside the schema's range are
     /// decoded as they are; only a short payload fails.
@@ -6578,7 +6602,7 @@ impl CanMessage for OrionPackStatus {
 
 /// Orion BMS 2 current limits and temperatures.
 ///
-/// `Orion_Limits`: standard id 0x6B1, 8 bytes, every 100 ms, sent by BMS.
+/// `Orion_Limits`: standard id 0x6B1, 8 bytes, every 100 ms, lost after 500 ms, sent by BMS.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct OrionLimits {
@@ -6670,6 +6694,7 @@ impl OrionLimits {
         extended: false,
         len: 8,
         cycle_time_ms: Some(100),
+        timeout_ms: Some(500),
         comment: "Orion BMS 2 current limits and temperatures.",
         signals: &ORION_LIMITS_SIGNALS,
         counter: None,
@@ -6679,6 +6704,8 @@ impl OrionLimits {
     pub const EXTENDED: bool = false;
     pub const LEN: usize = 8;
     pub const CYCLE_TIME_MS: u32 = 100;
+    /// How old the last frame may be before receivers count the message lost.
+    pub const TIMEOUT_MS: u32 = 500;
 
     /// Decodes a payload of at least [`Self::LEN`] bytes. Values outside the schema's range are
     /// decoded as they are; only a short payload fails.
@@ -6898,7 +6925,7 @@ impl CanMessage for OrionLimits {
 
 /// Orion BMS 2 cell voltages.
 ///
-/// `Orion_CellVoltages`: standard id 0x6B2, 8 bytes, every 100 ms, sent by BMS.
+/// `Orion_CellVoltages`: standard id 0x6B2, 8 bytes, every 100 ms, lost after 500 ms, sent by BMS.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct OrionCellVoltages {
@@ -6988,6 +7015,7 @@ impl OrionCellVoltages {
         extended: false,
         len: 8,
         cycle_time_ms: Some(100),
+        timeout_ms: Some(500),
         comment: "Orion BMS 2 cell voltages.",
         signals: &ORION_CELL_VOLTAGES_SIGNALS,
         counter: None,
@@ -6997,6 +7025,8 @@ impl OrionCellVoltages {
     pub const EXTENDED: bool = false;
     pub const LEN: usize = 8;
     pub const CYCLE_TIME_MS: u32 = 100;
+    /// How old the last frame may be before receivers count the message lost.
+    pub const TIMEOUT_MS: u32 = 500;
 
     /// Decodes a payload of at least [`Self::LEN`] bytes. Values outside the schema's range are
     /// decoded as they are; only a short payload fails.
@@ -7239,7 +7269,7 @@ impl CanMessage for OrionCellVoltages {
 
 /// Precharge controller status, every 10 ms.
 ///
-/// `PCC_Status`: standard id 0x222, 8 bytes, every 10 ms, sent by PCC.
+/// `PCC_Status`: standard id 0x222, 8 bytes, every 10 ms, lost after 100 ms, sent by PCC.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct PccStatus {
@@ -7443,6 +7473,7 @@ impl PccStatus {
         extended: false,
         len: 8,
         cycle_time_ms: Some(10),
+        timeout_ms: Some(100),
         comment: "Precharge controller status, every 10 ms.",
         signals: &PCC_STATUS_SIGNALS,
         counter: None,
@@ -7452,6 +7483,8 @@ impl PccStatus {
     pub const EXTENDED: bool = false;
     pub const LEN: usize = 8;
     pub const CYCLE_TIME_MS: u32 = 10;
+    /// How old the last frame may be before receivers count the message lost.
+    pub const TIMEOUT_MS: u32 = 100;
 
     /// Decodes a payload of at least [`Self::LEN`] bytes. Values outside the schema's range are
     /// decoded as they are; only a short payload fails.
@@ -7877,7 +7910,7 @@ impl CanMessage for PccStatus {
 
 /// Bender IMD general information (J1939 PGN 0xFF01).
 ///
-/// `IMD_InfoGeneral`: extended id 0x18FF01F4, 8 bytes, every 100 ms, sent by IMD.
+/// `IMD_InfoGeneral`: extended id 0x18FF01F4, 8 bytes, every 100 ms, lost after 500 ms, sent by IMD.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct ImdInfoGeneral {
@@ -8169,6 +8202,7 @@ impl ImdInfoGeneral {
         extended: true,
         len: 8,
         cycle_time_ms: Some(100),
+        timeout_ms: Some(500),
         comment: "Bender IMD general information (J1939 PGN 0xFF01).",
         signals: &IMD_INFO_GENERAL_SIGNALS,
         counter: None,
@@ -8178,6 +8212,8 @@ impl ImdInfoGeneral {
     pub const EXTENDED: bool = true;
     pub const LEN: usize = 8;
     pub const CYCLE_TIME_MS: u32 = 100;
+    /// How old the last frame may be before receivers count the message lost.
+    pub const TIMEOUT_MS: u32 = 500;
 
     /// Decodes a payload of at least [`Self::LEN`] bytes. Values outside the schema's range are
     /// decoded as they are; only a short payload fails.
@@ -8855,7 +8891,7 @@ impl CanMessage for ImdInfoGeneral {
 
 /// Bender IMD isolation detail (J1939 PGN 0xFF02).
 ///
-/// `IMD_InfoIsolationDetail`: extended id 0x18FF02F4, 8 bytes, every 100 ms, sent by IMD.
+/// `IMD_InfoIsolationDetail`: extended id 0x18FF02F4, 8 bytes, every 100 ms, lost after 500 ms, sent by IMD.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct ImdInfoIsolationDetail {
@@ -8961,6 +8997,7 @@ impl ImdInfoIsolationDetail {
         extended: true,
         len: 8,
         cycle_time_ms: Some(100),
+        timeout_ms: Some(500),
         comment: "Bender IMD isolation detail (J1939 PGN 0xFF02).",
         signals: &IMD_INFO_ISOLATION_DETAIL_SIGNALS,
         counter: None,
@@ -8970,6 +9007,8 @@ impl ImdInfoIsolationDetail {
     pub const EXTENDED: bool = true;
     pub const LEN: usize = 8;
     pub const CYCLE_TIME_MS: u32 = 100;
+    /// How old the last frame may be before receivers count the message lost.
+    pub const TIMEOUT_MS: u32 = 500;
 
     /// Decodes a payload of at least [`Self::LEN`] bytes. Values outside the schema's range are
     /// decoded as they are; only a short payload fails.
@@ -9225,7 +9264,7 @@ impl CanMessage for ImdInfoIsolationDetail {
 
 /// Bender IMD voltages (J1939 PGN 0xFF03): raw offset 32128 at 0.05 V per bit.
 ///
-/// `IMD_InfoVoltage`: extended id 0x18FF03F4, 8 bytes, every 100 ms, sent by IMD.
+/// `IMD_InfoVoltage`: extended id 0x18FF03F4, 8 bytes, every 100 ms, lost after 500 ms, sent by IMD.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct ImdInfoVoltage {
@@ -9331,6 +9370,7 @@ impl ImdInfoVoltage {
         extended: true,
         len: 8,
         cycle_time_ms: Some(100),
+        timeout_ms: Some(500),
         comment: "Bender IMD voltages (J1939 PGN 0xFF03): raw offset 32128 at 0.05 V per bit.",
         signals: &IMD_INFO_VOLTAGE_SIGNALS,
         counter: None,
@@ -9340,6 +9380,8 @@ impl ImdInfoVoltage {
     pub const EXTENDED: bool = true;
     pub const LEN: usize = 8;
     pub const CYCLE_TIME_MS: u32 = 100;
+    /// How old the last frame may be before receivers count the message lost.
+    pub const TIMEOUT_MS: u32 = 500;
 
     /// Decodes a payload of at least [`Self::LEN`] bytes. Values outside the schema's range are
     /// decoded as they are; only a short payload fails.
@@ -9626,7 +9668,7 @@ impl CanMessage for ImdInfoVoltage {
 
 /// Bender IMD IT-system values (J1939 PGN 0xFF04).
 ///
-/// `IMD_InfoItSystem`: extended id 0x18FF04F4, 8 bytes, every 100 ms, sent by IMD.
+/// `IMD_InfoItSystem`: extended id 0x18FF04F4, 8 bytes, every 100 ms, lost after 500 ms, sent by IMD.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct ImdInfoItSystem {
@@ -9732,6 +9774,7 @@ impl ImdInfoItSystem {
         extended: true,
         len: 8,
         cycle_time_ms: Some(100),
+        timeout_ms: Some(500),
         comment: "Bender IMD IT-system values (J1939 PGN 0xFF04).",
         signals: &IMD_INFO_IT_SYSTEM_SIGNALS,
         counter: None,
@@ -9741,6 +9784,8 @@ impl ImdInfoItSystem {
     pub const EXTENDED: bool = true;
     pub const LEN: usize = 8;
     pub const CYCLE_TIME_MS: u32 = 100;
+    /// How old the last frame may be before receivers count the message lost.
+    pub const TIMEOUT_MS: u32 = 500;
 
     /// Decodes a payload of at least [`Self::LEN`] bytes. Values outside the schema's range are
     /// decoded as they are; only a short payload fails.
@@ -10059,6 +10104,7 @@ impl ImdRequest {
         extended: true,
         len: 8,
         cycle_time_ms: None,
+        timeout_ms: None,
         comment: "Request to the Bender IMD (J1939 PGN 0xEF00 from the CCM, address 0x17, to the IMD, 0xF4).",
         signals: &IMD_REQUEST_SIGNALS,
         counter: None,
@@ -10198,7 +10244,7 @@ impl CanMessage for ImdRequest {
 
 /// DTI packet 0x01. Sets the AC (phase) current and puts the controller in current control. The CCM sends it every 10 ms: its torque request over the motor's torque constant.
 ///
-/// `DTI_SetCurrent`: extended id 0x141, 2 bytes, every 10 ms, sent by CCM.
+/// `DTI_SetCurrent`: extended id 0x141, 2 bytes, every 10 ms, lost after 50 ms, sent by CCM.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct DtiSetCurrent {
@@ -10232,6 +10278,7 @@ impl DtiSetCurrent {
         extended: true,
         len: 2,
         cycle_time_ms: Some(10),
+        timeout_ms: Some(50),
         comment: "DTI packet 0x01. Sets the AC (phase) current and puts the controller in current control. The CCM sends it every 10 ms: its torque request over the motor's torque constant.",
         signals: &DTI_SET_CURRENT_SIGNALS,
         counter: None,
@@ -10241,6 +10288,8 @@ impl DtiSetCurrent {
     pub const EXTENDED: bool = true;
     pub const LEN: usize = 2;
     pub const CYCLE_TIME_MS: u32 = 10;
+    /// How old the last frame may be before receivers count the message lost.
+    pub const TIMEOUT_MS: u32 = 50;
 
     /// Decodes a payload of at least [`Self::LEN`] bytes. Values outside the schema's range are
     /// decoded as they are; only a short payload fails.
@@ -10366,6 +10415,7 @@ impl DtiSetBrakeCurrent {
         extended: true,
         len: 2,
         cycle_time_ms: None,
+        timeout_ms: None,
         comment: "DTI packet 0x02. Sets the brake (regenerative) current and puts the controller in brake-current control.",
         signals: &DTI_SET_BRAKE_CURRENT_SIGNALS,
         counter: None,
@@ -10508,6 +10558,7 @@ impl DtiSetErpm {
         extended: true,
         len: 4,
         cycle_time_ms: None,
+        timeout_ms: None,
         comment: "DTI packet 0x03. Sets the speed in electrical rpm and puts the controller in speed control.",
         signals: &DTI_SET_ERPM_SIGNALS,
         counter: None,
@@ -10639,6 +10690,7 @@ impl DtiSetPosition {
         extended: true,
         len: 2,
         cycle_time_ms: None,
+        timeout_ms: None,
         comment: "DTI packet 0x04. Sets the rotor position and puts the controller in position control.",
         signals: &DTI_SET_POSITION_SIGNALS,
         counter: None,
@@ -10772,6 +10824,7 @@ impl DtiSetRelativeCurrent {
         extended: true,
         len: 2,
         cycle_time_ms: None,
+        timeout_ms: None,
         comment: "DTI packet 0x05. Sets the AC current as a share of the controller's configured maximum AC current (current control).",
         signals: &DTI_SET_RELATIVE_CURRENT_SIGNALS,
         counter: None,
@@ -10914,6 +10967,7 @@ impl DtiSetRelativeBrakeCurrent {
         extended: true,
         len: 2,
         cycle_time_ms: None,
+        timeout_ms: None,
         comment: "DTI packet 0x06. Sets the brake current as a share of the configured maximum brake current.",
         signals: &DTI_SET_RELATIVE_BRAKE_CURRENT_SIGNALS,
         counter: None,
@@ -11114,6 +11168,7 @@ impl DtiSetDigitalOutputs {
         extended: true,
         len: 1,
         cycle_time_ms: None,
+        timeout_ms: None,
         comment: "DTI packet 0x07. Sets the controller's four digital outputs.",
         signals: &DTI_SET_DIGITAL_OUTPUTS_SIGNALS,
         counter: None,
@@ -11377,6 +11432,7 @@ impl DtiSetMaxCurrentAc {
         extended: true,
         len: 2,
         cycle_time_ms: None,
+        timeout_ms: None,
         comment: "DTI packet 0x08. Limits the AC (phase) current below the controller's configured maximum.",
         signals: &DTI_SET_MAX_CURRENT_AC_SIGNALS,
         counter: None,
@@ -11519,6 +11575,7 @@ impl DtiSetMaxBrakeCurrentAc {
         extended: true,
         len: 2,
         cycle_time_ms: None,
+        timeout_ms: None,
         comment: "DTI packet 0x09. Limits the AC brake current below the controller's configured maximum.",
         signals: &DTI_SET_MAX_BRAKE_CURRENT_AC_SIGNALS,
         counter: None,
@@ -11630,7 +11687,7 @@ impl CanMessage for DtiSetMaxBrakeCurrentAc {
 
 /// DTI packet 0x0A. Limits the DC (battery) current the controller draws: the BMS's discharge limit.
 ///
-/// `DTI_SetMaxCurrentDc`: extended id 0xA41, 2 bytes, every 10 ms, sent by CCM.
+/// `DTI_SetMaxCurrentDc`: extended id 0xA41, 2 bytes, every 10 ms, lost after 50 ms, sent by CCM.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct DtiSetMaxCurrentDc {
@@ -11664,6 +11721,7 @@ impl DtiSetMaxCurrentDc {
         extended: true,
         len: 2,
         cycle_time_ms: Some(10),
+        timeout_ms: Some(50),
         comment: "DTI packet 0x0A. Limits the DC (battery) current the controller draws: the BMS's discharge limit.",
         signals: &DTI_SET_MAX_CURRENT_DC_SIGNALS,
         counter: None,
@@ -11673,6 +11731,8 @@ impl DtiSetMaxCurrentDc {
     pub const EXTENDED: bool = true;
     pub const LEN: usize = 2;
     pub const CYCLE_TIME_MS: u32 = 10;
+    /// How old the last frame may be before receivers count the message lost.
+    pub const TIMEOUT_MS: u32 = 50;
 
     /// Decodes a payload of at least [`Self::LEN`] bytes. Values outside the schema's range are
     /// decoded as they are; only a short payload fails.
@@ -11773,7 +11833,7 @@ impl CanMessage for DtiSetMaxCurrentDc {
 
 /// DTI packet 0x0B. Limits the DC current the controller returns to the battery: the BMS's charge limit.
 ///
-/// `DTI_SetMaxBrakeCurrentDc`: extended id 0xB41, 2 bytes, every 10 ms, sent by CCM.
+/// `DTI_SetMaxBrakeCurrentDc`: extended id 0xB41, 2 bytes, every 10 ms, lost after 50 ms, sent by CCM.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct DtiSetMaxBrakeCurrentDc {
@@ -11807,6 +11867,7 @@ impl DtiSetMaxBrakeCurrentDc {
         extended: true,
         len: 2,
         cycle_time_ms: Some(10),
+        timeout_ms: Some(50),
         comment: "DTI packet 0x0B. Limits the DC current the controller returns to the battery: the BMS's charge limit.",
         signals: &DTI_SET_MAX_BRAKE_CURRENT_DC_SIGNALS,
         counter: None,
@@ -11816,6 +11877,8 @@ impl DtiSetMaxBrakeCurrentDc {
     pub const EXTENDED: bool = true;
     pub const LEN: usize = 2;
     pub const CYCLE_TIME_MS: u32 = 10;
+    /// How old the last frame may be before receivers count the message lost.
+    pub const TIMEOUT_MS: u32 = 50;
 
     /// Decodes a payload of at least [`Self::LEN`] bytes. Values outside the schema's range are
     /// decoded as they are; only a short payload fails.
@@ -11919,7 +11982,7 @@ impl CanMessage for DtiSetMaxBrakeCurrentDc {
 
 /// DTI packet 0x0C. Enables or disables the drive; the controller produces no current while disabled. Sent periodically.
 ///
-/// `DTI_SetDriveEnable`: extended id 0xC41, 1 bytes, every 10 ms, sent by CCM.
+/// `DTI_SetDriveEnable`: extended id 0xC41, 1 bytes, every 10 ms, lost after 50 ms, sent by CCM.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct DtiSetDriveEnable {
@@ -11953,6 +12016,7 @@ impl DtiSetDriveEnable {
         extended: true,
         len: 1,
         cycle_time_ms: Some(10),
+        timeout_ms: Some(50),
         comment: "DTI packet 0x0C. Enables or disables the drive; the controller produces no current while disabled. Sent periodically.",
         signals: &DTI_SET_DRIVE_ENABLE_SIGNALS,
         counter: None,
@@ -11962,6 +12026,8 @@ impl DtiSetDriveEnable {
     pub const EXTENDED: bool = true;
     pub const LEN: usize = 1;
     pub const CYCLE_TIME_MS: u32 = 10;
+    /// How old the last frame may be before receivers count the message lost.
+    pub const TIMEOUT_MS: u32 = 50;
 
     /// Decodes a payload of at least [`Self::LEN`] bytes. Values outside the schema's range are
     /// decoded as they are; only a short payload fails.
@@ -12062,7 +12128,7 @@ impl CanMessage for DtiSetDriveEnable {
 
 /// DTI packet 0x1F. Controller status: control mode, target current, rotor position.
 ///
-/// `DTI_Control`: extended id 0x1F41, 8 bytes, every 100 ms, sent by DTI.
+/// `DTI_Control`: extended id 0x1F41, 8 bytes, every 100 ms, lost after 500 ms, sent by DTI.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct DtiControl {
@@ -12160,6 +12226,7 @@ impl DtiControl {
         extended: true,
         len: 8,
         cycle_time_ms: Some(100),
+        timeout_ms: Some(500),
         comment: "DTI packet 0x1F. Controller status: control mode, target current, rotor position.",
         signals: &DTI_CONTROL_SIGNALS,
         counter: None,
@@ -12169,6 +12236,8 @@ impl DtiControl {
     pub const EXTENDED: bool = true;
     pub const LEN: usize = 8;
     pub const CYCLE_TIME_MS: u32 = 100;
+    /// How old the last frame may be before receivers count the message lost.
+    pub const TIMEOUT_MS: u32 = 500;
 
     /// Decodes a payload of at least [`Self::LEN`] bytes. Values outside the schema's range are
     /// decoded as they are; only a short payload fails.
@@ -12396,7 +12465,7 @@ impl CanMessage for DtiControl {
 
 /// DTI packet 0x20. Controller status: speed, duty cycle and DC input voltage.
 ///
-/// `DTI_Speed`: extended id 0x2041, 8 bytes, every 10 ms, sent by DTI.
+/// `DTI_Speed`: extended id 0x2041, 8 bytes, every 10 ms, lost after 50 ms, sent by DTI.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct DtiSpeed {
@@ -12470,6 +12539,7 @@ impl DtiSpeed {
         extended: true,
         len: 8,
         cycle_time_ms: Some(10),
+        timeout_ms: Some(50),
         comment: "DTI packet 0x20. Controller status: speed, duty cycle and DC input voltage.",
         signals: &DTI_SPEED_SIGNALS,
         counter: None,
@@ -12479,6 +12549,8 @@ impl DtiSpeed {
     pub const EXTENDED: bool = true;
     pub const LEN: usize = 8;
     pub const CYCLE_TIME_MS: u32 = 10;
+    /// How old the last frame may be before receivers count the message lost.
+    pub const TIMEOUT_MS: u32 = 50;
 
     /// Decodes a payload of at least [`Self::LEN`] bytes. Values outside the schema's range are
     /// decoded as they are; only a short payload fails.
@@ -12651,7 +12723,7 @@ impl CanMessage for DtiSpeed {
 
 /// DTI packet 0x21. Controller status: AC and DC current.
 ///
-/// `DTI_Currents`: extended id 0x2141, 8 bytes, every 10 ms, sent by DTI.
+/// `DTI_Currents`: extended id 0x2141, 8 bytes, every 10 ms, lost after 50 ms, sent by DTI.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct DtiCurrents {
@@ -12707,6 +12779,7 @@ impl DtiCurrents {
         extended: true,
         len: 8,
         cycle_time_ms: Some(10),
+        timeout_ms: Some(50),
         comment: "DTI packet 0x21. Controller status: AC and DC current.",
         signals: &DTI_CURRENTS_SIGNALS,
         counter: None,
@@ -12716,6 +12789,8 @@ impl DtiCurrents {
     pub const EXTENDED: bool = true;
     pub const LEN: usize = 8;
     pub const CYCLE_TIME_MS: u32 = 10;
+    /// How old the last frame may be before receivers count the message lost.
+    pub const TIMEOUT_MS: u32 = 50;
 
     /// Decodes a payload of at least [`Self::LEN`] bytes. Values outside the schema's range are
     /// decoded as they are; only a short payload fails.
@@ -12853,7 +12928,7 @@ impl CanMessage for DtiCurrents {
 
 /// DTI packet 0x22. Controller status: temperatures and the active fault.
 ///
-/// `DTI_Temperatures`: extended id 0x2241, 8 bytes, every 100 ms, sent by DTI.
+/// `DTI_Temperatures`: extended id 0x2241, 8 bytes, every 100 ms, lost after 500 ms, sent by DTI.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct DtiTemperatures {
@@ -12941,6 +13016,7 @@ impl DtiTemperatures {
         extended: true,
         len: 8,
         cycle_time_ms: Some(100),
+        timeout_ms: Some(500),
         comment: "DTI packet 0x22. Controller status: temperatures and the active fault.",
         signals: &DTI_TEMPERATURES_SIGNALS,
         counter: None,
@@ -12950,6 +13026,8 @@ impl DtiTemperatures {
     pub const EXTENDED: bool = true;
     pub const LEN: usize = 8;
     pub const CYCLE_TIME_MS: u32 = 100;
+    /// How old the last frame may be before receivers count the message lost.
+    pub const TIMEOUT_MS: u32 = 500;
 
     /// Decodes a payload of at least [`Self::LEN`] bytes. Values outside the schema's range are
     /// decoded as they are; only a short payload fails.
@@ -13149,7 +13227,7 @@ impl CanMessage for DtiTemperatures {
 
 /// DTI packet 0x23. Controller status: field-oriented control currents.
 ///
-/// `DTI_FocCurrents`: extended id 0x2341, 8 bytes, every 100 ms, sent by DTI.
+/// `DTI_FocCurrents`: extended id 0x2341, 8 bytes, every 100 ms, lost after 500 ms, sent by DTI.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct DtiFocCurrents {
@@ -13205,6 +13283,7 @@ impl DtiFocCurrents {
         extended: true,
         len: 8,
         cycle_time_ms: Some(100),
+        timeout_ms: Some(500),
         comment: "DTI packet 0x23. Controller status: field-oriented control currents.",
         signals: &DTI_FOC_CURRENTS_SIGNALS,
         counter: None,
@@ -13214,6 +13293,8 @@ impl DtiFocCurrents {
     pub const EXTENDED: bool = true;
     pub const LEN: usize = 8;
     pub const CYCLE_TIME_MS: u32 = 100;
+    /// How old the last frame may be before receivers count the message lost.
+    pub const TIMEOUT_MS: u32 = 500;
 
     /// Decodes a payload of at least [`Self::LEN`] bytes. Values outside the schema's range are
     /// decoded as they are; only a short payload fails.
@@ -13356,7 +13437,7 @@ impl CanMessage for DtiFocCurrents {
 
 /// DTI packet 0x24. Controller status: inputs, outputs, drive enable, active limits and the CAN map version.
 ///
-/// `DTI_Flags`: extended id 0x2441, 8 bytes, every 10 ms, sent by DTI.
+/// `DTI_Flags`: extended id 0x2441, 8 bytes, every 10 ms, lost after 50 ms, sent by DTI.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct DtiFlags {
@@ -13812,6 +13893,7 @@ impl DtiFlags {
         extended: true,
         len: 8,
         cycle_time_ms: Some(10),
+        timeout_ms: Some(50),
         comment: "DTI packet 0x24. Controller status: inputs, outputs, drive enable, active limits and the CAN map version.",
         signals: &DTI_FLAGS_SIGNALS,
         counter: None,
@@ -13821,6 +13903,8 @@ impl DtiFlags {
     pub const EXTENDED: bool = true;
     pub const LEN: usize = 8;
     pub const CYCLE_TIME_MS: u32 = 10;
+    /// How old the last frame may be before receivers count the message lost.
+    pub const TIMEOUT_MS: u32 = 50;
 
     /// Decodes a payload of at least [`Self::LEN`] bytes. Values outside the schema's range are
     /// decoded as they are; only a short payload fails.
@@ -14821,7 +14905,7 @@ impl CanMessage for DtiFlags {
 
 /// DTI packet 0x25. Controller status: configured and available AC current limits.
 ///
-/// `DTI_AcLimits`: extended id 0x2541, 8 bytes, every 100 ms, sent by DTI.
+/// `DTI_AcLimits`: extended id 0x2541, 8 bytes, every 100 ms, lost after 500 ms, sent by DTI.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct DtiAcLimits {
@@ -14917,6 +15001,7 @@ impl DtiAcLimits {
         extended: true,
         len: 8,
         cycle_time_ms: Some(100),
+        timeout_ms: Some(500),
         comment: "DTI packet 0x25. Controller status: configured and available AC current limits.",
         signals: &DTI_AC_LIMITS_SIGNALS,
         counter: None,
@@ -14926,6 +15011,8 @@ impl DtiAcLimits {
     pub const EXTENDED: bool = true;
     pub const LEN: usize = 8;
     pub const CYCLE_TIME_MS: u32 = 100;
+    /// How old the last frame may be before receivers count the message lost.
+    pub const TIMEOUT_MS: u32 = 500;
 
     /// Decodes a payload of at least [`Self::LEN`] bytes. Values outside the schema's range are
     /// decoded as they are; only a short payload fails.
@@ -15167,7 +15254,7 @@ impl CanMessage for DtiAcLimits {
 
 /// DTI packet 0x26. Controller status: configured and available DC current limits.
 ///
-/// `DTI_DcLimits`: extended id 0x2641, 8 bytes, every 100 ms, sent by DTI.
+/// `DTI_DcLimits`: extended id 0x2641, 8 bytes, every 100 ms, lost after 500 ms, sent by DTI.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct DtiDcLimits {
@@ -15263,6 +15350,7 @@ impl DtiDcLimits {
         extended: true,
         len: 8,
         cycle_time_ms: Some(100),
+        timeout_ms: Some(500),
         comment: "DTI packet 0x26. Controller status: configured and available DC current limits.",
         signals: &DTI_DC_LIMITS_SIGNALS,
         counter: None,
@@ -15272,6 +15360,8 @@ impl DtiDcLimits {
     pub const EXTENDED: bool = true;
     pub const LEN: usize = 8;
     pub const CYCLE_TIME_MS: u32 = 100;
+    /// How old the last frame may be before receivers count the message lost.
+    pub const TIMEOUT_MS: u32 = 500;
 
     /// Decodes a payload of at least [`Self::LEN`] bytes. Values outside the schema's range are
     /// decoded as they are; only a short payload fails.

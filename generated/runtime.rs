@@ -176,6 +176,9 @@ pub struct MessageMeta {
     pub extended: bool,
     pub len: usize,
     pub cycle_time_ms: Option<u32>,
+    /// How old its last frame may be before a receiver counts it lost (the schema's
+    /// `AerTimeoutMs`, else a few cycle times); `None` for a message sent on demand.
+    pub timeout_ms: Option<u32>,
     pub comment: &'static str,
     pub signals: &'static [SignalMeta],
     /// The rolling counter the message carries, if the schema declares one.

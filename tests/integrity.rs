@@ -122,3 +122,22 @@ proptest! {
         }
     }
 }
+
+#[test]
+fn every_periodic_message_has_one_freshness_limit_from_the_schema() {
+    use aer::can::{ImdRequest, MESSAGES, OrionLimits, PccStatus};
+    // Declared (AerTimeoutMs): the PCC's status, 10 frames of 10 ms.
+    assert_eq!(PccStatus::TIMEOUT_MS, 100);
+    // Otherwise five cycle times.
+    assert_eq!(Mcu1::TIMEOUT_MS, 5 * Mcu1::CYCLE_TIME_MS);
+    assert_eq!(OrionLimits::TIMEOUT_MS, 500);
+    for meta in MESSAGES {
+        match (meta.cycle_time_ms, meta.timeout_ms) {
+            (Some(cycle), Some(limit)) => assert!(limit >= 2 * cycle, "{}", meta.name),
+            (None, None) => {}
+            other => panic!("{}: cycle and limit {other:?}", meta.name),
+        }
+    }
+    // Sent on demand: no limit.
+    assert_eq!(ImdRequest::META.timeout_ms, None);
+}

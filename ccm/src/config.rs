@@ -58,8 +58,6 @@ pub const HARDWARE_WATCHDOG_TIMEOUT_MS: u32 = 1_000;
 // heard is lost once the CCM has run for `START_UP_GRACE_MS`, so the other nodes may boot a
 // little later than the CCM without a fault at every power-up.
 
-/// Frames of a node this many cycle times apart (nine missed) mean the node is lost.
-pub const MISSED_FRAMES: u32 = 10;
 /// The 1 kHz sensor sample (brakes, shocks, the pedal converter's poll): the sampling task
 /// has stopped.
 pub const SAMPLE_TIMEOUT_MS: u32 = 10;
@@ -67,30 +65,34 @@ pub const SAMPLE_TIMEOUT_MS: u32 = 10;
 /// or its I2C bus is lost (each channel converts about every 2.3 ms). With the control step
 /// after it, torque is zero well within T.4.2.10's 100 ms.
 pub const PEDAL_CONVERSION_TIMEOUT_MS: u32 = 20;
-/// PCC status (0x222, every 10 ms).
-pub const PCC_STATUS_TIMEOUT_MS: u32 = MISSED_FRAMES * PccStatus::CYCLE_TIME_MS;
-/// Orion pack status (0x6B0, every 10 ms): current, voltage, SOC.
-pub const BMS_PACK_TIMEOUT_MS: u32 = MISSED_FRAMES * OrionPackStatus::CYCLE_TIME_MS;
-/// Orion limits and cell voltages (0x6B1, 0x6B2, every 100 ms): 5 missed frames.
-pub const BMS_LIMITS_TIMEOUT_MS: u32 = 5 * OrionLimits::CYCLE_TIME_MS;
-/// Orion cell voltages (0x6B2, every 100 ms).
-pub const BMS_CELLS_TIMEOUT_MS: u32 = 5 * OrionCellVoltages::CYCLE_TIME_MS;
-/// MCU1 (motor speed, torque; every 10 ms): the power ceiling needs the speed.
-pub const MCU1_TIMEOUT_MS: u32 = 5 * Mcu1::CYCLE_TIME_MS;
-/// MCU3 (DC voltage and current; every 10 ms): the power trim needs them.
-pub const MCU3_TIMEOUT_MS: u32 = 5 * Mcu3::CYCLE_TIME_MS;
-/// MCU2 (temperatures, fault bits; every 100 ms).
-pub const MCU2_TIMEOUT_MS: u32 = 5 * Mcu2::CYCLE_TIME_MS;
+
+// The CAN inputs' limits are the schema's (`TIMEOUT_MS`: the DBC's `AerTimeoutMs`, else five
+// cycle times), the same numbers every tier uses.
+
+/// PCC status (0x222, every 10 ms): 100 ms.
+pub const PCC_STATUS_TIMEOUT_MS: u32 = PccStatus::TIMEOUT_MS;
+/// Orion pack status (0x6B0, every 10 ms): current, voltage, SOC; 100 ms.
+pub const BMS_PACK_TIMEOUT_MS: u32 = OrionPackStatus::TIMEOUT_MS;
+/// Orion limits (0x6B1, every 100 ms): 500 ms.
+pub const BMS_LIMITS_TIMEOUT_MS: u32 = OrionLimits::TIMEOUT_MS;
+/// Orion cell voltages (0x6B2, every 100 ms): 500 ms.
+pub const BMS_CELLS_TIMEOUT_MS: u32 = OrionCellVoltages::TIMEOUT_MS;
+/// MCU1 (motor speed, torque; every 10 ms): the power ceiling needs the speed; 50 ms.
+pub const MCU1_TIMEOUT_MS: u32 = Mcu1::TIMEOUT_MS;
+/// MCU3 (DC voltage and current; every 10 ms): the power trim needs them; 50 ms.
+pub const MCU3_TIMEOUT_MS: u32 = Mcu3::TIMEOUT_MS;
+/// MCU2 (temperatures, fault bits; every 100 ms): 500 ms.
+pub const MCU2_TIMEOUT_MS: u32 = Mcu2::TIMEOUT_MS;
 /// DTI speed and DC voltage (packet 0x20, every 10 ms): the power ceiling needs the speed.
-pub const DTI_SPEED_TIMEOUT_MS: u32 = 5 * DtiSpeed::CYCLE_TIME_MS;
+pub const DTI_SPEED_TIMEOUT_MS: u32 = DtiSpeed::TIMEOUT_MS;
 /// DTI AC and DC current (0x21, every 10 ms): the power trim needs the DC current.
-pub const DTI_CURRENTS_TIMEOUT_MS: u32 = 5 * DtiCurrents::CYCLE_TIME_MS;
+pub const DTI_CURRENTS_TIMEOUT_MS: u32 = DtiCurrents::TIMEOUT_MS;
 /// DTI drive enabled, limits and map version (0x24, every 10 ms).
-pub const DTI_FLAGS_TIMEOUT_MS: u32 = 5 * DtiFlags::CYCLE_TIME_MS;
+pub const DTI_FLAGS_TIMEOUT_MS: u32 = DtiFlags::TIMEOUT_MS;
 /// DTI temperatures and fault code (0x22, every 100 ms).
-pub const DTI_TEMPERATURES_TIMEOUT_MS: u32 = 5 * DtiTemperatures::CYCLE_TIME_MS;
+pub const DTI_TEMPERATURES_TIMEOUT_MS: u32 = DtiTemperatures::TIMEOUT_MS;
 /// DTI available AC current (0x25, every 100 ms): the inverter's available torque.
-pub const DTI_AC_LIMITS_TIMEOUT_MS: u32 = 5 * DtiAcLimits::CYCLE_TIME_MS;
+pub const DTI_AC_LIMITS_TIMEOUT_MS: u32 = DtiAcLimits::TIMEOUT_MS;
 /// Missing nodes are not reported as lost during this long after start-up.
 pub const START_UP_GRACE_MS: u32 = 1_000;
 

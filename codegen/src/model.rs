@@ -49,6 +49,9 @@ pub struct Message {
     pub len: usize,
     pub fd: bool,
     pub cycle_time_ms: Option<u32>,
+    /// How old its last frame may be before receivers count it lost: the `AerTimeoutMs`
+    /// attribute, else [`DEFAULT_MISSED_FRAMES`] cycle times; `None` without a cycle time.
+    pub timeout_ms: Option<u32>,
     /// The rolling counter it carries, if the schema declares one.
     pub counter: Option<Counter>,
     /// The checksum it carries, if the schema declares one.
@@ -63,6 +66,9 @@ pub struct Message {
     /// Indices into `signals` such that every multiplexor comes before the signals it selects.
     pub eval_order: Vec<usize>,
 }
+
+/// A periodic message without an `AerTimeoutMs` counts as lost after this many cycle times.
+pub const DEFAULT_MISSED_FRAMES: u32 = 5;
 
 /// A message's rolling counter: one of its signals, advanced by `step` on every frame.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

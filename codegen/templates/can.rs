@@ -123,6 +123,7 @@ impl {{ m.type_name }} {
         extended: {{ m.extended }},
         len: {{ m.len }},
         cycle_time_ms: {{ m.cycle_time }},
+        timeout_ms: {{ m.timeout }},
         comment: {{ m.comment }},
         signals: &{{ m.meta_static }},
         counter: {{ m.counter }},
@@ -133,6 +134,10 @@ impl {{ m.type_name }} {
     pub const LEN: usize = {{ m.len }};
 {%- if let Some(ct) = m.cycle_time.0 %}
     pub const CYCLE_TIME_MS: u32 = {{ ct }};
+{%- endif %}
+{%- if let Some(limit) = m.timeout.0 %}
+    /// How old the last frame may be before receivers count the message lost.
+    pub const TIMEOUT_MS: u32 = {{ limit }};
 {%- endif %}
 
     /// Decodes a payload of at least [`Self::LEN`] bytes. Values outside the schema's range are

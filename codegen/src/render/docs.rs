@@ -246,9 +246,11 @@ pub fn render_can(
             id: id(m.id, m.extended),
             len: m.len,
             sender: cell(m.transmitter.as_deref().unwrap_or("-")),
-            cycle: m
-                .cycle_time_ms
-                .map_or_else(|| "on event".to_owned(), |ms| format!("{ms} ms")),
+            cycle: match (m.cycle_time_ms, m.timeout_ms) {
+                (Some(ms), Some(limit)) => format!("{ms} ms (lost after {limit} ms)"),
+                (Some(ms), None) => format!("{ms} ms"),
+                (None, _) => "on event".to_owned(),
+            },
             integrity: integrity(m),
             comment: cell(m.comment.as_deref().unwrap_or_default()),
             signals: m.signals.iter().map(|s| signal_doc(db, m, s)).collect(),

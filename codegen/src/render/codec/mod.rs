@@ -51,6 +51,7 @@ pub struct MessageView {
     pub extended: bool,
     pub len: usize,
     pub cycle_time: OptionLit<u32>,
+    pub timeout: OptionLit<u32>,
     /// `Some(CounterMeta { .. })` or `None`.
     pub counter: String,
     /// `Some(ChecksumMeta { .. })` or `None`.
@@ -139,6 +140,7 @@ fn message_view(db: &Database, m: &Message) -> MessageView {
         extended: m.extended,
         len: m.len,
         cycle_time: OptionLit(m.cycle_time_ms),
+        timeout: OptionLit(m.timeout_ms),
         counter: counter_literal(m),
         checksum: checksum_literal(m),
         comment: StrLit(m.comment.clone().unwrap_or_default()),
@@ -205,6 +207,9 @@ fn message_docs(m: &Message) -> Vec<String> {
     );
     if let Some(ms) = m.cycle_time_ms {
         facts.push_str(&format!(", every {ms} ms"));
+    }
+    if let Some(ms) = m.timeout_ms {
+        facts.push_str(&format!(", lost after {ms} ms"));
     }
     if let Some(tx) = &m.transmitter {
         facts.push_str(&format!(", sent by {tx}"));

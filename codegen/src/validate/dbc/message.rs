@@ -6,7 +6,7 @@ use can_dbc::{AttributeValue, MessageId};
 
 use super::{Builder, Draft, Frame, first_free};
 use crate::diagnostic::Code;
-use crate::model::{EnumType, Message, Signal};
+use crate::model::{DEFAULT_MISSED_FRAMES, EnumType, Message, Signal};
 use crate::naming::{is_keyword, snake};
 
 /// Field names the store's tables use for their own columns.
@@ -53,6 +53,7 @@ impl<'a> Builder<'a, '_> {
         Some(Message {
             fd: self.is_fd(msg.id, len),
             cycle_time_ms,
+            timeout_ms: self.timeout(msg.id, cycle_time_ms),
             counter,
             checksum,
             buses: self.buses(msg.id),
@@ -197,6 +198,16 @@ impl<'a> Builder<'a, '_> {
             }
             _ => None,
         }
+    }
+
+    /// The freshness limit: `AerTimeoutMs` where given (and positive), else a few cycle times.
+    fn timeout(&self, id: MessageId, cycle_time_ms: Option<u32>) -> Option<u32> {
+        let declared = match self.message_attribute("AerTimeoutMs", id) {
+            Some(AttributeValue::Uint(v)) if *v > 0 => u32::try_from(*v).ok(),
+            Some(AttributeValue::Int(v)) if *v > 0 => u32::try_from(*v).ok(),
+            _ => None,
+        };
+        declared.or_else(|| cycle_time_ms.map(|ms| ms.saturating_mul(DEFAULT_MISSED_FRAMES)))
     }
 
     /// The buses the `AerBus` attribute names (comma-separated), none when it is absent.
