@@ -160,6 +160,7 @@ fn pi_status(telemetry_fingerprint: u32, firmware_ok: Option<bool>) -> Update {
         undecodable_packets: 0,
         undecodable_fingerprint: None,
         problems: Default::default(),
+        message_health: Default::default(),
     }))
 }
 

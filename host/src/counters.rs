@@ -23,6 +23,9 @@ macro_rules! counters {
             pub firmware_fingerprint: AtomicU64,
             /// The last fingerprint that was not the service's (0 = none yet).
             pub mismatched_fingerprint: AtomicU64,
+            /// The same integrity and lateness counts, per message name (only messages
+            /// with any), for the status.
+            pub message_health: std::sync::Mutex<std::collections::BTreeMap<String, MessageHealth>>,
         }
 
         impl Counters {
@@ -62,6 +65,16 @@ counters! {
     decode_errors,
     /// Frames whose id the schema does not know.
     unknown_ids,
+    /// Frames whose checksum does not match their payload (the schema's
+    /// `ChecksumAlgorithm`); kept and published, only counted.
+    checksum_failures,
+    /// Frames whose rolling counter repeated the previous frame's (a stuck sender).
+    counter_repeats,
+    /// Frames whose rolling counter skipped (frames lost on the way, or a restarted sender).
+    counter_jumps,
+    /// Frames that came later than their message's freshness limit after the previous one
+    /// (`TIMEOUT_MS`): a gap in which receivers counted the message lost.
+    late_frames,
     /// MQTT messages handed to the broker.
     published,
     /// MQTT messages dropped because the broker's queue was full.
@@ -98,6 +111,19 @@ counters! {
     mqtt_refused,
     /// Broker clients disconnected for not reading what they subscribed to.
     mqtt_slow_clients,
+}
+
+/// What went wrong with one message's frames, as the status reports it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+pub struct MessageHealth {
+    /// Frames with a wrong checksum.
+    pub checksum_failures: u64,
+    /// Frames repeating the previous frame's counter.
+    pub counter_repeats: u64,
+    /// Frames whose counter skipped.
+    pub counter_jumps: u64,
+    /// Frames later than the message's freshness limit.
+    pub late_frames: u64,
 }
 
 impl Counters {

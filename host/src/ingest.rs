@@ -4,9 +4,10 @@
 //! caller's business.
 
 use crate::candump::{LoggedFrame, parse_line};
+use crate::counters::MessageHealth;
 use crate::counters::{Counters, worth_logging};
 use aer::can::AnyMessage;
-use aer::runtime::DecodeError;
+use aer::runtime::{CounterCheck, DecodeError, IntegrityError};
 use aer::telemetry::{Telemetry, TelemetryError, TelemetryHeader};
 use aer::telemetry_deku::{TelemetryDecodeError, TelemetryFrame};
 use aer_isotp::{Config, Frame, Received, Receiver};
@@ -48,6 +49,16 @@ pub struct Ingest {
     /// Reassemble ISO-TP from raw frames (replays, and buses without the kernel's ISO-TP
     /// socket); `false` when the kernel delivers whole packets through [`Ingest::on_packet`].
     userspace_isotp: bool,
+    /// Per bus and message (id, extended): the last counter accepted and when the last frame
+    /// came (us), for the integrity and lateness counts.
+    watches: HashMap<(u8, u32, bool), Watch>,
+}
+
+/// One message's last counter and arrival on one bus.
+#[derive(Debug, Default)]
+struct Watch {
+    counter: CounterCheck,
+    last_us: Option<u64>,
 }
 
 impl Ingest {
@@ -57,6 +68,7 @@ impl Ingest {
             counters,
             receivers: Vec::new(),
             userspace_isotp: true,
+            watches: HashMap::new(),
         }
     }
 
@@ -96,6 +108,7 @@ impl Ingest {
         match AnyMessage::decode(id, extended, frame.payload()) {
             Ok(message) => {
                 Counters::bump(&self.counters.messages);
+                self.watch(frame, id, extended, &message);
                 emit(Record::Can {
                     ts_us: frame.ts_us,
                     bus: frame.bus,
@@ -116,6 +129,59 @@ impl Ingest {
                 if worth_logging(count) {
                     warn!(%error, count, "frame failed to decode");
                 }
+            }
+        }
+    }
+
+    /// Counts a frame whose checksum or counter says it is not fresh, intact data, and one
+    /// that comes later than its message's freshness limit. The frame is kept all the same
+    /// (records are the bus as it was; the CCM is the one that refuses them).
+    fn watch(&mut self, frame: &LoggedFrame, id: u32, extended: bool, message: &AnyMessage) {
+        let meta = message.meta();
+        if meta.counter.is_none() && meta.checksum.is_none() && meta.timeout_ms.is_none() {
+            return;
+        }
+        let watch = self.watches.entry((frame.bus, id, extended)).or_default();
+        let late = meta.timeout_ms.is_some_and(|limit| {
+            watch
+                .last_us
+                .is_some_and(|last| frame.ts_us.saturating_sub(last) > u64::from(limit) * 1_000)
+        });
+        watch.last_us = Some(frame.ts_us);
+        let verdict = meta.verify(&mut watch.counter, frame.payload());
+        let counters = &self.counters;
+        let (counter, note): (
+            Option<&std::sync::atomic::AtomicU64>,
+            fn(&mut MessageHealth),
+        ) = match verdict {
+            Ok(()) => (None, |_| {}),
+            Err(IntegrityError::Checksum { .. }) => (Some(&counters.checksum_failures), |h| {
+                h.checksum_failures += 1
+            }),
+            Err(IntegrityError::CounterRepeated { .. }) => {
+                (Some(&counters.counter_repeats), |h| h.counter_repeats += 1)
+            }
+            Err(IntegrityError::CounterJumped { .. }) => {
+                (Some(&counters.counter_jumps), |h| h.counter_jumps += 1)
+            }
+        };
+        if counter.is_none() && !late {
+            return;
+        }
+        if let Some(counter) = counter {
+            let count = Counters::bump(counter);
+            if let (Err(error), true) = (verdict, worth_logging(count)) {
+                warn!(%error, count, "frame refused by its counter or checksum (kept)");
+            }
+        }
+        if late {
+            Counters::bump(&counters.late_frames);
+        }
+        if let Ok(mut health) = counters.message_health.lock() {
+            let entry = health.entry(meta.name.to_owned()).or_default();
+            note(entry);
+            if late {
+                entry.late_frames += 1;
             }
         }
     }

@@ -33,6 +33,10 @@ pub struct Status {
     /// What is failing now, part by part.
     #[serde(default)]
     pub problems: Problems,
+    /// Per message, the frames that came with a wrong checksum, a repeated or skipped
+    /// counter, or later than the message's freshness limit (only messages with any).
+    #[serde(default)]
+    pub message_health: std::collections::BTreeMap<String, crate::counters::MessageHealth>,
 }
 
 /// What is failing in the service, part by part (`None`: working).
@@ -107,6 +111,11 @@ pub fn status(car_id: &str, counters: &Counters, problems: Problems) -> Status {
         undecodable_packets: counters.fingerprint_mismatches.load(Ordering::Relaxed),
         undecodable_fingerprint: (mismatched != 0).then(|| format!("{mismatched:#010x}")),
         problems,
+        message_health: counters
+            .message_health
+            .lock()
+            .map(|health| health.clone())
+            .unwrap_or_default(),
     }
 }
 

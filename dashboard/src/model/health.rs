@@ -182,6 +182,7 @@ mod tests {
             undecodable_packets: 0,
             undecodable_fingerprint: None,
             problems: Default::default(),
+            message_health: Default::default(),
         };
         health.status = Some(status(&ours, Some(true)));
         assert_eq!(health.schema_match(), SchemaMatch::Match);
