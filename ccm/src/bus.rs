@@ -72,21 +72,6 @@ pub struct InverterStatus {
     pub lost: bool,
 }
 
-impl InverterStatus {
-    /// Nothing known and nothing reported: what a status with every frame stale reads as.
-    pub const UNKNOWN: Self = Self {
-        motor_rpm: None,
-        torque_nm: None,
-        phase_current_a: None,
-        available_torque_nm: None,
-        dc_link: None,
-        temperatures_degc: None,
-        fault: false,
-        warning: false,
-        lost: true,
-    };
-}
-
 /// Which nodes the CCM has lost (an input older than its limit).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct LostNodes {
