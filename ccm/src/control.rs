@@ -5,7 +5,8 @@
 use crate::bus::{BusInputs, BusState};
 use crate::chassis::WheelSpeed;
 use crate::config::{
-    CONTROL_PERIOD_MS, DTI_FLAGS_TIMEOUT_MS, INVERTER, MOTOR_TORQUE_PER_PEAK_A, SAMPLE_TIMEOUT_MS,
+    BMS_LIMITS_TIMEOUT_MS, CONTROL_PERIOD_MS, DTI_FLAGS_TIMEOUT_MS, INVERTER,
+    MOTOR_TORQUE_PER_PEAK_A, PCC_STATUS_TIMEOUT_MS, SAMPLE_TIMEOUT_MS,
 };
 use crate::faults::{Fault, FaultInputs, FaultMonitor};
 use crate::inverter::dti::{self, EnableWatch};
@@ -182,18 +183,19 @@ impl Control {
     /// current limits. The torque asked for is reported in telemetry.
     pub fn inverter_frames(&mut self) -> Result<OutFrames, EncodeError> {
         let last = self.last;
-        let started = self.started_ms.unwrap_or(self.stepped_ms);
-        let status = self.inverter.status(&self.bus, self.stepped_ms, started);
-        let bus = self.bus.inputs(self.stepped_ms, started, status);
+        let now = self.stepped_ms;
+        let pcc = self.bus.pcc.fresh(now, PCC_STATUS_TIMEOUT_MS);
         let command = DriveCommand {
             torque_nm: last.torque.torque_nm,
             drive: last.vehicle.torque_enabled,
             main_relay: last.vehicle.precharge_complete,
-            precharging: bus.pcc.map(|status| status.pcc_state) == Some(PrechargeState::Precharge),
+            precharging: pcc.map(|status| status.pcc_state) == Some(PrechargeState::Precharge),
             brakes_engaged: last.brake_light,
             // Without a fresh limit from the BMS the inverter may draw nothing.
-            discharge_limit_a: bus
+            discharge_limit_a: self
+                .bus
                 .limits
+                .fresh(now, BMS_LIMITS_TIMEOUT_MS)
                 .map_or(0.0, |limits| f32::from(limits.orion_pack_dcl)),
         };
         match self.inverter {

@@ -4,7 +4,6 @@
 //! caller's business.
 
 use crate::candump::{LoggedFrame, parse_line};
-use crate::counters::MessageHealth;
 use crate::counters::{Counters, worth_logging};
 use aer::can::AnyMessage;
 use aer::runtime::{CounterCheck, DecodeError, IntegrityError};
@@ -149,28 +148,18 @@ impl Ingest {
         });
         watch.last_us = Some(frame.ts_us);
         let verdict = meta.verify(&mut watch.counter, frame.payload());
-        let counters = &self.counters;
-        let (counter, note): (
-            Option<&std::sync::atomic::AtomicU64>,
-            fn(&mut MessageHealth),
-        ) = match verdict {
-            Ok(()) => (None, |_| {}),
-            Err(IntegrityError::Checksum { .. }) => (Some(&counters.checksum_failures), |h| {
-                h.checksum_failures += 1
-            }),
-            Err(IntegrityError::CounterRepeated { .. }) => {
-                (Some(&counters.counter_repeats), |h| h.counter_repeats += 1)
-            }
-            Err(IntegrityError::CounterJumped { .. }) => {
-                (Some(&counters.counter_jumps), |h| h.counter_jumps += 1)
-            }
-        };
-        if counter.is_none() && !late {
+        if verdict.is_ok() && !late {
             return;
         }
-        if let Some(counter) = counter {
+        let counters = &self.counters;
+        if let Err(error) = verdict {
+            let counter = match error {
+                IntegrityError::Checksum { .. } => &counters.checksum_failures,
+                IntegrityError::CounterRepeated { .. } => &counters.counter_repeats,
+                IntegrityError::CounterJumped { .. } => &counters.counter_jumps,
+            };
             let count = Counters::bump(counter);
-            if let (Err(error), true) = (verdict, worth_logging(count)) {
+            if worth_logging(count) {
                 warn!(%error, count, "frame refused by its counter or checksum (kept)");
             }
         }
@@ -179,10 +168,13 @@ impl Ingest {
         }
         if let Ok(mut health) = counters.message_health.lock() {
             let entry = health.entry(meta.name.to_owned()).or_default();
-            note(entry);
-            if late {
-                entry.late_frames += 1;
+            match verdict {
+                Ok(()) => {}
+                Err(IntegrityError::Checksum { .. }) => entry.checksum_failures += 1,
+                Err(IntegrityError::CounterRepeated { .. }) => entry.counter_repeats += 1,
+                Err(IntegrityError::CounterJumped { .. }) => entry.counter_jumps += 1,
             }
+            entry.late_frames += u64::from(late);
         }
     }
 
