@@ -575,6 +575,342 @@ pub const SUFFIXES: [&str; 37] = [
     can::DTI_DC_LIMITS.suffix(),
 ];
 
+/// A CAN message's topic beside its schema entry, for readers that pick messages at run time
+/// (the pit view shows any message it is asked for, with the schema's units and names).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CanTopic {
+    pub meta: &'static crate::runtime::MessageMeta,
+    /// Below the car's prefix, such as `can/mcu1`.
+    pub suffix: &'static str,
+}
+
+/// Every CAN message's topic, in the schema's order (as [`crate::can::MESSAGES`]).
+pub static CAN_TOPICS: [CanTopic; 36] = [
+    CanTopic {
+        meta: crate::can::CcmStatus::META,
+        suffix: can::CCM_STATUS.suffix(),
+    },
+    CanTopic {
+        meta: crate::can::Vcu1::META,
+        suffix: can::VCU1.suffix(),
+    },
+    CanTopic {
+        meta: crate::can::Mcu1::META,
+        suffix: can::MCU1.suffix(),
+    },
+    CanTopic {
+        meta: crate::can::Mcu2::META,
+        suffix: can::MCU2.suffix(),
+    },
+    CanTopic {
+        meta: crate::can::Mcu3::META,
+        suffix: can::MCU3.suffix(),
+    },
+    CanTopic {
+        meta: crate::can::Bms1::META,
+        suffix: can::BMS1.suffix(),
+    },
+    CanTopic {
+        meta: crate::can::Bms2::META,
+        suffix: can::BMS2.suffix(),
+    },
+    CanTopic {
+        meta: crate::can::OrionPackStatus::META,
+        suffix: can::ORION_PACK_STATUS.suffix(),
+    },
+    CanTopic {
+        meta: crate::can::OrionLimits::META,
+        suffix: can::ORION_LIMITS.suffix(),
+    },
+    CanTopic {
+        meta: crate::can::OrionCellVoltages::META,
+        suffix: can::ORION_CELL_VOLTAGES.suffix(),
+    },
+    CanTopic {
+        meta: crate::can::PccStatus::META,
+        suffix: can::PCC_STATUS.suffix(),
+    },
+    CanTopic {
+        meta: crate::can::ImdInfoGeneral::META,
+        suffix: can::IMD_INFO_GENERAL.suffix(),
+    },
+    CanTopic {
+        meta: crate::can::ImdInfoIsolationDetail::META,
+        suffix: can::IMD_INFO_ISOLATION_DETAIL.suffix(),
+    },
+    CanTopic {
+        meta: crate::can::ImdInfoVoltage::META,
+        suffix: can::IMD_INFO_VOLTAGE.suffix(),
+    },
+    CanTopic {
+        meta: crate::can::ImdInfoItSystem::META,
+        suffix: can::IMD_INFO_IT_SYSTEM.suffix(),
+    },
+    CanTopic {
+        meta: crate::can::ImdRequest::META,
+        suffix: can::IMD_REQUEST.suffix(),
+    },
+    CanTopic {
+        meta: crate::can::DtiSetCurrent::META,
+        suffix: can::DTI_SET_CURRENT.suffix(),
+    },
+    CanTopic {
+        meta: crate::can::DtiSetBrakeCurrent::META,
+        suffix: can::DTI_SET_BRAKE_CURRENT.suffix(),
+    },
+    CanTopic {
+        meta: crate::can::DtiSetErpm::META,
+        suffix: can::DTI_SET_ERPM.suffix(),
+    },
+    CanTopic {
+        meta: crate::can::DtiSetPosition::META,
+        suffix: can::DTI_SET_POSITION.suffix(),
+    },
+    CanTopic {
+        meta: crate::can::DtiSetRelativeCurrent::META,
+        suffix: can::DTI_SET_RELATIVE_CURRENT.suffix(),
+    },
+    CanTopic {
+        meta: crate::can::DtiSetRelativeBrakeCurrent::META,
+        suffix: can::DTI_SET_RELATIVE_BRAKE_CURRENT.suffix(),
+    },
+    CanTopic {
+        meta: crate::can::DtiSetDigitalOutputs::META,
+        suffix: can::DTI_SET_DIGITAL_OUTPUTS.suffix(),
+    },
+    CanTopic {
+        meta: crate::can::DtiSetMaxCurrentAc::META,
+        suffix: can::DTI_SET_MAX_CURRENT_AC.suffix(),
+    },
+    CanTopic {
+        meta: crate::can::DtiSetMaxBrakeCurrentAc::META,
+        suffix: can::DTI_SET_MAX_BRAKE_CURRENT_AC.suffix(),
+    },
+    CanTopic {
+        meta: crate::can::DtiSetMaxCurrentDc::META,
+        suffix: can::DTI_SET_MAX_CURRENT_DC.suffix(),
+    },
+    CanTopic {
+        meta: crate::can::DtiSetMaxBrakeCurrentDc::META,
+        suffix: can::DTI_SET_MAX_BRAKE_CURRENT_DC.suffix(),
+    },
+    CanTopic {
+        meta: crate::can::DtiSetDriveEnable::META,
+        suffix: can::DTI_SET_DRIVE_ENABLE.suffix(),
+    },
+    CanTopic {
+        meta: crate::can::DtiControl::META,
+        suffix: can::DTI_CONTROL.suffix(),
+    },
+    CanTopic {
+        meta: crate::can::DtiSpeed::META,
+        suffix: can::DTI_SPEED.suffix(),
+    },
+    CanTopic {
+        meta: crate::can::DtiCurrents::META,
+        suffix: can::DTI_CURRENTS.suffix(),
+    },
+    CanTopic {
+        meta: crate::can::DtiTemperatures::META,
+        suffix: can::DTI_TEMPERATURES.suffix(),
+    },
+    CanTopic {
+        meta: crate::can::DtiFocCurrents::META,
+        suffix: can::DTI_FOC_CURRENTS.suffix(),
+    },
+    CanTopic {
+        meta: crate::can::DtiFlags::META,
+        suffix: can::DTI_FLAGS.suffix(),
+    },
+    CanTopic {
+        meta: crate::can::DtiAcLimits::META,
+        suffix: can::DTI_AC_LIMITS.suffix(),
+    },
+    CanTopic {
+        meta: crate::can::DtiDcLimits::META,
+        suffix: can::DTI_DC_LIMITS.suffix(),
+    },
+];
+
+/// Reads a payload of the CAN topic `suffix` with that topic's own type, as a message of any
+/// type; `None` when `suffix` is no CAN message's topic.
+pub fn decode_message(
+    suffix: &str,
+    payload: &[u8],
+) -> Option<Result<Sample<crate::can::AnyMessage>, serde_json::Error>> {
+    use crate::can::AnyMessage;
+    let sample = match suffix {
+        "can/ccm_status" => can::CCM_STATUS.decode(payload).map(|s| Sample {
+            ts: s.ts,
+            value: AnyMessage::CcmStatus(s.value),
+        }),
+        "can/vcu1" => can::VCU1.decode(payload).map(|s| Sample {
+            ts: s.ts,
+            value: AnyMessage::Vcu1(s.value),
+        }),
+        "can/mcu1" => can::MCU1.decode(payload).map(|s| Sample {
+            ts: s.ts,
+            value: AnyMessage::Mcu1(s.value),
+        }),
+        "can/mcu2" => can::MCU2.decode(payload).map(|s| Sample {
+            ts: s.ts,
+            value: AnyMessage::Mcu2(s.value),
+        }),
+        "can/mcu3" => can::MCU3.decode(payload).map(|s| Sample {
+            ts: s.ts,
+            value: AnyMessage::Mcu3(s.value),
+        }),
+        "can/bms1" => can::BMS1.decode(payload).map(|s| Sample {
+            ts: s.ts,
+            value: AnyMessage::Bms1(s.value),
+        }),
+        "can/bms2" => can::BMS2.decode(payload).map(|s| Sample {
+            ts: s.ts,
+            value: AnyMessage::Bms2(s.value),
+        }),
+        "can/orion_pack_status" => can::ORION_PACK_STATUS.decode(payload).map(|s| Sample {
+            ts: s.ts,
+            value: AnyMessage::OrionPackStatus(s.value),
+        }),
+        "can/orion_limits" => can::ORION_LIMITS.decode(payload).map(|s| Sample {
+            ts: s.ts,
+            value: AnyMessage::OrionLimits(s.value),
+        }),
+        "can/orion_cell_voltages" => can::ORION_CELL_VOLTAGES.decode(payload).map(|s| Sample {
+            ts: s.ts,
+            value: AnyMessage::OrionCellVoltages(s.value),
+        }),
+        "can/pcc_status" => can::PCC_STATUS.decode(payload).map(|s| Sample {
+            ts: s.ts,
+            value: AnyMessage::PccStatus(s.value),
+        }),
+        "can/imd_info_general" => can::IMD_INFO_GENERAL.decode(payload).map(|s| Sample {
+            ts: s.ts,
+            value: AnyMessage::ImdInfoGeneral(s.value),
+        }),
+        "can/imd_info_isolation_detail" => {
+            can::IMD_INFO_ISOLATION_DETAIL
+                .decode(payload)
+                .map(|s| Sample {
+                    ts: s.ts,
+                    value: AnyMessage::ImdInfoIsolationDetail(s.value),
+                })
+        }
+        "can/imd_info_voltage" => can::IMD_INFO_VOLTAGE.decode(payload).map(|s| Sample {
+            ts: s.ts,
+            value: AnyMessage::ImdInfoVoltage(s.value),
+        }),
+        "can/imd_info_it_system" => can::IMD_INFO_IT_SYSTEM.decode(payload).map(|s| Sample {
+            ts: s.ts,
+            value: AnyMessage::ImdInfoItSystem(s.value),
+        }),
+        "can/imd_request" => can::IMD_REQUEST.decode(payload).map(|s| Sample {
+            ts: s.ts,
+            value: AnyMessage::ImdRequest(s.value),
+        }),
+        "can/dti_set_current" => can::DTI_SET_CURRENT.decode(payload).map(|s| Sample {
+            ts: s.ts,
+            value: AnyMessage::DtiSetCurrent(s.value),
+        }),
+        "can/dti_set_brake_current" => can::DTI_SET_BRAKE_CURRENT.decode(payload).map(|s| Sample {
+            ts: s.ts,
+            value: AnyMessage::DtiSetBrakeCurrent(s.value),
+        }),
+        "can/dti_set_erpm" => can::DTI_SET_ERPM.decode(payload).map(|s| Sample {
+            ts: s.ts,
+            value: AnyMessage::DtiSetErpm(s.value),
+        }),
+        "can/dti_set_position" => can::DTI_SET_POSITION.decode(payload).map(|s| Sample {
+            ts: s.ts,
+            value: AnyMessage::DtiSetPosition(s.value),
+        }),
+        "can/dti_set_relative_current" => {
+            can::DTI_SET_RELATIVE_CURRENT
+                .decode(payload)
+                .map(|s| Sample {
+                    ts: s.ts,
+                    value: AnyMessage::DtiSetRelativeCurrent(s.value),
+                })
+        }
+        "can/dti_set_relative_brake_current" => can::DTI_SET_RELATIVE_BRAKE_CURRENT
+            .decode(payload)
+            .map(|s| Sample {
+                ts: s.ts,
+                value: AnyMessage::DtiSetRelativeBrakeCurrent(s.value),
+            }),
+        "can/dti_set_digital_outputs" => {
+            can::DTI_SET_DIGITAL_OUTPUTS
+                .decode(payload)
+                .map(|s| Sample {
+                    ts: s.ts,
+                    value: AnyMessage::DtiSetDigitalOutputs(s.value),
+                })
+        }
+        "can/dti_set_max_current_ac" => {
+            can::DTI_SET_MAX_CURRENT_AC.decode(payload).map(|s| Sample {
+                ts: s.ts,
+                value: AnyMessage::DtiSetMaxCurrentAc(s.value),
+            })
+        }
+        "can/dti_set_max_brake_current_ac" => can::DTI_SET_MAX_BRAKE_CURRENT_AC
+            .decode(payload)
+            .map(|s| Sample {
+                ts: s.ts,
+                value: AnyMessage::DtiSetMaxBrakeCurrentAc(s.value),
+            }),
+        "can/dti_set_max_current_dc" => {
+            can::DTI_SET_MAX_CURRENT_DC.decode(payload).map(|s| Sample {
+                ts: s.ts,
+                value: AnyMessage::DtiSetMaxCurrentDc(s.value),
+            })
+        }
+        "can/dti_set_max_brake_current_dc" => can::DTI_SET_MAX_BRAKE_CURRENT_DC
+            .decode(payload)
+            .map(|s| Sample {
+                ts: s.ts,
+                value: AnyMessage::DtiSetMaxBrakeCurrentDc(s.value),
+            }),
+        "can/dti_set_drive_enable" => can::DTI_SET_DRIVE_ENABLE.decode(payload).map(|s| Sample {
+            ts: s.ts,
+            value: AnyMessage::DtiSetDriveEnable(s.value),
+        }),
+        "can/dti_control" => can::DTI_CONTROL.decode(payload).map(|s| Sample {
+            ts: s.ts,
+            value: AnyMessage::DtiControl(s.value),
+        }),
+        "can/dti_speed" => can::DTI_SPEED.decode(payload).map(|s| Sample {
+            ts: s.ts,
+            value: AnyMessage::DtiSpeed(s.value),
+        }),
+        "can/dti_currents" => can::DTI_CURRENTS.decode(payload).map(|s| Sample {
+            ts: s.ts,
+            value: AnyMessage::DtiCurrents(s.value),
+        }),
+        "can/dti_temperatures" => can::DTI_TEMPERATURES.decode(payload).map(|s| Sample {
+            ts: s.ts,
+            value: AnyMessage::DtiTemperatures(s.value),
+        }),
+        "can/dti_foc_currents" => can::DTI_FOC_CURRENTS.decode(payload).map(|s| Sample {
+            ts: s.ts,
+            value: AnyMessage::DtiFocCurrents(s.value),
+        }),
+        "can/dti_flags" => can::DTI_FLAGS.decode(payload).map(|s| Sample {
+            ts: s.ts,
+            value: AnyMessage::DtiFlags(s.value),
+        }),
+        "can/dti_ac_limits" => can::DTI_AC_LIMITS.decode(payload).map(|s| Sample {
+            ts: s.ts,
+            value: AnyMessage::DtiAcLimits(s.value),
+        }),
+        "can/dti_dc_limits" => can::DTI_DC_LIMITS.decode(payload).map(|s| Sample {
+            ts: s.ts,
+            value: AnyMessage::DtiDcLimits(s.value),
+        }),
+        _ => return None,
+    };
+    Some(sample)
+}
+
 /// A decoded CAN message as the payload of its own topic, received at `ts` on `bus`: the topic
 /// suffix and the JSON, written directly. Keys are the message type's fields in order (as its
 /// topic's `decode` reads them), after `ts` and `bus` (a message seen on two buses is told apart

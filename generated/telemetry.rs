@@ -3093,6 +3093,8 @@ impl Telemetry {
     pub const FLOW_CONTROL_ID: u16 = 0x777;
     /// How often the CCM sends the packet.
     pub const PERIOD_MS: u32 = 10;
+    /// How old the newest packet may be before a receiver shows the data as stale.
+    pub const TIMEOUT_MS: u32 = 200;
     /// Every field's name, unit, scaling and range, in schema order.
     pub const FIELDS: &'static [SignalMeta] = &TELEMETRY_FIELDS;
     /// Every field's dashboard hints, in schema order.

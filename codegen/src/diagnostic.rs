@@ -85,6 +85,8 @@ pub enum Code {
     Thresholds,
     /// E0215: a packet sent on a bus no DBC message names.
     UnknownBus,
+    /// E0216: a packet timeout shorter than its period (every packet would be late).
+    PacketTimeout,
     /// W0201: a name that is a Rust keyword.
     KeywordName,
     /// W0202: a range the raw value cannot reach.
@@ -108,7 +110,7 @@ pub enum Code {
 }
 
 /// Every code, for [`Code::parse`].
-const ALL: [Code; 44] = [
+const ALL: [Code; 45] = [
     Code::DbcUnreadable,
     Code::DbcEncoding,
     Code::DbcSyntax,
@@ -143,6 +145,7 @@ const ALL: [Code; 44] = [
     Code::FieldRange,
     Code::Thresholds,
     Code::UnknownBus,
+    Code::PacketTimeout,
     Code::KeywordName,
     Code::RangeBeyondRaw,
     Code::UnusableValues,
@@ -193,6 +196,7 @@ impl Code {
             Code::FieldRange => "E0213",
             Code::Thresholds => "E0214",
             Code::UnknownBus => "E0215",
+            Code::PacketTimeout => "E0216",
             Code::KeywordName => "W0201",
             Code::RangeBeyondRaw => "W0202",
             Code::UnusableValues => "W0203",

@@ -322,6 +322,8 @@ pub struct Telemetry {
     pub tx_id: u16,
     pub flow_control_id: u16,
     pub period_ms: u32,
+    /// How old the newest packet may be before receivers count the data stale (ms).
+    pub timeout_ms: u32,
     /// The bus it is sent on (one of the DBC's `AerBus` names), if the schema says.
     pub bus: Option<String>,
     /// Every field, in schema order; `layout` says where each one sits.

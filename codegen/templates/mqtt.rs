@@ -258,6 +258,41 @@ pub const SUFFIXES: [&str; {{ messages.len() + 1 }}] = [
 {%- endfor %}
 ];
 
+/// A CAN message's topic beside its schema entry, for readers that pick messages at run time
+/// (the pit view shows any message it is asked for, with the schema's units and names).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CanTopic {
+    pub meta: &'static crate::runtime::MessageMeta,
+    /// Below the car's prefix, such as `can/mcu1`.
+    pub suffix: &'static str,
+}
+
+/// Every CAN message's topic, in the schema's order (as [`crate::can::MESSAGES`]).
+pub static CAN_TOPICS: [CanTopic; {{ messages.len() }}] = [
+{%- for m in messages %}
+    CanTopic {
+        meta: crate::can::{{ m.type_name }}::META,
+        suffix: can::{{ m.const_name }}.suffix(),
+    },
+{%- endfor %}
+];
+
+/// Reads a payload of the CAN topic `suffix` with that topic's own type, as a message of any
+/// type; `None` when `suffix` is no CAN message's topic.
+pub fn decode_message(
+    suffix: &str,
+    payload: &[u8],
+) -> Option<Result<Sample<crate::can::AnyMessage>, serde_json::Error>> {
+    use crate::can::AnyMessage;
+    let sample = match suffix {
+{%- for m in messages %}
+        "{{ m.suffix }}" => can::{{ m.const_name }}.decode(payload).map(|s| Sample { ts: s.ts, value: AnyMessage::{{ m.type_name }}(s.value) }),
+{%- endfor %}
+        _ => return None,
+    };
+    Some(sample)
+}
+
 /// A decoded CAN message as the payload of its own topic, received at `ts` on `bus`: the topic
 /// suffix and the JSON, written directly. Keys are the message type's fields in order (as its
 /// topic's `decode` reads them), after `ts` and `bus` (a message seen on two buses is told apart

@@ -210,6 +210,8 @@ impl {{ t.type_name }} {
     pub const FLOW_CONTROL_ID: u16 = 0x{{ "{:X}"|format(t.flow_control_id) }};
     /// How often the CCM sends the packet.
     pub const PERIOD_MS: u32 = {{ t.period_ms }};
+    /// How old the newest packet may be before a receiver shows the data as stale.
+    pub const TIMEOUT_MS: u32 = {{ t.timeout_ms }};
     /// Every field's name, unit, scaling and range, in schema order.
     pub const FIELDS: &'static [SignalMeta] = &TELEMETRY_FIELDS;
     /// Every field's dashboard hints, in schema order.

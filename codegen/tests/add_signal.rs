@@ -174,6 +174,12 @@ fn telemetry_mistakes_are_reported_with_lines() {
             "not an 11-bit CAN id",
         ),
         (
+            "  timeout_ms: 200",
+            "  timeout_ms: 5",
+            "E0216",
+            "`timeout_ms` 5 is shorter than the packet's period (10 ms)",
+        ),
+        (
             "  bus: vehicle",
             "  bus: vehicel",
             "E0215",

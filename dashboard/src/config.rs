@@ -27,8 +27,9 @@ pub struct DisplayConfig {
     pub view: View,
     /// Fill the screen (the car's display) instead of opening a window.
     pub fullscreen: bool,
-    /// Data older than this is marked stale (ms).
-    pub stale_after_ms: u64,
+    /// Telemetry older than this is marked stale (ms); by default the schema's
+    /// `Telemetry::TIMEOUT_MS`. (CAN messages go stale after their own generated limits.)
+    pub stale_after_ms: Option<u64>,
     /// Length of the lap; when set, a lap ends every time the car has covered it (distance
     /// from the motor speed). Laps can always be marked by hand (key `L`).
     pub lap_length_m: Option<f64>,
@@ -36,6 +37,9 @@ pub struct DisplayConfig {
     pub plots: Vec<String>,
     /// Seconds of history the pit view's plots show (30-60 s).
     pub plot_window_s: f64,
+    /// CAN messages (DBC names) the pit view shows at start-up, straight from the Pi's CAN
+    /// topics (click a message's name to show or hide it).
+    pub can_messages: Vec<String>,
 }
 
 /// The two screens.
@@ -63,7 +67,7 @@ impl Default for DisplayConfig {
         Self {
             view: View::Driver,
             fullscreen: false,
-            stale_after_ms: 200,
+            stale_after_ms: None,
             lap_length_m: None,
             plots: vec![
                 "motor_speed".into(),
@@ -71,6 +75,7 @@ impl Default for DisplayConfig {
                 "apps_travel".into(),
             ],
             plot_window_s: 60.0,
+            can_messages: Vec::new(),
         }
     }
 }
@@ -97,6 +102,17 @@ impl Config {
                 );
             }
         }
+        for name in &self.display.can_messages {
+            if !aer::can::MESSAGES.iter().any(|m| m.name == name) {
+                bail!(
+                    "display.can_messages: `{name}` is not a message of the CAN database (see \
+                     schema/aer.dbc)"
+                );
+            }
+        }
+        if self.display.stale_after_ms == Some(0) {
+            bail!("display.stale_after_ms must be at least 1 ms");
+        }
         if !(1.0..=600.0).contains(&self.display.plot_window_s) {
             bail!("display.plot_window_s must be between 1 and 600 s");
         }
@@ -118,9 +134,13 @@ impl Config {
         aer::mqtt::car_prefix(&self.mqtt.topic_prefix, &self.car_id)
     }
 
-    /// How old data may be before it is marked stale.
+    /// How old telemetry may be before it is marked stale.
     pub fn stale_after(&self) -> Duration {
-        Duration::from_millis(self.display.stale_after_ms)
+        Duration::from_millis(
+            self.display
+                .stale_after_ms
+                .unwrap_or(u64::from(aer::telemetry::Telemetry::TIMEOUT_MS)),
+        )
     }
 }
 
@@ -162,6 +182,9 @@ mod tests {
         std::fs::write(&path, "[display]\nplots = [\"shocktravel9\"]\n").unwrap();
         let error = format!("{:#}", Config::load(Some(&path), |_| None).unwrap_err());
         assert!(error.contains("shocktravel9"), "{error}");
+        std::fs::write(&path, "[display]\ncan_messages = [\"MCU9\"]\n").unwrap();
+        let error = format!("{:#}", Config::load(Some(&path), |_| None).unwrap_err());
+        assert!(error.contains("MCU9"), "{error}");
         std::fs::write(&path, "car_idd = \"x\"\n").unwrap();
         let error = format!("{:#}", Config::load(Some(&path), |_| None).unwrap_err());
         assert!(

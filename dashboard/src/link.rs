@@ -1,10 +1,12 @@
 //! The MQTT link: subscribes to the car's typed topics on the Pi's broker and turns every
 //! message into an [`Update`], decoded with the topic's own payload type. The connection is
 //! retried every second for as long as the dashboard runs; every loss is reported, so the
-//! screens can show it.
+//! screens can show it. CAN topics are subscribed to only while the pit view shows their
+//! message ([`CanTopics`]), so the link carries what the screen needs and no more.
 
 use crate::config::Config;
 use crate::model::Update;
+use crate::model::can::CanMessages;
 use aer::mqtt::TELEMETRY;
 use aer_host::status::{METRICS, STATUS};
 use iced::futures::channel::mpsc;
@@ -13,7 +15,11 @@ use rumqttc::{
     AsyncClient, ConnectReturnCode, ConnectionError, Event, EventLoop, MqttOptions, Packet, QoS,
     StateError, SubscribeFilter,
 };
+use std::collections::BTreeSet;
+use std::hash::{Hash, Hasher};
+use std::sync::{Arc, Mutex, PoisonError};
 use std::time::{Duration, Instant};
+use tracing::warn;
 
 /// Where to connect and what to subscribe to. Part of the subscription's identity: a change
 /// reconnects.
@@ -24,6 +30,103 @@ pub struct Settings {
     pub credentials: Option<(String, String)>,
     /// `aer/<car>`.
     pub prefix: String,
+    /// The CAN topics the screens show, shared with the application.
+    pub can: CanTopics,
+}
+
+/// The CAN topics the pit view shows, shared by the application (which picks them) and the
+/// link (which subscribes to them): a pick is subscribed to or dropped at once, on the live
+/// connection, without reconnecting; every new connection subscribes to the picks of the moment.
+#[derive(Debug, Clone, Default)]
+pub struct CanTopics(Arc<Mutex<Picks>>);
+
+#[derive(Debug, Default)]
+struct Picks {
+    suffixes: BTreeSet<&'static str>,
+    /// The connection's client, once the link has one.
+    client: Option<AsyncClient>,
+}
+
+impl CanTopics {
+    /// Showing the CAN topics `suffixes` (below the car's prefix).
+    pub fn new(suffixes: impl IntoIterator<Item = &'static str>) -> Self {
+        Self(Arc::new(Mutex::new(Picks {
+            suffixes: suffixes.into_iter().collect(),
+            client: None,
+        })))
+    }
+
+    /// The topics shown now.
+    pub fn suffixes(&self) -> Vec<&'static str> {
+        self.lock().suffixes.iter().copied().collect()
+    }
+
+    /// Shows exactly `suffixes` from now on: subscribes to the new ones and unsubscribes from
+    /// the others on the live connection (if there is none, the next one subscribes).
+    pub fn set(&self, prefix: &str, suffixes: impl IntoIterator<Item = &'static str>) {
+        let wanted: BTreeSet<&'static str> = suffixes.into_iter().collect();
+        let mut picks = self.lock();
+        if let Some(client) = &picks.client {
+            let added: Vec<_> = wanted
+                .difference(&picks.suffixes)
+                .map(|suffix| SubscribeFilter::new(format!("{prefix}/{suffix}"), QoS::AtMostOnce))
+                .collect();
+            // The client's queue holds 16 requests and is drained as the link runs; a request
+            // that does not fit is made again by the next connection.
+            if !added.is_empty() {
+                if let Err(error) = client.try_subscribe_many(added) {
+                    warn!(%error, "subscribing to a CAN topic the pit view shows");
+                }
+            }
+            for suffix in picks.suffixes.difference(&wanted) {
+                if let Err(error) = client.try_unsubscribe(format!("{prefix}/{suffix}")) {
+                    warn!(%error, "unsubscribing from a CAN topic the pit view no longer shows");
+                }
+            }
+        }
+        picks.suffixes = wanted;
+    }
+
+    /// Subscribes a new connection's `client` to `base` and the topics shown now, and keeps
+    /// the client for later picks. Under the lock, so a pick made meanwhile is not missed.
+    fn connected(
+        &self,
+        client: &AsyncClient,
+        prefix: &str,
+        base: impl IntoIterator<Item = String>,
+    ) -> Result<(), rumqttc::ClientError> {
+        let mut picks = self.lock();
+        picks.client = Some(client.clone());
+        let can = picks
+            .suffixes
+            .iter()
+            .map(|suffix| format!("{prefix}/{suffix}"));
+        client.try_subscribe_many(
+            base.into_iter()
+                .chain(can)
+                .map(|topic| SubscribeFilter::new(topic, QoS::AtMostOnce)),
+        )
+    }
+
+    fn lock(&self) -> std::sync::MutexGuard<'_, Picks> {
+        // The picks stay consistent whatever panicked while holding them.
+        self.0.lock().unwrap_or_else(PoisonError::into_inner)
+    }
+}
+
+/// The same picks, shared: a subscription keeps its identity while the picks change.
+impl PartialEq for CanTopics {
+    fn eq(&self, other: &Self) -> bool {
+        Arc::ptr_eq(&self.0, &other.0)
+    }
+}
+
+impl Eq for CanTopics {}
+
+impl Hash for CanTopics {
+    fn hash<H: Hasher>(&self, state: &mut H) {
+        std::ptr::hash(Arc::as_ptr(&self.0), state);
+    }
 }
 
 impl Settings {
@@ -38,10 +141,11 @@ impl Settings {
                 .clone()
                 .zip(config.mqtt.password.clone()),
             prefix: config.topic_prefix(),
+            can: CanTopics::new(CanMessages::new(&config.display.can_messages).suffixes()),
         }
     }
 
-    /// The topics the dashboard reads.
+    /// The topics the dashboard always reads (CAN topics come and go with the pit view).
     pub fn topics(&self) -> [String; 3] {
         [
             TELEMETRY.path(&self.prefix),
@@ -73,7 +177,12 @@ pub fn decode(prefix: &str, topic: &str, payload: &[u8]) -> Update {
             |e| undecodable(e.to_string()),
             |metrics| Update::Metrics(Box::new(metrics)),
         ),
-        _ => undecodable("not a topic the dashboard subscribed to".into()),
+        Some(s) => match aer::mqtt::decode_message(s, payload) {
+            Some(Ok(sample)) => Update::Can(Box::new(sample)),
+            Some(Err(e)) => undecodable(e.to_string()),
+            None => undecodable("not a topic the dashboard subscribed to".into()),
+        },
+        None => undecodable("not a topic the dashboard subscribed to".into()),
     }
 }
 
@@ -134,11 +243,10 @@ async fn next(
             *accepted = true;
             // A clean session forgets subscriptions: subscribe on every connection, all topics
             // in one request (the queue holds 16, so this never blocks the loop draining it).
-            let filters = settings
-                .topics()
-                .into_iter()
-                .map(|topic| SubscribeFilter::new(topic, QoS::AtMostOnce));
-            match client.try_subscribe_many(filters) {
+            match settings
+                .can
+                .connected(client, &settings.prefix, settings.topics())
+            {
                 Ok(()) => None,
                 Err(error) => Some(Update::Disconnected(format!("subscribing: {error}"))),
             }

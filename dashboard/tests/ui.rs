@@ -104,13 +104,16 @@ fn driver_values_arrive_as_text() {
 }
 
 #[test]
-fn no_data_for_200_ms_is_marked_stale_in_both_views() {
+fn telemetry_is_marked_stale_after_exactly_the_schemas_limit_in_both_views() {
     let t0 = Instant::now();
+    // 200 ms: `timeout_ms` in schema/telemetry.yaml.
+    let limit = Duration::from_millis(u64::from(Telemetry::TIMEOUT_MS));
+    assert_eq!(limit, Duration::from_millis(200));
     for view in [View::Driver, View::Pit] {
         let mut app = app_with(view, driving(), t0);
-        app.update(Message::Tick(t0 + Duration::from_millis(200)));
-        assert!(!shows_part(&app, "STALE"), "{view:?} stale at 200 ms");
-        app.update(Message::Tick(t0 + Duration::from_millis(201)));
+        app.update(Message::Tick(t0 + limit));
+        assert!(!shows_part(&app, "STALE"), "{view:?} stale at the limit");
+        app.update(Message::Tick(t0 + limit + Duration::from_millis(1)));
         assert!(
             shows(&app, "STALE: no telemetry for 0.2 s"),
             "{view:?} not stale at 201 ms"
@@ -412,4 +415,122 @@ fn the_pit_view_fits_both_screens() {
         });
         assert!(units.is_ok(), "{size:?}: counts with their units");
     }
+}
+
+/// A frame of all-zero bytes of `meta`'s message, as the Pi publishes it on its CAN topic,
+/// read back with the topic's own type.
+fn can_frame(meta: &aer::runtime::MessageMeta, bytes: &[u8]) -> Update {
+    let message = aer::can::AnyMessage::decode(meta.id, meta.extended, bytes).unwrap();
+    let (suffix, payload) = aer::mqtt::encode_message(&message, 1_795_348_800.0, "can1");
+    let prefix = "aer/car1";
+    aer_dashboard::link::decode(prefix, &format!("{prefix}/{suffix}"), &payload)
+}
+
+#[test]
+fn every_can_message_of_the_schema_is_on_the_pit_view() {
+    // The panel lists `aer::can::MESSAGES`, which `cargo build` regenerates from aer.dbc: a
+    // message added there is listed with no dashboard change.
+    let app = app_with(View::Pit, driving(), Instant::now());
+    let mut ui = simulate(&app);
+    for meta in aer::can::MESSAGES {
+        assert!(ui.find(meta.name).is_ok(), "pit view lacks {}", meta.name);
+    }
+}
+
+#[test]
+fn a_clicked_can_message_is_subscribed_and_shows_its_signals_in_words() {
+    use aer::can::DtiTemperatures;
+    let t0 = Instant::now();
+    let mut app = app_with(View::Pit, driving(), t0);
+    assert!(
+        app.link().can.suffixes().is_empty(),
+        "nothing shown, nothing subscribed"
+    );
+    let messages: Vec<Message> = {
+        // Tall enough that the panel, below the telemetry fields, needs no scrolling.
+        let tall = iced::Size::new(PIT_SIZE.width, 2_400.0);
+        let mut ui = Simulator::with_size(Settings::default(), tall, app.view());
+        ui.click("DTI_Temperatures").expect("the message's name");
+        ui.into_messages().collect()
+    };
+    let [Message::ToggleCan(index)] = messages.as_slice() else {
+        panic!("{messages:?}");
+    };
+    app.update(Message::ToggleCan(*index));
+    assert_eq!(app.link().can.suffixes(), ["can/dti_temperatures"]);
+    assert!(shows(&app, "no frame yet"));
+
+    // Controller 45.6 degC, motor -12.3 degC (big-endian, 0.1 degC), fault code 0x04.
+    let update = can_frame(
+        DtiTemperatures::META,
+        &[0x01, 0xC8, 0xFF, 0x85, 0x04, 0, 0, 0],
+    );
+    app.update(Message::Link(t0, update));
+    for expected in ["DTI_ControllerTemp", "45.6", "-12.3", "°C", "DTI_FaultCode"] {
+        assert!(shows(&app, expected), "pit view lacks {expected:?}");
+    }
+    assert!(shows(&app, "every 100 ms, stale after 500 ms"));
+
+    // Hidden again: unsubscribed, and its signals gone.
+    app.update(Message::ToggleCan(*index));
+    assert!(app.link().can.suffixes().is_empty());
+    assert!(!shows(&app, "DTI_ControllerTemp"));
+}
+
+#[test]
+fn a_can_message_that_stops_is_stale_after_exactly_its_generated_limit() {
+    use aer::can::{DtiTemperatures, PccStatus};
+    let t0 = Instant::now();
+    let mut config = Config::default();
+    config.display.view = View::Pit;
+    config.display.can_messages = vec!["PCC_Status".into(), "DTI_Temperatures".into()];
+    let mut app = App::new(&config, t0);
+    app.update(Message::Link(t0, Update::Connected));
+    app.update(Message::Link(t0, packet(1, driving())));
+    app.update(Message::Link(t0, can_frame(PccStatus::META, &[0; 8])));
+    app.update(Message::Link(t0, can_frame(DtiTemperatures::META, &[0; 8])));
+    // Each message by its own limit: PCC_Status 100 ms (AerTimeoutMs), DTI_Temperatures
+    // 500 ms (five 100 ms cycles). Telemetry keeps coming, so only the messages go stale.
+    let pcc = Duration::from_millis(u64::from(PccStatus::TIMEOUT_MS));
+    let dti = Duration::from_millis(u64::from(DtiTemperatures::TIMEOUT_MS));
+    assert_eq!((pcc.as_millis(), dti.as_millis()), (100, 500));
+    let one_ms = Duration::from_millis(1);
+    let at = |app: &mut App, when: Duration, sequence: u16| {
+        app.update(Message::Link(t0 + when, packet(sequence, driving())));
+    };
+    at(&mut app, pcc, 2);
+    assert!(!shows_part(&app, "STALE"), "stale at PCC_Status's limit");
+    at(&mut app, pcc + one_ms, 3);
+    assert!(shows(&app, "STALE: no frame for 0.1 s"));
+    assert_eq!(count_part(&app, "STALE"), 1, "only PCC_Status is stale");
+    at(&mut app, dti, 4);
+    assert_eq!(count_part(&app, "STALE"), 1, "DTI_Temperatures is not yet");
+    at(&mut app, dti + one_ms, 5);
+    assert!(shows(&app, "STALE: no frame for 0.5 s"));
+    assert_eq!(count_part(&app, "STALE"), 2);
+    // A new frame makes it current again.
+    app.update(Message::Link(
+        t0 + dti + one_ms,
+        can_frame(DtiTemperatures::META, &[0; 8]),
+    ));
+    assert_eq!(count_part(&app, "STALE"), 1);
+}
+
+/// How many texts on screen contain `part`.
+fn count_part(app: &App, part: &str) -> usize {
+    use std::sync::Arc;
+    use std::sync::atomic::{AtomicUsize, Ordering};
+    let part = part.to_owned();
+    let count = Arc::new(AtomicUsize::new(0));
+    let seen = count.clone();
+    // Never matches, so every text on screen is looked at once.
+    let _ = simulate(app).find(move |candidate: Candidate<'_>| -> Option<()> {
+        if let Candidate::Text { content, .. } = candidate {
+            if content.contains(part.as_str()) {
+                seen.fetch_add(1, Ordering::Relaxed);
+            }
+        }
+        None
+    });
+    count.load(Ordering::Relaxed)
 }

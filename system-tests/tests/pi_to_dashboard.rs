@@ -1,9 +1,11 @@
 //! End to end with the real components: the Pi service replays the bundled session through its
 //! pipeline and publishes on the embedded rumqttd broker; the dashboard's own MQTT link reads
-//! the typed topics; its model and views must show exactly what the car sent.
+//! the typed topics; its model and views must show exactly what the car sent, and of the CAN
+//! topics only those of the messages the pit view shows.
 
+use aer::can::{AnyMessage, DtiTemperatures, PccStatus};
 use aer_dashboard::config::{Config, View};
-use aer_dashboard::link::{self, Settings};
+use aer_dashboard::link::{self, CanTopics, Settings};
 use aer_dashboard::model::health::SchemaMatch;
 use aer_dashboard::model::{Dashboard, Update};
 use aer_dashboard::screenshot::PIT_SIZE;
@@ -58,15 +60,18 @@ async fn a_replayed_session_reaches_the_dashboard_intact() {
         .await
         .expect("broker");
 
-    // The dashboard's link: connected means subscribed.
+    // The dashboard's link, showing one CAN message: connected means subscribed.
+    let shown = aer::mqtt::can::DTI_TEMPERATURES.suffix();
     let settings = Settings {
         host: "127.0.0.1".into(),
         port,
         credentials: None,
         prefix: "aer/car1".into(),
+        can: CanTopics::new([shown]),
     };
-    let mut updates = Box::pin(link::stream(settings));
-    let config = Config::default();
+    let mut updates = Box::pin(link::stream(settings.clone()));
+    let mut config = Config::default();
+    config.display.can_messages = vec![DtiTemperatures::META.name.into()];
     let mut model = Dashboard::new(&config);
     loop {
         let (at, update) = next(&mut updates).await;
@@ -107,14 +112,36 @@ async fn a_replayed_session_reaches_the_dashboard_intact() {
     );
     assert_eq!(counters.snapshot().publish_dropped, 0);
 
+    // The session's DTI_Temperatures frames: the only CAN frames the dashboard may get.
+    let dti_temperatures = BUNDLED_SESSION
+        .lines()
+        .filter_map(|line| aer_host::candump::parse_line(line, |_| 0).ok())
+        .filter(|frame| aer::runtime::raw_id(frame.id) == (DtiTemperatures::META.id, true))
+        .count();
+    assert!(dti_temperatures > 100, "{dti_temperatures}");
+
     let mut received = Vec::new();
-    while received.len() < expected.samples.len() || model.health().status.is_none() {
+    let mut can_frames = 0;
+    while received.len() < expected.samples.len()
+        || can_frames < dti_temperatures
+        || model.health().status.is_none()
+    {
         let (at, update) = next(&mut updates).await;
-        if let Update::Telemetry(sample) = &update {
-            received.push((**sample).clone());
+        match &update {
+            Update::Telemetry(sample) => received.push((**sample).clone()),
+            Update::Can(sample) => {
+                assert!(
+                    matches!(sample.value, AnyMessage::DtiTemperatures(_)),
+                    "a message the pit view does not show: {:?}",
+                    sample.value.meta().name
+                );
+                can_frames += 1;
+            }
+            _ => {}
         }
         model.apply(update, at);
     }
+    assert_eq!(can_frames, dti_temperatures);
 
     // Every packet, in order, with the values the generated decoder reads from the log.
     assert_eq!(received, expected.samples);
@@ -132,6 +159,39 @@ async fn a_replayed_session_reaches_the_dashboard_intact() {
     let mut ui = iced_test::Simulator::with_size(iced::Settings::default(), PIT_SIZE, app.view());
     assert!(ui.find(soc.as_str()).is_ok(), "pit view lacks SOC {soc}");
     assert!(ui.find("connected").is_ok());
+    assert!(ui.find("DTI_ControllerTemp").is_ok());
+
+    // Picking another message subscribes to it on the live connection, no reconnect.
+    settings.can.set(
+        &settings.prefix,
+        [shown, aer::mqtt::can::PCC_STATUS.suffix()],
+    );
+    loop {
+        // The broker's acknowledgement of the new subscription.
+        if next(&mut updates).await.1 == Update::Connected {
+            break;
+        }
+    }
+    let pcc = AnyMessage::decode(PccStatus::META.id, false, &[0; 8]).expect("frame");
+    publisher.publish(
+        &aer_host::ingest::Record::Can {
+            ts_us: 1_795_348_800_000_000,
+            bus: 0,
+            message: pcc,
+        },
+        &["can0".into()],
+    );
+    publisher.flush();
+    loop {
+        match next(&mut updates).await.1 {
+            Update::Can(sample) => {
+                assert_eq!(sample.value, pcc);
+                break;
+            }
+            Update::Disconnected(why) => panic!("the link dropped: {why}"),
+            _ => {}
+        }
+    }
 }
 
 /// A pit laptop on a broker listener with credentials (as the Pi's network listener must have):
@@ -161,6 +221,7 @@ async fn a_listener_with_credentials_admits_only_the_right_ones() {
         port,
         credentials: credentials.map(|(u, p)| (u.into(), p.into())),
         prefix: "aer/car1".into(),
+        can: CanTopics::default(),
     };
     for refused in [
         None,

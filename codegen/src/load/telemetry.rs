@@ -24,6 +24,10 @@ pub struct PacketSpec {
     pub tx_id: Spanned<u32>,
     pub flow_control_id: Spanned<u32>,
     pub period_ms: u32,
+    /// How long a receiver waits for the next packet before it counts the data stale; by
+    /// default a few periods, as for the DBC's messages.
+    #[serde(default)]
+    pub timeout_ms: Option<Spanned<u32>>,
     /// The bus it is sent on: one of the DBC's `AerBus` names.
     #[serde(default)]
     pub bus: Option<Spanned<String>>,

@@ -8,8 +8,8 @@ use serde_saphyr::Spanned;
 use crate::diagnostic::{Code, Diagnostic, Diagnostics, Reporter};
 use crate::load::telemetry::{FieldSpec, LoadedTelemetry, PacketSpec};
 use crate::model::{
-    Database, Display, Encoding, ISOTP_MAX_LEN, IntType, PhysType, Placement, Signal,
-    TELEMETRY_HEADER_LEN, Telemetry, TelemetryField, WireType,
+    DEFAULT_MISSED_FRAMES, Database, Display, Encoding, ISOTP_MAX_LEN, IntType, PhysType,
+    Placement, Signal, TELEMETRY_HEADER_LEN, Telemetry, TelemetryField, WireType,
 };
 use crate::naming::{camel, is_keyword};
 
@@ -43,6 +43,7 @@ pub fn validate(
         return Err(Diagnostics(r.diagnostics));
     }
     let bus = check_bus(&mut r, packet, db);
+    let timeout_ms = timeout(&mut r, packet);
     if r.has_errors() {
         return Err(Diagnostics(r.diagnostics));
     }
@@ -52,6 +53,7 @@ pub fn validate(
         tx_id: packet.tx_id.value as u16,
         flow_control_id: packet.flow_control_id.value as u16,
         period_ms: packet.period_ms,
+        timeout_ms,
         bus,
         fields,
         len,
@@ -88,6 +90,27 @@ fn check_bus(r: &mut Reporter<'_>, packet: &PacketSpec, db: &Database) -> Option
         );
     }
     Some(bus.value.clone())
+}
+
+/// The freshness limit: the declared `timeout_ms`, else a few periods as for the DBC's
+/// messages. One shorter than the period would call every packet late.
+fn timeout(r: &mut Reporter<'_>, packet: &PacketSpec) -> u32 {
+    let default = packet.period_ms.saturating_mul(DEFAULT_MISSED_FRAMES);
+    let Some(declared) = &packet.timeout_ms else {
+        return default;
+    };
+    if declared.value < packet.period_ms.max(1) {
+        r.report(
+            Code::PacketTimeout,
+            line_of(declared),
+            format!(
+                "`timeout_ms` {} is shorter than the packet's period ({} ms)",
+                declared.value, packet.period_ms
+            ),
+            "allow at least one period, better a few (receivers count the data stale after it)",
+        );
+    }
+    declared.value
 }
 
 /// The ISO-TP ids: standard, distinct, and not used by a DBC message.

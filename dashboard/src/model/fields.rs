@@ -98,40 +98,50 @@ impl Field {
     /// The value as text: enum names, on/off for flags, numbers to the resolution the wire
     /// carries.
     pub fn format(&self, value: FieldValue) -> String {
-        if self.is_flag() {
-            return if value.value != 0.0 { "ON" } else { "off" }.to_owned();
-        }
-        if !self.meta.labels.is_empty() {
-            return match value.label {
-                Some(label) => label.to_owned(),
-                None => format!("unknown ({})", value.value),
-            };
-        }
-        if self.is_code() {
-            // A vendor's status code without names in the schema: in hex, as manuals list them.
-            return format!("0x{:02X}", value.value as i64);
-        }
-        format!("{:.*}", decimals(self.meta.factor), value.value)
+        format(self.meta, value)
     }
 
-    /// The unit as the driver reads it (`degC` is shown as `°C`; a status code has none, its
-    /// value is shown in hex).
+    /// The unit as shown (none for a status code shown in hex).
     pub fn unit(&self) -> &'static str {
-        if self.is_code() {
-            return "";
-        }
-        display_unit(self.meta.unit)
+        unit(self.meta)
     }
 
     /// What the schema says about the field (its description), for a tooltip.
     pub fn description(&self) -> &'static str {
         self.meta.comment
     }
+}
 
-    /// A status code (unit `code`) whose values the schema does not name.
-    fn is_code(&self) -> bool {
-        self.meta.unit == "code" && self.meta.labels.is_empty()
+/// A packet field's or a CAN signal's value as text: enum names, on/off for one-bit values,
+/// vendor status codes in hex, numbers to the resolution the wire carries.
+pub fn format(meta: &SignalMeta, value: FieldValue) -> String {
+    if meta.len == 1 && meta.labels.is_empty() {
+        return if value.value != 0.0 { "ON" } else { "off" }.to_owned();
     }
+    if !meta.labels.is_empty() {
+        return match value.label {
+            Some(label) => label.to_owned(),
+            None => format!("unknown ({})", value.value),
+        };
+    }
+    if is_code(meta) {
+        // A vendor's status code without names in the schema: in hex, as manuals list them.
+        return format!("0x{:02X}", value.value as i64);
+    }
+    format!("{:.*}", decimals(meta.factor), value.value)
+}
+
+/// A packet field's or a CAN signal's unit as shown (none for a status code shown in hex).
+pub fn unit(meta: &'static SignalMeta) -> &'static str {
+    if is_code(meta) {
+        return "";
+    }
+    display_unit(meta.unit)
+}
+
+/// A status code (unit `code`) whose values the schema does not name.
+fn is_code(meta: &SignalMeta) -> bool {
+    meta.unit == "code" && meta.labels.is_empty()
 }
 
 /// Decimal places that show one step of a value scaled by `factor` (0.01 -> 2, 0.004 -> 3).

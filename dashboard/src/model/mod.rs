@@ -3,17 +3,20 @@
 //! here, and time is passed in, so tests drive it exactly.
 
 pub mod alarms;
+pub mod can;
 pub mod fields;
 pub mod health;
 pub mod history;
 pub mod laps;
 
 use crate::config::Config;
+use aer::can::AnyMessage;
 use aer::can::VehicleState;
 use aer::mqtt::{Sample, TelemetryRecord};
 use aer::telemetry::{Level, Telemetry, TelemetryHeader};
 use aer_host::status::{Metrics, Status};
 use alarms::Alarms;
+use can::CanMessages;
 use fields::{Field, FieldValue, Schema};
 use health::{Connection, Health};
 use history::History;
@@ -31,6 +34,8 @@ pub enum Update {
     /// The connection failed or was lost; the link retries by itself.
     Disconnected(String),
     Telemetry(Box<Sample<TelemetryRecord>>),
+    /// A frame of a CAN message the pit view shows, from its CAN topic.
+    Can(Box<Sample<AnyMessage>>),
     /// The Pi service's retained status.
     Status(Box<Status>),
     /// The Pi service's counters, every second.
@@ -84,6 +89,7 @@ pub struct Dashboard {
     laps: LapTimer,
     health: Health,
     plots: Vec<usize>,
+    can: CanMessages,
 }
 
 impl Dashboard {
@@ -110,6 +116,7 @@ impl Dashboard {
             laps: LapTimer::new(config.display.lap_length_m),
             health: Health::default(),
             plots,
+            can: CanMessages::new(&config.display.can_messages),
         }
     }
 
@@ -126,6 +133,7 @@ impl Dashboard {
                 }
             }
             Update::Telemetry(sample) => self.telemetry(&sample, now),
+            Update::Can(sample) => self.can.take(&sample, now),
             Update::Status(status) => self.health.status = Some(*status),
             Update::Metrics(metrics) => self.health.metrics = Some(*metrics),
             Update::Undecodable { topic, error } => self.health.undecodable(&topic, &error),
@@ -319,6 +327,16 @@ impl Dashboard {
         &self.plots
     }
 
+    /// The CAN messages shown and their newest frames.
+    pub fn can(&self) -> &CanMessages {
+        &self.can
+    }
+
+    /// Shows CAN message `index` (of [`CanMessages::topics`]), or hides it.
+    pub fn toggle_can(&mut self, index: usize) {
+        self.can.toggle(index);
+    }
+
     /// Adds field `index` to the plots, or removes it.
     pub fn toggle_plot(&mut self, index: usize) {
         if let Some(at) = self.plots.iter().position(|&p| p == index) {
@@ -353,19 +371,15 @@ mod tests {
     }
 
     #[test]
-    fn data_is_stale_after_the_limit() {
+    fn data_is_stale_after_the_schemas_limit() {
         let mut dashboard = Dashboard::new(&Config::default());
         let t0 = Instant::now();
         assert_eq!(dashboard.freshness(t0), Freshness::NoData);
         dashboard.telemetry(&packet(1, 10.0, Telemetry::zeroed()), t0);
-        assert_eq!(
-            dashboard.freshness(t0 + Duration::from_millis(200)),
-            Freshness::Fresh
-        );
-        assert_eq!(
-            dashboard.freshness(t0 + Duration::from_millis(201)),
-            Freshness::Stale(Duration::from_millis(201))
-        );
+        let limit = Duration::from_millis(u64::from(Telemetry::TIMEOUT_MS));
+        assert_eq!(dashboard.freshness(t0 + limit), Freshness::Fresh);
+        let late = limit + Duration::from_millis(1);
+        assert_eq!(dashboard.freshness(t0 + late), Freshness::Stale(late));
     }
 
     #[test]

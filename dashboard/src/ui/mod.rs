@@ -1,6 +1,7 @@
 //! The iced application: messages, update, the two views and the subscriptions (the MQTT
 //! link, a clock for staleness, the keyboard).
 
+pub mod can;
 pub mod driver;
 pub mod pit;
 pub mod plot;
@@ -31,6 +32,8 @@ pub enum Message {
     MarkLap,
     /// Plot field `index`, or stop plotting it (a click on the field).
     TogglePlot(usize),
+    /// Show CAN message `index` (of `CanMessages::topics`), or hide it (a click on its name).
+    ToggleCan(usize),
 }
 
 /// The dashboard application.
@@ -83,6 +86,12 @@ impl App {
             }
             Message::MarkLap => self.model.mark_lap(self.now),
             Message::TogglePlot(index) => self.model.toggle_plot(index),
+            Message::ToggleCan(index) => {
+                self.model.toggle_can(index);
+                self.link
+                    .can
+                    .set(&self.link.prefix, self.model.can().suffixes());
+            }
         }
     }
 
@@ -92,6 +101,11 @@ impl App {
             View::Driver => driver::view(&self.model, self.now),
             View::Pit => pit::view(&self.model, self.now),
         }
+    }
+
+    /// The link's settings (what it subscribes to).
+    pub fn link(&self) -> &link::Settings {
+        &self.link
     }
 
     /// The window title.

@@ -1,5 +1,6 @@
 //! The pit view: every telemetry field grouped by subsystem (straight from the schema's
-//! tables), plots of the fields picked by clicking them, the fault history and link health.
+//! tables), any CAN message picked from the bus, plots of the fields picked by clicking them,
+//! the fault history and link health.
 
 use super::plot::{MAX_POINTS, Plot};
 use super::{Message, status_banner, style};
@@ -33,7 +34,7 @@ fn layout(model: &Dashboard, now: Instant, narrow: bool) -> Element<'_, Message>
     let body = if narrow {
         // Scrollbars beside the panels, not over their right edge.
         row![
-            scrollable(fields(model, stale, narrow))
+            scrollable(left(model, now, stale, narrow))
                 .spacing(4)
                 .width(FillPortion(1)),
             scrollable(column![plots(model), fault_history(model, narrow)].spacing(8))
@@ -42,7 +43,7 @@ fn layout(model: &Dashboard, now: Instant, narrow: bool) -> Element<'_, Message>
         ]
     } else {
         row![
-            scrollable(fields(model, stale, narrow)).width(FillPortion(3)),
+            scrollable(left(model, now, stale, narrow)).width(FillPortion(3)),
             column![plots(model), fault_history(model, narrow)]
                 .spacing(8)
                 .width(FillPortion(2)),
@@ -151,6 +152,16 @@ fn link(model: &Dashboard, now: Instant, narrow: bool) -> Element<'_, Message> {
         .width(Fill)
         .style(style::panel)
         .into()
+}
+
+/// The telemetry's fields, then the CAN messages picked from the bus.
+fn left(model: &Dashboard, now: Instant, stale: bool, narrow: bool) -> Element<'_, Message> {
+    column![
+        fields(model, stale, narrow),
+        super::can::panel(model.can(), now, narrow)
+    ]
+    .spacing(8)
+    .into()
 }
 
 /// Every field of the schema, one panel per group (side by side when there is room, else
