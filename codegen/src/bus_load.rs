@@ -30,20 +30,7 @@ pub struct BusLoad {
     pub load: f64,
 }
 
-/// Bits on the wire for one classic CAN data frame with `len` payload bytes, worst-case bit
-/// stuffing included (one stuff bit per four bits from the start of frame to the CRC), and
-/// the 3-bit interframe space.
-pub fn frame_bits(len: usize, extended: bool) -> u32 {
-    let data = 8 * u32::try_from(len.min(64)).unwrap_or(512);
-    // Start of frame to the CRC, which stuffing applies to; then CRC delimiter, ACK, end of
-    // frame and the interframe space.
-    let (stuffed, fixed) = if extended {
-        (54 + data, 13)
-    } else {
-        (34 + data, 13)
-    };
-    stuffed + (stuffed - 1) / 4 + fixed
-}
+pub use crate::frame_bits::frame_bits;
 
 /// Every bus's load: the DBC's periodic messages, and the telemetry packet (its first and
 /// consecutive frames and one flow control frame, all 8 bytes) on its bus.

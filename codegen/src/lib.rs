@@ -8,6 +8,7 @@
 pub mod bus_load;
 pub mod diagnostic;
 pub mod fingerprint;
+pub mod frame_bits;
 pub mod load;
 pub mod model;
 pub mod naming;
@@ -94,7 +95,7 @@ pub fn codec_files(
             }
             .render()?,
         ),
-        file("runtime.rs", render::codec::render_runtime(source, false)?),
+        file("runtime.rs", render::codec::render_runtime(source, None)?),
         file(
             "can.rs",
             render::codec::render_can(db, source, fingerprint)?,
@@ -176,7 +177,7 @@ impl CarSchema {
         };
         Ok(vec![
             file("lib.rs", lib.render()?),
-            file("runtime.rs", render::codec::render_runtime(dbc, true)?),
+            file("runtime.rs", render::codec::render_runtime(dbc, Some(db))?),
             file(
                 "can.rs",
                 render::codec::render_can(db, dbc, fingerprint::database(db))?,

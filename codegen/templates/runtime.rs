@@ -632,6 +632,10 @@ pub fn div_round(numerator: i128, denominator: i128) -> i128 {
 }
 
 {%- if telemetry %}
+/// The buses' bit rate (bit/s), from the schema: what a measured load is a share of.
+pub const BIT_RATE: u32 = {{ bit_rate }};
+
+{{ frame_bits }}
 /// Copies `bytes` into `out` at `at`; bytes past the end of `out` are not written.
 #[inline(always)]
 pub fn put(out: &mut [u8], at: usize, bytes: &[u8]) {

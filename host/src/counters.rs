@@ -26,6 +26,8 @@ macro_rules! counters {
             /// The same integrity and lateness counts, per message name (only messages
             /// with any), for the status.
             pub message_health: std::sync::Mutex<std::collections::BTreeMap<String, MessageHealth>>,
+            /// Each bus's and each message's traffic since the last status.
+            pub traffic: std::sync::Mutex<crate::traffic::Traffic>,
         }
 
         impl Counters {

@@ -38,7 +38,24 @@ pub enum Record {
         /// Bus it came on.
         bus: u8,
         message: AnyMessage,
+        /// What the message's counter, checksum and freshness limit say of the frame.
+        check: FrameCheck,
     },
+}
+
+/// What the schema's counter, checksum and freshness limit say of one frame. The frame is
+/// kept whatever they say (records are the bus as it was); the store sums these per session
+/// and message.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct FrameCheck {
+    /// Its checksum does not match its payload.
+    pub checksum_failed: bool,
+    /// Its counter repeats the previous frame's.
+    pub counter_repeated: bool,
+    /// Its counter skipped.
+    pub counter_jumped: bool,
+    /// It came later than the message's freshness limit after the previous one.
+    pub late: bool,
 }
 
 /// The decoder state: one ISO-TP receiver per bus.
@@ -71,6 +88,13 @@ impl Ingest {
         }
     }
 
+    /// Names bus `index` (its interface) in the measured traffic.
+    pub fn name_bus(&self, index: u8, name: &str) {
+        if let Ok(mut traffic) = self.counters.traffic.lock() {
+            traffic.name_bus(index, name);
+        }
+    }
+
     /// Leaves ISO-TP to the kernel: raw 0x666/0x777 frames are then ignored.
     pub fn use_kernel_isotp(&mut self) {
         self.userspace_isotp = false;
@@ -94,6 +118,9 @@ impl Ingest {
             Id::Standard(id) => (u32::from(id.as_raw()), false),
             Id::Extended(id) => (id.as_raw(), true),
         };
+        if let Ok(mut traffic) = self.counters.traffic.lock() {
+            traffic.frame(frame.bus, frame.ts_us, frame.payload().len(), extended);
+        }
         if !extended && id == u32::from(Telemetry::TX_ID) {
             if self.userspace_isotp {
                 self.isotp(frame, &mut emit, &mut reply);
@@ -107,11 +134,12 @@ impl Ingest {
         match AnyMessage::decode(id, extended, frame.payload()) {
             Ok(message) => {
                 Counters::bump(&self.counters.messages);
-                self.watch(frame, id, extended, &message);
+                let check = self.watch(frame, id, extended, &message);
                 emit(Record::Can {
                     ts_us: frame.ts_us,
                     bus: frame.bus,
                     message,
+                    check,
                 });
             }
             Err(DecodeError::UnknownId { .. }) => {
@@ -133,12 +161,22 @@ impl Ingest {
     }
 
     /// Counts a frame whose checksum or counter says it is not fresh, intact data, and one
-    /// that comes later than its message's freshness limit. The frame is kept all the same
-    /// (records are the bus as it was; the CCM is the one that refuses them).
-    fn watch(&mut self, frame: &LoggedFrame, id: u32, extended: bool, message: &AnyMessage) {
+    /// that comes later than its message's freshness limit, and says which it is. The frame
+    /// is kept all the same (records are the bus as it was; the CCM is the one that refuses
+    /// them).
+    fn watch(
+        &mut self,
+        frame: &LoggedFrame,
+        id: u32,
+        extended: bool,
+        message: &AnyMessage,
+    ) -> FrameCheck {
         let meta = message.meta();
+        if let Ok(mut traffic) = self.counters.traffic.lock() {
+            traffic.message(frame.bus, meta, frame.ts_us);
+        }
         if meta.counter.is_none() && meta.checksum.is_none() && meta.timeout_ms.is_none() {
-            return;
+            return FrameCheck::default();
         }
         let watch = self.watches.entry((frame.bus, id, extended)).or_default();
         let late = meta.timeout_ms.is_some_and(|limit| {
@@ -148,8 +186,14 @@ impl Ingest {
         });
         watch.last_us = Some(frame.ts_us);
         let verdict = meta.verify(&mut watch.counter, frame.payload());
+        let check = FrameCheck {
+            checksum_failed: matches!(verdict, Err(IntegrityError::Checksum { .. })),
+            counter_repeated: matches!(verdict, Err(IntegrityError::CounterRepeated { .. })),
+            counter_jumped: matches!(verdict, Err(IntegrityError::CounterJumped { .. })),
+            late,
+        };
         if verdict.is_ok() && !late {
-            return;
+            return check;
         }
         let counters = &self.counters;
         if let Err(error) = verdict {
@@ -168,14 +212,12 @@ impl Ingest {
         }
         if let Ok(mut health) = counters.message_health.lock() {
             let entry = health.entry(meta.name.to_owned()).or_default();
-            match verdict {
-                Ok(()) => {}
-                Err(IntegrityError::Checksum { .. }) => entry.checksum_failures += 1,
-                Err(IntegrityError::CounterRepeated { .. }) => entry.counter_repeats += 1,
-                Err(IntegrityError::CounterJumped { .. }) => entry.counter_jumps += 1,
-            }
-            entry.late_frames += u64::from(late);
+            entry.checksum_failures += u64::from(check.checksum_failed);
+            entry.counter_repeats += u64::from(check.counter_repeated);
+            entry.counter_jumps += u64::from(check.counter_jumped);
+            entry.late_frames += u64::from(check.late);
         }
+        check
     }
 
     fn isotp(
@@ -285,10 +327,16 @@ pub fn decode_log(log: &str) -> DecodedLog {
     let mut buses: HashMap<String, u8> = HashMap::new();
     let mut packets = Vec::new();
     for line in log.lines().filter(|line| !line.trim().is_empty()) {
+        let known = buses.len();
         let parsed = parse_line(line, |name| {
             let next = u8::try_from(buses.len()).unwrap_or(u8::MAX);
             *buses.entry(name.to_owned()).or_insert(next)
         });
+        if buses.len() > known {
+            for (name, index) in &buses {
+                ingest.name_bus(*index, name);
+            }
+        }
         let Ok(frame) = parsed else {
             Counters::bump(&counters.bad_lines);
             continue;

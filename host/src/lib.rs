@@ -7,6 +7,7 @@
 //!   generated decoders), and [`ingest::decode_log`] for whole logs;
 //! - [`counters`]: the service's counters, one set for counting and publishing;
 //! - [`status`]: the service's status and metrics payloads and their typed topics;
+//! - [`traffic`]: each bus's measured load and each message's measured rate;
 //! - [`config`]: reading configuration files and the broker settings both tiers use;
 //! - [`clock`]: timestamps as the topics carry them;
 //! - [`logging`]: log output fit for a terminal and for the journal.
@@ -19,4 +20,5 @@ pub mod ingest;
 pub mod logging;
 pub mod rawlog;
 pub mod status;
+pub mod traffic;
 pub mod varint;

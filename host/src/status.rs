@@ -37,6 +37,18 @@ pub struct Status {
     /// counter, or later than the message's freshness limit (only messages with any).
     #[serde(default)]
     pub message_health: std::collections::BTreeMap<String, crate::counters::MessageHealth>,
+    /// Each bus's measured traffic since the previous status (about a second), by interface:
+    /// frames, bits and load at worst-case stuffing, as the build-time figure in
+    /// `generated/docs/can.md` counts them.
+    #[serde(default)]
+    pub bus_traffic: std::collections::BTreeMap<String, crate::traffic::BusTraffic>,
+    /// Each message's measured rate over the same window beside its declared cycle time, by
+    /// interface and message.
+    #[serde(default)]
+    pub message_rates: std::collections::BTreeMap<
+        String,
+        std::collections::BTreeMap<String, crate::traffic::MessageRate>,
+    >,
 }
 
 /// What is failing in the service, part by part (`None`: working).
@@ -115,6 +127,16 @@ pub fn status(car_id: &str, counters: &Counters, problems: Problems) -> Status {
             .message_health
             .lock()
             .map(|health| health.clone())
+            .unwrap_or_default(),
+        bus_traffic: counters
+            .traffic
+            .lock()
+            .map(|traffic| traffic.buses())
+            .unwrap_or_default(),
+        message_rates: counters
+            .traffic
+            .lock()
+            .map(|traffic| traffic.messages())
             .unwrap_or_default(),
     }
 }

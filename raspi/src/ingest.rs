@@ -61,6 +61,7 @@ impl Stage {
                 if let Some(raw) = raw {
                     raw.name_bus(index, &name);
                 }
+                ingest.name_bus(index, &name);
                 let index = usize::from(index);
                 if buses.len() <= index {
                     buses.resize(index + 1, Arc::from(""));

@@ -7,6 +7,7 @@ use aer_raspi::export::{self, Format};
 use aer_raspi::service::{Job, serve};
 use aer_raspi::sink::store;
 use aer_raspi::sink::store::session::{self, Changes};
+use aer_raspi::sink::store::session_messages;
 use anyhow::{Context, Result, bail};
 use clap::{Args, Parser, Subcommand};
 use std::path::{Path, PathBuf};
@@ -138,6 +139,12 @@ enum SessionAction {
     /// Close the open session and start the next one with the flags given; the running
     /// service stores its rows under the new one from its next commit (within a second).
     New,
+    /// Each CAN message of the open session (or of session --id) per bus: frames, measured
+    /// and declared rate, checksum failures, counter repeats and jumps, late frames.
+    Messages {
+        #[arg(long)]
+        id: Option<i64>,
+    },
 }
 
 #[derive(Args)]
@@ -254,6 +261,30 @@ fn session_command(config: &Config, action: &SessionAction, flags: &SessionArgs)
                 "no session {id}"
             );
             println!("session {id} updated");
+        }
+        SessionAction::Messages { id } => {
+            let id = match id {
+                Some(id) => *id,
+                None => session::current(&db)?.context("no session is open; give --id")?,
+            };
+            let hz = |rate: Option<f64>| rate.map_or_else(|| "-".to_owned(), |r| format!("{r:.2}"));
+            println!(
+                "bus\tmessage\tframes\tmeasured_hz\tdeclared_hz\tchecksum_failures\tcounter_repeats\tcounter_jumps\tlate_frames"
+            );
+            for m in session_messages::list(&db, id)? {
+                println!(
+                    "{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}",
+                    m.bus,
+                    m.message,
+                    m.frames,
+                    hz(m.measured_hz()),
+                    hz(m.declared_hz()),
+                    m.checksum_failures,
+                    m.counter_repeats,
+                    m.counter_jumps,
+                    m.late_frames
+                );
+            }
         }
         SessionAction::New => {
             let now = i64::try_from(aer_host::clock::now_us()).unwrap_or(i64::MAX);

@@ -29,6 +29,10 @@ pub async fn run(
         let now = counters.snapshot();
         let metrics = metrics(now, previous);
         let status = status(&car_id, &counters, health.problems());
+        // The next status measures the next second's traffic.
+        if let Ok(mut traffic) = counters.traffic.lock() {
+            traffic.restart();
+        }
         publisher.publish_on(&STATUS, &status, true);
         publisher.publish_on(&METRICS, &metrics, false);
         if console {

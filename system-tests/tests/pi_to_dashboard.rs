@@ -178,6 +178,7 @@ async fn a_replayed_session_reaches_the_dashboard_intact() {
             ts_us: 1_795_348_800_000_000,
             bus: 0,
             message: pcc,
+            check: Default::default(),
         },
         &["can0".into()],
     );

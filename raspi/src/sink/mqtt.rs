@@ -266,6 +266,7 @@ impl Publisher {
                 ts_us,
                 bus,
                 message,
+                ..
             } => {
                 let bus = super::bus_name(buses, *bus);
                 let (suffix, payload) = encode_message(message, seconds(*ts_us), &bus);

@@ -13,8 +13,13 @@ use signal::{Conversion, Fit, FloatWire, PhysAsF64, Presence, RawCodec, SignalVi
 #[template(path = "runtime.rs", escape = "none")]
 pub struct RuntimeTemplate<'a> {
     pub source: &'a str,
-    /// Byte helpers for the telemetry packet, emitted only where a packet uses them.
+    /// The car's crate: byte helpers for the telemetry packet, and the bus-load formula and
+    /// bit rate the Pi measures the buses with. Vendor crates have neither.
     pub telemetry: bool,
+    /// [`crate::frame_bits`], verbatim (car's crate only).
+    pub frame_bits: &'a str,
+    /// The buses' bit rate: the DBC's `Baudrate`, else the car's 500 kbit/s.
+    pub bit_rate: u32,
 }
 
 #[derive(Template)]
@@ -70,9 +75,22 @@ impl MessageView {
     }
 }
 
-pub fn render_runtime(source: &str, telemetry: bool) -> Result<String, askama::Error> {
-    RuntimeTemplate { source, telemetry }.render()
+/// The runtime; `car` is the car's database (telemetry helpers and bus measurement), `None`
+/// for a vendor crate.
+pub fn render_runtime(source: &str, car: Option<&Database>) -> Result<String, askama::Error> {
+    RuntimeTemplate {
+        source,
+        telemetry: car.is_some(),
+        frame_bits: FRAME_BITS_SOURCE,
+        bit_rate: car
+            .and_then(|db| db.bit_rate)
+            .unwrap_or(crate::bus_load::DEFAULT_BIT_RATE),
+    }
+    .render()
 }
+
+/// The bus-load formula, copied into the car's runtime (as `ColumnType` into `tables.rs`).
+const FRAME_BITS_SOURCE: &str = include_str!("../../frame_bits.rs");
 
 pub fn render_can(db: &Database, source: &str, fingerprint: u32) -> Result<String, askama::Error> {
     // Which signals use each enum, in one pass (not a pass over every signal per enum).

@@ -5,7 +5,8 @@
 //!
 //! [`schema`] opens, checks and migrates the file, [`row`] turns records into rows, [`queue`]
 //! holds them for the [`writer`] thread, [`retention`] keeps the file within its budget,
-//! [`session`] records who drove which run and which rows it made, [`compact`] packs closed
+//! [`session`] records who drove which run and which rows it made, [`session_messages`] each
+//! session's CAN messages (frames, rate, integrity and lateness counts), [`compact`] packs closed
 //! sessions into compressed blocks and reads them back;
 //! [`StoreSink`] is what ingest hands records to.
 
@@ -15,6 +16,7 @@ pub mod retention;
 pub mod row;
 pub mod schema;
 pub mod session;
+pub mod session_messages;
 pub mod writer;
 
 pub use compact::Compaction;

@@ -5,7 +5,7 @@ use aer::can::AnyMessage;
 use aer::runtime::{SignalMeta, SignalVisitor, Value};
 use aer::tables::{self, Table};
 use aer::telemetry::{Telemetry, TelemetryHeader};
-use aer_host::ingest::Record;
+use aer_host::ingest::{FrameCheck, Record};
 use rusqlite::Statement;
 use std::sync::Arc;
 
@@ -30,6 +30,8 @@ pub enum RowData {
         /// The bus's interface name.
         bus: Arc<str>,
         message: AnyMessage,
+        /// What the message's counter, checksum and freshness limit said of the frame.
+        check: FrameCheck,
     },
 }
 
@@ -53,12 +55,14 @@ pub fn row(record: &Record, car_id: &Arc<str>, bus_names: &[Arc<str>]) -> Row {
             ts_us,
             bus,
             message,
+            check,
         } => Row {
             car_id: car_id.clone(),
             ts_us: *ts_us,
             data: RowData::Can {
                 bus: crate::sink::bus_name(bus_names, *bus),
                 message: *message,
+                check: *check,
             },
         },
     }
@@ -87,7 +91,7 @@ impl Row {
                 telemetry.visit(&mut binder);
                 binder.result
             }
-            RowData::Can { bus, message } => {
+            RowData::Can { bus, message, .. } => {
                 // Multiplexed signals that are absent must read NULL, not the previous row's.
                 statement.clear_bindings();
                 statement.raw_bind_parameter(1, &*self.car_id)?;

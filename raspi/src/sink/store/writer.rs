@@ -8,6 +8,7 @@ use super::queue::{BATCH_ROWS, BATCH_WAIT, QUEUE_ROWS, Queue, RowSender, WhenFul
 use super::retention::Retention;
 use super::row::Row;
 use super::session;
+use super::session_messages::Tally;
 use crate::health::Health;
 use aer::tables::TABLES;
 use aer_host::counters::{Counters, worth_logging};
@@ -210,6 +211,7 @@ pub fn commit(db: &mut Connection, batch: &[Row]) -> rusqlite::Result<()> {
     let transaction = db.transaction()?;
     // The row ids each table got in this batch, for the open session's record.
     let mut ids: Vec<Option<(i64, i64)>> = vec![None; TABLES.len()];
+    let mut tally = Tally::default();
     {
         // Each table's statement is prepared once per batch, not looked up per row.
         let mut statements: Vec<Option<rusqlite::CachedStatement<'_>>> =
@@ -227,6 +229,7 @@ pub fn commit(db: &mut Connection, batch: &[Row]) -> rusqlite::Result<()> {
             };
             row.bind(statement)?;
             statement.raw_execute()?;
+            tally.add(row);
             let id = transaction.last_insert_rowid();
             *range = Some(range.map_or((id, id), |(first, _)| (first, id)));
         }
@@ -237,6 +240,7 @@ pub fn commit(db: &mut Connection, batch: &[Row]) -> rusqlite::Result<()> {
                 session::record_rows(&transaction, session, table.name, first, last)?;
             }
         }
+        tally.record(&transaction, session)?;
     }
     transaction.commit()
 }

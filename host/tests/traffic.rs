@@ -1,0 +1,57 @@
+//! The measured traffic of the bundled session (the comp car, recorded at the schema's cycle
+//! times) against what the schema declares: every message at its cycle time on each bus, and
+//! each bus's load at the build-time figure of `generated/docs/can.md`.
+
+use aer_host::ingest::decode_log;
+use aer_host::status::{Problems, status};
+
+const SESSION: &str = include_str!("../../raspi/data/session.log");
+const CAN_DOC: &str = include_str!("../../generated/docs/can.md");
+
+/// The build-time load of schema bus `bus` (kbit/s), from the doc's "Bus load" table.
+fn declared_kbit_s(bus: &str) -> f64 {
+    let row = CAN_DOC
+        .lines()
+        .find(|line| line.starts_with(&format!("| {bus} |")))
+        .unwrap_or_else(|| panic!("no bus load row for {bus}"));
+    let cells: Vec<&str> = row.split('|').map(str::trim).collect();
+    cells[5].parse().expect("kbit/s")
+}
+
+#[test]
+fn the_session_runs_at_the_declared_cycle_times_within_the_declared_load() {
+    let decoded = decode_log(SESSION);
+    let status = status("car1", &decoded.counters, Problems::default());
+
+    // CCM_Status is sent on both buses: one rate on each.
+    let rates = &status.message_rates;
+    assert_eq!(rates.len(), 2, "{:?}", rates.keys());
+    assert!(rates["can0"].contains_key("CCM_Status") && rates["can1"].contains_key("CCM_Status"));
+    let mut checked = 0;
+    for (bus, messages) in rates {
+        for (name, rate) in messages {
+            let declared = rate
+                .declared_hz
+                .expect("every recorded message is periodic");
+            let measured = rate.measured_hz.expect("many frames each");
+            assert!(
+                (measured / declared - 1.0).abs() < 1e-3,
+                "{name} on {bus}: {measured} Hz against {declared}"
+            );
+            checked += 1;
+        }
+    }
+    assert_eq!(checked, 19);
+
+    // can0 is the vehicle bus (telemetry included), can1 the inverter's. The session records
+    // nearly every periodic message, so each bus carries nearly the build-time load, never
+    // more.
+    for (interface, bus) in [("can0", "vehicle"), ("can1", "inverter")] {
+        let measured = status.bus_traffic[interface].bits_per_s / 1_000.0;
+        let declared = declared_kbit_s(bus);
+        assert!(
+            measured <= declared * 1.001 && measured >= declared * 0.95,
+            "{interface}: {measured:.1} kbit/s measured, {declared} declared for {bus}"
+        );
+    }
+}
