@@ -164,6 +164,8 @@ fn pi_status(telemetry_fingerprint: u32, firmware_ok: Option<bool>) -> Update {
         undecodable_fingerprint: None,
         problems: Default::default(),
         message_health: Default::default(),
+        bus_traffic: Default::default(),
+        message_rates: Default::default(),
     }))
 }
 
@@ -533,4 +535,36 @@ fn count_part(app: &App, part: &str) -> usize {
         None
     });
     count.load(Ordering::Relaxed)
+}
+
+#[test]
+fn the_pit_view_shows_the_pis_bus_loads_and_slow_messages() {
+    use aer_host::traffic::{BusTraffic, MessageRate};
+    let t0 = Instant::now();
+    let mut app = app_with(View::Pit, driving(), t0);
+    let Update::Status(mut status) = pi_status(aer::telemetry::TELEMETRY_FINGERPRINT, Some(true))
+    else {
+        unreachable!()
+    };
+    status.bus_traffic.insert(
+        "can0".into(),
+        BusTraffic {
+            frames: 1_440,
+            frames_per_s: 1_440.0,
+            bits_per_s: 194_650.0,
+            load: 0.3893,
+        },
+    );
+    let rate = |measured: f64, declared: f64| MessageRate {
+        frames: 50,
+        measured_hz: Some(measured),
+        declared_hz: Some(declared),
+    };
+    let can1 = status.message_rates.entry("can1".into()).or_default();
+    can1.insert("DTI_Speed".into(), rate(50.0, 100.0));
+    can1.insert("DTI_Flags".into(), rate(99.9, 100.0));
+    app.update(Message::Link(t0, Update::Status(status)));
+    assert!(shows_part(&app, "Pi buses: can0 38.9 % (1440 frames/s)"));
+    assert!(shows_part(&app, "SLOW: DTI_Speed on can1 50 of 100 Hz"));
+    assert!(!shows_part(&app, "DTI_Flags on can1"));
 }

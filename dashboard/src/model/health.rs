@@ -183,6 +183,8 @@ mod tests {
             undecodable_fingerprint: None,
             problems: Default::default(),
             message_health: Default::default(),
+            bus_traffic: Default::default(),
+            message_rates: Default::default(),
         };
         health.status = Some(status(&ours, Some(true)));
         assert_eq!(health.schema_match(), SchemaMatch::Match);

@@ -140,6 +140,9 @@ fn link(model: &Dashboard, now: Instant, narrow: bool) -> Element<'_, Message> {
     }
     .spacing(2);
     panel = panel.push(text(pi).size(14).color(pi_color));
+    if let Some((buses, color)) = health.status.as_ref().and_then(bus_traffic) {
+        panel = panel.push(text(buses).size(14).color(color));
+    }
     if let Some(error) = &health.last_error {
         panel = panel.push(
             text(format!("last unreadable payload: {error}"))
@@ -152,6 +155,43 @@ fn link(model: &Dashboard, now: Instant, narrow: bool) -> Element<'_, Message> {
         .width(Fill)
         .style(style::panel)
         .into()
+}
+
+/// The Pi's measured bus loads, and the messages slower than their cycle time (fewer than
+/// 90 % of the declared frames: a sender struggling, or frames lost), in amber.
+fn bus_traffic(status: &aer_host::status::Status) -> Option<(String, iced::Color)> {
+    if status.bus_traffic.is_empty() {
+        return None;
+    }
+    let loads: Vec<String> = status
+        .bus_traffic
+        .iter()
+        .map(|(bus, t)| {
+            format!(
+                "{bus} {:.1} % ({:.0} frames/s)",
+                t.load * 100.0,
+                t.frames_per_s
+            )
+        })
+        .collect();
+    let slow: Vec<String> = status
+        .message_rates
+        .iter()
+        .flat_map(|(bus, messages)| messages.iter().map(move |(name, rate)| (bus, name, rate)))
+        .filter_map(|(bus, name, rate)| {
+            let (measured, declared) = (rate.measured_hz?, rate.declared_hz?);
+            (measured < 0.9 * declared)
+                .then(|| format!("{name} on {bus} {measured:.0} of {declared:.0} Hz"))
+        })
+        .collect();
+    let mut line = format!("Pi buses: {}", loads.join("   "));
+    let color = if slow.is_empty() {
+        style::DIM
+    } else {
+        line.push_str(&format!("   SLOW: {}", slow.join(", ")));
+        style::WARN
+    };
+    Some((line, color))
 }
 
 /// The telemetry's fields, then the CAN messages picked from the bus.
