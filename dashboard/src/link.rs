@@ -71,8 +71,9 @@ impl CanTopics {
                 .difference(&picks.suffixes)
                 .map(|suffix| SubscribeFilter::new(format!("{prefix}/{suffix}"), QoS::AtMostOnce))
                 .collect();
-            // The client's queue holds 16 requests and is drained as the link runs; a request
-            // that does not fit is made again by the next connection.
+            // The client's queue holds 16 requests and the link drains it as it runs, so a
+            // request only fails to fit when the link is stuck; it is logged, and the next
+            // connection subscribes to every pick.
             if !added.is_empty() {
                 if let Err(error) = client.try_subscribe_many(added) {
                     warn!(%error, "subscribing to a CAN topic the pit view shows");
