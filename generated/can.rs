@@ -3277,15 +3277,8 @@ impl Vcu1 {
             "VCU1",
             "VCU_TorqueReq",
         )?;
-        let raw = runtime::round(v / 1.0192);
-        if (0.0..256.0).contains(&raw) {
-            Ok(raw as u8)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "VCU1",
-                signal: "VCU_TorqueReq",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 1.0192) as u8)
     }
 
     /// Physical value of `VCU_MotorSpdReq` for a raw value.
@@ -4091,15 +4084,8 @@ impl Mcu1 {
     /// Raw value of `MCU_MotorSpeed` for a physical value, range-checked.
     pub fn mcu_motor_speed_to_raw(v: f64) -> Result<u16, EncodeError> {
         runtime::check_range(v, 0.0, 16383.75, 2.5e-7, "MCU1", "MCU_MotorSpeed")?;
-        let raw = runtime::round(v / 0.25);
-        if (0.0..65536.0).contains(&raw) {
-            Ok(raw as u16)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "MCU1",
-                signal: "MCU_MotorSpeed",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 0.25) as u16)
     }
 
     /// Physical value of `MCU_ActualTorque` for a raw value.
@@ -4117,15 +4103,8 @@ impl Mcu1 {
             "MCU1",
             "MCU_ActualTorque",
         )?;
-        let raw = runtime::round(v / 1.0192);
-        if (0.0..256.0).contains(&raw) {
-            Ok(raw as u8)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "MCU1",
-                signal: "MCU_ActualTorque",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 1.0192) as u8)
     }
 
     /// Physical value of `MCU_MaxMotorTorque` for a raw value.
@@ -4143,15 +4122,8 @@ impl Mcu1 {
             "MCU1",
             "MCU_MaxMotorTorque",
         )?;
-        let raw = runtime::round(v / 1.0192);
-        if (0.0..256.0).contains(&raw) {
-            Ok(raw as u8)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "MCU1",
-                signal: "MCU_MaxMotorTorque",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 1.0192) as u8)
     }
 
     /// Physical value of `MCU_MaxMotorBrakeTorque` for a raw value.
@@ -4169,15 +4141,8 @@ impl Mcu1 {
             "MCU1",
             "MCU_MaxMotorBrakeTorque",
         )?;
-        let raw = runtime::round(v / 1.0192);
-        if (0.0..256.0).contains(&raw) {
-            Ok(raw as u8)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "MCU1",
-                signal: "MCU_MaxMotorBrakeTorque",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 1.0192) as u8)
     }
 
     /// Physical value of `MCU_MainState` for a raw value.
@@ -5847,15 +5812,8 @@ impl Mcu3 {
     /// Raw value of `MCU_DcVoltage` for a physical value, range-checked.
     pub fn mcu_dc_voltage_to_raw(v: f64) -> Result<u16, EncodeError> {
         runtime::check_range(v, 0.0, 655.35, 1e-8, "MCU3", "MCU_DcVoltage")?;
-        let raw = runtime::round(v / 0.01);
-        if (0.0..65536.0).contains(&raw) {
-            Ok(raw as u16)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "MCU3",
-                signal: "MCU_DcVoltage",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 0.01) as u16)
     }
 
     /// Physical value of `MCU_DcCurrent` for a raw value.
@@ -5866,15 +5824,8 @@ impl Mcu3 {
     /// Raw value of `MCU_DcCurrent` for a physical value, range-checked.
     pub fn mcu_dc_current_to_raw(v: f64) -> Result<i16, EncodeError> {
         runtime::check_range(v, -327.68, 327.67, 1e-8, "MCU3", "MCU_DcCurrent")?;
-        let raw = runtime::round(v / 0.01);
-        if (-32768.0..32768.0).contains(&raw) {
-            Ok(raw as i16)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "MCU3",
-                signal: "MCU_DcCurrent",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 0.01) as i16)
     }
 
     /// Physical value of `MCU_PhaseCurrent` for a raw value.
@@ -5885,15 +5836,8 @@ impl Mcu3 {
     /// Raw value of `MCU_PhaseCurrent` for a physical value, range-checked.
     pub fn mcu_phase_current_to_raw(v: f64) -> Result<u16, EncodeError> {
         runtime::check_range(v, 0.0, 655.35, 1e-8, "MCU3", "MCU_PhaseCurrent")?;
-        let raw = runtime::round(v / 0.01);
-        if (0.0..65536.0).contains(&raw) {
-            Ok(raw as u16)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "MCU3",
-                signal: "MCU_PhaseCurrent",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 0.01) as u16)
     }
 }
 
@@ -6227,15 +6171,8 @@ impl Bms2 {
     /// Raw value of `BMS_AllowMaxDischarge` for a physical value, range-checked.
     pub fn bms_allow_max_discharge_to_raw(v: f64) -> Result<u16, EncodeError> {
         runtime::check_range(v, -500.0, 6053.5, 1e-7, "BMS2", "BMS_AllowMaxDischarge")?;
-        let raw = runtime::round((v + 500.0) / 0.1);
-        if (0.0..65536.0).contains(&raw) {
-            Ok(raw as u16)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "BMS2",
-                signal: "BMS_AllowMaxDischarge",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32((v + 500.0) / 0.1) as u16)
     }
 }
 
@@ -6505,15 +6442,8 @@ impl OrionPackStatus {
             "Orion_PackStatus",
             "Orion_PackCurrent",
         )?;
-        let raw = runtime::round(v / 0.1);
-        if (-32768.0..32768.0).contains(&raw) {
-            Ok(raw as i16)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "Orion_PackStatus",
-                signal: "Orion_PackCurrent",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 0.1) as i16)
     }
 
     /// Physical value of `Orion_PackInstVoltage` for a raw value.
@@ -6531,15 +6461,8 @@ impl OrionPackStatus {
             "Orion_PackStatus",
             "Orion_PackInstVoltage",
         )?;
-        let raw = runtime::round(v / 0.1);
-        if (0.0..65536.0).contains(&raw) {
-            Ok(raw as u16)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "Orion_PackStatus",
-                signal: "Orion_PackInstVoltage",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 0.1) as u16)
     }
 
     /// Physical value of `Orion_PackSoc` for a raw value.
@@ -6550,15 +6473,8 @@ impl OrionPackStatus {
     /// Raw value of `Orion_PackSoc` for a physical value, range-checked.
     pub fn orion_pack_soc_to_raw(v: f64) -> Result<u8, EncodeError> {
         runtime::check_range(v, 0.0, 100.0, 5e-7, "Orion_PackStatus", "Orion_PackSoc")?;
-        let raw = runtime::round(v / 0.5);
-        if (0.0..256.0).contains(&raw) {
-            Ok(raw as u8)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "Orion_PackStatus",
-                signal: "Orion_PackSoc",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 0.5) as u8)
     }
 
     /// Physical value of `Orion_RelayState` for a raw value.
@@ -7165,15 +7081,8 @@ impl OrionCellVoltages {
             "Orion_CellVoltages",
             "Orion_LowCellVoltage",
         )?;
-        let raw = runtime::round(v / 0.0001);
-        if (0.0..65536.0).contains(&raw) {
-            Ok(raw as u16)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "Orion_CellVoltages",
-                signal: "Orion_LowCellVoltage",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 0.0001) as u16)
     }
 
     /// Physical value of `Orion_HighCellVoltage` for a raw value.
@@ -7191,15 +7100,8 @@ impl OrionCellVoltages {
             "Orion_CellVoltages",
             "Orion_HighCellVoltage",
         )?;
-        let raw = runtime::round(v / 0.0001);
-        if (0.0..65536.0).contains(&raw) {
-            Ok(raw as u16)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "Orion_CellVoltages",
-                signal: "Orion_HighCellVoltage",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 0.0001) as u16)
     }
 
     /// Physical value of `Orion_AvgCellVoltage` for a raw value.
@@ -7217,15 +7119,8 @@ impl OrionCellVoltages {
             "Orion_CellVoltages",
             "Orion_AvgCellVoltage",
         )?;
-        let raw = runtime::round(v / 0.0001);
-        if (0.0..65536.0).contains(&raw) {
-            Ok(raw as u16)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "Orion_CellVoltages",
-                signal: "Orion_AvgCellVoltage",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 0.0001) as u16)
     }
 
     /// Physical value of `Orion_LowCellId` for a raw value.
@@ -7838,15 +7733,8 @@ impl PccStatus {
     /// Raw value of `PCC_AccumulatorVoltage` for a physical value, range-checked.
     pub fn pcc_accumulator_voltage_to_raw(v: f64) -> Result<u16, EncodeError> {
         runtime::check_range(v, 0.0, 655.35, 1e-8, "PCC_Status", "PCC_AccumulatorVoltage")?;
-        let raw = runtime::round(v / 0.01);
-        if (0.0..65536.0).contains(&raw) {
-            Ok(raw as u16)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "PCC_Status",
-                signal: "PCC_AccumulatorVoltage",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 0.01) as u16)
     }
 
     /// Physical value of `PCC_TractiveVoltage` for a raw value.
@@ -7857,15 +7745,8 @@ impl PccStatus {
     /// Raw value of `PCC_TractiveVoltage` for a physical value, range-checked.
     pub fn pcc_tractive_voltage_to_raw(v: f64) -> Result<u16, EncodeError> {
         runtime::check_range(v, 0.0, 655.35, 1e-8, "PCC_Status", "PCC_TractiveVoltage")?;
-        let raw = runtime::round(v / 0.01);
-        if (0.0..65536.0).contains(&raw) {
-            Ok(raw as u16)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "PCC_Status",
-                signal: "PCC_TractiveVoltage",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 0.01) as u16)
     }
 
     /// Physical value of `PCC_PrechargeProgress` for a raw value.
@@ -7876,15 +7757,8 @@ impl PccStatus {
     /// Raw value of `PCC_PrechargeProgress` for a physical value, range-checked.
     pub fn pcc_precharge_progress_to_raw(v: f64) -> Result<u16, EncodeError> {
         runtime::check_range(v, 0.0, 655.35, 1e-8, "PCC_Status", "PCC_PrechargeProgress")?;
-        let raw = runtime::round(v / 0.01);
-        if (0.0..65536.0).contains(&raw) {
-            Ok(raw as u16)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "PCC_Status",
-                signal: "PCC_PrechargeProgress",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 0.01) as u16)
     }
 }
 
@@ -9546,15 +9420,8 @@ impl ImdInfoVoltage {
             "IMD_InfoVoltage",
             "IMD_HvSystemVoltage",
         )?;
-        let raw = runtime::round((v + 1606.4) / 0.05);
-        if (0.0..65536.0).contains(&raw) {
-            Ok(raw as u16)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "IMD_InfoVoltage",
-                signal: "IMD_HvSystemVoltage",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32((v + 1606.4) / 0.05) as u16)
     }
 
     /// Physical value of `IMD_HvNegToEarthVoltage` for a raw value.
@@ -9572,15 +9439,8 @@ impl ImdInfoVoltage {
             "IMD_InfoVoltage",
             "IMD_HvNegToEarthVoltage",
         )?;
-        let raw = runtime::round((v + 1606.4) / 0.05);
-        if (0.0..65536.0).contains(&raw) {
-            Ok(raw as u16)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "IMD_InfoVoltage",
-                signal: "IMD_HvNegToEarthVoltage",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32((v + 1606.4) / 0.05) as u16)
     }
 
     /// Physical value of `IMD_HvPosToEarthVoltage` for a raw value.
@@ -9598,15 +9458,8 @@ impl ImdInfoVoltage {
             "IMD_InfoVoltage",
             "IMD_HvPosToEarthVoltage",
         )?;
-        let raw = runtime::round((v + 1606.4) / 0.05);
-        if (0.0..65536.0).contains(&raw) {
-            Ok(raw as u16)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "IMD_InfoVoltage",
-                signal: "IMD_HvPosToEarthVoltage",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32((v + 1606.4) / 0.05) as u16)
     }
 
     /// Physical value of `IMD_VoltageMeasurementCounter` for a raw value.
@@ -10018,15 +9871,8 @@ impl ImdInfoItSystem {
             "IMD_InfoItSystem",
             "IMD_VoltageFrequency",
         )?;
-        let raw = runtime::round(v / 0.1);
-        if (0.0..65536.0).contains(&raw) {
-            Ok(raw as u16)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "IMD_InfoItSystem",
-                signal: "IMD_VoltageFrequency",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 0.1) as u16)
     }
 }
 
@@ -10347,15 +10193,8 @@ impl DtiSetCurrent {
     /// Raw value of `DTI_CurrentCmd` for a physical value, range-checked.
     pub fn dti_current_cmd_to_raw(v: f64) -> Result<i16, EncodeError> {
         runtime::check_range(v, -3276.8, 3276.7, 1e-7, "DTI_SetCurrent", "DTI_CurrentCmd")?;
-        let raw = runtime::round(v / 0.1);
-        if (-32768.0..32768.0).contains(&raw) {
-            Ok(raw as i16)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "DTI_SetCurrent",
-                signal: "DTI_CurrentCmd",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 0.1) as i16)
     }
 }
 
@@ -10490,15 +10329,8 @@ impl DtiSetBrakeCurrent {
             "DTI_SetBrakeCurrent",
             "DTI_BrakeCurrentCmd",
         )?;
-        let raw = runtime::round(v / 0.1);
-        if (-32768.0..32768.0).contains(&raw) {
-            Ok(raw as i16)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "DTI_SetBrakeCurrent",
-                signal: "DTI_BrakeCurrentCmd",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 0.1) as i16)
     }
 }
 
@@ -10756,15 +10588,8 @@ impl DtiSetPosition {
     /// Raw value of `DTI_PositionCmd` for a physical value, range-checked.
     pub fn dti_position_cmd_to_raw(v: f64) -> Result<i16, EncodeError> {
         runtime::check_range(v, 0.0, 360.0, 1e-7, "DTI_SetPosition", "DTI_PositionCmd")?;
-        let raw = runtime::round(v / 0.1);
-        if (-32768.0..32768.0).contains(&raw) {
-            Ok(raw as i16)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "DTI_SetPosition",
-                signal: "DTI_PositionCmd",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 0.1) as i16)
     }
 }
 
@@ -10899,15 +10724,8 @@ impl DtiSetRelativeCurrent {
             "DTI_SetRelativeCurrent",
             "DTI_RelativeCurrentCmd",
         )?;
-        let raw = runtime::round(v / 0.1);
-        if (-32768.0..32768.0).contains(&raw) {
-            Ok(raw as i16)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "DTI_SetRelativeCurrent",
-                signal: "DTI_RelativeCurrentCmd",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 0.1) as i16)
     }
 }
 
@@ -11046,15 +10864,8 @@ impl DtiSetRelativeBrakeCurrent {
             "DTI_SetRelativeBrakeCurrent",
             "DTI_RelativeBrakeCurrentCmd",
         )?;
-        let raw = runtime::round(v / 0.1);
-        if (-32768.0..32768.0).contains(&raw) {
-            Ok(raw as i16)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "DTI_SetRelativeBrakeCurrent",
-                signal: "DTI_RelativeBrakeCurrentCmd",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 0.1) as i16)
     }
 }
 
@@ -11507,15 +11318,8 @@ impl DtiSetMaxCurrentAc {
             "DTI_SetMaxCurrentAc",
             "DTI_MaxCurrentAcCmd",
         )?;
-        let raw = runtime::round(v / 0.1);
-        if (-32768.0..32768.0).contains(&raw) {
-            Ok(raw as i16)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "DTI_SetMaxCurrentAc",
-                signal: "DTI_MaxCurrentAcCmd",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 0.1) as i16)
     }
 }
 
@@ -11653,15 +11457,8 @@ impl DtiSetMaxBrakeCurrentAc {
             "DTI_SetMaxBrakeCurrentAc",
             "DTI_MaxBrakeCurrentAcCmd",
         )?;
-        let raw = runtime::round(v / 0.1);
-        if (-32768.0..32768.0).contains(&raw) {
-            Ok(raw as i16)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "DTI_SetMaxBrakeCurrentAc",
-                signal: "DTI_MaxBrakeCurrentAcCmd",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 0.1) as i16)
     }
 }
 
@@ -11799,15 +11596,8 @@ impl DtiSetMaxCurrentDc {
             "DTI_SetMaxCurrentDc",
             "DTI_MaxCurrentDcCmd",
         )?;
-        let raw = runtime::round(v / 0.1);
-        if (-32768.0..32768.0).contains(&raw) {
-            Ok(raw as i16)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "DTI_SetMaxCurrentDc",
-                signal: "DTI_MaxCurrentDcCmd",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 0.1) as i16)
     }
 }
 
@@ -11948,15 +11738,8 @@ impl DtiSetMaxBrakeCurrentDc {
             "DTI_SetMaxBrakeCurrentDc",
             "DTI_MaxBrakeCurrentDcCmd",
         )?;
-        let raw = runtime::round(v / 0.1);
-        if (-32768.0..32768.0).contains(&raw) {
-            Ok(raw as i16)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "DTI_SetMaxBrakeCurrentDc",
-                signal: "DTI_MaxBrakeCurrentDcCmd",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 0.1) as i16)
     }
 }
 
@@ -12394,15 +12177,8 @@ impl DtiControl {
     /// Raw value of `DTI_TargetIq` for a physical value, range-checked.
     pub fn dti_target_iq_to_raw(v: f64) -> Result<i16, EncodeError> {
         runtime::check_range(v, -3276.8, 3276.7, 1e-7, "DTI_Control", "DTI_TargetIq")?;
-        let raw = runtime::round(v / 0.1);
-        if (-32768.0..32768.0).contains(&raw) {
-            Ok(raw as i16)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "DTI_Control",
-                signal: "DTI_TargetIq",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 0.1) as i16)
     }
 
     /// Physical value of `DTI_MotorPosition` for a raw value.
@@ -12413,15 +12189,8 @@ impl DtiControl {
     /// Raw value of `DTI_MotorPosition` for a physical value, range-checked.
     pub fn dti_motor_position_to_raw(v: f64) -> Result<i16, EncodeError> {
         runtime::check_range(v, -3276.8, 3276.7, 1e-7, "DTI_Control", "DTI_MotorPosition")?;
-        let raw = runtime::round(v / 0.1);
-        if (-32768.0..32768.0).contains(&raw) {
-            Ok(raw as i16)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "DTI_Control",
-                signal: "DTI_MotorPosition",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 0.1) as i16)
     }
 
     /// Physical value of `DTI_MotorStill` for a raw value.
@@ -12671,15 +12440,8 @@ impl DtiSpeed {
     /// Raw value of `DTI_DutyCycle` for a physical value, range-checked.
     pub fn dti_duty_cycle_to_raw(v: f64) -> Result<i16, EncodeError> {
         runtime::check_range(v, -3276.8, 3276.7, 1e-7, "DTI_Speed", "DTI_DutyCycle")?;
-        let raw = runtime::round(v / 0.1);
-        if (-32768.0..32768.0).contains(&raw) {
-            Ok(raw as i16)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "DTI_Speed",
-                signal: "DTI_DutyCycle",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 0.1) as i16)
     }
 
     /// Physical value of `DTI_InputVoltage` for a raw value.
@@ -12875,15 +12637,8 @@ impl DtiCurrents {
     /// Raw value of `DTI_AcCurrent` for a physical value, range-checked.
     pub fn dti_ac_current_to_raw(v: f64) -> Result<i16, EncodeError> {
         runtime::check_range(v, -3276.8, 3276.7, 1e-7, "DTI_Currents", "DTI_AcCurrent")?;
-        let raw = runtime::round(v / 0.1);
-        if (-32768.0..32768.0).contains(&raw) {
-            Ok(raw as i16)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "DTI_Currents",
-                signal: "DTI_AcCurrent",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 0.1) as i16)
     }
 
     /// Physical value of `DTI_DcCurrent` for a raw value.
@@ -12894,15 +12649,8 @@ impl DtiCurrents {
     /// Raw value of `DTI_DcCurrent` for a physical value, range-checked.
     pub fn dti_dc_current_to_raw(v: f64) -> Result<i16, EncodeError> {
         runtime::check_range(v, -3276.8, 3276.7, 1e-7, "DTI_Currents", "DTI_DcCurrent")?;
-        let raw = runtime::round(v / 0.1);
-        if (-32768.0..32768.0).contains(&raw) {
-            Ok(raw as i16)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "DTI_Currents",
-                signal: "DTI_DcCurrent",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 0.1) as i16)
     }
 }
 
@@ -13147,15 +12895,8 @@ impl DtiTemperatures {
             "DTI_Temperatures",
             "DTI_ControllerTemp",
         )?;
-        let raw = runtime::round(v / 0.1);
-        if (-32768.0..32768.0).contains(&raw) {
-            Ok(raw as i16)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "DTI_Temperatures",
-                signal: "DTI_ControllerTemp",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 0.1) as i16)
     }
 
     /// Physical value of `DTI_MotorTemp` for a raw value.
@@ -13173,15 +12914,8 @@ impl DtiTemperatures {
             "DTI_Temperatures",
             "DTI_MotorTemp",
         )?;
-        let raw = runtime::round(v / 0.1);
-        if (-32768.0..32768.0).contains(&raw) {
-            Ok(raw as i16)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "DTI_Temperatures",
-                signal: "DTI_MotorTemp",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 0.1) as i16)
     }
 
     /// Physical value of `DTI_FaultCode` for a raw value.
@@ -13377,15 +13111,8 @@ impl DtiFocCurrents {
             "DTI_FocCurrents",
             "DTI_FocId",
         )?;
-        let raw = runtime::round(v / 0.01);
-        if (-2147483648.0..2147483648.0).contains(&raw) {
-            Ok(raw as i32)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "DTI_FocCurrents",
-                signal: "DTI_FocId",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i64(v / 0.01) as i32)
     }
 
     /// Physical value of `DTI_FocIq` for a raw value.
@@ -13403,15 +13130,8 @@ impl DtiFocCurrents {
             "DTI_FocCurrents",
             "DTI_FocIq",
         )?;
-        let raw = runtime::round(v / 0.01);
-        if (-2147483648.0..2147483648.0).contains(&raw) {
-            Ok(raw as i32)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "DTI_FocCurrents",
-                signal: "DTI_FocIq",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i64(v / 0.01) as i32)
     }
 }
 
@@ -15149,15 +14869,8 @@ impl DtiAcLimits {
     /// Raw value of `DTI_MaxAcCurrent` for a physical value, range-checked.
     pub fn dti_max_ac_current_to_raw(v: f64) -> Result<i16, EncodeError> {
         runtime::check_range(v, -3276.8, 3276.7, 1e-7, "DTI_AcLimits", "DTI_MaxAcCurrent")?;
-        let raw = runtime::round(v / 0.1);
-        if (-32768.0..32768.0).contains(&raw) {
-            Ok(raw as i16)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "DTI_AcLimits",
-                signal: "DTI_MaxAcCurrent",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 0.1) as i16)
     }
 
     /// Physical value of `DTI_AvailableMaxAcCurrent` for a raw value.
@@ -15175,15 +14888,8 @@ impl DtiAcLimits {
             "DTI_AcLimits",
             "DTI_AvailableMaxAcCurrent",
         )?;
-        let raw = runtime::round(v / 0.1);
-        if (-32768.0..32768.0).contains(&raw) {
-            Ok(raw as i16)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "DTI_AcLimits",
-                signal: "DTI_AvailableMaxAcCurrent",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 0.1) as i16)
     }
 
     /// Physical value of `DTI_MinAcCurrent` for a raw value.
@@ -15194,15 +14900,8 @@ impl DtiAcLimits {
     /// Raw value of `DTI_MinAcCurrent` for a physical value, range-checked.
     pub fn dti_min_ac_current_to_raw(v: f64) -> Result<i16, EncodeError> {
         runtime::check_range(v, -3276.8, 3276.7, 1e-7, "DTI_AcLimits", "DTI_MinAcCurrent")?;
-        let raw = runtime::round(v / 0.1);
-        if (-32768.0..32768.0).contains(&raw) {
-            Ok(raw as i16)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "DTI_AcLimits",
-                signal: "DTI_MinAcCurrent",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 0.1) as i16)
     }
 
     /// Physical value of `DTI_AvailableMinAcCurrent` for a raw value.
@@ -15220,15 +14919,8 @@ impl DtiAcLimits {
             "DTI_AcLimits",
             "DTI_AvailableMinAcCurrent",
         )?;
-        let raw = runtime::round(v / 0.1);
-        if (-32768.0..32768.0).contains(&raw) {
-            Ok(raw as i16)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "DTI_AcLimits",
-                signal: "DTI_AvailableMinAcCurrent",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 0.1) as i16)
     }
 }
 
@@ -15498,15 +15190,8 @@ impl DtiDcLimits {
     /// Raw value of `DTI_MaxDcCurrent` for a physical value, range-checked.
     pub fn dti_max_dc_current_to_raw(v: f64) -> Result<i16, EncodeError> {
         runtime::check_range(v, -3276.8, 3276.7, 1e-7, "DTI_DcLimits", "DTI_MaxDcCurrent")?;
-        let raw = runtime::round(v / 0.1);
-        if (-32768.0..32768.0).contains(&raw) {
-            Ok(raw as i16)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "DTI_DcLimits",
-                signal: "DTI_MaxDcCurrent",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 0.1) as i16)
     }
 
     /// Physical value of `DTI_AvailableMaxDcCurrent` for a raw value.
@@ -15524,15 +15209,8 @@ impl DtiDcLimits {
             "DTI_DcLimits",
             "DTI_AvailableMaxDcCurrent",
         )?;
-        let raw = runtime::round(v / 0.1);
-        if (-32768.0..32768.0).contains(&raw) {
-            Ok(raw as i16)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "DTI_DcLimits",
-                signal: "DTI_AvailableMaxDcCurrent",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 0.1) as i16)
     }
 
     /// Physical value of `DTI_MinDcCurrent` for a raw value.
@@ -15543,15 +15221,8 @@ impl DtiDcLimits {
     /// Raw value of `DTI_MinDcCurrent` for a physical value, range-checked.
     pub fn dti_min_dc_current_to_raw(v: f64) -> Result<i16, EncodeError> {
         runtime::check_range(v, -3276.8, 3276.7, 1e-7, "DTI_DcLimits", "DTI_MinDcCurrent")?;
-        let raw = runtime::round(v / 0.1);
-        if (-32768.0..32768.0).contains(&raw) {
-            Ok(raw as i16)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "DTI_DcLimits",
-                signal: "DTI_MinDcCurrent",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 0.1) as i16)
     }
 
     /// Physical value of `DTI_AvailableMinDcCurrent` for a raw value.
@@ -15569,15 +15240,8 @@ impl DtiDcLimits {
             "DTI_DcLimits",
             "DTI_AvailableMinDcCurrent",
         )?;
-        let raw = runtime::round(v / 0.1);
-        if (-32768.0..32768.0).contains(&raw) {
-            Ok(raw as i16)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "DTI_DcLimits",
-                signal: "DTI_AvailableMinDcCurrent",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 0.1) as i16)
     }
 }
 

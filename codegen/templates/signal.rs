@@ -241,8 +241,13 @@ EncodeError::OutOfRange { message: {{ s.message }}, signal: {{ s.name }} }
 {%- when FloatWire::F64 %}
         Ok({{ scaling.invert("v") }})
 {%- endmatch -%}
-{%- when Conversion::Quantized { scaling, phys_to_f64, lo, hi, .. } %}
+{%- when Conversion::Quantized { scaling, phys_to_f64, lo, hi, bounded, .. } %}
+{%- if let Some(round) = bounded %}
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::{{ round }}({{ scaling.invert(phys_to_f64.of("v")) }}) as {{ s.raw_ty }})
+{%- else %}
         let raw = runtime::round({{ scaling.invert(phys_to_f64.of("v")) }});
         if ({{ lo }}..{{ hi }}).contains(&raw) { Ok(raw as {{ s.raw_ty }}) } else { Err({% call out_of_range(s) %}{% endcall %}) }
+{%- endif -%}
 {%- endmatch -%}
 {%- endmacro -%}

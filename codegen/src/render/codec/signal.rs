@@ -114,6 +114,9 @@ pub enum Conversion {
         /// Raw values the bits can hold: `lo..hi` (bounds are powers of two, exact in f64).
         lo: FloatLit,
         hi: FloatLit,
+        /// Set when the range check alone keeps the raw value inside `lo..hi`: the runtime's
+        /// rounding to an integer that needs no second check (`round_i32` or `round_i64`).
+        bounded: Option<&'static str>,
     },
 }
 
@@ -362,8 +365,42 @@ fn conversion(db: &Database, s: &Signal) -> Conversion {
                 raw_to_f64: to_f64(raw_int),
                 lo: FloatLit(raw_lo as f64),
                 hi: FloatLit(hi_excl as f64),
+                bounded: bounded_rounding(s, scaling, raw_lo as f64, hi_excl as f64),
             }
         }
+    }
+}
+
+/// Which runtime rounding a quantized signal's encode may use without checking the raw value
+/// against its bits afterwards: only when every value its range check lets through rounds into
+/// `lo..hi`. The check passes `[min - tolerance, max + tolerance]`; unscaling (subtract, divide,
+/// each correctly rounded) and rounding are monotonic, so the ends of that interval bound every
+/// raw value, and they are computed here with the same `f64` operations as the generated code.
+/// Signals with named values skip the range check for those values, so they keep the check.
+fn bounded_rounding(s: &Signal, scaling: Scaling, lo: f64, hi: f64) -> Option<&'static str> {
+    let (min, max) = (s.min?, s.max?);
+    if !s.value_labels.is_empty() || scaling.factor == 0.0 {
+        return None;
+    }
+    let tolerance = s.factor.abs() * 1e-6;
+    let a = scaling.invert_value(min - tolerance);
+    let b = scaling.invert_value(max + tolerance);
+    let (q_lo, q_hi) = (a.min(b), a.max(b));
+    if !(q_lo.is_finite() && q_hi.is_finite()) {
+        return None;
+    }
+    if q_lo.round() < lo || q_hi.round() >= hi {
+        return None;
+    }
+    // `round_i32` truncates through `i32`: exact only while the quotient fits it.
+    const I32: f64 = 2_147_483_648.0;
+    const I52: f64 = 4_503_599_627_370_496.0;
+    if q_lo > -I32 && q_hi < I32 - 1.0 {
+        Some("round_i32")
+    } else if q_lo > -I52 && q_hi < I52 {
+        Some("round_i64")
+    } else {
+        None
     }
 }
 
@@ -491,4 +528,87 @@ fn docs(m: &Message, s: &Signal) -> Vec<String> {
         docs.push(format!("Present only when `{selector}` is {values}."));
     }
     docs
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::{ByteOrder, Encoding, PhysType, Signal};
+
+    fn quantized(
+        len: u32,
+        encoding: Encoding,
+        factor: f64,
+        offset: f64,
+        range: (f64, f64),
+    ) -> Signal {
+        Signal {
+            name: "S".to_owned(),
+            field: "s".to_owned(),
+            start_bit: 0,
+            len,
+            byte_order: ByteOrder::LittleEndian,
+            encoding,
+            factor,
+            offset,
+            min: Some(range.0),
+            max: Some(range.1),
+            unit: String::new(),
+            comment: None,
+            receivers: Vec::new(),
+            phys: PhysType::F64,
+            value_labels: Vec::new(),
+            mux: None,
+            is_multiplexor: false,
+        }
+    }
+
+    fn rounding(s: &Signal) -> Option<&'static str> {
+        let (lo, hi) = s.raw_range();
+        bounded_rounding(s, scaling(s), lo as f64, (hi + 1) as f64)
+    }
+
+    #[test]
+    fn the_range_check_decides_whether_the_raw_value_needs_its_own() {
+        use Encoding::{Signed, Unsigned};
+        // [-360, 360] / 0.01 = +-36000: beyond 16 signed bits, within 17.
+        assert_eq!(
+            rounding(&quantized(16, Signed, 0.01, 0.0, (-360.0, 360.0))),
+            None
+        );
+        assert_eq!(
+            rounding(&quantized(17, Signed, 0.01, 0.0, (-360.0, 360.0))),
+            Some("round_i32")
+        );
+        // The top of the range rounds to 256 (255.5 up): does not fit 8 bits.
+        assert_eq!(
+            rounding(&quantized(8, Unsigned, 1.0, 0.0, (0.0, 255.5))),
+            None
+        );
+        assert_eq!(
+            rounding(&quantized(8, Unsigned, 1.0, 0.0, (0.0, 255.4))),
+            Some("round_i32")
+        );
+        // Offset and a negative factor: raw = (v - 10) / -0.5, v in [-100, 10] -> [0, 220].
+        assert_eq!(
+            rounding(&quantized(8, Unsigned, -0.5, 10.0, (-100.0, 10.0))),
+            Some("round_i32")
+        );
+        assert_eq!(
+            rounding(&quantized(8, Unsigned, -0.5, 10.0, (-100.0, 10.5))),
+            None
+        );
+        // 32 unsigned bits need the 64-bit rounding.
+        assert_eq!(
+            rounding(&quantized(32, Unsigned, 0.001, 0.0, (0.0, 4_000_000.0))),
+            Some("round_i64")
+        );
+        // No range, or named values (which skip the range check): the raw value is checked.
+        let mut s = quantized(16, Unsigned, 0.1, 0.0, (0.0, 10.0));
+        s.min = None;
+        assert_eq!(rounding(&s), None);
+        let mut s = quantized(16, Unsigned, 0.1, 0.0, (0.0, 10.0));
+        s.value_labels.push((0, "Off".to_owned()));
+        assert_eq!(rounding(&s), None);
+    }
 }
