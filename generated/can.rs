@@ -1792,6 +1792,139 @@ impl CcmStatus {
         visitor.signal(&CCM_STATUS_SIGNALS[19], Value::from(v), None);
     }
 
+    /// Decodes a payload and calls `visitor` with every present signal's physical value, as
+    /// [`Self::decode`] and then [`Self::visit`] would, without building the message: the
+    /// values go from the payload straight to the visitor (an enum's as its raw number, which
+    /// is what `visit` hands on), so nothing is stored and read back.
+    pub fn decode_visit(data: &[u8], visitor: &mut impl SignalVisitor) -> Result<(), DecodeError> {
+        let data = runtime::payload::<8>(data, "CCM_Status")?;
+        let ccm_vehicle_state = bits::read_le(data, 0, 8) as u8;
+        let ccm_fault_over_current =
+            Self::ccm_fault_over_current_from_raw(bits::read_le(data, 8, 1) as u8);
+        let ccm_fault_under_voltage =
+            Self::ccm_fault_under_voltage_from_raw(bits::read_le(data, 9, 1) as u8);
+        let ccm_fault_over_temperature =
+            Self::ccm_fault_over_temperature_from_raw(bits::read_le(data, 10, 1) as u8);
+        let ccm_fault_apps = Self::ccm_fault_apps_from_raw(bits::read_le(data, 11, 1) as u8);
+        let ccm_fault_bse = Self::ccm_fault_bse_from_raw(bits::read_le(data, 12, 1) as u8);
+        let ccm_fault_bpps = Self::ccm_fault_bpps_from_raw(bits::read_le(data, 13, 1) as u8);
+        let ccm_fault_apps_brake_plausibility =
+            Self::ccm_fault_apps_brake_plausibility_from_raw(bits::read_le(data, 14, 1) as u8);
+        let ccm_fault_low_battery_voltage =
+            Self::ccm_fault_low_battery_voltage_from_raw(bits::read_le(data, 15, 1) as u8);
+        let ccm_schema_fingerprint =
+            Self::ccm_schema_fingerprint_from_raw(bits::read_le(data, 16, 32) as u32);
+        let ccm_rolling_counter =
+            Self::ccm_rolling_counter_from_raw(bits::read_le(data, 48, 4) as u8);
+        let ccm_ready_to_drive =
+            Self::ccm_ready_to_drive_from_raw(bits::read_le(data, 52, 1) as u8);
+        let ccm_fault_pedal_signal_lost =
+            Self::ccm_fault_pedal_signal_lost_from_raw(bits::read_le(data, 53, 1) as u8);
+        let ccm_fault_sensors_stale =
+            Self::ccm_fault_sensors_stale_from_raw(bits::read_le(data, 54, 1) as u8);
+        let ccm_fault_bms_timeout =
+            Self::ccm_fault_bms_timeout_from_raw(bits::read_le(data, 55, 1) as u8);
+        let ccm_fault_inverter_timeout =
+            Self::ccm_fault_inverter_timeout_from_raw(bits::read_le(data, 56, 1) as u8);
+        let ccm_fault_pcc_timeout =
+            Self::ccm_fault_pcc_timeout_from_raw(bits::read_le(data, 57, 1) as u8);
+        let ccm_fault_inverter_fault =
+            Self::ccm_fault_inverter_fault_from_raw(bits::read_le(data, 58, 1) as u8);
+        let ccm_fault_inverter_warning =
+            Self::ccm_fault_inverter_warning_from_raw(bits::read_le(data, 59, 1) as u8);
+        let ccm_fault_pcc_error =
+            Self::ccm_fault_pcc_error_from_raw(bits::read_le(data, 60, 1) as u8);
+        visitor.signal(
+            &CCM_STATUS_SIGNALS[0],
+            Value::from(ccm_vehicle_state),
+            VehicleState::from_raw(ccm_vehicle_state).label(),
+        );
+        visitor.signal(
+            &CCM_STATUS_SIGNALS[1],
+            Value::from(ccm_fault_over_current),
+            None,
+        );
+        visitor.signal(
+            &CCM_STATUS_SIGNALS[2],
+            Value::from(ccm_fault_under_voltage),
+            None,
+        );
+        visitor.signal(
+            &CCM_STATUS_SIGNALS[3],
+            Value::from(ccm_fault_over_temperature),
+            None,
+        );
+        visitor.signal(&CCM_STATUS_SIGNALS[4], Value::from(ccm_fault_apps), None);
+        visitor.signal(&CCM_STATUS_SIGNALS[5], Value::from(ccm_fault_bse), None);
+        visitor.signal(&CCM_STATUS_SIGNALS[6], Value::from(ccm_fault_bpps), None);
+        visitor.signal(
+            &CCM_STATUS_SIGNALS[7],
+            Value::from(ccm_fault_apps_brake_plausibility),
+            None,
+        );
+        visitor.signal(
+            &CCM_STATUS_SIGNALS[8],
+            Value::from(ccm_fault_low_battery_voltage),
+            None,
+        );
+        visitor.signal(
+            &CCM_STATUS_SIGNALS[9],
+            Value::from(ccm_schema_fingerprint),
+            None,
+        );
+        visitor.signal(
+            &CCM_STATUS_SIGNALS[10],
+            Value::from(ccm_rolling_counter),
+            None,
+        );
+        visitor.signal(
+            &CCM_STATUS_SIGNALS[11],
+            Value::from(ccm_ready_to_drive),
+            None,
+        );
+        visitor.signal(
+            &CCM_STATUS_SIGNALS[12],
+            Value::from(ccm_fault_pedal_signal_lost),
+            None,
+        );
+        visitor.signal(
+            &CCM_STATUS_SIGNALS[13],
+            Value::from(ccm_fault_sensors_stale),
+            None,
+        );
+        visitor.signal(
+            &CCM_STATUS_SIGNALS[14],
+            Value::from(ccm_fault_bms_timeout),
+            None,
+        );
+        visitor.signal(
+            &CCM_STATUS_SIGNALS[15],
+            Value::from(ccm_fault_inverter_timeout),
+            None,
+        );
+        visitor.signal(
+            &CCM_STATUS_SIGNALS[16],
+            Value::from(ccm_fault_pcc_timeout),
+            None,
+        );
+        visitor.signal(
+            &CCM_STATUS_SIGNALS[17],
+            Value::from(ccm_fault_inverter_fault),
+            None,
+        );
+        visitor.signal(
+            &CCM_STATUS_SIGNALS[18],
+            Value::from(ccm_fault_inverter_warning),
+            None,
+        );
+        visitor.signal(
+            &CCM_STATUS_SIGNALS[19],
+            Value::from(ccm_fault_pcc_error),
+            None,
+        );
+        Ok(())
+    }
+
     /// Builds the message from physical values looked up by signal.
     pub fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
         Ok(Self {
@@ -3032,6 +3165,84 @@ impl Vcu1 {
         visitor.signal(&VCU1_SIGNALS[17], Value::from(v), None);
     }
 
+    /// Decodes a payload and calls `visitor` with every present signal's physical value, as
+    /// [`Self::decode`] and then [`Self::visit`] would, without building the message: the
+    /// values go from the payload straight to the visitor (an enum's as its raw number, which
+    /// is what `visit` hands on), so nothing is stored and read back.
+    pub fn decode_visit(data: &[u8], visitor: &mut impl SignalVisitor) -> Result<(), DecodeError> {
+        let data = runtime::payload::<8>(data, "VCU1")?;
+        let vcu_torque_req = Self::vcu_torque_req_from_raw(bits::read_be(data, 0, 8) as u8);
+        let vcu_motor_spd_req = Self::vcu_motor_spd_req_from_raw(bits::read_be(data, 8, 16) as u16);
+        let vcu_authentication_status =
+            Self::vcu_authentication_status_from_raw(bits::read_be(data, 25, 2) as u8);
+        let vcu_change_gear_alarm =
+            Self::vcu_change_gear_alarm_from_raw(bits::read_be(data, 24, 1) as u8);
+        let vcu_vehicle_state = Self::vcu_vehicle_state_from_raw(bits::read_be(data, 39, 1) as u8);
+        let vcu_brake_pedal_sts =
+            Self::vcu_brake_pedal_sts_from_raw(bits::read_be(data, 37, 2) as u8);
+        let vcu_bms_main_relay_cmd =
+            Self::vcu_bms_main_relay_cmd_from_raw(bits::read_be(data, 36, 1) as u8);
+        let vcu_gear_lever_pos_sts = bits::read_be(data, 33, 3) as u8;
+        let vcu_gear_lever_pos_sts_f =
+            Self::vcu_gear_lever_pos_sts_f_from_raw(bits::read_be(data, 32, 1) as u8);
+        let vcu_ac_control_cmd =
+            Self::vcu_ac_control_cmd_from_raw(bits::read_be(data, 47, 1) as u8);
+        let vcu_work_mode = Self::vcu_work_mode_from_raw(bits::read_be(data, 46, 1) as u8);
+        let vcu_motor_mode = bits::read_be(data, 44, 2) as u8;
+        let vcu_warning_level = bits::read_be(data, 42, 2) as u8;
+        let vcu_key_position = bits::read_be(data, 40, 2) as u8;
+        let vcu_rolling_counter =
+            Self::vcu_rolling_counter_from_raw(bits::read_be(data, 52, 4) as u8);
+        let vcu_bms_aux_relay_cmd =
+            Self::vcu_bms_aux_relay_cmd_from_raw(bits::read_be(data, 51, 1) as u8);
+        let vcu_power_reduce_req =
+            Self::vcu_power_reduce_req_from_raw(bits::read_be(data, 48, 3) as u8);
+        let vcu_check_sum = Self::vcu_check_sum_from_raw(bits::read_be(data, 56, 8) as u8);
+        visitor.signal(&VCU1_SIGNALS[0], Value::from(vcu_torque_req), None);
+        visitor.signal(&VCU1_SIGNALS[1], Value::from(vcu_motor_spd_req), None);
+        visitor.signal(
+            &VCU1_SIGNALS[2],
+            Value::from(vcu_authentication_status),
+            None,
+        );
+        visitor.signal(&VCU1_SIGNALS[3], Value::from(vcu_change_gear_alarm), None);
+        visitor.signal(&VCU1_SIGNALS[4], Value::from(vcu_vehicle_state), None);
+        visitor.signal(&VCU1_SIGNALS[5], Value::from(vcu_brake_pedal_sts), None);
+        visitor.signal(&VCU1_SIGNALS[6], Value::from(vcu_bms_main_relay_cmd), None);
+        visitor.signal(
+            &VCU1_SIGNALS[7],
+            Value::from(vcu_gear_lever_pos_sts),
+            GearLeverPos::from_raw(vcu_gear_lever_pos_sts).label(),
+        );
+        visitor.signal(
+            &VCU1_SIGNALS[8],
+            Value::from(vcu_gear_lever_pos_sts_f),
+            None,
+        );
+        visitor.signal(&VCU1_SIGNALS[9], Value::from(vcu_ac_control_cmd), None);
+        visitor.signal(&VCU1_SIGNALS[10], Value::from(vcu_work_mode), None);
+        visitor.signal(
+            &VCU1_SIGNALS[11],
+            Value::from(vcu_motor_mode),
+            MotorMode::from_raw(vcu_motor_mode).label(),
+        );
+        visitor.signal(
+            &VCU1_SIGNALS[12],
+            Value::from(vcu_warning_level),
+            McuWarningLevel::from_raw(vcu_warning_level).label(),
+        );
+        visitor.signal(
+            &VCU1_SIGNALS[13],
+            Value::from(vcu_key_position),
+            KeyPosition::from_raw(vcu_key_position).label(),
+        );
+        visitor.signal(&VCU1_SIGNALS[14], Value::from(vcu_rolling_counter), None);
+        visitor.signal(&VCU1_SIGNALS[15], Value::from(vcu_bms_aux_relay_cmd), None);
+        visitor.signal(&VCU1_SIGNALS[16], Value::from(vcu_power_reduce_req), None);
+        visitor.signal(&VCU1_SIGNALS[17], Value::from(vcu_check_sum), None);
+        Ok(())
+    }
+
     /// Builds the message from physical values looked up by signal.
     pub fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
         Ok(Self {
@@ -3952,6 +4163,56 @@ impl Mcu1 {
         visitor.signal(&MCU1_SIGNALS[7], Value::from(v.into_raw()), v.label());
         let v = self.mcu_work_mode;
         visitor.signal(&MCU1_SIGNALS[8], Value::from(v.into_raw()), v.label());
+    }
+
+    /// Decodes a payload and calls `visitor` with every present signal's physical value, as
+    /// [`Self::decode`] and then [`Self::visit`] would, without building the message: the
+    /// values go from the payload straight to the visitor (an enum's as its raw number, which
+    /// is what `visit` hands on), so nothing is stored and read back.
+    pub fn decode_visit(data: &[u8], visitor: &mut impl SignalVisitor) -> Result<(), DecodeError> {
+        let data = runtime::payload::<8>(data, "MCU1")?;
+        let mcu_motor_speed = Self::mcu_motor_speed_from_raw(bits::read_be(data, 0, 16) as u16);
+        let mcu_actual_torque = Self::mcu_actual_torque_from_raw(bits::read_be(data, 16, 8) as u8);
+        let mcu_max_motor_torque =
+            Self::mcu_max_motor_torque_from_raw(bits::read_be(data, 24, 8) as u8);
+        let mcu_max_motor_brake_torque =
+            Self::mcu_max_motor_brake_torque_from_raw(bits::read_be(data, 32, 8) as u8);
+        let mcu_main_state = bits::read_be(data, 42, 3) as u8;
+        let mcu_rotate_direction = bits::read_be(data, 40, 2) as u8;
+        let mcu1_rolling_counter =
+            Self::mcu1_rolling_counter_from_raw(bits::read_be(data, 52, 4) as u8);
+        let mcu_motor_state = bits::read_be(data, 50, 2) as u8;
+        let mcu_work_mode = bits::read_be(data, 48, 2) as u8;
+        visitor.signal(&MCU1_SIGNALS[0], Value::from(mcu_motor_speed), None);
+        visitor.signal(&MCU1_SIGNALS[1], Value::from(mcu_actual_torque), None);
+        visitor.signal(&MCU1_SIGNALS[2], Value::from(mcu_max_motor_torque), None);
+        visitor.signal(
+            &MCU1_SIGNALS[3],
+            Value::from(mcu_max_motor_brake_torque),
+            None,
+        );
+        visitor.signal(
+            &MCU1_SIGNALS[4],
+            Value::from(mcu_main_state),
+            McuMainState::from_raw(mcu_main_state).label(),
+        );
+        visitor.signal(
+            &MCU1_SIGNALS[5],
+            Value::from(mcu_rotate_direction),
+            MotorRotateDirection::from_raw(mcu_rotate_direction).label(),
+        );
+        visitor.signal(&MCU1_SIGNALS[6], Value::from(mcu1_rolling_counter), None);
+        visitor.signal(
+            &MCU1_SIGNALS[7],
+            Value::from(mcu_motor_state),
+            MotorMode::from_raw(mcu_motor_state).label(),
+        );
+        visitor.signal(
+            &MCU1_SIGNALS[8],
+            Value::from(mcu_work_mode),
+            McuWorkMode::from_raw(mcu_work_mode).label(),
+        );
+        Ok(())
     }
 
     /// Builds the message from physical values looked up by signal.
@@ -4965,6 +5226,127 @@ impl Mcu2 {
         visitor.signal(&MCU2_SIGNALS[20], Value::from(v), None);
     }
 
+    /// Decodes a payload and calls `visitor` with every present signal's physical value, as
+    /// [`Self::decode`] and then [`Self::visit`] would, without building the message: the
+    /// values go from the payload straight to the visitor (an enum's as its raw number, which
+    /// is what `visit` hands on), so nothing is stored and read back.
+    pub fn decode_visit(data: &[u8], visitor: &mut impl SignalVisitor) -> Result<(), DecodeError> {
+        let data = runtime::payload::<8>(data, "MCU2")?;
+        let mcu_motor_temp = Self::mcu_motor_temp_from_raw(bits::read_be(data, 0, 8) as u8);
+        let mcu_inverter_temp = Self::mcu_inverter_temp_from_raw(bits::read_be(data, 8, 8) as u8);
+        let mcu_dc_main_wire_over_curr_fault =
+            Self::mcu_dc_main_wire_over_curr_fault_from_raw(bits::read_be(data, 23, 1) as u8);
+        let mcu_motor_phase_curr_fault =
+            Self::mcu_motor_phase_curr_fault_from_raw(bits::read_be(data, 22, 1) as u8);
+        let mcu_over_hot_fault =
+            Self::mcu_over_hot_fault_from_raw(bits::read_be(data, 21, 1) as u8);
+        let mcu_resolver_fault =
+            Self::mcu_resolver_fault_from_raw(bits::read_be(data, 20, 1) as u8);
+        let mcu_phase_curr_sensor_fault =
+            Self::mcu_phase_curr_sensor_fault_from_raw(bits::read_be(data, 19, 1) as u8);
+        let mcu_motor_over_spd_fault =
+            Self::mcu_motor_over_spd_fault_from_raw(bits::read_be(data, 18, 1) as u8);
+        let mcu_drv_motor_over_hot_fault =
+            Self::mcu_drv_motor_over_hot_fault_from_raw(bits::read_be(data, 17, 1) as u8);
+        let mcu_dc_main_wire_over_volt_fault =
+            Self::mcu_dc_main_wire_over_volt_fault_from_raw(bits::read_be(data, 16, 1) as u8);
+        let mcu_drv_motor_over_cool_fault =
+            Self::mcu_drv_motor_over_cool_fault_from_raw(bits::read_be(data, 31, 1) as u8);
+        let mcu_motor_system_state =
+            Self::mcu_motor_system_state_from_raw(bits::read_be(data, 30, 1) as u8);
+        let mcu_temp_sensor_state =
+            Self::mcu_temp_sensor_state_from_raw(bits::read_be(data, 29, 1) as u8);
+        let mcu_motor_temp_sensor_state =
+            Self::mcu_motor_temp_sensor_state_from_raw(bits::read_be(data, 28, 1) as u8);
+        let mcu_dc_volt_sensor_state =
+            Self::mcu_dc_volt_sensor_state_from_raw(bits::read_be(data, 27, 1) as u8);
+        let mcu_dc_low_volt_warning =
+            Self::mcu_dc_low_volt_warning_from_raw(bits::read_be(data, 26, 1) as u8);
+        let mcu_12v_low_volt_warning =
+            Self::mcu_12v_low_volt_warning_from_raw(bits::read_be(data, 25, 1) as u8);
+        let mcu2_rolling_counter =
+            Self::mcu2_rolling_counter_from_raw(bits::read_be(data, 52, 4) as u8);
+        let mcu_warning_level = bits::read_be(data, 50, 2) as u8;
+        let mcu_motor_open_phase_fault =
+            Self::mcu_motor_open_phase_fault_from_raw(bits::read_be(data, 49, 1) as u8);
+        let mcu_motor_stall_fault =
+            Self::mcu_motor_stall_fault_from_raw(bits::read_be(data, 48, 1) as u8);
+        visitor.signal(&MCU2_SIGNALS[0], Value::from(mcu_motor_temp), None);
+        visitor.signal(&MCU2_SIGNALS[1], Value::from(mcu_inverter_temp), None);
+        visitor.signal(
+            &MCU2_SIGNALS[2],
+            Value::from(mcu_dc_main_wire_over_curr_fault),
+            None,
+        );
+        visitor.signal(
+            &MCU2_SIGNALS[3],
+            Value::from(mcu_motor_phase_curr_fault),
+            None,
+        );
+        visitor.signal(&MCU2_SIGNALS[4], Value::from(mcu_over_hot_fault), None);
+        visitor.signal(&MCU2_SIGNALS[5], Value::from(mcu_resolver_fault), None);
+        visitor.signal(
+            &MCU2_SIGNALS[6],
+            Value::from(mcu_phase_curr_sensor_fault),
+            None,
+        );
+        visitor.signal(
+            &MCU2_SIGNALS[7],
+            Value::from(mcu_motor_over_spd_fault),
+            None,
+        );
+        visitor.signal(
+            &MCU2_SIGNALS[8],
+            Value::from(mcu_drv_motor_over_hot_fault),
+            None,
+        );
+        visitor.signal(
+            &MCU2_SIGNALS[9],
+            Value::from(mcu_dc_main_wire_over_volt_fault),
+            None,
+        );
+        visitor.signal(
+            &MCU2_SIGNALS[10],
+            Value::from(mcu_drv_motor_over_cool_fault),
+            None,
+        );
+        visitor.signal(&MCU2_SIGNALS[11], Value::from(mcu_motor_system_state), None);
+        visitor.signal(&MCU2_SIGNALS[12], Value::from(mcu_temp_sensor_state), None);
+        visitor.signal(
+            &MCU2_SIGNALS[13],
+            Value::from(mcu_motor_temp_sensor_state),
+            None,
+        );
+        visitor.signal(
+            &MCU2_SIGNALS[14],
+            Value::from(mcu_dc_volt_sensor_state),
+            None,
+        );
+        visitor.signal(
+            &MCU2_SIGNALS[15],
+            Value::from(mcu_dc_low_volt_warning),
+            None,
+        );
+        visitor.signal(
+            &MCU2_SIGNALS[16],
+            Value::from(mcu_12v_low_volt_warning),
+            None,
+        );
+        visitor.signal(&MCU2_SIGNALS[17], Value::from(mcu2_rolling_counter), None);
+        visitor.signal(
+            &MCU2_SIGNALS[18],
+            Value::from(mcu_warning_level),
+            McuWarningLevel::from_raw(mcu_warning_level).label(),
+        );
+        visitor.signal(
+            &MCU2_SIGNALS[19],
+            Value::from(mcu_motor_open_phase_fault),
+            None,
+        );
+        visitor.signal(&MCU2_SIGNALS[20], Value::from(mcu_motor_stall_fault), None);
+        Ok(())
+    }
+
     /// Builds the message from physical values looked up by signal.
     pub fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
         Ok(Self {
@@ -5762,6 +6144,25 @@ impl Mcu3 {
         visitor.signal(&MCU3_SIGNALS[2], Value::from(v), None);
     }
 
+    /// Decodes a payload and calls `visitor` with every present signal's physical value, as
+    /// [`Self::decode`] and then [`Self::visit`] would, without building the message: the
+    /// values go from the payload straight to the visitor (an enum's as its raw number, which
+    /// is what `visit` hands on), so nothing is stored and read back.
+    pub fn decode_visit(data: &[u8], visitor: &mut impl SignalVisitor) -> Result<(), DecodeError> {
+        let data = runtime::payload::<8>(data, "MCU3")?;
+        let mcu_dc_voltage = Self::mcu_dc_voltage_from_raw(bits::read_be(data, 0, 16) as u16);
+        let mcu_dc_current = Self::mcu_dc_current_from_raw(bits::sign_extend(
+            bits::read_be(data, 16, 16),
+            16,
+        ) as i16);
+        let mcu_phase_current =
+            Self::mcu_phase_current_from_raw(bits::read_be(data, 32, 16) as u16);
+        visitor.signal(&MCU3_SIGNALS[0], Value::from(mcu_dc_voltage), None);
+        visitor.signal(&MCU3_SIGNALS[1], Value::from(mcu_dc_current), None);
+        visitor.signal(&MCU3_SIGNALS[2], Value::from(mcu_phase_current), None);
+        Ok(())
+    }
+
     /// Builds the message from physical values looked up by signal.
     pub fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
         Ok(Self {
@@ -5977,6 +6378,25 @@ impl Bms1 {
         visitor.signal(&BMS1_SIGNALS[1], Value::from(v), None);
     }
 
+    /// Decodes a payload and calls `visitor` with every present signal's physical value, as
+    /// [`Self::decode`] and then [`Self::visit`] would, without building the message: the
+    /// values go from the payload straight to the visitor (an enum's as its raw number, which
+    /// is what `visit` hands on), so nothing is stored and read back.
+    pub fn decode_visit(data: &[u8], visitor: &mut impl SignalVisitor) -> Result<(), DecodeError> {
+        let data = runtime::payload::<8>(data, "BMS1")?;
+        let bms_precharge_relay_fb =
+            Self::bms_precharge_relay_fb_from_raw(bits::read_be(data, 29, 1) as u8);
+        let bms_precharge_finish_sts =
+            Self::bms_precharge_finish_sts_from_raw(bits::read_be(data, 27, 1) as u8);
+        visitor.signal(&BMS1_SIGNALS[0], Value::from(bms_precharge_relay_fb), None);
+        visitor.signal(
+            &BMS1_SIGNALS[1],
+            Value::from(bms_precharge_finish_sts),
+            None,
+        );
+        Ok(())
+    }
+
     /// Builds the message from physical values looked up by signal.
     pub fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
         Ok(Self {
@@ -6143,6 +6563,18 @@ impl Bms2 {
     pub fn visit(&self, visitor: &mut impl SignalVisitor) {
         let v = self.bms_allow_max_discharge;
         visitor.signal(&BMS2_SIGNALS[0], Value::from(v), None);
+    }
+
+    /// Decodes a payload and calls `visitor` with every present signal's physical value, as
+    /// [`Self::decode`] and then [`Self::visit`] would, without building the message: the
+    /// values go from the payload straight to the visitor (an enum's as its raw number, which
+    /// is what `visit` hands on), so nothing is stored and read back.
+    pub fn decode_visit(data: &[u8], visitor: &mut impl SignalVisitor) -> Result<(), DecodeError> {
+        let data = runtime::payload::<8>(data, "BMS2")?;
+        let bms_allow_max_discharge =
+            Self::bms_allow_max_discharge_from_raw(bits::read_be(data, 0, 16) as u16);
+        visitor.signal(&BMS2_SIGNALS[0], Value::from(bms_allow_max_discharge), None);
+        Ok(())
     }
 
     /// Builds the message from physical values looked up by signal.
@@ -6371,6 +6803,44 @@ impl OrionPackStatus {
         visitor.signal(&ORION_PACK_STATUS_SIGNALS[2], Value::from(v), None);
         let v = self.orion_relay_state;
         visitor.signal(&ORION_PACK_STATUS_SIGNALS[3], Value::from(v), None);
+    }
+
+    /// Decodes a payload and calls `visitor` with every present signal's physical value, as
+    /// [`Self::decode`] and then [`Self::visit`] would, without building the message: the
+    /// values go from the payload straight to the visitor (an enum's as its raw number, which
+    /// is what `visit` hands on), so nothing is stored and read back.
+    pub fn decode_visit(data: &[u8], visitor: &mut impl SignalVisitor) -> Result<(), DecodeError> {
+        let data = runtime::payload::<8>(data, "Orion_PackStatus")?;
+        let orion_pack_current = Self::orion_pack_current_from_raw(bits::sign_extend(
+            bits::read_be(data, 0, 16),
+            16,
+        ) as i16);
+        let orion_pack_inst_voltage =
+            Self::orion_pack_inst_voltage_from_raw(bits::read_be(data, 16, 16) as u16);
+        let orion_pack_soc = Self::orion_pack_soc_from_raw(bits::read_be(data, 32, 8) as u8);
+        let orion_relay_state =
+            Self::orion_relay_state_from_raw(bits::read_be(data, 40, 16) as u16);
+        visitor.signal(
+            &ORION_PACK_STATUS_SIGNALS[0],
+            Value::from(orion_pack_current),
+            None,
+        );
+        visitor.signal(
+            &ORION_PACK_STATUS_SIGNALS[1],
+            Value::from(orion_pack_inst_voltage),
+            None,
+        );
+        visitor.signal(
+            &ORION_PACK_STATUS_SIGNALS[2],
+            Value::from(orion_pack_soc),
+            None,
+        );
+        visitor.signal(
+            &ORION_PACK_STATUS_SIGNALS[3],
+            Value::from(orion_relay_state),
+            None,
+        );
+        Ok(())
     }
 
     /// Builds the message from physical values looked up by signal.
@@ -6686,6 +7156,37 @@ impl OrionLimits {
         visitor.signal(&ORION_LIMITS_SIGNALS[2], Value::from(v), None);
         let v = self.orion_low_temperature;
         visitor.signal(&ORION_LIMITS_SIGNALS[3], Value::from(v), None);
+    }
+
+    /// Decodes a payload and calls `visitor` with every present signal's physical value, as
+    /// [`Self::decode`] and then [`Self::visit`] would, without building the message: the
+    /// values go from the payload straight to the visitor (an enum's as its raw number, which
+    /// is what `visit` hands on), so nothing is stored and read back.
+    pub fn decode_visit(data: &[u8], visitor: &mut impl SignalVisitor) -> Result<(), DecodeError> {
+        let data = runtime::payload::<8>(data, "Orion_Limits")?;
+        let orion_pack_dcl = Self::orion_pack_dcl_from_raw(bits::read_be(data, 0, 16) as u16);
+        let orion_pack_ccl = Self::orion_pack_ccl_from_raw(bits::read_be(data, 16, 16) as u16);
+        let orion_high_temperature = Self::orion_high_temperature_from_raw(bits::sign_extend(
+            bits::read_be(data, 32, 8),
+            8,
+        ) as i8);
+        let orion_low_temperature = Self::orion_low_temperature_from_raw(bits::sign_extend(
+            bits::read_be(data, 40, 8),
+            8,
+        ) as i8);
+        visitor.signal(&ORION_LIMITS_SIGNALS[0], Value::from(orion_pack_dcl), None);
+        visitor.signal(&ORION_LIMITS_SIGNALS[1], Value::from(orion_pack_ccl), None);
+        visitor.signal(
+            &ORION_LIMITS_SIGNALS[2],
+            Value::from(orion_high_temperature),
+            None,
+        );
+        visitor.signal(
+            &ORION_LIMITS_SIGNALS[3],
+            Value::from(orion_low_temperature),
+            None,
+        );
+        Ok(())
     }
 
     /// Builds the message from physical values looked up by signal.
@@ -7010,6 +7511,42 @@ impl OrionCellVoltages {
         visitor.signal(&ORION_CELL_VOLTAGES_SIGNALS[2], Value::from(v), None);
         let v = self.orion_low_cell_id;
         visitor.signal(&ORION_CELL_VOLTAGES_SIGNALS[3], Value::from(v), None);
+    }
+
+    /// Decodes a payload and calls `visitor` with every present signal's physical value, as
+    /// [`Self::decode`] and then [`Self::visit`] would, without building the message: the
+    /// values go from the payload straight to the visitor (an enum's as its raw number, which
+    /// is what `visit` hands on), so nothing is stored and read back.
+    pub fn decode_visit(data: &[u8], visitor: &mut impl SignalVisitor) -> Result<(), DecodeError> {
+        let data = runtime::payload::<8>(data, "Orion_CellVoltages")?;
+        let orion_low_cell_voltage =
+            Self::orion_low_cell_voltage_from_raw(bits::read_be(data, 0, 16) as u16);
+        let orion_high_cell_voltage =
+            Self::orion_high_cell_voltage_from_raw(bits::read_be(data, 16, 16) as u16);
+        let orion_avg_cell_voltage =
+            Self::orion_avg_cell_voltage_from_raw(bits::read_be(data, 32, 16) as u16);
+        let orion_low_cell_id = Self::orion_low_cell_id_from_raw(bits::read_be(data, 48, 8) as u8);
+        visitor.signal(
+            &ORION_CELL_VOLTAGES_SIGNALS[0],
+            Value::from(orion_low_cell_voltage),
+            None,
+        );
+        visitor.signal(
+            &ORION_CELL_VOLTAGES_SIGNALS[1],
+            Value::from(orion_high_cell_voltage),
+            None,
+        );
+        visitor.signal(
+            &ORION_CELL_VOLTAGES_SIGNALS[2],
+            Value::from(orion_avg_cell_voltage),
+            None,
+        );
+        visitor.signal(
+            &ORION_CELL_VOLTAGES_SIGNALS[3],
+            Value::from(orion_low_cell_id),
+            None,
+        );
+        Ok(())
     }
 
     /// Builds the message from physical values looked up by signal.
@@ -7504,6 +8041,75 @@ impl PccStatus {
         visitor.signal(&PCC_STATUS_SIGNALS[7], Value::from(v), None);
         let v = self.pcc_precharge_progress;
         visitor.signal(&PCC_STATUS_SIGNALS[8], Value::from(v), None);
+    }
+
+    /// Decodes a payload and calls `visitor` with every present signal's physical value, as
+    /// [`Self::decode`] and then [`Self::visit`] would, without building the message: the
+    /// values go from the payload straight to the visitor (an enum's as its raw number, which
+    /// is what `visit` hands on), so nothing is stored and read back.
+    pub fn decode_visit(data: &[u8], visitor: &mut impl SignalVisitor) -> Result<(), DecodeError> {
+        let data = runtime::payload::<8>(data, "PCC_Status")?;
+        let pcc_state = bits::read_le(data, 0, 8) as u8;
+        let pcc_error_too_fast = Self::pcc_error_too_fast_from_raw(bits::read_le(data, 8, 1) as u8);
+        let pcc_error_too_slow = Self::pcc_error_too_slow_from_raw(bits::read_le(data, 9, 1) as u8);
+        let pcc_error_bms_timeout =
+            Self::pcc_error_bms_timeout_from_raw(bits::read_le(data, 10, 1) as u8);
+        let pcc_error_shutdown =
+            Self::pcc_error_shutdown_from_raw(bits::read_le(data, 11, 1) as u8);
+        let pcc_error_undefined_state =
+            Self::pcc_error_undefined_state_from_raw(bits::read_le(data, 15, 1) as u8);
+        let pcc_accumulator_voltage =
+            Self::pcc_accumulator_voltage_from_raw(bits::read_le(data, 16, 16) as u16);
+        let pcc_tractive_voltage =
+            Self::pcc_tractive_voltage_from_raw(bits::read_le(data, 32, 16) as u16);
+        let pcc_precharge_progress =
+            Self::pcc_precharge_progress_from_raw(bits::read_le(data, 48, 16) as u16);
+        visitor.signal(
+            &PCC_STATUS_SIGNALS[0],
+            Value::from(pcc_state),
+            PrechargeState::from_raw(pcc_state).label(),
+        );
+        visitor.signal(
+            &PCC_STATUS_SIGNALS[1],
+            Value::from(pcc_error_too_fast),
+            None,
+        );
+        visitor.signal(
+            &PCC_STATUS_SIGNALS[2],
+            Value::from(pcc_error_too_slow),
+            None,
+        );
+        visitor.signal(
+            &PCC_STATUS_SIGNALS[3],
+            Value::from(pcc_error_bms_timeout),
+            None,
+        );
+        visitor.signal(
+            &PCC_STATUS_SIGNALS[4],
+            Value::from(pcc_error_shutdown),
+            None,
+        );
+        visitor.signal(
+            &PCC_STATUS_SIGNALS[5],
+            Value::from(pcc_error_undefined_state),
+            None,
+        );
+        visitor.signal(
+            &PCC_STATUS_SIGNALS[6],
+            Value::from(pcc_accumulator_voltage),
+            None,
+        );
+        visitor.signal(
+            &PCC_STATUS_SIGNALS[7],
+            Value::from(pcc_tractive_voltage),
+            None,
+        );
+        visitor.signal(
+            &PCC_STATUS_SIGNALS[8],
+            Value::from(pcc_precharge_progress),
+            None,
+        );
+        Ok(())
     }
 
     /// Builds the message from physical values looked up by signal.
@@ -8282,6 +8888,114 @@ impl ImdInfoGeneral {
         );
     }
 
+    /// Decodes a payload and calls `visitor` with every present signal's physical value, as
+    /// [`Self::decode`] and then [`Self::visit`] would, without building the message: the
+    /// values go from the payload straight to the visitor (an enum's as its raw number, which
+    /// is what `visit` hands on), so nothing is stored and read back.
+    pub fn decode_visit(data: &[u8], visitor: &mut impl SignalVisitor) -> Result<(), DecodeError> {
+        let data = runtime::payload::<8>(data, "IMD_InfoGeneral")?;
+        let imd_r_iso_corrected =
+            Self::imd_r_iso_corrected_from_raw(bits::read_le(data, 0, 16) as u16);
+        let imd_r_iso_status = Self::imd_r_iso_status_from_raw(bits::read_le(data, 16, 8) as u8);
+        let imd_measurement_counter =
+            Self::imd_measurement_counter_from_raw(bits::read_le(data, 24, 8) as u8);
+        let imd_device_error = Self::imd_device_error_from_raw(bits::read_le(data, 32, 1) as u8);
+        let imd_hv_pos_connection_failure =
+            Self::imd_hv_pos_connection_failure_from_raw(bits::read_le(data, 33, 1) as u8);
+        let imd_hv_neg_connection_failure =
+            Self::imd_hv_neg_connection_failure_from_raw(bits::read_le(data, 34, 1) as u8);
+        let imd_earth_connection_failure =
+            Self::imd_earth_connection_failure_from_raw(bits::read_le(data, 35, 1) as u8);
+        let imd_iso_alarm = Self::imd_iso_alarm_from_raw(bits::read_le(data, 36, 1) as u8);
+        let imd_iso_warning = Self::imd_iso_warning_from_raw(bits::read_le(data, 37, 1) as u8);
+        let imd_iso_outdated = Self::imd_iso_outdated_from_raw(bits::read_le(data, 38, 1) as u8);
+        let imd_unbalance_alarm =
+            Self::imd_unbalance_alarm_from_raw(bits::read_le(data, 39, 1) as u8);
+        let imd_undervoltage_alarm =
+            Self::imd_undervoltage_alarm_from_raw(bits::read_le(data, 40, 1) as u8);
+        let imd_unsafe_to_start =
+            Self::imd_unsafe_to_start_from_raw(bits::read_le(data, 41, 1) as u8);
+        let imd_earthlift_open =
+            Self::imd_earthlift_open_from_raw(bits::read_le(data, 42, 1) as u8);
+        let imd_device_activity = bits::read_le(data, 48, 8) as u8;
+        visitor.signal(
+            &IMD_INFO_GENERAL_SIGNALS[0],
+            Value::from(imd_r_iso_corrected),
+            None,
+        );
+        visitor.signal(
+            &IMD_INFO_GENERAL_SIGNALS[1],
+            Value::from(imd_r_iso_status),
+            None,
+        );
+        visitor.signal(
+            &IMD_INFO_GENERAL_SIGNALS[2],
+            Value::from(imd_measurement_counter),
+            None,
+        );
+        visitor.signal(
+            &IMD_INFO_GENERAL_SIGNALS[3],
+            Value::from(imd_device_error),
+            None,
+        );
+        visitor.signal(
+            &IMD_INFO_GENERAL_SIGNALS[4],
+            Value::from(imd_hv_pos_connection_failure),
+            None,
+        );
+        visitor.signal(
+            &IMD_INFO_GENERAL_SIGNALS[5],
+            Value::from(imd_hv_neg_connection_failure),
+            None,
+        );
+        visitor.signal(
+            &IMD_INFO_GENERAL_SIGNALS[6],
+            Value::from(imd_earth_connection_failure),
+            None,
+        );
+        visitor.signal(
+            &IMD_INFO_GENERAL_SIGNALS[7],
+            Value::from(imd_iso_alarm),
+            None,
+        );
+        visitor.signal(
+            &IMD_INFO_GENERAL_SIGNALS[8],
+            Value::from(imd_iso_warning),
+            None,
+        );
+        visitor.signal(
+            &IMD_INFO_GENERAL_SIGNALS[9],
+            Value::from(imd_iso_outdated),
+            None,
+        );
+        visitor.signal(
+            &IMD_INFO_GENERAL_SIGNALS[10],
+            Value::from(imd_unbalance_alarm),
+            None,
+        );
+        visitor.signal(
+            &IMD_INFO_GENERAL_SIGNALS[11],
+            Value::from(imd_undervoltage_alarm),
+            None,
+        );
+        visitor.signal(
+            &IMD_INFO_GENERAL_SIGNALS[12],
+            Value::from(imd_unsafe_to_start),
+            None,
+        );
+        visitor.signal(
+            &IMD_INFO_GENERAL_SIGNALS[13],
+            Value::from(imd_earthlift_open),
+            None,
+        );
+        visitor.signal(
+            &IMD_INFO_GENERAL_SIGNALS[14],
+            Value::from(imd_device_activity),
+            ImdDeviceActivity::from_raw(imd_device_activity).label(),
+        );
+        Ok(())
+    }
+
     /// Builds the message from physical values looked up by signal.
     pub fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
         Ok(Self {
@@ -8959,6 +9673,49 @@ impl ImdInfoIsolationDetail {
         visitor.signal(&IMD_INFO_ISOLATION_DETAIL_SIGNALS[4], Value::from(v), None);
     }
 
+    /// Decodes a payload and calls `visitor` with every present signal's physical value, as
+    /// [`Self::decode`] and then [`Self::visit`] would, without building the message: the
+    /// values go from the payload straight to the visitor (an enum's as its raw number, which
+    /// is what `visit` hands on), so nothing is stored and read back.
+    pub fn decode_visit(data: &[u8], visitor: &mut impl SignalVisitor) -> Result<(), DecodeError> {
+        let data = runtime::payload::<8>(data, "IMD_InfoIsolationDetail")?;
+        let imd_r_iso_negative =
+            Self::imd_r_iso_negative_from_raw(bits::read_le(data, 0, 16) as u16);
+        let imd_r_iso_positive =
+            Self::imd_r_iso_positive_from_raw(bits::read_le(data, 16, 16) as u16);
+        let imd_r_iso_original =
+            Self::imd_r_iso_original_from_raw(bits::read_le(data, 32, 16) as u16);
+        let imd_iso_measurement_counter =
+            Self::imd_iso_measurement_counter_from_raw(bits::read_le(data, 48, 8) as u8);
+        let imd_iso_quality = Self::imd_iso_quality_from_raw(bits::read_le(data, 56, 8) as u8);
+        visitor.signal(
+            &IMD_INFO_ISOLATION_DETAIL_SIGNALS[0],
+            Value::from(imd_r_iso_negative),
+            None,
+        );
+        visitor.signal(
+            &IMD_INFO_ISOLATION_DETAIL_SIGNALS[1],
+            Value::from(imd_r_iso_positive),
+            None,
+        );
+        visitor.signal(
+            &IMD_INFO_ISOLATION_DETAIL_SIGNALS[2],
+            Value::from(imd_r_iso_original),
+            None,
+        );
+        visitor.signal(
+            &IMD_INFO_ISOLATION_DETAIL_SIGNALS[3],
+            Value::from(imd_iso_measurement_counter),
+            None,
+        );
+        visitor.signal(
+            &IMD_INFO_ISOLATION_DETAIL_SIGNALS[4],
+            Value::from(imd_iso_quality),
+            None,
+        );
+        Ok(())
+    }
+
     /// Builds the message from physical values looked up by signal.
     pub fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
         Ok(Self {
@@ -9337,6 +10094,50 @@ impl ImdInfoVoltage {
         visitor.signal(&IMD_INFO_VOLTAGE_SIGNALS[3], Value::from(v), None);
         let v = self.imd_voltage_quality;
         visitor.signal(&IMD_INFO_VOLTAGE_SIGNALS[4], Value::from(v), None);
+    }
+
+    /// Decodes a payload and calls `visitor` with every present signal's physical value, as
+    /// [`Self::decode`] and then [`Self::visit`] would, without building the message: the
+    /// values go from the payload straight to the visitor (an enum's as its raw number, which
+    /// is what `visit` hands on), so nothing is stored and read back.
+    pub fn decode_visit(data: &[u8], visitor: &mut impl SignalVisitor) -> Result<(), DecodeError> {
+        let data = runtime::payload::<8>(data, "IMD_InfoVoltage")?;
+        let imd_hv_system_voltage =
+            Self::imd_hv_system_voltage_from_raw(bits::read_le(data, 0, 16) as u16);
+        let imd_hv_neg_to_earth_voltage =
+            Self::imd_hv_neg_to_earth_voltage_from_raw(bits::read_le(data, 16, 16) as u16);
+        let imd_hv_pos_to_earth_voltage =
+            Self::imd_hv_pos_to_earth_voltage_from_raw(bits::read_le(data, 32, 16) as u16);
+        let imd_voltage_measurement_counter =
+            Self::imd_voltage_measurement_counter_from_raw(bits::read_le(data, 48, 8) as u8);
+        let imd_voltage_quality =
+            Self::imd_voltage_quality_from_raw(bits::read_le(data, 56, 8) as u8);
+        visitor.signal(
+            &IMD_INFO_VOLTAGE_SIGNALS[0],
+            Value::from(imd_hv_system_voltage),
+            None,
+        );
+        visitor.signal(
+            &IMD_INFO_VOLTAGE_SIGNALS[1],
+            Value::from(imd_hv_neg_to_earth_voltage),
+            None,
+        );
+        visitor.signal(
+            &IMD_INFO_VOLTAGE_SIGNALS[2],
+            Value::from(imd_hv_pos_to_earth_voltage),
+            None,
+        );
+        visitor.signal(
+            &IMD_INFO_VOLTAGE_SIGNALS[3],
+            Value::from(imd_voltage_measurement_counter),
+            None,
+        );
+        visitor.signal(
+            &IMD_INFO_VOLTAGE_SIGNALS[4],
+            Value::from(imd_voltage_quality),
+            None,
+        );
+        Ok(())
     }
 
     /// Builds the message from physical values looked up by signal.
@@ -9718,6 +10519,48 @@ impl ImdInfoItSystem {
         visitor.signal(&IMD_INFO_IT_SYSTEM_SIGNALS[4], Value::from(v), None);
     }
 
+    /// Decodes a payload and calls `visitor` with every present signal's physical value, as
+    /// [`Self::decode`] and then [`Self::visit`] would, without building the message: the
+    /// values go from the payload straight to the visitor (an enum's as its raw number, which
+    /// is what `visit` hands on), so nothing is stored and read back.
+    pub fn decode_visit(data: &[u8], visitor: &mut impl SignalVisitor) -> Result<(), DecodeError> {
+        let data = runtime::payload::<8>(data, "IMD_InfoItSystem")?;
+        let imd_capacity = Self::imd_capacity_from_raw(bits::read_le(data, 0, 16) as u16);
+        let imd_capacity_measurement_counter =
+            Self::imd_capacity_measurement_counter_from_raw(bits::read_le(data, 16, 8) as u8);
+        let imd_unbalance = Self::imd_unbalance_from_raw(bits::read_le(data, 24, 8) as u8);
+        let imd_unbalance_measurement_counter =
+            Self::imd_unbalance_measurement_counter_from_raw(bits::read_le(data, 32, 8) as u8);
+        let imd_voltage_frequency =
+            Self::imd_voltage_frequency_from_raw(bits::read_le(data, 40, 16) as u16);
+        visitor.signal(
+            &IMD_INFO_IT_SYSTEM_SIGNALS[0],
+            Value::from(imd_capacity),
+            None,
+        );
+        visitor.signal(
+            &IMD_INFO_IT_SYSTEM_SIGNALS[1],
+            Value::from(imd_capacity_measurement_counter),
+            None,
+        );
+        visitor.signal(
+            &IMD_INFO_IT_SYSTEM_SIGNALS[2],
+            Value::from(imd_unbalance),
+            None,
+        );
+        visitor.signal(
+            &IMD_INFO_IT_SYSTEM_SIGNALS[3],
+            Value::from(imd_unbalance_measurement_counter),
+            None,
+        );
+        visitor.signal(
+            &IMD_INFO_IT_SYSTEM_SIGNALS[4],
+            Value::from(imd_voltage_frequency),
+            None,
+        );
+        Ok(())
+    }
+
     /// Builds the message from physical values looked up by signal.
     pub fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
         Ok(Self {
@@ -9999,6 +10842,23 @@ impl ImdRequest {
         visitor.signal(&IMD_REQUEST_SIGNALS[1], Value::from(v), None);
     }
 
+    /// Decodes a payload and calls `visitor` with every present signal's physical value, as
+    /// [`Self::decode`] and then [`Self::visit`] would, without building the message: the
+    /// values go from the payload straight to the visitor (an enum's as its raw number, which
+    /// is what `visit` hands on), so nothing is stored and read back.
+    pub fn decode_visit(data: &[u8], visitor: &mut impl SignalVisitor) -> Result<(), DecodeError> {
+        let data = runtime::payload::<8>(data, "IMD_Request")?;
+        let imd_request_index = Self::imd_request_index_from_raw(bits::read_le(data, 0, 8) as u8);
+        let imd_request_data = Self::imd_request_data_from_raw(bits::read_le(data, 8, 32) as u32);
+        visitor.signal(
+            &IMD_REQUEST_SIGNALS[0],
+            Value::from(imd_request_index),
+            None,
+        );
+        visitor.signal(&IMD_REQUEST_SIGNALS[1], Value::from(imd_request_data), None);
+        Ok(())
+    }
+
     /// Builds the message from physical values looked up by signal.
     pub fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
         Ok(Self {
@@ -10167,6 +11027,24 @@ impl DtiSetCurrent {
         visitor.signal(&DTI_SET_CURRENT_SIGNALS[0], Value::from(v), None);
     }
 
+    /// Decodes a payload and calls `visitor` with every present signal's physical value, as
+    /// [`Self::decode`] and then [`Self::visit`] would, without building the message: the
+    /// values go from the payload straight to the visitor (an enum's as its raw number, which
+    /// is what `visit` hands on), so nothing is stored and read back.
+    pub fn decode_visit(data: &[u8], visitor: &mut impl SignalVisitor) -> Result<(), DecodeError> {
+        let data = runtime::payload::<2>(data, "DTI_SetCurrent")?;
+        let dti_current_cmd = Self::dti_current_cmd_from_raw(bits::sign_extend(
+            bits::read_be(data, 0, 16),
+            16,
+        ) as i16);
+        visitor.signal(
+            &DTI_SET_CURRENT_SIGNALS[0],
+            Value::from(dti_current_cmd),
+            None,
+        );
+        Ok(())
+    }
+
     /// Builds the message from physical values looked up by signal.
     pub fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
         Ok(Self {
@@ -10294,6 +11172,24 @@ impl DtiSetBrakeCurrent {
     pub fn visit(&self, visitor: &mut impl SignalVisitor) {
         let v = self.dti_brake_current_cmd;
         visitor.signal(&DTI_SET_BRAKE_CURRENT_SIGNALS[0], Value::from(v), None);
+    }
+
+    /// Decodes a payload and calls `visitor` with every present signal's physical value, as
+    /// [`Self::decode`] and then [`Self::visit`] would, without building the message: the
+    /// values go from the payload straight to the visitor (an enum's as its raw number, which
+    /// is what `visit` hands on), so nothing is stored and read back.
+    pub fn decode_visit(data: &[u8], visitor: &mut impl SignalVisitor) -> Result<(), DecodeError> {
+        let data = runtime::payload::<2>(data, "DTI_SetBrakeCurrent")?;
+        let dti_brake_current_cmd = Self::dti_brake_current_cmd_from_raw(bits::sign_extend(
+            bits::read_be(data, 0, 16),
+            16,
+        ) as i16);
+        visitor.signal(
+            &DTI_SET_BRAKE_CURRENT_SIGNALS[0],
+            Value::from(dti_brake_current_cmd),
+            None,
+        );
+        Ok(())
     }
 
     /// Builds the message from physical values looked up by signal.
@@ -10426,6 +11322,18 @@ impl DtiSetErpm {
     pub fn visit(&self, visitor: &mut impl SignalVisitor) {
         let v = self.dti_erpm_cmd;
         visitor.signal(&DTI_SET_ERPM_SIGNALS[0], Value::from(v), None);
+    }
+
+    /// Decodes a payload and calls `visitor` with every present signal's physical value, as
+    /// [`Self::decode`] and then [`Self::visit`] would, without building the message: the
+    /// values go from the payload straight to the visitor (an enum's as its raw number, which
+    /// is what `visit` hands on), so nothing is stored and read back.
+    pub fn decode_visit(data: &[u8], visitor: &mut impl SignalVisitor) -> Result<(), DecodeError> {
+        let data = runtime::payload::<4>(data, "DTI_SetErpm")?;
+        let dti_erpm_cmd =
+            Self::dti_erpm_cmd_from_raw(bits::sign_extend(bits::read_be(data, 0, 32), 32) as i32);
+        visitor.signal(&DTI_SET_ERPM_SIGNALS[0], Value::from(dti_erpm_cmd), None);
+        Ok(())
     }
 
     /// Builds the message from physical values looked up by signal.
@@ -10562,6 +11470,24 @@ impl DtiSetPosition {
         visitor.signal(&DTI_SET_POSITION_SIGNALS[0], Value::from(v), None);
     }
 
+    /// Decodes a payload and calls `visitor` with every present signal's physical value, as
+    /// [`Self::decode`] and then [`Self::visit`] would, without building the message: the
+    /// values go from the payload straight to the visitor (an enum's as its raw number, which
+    /// is what `visit` hands on), so nothing is stored and read back.
+    pub fn decode_visit(data: &[u8], visitor: &mut impl SignalVisitor) -> Result<(), DecodeError> {
+        let data = runtime::payload::<2>(data, "DTI_SetPosition")?;
+        let dti_position_cmd = Self::dti_position_cmd_from_raw(bits::sign_extend(
+            bits::read_be(data, 0, 16),
+            16,
+        ) as i16);
+        visitor.signal(
+            &DTI_SET_POSITION_SIGNALS[0],
+            Value::from(dti_position_cmd),
+            None,
+        );
+        Ok(())
+    }
+
     /// Builds the message from physical values looked up by signal.
     pub fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
         Ok(Self {
@@ -10689,6 +11615,24 @@ impl DtiSetRelativeCurrent {
     pub fn visit(&self, visitor: &mut impl SignalVisitor) {
         let v = self.dti_relative_current_cmd;
         visitor.signal(&DTI_SET_RELATIVE_CURRENT_SIGNALS[0], Value::from(v), None);
+    }
+
+    /// Decodes a payload and calls `visitor` with every present signal's physical value, as
+    /// [`Self::decode`] and then [`Self::visit`] would, without building the message: the
+    /// values go from the payload straight to the visitor (an enum's as its raw number, which
+    /// is what `visit` hands on), so nothing is stored and read back.
+    pub fn decode_visit(data: &[u8], visitor: &mut impl SignalVisitor) -> Result<(), DecodeError> {
+        let data = runtime::payload::<2>(data, "DTI_SetRelativeCurrent")?;
+        let dti_relative_current_cmd = Self::dti_relative_current_cmd_from_raw(bits::sign_extend(
+            bits::read_be(data, 0, 16),
+            16,
+        ) as i16);
+        visitor.signal(
+            &DTI_SET_RELATIVE_CURRENT_SIGNALS[0],
+            Value::from(dti_relative_current_cmd),
+            None,
+        );
+        Ok(())
     }
 
     /// Builds the message from physical values looked up by signal.
@@ -10829,6 +11773,23 @@ impl DtiSetRelativeBrakeCurrent {
             Value::from(v),
             None,
         );
+    }
+
+    /// Decodes a payload and calls `visitor` with every present signal's physical value, as
+    /// [`Self::decode`] and then [`Self::visit`] would, without building the message: the
+    /// values go from the payload straight to the visitor (an enum's as its raw number, which
+    /// is what `visit` hands on), so nothing is stored and read back.
+    pub fn decode_visit(data: &[u8], visitor: &mut impl SignalVisitor) -> Result<(), DecodeError> {
+        let data = runtime::payload::<2>(data, "DTI_SetRelativeBrakeCurrent")?;
+        let dti_relative_brake_current_cmd = Self::dti_relative_brake_current_cmd_from_raw(
+            bits::sign_extend(bits::read_be(data, 0, 16), 16) as i16,
+        );
+        visitor.signal(
+            &DTI_SET_RELATIVE_BRAKE_CURRENT_SIGNALS[0],
+            Value::from(dti_relative_brake_current_cmd),
+            None,
+        );
+        Ok(())
     }
 
     /// Builds the message from physical values looked up by signal.
@@ -11060,6 +12021,43 @@ impl DtiSetDigitalOutputs {
         visitor.signal(&DTI_SET_DIGITAL_OUTPUTS_SIGNALS[3], Value::from(v), None);
     }
 
+    /// Decodes a payload and calls `visitor` with every present signal's physical value, as
+    /// [`Self::decode`] and then [`Self::visit`] would, without building the message: the
+    /// values go from the payload straight to the visitor (an enum's as its raw number, which
+    /// is what `visit` hands on), so nothing is stored and read back.
+    pub fn decode_visit(data: &[u8], visitor: &mut impl SignalVisitor) -> Result<(), DecodeError> {
+        let data = runtime::payload::<1>(data, "DTI_SetDigitalOutputs")?;
+        let dti_digital_out1_cmd =
+            Self::dti_digital_out1_cmd_from_raw(bits::read_le(data, 0, 1) as u8);
+        let dti_digital_out2_cmd =
+            Self::dti_digital_out2_cmd_from_raw(bits::read_le(data, 1, 1) as u8);
+        let dti_digital_out3_cmd =
+            Self::dti_digital_out3_cmd_from_raw(bits::read_le(data, 2, 1) as u8);
+        let dti_digital_out4_cmd =
+            Self::dti_digital_out4_cmd_from_raw(bits::read_le(data, 3, 1) as u8);
+        visitor.signal(
+            &DTI_SET_DIGITAL_OUTPUTS_SIGNALS[0],
+            Value::from(dti_digital_out1_cmd),
+            None,
+        );
+        visitor.signal(
+            &DTI_SET_DIGITAL_OUTPUTS_SIGNALS[1],
+            Value::from(dti_digital_out2_cmd),
+            None,
+        );
+        visitor.signal(
+            &DTI_SET_DIGITAL_OUTPUTS_SIGNALS[2],
+            Value::from(dti_digital_out3_cmd),
+            None,
+        );
+        visitor.signal(
+            &DTI_SET_DIGITAL_OUTPUTS_SIGNALS[3],
+            Value::from(dti_digital_out4_cmd),
+            None,
+        );
+        Ok(())
+    }
+
     /// Builds the message from physical values looked up by signal.
     pub fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
         Ok(Self {
@@ -11285,6 +12283,24 @@ impl DtiSetMaxCurrentAc {
         visitor.signal(&DTI_SET_MAX_CURRENT_AC_SIGNALS[0], Value::from(v), None);
     }
 
+    /// Decodes a payload and calls `visitor` with every present signal's physical value, as
+    /// [`Self::decode`] and then [`Self::visit`] would, without building the message: the
+    /// values go from the payload straight to the visitor (an enum's as its raw number, which
+    /// is what `visit` hands on), so nothing is stored and read back.
+    pub fn decode_visit(data: &[u8], visitor: &mut impl SignalVisitor) -> Result<(), DecodeError> {
+        let data = runtime::payload::<2>(data, "DTI_SetMaxCurrentAc")?;
+        let dti_max_current_ac_cmd = Self::dti_max_current_ac_cmd_from_raw(bits::sign_extend(
+            bits::read_be(data, 0, 16),
+            16,
+        ) as i16);
+        visitor.signal(
+            &DTI_SET_MAX_CURRENT_AC_SIGNALS[0],
+            Value::from(dti_max_current_ac_cmd),
+            None,
+        );
+        Ok(())
+    }
+
     /// Builds the message from physical values looked up by signal.
     pub fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
         Ok(Self {
@@ -11424,6 +12440,23 @@ impl DtiSetMaxBrakeCurrentAc {
         );
     }
 
+    /// Decodes a payload and calls `visitor` with every present signal's physical value, as
+    /// [`Self::decode`] and then [`Self::visit`] would, without building the message: the
+    /// values go from the payload straight to the visitor (an enum's as its raw number, which
+    /// is what `visit` hands on), so nothing is stored and read back.
+    pub fn decode_visit(data: &[u8], visitor: &mut impl SignalVisitor) -> Result<(), DecodeError> {
+        let data = runtime::payload::<2>(data, "DTI_SetMaxBrakeCurrentAc")?;
+        let dti_max_brake_current_ac_cmd = Self::dti_max_brake_current_ac_cmd_from_raw(
+            bits::sign_extend(bits::read_be(data, 0, 16), 16) as i16,
+        );
+        visitor.signal(
+            &DTI_SET_MAX_BRAKE_CURRENT_AC_SIGNALS[0],
+            Value::from(dti_max_brake_current_ac_cmd),
+            None,
+        );
+        Ok(())
+    }
+
     /// Builds the message from physical values looked up by signal.
     pub fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
         Ok(Self {
@@ -11561,6 +12594,24 @@ impl DtiSetMaxCurrentDc {
     pub fn visit(&self, visitor: &mut impl SignalVisitor) {
         let v = self.dti_max_current_dc_cmd;
         visitor.signal(&DTI_SET_MAX_CURRENT_DC_SIGNALS[0], Value::from(v), None);
+    }
+
+    /// Decodes a payload and calls `visitor` with every present signal's physical value, as
+    /// [`Self::decode`] and then [`Self::visit`] would, without building the message: the
+    /// values go from the payload straight to the visitor (an enum's as its raw number, which
+    /// is what `visit` hands on), so nothing is stored and read back.
+    pub fn decode_visit(data: &[u8], visitor: &mut impl SignalVisitor) -> Result<(), DecodeError> {
+        let data = runtime::payload::<2>(data, "DTI_SetMaxCurrentDc")?;
+        let dti_max_current_dc_cmd = Self::dti_max_current_dc_cmd_from_raw(bits::sign_extend(
+            bits::read_be(data, 0, 16),
+            16,
+        ) as i16);
+        visitor.signal(
+            &DTI_SET_MAX_CURRENT_DC_SIGNALS[0],
+            Value::from(dti_max_current_dc_cmd),
+            None,
+        );
+        Ok(())
     }
 
     /// Builds the message from physical values looked up by signal.
@@ -11705,6 +12756,23 @@ impl DtiSetMaxBrakeCurrentDc {
         );
     }
 
+    /// Decodes a payload and calls `visitor` with every present signal's physical value, as
+    /// [`Self::decode`] and then [`Self::visit`] would, without building the message: the
+    /// values go from the payload straight to the visitor (an enum's as its raw number, which
+    /// is what `visit` hands on), so nothing is stored and read back.
+    pub fn decode_visit(data: &[u8], visitor: &mut impl SignalVisitor) -> Result<(), DecodeError> {
+        let data = runtime::payload::<2>(data, "DTI_SetMaxBrakeCurrentDc")?;
+        let dti_max_brake_current_dc_cmd = Self::dti_max_brake_current_dc_cmd_from_raw(
+            bits::sign_extend(bits::read_be(data, 0, 16), 16) as i16,
+        );
+        visitor.signal(
+            &DTI_SET_MAX_BRAKE_CURRENT_DC_SIGNALS[0],
+            Value::from(dti_max_brake_current_dc_cmd),
+            None,
+        );
+        Ok(())
+    }
+
     /// Builds the message from physical values looked up by signal.
     pub fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
         Ok(Self {
@@ -11846,6 +12914,21 @@ impl DtiSetDriveEnable {
             Value::from(v.into_raw()),
             v.label(),
         );
+    }
+
+    /// Decodes a payload and calls `visitor` with every present signal's physical value, as
+    /// [`Self::decode`] and then [`Self::visit`] would, without building the message: the
+    /// values go from the payload straight to the visitor (an enum's as its raw number, which
+    /// is what `visit` hands on), so nothing is stored and read back.
+    pub fn decode_visit(data: &[u8], visitor: &mut impl SignalVisitor) -> Result<(), DecodeError> {
+        let data = runtime::payload::<1>(data, "DTI_SetDriveEnable")?;
+        let dti_drive_enable_cmd = bits::read_le(data, 0, 8) as u8;
+        visitor.signal(
+            &DTI_SET_DRIVE_ENABLE_SIGNALS[0],
+            Value::from(dti_drive_enable_cmd),
+            DtiDriveEnable::from_raw(dti_drive_enable_cmd).label(),
+        );
+        Ok(())
     }
 
     /// Builds the message from physical values looked up by signal.
@@ -12087,6 +13170,35 @@ impl DtiControl {
         visitor.signal(&DTI_CONTROL_SIGNALS[2], Value::from(v), None);
         let v = self.dti_motor_still;
         visitor.signal(&DTI_CONTROL_SIGNALS[3], Value::from(v), None);
+    }
+
+    /// Decodes a payload and calls `visitor` with every present signal's physical value, as
+    /// [`Self::decode`] and then [`Self::visit`] would, without building the message: the
+    /// values go from the payload straight to the visitor (an enum's as its raw number, which
+    /// is what `visit` hands on), so nothing is stored and read back.
+    pub fn decode_visit(data: &[u8], visitor: &mut impl SignalVisitor) -> Result<(), DecodeError> {
+        let data = runtime::payload::<8>(data, "DTI_Control")?;
+        let dti_control_mode = bits::read_le(data, 0, 8) as u8;
+        let dti_target_iq =
+            Self::dti_target_iq_from_raw(bits::sign_extend(bits::read_be(data, 8, 16), 16) as i16);
+        let dti_motor_position = Self::dti_motor_position_from_raw(bits::sign_extend(
+            bits::read_be(data, 24, 16),
+            16,
+        ) as i16);
+        let dti_motor_still = Self::dti_motor_still_from_raw(bits::read_le(data, 40, 8) as u8);
+        visitor.signal(
+            &DTI_CONTROL_SIGNALS[0],
+            Value::from(dti_control_mode),
+            DtiControlMode::from_raw(dti_control_mode).label(),
+        );
+        visitor.signal(&DTI_CONTROL_SIGNALS[1], Value::from(dti_target_iq), None);
+        visitor.signal(
+            &DTI_CONTROL_SIGNALS[2],
+            Value::from(dti_motor_position),
+            None,
+        );
+        visitor.signal(&DTI_CONTROL_SIGNALS[3], Value::from(dti_motor_still), None);
+        Ok(())
     }
 
     /// Builds the message from physical values looked up by signal.
@@ -12372,6 +13484,28 @@ impl DtiSpeed {
         visitor.signal(&DTI_SPEED_SIGNALS[2], Value::from(v), None);
     }
 
+    /// Decodes a payload and calls `visitor` with every present signal's physical value, as
+    /// [`Self::decode`] and then [`Self::visit`] would, without building the message: the
+    /// values go from the payload straight to the visitor (an enum's as its raw number, which
+    /// is what `visit` hands on), so nothing is stored and read back.
+    pub fn decode_visit(data: &[u8], visitor: &mut impl SignalVisitor) -> Result<(), DecodeError> {
+        let data = runtime::payload::<8>(data, "DTI_Speed")?;
+        let dti_erpm =
+            Self::dti_erpm_from_raw(bits::sign_extend(bits::read_be(data, 0, 32), 32) as i32);
+        let dti_duty_cycle = Self::dti_duty_cycle_from_raw(bits::sign_extend(
+            bits::read_be(data, 32, 16),
+            16,
+        ) as i16);
+        let dti_input_voltage = Self::dti_input_voltage_from_raw(bits::sign_extend(
+            bits::read_be(data, 48, 16),
+            16,
+        ) as i16);
+        visitor.signal(&DTI_SPEED_SIGNALS[0], Value::from(dti_erpm), None);
+        visitor.signal(&DTI_SPEED_SIGNALS[1], Value::from(dti_duty_cycle), None);
+        visitor.signal(&DTI_SPEED_SIGNALS[2], Value::from(dti_input_voltage), None);
+        Ok(())
+    }
+
     /// Builds the message from physical values looked up by signal.
     pub fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
         Ok(Self {
@@ -12595,6 +13729,23 @@ impl DtiCurrents {
         visitor.signal(&DTI_CURRENTS_SIGNALS[0], Value::from(v), None);
         let v = self.dti_dc_current;
         visitor.signal(&DTI_CURRENTS_SIGNALS[1], Value::from(v), None);
+    }
+
+    /// Decodes a payload and calls `visitor` with every present signal's physical value, as
+    /// [`Self::decode`] and then [`Self::visit`] would, without building the message: the
+    /// values go from the payload straight to the visitor (an enum's as its raw number, which
+    /// is what `visit` hands on), so nothing is stored and read back.
+    pub fn decode_visit(data: &[u8], visitor: &mut impl SignalVisitor) -> Result<(), DecodeError> {
+        let data = runtime::payload::<8>(data, "DTI_Currents")?;
+        let dti_ac_current =
+            Self::dti_ac_current_from_raw(bits::sign_extend(bits::read_be(data, 0, 16), 16) as i16);
+        let dti_dc_current = Self::dti_dc_current_from_raw(bits::sign_extend(
+            bits::read_be(data, 16, 16),
+            16,
+        ) as i16);
+        visitor.signal(&DTI_CURRENTS_SIGNALS[0], Value::from(dti_ac_current), None);
+        visitor.signal(&DTI_CURRENTS_SIGNALS[1], Value::from(dti_dc_current), None);
+        Ok(())
     }
 
     /// Builds the message from physical values looked up by signal.
@@ -12836,6 +13987,39 @@ impl DtiTemperatures {
         );
     }
 
+    /// Decodes a payload and calls `visitor` with every present signal's physical value, as
+    /// [`Self::decode`] and then [`Self::visit`] would, without building the message: the
+    /// values go from the payload straight to the visitor (an enum's as its raw number, which
+    /// is what `visit` hands on), so nothing is stored and read back.
+    pub fn decode_visit(data: &[u8], visitor: &mut impl SignalVisitor) -> Result<(), DecodeError> {
+        let data = runtime::payload::<8>(data, "DTI_Temperatures")?;
+        let dti_controller_temp = Self::dti_controller_temp_from_raw(bits::sign_extend(
+            bits::read_be(data, 0, 16),
+            16,
+        ) as i16);
+        let dti_motor_temp = Self::dti_motor_temp_from_raw(bits::sign_extend(
+            bits::read_be(data, 16, 16),
+            16,
+        ) as i16);
+        let dti_fault_code = bits::read_le(data, 32, 8) as u8;
+        visitor.signal(
+            &DTI_TEMPERATURES_SIGNALS[0],
+            Value::from(dti_controller_temp),
+            None,
+        );
+        visitor.signal(
+            &DTI_TEMPERATURES_SIGNALS[1],
+            Value::from(dti_motor_temp),
+            None,
+        );
+        visitor.signal(
+            &DTI_TEMPERATURES_SIGNALS[2],
+            Value::from(dti_fault_code),
+            DtiFaultCode::from_raw(dti_fault_code).label(),
+        );
+        Ok(())
+    }
+
     /// Builds the message from physical values looked up by signal.
     pub fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
         Ok(Self {
@@ -13064,6 +14248,21 @@ impl DtiFocCurrents {
         visitor.signal(&DTI_FOC_CURRENTS_SIGNALS[0], Value::from(v), None);
         let v = self.dti_foc_iq;
         visitor.signal(&DTI_FOC_CURRENTS_SIGNALS[1], Value::from(v), None);
+    }
+
+    /// Decodes a payload and calls `visitor` with every present signal's physical value, as
+    /// [`Self::decode`] and then [`Self::visit`] would, without building the message: the
+    /// values go from the payload straight to the visitor (an enum's as its raw number, which
+    /// is what `visit` hands on), so nothing is stored and read back.
+    pub fn decode_visit(data: &[u8], visitor: &mut impl SignalVisitor) -> Result<(), DecodeError> {
+        let data = runtime::payload::<8>(data, "DTI_FocCurrents")?;
+        let dti_foc_id =
+            Self::dti_foc_id_from_raw(bits::sign_extend(bits::read_be(data, 0, 32), 32) as i32);
+        let dti_foc_iq =
+            Self::dti_foc_iq_from_raw(bits::sign_extend(bits::read_be(data, 32, 32), 32) as i32);
+        visitor.signal(&DTI_FOC_CURRENTS_SIGNALS[0], Value::from(dti_foc_id), None);
+        visitor.signal(&DTI_FOC_CURRENTS_SIGNALS[1], Value::from(dti_foc_iq), None);
+        Ok(())
     }
 
     /// Builds the message from physical values looked up by signal.
@@ -13900,6 +15099,114 @@ impl DtiFlags {
         visitor.signal(&DTI_FLAGS_SIGNALS[21], Value::from(v), None);
         let v = self.dti_can_map_version;
         visitor.signal(&DTI_FLAGS_SIGNALS[22], Value::from(v), None);
+    }
+
+    /// Decodes a payload and calls `visitor` with every present signal's physical value, as
+    /// [`Self::decode`] and then [`Self::visit`] would, without building the message: the
+    /// values go from the payload straight to the visitor (an enum's as its raw number, which
+    /// is what `visit` hands on), so nothing is stored and read back.
+    pub fn decode_visit(data: &[u8], visitor: &mut impl SignalVisitor) -> Result<(), DecodeError> {
+        let data = runtime::payload::<8>(data, "DTI_Flags")?;
+        let dti_throttle_input = Self::dti_throttle_input_from_raw(bits::sign_extend(
+            bits::read_le(data, 0, 8),
+            8,
+        ) as i8);
+        let dti_brake_input =
+            Self::dti_brake_input_from_raw(bits::sign_extend(bits::read_le(data, 8, 8), 8) as i8);
+        let dti_digital_in1 = Self::dti_digital_in1_from_raw(bits::read_le(data, 16, 1) as u8);
+        let dti_digital_in2 = Self::dti_digital_in2_from_raw(bits::read_le(data, 17, 1) as u8);
+        let dti_digital_in3 = Self::dti_digital_in3_from_raw(bits::read_le(data, 18, 1) as u8);
+        let dti_digital_in4 = Self::dti_digital_in4_from_raw(bits::read_le(data, 19, 1) as u8);
+        let dti_digital_out1 = Self::dti_digital_out1_from_raw(bits::read_le(data, 20, 1) as u8);
+        let dti_digital_out2 = Self::dti_digital_out2_from_raw(bits::read_le(data, 21, 1) as u8);
+        let dti_digital_out3 = Self::dti_digital_out3_from_raw(bits::read_le(data, 22, 1) as u8);
+        let dti_digital_out4 = Self::dti_digital_out4_from_raw(bits::read_le(data, 23, 1) as u8);
+        let dti_drive_enabled = bits::read_le(data, 24, 8) as u8;
+        let dti_limit_capacitor_temp =
+            Self::dti_limit_capacitor_temp_from_raw(bits::read_le(data, 32, 1) as u8);
+        let dti_limit_dc_current =
+            Self::dti_limit_dc_current_from_raw(bits::read_le(data, 33, 1) as u8);
+        let dti_limit_drive_enable =
+            Self::dti_limit_drive_enable_from_raw(bits::read_le(data, 34, 1) as u8);
+        let dti_limit_igbt_accel_temp =
+            Self::dti_limit_igbt_accel_temp_from_raw(bits::read_le(data, 35, 1) as u8);
+        let dti_limit_igbt_temp =
+            Self::dti_limit_igbt_temp_from_raw(bits::read_le(data, 36, 1) as u8);
+        let dti_limit_input_voltage =
+            Self::dti_limit_input_voltage_from_raw(bits::read_le(data, 37, 1) as u8);
+        let dti_limit_motor_accel_temp =
+            Self::dti_limit_motor_accel_temp_from_raw(bits::read_le(data, 38, 1) as u8);
+        let dti_limit_motor_temp =
+            Self::dti_limit_motor_temp_from_raw(bits::read_le(data, 39, 1) as u8);
+        let dti_limit_rpm_min = Self::dti_limit_rpm_min_from_raw(bits::read_le(data, 40, 1) as u8);
+        let dti_limit_rpm_max = Self::dti_limit_rpm_max_from_raw(bits::read_le(data, 41, 1) as u8);
+        let dti_limit_power = Self::dti_limit_power_from_raw(bits::read_le(data, 42, 1) as u8);
+        let dti_can_map_version =
+            Self::dti_can_map_version_from_raw(bits::read_le(data, 56, 8) as u8);
+        visitor.signal(&DTI_FLAGS_SIGNALS[0], Value::from(dti_throttle_input), None);
+        visitor.signal(&DTI_FLAGS_SIGNALS[1], Value::from(dti_brake_input), None);
+        visitor.signal(&DTI_FLAGS_SIGNALS[2], Value::from(dti_digital_in1), None);
+        visitor.signal(&DTI_FLAGS_SIGNALS[3], Value::from(dti_digital_in2), None);
+        visitor.signal(&DTI_FLAGS_SIGNALS[4], Value::from(dti_digital_in3), None);
+        visitor.signal(&DTI_FLAGS_SIGNALS[5], Value::from(dti_digital_in4), None);
+        visitor.signal(&DTI_FLAGS_SIGNALS[6], Value::from(dti_digital_out1), None);
+        visitor.signal(&DTI_FLAGS_SIGNALS[7], Value::from(dti_digital_out2), None);
+        visitor.signal(&DTI_FLAGS_SIGNALS[8], Value::from(dti_digital_out3), None);
+        visitor.signal(&DTI_FLAGS_SIGNALS[9], Value::from(dti_digital_out4), None);
+        visitor.signal(
+            &DTI_FLAGS_SIGNALS[10],
+            Value::from(dti_drive_enabled),
+            DtiDriveEnable::from_raw(dti_drive_enabled).label(),
+        );
+        visitor.signal(
+            &DTI_FLAGS_SIGNALS[11],
+            Value::from(dti_limit_capacitor_temp),
+            None,
+        );
+        visitor.signal(
+            &DTI_FLAGS_SIGNALS[12],
+            Value::from(dti_limit_dc_current),
+            None,
+        );
+        visitor.signal(
+            &DTI_FLAGS_SIGNALS[13],
+            Value::from(dti_limit_drive_enable),
+            None,
+        );
+        visitor.signal(
+            &DTI_FLAGS_SIGNALS[14],
+            Value::from(dti_limit_igbt_accel_temp),
+            None,
+        );
+        visitor.signal(
+            &DTI_FLAGS_SIGNALS[15],
+            Value::from(dti_limit_igbt_temp),
+            None,
+        );
+        visitor.signal(
+            &DTI_FLAGS_SIGNALS[16],
+            Value::from(dti_limit_input_voltage),
+            None,
+        );
+        visitor.signal(
+            &DTI_FLAGS_SIGNALS[17],
+            Value::from(dti_limit_motor_accel_temp),
+            None,
+        );
+        visitor.signal(
+            &DTI_FLAGS_SIGNALS[18],
+            Value::from(dti_limit_motor_temp),
+            None,
+        );
+        visitor.signal(&DTI_FLAGS_SIGNALS[19], Value::from(dti_limit_rpm_min), None);
+        visitor.signal(&DTI_FLAGS_SIGNALS[20], Value::from(dti_limit_rpm_max), None);
+        visitor.signal(&DTI_FLAGS_SIGNALS[21], Value::from(dti_limit_power), None);
+        visitor.signal(
+            &DTI_FLAGS_SIGNALS[22],
+            Value::from(dti_can_map_version),
+            None,
+        );
+        Ok(())
     }
 
     /// Builds the message from physical values looked up by signal.
@@ -14803,6 +16110,49 @@ impl DtiAcLimits {
         visitor.signal(&DTI_AC_LIMITS_SIGNALS[3], Value::from(v), None);
     }
 
+    /// Decodes a payload and calls `visitor` with every present signal's physical value, as
+    /// [`Self::decode`] and then [`Self::visit`] would, without building the message: the
+    /// values go from the payload straight to the visitor (an enum's as its raw number, which
+    /// is what `visit` hands on), so nothing is stored and read back.
+    pub fn decode_visit(data: &[u8], visitor: &mut impl SignalVisitor) -> Result<(), DecodeError> {
+        let data = runtime::payload::<8>(data, "DTI_AcLimits")?;
+        let dti_max_ac_current = Self::dti_max_ac_current_from_raw(bits::sign_extend(
+            bits::read_be(data, 0, 16),
+            16,
+        ) as i16);
+        let dti_available_max_ac_current = Self::dti_available_max_ac_current_from_raw(
+            bits::sign_extend(bits::read_be(data, 16, 16), 16) as i16,
+        );
+        let dti_min_ac_current = Self::dti_min_ac_current_from_raw(bits::sign_extend(
+            bits::read_be(data, 32, 16),
+            16,
+        ) as i16);
+        let dti_available_min_ac_current = Self::dti_available_min_ac_current_from_raw(
+            bits::sign_extend(bits::read_be(data, 48, 16), 16) as i16,
+        );
+        visitor.signal(
+            &DTI_AC_LIMITS_SIGNALS[0],
+            Value::from(dti_max_ac_current),
+            None,
+        );
+        visitor.signal(
+            &DTI_AC_LIMITS_SIGNALS[1],
+            Value::from(dti_available_max_ac_current),
+            None,
+        );
+        visitor.signal(
+            &DTI_AC_LIMITS_SIGNALS[2],
+            Value::from(dti_min_ac_current),
+            None,
+        );
+        visitor.signal(
+            &DTI_AC_LIMITS_SIGNALS[3],
+            Value::from(dti_available_min_ac_current),
+            None,
+        );
+        Ok(())
+    }
+
     /// Builds the message from physical values looked up by signal.
     pub fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
         Ok(Self {
@@ -15124,6 +16474,49 @@ impl DtiDcLimits {
         visitor.signal(&DTI_DC_LIMITS_SIGNALS[3], Value::from(v), None);
     }
 
+    /// Decodes a payload and calls `visitor` with every present signal's physical value, as
+    /// [`Self::decode`] and then [`Self::visit`] would, without building the message: the
+    /// values go from the payload straight to the visitor (an enum's as its raw number, which
+    /// is what `visit` hands on), so nothing is stored and read back.
+    pub fn decode_visit(data: &[u8], visitor: &mut impl SignalVisitor) -> Result<(), DecodeError> {
+        let data = runtime::payload::<8>(data, "DTI_DcLimits")?;
+        let dti_max_dc_current = Self::dti_max_dc_current_from_raw(bits::sign_extend(
+            bits::read_be(data, 0, 16),
+            16,
+        ) as i16);
+        let dti_available_max_dc_current = Self::dti_available_max_dc_current_from_raw(
+            bits::sign_extend(bits::read_be(data, 16, 16), 16) as i16,
+        );
+        let dti_min_dc_current = Self::dti_min_dc_current_from_raw(bits::sign_extend(
+            bits::read_be(data, 32, 16),
+            16,
+        ) as i16);
+        let dti_available_min_dc_current = Self::dti_available_min_dc_current_from_raw(
+            bits::sign_extend(bits::read_be(data, 48, 16), 16) as i16,
+        );
+        visitor.signal(
+            &DTI_DC_LIMITS_SIGNALS[0],
+            Value::from(dti_max_dc_current),
+            None,
+        );
+        visitor.signal(
+            &DTI_DC_LIMITS_SIGNALS[1],
+            Value::from(dti_available_max_dc_current),
+            None,
+        );
+        visitor.signal(
+            &DTI_DC_LIMITS_SIGNALS[2],
+            Value::from(dti_min_dc_current),
+            None,
+        );
+        visitor.signal(
+            &DTI_DC_LIMITS_SIGNALS[3],
+            Value::from(dti_available_min_dc_current),
+            None,
+        );
+        Ok(())
+    }
+
     /// Builds the message from physical values looked up by signal.
     pub fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
         Ok(Self {
@@ -15408,42 +16801,42 @@ impl AnyMessage {
         visitor: &mut impl SignalVisitor,
     ) -> Result<(), DecodeError> {
         match (id, extended) {
-            (0xA0, false) => CcmStatus::decode(data).map(|m| m.visit(visitor)),
-            (0x101, false) => Vcu1::decode(data).map(|m| m.visit(visitor)),
-            (0x105, false) => Mcu1::decode(data).map(|m| m.visit(visitor)),
-            (0x106, false) => Mcu2::decode(data).map(|m| m.visit(visitor)),
-            (0x107, false) => Mcu3::decode(data).map(|m| m.visit(visitor)),
-            (0x1A0, false) => Bms1::decode(data).map(|m| m.visit(visitor)),
-            (0x1A1, false) => Bms2::decode(data).map(|m| m.visit(visitor)),
-            (0x6B0, false) => OrionPackStatus::decode(data).map(|m| m.visit(visitor)),
-            (0x6B1, false) => OrionLimits::decode(data).map(|m| m.visit(visitor)),
-            (0x6B2, false) => OrionCellVoltages::decode(data).map(|m| m.visit(visitor)),
-            (0x222, false) => PccStatus::decode(data).map(|m| m.visit(visitor)),
-            (0x18FF01F4, true) => ImdInfoGeneral::decode(data).map(|m| m.visit(visitor)),
-            (0x18FF02F4, true) => ImdInfoIsolationDetail::decode(data).map(|m| m.visit(visitor)),
-            (0x18FF03F4, true) => ImdInfoVoltage::decode(data).map(|m| m.visit(visitor)),
-            (0x18FF04F4, true) => ImdInfoItSystem::decode(data).map(|m| m.visit(visitor)),
-            (0x18EFF417, true) => ImdRequest::decode(data).map(|m| m.visit(visitor)),
-            (0x141, true) => DtiSetCurrent::decode(data).map(|m| m.visit(visitor)),
-            (0x241, true) => DtiSetBrakeCurrent::decode(data).map(|m| m.visit(visitor)),
-            (0x341, true) => DtiSetErpm::decode(data).map(|m| m.visit(visitor)),
-            (0x441, true) => DtiSetPosition::decode(data).map(|m| m.visit(visitor)),
-            (0x541, true) => DtiSetRelativeCurrent::decode(data).map(|m| m.visit(visitor)),
-            (0x641, true) => DtiSetRelativeBrakeCurrent::decode(data).map(|m| m.visit(visitor)),
-            (0x741, true) => DtiSetDigitalOutputs::decode(data).map(|m| m.visit(visitor)),
-            (0x841, true) => DtiSetMaxCurrentAc::decode(data).map(|m| m.visit(visitor)),
-            (0x941, true) => DtiSetMaxBrakeCurrentAc::decode(data).map(|m| m.visit(visitor)),
-            (0xA41, true) => DtiSetMaxCurrentDc::decode(data).map(|m| m.visit(visitor)),
-            (0xB41, true) => DtiSetMaxBrakeCurrentDc::decode(data).map(|m| m.visit(visitor)),
-            (0xC41, true) => DtiSetDriveEnable::decode(data).map(|m| m.visit(visitor)),
-            (0x1F41, true) => DtiControl::decode(data).map(|m| m.visit(visitor)),
-            (0x2041, true) => DtiSpeed::decode(data).map(|m| m.visit(visitor)),
-            (0x2141, true) => DtiCurrents::decode(data).map(|m| m.visit(visitor)),
-            (0x2241, true) => DtiTemperatures::decode(data).map(|m| m.visit(visitor)),
-            (0x2341, true) => DtiFocCurrents::decode(data).map(|m| m.visit(visitor)),
-            (0x2441, true) => DtiFlags::decode(data).map(|m| m.visit(visitor)),
-            (0x2541, true) => DtiAcLimits::decode(data).map(|m| m.visit(visitor)),
-            (0x2641, true) => DtiDcLimits::decode(data).map(|m| m.visit(visitor)),
+            (0xA0, false) => CcmStatus::decode_visit(data, visitor),
+            (0x101, false) => Vcu1::decode_visit(data, visitor),
+            (0x105, false) => Mcu1::decode_visit(data, visitor),
+            (0x106, false) => Mcu2::decode_visit(data, visitor),
+            (0x107, false) => Mcu3::decode_visit(data, visitor),
+            (0x1A0, false) => Bms1::decode_visit(data, visitor),
+            (0x1A1, false) => Bms2::decode_visit(data, visitor),
+            (0x6B0, false) => OrionPackStatus::decode_visit(data, visitor),
+            (0x6B1, false) => OrionLimits::decode_visit(data, visitor),
+            (0x6B2, false) => OrionCellVoltages::decode_visit(data, visitor),
+            (0x222, false) => PccStatus::decode_visit(data, visitor),
+            (0x18FF01F4, true) => ImdInfoGeneral::decode_visit(data, visitor),
+            (0x18FF02F4, true) => ImdInfoIsolationDetail::decode_visit(data, visitor),
+            (0x18FF03F4, true) => ImdInfoVoltage::decode_visit(data, visitor),
+            (0x18FF04F4, true) => ImdInfoItSystem::decode_visit(data, visitor),
+            (0x18EFF417, true) => ImdRequest::decode_visit(data, visitor),
+            (0x141, true) => DtiSetCurrent::decode_visit(data, visitor),
+            (0x241, true) => DtiSetBrakeCurrent::decode_visit(data, visitor),
+            (0x341, true) => DtiSetErpm::decode_visit(data, visitor),
+            (0x441, true) => DtiSetPosition::decode_visit(data, visitor),
+            (0x541, true) => DtiSetRelativeCurrent::decode_visit(data, visitor),
+            (0x641, true) => DtiSetRelativeBrakeCurrent::decode_visit(data, visitor),
+            (0x741, true) => DtiSetDigitalOutputs::decode_visit(data, visitor),
+            (0x841, true) => DtiSetMaxCurrentAc::decode_visit(data, visitor),
+            (0x941, true) => DtiSetMaxBrakeCurrentAc::decode_visit(data, visitor),
+            (0xA41, true) => DtiSetMaxCurrentDc::decode_visit(data, visitor),
+            (0xB41, true) => DtiSetMaxBrakeCurrentDc::decode_visit(data, visitor),
+            (0xC41, true) => DtiSetDriveEnable::decode_visit(data, visitor),
+            (0x1F41, true) => DtiControl::decode_visit(data, visitor),
+            (0x2041, true) => DtiSpeed::decode_visit(data, visitor),
+            (0x2141, true) => DtiCurrents::decode_visit(data, visitor),
+            (0x2241, true) => DtiTemperatures::decode_visit(data, visitor),
+            (0x2341, true) => DtiFocCurrents::decode_visit(data, visitor),
+            (0x2441, true) => DtiFlags::decode_visit(data, visitor),
+            (0x2541, true) => DtiAcLimits::decode_visit(data, visitor),
+            (0x2641, true) => DtiDcLimits::decode_visit(data, visitor),
             _ => Err(DecodeError::UnknownId { id, extended }),
         }
     }
