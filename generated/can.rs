@@ -16947,9 +16947,10 @@ impl AnyMessage {
         }
     }
 
-    /// Encodes into `out`; returns the payload length.
+    /// Encodes into `out`; returns the payload length. The message is matched by reference:
+    /// a copy of it would cost a store and a load per field, and the call can be a tail call.
     pub fn encode(&self, out: &mut [u8]) -> Result<usize, EncodeError> {
-        match *self {
+        match self {
             Self::CcmStatus(m) => m.encode(out),
             Self::Vcu1(m) => m.encode(out),
             Self::Mcu1(m) => m.encode(out),
@@ -16991,7 +16992,7 @@ impl AnyMessage {
 
     /// Calls `visitor` with every present signal's physical value.
     pub fn visit(&self, visitor: &mut impl SignalVisitor) {
-        match *self {
+        match self {
             Self::CcmStatus(m) => m.visit(visitor),
             Self::Vcu1(m) => m.visit(visitor),
             Self::Mcu1(m) => m.visit(visitor),
@@ -17033,7 +17034,7 @@ impl AnyMessage {
 
     /// Encodes into an `embedded-can` frame.
     pub fn to_frame<F: embedded_can::Frame>(&self) -> Result<F, EncodeError> {
-        match *self {
+        match self {
             Self::CcmStatus(m) => m.to_frame(),
             Self::Vcu1(m) => m.to_frame(),
             Self::Mcu1(m) => m.to_frame(),

@@ -342,9 +342,10 @@ impl AnyMessage {
         }
     }
 
-    /// Encodes into `out`; returns the payload length.
+    /// Encodes into `out`; returns the payload length. The message is matched by reference:
+    /// a copy of it would cost a store and a load per field, and the call can be a tail call.
     pub fn encode(&self, {% if messages.is_empty() %}_out{% else %}out{% endif %}: &mut [u8]) -> Result<usize, EncodeError> {
-        match *self {
+        match {% if messages.is_empty() %}*self{% else %}self{% endif %} {
 {%- for m in messages %}
             Self::{{ m.type_name }}(m) => m.encode(out),
 {%- endfor %}
@@ -353,7 +354,7 @@ impl AnyMessage {
 
     /// Calls `visitor` with every present signal's physical value.
     pub fn visit(&self, {% if messages.is_empty() %}_visitor{% else %}visitor{% endif %}: &mut impl SignalVisitor) {
-        match *self {
+        match {% if messages.is_empty() %}*self{% else %}self{% endif %} {
 {%- for m in messages %}
             Self::{{ m.type_name }}(m) => m.visit(visitor),
 {%- endfor %}
@@ -362,7 +363,7 @@ impl AnyMessage {
 
     /// Encodes into an `embedded-can` frame.
     pub fn to_frame<F: embedded_can::Frame>(&self) -> Result<F, EncodeError> {
-        match *self {
+        match {% if messages.is_empty() %}*self{% else %}self{% endif %} {
 {%- for m in messages %}
             Self::{{ m.type_name }}(m) => m.to_frame(),
 {%- endfor %}
