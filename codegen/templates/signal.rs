@@ -286,9 +286,15 @@ EncodeError::OutOfRange { message: {{ s.message }}, signal: {{ s.name }} }
         Ok({{ scaling.invert("v") }})
 {%- endmatch -%}
 {%- when Conversion::Quantized { scaling, phys_to_f64, lo, hi, bounded, .. } %}
-{%- if let Some(round) = bounded %}
+{%- if let Some(b) = bounded %}
+{%- if let Some((bits_lo, bits_hi)) = b.bits %}
+        // The range check bounds the value for the integer rounding (shown when generated).
+        let raw = runtime::{{ b.round }}({{ scaling.invert(phys_to_f64.of("v")) }});
+        if ({{ bits_lo }}..{{ bits_hi }}).contains(&raw) { Ok(raw as {{ s.raw_ty }}) } else { Err({% call out_of_range(s) %}{% endcall %}) }
+{%- else %}
         // The range check keeps the raw value inside the signal's bits (shown when generated).
-        Ok(runtime::{{ round }}({{ scaling.invert(phys_to_f64.of("v")) }}) as {{ s.raw_ty }})
+        Ok(runtime::{{ b.round }}({{ scaling.invert(phys_to_f64.of("v")) }}) as {{ s.raw_ty }})
+{%- endif %}
 {%- else %}
         let raw = runtime::round({{ scaling.invert(phys_to_f64.of("v")) }});
         if ({{ lo }}..{{ hi }}).contains(&raw) { Ok(raw as {{ s.raw_ty }}) } else { Err({% call out_of_range(s) %}{% endcall %}) }
