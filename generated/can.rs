@@ -1792,6 +1792,139 @@ impl CcmStatus {
         visitor.signal(&CCM_STATUS_SIGNALS[19], Value::from(v), None);
     }
 
+    /// Decodes a payload and calls `visitor` with every present signal's physical value, as
+    /// [`Self::decode`] and then [`Self::visit`] would, without building the message: the
+    /// values go from the payload straight to the visitor (an enum's as its raw number, which
+    /// is what `visit` hands on), so nothing is stored and read back.
+    pub fn decode_visit(data: &[u8], visitor: &mut impl SignalVisitor) -> Result<(), DecodeError> {
+        let data = runtime::payload::<8>(data, "CCM_Status")?;
+        let ccm_vehicle_state = bits::read_le(data, 0, 8) as u8;
+        let ccm_fault_over_current =
+            Self::ccm_fault_over_current_from_raw(bits::read_le(data, 8, 1) as u8);
+        let ccm_fault_under_voltage =
+            Self::ccm_fault_under_voltage_from_raw(bits::read_le(data, 9, 1) as u8);
+        let ccm_fault_over_temperature =
+            Self::ccm_fault_over_temperature_from_raw(bits::read_le(data, 10, 1) as u8);
+        let ccm_fault_apps = Self::ccm_fault_apps_from_raw(bits::read_le(data, 11, 1) as u8);
+        let ccm_fault_bse = Self::ccm_fault_bse_from_raw(bits::read_le(data, 12, 1) as u8);
+        let ccm_fault_bpps = Self::ccm_fault_bpps_from_raw(bits::read_le(data, 13, 1) as u8);
+        let ccm_fault_apps_brake_plausibility =
+            Self::ccm_fault_apps_brake_plausibility_from_raw(bits::read_le(data, 14, 1) as u8);
+        let ccm_fault_low_battery_voltage =
+            Self::ccm_fault_low_battery_voltage_from_raw(bits::read_le(data, 15, 1) as u8);
+        let ccm_schema_fingerprint =
+            Self::ccm_schema_fingerprint_from_raw(bits::read_le(data, 16, 32) as u32);
+        let ccm_rolling_counter =
+            Self::ccm_rolling_counter_from_raw(bits::read_le(data, 48, 4) as u8);
+        let ccm_ready_to_drive =
+            Self::ccm_ready_to_drive_from_raw(bits::read_le(data, 52, 1) as u8);
+        let ccm_fault_pedal_signal_lost =
+            Self::ccm_fault_pedal_signal_lost_from_raw(bits::read_le(data, 53, 1) as u8);
+        let ccm_fault_sensors_stale =
+            Self::ccm_fault_sensors_stale_from_raw(bits::read_le(data, 54, 1) as u8);
+        let ccm_fault_bms_timeout =
+            Self::ccm_fault_bms_timeout_from_raw(bits::read_le(data, 55, 1) as u8);
+        let ccm_fault_inverter_timeout =
+            Self::ccm_fault_inverter_timeout_from_raw(bits::read_le(data, 56, 1) as u8);
+        let ccm_fault_pcc_timeout =
+            Self::ccm_fault_pcc_timeout_from_raw(bits::read_le(data, 57, 1) as u8);
+        let ccm_fault_inverter_fault =
+            Self::ccm_fault_inverter_fault_from_raw(bits::read_le(data, 58, 1) as u8);
+        let ccm_fault_inverter_warning =
+            Self::ccm_fault_inverter_warning_from_raw(bits::read_le(data, 59, 1) as u8);
+        let ccm_fault_pcc_error =
+            Self::ccm_fault_pcc_error_from_raw(bits::read_le(data, 60, 1) as u8);
+        visitor.signal(
+            &CCM_STATUS_SIGNALS[0],
+            Value::from(ccm_vehicle_state),
+            VehicleState::from_raw(ccm_vehicle_state).label(),
+        );
+        visitor.signal(
+            &CCM_STATUS_SIGNALS[1],
+            Value::from(ccm_fault_over_current),
+            None,
+        );
+        visitor.signal(
+            &CCM_STATUS_SIGNALS[2],
+            Value::from(ccm_fault_under_voltage),
+            None,
+        );
+        visitor.signal(
+            &CCM_STATUS_SIGNALS[3],
+            Value::from(ccm_fault_over_temperature),
+            None,
+        );
+        visitor.signal(&CCM_STATUS_SIGNALS[4], Value::from(ccm_fault_apps), None);
+        visitor.signal(&CCM_STATUS_SIGNALS[5], Value::from(ccm_fault_bse), None);
+        visitor.signal(&CCM_STATUS_SIGNALS[6], Value::from(ccm_fault_bpps), None);
+        visitor.signal(
+            &CCM_STATUS_SIGNALS[7],
+            Value::from(ccm_fault_apps_brake_plausibility),
+            None,
+        );
+        visitor.signal(
+            &CCM_STATUS_SIGNALS[8],
+            Value::from(ccm_fault_low_battery_voltage),
+            None,
+        );
+        visitor.signal(
+            &CCM_STATUS_SIGNALS[9],
+            Value::from(ccm_schema_fingerprint),
+            None,
+        );
+        visitor.signal(
+            &CCM_STATUS_SIGNALS[10],
+            Value::from(ccm_rolling_counter),
+            None,
+        );
+        visitor.signal(
+            &CCM_STATUS_SIGNALS[11],
+            Value::from(ccm_ready_to_drive),
+            None,
+        );
+        visitor.signal(
+            &CCM_STATUS_SIGNALS[12],
+            Value::from(ccm_fault_pedal_signal_lost),
+            None,
+        );
+        visitor.signal(
+            &CCM_STATUS_SIGNALS[13],
+            Value::from(ccm_fault_sensors_stale),
+            None,
+        );
+        visitor.signal(
+            &CCM_STATUS_SIGNALS[14],
+            Value::from(ccm_fault_bms_timeout),
+            None,
+        );
+        visitor.signal(
+            &CCM_STATUS_SIGNALS[15],
+            Value::from(ccm_fault_inverter_timeout),
+            None,
+        );
+        visitor.signal(
+            &CCM_STATUS_SIGNALS[16],
+            Value::from(ccm_fault_pcc_timeout),
+            None,
+        );
+        visitor.signal(
+            &CCM_STATUS_SIGNALS[17],
+            Value::from(ccm_fault_inverter_fault),
+            None,
+        );
+        visitor.signal(
+            &CCM_STATUS_SIGNALS[18],
+            Value::from(ccm_fault_inverter_warning),
+            None,
+        );
+        visitor.signal(
+            &CCM_STATUS_SIGNALS[19],
+            Value::from(ccm_fault_pcc_error),
+            None,
+        );
+        Ok(())
+    }
+
     /// Builds the message from physical values looked up by signal.
     pub fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
         Ok(Self {
@@ -3032,6 +3165,84 @@ impl Vcu1 {
         visitor.signal(&VCU1_SIGNALS[17], Value::from(v), None);
     }
 
+    /// Decodes a payload and calls `visitor` with every present signal's physical value, as
+    /// [`Self::decode`] and then [`Self::visit`] would, without building the message: the
+    /// values go from the payload straight to the visitor (an enum's as its raw number, which
+    /// is what `visit` hands on), so nothing is stored and read back.
+    pub fn decode_visit(data: &[u8], visitor: &mut impl SignalVisitor) -> Result<(), DecodeError> {
+        let data = runtime::payload::<8>(data, "VCU1")?;
+        let vcu_torque_req = Self::vcu_torque_req_from_raw(bits::read_be(data, 0, 8) as u8);
+        let vcu_motor_spd_req = Self::vcu_motor_spd_req_from_raw(bits::read_be(data, 8, 16) as u16);
+        let vcu_authentication_status =
+            Self::vcu_authentication_status_from_raw(bits::read_be(data, 25, 2) as u8);
+        let vcu_change_gear_alarm =
+            Self::vcu_change_gear_alarm_from_raw(bits::read_be(data, 24, 1) as u8);
+        let vcu_vehicle_state = Self::vcu_vehicle_state_from_raw(bits::read_be(data, 39, 1) as u8);
+        let vcu_brake_pedal_sts =
+            Self::vcu_brake_pedal_sts_from_raw(bits::read_be(data, 37, 2) as u8);
+        let vcu_bms_main_relay_cmd =
+            Self::vcu_bms_main_relay_cmd_from_raw(bits::read_be(data, 36, 1) as u8);
+        let vcu_gear_lever_pos_sts = bits::read_be(data, 33, 3) as u8;
+        let vcu_gear_lever_pos_sts_f =
+            Self::vcu_gear_lever_pos_sts_f_from_raw(bits::read_be(data, 32, 1) as u8);
+        let vcu_ac_control_cmd =
+            Self::vcu_ac_control_cmd_from_raw(bits::read_be(data, 47, 1) as u8);
+        let vcu_work_mode = Self::vcu_work_mode_from_raw(bits::read_be(data, 46, 1) as u8);
+        let vcu_motor_mode = bits::read_be(data, 44, 2) as u8;
+        let vcu_warning_level = bits::read_be(data, 42, 2) as u8;
+        let vcu_key_position = bits::read_be(data, 40, 2) as u8;
+        let vcu_rolling_counter =
+            Self::vcu_rolling_counter_from_raw(bits::read_be(data, 52, 4) as u8);
+        let vcu_bms_aux_relay_cmd =
+            Self::vcu_bms_aux_relay_cmd_from_raw(bits::read_be(data, 51, 1) as u8);
+        let vcu_power_reduce_req =
+            Self::vcu_power_reduce_req_from_raw(bits::read_be(data, 48, 3) as u8);
+        let vcu_check_sum = Self::vcu_check_sum_from_raw(bits::read_be(data, 56, 8) as u8);
+        visitor.signal(&VCU1_SIGNALS[0], Value::from(vcu_torque_req), None);
+        visitor.signal(&VCU1_SIGNALS[1], Value::from(vcu_motor_spd_req), None);
+        visitor.signal(
+            &VCU1_SIGNALS[2],
+            Value::from(vcu_authentication_status),
+            None,
+        );
+        visitor.signal(&VCU1_SIGNALS[3], Value::from(vcu_change_gear_alarm), None);
+        visitor.signal(&VCU1_SIGNALS[4], Value::from(vcu_vehicle_state), None);
+        visitor.signal(&VCU1_SIGNALS[5], Value::from(vcu_brake_pedal_sts), None);
+        visitor.signal(&VCU1_SIGNALS[6], Value::from(vcu_bms_main_relay_cmd), None);
+        visitor.signal(
+            &VCU1_SIGNALS[7],
+            Value::from(vcu_gear_lever_pos_sts),
+            GearLeverPos::from_raw(vcu_gear_lever_pos_sts).label(),
+        );
+        visitor.signal(
+            &VCU1_SIGNALS[8],
+            Value::from(vcu_gear_lever_pos_sts_f),
+            None,
+        );
+        visitor.signal(&VCU1_SIGNALS[9], Value::from(vcu_ac_control_cmd), None);
+        visitor.signal(&VCU1_SIGNALS[10], Value::from(vcu_work_mode), None);
+        visitor.signal(
+            &VCU1_SIGNALS[11],
+            Value::from(vcu_motor_mode),
+            MotorMode::from_raw(vcu_motor_mode).label(),
+        );
+        visitor.signal(
+            &VCU1_SIGNALS[12],
+            Value::from(vcu_warning_level),
+            McuWarningLevel::from_raw(vcu_warning_level).label(),
+        );
+        visitor.signal(
+            &VCU1_SIGNALS[13],
+            Value::from(vcu_key_position),
+            KeyPosition::from_raw(vcu_key_position).label(),
+        );
+        visitor.signal(&VCU1_SIGNALS[14], Value::from(vcu_rolling_counter), None);
+        visitor.signal(&VCU1_SIGNALS[15], Value::from(vcu_bms_aux_relay_cmd), None);
+        visitor.signal(&VCU1_SIGNALS[16], Value::from(vcu_power_reduce_req), None);
+        visitor.signal(&VCU1_SIGNALS[17], Value::from(vcu_check_sum), None);
+        Ok(())
+    }
+
     /// Builds the message from physical values looked up by signal.
     pub fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
         Ok(Self {
@@ -3277,15 +3488,8 @@ impl Vcu1 {
             "VCU1",
             "VCU_TorqueReq",
         )?;
-        let raw = runtime::round(v / 1.0192);
-        if (0.0..256.0).contains(&raw) {
-            Ok(raw as u8)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "VCU1",
-                signal: "VCU_TorqueReq",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 1.0192) as u8)
     }
 
     /// Physical value of `VCU_MotorSpdReq` for a raw value.
@@ -3961,6 +4165,56 @@ impl Mcu1 {
         visitor.signal(&MCU1_SIGNALS[8], Value::from(v.into_raw()), v.label());
     }
 
+    /// Decodes a payload and calls `visitor` with every present signal's physical value, as
+    /// [`Self::decode`] and then [`Self::visit`] would, without building the message: the
+    /// values go from the payload straight to the visitor (an enum's as its raw number, which
+    /// is what `visit` hands on), so nothing is stored and read back.
+    pub fn decode_visit(data: &[u8], visitor: &mut impl SignalVisitor) -> Result<(), DecodeError> {
+        let data = runtime::payload::<8>(data, "MCU1")?;
+        let mcu_motor_speed = Self::mcu_motor_speed_from_raw(bits::read_be(data, 0, 16) as u16);
+        let mcu_actual_torque = Self::mcu_actual_torque_from_raw(bits::read_be(data, 16, 8) as u8);
+        let mcu_max_motor_torque =
+            Self::mcu_max_motor_torque_from_raw(bits::read_be(data, 24, 8) as u8);
+        let mcu_max_motor_brake_torque =
+            Self::mcu_max_motor_brake_torque_from_raw(bits::read_be(data, 32, 8) as u8);
+        let mcu_main_state = bits::read_be(data, 42, 3) as u8;
+        let mcu_rotate_direction = bits::read_be(data, 40, 2) as u8;
+        let mcu1_rolling_counter =
+            Self::mcu1_rolling_counter_from_raw(bits::read_be(data, 52, 4) as u8);
+        let mcu_motor_state = bits::read_be(data, 50, 2) as u8;
+        let mcu_work_mode = bits::read_be(data, 48, 2) as u8;
+        visitor.signal(&MCU1_SIGNALS[0], Value::from(mcu_motor_speed), None);
+        visitor.signal(&MCU1_SIGNALS[1], Value::from(mcu_actual_torque), None);
+        visitor.signal(&MCU1_SIGNALS[2], Value::from(mcu_max_motor_torque), None);
+        visitor.signal(
+            &MCU1_SIGNALS[3],
+            Value::from(mcu_max_motor_brake_torque),
+            None,
+        );
+        visitor.signal(
+            &MCU1_SIGNALS[4],
+            Value::from(mcu_main_state),
+            McuMainState::from_raw(mcu_main_state).label(),
+        );
+        visitor.signal(
+            &MCU1_SIGNALS[5],
+            Value::from(mcu_rotate_direction),
+            MotorRotateDirection::from_raw(mcu_rotate_direction).label(),
+        );
+        visitor.signal(&MCU1_SIGNALS[6], Value::from(mcu1_rolling_counter), None);
+        visitor.signal(
+            &MCU1_SIGNALS[7],
+            Value::from(mcu_motor_state),
+            MotorMode::from_raw(mcu_motor_state).label(),
+        );
+        visitor.signal(
+            &MCU1_SIGNALS[8],
+            Value::from(mcu_work_mode),
+            McuWorkMode::from_raw(mcu_work_mode).label(),
+        );
+        Ok(())
+    }
+
     /// Builds the message from physical values looked up by signal.
     pub fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
         Ok(Self {
@@ -4091,15 +4345,8 @@ impl Mcu1 {
     /// Raw value of `MCU_MotorSpeed` for a physical value, range-checked.
     pub fn mcu_motor_speed_to_raw(v: f64) -> Result<u16, EncodeError> {
         runtime::check_range(v, 0.0, 16383.75, 2.5e-7, "MCU1", "MCU_MotorSpeed")?;
-        let raw = runtime::round(v / 0.25);
-        if (0.0..65536.0).contains(&raw) {
-            Ok(raw as u16)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "MCU1",
-                signal: "MCU_MotorSpeed",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 0.25) as u16)
     }
 
     /// Physical value of `MCU_ActualTorque` for a raw value.
@@ -4117,15 +4364,8 @@ impl Mcu1 {
             "MCU1",
             "MCU_ActualTorque",
         )?;
-        let raw = runtime::round(v / 1.0192);
-        if (0.0..256.0).contains(&raw) {
-            Ok(raw as u8)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "MCU1",
-                signal: "MCU_ActualTorque",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 1.0192) as u8)
     }
 
     /// Physical value of `MCU_MaxMotorTorque` for a raw value.
@@ -4143,15 +4383,8 @@ impl Mcu1 {
             "MCU1",
             "MCU_MaxMotorTorque",
         )?;
-        let raw = runtime::round(v / 1.0192);
-        if (0.0..256.0).contains(&raw) {
-            Ok(raw as u8)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "MCU1",
-                signal: "MCU_MaxMotorTorque",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 1.0192) as u8)
     }
 
     /// Physical value of `MCU_MaxMotorBrakeTorque` for a raw value.
@@ -4169,15 +4402,8 @@ impl Mcu1 {
             "MCU1",
             "MCU_MaxMotorBrakeTorque",
         )?;
-        let raw = runtime::round(v / 1.0192);
-        if (0.0..256.0).contains(&raw) {
-            Ok(raw as u8)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "MCU1",
-                signal: "MCU_MaxMotorBrakeTorque",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 1.0192) as u8)
     }
 
     /// Physical value of `MCU_MainState` for a raw value.
@@ -5000,6 +5226,127 @@ impl Mcu2 {
         visitor.signal(&MCU2_SIGNALS[20], Value::from(v), None);
     }
 
+    /// Decodes a payload and calls `visitor` with every present signal's physical value, as
+    /// [`Self::decode`] and then [`Self::visit`] would, without building the message: the
+    /// values go from the payload straight to the visitor (an enum's as its raw number, which
+    /// is what `visit` hands on), so nothing is stored and read back.
+    pub fn decode_visit(data: &[u8], visitor: &mut impl SignalVisitor) -> Result<(), DecodeError> {
+        let data = runtime::payload::<8>(data, "MCU2")?;
+        let mcu_motor_temp = Self::mcu_motor_temp_from_raw(bits::read_be(data, 0, 8) as u8);
+        let mcu_inverter_temp = Self::mcu_inverter_temp_from_raw(bits::read_be(data, 8, 8) as u8);
+        let mcu_dc_main_wire_over_curr_fault =
+            Self::mcu_dc_main_wire_over_curr_fault_from_raw(bits::read_be(data, 23, 1) as u8);
+        let mcu_motor_phase_curr_fault =
+            Self::mcu_motor_phase_curr_fault_from_raw(bits::read_be(data, 22, 1) as u8);
+        let mcu_over_hot_fault =
+            Self::mcu_over_hot_fault_from_raw(bits::read_be(data, 21, 1) as u8);
+        let mcu_resolver_fault =
+            Self::mcu_resolver_fault_from_raw(bits::read_be(data, 20, 1) as u8);
+        let mcu_phase_curr_sensor_fault =
+            Self::mcu_phase_curr_sensor_fault_from_raw(bits::read_be(data, 19, 1) as u8);
+        let mcu_motor_over_spd_fault =
+            Self::mcu_motor_over_spd_fault_from_raw(bits::read_be(data, 18, 1) as u8);
+        let mcu_drv_motor_over_hot_fault =
+            Self::mcu_drv_motor_over_hot_fault_from_raw(bits::read_be(data, 17, 1) as u8);
+        let mcu_dc_main_wire_over_volt_fault =
+            Self::mcu_dc_main_wire_over_volt_fault_from_raw(bits::read_be(data, 16, 1) as u8);
+        let mcu_drv_motor_over_cool_fault =
+            Self::mcu_drv_motor_over_cool_fault_from_raw(bits::read_be(data, 31, 1) as u8);
+        let mcu_motor_system_state =
+            Self::mcu_motor_system_state_from_raw(bits::read_be(data, 30, 1) as u8);
+        let mcu_temp_sensor_state =
+            Self::mcu_temp_sensor_state_from_raw(bits::read_be(data, 29, 1) as u8);
+        let mcu_motor_temp_sensor_state =
+            Self::mcu_motor_temp_sensor_state_from_raw(bits::read_be(data, 28, 1) as u8);
+        let mcu_dc_volt_sensor_state =
+            Self::mcu_dc_volt_sensor_state_from_raw(bits::read_be(data, 27, 1) as u8);
+        let mcu_dc_low_volt_warning =
+            Self::mcu_dc_low_volt_warning_from_raw(bits::read_be(data, 26, 1) as u8);
+        let mcu_12v_low_volt_warning =
+            Self::mcu_12v_low_volt_warning_from_raw(bits::read_be(data, 25, 1) as u8);
+        let mcu2_rolling_counter =
+            Self::mcu2_rolling_counter_from_raw(bits::read_be(data, 52, 4) as u8);
+        let mcu_warning_level = bits::read_be(data, 50, 2) as u8;
+        let mcu_motor_open_phase_fault =
+            Self::mcu_motor_open_phase_fault_from_raw(bits::read_be(data, 49, 1) as u8);
+        let mcu_motor_stall_fault =
+            Self::mcu_motor_stall_fault_from_raw(bits::read_be(data, 48, 1) as u8);
+        visitor.signal(&MCU2_SIGNALS[0], Value::from(mcu_motor_temp), None);
+        visitor.signal(&MCU2_SIGNALS[1], Value::from(mcu_inverter_temp), None);
+        visitor.signal(
+            &MCU2_SIGNALS[2],
+            Value::from(mcu_dc_main_wire_over_curr_fault),
+            None,
+        );
+        visitor.signal(
+            &MCU2_SIGNALS[3],
+            Value::from(mcu_motor_phase_curr_fault),
+            None,
+        );
+        visitor.signal(&MCU2_SIGNALS[4], Value::from(mcu_over_hot_fault), None);
+        visitor.signal(&MCU2_SIGNALS[5], Value::from(mcu_resolver_fault), None);
+        visitor.signal(
+            &MCU2_SIGNALS[6],
+            Value::from(mcu_phase_curr_sensor_fault),
+            None,
+        );
+        visitor.signal(
+            &MCU2_SIGNALS[7],
+            Value::from(mcu_motor_over_spd_fault),
+            None,
+        );
+        visitor.signal(
+            &MCU2_SIGNALS[8],
+            Value::from(mcu_drv_motor_over_hot_fault),
+            None,
+        );
+        visitor.signal(
+            &MCU2_SIGNALS[9],
+            Value::from(mcu_dc_main_wire_over_volt_fault),
+            None,
+        );
+        visitor.signal(
+            &MCU2_SIGNALS[10],
+            Value::from(mcu_drv_motor_over_cool_fault),
+            None,
+        );
+        visitor.signal(&MCU2_SIGNALS[11], Value::from(mcu_motor_system_state), None);
+        visitor.signal(&MCU2_SIGNALS[12], Value::from(mcu_temp_sensor_state), None);
+        visitor.signal(
+            &MCU2_SIGNALS[13],
+            Value::from(mcu_motor_temp_sensor_state),
+            None,
+        );
+        visitor.signal(
+            &MCU2_SIGNALS[14],
+            Value::from(mcu_dc_volt_sensor_state),
+            None,
+        );
+        visitor.signal(
+            &MCU2_SIGNALS[15],
+            Value::from(mcu_dc_low_volt_warning),
+            None,
+        );
+        visitor.signal(
+            &MCU2_SIGNALS[16],
+            Value::from(mcu_12v_low_volt_warning),
+            None,
+        );
+        visitor.signal(&MCU2_SIGNALS[17], Value::from(mcu2_rolling_counter), None);
+        visitor.signal(
+            &MCU2_SIGNALS[18],
+            Value::from(mcu_warning_level),
+            McuWarningLevel::from_raw(mcu_warning_level).label(),
+        );
+        visitor.signal(
+            &MCU2_SIGNALS[19],
+            Value::from(mcu_motor_open_phase_fault),
+            None,
+        );
+        visitor.signal(&MCU2_SIGNALS[20], Value::from(mcu_motor_stall_fault), None);
+        Ok(())
+    }
+
     /// Builds the message from physical values looked up by signal.
     pub fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
         Ok(Self {
@@ -5797,6 +6144,25 @@ impl Mcu3 {
         visitor.signal(&MCU3_SIGNALS[2], Value::from(v), None);
     }
 
+    /// Decodes a payload and calls `visitor` with every present signal's physical value, as
+    /// [`Self::decode`] and then [`Self::visit`] would, without building the message: the
+    /// values go from the payload straight to the visitor (an enum's as its raw number, which
+    /// is what `visit` hands on), so nothing is stored and read back.
+    pub fn decode_visit(data: &[u8], visitor: &mut impl SignalVisitor) -> Result<(), DecodeError> {
+        let data = runtime::payload::<8>(data, "MCU3")?;
+        let mcu_dc_voltage = Self::mcu_dc_voltage_from_raw(bits::read_be(data, 0, 16) as u16);
+        let mcu_dc_current = Self::mcu_dc_current_from_raw(bits::sign_extend(
+            bits::read_be(data, 16, 16),
+            16,
+        ) as i16);
+        let mcu_phase_current =
+            Self::mcu_phase_current_from_raw(bits::read_be(data, 32, 16) as u16);
+        visitor.signal(&MCU3_SIGNALS[0], Value::from(mcu_dc_voltage), None);
+        visitor.signal(&MCU3_SIGNALS[1], Value::from(mcu_dc_current), None);
+        visitor.signal(&MCU3_SIGNALS[2], Value::from(mcu_phase_current), None);
+        Ok(())
+    }
+
     /// Builds the message from physical values looked up by signal.
     pub fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
         Ok(Self {
@@ -5847,15 +6213,8 @@ impl Mcu3 {
     /// Raw value of `MCU_DcVoltage` for a physical value, range-checked.
     pub fn mcu_dc_voltage_to_raw(v: f64) -> Result<u16, EncodeError> {
         runtime::check_range(v, 0.0, 655.35, 1e-8, "MCU3", "MCU_DcVoltage")?;
-        let raw = runtime::round(v / 0.01);
-        if (0.0..65536.0).contains(&raw) {
-            Ok(raw as u16)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "MCU3",
-                signal: "MCU_DcVoltage",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 0.01) as u16)
     }
 
     /// Physical value of `MCU_DcCurrent` for a raw value.
@@ -5866,15 +6225,8 @@ impl Mcu3 {
     /// Raw value of `MCU_DcCurrent` for a physical value, range-checked.
     pub fn mcu_dc_current_to_raw(v: f64) -> Result<i16, EncodeError> {
         runtime::check_range(v, -327.68, 327.67, 1e-8, "MCU3", "MCU_DcCurrent")?;
-        let raw = runtime::round(v / 0.01);
-        if (-32768.0..32768.0).contains(&raw) {
-            Ok(raw as i16)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "MCU3",
-                signal: "MCU_DcCurrent",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 0.01) as i16)
     }
 
     /// Physical value of `MCU_PhaseCurrent` for a raw value.
@@ -5885,15 +6237,8 @@ impl Mcu3 {
     /// Raw value of `MCU_PhaseCurrent` for a physical value, range-checked.
     pub fn mcu_phase_current_to_raw(v: f64) -> Result<u16, EncodeError> {
         runtime::check_range(v, 0.0, 655.35, 1e-8, "MCU3", "MCU_PhaseCurrent")?;
-        let raw = runtime::round(v / 0.01);
-        if (0.0..65536.0).contains(&raw) {
-            Ok(raw as u16)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "MCU3",
-                signal: "MCU_PhaseCurrent",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 0.01) as u16)
     }
 }
 
@@ -6031,6 +6376,25 @@ impl Bms1 {
         visitor.signal(&BMS1_SIGNALS[0], Value::from(v), None);
         let v = self.bms_precharge_finish_sts;
         visitor.signal(&BMS1_SIGNALS[1], Value::from(v), None);
+    }
+
+    /// Decodes a payload and calls `visitor` with every present signal's physical value, as
+    /// [`Self::decode`] and then [`Self::visit`] would, without building the message: the
+    /// values go from the payload straight to the visitor (an enum's as its raw number, which
+    /// is what `visit` hands on), so nothing is stored and read back.
+    pub fn decode_visit(data: &[u8], visitor: &mut impl SignalVisitor) -> Result<(), DecodeError> {
+        let data = runtime::payload::<8>(data, "BMS1")?;
+        let bms_precharge_relay_fb =
+            Self::bms_precharge_relay_fb_from_raw(bits::read_be(data, 29, 1) as u8);
+        let bms_precharge_finish_sts =
+            Self::bms_precharge_finish_sts_from_raw(bits::read_be(data, 27, 1) as u8);
+        visitor.signal(&BMS1_SIGNALS[0], Value::from(bms_precharge_relay_fb), None);
+        visitor.signal(
+            &BMS1_SIGNALS[1],
+            Value::from(bms_precharge_finish_sts),
+            None,
+        );
+        Ok(())
     }
 
     /// Builds the message from physical values looked up by signal.
@@ -6201,6 +6565,18 @@ impl Bms2 {
         visitor.signal(&BMS2_SIGNALS[0], Value::from(v), None);
     }
 
+    /// Decodes a payload and calls `visitor` with every present signal's physical value, as
+    /// [`Self::decode`] and then [`Self::visit`] would, without building the message: the
+    /// values go from the payload straight to the visitor (an enum's as its raw number, which
+    /// is what `visit` hands on), so nothing is stored and read back.
+    pub fn decode_visit(data: &[u8], visitor: &mut impl SignalVisitor) -> Result<(), DecodeError> {
+        let data = runtime::payload::<8>(data, "BMS2")?;
+        let bms_allow_max_discharge =
+            Self::bms_allow_max_discharge_from_raw(bits::read_be(data, 0, 16) as u16);
+        visitor.signal(&BMS2_SIGNALS[0], Value::from(bms_allow_max_discharge), None);
+        Ok(())
+    }
+
     /// Builds the message from physical values looked up by signal.
     pub fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
         Ok(Self {
@@ -6227,15 +6603,8 @@ impl Bms2 {
     /// Raw value of `BMS_AllowMaxDischarge` for a physical value, range-checked.
     pub fn bms_allow_max_discharge_to_raw(v: f64) -> Result<u16, EncodeError> {
         runtime::check_range(v, -500.0, 6053.5, 1e-7, "BMS2", "BMS_AllowMaxDischarge")?;
-        let raw = runtime::round((v + 500.0) / 0.1);
-        if (0.0..65536.0).contains(&raw) {
-            Ok(raw as u16)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "BMS2",
-                signal: "BMS_AllowMaxDischarge",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32((v + 500.0) / 0.1) as u16)
     }
 }
 
@@ -6436,6 +6805,44 @@ impl OrionPackStatus {
         visitor.signal(&ORION_PACK_STATUS_SIGNALS[3], Value::from(v), None);
     }
 
+    /// Decodes a payload and calls `visitor` with every present signal's physical value, as
+    /// [`Self::decode`] and then [`Self::visit`] would, without building the message: the
+    /// values go from the payload straight to the visitor (an enum's as its raw number, which
+    /// is what `visit` hands on), so nothing is stored and read back.
+    pub fn decode_visit(data: &[u8], visitor: &mut impl SignalVisitor) -> Result<(), DecodeError> {
+        let data = runtime::payload::<8>(data, "Orion_PackStatus")?;
+        let orion_pack_current = Self::orion_pack_current_from_raw(bits::sign_extend(
+            bits::read_be(data, 0, 16),
+            16,
+        ) as i16);
+        let orion_pack_inst_voltage =
+            Self::orion_pack_inst_voltage_from_raw(bits::read_be(data, 16, 16) as u16);
+        let orion_pack_soc = Self::orion_pack_soc_from_raw(bits::read_be(data, 32, 8) as u8);
+        let orion_relay_state =
+            Self::orion_relay_state_from_raw(bits::read_be(data, 40, 16) as u16);
+        visitor.signal(
+            &ORION_PACK_STATUS_SIGNALS[0],
+            Value::from(orion_pack_current),
+            None,
+        );
+        visitor.signal(
+            &ORION_PACK_STATUS_SIGNALS[1],
+            Value::from(orion_pack_inst_voltage),
+            None,
+        );
+        visitor.signal(
+            &ORION_PACK_STATUS_SIGNALS[2],
+            Value::from(orion_pack_soc),
+            None,
+        );
+        visitor.signal(
+            &ORION_PACK_STATUS_SIGNALS[3],
+            Value::from(orion_relay_state),
+            None,
+        );
+        Ok(())
+    }
+
     /// Builds the message from physical values looked up by signal.
     pub fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
         Ok(Self {
@@ -6505,15 +6912,8 @@ impl OrionPackStatus {
             "Orion_PackStatus",
             "Orion_PackCurrent",
         )?;
-        let raw = runtime::round(v / 0.1);
-        if (-32768.0..32768.0).contains(&raw) {
-            Ok(raw as i16)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "Orion_PackStatus",
-                signal: "Orion_PackCurrent",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 0.1) as i16)
     }
 
     /// Physical value of `Orion_PackInstVoltage` for a raw value.
@@ -6531,15 +6931,8 @@ impl OrionPackStatus {
             "Orion_PackStatus",
             "Orion_PackInstVoltage",
         )?;
-        let raw = runtime::round(v / 0.1);
-        if (0.0..65536.0).contains(&raw) {
-            Ok(raw as u16)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "Orion_PackStatus",
-                signal: "Orion_PackInstVoltage",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 0.1) as u16)
     }
 
     /// Physical value of `Orion_PackSoc` for a raw value.
@@ -6550,15 +6943,8 @@ impl OrionPackStatus {
     /// Raw value of `Orion_PackSoc` for a physical value, range-checked.
     pub fn orion_pack_soc_to_raw(v: f64) -> Result<u8, EncodeError> {
         runtime::check_range(v, 0.0, 100.0, 5e-7, "Orion_PackStatus", "Orion_PackSoc")?;
-        let raw = runtime::round(v / 0.5);
-        if (0.0..256.0).contains(&raw) {
-            Ok(raw as u8)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "Orion_PackStatus",
-                signal: "Orion_PackSoc",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 0.5) as u8)
     }
 
     /// Physical value of `Orion_RelayState` for a raw value.
@@ -6770,6 +7156,37 @@ impl OrionLimits {
         visitor.signal(&ORION_LIMITS_SIGNALS[2], Value::from(v), None);
         let v = self.orion_low_temperature;
         visitor.signal(&ORION_LIMITS_SIGNALS[3], Value::from(v), None);
+    }
+
+    /// Decodes a payload and calls `visitor` with every present signal's physical value, as
+    /// [`Self::decode`] and then [`Self::visit`] would, without building the message: the
+    /// values go from the payload straight to the visitor (an enum's as its raw number, which
+    /// is what `visit` hands on), so nothing is stored and read back.
+    pub fn decode_visit(data: &[u8], visitor: &mut impl SignalVisitor) -> Result<(), DecodeError> {
+        let data = runtime::payload::<8>(data, "Orion_Limits")?;
+        let orion_pack_dcl = Self::orion_pack_dcl_from_raw(bits::read_be(data, 0, 16) as u16);
+        let orion_pack_ccl = Self::orion_pack_ccl_from_raw(bits::read_be(data, 16, 16) as u16);
+        let orion_high_temperature = Self::orion_high_temperature_from_raw(bits::sign_extend(
+            bits::read_be(data, 32, 8),
+            8,
+        ) as i8);
+        let orion_low_temperature = Self::orion_low_temperature_from_raw(bits::sign_extend(
+            bits::read_be(data, 40, 8),
+            8,
+        ) as i8);
+        visitor.signal(&ORION_LIMITS_SIGNALS[0], Value::from(orion_pack_dcl), None);
+        visitor.signal(&ORION_LIMITS_SIGNALS[1], Value::from(orion_pack_ccl), None);
+        visitor.signal(
+            &ORION_LIMITS_SIGNALS[2],
+            Value::from(orion_high_temperature),
+            None,
+        );
+        visitor.signal(
+            &ORION_LIMITS_SIGNALS[3],
+            Value::from(orion_low_temperature),
+            None,
+        );
+        Ok(())
     }
 
     /// Builds the message from physical values looked up by signal.
@@ -7096,6 +7513,42 @@ impl OrionCellVoltages {
         visitor.signal(&ORION_CELL_VOLTAGES_SIGNALS[3], Value::from(v), None);
     }
 
+    /// Decodes a payload and calls `visitor` with every present signal's physical value, as
+    /// [`Self::decode`] and then [`Self::visit`] would, without building the message: the
+    /// values go from the payload straight to the visitor (an enum's as its raw number, which
+    /// is what `visit` hands on), so nothing is stored and read back.
+    pub fn decode_visit(data: &[u8], visitor: &mut impl SignalVisitor) -> Result<(), DecodeError> {
+        let data = runtime::payload::<8>(data, "Orion_CellVoltages")?;
+        let orion_low_cell_voltage =
+            Self::orion_low_cell_voltage_from_raw(bits::read_be(data, 0, 16) as u16);
+        let orion_high_cell_voltage =
+            Self::orion_high_cell_voltage_from_raw(bits::read_be(data, 16, 16) as u16);
+        let orion_avg_cell_voltage =
+            Self::orion_avg_cell_voltage_from_raw(bits::read_be(data, 32, 16) as u16);
+        let orion_low_cell_id = Self::orion_low_cell_id_from_raw(bits::read_be(data, 48, 8) as u8);
+        visitor.signal(
+            &ORION_CELL_VOLTAGES_SIGNALS[0],
+            Value::from(orion_low_cell_voltage),
+            None,
+        );
+        visitor.signal(
+            &ORION_CELL_VOLTAGES_SIGNALS[1],
+            Value::from(orion_high_cell_voltage),
+            None,
+        );
+        visitor.signal(
+            &ORION_CELL_VOLTAGES_SIGNALS[2],
+            Value::from(orion_avg_cell_voltage),
+            None,
+        );
+        visitor.signal(
+            &ORION_CELL_VOLTAGES_SIGNALS[3],
+            Value::from(orion_low_cell_id),
+            None,
+        );
+        Ok(())
+    }
+
     /// Builds the message from physical values looked up by signal.
     pub fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
         Ok(Self {
@@ -7165,15 +7618,8 @@ impl OrionCellVoltages {
             "Orion_CellVoltages",
             "Orion_LowCellVoltage",
         )?;
-        let raw = runtime::round(v / 0.0001);
-        if (0.0..65536.0).contains(&raw) {
-            Ok(raw as u16)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "Orion_CellVoltages",
-                signal: "Orion_LowCellVoltage",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 0.0001) as u16)
     }
 
     /// Physical value of `Orion_HighCellVoltage` for a raw value.
@@ -7191,15 +7637,8 @@ impl OrionCellVoltages {
             "Orion_CellVoltages",
             "Orion_HighCellVoltage",
         )?;
-        let raw = runtime::round(v / 0.0001);
-        if (0.0..65536.0).contains(&raw) {
-            Ok(raw as u16)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "Orion_CellVoltages",
-                signal: "Orion_HighCellVoltage",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 0.0001) as u16)
     }
 
     /// Physical value of `Orion_AvgCellVoltage` for a raw value.
@@ -7217,15 +7656,8 @@ impl OrionCellVoltages {
             "Orion_CellVoltages",
             "Orion_AvgCellVoltage",
         )?;
-        let raw = runtime::round(v / 0.0001);
-        if (0.0..65536.0).contains(&raw) {
-            Ok(raw as u16)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "Orion_CellVoltages",
-                signal: "Orion_AvgCellVoltage",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 0.0001) as u16)
     }
 
     /// Physical value of `Orion_LowCellId` for a raw value.
@@ -7611,6 +8043,75 @@ impl PccStatus {
         visitor.signal(&PCC_STATUS_SIGNALS[8], Value::from(v), None);
     }
 
+    /// Decodes a payload and calls `visitor` with every present signal's physical value, as
+    /// [`Self::decode`] and then [`Self::visit`] would, without building the message: the
+    /// values go from the payload straight to the visitor (an enum's as its raw number, which
+    /// is what `visit` hands on), so nothing is stored and read back.
+    pub fn decode_visit(data: &[u8], visitor: &mut impl SignalVisitor) -> Result<(), DecodeError> {
+        let data = runtime::payload::<8>(data, "PCC_Status")?;
+        let pcc_state = bits::read_le(data, 0, 8) as u8;
+        let pcc_error_too_fast = Self::pcc_error_too_fast_from_raw(bits::read_le(data, 8, 1) as u8);
+        let pcc_error_too_slow = Self::pcc_error_too_slow_from_raw(bits::read_le(data, 9, 1) as u8);
+        let pcc_error_bms_timeout =
+            Self::pcc_error_bms_timeout_from_raw(bits::read_le(data, 10, 1) as u8);
+        let pcc_error_shutdown =
+            Self::pcc_error_shutdown_from_raw(bits::read_le(data, 11, 1) as u8);
+        let pcc_error_undefined_state =
+            Self::pcc_error_undefined_state_from_raw(bits::read_le(data, 15, 1) as u8);
+        let pcc_accumulator_voltage =
+            Self::pcc_accumulator_voltage_from_raw(bits::read_le(data, 16, 16) as u16);
+        let pcc_tractive_voltage =
+            Self::pcc_tractive_voltage_from_raw(bits::read_le(data, 32, 16) as u16);
+        let pcc_precharge_progress =
+            Self::pcc_precharge_progress_from_raw(bits::read_le(data, 48, 16) as u16);
+        visitor.signal(
+            &PCC_STATUS_SIGNALS[0],
+            Value::from(pcc_state),
+            PrechargeState::from_raw(pcc_state).label(),
+        );
+        visitor.signal(
+            &PCC_STATUS_SIGNALS[1],
+            Value::from(pcc_error_too_fast),
+            None,
+        );
+        visitor.signal(
+            &PCC_STATUS_SIGNALS[2],
+            Value::from(pcc_error_too_slow),
+            None,
+        );
+        visitor.signal(
+            &PCC_STATUS_SIGNALS[3],
+            Value::from(pcc_error_bms_timeout),
+            None,
+        );
+        visitor.signal(
+            &PCC_STATUS_SIGNALS[4],
+            Value::from(pcc_error_shutdown),
+            None,
+        );
+        visitor.signal(
+            &PCC_STATUS_SIGNALS[5],
+            Value::from(pcc_error_undefined_state),
+            None,
+        );
+        visitor.signal(
+            &PCC_STATUS_SIGNALS[6],
+            Value::from(pcc_accumulator_voltage),
+            None,
+        );
+        visitor.signal(
+            &PCC_STATUS_SIGNALS[7],
+            Value::from(pcc_tractive_voltage),
+            None,
+        );
+        visitor.signal(
+            &PCC_STATUS_SIGNALS[8],
+            Value::from(pcc_precharge_progress),
+            None,
+        );
+        Ok(())
+    }
+
     /// Builds the message from physical values looked up by signal.
     pub fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
         Ok(Self {
@@ -7838,15 +8339,8 @@ impl PccStatus {
     /// Raw value of `PCC_AccumulatorVoltage` for a physical value, range-checked.
     pub fn pcc_accumulator_voltage_to_raw(v: f64) -> Result<u16, EncodeError> {
         runtime::check_range(v, 0.0, 655.35, 1e-8, "PCC_Status", "PCC_AccumulatorVoltage")?;
-        let raw = runtime::round(v / 0.01);
-        if (0.0..65536.0).contains(&raw) {
-            Ok(raw as u16)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "PCC_Status",
-                signal: "PCC_AccumulatorVoltage",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 0.01) as u16)
     }
 
     /// Physical value of `PCC_TractiveVoltage` for a raw value.
@@ -7857,15 +8351,8 @@ impl PccStatus {
     /// Raw value of `PCC_TractiveVoltage` for a physical value, range-checked.
     pub fn pcc_tractive_voltage_to_raw(v: f64) -> Result<u16, EncodeError> {
         runtime::check_range(v, 0.0, 655.35, 1e-8, "PCC_Status", "PCC_TractiveVoltage")?;
-        let raw = runtime::round(v / 0.01);
-        if (0.0..65536.0).contains(&raw) {
-            Ok(raw as u16)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "PCC_Status",
-                signal: "PCC_TractiveVoltage",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 0.01) as u16)
     }
 
     /// Physical value of `PCC_PrechargeProgress` for a raw value.
@@ -7876,15 +8363,8 @@ impl PccStatus {
     /// Raw value of `PCC_PrechargeProgress` for a physical value, range-checked.
     pub fn pcc_precharge_progress_to_raw(v: f64) -> Result<u16, EncodeError> {
         runtime::check_range(v, 0.0, 655.35, 1e-8, "PCC_Status", "PCC_PrechargeProgress")?;
-        let raw = runtime::round(v / 0.01);
-        if (0.0..65536.0).contains(&raw) {
-            Ok(raw as u16)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "PCC_Status",
-                signal: "PCC_PrechargeProgress",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 0.01) as u16)
     }
 }
 
@@ -8406,6 +8886,114 @@ impl ImdInfoGeneral {
             Value::from(v.into_raw()),
             v.label(),
         );
+    }
+
+    /// Decodes a payload and calls `visitor` with every present signal's physical value, as
+    /// [`Self::decode`] and then [`Self::visit`] would, without building the message: the
+    /// values go from the payload straight to the visitor (an enum's as its raw number, which
+    /// is what `visit` hands on), so nothing is stored and read back.
+    pub fn decode_visit(data: &[u8], visitor: &mut impl SignalVisitor) -> Result<(), DecodeError> {
+        let data = runtime::payload::<8>(data, "IMD_InfoGeneral")?;
+        let imd_r_iso_corrected =
+            Self::imd_r_iso_corrected_from_raw(bits::read_le(data, 0, 16) as u16);
+        let imd_r_iso_status = Self::imd_r_iso_status_from_raw(bits::read_le(data, 16, 8) as u8);
+        let imd_measurement_counter =
+            Self::imd_measurement_counter_from_raw(bits::read_le(data, 24, 8) as u8);
+        let imd_device_error = Self::imd_device_error_from_raw(bits::read_le(data, 32, 1) as u8);
+        let imd_hv_pos_connection_failure =
+            Self::imd_hv_pos_connection_failure_from_raw(bits::read_le(data, 33, 1) as u8);
+        let imd_hv_neg_connection_failure =
+            Self::imd_hv_neg_connection_failure_from_raw(bits::read_le(data, 34, 1) as u8);
+        let imd_earth_connection_failure =
+            Self::imd_earth_connection_failure_from_raw(bits::read_le(data, 35, 1) as u8);
+        let imd_iso_alarm = Self::imd_iso_alarm_from_raw(bits::read_le(data, 36, 1) as u8);
+        let imd_iso_warning = Self::imd_iso_warning_from_raw(bits::read_le(data, 37, 1) as u8);
+        let imd_iso_outdated = Self::imd_iso_outdated_from_raw(bits::read_le(data, 38, 1) as u8);
+        let imd_unbalance_alarm =
+            Self::imd_unbalance_alarm_from_raw(bits::read_le(data, 39, 1) as u8);
+        let imd_undervoltage_alarm =
+            Self::imd_undervoltage_alarm_from_raw(bits::read_le(data, 40, 1) as u8);
+        let imd_unsafe_to_start =
+            Self::imd_unsafe_to_start_from_raw(bits::read_le(data, 41, 1) as u8);
+        let imd_earthlift_open =
+            Self::imd_earthlift_open_from_raw(bits::read_le(data, 42, 1) as u8);
+        let imd_device_activity = bits::read_le(data, 48, 8) as u8;
+        visitor.signal(
+            &IMD_INFO_GENERAL_SIGNALS[0],
+            Value::from(imd_r_iso_corrected),
+            None,
+        );
+        visitor.signal(
+            &IMD_INFO_GENERAL_SIGNALS[1],
+            Value::from(imd_r_iso_status),
+            None,
+        );
+        visitor.signal(
+            &IMD_INFO_GENERAL_SIGNALS[2],
+            Value::from(imd_measurement_counter),
+            None,
+        );
+        visitor.signal(
+            &IMD_INFO_GENERAL_SIGNALS[3],
+            Value::from(imd_device_error),
+            None,
+        );
+        visitor.signal(
+            &IMD_INFO_GENERAL_SIGNALS[4],
+            Value::from(imd_hv_pos_connection_failure),
+            None,
+        );
+        visitor.signal(
+            &IMD_INFO_GENERAL_SIGNALS[5],
+            Value::from(imd_hv_neg_connection_failure),
+            None,
+        );
+        visitor.signal(
+            &IMD_INFO_GENERAL_SIGNALS[6],
+            Value::from(imd_earth_connection_failure),
+            None,
+        );
+        visitor.signal(
+            &IMD_INFO_GENERAL_SIGNALS[7],
+            Value::from(imd_iso_alarm),
+            None,
+        );
+        visitor.signal(
+            &IMD_INFO_GENERAL_SIGNALS[8],
+            Value::from(imd_iso_warning),
+            None,
+        );
+        visitor.signal(
+            &IMD_INFO_GENERAL_SIGNALS[9],
+            Value::from(imd_iso_outdated),
+            None,
+        );
+        visitor.signal(
+            &IMD_INFO_GENERAL_SIGNALS[10],
+            Value::from(imd_unbalance_alarm),
+            None,
+        );
+        visitor.signal(
+            &IMD_INFO_GENERAL_SIGNALS[11],
+            Value::from(imd_undervoltage_alarm),
+            None,
+        );
+        visitor.signal(
+            &IMD_INFO_GENERAL_SIGNALS[12],
+            Value::from(imd_unsafe_to_start),
+            None,
+        );
+        visitor.signal(
+            &IMD_INFO_GENERAL_SIGNALS[13],
+            Value::from(imd_earthlift_open),
+            None,
+        );
+        visitor.signal(
+            &IMD_INFO_GENERAL_SIGNALS[14],
+            Value::from(imd_device_activity),
+            ImdDeviceActivity::from_raw(imd_device_activity).label(),
+        );
+        Ok(())
     }
 
     /// Builds the message from physical values looked up by signal.
@@ -9085,6 +9673,49 @@ impl ImdInfoIsolationDetail {
         visitor.signal(&IMD_INFO_ISOLATION_DETAIL_SIGNALS[4], Value::from(v), None);
     }
 
+    /// Decodes a payload and calls `visitor` with every present signal's physical value, as
+    /// [`Self::decode`] and then [`Self::visit`] would, without building the message: the
+    /// values go from the payload straight to the visitor (an enum's as its raw number, which
+    /// is what `visit` hands on), so nothing is stored and read back.
+    pub fn decode_visit(data: &[u8], visitor: &mut impl SignalVisitor) -> Result<(), DecodeError> {
+        let data = runtime::payload::<8>(data, "IMD_InfoIsolationDetail")?;
+        let imd_r_iso_negative =
+            Self::imd_r_iso_negative_from_raw(bits::read_le(data, 0, 16) as u16);
+        let imd_r_iso_positive =
+            Self::imd_r_iso_positive_from_raw(bits::read_le(data, 16, 16) as u16);
+        let imd_r_iso_original =
+            Self::imd_r_iso_original_from_raw(bits::read_le(data, 32, 16) as u16);
+        let imd_iso_measurement_counter =
+            Self::imd_iso_measurement_counter_from_raw(bits::read_le(data, 48, 8) as u8);
+        let imd_iso_quality = Self::imd_iso_quality_from_raw(bits::read_le(data, 56, 8) as u8);
+        visitor.signal(
+            &IMD_INFO_ISOLATION_DETAIL_SIGNALS[0],
+            Value::from(imd_r_iso_negative),
+            None,
+        );
+        visitor.signal(
+            &IMD_INFO_ISOLATION_DETAIL_SIGNALS[1],
+            Value::from(imd_r_iso_positive),
+            None,
+        );
+        visitor.signal(
+            &IMD_INFO_ISOLATION_DETAIL_SIGNALS[2],
+            Value::from(imd_r_iso_original),
+            None,
+        );
+        visitor.signal(
+            &IMD_INFO_ISOLATION_DETAIL_SIGNALS[3],
+            Value::from(imd_iso_measurement_counter),
+            None,
+        );
+        visitor.signal(
+            &IMD_INFO_ISOLATION_DETAIL_SIGNALS[4],
+            Value::from(imd_iso_quality),
+            None,
+        );
+        Ok(())
+    }
+
     /// Builds the message from physical values looked up by signal.
     pub fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
         Ok(Self {
@@ -9465,6 +10096,50 @@ impl ImdInfoVoltage {
         visitor.signal(&IMD_INFO_VOLTAGE_SIGNALS[4], Value::from(v), None);
     }
 
+    /// Decodes a payload and calls `visitor` with every present signal's physical value, as
+    /// [`Self::decode`] and then [`Self::visit`] would, without building the message: the
+    /// values go from the payload straight to the visitor (an enum's as its raw number, which
+    /// is what `visit` hands on), so nothing is stored and read back.
+    pub fn decode_visit(data: &[u8], visitor: &mut impl SignalVisitor) -> Result<(), DecodeError> {
+        let data = runtime::payload::<8>(data, "IMD_InfoVoltage")?;
+        let imd_hv_system_voltage =
+            Self::imd_hv_system_voltage_from_raw(bits::read_le(data, 0, 16) as u16);
+        let imd_hv_neg_to_earth_voltage =
+            Self::imd_hv_neg_to_earth_voltage_from_raw(bits::read_le(data, 16, 16) as u16);
+        let imd_hv_pos_to_earth_voltage =
+            Self::imd_hv_pos_to_earth_voltage_from_raw(bits::read_le(data, 32, 16) as u16);
+        let imd_voltage_measurement_counter =
+            Self::imd_voltage_measurement_counter_from_raw(bits::read_le(data, 48, 8) as u8);
+        let imd_voltage_quality =
+            Self::imd_voltage_quality_from_raw(bits::read_le(data, 56, 8) as u8);
+        visitor.signal(
+            &IMD_INFO_VOLTAGE_SIGNALS[0],
+            Value::from(imd_hv_system_voltage),
+            None,
+        );
+        visitor.signal(
+            &IMD_INFO_VOLTAGE_SIGNALS[1],
+            Value::from(imd_hv_neg_to_earth_voltage),
+            None,
+        );
+        visitor.signal(
+            &IMD_INFO_VOLTAGE_SIGNALS[2],
+            Value::from(imd_hv_pos_to_earth_voltage),
+            None,
+        );
+        visitor.signal(
+            &IMD_INFO_VOLTAGE_SIGNALS[3],
+            Value::from(imd_voltage_measurement_counter),
+            None,
+        );
+        visitor.signal(
+            &IMD_INFO_VOLTAGE_SIGNALS[4],
+            Value::from(imd_voltage_quality),
+            None,
+        );
+        Ok(())
+    }
+
     /// Builds the message from physical values looked up by signal.
     pub fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
         Ok(Self {
@@ -9546,15 +10221,8 @@ impl ImdInfoVoltage {
             "IMD_InfoVoltage",
             "IMD_HvSystemVoltage",
         )?;
-        let raw = runtime::round((v + 1606.4) / 0.05);
-        if (0.0..65536.0).contains(&raw) {
-            Ok(raw as u16)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "IMD_InfoVoltage",
-                signal: "IMD_HvSystemVoltage",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32((v + 1606.4) / 0.05) as u16)
     }
 
     /// Physical value of `IMD_HvNegToEarthVoltage` for a raw value.
@@ -9572,15 +10240,8 @@ impl ImdInfoVoltage {
             "IMD_InfoVoltage",
             "IMD_HvNegToEarthVoltage",
         )?;
-        let raw = runtime::round((v + 1606.4) / 0.05);
-        if (0.0..65536.0).contains(&raw) {
-            Ok(raw as u16)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "IMD_InfoVoltage",
-                signal: "IMD_HvNegToEarthVoltage",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32((v + 1606.4) / 0.05) as u16)
     }
 
     /// Physical value of `IMD_HvPosToEarthVoltage` for a raw value.
@@ -9598,15 +10259,8 @@ impl ImdInfoVoltage {
             "IMD_InfoVoltage",
             "IMD_HvPosToEarthVoltage",
         )?;
-        let raw = runtime::round((v + 1606.4) / 0.05);
-        if (0.0..65536.0).contains(&raw) {
-            Ok(raw as u16)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "IMD_InfoVoltage",
-                signal: "IMD_HvPosToEarthVoltage",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32((v + 1606.4) / 0.05) as u16)
     }
 
     /// Physical value of `IMD_VoltageMeasurementCounter` for a raw value.
@@ -9865,6 +10519,48 @@ impl ImdInfoItSystem {
         visitor.signal(&IMD_INFO_IT_SYSTEM_SIGNALS[4], Value::from(v), None);
     }
 
+    /// Decodes a payload and calls `visitor` with every present signal's physical value, as
+    /// [`Self::decode`] and then [`Self::visit`] would, without building the message: the
+    /// values go from the payload straight to the visitor (an enum's as its raw number, which
+    /// is what `visit` hands on), so nothing is stored and read back.
+    pub fn decode_visit(data: &[u8], visitor: &mut impl SignalVisitor) -> Result<(), DecodeError> {
+        let data = runtime::payload::<8>(data, "IMD_InfoItSystem")?;
+        let imd_capacity = Self::imd_capacity_from_raw(bits::read_le(data, 0, 16) as u16);
+        let imd_capacity_measurement_counter =
+            Self::imd_capacity_measurement_counter_from_raw(bits::read_le(data, 16, 8) as u8);
+        let imd_unbalance = Self::imd_unbalance_from_raw(bits::read_le(data, 24, 8) as u8);
+        let imd_unbalance_measurement_counter =
+            Self::imd_unbalance_measurement_counter_from_raw(bits::read_le(data, 32, 8) as u8);
+        let imd_voltage_frequency =
+            Self::imd_voltage_frequency_from_raw(bits::read_le(data, 40, 16) as u16);
+        visitor.signal(
+            &IMD_INFO_IT_SYSTEM_SIGNALS[0],
+            Value::from(imd_capacity),
+            None,
+        );
+        visitor.signal(
+            &IMD_INFO_IT_SYSTEM_SIGNALS[1],
+            Value::from(imd_capacity_measurement_counter),
+            None,
+        );
+        visitor.signal(
+            &IMD_INFO_IT_SYSTEM_SIGNALS[2],
+            Value::from(imd_unbalance),
+            None,
+        );
+        visitor.signal(
+            &IMD_INFO_IT_SYSTEM_SIGNALS[3],
+            Value::from(imd_unbalance_measurement_counter),
+            None,
+        );
+        visitor.signal(
+            &IMD_INFO_IT_SYSTEM_SIGNALS[4],
+            Value::from(imd_voltage_frequency),
+            None,
+        );
+        Ok(())
+    }
+
     /// Builds the message from physical values looked up by signal.
     pub fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
         Ok(Self {
@@ -10018,15 +10714,8 @@ impl ImdInfoItSystem {
             "IMD_InfoItSystem",
             "IMD_VoltageFrequency",
         )?;
-        let raw = runtime::round(v / 0.1);
-        if (0.0..65536.0).contains(&raw) {
-            Ok(raw as u16)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "IMD_InfoItSystem",
-                signal: "IMD_VoltageFrequency",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 0.1) as u16)
     }
 }
 
@@ -10151,6 +10840,23 @@ impl ImdRequest {
         visitor.signal(&IMD_REQUEST_SIGNALS[0], Value::from(v), None);
         let v = self.imd_request_data;
         visitor.signal(&IMD_REQUEST_SIGNALS[1], Value::from(v), None);
+    }
+
+    /// Decodes a payload and calls `visitor` with every present signal's physical value, as
+    /// [`Self::decode`] and then [`Self::visit`] would, without building the message: the
+    /// values go from the payload straight to the visitor (an enum's as its raw number, which
+    /// is what `visit` hands on), so nothing is stored and read back.
+    pub fn decode_visit(data: &[u8], visitor: &mut impl SignalVisitor) -> Result<(), DecodeError> {
+        let data = runtime::payload::<8>(data, "IMD_Request")?;
+        let imd_request_index = Self::imd_request_index_from_raw(bits::read_le(data, 0, 8) as u8);
+        let imd_request_data = Self::imd_request_data_from_raw(bits::read_le(data, 8, 32) as u32);
+        visitor.signal(
+            &IMD_REQUEST_SIGNALS[0],
+            Value::from(imd_request_index),
+            None,
+        );
+        visitor.signal(&IMD_REQUEST_SIGNALS[1], Value::from(imd_request_data), None);
+        Ok(())
     }
 
     /// Builds the message from physical values looked up by signal.
@@ -10321,6 +11027,24 @@ impl DtiSetCurrent {
         visitor.signal(&DTI_SET_CURRENT_SIGNALS[0], Value::from(v), None);
     }
 
+    /// Decodes a payload and calls `visitor` with every present signal's physical value, as
+    /// [`Self::decode`] and then [`Self::visit`] would, without building the message: the
+    /// values go from the payload straight to the visitor (an enum's as its raw number, which
+    /// is what `visit` hands on), so nothing is stored and read back.
+    pub fn decode_visit(data: &[u8], visitor: &mut impl SignalVisitor) -> Result<(), DecodeError> {
+        let data = runtime::payload::<2>(data, "DTI_SetCurrent")?;
+        let dti_current_cmd = Self::dti_current_cmd_from_raw(bits::sign_extend(
+            bits::read_be(data, 0, 16),
+            16,
+        ) as i16);
+        visitor.signal(
+            &DTI_SET_CURRENT_SIGNALS[0],
+            Value::from(dti_current_cmd),
+            None,
+        );
+        Ok(())
+    }
+
     /// Builds the message from physical values looked up by signal.
     pub fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
         Ok(Self {
@@ -10347,15 +11071,8 @@ impl DtiSetCurrent {
     /// Raw value of `DTI_CurrentCmd` for a physical value, range-checked.
     pub fn dti_current_cmd_to_raw(v: f64) -> Result<i16, EncodeError> {
         runtime::check_range(v, -3276.8, 3276.7, 1e-7, "DTI_SetCurrent", "DTI_CurrentCmd")?;
-        let raw = runtime::round(v / 0.1);
-        if (-32768.0..32768.0).contains(&raw) {
-            Ok(raw as i16)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "DTI_SetCurrent",
-                signal: "DTI_CurrentCmd",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 0.1) as i16)
     }
 }
 
@@ -10457,6 +11174,24 @@ impl DtiSetBrakeCurrent {
         visitor.signal(&DTI_SET_BRAKE_CURRENT_SIGNALS[0], Value::from(v), None);
     }
 
+    /// Decodes a payload and calls `visitor` with every present signal's physical value, as
+    /// [`Self::decode`] and then [`Self::visit`] would, without building the message: the
+    /// values go from the payload straight to the visitor (an enum's as its raw number, which
+    /// is what `visit` hands on), so nothing is stored and read back.
+    pub fn decode_visit(data: &[u8], visitor: &mut impl SignalVisitor) -> Result<(), DecodeError> {
+        let data = runtime::payload::<2>(data, "DTI_SetBrakeCurrent")?;
+        let dti_brake_current_cmd = Self::dti_brake_current_cmd_from_raw(bits::sign_extend(
+            bits::read_be(data, 0, 16),
+            16,
+        ) as i16);
+        visitor.signal(
+            &DTI_SET_BRAKE_CURRENT_SIGNALS[0],
+            Value::from(dti_brake_current_cmd),
+            None,
+        );
+        Ok(())
+    }
+
     /// Builds the message from physical values looked up by signal.
     pub fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
         Ok(Self {
@@ -10490,15 +11225,8 @@ impl DtiSetBrakeCurrent {
             "DTI_SetBrakeCurrent",
             "DTI_BrakeCurrentCmd",
         )?;
-        let raw = runtime::round(v / 0.1);
-        if (-32768.0..32768.0).contains(&raw) {
-            Ok(raw as i16)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "DTI_SetBrakeCurrent",
-                signal: "DTI_BrakeCurrentCmd",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 0.1) as i16)
     }
 }
 
@@ -10594,6 +11322,18 @@ impl DtiSetErpm {
     pub fn visit(&self, visitor: &mut impl SignalVisitor) {
         let v = self.dti_erpm_cmd;
         visitor.signal(&DTI_SET_ERPM_SIGNALS[0], Value::from(v), None);
+    }
+
+    /// Decodes a payload and calls `visitor` with every present signal's physical value, as
+    /// [`Self::decode`] and then [`Self::visit`] would, without building the message: the
+    /// values go from the payload straight to the visitor (an enum's as its raw number, which
+    /// is what `visit` hands on), so nothing is stored and read back.
+    pub fn decode_visit(data: &[u8], visitor: &mut impl SignalVisitor) -> Result<(), DecodeError> {
+        let data = runtime::payload::<4>(data, "DTI_SetErpm")?;
+        let dti_erpm_cmd =
+            Self::dti_erpm_cmd_from_raw(bits::sign_extend(bits::read_be(data, 0, 32), 32) as i32);
+        visitor.signal(&DTI_SET_ERPM_SIGNALS[0], Value::from(dti_erpm_cmd), None);
+        Ok(())
     }
 
     /// Builds the message from physical values looked up by signal.
@@ -10730,6 +11470,24 @@ impl DtiSetPosition {
         visitor.signal(&DTI_SET_POSITION_SIGNALS[0], Value::from(v), None);
     }
 
+    /// Decodes a payload and calls `visitor` with every present signal's physical value, as
+    /// [`Self::decode`] and then [`Self::visit`] would, without building the message: the
+    /// values go from the payload straight to the visitor (an enum's as its raw number, which
+    /// is what `visit` hands on), so nothing is stored and read back.
+    pub fn decode_visit(data: &[u8], visitor: &mut impl SignalVisitor) -> Result<(), DecodeError> {
+        let data = runtime::payload::<2>(data, "DTI_SetPosition")?;
+        let dti_position_cmd = Self::dti_position_cmd_from_raw(bits::sign_extend(
+            bits::read_be(data, 0, 16),
+            16,
+        ) as i16);
+        visitor.signal(
+            &DTI_SET_POSITION_SIGNALS[0],
+            Value::from(dti_position_cmd),
+            None,
+        );
+        Ok(())
+    }
+
     /// Builds the message from physical values looked up by signal.
     pub fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
         Ok(Self {
@@ -10756,15 +11514,8 @@ impl DtiSetPosition {
     /// Raw value of `DTI_PositionCmd` for a physical value, range-checked.
     pub fn dti_position_cmd_to_raw(v: f64) -> Result<i16, EncodeError> {
         runtime::check_range(v, 0.0, 360.0, 1e-7, "DTI_SetPosition", "DTI_PositionCmd")?;
-        let raw = runtime::round(v / 0.1);
-        if (-32768.0..32768.0).contains(&raw) {
-            Ok(raw as i16)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "DTI_SetPosition",
-                signal: "DTI_PositionCmd",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 0.1) as i16)
     }
 }
 
@@ -10866,6 +11617,24 @@ impl DtiSetRelativeCurrent {
         visitor.signal(&DTI_SET_RELATIVE_CURRENT_SIGNALS[0], Value::from(v), None);
     }
 
+    /// Decodes a payload and calls `visitor` with every present signal's physical value, as
+    /// [`Self::decode`] and then [`Self::visit`] would, without building the message: the
+    /// values go from the payload straight to the visitor (an enum's as its raw number, which
+    /// is what `visit` hands on), so nothing is stored and read back.
+    pub fn decode_visit(data: &[u8], visitor: &mut impl SignalVisitor) -> Result<(), DecodeError> {
+        let data = runtime::payload::<2>(data, "DTI_SetRelativeCurrent")?;
+        let dti_relative_current_cmd = Self::dti_relative_current_cmd_from_raw(bits::sign_extend(
+            bits::read_be(data, 0, 16),
+            16,
+        ) as i16);
+        visitor.signal(
+            &DTI_SET_RELATIVE_CURRENT_SIGNALS[0],
+            Value::from(dti_relative_current_cmd),
+            None,
+        );
+        Ok(())
+    }
+
     /// Builds the message from physical values looked up by signal.
     pub fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
         Ok(Self {
@@ -10899,15 +11668,8 @@ impl DtiSetRelativeCurrent {
             "DTI_SetRelativeCurrent",
             "DTI_RelativeCurrentCmd",
         )?;
-        let raw = runtime::round(v / 0.1);
-        if (-32768.0..32768.0).contains(&raw) {
-            Ok(raw as i16)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "DTI_SetRelativeCurrent",
-                signal: "DTI_RelativeCurrentCmd",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 0.1) as i16)
     }
 }
 
@@ -11013,6 +11775,23 @@ impl DtiSetRelativeBrakeCurrent {
         );
     }
 
+    /// Decodes a payload and calls `visitor` with every present signal's physical value, as
+    /// [`Self::decode`] and then [`Self::visit`] would, without building the message: the
+    /// values go from the payload straight to the visitor (an enum's as its raw number, which
+    /// is what `visit` hands on), so nothing is stored and read back.
+    pub fn decode_visit(data: &[u8], visitor: &mut impl SignalVisitor) -> Result<(), DecodeError> {
+        let data = runtime::payload::<2>(data, "DTI_SetRelativeBrakeCurrent")?;
+        let dti_relative_brake_current_cmd = Self::dti_relative_brake_current_cmd_from_raw(
+            bits::sign_extend(bits::read_be(data, 0, 16), 16) as i16,
+        );
+        visitor.signal(
+            &DTI_SET_RELATIVE_BRAKE_CURRENT_SIGNALS[0],
+            Value::from(dti_relative_brake_current_cmd),
+            None,
+        );
+        Ok(())
+    }
+
     /// Builds the message from physical values looked up by signal.
     pub fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
         Ok(Self {
@@ -11046,15 +11825,8 @@ impl DtiSetRelativeBrakeCurrent {
             "DTI_SetRelativeBrakeCurrent",
             "DTI_RelativeBrakeCurrentCmd",
         )?;
-        let raw = runtime::round(v / 0.1);
-        if (-32768.0..32768.0).contains(&raw) {
-            Ok(raw as i16)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "DTI_SetRelativeBrakeCurrent",
-                signal: "DTI_RelativeBrakeCurrentCmd",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 0.1) as i16)
     }
 }
 
@@ -11247,6 +12019,43 @@ impl DtiSetDigitalOutputs {
         visitor.signal(&DTI_SET_DIGITAL_OUTPUTS_SIGNALS[2], Value::from(v), None);
         let v = self.dti_digital_out4_cmd;
         visitor.signal(&DTI_SET_DIGITAL_OUTPUTS_SIGNALS[3], Value::from(v), None);
+    }
+
+    /// Decodes a payload and calls `visitor` with every present signal's physical value, as
+    /// [`Self::decode`] and then [`Self::visit`] would, without building the message: the
+    /// values go from the payload straight to the visitor (an enum's as its raw number, which
+    /// is what `visit` hands on), so nothing is stored and read back.
+    pub fn decode_visit(data: &[u8], visitor: &mut impl SignalVisitor) -> Result<(), DecodeError> {
+        let data = runtime::payload::<1>(data, "DTI_SetDigitalOutputs")?;
+        let dti_digital_out1_cmd =
+            Self::dti_digital_out1_cmd_from_raw(bits::read_le(data, 0, 1) as u8);
+        let dti_digital_out2_cmd =
+            Self::dti_digital_out2_cmd_from_raw(bits::read_le(data, 1, 1) as u8);
+        let dti_digital_out3_cmd =
+            Self::dti_digital_out3_cmd_from_raw(bits::read_le(data, 2, 1) as u8);
+        let dti_digital_out4_cmd =
+            Self::dti_digital_out4_cmd_from_raw(bits::read_le(data, 3, 1) as u8);
+        visitor.signal(
+            &DTI_SET_DIGITAL_OUTPUTS_SIGNALS[0],
+            Value::from(dti_digital_out1_cmd),
+            None,
+        );
+        visitor.signal(
+            &DTI_SET_DIGITAL_OUTPUTS_SIGNALS[1],
+            Value::from(dti_digital_out2_cmd),
+            None,
+        );
+        visitor.signal(
+            &DTI_SET_DIGITAL_OUTPUTS_SIGNALS[2],
+            Value::from(dti_digital_out3_cmd),
+            None,
+        );
+        visitor.signal(
+            &DTI_SET_DIGITAL_OUTPUTS_SIGNALS[3],
+            Value::from(dti_digital_out4_cmd),
+            None,
+        );
+        Ok(())
     }
 
     /// Builds the message from physical values looked up by signal.
@@ -11474,6 +12283,24 @@ impl DtiSetMaxCurrentAc {
         visitor.signal(&DTI_SET_MAX_CURRENT_AC_SIGNALS[0], Value::from(v), None);
     }
 
+    /// Decodes a payload and calls `visitor` with every present signal's physical value, as
+    /// [`Self::decode`] and then [`Self::visit`] would, without building the message: the
+    /// values go from the payload straight to the visitor (an enum's as its raw number, which
+    /// is what `visit` hands on), so nothing is stored and read back.
+    pub fn decode_visit(data: &[u8], visitor: &mut impl SignalVisitor) -> Result<(), DecodeError> {
+        let data = runtime::payload::<2>(data, "DTI_SetMaxCurrentAc")?;
+        let dti_max_current_ac_cmd = Self::dti_max_current_ac_cmd_from_raw(bits::sign_extend(
+            bits::read_be(data, 0, 16),
+            16,
+        ) as i16);
+        visitor.signal(
+            &DTI_SET_MAX_CURRENT_AC_SIGNALS[0],
+            Value::from(dti_max_current_ac_cmd),
+            None,
+        );
+        Ok(())
+    }
+
     /// Builds the message from physical values looked up by signal.
     pub fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
         Ok(Self {
@@ -11507,15 +12334,8 @@ impl DtiSetMaxCurrentAc {
             "DTI_SetMaxCurrentAc",
             "DTI_MaxCurrentAcCmd",
         )?;
-        let raw = runtime::round(v / 0.1);
-        if (-32768.0..32768.0).contains(&raw) {
-            Ok(raw as i16)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "DTI_SetMaxCurrentAc",
-                signal: "DTI_MaxCurrentAcCmd",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 0.1) as i16)
     }
 }
 
@@ -11620,6 +12440,23 @@ impl DtiSetMaxBrakeCurrentAc {
         );
     }
 
+    /// Decodes a payload and calls `visitor` with every present signal's physical value, as
+    /// [`Self::decode`] and then [`Self::visit`] would, without building the message: the
+    /// values go from the payload straight to the visitor (an enum's as its raw number, which
+    /// is what `visit` hands on), so nothing is stored and read back.
+    pub fn decode_visit(data: &[u8], visitor: &mut impl SignalVisitor) -> Result<(), DecodeError> {
+        let data = runtime::payload::<2>(data, "DTI_SetMaxBrakeCurrentAc")?;
+        let dti_max_brake_current_ac_cmd = Self::dti_max_brake_current_ac_cmd_from_raw(
+            bits::sign_extend(bits::read_be(data, 0, 16), 16) as i16,
+        );
+        visitor.signal(
+            &DTI_SET_MAX_BRAKE_CURRENT_AC_SIGNALS[0],
+            Value::from(dti_max_brake_current_ac_cmd),
+            None,
+        );
+        Ok(())
+    }
+
     /// Builds the message from physical values looked up by signal.
     pub fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
         Ok(Self {
@@ -11653,15 +12490,8 @@ impl DtiSetMaxBrakeCurrentAc {
             "DTI_SetMaxBrakeCurrentAc",
             "DTI_MaxBrakeCurrentAcCmd",
         )?;
-        let raw = runtime::round(v / 0.1);
-        if (-32768.0..32768.0).contains(&raw) {
-            Ok(raw as i16)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "DTI_SetMaxBrakeCurrentAc",
-                signal: "DTI_MaxBrakeCurrentAcCmd",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 0.1) as i16)
     }
 }
 
@@ -11766,6 +12596,24 @@ impl DtiSetMaxCurrentDc {
         visitor.signal(&DTI_SET_MAX_CURRENT_DC_SIGNALS[0], Value::from(v), None);
     }
 
+    /// Decodes a payload and calls `visitor` with every present signal's physical value, as
+    /// [`Self::decode`] and then [`Self::visit`] would, without building the message: the
+    /// values go from the payload straight to the visitor (an enum's as its raw number, which
+    /// is what `visit` hands on), so nothing is stored and read back.
+    pub fn decode_visit(data: &[u8], visitor: &mut impl SignalVisitor) -> Result<(), DecodeError> {
+        let data = runtime::payload::<2>(data, "DTI_SetMaxCurrentDc")?;
+        let dti_max_current_dc_cmd = Self::dti_max_current_dc_cmd_from_raw(bits::sign_extend(
+            bits::read_be(data, 0, 16),
+            16,
+        ) as i16);
+        visitor.signal(
+            &DTI_SET_MAX_CURRENT_DC_SIGNALS[0],
+            Value::from(dti_max_current_dc_cmd),
+            None,
+        );
+        Ok(())
+    }
+
     /// Builds the message from physical values looked up by signal.
     pub fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
         Ok(Self {
@@ -11799,15 +12647,8 @@ impl DtiSetMaxCurrentDc {
             "DTI_SetMaxCurrentDc",
             "DTI_MaxCurrentDcCmd",
         )?;
-        let raw = runtime::round(v / 0.1);
-        if (-32768.0..32768.0).contains(&raw) {
-            Ok(raw as i16)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "DTI_SetMaxCurrentDc",
-                signal: "DTI_MaxCurrentDcCmd",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 0.1) as i16)
     }
 }
 
@@ -11915,6 +12756,23 @@ impl DtiSetMaxBrakeCurrentDc {
         );
     }
 
+    /// Decodes a payload and calls `visitor` with every present signal's physical value, as
+    /// [`Self::decode`] and then [`Self::visit`] would, without building the message: the
+    /// values go from the payload straight to the visitor (an enum's as its raw number, which
+    /// is what `visit` hands on), so nothing is stored and read back.
+    pub fn decode_visit(data: &[u8], visitor: &mut impl SignalVisitor) -> Result<(), DecodeError> {
+        let data = runtime::payload::<2>(data, "DTI_SetMaxBrakeCurrentDc")?;
+        let dti_max_brake_current_dc_cmd = Self::dti_max_brake_current_dc_cmd_from_raw(
+            bits::sign_extend(bits::read_be(data, 0, 16), 16) as i16,
+        );
+        visitor.signal(
+            &DTI_SET_MAX_BRAKE_CURRENT_DC_SIGNALS[0],
+            Value::from(dti_max_brake_current_dc_cmd),
+            None,
+        );
+        Ok(())
+    }
+
     /// Builds the message from physical values looked up by signal.
     pub fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
         Ok(Self {
@@ -11948,15 +12806,8 @@ impl DtiSetMaxBrakeCurrentDc {
             "DTI_SetMaxBrakeCurrentDc",
             "DTI_MaxBrakeCurrentDcCmd",
         )?;
-        let raw = runtime::round(v / 0.1);
-        if (-32768.0..32768.0).contains(&raw) {
-            Ok(raw as i16)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "DTI_SetMaxBrakeCurrentDc",
-                signal: "DTI_MaxBrakeCurrentDcCmd",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 0.1) as i16)
     }
 }
 
@@ -12063,6 +12914,21 @@ impl DtiSetDriveEnable {
             Value::from(v.into_raw()),
             v.label(),
         );
+    }
+
+    /// Decodes a payload and calls `visitor` with every present signal's physical value, as
+    /// [`Self::decode`] and then [`Self::visit`] would, without building the message: the
+    /// values go from the payload straight to the visitor (an enum's as its raw number, which
+    /// is what `visit` hands on), so nothing is stored and read back.
+    pub fn decode_visit(data: &[u8], visitor: &mut impl SignalVisitor) -> Result<(), DecodeError> {
+        let data = runtime::payload::<1>(data, "DTI_SetDriveEnable")?;
+        let dti_drive_enable_cmd = bits::read_le(data, 0, 8) as u8;
+        visitor.signal(
+            &DTI_SET_DRIVE_ENABLE_SIGNALS[0],
+            Value::from(dti_drive_enable_cmd),
+            DtiDriveEnable::from_raw(dti_drive_enable_cmd).label(),
+        );
+        Ok(())
     }
 
     /// Builds the message from physical values looked up by signal.
@@ -12306,6 +13172,35 @@ impl DtiControl {
         visitor.signal(&DTI_CONTROL_SIGNALS[3], Value::from(v), None);
     }
 
+    /// Decodes a payload and calls `visitor` with every present signal's physical value, as
+    /// [`Self::decode`] and then [`Self::visit`] would, without building the message: the
+    /// values go from the payload straight to the visitor (an enum's as its raw number, which
+    /// is what `visit` hands on), so nothing is stored and read back.
+    pub fn decode_visit(data: &[u8], visitor: &mut impl SignalVisitor) -> Result<(), DecodeError> {
+        let data = runtime::payload::<8>(data, "DTI_Control")?;
+        let dti_control_mode = bits::read_le(data, 0, 8) as u8;
+        let dti_target_iq =
+            Self::dti_target_iq_from_raw(bits::sign_extend(bits::read_be(data, 8, 16), 16) as i16);
+        let dti_motor_position = Self::dti_motor_position_from_raw(bits::sign_extend(
+            bits::read_be(data, 24, 16),
+            16,
+        ) as i16);
+        let dti_motor_still = Self::dti_motor_still_from_raw(bits::read_le(data, 40, 8) as u8);
+        visitor.signal(
+            &DTI_CONTROL_SIGNALS[0],
+            Value::from(dti_control_mode),
+            DtiControlMode::from_raw(dti_control_mode).label(),
+        );
+        visitor.signal(&DTI_CONTROL_SIGNALS[1], Value::from(dti_target_iq), None);
+        visitor.signal(
+            &DTI_CONTROL_SIGNALS[2],
+            Value::from(dti_motor_position),
+            None,
+        );
+        visitor.signal(&DTI_CONTROL_SIGNALS[3], Value::from(dti_motor_still), None);
+        Ok(())
+    }
+
     /// Builds the message from physical values looked up by signal.
     pub fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
         Ok(Self {
@@ -12394,15 +13289,8 @@ impl DtiControl {
     /// Raw value of `DTI_TargetIq` for a physical value, range-checked.
     pub fn dti_target_iq_to_raw(v: f64) -> Result<i16, EncodeError> {
         runtime::check_range(v, -3276.8, 3276.7, 1e-7, "DTI_Control", "DTI_TargetIq")?;
-        let raw = runtime::round(v / 0.1);
-        if (-32768.0..32768.0).contains(&raw) {
-            Ok(raw as i16)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "DTI_Control",
-                signal: "DTI_TargetIq",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 0.1) as i16)
     }
 
     /// Physical value of `DTI_MotorPosition` for a raw value.
@@ -12413,15 +13301,8 @@ impl DtiControl {
     /// Raw value of `DTI_MotorPosition` for a physical value, range-checked.
     pub fn dti_motor_position_to_raw(v: f64) -> Result<i16, EncodeError> {
         runtime::check_range(v, -3276.8, 3276.7, 1e-7, "DTI_Control", "DTI_MotorPosition")?;
-        let raw = runtime::round(v / 0.1);
-        if (-32768.0..32768.0).contains(&raw) {
-            Ok(raw as i16)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "DTI_Control",
-                signal: "DTI_MotorPosition",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 0.1) as i16)
     }
 
     /// Physical value of `DTI_MotorStill` for a raw value.
@@ -12603,6 +13484,28 @@ impl DtiSpeed {
         visitor.signal(&DTI_SPEED_SIGNALS[2], Value::from(v), None);
     }
 
+    /// Decodes a payload and calls `visitor` with every present signal's physical value, as
+    /// [`Self::decode`] and then [`Self::visit`] would, without building the message: the
+    /// values go from the payload straight to the visitor (an enum's as its raw number, which
+    /// is what `visit` hands on), so nothing is stored and read back.
+    pub fn decode_visit(data: &[u8], visitor: &mut impl SignalVisitor) -> Result<(), DecodeError> {
+        let data = runtime::payload::<8>(data, "DTI_Speed")?;
+        let dti_erpm =
+            Self::dti_erpm_from_raw(bits::sign_extend(bits::read_be(data, 0, 32), 32) as i32);
+        let dti_duty_cycle = Self::dti_duty_cycle_from_raw(bits::sign_extend(
+            bits::read_be(data, 32, 16),
+            16,
+        ) as i16);
+        let dti_input_voltage = Self::dti_input_voltage_from_raw(bits::sign_extend(
+            bits::read_be(data, 48, 16),
+            16,
+        ) as i16);
+        visitor.signal(&DTI_SPEED_SIGNALS[0], Value::from(dti_erpm), None);
+        visitor.signal(&DTI_SPEED_SIGNALS[1], Value::from(dti_duty_cycle), None);
+        visitor.signal(&DTI_SPEED_SIGNALS[2], Value::from(dti_input_voltage), None);
+        Ok(())
+    }
+
     /// Builds the message from physical values looked up by signal.
     pub fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
         Ok(Self {
@@ -12671,15 +13574,8 @@ impl DtiSpeed {
     /// Raw value of `DTI_DutyCycle` for a physical value, range-checked.
     pub fn dti_duty_cycle_to_raw(v: f64) -> Result<i16, EncodeError> {
         runtime::check_range(v, -3276.8, 3276.7, 1e-7, "DTI_Speed", "DTI_DutyCycle")?;
-        let raw = runtime::round(v / 0.1);
-        if (-32768.0..32768.0).contains(&raw) {
-            Ok(raw as i16)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "DTI_Speed",
-                signal: "DTI_DutyCycle",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 0.1) as i16)
     }
 
     /// Physical value of `DTI_InputVoltage` for a raw value.
@@ -12835,6 +13731,23 @@ impl DtiCurrents {
         visitor.signal(&DTI_CURRENTS_SIGNALS[1], Value::from(v), None);
     }
 
+    /// Decodes a payload and calls `visitor` with every present signal's physical value, as
+    /// [`Self::decode`] and then [`Self::visit`] would, without building the message: the
+    /// values go from the payload straight to the visitor (an enum's as its raw number, which
+    /// is what `visit` hands on), so nothing is stored and read back.
+    pub fn decode_visit(data: &[u8], visitor: &mut impl SignalVisitor) -> Result<(), DecodeError> {
+        let data = runtime::payload::<8>(data, "DTI_Currents")?;
+        let dti_ac_current =
+            Self::dti_ac_current_from_raw(bits::sign_extend(bits::read_be(data, 0, 16), 16) as i16);
+        let dti_dc_current = Self::dti_dc_current_from_raw(bits::sign_extend(
+            bits::read_be(data, 16, 16),
+            16,
+        ) as i16);
+        visitor.signal(&DTI_CURRENTS_SIGNALS[0], Value::from(dti_ac_current), None);
+        visitor.signal(&DTI_CURRENTS_SIGNALS[1], Value::from(dti_dc_current), None);
+        Ok(())
+    }
+
     /// Builds the message from physical values looked up by signal.
     pub fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
         Ok(Self {
@@ -12875,15 +13788,8 @@ impl DtiCurrents {
     /// Raw value of `DTI_AcCurrent` for a physical value, range-checked.
     pub fn dti_ac_current_to_raw(v: f64) -> Result<i16, EncodeError> {
         runtime::check_range(v, -3276.8, 3276.7, 1e-7, "DTI_Currents", "DTI_AcCurrent")?;
-        let raw = runtime::round(v / 0.1);
-        if (-32768.0..32768.0).contains(&raw) {
-            Ok(raw as i16)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "DTI_Currents",
-                signal: "DTI_AcCurrent",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 0.1) as i16)
     }
 
     /// Physical value of `DTI_DcCurrent` for a raw value.
@@ -12894,15 +13800,8 @@ impl DtiCurrents {
     /// Raw value of `DTI_DcCurrent` for a physical value, range-checked.
     pub fn dti_dc_current_to_raw(v: f64) -> Result<i16, EncodeError> {
         runtime::check_range(v, -3276.8, 3276.7, 1e-7, "DTI_Currents", "DTI_DcCurrent")?;
-        let raw = runtime::round(v / 0.1);
-        if (-32768.0..32768.0).contains(&raw) {
-            Ok(raw as i16)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "DTI_Currents",
-                signal: "DTI_DcCurrent",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 0.1) as i16)
     }
 }
 
@@ -13088,6 +13987,39 @@ impl DtiTemperatures {
         );
     }
 
+    /// Decodes a payload and calls `visitor` with every present signal's physical value, as
+    /// [`Self::decode`] and then [`Self::visit`] would, without building the message: the
+    /// values go from the payload straight to the visitor (an enum's as its raw number, which
+    /// is what `visit` hands on), so nothing is stored and read back.
+    pub fn decode_visit(data: &[u8], visitor: &mut impl SignalVisitor) -> Result<(), DecodeError> {
+        let data = runtime::payload::<8>(data, "DTI_Temperatures")?;
+        let dti_controller_temp = Self::dti_controller_temp_from_raw(bits::sign_extend(
+            bits::read_be(data, 0, 16),
+            16,
+        ) as i16);
+        let dti_motor_temp = Self::dti_motor_temp_from_raw(bits::sign_extend(
+            bits::read_be(data, 16, 16),
+            16,
+        ) as i16);
+        let dti_fault_code = bits::read_le(data, 32, 8) as u8;
+        visitor.signal(
+            &DTI_TEMPERATURES_SIGNALS[0],
+            Value::from(dti_controller_temp),
+            None,
+        );
+        visitor.signal(
+            &DTI_TEMPERATURES_SIGNALS[1],
+            Value::from(dti_motor_temp),
+            None,
+        );
+        visitor.signal(
+            &DTI_TEMPERATURES_SIGNALS[2],
+            Value::from(dti_fault_code),
+            DtiFaultCode::from_raw(dti_fault_code).label(),
+        );
+        Ok(())
+    }
+
     /// Builds the message from physical values looked up by signal.
     pub fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
         Ok(Self {
@@ -13147,15 +14079,8 @@ impl DtiTemperatures {
             "DTI_Temperatures",
             "DTI_ControllerTemp",
         )?;
-        let raw = runtime::round(v / 0.1);
-        if (-32768.0..32768.0).contains(&raw) {
-            Ok(raw as i16)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "DTI_Temperatures",
-                signal: "DTI_ControllerTemp",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 0.1) as i16)
     }
 
     /// Physical value of `DTI_MotorTemp` for a raw value.
@@ -13173,15 +14098,8 @@ impl DtiTemperatures {
             "DTI_Temperatures",
             "DTI_MotorTemp",
         )?;
-        let raw = runtime::round(v / 0.1);
-        if (-32768.0..32768.0).contains(&raw) {
-            Ok(raw as i16)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "DTI_Temperatures",
-                signal: "DTI_MotorTemp",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 0.1) as i16)
     }
 
     /// Physical value of `DTI_FaultCode` for a raw value.
@@ -13332,6 +14250,21 @@ impl DtiFocCurrents {
         visitor.signal(&DTI_FOC_CURRENTS_SIGNALS[1], Value::from(v), None);
     }
 
+    /// Decodes a payload and calls `visitor` with every present signal's physical value, as
+    /// [`Self::decode`] and then [`Self::visit`] would, without building the message: the
+    /// values go from the payload straight to the visitor (an enum's as its raw number, which
+    /// is what `visit` hands on), so nothing is stored and read back.
+    pub fn decode_visit(data: &[u8], visitor: &mut impl SignalVisitor) -> Result<(), DecodeError> {
+        let data = runtime::payload::<8>(data, "DTI_FocCurrents")?;
+        let dti_foc_id =
+            Self::dti_foc_id_from_raw(bits::sign_extend(bits::read_be(data, 0, 32), 32) as i32);
+        let dti_foc_iq =
+            Self::dti_foc_iq_from_raw(bits::sign_extend(bits::read_be(data, 32, 32), 32) as i32);
+        visitor.signal(&DTI_FOC_CURRENTS_SIGNALS[0], Value::from(dti_foc_id), None);
+        visitor.signal(&DTI_FOC_CURRENTS_SIGNALS[1], Value::from(dti_foc_iq), None);
+        Ok(())
+    }
+
     /// Builds the message from physical values looked up by signal.
     pub fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
         Ok(Self {
@@ -13377,15 +14310,8 @@ impl DtiFocCurrents {
             "DTI_FocCurrents",
             "DTI_FocId",
         )?;
-        let raw = runtime::round(v / 0.01);
-        if (-2147483648.0..2147483648.0).contains(&raw) {
-            Ok(raw as i32)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "DTI_FocCurrents",
-                signal: "DTI_FocId",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i64(v / 0.01) as i32)
     }
 
     /// Physical value of `DTI_FocIq` for a raw value.
@@ -13403,15 +14329,8 @@ impl DtiFocCurrents {
             "DTI_FocCurrents",
             "DTI_FocIq",
         )?;
-        let raw = runtime::round(v / 0.01);
-        if (-2147483648.0..2147483648.0).contains(&raw) {
-            Ok(raw as i32)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "DTI_FocCurrents",
-                signal: "DTI_FocIq",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i64(v / 0.01) as i32)
     }
 }
 
@@ -14180,6 +15099,114 @@ impl DtiFlags {
         visitor.signal(&DTI_FLAGS_SIGNALS[21], Value::from(v), None);
         let v = self.dti_can_map_version;
         visitor.signal(&DTI_FLAGS_SIGNALS[22], Value::from(v), None);
+    }
+
+    /// Decodes a payload and calls `visitor` with every present signal's physical value, as
+    /// [`Self::decode`] and then [`Self::visit`] would, without building the message: the
+    /// values go from the payload straight to the visitor (an enum's as its raw number, which
+    /// is what `visit` hands on), so nothing is stored and read back.
+    pub fn decode_visit(data: &[u8], visitor: &mut impl SignalVisitor) -> Result<(), DecodeError> {
+        let data = runtime::payload::<8>(data, "DTI_Flags")?;
+        let dti_throttle_input = Self::dti_throttle_input_from_raw(bits::sign_extend(
+            bits::read_le(data, 0, 8),
+            8,
+        ) as i8);
+        let dti_brake_input =
+            Self::dti_brake_input_from_raw(bits::sign_extend(bits::read_le(data, 8, 8), 8) as i8);
+        let dti_digital_in1 = Self::dti_digital_in1_from_raw(bits::read_le(data, 16, 1) as u8);
+        let dti_digital_in2 = Self::dti_digital_in2_from_raw(bits::read_le(data, 17, 1) as u8);
+        let dti_digital_in3 = Self::dti_digital_in3_from_raw(bits::read_le(data, 18, 1) as u8);
+        let dti_digital_in4 = Self::dti_digital_in4_from_raw(bits::read_le(data, 19, 1) as u8);
+        let dti_digital_out1 = Self::dti_digital_out1_from_raw(bits::read_le(data, 20, 1) as u8);
+        let dti_digital_out2 = Self::dti_digital_out2_from_raw(bits::read_le(data, 21, 1) as u8);
+        let dti_digital_out3 = Self::dti_digital_out3_from_raw(bits::read_le(data, 22, 1) as u8);
+        let dti_digital_out4 = Self::dti_digital_out4_from_raw(bits::read_le(data, 23, 1) as u8);
+        let dti_drive_enabled = bits::read_le(data, 24, 8) as u8;
+        let dti_limit_capacitor_temp =
+            Self::dti_limit_capacitor_temp_from_raw(bits::read_le(data, 32, 1) as u8);
+        let dti_limit_dc_current =
+            Self::dti_limit_dc_current_from_raw(bits::read_le(data, 33, 1) as u8);
+        let dti_limit_drive_enable =
+            Self::dti_limit_drive_enable_from_raw(bits::read_le(data, 34, 1) as u8);
+        let dti_limit_igbt_accel_temp =
+            Self::dti_limit_igbt_accel_temp_from_raw(bits::read_le(data, 35, 1) as u8);
+        let dti_limit_igbt_temp =
+            Self::dti_limit_igbt_temp_from_raw(bits::read_le(data, 36, 1) as u8);
+        let dti_limit_input_voltage =
+            Self::dti_limit_input_voltage_from_raw(bits::read_le(data, 37, 1) as u8);
+        let dti_limit_motor_accel_temp =
+            Self::dti_limit_motor_accel_temp_from_raw(bits::read_le(data, 38, 1) as u8);
+        let dti_limit_motor_temp =
+            Self::dti_limit_motor_temp_from_raw(bits::read_le(data, 39, 1) as u8);
+        let dti_limit_rpm_min = Self::dti_limit_rpm_min_from_raw(bits::read_le(data, 40, 1) as u8);
+        let dti_limit_rpm_max = Self::dti_limit_rpm_max_from_raw(bits::read_le(data, 41, 1) as u8);
+        let dti_limit_power = Self::dti_limit_power_from_raw(bits::read_le(data, 42, 1) as u8);
+        let dti_can_map_version =
+            Self::dti_can_map_version_from_raw(bits::read_le(data, 56, 8) as u8);
+        visitor.signal(&DTI_FLAGS_SIGNALS[0], Value::from(dti_throttle_input), None);
+        visitor.signal(&DTI_FLAGS_SIGNALS[1], Value::from(dti_brake_input), None);
+        visitor.signal(&DTI_FLAGS_SIGNALS[2], Value::from(dti_digital_in1), None);
+        visitor.signal(&DTI_FLAGS_SIGNALS[3], Value::from(dti_digital_in2), None);
+        visitor.signal(&DTI_FLAGS_SIGNALS[4], Value::from(dti_digital_in3), None);
+        visitor.signal(&DTI_FLAGS_SIGNALS[5], Value::from(dti_digital_in4), None);
+        visitor.signal(&DTI_FLAGS_SIGNALS[6], Value::from(dti_digital_out1), None);
+        visitor.signal(&DTI_FLAGS_SIGNALS[7], Value::from(dti_digital_out2), None);
+        visitor.signal(&DTI_FLAGS_SIGNALS[8], Value::from(dti_digital_out3), None);
+        visitor.signal(&DTI_FLAGS_SIGNALS[9], Value::from(dti_digital_out4), None);
+        visitor.signal(
+            &DTI_FLAGS_SIGNALS[10],
+            Value::from(dti_drive_enabled),
+            DtiDriveEnable::from_raw(dti_drive_enabled).label(),
+        );
+        visitor.signal(
+            &DTI_FLAGS_SIGNALS[11],
+            Value::from(dti_limit_capacitor_temp),
+            None,
+        );
+        visitor.signal(
+            &DTI_FLAGS_SIGNALS[12],
+            Value::from(dti_limit_dc_current),
+            None,
+        );
+        visitor.signal(
+            &DTI_FLAGS_SIGNALS[13],
+            Value::from(dti_limit_drive_enable),
+            None,
+        );
+        visitor.signal(
+            &DTI_FLAGS_SIGNALS[14],
+            Value::from(dti_limit_igbt_accel_temp),
+            None,
+        );
+        visitor.signal(
+            &DTI_FLAGS_SIGNALS[15],
+            Value::from(dti_limit_igbt_temp),
+            None,
+        );
+        visitor.signal(
+            &DTI_FLAGS_SIGNALS[16],
+            Value::from(dti_limit_input_voltage),
+            None,
+        );
+        visitor.signal(
+            &DTI_FLAGS_SIGNALS[17],
+            Value::from(dti_limit_motor_accel_temp),
+            None,
+        );
+        visitor.signal(
+            &DTI_FLAGS_SIGNALS[18],
+            Value::from(dti_limit_motor_temp),
+            None,
+        );
+        visitor.signal(&DTI_FLAGS_SIGNALS[19], Value::from(dti_limit_rpm_min), None);
+        visitor.signal(&DTI_FLAGS_SIGNALS[20], Value::from(dti_limit_rpm_max), None);
+        visitor.signal(&DTI_FLAGS_SIGNALS[21], Value::from(dti_limit_power), None);
+        visitor.signal(
+            &DTI_FLAGS_SIGNALS[22],
+            Value::from(dti_can_map_version),
+            None,
+        );
+        Ok(())
     }
 
     /// Builds the message from physical values looked up by signal.
@@ -15083,6 +16110,49 @@ impl DtiAcLimits {
         visitor.signal(&DTI_AC_LIMITS_SIGNALS[3], Value::from(v), None);
     }
 
+    /// Decodes a payload and calls `visitor` with every present signal's physical value, as
+    /// [`Self::decode`] and then [`Self::visit`] would, without building the message: the
+    /// values go from the payload straight to the visitor (an enum's as its raw number, which
+    /// is what `visit` hands on), so nothing is stored and read back.
+    pub fn decode_visit(data: &[u8], visitor: &mut impl SignalVisitor) -> Result<(), DecodeError> {
+        let data = runtime::payload::<8>(data, "DTI_AcLimits")?;
+        let dti_max_ac_current = Self::dti_max_ac_current_from_raw(bits::sign_extend(
+            bits::read_be(data, 0, 16),
+            16,
+        ) as i16);
+        let dti_available_max_ac_current = Self::dti_available_max_ac_current_from_raw(
+            bits::sign_extend(bits::read_be(data, 16, 16), 16) as i16,
+        );
+        let dti_min_ac_current = Self::dti_min_ac_current_from_raw(bits::sign_extend(
+            bits::read_be(data, 32, 16),
+            16,
+        ) as i16);
+        let dti_available_min_ac_current = Self::dti_available_min_ac_current_from_raw(
+            bits::sign_extend(bits::read_be(data, 48, 16), 16) as i16,
+        );
+        visitor.signal(
+            &DTI_AC_LIMITS_SIGNALS[0],
+            Value::from(dti_max_ac_current),
+            None,
+        );
+        visitor.signal(
+            &DTI_AC_LIMITS_SIGNALS[1],
+            Value::from(dti_available_max_ac_current),
+            None,
+        );
+        visitor.signal(
+            &DTI_AC_LIMITS_SIGNALS[2],
+            Value::from(dti_min_ac_current),
+            None,
+        );
+        visitor.signal(
+            &DTI_AC_LIMITS_SIGNALS[3],
+            Value::from(dti_available_min_ac_current),
+            None,
+        );
+        Ok(())
+    }
+
     /// Builds the message from physical values looked up by signal.
     pub fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
         Ok(Self {
@@ -15149,15 +16219,8 @@ impl DtiAcLimits {
     /// Raw value of `DTI_MaxAcCurrent` for a physical value, range-checked.
     pub fn dti_max_ac_current_to_raw(v: f64) -> Result<i16, EncodeError> {
         runtime::check_range(v, -3276.8, 3276.7, 1e-7, "DTI_AcLimits", "DTI_MaxAcCurrent")?;
-        let raw = runtime::round(v / 0.1);
-        if (-32768.0..32768.0).contains(&raw) {
-            Ok(raw as i16)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "DTI_AcLimits",
-                signal: "DTI_MaxAcCurrent",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 0.1) as i16)
     }
 
     /// Physical value of `DTI_AvailableMaxAcCurrent` for a raw value.
@@ -15175,15 +16238,8 @@ impl DtiAcLimits {
             "DTI_AcLimits",
             "DTI_AvailableMaxAcCurrent",
         )?;
-        let raw = runtime::round(v / 0.1);
-        if (-32768.0..32768.0).contains(&raw) {
-            Ok(raw as i16)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "DTI_AcLimits",
-                signal: "DTI_AvailableMaxAcCurrent",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 0.1) as i16)
     }
 
     /// Physical value of `DTI_MinAcCurrent` for a raw value.
@@ -15194,15 +16250,8 @@ impl DtiAcLimits {
     /// Raw value of `DTI_MinAcCurrent` for a physical value, range-checked.
     pub fn dti_min_ac_current_to_raw(v: f64) -> Result<i16, EncodeError> {
         runtime::check_range(v, -3276.8, 3276.7, 1e-7, "DTI_AcLimits", "DTI_MinAcCurrent")?;
-        let raw = runtime::round(v / 0.1);
-        if (-32768.0..32768.0).contains(&raw) {
-            Ok(raw as i16)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "DTI_AcLimits",
-                signal: "DTI_MinAcCurrent",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 0.1) as i16)
     }
 
     /// Physical value of `DTI_AvailableMinAcCurrent` for a raw value.
@@ -15220,15 +16269,8 @@ impl DtiAcLimits {
             "DTI_AcLimits",
             "DTI_AvailableMinAcCurrent",
         )?;
-        let raw = runtime::round(v / 0.1);
-        if (-32768.0..32768.0).contains(&raw) {
-            Ok(raw as i16)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "DTI_AcLimits",
-                signal: "DTI_AvailableMinAcCurrent",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 0.1) as i16)
     }
 }
 
@@ -15432,6 +16474,49 @@ impl DtiDcLimits {
         visitor.signal(&DTI_DC_LIMITS_SIGNALS[3], Value::from(v), None);
     }
 
+    /// Decodes a payload and calls `visitor` with every present signal's physical value, as
+    /// [`Self::decode`] and then [`Self::visit`] would, without building the message: the
+    /// values go from the payload straight to the visitor (an enum's as its raw number, which
+    /// is what `visit` hands on), so nothing is stored and read back.
+    pub fn decode_visit(data: &[u8], visitor: &mut impl SignalVisitor) -> Result<(), DecodeError> {
+        let data = runtime::payload::<8>(data, "DTI_DcLimits")?;
+        let dti_max_dc_current = Self::dti_max_dc_current_from_raw(bits::sign_extend(
+            bits::read_be(data, 0, 16),
+            16,
+        ) as i16);
+        let dti_available_max_dc_current = Self::dti_available_max_dc_current_from_raw(
+            bits::sign_extend(bits::read_be(data, 16, 16), 16) as i16,
+        );
+        let dti_min_dc_current = Self::dti_min_dc_current_from_raw(bits::sign_extend(
+            bits::read_be(data, 32, 16),
+            16,
+        ) as i16);
+        let dti_available_min_dc_current = Self::dti_available_min_dc_current_from_raw(
+            bits::sign_extend(bits::read_be(data, 48, 16), 16) as i16,
+        );
+        visitor.signal(
+            &DTI_DC_LIMITS_SIGNALS[0],
+            Value::from(dti_max_dc_current),
+            None,
+        );
+        visitor.signal(
+            &DTI_DC_LIMITS_SIGNALS[1],
+            Value::from(dti_available_max_dc_current),
+            None,
+        );
+        visitor.signal(
+            &DTI_DC_LIMITS_SIGNALS[2],
+            Value::from(dti_min_dc_current),
+            None,
+        );
+        visitor.signal(
+            &DTI_DC_LIMITS_SIGNALS[3],
+            Value::from(dti_available_min_dc_current),
+            None,
+        );
+        Ok(())
+    }
+
     /// Builds the message from physical values looked up by signal.
     pub fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
         Ok(Self {
@@ -15498,15 +16583,8 @@ impl DtiDcLimits {
     /// Raw value of `DTI_MaxDcCurrent` for a physical value, range-checked.
     pub fn dti_max_dc_current_to_raw(v: f64) -> Result<i16, EncodeError> {
         runtime::check_range(v, -3276.8, 3276.7, 1e-7, "DTI_DcLimits", "DTI_MaxDcCurrent")?;
-        let raw = runtime::round(v / 0.1);
-        if (-32768.0..32768.0).contains(&raw) {
-            Ok(raw as i16)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "DTI_DcLimits",
-                signal: "DTI_MaxDcCurrent",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 0.1) as i16)
     }
 
     /// Physical value of `DTI_AvailableMaxDcCurrent` for a raw value.
@@ -15524,15 +16602,8 @@ impl DtiDcLimits {
             "DTI_DcLimits",
             "DTI_AvailableMaxDcCurrent",
         )?;
-        let raw = runtime::round(v / 0.1);
-        if (-32768.0..32768.0).contains(&raw) {
-            Ok(raw as i16)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "DTI_DcLimits",
-                signal: "DTI_AvailableMaxDcCurrent",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 0.1) as i16)
     }
 
     /// Physical value of `DTI_MinDcCurrent` for a raw value.
@@ -15543,15 +16614,8 @@ impl DtiDcLimits {
     /// Raw value of `DTI_MinDcCurrent` for a physical value, range-checked.
     pub fn dti_min_dc_current_to_raw(v: f64) -> Result<i16, EncodeError> {
         runtime::check_range(v, -3276.8, 3276.7, 1e-7, "DTI_DcLimits", "DTI_MinDcCurrent")?;
-        let raw = runtime::round(v / 0.1);
-        if (-32768.0..32768.0).contains(&raw) {
-            Ok(raw as i16)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "DTI_DcLimits",
-                signal: "DTI_MinDcCurrent",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 0.1) as i16)
     }
 
     /// Physical value of `DTI_AvailableMinDcCurrent` for a raw value.
@@ -15569,15 +16633,8 @@ impl DtiDcLimits {
             "DTI_DcLimits",
             "DTI_AvailableMinDcCurrent",
         )?;
-        let raw = runtime::round(v / 0.1);
-        if (-32768.0..32768.0).contains(&raw) {
-            Ok(raw as i16)
-        } else {
-            Err(EncodeError::OutOfRange {
-                message: "DTI_DcLimits",
-                signal: "DTI_AvailableMinDcCurrent",
-            })
-        }
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 0.1) as i16)
     }
 }
 
@@ -15744,42 +16801,42 @@ impl AnyMessage {
         visitor: &mut impl SignalVisitor,
     ) -> Result<(), DecodeError> {
         match (id, extended) {
-            (0xA0, false) => CcmStatus::decode(data).map(|m| m.visit(visitor)),
-            (0x101, false) => Vcu1::decode(data).map(|m| m.visit(visitor)),
-            (0x105, false) => Mcu1::decode(data).map(|m| m.visit(visitor)),
-            (0x106, false) => Mcu2::decode(data).map(|m| m.visit(visitor)),
-            (0x107, false) => Mcu3::decode(data).map(|m| m.visit(visitor)),
-            (0x1A0, false) => Bms1::decode(data).map(|m| m.visit(visitor)),
-            (0x1A1, false) => Bms2::decode(data).map(|m| m.visit(visitor)),
-            (0x6B0, false) => OrionPackStatus::decode(data).map(|m| m.visit(visitor)),
-            (0x6B1, false) => OrionLimits::decode(data).map(|m| m.visit(visitor)),
-            (0x6B2, false) => OrionCellVoltages::decode(data).map(|m| m.visit(visitor)),
-            (0x222, false) => PccStatus::decode(data).map(|m| m.visit(visitor)),
-            (0x18FF01F4, true) => ImdInfoGeneral::decode(data).map(|m| m.visit(visitor)),
-            (0x18FF02F4, true) => ImdInfoIsolationDetail::decode(data).map(|m| m.visit(visitor)),
-            (0x18FF03F4, true) => ImdInfoVoltage::decode(data).map(|m| m.visit(visitor)),
-            (0x18FF04F4, true) => ImdInfoItSystem::decode(data).map(|m| m.visit(visitor)),
-            (0x18EFF417, true) => ImdRequest::decode(data).map(|m| m.visit(visitor)),
-            (0x141, true) => DtiSetCurrent::decode(data).map(|m| m.visit(visitor)),
-            (0x241, true) => DtiSetBrakeCurrent::decode(data).map(|m| m.visit(visitor)),
-            (0x341, true) => DtiSetErpm::decode(data).map(|m| m.visit(visitor)),
-            (0x441, true) => DtiSetPosition::decode(data).map(|m| m.visit(visitor)),
-            (0x541, true) => DtiSetRelativeCurrent::decode(data).map(|m| m.visit(visitor)),
-            (0x641, true) => DtiSetRelativeBrakeCurrent::decode(data).map(|m| m.visit(visitor)),
-            (0x741, true) => DtiSetDigitalOutputs::decode(data).map(|m| m.visit(visitor)),
-            (0x841, true) => DtiSetMaxCurrentAc::decode(data).map(|m| m.visit(visitor)),
-            (0x941, true) => DtiSetMaxBrakeCurrentAc::decode(data).map(|m| m.visit(visitor)),
-            (0xA41, true) => DtiSetMaxCurrentDc::decode(data).map(|m| m.visit(visitor)),
-            (0xB41, true) => DtiSetMaxBrakeCurrentDc::decode(data).map(|m| m.visit(visitor)),
-            (0xC41, true) => DtiSetDriveEnable::decode(data).map(|m| m.visit(visitor)),
-            (0x1F41, true) => DtiControl::decode(data).map(|m| m.visit(visitor)),
-            (0x2041, true) => DtiSpeed::decode(data).map(|m| m.visit(visitor)),
-            (0x2141, true) => DtiCurrents::decode(data).map(|m| m.visit(visitor)),
-            (0x2241, true) => DtiTemperatures::decode(data).map(|m| m.visit(visitor)),
-            (0x2341, true) => DtiFocCurrents::decode(data).map(|m| m.visit(visitor)),
-            (0x2441, true) => DtiFlags::decode(data).map(|m| m.visit(visitor)),
-            (0x2541, true) => DtiAcLimits::decode(data).map(|m| m.visit(visitor)),
-            (0x2641, true) => DtiDcLimits::decode(data).map(|m| m.visit(visitor)),
+            (0xA0, false) => CcmStatus::decode_visit(data, visitor),
+            (0x101, false) => Vcu1::decode_visit(data, visitor),
+            (0x105, false) => Mcu1::decode_visit(data, visitor),
+            (0x106, false) => Mcu2::decode_visit(data, visitor),
+            (0x107, false) => Mcu3::decode_visit(data, visitor),
+            (0x1A0, false) => Bms1::decode_visit(data, visitor),
+            (0x1A1, false) => Bms2::decode_visit(data, visitor),
+            (0x6B0, false) => OrionPackStatus::decode_visit(data, visitor),
+            (0x6B1, false) => OrionLimits::decode_visit(data, visitor),
+            (0x6B2, false) => OrionCellVoltages::decode_visit(data, visitor),
+            (0x222, false) => PccStatus::decode_visit(data, visitor),
+            (0x18FF01F4, true) => ImdInfoGeneral::decode_visit(data, visitor),
+            (0x18FF02F4, true) => ImdInfoIsolationDetail::decode_visit(data, visitor),
+            (0x18FF03F4, true) => ImdInfoVoltage::decode_visit(data, visitor),
+            (0x18FF04F4, true) => ImdInfoItSystem::decode_visit(data, visitor),
+            (0x18EFF417, true) => ImdRequest::decode_visit(data, visitor),
+            (0x141, true) => DtiSetCurrent::decode_visit(data, visitor),
+            (0x241, true) => DtiSetBrakeCurrent::decode_visit(data, visitor),
+            (0x341, true) => DtiSetErpm::decode_visit(data, visitor),
+            (0x441, true) => DtiSetPosition::decode_visit(data, visitor),
+            (0x541, true) => DtiSetRelativeCurrent::decode_visit(data, visitor),
+            (0x641, true) => DtiSetRelativeBrakeCurrent::decode_visit(data, visitor),
+            (0x741, true) => DtiSetDigitalOutputs::decode_visit(data, visitor),
+            (0x841, true) => DtiSetMaxCurrentAc::decode_visit(data, visitor),
+            (0x941, true) => DtiSetMaxBrakeCurrentAc::decode_visit(data, visitor),
+            (0xA41, true) => DtiSetMaxCurrentDc::decode_visit(data, visitor),
+            (0xB41, true) => DtiSetMaxBrakeCurrentDc::decode_visit(data, visitor),
+            (0xC41, true) => DtiSetDriveEnable::decode_visit(data, visitor),
+            (0x1F41, true) => DtiControl::decode_visit(data, visitor),
+            (0x2041, true) => DtiSpeed::decode_visit(data, visitor),
+            (0x2141, true) => DtiCurrents::decode_visit(data, visitor),
+            (0x2241, true) => DtiTemperatures::decode_visit(data, visitor),
+            (0x2341, true) => DtiFocCurrents::decode_visit(data, visitor),
+            (0x2441, true) => DtiFlags::decode_visit(data, visitor),
+            (0x2541, true) => DtiAcLimits::decode_visit(data, visitor),
+            (0x2641, true) => DtiDcLimits::decode_visit(data, visitor),
             _ => Err(DecodeError::UnknownId { id, extended }),
         }
     }
@@ -15890,9 +16947,10 @@ impl AnyMessage {
         }
     }
 
-    /// Encodes into `out`; returns the payload length.
+    /// Encodes into `out`; returns the payload length. The message is matched by reference:
+    /// a copy of it would cost a store and a load per field, and the call can be a tail call.
     pub fn encode(&self, out: &mut [u8]) -> Result<usize, EncodeError> {
-        match *self {
+        match self {
             Self::CcmStatus(m) => m.encode(out),
             Self::Vcu1(m) => m.encode(out),
             Self::Mcu1(m) => m.encode(out),
@@ -15934,7 +16992,7 @@ impl AnyMessage {
 
     /// Calls `visitor` with every present signal's physical value.
     pub fn visit(&self, visitor: &mut impl SignalVisitor) {
-        match *self {
+        match self {
             Self::CcmStatus(m) => m.visit(visitor),
             Self::Vcu1(m) => m.visit(visitor),
             Self::Mcu1(m) => m.visit(visitor),
@@ -15976,7 +17034,7 @@ impl AnyMessage {
 
     /// Encodes into an `embedded-can` frame.
     pub fn to_frame<F: embedded_can::Frame>(&self) -> Result<F, EncodeError> {
-        match *self {
+        match self {
             Self::CcmStatus(m) => m.to_frame(),
             Self::Vcu1(m) => m.to_frame(),
             Self::Mcu1(m) => m.to_frame(),

@@ -178,3 +178,28 @@ fn pick(s: &SignalMeta, u: f64) -> Value {
         Value::Float(x)
     }
 }
+
+/// Halves, the float just below a half, and whole numbers: where rounding can go wrong.
+fn rounding_case() -> impl Strategy<Value = f64> {
+    prop_oneof![
+        (-2_000_000_000i64..2_000_000_000).prop_map(|n| n as f64 + 0.5),
+        (-2_000_000_000i64..2_000_000_000).prop_map(|n| n as f64),
+        Just(0.499_999_999_999_999_94),
+        Just(-0.499_999_999_999_999_94),
+        -2.1e9..2.1e9f64,
+        -1e3..1e3f64,
+    ]
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(20000))]
+
+    /// The encoders' bounded rounding (used where the range check keeps the raw value in the
+    /// signal's bits) gives exactly what `round` gives.
+    #[test]
+    fn bounded_rounding_is_round(x in rounding_case()) {
+        prop_assert_eq!(aer::runtime::round_i32(x) as f64, aer::runtime::round(x));
+        prop_assert_eq!(aer::runtime::round_i64(x) as f64, aer::runtime::round(x));
+        prop_assert_eq!(aer::runtime::round_i64(x * 1000.0) as f64, aer::runtime::round(x * 1000.0));
+    }
+}

@@ -149,7 +149,7 @@ impl {{ m.type_name }} {
 {%- else %}
         let data = runtime::payload::<{{ m.len }}>(data, {{ m.name }})?;
 {%- for s in m.ordered() %}
-        {%- call signal::decode(s) %}{% endcall %}
+        {%- call signal::decode(s, false) %}{% endcall %}
 {%- endfor %}
         Ok(Self {
 {%- for s in m.signals %}
@@ -178,6 +178,29 @@ impl {{ m.type_name }} {
 {%- for s in m.signals %}
         {%- call signal::visit(m, s) %}{% endcall %}
 {%- endfor %}
+    }
+
+    /// Decodes a payload and calls `visitor` with every present signal's physical value, as
+    /// [`Self::decode`] and then [`Self::visit`] would, without building the message: the
+    /// values go from the payload straight to the visitor (an enum's as its raw number, which
+    /// is what `visit` hands on), so nothing is stored and read back.
+    pub fn decode_visit(data: &[u8], {% if m.signals.is_empty() %}_visitor{% else %}visitor{% endif %}: &mut impl SignalVisitor) -> Result<(), DecodeError> {
+{%- if m.signals.is_empty() %}
+        runtime::payload::<{{ m.len }}>(data, {{ m.name }})?;
+        Ok(())
+{%- else if !m.fused_visit %}
+        // A signal is called `visitor`: its local would hide the parameter.
+        Self::decode(data).map(|m| m.visit(visitor))
+{%- else %}
+        let data = runtime::payload::<{{ m.len }}>(data, {{ m.name }})?;
+{%- for s in m.ordered() %}
+        {%- call signal::decode(s, true) %}{% endcall %}
+{%- endfor %}
+{%- for s in m.signals %}
+        {%- call signal::visit_local(m, s) %}{% endcall %}
+{%- endfor %}
+        Ok(())
+{%- endif %}
     }
 
     /// Builds the message from physical values looked up by signal.
@@ -278,7 +301,7 @@ impl AnyMessage {
 {%- else %}
         match (id, extended) {
 {%- for m in messages %}
-            ({{ m.id }}, {{ m.extended }}) => {{ m.type_name }}::decode(data).map(|m| m.visit(visitor)),
+            ({{ m.id }}, {{ m.extended }}) => {{ m.type_name }}::decode_visit(data, visitor),
 {%- endfor %}
             _ => Err(DecodeError::UnknownId { id, extended }),
         }
@@ -319,9 +342,10 @@ impl AnyMessage {
         }
     }
 
-    /// Encodes into `out`; returns the payload length.
+    /// Encodes into `out`; returns the payload length. The message is matched by reference:
+    /// a copy of it would cost a store and a load per field, and the call can be a tail call.
     pub fn encode(&self, {% if messages.is_empty() %}_out{% else %}out{% endif %}: &mut [u8]) -> Result<usize, EncodeError> {
-        match *self {
+        match {% if messages.is_empty() %}*self{% else %}self{% endif %} {
 {%- for m in messages %}
             Self::{{ m.type_name }}(m) => m.encode(out),
 {%- endfor %}
@@ -330,7 +354,7 @@ impl AnyMessage {
 
     /// Calls `visitor` with every present signal's physical value.
     pub fn visit(&self, {% if messages.is_empty() %}_visitor{% else %}visitor{% endif %}: &mut impl SignalVisitor) {
-        match *self {
+        match {% if messages.is_empty() %}*self{% else %}self{% endif %} {
 {%- for m in messages %}
             Self::{{ m.type_name }}(m) => m.visit(visitor),
 {%- endfor %}
@@ -339,7 +363,7 @@ impl AnyMessage {
 
     /// Encodes into an `embedded-can` frame.
     pub fn to_frame<F: embedded_can::Frame>(&self) -> Result<F, EncodeError> {
-        match *self {
+        match {% if messages.is_empty() %}*self{% else %}self{% endif %} {
 {%- for m in messages %}
             Self::{{ m.type_name }}(m) => m.to_frame(),
 {%- endfor %}

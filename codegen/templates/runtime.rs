@@ -619,6 +619,27 @@ pub fn round(x: f64) -> f64 {
     }
 }
 
+/// [`round`] to an integer, for a value its caller has bounded to `i32`'s range (a range
+/// check the generator showed to imply it): one truncating conversion and two comparisons
+/// instead of `round`'s special cases and a checked conversion back. Beyond `i32` the result
+/// is wrong but still no panic.
+#[inline(always)]
+pub fn round_i32(x: f64) -> i64 {
+    let whole = x as i32;
+    let rest = x - f64::from(whole);
+    i64::from(whole) + i64::from(rest >= 0.5) - i64::from(rest <= -0.5)
+}
+
+/// [`round_i32`] for values bounded to `+-2^52` (where every `f64` is still whole or not).
+#[inline(always)]
+pub fn round_i64(x: f64) -> i64 {
+    let whole = x as i64;
+    let rest = x - whole as f64;
+    whole
+        .wrapping_add(i64::from(rest >= 0.5))
+        .wrapping_sub(i64::from(rest <= -0.5))
+}
+
 /// `numerator / denominator` rounded half away from zero, for integer scaling.
 #[inline]
 pub fn div_round(numerator: i128, denominator: i128) -> i128 {

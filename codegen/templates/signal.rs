@@ -30,23 +30,44 @@ bits::write_{{ s.placement.order }}(out, {{ s.placement.start }}, {{ s.placement
 matches!({{ c.selector }}, {% if c.selector_optional %}Some({{ c.patterns() }}){% else %}{{ c.patterns() }}{% endif %})
 {%- endmacro -%}
 
+{#- Around the raw value, what turns it into what the local holds: the physical value, or for
+    an enum with `raw_enum` the raw number in the enum's representation (what a visitor gets). -#}
+{%- macro conv_open(s, raw_enum) -%}
+{%- match s.conversion -%}
+{%- when Conversion::Enum { widen, .. } -%}
+{%- if raw_enum -%}
+{%- if let Some(repr) = widen -%} {{ repr }}::from( {%- endif -%}
+{%- else -%} Self::{{ s.stem }}_from_raw(
+{%- endif -%}
+{%- else -%} Self::{{ s.stem }}_from_raw(
+{%- endmatch -%}
+{%- endmacro -%}
+
+{%- macro conv_close(s, raw_enum) -%}
+{%- match s.conversion -%}
+{%- when Conversion::Enum { widen, .. } -%}
+{%- if !raw_enum || widen.is_some() -%} ) {%- endif -%}
+{%- else -%} )
+{%- endmatch -%}
+{%- endmacro -%}
+
 {#- Statements binding the field (and, for a multiplexor, its bits) from `data`. -#}
-{%- macro decode(s) -%}
+{%- macro decode(s, raw_enum) -%}
 {%- match s.presence -%}
 {%- when Presence::Always -%}
 {%- if s.is_multiplexor %}
         let {{ s.stem }}_bits = {{ s.read_expr() }};
-        let {{ s.field }} = Self::{{ s.stem }}_from_raw({% call raw_from_bits(s, s.bits_local()) %}{% endcall %});
+        let {{ s.field }} = {% call conv_open(s, raw_enum) %}{% endcall %}{% call raw_from_bits(s, s.bits_local()) %}{% endcall %}{% call conv_close(s, raw_enum) %}{% endcall %};
 {%- else %}
-        let {{ s.field }} = Self::{{ s.stem }}_from_raw({% call raw_from_bits(s, s.read_expr()) %}{% endcall %});
+        let {{ s.field }} = {% call conv_open(s, raw_enum) %}{% endcall %}{% call raw_from_bits(s, s.read_expr()) %}{% endcall %}{% call conv_close(s, raw_enum) %}{% endcall %};
 {%- endif -%}
 {%- when Presence::When(c) -%}
 {%- if s.is_multiplexor %}
         let {{ s.stem }}_bits = if {% call condition(c) %}{% endcall %} { Some({{ s.read_expr() }}) } else { None };
-        let {{ s.field }} = {{ s.stem }}_bits.map(|bits| Self::{{ s.stem }}_from_raw({% call raw_from_bits(s, "bits") %}{% endcall %}));
+        let {{ s.field }} = {{ s.stem }}_bits.map(|bits| {% call conv_open(s, raw_enum) %}{% endcall %}{% call raw_from_bits(s, "bits") %}{% endcall %}{% call conv_close(s, raw_enum) %}{% endcall %});
 {%- else %}
         let {{ s.field }} = if {% call condition(c) %}{% endcall %} {
-            Some(Self::{{ s.stem }}_from_raw({% call raw_from_bits(s, s.read_expr()) %}{% endcall %}))
+            Some({% call conv_open(s, raw_enum) %}{% endcall %}{% call raw_from_bits(s, s.read_expr()) %}{% endcall %}{% call conv_close(s, raw_enum) %}{% endcall %})
         } else {
             None
         };
@@ -114,6 +135,29 @@ match ({% call condition(c) %}{% endcall %}, self.{{ s.field }}) {
 {%- else %}
         let v = self.{{ s.field }};
         visitor.signal(&{{ m.meta_static }}[{{ s.index }}], {% call value(s) %}{% endcall %}, {% call label(s) %}{% endcall %});
+{%- endif -%}
+{%- endmacro -%}
+
+{#- The label of the value `v` (a local bound by `decode(s, true)`, or its contents). -#}
+{%- macro local_label(s, v) -%}
+{%- match s.value -%}
+{%- when ValueKind::Enum { .. } -%} {{ s.phys_ty }}::from_raw({{ v }}).label()
+{%- else -%}
+{%- if s.named.is_some() -%} Self::{{ s.stem }}_label({{ v }})
+{%- else -%} None
+{%- endif -%}
+{%- endmatch -%}
+{%- endmacro -%}
+
+{#- The visitor call for a local bound by `decode(s, true)`, when present. The local is used
+    by name (not bound to `v`, which could be another signal's local). -#}
+{%- macro visit_local(m, s) -%}
+{%- if s.optional() %}
+        if let Some(v) = {{ s.field }} {
+            visitor.signal(&{{ m.meta_static }}[{{ s.index }}], Value::from(v), {% call local_label(s, "v") %}{% endcall %});
+        }
+{%- else %}
+        visitor.signal(&{{ m.meta_static }}[{{ s.index }}], Value::from({{ s.field }}), {% call local_label(s, s.field) %}{% endcall %});
 {%- endif -%}
 {%- endmacro -%}
 
@@ -241,8 +285,19 @@ EncodeError::OutOfRange { message: {{ s.message }}, signal: {{ s.name }} }
 {%- when FloatWire::F64 %}
         Ok({{ scaling.invert("v") }})
 {%- endmatch -%}
-{%- when Conversion::Quantized { scaling, phys_to_f64, lo, hi, .. } %}
+{%- when Conversion::Quantized { scaling, phys_to_f64, lo, hi, bounded, .. } %}
+{%- if let Some(b) = bounded %}
+{%- if let Some((bits_lo, bits_hi)) = b.bits %}
+        // The range check bounds the value for the integer rounding (shown when generated).
+        let raw = runtime::{{ b.round }}({{ scaling.invert(phys_to_f64.of("v")) }});
+        if ({{ bits_lo }}..{{ bits_hi }}).contains(&raw) { Ok(raw as {{ s.raw_ty }}) } else { Err({% call out_of_range(s) %}{% endcall %}) }
+{%- else %}
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::{{ b.round }}({{ scaling.invert(phys_to_f64.of("v")) }}) as {{ s.raw_ty }})
+{%- endif %}
+{%- else %}
         let raw = runtime::round({{ scaling.invert(phys_to_f64.of("v")) }});
         if ({{ lo }}..{{ hi }}).contains(&raw) { Ok(raw as {{ s.raw_ty }}) } else { Err({% call out_of_range(s) %}{% endcall %}) }
+{%- endif -%}
 {%- endmatch -%}
 {%- endmacro -%}

@@ -9,7 +9,7 @@
 
 use std::io::{self, BufRead, Write};
 
-use aer::can::AnyMessage;
+use aer::can::{AnyMessage, message_meta};
 use aer::runtime::{SignalMeta, SignalVisitor, Value};
 
 fn main() -> io::Result<()> {
@@ -44,21 +44,22 @@ struct LineError<'a> {
 
 fn decode_line(line: &str) -> String {
     match parse_line(line) {
-        Ok(frame) => match AnyMessage::decode(frame.id, frame.extended, &frame.data) {
-            Ok(message) => {
-                let mut signals = JsonSignals(String::new());
-                message.visit(&mut signals);
-                format!(
+        Ok(frame) => {
+            // Straight from the payload to the JSON: no message is built.
+            let mut signals = JsonSignals(String::new());
+            match AnyMessage::decode_visit(frame.id, frame.extended, &frame.data, &mut signals) {
+                Ok(()) => format!(
                     "{{\"t\": {}, \"id\": {}, \"extended\": {}, \"name\": {}, \"signals\": {{{}}}}}",
                     frame.time,
                     frame.id,
                     frame.extended,
-                    json_string(message.meta().name),
+                    // It decoded, so the id is the database's.
+                    json_string(message_meta(frame.id, frame.extended).map_or("", |m| m.name)),
                     signals.0
-                )
+                ),
+                Err(e) => error_json(Some(frame.time), Some(frame.id), &e.to_string()),
             }
-            Err(e) => error_json(Some(frame.time), Some(frame.id), &e.to_string()),
-        },
+        }
         Err(e) => error_json(e.time, e.id, &e.message),
     }
 }

@@ -88,6 +88,21 @@ impl Scaling {
         }
     }
 
+    /// What the code [`Self::invert`] writes computes for `x`, step by step in `f64` as the
+    /// generated code does (`v + 40.0` is the same IEEE operation as `v - -40.0`).
+    pub fn invert_value(self, x: f64) -> f64 {
+        let x = if self.offset != 0.0 {
+            x - self.offset
+        } else {
+            x
+        };
+        if self.factor != 1.0 {
+            x / self.factor
+        } else {
+            x
+        }
+    }
+
     /// `, physical = raw * 0.25 - 40` for docs (empty for identity scaling).
     pub fn doc(&self) -> String {
         if self.is_identity() {

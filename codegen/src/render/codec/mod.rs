@@ -66,6 +66,9 @@ pub struct MessageView {
     /// Indices into `signals` in the order decode/encode must process them (multiplexors
     /// first).
     pub order: Vec<usize>,
+    /// `decode_visit` binds every signal to a local named after its field: false when one
+    /// would hide the `visitor` parameter (it then decodes and visits the message instead).
+    pub fused_visit: bool,
 }
 
 impl MessageView {
@@ -169,6 +172,7 @@ fn message_view(db: &Database, m: &Message) -> MessageView {
             .map(|(i, s)| SignalView::new(db, m, i, s))
             .collect(),
         order: m.eval_order.clone(),
+        fused_visit: !m.signals.iter().any(|s| s.field == "visitor"),
     }
 }
 

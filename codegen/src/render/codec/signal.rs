@@ -114,7 +114,19 @@ pub enum Conversion {
         /// Raw values the bits can hold: `lo..hi` (bounds are powers of two, exact in f64).
         lo: FloatLit,
         hi: FloatLit,
+        /// Set when the range check bounds the raw value enough to round it straight to an
+        /// integer.
+        bounded: Option<BoundedRound>,
     },
+}
+
+/// How a quantized signal whose range check bounds its raw value rounds it.
+pub struct BoundedRound {
+    /// The runtime's rounding to an integer: `round_i32` or `round_i64`.
+    pub round: &'static str,
+    /// `Some((lo, hi))` when the range still lets through values outside the signal's bits:
+    /// the rounded value is checked against `lo..hi`, as an integer.
+    pub bits: Option<(i64, i64)>,
 }
 
 /// Which float types meet on the wire and in the struct.
@@ -362,9 +374,50 @@ fn conversion(db: &Database, s: &Signal) -> Conversion {
                 raw_to_f64: to_f64(raw_int),
                 lo: FloatLit(raw_lo as f64),
                 hi: FloatLit(hi_excl as f64),
+                bounded: bounded_rounding(s, scaling, raw_lo, hi_excl),
             }
         }
     }
+}
+
+/// How a quantized signal's encode may round without `round`'s special cases: when its range
+/// check bounds the quotient to what the runtime's integer rounding takes exactly, and whether
+/// the raw value then still needs checking against the signal's bits `lo..hi` (not when every
+/// value the range lets through rounds into them). The check passes `[min - tolerance, max +
+/// tolerance]`; unscaling (subtract, divide, each correctly rounded) and rounding are
+/// monotonic, so the ends of that interval bound every raw value, and they are computed here
+/// with the same `f64` operations as the generated code. Signals with named values skip the
+/// range check for those values, so they keep the general path.
+fn bounded_rounding(s: &Signal, scaling: Scaling, lo: i128, hi: i128) -> Option<BoundedRound> {
+    let (min, max) = (s.min?, s.max?);
+    if !s.value_labels.is_empty() || scaling.factor == 0.0 {
+        return None;
+    }
+    let tolerance = s.factor.abs() * 1e-6;
+    let a = scaling.invert_value(min - tolerance);
+    let b = scaling.invert_value(max + tolerance);
+    let (q_lo, q_hi) = (a.min(b), a.max(b));
+    if !(q_lo.is_finite() && q_hi.is_finite()) {
+        return None;
+    }
+    // `round_i32` truncates through `i32`: exact only while the quotient fits it.
+    const I32: f64 = 2_147_483_648.0;
+    const I52: f64 = 4_503_599_627_370_496.0;
+    let round = if q_lo > -I32 && q_hi < I32 - 1.0 {
+        "round_i32"
+    } else if q_lo > -I52 && q_hi < I52 {
+        "round_i64"
+    } else {
+        return None;
+    };
+    // The bits' bounds are powers of two: exact in f64.
+    let fits = q_lo.round() >= lo as f64 && q_hi.round() < hi as f64;
+    let bits = if fits {
+        None
+    } else {
+        Some((i64::try_from(lo).ok()?, i64::try_from(hi).ok()?))
+    };
+    Some(BoundedRound { round, bits })
 }
 
 fn range_check(s: &Signal) -> Option<RangeCheck> {
@@ -491,4 +544,92 @@ fn docs(m: &Message, s: &Signal) -> Vec<String> {
         docs.push(format!("Present only when `{selector}` is {values}."));
     }
     docs
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::{ByteOrder, Encoding, PhysType, Signal};
+
+    fn quantized(
+        len: u32,
+        encoding: Encoding,
+        factor: f64,
+        offset: f64,
+        range: (f64, f64),
+    ) -> Signal {
+        Signal {
+            name: "S".to_owned(),
+            field: "s".to_owned(),
+            start_bit: 0,
+            len,
+            byte_order: ByteOrder::LittleEndian,
+            encoding,
+            factor,
+            offset,
+            min: Some(range.0),
+            max: Some(range.1),
+            unit: String::new(),
+            comment: None,
+            receivers: Vec::new(),
+            phys: PhysType::F64,
+            value_labels: Vec::new(),
+            mux: None,
+            is_multiplexor: false,
+        }
+    }
+
+    /// The rounding and whether the raw value is still checked against the bits.
+    fn rounding(s: &Signal) -> Option<(&'static str, bool)> {
+        let (lo, hi) = s.raw_range();
+        bounded_rounding(s, scaling(s), lo, hi + 1).map(|b| (b.round, b.bits.is_some()))
+    }
+
+    #[test]
+    fn the_range_check_decides_whether_the_raw_value_needs_its_own() {
+        use Encoding::{Signed, Unsigned};
+        let q =
+            |len, enc, factor, offset, range| rounding(&quantized(len, enc, factor, offset, range));
+        // [-360, 360] / 0.01 = +-36000: beyond 16 signed bits (checked), within 17.
+        assert_eq!(
+            q(16, Signed, 0.01, 0.0, (-360.0, 360.0)),
+            Some(("round_i32", true))
+        );
+        assert_eq!(
+            q(17, Signed, 0.01, 0.0, (-360.0, 360.0)),
+            Some(("round_i32", false))
+        );
+        // The top of the range rounds to 256 (255.5 up): does not fit 8 bits.
+        assert_eq!(
+            q(8, Unsigned, 1.0, 0.0, (0.0, 255.5)),
+            Some(("round_i32", true))
+        );
+        assert_eq!(
+            q(8, Unsigned, 1.0, 0.0, (0.0, 255.4)),
+            Some(("round_i32", false))
+        );
+        // Offset and a negative factor: raw = (v - 10) / -0.5, v in [-100, 10] -> [0, 220].
+        assert_eq!(
+            q(8, Unsigned, -0.5, 10.0, (-100.0, 10.0)),
+            Some(("round_i32", false))
+        );
+        assert_eq!(
+            q(8, Unsigned, -0.5, 10.0, (-100.0, 10.5)),
+            Some(("round_i32", true))
+        );
+        // 32 unsigned bits need the 64-bit rounding.
+        assert_eq!(
+            q(32, Unsigned, 0.001, 0.0, (0.0, 4_000_000.0)),
+            Some(("round_i64", false))
+        );
+        // A quotient beyond 2^52, no range, or named values (which skip the range check): the
+        // general path.
+        assert_eq!(q(64, Unsigned, 1.0, 0.0, (0.0, 1e17)), None);
+        let mut s = quantized(16, Unsigned, 0.1, 0.0, (0.0, 10.0));
+        s.min = None;
+        assert_eq!(rounding(&s), None);
+        let mut s = quantized(16, Unsigned, 0.1, 0.0, (0.0, 10.0));
+        s.value_labels.push((0, "Off".to_owned()));
+        assert_eq!(rounding(&s), None);
+    }
 }
