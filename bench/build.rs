@@ -25,7 +25,7 @@ fn main() {
         let ours = out.join(format!("ours_{name}"));
         std::fs::create_dir_all(&ours).expect("out dir");
         let runtime =
-            aer_codegen::render::codec::render_runtime(path, false).expect("render runtime");
+            aer_codegen::render::codec::render_runtime(path, None).expect("render runtime");
         let can = aer_codegen::render::codec::render_can(&db, path, 0).expect("render messages");
         std::fs::write(ours.join("runtime.rs"), runtime).expect("write");
         std::fs::write(ours.join("can.rs"), can).expect("write");
