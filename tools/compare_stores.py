@@ -12,6 +12,9 @@ import sqlite3
 import sys
 
 BOOKKEEPING = {"sessions", "session_rows", "forward_cursor", "forward_set_aside"}
+# Tables kept one row per key and added to with every commit: the order rows were first
+# written follows the writer's batches, which follow timing, so they compare in key order.
+KEY_ORDER = {"session_messages": "session_id, bus, message"}
 
 
 def tables(db):
@@ -25,7 +28,8 @@ def summary(db, table):
     """Row count and a digest of every row's values (repr keeps floats exact)."""
     digest = hashlib.sha256()
     count = 0
-    for row in db.execute(f'SELECT * FROM "{table}" ORDER BY rowid'):
+    order = KEY_ORDER.get(table, "rowid")
+    for row in db.execute(f'SELECT * FROM "{table}" ORDER BY {order}'):
         digest.update(repr(row).encode())
         count += 1
     return count, digest.hexdigest()[:16]
