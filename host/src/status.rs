@@ -112,6 +112,11 @@ pub fn status(car_id: &str, counters: &Counters, problems: Problems) -> Status {
              (the packets are kept in the raw log)"
         ));
     }
+    let (bus_traffic, message_rates) = counters
+        .traffic
+        .lock()
+        .map(|traffic| (traffic.buses(), traffic.messages()))
+        .unwrap_or_default();
     Status {
         service: "aer-raspi".to_owned(),
         car_id: car_id.to_owned(),
@@ -128,16 +133,8 @@ pub fn status(car_id: &str, counters: &Counters, problems: Problems) -> Status {
             .lock()
             .map(|health| health.clone())
             .unwrap_or_default(),
-        bus_traffic: counters
-            .traffic
-            .lock()
-            .map(|traffic| traffic.buses())
-            .unwrap_or_default(),
-        message_rates: counters
-            .traffic
-            .lock()
-            .map(|traffic| traffic.messages())
-            .unwrap_or_default(),
+        bus_traffic,
+        message_rates,
     }
 }
 

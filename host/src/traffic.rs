@@ -50,11 +50,23 @@ impl Window {
         self.last_us = self.last_us.max(ts_us);
     }
 
-    /// Frames per second over the window: the intervals between its frames over their span.
     fn rate(&self) -> Option<f64> {
-        let span_us = self.last_us.saturating_sub(self.first_us);
-        (self.frames >= 2 && span_us > 0).then(|| (self.frames - 1) as f64 * 1e6 / span_us as f64)
+        measured_hz(self.frames, self.first_us, self.last_us)
     }
+}
+
+/// Frames per second of `frames` received from `first_us` to `last_us`: the intervals between
+/// them over their span (`None` below two frames, or with no time between them).
+pub fn measured_hz(frames: u64, first_us: u64, last_us: u64) -> Option<f64> {
+    let span_us = last_us.saturating_sub(first_us);
+    (frames >= 2 && span_us > 0).then(|| (frames - 1) as f64 * 1e6 / span_us as f64)
+}
+
+/// The rate `meta`'s cycle time declares (`None` for a message sent on demand).
+pub fn declared_hz(meta: &MessageMeta) -> Option<f64> {
+    meta.cycle_time_ms
+        .filter(|ms| *ms > 0)
+        .map(|ms| 1_000.0 / f64::from(ms))
 }
 
 /// The meter: every frame of every bus, every decoded message.
@@ -133,10 +145,7 @@ impl Traffic {
             let rate = MessageRate {
                 frames: window.frames,
                 measured_hz: window.rate(),
-                declared_hz: meta
-                    .cycle_time_ms
-                    .filter(|ms| *ms > 0)
-                    .map(|ms| 1_000.0 / f64::from(ms)),
+                declared_hz: declared_hz(meta),
             };
             rates
                 .entry(self.bus_name(usize::from(*bus)))

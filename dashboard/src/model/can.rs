@@ -98,7 +98,7 @@ impl CanMessages {
         let meta = sample.value.meta();
         let Some(index) = CAN_TOPICS
             .iter()
-            .position(|t| core::ptr::eq(t.meta, meta) || t.meta.name == meta.name)
+            .position(|t| (t.meta.id, t.meta.extended) == (meta.id, meta.extended))
         else {
             return;
         };

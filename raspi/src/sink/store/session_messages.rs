@@ -5,6 +5,7 @@
 //! however long the session runs. `aer-raspi session messages` prints it.
 
 use super::row::{Row, RowData};
+use aer_host::traffic;
 use rusqlite::{Connection, params};
 use std::collections::HashMap;
 use std::sync::Arc;
@@ -36,8 +37,8 @@ pub struct MessageStats {
 impl MessageStats {
     /// Frames per second between the first frame and the last (`None` below two frames).
     pub fn measured_hz(&self) -> Option<f64> {
-        let span_us = self.last_us.saturating_sub(self.first_us);
-        (self.frames >= 2 && span_us > 0).then(|| (self.frames - 1) as f64 * 1e6 / span_us as f64)
+        let us = |t: i64| u64::try_from(t).unwrap_or(0);
+        traffic::measured_hz(self.frames, us(self.first_us), us(self.last_us))
     }
 
     /// What the schema's cycle time implies (`None` for a message sent on demand, or one of
@@ -46,9 +47,7 @@ impl MessageStats {
         aer::can::MESSAGES
             .iter()
             .find(|m| m.name == self.message)
-            .and_then(|m| m.cycle_time_ms)
-            .filter(|ms| *ms > 0)
-            .map(|ms| 1_000.0 / f64::from(ms))
+            .and_then(|m| traffic::declared_hz(m))
     }
 }
 
