@@ -26,8 +26,10 @@ pub enum Mode {
     InputPullDown,
     /// Push-pull output, low from reset.
     Output,
-    /// Push-pull output with the pad's 100 kOhm pull-down set before it is driven, so it is
-    /// low from reset through initialisation (the PCC's relay output).
+    /// Push-pull output with the pad's 100 kOhm pull-down set before it is driven low (the
+    /// PCC's relay output). Before the firmware's init (in reset, in the bootloader, the first
+    /// milliseconds after reset) the pad is an input with only its weak keeper: the board's
+    /// driver stage must hold its load off by itself then.
     OutputPullDown,
     /// FlexPWM output at the given frequency (Hz).
     Pwm(u32),

@@ -25,8 +25,9 @@ pub struct AppsCalibration {
 }
 
 impl AppsCalibration {
-    /// Placeholder calibration (assumed: 0.5-2.8 V and 0.75-4.2 V); measure the car's pedal
-    /// with the bring-up image.
+    /// Placeholder calibration (assumed: 0.5-2.8 V and 0.75-4.2 V), what the tests and the
+    /// car model use; the car's measured values reach the firmware images through
+    /// `ccm/calibration.toml` ([`crate::calibration`]).
     pub const DEFAULT: Self = Self {
         apps1: (0.5, 2.8),
         apps2: (0.75, 4.2),

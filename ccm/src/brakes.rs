@@ -2,8 +2,9 @@
 //! front/rear circuit plausibility check, and whether the brakes are engaged, which is what
 //! the brake light shows and what the APPS/brake plausibility check and launch control use.
 
+use crate::calibration::BrakeCalibration;
 use crate::config::{
-    BRAKE_CIRCUITS_IMPLAUSIBLE, BRAKES_ENGAGED_PSI, BSE_FULL_SCALE_PSI, BSE_VALID_V,
+    BRAKE_CIRCUITS_IMPLAUSIBLE, BRAKES_ENGAGED_PSI, BSE_FULL_SCALE_PSI, BSE_SPAN_V, BSE_VALID_V,
     PEDAL_FILTER_HZ, SENSOR_FAULT_PERSIST_MS,
 };
 use aer_control::{LowPass, Persist};
@@ -31,6 +32,7 @@ pub struct BrakeReading {
 /// The brake channel.
 #[derive(Debug, Clone)]
 pub struct Brakes {
+    calibration: BrakeCalibration,
     front: LowPass,
     rear: LowPass,
     range: Persist,
@@ -40,10 +42,12 @@ pub struct Brakes {
 }
 
 impl Brakes {
-    /// A channel sampled every `period_ms`.
-    pub fn new(period_ms: u32) -> Self {
+    /// A channel sampled every `period_ms`, its pressures measured from the `calibration`'s
+    /// zero.
+    pub fn new(period_ms: u32, calibration: BrakeCalibration) -> Self {
         let period_s = period_ms as f32 / 1_000.0;
         Self {
+            calibration,
             front: LowPass::new(PEDAL_FILTER_HZ, period_s),
             rear: LowPass::new(PEDAL_FILTER_HZ, period_s),
             range: Persist::default(),
@@ -69,8 +73,8 @@ impl Brakes {
             .range
             .update(!(valid(front_v) && valid(rear_v)), now_ms)
             .is_some_and(|held| held > SENSOR_FAULT_PERSIST_MS);
-        let front_psi = pressure(front_v);
-        let rear_psi = pressure(rear_v);
+        let front_psi = pressure(front_v, self.calibration.front_zero_v);
+        let rear_psi = pressure(rear_v, self.calibration.rear_zero_v);
         let (high, low, persist_ms) = BRAKE_CIRCUITS_IMPLAUSIBLE;
         let one_sided =
             (front_psi > high && rear_psi < low) || (rear_psi > high && front_psi < low);
@@ -99,13 +103,14 @@ impl Brakes {
     }
 }
 
-/// Pressure for a sensor voltage: 0.5 V = 0 psi, 4.5 V = full scale, clamped.
-pub fn pressure(volts: f32) -> f32 {
-    let fraction = (volts - BSE_VALID_V.0) / (BSE_VALID_V.1 - BSE_VALID_V.0);
-    (fraction * BSE_FULL_SCALE_PSI).clamp(0.0, BSE_FULL_SCALE_PSI)
+/// Pressure for a sensor voltage: `zero_v` = 0 psi, `zero_v` + [`BSE_SPAN_V`] = full scale,
+/// clamped.
+pub fn pressure(volts: f32, zero_v: f32) -> f32 {
+    ((volts - zero_v) / BSE_SPAN_V * BSE_FULL_SCALE_PSI).clamp(0.0, BSE_FULL_SCALE_PSI)
 }
 
-/// The sensor voltage for a pressure (for tests and simulations).
+/// The voltage of a nominal sensor (zero at 0.5 V) for a pressure (for tests and
+/// simulations).
 pub fn volts_for(psi: f32) -> f32 {
-    BSE_VALID_V.0 + psi / BSE_FULL_SCALE_PSI * (BSE_VALID_V.1 - BSE_VALID_V.0)
+    BSE_VALID_V.0 + psi / BSE_FULL_SCALE_PSI * BSE_SPAN_V
 }

@@ -7,12 +7,13 @@
 //! sensor task), [`TelemetryLink`] (the CAN receive interrupts and the telemetry task) and
 //! [`Control`] (the 100 Hz control step). [`Ccm`] holds one of each for everyone else.
 
-use crate::apps::{AppsCalibration, AppsReading};
+use crate::apps::AppsReading;
 use crate::brakes::BrakeReading;
 use crate::bus::BusState;
+use crate::calibration::SensorCalibration;
 use crate::chassis::PulseTimer;
 use crate::config::WHEEL_TEETH;
-use crate::control::Control;
+use crate::control::{Control, HandoverRefusal};
 use crate::inverter::{InverterKind, OutFrames};
 use crate::io::{ControlOutputs, DriverCounters, DriverInputs, SensorSample};
 use crate::sensors::Sensors;
@@ -32,14 +33,14 @@ pub struct Ccm {
 }
 
 impl Ccm {
-    /// A CCM at reset (vehicle OFF, no torque) with the pedal `calibration`, driving the car's
-    /// configured inverter ([`INVERTER`](crate::config::INVERTER)).
-    pub fn new(calibration: AppsCalibration) -> Self {
+    /// A CCM at reset (vehicle OFF, no torque) with the sensors' `calibration`, driving the
+    /// car's configured inverter ([`INVERTER`](crate::config::INVERTER)).
+    pub fn new(calibration: SensorCalibration) -> Self {
         Self::with_inverter(calibration, crate::config::INVERTER)
     }
 
     /// A CCM at reset driving the `inverter`.
-    pub fn with_inverter(calibration: AppsCalibration, inverter: InverterKind) -> Self {
+    pub fn with_inverter(calibration: SensorCalibration, inverter: InverterKind) -> Self {
         Self {
             wheels: [PulseTimer::new(), PulseTimer::new()],
             sensors: Sensors::new(calibration),
@@ -113,6 +114,12 @@ impl Ccm {
     /// The inverter's commands for this period (see [`Control::inverter_frames`]).
     pub fn inverter_frames(&mut self) -> Result<OutFrames, EncodeError> {
         self.control.inverter_frames()
+    }
+
+    /// Whether the CCM may hand the chip to the bootloader now, with the inverter commands to
+    /// send first (see [`Control::handover`]).
+    pub fn handover(&mut self) -> Result<OutFrames, HandoverRefusal> {
+        self.control.handover()
     }
 
     /// CCM_Status as it stands (see [`Control::status`]).

@@ -25,8 +25,8 @@ pub enum InverterKind {
 }
 
 /// The inverter the firmware drives: the comp car's DTI HV-550, or the HIMaC bench's IFL100
-/// with the `inverter-ifl100` feature (`cargo xtask firmware --bench`). The library and the car
-/// model take it as a value, so the tests drive both.
+/// with the `inverter-ifl100` feature (`cargo xtask firmware` builds it as `ccm-ifl100.hex`).
+/// The library and the car model take it as a value, so the tests drive both.
 pub const INVERTER: InverterKind = if cfg!(feature = "inverter-ifl100") {
     InverterKind::Ifl100
 } else {
@@ -101,6 +101,10 @@ pub const START_UP_GRACE_MS: u32 = 1_000;
 /// The CAN map version the schema describes (2.5, reported as major x 10 + minor). Any other
 /// version is an inverter fault: its frames may not mean what the schema says.
 pub const DTI_CAN_MAP_VERSION: u8 = 25;
+/// What the DTI does when commands stop, as the car model and the torque-off figures assume
+/// it until the bench measures it (ms): current and drive enable dropped after this long
+/// (the DTI tool's CAN timeout; the bring-up image's `dti enable` measures it).
+pub const DTI_ASSUMED_COMMAND_TIMEOUT_MS: u32 = 100;
 /// The DTI reports "drive enabled" against the CCM's "disabled" (or the reverse) for longer
 /// than this (ms): it is not obeying, an inverter fault. Two command periods and a status
 /// period of slack.
@@ -154,7 +158,18 @@ pub const APPS1_SUPPLY_V: f32 = 3.3;
 pub const APPS2_SUPPLY_V: f32 = 5.0;
 /// Brake pressure sensors: valid signal range (V).
 pub const BSE_VALID_V: (f32, f32) = (0.5, 4.5);
-/// Brake pressure at 4.5 V (psi); 0.5 V is 0 psi (assumed: 2,000 psi sensors).
+/// A pedal sensor must move at least this much over the pedal's travel (V) for its
+/// calibration to be taken: below it, noise is a large share of the torque request.
+pub const MIN_PEDAL_TRAVEL_V: f32 = 0.5;
+/// A brake pressure sensor's reading with the brakes released (its calibrated zero) must lie
+/// here (V): below 0.5 V is outside the valid range (a BSE fault at rest); above 0.7 V
+/// (100 psi on the nominal sensor) is pressure left in the circuit or a wrong sensor
+/// (assumed band).
+pub const BSE_ZERO_V: (f32, f32) = (0.5, 0.7);
+/// Brake pressure sensors' span from zero to full scale (V): 0.5 V to 4.5 V nominally.
+pub const BSE_SPAN_V: f32 = 4.0;
+/// Brake pressure at the sensor's zero plus [`BSE_SPAN_V`] (psi); the zero is the bench's
+/// calibration, 0.5 V nominally (assumed: 2,000 psi sensors).
 pub const BSE_FULL_SCALE_PSI: f32 = 2_000.0;
 /// The one "brakes engaged" threshold (psi, assumed): engaged above the first pressure,
 /// released below the second (hysteresis against flicker). The brake light, the APPS/brake

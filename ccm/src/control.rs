@@ -18,11 +18,43 @@ use crate::sensors::SensorReading;
 use crate::telemetry::LinkCounters;
 use crate::thermal::cooling;
 use crate::torque_path::{TorqueInputs, TorquePath};
-use crate::vehicle::{Vehicle, VehicleInputs};
+use crate::vehicle::{State, Vehicle, VehicleInputs};
 use aer::can::{AnyMessage, CcmStatus, PrechargeState, SCHEMA_FINGERPRINT};
 use aer::runtime::EncodeError;
 use aer::telemetry::{Telemetry, TelemetryOwnFields};
 use embedded_can::Frame;
+
+/// Why the CCM keeps running instead of handing the chip to the bootloader.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum HandoverRefusal {
+    /// The car is DRIVING (torque enabled).
+    Driving,
+    /// Torque is still commanded (Nm).
+    TorqueCommanded {
+        /// The torque asked for.
+        torque_nm: f32,
+    },
+    /// The safe commands could not be encoded (a codec defect): without them the inverter
+    /// would be left to its timeout.
+    Encode(EncodeError),
+}
+
+impl core::fmt::Display for HandoverRefusal {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            Self::Driving => {
+                f.write_str("the car is DRIVING: stop, switch ready-to-move off, then ask again")
+            }
+            Self::TorqueCommanded { torque_nm } => write!(
+                f,
+                "{torque_nm:.1} Nm is still commanded: wait for zero torque, then ask again"
+            ),
+            Self::Encode(error) => {
+                write!(f, "the safe inverter commands did not encode ({error:?})")
+            }
+        }
+    }
+}
 
 /// The control step's state.
 #[derive(Debug, Clone)]
@@ -198,9 +230,39 @@ impl Control {
                 .fresh(now, BMS_LIMITS_TIMEOUT_MS)
                 .map_or(0.0, |limits| f32::from(limits.orion_pack_dcl)),
         };
+        self.send(&command)
+    }
+
+    /// The commands that leave the inverter safe for the CCM to stop (the bootloader): no
+    /// torque, drive disabled, main relay open, no current allowed. Refused while the car
+    /// drives or torque is commanded, so nothing outside (a console, a USB host) can take the
+    /// torque path away mid-run and leave the inverter to its own command timeout.
+    pub fn handover(&mut self) -> Result<OutFrames, HandoverRefusal> {
+        let state = self.last.vehicle.state;
+        if state == State::Driving || self.last.vehicle.torque_enabled {
+            return Err(HandoverRefusal::Driving);
+        }
+        if self.torque_sent_nm != 0.0 || self.last.torque.torque_nm != 0.0 {
+            return Err(HandoverRefusal::TorqueCommanded {
+                torque_nm: self.torque_sent_nm.max(self.last.torque.torque_nm),
+            });
+        }
+        let safe = DriveCommand {
+            torque_nm: 0.0,
+            drive: false,
+            main_relay: false,
+            precharging: false,
+            brakes_engaged: self.last.brake_light,
+            discharge_limit_a: 0.0,
+        };
+        self.send(&safe).map_err(HandoverRefusal::Encode)
+    }
+
+    /// Builds the inverter's frames for `command` and records what they ask for.
+    fn send(&mut self, command: &DriveCommand) -> Result<OutFrames, EncodeError> {
         match self.inverter {
             InverterKind::Ifl100 => {
-                let (vcu1, frames) = ifl100::frames(&mut self.vcu1, &command)?;
+                let (vcu1, frames) = ifl100::frames(&mut self.vcu1, command)?;
                 self.torque_sent_nm = if vcu1.vcu_vehicle_state {
                     vcu1.vcu_torque_req as f32
                 } else {
@@ -209,7 +271,7 @@ impl Control {
                 Ok(frames)
             }
             InverterKind::Dti => {
-                let (current, frames) = dti::frames(&command)?;
+                let (current, frames) = dti::frames(command)?;
                 self.enable_sent = command.drive;
                 self.torque_sent_nm = current.dti_current_cmd as f32 * MOTOR_TORQUE_PER_PEAK_A;
                 Ok(frames)

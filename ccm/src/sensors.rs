@@ -2,8 +2,9 @@
 //! the control step judges freshness by. Its own value, so the firmware can give it a lock of
 //! its own (ceiling: the sensor task's priority).
 
-use crate::apps::{Apps, AppsCalibration, AppsReading};
+use crate::apps::{Apps, AppsReading};
 use crate::brakes::{BrakeReading, Brakes};
+use crate::calibration::SensorCalibration;
 use crate::chassis::shock_travel_mm;
 use crate::config::ADC_PERIOD_MS;
 use crate::io::SensorSample;
@@ -32,11 +33,11 @@ pub struct Sensors {
 }
 
 impl Sensors {
-    /// Nothing sampled yet, with the pedal `calibration`.
-    pub fn new(calibration: AppsCalibration) -> Self {
+    /// Nothing sampled yet, with the sensors' `calibration`.
+    pub fn new(calibration: SensorCalibration) -> Self {
         Self {
-            apps: Apps::new(calibration, ADC_PERIOD_MS),
-            brakes: Brakes::new(ADC_PERIOD_MS),
+            apps: Apps::new(calibration.pedals, ADC_PERIOD_MS),
+            brakes: Brakes::new(ADC_PERIOD_MS, calibration.brakes),
             shock_mm: [0.0; 4],
             first_ms: None,
             sampled_ms: None,

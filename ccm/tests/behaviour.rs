@@ -4,6 +4,7 @@ use aer::can::{AnyMessage, PccStatus, PrechargeState, Vcu1};
 use aer::telemetry::Telemetry;
 use aer_ccm::apps::{Apps, AppsCalibration};
 use aer_ccm::brakes::{Brakes, volts_for};
+use aer_ccm::calibration::{BrakeCalibration, SensorCalibration};
 use aer_ccm::faults::{Fault, FaultMap};
 use aer_ccm::inverter::DriveCommand;
 use aer_ccm::inverter::ifl100::Vcu1Builder;
@@ -113,7 +114,7 @@ fn apps_brake_plausibility_latches_above_25_percent_and_resets_below_5() {
 
 #[test]
 fn brake_sensor_fault_light_and_circuits() {
-    let mut brakes = Brakes::new(1);
+    let mut brakes = Brakes::new(1, BrakeCalibration::DEFAULT);
     for t in 0..=100 {
         assert!(
             !brakes.update(4.6, volts_for(0.0), t).sensor_fault,
@@ -122,7 +123,7 @@ fn brake_sensor_fault_light_and_circuits() {
     }
     assert!(brakes.update(4.6, volts_for(0.0), 101).sensor_fault);
 
-    let mut brakes = Brakes::new(1);
+    let mut brakes = Brakes::new(1, BrakeCalibration::DEFAULT);
     let settle = |brakes: &mut Brakes, front: f32, rear: f32, from: u32| {
         (from..from + 50).for_each(|t| {
             brakes.update(volts_for(front), volts_for(rear), t);
@@ -142,7 +143,7 @@ fn brake_sensor_fault_light_and_circuits() {
     assert!(settle(&mut brakes, 60.0, 60.0, 200).engaged);
 
     // One circuit at 500 psi, the other empty, for over 500 ms.
-    let mut brakes = Brakes::new(1);
+    let mut brakes = Brakes::new(1, BrakeCalibration::DEFAULT);
     settle(&mut brakes, 500.0, 0.0, 0);
     for t in 50..=500 {
         brakes.update(volts_for(500.0), volts_for(0.0), t);
@@ -395,7 +396,7 @@ fn frame(id: u16, data: &[u8]) -> CanFrame {
 
 #[test]
 fn bus_frames_fill_the_mirror_and_bad_ones_are_counted() {
-    let mut ccm = Ccm::new(CAL);
+    let mut ccm = Ccm::new(SensorCalibration::DEFAULT);
     let status = PccStatus {
         pcc_state: PrechargeState::Online,
         pcc_error_too_fast: false,
@@ -432,7 +433,7 @@ fn bus_frames_fill_the_mirror_and_bad_ones_are_counted() {
 
 #[test]
 fn the_telemetry_packet_reaches_an_iso_tp_receiver_intact() {
-    let mut ccm = Ccm::new(CAL);
+    let mut ccm = Ccm::new(SensorCalibration::DEFAULT);
     let (a, b) = pedal(0.4, 0.4);
     for t in 0..20 {
         ccm.sample(

@@ -240,7 +240,7 @@ fn a_dti_that_stays_enabled_after_the_ccm_disabled_it_is_a_fault() {
 #[test]
 fn the_bench_check_names_node_map_drive_and_fault() {
     use aer::can::{DtiFlags, DtiTemperatures};
-    use aer_ccm::inverter::dti::BenchCheck;
+    use aer_ccm::console::dti::BenchCheck;
     let mut check = BenchCheck::default();
     assert_eq!(check.to_string(), "DTI: no status packet heard");
     let mut data = [0u8; 8];
@@ -265,4 +265,110 @@ fn the_bench_check_names_node_map_drive_and_fault() {
         other.to_string(),
         "DTI node 0x65 (schema 0x41), CAN map not heard"
     );
+}
+
+/// The bring-up's `dti enable`: 0 A and drive enable every command period for one second,
+/// then silence; the timeout measurement follows packet 0x24.
+#[test]
+fn the_bench_times_the_dtis_command_timeout_from_packet_0x24() {
+    use aer::can::{AnyMessage, DtiDriveEnable, DtiFlags};
+    use aer_ccm::console::dti::{DtiBench, EnableTest, TimeoutResult};
+    let mut bench = DtiBench::default();
+    assert_eq!(
+        bench.timeout.to_string(),
+        "DTI command timeout: not measured (`confirm hv-disconnected`, then `dti enable`, or drive enable from a CAN adapter, then silence)"
+    );
+    let flags = |enabled: bool| {
+        let mut data = [0u8; 8];
+        DtiFlags {
+            dti_drive_enabled: if enabled {
+                DtiDriveEnable::Enabled
+            } else {
+                DtiDriveEnable::Disabled
+            },
+            ..dti_flags()
+        }
+        .encode(&mut data)
+        .unwrap();
+        data
+    };
+    bench.test.start(1_000);
+    let mut sent = Vec::new();
+    for now in 1_000..1_000 + EnableTest::DURATION_MS + 500 {
+        if let Some(frames) = bench.due(now) {
+            for frame in frames.expect("encodes").iter() {
+                match AnyMessage::decode(frame.id, frame.extended, frame.data()).unwrap() {
+                    AnyMessage::DtiSetCurrent(current) => assert_eq!(current.dti_current_cmd, 0.0),
+                    AnyMessage::DtiSetMaxCurrentDc(limit) => {
+                        assert_eq!(limit.dti_max_current_dc_cmd, 0.0)
+                    }
+                    AnyMessage::DtiSetDriveEnable(enable) => {
+                        assert_eq!(enable.dti_drive_enable_cmd, DtiDriveEnable::Enabled);
+                        sent.push(now);
+                    }
+                    _ => {}
+                }
+            }
+        }
+        // A DTI whose timeout is 80 ms, reporting every 10 ms.
+        if now % 10 == 3 {
+            let enabled = sent.last().is_some_and(|&at| now - at <= 80);
+            bench.frame(now, DtiFlags::ID, true, &flags(enabled));
+        }
+        bench.poll(now);
+    }
+    assert_eq!(sent.len(), 100, "every 10 ms for one second");
+    assert!(!bench.test.active());
+    let Some(TimeoutResult::Dropped(ms)) = bench.timeout.result() else {
+        panic!("{:?}", bench.timeout.result());
+    };
+    assert!((80..=90).contains(&ms), "{ms} ms");
+
+    // A DTI without a timeout: still enabled a second after the last command.
+    let mut stuck = DtiBench::default();
+    stuck.test.start(0);
+    for now in 0..3_000 {
+        let _ = stuck.due(now);
+        if now % 10 == 3 {
+            stuck.frame(now, DtiFlags::ID, true, &flags(true));
+        }
+        stuck.poll(now);
+    }
+    assert_eq!(stuck.timeout.result(), Some(TimeoutResult::NotDropped));
+    assert!(stuck.timeout.to_string().contains("STILL ENABLED 1000 ms"));
+
+    // Commands from a CAN adapter time the same way; an explicit disable is not a timeout.
+    let mut adapter = DtiBench::default();
+    let mut enable = [0u8; 1];
+    aer::can::DtiSetDriveEnable {
+        dti_drive_enable_cmd: DtiDriveEnable::Enabled,
+    }
+    .encode(&mut enable)
+    .unwrap();
+    adapter.frame(0, aer::can::DtiSetDriveEnable::ID, true, &enable);
+    adapter.frame(5, DtiFlags::ID, true, &flags(true));
+    let disable = [0u8; 1];
+    adapter.frame(10, aer::can::DtiSetDriveEnable::ID, true, &disable);
+    adapter.frame(15, DtiFlags::ID, true, &flags(false));
+    adapter.poll(2_000);
+    assert_eq!(adapter.timeout.result(), None);
+}
+
+#[test]
+fn the_hv_gate_of_dti_enable_reads_the_dtis_own_dc_link() {
+    use aer::can::DtiSpeed;
+    use aer_ccm::console::dti::DtiBench;
+    let mut bench = DtiBench::default();
+    assert_eq!(bench.dc_link_v(0), None, "nothing heard");
+    let mut data = [0u8; 8];
+    DtiSpeed {
+        dti_erpm: 0,
+        dti_duty_cycle: 0.0,
+        dti_input_voltage: 392,
+    }
+    .encode(&mut data)
+    .unwrap();
+    bench.frame(100, DtiSpeed::ID, true, &data);
+    assert_eq!(bench.dc_link_v(100 + DtiSpeed::TIMEOUT_MS), Some(392.0));
+    assert_eq!(bench.dc_link_v(101 + DtiSpeed::TIMEOUT_MS), None, "stale");
 }

@@ -2,7 +2,9 @@
 //! readings' report lines, edge rates, the pedal calibration, and the gate in front of the
 //! outputs that switch high voltage.
 
+use crate::log::LogBuffer;
 use aer_boards::{Mode, Pin};
+use aer_flexcan::{BusStatus, FaultState, SelfTestError};
 use core::fmt;
 
 /// How long a typed `confirm hv-disconnected` arms the HV-switching outputs (ms).
@@ -110,27 +112,114 @@ pub fn edge_rate_hz(before: u32, after: u32, elapsed_ms: u32) -> f32 {
 
 /// The gate in front of an output that can switch high voltage (the PCC's AIR+): it may be
 /// driven only within [`HV_CONFIRMATION_MS`] of a typed confirmation that the high voltage is
-/// disconnected.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+/// disconnected, and only while the board's own readings agree: every high-voltage reading
+/// below the discharged limit. A typed word alone never arms it.
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct HvGate {
     confirmed_ms: Option<u32>,
+    /// Volts below which a reading counts as discharged (the rules' 60 V DC).
+    discharged_v: f32,
+}
+
+/// The high-voltage readings a board has of its own (V): the PCC's accumulator and
+/// tractive-system converters, or an inverter's DC link as it reports it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct HvReadings<'a> {
+    /// Each reading's name and volts; `None` where there is no reading (an inverter not
+    /// heard): that is not "discharged".
+    pub volts: &'a [(&'a str, Option<f32>)],
+}
+
+/// Why the gate is closed.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum HvRefusal<'a> {
+    /// No `confirm hv-disconnected`, or it was revoked.
+    NotConfirmed,
+    /// The confirmation is older than [`HV_CONFIRMATION_MS`].
+    Expired,
+    /// A reading is missing (`None`) or at or above the discharged limit.
+    Live {
+        /// The reading's name.
+        name: &'a str,
+        /// What it read.
+        volts: Option<f32>,
+        /// The limit.
+        limit_v: f32,
+    },
+}
+
+impl fmt::Display for HvRefusal<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::NotConfirmed => f.write_str("type `confirm hv-disconnected` first"),
+            Self::Expired => f.write_str("the HV confirmation expired (30 s): confirm again"),
+            Self::Live {
+                name,
+                volts: Some(volts),
+                limit_v,
+            } => write!(
+                f,
+                "{name} reads {volts:.1} V, not below {limit_v:.0} V: the high voltage is not disconnected and discharged"
+            ),
+            Self::Live {
+                name,
+                volts: None,
+                limit_v,
+            } => write!(
+                f,
+                "no {name} reading: cannot see that it is below {limit_v:.0} V"
+            ),
+        }
+    }
 }
 
 impl HvGate {
-    /// The user confirmed at `now_ms` that the high voltage is disconnected.
-    pub fn confirm(&mut self, now_ms: u32) {
-        self.confirmed_ms = Some(now_ms);
+    /// A closed gate for readings that count as discharged below `discharged_v`.
+    pub const fn new(discharged_v: f32) -> Self {
+        Self {
+            confirmed_ms: None,
+            discharged_v,
+        }
     }
 
-    /// Whether the HV outputs may move at `now_ms`.
-    pub fn allows(&self, now_ms: u32) -> bool {
-        self.confirmed_ms
-            .is_some_and(|at| now_ms.wrapping_sub(at) < HV_CONFIRMATION_MS)
+    /// The user confirmed at `now_ms` that the high voltage is disconnected; taken only if
+    /// the readings agree.
+    pub fn confirm<'a>(
+        &mut self,
+        now_ms: u32,
+        readings: HvReadings<'a>,
+    ) -> Result<(), HvRefusal<'a>> {
+        self.discharged(readings)?;
+        self.confirmed_ms = Some(now_ms);
+        Ok(())
+    }
+
+    /// Whether the HV outputs may move (or stay moved) at `now_ms` with these readings.
+    pub fn allows<'a>(&self, now_ms: u32, readings: HvReadings<'a>) -> Result<(), HvRefusal<'a>> {
+        let at = self.confirmed_ms.ok_or(HvRefusal::NotConfirmed)?;
+        if now_ms.wrapping_sub(at) >= HV_CONFIRMATION_MS {
+            return Err(HvRefusal::Expired);
+        }
+        self.discharged(readings)
     }
 
     /// Forgets the confirmation (on `off`, or when it expired and the output dropped).
     pub fn revoke(&mut self) {
         self.confirmed_ms = None;
+    }
+
+    fn discharged<'a>(&self, readings: HvReadings<'a>) -> Result<(), HvRefusal<'a>> {
+        let live = readings.volts.iter().find(|(_, volts)| {
+            volts.is_none_or(|volts| volts.is_nan() || volts >= self.discharged_v)
+        });
+        match live {
+            Some(&(name, volts)) => Err(HvRefusal::Live {
+                name,
+                volts,
+                limit_v: self.discharged_v,
+            }),
+            None => Ok(()),
+        }
     }
 }
 
@@ -188,95 +277,163 @@ impl fmt::Display for Heard {
     }
 }
 
-/// Samples averaged for one calibration point (1 s at 1 kHz).
-pub const CALIBRATION_SAMPLES: u32 = 1_000;
-
-/// The pedal calibration: both sensors' volts averaged at rest and fully pressed, printed as
-/// the values to put in `aer_ccm::apps::AppsCalibration`.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub struct PedalCalibration {
-    /// Mean volts of APPS1, APPS2 at rest.
-    pub rest: Option<[f32; 2]>,
-    /// Mean volts of APPS1, APPS2 fully pressed.
-    pub full: Option<[f32; 2]>,
-    recording: Option<Recording>,
+/// One CAN controller's line in a report: its state and counters, then what it heard.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct BusLine<'a> {
+    /// The controller and its bus: `CAN3 (vehicle)`.
+    pub name: &'a str,
+    /// Its state, `None` when it did not start.
+    pub status: Option<BusStatus>,
+    /// What it received since the last report.
+    pub heard: &'a Heard,
 }
 
-#[derive(Debug, Clone, Copy, PartialEq)]
-struct Recording {
-    full: bool,
-    sums: [f32; 2],
-    samples: u32,
-}
-
-impl PedalCalibration {
-    /// Starts recording the rest (`full == false`) or fully pressed point.
-    pub fn start(&mut self, full: bool) {
-        self.recording = Some(Recording {
-            full,
-            sums: [0.0; 2],
-            samples: 0,
-        });
-    }
-
-    /// True while a point is being recorded.
-    pub fn recording(&self) -> bool {
-        self.recording.is_some()
-    }
-
-    /// Feeds one sample of both sensors (volts at the sensors; a missing reading is
-    /// skipped). Returns true when the point just completed.
-    pub fn sample(&mut self, volts: [Option<f32>; 2]) -> bool {
-        let Some(recording) = self.recording.as_mut() else {
-            return false;
-        };
-        let [Some(apps1), Some(apps2)] = volts else {
-            return false;
-        };
-        if !(apps1.is_finite() && apps2.is_finite()) {
-            return false;
-        }
-        recording.sums[0] += apps1;
-        recording.sums[1] += apps2;
-        recording.samples += 1;
-        if recording.samples < CALIBRATION_SAMPLES {
-            return false;
-        }
-        let n = recording.samples as f32;
-        let mean = [recording.sums[0] / n, recording.sums[1] / n];
-        if recording.full {
-            self.full = Some(mean);
-        } else {
-            self.rest = Some(mean);
-        }
-        self.recording = None;
-        true
-    }
-}
-
-impl fmt::Display for PedalCalibration {
+impl fmt::Display for BusLine<'_> {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match (self.rest, self.full) {
-            (Some([rest1, rest2]), Some([full1, full2])) => {
-                write!(
-                    f,
-                    "pedal calibration: AppsCalibration {{ apps1: ({rest1:.3}, {full1:.3}), apps2: ({rest2:.3}, {full2:.3}) }}"
-                )?;
-                if (full1 - rest1).abs() < 0.5 || (full2 - rest2).abs() < 0.5 {
-                    f.write_str(" -- less than 0.5 V of travel: check the sensor and repeat")?;
-                }
-                Ok(())
-            }
-            (Some([rest1, rest2]), None) => write!(
-                f,
-                "pedal calibration: rest APPS1 {rest1:.3} V, APPS2 {rest2:.3} V; now `cal full` with the pedal pressed"
-            ),
-            (None, Some([full1, full2])) => write!(
-                f,
-                "pedal calibration: full APPS1 {full1:.3} V, APPS2 {full2:.3} V; now `cal rest` with the pedal released"
-            ),
-            (None, None) => f.write_str("pedal calibration: `cal rest`, then `cal full`"),
+        let Some(status) = self.status else {
+            return write!(f, "{}: did not start (see the start-up lines)", self.name);
+        };
+        write!(f, "{}: {status}; heard {}", self.name, self.heard)?;
+        // A transmitter nobody acknowledges counts up to error-passive and stays there: the
+        // usual sight of a board alone on its bus, not necessarily a fault.
+        if status.state != FaultState::ErrorActive && self.heard.total() == 0 {
+            f.write_str(
+                " -- nothing heard: a board alone on a bus goes error-passive (no node acknowledges); with other nodes powered, check wiring, termination, transceiver",
+            )?;
         }
+        Ok(())
+    }
+}
+
+/// The `can` command's loopback self-test of one controller.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SelfTestLine<'a> {
+    /// The controller and its bus.
+    pub name: &'a str,
+    /// The result; `None` when the controller did not start.
+    pub result: Option<Result<(), SelfTestError>>,
+}
+
+impl fmt::Display for SelfTestLine<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{} loopback self-test: ", self.name)?;
+        match self.result {
+            Some(Ok(())) => f.write_str("passed"),
+            Some(Err(error)) => write!(f, "FAILED: {error}"),
+            None => f.write_str("not run: the controller did not start"),
+        }
+    }
+}
+
+/// The Teensy 4's clocks as the board support package sets them (the images check their
+/// BSP's constants against these at compile time).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Clocks {
+    /// Core (Hz).
+    pub core_hz: u32,
+    /// IPG, the peripherals' bus (Hz).
+    pub ipg_hz: u32,
+    /// PERCLK, the timers' clock (Hz).
+    pub perclk_hz: u32,
+    /// The CAN bit rate (bit/s), from the 24 MHz oscillator.
+    pub can_bitrate: u32,
+}
+
+impl Clocks {
+    /// teensy4-bsp 0.6: core 600 MHz, IPG 150 MHz, PERCLK 1 MHz; CAN at 500 kbit/s.
+    pub const TEENSY4: Self = Self {
+        core_hz: 600_000_000,
+        ipg_hz: 150_000_000,
+        perclk_hz: 1_000_000,
+        can_bitrate: 500_000,
+    };
+}
+
+impl fmt::Display for Clocks {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "clocks: core {} MHz, IPG {} MHz, PERCLK {} MHz, CAN from the 24 MHz oscillator at {} kbit/s",
+            self.core_hz / 1_000_000,
+            self.ipg_hz / 1_000_000,
+            self.perclk_hz / 1_000_000,
+            self.can_bitrate / 1_000
+        )
+    }
+}
+
+/// What an image prints once at start-up: who it is, why it started, its clocks and every
+/// pin of its board with the pin's source.
+#[derive(Debug, Clone, Copy)]
+pub struct Startup<'a> {
+    /// The image and what it is built for: `AER CCM bring-up`.
+    pub image: &'a str,
+    /// The board revision's name.
+    pub board: &'a str,
+    /// The fingerprints it was built with, by name.
+    pub fingerprints: &'a [(&'a str, u32)],
+    /// SRC_SRSR at start.
+    pub reset: ResetCause,
+    /// The clocks, for a bring-up image (the race images leave them out).
+    pub clocks: Option<Clocks>,
+    /// The pins to list (empty for the race images).
+    pub pins: &'a [Pin],
+}
+
+impl Startup<'_> {
+    /// Queues the start-up lines; returns how many did not fit (counted by the log too).
+    pub fn write<const N: usize>(&self, log: &mut LogBuffer<N>) -> u32 {
+        let mut missed = 0;
+        let mut line = |args: fmt::Arguments<'_>| {
+            if !log.line(args) {
+                missed += 1;
+            }
+        };
+        line(format_args!("{self}"));
+        line(format_args!("{}", self.reset));
+        if let Some(clocks) = self.clocks {
+            line(format_args!("{clocks}"));
+        }
+        for pin in self.pins {
+            line(format_args!(
+                "pin {:>2} {:<16} {:<15} {}",
+                pin.number,
+                pin.signal,
+                pin.mode.label(),
+                pin.source.text()
+            ));
+        }
+        missed
+    }
+}
+
+impl fmt::Display for Startup<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}, board {}", self.image, self.board)?;
+        for (name, fingerprint) in self.fingerprints {
+            write!(f, ", {name} {fingerprint:#010x}")?;
+        }
+        Ok(())
+    }
+}
+
+/// The first line of every periodic report: when, and how many lines the log had to drop
+/// (a terminal that was not reading).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ReportHeader {
+    /// Milliseconds since start-up.
+    pub now_ms: u32,
+    /// Lines dropped since start-up.
+    pub dropped: u32,
+}
+
+impl fmt::Display for ReportHeader {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "--- t={} ms, log lines dropped {}",
+            self.now_ms, self.dropped
+        )
     }
 }
 
@@ -298,40 +455,128 @@ mod tests {
         );
     }
 
-    #[test]
-    fn the_hv_gate_opens_only_for_30_s_after_the_confirmation() {
-        let mut gate = HvGate::default();
-        assert!(!gate.allows(0));
-        gate.confirm(u32::MAX - 10);
-        assert!(gate.allows(u32::MAX));
-        assert!(gate.allows(HV_CONFIRMATION_MS - 12), "across the wrap");
-        assert!(!gate.allows(HV_CONFIRMATION_MS - 11));
-        gate.confirm(5);
-        gate.revoke();
-        assert!(!gate.allows(6));
+    const DISCHARGED: [(&str, Option<f32>); 2] =
+        [("accumulator", Some(0.0)), ("tractive system", Some(3.2))];
+
+    fn readings(volts: &[(&'static str, Option<f32>)]) -> HvReadings<'static> {
+        HvReadings {
+            volts: std::vec::Vec::leak(volts.to_vec()),
+        }
     }
 
     #[test]
-    fn calibration_averages_a_second_of_samples_per_point() {
-        let mut cal = PedalCalibration::default();
-        assert!(!cal.sample([Some(1.0), Some(1.0)]), "not recording");
-        cal.start(false);
-        for i in 0..CALIBRATION_SAMPLES {
-            let wobble = if i % 2 == 0 { 0.01 } else { -0.01 };
-            let done = cal.sample([Some(0.5 + wobble), Some(0.75 - wobble)]);
-            assert_eq!(done, i == CALIBRATION_SAMPLES - 1);
-        }
-        cal.start(true);
-        for _ in 0..CALIBRATION_SAMPLES {
-            cal.sample([Some(2.8), None]);
-        }
-        assert!(cal.recording(), "missing readings are not counted");
-        for _ in 0..CALIBRATION_SAMPLES {
-            cal.sample([Some(2.8), Some(4.2)]);
+    fn the_hv_gate_opens_only_for_30_s_after_the_confirmation() {
+        let ok = readings(&DISCHARGED);
+        let mut gate = HvGate::new(60.0);
+        assert_eq!(gate.allows(0, ok), Err(HvRefusal::NotConfirmed));
+        assert_eq!(gate.confirm(u32::MAX - 10, ok), Ok(()));
+        assert_eq!(gate.allows(u32::MAX, ok), Ok(()));
+        assert_eq!(
+            gate.allows(HV_CONFIRMATION_MS - 12, ok),
+            Ok(()),
+            "across the wrap"
+        );
+        assert_eq!(
+            gate.allows(HV_CONFIRMATION_MS - 11, ok),
+            Err(HvRefusal::Expired)
+        );
+        assert_eq!(gate.confirm(5, ok), Ok(()));
+        gate.revoke();
+        assert_eq!(gate.allows(6, ok), Err(HvRefusal::NotConfirmed));
+    }
+
+    #[test]
+    fn the_hv_gate_believes_the_boards_readings_over_the_typed_word() {
+        let mut gate = HvGate::new(60.0);
+        let live = readings(&[("accumulator", Some(402.5)), ("tractive system", Some(0.0))]);
+        let refusal = gate.confirm(0, live).unwrap_err();
+        assert_eq!(
+            format!("{refusal}"),
+            "accumulator reads 402.5 V, not below 60 V: the high voltage is not disconnected and discharged"
+        );
+        assert_eq!(
+            gate.allows(1, readings(&DISCHARGED)),
+            Err(HvRefusal::NotConfirmed)
+        );
+        // Armed, then the tractive system rises: the gate closes at once.
+        assert_eq!(gate.confirm(10, readings(&DISCHARGED)), Ok(()));
+        let rising = readings(&[("accumulator", Some(0.0)), ("tractive system", Some(60.0))]);
+        assert!(matches!(
+            gate.allows(20, rising),
+            Err(HvRefusal::Live { .. })
+        ));
+        // No reading, or not a number, is not "discharged".
+        for unknown in [None, Some(f32::NAN)] {
+            let missing = readings(&[("DTI DC link", unknown)]);
+            assert!(gate.allows(30, missing).is_err(), "{unknown:?}");
         }
         assert_eq!(
-            format!("{cal}"),
-            "pedal calibration: AppsCalibration { apps1: (0.500, 2.800), apps2: (0.750, 4.200) }"
+            format!(
+                "{}",
+                gate.allows(30, readings(&[("DTI DC link", None)]))
+                    .unwrap_err()
+            ),
+            "no DTI DC link reading: cannot see that it is below 60 V"
+        );
+    }
+
+    #[test]
+    fn bus_lines_read_as_words_and_explain_a_lone_board() {
+        let mut heard = Heard::default();
+        let active = BusStatus {
+            state: FaultState::ErrorActive,
+            tx_errors: 0,
+            rx_errors: 0,
+            rx_fifo_overflows: 0,
+            bus_off_events: 0,
+            tx_dropped: 0,
+        };
+        heard.frame(0x222);
+        let line = BusLine {
+            name: "CAN3 (vehicle)",
+            status: Some(active),
+            heard: &heard,
+        };
+        assert_eq!(
+            format!("{line}"),
+            "CAN3 (vehicle): error-active, tx errors 0, rx errors 0, rx overflows 0, bus-off 0x, tx dropped 0; heard 1 frames, 0x222 x1"
+        );
+        let alone = BusLine {
+            name: "CAN2 (inverter)",
+            status: Some(BusStatus {
+                state: FaultState::ErrorPassive,
+                tx_errors: 128,
+                ..active
+            }),
+            heard: &Heard::default(),
+        };
+        assert!(
+            format!("{alone}").ends_with(
+                "; heard 0 frames -- nothing heard: a board alone on a bus goes error-passive (no node acknowledges); with other nodes powered, check wiring, termination, transceiver"
+            ),
+            "{alone}"
+        );
+        let dead = BusLine {
+            name: "CAN2",
+            status: None,
+            heard: &heard,
+        };
+        assert_eq!(
+            format!("{dead}"),
+            "CAN2: did not start (see the start-up lines)"
+        );
+        let passed = SelfTestLine {
+            name: "CAN2",
+            result: Some(Ok(())),
+        };
+        assert_eq!(format!("{passed}"), "CAN2 loopback self-test: passed");
+        let failed = SelfTestLine {
+            name: "CAN2",
+            result: Some(Err(SelfTestError::NothingReceived)),
+        };
+        assert_eq!(
+            format!("{failed}"),
+            "CAN2 loopback self-test: FAILED: the frame never came back"
         );
     }
 

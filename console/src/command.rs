@@ -23,12 +23,17 @@ pub enum Command<'a> {
     AllOff,
     /// `can`: the CAN controllers' loopback self-test, then a heartbeat on each bus.
     CanTest,
-    /// `cal rest` / `cal full`: record both pedal sensors at rest or fully pressed.
+    /// `cal rest` / `cal full`: record the pedal sensors (and, at rest, the brake sensors'
+    /// zero) with the pedal released or fully pressed.
     Calibrate(PedalPosition),
     /// `i2c scan`: every 7-bit address that acknowledges (ADS1115 boards).
     I2cScan,
     /// `watchdog test`: stop feeding the watchdog; the next start reports the reset cause.
     WatchdogTest,
+    /// `dti enable` (CCM): one second of zero current with drive enable to the DTI, then
+    /// silence, to time its command timeout; needs the HV confirmation and the DTI's own DC
+    /// link reading below 60 V.
+    DtiEnable,
     /// `bootloader`: reboot into the Teensy's bootloader (as `teensy_loader_cli -s` does).
     Bootloader,
 }
@@ -85,12 +90,14 @@ impl<'a> Command<'a> {
             ("cal", _) => return Err(CommandError::Usage("cal rest | cal full")),
             ("i2c", [Some("scan"), None, _]) => Self::I2cScan,
             ("watchdog", [Some("test"), None, _]) => Self::WatchdogTest,
+            ("dti", [Some("enable"), None, _]) => Self::DtiEnable,
             ("bootloader", [None, ..]) => Self::Bootloader,
             ("help" | "?" | "report" | "off" | "can" | "bootloader", _) => {
                 return Err(CommandError::Usage("no arguments"));
             }
             ("i2c", _) => return Err(CommandError::Usage("i2c scan")),
             ("watchdog", _) => return Err(CommandError::Usage("watchdog test")),
+            ("dti", _) => return Err(CommandError::Usage("dti enable")),
             (other, _) => return Err(CommandError::Unknown(other)),
         };
         Ok(command)
@@ -131,18 +138,19 @@ impl Level {
 }
 
 /// The help text, one command per line.
-pub const HELP: [&str; 11] = [
+pub const HELP: [&str; 12] = [
     "help                       this list",
     "report                     print every input, bus and counter now",
     "out <signal> on|off|<pct>  drive one output (names as in `cargo xtask pins`)",
-    "confirm hv-disconnected    HV off and discharged: arms HV outputs for 30 s",
+    "confirm hv-disconnected    HV off and discharged (the board's readings must agree): arms HV outputs for 30 s",
     "off                        every output back to its safe level",
     "can                        loopback self-test of each controller, then heartbeats",
-    "cal rest | cal full        record both pedal sensors (CCM)",
+    "cal rest | cal full        record the pedal and brake sensors (CCM)",
     "i2c scan                   addresses that answer (ADS1115 board)",
+    "dti enable                 1 s of drive enable at 0 A, then silence: times the DTI's timeout (CCM)",
     "watchdog test              stop feeding the watchdog: the chip resets within 1 s",
     "bootloader                 reboot into the Teensy bootloader",
-    "(the race firmware accepts only `bootloader`; 134 baud does the same)",
+    "(the race images accept only `bootloader`, and only in a safe state; 134 baud asks the same)",
 ];
 
 #[cfg(test)]
@@ -192,6 +200,11 @@ mod tests {
             Ok(Command::Calibrate(PedalPosition::Full))
         );
         assert_eq!(Command::parse("watchdog test"), Ok(Command::WatchdogTest));
+        assert_eq!(Command::parse("dti enable"), Ok(Command::DtiEnable));
+        assert_eq!(
+            Command::parse("dti"),
+            Err(CommandError::Usage("dti enable"))
+        );
         assert_eq!(Command::parse("i2c scan"), Ok(Command::I2cScan));
         assert_eq!(
             Command::parse("bootloader now"),

@@ -41,9 +41,64 @@ pub use log::{LineReader, LogBuffer};
 /// `teensy_loader_cli -s` sends, as PJRC's own USB serial does).
 pub const REBOOT_BAUD: u32 = 134;
 
+/// `id` as 16 upper-case hex digits in `text` (a USB serial number).
+pub fn serial_number(id: u64, text: &mut [u8; 16]) -> &str {
+    const DIGITS: &[u8; 16] = b"0123456789ABCDEF";
+    for (index, slot) in text.iter_mut().enumerate() {
+        let shift = 60 - 4 * index;
+        *slot = DIGITS
+            .get(((id >> shift) & 0xF) as usize)
+            .copied()
+            .unwrap_or(b'0');
+    }
+    core::str::from_utf8(text).unwrap_or("0000000000000000")
+}
+
+/// A request for the bootloader, from the console (`bootloader`) or the USB host (134 baud),
+/// handed from the USB interrupt to the task that knows whether it is safe to obey.
+#[derive(Debug, Default)]
+pub struct RebootRequest(core::sync::atomic::AtomicBool);
+
+impl RebootRequest {
+    /// No request.
+    pub const fn new() -> Self {
+        Self(core::sync::atomic::AtomicBool::new(false))
+    }
+
+    /// Asks for the bootloader.
+    pub fn request(&self) {
+        self.0.store(true, core::sync::atomic::Ordering::Relaxed);
+    }
+
+    /// Takes the request: true once per request.
+    pub fn take(&self) -> bool {
+        self.0.swap(false, core::sync::atomic::Ordering::Relaxed)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::Watch;
+
+    #[test]
+    fn serial_numbers_are_sixteen_hex_digits_of_the_id() {
+        let mut text = [0u8; 16];
+        assert_eq!(
+            super::serial_number(0x0123_4567_89AB_CDEF, &mut text),
+            "0123456789ABCDEF"
+        );
+        assert_eq!(super::serial_number(5, &mut text), "0000000000000005");
+    }
+
+    #[test]
+    fn a_reboot_request_is_taken_once() {
+        let request = super::RebootRequest::new();
+        assert!(!request.take());
+        request.request();
+        request.request();
+        assert!(request.take());
+        assert!(!request.take());
+    }
 
     #[test]
     fn a_watch_reports_the_first_value_and_every_change_once() {

@@ -4,11 +4,13 @@
 //! whole and count the drop; the USB interrupt drains bytes as the host reads them. Nothing
 //! waits: a host that is not reading (no terminal open, cable out) costs dropped lines, never
 //! time in the control path.
+//!
+//! A line is formatted straight into the queue and kept only once it is whole, so its length
+//! is bounded by the free space alone: a long report line (a bus that heard many ids, a pin
+//! with a long source) prints like a short one, and only a queue the host has not drained
+//! drops lines.
 
 use core::fmt::{self, Write};
-
-/// Longest line the console writes (bytes, line end included); a longer one is dropped.
-pub const LINE_MAX: usize = 192;
 
 /// A bounded queue of log lines, `N` bytes.
 #[derive(Debug)]
@@ -54,22 +56,20 @@ impl<const N: usize> LogBuffer<N> {
         self.len == 0
     }
 
-    /// Appends `args` and a line end, or nothing if the whole line does not fit (counted).
-    /// Returns whether it was queued.
+    /// Appends `args` and a line end, or nothing if the whole line does not fit in the free
+    /// space (counted). Returns whether it was queued.
     pub fn line(&mut self, args: fmt::Arguments<'_>) -> bool {
-        let mut line = LineWriter::<LINE_MAX>::new();
-        let fits = line.write_fmt(args).is_ok() && line.write_str("\r\n").is_ok();
-        if !fits || line.len > N - self.len {
+        let mut pending = Pending {
+            log: self,
+            written: 0,
+        };
+        let fits = pending.write_fmt(args).is_ok() && pending.write_str("\r\n").is_ok();
+        let written = pending.written;
+        if !fits {
             self.dropped = self.dropped.wrapping_add(1);
             return false;
         }
-        for &byte in line.bytes.get(..line.len).unwrap_or(&[]) {
-            let tail = (self.head + self.len) % N;
-            if let Some(slot) = self.bytes.get_mut(tail) {
-                *slot = byte;
-            }
-            self.len += 1;
-        }
+        self.len += written;
         true
     }
 
@@ -97,27 +97,27 @@ impl<const N: usize> LogBuffer<N> {
     }
 }
 
-/// One line formatted on the stack, at most `N` bytes.
-struct LineWriter<const N: usize> {
-    bytes: [u8; N],
-    len: usize,
+/// A line being formatted into the free space behind the queued bytes; the queue takes it
+/// only once it is whole ([`LogBuffer::line`]).
+struct Pending<'a, const N: usize> {
+    log: &'a mut LogBuffer<N>,
+    /// Bytes of the line written so far.
+    written: usize,
 }
 
-impl<const N: usize> LineWriter<N> {
-    const fn new() -> Self {
-        Self {
-            bytes: [0; N],
-            len: 0,
-        }
-    }
-}
-
-impl<const N: usize> Write for LineWriter<N> {
+impl<const N: usize> Write for Pending<'_, N> {
     fn write_str(&mut self, text: &str) -> fmt::Result {
-        let end = self.len.checked_add(text.len()).ok_or(fmt::Error)?;
-        let slot = self.bytes.get_mut(self.len..end).ok_or(fmt::Error)?;
-        slot.copy_from_slice(text.as_bytes());
-        self.len = end;
+        let used = self.log.len + self.written;
+        if text.len() > N - used {
+            return Err(fmt::Error);
+        }
+        for (offset, &byte) in text.as_bytes().iter().enumerate() {
+            let at = (self.log.head + used + offset) % N;
+            if let Some(slot) = self.log.bytes.get_mut(at) {
+                *slot = byte;
+            }
+        }
+        self.written += text.len();
         Ok(())
     }
 }
@@ -213,6 +213,25 @@ mod tests {
         assert_eq!(drain(&mut log), "state 1\r\n");
         assert!(log.line(format_args!("a longer line")), "room again");
         assert_eq!(drain(&mut log), "a longer line\r\n");
+    }
+
+    #[test]
+    fn a_line_is_limited_by_the_free_space_alone() {
+        let mut log = LogBuffer::<1_024>::new();
+        let long = "x".repeat(700);
+        assert!(log.line(format_args!("{long}")));
+        assert!(
+            !log.line(format_args!("{long}")),
+            "no room for a second one"
+        );
+        assert_eq!(log.dropped(), 1);
+        assert_eq!(log.len(), 702, "the dropped line left nothing behind");
+        assert_eq!(drain(&mut log), format!("{long}\r\n"));
+        assert!(
+            log.line(format_args!("{long}")),
+            "room again, across the wrap"
+        );
+        assert_eq!(drain(&mut log), format!("{long}\r\n"));
     }
 
     #[test]

@@ -1,9 +1,12 @@
 //! The Teensy's USB CDC serial device: the console's log out, typed bytes in.
 //!
-//! It enumerates as PJRC's Teensy USB serial (16C0:0483), so `teensy_loader_cli -s` finds it
-//! and reboots the board into its bootloader by setting the line rate to 134 baud, without
-//! the program button. Poll it from the USB_OTG1 interrupt at the lowest priority: it only
-//! copies bytes between the host and the console's buffers, and never waits.
+//! It enumerates as PJRC's Teensy USB serial (16C0:0483), with the image's own product string
+//! and the chip's unique id as its serial number, so two boards on one host get two
+//! `/dev/serial/by-id` names. A host that sets the line rate to 134 baud (what
+//! `teensy_loader_cli -s` does) asks for the bootloader: the console reports the request
+//! ([`UsbConsole::serve`]'s result) and the image decides whether it is safe to obey. Poll it
+//! from the USB_OTG1 interrupt at the lowest priority: it only copies bytes between the host
+//! and the console's buffers, and never waits.
 
 pub use teensy4_bsp::usbd::EndpointState;
 
@@ -36,6 +39,8 @@ pub struct UsbConsole {
     device: UsbDevice<'static, BusAdapter>,
     serial: SerialPort<'static, BusAdapter>,
     configured: bool,
+    /// The host's line rate was 134 baud at the last poll (a request is its rising edge).
+    reboot_rate: bool,
 }
 
 /// Why the device could not be built.
@@ -43,14 +48,16 @@ pub struct UsbConsole {
 pub struct UsbError;
 
 impl UsbConsole {
-    /// Builds the device on USB1, naming itself `product`. The GPT0 timer of the USB block
-    /// interrupts every 10 ms, so the log drains while the host is idle too.
+    /// Builds the device on USB1, naming itself `product` with `serial_number` (see
+    /// [`chip_serial`]). The GPT0 timer of the USB block interrupts every 10 ms, so the log
+    /// drains while the host is idle too.
     pub fn new(
         usb: teensy4_bsp::usbd::Instances<1>,
         memory: &'static Memory,
         state: &'static EndpointState,
         slot: &'static mut Option<Bus>,
         product: &'static str,
+        serial_number: &'static str,
     ) -> Result<Self, UsbError> {
         let adapter = BusAdapter::with_speed(usb, memory, state, Speed::LowFull);
         adapter.set_interrupts(true);
@@ -68,7 +75,8 @@ impl UsbConsole {
         let device = UsbDeviceBuilder::new(bus, VID_PID)
             .strings(&[StringDescriptors::new(LangID::EN_US)
                 .manufacturer("AER")
-                .product(product)])
+                .product(product)
+                .serial_number(serial_number)])
             .map_err(|_| UsbError)?
             .device_class(usbd_serial::USB_CLASS_CDC)
             .build();
@@ -76,13 +84,14 @@ impl UsbConsole {
             device,
             serial,
             configured: false,
+            reboot_rate: false,
         })
     }
 
     /// Services the device: offers `outgoing` to the host and returns how many of its bytes
-    /// were taken, hands every received byte to `typed`, and reboots into the bootloader when
-    /// the host asks for it.
-    pub fn poll(&mut self, outgoing: &[u8], mut typed: impl FnMut(u8)) -> usize {
+    /// were taken, hands every received byte to `typed`, and says whether the host just asked
+    /// for the bootloader (set 134 baud).
+    pub fn poll(&mut self, outgoing: &[u8], mut typed: impl FnMut(u8)) -> Polled {
         self.device.bus().gpt_mut(Gpt0, |gpt| {
             while gpt.is_elapsed() {
                 gpt.clear_elapsed();
@@ -102,9 +111,9 @@ impl UsbConsole {
                 input.iter().take(count).for_each(|&byte| typed(byte));
             }
         }
-        if self.serial.line_coding().data_rate() == REBOOT_BAUD {
-            reboot_to_bootloader();
-        }
+        let reboot_rate = self.serial.line_coding().data_rate() == REBOOT_BAUD;
+        let reboot_requested = reboot_rate && !self.reboot_rate;
+        self.reboot_rate = reboot_rate;
         let mut sent = 0;
         while self.configured && sent < outgoing.len() {
             match self.serial.write(outgoing.get(sent..).unwrap_or(&[])) {
@@ -112,30 +121,55 @@ impl UsbConsole {
                 _ => break,
             }
         }
-        sent
+        Polled {
+            sent,
+            reboot_requested,
+        }
     }
 
     /// [`poll`](Self::poll) for a log shared with the control tasks: the log's lock is held
     /// only to copy up to [`STAGED_BYTES`] out and, after the USB work, to drop what the host
     /// took, so a task that logs never waits for USB. Typed bytes are gathered into lines by
-    /// `reader`; each complete line goes to `on_line`.
+    /// `reader`; each complete line goes to `on_line`. Returns true when the host just asked
+    /// for the bootloader by its line rate.
     pub fn serve<const N: usize, const L: usize>(
         &mut self,
         log: &mut impl Mutex<T = LogBuffer<N>>,
         reader: &mut LineReader<L>,
         mut on_line: impl FnMut(&str),
-    ) {
+    ) -> bool {
         let mut staged = [0u8; STAGED_BYTES];
         let count = log.lock(|log| log.peek(&mut staged));
-        let sent = self.poll(staged.get(..count).unwrap_or(&[]), |byte| {
+        let polled = self.poll(staged.get(..count).unwrap_or(&[]), |byte| {
             if let Some(line) = reader.push(byte) {
                 on_line(line);
             }
         });
-        if sent > 0 {
-            log.lock(|log| log.consume(sent));
+        if polled.sent > 0 {
+            log.lock(|log| log.consume(polled.sent));
         }
+        polled.reboot_requested
     }
+}
+
+/// What one poll did.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Polled {
+    /// Bytes of the log the host took.
+    pub sent: usize,
+    /// The host just set 134 baud: it asks for the bootloader.
+    pub reboot_requested: bool,
+}
+
+/// The chip's 64-bit unique id (OCOTP CFG0 and CFG1, fused at manufacture) as the USB serial
+/// number: 16 hex digits written into `text`, which the device then keeps.
+pub fn chip_serial(text: &'static mut [u8; 16]) -> &'static str {
+    // SAFETY: the OCOTP shadow registers are read-only here and loaded by the boot ROM before
+    // any code runs; nothing else in the images uses the OCOTP block.
+    let ocotp = unsafe { teensy4_bsp::ral::ocotp::OCOTP::instance() };
+    let high = teensy4_bsp::ral::read_reg!(teensy4_bsp::ral::ocotp, ocotp, CFG1);
+    let low = teensy4_bsp::ral::read_reg!(teensy4_bsp::ral::ocotp, ocotp, CFG0);
+    crate::serial_number(u64::from(high) << 32 | u64::from(low), text)
 }
 
 /// Bytes of log copied out per USB poll.

@@ -28,6 +28,7 @@
 
 pub mod can3;
 mod frame;
+mod report;
 pub mod timing;
 
 pub use frame::CanFrame;

@@ -4,8 +4,9 @@
 
 use crate::Digest;
 use aer_boards::{ccm, pcc};
+use aer_ccm::calibration::{BenchPoint, BenchRecorder};
 use aer_console::bringup::{
-    AnalogReading, DigitalReading, Heard, HvGate, PedalCalibration, ResetCause, edge_rate_hz,
+    AnalogReading, DigitalReading, Heard, HvGate, HvReadings, ResetCause, edge_rate_hz,
 };
 use aer_console::{Command, LineReader, LogBuffer};
 use core::fmt::Write;
@@ -21,25 +22,40 @@ pub fn checks(out: &mut impl Write) -> core::fmt::Result {
             log.line(format_args!("{line} -> {:?}", Command::parse(line)));
         }
     }
-    let mut gate = HvGate::default();
-    gate.confirm(1_000);
+    let mut gate = HvGate::new(60.0);
+    let discharged = [("tractive system", Some(12.5f32))];
+    let discharged = HvReadings { volts: &discharged };
+    let live = [("tractive system", Some(60.0f32))];
+    let live = HvReadings { volts: &live };
     log.line(format_args!(
-        "gate {} {} {}",
-        gate.allows(999 + 30_000),
-        gate.allows(1_000 + 29_999),
-        gate.allows(1_000 + 30_000)
+        "gate {:?} {:?}",
+        gate.confirm(1_000, live),
+        gate.confirm(1_000, discharged)
     ));
-    let mut calibration = PedalCalibration::default();
-    for (full, apps) in [(false, [0.512f32, 0.771]), (true, [2.793, 4.187])] {
-        calibration.start(full);
+    log.line(format_args!(
+        "gate {:?} {:?} {:?} {:?}",
+        gate.allows(999 + 30_000, discharged),
+        gate.allows(1_000 + 29_999, discharged),
+        gate.allows(1_000 + 30_000, discharged),
+        gate.allows(1_000 + 10, live)
+    ));
+    let mut calibration = BenchRecorder::default();
+    for (point, apps) in [
+        (BenchPoint::Rest, [0.512f32, 0.771]),
+        (BenchPoint::Full, [2.793, 4.187]),
+    ] {
+        calibration.start(point);
         let mut step = 0u32;
         while calibration.recording() {
             let wobble = (step % 7) as f32 * 0.001;
-            calibration.sample([Some(apps[0] + wobble), Some(apps[1] - wobble)]);
+            calibration.sample(
+                [Some(apps[0] + wobble), Some(apps[1] - wobble)],
+                [0.52 + wobble, 0.53 - wobble],
+            );
             step += 1;
         }
     }
-    log.line(format_args!("{calibration}"));
+    log.line(format_args!("{:?}", calibration.result()));
     log.line(format_args!("{}", ResetCause(0x13)));
     let divider = ccm::COMP_CAR.adc_divider;
     for (pin, counts) in ccm::COMP_CAR.pins().into_iter().zip((0u16..).step_by(181)) {

@@ -7,6 +7,7 @@
 //! decoded value.
 #![no_std]
 
+pub mod bench_day;
 mod bringup;
 mod ccm;
 mod codec;
@@ -26,6 +27,7 @@ pub fn run(out: &mut impl core::fmt::Write) -> core::fmt::Result {
     pcc::scenarios(out)?;
     ccm::session(out)?;
     bringup::checks(out)?;
+    bench_day::transcripts(out)?;
     writeln!(out, "done")
 }
 

@@ -93,4 +93,15 @@ impl VfConfig {
         cutoff_hz: 10.0,
         edge_timeout_us: 100_000,
     };
+
+    /// Volts at the high-voltage input that make the converter pulse at `hz`.
+    pub fn volts_for_hz(&self, hz: f32) -> f32 {
+        hz * self.volts_per_hz * self.divider_ratio
+    }
+
+    /// The pulse frequency that `volts` at the high-voltage input produces (for simulations,
+    /// tests and a signal generator on the bench).
+    pub fn hz_for_volts(&self, volts: f32) -> f32 {
+        volts / (self.volts_per_hz * self.divider_ratio)
+    }
 }

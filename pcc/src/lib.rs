@@ -11,6 +11,7 @@
 
 pub mod bms;
 pub mod config;
+pub mod console;
 pub mod machine;
 pub mod measurement;
 pub mod relays;
@@ -19,6 +20,6 @@ mod status;
 pub mod watchdog;
 
 pub use config::{PrechargeConfig, TASK_PERIOD_MS, VfConfig};
-pub use machine::{Inputs, Precharge};
+pub use machine::{HandoverRefusal, Inputs, Precharge, PrechargeTiming};
 pub use relays::Relays;
 pub use state::{Errors, State};

@@ -68,6 +68,80 @@ pub struct Precharge {
     progress_percent: f32,
     accumulator_v: f32,
     tractive_v: f32,
+    /// How the last precharge ended.
+    last_precharge: Option<PrechargeTiming>,
+}
+
+/// How long a precharge took, against the window it must fall in.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct PrechargeTiming {
+    /// Which precharge since start-up (1 for the first).
+    pub attempt: u32,
+    /// When the target was first reached after the rise (ms); `None` when it was not
+    /// reached within the window's end.
+    pub reached_ms: Option<u32>,
+    /// The target (% of the accumulator).
+    pub target_percent: u8,
+    /// The window (ms).
+    pub window_ms: (u32, u32),
+}
+
+impl core::fmt::Display for PrechargeTiming {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        let (min, max) = self.window_ms;
+        match self.reached_ms {
+            Some(ms) => write!(
+                f,
+                "precharge {}: {} % reached {ms} ms after the rise (window {min}-{max} ms){}",
+                self.attempt,
+                self.target_percent,
+                if ms < min {
+                    ", TOO FAST"
+                } else if ms > max {
+                    ", TOO SLOW"
+                } else {
+                    ""
+                }
+            ),
+            None => write!(
+                f,
+                "precharge {}: {} % NOT reached within {max} ms of the rise (window {min}-{max} ms)",
+                self.attempt, self.target_percent
+            ),
+        }
+    }
+}
+
+/// Why the PCC keeps running instead of handing the chip to the bootloader.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum HandoverRefusal {
+    /// In a state where AIR+ may be closed or the tractive system is live.
+    Energised(State),
+    /// The tractive system is not yet below the discharged limit.
+    Charged {
+        /// What it reads (V).
+        tractive_v: f32,
+        /// The limit (V).
+        limit_v: f32,
+    },
+}
+
+impl core::fmt::Display for HandoverRefusal {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            Self::Energised(state) => write!(
+                f,
+                "the PCC is in {state:?}: open the shutdown circuit, wait for Standby with the tractive system discharged, then ask again"
+            ),
+            Self::Charged {
+                tractive_v,
+                limit_v,
+            } => write!(
+                f,
+                "the tractive system reads {tractive_v:.1} V: wait until it is below {limit_v:.0} V, then ask again"
+            ),
+        }
+    }
 }
 
 impl Precharge {
@@ -86,6 +160,7 @@ impl Precharge {
             progress_percent: 0.0,
             accumulator_v: 0.0,
             tractive_v: 0.0,
+            last_precharge: None,
         }
     }
 
@@ -122,6 +197,29 @@ impl Precharge {
     /// Tractive-system voltage as last measured (V, never negative or NaN).
     pub fn tractive_v(&self) -> f32 {
         self.tractive_v
+    }
+
+    /// How the last precharge ended (`None` before the first).
+    pub fn last_precharge(&self) -> Option<PrechargeTiming> {
+        self.last_precharge
+    }
+
+    /// Whether the PCC may stop running its state machine (the bootloader), and the relays
+    /// to apply before it does. Only in STANDBY or ERROR, where AIR+ is open, and only with
+    /// the tractive system measured below the discharged limit: a PCC that stopped with
+    /// AIR+ closed would leave nothing to open it before the shutdown circuit closes again
+    /// and starts a precharge AIR+ would bypass.
+    pub fn handover(&self) -> Result<Relays, HandoverRefusal> {
+        if !matches!(self.state, State::Standby | State::Error) {
+            return Err(HandoverRefusal::Energised(self.state));
+        }
+        if self.tractive_v >= self.config.discharged_v {
+            return Err(HandoverRefusal::Charged {
+                tractive_v: self.tractive_v,
+                limit_v: self.config.discharged_v,
+            });
+        }
+        Ok(Relays::ALL_OPEN)
     }
 
     /// The relay outputs for the current state.
@@ -227,6 +325,7 @@ impl Precharge {
             }
             // The moment the target was first reached decides, not the end of the hold.
             let reached_after = since.wrapping_sub(self.entered_ms);
+            self.record_precharge(Some(reached_after));
             if reached_after < self.config.min_time_ms {
                 self.errors.too_fast = true;
                 self.enter(State::Error, now);
@@ -241,10 +340,22 @@ impl Precharge {
         } else {
             self.at_target_since_ms = None;
             if elapsed > self.config.max_time_ms {
+                self.record_precharge(None);
                 self.errors.too_slow = true;
                 self.enter(State::Error, now);
             }
         }
+    }
+
+    fn record_precharge(&mut self, reached_ms: Option<u32>) {
+        self.last_precharge = Some(PrechargeTiming {
+            attempt: self
+                .last_precharge
+                .map_or(1, |last| last.attempt.wrapping_add(1)),
+            reached_ms,
+            target_percent: self.config.target_percent as u8,
+            window_ms: (self.config.min_time_ms, self.config.max_time_ms),
+        });
     }
 
     /// True once `condition` has held continuously for `duration_ms` (tracked across calls).

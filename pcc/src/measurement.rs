@@ -82,14 +82,13 @@ impl VoltageChannel {
     /// Volts at the high-voltage input, filtered; call once per control period.
     pub fn sample(&mut self, now_us: u32) -> f32 {
         let hz = self.meter.sample(now_us, self.config.edge_timeout_us);
-        self.filter
-            .update(hz * self.config.volts_per_hz * self.config.divider_ratio)
+        self.filter.update(self.config.volts_for_hz(hz))
     }
 
     /// The pulse frequency that `volts` at the high-voltage input produces (for simulations
     /// and tests).
     pub fn hz_for_volts(config: &VfConfig, volts: f32) -> f32 {
-        volts / (config.volts_per_hz * config.divider_ratio)
+        config.hz_for_volts(volts)
     }
 }
 

@@ -67,3 +67,26 @@ impl Errors {
         self.needs_reset() || self.shutdown
     }
 }
+
+impl core::fmt::Display for Errors {
+    /// The latched causes by name (`none` when clear), as the console logs them.
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        let causes = [
+            (self.too_fast, "too-fast"),
+            (self.too_slow, "too-slow"),
+            (self.bms_timeout, "bms-timeout"),
+            (self.shutdown, "shutdown"),
+            (self.undefined_state, "undefined-state (watchdog reset)"),
+        ];
+        let mut first = true;
+        for (_, name) in causes.iter().filter(|(latched, _)| *latched) {
+            f.write_str(if first { "" } else { ", " })?;
+            f.write_str(name)?;
+            first = false;
+        }
+        if first {
+            f.write_str("none")?;
+        }
+        Ok(())
+    }
+}

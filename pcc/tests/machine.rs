@@ -490,3 +490,96 @@ fn through_the_board_map_pin_11_is_high_in_online_and_charging_only() {
         }
     }
 }
+
+/// The console's `bootloader` (typed, or a host setting 134 baud) stops the state machine,
+/// so it is obeyed only where nothing depends on it: STANDBY or ERROR, AIR+ open, the
+/// tractive system measured below 60 V.
+#[test]
+fn the_bootloader_is_refused_while_energised_or_charged() {
+    for energised in [State::Precharge, State::Online, State::Charging] {
+        let (bench, _) = Bench::in_state(energised);
+        assert_eq!(
+            bench.pcc.handover(),
+            Err(aer_pcc::HandoverRefusal::Energised(energised)),
+            "{energised:?}"
+        );
+    }
+    let (mut bench, now) = Bench::in_state(State::Online);
+    assert_eq!(
+        bench.pcc.handover().unwrap_err().to_string(),
+        "the PCC is in Online: open the shutdown circuit, wait for Standby with the tractive system discharged, then ask again"
+    );
+    // The pack goes away: DISCHARGE, still refused until STANDBY below 60 V.
+    bench.inputs.accumulator_v = 0.0;
+    bench.at_with_bms(now + 10);
+    assert_eq!(bench.state(), State::Discharge);
+    assert!(bench.pcc.handover().is_err());
+    bench.inputs.tractive_v = 59.0;
+    bench.at_with_bms(now + 20);
+    assert_eq!(bench.state(), State::Standby);
+    assert_eq!(bench.pcc.handover(), Ok(Relays::ALL_OPEN));
+}
+
+#[test]
+fn the_bootloader_is_refused_in_standby_and_error_with_the_tractive_system_charged() {
+    let mut bench = Bench::ready();
+    bench.inputs.accumulator_v = 0.0;
+    bench.inputs.tractive_v = 75.0;
+    bench.at_with_bms(1_000);
+    assert_eq!(bench.state(), State::Standby);
+    assert_eq!(
+        bench.pcc.handover().unwrap_err().to_string(),
+        "the tractive system reads 75.0 V: wait until it is below 60 V, then ask again"
+    );
+    bench.inputs.tractive_v = 60.0;
+    bench.at_with_bms(1_010);
+    assert!(bench.pcc.handover().is_err(), "60 V is not below 60 V");
+    bench.inputs.tractive_v = 12.0;
+    bench.at_with_bms(1_020);
+    assert_eq!(bench.pcc.handover(), Ok(Relays::ALL_OPEN));
+
+    let mut error = Precharge::after_watchdog_reset(CONFIG, 0);
+    assert_eq!(error.state(), State::Error);
+    error.step(&Inputs {
+        now_ms: 10,
+        accumulator_v: 400.0,
+        tractive_v: 300.0,
+        bms_last_seen_ms: Some(10),
+        charger_safety: false,
+    });
+    assert!(matches!(
+        error.handover(),
+        Err(aer_pcc::HandoverRefusal::Charged { .. })
+    ));
+}
+
+#[test]
+fn each_precharge_is_timed_against_its_window() {
+    let mut bench = Bench::ready();
+    assert_eq!(bench.pcc.last_precharge(), None);
+    bench.online();
+    let timing = bench.pcc.last_precharge().expect("timed");
+    assert_eq!(timing.reached_ms, Some(CONFIG.min_time_ms + 100));
+    assert_eq!(
+        timing.to_string(),
+        "precharge 1: 90 % reached 8300 ms after the rise (window 8200-9200 ms)"
+    );
+    let mut slow = Bench::ready();
+    let start = slow.start_precharge();
+    slow.set_progress(50.0);
+    slow.at_with_bms(start + CONFIG.max_time_ms + 1);
+    assert_eq!(slow.state(), State::Error);
+    assert_eq!(
+        slow.pcc.last_precharge().expect("timed").to_string(),
+        "precharge 1: 90 % NOT reached within 9200 ms of the rise (window 8200-9200 ms)"
+    );
+    let mut fast = Bench::ready();
+    fast.precharge_reaching_target_after(CONFIG.min_time_ms - 1);
+    assert!(
+        fast.pcc
+            .last_precharge()
+            .expect("timed")
+            .to_string()
+            .ends_with(", TOO FAST")
+    );
+}

@@ -34,7 +34,19 @@ pub fn run(root: &Path, target: &str, timeout_s: u64) -> Result<()> {
     // Cost lines exist only in the emulated run.
     let (costs, transcript): (Vec<&str>, Vec<&str>) =
         emulated.lines().partition(|line| line.starts_with("cost "));
-    let differences = compare(&host, &transcript.join("\n"));
+    let emulated_transcript = transcript.join("\n");
+    // Both transcripts stay beside the build, for reading (the bench day's console lines are
+    // in them, under `--- bench-day <name>`).
+    let kept = crate::target_dir(root).join("m7-check");
+    std::fs::create_dir_all(&kept).with_context(|| format!("creating {}", kept.display()))?;
+    for (name, text) in [
+        ("host.txt", host.as_str()),
+        ("cortex-m7.txt", emulated_transcript.as_str()),
+    ] {
+        let path = kept.join(name);
+        std::fs::write(&path, text).with_context(|| format!("writing {}", path.display()))?;
+    }
+    let differences = compare(&host, &emulated_transcript);
     if !differences.is_empty() {
         for line in &differences {
             eprintln!("{line}");
@@ -45,9 +57,10 @@ pub fn run(root: &Path, target: &str, timeout_s: u64) -> Result<()> {
         );
     }
     println!(
-        "Cortex-M7 (QEMU mps2-an500) and host agree on all {} transcript lines ({:.1} s emulated run)",
+        "Cortex-M7 (QEMU mps2-an500) and host agree on all {} transcript lines ({:.1} s emulated run); both in {}",
         host.lines().count(),
-        elapsed.as_secs_f64()
+        elapsed.as_secs_f64(),
+        kept.display()
     );
     for line in costs {
         println!("  {line}");

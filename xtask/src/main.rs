@@ -28,8 +28,9 @@ struct Cli {
 #[derive(Subcommand)]
 enum Task {
     /// Build the firmware (release): the race images (the CCM for the comp car's DTI), the
-    /// bench bring-up images of both boards and the CCM for the HIMaC bench's IFL100, written
-    /// as target/firmware/{ccm,pcc,ccm-bringup,pcc-bringup,ccm-ifl100}.hex (and .elf) for
+    /// bench bring-up images of both boards, the CCM for the HIMaC bench's IFL100 and both
+    /// CCM images for the ADS1115 pedal board, written as target/firmware/{ccm,pcc,
+    /// ccm-bringup,pcc-bringup,ccm-ifl100,ccm-ads1115,ccm-bringup-ads1115}.hex (and .elf) for
     /// teensy_loader_cli, printing flash and RAM use.
     Firmware,
     /// Print the default boards' pin maps (aer-boards), one line per signal:
@@ -77,7 +78,7 @@ struct Firmware {
     flash: Region,
 }
 
-const FIRMWARE: [Firmware; 5] = [
+const FIRMWARE: [Firmware; 7] = [
     Firmware {
         name: "ccm",
         bin: "ccm",
@@ -110,13 +111,29 @@ const FIRMWARE: [Firmware; 5] = [
         board: "Teensy 4.0, bench bring-up",
         flash: FLASH_T40,
     },
-    // Last: the feature change rebuilds only the CCM crate.
+    // Last: each feature change rebuilds only the CCM crate.
     Firmware {
         name: "ccm-ifl100",
         bin: "ccm",
         package: "aer-ccm",
         features: "firmware,inverter-ifl100",
         board: "Teensy 4.1, HIMaC bench (IFL100)",
+        flash: FLASH_T41,
+    },
+    Firmware {
+        name: "ccm-ads1115",
+        bin: "ccm",
+        package: "aer-ccm",
+        features: "firmware,pedals-ads1115",
+        board: "Teensy 4.1, comp car (DTI HV-550), pedals on an ADS1115",
+        flash: FLASH_T41,
+    },
+    Firmware {
+        name: "ccm-bringup-ads1115",
+        bin: "ccm-bringup",
+        package: "aer-ccm",
+        features: "firmware,pedals-ads1115",
+        board: "Teensy 4.1, bench bring-up, pedals on an ADS1115",
         flash: FLASH_T41,
     },
 ];

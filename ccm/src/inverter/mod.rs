@@ -16,6 +16,14 @@ use crate::config::{
 use aer::runtime::EncodeError;
 
 impl InverterKind {
+    /// The inverter as the start-up line names it.
+    pub const fn name(self) -> &'static str {
+        match self {
+            Self::Dti => "DTI HV-550 (comp car)",
+            Self::Ifl100 => "IFL100 (HIMaC bench)",
+        }
+    }
+
     /// How often the CCM sends the inverter its commands (ms): the cycle time the schema
     /// declares for the torque command.
     pub const fn command_period_ms(self) -> u32 {

@@ -5,10 +5,13 @@
 //! reset cause (a `watchdog test` shows here after the reset), clocks. Every second: every
 //! analog input's counts and volts, the digital inputs' levels, edge counts and rates (wheel
 //! speed in Hz), both CAN controllers' state and what each heard (and, of a DTI on the
-//! inverter bus, its node id, CAN map version, drive enable and fault code), the outputs. Outputs move
-//! only on a typed `out <signal> ...`; `can` runs both controllers' loopback self-tests and
-//! starts heartbeats; `cal rest` / `cal full` record the pedal and print the calibration to
-//! put in `aer_ccm::apps::AppsCalibration`. `help` lists the commands.
+//! inverter bus, its node id, CAN map version, drive enable, fault code and command timeout),
+//! the outputs. Outputs move only on a typed `out <signal> ...`; `can` runs both controllers'
+//! loopback self-tests and starts heartbeats; `cal rest` / `cal full` record the pedal and
+//! brake sensors and print the lines for `ccm/calibration.toml`; `dti enable` (after
+//! `confirm hv-disconnected`, with the DTI's own DC link below 60 V) times the DTI's command
+//! timeout at low voltage. `help` lists the commands. Every line is built by
+//! `aer_ccm::console` (host-tested; docs/bench-day.md quotes the tests).
 #![no_std]
 #![no_main]
 
@@ -24,16 +27,21 @@ mod app {
     use crate::board;
     use crate::pwm::PwmBlock;
     use aer_boards::Pin;
-    use aer_ccm::inverter::dti::BenchCheck;
+    use aer_ccm::calibration::{BenchPoint, BenchRecorder};
+    use aer_ccm::console::bringup::{self, LOG_BYTES, Report};
+    use aer_ccm::console::dti::DtiBench;
     use aer_console::bringup::{
-        AnalogReading, DigitalReading, Heard, PedalCalibration, ResetCause, edge_rate_hz,
+        AnalogReading, BusLine, Clocks, DigitalReading, Heard, HvGate, HvReadings, ReportHeader,
+        ResetCause, SelfTestLine, edge_rate_hz,
     };
     use aer_console::command::HELP;
-    use aer_console::usb::{Bus, EndpointState, Memory, UsbConsole};
-    use aer_console::{Command, CommandError, Level, LineReader, LogBuffer, PedalPosition};
+    use aer_console::usb::{Bus, EndpointState, Memory, UsbConsole, chip_serial};
+    use aer_console::{
+        Command, CommandError, Level, LineReader, LogBuffer, PedalPosition, RebootRequest,
+    };
     use aer_flexcan::{CanFrame, Flexcan};
     use core::sync::atomic::{AtomicU32, Ordering};
-    use embedded_can::{Frame, Id, StandardId};
+    use embedded_can::{ExtendedId, Frame, Id, StandardId};
     use heapless::spsc::{Consumer, Producer, Queue};
     use rtic_monotonics::imxrt::prelude::*;
     use teensy4_bsp::{
@@ -47,7 +55,17 @@ mod app {
 
     imxrt_gpt1_monotonic!(Mono, 1_000_000);
 
-    const LOG_BYTES: usize = 16_384;
+    /// The clocks the report prints are the BSP's.
+    const _: () = assert!(
+        bsp::ARM_FREQUENCY == Clocks::TEENSY4.core_hz
+            && bsp::IPG_FREQUENCY == Clocks::TEENSY4.ipg_hz
+            && bsp::PERCLK_FREQUENCY == Clocks::TEENSY4.perclk_hz
+            && board::CAN_BITRATE == Clocks::TEENSY4.can_bitrate
+    );
+    /// `bootloader` typed, or 134 baud from the host.
+    static REBOOT: RebootRequest = RebootRequest::new();
+    /// Discharged below this (V): the rules' 60 V DC.
+    const DISCHARGED_V: f32 = 60.0;
     /// Heartbeats this board sends on `can` (not identifiers of the car's schema).
     const HEARTBEAT_IDS: [u16; 2] = [0x7F3, 0x7F2];
 
@@ -102,6 +120,7 @@ mod app {
         usb_memory: Memory = Memory::new(),
         usb_state: EndpointState = EndpointState::max_endpoints(),
         usb_bus: Option<Bus> = None,
+        serial: [u8; 16] = [0; 16],
     ])]
     fn init(cx: init::Context) -> (Shared, Local) {
         let bsp::Resources {
@@ -238,13 +257,14 @@ mod app {
         let srsr = ral::read_reg!(ral::src, src, SRSR);
         ral::write_reg!(ral::src, src, SRSR, srsr);
         let mut log = LogBuffer::new();
+        bringup::startup(&mut log, &b, ResetCause(srsr));
         let (tx3, rx3) = pins.vehicle_can;
         let (tx2, rx2) = pins.inverter_can;
         let vehicle_can = Flexcan::new_can3(can3_regs, tx3, rx3, &ccm, board::CAN_BITRATE)
-            .map_err(|error| log.line(format_args!("CAN3 did not start: {error:?}")))
+            .map_err(|error| log.line(format_args!("CAN3 did not start: {error}")))
             .ok();
         let inverter_can = Flexcan::new(can2_regs, tx2, rx2, &ccm, board::CAN_BITRATE)
-            .map_err(|error| log.line(format_args!("CAN2 did not start: {error:?}")))
+            .map_err(|error| log.line(format_args!("CAN2 did not start: {error}")))
             .ok();
         // WDOG1 at 1 s, fed by the bench task (`watchdog test` stops feeding it).
         ral::write_reg!(ral::wdog, wdog, WMCR, 0);
@@ -256,34 +276,9 @@ mod app {
             cx.local.usb_state,
             cx.local.usb_bus,
             "AER CCM bring-up",
+            chip_serial(cx.local.serial),
         )
         .ok();
-        log.line(format_args!(
-            "AER CCM bring-up, board {}, schema {:#010x}, telemetry {:#010x}",
-            b.name,
-            aer::can::SCHEMA_FINGERPRINT,
-            aer::telemetry::TELEMETRY_FINGERPRINT
-        ));
-        log.line(format_args!("{}", ResetCause(srsr)));
-        log.line(format_args!(
-            "clocks: core {} Hz, IPG {} Hz, PERCLK {} Hz, CAN 24 MHz oscillator at {} bit/s",
-            bsp::ARM_FREQUENCY,
-            bsp::IPG_FREQUENCY,
-            bsp::PERCLK_FREQUENCY,
-            board::CAN_BITRATE
-        ));
-        for pin in b.pins() {
-            log.line(format_args!(
-                "pin {:>2} {:<16} {:<15} {}",
-                pin.number,
-                pin.signal,
-                pin.mode.label(),
-                pin.source.text()
-            ));
-        }
-        log.line(format_args!(
-            "every output is off; `help` lists the commands"
-        ));
 
         let (lines_in, lines) = cx.local.queue.split();
         bench::spawn().ok();
@@ -336,13 +331,16 @@ mod app {
             return;
         };
         let lines_in = cx.local.lines_in;
-        usb.serve(&mut cx.shared.log, cx.local.typed, |line| {
+        let host_asks = usb.serve(&mut cx.shared.log, cx.local.typed, |line| {
             // Typing faster than the bench loop takes commands drops the line.
             let mut owned = Line::new();
             if owned.push_str(line).is_ok() {
                 let _dropped = lines_in.enqueue(owned);
             }
         });
+        if host_asks {
+            REBOOT.request();
+        }
     }
 
     /// The bench loop: 1 ms steps (pedal calibration samples), commands, a report a second.
@@ -350,9 +348,10 @@ mod app {
     async fn bench(mut cx: bench::Context) {
         let bench = cx.local.bench;
         let mut feeding = true;
-        let mut calibration = PedalCalibration::default();
+        let mut calibration = BenchRecorder::default();
         let mut heard = [Heard::default(); 2];
-        let mut dti = BenchCheck::default();
+        let mut dti = DtiBench::default();
+        let mut gate = HvGate::new(DISCHARGED_V);
         let mut heartbeats = false;
         let mut heartbeat: u8 = 0;
         let mut wheels_before = [0u32; 2];
@@ -365,10 +364,15 @@ mod app {
                 ral::write_reg!(ral::wdog, bench.wdog, WSR, 0x5555);
                 ral::write_reg!(ral::wdog, bench.wdog, WSR, 0xAAAA);
             }
-            if calibration.recording() && calibration.sample(pedal_volts(bench)) {
+            if REBOOT.take() {
+                all_off(bench);
+                aer_console::usb::reboot_to_bootloader();
+            }
+            if calibration.recording() && calibration.sample(pedal_volts(bench), brake_volts(bench))
+            {
                 cx.shared
                     .log
-                    .lock(|log| log.line(format_args!("{calibration}")));
+                    .lock(|log| bringup::calibration(log, &calibration));
             }
             for ((_, input), (before, edges)) in bench
                 .buttons
@@ -386,7 +390,7 @@ mod app {
                 bench
                     .inverter_can
                     .as_mut()
-                    .map(|can| receive2(can, &mut dti)),
+                    .map(|can| receive2(can, now_ms, &mut dti)),
             ]
             .into_iter()
             .zip(heard.iter_mut())
@@ -395,13 +399,30 @@ mod app {
                     heard.frame(id);
                 }
             }
+            dti.poll(now_ms);
+            if dti.test.active() {
+                let dc_link = [("DTI DC link", dti.dc_link_v(now_ms))];
+                if let Err(refusal) = gate.allows(now_ms, HvReadings { volts: &dc_link }) {
+                    dti.test.stop();
+                    cx.shared
+                        .log
+                        .lock(|log| log.line(format_args!("dti enable stopped: {refusal}")));
+                } else if let Some(frames) = dti.due(now_ms) {
+                    send_dti(bench, frames);
+                }
+            }
             while let Some(line) = cx.local.lines.dequeue() {
                 let outcome = command(
                     bench,
                     &line,
-                    &mut calibration,
-                    &mut feeding,
-                    &mut heartbeats,
+                    now_ms,
+                    &mut Bring {
+                        calibration: &mut calibration,
+                        feeding: &mut feeding,
+                        heartbeats: &mut heartbeats,
+                        gate: &mut gate,
+                        dti: &mut dti,
+                    },
                     &mut cx.shared.log,
                 );
                 if outcome == "report" {
@@ -438,7 +459,7 @@ mod app {
                 );
                 wheels_before = wheels_now;
                 heard = [Heard::default(); 2];
-                dti = BenchCheck::default();
+                dti.report_done();
             }
             Mono::delay(1u64.millis()).await;
         }
@@ -448,15 +469,37 @@ mod app {
         core::array::from_fn(|_| can.receive().map(|frame| raw_id(&frame)))
     }
 
-    /// The inverter bus also feeds the DTI check (node id, CAN map, drive, fault).
-    fn receive2(can: &mut Flexcan<2>, dti: &mut BenchCheck) -> [Option<u32>; 8] {
+    /// The inverter bus also feeds the DTI checks (node id, CAN map, drive, fault, DC link,
+    /// command timeout).
+    fn receive2(can: &mut Flexcan<2>, now_ms: u32, dti: &mut DtiBench) -> [Option<u32>; 8] {
         core::array::from_fn(|_| {
             can.receive().map(|frame| {
                 let id = raw_id(&frame);
-                dti.frame(id, matches!(frame.id(), Id::Extended(_)), frame.data());
+                dti.frame(
+                    now_ms,
+                    id,
+                    matches!(frame.id(), Id::Extended(_)),
+                    frame.data(),
+                );
                 id
             })
         })
+    }
+
+    /// Queues the `dti enable` test's frames on the inverter bus (each replaces a pending
+    /// frame with its id). A frame that did not encode is not sent: the DTI sees silence.
+    fn send_dti(bench: &mut Bench, frames: Result<aer_ccm::OutFrames, aer::runtime::EncodeError>) {
+        let (Some(can), Ok(frames)) = (bench.inverter_can.as_mut(), frames) else {
+            return;
+        };
+        for frame in frames.iter() {
+            let can_frame = ExtendedId::new(frame.id)
+                .map(Id::Extended)
+                .and_then(|id| CanFrame::new(id, frame.data()));
+            if let Some(can_frame) = can_frame {
+                let _queued = can.transmit_latest(&can_frame);
+            }
+        }
     }
 
     fn raw_id(frame: &CanFrame) -> u32 {
@@ -486,6 +529,24 @@ mod app {
         }
     }
 
+    /// Both brake sensors (BSE1 front, BSE2 rear) in volts at the sensor, as the race image
+    /// reads them.
+    fn brake_volts(bench: &mut Bench) -> [f32; 2] {
+        let divider = board::REVISION.adc_divider;
+        let [front, rear] = BRAKES;
+        [front, rear].map(|index| {
+            bench.analog.get_mut(index).map_or(f32::NAN, |(_, input)| {
+                aer_ccm::analog::sensor_volts(bench.adc.read_blocking(input), divider)
+            })
+        })
+    }
+
+    /// Where BSE1 and BSE2 sit in `Bench::analog` (after the pedals on the on-chip ADC).
+    #[cfg(not(feature = "pedals-ads1115"))]
+    const BRAKES: [usize; 2] = [2, 3];
+    #[cfg(feature = "pedals-ads1115")]
+    const BRAKES: [usize; 2] = [0, 1];
+
     /// Both pedal sensors in volts at the sensor, as the race image reads them.
     #[cfg(not(feature = "pedals-ads1115"))]
     fn pedal_volts(bench: &mut Bench) -> aer_ccm::apps::PedalVolts {
@@ -502,13 +563,21 @@ mod app {
         aer_ccm::ads1115::pedal_volts(bench.ads.poll())
     }
 
+    /// What the typed commands change besides the outputs.
+    struct Bring<'a> {
+        calibration: &'a mut BenchRecorder,
+        feeding: &'a mut bool,
+        heartbeats: &'a mut bool,
+        gate: &'a mut HvGate,
+        dti: &'a mut DtiBench,
+    }
+
     /// Runs one typed command; returns what to print (`"report"`: print a report now).
     fn command(
         bench: &mut Bench,
         line: &str,
-        calibration: &mut PedalCalibration,
-        feeding: &mut bool,
-        heartbeats: &mut bool,
+        now_ms: u32,
+        bring: &mut Bring<'_>,
         log: &mut impl rtic::Mutex<T = LogBuffer<LOG_BYTES>>,
     ) -> &'static str {
         match Command::parse(line) {
@@ -524,9 +593,35 @@ mod app {
             Ok(Command::Output { signal, level }) => output(bench, signal, level),
             Ok(Command::AllOff) => {
                 all_off(bench);
+                bring.dti.test.stop();
+                bring.gate.revoke();
                 "every output off"
             }
-            Ok(Command::ConfirmHvDisconnected) => "the CCM switches no high voltage",
+            Ok(Command::ConfirmHvDisconnected) => {
+                let dc_link = [("DTI DC link", bring.dti.dc_link_v(now_ms))];
+                match bring.gate.confirm(now_ms, HvReadings { volts: &dc_link }) {
+                    Ok(()) => {
+                        "HV confirmed (the DTI reads its DC link below 60 V): `dti enable` armed for 30 s"
+                    }
+                    Err(refusal) => {
+                        log.lock(|log| log.line(format_args!("refused: {refusal}")));
+                        "not confirmed"
+                    }
+                }
+            }
+            Ok(Command::DtiEnable) => {
+                let dc_link = [("DTI DC link", bring.dti.dc_link_v(now_ms))];
+                match bring.gate.allows(now_ms, HvReadings { volts: &dc_link }) {
+                    Ok(()) => {
+                        bring.dti.test.start(now_ms);
+                        "drive enable at 0 A for 1 s, then silence: the report's `DTI command timeout` line gives the result"
+                    }
+                    Err(refusal) => {
+                        log.lock(|log| log.line(format_args!("refused: {refusal}")));
+                        "not started"
+                    }
+                }
+            }
             Ok(Command::CanTest) => {
                 let vehicle = bench
                     .vehicle_can
@@ -540,25 +635,39 @@ mod app {
                     .map(|(can, frame)| can.self_test(&frame));
                 log.lock(|log| {
                     log.line(format_args!(
-                        "CAN3 (vehicle) loopback self-test: {vehicle:?}"
+                        "{}",
+                        SelfTestLine {
+                            name: "CAN3 (vehicle)",
+                            result: vehicle
+                        }
                     ));
                     log.line(format_args!(
-                        "CAN2 (inverter) loopback self-test: {inverter:?}"
+                        "{}",
+                        SelfTestLine {
+                            name: "CAN2 (inverter)",
+                            result: inverter
+                        }
                     ));
                 });
-                *heartbeats = true;
+                *bring.heartbeats = true;
                 "heartbeats 0x7F3 on CAN3 and 0x7F2 on CAN2 every second from now"
             }
             Ok(Command::Calibrate(position)) => {
-                calibration.start(position == PedalPosition::Full);
-                "recording both pedal sensors for 1 s: hold the pedal still"
+                bring.calibration.start(match position {
+                    PedalPosition::Rest => BenchPoint::Rest,
+                    PedalPosition::Full => BenchPoint::Full,
+                });
+                "recording for 1 s: hold the pedal still"
             }
             Ok(Command::I2cScan) => i2c_scan(bench, log),
             Ok(Command::WatchdogTest) => {
-                *feeding = false;
+                *bring.feeding = false;
                 "watchdog no longer fed: the CCM resets within 1 s and reports the cause"
             }
-            Ok(Command::Bootloader) => aer_console::usb::reboot_to_bootloader(),
+            Ok(Command::Bootloader) => {
+                REBOOT.request();
+                "rebooting into the bootloader, every output off"
+            }
             Err(CommandError::Unknown(_)) => "unknown command: `help`",
             Err(CommandError::Usage(usage)) => usage,
         }
@@ -627,87 +736,85 @@ mod app {
         elapsed_ms: u32,
         (wheels_before, wheels_now, wheel_levels): WheelEdges,
         button_edges: [u32; 2],
-        (heard, dti): (&[Heard; 2], &BenchCheck),
+        (heard, dti): (&[Heard; 2], &DtiBench),
     ) {
         let divider = board::REVISION.adc_divider;
-        let counts: [u16; ANALOG] = core::array::from_fn(|index| {
-            bench
+        let analog: [AnalogReading; ANALOG] = core::array::from_fn(|index| {
+            let (pin, counts) = bench
                 .analog
                 .get_mut(index)
-                .map_or(0, |(_, input)| bench.adc.read_blocking(input))
+                .map_or((board::REVISION.thermistor, 0), |(pin, input)| {
+                    (*pin, bench.adc.read_blocking(input))
+                });
+            AnalogReading {
+                pin,
+                counts,
+                divider,
+            }
         });
         #[cfg(feature = "pedals-ads1115")]
-        let pedals = pedal_volts(bench);
-        let buses = [
-            bench.vehicle_can.as_ref().map(|can| can.status()),
-            bench.inverter_can.as_ref().map(|can| can.status()),
-        ];
-        let wheel_pins = board::REVISION.wheel_speed;
+        let ads1115 = Some((pedal_volts(bench), bench.ads.bus_errors));
+        #[cfg(not(feature = "pedals-ads1115"))]
+        let ads1115 = None;
+        let mut digital = [DigitalReading {
+            pin: board::REVISION.led,
+            high: false,
+            edges: 0,
+            hz: 0.0,
+        }; 4];
+        let wheels = board::REVISION
+            .wheel_speed
+            .into_iter()
+            .zip(wheels_before.into_iter().zip(wheels_now).zip(wheel_levels))
+            .map(|(pin, ((before, after), high))| DigitalReading {
+                pin,
+                high,
+                edges: after,
+                hz: edge_rate_hz(before, after, elapsed_ms),
+            });
+        let buttons = bench
+            .buttons
+            .iter()
+            .zip(button_edges)
+            .map(|((pin, input), edges)| DigitalReading {
+                pin: *pin,
+                high: input.is_set(),
+                edges,
+                hz: 0.0,
+            });
+        for (slot, reading) in digital.iter_mut().zip(wheels.chain(buttons)) {
+            *slot = reading;
+        }
+        let [heard_vehicle, heard_inverter] = heard;
+        let report = Report {
+            header: ReportHeader { now_ms, dropped: 0 },
+            analog: &analog,
+            ads1115,
+            digital: &digital,
+            buses: [
+                BusLine {
+                    name: "CAN3 (vehicle)",
+                    status: bench.vehicle_can.as_ref().map(|can| can.status()),
+                    heard: heard_vehicle,
+                },
+                BusLine {
+                    name: "CAN2 (inverter)",
+                    status: bench.inverter_can.as_ref().map(|can| can.status()),
+                    heard: heard_inverter,
+                },
+            ],
+            dti,
+            brake_light: bench.brake_light.is_set(),
+        };
         log.lock(|log| {
-            log.line(format_args!(
-                "--- t={now_ms} ms, log lines dropped {}",
-                log.dropped()
-            ));
-            for ((pin, _), counts) in bench.analog.iter().zip(counts) {
-                log.line(format_args!(
-                    "{}",
-                    AnalogReading {
-                        pin: *pin,
-                        counts,
-                        divider
-                    }
-                ));
+            Report {
+                header: ReportHeader {
+                    now_ms,
+                    dropped: log.dropped(),
+                },
+                ..report
             }
-            #[cfg(feature = "pedals-ads1115")]
-            log.line(format_args!(
-                "ADS1115 APPS1, APPS2: {pedals:?} V, bus errors {}",
-                bench.ads.bus_errors
-            ));
-            for (((pin, before), after), high) in wheel_pins
-                .into_iter()
-                .zip(wheels_before)
-                .zip(wheels_now)
-                .zip(wheel_levels)
-            {
-                let hz = edge_rate_hz(before, after, elapsed_ms);
-                log.line(format_args!(
-                    "{}",
-                    DigitalReading {
-                        pin,
-                        high,
-                        edges: after,
-                        hz
-                    }
-                ));
-            }
-            for ((pin, input), edges) in bench.buttons.iter().zip(button_edges) {
-                log.line(format_args!(
-                    "{}",
-                    DigitalReading {
-                        pin: *pin,
-                        high: input.is_set(),
-                        edges,
-                        hz: 0.0
-                    }
-                ));
-            }
-            let [vehicle, inverter] = buses;
-            let [heard_vehicle, heard_inverter] = heard;
-            log.line(format_args!(
-                "CAN3 (vehicle) {vehicle:?}; heard {heard_vehicle}"
-            ));
-            log.line(format_args!(
-                "CAN2 (inverter) {inverter:?}; heard {heard_inverter}"
-            ));
-            log.line(format_args!("CAN2 (inverter) {dti}"));
-            log.line(format_args!(
-                "brake light {}",
-                if bench.brake_light.is_set() {
-                    "on"
-                } else {
-                    "off"
-                }
-            ));
+            .write(log)
         });
     }
 }

@@ -18,13 +18,15 @@
 //!   younger than 100 ms.
 //! - `usb` (USB interrupt, 1): the USB serial console. `control` logs state changes, faults
 //!   and bus errors into a bounded buffer (a full one drops lines and counts them; nothing
-//!   waits for the host); typing `bootloader`, or `teensy_loader_cli -s` (134 baud), reboots
-//!   into the bootloader.
+//!   waits for the host); typing `bootloader`, or `teensy_loader_cli -s` (134 baud), asks for
+//!   the bootloader, which the control task grants only outside DRIVING with zero torque
+//!   commanded (`Control::handover`), after sending the inverter zero torque and drive
+//!   disabled, and otherwise refuses with the reason.
 //!
 //! Every decision is in the `aer_ccm` library; this file moves data between it and the
 //! hardware, whose pins come from `board.rs` (checked against `aer_boards::ccm`). Torque is
-//! zero until the first control step says otherwise. The LED on pin 13 blinks at 1 Hz while
-//! the control task runs.
+//! zero until the first control step says otherwise. The LED on pin 13 toggles every second
+//! (0.5 Hz) while the control task runs.
 //!
 //! Shared state is split by writer, so each lock's ceiling is only as high as its users:
 //! `sensors` (written at 4; read by control and telemetry), `link` (the receive interrupts at
@@ -46,20 +48,21 @@ mod app {
     #[cfg(feature = "pedals-ads1115")]
     use aer_ccm::ads1115::Ads1115;
     use aer_ccm::analog;
-    use aer_ccm::apps::AppsCalibration;
+    use aer_ccm::calibration::measured::MEASURED;
     use aer_ccm::chassis::PulseTimer;
     use aer_ccm::config::WHEEL_TEETH;
     use aer_ccm::config::{
         CONTROL_PERIOD_MS, INVERTER, STATUS_PERIOD_MS, TELEMETRY_PERIOD_MS, WATCHDOG_CHECK_MS,
     };
+    use aer_ccm::console::{BootloaderAnswer, LOG_BYTES};
     use aer_ccm::control::Control;
     use aer_ccm::faults::{Fault, FaultMap};
     use aer_ccm::sensors::Sensors;
     use aer_ccm::telemetry::TelemetryLink;
     use aer_ccm::watchdog::{Supervisor, Task};
     use aer_ccm::{BusHealth, DriverCounters, DriverInputs, SensorSample};
-    use aer_console::usb::{Bus, EndpointState, Memory, UsbConsole};
-    use aer_console::{Command, LineReader, LogBuffer, Watch, bringup::ResetCause};
+    use aer_console::usb::{Bus, EndpointState, Memory, UsbConsole, chip_serial};
+    use aer_console::{Command, LineReader, LogBuffer, RebootRequest, Watch, bringup::ResetCause};
     use aer_flexcan::{BusStatus, CanFrame, FaultState, Flexcan};
     use core::sync::atomic::{AtomicU32, Ordering};
     use embedded_can::{ExtendedId, Frame, Id, StandardId};
@@ -87,6 +90,8 @@ mod app {
     /// Failed I2C transactions with the pedal converter (copied from the sensors task; stays 0
     /// with the pedals on the on-chip ADC).
     static PEDAL_BUS_ERRORS: AtomicU32 = AtomicU32::new(0);
+    /// `bootloader` typed, or 134 baud from the host; the control task decides.
+    static REBOOT: RebootRequest = RebootRequest::new();
     /// Front wheel pulse times: written only by `wheel_edge`, read by `control`.
     static WHEELS: [PulseTimer; 2] = [PulseTimer::new(), PulseTimer::new()];
 
@@ -100,9 +105,6 @@ mod app {
         supervisor: Supervisor,
         log: LogBuffer<LOG_BYTES>,
     }
-
-    /// Bytes of log waiting for the host.
-    const LOG_BYTES: usize = 4_096;
 
     /// The pedal front-end: the on-chip ADC's two inputs, or the ADS1115.
     #[cfg(not(feature = "pedals-ads1115"))]
@@ -140,6 +142,7 @@ mod app {
         usb_memory: Memory = Memory::new(),
         usb_state: EndpointState = EndpointState::max_endpoints(),
         usb_bus: Option<Bus> = None,
+        serial: [u8; 16] = [0; 16],
     ])]
     fn init(cx: init::Context) -> (Shared, Local) {
         let bsp::Resources {
@@ -249,17 +252,15 @@ mod app {
             cx.local.usb_memory,
             cx.local.usb_state,
             cx.local.usb_bus,
-            "AER CCM",
+            match INVERTER {
+                aer_ccm::InverterKind::Dti => "AER CCM DTI",
+                aer_ccm::InverterKind::Ifl100 => "AER CCM IFL100",
+            },
+            chip_serial(cx.local.serial),
         )
         .ok();
         let mut log = LogBuffer::new();
-        log.line(format_args!(
-            "AER CCM, board {}, schema {:#010x}, telemetry {:#010x}",
-            board::REVISION.name,
-            aer::can::SCHEMA_FINGERPRINT,
-            aer::telemetry::TELEMETRY_FINGERPRINT
-        ));
-        log.line(format_args!("{}", ResetCause(srsr)));
+        aer_ccm::console::race_startup(&mut log, board::REVISION.name, INVERTER, ResetCause(srsr));
         let (tx3, rx3) = pins.vehicle_can;
         let (tx2, rx2) = pins.inverter_can;
         let (Ok(mut vehicle_can), Ok(mut inverter_can)) = (
@@ -283,7 +284,7 @@ mod app {
         }
         (
             Shared {
-                sensors: Sensors::new(AppsCalibration::DEFAULT),
+                sensors: Sensors::new(MEASURED),
                 link: TelemetryLink::new(),
                 control: Control::new(INVERTER),
                 vehicle_can,
@@ -315,17 +316,27 @@ mod app {
         )
     }
 
-    /// The USB console: log out, typed bytes in. The race image obeys `bootloader` only.
+    /// The sensor calibration the image runs with passes the library's check, or the image
+    /// does not build (`cargo test -p aer-ccm --test calibration` says why).
+    const _: () = if let Err(error) = MEASURED.check() {
+        panic!("{}", error.summary())
+    };
+
+    /// The USB console: log out, typed bytes in. The race image takes `bootloader` only, as
+    /// a request the control task grants or refuses.
     #[task(binds = USB_OTG1, priority = 1, local = [usb, typed], shared = [log])]
     fn usb(mut cx: usb::Context) {
         let Some(usb) = cx.local.usb.as_mut() else {
             return;
         };
-        usb.serve(&mut cx.shared.log, cx.local.typed, |line| {
+        let host_asks = usb.serve(&mut cx.shared.log, cx.local.typed, |line| {
             if matches!(Command::parse(line), Ok(Command::Bootloader)) {
-                aer_console::usb::reboot_to_bootloader();
+                REBOOT.request();
             }
         });
+        if host_asks {
+            REBOOT.request();
+        }
     }
 
     /// Logs what changed this control step: the vehicle state, the fault map, either bus's
@@ -641,7 +652,7 @@ mod app {
             let sensors = cx.shared.sensors.lock(|sensors| sensors.reading());
             let [left, right] = &WHEELS;
             let wheels = [left.speed(WHEEL_TEETH), right.speed(WHEEL_TEETH)];
-            let (outputs, inverter, status) = cx.shared.control.lock(|control| {
+            let (outputs, inverter, status, handover) = cx.shared.control.lock(|control| {
                 control.set_driver_counters(counters);
                 while let Some(frame) = vehicle_frames.dequeue() {
                     control.on_frame(&frame, now);
@@ -654,7 +665,8 @@ mod app {
                     .then(|| control.inverter_frames());
                 let status = (step % (STATUS_PERIOD_MS / CONTROL_PERIOD_MS) == 0)
                     .then(|| control.next_status());
-                (outputs, inverter, status)
+                let handover = REBOOT.take().then(|| control.handover());
+                (outputs, inverter, status, handover)
             });
             let watches = &mut cx.local.watches;
             cx.shared.log.lock(|log| {
@@ -725,6 +737,37 @@ mod app {
                     );
                 } else {
                     TX_NOT_SENT.fetch_add(2, Ordering::Relaxed);
+                }
+            }
+            if let Some(handover) = handover {
+                let answer = match handover {
+                    Ok(frames) => {
+                        for frame in frames.iter() {
+                            send_as(
+                                &mut cx.shared.inverter_can,
+                                frame.id,
+                                frame.extended,
+                                frame.data(),
+                                Queueing::Replacing,
+                            );
+                        }
+                        cx.local.brake_light.clear();
+                        cx.local.pumps.set_duty(flexpwm::Channel::A, 0.0);
+                        cx.local.pumps.set_duty(flexpwm::Channel::B, 0.0);
+                        cx.local.fan.set_duty(flexpwm::Channel::B, 0.0);
+                        cx.local.buzzer.set_duty(flexpwm::Channel::A, 0.0);
+                        BootloaderAnswer::Obeyed
+                    }
+                    Err(why) => BootloaderAnswer::Refused(why),
+                };
+                cx.shared
+                    .log
+                    .lock(|log| log.line(format_args!("t={now} ms {answer}")));
+                if answer == BootloaderAnswer::Obeyed {
+                    // Two frame times at 500 kbit/s for the safe commands to leave the
+                    // mailboxes, then the bootloader.
+                    Mono::delay(2u64.millis()).await;
+                    aer_console::usb::reboot_to_bootloader();
                 }
             }
             cx.shared.supervisor.lock(|supervisor| {

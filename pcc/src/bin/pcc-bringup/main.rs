@@ -5,8 +5,11 @@
 //! shows here after the reset), clocks. Every second: both V/F converters' levels, edge counts
 //! and frequencies (with the voltage they mean), both thermistor inputs' counts and volts,
 //! the CAN controller's state and what it heard. Pin 11 (AIR+) stays low unless typed:
-//! `confirm hv-disconnected`, then `out air-plus-close on` within 30 s; it drops again when
-//! the confirmation expires, on `off`, and on every reset. `help` lists the commands.
+//! `confirm hv-disconnected` (taken only while both converters read below 60 V), then
+//! `out air-plus-close on` within 30 s; it drops again when the confirmation expires, when a
+//! converter reads 60 V or more, on `off`, on `bootloader` and on every reset. `help` lists
+//! the commands. Every line is built by `aer_pcc::console` (host-tested; docs/bench-day.md
+//! quotes the tests).
 #![no_std]
 #![no_main]
 
@@ -33,13 +36,15 @@ fn panic(_: &PanicInfo<'_>) -> ! {
 mod app {
     use crate::board;
     use aer_console::bringup::{
-        AnalogReading, DigitalReading, Heard, HvGate, ResetCause, edge_rate_hz,
+        AnalogReading, BusLine, Clocks, DigitalReading, Heard, HvGate, HvReadings, ReportHeader,
+        ResetCause, SelfTestLine, edge_rate_hz,
     };
     use aer_console::command::HELP;
-    use aer_console::usb::{Bus, EndpointState, Memory, UsbConsole};
-    use aer_console::{Command, CommandError, LineReader, LogBuffer};
+    use aer_console::usb::{Bus, EndpointState, Memory, UsbConsole, chip_serial};
+    use aer_console::{Command, CommandError, LineReader, LogBuffer, RebootRequest};
     use aer_flexcan::{CanFrame, Flexcan};
-    use aer_pcc::VfConfig;
+    use aer_pcc::console::{BRINGUP_LOG_BYTES as LOG_BYTES, BringupReport, VfReading};
+    use aer_pcc::{PrechargeConfig, VfConfig};
     use core::sync::atomic::{AtomicU32, Ordering};
     use embedded_can::{Frame, Id, StandardId};
     use heapless::spsc::{Consumer, Producer, Queue};
@@ -55,7 +60,15 @@ mod app {
 
     imxrt_gpt1_monotonic!(Mono, 1_000_000);
 
-    const LOG_BYTES: usize = 8_192;
+    /// The clocks the start-up lines print are the BSP's.
+    const _: () = assert!(
+        bsp::ARM_FREQUENCY == Clocks::TEENSY4.core_hz
+            && bsp::IPG_FREQUENCY == Clocks::TEENSY4.ipg_hz
+            && bsp::PERCLK_FREQUENCY == Clocks::TEENSY4.perclk_hz
+            && board::CAN_BITRATE == Clocks::TEENSY4.can_bitrate
+    );
+    /// `bootloader` typed, or 134 baud from the host.
+    static REBOOT: RebootRequest = RebootRequest::new();
     /// The heartbeat this board sends on `can` (not an identifier of the car's schema).
     const HEARTBEAT_ID: u16 = 0x7F2;
 
@@ -91,6 +104,7 @@ mod app {
         usb_memory: Memory = Memory::new(),
         usb_state: EndpointState = EndpointState::max_endpoints(),
         usb_bus: Option<Bus> = None,
+        serial: [u8; 16] = [0; 16],
     ])]
     fn init(cx: init::Context) -> (Shared, Local) {
         let bsp::Resources {
@@ -160,10 +174,11 @@ mod app {
         ral::write_reg!(ral::src, src, SRSR, srsr);
 
         let mut log = LogBuffer::new();
+        aer_pcc::console::bringup_startup(&mut log, &board::REVISION, ResetCause(srsr));
         let can = match Flexcan::new(can_regs, pins.can_tx, pins.can_rx, &ccm, board::CAN_BITRATE) {
             Ok(can) => Some(can),
             Err(error) => {
-                log.line(format_args!("CAN2 did not start: {error:?}"));
+                log.line(format_args!("CAN2 did not start: {error}"));
                 None
             }
         };
@@ -177,33 +192,9 @@ mod app {
             cx.local.usb_state,
             cx.local.usb_bus,
             "AER PCC bring-up",
+            chip_serial(cx.local.serial),
         )
         .ok();
-        log.line(format_args!(
-            "AER PCC bring-up, board {}, schema {:#010x}",
-            board::REVISION.name,
-            aer::can::SCHEMA_FINGERPRINT
-        ));
-        log.line(format_args!("{}", ResetCause(srsr)));
-        log.line(format_args!(
-            "clocks: core {} Hz, IPG {} Hz, PERCLK {} Hz, CAN 24 MHz oscillator at {} bit/s",
-            bsp::ARM_FREQUENCY,
-            bsp::IPG_FREQUENCY,
-            bsp::PERCLK_FREQUENCY,
-            board::CAN_BITRATE
-        ));
-        log.line(format_args!(
-            "pin 11 (AIR+) is low; `confirm hv-disconnected` then `out air-plus-close on` to move it; `help`"
-        ));
-        for pin in board::REVISION.pins() {
-            log.line(format_args!(
-                "pin {:>2} {:<16} {:<16} {}",
-                pin.number,
-                pin.signal,
-                pin.mode.label(),
-                pin.source.text()
-            ));
-        }
 
         let (lines_in, lines) = cx.local.queue.split();
         bench::spawn().ok();
@@ -244,19 +235,25 @@ mod app {
             return;
         };
         let lines_in = cx.local.lines_in;
-        usb.serve(&mut cx.shared.log, cx.local.typed, |line| {
+        let host_asks = usb.serve(&mut cx.shared.log, cx.local.typed, |line| {
             // Typing faster than the bench loop takes commands drops the line.
             let mut owned = Line::new();
             if owned.push_str(line).is_ok() {
                 let _dropped = lines_in.enqueue(owned);
             }
         });
+        if host_asks {
+            REBOOT.request();
+        }
     }
 
     #[task(priority = 1, local = [lines, air_plus, led, adc, thermistors, can, wdog],
            shared = [log, vf])]
     async fn bench(mut cx: bench::Context) {
-        let mut gate = HvGate::default();
+        let mut gate = HvGate::new(PrechargeConfig::CAR.discharged_v);
+        let vf_board = VfConfig::PCC_BOARD;
+        // Both converters' voltages from the last report period's edge rates.
+        let mut volts = [None::<f32>; 2];
         let mut feeding = true;
         let mut heard = Heard::default();
         let mut edges_before = [0u32; 2];
@@ -273,14 +270,24 @@ mod app {
                     heard.frame(raw_id(&frame));
                 }
             }
-            if cx.local.air_plus.is_set() && !gate.allows(now_ms) {
+            if REBOOT.take() {
                 cx.local.air_plus.clear();
-                gate.revoke();
-                cx.shared.log.lock(|log| {
-                    log.line(format_args!(
-                        "the HV confirmation expired: pin 11 (AIR+) low"
-                    ))
-                });
+                aer_console::usb::reboot_to_bootloader();
+            }
+            let [accumulator_v, tractive_v] = volts;
+            let readings = [
+                ("accumulator (pin 14)", accumulator_v),
+                ("tractive system (pin 15)", tractive_v),
+            ];
+            let readings = HvReadings { volts: &readings };
+            if cx.local.air_plus.is_set() {
+                if let Err(refusal) = gate.allows(now_ms, readings) {
+                    cx.local.air_plus.clear();
+                    gate.revoke();
+                    cx.shared
+                        .log
+                        .lock(|log| log.line(format_args!("pin 11 (AIR+) low: {refusal}")));
+                }
             }
             while let Some(line) = cx.local.lines.dequeue() {
                 let outcome = match Command::parse(&line) {
@@ -296,10 +303,15 @@ mod app {
                         last_report_ms = now_ms.wrapping_sub(2_000);
                         continue;
                     }
-                    Ok(Command::ConfirmHvDisconnected) => {
-                        gate.confirm(now_ms);
-                        "HV outputs armed for 30 s"
-                    }
+                    Ok(Command::ConfirmHvDisconnected) => match gate.confirm(now_ms, readings) {
+                        Ok(()) => "HV outputs armed for 30 s (both converters read below 60 V)",
+                        Err(refusal) => {
+                            cx.shared
+                                .log
+                                .lock(|log| log.line(format_args!("refused: {refusal}")));
+                            "not confirmed"
+                        }
+                    },
                     Ok(Command::Output {
                         signal: "air-plus-close",
                         level,
@@ -307,11 +319,19 @@ mod app {
                         if !level.high() {
                             cx.local.air_plus.clear();
                             "pin 11 (AIR+) low"
-                        } else if gate.allows(now_ms) {
-                            cx.local.air_plus.set();
-                            "pin 11 (AIR+) HIGH for at most 30 s from the confirmation"
                         } else {
-                            "refused: type `confirm hv-disconnected` first"
+                            match gate.allows(now_ms, readings) {
+                                Ok(()) => {
+                                    cx.local.air_plus.set();
+                                    "pin 11 (AIR+) HIGH for at most 30 s from the confirmation"
+                                }
+                                Err(refusal) => {
+                                    cx.shared
+                                        .log
+                                        .lock(|log| log.line(format_args!("refused: {refusal}")));
+                                    "pin 11 (AIR+) stays low"
+                                }
+                            }
                         }
                     }
                     Ok(Command::Output {
@@ -338,7 +358,13 @@ mod app {
                             frame.map(|frame| can.self_test(&frame))
                         });
                         cx.shared.log.lock(|log| {
-                            log.line(format_args!("CAN2 loopback self-test: {result:?}"))
+                            log.line(format_args!(
+                                "{}",
+                                SelfTestLine {
+                                    name: "CAN2",
+                                    result: result.flatten()
+                                }
+                            ))
                         });
                         "heartbeats 0x7F2 every second from now"
                     }
@@ -346,8 +372,13 @@ mod app {
                         feeding = false;
                         "watchdog no longer fed: the PCC resets within 1 s and reports the cause"
                     }
-                    Ok(Command::Bootloader) => aer_console::usb::reboot_to_bootloader(),
-                    Ok(Command::Calibrate(_) | Command::I2cScan) => "not on the PCC",
+                    Ok(Command::Bootloader) => {
+                        REBOOT.request();
+                        "rebooting into the bootloader, pin 11 (AIR+) low"
+                    }
+                    Ok(Command::Calibrate(_) | Command::I2cScan | Command::DtiEnable) => {
+                        "not on the PCC"
+                    }
                     Err(CommandError::Unknown(_)) => "unknown command: `help`",
                     Err(CommandError::Usage(usage)) => usage,
                 };
@@ -378,47 +409,56 @@ mod app {
                     .shared
                     .vf
                     .lock(|vf| vf.each_ref().map(|input| input.is_set()));
-                let vf_board = VfConfig::PCC_BOARD;
+                let mut vf = board::REVISION.voltage_freq.map(|pin| VfReading {
+                    input: DigitalReading {
+                        pin,
+                        high: false,
+                        edges: 0,
+                        hz: 0.0,
+                    },
+                    vf: vf_board,
+                });
+                for (((reading, high), before), after) in
+                    vf.iter_mut().zip(levels).zip(edges_before).zip(edges)
+                {
+                    reading.input.high = high;
+                    reading.input.edges = after;
+                    reading.input.hz = edge_rate_hz(before, after, elapsed_ms);
+                }
+                volts = vf.map(|reading| Some(reading.volts()));
+                let [pin1, pin2] = board::REVISION.thermistors;
+                let [counts1, counts2] = counts;
+                let report = BringupReport {
+                    header: ReportHeader { now_ms, dropped: 0 },
+                    vf,
+                    thermistors: [
+                        AnalogReading {
+                            pin: pin1,
+                            counts: counts1,
+                            divider: 1.0,
+                        },
+                        AnalogReading {
+                            pin: pin2,
+                            counts: counts2,
+                            divider: 1.0,
+                        },
+                    ],
+                    bus: BusLine {
+                        name: "CAN2",
+                        status: can_status,
+                        heard: &heard,
+                    },
+                    air_plus: cx.local.air_plus.is_set(),
+                };
                 cx.shared.log.lock(|log| {
-                    log.line(format_args!(
-                        "--- t={now_ms} ms, log lines dropped {}",
-                        log.dropped()
-                    ));
-                    let pins = board::REVISION.voltage_freq.into_iter();
-                    for (((pin, high), before), after) in
-                        pins.zip(levels).zip(edges_before).zip(edges)
-                    {
-                        let hz = edge_rate_hz(before, after, elapsed_ms);
-                        log.line(format_args!(
-                            "{} = {:.1} V",
-                            DigitalReading {
-                                pin,
-                                high,
-                                edges: after,
-                                hz
-                            },
-                            hz * vf_board.volts_per_hz * vf_board.divider_ratio
-                        ));
+                    BringupReport {
+                        header: ReportHeader {
+                            now_ms,
+                            dropped: log.dropped(),
+                        },
+                        ..report
                     }
-                    for (pin, counts) in board::REVISION.thermistors.into_iter().zip(counts) {
-                        log.line(format_args!(
-                            "{}",
-                            AnalogReading {
-                                pin,
-                                counts,
-                                divider: 1.0
-                            }
-                        ));
-                    }
-                    log.line(format_args!("CAN2 {can_status:?}; heard {heard}"));
-                    log.line(format_args!(
-                        "pin 11 (AIR+) {}",
-                        if cx.local.air_plus.is_set() {
-                            "HIGH"
-                        } else {
-                            "low"
-                        }
-                    ));
+                    .write(log)
                 });
                 edges_before = edges;
                 heard = Heard::default();

@@ -10,7 +10,9 @@
 //!   schedule.
 //! - `usb` (USB interrupt, priority 1): the USB serial console. The log is a bounded buffer
 //!   (a full one drops lines and counts them; nothing waits for the host); typing
-//!   `bootloader`, or `teensy_loader_cli -s` (134 baud), reboots into the bootloader.
+//!   `bootloader`, or `teensy_loader_cli -s` (134 baud), asks for the bootloader, which the
+//!   control task grants only in STANDBY or ERROR with the tractive system below 60 V
+//!   (`Precharge::handover`), after opening AIR+, and otherwise refuses with the reason.
 //!
 //! All decisions are in the `aer_pcc` library; this file only moves data between it and the
 //! hardware.
@@ -53,9 +55,10 @@ fn panic(_: &PanicInfo<'_>) -> ! {
 #[rtic::app(device = teensy4_bsp, peripherals = true, dispatchers = [KPP])]
 mod app {
     use crate::board;
-    use aer_console::usb::{Bus, Memory, UsbConsole};
-    use aer_console::{Command, LineReader, LogBuffer, Watch, bringup::ResetCause};
+    use aer_console::usb::{Bus, Memory, UsbConsole, chip_serial};
+    use aer_console::{Command, LineReader, LogBuffer, RebootRequest, Watch, bringup::ResetCause};
     use aer_flexcan::{CanFrame, Flexcan};
+    use aer_pcc::console::{BootloaderAnswer, CountersLine, LOG_BYTES, StateLine};
     use aer_pcc::watchdog::{LoopMonitor, reset_by_watchdog};
     use aer_pcc::{
         Inputs, Precharge, PrechargeConfig, Relays, TASK_PERIOD_MS, VfConfig, bms::BmsLink,
@@ -85,6 +88,8 @@ mod app {
     static TX_BUSY: AtomicU32 = AtomicU32::new(0);
     /// Status frames that could not be encoded (clamped values make this a codec defect).
     static STATUS_ENCODE_FAILURES: AtomicU32 = AtomicU32::new(0);
+    /// `bootloader` typed, or 134 baud from the host; the control task decides.
+    static REBOOT: RebootRequest = RebootRequest::new();
 
     /// The board's one relay output: pin 11, close AIR+.
     pub struct RelayPins {
@@ -103,9 +108,6 @@ mod app {
             }
         }
     }
-
-    /// Bytes of log waiting for the host.
-    const LOG_BYTES: usize = 4_096;
 
     #[shared]
     struct Shared {
@@ -134,6 +136,7 @@ mod app {
         usb_memory: Memory = Memory::new(),
         usb_state: aer_console::usb::EndpointState = aer_console::usb::EndpointState::max_endpoints(),
         usb_bus: Option<Bus> = None,
+        serial: [u8; 16] = [0; 16],
     ])]
     fn init(cx: init::Context) -> (Shared, Local) {
         let bsp::Resources {
@@ -219,15 +222,11 @@ mod app {
             cx.local.usb_state,
             cx.local.usb_bus,
             "AER PCC",
+            chip_serial(cx.local.serial),
         )
         .ok();
         let mut log = LogBuffer::new();
-        log.line(format_args!(
-            "AER PCC, board {}, schema {:#010x}",
-            board::REVISION.name,
-            aer::can::SCHEMA_FINGERPRINT
-        ));
-        log.line(format_args!("{}", ResetCause(srsr)));
+        aer_pcc::console::race_startup(&mut log, &board::REVISION, ResetCause(srsr));
 
         let (rx_producer, rx_consumer) = cx.local.rx_queue.split();
         let vf = VfConfig::PCC_BOARD;
@@ -257,17 +256,21 @@ mod app {
         )
     }
 
-    /// The USB console: log out, typed bytes in. The race image obeys `bootloader` only.
+    /// The USB console: log out, typed bytes in. The race image takes `bootloader` only,
+    /// as a request the control task grants or refuses.
     #[task(binds = USB_OTG1, priority = 1, local = [usb, typed], shared = [log])]
     fn usb(mut cx: usb::Context) {
         let Some(usb) = cx.local.usb.as_mut() else {
             return;
         };
-        usb.serve(&mut cx.shared.log, cx.local.typed, |line| {
+        let host_asks = usb.serve(&mut cx.shared.log, cx.local.typed, |line| {
             if matches!(Command::parse(line), Ok(Command::Bootloader)) {
-                aer_console::usb::reboot_to_bootloader();
+                REBOOT.request();
             }
         });
+        if host_asks {
+            REBOOT.request();
+        }
     }
 
     /// WDOG1 with a 0.5 s timeout (WT = 0), enabled. The power-down counter is switched off
@@ -322,7 +325,8 @@ mod app {
     }
 
     #[task(priority = 1, local = [relays, led, rx_consumer, wdog, watchdog_reset,
-                                  state: Watch<(aer_pcc::State, aer_pcc::Errors)> = Watch::new()],
+                                  state: Watch<(aer_pcc::State, aer_pcc::Errors)> = Watch::new(),
+                                  precharge: Watch<Option<aer_pcc::PrechargeTiming>> = Watch::new()],
            shared = [accumulator, tractive, can, log])]
     async fn control(mut cx: control::Context) {
         let start = Mono::now();
@@ -353,31 +357,52 @@ mod app {
             };
             let relays = pcc.step(&inputs);
             cx.local.relays.apply(relays);
+            if REBOOT.take() {
+                let answer = match pcc.handover() {
+                    Ok(safe) => {
+                        cx.local.relays.apply(safe);
+                        BootloaderAnswer::Obeyed
+                    }
+                    Err(why) => BootloaderAnswer::Refused(why),
+                };
+                cx.shared
+                    .log
+                    .lock(|log| log.line(format_args!("t={now_ms} ms {answer}")));
+                if answer == BootloaderAnswer::Obeyed {
+                    aer_console::usb::reboot_to_bootloader();
+                }
+            }
             if let Some((state, errors)) = cx.local.state.changed((pcc.state(), pcc.errors())) {
-                cx.shared.log.lock(|log| {
-                    log.line(format_args!(
-                        "t={now_ms} ms state {state:?}, AIR+ {}, errors {errors:?}, accumulator {:.1} V, tractive {:.1} V",
-                        if relays.air_plus { "closed" } else { "open" },
-                        pcc.accumulator_v(),
-                        pcc.tractive_v()
-                    ))
-                });
+                let line = StateLine {
+                    now_ms,
+                    state,
+                    relays,
+                    errors,
+                    accumulator_v: pcc.accumulator_v(),
+                    tractive_v: pcc.tractive_v(),
+                };
+                cx.shared.log.lock(|log| log.line(format_args!("{line}")));
+            }
+            if let Some(Some(timing)) = cx.local.precharge.changed(pcc.last_precharge()) {
+                cx.shared
+                    .log
+                    .lock(|log| log.line(format_args!("t={now_ms} ms {timing}")));
             }
             if now_ms % 5_000 < TASK_PERIOD_MS {
-                let status = cx.shared.can.lock(|can| can.status());
+                let bus = cx.shared.can.lock(|can| can.status());
                 cx.shared.log.lock(|log| {
-                    let dropped = log.dropped();
-                    log.line(format_args!(
-                        "t={now_ms} ms CAN {:?} tx errors {} rx errors {}, rx queue overflows {}, status not sent {}, log lines dropped {dropped}",
-                        status.state,
-                        status.tx_errors,
-                        status.rx_errors,
-                        RX_QUEUE_OVERFLOWS.load(Ordering::Relaxed),
-                        TX_BUSY.load(Ordering::Relaxed),
-                    ))
+                    let line = CountersLine {
+                        now_ms,
+                        bus,
+                        rx_queue_overflows: RX_QUEUE_OVERFLOWS.load(Ordering::Relaxed),
+                        status_not_sent: TX_BUSY.load(Ordering::Relaxed),
+                        log_dropped: log.dropped(),
+                    };
+                    log.line(format_args!("{line}"))
                 });
             }
-            // Heartbeat: 1 Hz while the loop runs, so a hung PCC shows on the bench.
+            // Heartbeat: the LED toggles every second (0.5 Hz) while the loop runs, so a hung
+            // PCC shows on the bench.
             if now_ms % 1_000 < TASK_PERIOD_MS {
                 cx.local.led.toggle();
             }

@@ -1,0 +1,206 @@
+//! What the PCC's images print on the USB console, without hardware types, so every line a
+//! bench procedure relies on is built here, tested on the host (worst cases included) and
+//! quoted in docs/bench-day.md from the test that prints it: the race image's start-up, state,
+//! precharge-time and bus lines and its answer to `bootloader`; the bring-up image's start-up
+//! lines and its report every second.
+
+use crate::config::VfConfig;
+use crate::machine::HandoverRefusal;
+use crate::relays::Relays;
+use crate::state::{Errors, State};
+use aer_boards::pcc::Revision;
+use aer_console::LogBuffer;
+use aer_console::bringup::{
+    AnalogReading, BusLine, Clocks, DigitalReading, ReportHeader, ResetCause, Startup,
+};
+use aer_flexcan::BusStatus;
+use core::fmt;
+
+/// Bytes of log the race image keeps for the host.
+pub const LOG_BYTES: usize = 4_096;
+/// Bytes of log the bring-up image keeps for the host.
+pub const BRINGUP_LOG_BYTES: usize = 8_192;
+
+/// The race image's start-up lines. Returns the lines that did not fit.
+pub fn race_startup<const N: usize>(
+    log: &mut LogBuffer<N>,
+    board: &Revision,
+    reset: ResetCause,
+) -> u32 {
+    Startup {
+        image: "AER PCC",
+        board: board.name,
+        fingerprints: &[("schema", aer::can::SCHEMA_FINGERPRINT)],
+        reset,
+        clocks: None,
+        pins: &[],
+    }
+    .write(log)
+}
+
+/// The race image's line when the state or the errors change.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StateLine {
+    /// Milliseconds since start-up.
+    pub now_ms: u32,
+    /// The new state.
+    pub state: State,
+    /// The relays applied in the same period.
+    pub relays: Relays,
+    /// The latched error causes.
+    pub errors: Errors,
+    /// Accumulator voltage (V).
+    pub accumulator_v: f32,
+    /// Tractive-system voltage (V).
+    pub tractive_v: f32,
+}
+
+impl fmt::Display for StateLine {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "t={} ms state {:?}, AIR+ {}, errors: {}, accumulator {:.1} V, tractive {:.1} V",
+            self.now_ms,
+            self.state,
+            if self.relays.air_plus {
+                "closed"
+            } else {
+                "open"
+            },
+            self.errors,
+            self.accumulator_v,
+            self.tractive_v
+        )
+    }
+}
+
+/// The race image's bus and drop counters, every 5 s.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct CountersLine {
+    /// Milliseconds since start-up.
+    pub now_ms: u32,
+    /// The CAN controller.
+    pub bus: BusStatus,
+    /// Frames dropped because the receive queue was full.
+    pub rx_queue_overflows: u32,
+    /// Status frames not sent.
+    pub status_not_sent: u32,
+    /// Log lines dropped.
+    pub log_dropped: u32,
+}
+
+impl fmt::Display for CountersLine {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "t={} ms CAN2 {}; rx queue overflows {}, status not sent {}, log lines dropped {}",
+            self.now_ms, self.bus, self.rx_queue_overflows, self.status_not_sent, self.log_dropped
+        )
+    }
+}
+
+/// The race image's answer to a bootloader request (typed `bootloader`, or 134 baud).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum BootloaderAnswer {
+    /// Obeyed: AIR+ open.
+    Obeyed,
+    /// Refused, and why.
+    Refused(HandoverRefusal),
+}
+
+impl fmt::Display for BootloaderAnswer {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::Obeyed => {
+                f.write_str("bootloader: pin 11 (AIR+) low; rebooting into the bootloader")
+            }
+            Self::Refused(why) => write!(f, "bootloader REFUSED: {why}"),
+        }
+    }
+}
+
+/// The bring-up image's start-up lines. Returns the lines that did not fit.
+pub fn bringup_startup<const N: usize>(
+    log: &mut LogBuffer<N>,
+    board: &Revision,
+    reset: ResetCause,
+) -> u32 {
+    let mut missed = Startup {
+        image: "AER PCC bring-up",
+        board: board.name,
+        fingerprints: &[("schema", aer::can::SCHEMA_FINGERPRINT)],
+        reset,
+        clocks: Some(Clocks::TEENSY4),
+        pins: &board.pins(),
+    }
+    .write(log);
+    if !log.line(format_args!(
+        "pin 11 (AIR+) is low; `confirm hv-disconnected` (with both V/F converters reading below 60 V) then `out air-plus-close on` to move it; `help`"
+    )) {
+        missed += 1;
+    }
+    missed
+}
+
+/// A V/F converter's input as the bring-up report prints it: its edges, their rate, and the
+/// voltage that rate means.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct VfReading {
+    /// The input and its edges.
+    pub input: DigitalReading,
+    /// The measurement chain.
+    pub vf: VfConfig,
+}
+
+impl VfReading {
+    /// The voltage the edge rate means (V).
+    pub fn volts(&self) -> f32 {
+        self.vf.volts_for_hz(self.input.hz)
+    }
+}
+
+impl fmt::Display for VfReading {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{} = {:.1} V", self.input, self.volts())
+    }
+}
+
+/// The bring-up image's report every second.
+#[derive(Debug, Clone, Copy)]
+pub struct BringupReport<'a> {
+    /// Time and dropped lines.
+    pub header: ReportHeader,
+    /// The accumulator and tractive-system converters.
+    pub vf: [VfReading; 2],
+    /// Both thermistor inputs.
+    pub thermistors: [AnalogReading; 2],
+    /// The CAN controller.
+    pub bus: BusLine<'a>,
+    /// Pin 11 (AIR+) is high.
+    pub air_plus: bool,
+}
+
+impl BringupReport<'_> {
+    /// Queues the report's lines; returns how many did not fit.
+    pub fn write<const N: usize>(&self, log: &mut LogBuffer<N>) -> u32 {
+        let mut missed = 0;
+        let mut line = |args: fmt::Arguments<'_>| {
+            if !log.line(args) {
+                missed += 1;
+            }
+        };
+        line(format_args!("{}", self.header));
+        for reading in &self.vf {
+            line(format_args!("{reading}"));
+        }
+        for reading in &self.thermistors {
+            line(format_args!("{reading}"));
+        }
+        line(format_args!("{}", self.bus));
+        line(format_args!(
+            "pin 11 (AIR+) {}",
+            if self.air_plus { "HIGH" } else { "low" }
+        ));
+        missed
+    }
+}

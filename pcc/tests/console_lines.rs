@@ -1,0 +1,130 @@
+//! Every line the PCC's images print reaches the host: each is built from its worst case
+//! (every counter at its maximum, the bus hearing as many ids as a report lists, every pin of
+//! the board with its source, the longest pin source of all: pin 11's) and the start-up plus
+//! a report must fit the image's log at once, before the host reads anything.
+
+use aer_boards::pcc::COMP_CAR;
+use aer_console::LogBuffer;
+use aer_console::bringup::{
+    AnalogReading, BusLine, DigitalReading, HEARD_IDS, Heard, ReportHeader, ResetCause,
+};
+use aer_flexcan::{BusStatus, FaultState};
+use aer_pcc::console::{self, BootloaderAnswer, BringupReport, CountersLine, StateLine, VfReading};
+use aer_pcc::{Errors, HandoverRefusal, PrechargeTiming, Relays, State, VfConfig};
+
+fn drain<const N: usize>(log: &mut LogBuffer<N>) -> Vec<String> {
+    let mut bytes = vec![0u8; N];
+    let count = log.peek(&mut bytes);
+    log.consume(count);
+    String::from_utf8(bytes[..count].to_vec())
+        .expect("text")
+        .split_terminator("\r\n")
+        .map(String::from)
+        .collect()
+}
+
+const WORST_STATUS: BusStatus = BusStatus {
+    state: FaultState::BusOff,
+    tx_errors: u8::MAX,
+    rx_errors: u8::MAX,
+    rx_fifo_overflows: u32::MAX,
+    bus_off_events: u32::MAX,
+    tx_dropped: u32::MAX,
+};
+
+#[test]
+fn the_bring_up_start_up_and_a_worst_case_report_fit_the_log_together() {
+    let mut log = LogBuffer::<{ console::BRINGUP_LOG_BYTES }>::new();
+    assert_eq!(
+        console::bringup_startup(&mut log, &COMP_CAR, ResetCause(0x1FF)),
+        0
+    );
+    let mut heard = Heard::default();
+    for index in 0..=HEARD_IDS as u32 {
+        heard.frame(0x1FFF_FF00 + index);
+    }
+    let vf = COMP_CAR.voltage_freq.map(|pin| VfReading {
+        input: DigitalReading {
+            pin,
+            high: true,
+            edges: u32::MAX,
+            hz: 4.0e9,
+        },
+        vf: VfConfig::PCC_BOARD,
+    });
+    let thermistors = COMP_CAR.thermistors.map(|pin| AnalogReading {
+        pin,
+        counts: u16::MAX,
+        divider: 1.0,
+    });
+    let report = BringupReport {
+        header: ReportHeader {
+            now_ms: u32::MAX,
+            dropped: u32::MAX,
+        },
+        vf,
+        thermistors,
+        bus: BusLine {
+            name: "CAN2",
+            status: Some(WORST_STATUS),
+            heard: &heard,
+        },
+        air_plus: true,
+    };
+    assert_eq!(report.write(&mut log), 0);
+    assert_eq!(log.dropped(), 0);
+    let lines = drain(&mut log);
+    assert_eq!(lines.len(), 3 + COMP_CAR.pins().len() + 1 + 7);
+    let pin_11 = lines
+        .iter()
+        .find(|line| line.starts_with("pin 11 air-plus-close"))
+        .expect("pin 11's line, the longest, is printed");
+    assert!(pin_11.len() > 192, "{} bytes", pin_11.len());
+}
+
+#[test]
+fn the_race_lines_fit_the_race_log() {
+    let mut log = LogBuffer::<{ console::LOG_BYTES }>::new();
+    assert_eq!(
+        console::race_startup(&mut log, &COMP_CAR, ResetCause(0x1FF)),
+        0
+    );
+    let every_error = Errors {
+        too_fast: true,
+        too_slow: true,
+        bms_timeout: true,
+        shutdown: true,
+        undefined_state: true,
+    };
+    let state = StateLine {
+        now_ms: u32::MAX,
+        state: State::Discharge,
+        relays: Relays::ALL_OPEN,
+        errors: every_error,
+        accumulator_v: -f32::MAX,
+        tractive_v: f32::MAX,
+    };
+    let counters = CountersLine {
+        now_ms: u32::MAX,
+        bus: WORST_STATUS,
+        rx_queue_overflows: u32::MAX,
+        status_not_sent: u32::MAX,
+        log_dropped: u32::MAX,
+    };
+    let timing = PrechargeTiming {
+        attempt: u32::MAX,
+        reached_ms: Some(u32::MAX),
+        target_percent: u8::MAX,
+        window_ms: (u32::MAX, u32::MAX),
+    };
+    let refused = BootloaderAnswer::Refused(HandoverRefusal::Charged {
+        tractive_v: f32::MAX,
+        limit_v: f32::MAX,
+    });
+    assert!(log.line(format_args!("{state}")));
+    assert!(log.line(format_args!("{counters}")));
+    assert!(log.line(format_args!("t={} ms {timing}", u32::MAX)));
+    assert!(log.line(format_args!("t={} ms {refused}", u32::MAX)));
+    assert_eq!(log.dropped(), 0);
+    assert_eq!(drain(&mut log).len(), 2 + 4);
+}
