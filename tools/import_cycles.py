@@ -1,11 +1,12 @@
 #!/usr/bin/env python3
 """Reports import cycles between a crate's modules.
 
-Each file under SRC is a module (`a/b.rs` and `a/b/mod.rs` are `a::b`); every `crate::x::y`
-path in it (in `use` lines or inline) is an edge to the longest module that path names. A
-module's children belong to it: an edge from `a::b` to `a` is a child using its parent's
-items, not a cycle, and so is one from `a` to `a::b`. Usage: import_cycles.py SRC [SRC...];
-exits 1 and prints the cycle if one exists.
+Each file under SRC is a module (`a/b.rs` and `a/b/mod.rs` are `a::b`); every path in it
+(in `use` lines or inline) that starts at `crate::`, `super::` (any number of them) or
+`self::` is an edge to the longest module that path names, `super` and `self` resolved from
+the module's own place. A module's children belong to it: an edge from `a::b` to `a` is a
+child using its parent's items, not a cycle, and so is one from `a` to `a::b`. Usage:
+import_cycles.py SRC [SRC...]; exits 1 and prints the cycle if one exists.
 """
 import re
 import sys
@@ -24,18 +25,43 @@ def modules(src: Path) -> dict[str, Path]:
     return found
 
 
+IDENT = r"[a-z_][a-z0-9_]*"
+# A path's start (`crate::`, `self::`, `super::super::`...) and the rest of it, or a group.
+START = r"\b(crate::|self::|(?:super::)+)"
+
+
+def resolve(module: str, start: str) -> list[str]:
+    """The segments a path's start stands for, seen from `module`."""
+    if start == "crate::":
+        return []
+    own = module.split("::") if module else []
+    if start == "self::":
+        return own
+    ups = start.count("super::")
+    return own[: max(len(own) - ups, 0)]
+
+
+def paths_in(text: str, module: str) -> list[list[str]]:
+    found = []
+    for start, rest in re.findall(START + rf"((?:{IDENT}::)*{IDENT})", text):
+        found.append(resolve(module, start) + rest.split("::"))
+    # `use crate::{a, b::c}` / `use super::{a, b}` groups: expand one level.
+    for start, group in re.findall(START + r"\{([^}]*)\}", text):
+        base = resolve(module, start)
+        for item in group.split(","):
+            item = item.strip().split(" ")[0]
+            if item and item not in ("self", "*"):
+                found.append(base + item.split("::"))
+    return found
+
+
 def edges(src: Path) -> dict[str, set[str]]:
     mods = modules(src)
     graph = {name: set() for name in mods}
     for name, path in mods.items():
         # Comments and doc links are not imports.
         text = re.sub(r"//.*", "", path.read_text(encoding="utf-8"))
-        # `use crate::{a, b::c}` groups: expand one level.
-        paths = re.findall(r"crate::((?:[a-z_][a-z0-9_]*::)*[a-z_][a-z0-9_]*)", text)
-        for group in re.findall(r"crate::\{([^}]*)\}", text):
-            paths += [p.strip().split(" ")[0] for p in group.split(",") if p.strip()]
-        for p in paths:
-            segments = p.split("::")
+        for segments in paths_in(text, name):
             for end in range(len(segments), 0, -1):
                 target = "::".join(segments[:end])
                 if target in mods:

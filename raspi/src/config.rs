@@ -1,7 +1,7 @@
 //! The service configuration: one TOML file (every key optional), then environment overrides.
 //! The `[mqtt]` section and its variables are the dashboard's too (`aer_host::config`).
 
-use crate::sink::store::session::Metadata;
+use crate::store::session::Metadata;
 use aer_host::config::{BrokerConfig, apply_car_env, read_or_default};
 use anyhow::Result;
 use serde::Deserialize;

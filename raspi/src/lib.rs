@@ -3,7 +3,8 @@
 //!
 //! Data flow, one way: [`source`] (SocketCAN, a candump log, the car model) -> [`ingest`]
 //! (decoding, shared with the dashboard in `aer-host`) -> [`sink`]s: typed MQTT topics on the
-//! embedded [`broker`], and the SQLite store -> [`forward`] (TDengine).
+//! embedded [`broker`], and the SQLite [`store`] -> [`forward`] (TDengine). [`export`] reads
+//! the store back out.
 //! [`report`] publishes the service's status and metrics; [`service`] assembles it all.
 
 pub mod broker;
@@ -19,3 +20,4 @@ pub mod report;
 pub mod service;
 pub mod sink;
 pub mod source;
+pub mod store;

@@ -5,9 +5,9 @@
 use aer_raspi::config::Config;
 use aer_raspi::export::{self, Format};
 use aer_raspi::service::{Job, serve};
-use aer_raspi::sink::store;
-use aer_raspi::sink::store::session::{self, Changes};
-use aer_raspi::sink::store::session_messages;
+use aer_raspi::store;
+use aer_raspi::store::session::{self, Changes};
+use aer_raspi::store::session_messages;
 use anyhow::{Context, Result, bail};
 use clap::{Args, Parser, Subcommand};
 use std::path::{Path, PathBuf};
@@ -307,7 +307,7 @@ fn compact_command(config: &Config) -> Result<()> {
         }
         rows += step;
     }
-    store::schema::release_free_pages(&db)?;
+    store::space::release_free_pages(&db)?;
     db.query_row("PRAGMA wal_checkpoint(TRUNCATE)", [], |_| Ok(()))?;
     let bytes = std::fs::metadata(path).map(|m| m.len()).unwrap_or(0);
     println!("{rows} rows compacted; {} is {bytes} bytes", path.display());

@@ -11,11 +11,12 @@ use crate::rawlog::writer::{RawWriter, Settings};
 use crate::rawlog::{RawTap, segments};
 use crate::sink::Sink;
 use crate::sink::mqtt::{self, Publisher};
-use crate::sink::store::{
-    self, Budget, Compaction, Retention, StoreSink, StoreWriter, WhenFull, WriterOptions, session,
-};
+use crate::sink::store::StoreSink;
 use crate::source::replay::{ReplayOptions, replay, replay_segment};
 use crate::source::{self, Replies};
+use crate::store::{
+    self, Budget, Compaction, Retention, StoreWriter, WhenFull, WriterOptions, session,
+};
 use crate::{broker, forward, report};
 use aer_host::clock;
 use aer_host::counters::Counters;

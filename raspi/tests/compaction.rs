@@ -9,7 +9,7 @@ mod common;
 use aer::tables::TABLES;
 use aer_raspi::export::load::{self, Selection};
 use aer_raspi::forward::next_batch;
-use aer_raspi::sink::store::{self as store, Budget, Compaction, Retention, compact, session};
+use aer_raspi::store::{self as store, Budget, Compaction, Retention, compact, session};
 use rusqlite::Connection;
 use std::path::Path;
 use std::time::Duration;
@@ -64,7 +64,7 @@ fn forwarded(db: &Connection) -> Vec<aer_raspi::forward::Batch> {
 
 /// The store's file size once freed pages are given back.
 fn file_bytes(db: &Connection, path: &Path) -> u64 {
-    store::schema::release_free_pages(db).expect("vacuum");
+    store::space::release_free_pages(db).expect("vacuum");
     db.query_row("PRAGMA wal_checkpoint(TRUNCATE)", [], |_| Ok(()))
         .expect("checkpoint");
     std::fs::metadata(path).expect("store file").len()

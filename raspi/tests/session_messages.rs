@@ -7,9 +7,9 @@ mod common;
 
 use aer::can::{AnyMessage, Vcu1};
 use aer_host::ingest::FrameCheck;
-use aer_raspi::sink::store::session::{self, Metadata};
-use aer_raspi::sink::store::session_messages::{self, MessageStats};
-use aer_raspi::sink::store::{self, Row, RowData, writer};
+use aer_raspi::store::session::{self, Metadata};
+use aer_raspi::store::session_messages::{self, MessageStats};
+use aer_raspi::store::{self, Row, RowData, writer};
 
 #[test]
 fn a_replayed_session_has_every_message_at_its_cycle_time() {

@@ -10,7 +10,7 @@ use aer_host::counters::Counters;
 use aer_host::ingest::{Ingest, Record};
 use aer_host::rawlog::SegmentReader;
 use aer_raspi::rawlog::segments;
-use aer_raspi::sink::store;
+use aer_raspi::store;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::sync::Arc;

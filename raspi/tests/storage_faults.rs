@@ -16,10 +16,9 @@ use aer_raspi::rawlog::segments;
 use aer_raspi::rawlog::writer::{RawWriter, Settings};
 use aer_raspi::sink::Sink;
 use aer_raspi::sink::mqtt as publish;
-use aer_raspi::sink::store::{
-    self as store, Budget, Retention, StoreSink, StoreWriter, WriterOptions, session,
-};
+use aer_raspi::sink::store::StoreSink;
 use aer_raspi::source::Replies;
+use aer_raspi::store::{self as store, Budget, Retention, StoreWriter, WriterOptions, session};
 use rumqttc::{AsyncClient, Event, MqttOptions, Packet, QoS};
 use rusqlite::Connection;
 use std::sync::Arc;

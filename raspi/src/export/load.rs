@@ -3,7 +3,7 @@
 //! a recorded log into a store in memory first.
 
 use super::ExportError;
-use crate::sink::store::{compact, row, schema, session};
+use crate::store::{compact, row, schema, session};
 use aer::tables::{Column, ColumnType, TABLES, Table};
 use aer_host::candump::parse_line;
 use aer_host::counters::Counters;
@@ -240,6 +240,6 @@ pub fn from_log(path: &Path, car_id: &str) -> Result<(Connection, Arc<Counters>)
         );
     }
     let mut db = db;
-    crate::sink::store::writer::commit(&mut db, &rows)?;
+    crate::store::writer::commit(&mut db, &rows)?;
     Ok((db, counters))
 }

@@ -11,7 +11,7 @@ pub mod load;
 pub mod mcap;
 pub mod parquet;
 
-use crate::sink::store::session::{self, Session};
+use crate::store::session::{self, Session};
 use load::{Selection, TableData};
 use rusqlite::Connection;
 use std::path::{Path, PathBuf};

@@ -1,7 +1,7 @@
 //! The forwarder's position in the store: per table, the last row TDengine has (or that was
 //! set aside), persisted in the store itself so an outage or a reboot loses nothing.
 
-use crate::sink::store::compact::{self, BlockError};
+use crate::store::compact::{self, BlockError};
 use aer::tables::TABLES;
 use aer_host::clock::now_us;
 use rusqlite::Connection;

@@ -1,5 +1,6 @@
 //! Where decoded records go: the typed MQTT topics ([`mqtt`]) and the local store
-//! ([`store`]). Ingest hands every record to every sink in turn, on its own task.
+//! ([`store`], feeding [`crate::store`]'s writer). Ingest hands every record to every sink in
+//! turn, on its own task.
 
 pub mod mqtt;
 pub mod store;

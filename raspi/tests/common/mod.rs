@@ -4,8 +4,9 @@
 use aer_host::counters::Counters;
 use aer_raspi::ingest::Stage;
 use aer_raspi::sink::Sink;
-use aer_raspi::sink::store::{self, StoreSink, StoreWriter, WhenFull, WriterOptions};
+use aer_raspi::sink::store::StoreSink;
 use aer_raspi::source::Replies;
+use aer_raspi::store::{self, StoreWriter, WhenFull, WriterOptions};
 use std::sync::Arc;
 
 /// The bundled session (candump -l).

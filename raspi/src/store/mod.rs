@@ -7,8 +7,9 @@
 //! holds them for the [`writer`] thread, [`retention`] keeps the file within its budget,
 //! [`session`] records who drove which run and which rows it made, [`session_messages`] each
 //! session's CAN messages (frames, rate, integrity and lateness counts), [`compact`] packs closed
-//! sessions into compressed blocks and reads them back;
-//! [`StoreSink`] is what ingest hands records to.
+//! sessions into compressed blocks and reads them back, [`space`] gives freed pages back to the
+//! file system. Ingest feeds it through
+//! [`crate::sink::store::StoreSink`].
 
 pub mod compact;
 pub mod queue;
@@ -17,6 +18,7 @@ pub mod row;
 pub mod schema;
 pub mod session;
 pub mod session_messages;
+pub mod space;
 pub mod writer;
 
 pub use compact::Compaction;
@@ -25,30 +27,3 @@ pub use retention::{Budget, Retention};
 pub use row::{Row, RowData};
 pub use schema::{StoreError, open, open_or_recover};
 pub use writer::{StoreWriter, WriterOptions};
-
-use super::Sink;
-use aer_host::ingest::Record;
-use std::sync::Arc;
-
-/// The store as a sink: every record becomes a row for the writer.
-pub struct StoreSink {
-    rows: RowSender,
-    car_id: Arc<str>,
-}
-
-impl StoreSink {
-    /// Rows for car `car_id`, sent to `rows`.
-    pub fn new(rows: RowSender, car_id: &str) -> Self {
-        Self {
-            rows,
-            car_id: car_id.into(),
-        }
-    }
-}
-
-impl Sink for StoreSink {
-    fn accept(&mut self, record: &Record, buses: &[Arc<str>]) {
-        // Never waits: a full queue drops the row and counts it.
-        let _ = self.rows.send(row::row(record, &self.car_id, buses));
-    }
-}

@@ -260,7 +260,7 @@ impl Compaction {
                 self.next_table = (index + 1) % TABLES.len();
                 transaction.commit()?;
                 // Give the pages back to the file system.
-                super::schema::release_free_pages(db)?;
+                super::space::release_free_pages(db)?;
                 return Ok(compacted);
             }
         }

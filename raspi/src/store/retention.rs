@@ -143,7 +143,7 @@ impl Retention {
         pruned.disk_low = disk_low;
         if pruned.rows > 0 {
             // Give the freed pages back (a store made before auto_vacuum keeps reusing them).
-            super::schema::release_free_pages(db)?;
+            super::space::release_free_pages(db)?;
             db.query_row("PRAGMA wal_checkpoint(TRUNCATE)", [], |_| Ok(()))?;
         }
         Ok(pruned)

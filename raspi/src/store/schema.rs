@@ -178,16 +178,6 @@ fn ids_after_everything_seen(db: &Connection, table: &Table) -> rusqlite::Result
     Ok(())
 }
 
-/// Gives the store's free pages back to the file system. `PRAGMA incremental_vacuum` frees
-/// one page per step of its statement: it must be stepped to the end, which
-/// `execute_batch` does not do.
-pub fn release_free_pages(db: &Connection) -> rusqlite::Result<()> {
-    let mut statement = db.prepare("PRAGMA incremental_vacuum")?;
-    let mut rows = statement.query([])?;
-    while rows.next()?.is_some() {}
-    Ok(())
-}
-
 /// Opens the store; a damaged one is moved aside (`<file>.damaged-<unix seconds>`, with its
 /// WAL) and a fresh store started, so a bad file never keeps the service from running.
 /// Returns the connection and, after a recovery, what happened.
