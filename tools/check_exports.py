@@ -6,14 +6,15 @@ Foxglove's `mcap` reader, `polars` (Parquet, CSV) and the standard library's `sq
 for the session; the session's metadata must be in every file.
 
 usage: check_exports.py --store STORE --out EXPORT_DIR --types TYPES_JSON --session N
-TYPES_JSON: {"table": [["column", "U8"], ...], ...}, every table's local columns as
-aer::tables lists them (tags, then columns).
+TYPES_JSON: {"table": [["stored", "exported", "U8"], ...], ...}, every table's local columns
+(tags, then columns) as the store names them, as the exports name them, and the exported type.
+The exports rename the time (`ts` -> `ts_us`) and the fingerprints (text `0x...`), and unwrap
+the CCM's 32-bit clock (`timestamp_us`); every other value is the store's.
 """
 
 import argparse
 import csv
 import json
-import math
 import sqlite3
 import struct
 import sys
@@ -51,10 +52,15 @@ def f32(x):
     return struct.unpack("f", struct.pack("f", x))[0]
 
 
-def same(ty, stored, read):
-    """True when `read` (from an export) is the stored value of a column of type `ty`."""
+def same(ty, stored, read, column=None):
+    """True when `read` (from an export) is the stored value of a column of type `ty`
+    (`column`: the store's name, for the columns the exports convert)."""
     if stored is None or read is None:
         return stored is None and read is None
+    if column == "schema_fingerprint":
+        return read == f"0x{int(stored):08x}"
+    if column == "timestamp_us":
+        return int(read) % (1 << 32) == int(stored) and int(read) >= int(stored)
     if ty == "Bool":
         return bool(stored) == bool(read)
     if ty == "F32":
@@ -73,7 +79,7 @@ def store_rows(db, table, columns, session):
     ).fetchone()
     if rng is None:
         return []
-    names = ", ".join(f'"{c}"' for c, _ in columns)
+    names = ", ".join(f'"{stored}"' for stored, _, _ in columns)
     return db.execute(
         f'SELECT {names} FROM "{table}" WHERE id BETWEEN ? AND ? ORDER BY id', rng
     ).fetchall()
@@ -84,22 +90,26 @@ def check_parquet(path, table, columns, rows, meta):
     if df.height != len(rows):
         fail(f"{path}: {df.height} rows, the store has {len(rows)}")
         return
-    if df.columns != [c for c, _ in columns]:
+    if df.columns != [name for _, name, _ in columns]:
         fail(f"{path}: columns {df.columns}")
         return
-    for (name, ty), dtype in zip(columns, df.dtypes):
+    for (_, name, ty), dtype in zip(columns, df.dtypes):
         want = pl.String if ty.startswith("VarChar") else POLARS[ty]
         if dtype != want:
-            fail(f"{path}: column {name} is {dtype}, the generated type {ty} is {want}")
-    for index, (name, ty) in enumerate(columns):
+            fail(f"{path}: column {name} is {dtype}, the exported type {ty} is {want}")
+    for index, (stored, name, ty) in enumerate(columns):
         series = df.get_column(name)
         if ty == "Timestamp":
             series = series.dt.epoch("us")
         for row, value in zip(rows, series.to_list()):
-            if not same(ty, row[index], value):
+            if not same(ty, row[index], value, stored):
                 fail(f"{path}: {name} = {value!r}, stored {row[index]!r}")
                 break
     kv = pl.read_parquet_metadata(path)
+    # A Parquet reader alone can name every enum value: the value names are in the metadata.
+    for stored, name, ty in columns:
+        if kv.get(f"aer.label.{name}") is None:
+            fail(f"{path}: no aer.label.{name} in the metadata")
     for key, value in meta.items():
         if kv.get(f"aer.{key}") != value:
             fail(f"{path}: metadata aer.{key} = {kv.get(f'aer.{key}')!r}, want {value!r}")
@@ -110,17 +120,17 @@ def check_csv(path, table, columns, rows):
         reader = csv.reader(f)
         header = next(reader)
         lines = list(reader)
-    if header != [c for c, _ in columns]:
+    if header != [name for _, name, _ in columns]:
         fail(f"{path}: header {header}")
         return
     if len(lines) != len(rows):
         fail(f"{path}: {len(lines)} rows, the store has {len(rows)}")
         return
     for line, row in zip(lines, rows):
-        for index, (name, ty) in enumerate(columns):
+        for index, (stored, name, ty) in enumerate(columns):
             cell = line[index]
             value = None if cell == "" else (cell == "true" if ty == "Bool" else cell)
-            if not same(ty, row[index], value):
+            if not same(ty, row[index], value, stored):
                 fail(f"{path}: {name} = {cell!r}, stored {row[index]!r}")
                 return
     # polars reads the same file with its default settings (type inference from the first 100
@@ -128,7 +138,7 @@ def check_csv(path, table, columns, rows):
     df = pl.read_csv(path)
     if df.height != len(rows) or df.width != len(columns):
         fail(f"{path}: polars reads {df.shape}")
-    for name, ty in columns:
+    for _, name, ty in columns:
         if ty in ("F32", "F64") and not df.schema[name].is_float():
             fail(f"{path}: polars reads {name} as {df.schema[name]}, not a float")
 
@@ -157,7 +167,7 @@ def check_mcap(path, types, db, session, meta):
                     name: {str(o["const"]): o["title"] for o in p.get("oneOf", [])}
                     for name, p in properties.items()
                 }
-                for name, ty in types.get(table, []):
+                for _, name, ty in types.get(table, []):
                     if name not in properties or "title" not in properties[name]:
                         fail(f"{path}: {table} schema lacks a titled {name}")
             if message.log_time < last_time:
@@ -173,7 +183,7 @@ def check_mcap(path, types, db, session, meta):
         if len(messages) != len(rows):
             fail(f"{path}: {table}: {len(messages)} messages, the store has {len(rows)}")
             continue
-        ts = [c for c, _ in columns].index("ts")
+        ts = [stored for stored, _, _ in columns].index("ts")
         # Messages are in receive-time order; rows with one time keep their arrival order.
         ordered = sorted(range(len(rows)), key=lambda i: (rows[i][ts], i))
         for i, (log_time, data) in zip(ordered, messages):
@@ -181,12 +191,8 @@ def check_mcap(path, types, db, session, meta):
             if log_time != row[ts] * 1000:
                 fail(f"{path}: {table} log_time {log_time}, stored ts {row[ts]} us")
                 break
-            for index, (name, ty) in enumerate(columns):
-                if name == "ts":
-                    if not math.isclose(data["ts"], row[ts] / 1e6, abs_tol=1e-6):
-                        fail(f"{path}: {table} ts {data['ts']}, stored {row[ts]}")
-                    continue
-                if not same(ty, row[index], data.get(name)):
+            for index, (stored, name, ty) in enumerate(columns):
+                if not same(ty, row[index], data.get(name), stored):
                     fail(f"{path}: {table}.{name} = {data.get(name)!r}, stored {row[index]!r}")
                     break
                 names = labels[table].get(name, {})

@@ -193,6 +193,57 @@ impl Default for TdengineConfig {
     }
 }
 
+/// The installed service's configuration (package aer-raspi).
+pub const INSTALLED: &str = "/etc/aer/aer-raspi.toml";
+
+/// Which configuration a store command (`session`, `export`, `compact`) reads: the one given
+/// (`-c`, or `AER_CONFIG`), else the installed service's when there is one, so a command typed
+/// on the car finds the service's store, else the built-in defaults (a store in the current
+/// folder). The service's own jobs (`run`, `replay`, `demo`) read only what they are given.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Origin {
+    /// `-c` or `AER_CONFIG`.
+    Given(PathBuf),
+    /// [`INSTALLED`], found.
+    Installed(PathBuf),
+    /// No file: the defaults.
+    Defaults,
+}
+
+impl Origin {
+    /// The choice for a store command, given `-c`/`AER_CONFIG` and where the installed
+    /// configuration would be.
+    pub fn for_store_command(given: Option<&Path>, installed: &Path) -> Self {
+        match given {
+            Some(path) => Self::Given(path.to_owned()),
+            None if installed.is_file() => Self::Installed(installed.to_owned()),
+            None => Self::Defaults,
+        }
+    }
+
+    /// The file to read, if any.
+    pub fn path(&self) -> Option<&Path> {
+        match self {
+            Self::Given(path) | Self::Installed(path) => Some(path),
+            Self::Defaults => None,
+        }
+    }
+}
+
+impl std::fmt::Display for Origin {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::Given(path) => write!(f, "configuration {}", path.display()),
+            Self::Installed(path) => {
+                write!(f, "configuration {}, the installed service's", path.display())
+            }
+            Self::Defaults => f.write_str(
+                "no configuration file (no -c, no AER_CONFIG, no /etc/aer/aer-raspi.toml): the built-in defaults",
+            ),
+        }
+    }
+}
+
 impl Config {
     /// Reads `path` (if given) and applies the environment overrides from `env`.
     pub fn load(path: Option<&Path>, env: impl Fn(&str) -> Option<String>) -> Result<Self> {
@@ -326,6 +377,27 @@ mod tests {
         })
         .expect_err("a 17-byte interface name does not fit VARCHAR(16)");
         assert!(format!("{error:#}").contains("interface"), "{error:#}");
+    }
+
+    #[test]
+    fn store_commands_find_the_installed_configuration_unless_given_one() {
+        let dir = tempfile::tempdir().unwrap();
+        let installed = dir.path().join("aer-raspi.toml");
+        let given = dir.path().join("mine.toml");
+        assert_eq!(
+            Origin::for_store_command(None, &installed),
+            Origin::Defaults
+        );
+        std::fs::write(&installed, "").unwrap();
+        assert_eq!(
+            Origin::for_store_command(None, &installed),
+            Origin::Installed(installed.clone())
+        );
+        assert_eq!(
+            Origin::for_store_command(Some(&given), &installed),
+            Origin::Given(given.clone())
+        );
+        assert_eq!(Origin::Defaults.path(), None);
     }
 
     #[test]

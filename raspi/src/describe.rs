@@ -51,6 +51,22 @@ fn fixed(name: &'static str) -> Description {
     }
 }
 
+/// A readable label from a DBC signal's comment: its first phrase (up to the first `.`, `:`
+/// or `;`, without a closing `, in <unit>`), when that is short enough for a column heading;
+/// `None` for a signal without a comment, where the signal's name has to do.
+fn comment_label(comment: &'static str) -> Option<&'static str> {
+    let end = comment.find(['.', ':', ';']).unwrap_or(comment.len());
+    let phrase = comment.get(..end)?;
+    let phrase = phrase
+        .find(", in ")
+        .map_or(phrase, |unit| phrase.get(..unit).unwrap_or(phrase));
+    let phrase = phrase.trim();
+    (!phrase.is_empty() && phrase.len() <= LABEL_MAX).then_some(phrase)
+}
+
+/// The longest phrase of a comment taken as a column's label (characters).
+const LABEL_MAX: usize = 48;
+
 /// Every local column of `table` (tags, then columns) with its description.
 pub fn columns(table: &'static Table) -> Vec<(&'static Column, Description)> {
     let tags = table.tags.iter().map(|c| (c, fixed(c.name)));
@@ -62,7 +78,7 @@ pub fn columns(table: &'static Table) -> Vec<(&'static Column, Description)> {
                         .get(usize::from(meta.index))
                         .map_or(meta.name, |d| d.label)
                 } else {
-                    meta.name
+                    comment_label(meta.comment).unwrap_or(meta.name)
                 },
                 unit: meta.unit,
                 description: meta.comment,
@@ -85,26 +101,46 @@ fn json_type(ty: ColumnType) -> &'static str {
     }
 }
 
-/// The JSON Schema of a table's MCAP messages: one property per column (`ts` in seconds, as
-/// on the MQTT topics), titled with the label, described with the unit and the schema's
-/// comment; enum columns list their values and get a `<name>_label` string beside them.
-pub(crate) fn json_schema(table: &'static Table, title: &str) -> Value {
-    schema_of(table, title, columns(table))
+/// One property of a JSON Schema: the key, its column type, what it means, and whether it is
+/// always present.
+pub(crate) struct Property<'a> {
+    pub name: &'a str,
+    pub ty: ColumnType,
+    pub description: Description,
+    pub required: bool,
 }
 
-/// The JSON Schema of a table's MQTT payloads, as [`json_schema`] without the columns the topic
-/// itself says (the car, the schema fingerprint): `ts`, `bus` on CAN topics, then the values.
+/// The JSON Schema of a table's MQTT payloads: every column but the ones the topic itself
+/// says (the car, the schema fingerprint): `ts` in seconds since the epoch, `bus` on CAN
+/// topics, then the values.
 pub(crate) fn topic_schema(table: &'static Table, title: &str) -> Value {
-    let described = columns(table)
+    let properties = columns(table)
         .into_iter()
         .filter(|(column, _)| column.name == "bus" || !is_tag(table, column.name))
-        .collect();
-    schema_of(table, title, described)
+        .map(|(column, description)| {
+            let time = column.name == "ts";
+            Property {
+                name: column.name,
+                ty: column.ty,
+                description: if time {
+                    Description {
+                        unit: "s",
+                        description: "When the Pi received the frame (or, for telemetry, the packet's last frame), seconds since the Unix epoch (UTC).",
+                        ..description
+                    }
+                } else {
+                    description
+                },
+                required: time || column.name == "bus",
+            }
+        });
+    schema_of(title, properties)
 }
 
-/// Each MQTT topic's suffix (`telemetry`, `can/mcu1`) with the JSON Schema of its payloads,
-/// which the service publishes, retained, on `schema/<suffix>`: a subscriber finds the label,
-/// unit, description and value names of every key there, once, instead of in every payload.
+/// Each MQTT topic's suffix (`telemetry`, `can/dti_speed`) with the JSON Schema of its
+/// payloads, which the service publishes, retained, on `schema/<suffix>`: a subscriber finds
+/// the label, unit, description and value names of every key there, once, instead of in every
+/// payload.
 pub(crate) fn topic_schemas() -> Vec<(&'static str, Value)> {
     TABLES
         .iter()
@@ -117,15 +153,21 @@ fn is_tag(table: &Table, name: &str) -> bool {
     table.tags.iter().any(|tag| tag.name == name)
 }
 
-fn schema_of(
-    table: &'static Table,
+/// A JSON Schema with one property per entry, titled with its label, described with its unit
+/// and comment; enum properties list their values and get a `<name>_label` string beside them.
+pub(crate) fn schema_of<'a>(
     title: &str,
-    described: Vec<(&'static Column, Description)>,
+    described: impl IntoIterator<Item = Property<'a>>,
 ) -> Value {
     let mut properties = Map::new();
-    for (column, d) in described {
-        let required = column.name == "ts" || is_tag(table, column.name);
-        let ty = json_type(column.ty);
+    for Property {
+        name,
+        ty,
+        description: d,
+        required,
+    } in described
+    {
+        let ty = json_type(ty);
         let mut property = Map::new();
         property.insert(
             "type".into(),
@@ -136,14 +178,10 @@ fn schema_of(
             },
         );
         property.insert("title".into(), json!(d.label));
-        let unit = if column.name == "ts" { "s" } else { d.unit };
         let mut text = d.description.to_owned();
-        if column.name == "ts" {
-            text = "When the Pi received the frame or packet, seconds since the Unix epoch.".into();
-        }
-        if !unit.is_empty() {
-            property.insert("unit".into(), json!(unit));
-            text = format!("{text} [{unit}]").trim().to_owned();
+        if !d.unit.is_empty() {
+            property.insert("unit".into(), json!(d.unit));
+            text = format!("{text} [{}]", d.unit).trim().to_owned();
         }
         property.insert("description".into(), json!(text));
         let label = (!d.values.is_empty()).then(|| {
@@ -157,13 +195,13 @@ fn schema_of(
             json!({
                 "type": ["string", "null"],
                 "title": format!("{} (name)", d.label),
-                "description": format!("The value of `{}` by name.", column.name),
+                "description": format!("The value of `{name}` by name."),
                 "enum": labels,
             })
         });
-        properties.insert(column.name.into(), Value::Object(property));
+        properties.insert(name.into(), Value::Object(property));
         if let Some(label) = label {
-            properties.insert(format!("{}_label", column.name), label);
+            properties.insert(format!("{name}_label"), label);
         }
     }
     json!({
@@ -176,7 +214,7 @@ fn schema_of(
 
 #[cfg(test)]
 mod tests {
-    use super::{columns, json_schema};
+    use super::{columns, topic_schema};
     use aer::tables::{TABLES, TELEMETRY};
 
     #[test]
@@ -196,18 +234,44 @@ mod tests {
     }
 
     #[test]
-    fn every_table_has_a_property_per_column_and_a_label_beside_each_enum() {
+    fn every_topic_has_a_property_per_value_and_a_label_beside_each_enum() {
         for table in TABLES {
-            let schema = json_schema(table, table.name);
+            let schema = topic_schema(table, table.name);
             let properties = schema["properties"].as_object().expect("properties");
             for column in table.local_columns() {
-                assert!(properties.contains_key(column.name), "{}", column.name);
+                let tag = table.tags.iter().any(|t| t.name == column.name);
+                assert_eq!(
+                    properties.contains_key(column.name),
+                    !tag || column.name == "bus",
+                    "{}",
+                    column.name
+                );
             }
         }
-        let schema = json_schema(&TELEMETRY, "telemetry");
+        let schema = topic_schema(&TELEMETRY, "telemetry");
         assert_eq!(schema["properties"]["soc"]["unit"], "%");
         assert_eq!(schema["properties"]["soc"]["title"], "SOC");
+        assert_eq!(schema["properties"]["ts"]["unit"], "s");
         assert!(schema["properties"]["vehicle_state_label"]["enum"].is_array());
+    }
+
+    #[test]
+    fn can_signals_are_labelled_from_their_comment_where_there_is_one() {
+        let find = |table: &str, column: &str| {
+            let table = TABLES.iter().find(|t| t.name == table).expect(table);
+            columns(table)
+                .into_iter()
+                .find(|(c, _)| c.name == column)
+                .map(|(_, d)| d.label)
+                .expect(column)
+        };
+        // "Torque request: 0.392 % of MOTOR_MAX_TORQUE ..." reads as its first phrase.
+        assert_eq!(find("can_vcu1", "vcu_torque_req"), "Torque request");
+        // A signal without a comment keeps its DBC name.
+        assert_eq!(
+            find("can_vcu1", "vcu_authentication_status"),
+            "VCU_AuthenticationStatus"
+        );
     }
 
     #[test]
@@ -236,7 +300,11 @@ mod tests {
         assert_eq!(mcu1["properties"]["mcu_motor_speed"]["unit"], "rpm");
         assert_eq!(
             mcu1["properties"]["mcu_motor_speed"]["title"],
-            "MCU_MotorSpeed"
+            columns(TABLES.iter().find(|t| t.name == "can_mcu1").expect("mcu1"))
+                .into_iter()
+                .find(|(c, _)| c.name == "mcu_motor_speed")
+                .map(|(_, d)| d.label)
+                .expect("column")
         );
         assert!(mcu1["properties"]["mcu_main_state_label"]["enum"].is_array());
     }

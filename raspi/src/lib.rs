@@ -8,6 +8,7 @@
 //! [`report`] publishes the service's status and metrics; [`service`] assembles it all.
 
 pub mod broker;
+pub mod commands;
 pub mod config;
 pub mod describe;
 pub mod disk;

@@ -2,18 +2,14 @@
 //! and DBC decoding -> typed MQTT topics on an embedded broker + a durable local store ->
 //! TDengine.
 
-use aer_raspi::config::Config;
-use aer_raspi::export::{self, Format};
-use aer_raspi::service::{Job, serve};
-use aer_raspi::store;
-use aer_raspi::store::session::{self, Changes};
-use aer_raspi::store::session_messages;
-use anyhow::{Context, Result, bail};
+use aer_raspi::commands::{self, Located, export::Wanted};
+use aer_raspi::config::{self, Config, Origin};
+use aer_raspi::export::Format;
+use aer_raspi::service::{DEMO_STORE, Job, serve};
+use aer_raspi::store::session::Changes;
+use anyhow::{Context, Result};
 use clap::{Args, Parser, Subcommand};
 use std::path::{Path, PathBuf};
-
-/// Where the demo records (without a config file or AER_STORE_PATH), and `export --demo` reads.
-const DEMO_STORE: &str = "aer-demo.sqlite";
 
 #[derive(Parser)]
 #[command(
@@ -26,7 +22,9 @@ appends it to a local SQLite store and (optionally) forwards the store to TDengi
 Watch it: mosquitto_sub -h 127.0.0.1 -t 'aer/#' -v"
 )]
 struct Cli {
-    /// Configuration file (TOML; every key optional, see raspi/config/aer-raspi.toml).
+    /// Configuration file (TOML; every key optional, see raspi/config/aer-raspi.toml). The
+    /// store commands (session, export, compact, clock) read /etc/aer/aer-raspi.toml, the
+    /// installed service's, when neither this nor AER_CONFIG is given.
     #[arg(long, short, global = true, env = "AER_CONFIG")]
     config: Option<PathBuf>,
     /// Session metadata for this start (overrides `[session]` in the config).
@@ -91,15 +89,19 @@ enum Command {
     /// broker on 127.0.0.1:1883, the local store aer-demo.sqlite and the raw log in
     /// aer-demo-raw/.
     Demo,
-    /// Sessions in the local store: list them, change the open one's metadata (or another's
-    /// with --id), or start the next one while the service runs.
+    /// Sessions in the local store: list them (times in UTC), change the open one's metadata
+    /// (or another's with --id), or start the next one while the service runs.
     Session {
         #[command(subcommand)]
         action: SessionAction,
     },
     /// Export a session (or a time range) from the local store, or a recorded log, as MCAP
-    /// (Foxglove, PlotJuggler), Parquet (pandas, polars) and CSV.
+    /// (Foxglove, PlotJuggler), Parquet (pandas, polars) and CSV, into a folder or as one tar
+    /// archive with the session's raw log.
     Export(ExportArgs),
+    /// The Pi's clock as the sessions record it: the time in UTC, whether network time
+    /// synchronized it, the open session's clock steps.
+    Clock,
     /// Compact every closed session in the local store now (the running service does it by
     /// itself, a block at a time): before copying the store off the car, or after a
     /// `compact = false` season.
@@ -138,7 +140,11 @@ enum SessionAction {
     },
     /// Close the open session and start the next one with the flags given; the running
     /// service stores its rows under the new one from its next commit (within a second).
-    New,
+    New {
+        /// Start a new, empty store if there is none (otherwise a missing store is an error).
+        #[arg(long)]
+        create_store: bool,
+    },
     /// Each CAN message of the open session (or of session --id) per bus: frames, measured
     /// and declared rate, checksum failures, counter repeats and jumps, late frames.
     Messages {
@@ -148,9 +154,10 @@ enum SessionAction {
 }
 
 #[derive(Args)]
+#[command(group = clap::ArgGroup::new("destination").required(true).args(["out", "archive"]))]
 struct ExportArgs {
-    /// Export this session (`aer-raspi session list`), or `latest`; without it, every row in
-    /// the time range.
+    /// Export this session (`aer-raspi session list`), or `latest`: the newest session with
+    /// data; without it, every row in the time range.
     #[arg(long)]
     session: Option<String>,
     /// From this time: RFC 3339 (`2026-11-23T10:00:00Z`) or Unix seconds.
@@ -168,7 +175,14 @@ struct ExportArgs {
     formats: Vec<Format>,
     /// Where to write: DIR/session.mcap, DIR/parquet/<table>.parquet, DIR/csv/<table>.csv.
     #[arg(long)]
-    out: PathBuf,
+    out: Option<PathBuf>,
+    /// Write one tar archive instead (`-`: to standard output, e.g. through ssh): the export
+    /// under session-<id>/ and the session's raw log segments under session-<id>/raw/.
+    #[arg(long)]
+    archive: Option<PathBuf>,
+    /// Remove an earlier export found in --out first (without it, such a folder is refused).
+    #[arg(long, requires = "out")]
+    replace: bool,
     /// Read the store the demo records into (aer-demo.sqlite) instead of the configured one.
     #[arg(long, conflicts_with = "log")]
     demo: bool,
@@ -190,14 +204,17 @@ fn main() -> Result<()> {
     if let Command::RawExport { paths } = &cli.command {
         return aer_raspi::rawlog::export::candump(paths, std::io::stdout().lock());
     }
+    if matches!(
+        cli.command,
+        Command::Session { .. } | Command::Export(_) | Command::Compact | Command::Clock
+    ) {
+        let origin = Origin::for_store_command(cli.config.as_deref(), Path::new(config::INSTALLED));
+        let mut located = Located::load(origin, |key| std::env::var(key).ok())?;
+        located.config.session = cli.session.changes().apply(located.config.session);
+        return store_command(&located, &cli);
+    }
     let mut config = Config::load(cli.config.as_deref(), |key| std::env::var(key).ok())?;
     config.session = cli.session.changes().apply(config.session);
-    match &cli.command {
-        Command::Session { action } => return session_command(&config, action, &cli.session),
-        Command::Export(args) => return export_command(&config, args),
-        Command::Compact => return compact_command(&config),
-        _ => {}
-    }
     if matches!(cli.command, Command::Demo) && cli.config.is_none() {
         if std::env::var_os("AER_STORE_PATH").is_none() {
             config.store.path = DEMO_STORE.into();
@@ -219,191 +236,51 @@ fn main() -> Result<()> {
         Command::RawExport { .. }
         | Command::Session { .. }
         | Command::Export(_)
-        | Command::Compact => {
+        | Command::Compact
+        | Command::Clock => {
             return Ok(());
         }
     };
     runtime.block_on(serve(config, job))
 }
 
-fn session_command(config: &Config, action: &SessionAction, flags: &SessionArgs) -> Result<()> {
-    let db = store::open(&config.store.path)?;
-    match action {
-        SessionAction::List => {
-            println!("id\tstarted\tended\tsource\tdriver\ttrack\trun\tnotes");
-            for s in session::list(&db)? {
-                let time = |us: i64| {
-                    chrono::DateTime::from_timestamp_micros(us).map_or_else(
-                        || us.to_string(),
-                        |t| t.format("%Y-%m-%d %H:%M:%S").to_string(),
-                    )
-                };
-                println!(
-                    "{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}",
-                    s.id,
-                    time(s.started_us),
-                    s.ended_us.map_or_else(|| "open".to_owned(), time),
-                    s.source,
-                    s.metadata.driver,
-                    s.metadata.track,
-                    s.metadata.run.map(|r| r.to_string()).unwrap_or_default(),
-                    s.metadata.notes
-                );
+/// The commands that read or change the store: results on stdout, what they did on stderr.
+fn store_command(located: &Located, cli: &Cli) -> Result<()> {
+    let mut out = std::io::stdout().lock();
+    let mut notes = std::io::stderr().lock();
+    match &cli.command {
+        Command::Session { action } => match action {
+            SessionAction::List => commands::session::list(located, &mut out, &mut notes),
+            SessionAction::Set { id } => {
+                commands::session::set(located, *id, &cli.session.changes(), &mut out, &mut notes)
             }
-        }
-        SessionAction::Set { id } => {
-            let id = match id {
-                Some(id) => *id,
-                None => session::current(&db)?.context("no session is open; give --id")?,
-            };
-            anyhow::ensure!(
-                session::change(&db, id, &flags.changes())?,
-                "no session {id}"
-            );
-            println!("session {id} updated");
-        }
-        SessionAction::Messages { id } => {
-            let id = match id {
-                Some(id) => *id,
-                None => session::current(&db)?.context("no session is open; give --id")?,
-            };
-            let hz = |rate: Option<f64>| rate.map_or_else(|| "-".to_owned(), |r| format!("{r:.2}"));
-            println!(
-                "bus\tmessage\tframes\tmeasured_hz\tdeclared_hz\tchecksum_failures\tcounter_repeats\tcounter_jumps\tlate_frames"
-            );
-            for m in session_messages::list(&db, id)? {
-                println!(
-                    "{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}",
-                    m.bus,
-                    m.message,
-                    m.frames,
-                    hz(m.measured_hz()),
-                    hz(m.declared_hz()),
-                    m.checksum_failures,
-                    m.counter_repeats,
-                    m.counter_jumps,
-                    m.late_frames
-                );
+            SessionAction::New { create_store } => commands::session::new(
+                located,
+                &located.config.session,
+                *create_store,
+                &mut out,
+                &mut notes,
+            ),
+            SessionAction::Messages { id } => {
+                commands::session::messages(located, *id, &mut out, &mut notes)
             }
-        }
-        SessionAction::New => {
-            let now = i64::try_from(aer_host::clock::now_us()).unwrap_or(i64::MAX);
-            let id = session::begin(&db, &config.session, "live", now)?;
-            println!("session {id} open");
-        }
-    }
-    Ok(())
-}
-
-fn compact_command(config: &Config) -> Result<()> {
-    let path = &config.store.path;
-    let mut db = store::open(path)?;
-    let mut compaction = store::Compaction::everything_closed();
-    let mut rows = 0;
-    loop {
-        let step = compaction.step(&mut db)?;
-        if step == 0 {
-            break;
-        }
-        rows += step;
-    }
-    store::space::release_free_pages(&db)?;
-    db.query_row("PRAGMA wal_checkpoint(TRUNCATE)", [], |_| Ok(()))?;
-    let bytes = std::fs::metadata(path).map(|m| m.len()).unwrap_or(0);
-    println!("{rows} rows compacted; {} is {bytes} bytes", path.display());
-    Ok(())
-}
-
-fn export_command(config: &Config, args: &ExportArgs) -> Result<()> {
-    let (db, extra) = match &args.log {
-        Some(log) => {
-            let (db, counters) = export::load::from_log(log, &config.car_id)?;
-            let bad = counters
-                .bad_lines
-                .load(std::sync::atomic::Ordering::Relaxed);
-            if bad > 0 {
-                tracing::warn!(bad, log = %log.display(), "lines or blocks that do not parse were skipped");
-            }
-            let m = &config.session;
-            let mut extra = vec![
-                ("log".to_owned(), log.display().to_string()),
-                ("driver".to_owned(), m.driver.clone()),
-                ("track".to_owned(), m.track.clone()),
-                (
-                    "run".to_owned(),
-                    m.run.map(|r| r.to_string()).unwrap_or_default(),
-                ),
-                ("notes".to_owned(), m.notes.clone()),
-            ];
-            extra.push(("skipped_lines".to_owned(), bad.to_string()));
-            (db, extra)
-        }
-        None => {
-            let path = if args.demo {
-                Path::new(DEMO_STORE)
-            } else {
-                config.store.path.as_path()
-            };
-            if !path.exists() {
-                let hint = if !args.demo && Path::new(DEMO_STORE).exists() {
-                    format!("; the demo recorded into {DEMO_STORE}: add --demo")
-                } else {
-                    String::new()
-                };
-                bail!("no store at {}{hint}", path.display());
-            }
-            let db = rusqlite::Connection::open_with_flags(
-                path,
-                rusqlite::OpenFlags::SQLITE_OPEN_READ_ONLY,
-            )
-            .with_context(|| format!("opening the store {}", path.display()))?;
-            (db, Vec::new())
-        }
-    };
-    let session = match args.session.as_deref() {
-        None => None,
-        Some("latest") => Some(
-            session::list(&db)?
-                .last()
-                .map(|s| s.id)
-                .context("the store has no sessions")?,
-        ),
-        Some(id) => Some(
-            id.parse()
-                .with_context(|| format!("--session {id}: a number or `latest`"))?,
-        ),
-    };
-    let formats = if args.formats.is_empty() {
-        Format::all()
-    } else {
-        args.formats.clone()
-    };
-    let request = export::Request {
-        selection: export::load::Selection {
-            session,
-            from_us: args.from,
-            to_us: args.to,
         },
-        formats,
-        out_dir: args.out.clone(),
-        topic_root: format!("{}/{}", config.mqtt.topic_prefix, config.car_id),
-        extra,
-    };
-    let report = export::export(&db, &request)?;
-    let rows: usize = report.rows.iter().map(|(_, n)| n).sum();
-    println!(
-        "{rows} rows from {} tables, read in {:.1} ms",
-        report.rows.len(),
-        report.load.as_secs_f64() * 1e3
-    );
-    for format in &report.formats {
-        let bytes: u64 = format.files.iter().map(|f| f.bytes).sum();
-        println!(
-            "{:?}: {} file(s), {bytes} bytes, {:.1} ms",
-            format.format,
-            format.files.len(),
-            format.elapsed.as_secs_f64() * 1e3
-        );
+        Command::Export(args) => {
+            let wanted = Wanted {
+                session: args.session.clone(),
+                from_us: args.from,
+                to_us: args.to,
+                log: args.log.clone(),
+                formats: args.formats.clone(),
+                out: args.out.clone(),
+                archive: args.archive.clone(),
+                replace: args.replace,
+                demo: args.demo,
+            };
+            commands::export::run(located, &wanted, &mut out, &mut notes)
+        }
+        Command::Compact => commands::compact(located, &mut out, &mut notes),
+        Command::Clock => commands::clock::show(located, &mut out, &mut notes),
+        _ => Ok(()),
     }
-    Ok(())
 }

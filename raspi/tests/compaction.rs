@@ -115,10 +115,10 @@ fn a_closed_session_compacts_to_a_fraction_and_reads_back_exactly() {
     // A time range inside compacted blocks selects as before.
     let ts_column = exported[0]
         .columns()
-        .find(|(c, _)| c.name == "ts")
+        .find(|(c, _)| c.name == "ts_us")
         .map(|(_, v)| v.clone());
     let Some(load::Values::Int(ts)) = ts_column else {
-        panic!("no ts column");
+        panic!("no ts_us column");
     };
     let (from, to) = (ts[100].expect("ts"), ts[199].expect("ts"));
     let range = Selection {

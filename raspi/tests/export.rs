@@ -114,12 +114,12 @@ fn a_session_exported_in_every_format_reads_back_equal_to_the_store() {
         assert_eq!(rows_in_files, rows.len(), "{:?}", format.format);
     }
 
-    let types: HashMap<&str, Vec<(&str, String)>> = TABLES
+    let types: HashMap<&str, Vec<(&str, &str, String)>> = TABLES
         .iter()
         .map(|t| {
-            let columns = t
-                .local_columns()
-                .map(|c| (c.name, format!("{:?}", c.ty)))
+            let columns = export::columns::of(t)
+                .iter()
+                .map(|c| (c.stored, c.name, format!("{:?}", c.ty)))
                 .collect();
             (t.name, columns)
         })

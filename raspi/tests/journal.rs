@@ -95,7 +95,7 @@ fn piped_output_has_no_colour_codes_and_subscribers_leaving_are_not_errors() {
         .find(|l| l.contains("/schema/can/mcu1 "))
         .expect("the description of can/mcu1");
     assert!(
-        mcu1.contains("\"unit\":\"rpm\"") && mcu1.contains("MCU_MotorSpeed"),
+        mcu1.contains("\"unit\":\"rpm\"") && mcu1.contains("\"title\":\"Motor speed\""),
         "{mcu1}"
     );
     let status = Command::new("kill")

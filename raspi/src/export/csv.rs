@@ -1,10 +1,10 @@
-//! CSV: one file per table (header = the column names, one line per row, empty for NULL,
-//! `ts` in microseconds since the epoch), `columns.csv` beside them with each column's type,
-//! unit, label and description, and `session.csv` with the session's metadata.
+//! CSV: one file per table (header = the exported column names, one line per row, empty for
+//! NULL, `ts_us` in microseconds since the epoch, UTC), `columns.csv` beside them with each
+//! column's type, unit, label, description and value names, and `session.csv` with the
+//! session's metadata.
 
 use super::load::{TableData, Values};
 use super::{ExportError, Written};
-use crate::describe;
 use std::fmt::Write as _;
 use std::path::Path;
 
@@ -27,12 +27,8 @@ pub fn write(
     ])?;
     let mut written = super::per_table(dir, tables, "csv", |path, data| {
         table(path, data)?;
-        for (column, d) in describe::columns(data.table) {
-            let values: Vec<String> = d
-                .values
-                .iter()
-                .map(|(value, label)| format!("{value}={label}"))
-                .collect();
+        for column in &data.columns {
+            let d = column.description;
             columns.write_record([
                 data.table.name,
                 column.name,
@@ -40,7 +36,7 @@ pub fn write(
                 d.unit,
                 d.label,
                 d.description,
-                &values.join("; "),
+                &super::value_names(d.values),
             ])?;
         }
         Ok(())
@@ -65,7 +61,7 @@ fn writer(path: &Path) -> Result<csv::Writer<std::fs::File>, ExportError> {
 
 fn table(path: &Path, data: &TableData) -> Result<(), ExportError> {
     let mut out = writer(path)?;
-    out.write_record(data.table.local_columns().map(|c| c.name))?;
+    out.write_record(data.columns.iter().map(|c| c.name))?;
     let mut field = String::new();
     for row in 0..data.rows {
         for values in &data.values {

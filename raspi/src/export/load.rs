@@ -3,8 +3,9 @@
 //! a recorded log into a store in memory first.
 
 use super::ExportError;
+use super::columns::{self, ExportColumn};
 use crate::store::{compact, row, schema, session};
-use aer::tables::{Column, ColumnType, TABLES, Table};
+use aer::tables::{ColumnType, TABLES, Table};
 use aer_host::candump::parse_line;
 use aer_host::counters::Counters;
 use aer_host::ingest::{Ingest, Record};
@@ -89,22 +90,24 @@ impl Values {
     }
 }
 
-/// A table's selected rows.
+/// A table's selected rows, as the exports name and type them ([`columns`](super::columns)).
 #[derive(Debug, Clone, PartialEq)]
 pub struct TableData {
     pub table: &'static Table,
     pub rows: usize,
-    /// Tags, then columns, as [`Table::local_columns`] lists them.
+    /// The exported columns: tags, then columns, as [`Table::local_columns`] lists them.
+    pub columns: Vec<ExportColumn>,
+    /// Each column's values.
     pub values: Vec<Values>,
 }
 
 impl TableData {
     /// Each column with its values.
-    pub fn columns(&self) -> impl Iterator<Item = (&'static Column, &Values)> {
-        self.table.local_columns().zip(&self.values)
+    pub fn columns(&self) -> impl Iterator<Item = (&ExportColumn, &Values)> {
+        self.columns.iter().zip(&self.values)
     }
 
-    /// The `ts` column (microseconds since the epoch).
+    /// The `ts_us` column (microseconds since the epoch).
     pub(crate) fn timestamps(&self) -> &[Option<i64>] {
         let ts = self.table.tags.len();
         match self.values.get(ts) {
@@ -171,11 +174,14 @@ fn table(
             _ => break,
         }
     }
-    Ok(TableData {
+    let mut data = TableData {
         table,
         rows: n,
+        columns: Vec::new(),
         values,
-    })
+    };
+    columns::convert(&mut data);
+    Ok(data)
 }
 
 /// Decodes a candump log or a raw log segment into a store in memory, as the service would

@@ -3,10 +3,10 @@
 //! order, each channel with a JSON Schema generated from the schema (labels, units, enum
 //! values), and the session's metadata as an MCAP metadata record.
 
+use super::columns::ExportColumn;
 use super::load::{TableData, Values};
 use super::{ExportError, Written};
-use crate::describe;
-use aer::tables::{Column, ColumnType};
+use crate::describe::{self, Property};
 use std::collections::BTreeMap;
 use std::io::{BufWriter, Write as _};
 use std::path::Path;
@@ -37,7 +37,14 @@ pub fn write(
             channels.push(0);
             continue;
         }
-        let schema = describe::json_schema(data.table, data.table.name);
+        let tags = data.table.tags.len();
+        let properties = data.columns.iter().enumerate().map(|(i, column)| Property {
+            name: column.name,
+            ty: column.ty,
+            description: column.description,
+            required: i <= tags,
+        });
+        let schema = describe::schema_of(data.table.name, properties);
         let schema_id =
             out.add_schema(data.table.name, "jsonschema", schema.to_string().as_bytes())?;
         let channel_metadata = BTreeMap::from([("table".to_owned(), data.table.name.to_owned())]);
@@ -60,23 +67,16 @@ pub fn write(
         })
         .collect();
     order.sort_unstable();
-    let described: Vec<Vec<_>> = tables
-        .iter()
-        .map(|data| describe::columns(data.table))
-        .collect();
     let mut sequences = vec![0u32; tables.len()];
     let mut json = Vec::with_capacity(4096);
     for &(ts, t, row) in &order {
-        let (Some(data), Some(described), Some(&channel_id), Some(sequence)) = (
-            tables.get(t),
-            described.get(t),
-            channels.get(t),
-            sequences.get_mut(t),
-        ) else {
+        let (Some(data), Some(&channel_id), Some(sequence)) =
+            (tables.get(t), channels.get(t), sequences.get_mut(t))
+        else {
             continue;
         };
         json.clear();
-        message(&mut json, data, described, row);
+        message(&mut json, data, row);
         *sequence = sequence.wrapping_add(1);
         let nanos = u64::try_from(ts).unwrap_or(0).saturating_mul(1000);
         out.write_to_known_channel(
@@ -98,34 +98,25 @@ pub fn write(
     Written::file(path, order.len())
 }
 
-/// One row as a JSON object: `ts` in seconds (as on the MQTT topics), then every column, with
-/// `<name>_label` after each enum value that has a name.
-fn message(
-    out: &mut Vec<u8>,
-    data: &TableData,
-    described: &[(&Column, describe::Description)],
-    row: usize,
-) {
+/// One row as a JSON object: every exported column (`ts_us` in microseconds, as in the other
+/// formats), with `<name>_label` after each enum value that has a name.
+fn message(out: &mut Vec<u8>, data: &TableData, row: usize) {
     out.push(b'{');
     let mut first = true;
-    for ((column, d), values) in described.iter().zip(&data.values) {
+    for (column, values) in data.columns() {
         if !first {
             out.push(b',');
         }
         first = false;
-        let _ = write!(out, "\"{}\":", column.name);
-        if column.ty == ColumnType::Timestamp {
-            match data.timestamps().get(row).copied().flatten() {
-                Some(us) => {
-                    let _ = write!(out, "{}", us as f64 / 1e6);
-                }
-                None => out.extend_from_slice(b"null"),
-            }
-            continue;
-        }
+        let ExportColumn {
+            name,
+            description: d,
+            ..
+        } = column;
+        let _ = write!(out, "\"{name}\":");
         let raw = value(out, values, row);
         if !d.values.is_empty() {
-            let _ = write!(out, ",\"{}_label\":", column.name);
+            let _ = write!(out, ",\"{name}_label\":");
             let label = raw.and_then(|raw| {
                 d.values
                     .iter()

@@ -6,12 +6,16 @@
 //! [`load`] selects and reads the rows, [`describe`](crate::describe) says what each column is, and [`mcap`],
 //! [`parquet`] and [`csv`] write them.
 
+pub mod columns;
 pub mod csv;
 pub mod load;
 pub mod mcap;
 pub mod parquet;
 
-use crate::store::session::{self, Session};
+use crate::store::{
+    self,
+    session::{self, Session},
+};
 use load::{Selection, TableData};
 use rusqlite::Connection;
 use std::path::{Path, PathBuf};
@@ -110,6 +114,16 @@ fn per_table(
     Ok(written)
 }
 
+/// An enum column's named values as `0=OFF; 1=STANDBY`, the form `columns.csv` and the
+/// Parquet metadata share.
+pub(crate) fn value_names(values: &[(i128, &str)]) -> String {
+    values
+        .iter()
+        .map(|(value, label)| format!("{value}={label}"))
+        .collect::<Vec<_>>()
+        .join("; ")
+}
+
 /// What one format's export wrote, and how long it took.
 #[derive(Debug, Clone)]
 pub struct FormatReport {
@@ -143,12 +157,15 @@ pub struct Request {
 /// The metadata every export carries: the session's (if one was chosen), what was selected,
 /// the schema's fingerprints, and `extra`.
 fn metadata(
-    session: Option<&Session>,
+    session: Option<(&Session, &[(i64, i64)])>,
     selection: Selection,
     extra: &[(String, String)],
 ) -> Vec<(String, String)> {
-    let mut out = Vec::new();
-    if let Some(s) = session {
+    let mut out = vec![(
+        "time_base".to_owned(),
+        "ts_us: when the Pi received each frame (telemetry: the packet's last frame), microseconds since the Unix epoch, UTC".to_owned(),
+    )];
+    if let Some((s, steps)) = session {
         out.push(("session".into(), s.id.to_string()));
         out.push(("driver".into(), s.metadata.driver.clone()));
         out.push(("track".into(), s.metadata.track.clone()));
@@ -163,6 +180,24 @@ fn metadata(
             "ended_us".into(),
             s.ended_us.map(|t| t.to_string()).unwrap_or_default(),
         ));
+        out.push(("started_utc".into(), store::utc(s.started_us)));
+        out.push((
+            "ended_utc".into(),
+            s.ended_us.map(store::utc).unwrap_or_default(),
+        ));
+        out.push(("clock".into(), s.clock.clone()));
+        let steps: Vec<String> = steps
+            .iter()
+            .map(|&(at, step)| store::clock::describe_step(at, step))
+            .collect();
+        out.push((
+            "clock_steps".into(),
+            if steps.is_empty() {
+                "none".into()
+            } else {
+                steps.join("; ")
+            },
+        ));
     }
     if let Some(from) = selection.from_us {
         out.push(("from_us".into(), from.to_string()));
@@ -172,11 +207,11 @@ fn metadata(
     }
     out.push((
         "telemetry_fingerprint".into(),
-        format!("0x{:08X}", aer::telemetry::TELEMETRY_FINGERPRINT),
+        columns::fingerprint(aer::telemetry::TELEMETRY_FINGERPRINT),
     ));
     out.push((
-        "can_fingerprint".into(),
-        format!("0x{:08X}", aer::can::SCHEMA_FINGERPRINT),
+        "dbc_fingerprint".into(),
+        columns::fingerprint(aer::can::SCHEMA_FINGERPRINT),
     ));
     for (key, value) in extra {
         match out.iter_mut().find(|(k, _)| k == key) {
@@ -190,13 +225,20 @@ fn metadata(
 /// Exports the selected rows of `db` in every requested format.
 pub fn export(db: &Connection, request: &Request) -> Result<Report, ExportError> {
     let session = match request.selection.session {
-        Some(id) => Some(session::get(db, id)?.ok_or(ExportError::NoSession(id))?),
+        Some(id) => Some((
+            session::get(db, id)?.ok_or(ExportError::NoSession(id))?,
+            store::clock::steps(db, id)?,
+        )),
         None => None,
     };
     let started = Instant::now();
     let tables = load::tables(db, request.selection)?;
     let load = started.elapsed();
-    let metadata = metadata(session.as_ref(), request.selection, &request.extra);
+    let metadata = metadata(
+        session.as_ref().map(|(s, steps)| (s, steps.as_slice())),
+        request.selection,
+        &request.extra,
+    );
     let mut formats = Vec::new();
     for &format in &request.formats {
         let started = Instant::now();

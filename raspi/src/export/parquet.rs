@@ -1,13 +1,14 @@
-//! Parquet: one file per table, one column per generated column, with the Parquet logical
-//! type that reads back (in Arrow, pandas, polars) as exactly the generated column type:
-//! `u8` as UInt8, `f32` as Float32, `ts` as a UTC timestamp in microseconds, tags as
-//! strings. Units, labels and the session's metadata go into the file's key-value metadata.
-//! Written column by column with the parquet crate's own writer (no Arrow: less to build).
+//! Parquet: one file per table, one column per exported column ([`super::columns`]), with the
+//! Parquet logical type that reads back (in Arrow, pandas, polars) as exactly the column's
+//! type: `u8` as UInt8, `f32` as Float32, `ts_us` as a UTC timestamp in microseconds, tags
+//! as strings. The file's key-value metadata carries the session's metadata and, per column,
+//! what the CSV's `columns.csv` says: label, unit, description and value names, so a reader
+//! with the Parquet file alone can decode every enum. Written column by column with the
+//! parquet crate's own writer (no Arrow: less to build).
 
 use super::load::{TableData, Values};
 use super::{ExportError, Written};
-use crate::describe;
-use aer::tables::{Column, ColumnType};
+use aer::tables::ColumnType;
 use parquet::data_type::{
     BoolType, ByteArray, ByteArrayType, DoubleType, FloatType, Int32Type, Int64Type,
 };
@@ -51,10 +52,10 @@ fn parquet_type(ty: ColumnType) -> &'static str {
 fn message_type(data: &TableData) -> String {
     let tags = data.table.tags.len();
     let fields: Vec<String> = data
-        .table
-        .local_columns()
+        .columns
+        .iter()
         .enumerate()
-        .map(|(i, c): (usize, &Column)| {
+        .map(|(i, c)| {
             // Tags and `ts` are always there; values may be NULL.
             let repetition = if i <= tags { "REQUIRED" } else { "OPTIONAL" };
             format!(
@@ -71,17 +72,17 @@ fn key_values(data: &TableData, metadata: &[(String, String)]) -> Vec<KeyValue> 
         .iter()
         .map(|(k, v)| KeyValue::new(format!("aer.{k}"), v.clone()))
         .collect();
-    for (column, d) in describe::columns(data.table) {
-        if !d.unit.is_empty() {
-            out.push(KeyValue::new(
-                format!("aer.unit.{}", column.name),
-                d.unit.to_owned(),
-            ));
-        }
-        out.push(KeyValue::new(
-            format!("aer.label.{}", column.name),
-            d.label.to_owned(),
-        ));
+    for column in &data.columns {
+        let d = column.description;
+        let mut add = |what: &str, text: String| {
+            if !text.is_empty() {
+                out.push(KeyValue::new(format!("aer.{what}.{}", column.name), text));
+            }
+        };
+        add("label", d.label.to_owned());
+        add("unit", d.unit.to_owned());
+        add("description", d.description.to_owned());
+        add("values", super::value_names(d.values));
     }
     out
 }

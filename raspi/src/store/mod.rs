@@ -3,14 +3,17 @@
 //! it: a store that is behind or failing drops rows (counted, reported) while the raw log
 //! keeps their frames.
 //!
-//! [`schema`] opens, checks and migrates the file, [`row`] turns records into rows, [`queue`]
+//! [`schema`] opens, checks and migrates the file, [`access`] opens it for the command line, [`row`] turns records into rows, [`queue`]
 //! holds them for the [`writer`] thread, [`retention`] keeps the file within its budget,
-//! [`session`] records who drove which run and which rows it made, [`session_messages`] each
+//! [`session`] records who drove which run and which rows it made, [`clock`] how far its times
+//! can be trusted, [`session_messages`] each
 //! session's CAN messages (frames, rate, integrity and lateness counts), [`compact`] packs closed
 //! sessions into compressed blocks and reads them back, [`space`] gives freed pages back to the
 //! file system. Ingest feeds it through
 //! [`crate::sink::store::StoreSink`].
 
+pub mod access;
+pub mod clock;
 pub mod compact;
 pub mod queue;
 pub mod retention;
@@ -27,3 +30,12 @@ pub use retention::{Budget, Retention};
 pub use row::{Row, RowData};
 pub use schema::{StoreError, open, open_or_recover};
 pub use writer::{StoreWriter, WriterOptions};
+
+/// A time as RFC 3339 in UTC with microseconds (`2026-11-26T10:00:00.000000Z`), as every
+/// command prints one; the number itself when it is out of range.
+pub fn utc(us: i64) -> String {
+    chrono::DateTime::from_timestamp_micros(us).map_or_else(
+        || us.to_string(),
+        |t| t.format("%Y-%m-%dT%H:%M:%S%.6fZ").to_string(),
+    )
+}

@@ -6,7 +6,7 @@
 //! at most the last second's rows plus whatever waited in the writer's queue; a kill of the
 //! process loses the same, and nothing already committed.
 
-use super::{compact, session, session_messages};
+use super::{clock, compact, session, session_messages};
 use aer::tables::{TABLES, Table};
 use rusqlite::{Connection, OpenFlags};
 use std::path::{Path, PathBuf};
@@ -33,6 +33,18 @@ pub enum StoreError {
     /// The file is not a database, or fails SQLite's integrity check.
     #[error("the local store at {path} is damaged: {why}")]
     Damaged { path: PathBuf, why: String },
+    /// There is no store at the path (a command that reads one never creates it).
+    #[error("no store at {path}")]
+    Missing { path: PathBuf },
+    /// The file exists but this user may not read it.
+    #[error(
+        "cannot read the store at {path}: {source} (its group, aer, may read it: `sudo adduser $USER aer`, then log in again)"
+    )]
+    Unreadable {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
     /// A damaged file could not be moved aside.
     #[error("cannot move the damaged local store {path} aside: {source}")]
     MoveAside {
@@ -65,9 +77,12 @@ pub fn open(path: &Path) -> Result<Connection, StoreError> {
             | OpenFlags::SQLITE_OPEN_NO_MUTEX,
     )
     .map_err(open_error)?;
-    check(&db).map_err(|why| StoreError::Damaged {
-        path: path.to_owned(),
-        why,
+    check(&db).map_err(|failure| match failure {
+        Check::Problem(why) => StoreError::Damaged {
+            path: path.to_owned(),
+            why,
+        },
+        Check::Failed(source) => super::access::classify(path, source),
     })?;
     let schema_error = |source| StoreError::Schema {
         path: path.to_owned(),
@@ -99,6 +114,8 @@ pub(crate) fn create_tables(db: &Connection) -> rusqlite::Result<()> {
     db.execute(CURSOR_TABLE, [])?;
     db.execute(SET_ASIDE_TABLE, [])?;
     db.execute(session::SESSIONS_TABLE, [])?;
+    session::migrate(db)?;
+    db.execute(clock::SESSION_CLOCK_TABLE, [])?;
     db.execute(session::SESSION_ROWS_TABLE, [])?;
     db.execute(session_messages::SESSION_MESSAGES_TABLE, [])?;
     db.execute(compact::BLOCKS_TABLE, [])?;
@@ -198,13 +215,22 @@ pub fn open_or_recover(path: &Path) -> Result<(Connection, Option<String>), Stor
     }
 }
 
+/// Why the integrity check did not pass.
+enum Check {
+    /// It ran and found a problem.
+    Problem(String),
+    /// It could not run: the file is not a database, or is locked or unreadable
+    /// ([`super::access::classify`] tells which is damage).
+    Failed(rusqlite::Error),
+}
+
 /// SQLite's quick integrity check (every page read once; catches torn and garbled files).
-fn check(db: &Connection) -> Result<(), String> {
+fn check(db: &Connection) -> Result<(), Check> {
     let result: Result<String, _> = db.query_row("PRAGMA quick_check", [], |row| row.get(0));
     match result {
         Ok(ok) if ok == "ok" => Ok(()),
-        Ok(problem) => Err(problem),
-        Err(error) => Err(error.to_string()),
+        Ok(problem) => Err(Check::Problem(problem)),
+        Err(error) => Err(Check::Failed(error)),
     }
 }
 

@@ -11,7 +11,18 @@ use rusqlite::{Connection, OptionalExtension, params};
 use serde::Deserialize;
 
 /// One row per session.
-pub(crate) const SESSIONS_TABLE: &str = "CREATE TABLE IF NOT EXISTS \"sessions\" (\"id\" INTEGER PRIMARY KEY, \"started_us\" INTEGER NOT NULL, \"ended_us\" INTEGER, \"source\" TEXT NOT NULL, \"driver\" TEXT NOT NULL DEFAULT '', \"track\" TEXT NOT NULL DEFAULT '', \"run\" INTEGER, \"notes\" TEXT NOT NULL DEFAULT '')";
+pub(crate) const SESSIONS_TABLE: &str = "CREATE TABLE IF NOT EXISTS \"sessions\" (\"id\" INTEGER PRIMARY KEY, \"started_us\" INTEGER NOT NULL, \"ended_us\" INTEGER, \"source\" TEXT NOT NULL, \"driver\" TEXT NOT NULL DEFAULT '', \"track\" TEXT NOT NULL DEFAULT '', \"run\" INTEGER, \"notes\" TEXT NOT NULL DEFAULT '', \"clock\" TEXT NOT NULL DEFAULT '')";
+
+/// Adds what a sessions table from an older build lacks (the clock's state, from 2026-11-26).
+pub(crate) fn migrate(db: &Connection) -> rusqlite::Result<()> {
+    if !has_column(db, "sessions", "clock")? {
+        db.execute(
+            "ALTER TABLE sessions ADD COLUMN \"clock\" TEXT NOT NULL DEFAULT ''",
+            [],
+        )?;
+    }
+    Ok(())
+}
 
 /// Each session's rows: per table, the first and last row id committed while it was open.
 pub(crate) const SESSION_ROWS_TABLE: &str = "CREATE TABLE IF NOT EXISTS \"session_rows\" (\"session_id\" INTEGER NOT NULL, \"table_name\" TEXT NOT NULL, \"first_id\" INTEGER NOT NULL, \"last_id\" INTEGER NOT NULL, PRIMARY KEY (\"session_id\", \"table_name\"))";
@@ -64,6 +75,9 @@ pub struct Session {
     /// What fed the service: `live`, `replay`, `synthetic`, `demo` or `export`.
     pub source: String,
     pub metadata: Metadata,
+    /// Whether the wall clock was synchronized when the session began
+    /// ([`super::clock::state`]; empty for sessions from before it was recorded).
+    pub clock: String,
 }
 
 /// Closes any session left open (a crash) at `now_us` and opens a new one.
@@ -78,14 +92,15 @@ pub fn begin(
         [now_us],
     )?;
     db.execute(
-        "INSERT INTO sessions (started_us, source, driver, track, run, notes) VALUES (?1, ?2, ?3, ?4, ?5, ?6)",
+        "INSERT INTO sessions (started_us, source, driver, track, run, notes, clock) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7)",
         params![
             now_us,
             source,
             metadata.driver,
             metadata.track,
             metadata.run,
-            metadata.notes
+            metadata.notes,
+            super::clock::state()
         ],
     )?;
     Ok(db.last_insert_rowid())
@@ -135,22 +150,58 @@ fn from_row(r: &rusqlite::Row<'_>) -> rusqlite::Result<Session> {
             run: r.get(6)?,
             notes: r.get(7)?,
         },
+        clock: r.get(8)?,
     })
 }
 
-const SELECT: &str =
-    "SELECT id, started_us, ended_us, source, driver, track, run, notes FROM sessions";
+/// Whether `table` has `column` (false for a table that does not exist).
+pub(crate) fn has_column(db: &Connection, table: &str, column: &str) -> rusqlite::Result<bool> {
+    db.query_row(
+        "SELECT count(*) FROM pragma_table_info(?1) WHERE name = ?2",
+        [table, column],
+        |r| r.get::<_, i64>(0).map(|n| n > 0),
+    )
+}
+
+/// The columns of a session, as [`from_row`] reads them; a store from before the clock was
+/// recorded (read without migrating it: a copy on a laptop) has an empty one.
+fn select(db: &Connection) -> rusqlite::Result<String> {
+    let clock = if has_column(db, "sessions", "clock")? {
+        "s.clock"
+    } else {
+        "'' AS clock"
+    };
+    Ok(format!(
+        "SELECT s.id, s.started_us, s.ended_us, s.source, s.driver, s.track, s.run, s.notes, {clock} FROM sessions s"
+    ))
+}
 
 /// Session `id`.
 pub fn get(db: &Connection, id: i64) -> rusqlite::Result<Option<Session>> {
-    db.query_row(&format!("{SELECT} WHERE id = ?1"), [id], from_row)
+    db.query_row(&format!("{} WHERE s.id = ?1", select(db)?), [id], from_row)
         .optional()
 }
 
 /// Every session, oldest first.
 pub fn list(db: &Connection) -> rusqlite::Result<Vec<Session>> {
-    let mut statement = db.prepare(&format!("{SELECT} ORDER BY id"))?;
+    let mut statement = db.prepare(&format!("{} ORDER BY s.id", select(db)?))?;
     let sessions = statement.query_map([], from_row)?;
+    sessions.collect()
+}
+
+/// Every session, oldest first, with the rows it recorded (the width of its row ranges, every
+/// table; retention may have removed the oldest since).
+pub fn list_with_rows(db: &Connection) -> rusqlite::Result<Vec<(Session, u64)>> {
+    let columns = select(db)?;
+    let mut statement = db.prepare(&format!(
+        "{}, coalesce((SELECT sum(last_id - first_id + 1) FROM session_rows r WHERE r.session_id = s.id), 0) \
+         FROM sessions s ORDER BY s.id",
+        columns.trim_end_matches(" FROM sessions s")
+    ))?;
+    let sessions = statement.query_map([], |r| {
+        let rows: i64 = r.get(9)?;
+        Ok((from_row(r)?, u64::try_from(rows).unwrap_or(0)))
+    })?;
     sessions.collect()
 }
 
@@ -243,6 +294,14 @@ mod tests {
         record_rows(&db, id, "telemetry", 10, 20).expect("rows");
         record_rows(&db, id, "telemetry", 7, 8).expect("rows");
         assert_eq!(rows(&db, id, "telemetry").expect("rows"), Some((5, 20)));
+        record_rows(&db, id, "can_pcc_status", 1, 4).expect("rows");
+        let empty = begin(&db, &Metadata::default(), "live", 40).expect("begin");
+        let counted: Vec<(i64, u64)> = list_with_rows(&db)
+            .expect("list")
+            .into_iter()
+            .map(|(s, rows)| (s.id, rows))
+            .collect();
+        assert_eq!(counted, [(id, 16 + 4), (empty, 0)]);
         assert_eq!(rows(&db, id, "can_vcu1").expect("rows"), None);
     }
 }

@@ -3,6 +3,7 @@
 //! reported; while it fails the queue fills and new rows are dropped and counted, but nothing
 //! upstream waits. Between batches it applies the retention budget.
 
+use super::clock::{StepWatch, describe_step, record_step};
 use super::compact::Compaction;
 use super::queue::{BATCH_ROWS, BATCH_WAIT, QUEUE_ROWS, Queue, RowSender, WhenFull};
 use super::retention::Retention;
@@ -68,6 +69,7 @@ impl StoreWriter {
             retention: options.retention,
             compaction: options.compaction,
             stop_by: None,
+            clock: StepWatch::new(),
         };
         let thread = std::thread::Builder::new()
             .name("store-writer".into())
@@ -104,6 +106,8 @@ struct Writer {
     compaction: Option<Compaction>,
     /// When the service stops, the time by which a failing store's rows are given up.
     stop_by: Option<Instant>,
+    /// Steps of the wall clock, recorded in the open session.
+    clock: StepWatch,
 }
 
 impl Writer {
@@ -121,6 +125,12 @@ impl Writer {
             };
             if !batch.is_empty() {
                 self.write(&mut batch, open);
+            }
+            if let Some((at_us, step_us)) = self.clock.check() {
+                warn!(step = %describe_step(at_us, step_us), "the wall clock stepped; the open session records it");
+                if let Err(error) = record_step(&self.db, at_us, step_us) {
+                    warn!(%error, "recording the clock step failed");
+                }
             }
             if let Some(retention) = &mut self.retention {
                 retention.maybe_prune(&self.db, &self.counters, &self.health);

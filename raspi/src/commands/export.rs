@@ -1,0 +1,369 @@
+//! `aer-raspi export`: a session (or a time range, or a recorded log) as MCAP, Parquet and CSV,
+//! into a folder of its own, or as one tar archive with the session's raw log beside the
+//! exports, so it leaves the car in one step (`ssh` to stdout, docs/test-day.md).
+//!
+//! An export that would select nothing is an error that says what has data; an export into a
+//! folder that holds another export refuses, or with `--replace` removes that one first, so
+//! two exports never mix.
+
+use super::Located;
+use crate::export::{self, Format, load::Selection};
+use crate::rawlog::segments;
+use crate::store::session::{self, Session};
+use crate::store::utc;
+use anyhow::{Context, Result, bail};
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+/// What an export was asked for.
+#[derive(Debug, Clone, Default)]
+pub struct Wanted {
+    /// A session id, or `latest`.
+    pub session: Option<String>,
+    pub from_us: Option<i64>,
+    pub to_us: Option<i64>,
+    /// A candump log or raw log segment instead of the store.
+    pub log: Option<PathBuf>,
+    pub formats: Vec<Format>,
+    /// The folder to write.
+    pub out: Option<PathBuf>,
+    /// A tar archive to write instead (`-`: standard output).
+    pub archive: Option<PathBuf>,
+    /// Remove an earlier export in `out` first.
+    pub replace: bool,
+    /// Read the demo's store.
+    pub demo: bool,
+}
+
+/// What an export folder holds: anything of these is an earlier export.
+const LAYOUT: [&str; 3] = ["session.mcap", "parquet", "csv"];
+
+/// Runs the export.
+pub fn run(
+    located: &Located,
+    wanted: &Wanted,
+    out: &mut dyn Write,
+    notes: &mut dyn Write,
+) -> Result<()> {
+    let (db, extra, session) = match &wanted.log {
+        Some(log) => {
+            let (db, counters) = export::load::from_log(log, &located.config.car_id)?;
+            let bad = counters
+                .bad_lines
+                .load(std::sync::atomic::Ordering::Relaxed);
+            if bad > 0 {
+                writeln!(
+                    notes,
+                    "{bad} lines or blocks of {} do not parse: skipped",
+                    log.display()
+                )?;
+            }
+            let m = &located.config.session;
+            let extra = vec![
+                ("log".to_owned(), log.display().to_string()),
+                ("driver".to_owned(), m.driver.clone()),
+                ("track".to_owned(), m.track.clone()),
+                (
+                    "run".to_owned(),
+                    m.run.map(|r| r.to_string()).unwrap_or_default(),
+                ),
+                ("notes".to_owned(), m.notes.clone()),
+                ("skipped_lines".to_owned(), bad.to_string()),
+            ];
+            (db, extra, None)
+        }
+        None => {
+            let store = if wanted.demo {
+                let demo = Located {
+                    config: crate::config::Config {
+                        store: crate::config::StoreConfig {
+                            path: crate::service::DEMO_STORE.into(),
+                            ..located.config.store.clone()
+                        },
+                        ..located.config.clone()
+                    },
+                    origin: located.origin.clone(),
+                };
+                demo.read(notes)?
+            } else {
+                located.read(notes)?
+            };
+            let session = match wanted.session.as_deref() {
+                None => None,
+                Some(which) => Some(choose(&store.db, which, notes)?),
+            };
+            if !store.still_consistent() {
+                bail!("the service started while the store was being read: export again");
+            }
+            (store.db, Vec::new(), session)
+        }
+    };
+    let selection = Selection {
+        session: session.as_ref().map(|s| s.id),
+        from_us: wanted.from_us,
+        to_us: wanted.to_us,
+    };
+    let formats = if wanted.formats.is_empty() {
+        Format::all()
+    } else {
+        wanted.formats.clone()
+    };
+    let (folder, scratch) = match (&wanted.out, &wanted.archive) {
+        (Some(dir), None) => {
+            prepare(dir, wanted.replace, notes)?;
+            (dir.clone(), None)
+        }
+        (None, Some(_)) => {
+            let scratch = scratch_dir()?;
+            (scratch.clone(), Some(scratch))
+        }
+        _ => bail!("give --out DIR or --archive FILE (or `-`), one of them"),
+    };
+    let request = export::Request {
+        selection,
+        formats,
+        out_dir: folder.clone(),
+        topic_root: located.config.topic_prefix(),
+        extra,
+    };
+    let result = export::export(&db, &request);
+    let written = result.and_then(|report| {
+        let rows: usize = report.rows.iter().map(|(_, n)| n).sum();
+        if rows == 0 {
+            return Ok(None);
+        }
+        Ok(Some((report, rows)))
+    });
+    let outcome = match written {
+        Err(error) => Err(anyhow::Error::new(error)),
+        Ok(None) => Err(anyhow::anyhow!(
+            "nothing to export: {} selects no rows (`aer-raspi session list` shows the sessions with data)",
+            describe_selection(&selection)
+        )),
+        Ok(Some((report, rows))) => {
+            writeln!(
+                notes,
+                "{rows} rows from {} tables, read in {:.1} ms",
+                report.rows.len(),
+                report.load.as_secs_f64() * 1e3
+            )?;
+            for format in &report.formats {
+                let bytes: u64 = format.files.iter().map(|f| f.bytes).sum();
+                writeln!(
+                    notes,
+                    "{:?}: {} file(s), {bytes} bytes, {:.1} ms",
+                    format.format,
+                    format.files.len(),
+                    format.elapsed.as_secs_f64() * 1e3
+                )?;
+            }
+            match &wanted.archive {
+                Some(archive) => {
+                    let raw = match &session {
+                        Some(session) => session_segments(&located.config.raw_log.dir, session),
+                        None => Vec::new(),
+                    };
+                    let name = match &session {
+                        Some(session) => format!("session-{}", session.id),
+                        None => "export".to_owned(),
+                    };
+                    write_archive(archive, &folder, &raw, &name, out, notes)
+                }
+                None => {
+                    writeln!(out, "exported to {}", folder.display())?;
+                    Ok(())
+                }
+            }
+        }
+    };
+    if let Some(scratch) = scratch {
+        let _ = std::fs::remove_dir_all(scratch);
+    }
+    outcome
+}
+
+/// The session `which` names (`latest`, or an id), if it has rows; otherwise an error naming
+/// the sessions that have.
+fn choose(db: &rusqlite::Connection, which: &str, notes: &mut dyn Write) -> Result<Session> {
+    let sessions = session::list_with_rows(db)?;
+    let with_data: Vec<&(Session, u64)> = sessions.iter().filter(|(_, rows)| *rows > 0).collect();
+    let listing = || {
+        let named: Vec<String> = with_data
+            .iter()
+            .rev()
+            .take(5)
+            .map(|(s, rows)| format!("{} ({rows} rows, from {})", s.id, utc(s.started_us)))
+            .collect();
+        if named.is_empty() {
+            "no session has any yet".to_owned()
+        } else {
+            format!("sessions with data, newest first: {}", named.join(", "))
+        }
+    };
+    if which == "latest" {
+        // The newest session with data: after an LV power cycle the newest session is the
+        // one just opened, with nothing in it yet; the run just driven is the one before.
+        let Some((chosen, rows)) = with_data.last() else {
+            bail!(
+                "no session has data yet ({} sessions, none with rows)",
+                sessions.len()
+            );
+        };
+        if let Some((newest, _)) = sessions.last().filter(|(s, _)| s.id != chosen.id) {
+            writeln!(
+                notes,
+                "session {} (opened {}) has no rows yet: exporting session {}, the newest with data ({rows} rows)",
+                newest.id,
+                utc(newest.started_us),
+                chosen.id
+            )?;
+        } else {
+            writeln!(notes, "exporting session {} ({rows} rows)", chosen.id)?;
+        }
+        return Ok(chosen.clone());
+    }
+    let id: i64 = which
+        .parse()
+        .with_context(|| format!("--session {which}: a number or `latest`"))?;
+    match sessions.iter().find(|(s, _)| s.id == id) {
+        None => bail!("no session {id} in the store; {}", listing()),
+        Some((_, 0)) => bail!("session {id} has no rows; {}", listing()),
+        Some((s, rows)) => {
+            writeln!(notes, "exporting session {id} ({rows} rows)")?;
+            Ok(s.clone())
+        }
+    }
+}
+
+fn describe_selection(selection: &Selection) -> String {
+    let mut parts = Vec::new();
+    if let Some(id) = selection.session {
+        parts.push(format!("session {id}"));
+    }
+    if let Some(from) = selection.from_us {
+        parts.push(format!("from {}", utc(from)));
+    }
+    if let Some(to) = selection.to_us {
+        parts.push(format!("to {}", utc(to)));
+    }
+    if parts.is_empty() {
+        "the whole store".to_owned()
+    } else {
+        parts.join(", ")
+    }
+}
+
+/// Makes sure `dir` holds no earlier export: refuses, or with `replace` removes it whole.
+fn prepare(dir: &Path, replace: bool, notes: &mut dyn Write) -> Result<()> {
+    let earlier: Vec<PathBuf> = LAYOUT
+        .iter()
+        .map(|name| dir.join(name))
+        .filter(|path| path.exists())
+        .collect();
+    if earlier.is_empty() {
+        return Ok(());
+    }
+    let names: Vec<String> = earlier.iter().map(|p| p.display().to_string()).collect();
+    if !replace {
+        bail!(
+            "{} holds an earlier export ({}): choose another folder, or add --replace to remove it first",
+            dir.display(),
+            names.join(", ")
+        );
+    }
+    for path in &earlier {
+        let removed = if path.is_dir() {
+            std::fs::remove_dir_all(path)
+        } else {
+            std::fs::remove_file(path)
+        };
+        removed.with_context(|| format!("removing the earlier export's {}", path.display()))?;
+    }
+    writeln!(notes, "removed the earlier export: {}", names.join(", "))?;
+    Ok(())
+}
+
+/// A fresh folder for an archive's files.
+fn scratch_dir() -> Result<PathBuf> {
+    let nanos = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_nanos());
+    let dir = std::env::temp_dir().join(format!("aer-export-{}-{nanos}", std::process::id()));
+    std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
+    Ok(dir)
+}
+
+/// The raw log segments that hold frames of `session`: each segment runs from its start to
+/// the next one's.
+fn session_segments(dir: &Path, session: &Session) -> Vec<PathBuf> {
+    let listed = segments::list(dir);
+    let end = session.ended_us.unwrap_or(i64::MAX);
+    let starts: Vec<i64> = listed
+        .iter()
+        .map(|(path, _)| {
+            segments::started_us(path)
+                .and_then(|us| i64::try_from(us).ok())
+                .unwrap_or(0)
+        })
+        .collect();
+    listed
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| {
+            let start = starts.get(*i).copied().unwrap_or(0);
+            let next = starts.get(i + 1).copied().unwrap_or(i64::MAX);
+            start <= end && next > session.started_us
+        })
+        .map(|(_, (path, _))| path.clone())
+        .collect()
+}
+
+/// Writes `folder` and the `raw` segments as one tar archive under `name/` (to `out` for
+/// `-`).
+fn write_archive(
+    archive: &Path,
+    folder: &Path,
+    raw: &[PathBuf],
+    name: &str,
+    out: &mut dyn Write,
+    notes: &mut dyn Write,
+) -> Result<()> {
+    let fill = |builder: &mut tar::Builder<&mut dyn Write>| -> Result<()> {
+        builder
+            .append_dir_all(name, folder)
+            .context("adding the export to the archive")?;
+        for segment in raw {
+            let file = segment
+                .file_name()
+                .map(|n| n.to_string_lossy().into_owned())
+                .unwrap_or_default();
+            builder
+                .append_path_with_name(segment, format!("{name}/raw/{file}"))
+                .with_context(|| format!("adding {} to the archive", segment.display()))?;
+        }
+        builder.finish().context("finishing the archive")?;
+        Ok(())
+    };
+    if archive == Path::new("-") {
+        let mut builder = tar::Builder::new(out);
+        fill(&mut builder)?;
+    } else {
+        let mut file = std::io::BufWriter::new(
+            std::fs::File::create(archive)
+                .with_context(|| format!("creating {}", archive.display()))?,
+        );
+        {
+            let mut builder = tar::Builder::new(&mut file as &mut dyn Write);
+            fill(&mut builder)?;
+        }
+        file.flush()
+            .with_context(|| format!("writing {}", archive.display()))?;
+        writeln!(out, "archived to {}", archive.display())?;
+    }
+    writeln!(
+        notes,
+        "archive: {name}/ (the export) and {name}/raw/ ({} raw log segment(s))",
+        raw.len()
+    )?;
+    Ok(())
+}
