@@ -22,10 +22,10 @@ nspawn=(systemd-nspawn --quiet --keep-unit --register=no -D "$root")
 echo "--- install"
 mkdir -p "$root/root/debs"
 rm -f "$root"/root/debs/*.deb
-cp "$out"/aer-raspi_*_amd64.deb "$out"/aer-dashboard_*_amd64.deb "$out"/aer-car-display_*_all.deb \
+cp "$out"/aer-tools_*_amd64.deb "$out"/aer-raspi_*_all.deb "$out"/aer-dashboard_*_amd64.deb "$out"/aer-car-display_*_all.deb \
   "$root/root/debs/"
 # A root kept from an earlier run is first put back to before the first install.
-"${nspawn[@]}" sh -c 'dpkg --purge aer-car-display aer-dashboard aer-raspi >/dev/null 2>&1;
+"${nspawn[@]}" sh -c 'dpkg --purge aer-car-display aer-dashboard aer-raspi aer-tools >/dev/null 2>&1;
   rm -rf /var/lib/aer; userdel aer 2>/dev/null; groupdel aer 2>/dev/null;
   apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq \
   --no-install-recommends /root/debs/*.deb' > "$root.install.log" 2>&1 || {

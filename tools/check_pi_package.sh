@@ -5,9 +5,9 @@
 #      their reasons); information tags are printed (docs/pi-package.md explains them);
 #   2. systemd-analyze verify of every unit, which must print nothing (it exits 0 on a
 #      misspelt setting, so its output is what counts), and the service's security rating;
-#   3. the arm64 aer-raspi from the package, run under QEMU user emulation with the packaged
-#      configuration, replays the bundled session into its store with the same rows, table by
-#      table, as the amd64 aer-raspi from its package.
+#   3. the arm64 aer-raspi from the aer-tools package, run under QEMU user emulation with the
+#      configuration from the aer-raspi package, replays the bundled session into its store with
+#      the same rows, table by table, as the amd64 one.
 # Needs: lintian, systemd, qemu-user, libc6-dev-arm64-cross (the arm64 loader), python3.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -31,9 +31,10 @@ echo "lintian: no error or warning"
 echo "--- systemd-analyze"
 for arch in amd64 arm64; do
   root="$work/root-$arch"
-  for package in aer-raspi aer-dashboard; do
+  for package in aer-tools aer-dashboard; do
     dpkg-deb -x "$(deb "$package" "$arch")" "$root"
   done
+  dpkg-deb -x "$(deb aer-raspi all)" "$root"
 done
 dpkg-deb -x "$(deb aer-car-display all)" "$work/root-amd64"
 root="$work/root-amd64"

@@ -28,9 +28,9 @@ nspawn=(systemd-nspawn --quiet --keep-unit --register=no -D "$root")
 echo "--- install: Debian's kernel, can-utils, mosquitto-clients, the packages"
 mkdir -p "$root/root/debs"
 rm -f "$root"/root/debs/*.deb
-cp "$out"/aer-raspi_*_amd64.deb "$root/root/debs/"
+cp "$out"/aer-tools_*_amd64.deb "$out"/aer-raspi_*_all.deb "$root/root/debs/"
 # The base root may have held the package before (the boot test): back to a fresh system.
-"${nspawn[@]}" sh -c 'dpkg --purge aer-car-display aer-dashboard aer-raspi >/dev/null 2>&1;
+"${nspawn[@]}" sh -c 'dpkg --purge aer-car-display aer-dashboard aer-raspi aer-tools >/dev/null 2>&1;
   rm -rf /var/lib/aer; userdel aer 2>/dev/null; groupdel aer 2>/dev/null;
   apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq \
   --no-install-recommends linux-image-amd64 initramfs-tools can-utils mosquitto-clients \

@@ -215,7 +215,9 @@ fn main() -> Result<()> {
     }
     let mut config = Config::load(cli.config.as_deref(), |key| std::env::var(key).ok())?;
     config.session = cli.session.changes().apply(config.session);
-    if matches!(cli.command, Command::Demo) && cli.config.is_none() {
+    // The demo records into its own store and raw log whatever configuration it is given (a
+    // broker file, say), so `export --demo` always finds it; the environment can move them.
+    if matches!(cli.command, Command::Demo) {
         if std::env::var_os("AER_STORE_PATH").is_none() {
             config.store.path = DEMO_STORE.into();
         }
@@ -244,6 +246,10 @@ fn main() -> Result<()> {
     runtime.block_on(serve(config, job))
 }
 
+fn now_us() -> i64 {
+    i64::try_from(aer_host::clock::now_us()).unwrap_or(i64::MAX)
+}
+
 /// The commands that read or change the store: results on stdout, what they did on stderr.
 fn store_command(located: &Located, cli: &Cli) -> Result<()> {
     let mut out = std::io::stdout().lock();
@@ -258,6 +264,7 @@ fn store_command(located: &Located, cli: &Cli) -> Result<()> {
                 located,
                 &located.config.session,
                 *create_store,
+                now_us(),
                 &mut out,
                 &mut notes,
             ),
@@ -280,7 +287,13 @@ fn store_command(located: &Located, cli: &Cli) -> Result<()> {
             commands::export::run(located, &wanted, &mut out, &mut notes)
         }
         Command::Compact => commands::compact(located, &mut out, &mut notes),
-        Command::Clock => commands::clock::show(located, &mut out, &mut notes),
+        Command::Clock => commands::clock::show(
+            located,
+            now_us(),
+            &aer_raspi::store::clock::state(),
+            &mut out,
+            &mut notes,
+        ),
         _ => Ok(()),
     }
 }

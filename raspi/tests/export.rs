@@ -144,6 +144,30 @@ fn a_session_exported_in_every_format_reads_back_equal_to_the_store() {
     assert!(result.status.success(), "{stdout}\n{stderr}");
     println!("{stdout}");
     assert!(stdout.contains(&format!("{} rows", rows.len())), "{stdout}");
+
+    // The runbook's join of telemetry and a CAN message in time (docs/test-day.md) runs on
+    // this export as it stands in the document.
+    let join = Path::new(env!("CARGO_MANIFEST_DIR")).join("../docs/examples/join_telemetry_can.py");
+    let Some(python) = self::python() else { return };
+    let joined = Command::new(python)
+        .arg(join)
+        .arg(&out)
+        .output()
+        .expect("run join_telemetry_can.py");
+    let stdout = String::from_utf8_lossy(&joined.stdout);
+    assert!(
+        joined.status.success(),
+        "{stdout}\n{}",
+        String::from_utf8_lossy(&joined.stderr)
+    );
+    let telemetry = rows
+        .iter()
+        .filter(|row| row.table().name == "telemetry")
+        .count();
+    assert!(
+        stdout.contains(&format!("{telemetry} packets, ")),
+        "every packet joined: {stdout}"
+    );
 }
 
 /// The command line exports a recorded log straight away, with the session flags as its

@@ -4,14 +4,21 @@
 
 use super::Located;
 use crate::store::{clock, session, utc};
+
 use anyhow::Result;
 use std::io::Write;
 
-/// Prints the clock's state; with a store, the open session's recorded clock and steps.
-pub fn show(located: &Located, out: &mut dyn Write, notes: &mut dyn Write) -> Result<()> {
-    let now = i64::try_from(aer_host::clock::now_us()).unwrap_or(i64::MAX);
+/// Prints the clock as it reads at `now` with its `state` ([`clock::state`]); with a store,
+/// the open session's recorded clock and steps.
+pub fn show(
+    located: &Located,
+    now: i64,
+    state: &str,
+    out: &mut dyn Write,
+    notes: &mut dyn Write,
+) -> Result<()> {
     writeln!(out, "now (UTC)\t{}", utc(now))?;
-    writeln!(out, "clock\t{}", clock::state())?;
+    writeln!(out, "clock\t{state}")?;
     let Ok(store) = located.read(notes) else {
         writeln!(out, "session\tno store to read")?;
         return Ok(());
@@ -21,7 +28,7 @@ pub fn show(located: &Located, out: &mut dyn Write, notes: &mut dyn Write) -> Re
             let open = session::get(&store.db, id)?;
             writeln!(
                 out,
-                "session\t{id}, open since {} UTC, clock then: {}",
+                "session\t{id}, open since {}, clock then: {}",
                 open.as_ref()
                     .map_or_else(String::new, |s| utc(s.started_us)),
                 open.as_ref().map_or("", |s| s.clock.as_str())

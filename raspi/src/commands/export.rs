@@ -126,13 +126,9 @@ pub fn run(
         topic_root: located.config.topic_prefix(),
         extra,
     };
-    let result = export::export(&db, &request);
-    let written = result.and_then(|report| {
+    let written = export::export(&db, &request).map(|report| {
         let rows: usize = report.rows.iter().map(|(_, n)| n).sum();
-        if rows == 0 {
-            return Ok(None);
-        }
-        Ok(Some((report, rows)))
+        (rows > 0).then_some((report, rows))
     });
     let outcome = match written {
         Err(error) => Err(anyhow::Error::new(error)),

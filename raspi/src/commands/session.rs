@@ -76,16 +76,16 @@ pub fn set(
     Ok(())
 }
 
-/// `session new`: closes the open session and starts the next with `metadata`.
+/// `session new`: closes the open session at `now_us` and starts the next with `metadata`.
 pub fn new(
     located: &Located,
     metadata: &Metadata,
     create_store: bool,
+    now: i64,
     out: &mut dyn Write,
     notes: &mut dyn Write,
 ) -> Result<()> {
     let db = located.change(create_store, notes)?;
-    let now = i64::try_from(aer_host::clock::now_us()).unwrap_or(i64::MAX);
     let id = session::begin(&db, metadata, "live", now)?;
     writeln!(out, "session {id} open since {}", utc_seconds(now))?;
     Ok(())

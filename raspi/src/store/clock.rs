@@ -26,9 +26,9 @@ pub fn state() -> String {
 
 fn state_from(marker: &Path) -> String {
     if marker.exists() {
-        "synchronized (network time, systemd-timesyncd)".into()
+        "synchronized (network time)".into()
     } else {
-        "not synchronized since boot: the RTC (if a battery is fitted) or the last saved time; check it, and set it from the pit".into()
+        "NOT synchronized (the RTC, or the time saved at the last shutdown)".into()
     }
 }
 
@@ -158,7 +158,7 @@ mod tests {
     fn the_state_says_whether_network_time_synchronized_the_clock() {
         let dir = tempfile::tempdir().expect("dir");
         let marker = dir.path().join("synchronized");
-        assert!(state_from(&marker).starts_with("not synchronized"));
+        assert!(state_from(&marker).starts_with("NOT synchronized"));
         std::fs::write(&marker, "").expect("write");
         assert!(state_from(&marker).starts_with("synchronized"));
     }

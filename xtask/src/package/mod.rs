@@ -2,9 +2,11 @@
 //! the car's Raspberry Pi 5 (arm64, cross-compiled with Debian's aarch64 toolchain) and on a
 //! pit laptop (amd64).
 //!
-//! - `aer-raspi`: the ingest service, its systemd unit (user `aer`, hardened), the CAN links at
-//!   500 kbit/s through systemd-networkd, the CAN modules loaded at boot, its configuration in
-//!   `/etc/aer/` and its data in `/var/lib/aer/`.
+//! - `aer-tools` (per architecture): the `aer-raspi` program alone, for a pit laptop that
+//!   exports, lists or replays sessions without running the service.
+//! - `aer-raspi` (all architectures, with `aer-tools`): the ingest service, its systemd unit
+//!   (user `aer`, hardened), the CAN links at 500 kbit/s through systemd-networkd, the CAN
+//!   modules loaded at boot, its configuration in `/etc/aer/` and its data in `/var/lib/aer/`.
 //! - `aer-dashboard`: the driver and pit views, a systemd user unit for the car's display and a
 //!   menu entry for the pit view.
 //! - `aer-car-display` (all architectures): starts the driver display full-screen when the Pi's
@@ -86,6 +88,8 @@ struct Package {
     binary: bool,
     depends: &'static str,
     recommends: &'static str,
+    /// Packages whose files this one takes over (`Replaces` and `Breaks`).
+    replaces: &'static str,
     section: &'static str,
     summary: &'static str,
     description: &'static str,
@@ -94,12 +98,49 @@ struct Package {
     manuals: &'static [(&'static str, &'static str)],
 }
 
-const PACKAGES: [Package; 3] = [
+const PACKAGES: [Package; 4] = [
+    Package {
+        name: "aer-tools",
+        binary: true,
+        depends: "",
+        recommends: "",
+        // Before 2026-11-26 the program was in aer-raspi.
+        replaces: "aer-raspi (<< ${version})",
+        section: "utils",
+        summary: "AER car data tools: sessions, exports and raw logs without the service",
+        description: "The aer-raspi program alone: list the sessions of a store copied off the \
+car, export them as MCAP, Parquet and CSV, decode a raw log or a candump log, replay one. \
+It starts no service: a pit laptop installs it beside aer-dashboard.\n\
+\n\
+On the car, package aer-raspi runs the same program as the ingest service.",
+        files: &[
+            Entry {
+                path: "usr/bin/aer-raspi",
+                source: Source::Binary("aer-raspi"),
+                executable: true,
+            },
+            Entry {
+                path: "usr/share/doc/aer-tools/README.md",
+                source: Source::Readme,
+                executable: false,
+            },
+            file("usr/share/doc/aer-tools/test-day.md", "docs/test-day.md"),
+            file(
+                "usr/share/lintian/overrides/aer-tools",
+                "packaging/pi/aer-tools.lintian-overrides",
+            ),
+        ],
+        manuals: &[(
+            "aer-raspi",
+            "the car's data ingest service and its session, export and raw log tools",
+        )],
+    },
     Package {
         name: "aer-raspi",
-        binary: true,
-        depends: "adduser",
+        binary: false,
+        depends: "adduser, aer-tools (= ${version})",
         recommends: "",
+        replaces: "",
         section: "net",
         summary: "AER car data ingest: CAN/ISO-TP to MQTT, local store and raw log",
         description: "Reads the car's CAN buses (can0, can1) and the central computer's ISO-TP \
@@ -107,14 +148,10 @@ telemetry, decodes them with the code generated from the car's schema, publishes
 and frame on an embedded MQTT broker, keeps them in a local SQLite store and a raw log of every \
 frame, and forwards the store to TDengine when one is configured.\n\
 \n\
-The package runs it as the systemd service aer-raspi (user aer, data in /var/lib/aer, \
-configuration in /etc/aer) and brings the CAN links up at 500 kbit/s through systemd-networkd.",
+The package runs it (the program from aer-tools) as the systemd service aer-raspi (user aer, \
+data in /var/lib/aer, configuration in /etc/aer) and brings the CAN links up at 500 kbit/s \
+through systemd-networkd.",
         files: &[
-            Entry {
-                path: "usr/bin/aer-raspi",
-                source: Source::Binary("aer-raspi"),
-                executable: true,
-            },
             file(
                 "usr/lib/systemd/system/aer-raspi.service",
                 "packaging/pi/aer-raspi.service",
@@ -151,10 +188,7 @@ configuration in /etc/aer) and brings the CAN links up at 500 kbit/s through sys
                 "packaging/pi/aer-raspi.lintian-overrides",
             ),
         ],
-        manuals: &[(
-            "aer-raspi",
-            "the car's data ingest service (CAN/ISO-TP to MQTT, local store, raw log)",
-        )],
+        manuals: &[],
     },
     Package {
         name: "aer-dashboard",
@@ -162,6 +196,7 @@ configuration in /etc/aer) and brings the CAN links up at 500 kbit/s through sys
         // winit opens these at run time (dlopen): the keyboard always, then Wayland or X11.
         depends: "libxkbcommon0",
         recommends: "libwayland-client0, libwayland-cursor0, libx11-6, libx11-xcb1, libxcursor1, libxi6, libxrandr2, libxkbcommon-x11-0",
+        replaces: "",
         section: "misc",
         summary: "AER driver display and pit view of the car's telemetry",
         description: "Shows the car's live telemetry from the Pi's MQTT broker: the driver's \
@@ -212,6 +247,7 @@ display full-screen.",
         binary: false,
         depends: "aer-dashboard (>= ${version}), aer-raspi (>= ${version}), systemd",
         recommends: "",
+        replaces: "",
         section: "misc",
         summary: "starts the AER driver display full-screen on the car's screen",
         description: "Starts the driver's display (aer-dashboard, full-screen, driver view) \

@@ -1,0 +1,233 @@
+//! docs/test-day.md quotes what the commands print; every quote is printed here, by the same
+//! command code the `aer-raspi` binary runs, on a store like the car's after a run (the
+//! bundled session, then an LV power cycle's empty session), so the runbook cannot drift from
+//! the tool. A quote sits in a ```text block right after a `<!-- test-day: NAME -->` line.
+//! Timings (`12.3 ms`) differ from run to run and are compared as `#.# ms`.
+
+mod common;
+
+use aer_raspi::commands::{self, Located, export::Wanted};
+use aer_raspi::config::Origin;
+use aer_raspi::store::{self, session};
+use std::collections::BTreeMap;
+use std::path::Path;
+
+const DOC: &str = include_str!("../../docs/test-day.md");
+const MARKER: &str = "<!-- test-day: ";
+
+/// The bundled session's first frame: 2026-11-22T12:00:00Z.
+const RUN_START_US: i64 = 1_795_348_800_000_000;
+/// The LV power cycle after it, four minutes later.
+const POWER_CYCLE_US: i64 = RUN_START_US + 250_000_000;
+/// When the pit looks at the clock and starts the next run.
+const NOW_US: i64 = RUN_START_US + 600_000_000;
+
+const UNSYNCHRONIZED: &str = "NOT synchronized (the RTC, or the time saved at the last shutdown)";
+
+/// The car's store after a run and a power cycle, read through a configuration as the
+/// installed service's.
+fn car() -> (tempfile::TempDir, Located) {
+    let dir = tempfile::tempdir().expect("dir");
+    let path = dir.path().join("store.sqlite");
+    let db = store::open(&path).expect("store");
+    let metadata = session::Metadata {
+        driver: "Ana".into(),
+        track: "Lot B autocross".into(),
+        run: Some(3),
+        notes: "dry".into(),
+    };
+    session::begin(&db, &metadata, "live", RUN_START_US).expect("session");
+    drop(db);
+    common::record_session(&path);
+    let db = store::open(&path).expect("store");
+    session::begin(&db, &session::Metadata::default(), "live", POWER_CYCLE_US).expect("session");
+    // What an unsynchronized Pi records, whatever this machine's clock is.
+    db.execute("UPDATE sessions SET clock = ?1", [UNSYNCHRONIZED])
+        .expect("clock");
+    drop(db);
+    // The raw log: the segment the service started at boot, before the run.
+    let raw = dir.path().join("raw");
+    std::fs::create_dir(&raw).expect("raw");
+    let boot = RUN_START_US - 20_000_000;
+    std::fs::write(raw.join(format!("raw-{boot:020}.aerraw")), b"frames").expect("segment");
+    let config = dir.path().join("aer-raspi.toml");
+    std::fs::write(
+        &config,
+        format!(
+            "[store]\npath = {:?}\n[raw_log]\ndir = {:?}\n",
+            path.display().to_string(),
+            dir.path().join("raw").display().to_string()
+        ),
+    )
+    .expect("config");
+    let located = Located::load(Origin::Installed(config), |_| None).expect("config");
+    (dir, located)
+}
+
+/// What a command printed: its output, then its notes, with the temporary folder's path
+/// written as it is on the car.
+fn printed(dir: &Path, run: impl FnOnce(&mut Vec<u8>, &mut Vec<u8>)) -> String {
+    let (mut out, mut notes) = (Vec::new(), Vec::new());
+    run(&mut out, &mut notes);
+    let text = format!(
+        "{}{}",
+        String::from_utf8_lossy(&notes),
+        String::from_utf8_lossy(&out)
+    );
+    let dir = dir.display().to_string();
+    text.replace(&format!("{dir}/aer-raspi.toml"), "/etc/aer/aer-raspi.toml")
+        .replace(&format!("{dir}/store.sqlite"), "/var/lib/aer/store.sqlite")
+        .replace(&format!("{dir}/run3.tar"), "run3.tar")
+        .replace(&dir, "/var/lib/aer")
+}
+
+fn examples() -> BTreeMap<&'static str, String> {
+    let (dir, car) = car();
+    let dir = dir.path().to_owned();
+    let mut examples = BTreeMap::new();
+    examples.insert(
+        "clock",
+        printed(&dir, |out, notes| {
+            commands::clock::show(&car, NOW_US, UNSYNCHRONIZED, out, notes).expect("clock")
+        }),
+    );
+    examples.insert(
+        "session-list",
+        printed(&dir, |out, notes| {
+            commands::session::list(&car, out, notes).expect("list")
+        }),
+    );
+    examples.insert(
+        "session-messages",
+        printed(&dir, |out, notes| {
+            commands::session::messages(&car, Some(1), out, notes).expect("messages")
+        }),
+    );
+    examples.insert(
+        "export-empty",
+        printed(&dir, |out, notes| {
+            let wanted = Wanted {
+                session: Some("2".into()),
+                out: Some(dir.join("run3")),
+                ..Wanted::default()
+            };
+            let error = commands::export::run(&car, &wanted, out, notes).expect_err("empty");
+            let _ = std::io::Write::write_all(out, format!("Error: {error}\n").as_bytes());
+        }),
+    );
+    examples.insert(
+        "export-archive",
+        printed(&dir, |out, notes| {
+            let wanted = Wanted {
+                session: Some("latest".into()),
+                archive: Some(dir.join("run3.tar")),
+                ..Wanted::default()
+            };
+            commands::export::run(&car, &wanted, out, notes).expect("archive")
+        }),
+    );
+    let metadata = session::Metadata {
+        driver: "Sam".into(),
+        track: "Skidpad".into(),
+        run: Some(4),
+        notes: String::new(),
+    };
+    examples.insert(
+        "session-new",
+        printed(&dir, |out, notes| {
+            commands::session::new(&car, &metadata, false, NOW_US, out, notes).expect("new")
+        }),
+    );
+    examples.insert(
+        "join-script",
+        std::fs::read_to_string(
+            Path::new(env!("CARGO_MANIFEST_DIR")).join("../docs/examples/join_telemetry_can.py"),
+        )
+        .expect("docs/examples/join_telemetry_can.py"),
+    );
+    examples
+}
+
+/// Timings differ from run to run: `12.3 ms` reads `#.# ms`.
+fn without_timings(text: &str) -> String {
+    let mut out = String::with_capacity(text.len());
+    let mut rest = text;
+    while let Some(at) = rest.find(" ms") {
+        let (before, after) = rest.split_at(at);
+        let number_start = before
+            .rfind(|c: char| !(c.is_ascii_digit() || c == '.'))
+            .map_or(0, |i| i + 1);
+        let number = &before[number_start..];
+        if number.contains('.') && number.chars().any(|c| c.is_ascii_digit()) {
+            out.push_str(&before[..number_start]);
+            out.push_str("#.#");
+        } else {
+            out.push_str(before);
+        }
+        out.push_str(" ms");
+        rest = &after[3..];
+    }
+    out.push_str(rest);
+    out
+}
+
+fn quotes() -> Vec<(String, String)> {
+    let mut quotes = Vec::new();
+    let mut lines = DOC.lines().enumerate();
+    while let Some((number, line)) = lines.next() {
+        let Some(rest) = line.trim().strip_prefix(MARKER) else {
+            continue;
+        };
+        let name = rest.trim_end_matches("-->").trim().to_owned();
+        let fence = lines.next().map(|(_, line)| line.trim().to_owned());
+        assert!(
+            fence.as_deref().is_some_and(|f| f.starts_with("```")),
+            "docs/test-day.md:{}: `{name}` must be followed by a fenced block",
+            number + 1
+        );
+        let mut block = String::new();
+        for (_, line) in lines.by_ref() {
+            if line.trim() == "```" {
+                break;
+            }
+            block.push_str(line);
+            block.push('\n');
+        }
+        quotes.push((name, block));
+    }
+    quotes
+}
+
+#[test]
+fn every_quote_in_the_test_day_runbook_is_what_the_commands_print() {
+    let examples = examples();
+    for (name, text) in &examples {
+        println!("--- test-day {name}\n{text}");
+    }
+    let quotes = quotes();
+    for (name, block) in &quotes {
+        let printed = examples.get(name.as_str()).unwrap_or_else(|| {
+            panic!("docs/test-day.md quotes `{name}`, which no command prints here")
+        });
+        assert_eq!(
+            without_timings(block),
+            without_timings(printed),
+            "docs/test-day.md's `{name}` differs from what the command prints"
+        );
+    }
+    for name in examples.keys() {
+        assert!(
+            quotes.iter().any(|(quoted, _)| quoted == name),
+            "`{name}` is never quoted in docs/test-day.md"
+        );
+    }
+}
+
+#[test]
+fn timings_are_compared_without_their_digits() {
+    assert_eq!(
+        without_timings("read in 163.0 ms\nParquet: 19 file(s), 846237 bytes, 12.5 ms\n"),
+        "read in #.# ms\nParquet: 19 file(s), 846237 bytes, #.# ms\n"
+    );
+    assert_eq!(without_timings("every 10 ms"), "every 10 ms");
+}
