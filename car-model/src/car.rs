@@ -85,10 +85,12 @@ impl Car {
     }
 
     /// Runs on with `params` (efficiency, measurement lag, the BMS's delay, jitter) and the
-    /// faults in `plan`, from the state the car is in.
+    /// faults in `plan`, from the state the car is in; the inverter and the CCM's limits stay
+    /// the ones the run started with.
     pub fn retune(&mut self, params: ModelParams, plan: FaultPlan) {
         self.params = ModelParams {
             inverter: self.params.inverter,
+            limits: self.params.limits,
             ..params
         };
         self.plan = plan;

@@ -56,7 +56,7 @@ impl ClosedLoop {
     /// the car and drive `cycle`, and the faults in `plan`.
     pub fn new(params: ModelParams, mode: Mode, cycle: Cycle, plan: FaultPlan) -> Self {
         Self {
-            ccm: Ccm::with_inverter(SensorCalibration::DEFAULT, params.inverter),
+            ccm: Ccm::with_limits(SensorCalibration::DEFAULT, params.inverter, params.limits),
             car: Car::new(params, mode, cycle, plan),
             rules: Rules::new(params.frame_jitter_ms),
             pi: Receiver::new(Config::CAR),

@@ -2,6 +2,7 @@
 //! (drivetrain efficiency, measurement lag) and the car's fixed physical values.
 
 use aer_ccm::InverterKind;
+use aer_ccm::power::PowerLimits;
 
 /// Parameters of one run.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -22,6 +23,9 @@ pub struct ModelParams {
     /// The inverter the car carries, and the CCM drives (fixed for a run: a retune keeps
     /// the one the run started with).
     pub inverter: InverterKind,
+    /// The CCM's power limits (fixed for a run, as the inverter): the rules hold the car to
+    /// their `power_limit_w`.
+    pub limits: PowerLimits,
 }
 
 impl ModelParams {
@@ -35,6 +39,7 @@ impl ModelParams {
         frame_jitter_ms: 0,
         seed: 1,
         inverter: InverterKind::Dti,
+        limits: PowerLimits::CAR,
     };
 
     /// The nominal car on the HIMaC bench's IFL100.

@@ -15,7 +15,7 @@ use aer_ccm::ControlOutputs;
 use aer_ccm::InverterKind;
 use aer_ccm::config::{
     APPS_BRAKE_TRIP, APPS_IMPLAUSIBLE, BMS_PACK_TIMEOUT_MS, BRAKES_ENGAGED_PSI, CONTROL_PERIOD_MS,
-    DTI_SPEED_TIMEOUT_MS, MCU1_TIMEOUT_MS, PCC_STATUS_TIMEOUT_MS, PEDAL_DEADBAND, POWER_LIMIT_W,
+    DTI_SPEED_TIMEOUT_MS, MCU1_TIMEOUT_MS, PCC_STATUS_TIMEOUT_MS, PEDAL_DEADBAND,
     SAMPLE_TIMEOUT_MS, SENSOR_FAULT_PERSIST_MS,
 };
 use aer_ccm::vehicle::State;
@@ -288,7 +288,7 @@ impl Rules {
         if self.filled == WINDOW {
             let average = self.window.iter().sum::<f32>() / WINDOW as f32;
             self.stats.worst_100ms_w = self.stats.worst_100ms_w.max(average);
-            if average > POWER_LIMIT_W {
+            if average > car.params.limits.power_limit_w {
                 self.broke(now_ms, Broken::PowerAverage(average));
             }
         }

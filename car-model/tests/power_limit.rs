@@ -6,14 +6,17 @@
 //! efficiency (0.85-0.97, the range the limiter is designed for) and measurement lag: every
 //! 100 ms average of accumulator power stays at or below 80 kW, and the mean stays within a
 //! few kW of the 78 kW target (the limiter does not throw away lap time). On the road, the
-//! acceleration event: the same, at any efficiency, lag and bus jitter. The table is printed
-//! (`cargo test -p aer-car-model --test power_limit -- --nocapture`).
+//! acceleration event: the same, at any efficiency, lag and bus jitter. A lowered limit (a
+//! 70 kW endurance cap) moves the limiter and the monitor alike; and with the limiter aiming
+//! deliberately wrong (twice the limit), the torque monitor alone still holds the rule. The
+//! tables are printed (`cargo test -p aer-car-model --test power_limit -- --nocapture`).
 
 use aer_car_model::chassis::Mode;
 use aer_car_model::driver::Cycle;
 use aer_car_model::faults::FaultPlan;
 use aer_car_model::{ClosedLoop, ModelParams, NoTap};
 use aer_ccm::config::POWER_LIMIT_W;
+use aer_ccm::power::PowerLimits;
 
 /// The comp car (DTI HV-550) and the bench car (IFL100).
 const CARS: [ModelParams; 2] = [ModelParams::NOMINAL, ModelParams::BENCH];
@@ -119,4 +122,63 @@ fn acceleration(car: ModelParams) {
             }
         }
     }
+}
+
+/// Full throttle on the dyno at every speed, efficiency and lag, for a CCM built with
+/// `limits`: (the worst 100 ms average, the lowest mean) over the runs, in W.
+fn dyno_table(label: &str, limits: PowerLimits) -> (f32, f32) {
+    let (mut worst_all, mut lowest_mean) = (0.0f32, f32::MAX);
+    for (car, rpm) in CARS
+        .iter()
+        .flat_map(|car| [4_000.0, 6_000.0].map(|rpm| (*car, rpm)))
+    {
+        let car = ModelParams { limits, ..car };
+        let mut started = ClosedLoop::new(
+            car,
+            Mode::Dyno { rpm },
+            Cycle::FullThrottle,
+            FaultPlan::NONE,
+        );
+        assert!(started.start_up(20_000), "start-up on the dyno");
+        for efficiency in [0.85, 0.91, 0.97] {
+            for lag_ms in [0.0, 50.0] {
+                let (worst, mean, violations) = dyno(&started, efficiency, lag_ms);
+                println!(
+                    "{label}: {:<8} {rpm:>5} rpm, efficiency {efficiency}, lag {lag_ms:>4} ms: worst 100 ms {:>5.1} kW, mean {:>5.1} kW",
+                    format!("{:?}", car.inverter),
+                    worst / 1e3,
+                    mean / 1e3
+                );
+                assert_eq!(
+                    violations, 0,
+                    "{label}: {rpm} rpm, {efficiency}, {lag_ms} ms"
+                );
+                worst_all = worst_all.max(worst);
+                lowest_mean = lowest_mean.min(mean);
+            }
+        }
+    }
+    (worst_all, lowest_mean)
+}
+
+#[test]
+fn a_lowered_power_limit_moves_the_limiter_and_the_monitor_alike() {
+    let cap = PowerLimits::for_rule(70_000.0);
+    let (worst, lowest_mean) = dyno_table("70 kW cap", cap);
+    assert!(worst <= 70_000.0, "{worst} W over the 70 kW cap");
+    assert!(
+        lowest_mean >= 0.92 * 70_000.0,
+        "the cap throws power away: {lowest_mean} W"
+    );
+}
+
+#[test]
+fn with_the_limiter_aiming_wrong_the_monitor_alone_holds_the_rule() {
+    // A limiter set to twice the rule: the ceiling never binds, only the monitor can.
+    let wrong = PowerLimits {
+        power_target_w: 2.0 * POWER_LIMIT_W,
+        ..PowerLimits::CAR
+    };
+    let (worst, _) = dyno_table("limiter at 160 kW", wrong);
+    assert!(worst <= POWER_LIMIT_W, "{worst} W over the rule");
 }

@@ -16,6 +16,7 @@ use crate::config::WHEEL_TEETH;
 use crate::control::{Control, HandoverRefusal};
 use crate::inverter::{InverterKind, OutFrames};
 use crate::io::{ControlOutputs, DriverCounters, DriverInputs, SensorSample};
+use crate::power::PowerLimits;
 use crate::sensors::Sensors;
 use crate::telemetry::TelemetryLink;
 use aer::can::CcmStatus;
@@ -41,11 +42,20 @@ impl Ccm {
 
     /// A CCM at reset driving the `inverter`.
     pub fn with_inverter(calibration: SensorCalibration, inverter: InverterKind) -> Self {
+        Self::with_limits(calibration, inverter, PowerLimits::CAR)
+    }
+
+    /// A CCM at reset driving the `inverter` within `limits` (a lower power cap, say).
+    pub fn with_limits(
+        calibration: SensorCalibration,
+        inverter: InverterKind,
+        limits: PowerLimits,
+    ) -> Self {
         Self {
             wheels: [PulseTimer::new(), PulseTimer::new()],
             sensors: Sensors::new(calibration),
             link: TelemetryLink::new(),
-            control: Control::new(inverter),
+            control: Control::with_limits(inverter, limits),
         }
     }
 

@@ -112,9 +112,27 @@ pub const DTI_ENABLE_MISMATCH_MS: u32 = 50;
 
 // --- Power limiting ----------------------------------------------------------------------
 
-/// The power the limiter aims at (W): below the rules' 80 kW by the measurement's resolution
-/// and the ripple of the trim, so that every 100 ms average stays below the limit.
-pub const POWER_TARGET_W: f32 = 78_000.0;
+/// How far below the rule's power limit the limiter aims (a share of the limit): the
+/// measurement's resolution and the ripple of the trim, so that every 100 ms average stays
+/// below the limit. 2.5 % of 80 kW: the limiter aims at 78 kW. The target follows the limit
+/// (`PowerLimits::for_rule`), and the torque monitor bounds the limit itself.
+pub const POWER_LIMIT_MARGIN: f32 = 0.025;
+/// How far below the rule's power limit the torque monitor bounds the accumulator's power (a
+/// share of the limit): its readings' resolution (1 V in 400 V, 0.1 A) and their lag, so it
+/// holds the rule on its own. Smaller than [`POWER_LIMIT_MARGIN`], so the monitor never
+/// meets the limiter in normal driving.
+pub const MONITOR_MARGIN: f32 = 0.01;
+/// Below this share of the power limit, the measured DC power is too small to tell the
+/// drivetrain's efficiency from (the monitor then returns to the lowest).
+pub const EFFICIENCY_MEASURABLE_SHARE: f32 = 0.1;
+/// The monitor's efficiency rises only while the DC power reading moved by less than this
+/// share of the limit since the last step (it has caught up with the torque)...
+pub const EFFICIENCY_SETTLED_SHARE: f32 = 0.002;
+/// ...and by at most this much per control step (the drivetrain's whole range in 0.24 s).
+pub const EFFICIENCY_RISE_PER_STEP: f32 = 0.005;
+/// Time constant (s) with which the monitor's efficiency returns to the lowest while the
+/// power is too small to measure it.
+pub const EFFICIENCY_RELAX_S: f32 = 0.5;
 /// Integral gain of the power trim (per second, on the relative power error): the
 /// efficiency estimate settles in about 0.2 s.
 pub const POWER_TRIM_GAIN: f32 = 5.0;

@@ -88,10 +88,15 @@ impl Default for Control {
 impl Control {
     /// At reset: vehicle OFF, no torque, driving the `inverter`.
     pub fn new(inverter: InverterKind) -> Self {
+        Self::with_limits(inverter, PowerLimits::CAR)
+    }
+
+    /// At reset, driving the `inverter` within `limits` (the car's, or a lower power cap).
+    pub fn with_limits(inverter: InverterKind, limits: PowerLimits) -> Self {
         Self {
             vehicle: Vehicle::new(),
             fault_monitor: FaultMonitor::default(),
-            torque_path: TorquePath::new(PowerLimits::CAR, CONTROL_PERIOD_MS),
+            torque_path: TorquePath::new(limits, CONTROL_PERIOD_MS),
             inverter,
             vcu1: Vcu1Builder::default(),
             enable_sent: false,
@@ -191,6 +196,11 @@ impl Control {
             motor_rad_s: bus.inverter.motor_rpm.map(aer_params::motor_rad_s),
             inverter_max_nm: bus.inverter.available_torque_nm,
             dc_power_w: dc_power_w(&bus),
+            shaft_power_w: bus
+                .inverter
+                .torque_nm
+                .zip(bus.inverter.motor_rpm)
+                .map(|(torque, rpm)| torque * aer_params::motor_rad_s(rpm)),
             front_rad_s: (left.rad_per_s(now_us), right.rad_per_s(now_us)),
             launch_button: driver.launch,
         });

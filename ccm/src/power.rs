@@ -21,31 +21,43 @@
 //! that settles near sqrt(demand x limit), above the limit (87-115 kW at 3,300-5,000 rpm).
 
 use crate::config::{
-    DRIVETRAIN_EFFICIENCY, MOTOR_MAX_TORQUE_NM, POWER_CEILING_MIN_RAD_S, POWER_SETTLED_FRACTION,
-    POWER_TARGET_W, POWER_TRIM_FLOOR, POWER_TRIM_GAIN, POWER_TRIM_RELAX_S, SOC_DERATE_END,
-    SOC_DERATE_START,
+    DRIVETRAIN_EFFICIENCY, MOTOR_MAX_TORQUE_NM, POWER_CEILING_MIN_RAD_S, POWER_LIMIT_MARGIN,
+    POWER_LIMIT_W, POWER_SETTLED_FRACTION, POWER_TRIM_FLOOR, POWER_TRIM_GAIN, POWER_TRIM_RELAX_S,
+    SOC_DERATE_END, SOC_DERATE_START,
 };
 
-/// The fixed limits: motor maximum, power and SOC derating.
+/// The fixed limits, one set for the limiter and the torque monitor alike: motor maximum,
+/// the rule's power limit and the limiter's target below it, SOC derating. Built from
+/// `aer-params` ([`PowerLimits::CAR`]); a lower limit (an endurance power cap) is
+/// [`PowerLimits::for_rule`] with that limit, and everything that depends on it follows.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PowerLimits {
     /// Largest torque ever commanded (Nm).
     pub max_torque_nm: f32,
-    /// DC power the limiter holds the car at (W, pack voltage x current): the rules' limit
-    /// less a margin for measurement error and the 100 ms averaging (the independent torque
-    /// monitor checks the rules' limit itself).
+    /// Tractive power the accumulator may deliver (W): the rule (EV.3.3.1), which the torque
+    /// monitor bounds on its own.
+    pub power_limit_w: f32,
+    /// DC power the limiter holds the car at (W, pack voltage x current): the limit less
+    /// [`POWER_LIMIT_MARGIN`].
     pub power_target_w: f32,
     /// SOC (0..1) where derating starts, and where torque reaches zero.
     pub soc_derate: (f32, f32),
 }
 
 impl PowerLimits {
-    /// The car: 260 Nm, the power target below 80 kW, derating 20 % -> 5 %.
-    pub const CAR: Self = Self {
-        max_torque_nm: MOTOR_MAX_TORQUE_NM,
-        power_target_w: POWER_TARGET_W,
-        soc_derate: (SOC_DERATE_START, SOC_DERATE_END),
-    };
+    /// The car: 260 Nm, the rule's 80 kW with the limiter 2.5 % below it, derating
+    /// 20 % -> 5 %.
+    pub const CAR: Self = Self::for_rule(POWER_LIMIT_W);
+
+    /// The car's limits with the accumulator's power limited to `power_limit_w`.
+    pub const fn for_rule(power_limit_w: f32) -> Self {
+        Self {
+            max_torque_nm: MOTOR_MAX_TORQUE_NM,
+            power_limit_w,
+            power_target_w: power_limit_w * (1.0 - POWER_LIMIT_MARGIN),
+            soc_derate: (SOC_DERATE_START, SOC_DERATE_END),
+        }
+    }
 
     /// The fraction of the motor maximum allowed at `soc` (0..1): 1 above the start of the
     /// derating, 0 at and below its end, linear between. A SOC that is not a number cannot
@@ -69,6 +81,12 @@ impl PowerLimits {
         demand.max(0.0).min(self.max_torque_nm) * self.soc_factor(soc)
     }
 }
+
+// The limiter aims below the rule by a small, positive margin.
+const _: () = assert!(
+    PowerLimits::CAR.power_target_w < PowerLimits::CAR.power_limit_w
+        && PowerLimits::CAR.power_target_w > 0.9 * PowerLimits::CAR.power_limit_w
+);
 
 /// The power ceiling and its trim.
 #[derive(Debug, Clone, PartialEq)]

@@ -5,7 +5,7 @@ use crate::apps::AppsReading;
 use crate::config::{GEAR_RATIO, MOTOR_MAX_TORQUE_NM, PEDAL_DEADBAND};
 use crate::faults::FaultMap;
 use crate::launch::{LaunchControl, LaunchInputs, LaunchState};
-use crate::monitor::{MonitorInputs, allowed_torque};
+use crate::monitor::{EfficiencyBound, MonitorInputs, allowed_torque};
 use crate::power::{PowerLimiter, PowerLimits};
 use crate::traction::TractionControl;
 
@@ -30,6 +30,8 @@ pub struct TorqueInputs {
     pub inverter_max_nm: Option<f32>,
     /// DC power into the inverter (W), from MCU3, or the BMS's pack power if that is higher.
     pub dc_power_w: Option<f32>,
+    /// Shaft power (W): the torque the inverter reports times the motor speed.
+    pub shaft_power_w: Option<f32>,
     /// Front-left and front-right wheel speeds (rad/s).
     pub front_rad_s: (f32, f32),
     /// Launch button.
@@ -66,6 +68,8 @@ pub struct TorquePath {
     traction: TractionControl,
     limits: PowerLimits,
     power: PowerLimiter,
+    /// The monitor's own efficiency, from the readings.
+    efficiency: EfficiencyBound,
 }
 
 impl TorquePath {
@@ -76,6 +80,7 @@ impl TorquePath {
             traction: TractionControl::new(period_ms),
             limits,
             power: PowerLimiter::new(period_ms, limits.power_target_w),
+            efficiency: EfficiencyBound::new(period_ms),
         }
     }
 
@@ -112,19 +117,31 @@ impl TorquePath {
         let derated = self
             .limits
             .soc_limited(inputs.soc.unwrap_or(f32::NAN), controlled.min(driver));
-        let power_ceiling =
-            self.power
-                .step(motor_rad_s, inputs.dc_power_w.unwrap_or(f32::NAN), derated);
-        let allowed = allowed_torque(&MonitorInputs {
-            torque_enabled: inputs.torque_enabled,
-            faults: inputs.faults,
-            apps: *apps,
-            sensors_fresh: inputs.sensors_fresh,
-            motor_rad_s: inputs.motor_rad_s,
-            soc: inputs.soc,
-            inverter_max_nm: inputs.inverter_max_nm,
-            dc_power_w: inputs.dc_power_w,
-        });
+        let allowed = allowed_torque(
+            &MonitorInputs {
+                torque_enabled: inputs.torque_enabled,
+                faults: inputs.faults,
+                apps: *apps,
+                sensors_fresh: inputs.sensors_fresh,
+                motor_rad_s: inputs.motor_rad_s,
+                soc: inputs.soc,
+                inverter_max_nm: inputs.inverter_max_nm,
+                dc_power_w: inputs.dc_power_w,
+                efficiency: self.efficiency.update(
+                    inputs.shaft_power_w,
+                    inputs.dc_power_w,
+                    &self.limits,
+                ),
+            },
+            &self.limits,
+        );
+        // The limiter sees what the monitor leaves: where the monitor binds, the ceiling does
+        // not, and the trim neither winds up behind it nor overshoots once it lets go.
+        let power_ceiling = self.power.step(
+            motor_rad_s,
+            inputs.dc_power_w.unwrap_or(f32::NAN),
+            derated.min(allowed),
+        );
         let torque = derated.min(power_ceiling).min(allowed);
         TorqueCommand {
             torque_nm: if may_drive && torque.is_finite() {

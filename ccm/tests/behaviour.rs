@@ -502,6 +502,85 @@ fn a_received_value_is_fresh_up_to_its_limit_and_lost_after_it_or_after_the_grac
     assert_eq!(received.fresh(20, 100), Some(8));
 }
 
+const CAR: aer_ccm::power::PowerLimits = aer_ccm::power::PowerLimits::CAR;
+
+/// The monitor bounds the accumulator's power by the rule on its own: at the efficiency the
+/// readings show, less its small margin; a lowered limit (an endurance cap) moves the bound
+/// with it.
+#[test]
+fn the_monitor_bounds_the_rules_power_at_its_efficiency() {
+    use aer_ccm::config::{DRIVETRAIN_EFFICIENCY, MONITOR_MARGIN};
+    use aer_ccm::monitor::{MonitorInputs, allowed_torque};
+    use aer_ccm::power::PowerLimits;
+    let omega = 500.0;
+    let at = |efficiency: f32, limits: &PowerLimits| {
+        allowed_torque(
+            &MonitorInputs {
+                motor_rad_s: Some(omega),
+                efficiency,
+                ..monitor_inputs()
+            },
+            limits,
+        )
+    };
+    let close = |got: f32, want: f32| (got - want).abs() < 0.01;
+    let bounded = 80_000.0 * (1.0 - MONITOR_MARGIN);
+    assert!(close(at(0.88, &CAR), 0.88 * bounded / omega));
+    // An efficiency outside the drivetrain's range is taken at its edge.
+    let (lowest, highest) = DRIVETRAIN_EFFICIENCY;
+    assert!(close(at(1.5, &CAR), highest * bounded / omega));
+    assert!(close(at(0.1, &CAR), lowest * bounded / omega));
+    // An endurance cap of 70 kW: the monitor's bound follows the limit, and so does the
+    // limiter's target.
+    let capped = PowerLimits::for_rule(70_000.0);
+    assert!(close(at(0.88, &capped), 0.88 * 0.99 * 70_000.0 / omega));
+    assert!((capped.power_target_w - 68_250.0).abs() < 0.5);
+}
+
+/// The monitor's efficiency comes from the readings, never from the limiter: it starts at
+/// the lowest, falls at once with a lower reading, rises only once the DC reading has caught
+/// up with the torque (the readings lag) and then step by step, and returns to the lowest
+/// while the power is too small to measure it.
+#[test]
+fn the_monitors_efficiency_trusts_a_reading_only_once_it_settled() {
+    use aer_ccm::config::{DRIVETRAIN_EFFICIENCY, EFFICIENCY_RISE_PER_STEP};
+    use aer_ccm::monitor::EfficiencyBound;
+    let (lowest, highest) = DRIVETRAIN_EFFICIENCY;
+    let mut bound = EfficiencyBound::new(10);
+    assert_eq!(bound.efficiency(), lowest);
+    // Torque rose; the DC reading is still catching up: shaft over DC reads 1.2, untrusted.
+    for dc in [30_000.0, 45_000.0, 55_000.0] {
+        assert_eq!(bound.update(Some(66_000.0), Some(dc), &CAR), lowest, "{dc}");
+    }
+    // Settled at 0.94: rises step by step, never past the reading.
+    let mut last = lowest;
+    for _ in 0..100 {
+        let now = bound.update(Some(65_800.0), Some(70_000.0), &CAR);
+        assert!(
+            now - last <= EFFICIENCY_RISE_PER_STEP + 1e-6,
+            "{last} -> {now}"
+        );
+        last = now;
+    }
+    assert!((last - 0.94).abs() < 1e-4, "{last}");
+    // A lower reading lowers it at once, settled or not.
+    assert!(
+        (bound.update(Some(61_600.0), Some(80_000.0), &CAR) - 0.77f32.max(lowest)).abs() < 1e-4
+    );
+    // A reading above the highest efficiency is cut to it.
+    for _ in 0..100 {
+        bound.update(Some(79_000.0), Some(70_000.0), &CAR);
+    }
+    assert_eq!(bound.efficiency(), highest);
+    // Too little power to measure: back towards the lowest.
+    for _ in 0..300 {
+        bound.update(Some(1_000.0), Some(1_100.0), &CAR);
+    }
+    assert!(bound.efficiency() - lowest < 1e-3);
+    // No reading at all: the same.
+    assert!(bound.update(None, None, &CAR) - lowest < 1e-3);
+}
+
 fn monitor_inputs() -> aer_ccm::monitor::MonitorInputs {
     aer_ccm::monitor::MonitorInputs {
         torque_enabled: true,
@@ -517,6 +596,7 @@ fn monitor_inputs() -> aer_ccm::monitor::MonitorInputs {
         soc: Some(0.8),
         inverter_max_nm: Some(259.896),
         dc_power_w: Some(20_000.0),
+        efficiency: 0.94,
     }
 }
 
@@ -525,24 +605,25 @@ fn the_monitor_allows_the_least_of_pedal_power_soc_motor_and_inverter() {
     use aer_ccm::monitor::{MonitorInputs, allowed_torque};
     let full = monitor_inputs();
     assert!(
-        (allowed_torque(&full) - 259.896).abs() < 1e-3,
+        (allowed_torque(&full, &CAR) - 259.896).abs() < 1e-3,
         "inverter maximum"
     );
-    // 0.97 x 80 kW at 400 rad/s = 194 Nm.
+    // The rule's 80 kW less the monitor's 1 % out of the accumulator at its efficiency
+    // (0.94) at 400 rad/s: 186.1 Nm.
     let fast = MonitorInputs {
         motor_rad_s: Some(400.0),
         ..full
     };
     assert!(
-        (allowed_torque(&fast) - 194.0).abs() < 0.01,
+        (allowed_torque(&fast, &CAR) - 0.94 * 79_200.0 / 400.0).abs() < 0.01,
         "{}",
-        allowed_torque(&fast)
+        allowed_torque(&fast, &CAR)
     );
     let low_soc = MonitorInputs {
         soc: Some(0.125),
         ..full
     };
-    assert!((allowed_torque(&low_soc) - 130.0).abs() < 0.01);
+    assert!((allowed_torque(&low_soc, &CAR) - 130.0).abs() < 0.01);
     // One sensor failing high cannot raise the request above the other.
     let mut apps = full.apps;
     apps.apps1 = 1.0;
@@ -551,9 +632,9 @@ fn the_monitor_allows_the_least_of_pedal_power_soc_motor_and_inverter() {
     let split = MonitorInputs { apps, ..full };
     let bound = (0.3 - 0.02) / 0.98 * 260.0;
     assert!(
-        (allowed_torque(&split) - bound).abs() < 0.01,
+        (allowed_torque(&split, &CAR) - bound).abs() < 0.01,
         "{}",
-        allowed_torque(&split)
+        allowed_torque(&split, &CAR)
     );
 }
 
@@ -592,12 +673,12 @@ fn the_monitor_allows_nothing_without_fresh_inputs_or_with_a_stopping_fault() {
             ..full
         },
     ] {
-        assert_eq!(allowed_torque(&stale), 0.0, "{stale:?}");
+        assert_eq!(allowed_torque(&stale, &CAR), 0.0, "{stale:?}");
     }
     for fault in Fault::ALL {
         let mut faults = FaultMap::NONE;
         faults.set(fault, true);
-        let allowed = allowed_torque(&MonitorInputs { faults, ..full });
+        let allowed = allowed_torque(&MonitorInputs { faults, ..full }, &CAR);
         if fault.reaction() == aer_ccm::faults::Reaction::Warn {
             assert!(allowed > 0.0, "{fault:?} is a warning");
         } else {
@@ -608,16 +689,14 @@ fn the_monitor_allows_nothing_without_fresh_inputs_or_with_a_stopping_fault() {
 
 #[test]
 fn the_power_ceiling_starts_safe_trims_up_only_when_settled_and_down_at_once() {
-    use aer_ccm::config::{DRIVETRAIN_EFFICIENCY, POWER_TARGET_W};
-    use aer_ccm::power::PowerLimiter;
+    use aer_ccm::config::DRIVETRAIN_EFFICIENCY;
+    use aer_ccm::power::{PowerLimiter, PowerLimits};
     let (lowest, highest) = DRIVETRAIN_EFFICIENCY;
-    let mut limiter = PowerLimiter::new(10, POWER_TARGET_W);
+    let target = PowerLimits::CAR.power_target_w;
+    let mut limiter = PowerLimiter::new(10, target);
     let omega = 350.0;
     let first = limiter.step(omega, 0.0, 260.0);
-    assert!(
-        (first - lowest * POWER_TARGET_W / omega).abs() < 0.5,
-        "{first}"
-    );
+    assert!((first - lowest * target / omega).abs() < 0.5, "{first}");
     // The measurement still rising: no trim up.
     for measured in [10_000.0, 30_000.0, 50_000.0, 65_000.0] {
         limiter.step(omega, measured, 260.0);

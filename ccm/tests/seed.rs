@@ -12,6 +12,7 @@ use aer_ccm::watchdog::{Supervisor, Task};
 /// units, compared with voltage x current), SOC_START 0.2, SOC_END 0.05.
 const PLAN: PowerLimits = PowerLimits {
     max_torque_nm: 260.0,
+    power_limit_w: 90.0,
     power_target_w: 90.0,
     soc_derate: (0.2, 0.05),
 };
@@ -41,7 +42,7 @@ fn power_limit_case_3_deviation_the_ceiling_comes_from_speed_not_from_the_last_m
     // 200 Nm at 400 rad/s is 80 kW of shaft power: above what the target allows.
     let ceiling = limiter.step(motor_rad_s, 120.0, 200.0);
     let (lowest, _) = aer_ccm::config::DRIVETRAIN_EFFICIENCY;
-    let target = aer_ccm::config::POWER_TARGET_W;
+    let target = PowerLimits::CAR.power_target_w;
     assert!(
         (ceiling - lowest * target / motor_rad_s).abs() < 1e-3,
         "{ceiling}"

@@ -149,10 +149,18 @@ Copyright: {years} Anteater Electric Racing\n\
 License: MIT\n",
         years = release.years
     );
-    let crates = match arch {
-        Some(arch) if package.binary => linked_crates(root, package.name, arch)?,
-        _ => Vec::new(),
-    };
+    // The crates compiled into the package's binaries (each binary is its own cargo
+    // package's: `aer-raspi`, `aer-dashboard`).
+    let mut crates = Vec::new();
+    if let Some(arch) = arch {
+        for entry in package.files {
+            if let super::Source::Binary(binary) = entry.source {
+                crates.extend(linked_crates(root, binary, arch)?);
+            }
+        }
+    }
+    crates.sort();
+    crates.dedup();
     if !crates.is_empty() {
         text.push_str(
             "Comment: The binary also contains these Rust crates, each under its own licence\n \
