@@ -380,6 +380,10 @@ pub struct FieldDisplay {
     pub warn_below: Option<f64>,
     /// Values below this are shown as critical.
     pub critical_below: Option<f64>,
+    /// The DBC message the field mirrors (`signal:` in telemetry.yaml), `None` for a field the
+    /// sender fills itself: a car without that message on its buses (the other inverter's)
+    /// has nothing to show there.
+    pub mirrors: Option<&'static str>,
 }
 
 /// How a value stands against its field's thresholds, from fine to critical.
@@ -1838,6 +1842,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: None,
         warn_below: None,
         critical_below: None,
+        mirrors: None,
     },
     FieldDisplay {
         group: "pedals",
@@ -1846,6 +1851,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: None,
         warn_below: None,
         critical_below: None,
+        mirrors: None,
     },
     FieldDisplay {
         group: "pedals",
@@ -1854,6 +1860,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: None,
         warn_below: None,
         critical_below: None,
+        mirrors: None,
     },
     FieldDisplay {
         group: "safety",
@@ -1862,6 +1869,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: None,
         warn_below: None,
         critical_below: None,
+        mirrors: Some("IMD_InfoGeneral"),
     },
     FieldDisplay {
         group: "safety",
@@ -1870,6 +1878,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: None,
         warn_below: None,
         critical_below: None,
+        mirrors: Some("IMD_InfoGeneral"),
     },
     FieldDisplay {
         group: "accumulator",
@@ -1878,6 +1887,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: None,
         warn_below: None,
         critical_below: None,
+        mirrors: Some("Orion_PackStatus"),
     },
     FieldDisplay {
         group: "accumulator",
@@ -1886,6 +1896,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: Some(300.0),
         warn_below: None,
         critical_below: None,
+        mirrors: Some("Orion_PackStatus"),
     },
     FieldDisplay {
         group: "accumulator",
@@ -1894,6 +1905,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: None,
         warn_below: Some(20.0),
         critical_below: Some(5.0),
+        mirrors: Some("Orion_PackStatus"),
     },
     FieldDisplay {
         group: "accumulator",
@@ -1902,6 +1914,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: None,
         warn_below: None,
         critical_below: None,
+        mirrors: Some("Orion_Limits"),
     },
     FieldDisplay {
         group: "accumulator",
@@ -1910,6 +1923,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: None,
         warn_below: None,
         critical_below: None,
+        mirrors: Some("Orion_Limits"),
     },
     FieldDisplay {
         group: "accumulator",
@@ -1918,6 +1932,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: None,
         warn_below: None,
         critical_below: None,
+        mirrors: Some("Orion_CellVoltages"),
     },
     FieldDisplay {
         group: "accumulator",
@@ -1926,6 +1941,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: None,
         warn_below: None,
         critical_below: None,
+        mirrors: Some("Orion_CellVoltages"),
     },
     FieldDisplay {
         group: "accumulator",
@@ -1934,6 +1950,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: None,
         warn_below: None,
         critical_below: None,
+        mirrors: Some("Orion_CellVoltages"),
     },
     FieldDisplay {
         group: "accumulator",
@@ -1942,6 +1959,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: Some(60.0),
         warn_below: None,
         critical_below: None,
+        mirrors: Some("Orion_Limits"),
     },
     FieldDisplay {
         group: "motor",
@@ -1950,6 +1968,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: None,
         warn_below: None,
         critical_below: None,
+        mirrors: None,
     },
     FieldDisplay {
         group: "motor",
@@ -1958,6 +1977,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: None,
         warn_below: None,
         critical_below: None,
+        mirrors: None,
     },
     FieldDisplay {
         group: "motor",
@@ -1966,6 +1986,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: None,
         warn_below: None,
         critical_below: None,
+        mirrors: None,
     },
     FieldDisplay {
         group: "motor",
@@ -1974,6 +1995,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: None,
         warn_below: None,
         critical_below: None,
+        mirrors: None,
     },
     FieldDisplay {
         group: "motor",
@@ -1982,6 +2004,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: Some(120.0),
         warn_below: None,
         critical_below: None,
+        mirrors: None,
     },
     FieldDisplay {
         group: "inverter",
@@ -1990,6 +2013,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: Some(85.0),
         warn_below: None,
         critical_below: None,
+        mirrors: None,
     },
     FieldDisplay {
         group: "inverter",
@@ -1998,6 +2022,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: None,
         warn_below: None,
         critical_below: None,
+        mirrors: None,
     },
     FieldDisplay {
         group: "inverter",
@@ -2006,6 +2031,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: None,
         warn_below: None,
         critical_below: None,
+        mirrors: None,
     },
     FieldDisplay {
         group: "inverter",
@@ -2014,6 +2040,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: None,
         warn_below: None,
         critical_below: None,
+        mirrors: None,
     },
     FieldDisplay {
         group: "motor",
@@ -2022,6 +2049,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: None,
         warn_below: None,
         critical_below: None,
+        mirrors: Some("MCU1"),
     },
     FieldDisplay {
         group: "motor",
@@ -2030,6 +2058,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: None,
         warn_below: None,
         critical_below: None,
+        mirrors: Some("MCU1"),
     },
     FieldDisplay {
         group: "inverter",
@@ -2038,6 +2067,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: None,
         warn_below: None,
         critical_below: None,
+        mirrors: Some("MCU1"),
     },
     FieldDisplay {
         group: "inverter",
@@ -2046,6 +2076,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: None,
         warn_below: None,
         critical_below: None,
+        mirrors: Some("MCU1"),
     },
     FieldDisplay {
         group: "inverter",
@@ -2054,6 +2085,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: None,
         warn_below: None,
         critical_below: None,
+        mirrors: Some("MCU2"),
     },
     FieldDisplay {
         group: "inverter",
@@ -2062,6 +2094,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: None,
         warn_below: None,
         critical_below: None,
+        mirrors: Some("DTI_Flags"),
     },
     FieldDisplay {
         group: "inverter",
@@ -2070,6 +2103,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: None,
         warn_below: None,
         critical_below: None,
+        mirrors: Some("DTI_Control"),
     },
     FieldDisplay {
         group: "inverter_faults",
@@ -2078,6 +2112,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: None,
         warn_below: None,
         critical_below: None,
+        mirrors: Some("DTI_Temperatures"),
     },
     FieldDisplay {
         group: "vehicle",
@@ -2086,6 +2121,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: None,
         warn_below: None,
         critical_below: None,
+        mirrors: Some("CCM_Status"),
     },
     FieldDisplay {
         group: "vehicle",
@@ -2094,6 +2130,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: None,
         warn_below: None,
         critical_below: None,
+        mirrors: Some("CCM_Status"),
     },
     FieldDisplay {
         group: "chassis",
@@ -2102,6 +2139,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: None,
         warn_below: None,
         critical_below: None,
+        mirrors: None,
     },
     FieldDisplay {
         group: "chassis",
@@ -2110,6 +2148,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: None,
         warn_below: None,
         critical_below: None,
+        mirrors: None,
     },
     FieldDisplay {
         group: "chassis",
@@ -2118,6 +2157,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: None,
         warn_below: None,
         critical_below: None,
+        mirrors: None,
     },
     FieldDisplay {
         group: "chassis",
@@ -2126,6 +2166,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: None,
         warn_below: None,
         critical_below: None,
+        mirrors: None,
     },
     FieldDisplay {
         group: "diagnostics",
@@ -2134,6 +2175,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: None,
         warn_below: None,
         critical_below: None,
+        mirrors: None,
     },
     FieldDisplay {
         group: "diagnostics",
@@ -2142,6 +2184,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: None,
         warn_below: None,
         critical_below: None,
+        mirrors: None,
     },
     FieldDisplay {
         group: "diagnostics",
@@ -2150,6 +2193,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: None,
         warn_below: None,
         critical_below: None,
+        mirrors: None,
     },
     FieldDisplay {
         group: "diagnostics",
@@ -2158,6 +2202,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: None,
         warn_below: None,
         critical_below: None,
+        mirrors: None,
     },
     FieldDisplay {
         group: "diagnostics",
@@ -2166,6 +2211,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: None,
         warn_below: None,
         critical_below: None,
+        mirrors: None,
     },
     FieldDisplay {
         group: "diagnostics",
@@ -2174,6 +2220,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: None,
         warn_below: None,
         critical_below: None,
+        mirrors: None,
     },
     FieldDisplay {
         group: "diagnostics",
@@ -2182,6 +2229,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: None,
         warn_below: None,
         critical_below: None,
+        mirrors: None,
     },
     FieldDisplay {
         group: "diagnostics",
@@ -2190,6 +2238,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: None,
         warn_below: None,
         critical_below: None,
+        mirrors: None,
     },
     FieldDisplay {
         group: "diagnostics",
@@ -2198,6 +2247,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: None,
         warn_below: None,
         critical_below: None,
+        mirrors: None,
     },
     FieldDisplay {
         group: "diagnostics",
@@ -2206,6 +2256,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: None,
         warn_below: None,
         critical_below: None,
+        mirrors: None,
     },
     FieldDisplay {
         group: "inverter_faults",
@@ -2214,6 +2265,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: Some(0.0),
         warn_below: None,
         critical_below: None,
+        mirrors: Some("MCU2"),
     },
     FieldDisplay {
         group: "inverter_faults",
@@ -2222,6 +2274,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: Some(0.0),
         warn_below: None,
         critical_below: None,
+        mirrors: Some("MCU2"),
     },
     FieldDisplay {
         group: "inverter_faults",
@@ -2230,6 +2283,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: Some(0.0),
         warn_below: None,
         critical_below: None,
+        mirrors: Some("MCU2"),
     },
     FieldDisplay {
         group: "inverter_faults",
@@ -2238,6 +2292,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: Some(0.0),
         warn_below: None,
         critical_below: None,
+        mirrors: Some("MCU2"),
     },
     FieldDisplay {
         group: "inverter_faults",
@@ -2246,6 +2301,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: Some(0.0),
         warn_below: None,
         critical_below: None,
+        mirrors: Some("MCU2"),
     },
     FieldDisplay {
         group: "inverter_faults",
@@ -2254,6 +2310,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: Some(0.0),
         warn_below: None,
         critical_below: None,
+        mirrors: Some("MCU2"),
     },
     FieldDisplay {
         group: "inverter_faults",
@@ -2262,6 +2319,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: Some(0.0),
         warn_below: None,
         critical_below: None,
+        mirrors: Some("MCU2"),
     },
     FieldDisplay {
         group: "inverter_faults",
@@ -2270,6 +2328,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: Some(0.0),
         warn_below: None,
         critical_below: None,
+        mirrors: Some("MCU2"),
     },
     FieldDisplay {
         group: "inverter_faults",
@@ -2278,6 +2337,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: Some(0.0),
         warn_below: None,
         critical_below: None,
+        mirrors: Some("MCU2"),
     },
     FieldDisplay {
         group: "inverter_faults",
@@ -2286,6 +2346,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: None,
         warn_below: None,
         critical_below: None,
+        mirrors: Some("MCU2"),
     },
     FieldDisplay {
         group: "inverter_faults",
@@ -2294,6 +2355,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: None,
         warn_below: None,
         critical_below: None,
+        mirrors: Some("MCU2"),
     },
     FieldDisplay {
         group: "inverter_faults",
@@ -2302,6 +2364,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: Some(0.0),
         warn_below: None,
         critical_below: None,
+        mirrors: Some("MCU2"),
     },
     FieldDisplay {
         group: "inverter_faults",
@@ -2310,6 +2373,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: Some(0.0),
         warn_below: None,
         critical_below: None,
+        mirrors: Some("MCU2"),
     },
     FieldDisplay {
         group: "inverter_limits",
@@ -2318,6 +2382,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: None,
         warn_below: None,
         critical_below: None,
+        mirrors: Some("DTI_Flags"),
     },
     FieldDisplay {
         group: "inverter_limits",
@@ -2326,6 +2391,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: None,
         warn_below: None,
         critical_below: None,
+        mirrors: Some("DTI_Flags"),
     },
     FieldDisplay {
         group: "inverter_limits",
@@ -2334,6 +2400,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: None,
         warn_below: None,
         critical_below: None,
+        mirrors: Some("DTI_Flags"),
     },
     FieldDisplay {
         group: "inverter_limits",
@@ -2342,6 +2409,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: None,
         warn_below: None,
         critical_below: None,
+        mirrors: Some("DTI_Flags"),
     },
     FieldDisplay {
         group: "inverter_limits",
@@ -2350,6 +2418,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: None,
         warn_below: None,
         critical_below: None,
+        mirrors: Some("DTI_Flags"),
     },
     FieldDisplay {
         group: "inverter_limits",
@@ -2358,6 +2427,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: None,
         warn_below: None,
         critical_below: None,
+        mirrors: Some("DTI_Flags"),
     },
     FieldDisplay {
         group: "inverter_limits",
@@ -2366,6 +2436,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: None,
         warn_below: None,
         critical_below: None,
+        mirrors: Some("DTI_Flags"),
     },
     FieldDisplay {
         group: "inverter_limits",
@@ -2374,6 +2445,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: None,
         warn_below: None,
         critical_below: None,
+        mirrors: Some("DTI_Flags"),
     },
     FieldDisplay {
         group: "inverter_limits",
@@ -2382,6 +2454,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: None,
         warn_below: None,
         critical_below: None,
+        mirrors: Some("DTI_Flags"),
     },
     FieldDisplay {
         group: "inverter_limits",
@@ -2390,6 +2463,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: None,
         warn_below: None,
         critical_below: None,
+        mirrors: Some("DTI_Flags"),
     },
     FieldDisplay {
         group: "ccm_faults",
@@ -2398,6 +2472,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: Some(0.0),
         warn_below: None,
         critical_below: None,
+        mirrors: Some("CCM_Status"),
     },
     FieldDisplay {
         group: "ccm_faults",
@@ -2406,6 +2481,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: Some(0.0),
         warn_below: None,
         critical_below: None,
+        mirrors: Some("CCM_Status"),
     },
     FieldDisplay {
         group: "ccm_faults",
@@ -2414,6 +2490,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: Some(0.0),
         warn_below: None,
         critical_below: None,
+        mirrors: Some("CCM_Status"),
     },
     FieldDisplay {
         group: "ccm_faults",
@@ -2422,6 +2499,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: Some(0.0),
         warn_below: None,
         critical_below: None,
+        mirrors: Some("CCM_Status"),
     },
     FieldDisplay {
         group: "ccm_faults",
@@ -2430,6 +2508,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: Some(0.0),
         warn_below: None,
         critical_below: None,
+        mirrors: Some("CCM_Status"),
     },
     FieldDisplay {
         group: "ccm_faults",
@@ -2438,6 +2517,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: Some(0.0),
         warn_below: None,
         critical_below: None,
+        mirrors: Some("CCM_Status"),
     },
     FieldDisplay {
         group: "ccm_faults",
@@ -2446,6 +2526,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: Some(0.0),
         warn_below: None,
         critical_below: None,
+        mirrors: Some("CCM_Status"),
     },
     FieldDisplay {
         group: "ccm_faults",
@@ -2454,6 +2535,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: Some(0.0),
         warn_below: None,
         critical_below: None,
+        mirrors: Some("CCM_Status"),
     },
     FieldDisplay {
         group: "ccm_faults",
@@ -2462,6 +2544,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: Some(0.0),
         warn_below: None,
         critical_below: None,
+        mirrors: Some("CCM_Status"),
     },
     FieldDisplay {
         group: "ccm_faults",
@@ -2470,6 +2553,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: Some(0.0),
         warn_below: None,
         critical_below: None,
+        mirrors: Some("CCM_Status"),
     },
     FieldDisplay {
         group: "ccm_faults",
@@ -2478,6 +2562,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: Some(0.0),
         warn_below: None,
         critical_below: None,
+        mirrors: Some("CCM_Status"),
     },
     FieldDisplay {
         group: "ccm_faults",
@@ -2486,6 +2571,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: Some(0.0),
         warn_below: None,
         critical_below: None,
+        mirrors: Some("CCM_Status"),
     },
     FieldDisplay {
         group: "ccm_faults",
@@ -2494,6 +2580,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: Some(0.0),
         warn_below: None,
         critical_below: None,
+        mirrors: Some("CCM_Status"),
     },
     FieldDisplay {
         group: "ccm_faults",
@@ -2502,6 +2589,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: Some(0.0),
         warn_below: None,
         critical_below: None,
+        mirrors: Some("CCM_Status"),
     },
     FieldDisplay {
         group: "ccm_faults",
@@ -2510,6 +2598,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: None,
         warn_below: None,
         critical_below: None,
+        mirrors: Some("CCM_Status"),
     },
     FieldDisplay {
         group: "ccm_faults",
@@ -2518,6 +2607,7 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical: Some(0.0),
         warn_below: None,
         critical_below: None,
+        mirrors: Some("CCM_Status"),
     },
 ];
 

@@ -93,6 +93,7 @@ Self::{{ f.name }}_from_raw(data.get({{ byte }}).is_some_and(|b| b & (1 << {{ bi
         critical: {{ d.critical }},
         warn_below: {{ d.warn_below }},
         critical_below: {{ d.critical_below }},
+        mirrors: {{ d.mirrors }},
     }
 {%- endmacro -%}
 

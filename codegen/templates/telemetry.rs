@@ -84,6 +84,10 @@ pub struct FieldDisplay {
     pub warn_below: Option<f64>,
     /// Values below this are shown as critical.
     pub critical_below: Option<f64>,
+    /// The DBC message the field mirrors (`signal:` in telemetry.yaml), `None` for a field the
+    /// sender fills itself: a car without that message on its buses (the other inverter's)
+    /// has nothing to show there.
+    pub mirrors: Option<&'static str>,
 }
 
 /// How a value stands against its field's thresholds, from fine to critical.

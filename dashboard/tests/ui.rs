@@ -568,3 +568,56 @@ fn the_pit_view_shows_the_pis_bus_loads_and_slow_messages() {
     assert!(shows_part(&app, "SLOW: DTI_Speed on can1 50 of 100 Hz"));
     assert!(!shows_part(&app, "DTI_Flags on can1"));
 }
+
+/// On the comp car (DTI) the bench inverter's mirrored fields are not live, and the reverse:
+/// which fields those are comes from what the schema says each field mirrors, and which
+/// messages the car carries from the Pi's status.
+#[test]
+fn the_pit_view_marks_the_other_inverters_fields_not_fitted() {
+    use aer::can::MESSAGES;
+    use aer_host::traffic::MessageRate;
+    let cars = [
+        ("the comp car (DTI)", "MCU"),
+        ("the bench (IFL100)", "DTI_"),
+    ];
+    for (car, other) in cars {
+        let t0 = Instant::now();
+        let mut app = app_with(View::Pit, driving(), t0);
+        let carried: Vec<&str> = MESSAGES
+            .iter()
+            .map(|meta| meta.name)
+            .filter(|name| !name.starts_with(other))
+            .collect();
+        // Before the Pi reports any traffic, nothing is judged.
+        assert!(!shows_part(&app, "not fitted"), "{car}: before any status");
+        let Update::Status(mut status) =
+            pi_status(aer::telemetry::TELEMETRY_FINGERPRINT, Some(true))
+        else {
+            unreachable!()
+        };
+        let rates = status.message_rates.entry("can1".into()).or_default();
+        for name in &carried {
+            rates.insert(
+                (*name).into(),
+                MessageRate {
+                    frames: 10,
+                    measured_hz: Some(10.0),
+                    declared_hz: Some(10.0),
+                },
+            );
+        }
+        app.update(Message::Link(t0, Update::Status(status)));
+        let absent = Telemetry::DISPLAY
+            .iter()
+            .filter(|d| d.mirrors.is_some_and(|m| m.starts_with(other)))
+            .count();
+        assert!(absent > 0, "{car}: the schema mirrors the other inverter");
+        assert_eq!(count_part(&app, "not fitted"), absent, "{car}");
+    }
+    // The fields the issue named: the IFL100's states on the comp car.
+    let motor_state = Telemetry::DISPLAY
+        .iter()
+        .find(|d| d.label == "Motor state")
+        .and_then(|d| d.mirrors);
+    assert_eq!(motor_state, Some("MCU1"));
+}

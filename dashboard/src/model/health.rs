@@ -40,6 +40,8 @@ pub struct Health {
     pub status: Option<Status>,
     /// The Pi's latest counters.
     pub metrics: Option<Metrics>,
+    /// Every CAN message the Pi's status has reported frames of, on any bus.
+    heard: std::collections::BTreeSet<String>,
     last_sequence: Option<u16>,
     arrivals: VecDeque<Instant>,
 }
@@ -54,10 +56,23 @@ impl Default for Health {
             last_error: None,
             status: None,
             metrics: None,
+            heard: std::collections::BTreeSet::new(),
             last_sequence: None,
             arrivals: VecDeque::new(),
         }
     }
+}
+
+/// Whether the car's buses carry a message, as the Pi's status has shown them so far.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Carried {
+    /// No status with traffic yet: nothing to tell.
+    Unknown,
+    /// The Pi has reported frames of it.
+    Yes,
+    /// The Pi reports traffic, never of this message: it is not on this car (the other
+    /// inverter's, say).
+    No,
 }
 
 /// Whether the pieces of the chain were built from the same schema.
@@ -74,6 +89,29 @@ pub enum SchemaMatch {
 }
 
 impl Health {
+    /// Takes the Pi's status: the latest, and every message it has reported frames of.
+    pub fn status(&mut self, status: Status) {
+        for rates in status.message_rates.values() {
+            for (message, rate) in rates {
+                if rate.frames > 0 && !self.heard.contains(message) {
+                    self.heard.insert(message.clone());
+                }
+            }
+        }
+        self.status = Some(status);
+    }
+
+    /// Whether the car's buses carry `message` (a DBC message name).
+    pub fn carries(&self, message: &str) -> Carried {
+        if self.heard.is_empty() {
+            Carried::Unknown
+        } else if self.heard.contains(message) {
+            Carried::Yes
+        } else {
+            Carried::No
+        }
+    }
+
     /// Counts a telemetry packet with CCM sequence number `sequence`, received at `now`.
     pub fn packet(&mut self, sequence: u16, now: Instant) {
         self.packets += 1;

@@ -134,7 +134,7 @@ impl Dashboard {
             }
             Update::Telemetry(sample) => self.telemetry(&sample, now),
             Update::Can(sample) => self.can.take(&sample, now),
-            Update::Status(status) => self.health.status = Some(*status),
+            Update::Status(status) => self.health.status(*status),
             Update::Metrics(metrics) => self.health.metrics = Some(*metrics),
             Update::Undecodable { topic, error } => self.health.undecodable(&topic, &error),
         }

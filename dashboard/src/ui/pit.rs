@@ -5,7 +5,7 @@
 use super::plot::{MAX_POINTS, Plot};
 use super::{Message, status_banner, style};
 use crate::model::fields::{Field, heading};
-use crate::model::health::{Connection, SchemaMatch, fingerprint};
+use crate::model::health::{Carried, Connection, SchemaMatch, fingerprint};
 use crate::model::{Dashboard, Freshness};
 use aer::telemetry::Level;
 use iced::widget::{
@@ -238,14 +238,28 @@ fn field_row<'a>(
     stale: bool,
 ) -> Element<'a, Message> {
     let plotted = model.plots().contains(&field.index);
-    let (shown, level) = value.map_or(("--".to_owned(), Level::Normal), |v| {
-        (field.format(v), field.level(v.value))
-    });
+    // A field mirroring a message this car's buses never carry (the other inverter's) has
+    // nothing to show: its zeros would read as a live state.
+    let absent = field
+        .display
+        .mirrors
+        .filter(|message| model.health().carries(message) == Carried::No);
+    let (shown, level) = match (absent, value) {
+        (Some(_), _) => ("not fitted".to_owned(), Level::Normal),
+        (None, Some(v)) => (field.format(v), field.level(v.value)),
+        (None, None) => ("--".to_owned(), Level::Normal),
+    };
     let marker = if plotted { "● " } else { "" };
+    let shown = text(shown).size(14);
+    let shown = if absent.is_some() {
+        shown.color(style::DIM)
+    } else {
+        shown.color(style::level_color(level, stale))
+    };
     let content = row![
         text(format!("{marker}{}", field.display.label)).size(14),
         space::horizontal(),
-        text(shown).size(14).color(style::level_color(level, stale)),
+        shown,
         text(field.unit()).size(12).color(style::DIM).width(34),
     ]
     .spacing(6)
@@ -256,7 +270,13 @@ fn field_row<'a>(
         .style(style::field_row(plotted))
         .on_press(Message::TogglePlot(field.index));
     // What the schema says about the field, on hover.
-    let about = field.description();
+    let about = match absent {
+        Some(message) => format!(
+            "Mirrors {message}, which this car's buses do not carry (the other inverter's). {}",
+            field.description()
+        ),
+        None => field.description().to_owned(),
+    };
     if about.is_empty() {
         return row.into();
     }

@@ -81,6 +81,8 @@ pub struct DisplayView {
     pub critical: OptionLit<FloatLit>,
     pub warn_below: OptionLit<FloatLit>,
     pub critical_below: OptionLit<FloatLit>,
+    /// The DBC message the field mirrors (`signal: MESSAGE.SIGNAL`).
+    pub mirrors: OptionLit<StrLit>,
 }
 
 impl FieldView {
@@ -195,6 +197,12 @@ fn display(f: &TelemetryField) -> DisplayView {
         critical: limit(f.display.critical),
         warn_below: limit(f.display.warn_below),
         critical_below: limit(f.display.critical_below),
+        mirrors: OptionLit(
+            f.source
+                .as_deref()
+                .and_then(|source| source.split_once('.'))
+                .map(|(message, _)| StrLit(message.to_owned())),
+        ),
     }
 }
 
