@@ -12,7 +12,7 @@ use crate::rules::Rules;
 use aer::can::{CcmStatus, PccStatus};
 use aer::telemetry::Telemetry;
 use aer_ccm::calibration::SensorCalibration;
-use aer_ccm::config::{CONTROL_PERIOD_MS, STATUS_PERIOD_MS, TELEMETRY_PERIOD_MS};
+use aer_ccm::config::{CONTROL_PERIOD_MS, TELEMETRY_PERIOD_MS};
 use aer_ccm::{BusHealth, Ccm, ControlOutputs, DriverCounters, DriverInputs, OutFrame};
 use aer_flexcan::CanFrame;
 use aer_isotp::{Config, Received, Receiver};
@@ -186,22 +186,21 @@ impl ClosedLoop {
         );
         self.rules.control(now, &self.last);
 
-        if now % self.ccm.inverter().command_period_ms() == 0 {
-            if let Ok(frames) = self.ccm.inverter_frames() {
-                for out in frames.iter() {
-                    let Some(frame) = can_frame(out) else {
-                        continue;
-                    };
-                    if !self.was_off[1] {
-                        tap.frame(now_us + 100, CAN2, &frame);
-                        self.car.receive(&frame, now);
-                    }
+        // The firmware's own schedule (`Control::due`), on the model's clock.
+        let due = self.ccm.due(now / CONTROL_PERIOD_MS);
+        if let Some(Ok(frames)) = due.inverter {
+            for out in frames.iter() {
+                let Some(frame) = can_frame(out) else {
+                    continue;
+                };
+                if !self.was_off[1] {
+                    tap.frame(now_us + 100, CAN2, &frame);
+                    self.car.receive(&frame, now);
                 }
             }
         }
-        if now % STATUS_PERIOD_MS == 0 {
+        if let Some(status) = due.status {
             let mut data = [0u8; CcmStatus::LEN];
-            let status = self.ccm.next_status();
             if status.encode(&mut data).is_ok() {
                 if let Some(frame) = standard_frame(CcmStatus::ID, &data) {
                     for bus in [CAN1, CAN2] {

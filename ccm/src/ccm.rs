@@ -13,7 +13,7 @@ use crate::bus::BusState;
 use crate::calibration::SensorCalibration;
 use crate::chassis::PulseTimer;
 use crate::config::WHEEL_TEETH;
-use crate::control::{Control, HandoverRefusal};
+use crate::control::{Control, Due, HandoverRefusal};
 use crate::inverter::{InverterKind, OutFrames};
 use crate::io::{ControlOutputs, DriverCounters, DriverInputs, SensorSample};
 use crate::power::PowerLimits;
@@ -119,6 +119,11 @@ impl Ccm {
         ];
         self.control
             .step(&self.sensors.reading(), wheels, driver, now_ms, now_us)
+    }
+
+    /// What is due after control step `step` (see [`Control::due`]).
+    pub fn due(&mut self, step: u32) -> Due {
+        self.control.due(step)
     }
 
     /// The inverter's commands for this period (see [`Control::inverter_frames`]).

@@ -6,7 +6,7 @@ use crate::bus::{BusInputs, BusState};
 use crate::chassis::WheelSpeed;
 use crate::config::{
     BMS_LIMITS_TIMEOUT_MS, CONTROL_PERIOD_MS, DTI_FLAGS_TIMEOUT_MS, INVERTER,
-    MOTOR_TORQUE_PER_PEAK_A, PCC_STATUS_TIMEOUT_MS, SAMPLE_TIMEOUT_MS,
+    MOTOR_TORQUE_PER_PEAK_A, PCC_STATUS_TIMEOUT_MS, SAMPLE_TIMEOUT_MS, STATUS_PERIOD_MS,
 };
 use crate::faults::{Fault, FaultInputs, FaultMonitor};
 use crate::inverter::dti::{self, EnableWatch};
@@ -23,6 +23,16 @@ use aer::can::{AnyMessage, CcmStatus, PrechargeState, SCHEMA_FINGERPRINT};
 use aer::runtime::EncodeError;
 use aer::telemetry::{Telemetry, TelemetryOwnFields};
 use embedded_can::Frame;
+
+/// What goes out after a control step: the inverter's commands every command period, and
+/// CCM_Status every [`STATUS_PERIOD_MS`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct Due {
+    /// The inverter's frames, if due (an encoding failure is the codec's defect: counted).
+    pub inverter: Option<Result<OutFrames, EncodeError>>,
+    /// CCM_Status, if due (its rolling counter advanced).
+    pub status: Option<CcmStatus>,
+}
 
 /// Why the CCM keeps running instead of handing the chip to the bootloader.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -217,6 +227,17 @@ impl Control {
         };
         self.last = outputs;
         outputs
+    }
+
+    /// The control schedule, in one place for the firmware, the car model and the tests: what
+    /// is due after control step `step` (counted from 0 at start-up, one every
+    /// [`CONTROL_PERIOD_MS`]).
+    pub fn due(&mut self, step: u32) -> Due {
+        let every = |period_ms: u32| step % (period_ms / CONTROL_PERIOD_MS).max(1) == 0;
+        Due {
+            inverter: every(self.inverter.command_period_ms()).then(|| self.inverter_frames()),
+            status: every(STATUS_PERIOD_MS).then(|| self.next_status()),
+        }
     }
 
     /// The inverter's commands for this period (every

@@ -51,9 +51,7 @@ mod app {
     use aer_ccm::calibration::measured::MEASURED;
     use aer_ccm::chassis::PulseTimer;
     use aer_ccm::config::WHEEL_TEETH;
-    use aer_ccm::config::{
-        CONTROL_PERIOD_MS, INVERTER, STATUS_PERIOD_MS, TELEMETRY_PERIOD_MS, WATCHDOG_CHECK_MS,
-    };
+    use aer_ccm::config::{CONTROL_PERIOD_MS, INVERTER, TELEMETRY_PERIOD_MS, WATCHDOG_CHECK_MS};
     use aer_ccm::console::{BootloaderAnswer, LOG_BYTES};
     use aer_ccm::control::Control;
     use aer_ccm::faults::{Fault, FaultMap};
@@ -652,7 +650,7 @@ mod app {
             let sensors = cx.shared.sensors.lock(|sensors| sensors.reading());
             let [left, right] = &WHEELS;
             let wheels = [left.speed(WHEEL_TEETH), right.speed(WHEEL_TEETH)];
-            let (outputs, inverter, status, handover) = cx.shared.control.lock(|control| {
+            let (outputs, due, handover) = cx.shared.control.lock(|control| {
                 control.set_driver_counters(counters);
                 while let Some(frame) = vehicle_frames.dequeue() {
                     control.on_frame(&frame, now);
@@ -661,12 +659,9 @@ mod app {
                     control.on_frame(&frame, now);
                 }
                 let outputs = control.step(&sensors, wheels, driver, now, now_micros);
-                let inverter = (step % (INVERTER.command_period_ms() / CONTROL_PERIOD_MS) == 0)
-                    .then(|| control.inverter_frames());
-                let status = (step % (STATUS_PERIOD_MS / CONTROL_PERIOD_MS) == 0)
-                    .then(|| control.next_status());
+                let due = control.due(step);
                 let handover = REBOOT.take().then(|| control.handover());
-                (outputs, inverter, status, handover)
+                (outputs, due, handover)
             });
             let watches = &mut cx.local.watches;
             cx.shared.log.lock(|log| {
@@ -702,7 +697,7 @@ mod app {
                 if outputs.vehicle.rtd_sound { 0.5 } else { 0.0 },
             );
 
-            match inverter {
+            match due.inverter {
                 Some(Ok(frames)) => {
                     // A torque command never waits behind an older one: it replaces it.
                     for frame in frames.iter() {
@@ -720,7 +715,7 @@ mod app {
                 }
                 None => {}
             }
-            if let Some(status) = status {
+            if let Some(status) = due.status {
                 let mut data = [0u8; CcmStatus::LEN];
                 if status.encode(&mut data).is_ok() {
                     send(
