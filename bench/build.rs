@@ -24,13 +24,13 @@ fn main() {
 
         let ours = out.join(format!("ours_{name}"));
         std::fs::create_dir_all(&ours).expect("out dir");
-        let runtime =
-            aer_codegen::render::codec::render_runtime(path, None).expect("render runtime");
-        let can = aer_codegen::render::codec::render_can(&db, path, 0).expect("render messages");
-        std::fs::write(ours.join("runtime.rs"), runtime).expect("write");
-        std::fs::write(ours.join("can.rs"), can).expect("write");
+        // The codec modules exactly as a generated crate carries them.
+        let files = aer_codegen::codec_files(&db, path, "Bench codec.", name).expect("renders");
+        for file in files.iter().filter(|f| ["runtime.rs", "can.rs"].contains(&f.path.to_str().unwrap_or_default())) {
+            std::fs::write(ours.join(&file.path), &file.content).expect("write");
+        }
 
-        let text = aer_codegen::load::dbc::decode_text(&std::fs::read(path).expect("read DBC"))
+        let text = aer_codegen::decode_dbc_text(&std::fs::read(path).expect("read DBC"))
             .expect("text");
         let peer = out.join(format!("peer_{name}.rs"));
         dbc_codegen::Config::builder()

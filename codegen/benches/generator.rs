@@ -79,8 +79,7 @@ fn deep_mux_dbc(per_level: usize) -> String {
 
 fn check(text: &str) -> aer_codegen::model::Database {
     let path = Path::new("synthetic.dbc");
-    let loaded = aer_codegen::load::dbc::parse(path, text.to_owned()).expect("parses");
-    aer_codegen::validate::dbc::validate(path, &loaded, &[])
+    aer_codegen::parse_dbc(path, text.to_owned(), &[])
         .expect("valid")
         .0
 }

@@ -6,17 +6,17 @@
 use crate::model::{Database, Telemetry};
 
 /// The bit rate assumed when the schema gives none (the car's buses run at 500 kbit/s).
-pub const DEFAULT_BIT_RATE: u32 = 500_000;
+pub(crate) const DEFAULT_BIT_RATE: u32 = 500_000;
 /// Above this share of the bit rate (worst-case stuffing) the generator warns (W0210): the
 /// headroom arbitration needs for the lowest-priority frames to keep their latency, and for
 /// retransmissions after errors.
-pub const WARN_LOAD: f64 = 0.5;
+pub(crate) const WARN_LOAD: f64 = 0.5;
 /// The bus name for messages of a file that names no buses.
-pub const UNNAMED_BUS: &str = "CAN";
+pub(crate) const UNNAMED_BUS: &str = "CAN";
 
 /// One bus's load.
 #[derive(Debug, Clone, PartialEq)]
-pub struct BusLoad {
+pub(crate) struct BusLoad {
     pub bus: String,
     /// Periodic messages on it.
     pub messages: usize,
@@ -30,11 +30,11 @@ pub struct BusLoad {
     pub load: f64,
 }
 
-pub use crate::frame_bits::frame_bits;
+pub(crate) use crate::runtime::frame_bits::frame_bits;
 
 /// Every bus's load: the DBC's periodic messages, and the telemetry packet (its first and
 /// consecutive frames and one flow control frame, all 8 bytes) on its bus.
-pub fn loads(db: &Database, telemetry: Option<&Telemetry>) -> Vec<BusLoad> {
+pub(crate) fn loads(db: &Database, telemetry: Option<&Telemetry>) -> Vec<BusLoad> {
     let bit_rate = f64::from(db.bit_rate.unwrap_or(DEFAULT_BIT_RATE).max(1));
     let mut loads: Vec<BusLoad> = Vec::new();
     let mut on = |bus: &str, periodic: bool, frames_per_s: f64, bits_per_s: f64| {

@@ -295,7 +295,7 @@ impl fmt::Display for Diagnostic {
 }
 
 /// Collects diagnostics for one file, attaching its path and source lines.
-pub struct Reporter<'a> {
+pub(crate) struct Reporter<'a> {
     file: &'a Path,
     lines: Vec<&'a str>,
     /// Error codes let through as warnings (`--allow`; only codes with [`Code::when_allowed`]).
@@ -304,7 +304,7 @@ pub struct Reporter<'a> {
 }
 
 impl<'a> Reporter<'a> {
-    pub fn new(file: &'a Path, text: &'a str) -> Self {
+    pub(crate) fn new(file: &'a Path, text: &'a str) -> Self {
         Self {
             file,
             lines: text.lines().collect(),
@@ -315,7 +315,7 @@ impl<'a> Reporter<'a> {
 
     /// Lets `allowed` through as warnings, each saying how it is handled; codes that cannot
     /// be handled safely stay errors.
-    pub fn allowing(mut self, allowed: &[Code]) -> Self {
+    pub(crate) fn allowing(mut self, allowed: &[Code]) -> Self {
         self.allowed = allowed
             .iter()
             .copied()
@@ -325,12 +325,18 @@ impl<'a> Reporter<'a> {
     }
 
     /// True when findings of `code` are let through.
-    pub fn allows(&self, code: Code) -> bool {
+    pub(crate) fn allows(&self, code: Code) -> bool {
         self.allowed.contains(&code)
     }
 
     /// Records a finding at `line` (1-based; 0 for the whole file); its code says how severe.
-    pub fn report(&mut self, code: Code, line: usize, message: String, help: impl Into<String>) {
+    pub(crate) fn report(
+        &mut self,
+        code: Code,
+        line: usize,
+        message: String,
+        help: impl Into<String>,
+    ) {
         let source_line = line
             .checked_sub(1)
             .and_then(|i| self.lines.get(i))
@@ -350,7 +356,7 @@ impl<'a> Reporter<'a> {
         });
     }
 
-    pub fn has_errors(&self) -> bool {
+    pub(crate) fn has_errors(&self) -> bool {
         self.diagnostics.iter().any(Diagnostic::is_error)
     }
 }

@@ -5,14 +5,14 @@
 use crate::model::{ByteOrder, Database, Encoding, PhysType};
 
 /// FNV-1a, 32 bits: small enough for a CAN signal, stable across platforms and Rust versions.
-pub struct Fnv1a(u32);
+pub(crate) struct Fnv1a(u32);
 
 impl Fnv1a {
-    pub fn new() -> Self {
+    pub(crate) fn new() -> Self {
         Self(0x811C_9DC5)
     }
 
-    pub fn write(&mut self, bytes: &[u8]) {
+    pub(crate) fn write(&mut self, bytes: &[u8]) {
         for &b in bytes {
             self.0 ^= u32::from(b);
             self.0 = self.0.wrapping_mul(0x0100_0193);
@@ -20,12 +20,12 @@ impl Fnv1a {
     }
 
     /// Writes a field followed by a separator, so adjacent fields cannot run together.
-    pub fn field(&mut self, text: &str) {
+    pub(crate) fn field(&mut self, text: &str) {
         self.write(text.as_bytes());
         self.write(&[0x1F]);
     }
 
-    pub fn finish(&self) -> u32 {
+    pub(crate) fn finish(&self) -> u32 {
         self.0
     }
 }
@@ -44,7 +44,7 @@ pub fn database(db: &Database) -> u32 {
 }
 
 /// Feeds a database's wire layout into `h` (shared with the telemetry fingerprint).
-pub fn write_database(h: &mut Fnv1a, db: &Database) {
+pub(crate) fn write_database(h: &mut Fnv1a, db: &Database) {
     let mut messages: Vec<_> = db.messages.iter().collect();
     messages.sort_by_key(|m| (m.extended, m.id));
     for m in messages {

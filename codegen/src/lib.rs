@@ -1,20 +1,34 @@
 //! The AER schema generator: `schema/aer.dbc` (and the telemetry YAML) in, the code every tier
 //! of the car shares out.
 //!
-//! The pipeline follows the data: [`load`] reads files, [`validate`] checks them and builds the
-//! [`model`], [`render`] turns the model into source through askama templates, [`output`]
-//! writes it. Every emitter reads only the model.
+//! The pipeline follows the data: `load` reads files, `validate` checks them and builds the
+//! [`model`], `render` turns the model into source through askama templates beside the runtime
+//! every generated crate carries (Rust this crate compiles and tests, copied verbatim), and
+//! `output` writes it. Every emitter reads only the model.
+//!
+//! The public face is what the build scripts, the CLI and the tests need: generate the car's
+//! contract crate ([`generate_contract`]) or a standalone crate for any DBC file
+//! ([`generate_crate`]), load and check a schema ([`load_dbc`], [`parse_dbc`],
+//! [`CarSchema`]), the [`model`] it builds, the [`diagnostic`]s it reports and the schema
+//! fingerprints.
 
-pub mod bus_load;
+// The face stays small: an item public inside a private module is an error.
+#![deny(unreachable_pub)]
+
 pub mod diagnostic;
-pub mod fingerprint;
-pub mod frame_bits;
-pub mod load;
 pub mod model;
-pub mod naming;
-pub mod output;
-pub mod render;
-pub mod validate;
+
+mod bus_load;
+mod fingerprint;
+mod load;
+mod naming;
+mod output;
+mod render;
+mod runtime;
+mod validate;
+
+pub use fingerprint::{database as database_fingerprint, telemetry as telemetry_fingerprint};
+pub use load::dbc::decode_text as decode_dbc_text;
 
 use std::path::{Path, PathBuf};
 
@@ -73,6 +87,27 @@ pub fn load_dbc_allowing(
     validate::dbc::validate(path, &loaded, allow)
 }
 
+/// [`load_dbc_allowing`] for DBC text already in memory; `path` names it in diagnostics.
+pub fn parse_dbc(
+    path: &Path,
+    text: String,
+    allow: &[diagnostic::Code],
+) -> Result<(Database, Vec<Diagnostic>), Diagnostics> {
+    let loaded = load::dbc::parse(path, text)?;
+    validate::dbc::validate(path, &loaded, allow)
+}
+
+/// Parses and checks telemetry YAML against the database it references; `path` names it in
+/// diagnostics. The packet plus any warnings, or every error found.
+pub fn parse_telemetry(
+    path: &Path,
+    text: String,
+    db: &Database,
+) -> Result<(model::Telemetry, Vec<Diagnostic>), Diagnostics> {
+    let loaded = load::telemetry::parse(path, text)?;
+    validate::telemetry::validate(path, &loaded, db)
+}
+
 /// Renders the codec modules and crate root for `db`. `source` names the schema in headers.
 pub fn codec_files(
     db: &Database,
@@ -95,7 +130,7 @@ pub fn codec_files(
             }
             .render()?,
         ),
-        file("runtime.rs", render::codec::render_runtime(source, None)?),
+        file("runtime.rs", runtime::render(source, None)),
         file(
             "can.rs",
             render::codec::render_can(db, source, fingerprint)?,
@@ -177,7 +212,7 @@ impl CarSchema {
         };
         Ok(vec![
             file("lib.rs", lib.render()?),
-            file("runtime.rs", render::codec::render_runtime(dbc, Some(db))?),
+            file("runtime.rs", runtime::render(dbc, Some(db))),
             file(
                 "can.rs",
                 render::codec::render_can(db, dbc, fingerprint::database(db))?,

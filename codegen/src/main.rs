@@ -93,7 +93,7 @@ fn main() -> ExitCode {
                             file.display(),
                             db.messages.len(),
                             signals,
-                            aer_codegen::fingerprint::database(&db)
+                            aer_codegen::database_fingerprint(&db)
                         );
                     }
                     Err(diags) => {

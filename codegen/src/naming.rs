@@ -10,7 +10,7 @@ const KEYWORDS: &[&str] = &[
     "override", "priv", "try", "typeof", "unsized", "virtual", "yield",
 ];
 
-pub fn is_keyword(ident: &str) -> bool {
+pub(crate) fn is_keyword(ident: &str) -> bool {
     KEYWORDS.contains(&ident)
 }
 
@@ -51,7 +51,7 @@ fn words(name: &str) -> Vec<String> {
 
 /// `snake_case` field or function name; keywords get a trailing underscore, a leading digit a
 /// leading `_`-free prefix so the result is always a valid identifier.
-pub fn snake(name: &str) -> String {
+pub(crate) fn snake(name: &str) -> String {
     let mut s = words(name).join("_");
     if s.is_empty() {
         s.push_str("unnamed");
@@ -66,7 +66,7 @@ pub fn snake(name: &str) -> String {
 }
 
 /// `CamelCase` type or variant name.
-pub fn camel(name: &str) -> String {
+pub(crate) fn camel(name: &str) -> String {
     let mut s: String = words(name)
         .iter()
         .map(|w| {

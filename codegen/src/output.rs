@@ -8,7 +8,7 @@ use std::process::{Command, Stdio};
 
 /// Formats Rust source with the toolchain's rustfmt. Without rustfmt the text is returned as
 /// rendered and `formatted` is false.
-pub fn rustfmt(source: &str) -> (String, bool) {
+pub(crate) fn rustfmt(source: &str) -> (String, bool) {
     let child = Command::new(std::env::var("RUSTFMT").unwrap_or_else(|_| "rustfmt".into()))
         .args(["--edition", "2024", "--emit", "stdout", "--quiet"])
         .stdin(Stdio::piped())
@@ -33,7 +33,7 @@ pub fn rustfmt(source: &str) -> (String, bool) {
 }
 
 /// Writes `content` to `path` unless it already holds exactly that. Returns whether it wrote.
-pub fn write_if_changed(path: &Path, content: &str) -> std::io::Result<bool> {
+pub(crate) fn write_if_changed(path: &Path, content: &str) -> std::io::Result<bool> {
     if std::fs::read(path).is_ok_and(|old| old == content.as_bytes()) {
         return Ok(false);
     }

@@ -60,7 +60,7 @@ fn a_new_field_reaches_every_tier() {
     assert_eq!(new.placement, Placement::Bytes(st4 + 2));
     assert_eq!(new.wire, WireType::U16);
     assert_eq!(after.telemetry.len, before.telemetry.len + 2);
-    let fp = |s: &CarSchema| aer_codegen::fingerprint::telemetry(&s.db, &s.telemetry);
+    let fp = |s: &CarSchema| aer_codegen::telemetry_fingerprint(&s.db, &s.telemetry);
     assert_ne!(
         fp(&after),
         fp(&before),

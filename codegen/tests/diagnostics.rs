@@ -16,12 +16,9 @@ fn header_lines() -> usize {
 fn diagnose(body: &str) -> Vec<Diagnostic> {
     let text = format!("{HEADER}{body}");
     let path = Path::new("car.dbc");
-    match aer_codegen::load::dbc::parse(path, text) {
+    match aer_codegen::parse_dbc(path, text, &[]) {
+        Ok((_, warnings)) => warnings,
         Err(d) => d.0,
-        Ok(loaded) => match aer_codegen::validate::dbc::validate(path, &loaded, &[]) {
-            Ok((_, warnings)) => warnings,
-            Err(d) => d.0,
-        },
     }
 }
 
@@ -340,8 +337,7 @@ fn with_node_id(messages: &str) -> Vec<Diagnostic> {
          BA_ \"NodeIdInCanId\" BU_ DTI 65;\n"
     );
     let path = Path::new("car.dbc");
-    let loaded = aer_codegen::load::dbc::parse(path, text).expect("parses");
-    match aer_codegen::validate::dbc::validate(path, &loaded, &[]) {
+    match aer_codegen::parse_dbc(path, text, &[]) {
         Ok((_, warnings)) => warnings,
         Err(d) => d.0,
     }
@@ -411,8 +407,7 @@ fn with_integrity(messages: &str, values: &str) -> Vec<Diagnostic> {
          BA_DEF_DEF_  \"GenMsgCycleTime\" 0;\nBA_DEF_DEF_  \"GenMsgSendType\" \"Cyclic\";\n{values}"
     );
     let path = Path::new("car.dbc");
-    let loaded = aer_codegen::load::dbc::parse(path, text).expect("parses");
-    match aer_codegen::validate::dbc::validate(path, &loaded, &[]) {
+    match aer_codegen::parse_dbc(path, text, &[]) {
         Ok((_, warnings)) => warnings,
         Err(d) => d.0,
     }
@@ -438,8 +433,7 @@ fn counters_and_checksums_the_codec_can_keep_pass() {
         BA_ \"CounterStep\" SG_ 257 Counter 3;\nBA_ \"ChecksumAlgorithm\" SG_ 257 Sum \"Crc8SaeJ1850\";\n"
     );
     let path = Path::new("car.dbc");
-    let loaded = aer_codegen::load::dbc::parse(path, text).expect("parses");
-    let (db, _) = aer_codegen::validate::dbc::validate(path, &loaded, &[]).expect("valid");
+    let (db, _) = aer_codegen::parse_dbc(path, text, &[]).expect("valid");
     let m = &db.messages[0];
     let counter = m.counter.expect("counter");
     assert_eq!(

@@ -19,8 +19,7 @@ tx_id: 0x666\n  flow_control_id: 0x777\n  period_ms: 10\n\nfields:\n";
 
 fn car_dbc() -> aer_codegen::model::Database {
     let path = Path::new("aer.dbc");
-    let loaded = aer_codegen::load::dbc::parse(path, DBC.to_owned()).expect("parses");
-    aer_codegen::validate::dbc::validate(path, &loaded, &[])
+    aer_codegen::parse_dbc(path, DBC.to_owned(), &[])
         .expect("valid")
         .0
 }
@@ -30,10 +29,9 @@ fn car_dbc() -> aer_codegen::model::Database {
 fn telemetry(field: &str) -> Result<CarSchema, Diagnostics> {
     let yaml = format!("{PACKET}  - name: value\n{field}");
     let path = Path::new("telemetry.yaml");
-    let loaded = aer_codegen::load::telemetry::parse(path, yaml)?;
     let db = car_dbc();
     // Labels and units (warnings) are beside the point here.
-    let (telemetry, _) = aer_codegen::validate::telemetry::validate(path, &loaded, &db)?;
+    let (telemetry, _) = aer_codegen::parse_telemetry(path, yaml, &db)?;
     let schema = CarSchema { db, telemetry };
     schema.files().expect("a valid schema renders");
     Ok(schema)
@@ -106,8 +104,7 @@ fn scales_that_once_overflowed_are_diagnosed_or_typed_correctly() {
 fn a_factor_whose_physical_values_overflow_is_an_error_in_a_dbc() {
     let text = DBC.replace("(0.1,0)", "(1e305,0)");
     let path = Path::new("vendor.dbc");
-    let loaded = aer_codegen::load::dbc::parse(path, text).expect("parses");
-    let Err(diags) = aer_codegen::validate::dbc::validate(path, &loaded, &[]) else {
+    let Err(diags) = aer_codegen::parse_dbc(path, text, &[]) else {
         panic!("accepted a factor that overflows");
     };
     assert_eq!(diags.0[0].code, "E0113");
@@ -182,11 +179,9 @@ proptest! {
             number(factor), number(offset), number(min), number(max),
         );
         let path = Path::new("vendor.dbc");
-        if let Ok(loaded) = aer_codegen::load::dbc::parse(path, text) {
-            if let Ok((db, _)) = aer_codegen::validate::dbc::validate(path, &loaded, &[]) {
-                aer_codegen::codec_files(&db, "vendor.dbc", "Test codec.", "vendor_can")
-                    .expect("a valid DBC renders");
-            }
+        if let Ok((db, _)) = aer_codegen::parse_dbc(path, text, &[]) {
+            aer_codegen::codec_files(&db, "vendor.dbc", "Test codec.", "vendor_can")
+                .expect("a valid DBC renders");
         }
     }
 }

@@ -8,7 +8,7 @@ use std::path::Path;
 use crate::diagnostic::{Code, Diagnostic, Diagnostics, Reporter};
 
 /// A parsed DBC file with the source kept for diagnostics.
-pub struct LoadedDbc {
+pub(crate) struct LoadedDbc {
     pub text: String,
     pub dbc: can_dbc::Dbc,
     pub lines: LineIndex,
@@ -16,7 +16,7 @@ pub struct LoadedDbc {
 
 /// Where things are written in the file (1-based lines).
 #[derive(Debug, Default)]
-pub struct LineIndex {
+pub(crate) struct LineIndex {
     /// One entry per `BO_` line, in file order: (line, id exactly as written).
     pub messages: Vec<(usize, u64)>,
     /// (raw message id as written, signal name) -> line of its `SG_`.
@@ -116,7 +116,7 @@ pub fn decode_text(bytes: &[u8]) -> Option<String> {
 }
 
 /// Reads and parses `path`.
-pub fn load(path: &Path) -> Result<LoadedDbc, Diagnostics> {
+pub(crate) fn load(path: &Path) -> Result<LoadedDbc, Diagnostics> {
     let bytes = std::fs::read(path).map_err(|e| {
         Diagnostics(vec![file_error(
             path,
@@ -137,7 +137,7 @@ pub fn load(path: &Path) -> Result<LoadedDbc, Diagnostics> {
 }
 
 /// Parses DBC text already in memory (used by `load` and by tests).
-pub fn parse(path: &Path, text: String) -> Result<LoadedDbc, Diagnostics> {
+pub(crate) fn parse(path: &Path, text: String) -> Result<LoadedDbc, Diagnostics> {
     match can_dbc::Dbc::try_from(text.as_str()) {
         Ok(dbc) => {
             let lines = LineIndex::build(&text);

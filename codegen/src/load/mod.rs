@@ -1,4 +1,4 @@
 //! Load: bytes on disk -> parsed schema plus where each item was written, for diagnostics.
 
-pub mod dbc;
-pub mod telemetry;
+pub(crate) mod dbc;
+pub(crate) mod telemetry;

@@ -10,14 +10,14 @@ use crate::diagnostic::{Code, Diagnostics, Reporter};
 
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct TelemetryFile {
+pub(crate) struct TelemetryFile {
     pub packet: Spanned<PacketSpec>,
     pub fields: Vec<Spanned<FieldSpec>>,
 }
 
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct PacketSpec {
+pub(crate) struct PacketSpec {
     pub name: Spanned<String>,
     #[serde(default)]
     pub description: String,
@@ -35,7 +35,7 @@ pub struct PacketSpec {
 
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct FieldSpec {
+pub(crate) struct FieldSpec {
     pub name: Spanned<String>,
     #[serde(default)]
     pub group: Option<String>,
@@ -66,7 +66,7 @@ pub struct FieldSpec {
 
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct DisplaySpec {
+pub(crate) struct DisplaySpec {
     #[serde(default)]
     pub warn: Option<f64>,
     #[serde(default)]
@@ -78,12 +78,12 @@ pub struct DisplaySpec {
 }
 
 /// A parsed telemetry file with its source, for diagnostics.
-pub struct LoadedTelemetry {
+pub(crate) struct LoadedTelemetry {
     pub text: String,
     pub file: TelemetryFile,
 }
 
-pub fn load(path: &Path) -> Result<LoadedTelemetry, Diagnostics> {
+pub(crate) fn load(path: &Path) -> Result<LoadedTelemetry, Diagnostics> {
     let text = std::fs::read_to_string(path).map_err(|e| {
         let mut r = Reporter::new(path, "");
         r.report(
@@ -97,7 +97,7 @@ pub fn load(path: &Path) -> Result<LoadedTelemetry, Diagnostics> {
     parse(path, text)
 }
 
-pub fn parse(path: &Path, text: String) -> Result<LoadedTelemetry, Diagnostics> {
+pub(crate) fn parse(path: &Path, text: String) -> Result<LoadedTelemetry, Diagnostics> {
     match serde_saphyr::from_str::<TelemetryFile>(&text) {
         Ok(file) => Ok(LoadedTelemetry { text, file }),
         Err(err) => {

@@ -14,7 +14,7 @@ use crate::render::meta::{labels, signal_labels};
 
 #[derive(Template)]
 #[template(path = "docs/can.md", escape = "none")]
-pub struct CanMatrix<'a> {
+pub(crate) struct CanMatrix<'a> {
     pub source: &'a str,
     pub fingerprint: u32,
     pub messages: Vec<MessageDoc>,
@@ -26,7 +26,7 @@ pub struct CanMatrix<'a> {
 
 #[derive(Template)]
 #[template(path = "docs/telemetry.md", escape = "none")]
-pub struct TelemetryLayout<'a> {
+pub(crate) struct TelemetryLayout<'a> {
     pub source: &'a str,
     pub fingerprint: u32,
     pub name: String,
@@ -44,13 +44,13 @@ pub struct TelemetryLayout<'a> {
 /// a single frame carries 7 bytes; otherwise a first frame carries 6, each consecutive frame
 /// 7, and the receiver answers the first frame with one flow control frame (block size 0).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct IsoTpFrames {
+pub(crate) struct IsoTpFrames {
     pub consecutive: usize,
     pub flow_control: usize,
 }
 
 impl IsoTpFrames {
-    pub fn for_len(len: usize) -> Self {
+    pub(crate) fn for_len(len: usize) -> Self {
         if len <= 7 {
             Self {
                 consecutive: 0,
@@ -65,12 +65,12 @@ impl IsoTpFrames {
     }
 
     /// Every frame on the bus for one packet.
-    pub fn total(&self) -> usize {
+    pub(crate) fn total(&self) -> usize {
         1 + self.consecutive + self.flow_control
     }
 }
 
-pub struct BusLoadDoc {
+pub(crate) struct BusLoadDoc {
     pub bus: String,
     pub messages: usize,
     pub on_demand: usize,
@@ -79,7 +79,7 @@ pub struct BusLoadDoc {
     pub load: String,
 }
 
-pub struct MessageDoc {
+pub(crate) struct MessageDoc {
     pub name: String,
     pub anchor: String,
     pub id: String,
@@ -92,7 +92,7 @@ pub struct MessageDoc {
     pub signals: Vec<SignalDoc>,
 }
 
-pub struct SignalDoc {
+pub(crate) struct SignalDoc {
     pub name: String,
     pub bits: String,
     pub byte_order: &'static str,
@@ -106,7 +106,7 @@ pub struct SignalDoc {
     pub comment: String,
 }
 
-pub struct FieldDoc {
+pub(crate) struct FieldDoc {
     pub offset: String,
     pub size: String,
     pub name: String,
@@ -232,7 +232,7 @@ fn signal_doc(db: &Database, message: &Message, s: &Signal) -> SignalDoc {
     }
 }
 
-pub fn render_can(
+pub(crate) fn render_can(
     db: &Database,
     loads: &[BusLoad],
     source: &str,
@@ -315,7 +315,7 @@ fn field_doc(db: &Database, f: &TelemetryField) -> FieldDoc {
     }
 }
 
-pub fn render_telemetry(
+pub(crate) fn render_telemetry(
     db: &Database,
     t: &Telemetry,
     source: &str,

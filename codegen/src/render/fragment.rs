@@ -5,7 +5,7 @@ use std::fmt;
 
 /// A float as a Rust literal that reads back to exactly the same value.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct FloatLit(pub f64);
+pub(crate) struct FloatLit(pub f64);
 
 impl fmt::Display for FloatLit {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
@@ -20,7 +20,7 @@ impl fmt::Display for FloatLit {
 
 /// `Some(1.5)` or `None`.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct OptionLit<T>(pub Option<T>);
+pub(crate) struct OptionLit<T>(pub Option<T>);
 
 impl<T: fmt::Display> fmt::Display for OptionLit<T> {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
@@ -33,7 +33,7 @@ impl<T: fmt::Display> fmt::Display for OptionLit<T> {
 
 /// A string as a Rust string literal.
 #[derive(Debug, Clone, PartialEq)]
-pub struct StrLit(pub String);
+pub(crate) struct StrLit(pub String);
 
 impl fmt::Display for StrLit {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
@@ -43,7 +43,7 @@ impl fmt::Display for StrLit {
 
 /// ` + 40` / ` - 40`, nothing for zero: a term that reads naturally after an expression.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct SignedTerm(pub i128);
+pub(crate) struct SignedTerm(pub i128);
 
 impl fmt::Display for SignedTerm {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
@@ -57,23 +57,18 @@ impl fmt::Display for SignedTerm {
 
 /// A linear scaling `physical = raw * factor + offset`.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Scaling {
+pub(crate) struct Scaling {
     pub factor: f64,
     pub offset: f64,
 }
 
 impl Scaling {
-    pub fn is_identity(&self) -> bool {
+    pub(crate) fn is_identity(&self) -> bool {
         self.factor == 1.0 && self.offset == 0.0
     }
 
-    /// True when factor and offset are whole numbers, so integer arithmetic is exact.
-    pub fn is_integral(&self) -> bool {
-        self.factor.fract() == 0.0 && self.offset.fract() == 0.0
-    }
-
     /// `operand * factor + offset`, leaving out identity steps.
-    pub fn apply<T: fmt::Display>(self, operand: T) -> Scaled<T> {
+    pub(crate) fn apply<T: fmt::Display>(self, operand: T) -> Scaled<T> {
         Scaled {
             scaling: self,
             operand,
@@ -81,7 +76,7 @@ impl Scaling {
     }
 
     /// `(operand - offset) / factor`, leaving out identity steps.
-    pub fn invert<T: fmt::Display>(self, operand: T) -> Unscaled<T> {
+    pub(crate) fn invert<T: fmt::Display>(self, operand: T) -> Unscaled<T> {
         Unscaled {
             scaling: self,
             operand,
@@ -90,7 +85,7 @@ impl Scaling {
 
     /// What the code [`Self::invert`] writes computes for `x`, step by step in `f64` as the
     /// generated code does (`v + 40.0` is the same IEEE operation as `v - -40.0`).
-    pub fn invert_value(self, x: f64) -> f64 {
+    pub(crate) fn invert_value(self, x: f64) -> f64 {
         let x = if self.offset != 0.0 {
             x - self.offset
         } else {
@@ -104,7 +99,7 @@ impl Scaling {
     }
 
     /// `, physical = raw * 0.25 - 40` for docs (empty for identity scaling).
-    pub fn doc(&self) -> String {
+    pub(crate) fn doc(&self) -> String {
         if self.is_identity() {
             return String::new();
         }
@@ -123,7 +118,7 @@ impl Scaling {
 }
 
 /// See [`Scaling::apply`].
-pub struct Scaled<T> {
+pub(crate) struct Scaled<T> {
     scaling: Scaling,
     operand: T,
 }
@@ -142,7 +137,7 @@ impl<T: fmt::Display> fmt::Display for Scaled<T> {
 }
 
 /// See [`Scaling::invert`].
-pub struct Unscaled<T> {
+pub(crate) struct Unscaled<T> {
     scaling: Scaling,
     operand: T,
 }
@@ -173,7 +168,7 @@ impl<T: fmt::Display> fmt::Display for Unscaled<T> {
 
 /// How an integer or float value widens to `f64` for scaling arithmetic.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum ToF64 {
+pub(crate) enum ToF64 {
     /// Lossless: `f64::from(x)`.
     From,
     /// 64-bit integers: `x as f64`.
@@ -183,7 +178,7 @@ pub enum ToF64 {
 }
 
 impl ToF64 {
-    pub fn of(self, operand: &'static str) -> Widened {
+    pub(crate) fn of(self, operand: &'static str) -> Widened {
         Widened {
             kind: self,
             operand,
@@ -192,7 +187,7 @@ impl ToF64 {
 }
 
 /// See [`ToF64::of`].
-pub struct Widened {
+pub(crate) struct Widened {
     kind: ToF64,
     operand: &'static str,
 }
@@ -209,7 +204,7 @@ impl fmt::Display for Widened {
 
 /// The smallest signed type for integer scaling arithmetic over `lo..=hi` (raw and physical
 /// ranges together): `i32` where it suffices, since wider math is multi-word on the Cortex-M7.
-pub fn int_arith(lo: i128, hi: i128) -> &'static str {
+pub(crate) fn int_arith(lo: i128, hi: i128) -> &'static str {
     if lo >= i128::from(i32::MIN) && hi <= i128::from(i32::MAX) {
         "i32"
     } else if lo >= i128::from(i64::MIN) && hi <= i128::from(i64::MAX) {
@@ -221,18 +216,18 @@ pub fn int_arith(lo: i128, hi: i128) -> &'static str {
 
 /// Integer scaling `raw * factor + offset` in the type `arith`, exact for whole factors.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct IntScaling {
+pub(crate) struct IntScaling {
     pub arith: &'static str,
     pub factor: i128,
     pub offset: i128,
 }
 
 impl IntScaling {
-    pub fn offset_term(&self) -> SignedTerm {
+    pub(crate) fn offset_term(&self) -> SignedTerm {
         SignedTerm(self.offset)
     }
 
-    pub fn minus_offset(&self) -> SignedTerm {
+    pub(crate) fn minus_offset(&self) -> SignedTerm {
         SignedTerm(-self.offset)
     }
 }

@@ -4,7 +4,7 @@
 use super::fragment::{FloatLit, OptionLit, StrLit};
 use crate::model::{Database, PhysType, Signal};
 
-pub struct MetaView {
+pub(crate) struct MetaView {
     pub name: StrLit,
     /// Position in the message's signals (or the packet's fields).
     pub index: usize,
@@ -25,7 +25,7 @@ pub struct MetaView {
 }
 
 /// The named raw values of a signal: its enum's, or those a scaled signal only recognises.
-pub fn signal_labels(db: &Database, s: &Signal) -> Vec<(i128, StrLit)> {
+pub(crate) fn signal_labels(db: &Database, s: &Signal) -> Vec<(i128, StrLit)> {
     if s.value_labels.is_empty() {
         labels(db, s.phys)
     } else {
@@ -37,7 +37,7 @@ pub fn signal_labels(db: &Database, s: &Signal) -> Vec<(i128, StrLit)> {
 }
 
 /// The named raw values of an enum type (none for other types).
-pub fn labels(db: &Database, phys: PhysType) -> Vec<(i128, StrLit)> {
+pub(crate) fn labels(db: &Database, phys: PhysType) -> Vec<(i128, StrLit)> {
     match phys {
         PhysType::Enum(i) => db.enums.get(i).map_or(Vec::new(), |e| {
             e.variants

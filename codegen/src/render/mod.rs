@@ -1,22 +1,21 @@
 //! Render: the model -> source files, through askama templates (one per output).
 
-pub mod codec;
-pub mod column_type;
-pub mod docs;
-pub mod fragment;
-pub mod meta;
-pub mod mqtt;
-pub mod standalone;
-pub mod tables;
-pub mod telemetry;
+pub(crate) mod codec;
+pub(crate) mod docs;
+pub(crate) mod fragment;
+pub(crate) mod meta;
+pub(crate) mod mqtt;
+pub(crate) mod standalone;
+pub(crate) mod tables;
+pub(crate) mod telemetry;
 
 /// Splits a schema comment into doc-comment lines.
-pub fn doc_lines(text: &str) -> Vec<String> {
+pub(crate) fn doc_lines(text: &str) -> Vec<String> {
     text.lines().map(|l| l.trim_end().to_owned()).collect()
 }
 
 /// The Rust type of a physical value.
-pub fn phys_rust(db: &crate::model::Database, phys: crate::model::PhysType) -> String {
+pub(crate) fn phys_rust(db: &crate::model::Database, phys: crate::model::PhysType) -> String {
     use crate::model::PhysType;
     match phys {
         PhysType::Bool => "bool".into(),

@@ -9,7 +9,7 @@ use crate::model::{Database, PhysType, Signal, Telemetry, WireType};
 
 #[derive(Template)]
 #[template(path = "mqtt.rs", escape = "none")]
-pub struct MqttTemplate<'a> {
+pub(crate) struct MqttTemplate<'a> {
     pub source: &'a str,
     pub telemetry_type: &'a str,
     pub messages: Vec<MessageTopic>,
@@ -26,7 +26,7 @@ pub struct MqttTemplate<'a> {
 }
 
 /// A CAN message's topic.
-pub struct MessageTopic {
+pub(crate) struct MessageTopic {
     /// The constant's name, such as `MCU1`.
     pub const_name: String,
     /// Below the car's prefix, such as `can/mcu1`.
@@ -40,7 +40,7 @@ pub struct MessageTopic {
 }
 
 /// A value and the JSON writer for its type.
-pub struct JsonField {
+pub(crate) struct JsonField {
     /// The key (the Rust field name).
     pub name: String,
     pub kind: JsonKind,
@@ -51,7 +51,7 @@ pub struct JsonField {
     pub label_fn: Option<String>,
 }
 
-pub enum JsonKind {
+pub(crate) enum JsonKind {
     Bool,
     /// An enum: its raw value, then `<name>_label` with its name (`null` if it has none).
     Enum,
@@ -64,7 +64,7 @@ pub enum JsonKind {
 
 /// The decimals that `factor` and `offset` can produce: the smallest `d` (at most 9) for
 /// which both are whole multiples of `10^-d`; `None` when one has no such `d` (such as 1/3).
-pub fn resolution_decimals(factor: f64, offset: f64) -> Option<usize> {
+pub(crate) fn resolution_decimals(factor: f64, offset: f64) -> Option<usize> {
     let decimals = |x: f64| {
         (0..=9).find(|&d| {
             // Within a millionth of the last decimal (float noise), and not rounded to nothing.
@@ -123,7 +123,7 @@ fn capacity(fields: &[JsonField]) -> usize {
         .sum::<usize>()
 }
 
-pub fn render(db: &Database, t: &Telemetry, source: &str) -> Result<String, askama::Error> {
+pub(crate) fn render(db: &Database, t: &Telemetry, source: &str) -> Result<String, askama::Error> {
     let json_fields: Vec<JsonField> = t
         .fields
         .iter()

@@ -4,7 +4,7 @@ use askama::Template;
 
 #[derive(Template)]
 #[template(path = "lib.rs", escape = "none")]
-pub struct LibTemplate<'a> {
+pub(crate) struct LibTemplate<'a> {
     pub title: &'a str,
     pub source: &'a str,
     /// Whether the crate also carries the telemetry packet, TDengine schema and MQTT topics.
@@ -13,7 +13,7 @@ pub struct LibTemplate<'a> {
 
 #[derive(Template)]
 #[template(path = "crate/Cargo.toml", escape = "none")]
-pub struct CargoTemplate<'a> {
+pub(crate) struct CargoTemplate<'a> {
     pub name: &'a str,
     pub source: &'a str,
     /// Adds an empty `[workspace]` so the crate builds wherever it is written.
@@ -22,12 +22,12 @@ pub struct CargoTemplate<'a> {
 
 #[derive(Template)]
 #[template(path = "decode.rs", escape = "none")]
-pub struct DecodeExample<'a> {
+pub(crate) struct DecodeExample<'a> {
     pub krate: &'a str,
 }
 
 #[derive(Template)]
 #[template(path = "encode.rs", escape = "none")]
-pub struct EncodeExample<'a> {
+pub(crate) struct EncodeExample<'a> {
     pub krate: &'a str,
 }

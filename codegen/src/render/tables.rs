@@ -8,7 +8,7 @@ use crate::model::{Database, IntType, PhysType, Telemetry};
 
 #[derive(Template)]
 #[template(path = "tables.rs", escape = "none")]
-pub struct TablesRust<'a> {
+pub(crate) struct TablesRust<'a> {
     pub source: &'a str,
     pub column_type: &'static str,
     pub tables: Vec<Table>,
@@ -16,22 +16,19 @@ pub struct TablesRust<'a> {
 
 #[derive(Template)]
 #[template(path = "tdengine.sql", escape = "none")]
-pub struct TdengineSql<'a> {
+pub(crate) struct TdengineSql<'a> {
     pub source: &'a str,
     pub tables: Vec<Table>,
 }
 
 #[derive(Template)]
 #[template(path = "sqlite.sql", escape = "none")]
-pub struct SqliteSql<'a> {
+pub(crate) struct SqliteSql<'a> {
     pub source: &'a str,
     pub tables: Vec<Table>,
 }
 
-pub use super::column_type::ColumnType;
-
-/// The generated `tables.rs` carries the same definition, copied from this file.
-const COLUMN_TYPE_SOURCE: &str = include_str!("column_type.rs");
+pub(crate) use crate::runtime::column_type::ColumnType;
 
 impl ColumnType {
     /// The type holding every physical value exactly.
@@ -62,7 +59,7 @@ impl ColumnType {
     }
 
     /// The generated enum's variant.
-    pub fn variant(self) -> String {
+    pub(crate) fn variant(self) -> String {
         match self {
             Self::VarChar(n) => format!("VarChar({n})"),
             other => format!("{other:?}"),
@@ -70,7 +67,7 @@ impl ColumnType {
     }
 }
 
-pub struct Column {
+pub(crate) struct Column {
     pub name: String,
     pub ty: ColumnType,
 }
@@ -84,7 +81,7 @@ impl Column {
     }
 }
 
-pub struct Table {
+pub(crate) struct Table {
     pub name: String,
     pub const_name: String,
     pub doc: String,
@@ -99,7 +96,7 @@ pub struct Table {
 impl Table {
     /// The path of the schema's description of the values (the packet's fields or the
     /// message's signals), which fill the last columns.
-    pub fn signals(&self) -> String {
+    pub(crate) fn signals(&self) -> String {
         match &self.message {
             Some(message) => format!("super::can::{message}::META.signals"),
             None => "super::telemetry::Telemetry::FIELDS".to_owned(),
@@ -118,7 +115,7 @@ impl Table {
     }
 
     /// `CREATE STABLE IF NOT EXISTS ...`.
-    pub fn tdengine_create(&self) -> String {
+    pub(crate) fn tdengine_create(&self) -> String {
         let list = |columns: &[Column]| {
             columns
                 .iter()
@@ -135,7 +132,7 @@ impl Table {
     }
 
     /// `INSERT INTO ? USING <stable> TAGS (?, ...) VALUES (?, ...)`, for parameter binding.
-    pub fn tdengine_insert(&self) -> String {
+    pub(crate) fn tdengine_insert(&self) -> String {
         let marks = |n: usize| vec!["?"; n].join(", ");
         format!(
             "INSERT INTO ? USING `{}` TAGS ({}) VALUES ({})",
@@ -154,7 +151,7 @@ impl Table {
     /// required. Row ids are never reused (`AUTOINCREMENT`), even once every row of a table
     /// was pruned or compacted: the forwarder's cursor and the sessions' row ranges count on
     /// them only growing.
-    pub fn sqlite_create(&self) -> String {
+    pub(crate) fn sqlite_create(&self) -> String {
         let defs: Vec<String> = self
             .local_columns()
             .enumerate()
@@ -176,7 +173,7 @@ impl Table {
     }
 
     /// `INSERT INTO ... VALUES (?1, ...)`, one parameter per column of the local row.
-    pub fn sqlite_insert(&self) -> String {
+    pub(crate) fn sqlite_insert(&self) -> String {
         let names: Vec<String> = self
             .local_columns()
             .map(|c| format!("\"{}\"", c.name))
@@ -236,16 +233,20 @@ pub(crate) fn tables(db: &Database, t: &Telemetry) -> Vec<Table> {
     out
 }
 
-pub fn render_rust(db: &Database, t: &Telemetry, source: &str) -> Result<String, askama::Error> {
+pub(crate) fn render_rust(
+    db: &Database,
+    t: &Telemetry,
+    source: &str,
+) -> Result<String, askama::Error> {
     TablesRust {
         source,
-        column_type: COLUMN_TYPE_SOURCE,
+        column_type: crate::runtime::COLUMN_TYPE,
         tables: tables(db, t),
     }
     .render()
 }
 
-pub fn render_tdengine_sql(
+pub(crate) fn render_tdengine_sql(
     db: &Database,
     t: &Telemetry,
     source: &str,
@@ -257,7 +258,7 @@ pub fn render_tdengine_sql(
     .render()
 }
 
-pub fn render_sqlite_sql(
+pub(crate) fn render_sqlite_sql(
     db: &Database,
     t: &Telemetry,
     source: &str,

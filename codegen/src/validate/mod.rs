@@ -1,4 +1,4 @@
 //! Validate: a parsed schema -> the model, or diagnostics saying exactly what to fix.
 
-pub mod dbc;
-pub mod telemetry;
+pub(crate) mod dbc;
+pub(crate) mod telemetry;

@@ -21,7 +21,7 @@ fn line_of<T>(s: &Spanned<T>) -> usize {
 }
 
 /// Validates the telemetry schema against `db` and lays out the packet.
-pub fn validate(
+pub(crate) fn validate(
     path: &Path,
     loaded: &LoadedTelemetry,
     db: &Database,

@@ -1,4 +1,5 @@
-//! Renders the no_std codec (`runtime.rs` and the messages module) from the model.
+//! Renders the no_std codec's messages module from the model (the runtime beside it is
+//! [`crate::runtime`]).
 
 mod signal;
 
@@ -10,21 +11,8 @@ use crate::model::{ByteOrder, Database, EnumType, Message, PhysType};
 use signal::{Conversion, Fit, FloatWire, PhysAsF64, Presence, RawCodec, SignalView, ValueKind};
 
 #[derive(Template)]
-#[template(path = "runtime.rs", escape = "none")]
-pub struct RuntimeTemplate<'a> {
-    pub source: &'a str,
-    /// The car's crate: byte helpers for the telemetry packet, and the bus-load formula and
-    /// bit rate the Pi measures the buses with. Vendor crates have neither.
-    pub telemetry: bool,
-    /// [`crate::frame_bits`], verbatim (car's crate only).
-    pub frame_bits: &'a str,
-    /// The buses' bit rate: the DBC's `Baudrate`, else the car's 500 kbit/s.
-    pub bit_rate: u32,
-}
-
-#[derive(Template)]
 #[template(path = "can.rs", escape = "none")]
-pub struct CanTemplate<'a> {
+pub(crate) struct CanTemplate<'a> {
     pub source: &'a str,
     pub db_name: &'a str,
     pub fingerprint: String,
@@ -32,21 +20,21 @@ pub struct CanTemplate<'a> {
     pub messages: Vec<MessageView>,
 }
 
-pub struct EnumView {
+pub(crate) struct EnumView {
     pub name: String,
     pub repr: &'static str,
     pub variants: Vec<VariantView>,
     pub used_by: String,
 }
 
-pub struct VariantView {
+pub(crate) struct VariantView {
     pub ident: String,
     pub value: i128,
     pub label: StrLit,
     pub label_doc: String,
 }
 
-pub struct MessageView {
+pub(crate) struct MessageView {
     pub type_name: String,
     pub name: StrLit,
     /// The static array of the signals' metadata.
@@ -73,29 +61,16 @@ pub struct MessageView {
 
 impl MessageView {
     /// The signals in decode/encode order.
-    pub fn ordered(&self) -> impl Iterator<Item = &SignalView> {
+    pub(crate) fn ordered(&self) -> impl Iterator<Item = &SignalView> {
         self.order.iter().filter_map(|&i| self.signals.get(i))
     }
 }
 
-/// The runtime; `car` is the car's database (telemetry helpers and bus measurement), `None`
-/// for a vendor crate.
-pub fn render_runtime(source: &str, car: Option<&Database>) -> Result<String, askama::Error> {
-    RuntimeTemplate {
-        source,
-        telemetry: car.is_some(),
-        frame_bits: FRAME_BITS_SOURCE,
-        bit_rate: car
-            .and_then(|db| db.bit_rate)
-            .unwrap_or(crate::bus_load::DEFAULT_BIT_RATE),
-    }
-    .render()
-}
-
-/// The bus-load formula, copied into the car's runtime (as `ColumnType` into `tables.rs`).
-const FRAME_BITS_SOURCE: &str = include_str!("../../frame_bits.rs");
-
-pub fn render_can(db: &Database, source: &str, fingerprint: u32) -> Result<String, askama::Error> {
+pub(crate) fn render_can(
+    db: &Database,
+    source: &str,
+    fingerprint: u32,
+) -> Result<String, askama::Error> {
     // Which signals use each enum, in one pass (not a pass over every signal per enum).
     let mut users: Vec<Vec<String>> = vec![Vec::new(); db.enums.len()];
     for m in &db.messages {

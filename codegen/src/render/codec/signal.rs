@@ -7,7 +7,7 @@ use crate::render::fragment::{FloatLit, IntScaling, OptionLit, Scaling, StrLit, 
 use crate::render::meta::{MetaView, signal_labels};
 use crate::render::{doc_lines, phys_rust};
 
-pub struct SignalView {
+pub(crate) struct SignalView {
     pub name: StrLit,
     /// The message's name, for errors that name the signal.
     pub message: StrLit,
@@ -35,13 +35,13 @@ pub struct SignalView {
 }
 
 /// How `<stem>_label(v)` finds the raw value of a physical one.
-pub struct NamedValues {
+pub(crate) struct NamedValues {
     pub scaling: Scaling,
     pub to_f64: ToF64,
 }
 
 /// Where a signal's bits sit in the payload.
-pub struct Placement {
+pub(crate) struct Placement {
     /// `le` or `be`: the suffix of the runtime's `bits::read_*`/`write_*`.
     pub order: &'static str,
     /// LSB for Intel; the MSB in big-endian linear numbering for Motorola.
@@ -50,7 +50,7 @@ pub struct Placement {
 }
 
 /// How the extracted bits (a `u64`) become the raw value, and back.
-pub enum RawCodec {
+pub(crate) enum RawCodec {
     F32,
     F64,
     /// Sign-extended to `i64`; `narrow` names a smaller raw type to cast to.
@@ -67,14 +67,14 @@ pub enum RawCodec {
 }
 
 /// When the signal is in the payload.
-pub enum Presence {
+pub(crate) enum Presence {
     Always,
     /// Only when its multiplexor's raw value matches.
     When(MuxCondition),
 }
 
 /// `matches!(selector_bits, 1 | 4..=7)`.
-pub struct MuxCondition {
+pub(crate) struct MuxCondition {
     /// The local holding the multiplexor's bits.
     pub selector: String,
     /// The multiplexor is itself multiplexed, so its bits are an `Option`.
@@ -85,13 +85,13 @@ pub struct MuxCondition {
 
 impl MuxCondition {
     /// `1 | 4..=7`.
-    pub fn patterns(&self) -> String {
+    pub(crate) fn patterns(&self) -> String {
         crate::model::MuxCondition::describe(&self.ranges, "..=", " | ")
     }
 }
 
 /// How the raw value becomes the physical value (`<field>_from_raw`) and back (`<field>_to_raw`).
-pub enum Conversion {
+pub(crate) enum Conversion {
     /// A 1-bit flag.
     Bool,
     /// Named values; `widen` is the enum's representation when wider than the raw type.
@@ -121,7 +121,7 @@ pub enum Conversion {
 }
 
 /// How a quantized signal whose range check bounds its raw value rounds it.
-pub struct BoundedRound {
+pub(crate) struct BoundedRound {
     /// The runtime's rounding to an integer: `round_i32` or `round_i64`.
     pub round: &'static str,
     /// `Some((lo, hi))` when the range still lets through values outside the signal's bits:
@@ -131,7 +131,7 @@ pub struct BoundedRound {
 
 /// Which float types meet on the wire and in the struct.
 #[derive(Clone, Copy, PartialEq, Eq)]
-pub enum FloatWire {
+pub(crate) enum FloatWire {
     /// `f32` on the wire and in the struct, unscaled.
     F32Plain,
     /// `f32` on the wire and in the struct, scaled through `f64`.
@@ -143,7 +143,7 @@ pub enum FloatWire {
 }
 
 /// Whether an integer raw value needs a check against the signal's bit width.
-pub enum Fit {
+pub(crate) enum Fit {
     /// The raw type is exactly as wide as the signal.
     Full,
     Range {
@@ -153,7 +153,7 @@ pub enum Fit {
 }
 
 /// `runtime::check_range(...)` on the physical value before it is encoded.
-pub struct RangeCheck {
+pub(crate) struct RangeCheck {
     pub value: PhysAsF64,
     pub min: FloatLit,
     pub max: FloatLit,
@@ -162,7 +162,7 @@ pub struct RangeCheck {
 }
 
 /// The physical value `v` as `f64`, for the range check.
-pub enum PhysAsF64 {
+pub(crate) enum PhysAsF64 {
     Bool,
     Number(ToF64),
     /// A scaled signal with named values: only values without a name are checked (a named
@@ -176,7 +176,7 @@ pub enum PhysAsF64 {
 }
 
 /// The value a visitor sees, and how a value from a [`SignalSource`] becomes the field.
-pub enum ValueKind {
+pub(crate) enum ValueKind {
     Bool,
     Int {
         ty: &'static str,
@@ -190,7 +190,7 @@ pub enum ValueKind {
 }
 
 impl SignalView {
-    pub fn new(db: &Database, m: &Message, index: usize, s: &Signal) -> Self {
+    pub(crate) fn new(db: &Database, m: &Message, index: usize, s: &Signal) -> Self {
         SignalView {
             name: StrLit(s.name.clone()),
             message: StrLit(m.name.clone()),
@@ -213,24 +213,24 @@ impl SignalView {
     }
 
     /// The struct field's type: multiplexed signals are `Option`al.
-    pub fn field_ty(&self) -> String {
+    pub(crate) fn field_ty(&self) -> String {
         match self.presence {
             Presence::Always => self.phys_ty.clone(),
             Presence::When(_) => format!("Option<{}>", self.phys_ty),
         }
     }
 
-    pub fn optional(&self) -> bool {
+    pub(crate) fn optional(&self) -> bool {
         matches!(self.presence, Presence::When(_))
     }
 
     /// The local holding a multiplexor's bits.
-    pub fn bits_local(&self) -> String {
+    pub(crate) fn bits_local(&self) -> String {
         format!("{}_bits", self.stem)
     }
 
     /// The call reading the signal's bits from `data`.
-    pub fn read_expr(&self) -> String {
+    pub(crate) fn read_expr(&self) -> String {
         let p = &self.placement;
         format!("bits::read_{}(data, {}, {})", p.order, p.start, p.len)
     }

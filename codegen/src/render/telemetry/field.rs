@@ -7,7 +7,7 @@ use crate::render::fragment::{FloatLit, IntScaling, OptionLit, Scaling, StrLit, 
 use crate::render::meta::{MetaView, labels};
 use crate::render::{doc_lines, phys_rust};
 
-pub struct FieldView {
+pub(crate) struct FieldView {
     pub name: String,
     /// Position in the packet's field list (and its metadata array).
     pub index: usize,
@@ -25,7 +25,7 @@ pub struct FieldView {
 }
 
 /// Where the field sits in the packet.
-pub enum FieldPlacement {
+pub(crate) enum FieldPlacement {
     /// A little-endian value at this byte offset.
     Bytes { at: usize },
     /// A flag: bit `bit` of byte `byte`, which is flag byte `flag_byte` (counted from the first
@@ -38,7 +38,7 @@ pub enum FieldPlacement {
 }
 
 /// How the physical value converts to the wire value and back.
-pub enum FieldConversion {
+pub(crate) enum FieldConversion {
     /// The wire holds the value itself.
     Identity,
     Enum,
@@ -65,7 +65,7 @@ pub enum FieldConversion {
 }
 
 /// The value before any data arrived.
-pub enum FieldDefault {
+pub(crate) enum FieldDefault {
     False,
     Zero,
     ZeroFloat,
@@ -74,7 +74,7 @@ pub enum FieldDefault {
 }
 
 /// The `FieldDisplay` literal.
-pub struct DisplayView {
+pub(crate) struct DisplayView {
     pub group: StrLit,
     pub label: StrLit,
     pub warn: OptionLit<FloatLit>,
@@ -86,7 +86,12 @@ pub struct DisplayView {
 }
 
 impl FieldView {
-    pub fn new(db: &Database, first_flag_byte: usize, index: usize, f: &TelemetryField) -> Self {
+    pub(crate) fn new(
+        db: &Database,
+        first_flag_byte: usize,
+        index: usize,
+        f: &TelemetryField,
+    ) -> Self {
         FieldView {
             name: f.name.clone(),
             index,
@@ -115,7 +120,7 @@ impl FieldView {
         }
     }
 
-    pub fn is_flag(&self) -> bool {
+    pub(crate) fn is_flag(&self) -> bool {
         matches!(self.placement, FieldPlacement::Flag { .. })
     }
 }

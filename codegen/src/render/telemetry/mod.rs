@@ -12,7 +12,7 @@ use field::{FieldConversion, FieldDefault, FieldPlacement, FieldView};
 
 #[derive(Template)]
 #[template(path = "telemetry.rs", escape = "none")]
-pub struct TelemetryTemplate<'a> {
+pub(crate) struct TelemetryTemplate<'a> {
     pub source: &'a str,
     pub t: &'a Telemetry,
     pub fingerprint: String,
@@ -24,14 +24,14 @@ pub struct TelemetryTemplate<'a> {
 }
 
 /// The fields that mirror one message's signals.
-pub struct MirrorArm {
+pub(crate) struct MirrorArm {
     /// `AnyMessage` variant (the message's type name).
     pub variant: String,
     pub copies: Vec<MirrorCopy>,
 }
 
 /// `self.<field> = m.<signal>`, converted where the types differ.
-pub struct MirrorCopy {
+pub(crate) struct MirrorCopy {
     pub field: String,
     pub signal: String,
     /// The signal is multiplexed: copy only when present.
@@ -42,7 +42,7 @@ pub struct MirrorCopy {
 
 #[derive(Template)]
 #[template(path = "telemetry_deku.rs", escape = "none")]
-pub struct DekuTemplate<'a> {
+pub(crate) struct DekuTemplate<'a> {
     pub source: &'a str,
     pub t: &'a Telemetry,
     pub fields: Vec<FieldView>,
@@ -63,7 +63,7 @@ fn field_views(db: &Database, t: &Telemetry) -> Vec<FieldView> {
         .collect()
 }
 
-pub fn render(
+pub(crate) fn render(
     db: &Database,
     t: &Telemetry,
     source: &str,
@@ -121,7 +121,11 @@ fn mirror_arms(db: &Database, t: &Telemetry) -> Vec<MirrorArm> {
         .collect()
 }
 
-pub fn render_deku(db: &Database, t: &Telemetry, source: &str) -> Result<String, askama::Error> {
+pub(crate) fn render_deku(
+    db: &Database,
+    t: &Telemetry,
+    source: &str,
+) -> Result<String, askama::Error> {
     DekuTemplate {
         source,
         t,

@@ -51,10 +51,8 @@ const RESERVED_TYPES: [&str; 19] = [
     "Iterator",
 ];
 
-pub use signal::PHYS_TYPE_ATTRIBUTE;
-
 /// Validates `loaded` and builds the model. Returns every diagnostic (warnings too) alongside.
-pub fn validate(
+pub(crate) fn validate(
     path: &Path,
     loaded: &LoadedDbc,
     allow: &[Code],

@@ -11,7 +11,7 @@ use crate::diagnostic::Code;
 use crate::model::{ByteOrder, Encoding, EnumType, IntType, PhysType, Signal, be_linear};
 
 /// Signal attribute a schema can set to `"f32"` to ask for a single-precision physical value.
-pub const PHYS_TYPE_ATTRIBUTE: &str = "AerPhysType";
+pub(super) const PHYS_TYPE_ATTRIBUTE: &str = "AerPhysType";
 
 /// Where a signal's bits sit.
 struct Bits {
