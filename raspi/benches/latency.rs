@@ -1,5 +1,6 @@
-//! Latency from a packet's last CAN frame entering the ingest stage to its delivery at an MQTT
-//! subscriber (rumqttc, loopback, embedded broker, store writer running), at 100 Hz and 1 kHz.
+//! Latency from a packet's last CAN frame entering the service's pipeline (`Pipeline`, as
+//! `serve` runs it: ingest, raw log, store writer, embedded broker) to its delivery at an MQTT
+//! subscriber (rumqttc, loopback), at 100 Hz and 1 kHz.
 //! The traffic is the closed-loop car model's (every frame on both buses), one telemetry
 //! packet per 10 ms of model time. Prints p50, p99 and max. Run: `cargo bench -p aer-raspi
 //! --bench latency`.
@@ -13,21 +14,15 @@ use aer_car_model::{BusTap, ClosedLoop, ModelParams};
 use aer_flexcan::CanFrame;
 use aer_host::candump::LoggedFrame;
 use aer_host::clock::now_us;
-use aer_host::counters::Counters;
 use aer_raspi::broker;
-use aer_raspi::config::BrokerOptions;
-use aer_raspi::ingest::Stage;
-use aer_raspi::sink::Sink;
-use aer_raspi::sink::mqtt as publish;
-use aer_raspi::sink::store::StoreSink;
-use aer_raspi::source::{Input, Replies};
-use aer_raspi::store;
+use aer_raspi::config::Config;
+use aer_raspi::service::{Job, Pipeline};
+use aer_raspi::source::Input;
 use embedded_can::{Frame, Id};
 use rumqttc::{AsyncClient, Event, MqttOptions, Packet, QoS};
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
-use tokio_util::sync::CancellationToken;
 
 /// One model step's frames.
 #[derive(Default)]
@@ -55,14 +50,17 @@ fn main() {
             .and_then(|l| l.local_addr())
             .map(|a| a.port())
             .expect("port");
+        let dir = tempfile::tempdir().expect("temp dir");
+        let broker_config = dir.path().join("rumqttd.toml");
         let text = broker::DEFAULT_CONFIG.replace("127.0.0.1:1883", &format!("127.0.0.1:{port}"));
-        let broker = broker::start(
-            broker::parse(&text).expect("broker config"),
-            Arc::new(Counters::default()),
-            CancellationToken::new(),
-        )
-        .await
-        .expect("broker");
+        std::fs::write(&broker_config, text).expect("broker config");
+        let mut config = Config::default();
+        config.broker.config = Some(broker_config);
+        config.store.path = dir.path().join("l.sqlite");
+        config.raw_log.dir = dir.path().join("raw");
+        let mut pipeline = Pipeline::start(config, Job::Fed).await.expect("pipeline");
+        let input = pipeline.input().expect("a fed pipeline's input");
+        let running = tokio::spawn(pipeline.run(std::future::pending()));
 
         let mut options = MqttOptions::new("latency-subscriber", "127.0.0.1", port);
         options.set_max_packet_size(64 * 1024, 64 * 1024);
@@ -102,34 +100,14 @@ fn main() {
             });
         }
 
-        let counters = Arc::new(Counters::default());
-        let (publisher, driver) = publish::embedded(
-            broker.link,
-            broker.spares,
-            BrokerOptions::default().queue,
-            "aer/car1".into(),
-            counters.clone(),
-            Arc::default(),
-        );
-        let (up_tx, mut up) = tokio::sync::watch::channel(false);
-        tokio::spawn(publish::drive(driver, up_tx));
-        let _ = up.wait_for(|u| *u).await;
-        let dir = tempfile::tempdir().expect("temp dir");
-        let writer = store::StoreWriter::start(
-            store::open(&dir.path().join("l.sqlite")).expect("store"),
-            counters.clone(),
-        );
-        let sinks: Vec<Box<dyn Sink>> = vec![
-            Box::new(publisher),
-            Box::new(StoreSink::new(writer.sender().expect("store open"), "car1")),
-        ];
-        let mut stage = Stage::new(counters.clone(), sinks, Replies::default());
-        for (index, name) in ["can0", "can1"].into_iter().enumerate() {
-            stage.take(Input::Bus {
+        let buses = ["can0", "can1"]
+            .into_iter()
+            .enumerate()
+            .map(|(index, name)| Input::Bus {
                 index: index as u8,
                 name: name.into(),
             });
-        }
+        input.send(buses.collect()).await.expect("pipeline running");
         let telemetry = Id::Standard(embedded_can::StandardId::new(Telemetry::TX_ID).expect("id"));
 
         for (rate, packets) in [(100u32, 1_000u16), (1_000, 5_000)] {
@@ -152,20 +130,22 @@ fn main() {
                 let mut frames = Frames::default();
                 model.run_until(model.now_ms() + 10, &mut frames);
                 // The step ends with the telemetry packet: its last frame is the clock's start.
-                let last = frames.0.iter().rposition(|(_, f)| f.id() == telemetry);
-                for (index, (bus, frame)) in frames.0.iter().enumerate() {
-                    let logged = LoggedFrame::new(now_us(), *bus as u8, frame.id(), frame.data());
-                    if Some(index) == last {
-                        if let Ok(mut s) = sent.lock() {
-                            s.insert(sequence, Instant::now());
-                        }
-                    }
-                    if let Some(logged) = logged {
-                        stage.take(Input::Frame(logged));
-                    }
+                // One batch a step, as a source sends what it read: the clock starts when the
+                // batch holding the packet's last frame is handed to the pipeline.
+                let batch = frames
+                    .0
+                    .iter()
+                    .filter_map(|(bus, frame)| {
+                        LoggedFrame::new(now_us(), *bus as u8, frame.id(), frame.data())
+                    })
+                    .map(Input::Frame)
+                    .collect();
+                if frames.0.iter().any(|(_, f)| f.id() == telemetry)
+                    && let Ok(mut s) = sent.lock()
+                {
+                    s.insert(sequence, Instant::now());
                 }
-                // As the stage does before waiting for the next input.
-                stage.flush();
+                input.send(batch).await.expect("pipeline running");
                 tokio::time::sleep_until(next).await;
             }
             // Let the last deliveries arrive (bounded wait for the tail, not a synchronisation).
@@ -185,7 +165,10 @@ fn main() {
                 latencies.last().copied().unwrap_or_default()
             );
         }
-        drop(stage);
-        writer.finish();
+        drop(input);
+        running
+            .await
+            .expect("pipeline task")
+            .expect("pipeline stops cleanly");
     });
 }

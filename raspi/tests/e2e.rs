@@ -1,25 +1,21 @@
-//! End to end, with the real components: the bundled session log -> the pipeline -> the
-//! embedded rumqttd broker -> a rumqttc subscriber and `mosquitto_sub`; and the local store.
-//! Every packet must arrive at both subscribers with the values the generated decoder reads
-//! from the log, and the store must hold every row.
+//! End to end, with the service's own pipeline (`Pipeline`, as `serve` runs it): the bundled
+//! session log -> ingest -> the embedded rumqttd broker -> a rumqttc subscriber and
+//! `mosquitto_sub`; the local store and the raw log. Every packet must arrive at both
+//! subscribers with the values the generated decoder reads from the log, and the store must
+//! hold every row.
 
 use aer::mqtt::{Sample, TELEMETRY, TelemetryRecord};
-use aer_host::counters::Counters;
 use aer_host::ingest::decode_log;
-use aer_host::status::{METRICS, Problems, STATUS, metrics, status};
+use aer_host::status::STATUS;
 use aer_raspi::broker;
-use aer_raspi::config::BrokerOptions;
-use aer_raspi::ingest::Stage;
-use aer_raspi::sink::Sink;
-use aer_raspi::sink::mqtt as publish;
-use aer_raspi::sink::store::StoreSink;
-use aer_raspi::source::Replies;
-use aer_raspi::store;
+use aer_raspi::config::Config;
+use aer_raspi::service::{Job, Pipeline};
+use aer_raspi::source::replay::{ReplayOptions, replay};
 use rumqttc::{AsyncClient, Event, MqttOptions, Packet, QoS};
 use std::collections::HashMap;
 use std::io::{BufRead, BufReader};
+use std::path::Path;
 use std::process::{Command, Stdio};
-use std::sync::Arc;
 use std::time::Duration;
 use tokio_util::sync::CancellationToken;
 
@@ -70,19 +66,24 @@ fn free_port() -> u16 {
         .expect("a free port")
 }
 
-/// The broker of the repository's config on `port`, with segments large enough to hold a
-/// fast replay for a slow subscriber (the Pi's config is sized for 100 packets/s); returns the
-/// service's links to it.
-async fn start_broker(port: u16, counters: &Arc<Counters>) -> broker::Broker {
+/// The service's configuration in `dir`: the repository's broker config on `port`, with
+/// segments large enough to hold a replay run flat out for a subscriber on a busy machine
+/// (the Pi's config is sized for 100 packets/s); the store and the raw log in `dir`.
+fn config(dir: &Path, port: u16) -> Config {
+    let broker_config = dir.join("rumqttd.toml");
     let text = broker::DEFAULT_CONFIG
         .replace("127.0.0.1:1883", &format!("127.0.0.1:{port}"))
         .replace("max_segment_size = 262144", "max_segment_size = 67108864");
-    let mut config = broker::parse(&text).expect("loopback only");
-    // The test reads its subscribers only after the replay: not a client that stopped reading.
-    config.stall_limit = Duration::from_secs(120);
-    broker::start(config, counters.clone(), CancellationToken::new())
-        .await
-        .expect("broker thread")
+    std::fs::write(&broker_config, text).expect("broker config");
+    let mut config = Config::default();
+    config.broker.config = Some(broker_config);
+    // The replay runs flat out, hundreds of times the car's rate: a publish queue that holds
+    // the whole session, so no message is dropped for want of room (at the car's rate the
+    // shipped 10,000 holds seconds; a full queue drops and counts, as publish_dropped).
+    config.broker.queue = 100_000;
+    config.store.path = dir.join("store.sqlite");
+    config.raw_log.dir = dir.join("raw");
+    config
 }
 
 /// The regular DBC frames in the log: every frame but the telemetry's ISO-TP and flow control.
@@ -110,11 +111,18 @@ async fn every_packet_reaches_both_subscribers_and_the_store() {
     let expected = expected_packets();
     assert_eq!(expected.len(), 4_500, "45 s at 100 Hz");
 
+    // The pipeline up, its source not yet started: the broker listens, the topics'
+    // descriptions are retained.
+    let dir = tempfile::tempdir().expect("temp dir");
     let port = free_port();
-    let counters = Arc::new(Counters::default());
-    let broker = start_broker(port, &counters).await;
+    let mut pipeline = Pipeline::start(config(dir.path(), port), Job::Fed)
+        .await
+        .expect("the pipeline starts");
+    assert_eq!(pipeline.mqtt_address(), format!("127.0.0.1:{port}"));
+    let counters = pipeline.counters();
+    let input = pipeline.input().expect("a fed pipeline's input");
 
-    // rumqttc subscriber, subscribed (SubAck seen) before anything is published.
+    // rumqttc subscriber, subscribed (SubAck seen) before anything is sent.
     let mut options = MqttOptions::new("e2e-subscriber", "127.0.0.1", port);
     options.set_max_packet_size(64 * 1024, 64 * 1024);
     let (subscriber, mut events) = AsyncClient::new(options, 100);
@@ -130,16 +138,23 @@ async fn every_packet_reaches_both_subscribers_and_the_store() {
             Err(_) => panic!("no SubAck from the embedded broker"),
         }
     }
+    // Every packet and CAN frame, and a status published after the traffic (it names the
+    // schema the firmware sends).
     let collector = tokio::spawn(async move {
         let mut telemetry = Vec::new();
         let mut can = 0usize;
-        while telemetry.len() < 4_500 || (can as u64) < can_frames() {
+        let mut status_after_traffic = false;
+        while telemetry.len() < 4_500 || (can as u64) < can_frames() || !status_after_traffic {
             match tokio::time::timeout(Duration::from_secs(20), events.poll()).await {
                 Ok(Ok(Event::Incoming(Packet::Publish(p)))) => {
-                    if p.topic.ends_with("/telemetry") {
+                    if p.topic == "aer/car1/telemetry" {
                         telemetry.push(p.payload.to_vec());
-                    } else if p.topic.contains("/can/") {
+                    } else if p.topic.starts_with("aer/car1/can/") {
                         can += 1;
+                    } else if p.topic == "aer/car1/status" && telemetry.len() == 4_500 {
+                        status_after_traffic |= STATUS
+                            .decode(&p.payload)
+                            .is_ok_and(|s| s.fingerprint_match == Some(true));
                     }
                 }
                 Ok(_) => {}
@@ -149,7 +164,8 @@ async fn every_packet_reaches_both_subscribers_and_the_store() {
         (telemetry, can)
     });
 
-    // mosquitto_sub, confirmed subscribed by seeing a probe message.
+    // mosquitto_sub, confirmed subscribed by its first message (a retained topic description
+    // or status, or the metrics): nothing has been sent yet.
     let mut mosquitto = Command::new("mosquitto_sub")
         .args([
             "-h",
@@ -164,37 +180,11 @@ async fn every_packet_reaches_both_subscribers_and_the_store() {
         .spawn()
         .expect("mosquitto_sub (Debian package mosquitto-clients; .ci/run installs it)");
     let mut lines = BufReader::new(mosquitto.stdout.take().expect("stdout")).lines();
-    // The service's own path: in process into the embedded broker.
-    let (publisher, driver) = publish::embedded(
-        broker.link,
-        broker.spares,
-        BrokerOptions::default().queue,
-        "aer/car1".into(),
-        counters.clone(),
-        Arc::default(),
-    );
-    let (up_tx, mut up) = tokio::sync::watch::channel(false);
-    tokio::spawn(publish::drive(driver, up_tx));
-    tokio::time::timeout(Duration::from_secs(10), up.wait_for(|u| *u))
+    let (first, lines) = tokio::task::spawn_blocking(move || (lines.next(), lines))
         .await
-        .expect("connected")
-        .expect("watch");
-    let probe = tokio::task::spawn_blocking(move || {
-        let first = lines.next();
-        (first, lines)
-    });
-    let mut probe = probe;
-    let lines = loop {
-        publisher.publish_json("probe", &"ready", false);
-        match tokio::time::timeout(Duration::from_millis(200), &mut probe).await {
-            Ok(Ok((Some(Ok(line)), lines))) => {
-                assert!(line.starts_with("aer/car1/probe"), "{line}");
-                break lines;
-            }
-            Ok(other) => panic!("mosquitto_sub ended: {:?}", other.map(|(l, _)| l)),
-            Err(_) => continue,
-        }
-    };
+        .expect("reader");
+    let first = first.expect("mosquitto_sub ended").expect("a line");
+    assert!(first.starts_with("aer/car1/"), "{first}");
     let mosquitto_reader = std::thread::spawn(move || {
         let mut telemetry = 0usize;
         let mut seen = MosquittoSeen::default();
@@ -211,35 +201,30 @@ async fn every_packet_reaches_both_subscribers_and_the_store() {
         (telemetry, seen)
     });
 
-    // The store, then the replay.
-    let dir = tempfile::tempdir().expect("temp dir");
-    let path = dir.path().join("store.sqlite");
-    let writer = store::StoreWriter::start(store::open(&path).expect("store"), counters.clone());
-    let sinks: Vec<Box<dyn Sink>> = vec![
-        Box::new(publisher.clone()),
-        Box::new(StoreSink::new(writer.sender().expect("store open"), "car1")),
-    ];
-    let stage = Stage::new(counters.clone(), sinks, Replies::default());
-    let (stage, stats) = stage.replay_all(SESSION.as_bytes(), &counters).await;
+    // The session, flat out, through the service's own replay source; the input stays open
+    // (the pipeline running) until the checks below are done.
+    let (stop, stopped) = tokio::sync::oneshot::channel::<()>();
+    let running = tokio::spawn(pipeline.run(async {
+        let _ = stopped.await;
+    }));
+    let stats = replay(
+        SESSION.as_bytes(),
+        input.clone(),
+        &counters,
+        ReplayOptions::FAST,
+        &CancellationToken::new(),
+    )
+    .await;
     assert_eq!(stats.frames, SESSION.lines().count() as u64);
-    drop(stage);
-    tokio::task::spawn_blocking(move || writer.finish())
-        .await
-        .expect("store flushed");
 
-    let snapshot = counters.snapshot();
-    assert_eq!(snapshot.packets, 4_500);
-    assert_eq!(snapshot.messages, can_frames());
-    assert_eq!(snapshot.publish_dropped, 0, "{snapshot:?}");
-    assert_eq!(snapshot.stored, 4_500 + can_frames());
-
-    // The status is retained: a subscriber that comes later still gets it.
-    publisher.publish_on(
-        &STATUS,
-        &status("car1", &counters, Problems::default()),
-        true,
+    let (telemetry, can) = collector.await.expect("collector");
+    assert_eq!(telemetry.len(), 4_500, "rumqttc subscriber: every packet");
+    assert_eq!(
+        can as u64,
+        can_frames(),
+        "rumqttc subscriber: every CAN frame"
     );
-    publisher.publish_on(&METRICS, &metrics(snapshot, snapshot), false);
+    // The status is retained: a subscriber that comes later still gets it.
     let late = Command::new("mosquitto_sub")
         .args(["-h", "127.0.0.1", "-p", &port.to_string()])
         .args(["-t", "aer/car1/status", "-C", "1", "-W", "10"])
@@ -249,13 +234,23 @@ async fn every_packet_reaches_both_subscribers_and_the_store() {
     assert_eq!(status.fingerprint_match, Some(true));
     assert_eq!(status.car_id, "car1");
 
-    let (telemetry, can) = collector.await.expect("collector");
-    assert_eq!(telemetry.len(), 4_500, "rumqttc subscriber: every packet");
+    // The source ends: the pipeline writes what it holds and stops.
+    drop(input);
+    let snapshot = running
+        .await
+        .expect("the pipeline's task")
+        .expect("the pipeline stops cleanly");
+    drop(stop);
+    assert_eq!(snapshot.packets, 4_500);
+    assert_eq!(snapshot.messages, can_frames());
+    assert_eq!(snapshot.publish_dropped, 0, "{snapshot:?}");
+    assert_eq!(snapshot.stored, 4_500 + can_frames());
     assert_eq!(
-        can as u64,
-        can_frames(),
-        "rumqttc subscriber: every CAN frame"
+        snapshot.raw_frames, stats.frames,
+        "the raw log keeps every frame"
     );
+    assert_eq!(snapshot.raw_dropped, 0);
+
     for payload in &telemetry {
         let sample: Sample<TelemetryRecord> = TELEMETRY.decode(payload).expect("typed payload");
         let (ts_us, values) = expected
@@ -285,7 +280,8 @@ async fn every_packet_reaches_both_subscribers_and_the_store() {
         "CCM_Status on both buses, told apart"
     );
 
-    // The store holds every row, with the decoded values.
+    // The store holds every row, with the decoded values, and the session it ran as.
+    let path = dir.path().join("store.sqlite");
     let db = rusqlite::Connection::open(&path).expect("reopen");
     let rows: i64 = db
         .query_row("SELECT count(*) FROM telemetry", [], |r| r.get(0))
@@ -311,4 +307,8 @@ async fn every_packet_reaches_both_subscribers_and_the_store() {
         })
         .sum();
     assert_eq!(can_rows as u64, can_frames());
+    let source: String = db
+        .query_row("SELECT source FROM sessions", [], |r| r.get(0))
+        .expect("one session");
+    assert_eq!(source, "fed");
 }

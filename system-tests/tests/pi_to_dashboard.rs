@@ -1,6 +1,6 @@
-//! End to end with the real components: the Pi service replays the bundled session through its
-//! pipeline and publishes on the embedded rumqttd broker; the dashboard's own MQTT link reads
-//! the typed topics; its model and views must show exactly what the car sent, and of the CAN
+//! End to end with the real components: the Pi service (its own pipeline, as `serve` runs
+//! it) replays the bundled session and publishes on its embedded rumqttd broker; the
+//! dashboard's own MQTT link reads the typed topics; its model and views must show exactly what the car sent, and of the CAN
 //! topics only those of the messages the pit view shows.
 
 use aer::can::{AnyMessage, DtiTemperatures, PccStatus};
@@ -13,14 +13,12 @@ use aer_dashboard::session;
 use aer_dashboard::session::BUNDLED_SESSION;
 use aer_dashboard::ui::App;
 use aer_host::counters::Counters;
-use aer_host::status::{Problems, STATUS, status};
 use aer_raspi::broker;
-use aer_raspi::config::BrokerOptions;
-use aer_raspi::ingest::Stage;
-use aer_raspi::sink::Sink;
-use aer_raspi::sink::mqtt as publish;
-use aer_raspi::source::Replies;
+use aer_raspi::config::Config as ServiceConfig;
+use aer_raspi::service::{Job, Pipeline};
+use aer_raspi::source::replay::{ReplayOptions, replay};
 use iced::futures::StreamExt;
+use std::path::Path;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 use tokio_util::sync::CancellationToken;
@@ -42,23 +40,49 @@ async fn next(
         .expect("the link never ends")
 }
 
+/// The Pi service's configuration in `dir`: the repository's broker config on `port`, with
+/// segments and a publish queue that hold a replay run flat out (the Pi's are sized for the
+/// car's 100 packets/s); the store and the raw log in `dir`.
+fn service_config(dir: &Path, port: u16) -> ServiceConfig {
+    let broker_config = dir.join("rumqttd.toml");
+    let text = broker::DEFAULT_CONFIG
+        .replace("127.0.0.1:1883", &format!("127.0.0.1:{port}"))
+        .replace("max_segment_size = 262144", "max_segment_size = 67108864");
+    std::fs::write(&broker_config, text).expect("broker config");
+    let mut config = ServiceConfig::default();
+    config.broker.config = Some(broker_config);
+    config.broker.queue = 100_000;
+    config.store.path = dir.join("store.sqlite");
+    config.raw_log.dir = dir.join("raw");
+    config
+}
+
+/// Replays candump `log` flat out into a fed pipeline's `input`.
+async fn feed(log: &str, input: &aer_raspi::source::Sender, counters: &Counters) {
+    let stats = replay(
+        log.as_bytes(),
+        input.clone(),
+        counters,
+        ReplayOptions::FAST,
+        &CancellationToken::new(),
+    )
+    .await;
+    assert_eq!(stats.bad_lines, 0);
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_replayed_session_reaches_the_dashboard_intact() {
     let expected = session::load(BUNDLED_SESSION, "car1");
     assert_eq!(expected.samples.len(), 4_500);
 
-    // The Pi's broker, with segments that hold a replay run flat out.
+    // The Pi service's pipeline, as `serve` runs it, its source not yet started.
+    let dir = tempfile::tempdir().expect("temp dir");
     let port = free_port();
-    let text = broker::DEFAULT_CONFIG
-        .replace("127.0.0.1:1883", &format!("127.0.0.1:{port}"))
-        .replace("max_segment_size = 262144", "max_segment_size = 67108864");
-    let mut broker_config = broker::parse(&text).expect("broker config");
-    // The dashboard is read only after the replay: not a client that stopped reading.
-    broker_config.stall_limit = Duration::from_secs(120);
-    let counters = Arc::new(Counters::default());
-    let broker = broker::start(broker_config, counters.clone(), CancellationToken::new())
+    let mut pipeline = Pipeline::start(service_config(dir.path(), port), Job::Fed)
         .await
-        .expect("broker");
+        .expect("the Pi service starts");
+    let counters = pipeline.counters();
+    let input = pipeline.input().expect("a fed pipeline's input");
 
     // The dashboard's link, showing one CAN message: connected means subscribed.
     let shown = aer::mqtt::can::DTI_TEMPERATURES.suffix();
@@ -82,35 +106,16 @@ async fn a_replayed_session_reaches_the_dashboard_intact() {
         }
     }
 
-    // The Pi service: replay -> ingest -> typed topics (in process, as it publishes into its
-    // embedded broker), then its retained status.
-    let queue = BrokerOptions::default().queue;
-    let (publisher, driver) = publish::embedded(
-        broker.link,
-        broker.spares,
-        queue,
-        "aer/car1".into(),
-        counters.clone(),
-        Arc::default(),
-    );
-    let (up_tx, mut up) = tokio::sync::watch::channel(false);
-    tokio::spawn(publish::drive(driver, up_tx));
-    tokio::time::timeout(Duration::from_secs(10), up.wait_for(|u| *u))
-        .await
-        .expect("the Pi connects")
-        .expect("watch");
-    let sinks: Vec<Box<dyn Sink>> = vec![Box::new(publisher.clone())];
-    let stage = Stage::new(counters.clone(), sinks, Replies::default());
-    let (stage, _) = stage
-        .replay_all(BUNDLED_SESSION.as_bytes(), &counters)
-        .await;
-    drop(stage);
-    publisher.publish_on(
-        &STATUS,
-        &status("car1", &counters, Problems::default()),
-        true,
-    );
-    assert_eq!(counters.snapshot().publish_dropped, 0);
+    // The session through the service (replay -> ingest -> typed topics), while the dashboard
+    // reads; the input stays open until the end of the test.
+    let (stop, stopped) = tokio::sync::oneshot::channel::<()>();
+    let running = tokio::spawn(pipeline.run(async {
+        let _ = stopped.await;
+    }));
+    let replaying = {
+        let (input, counters) = (input.clone(), counters.clone());
+        tokio::spawn(async move { feed(BUNDLED_SESSION, &input, &counters).await })
+    };
 
     // The session's DTI_Temperatures frames: the only CAN frames the dashboard may get.
     let dti_temperatures = BUNDLED_SESSION
@@ -124,7 +129,8 @@ async fn a_replayed_session_reaches_the_dashboard_intact() {
     let mut can_frames = 0;
     while received.len() < expected.samples.len()
         || can_frames < dti_temperatures
-        || model.health().status.is_none()
+        // A status from after the traffic: it knows which schema the car sends.
+        || model.health().schema_match() == SchemaMatch::Unknown
     {
         let (at, update) = next(&mut updates).await;
         match &update {
@@ -141,7 +147,9 @@ async fn a_replayed_session_reaches_the_dashboard_intact() {
         }
         model.apply(update, at);
     }
+    replaying.await.expect("the replay");
     assert_eq!(can_frames, dti_temperatures);
+    assert_eq!(counters.snapshot().publish_dropped, 0);
 
     // Every packet, in order, with the values the generated decoder reads from the log.
     assert_eq!(received, expected.samples);
@@ -172,17 +180,13 @@ async fn a_replayed_session_reaches_the_dashboard_intact() {
             break;
         }
     }
-    let pcc = AnyMessage::decode(PccStatus::META.id, false, &[0; 8]).expect("frame");
-    publisher.publish(
-        &aer_host::ingest::Record::Can {
-            ts_us: 1_795_348_800_000_000,
-            bus: 0,
-            message: pcc,
-            check: Default::default(),
-        },
-        &["can0".into()],
+    // One PCC_Status frame on the bus, after the session.
+    let pcc_frame = format!(
+        "(1795348800.000000) can0 {:03X}#0000000000000000",
+        PccStatus::META.id
     );
-    publisher.flush();
+    feed(&pcc_frame, &input, &counters).await;
+    let pcc = AnyMessage::decode(PccStatus::META.id, false, &[0; 8]).expect("frame");
     loop {
         match next(&mut updates).await.1 {
             Update::Can(sample) => {
@@ -193,6 +197,14 @@ async fn a_replayed_session_reaches_the_dashboard_intact() {
             _ => {}
         }
     }
+
+    // The source ends: the service stops cleanly.
+    drop(input);
+    running
+        .await
+        .expect("the pipeline's task")
+        .expect("the pipeline stops cleanly");
+    drop(stop);
 }
 
 /// A pit laptop on a broker listener with credentials (as the Pi's network listener must have):

@@ -24,7 +24,7 @@ pub struct ReplayOptions {
 
 impl ReplayOptions {
     /// Flat out with the recorded timestamps (tests, benchmarks).
-    pub(crate) const FAST: Self = Self {
+    pub const FAST: Self = Self {
         fast: true,
         restamp: false,
     };

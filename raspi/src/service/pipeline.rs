@@ -1,0 +1,191 @@
+//! The pipeline, started in two steps so whoever runs it can connect before the first frame:
+//! [`Pipeline::start`] brings up the store, the raw log, the broker and the MQTT link, the
+//! reporter and the forwarder; [`Pipeline::run`] starts the source and runs until it ends or
+//! the shutdown future completes, then stops everything in order, each part within its time:
+//! the source stops; the stage drains; the raw log and the store write what they hold; MQTT
+//! sends what is queued.
+
+use super::parts::{self, Mqtt};
+use super::{Job, jobs};
+use crate::config::{self, Config};
+use crate::health::Health;
+use crate::ingest::Stage;
+use crate::rawlog::writer::RawWriter;
+use crate::rawlog::{Block, RawTap};
+use crate::sink::Sink;
+use crate::sink::store::StoreSink;
+use crate::source;
+use crate::store::StoreWriter;
+use crate::{forward, report};
+use aer_host::counters::{Counters, ServiceCounters};
+use anyhow::Result;
+use std::future::Future;
+use std::sync::Arc;
+use std::sync::mpsc::SyncSender;
+use std::time::Duration;
+use tokio::task::JoinHandle;
+use tokio_util::sync::CancellationToken;
+use tracing::{info, warn};
+
+/// The service assembled, its source not yet started.
+pub struct Pipeline {
+    config: Config,
+    job: Job,
+    counters: Arc<Counters>,
+    health: Arc<Health>,
+    cancel: CancellationToken,
+    store: StoreWriter,
+    session: Option<i64>,
+    raw_log: Option<(RawWriter, SyncSender<Block>)>,
+    mqtt: Mqtt,
+    reporter: JoinHandle<()>,
+    forwarder: Option<JoinHandle<()>>,
+    inputs: Option<source::Sender>,
+    batches: source::Receiver,
+}
+
+impl Pipeline {
+    /// Starts every part but the source. The store first: a bad path stops the service before
+    /// anything else starts (a damaged file is moved aside and reported instead).
+    pub async fn start(config: Config, job: Job) -> Result<Self> {
+        let counters = Arc::new(Counters::default());
+        let health = Arc::new(Health::default());
+        let cancel = CancellationToken::new();
+        let (store, session) = parts::start_store(&config, &job, &counters, &health)?;
+        let raw_log = parts::start_raw_log(&config, &job, &counters, &health)?;
+        let mqtt = parts::start_mqtt(&config, &counters, &health, &cancel).await?;
+        // What every key of every topic means (label, unit, value names), retained, once.
+        for (suffix, schema) in crate::describe::topic_schemas() {
+            mqtt.publisher
+                .publish_json(&format!("schema/{suffix}"), &schema, true);
+        }
+        let reporter = tokio::spawn(report::run(
+            mqtt.publisher.clone(),
+            config.car_id.clone(),
+            counters.clone(),
+            health.clone(),
+            cancel.clone(),
+            job == Job::Demo,
+        ));
+        let forwarder = config.tdengine.enabled.then(|| {
+            tokio::spawn(forward::run(
+                config.tdengine.clone(),
+                config.store.path.clone(),
+                counters.clone(),
+                health.clone(),
+                cancel.clone(),
+            ))
+        });
+        let (inputs, batches) = source::channel();
+        Ok(Self {
+            config,
+            job,
+            counters,
+            health,
+            cancel,
+            store,
+            session,
+            raw_log,
+            mqtt,
+            reporter,
+            forwarder,
+            inputs: Some(inputs),
+            batches,
+        })
+    }
+
+    /// Where MQTT subscribers connect (the embedded broker's first listener, or the broker
+    /// the service publishes to).
+    pub fn mqtt_address(&self) -> &str {
+        &self.mqtt.address
+    }
+
+    /// The pipeline's counters, live: what it took, published, stored and dropped.
+    pub fn counters(&self) -> Arc<Counters> {
+        self.counters.clone()
+    }
+
+    /// The sender a [`Job::Fed`] pipeline reads its inputs from, once; `None` for any other
+    /// job (its source sends) or when already taken.
+    pub fn input(&mut self) -> Option<source::Sender> {
+        if self.job == Job::Fed {
+            self.inputs.take()
+        } else {
+            None
+        }
+    }
+
+    /// Starts the source and runs until it ends or `shutdown` completes, then stops every
+    /// part, writing and sending what is left. Returns the counters as they ended.
+    pub async fn run(
+        mut self,
+        shutdown: impl Future<Output = ()> + Send + 'static,
+    ) -> Result<ServiceCounters> {
+        let cancel = self.cancel.clone();
+        tokio::spawn(async move {
+            tokio::select! {
+                () = shutdown => cancel.cancel(),
+                () = cancel.cancelled() => {}
+            }
+        });
+        let replies = match self.inputs.take() {
+            Some(inputs) => jobs::start_source(
+                &self.config,
+                &self.job,
+                inputs,
+                &self.counters,
+                &self.health,
+                &self.cancel,
+                &self.mqtt.address,
+            )?,
+            // A fed pipeline's caller took the sender.
+            None => source::Replies::default(),
+        };
+        let mut sinks: Vec<Box<dyn Sink>> = vec![Box::new(self.mqtt.publisher.clone())];
+        if let Some(rows) = self.store.sender() {
+            sinks.push(Box::new(StoreSink::new(rows, &self.config.car_id)));
+        }
+        let mut stage = Stage::new(self.counters.clone(), sinks, replies);
+        if self.job == Job::Live && self.config.can.isotp == config::IsoTpMode::Kernel {
+            stage = stage.with_kernel_isotp();
+        }
+        let mut raw_writer = None;
+        if let Some((writer, blocks)) = self.raw_log {
+            stage = stage.with_raw_log(RawTap::new(blocks, self.counters.clone()));
+            raw_writer = Some(writer);
+        }
+        // Dropping the stage hands the raw log its last block and lets the store's queue close.
+        drop(stage.run(self.batches).await);
+
+        // The source is done (or stopped): stop the rest, each part within its time.
+        self.cancel.cancel();
+        let (store, session) = (self.store, self.session);
+        let store_path = self.config.store.path.clone();
+        parts::finish_blocking("local store", move || {
+            store.finish();
+            parts::end_session(&store_path, session);
+        })
+        .await;
+        if let Some(raw_writer) = raw_writer {
+            parts::finish_blocking("raw log", move || raw_writer.finish()).await;
+        }
+        let _ = tokio::time::timeout(Duration::from_secs(2), self.reporter).await;
+        if let Some(forwarder) = self.forwarder {
+            let _ = tokio::time::timeout(parts::STOP_WAIT, forwarder).await;
+        }
+        // An unreachable broker with a full queue would make this wait for ever.
+        let publisher = self.mqtt.publisher;
+        if tokio::time::timeout(Duration::from_secs(2), publisher.disconnect())
+            .await
+            .is_err()
+            || tokio::time::timeout(Duration::from_secs(2), self.mqtt.connection)
+                .await
+                .is_err()
+        {
+            warn!("MQTT queue not drained within 2 s");
+        }
+        let snapshot = self.counters.snapshot();
+        info!(?snapshot, "stopped");
+        Ok(snapshot)
+    }
+}
