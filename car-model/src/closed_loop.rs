@@ -12,7 +12,7 @@ use crate::rules::Rules;
 use aer::can::{CcmStatus, PccStatus};
 use aer::telemetry::Telemetry;
 use aer_ccm::calibration::SensorCalibration;
-use aer_ccm::config::{CONTROL_PERIOD_MS, TELEMETRY_PERIOD_MS};
+use aer_ccm::constants::{CONTROL_PERIOD_MS, TELEMETRY_PERIOD_MS};
 use aer_ccm::{BusHealth, Ccm, ControlOutputs, DriverCounters, DriverInputs, OutFrame};
 use aer_flexcan::CanFrame;
 use aer_isotp::{Config, Received, Receiver};

@@ -13,7 +13,7 @@ use aer::can::{
     OrionCellVoltages, OrionLimits, OrionPackStatus,
 };
 use aer_ccm::InverterKind;
-use aer_ccm::config::{DTI_CAN_MAP_VERSION, MOTOR_POLE_PAIRS, MOTOR_TORQUE_PER_PEAK_A};
+use aer_ccm::constants::{DTI_CAN_MAP_VERSION, MOTOR_POLE_PAIRS, MOTOR_TORQUE_PER_PEAK_A};
 use aer_flexcan::CanFrame;
 use embedded_can::Frame;
 

@@ -90,7 +90,7 @@ pub mod powertrain {
     /// The DTI drops its current, and its drive enable, when no current command or no drive
     /// enable arrived for this long (ms, assumed: the DTI tool's CAN timeout, to be set and
     /// measured on the bench with the bring-up image's `dti enable`).
-    pub const DTI_COMMAND_TIMEOUT_MS: u32 = aer_ccm::config::DTI_ASSUMED_COMMAND_TIMEOUT_MS;
+    pub const DTI_COMMAND_TIMEOUT_MS: u32 = aer_ccm::constants::DTI_ASSUMED_COMMAND_TIMEOUT_MS;
     /// The DTI's available AC current (A, peak) as the model reports it: the motor's maximum
     /// torque over its torque constant.
     pub const DTI_AVAILABLE_AC_A: f32 = 346.6;

@@ -15,7 +15,7 @@ use crate::params::powertrain::{
 use aer::can::{AnyMessage, DtiDriveEnable, MotorMode, Vcu1};
 use aer::runtime::{CounterCheck, IntegrityError};
 use aer_ccm::InverterKind;
-use aer_ccm::config::MOTOR_TORQUE_PER_PEAK_A;
+use aer_ccm::constants::MOTOR_TORQUE_PER_PEAK_A;
 
 /// The inverter's view of its commands and the motor's state.
 #[derive(Debug, Clone, PartialEq)]

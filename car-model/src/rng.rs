@@ -27,6 +27,13 @@ impl Rng {
         low + (high - low) * unit
     }
 
+    /// Fills `bytes`, one generator step a byte (its low byte).
+    pub fn fill(&mut self, bytes: &mut [u8]) {
+        for byte in bytes {
+            *byte = self.next_u32().to_le_bytes()[0];
+        }
+    }
+
     /// An integer uniformly in `0..bound` (0 when `bound` is 0).
     pub fn below(&mut self, bound: u32) -> u32 {
         if bound == 0 {

@@ -13,7 +13,7 @@ use crate::faults::Fault;
 use aer::can::PrechargeState;
 use aer_ccm::ControlOutputs;
 use aer_ccm::InverterKind;
-use aer_ccm::config::{
+use aer_ccm::constants::{
     APPS_BRAKE_TRIP, APPS_IMPLAUSIBLE, BMS_PACK_TIMEOUT_MS, BRAKES_ENGAGED_PSI, CONTROL_PERIOD_MS,
     DTI_SPEED_TIMEOUT_MS, MCU1_TIMEOUT_MS, PCC_STATUS_TIMEOUT_MS, PEDAL_DEADBAND,
     SAMPLE_TIMEOUT_MS, SENSOR_FAULT_PERSIST_MS,

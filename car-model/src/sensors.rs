@@ -9,7 +9,7 @@ use aer_ccm::SensorSample;
 use aer_ccm::ads1115::{counts_to_volts, volts_to_counts};
 use aer_ccm::apps::AppsCalibration;
 use aer_ccm::chassis::shock_raw_for_volts;
-use aer_ccm::config::{
+use aer_ccm::constants::{
     APPS1_SUPPLY_V, APPS2_SUPPLY_V, BSE_FULL_SCALE_PSI, BSE_VALID_V, SHOCK_SPAN_V,
     SHOCK_TRAVEL_MAX_MM, WHEEL_TEETH,
 };

@@ -15,7 +15,7 @@ use aer_car_model::chassis::Mode;
 use aer_car_model::driver::Cycle;
 use aer_car_model::faults::FaultPlan;
 use aer_car_model::{ClosedLoop, ModelParams, NoTap};
-use aer_ccm::config::POWER_LIMIT_W;
+use aer_ccm::constants::POWER_LIMIT_W;
 use aer_ccm::power::PowerLimits;
 
 /// The comp car (DTI HV-550) and the bench car (IFL100).

@@ -15,7 +15,7 @@
 //! repeated as if the pedal were still where it was.
 
 use crate::apps::PedalVolts;
-use crate::config::ADS1115_FULL_SCALE_V;
+use crate::constants::ADS1115_FULL_SCALE_V;
 use embedded_hal::i2c::I2c;
 
 /// I2C address with ADDR tied to ground.

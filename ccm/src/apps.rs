@@ -4,7 +4,7 @@
 //! filtered, calibrated to 0..1, checked for wiring faults, disagreement and lost conversions,
 //! and the APPS/brake plausibility latch.
 
-use crate::config::{
+use crate::constants::{
     APPS_BRAKE_RESET, APPS_BRAKE_TRIP, APPS_IMPLAUSIBLE, APPS1_SUPPLY_V, APPS2_SUPPLY_V,
     PEDAL_CONVERSION_TIMEOUT_MS, PEDAL_FILTER_HZ, SENSOR_FAULT_GAP_MS, SENSOR_FAULT_PERSIST_MS,
 };

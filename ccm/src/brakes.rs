@@ -3,7 +3,7 @@
 //! the brake light shows and what the APPS/brake plausibility check and launch control use.
 
 use crate::calibration::BrakeCalibration;
-use crate::config::{
+use crate::constants::{
     BRAKE_CIRCUITS_IMPLAUSIBLE, BRAKES_ENGAGED_PSI, BSE_FULL_SCALE_PSI, BSE_SPAN_V, BSE_VALID_V,
     PEDAL_FILTER_HZ, SENSOR_FAULT_PERSIST_MS,
 };

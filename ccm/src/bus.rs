@@ -2,7 +2,7 @@
 //! (generated `TelemetryMirror::apply`), and the messages the control logic acts on are kept with
 //! their arrival time, so the control step only ever uses fresh values.
 
-use crate::config::{
+use crate::constants::{
     BMS_CELLS_TIMEOUT_MS, BMS_LIMITS_TIMEOUT_MS, BMS_PACK_TIMEOUT_MS, PCC_STATUS_TIMEOUT_MS,
     START_UP_GRACE_MS,
 };

@@ -6,7 +6,7 @@
 //! car, not the proofs.
 
 use crate::apps::AppsCalibration;
-use crate::config::{APPS1_SUPPLY_V, APPS2_SUPPLY_V, BSE_ZERO_V, MIN_PEDAL_TRAVEL_V};
+use crate::constants::{APPS1_SUPPLY_V, APPS2_SUPPLY_V, BSE_ZERO_V, MIN_PEDAL_TRAVEL_V};
 use core::fmt;
 
 /// Each brake pressure sensor's reading with the brakes released (V at the sensor): the

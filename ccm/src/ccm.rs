@@ -12,7 +12,7 @@ use crate::brakes::BrakeReading;
 use crate::bus::BusState;
 use crate::calibration::SensorCalibration;
 use crate::chassis::PulseTimer;
-use crate::config::WHEEL_TEETH;
+use crate::constants::WHEEL_TEETH;
 use crate::control::{Control, Due, HandoverRefusal};
 use crate::inverter::{InverterKind, OutFrames};
 use crate::io::{ControlOutputs, DriverCounters, DriverInputs, SensorSample};
@@ -35,9 +35,9 @@ pub struct Ccm {
 
 impl Ccm {
     /// A CCM at reset (vehicle OFF, no torque) with the sensors' `calibration`, driving the
-    /// car's configured inverter ([`INVERTER`](crate::config::INVERTER)).
+    /// car's configured inverter ([`INVERTER`](crate::constants::INVERTER)).
     pub fn new(calibration: SensorCalibration) -> Self {
-        Self::with_inverter(calibration, crate::config::INVERTER)
+        Self::with_inverter(calibration, crate::constants::INVERTER)
     }
 
     /// A CCM at reset driving the `inverter`.

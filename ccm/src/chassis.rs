@@ -1,6 +1,6 @@
 //! Shock travel (linear potentiometers) and wheel speed (gear-tooth pulses).
 
-use crate::config::{SHOCK_ADC_FULL, SHOCK_SPAN_V, SHOCK_TRAVEL_MAX_MM, WHEEL_STOP_TIMEOUT_US};
+use crate::constants::{SHOCK_ADC_FULL, SHOCK_SPAN_V, SHOCK_TRAVEL_MAX_MM, WHEEL_STOP_TIMEOUT_US};
 use core::sync::atomic::{AtomicU8, AtomicU32, Ordering};
 
 /// Shock travel in mm for a raw 12-bit ADC reading (team documentation: the signal rests at

@@ -4,7 +4,7 @@
 
 use crate::bus::{BusInputs, BusState};
 use crate::chassis::WheelSpeed;
-use crate::config::{
+use crate::constants::{
     BMS_LIMITS_TIMEOUT_MS, CONTROL_PERIOD_MS, DTI_FLAGS_TIMEOUT_MS, INVERTER,
     MOTOR_TORQUE_PER_PEAK_A, PCC_STATUS_TIMEOUT_MS, SAMPLE_TIMEOUT_MS, STATUS_PERIOD_MS,
 };

@@ -4,7 +4,7 @@
 use crate::apps::AppsReading;
 use crate::brakes::BrakeReading;
 use crate::bus::BusInputs;
-use crate::config::{MAX_TEMP_DEGC, MIN_CELL_V, SENSOR_FAULT_PERSIST_MS, SOC_DERATE_END};
+use crate::constants::{MAX_TEMP_DEGC, MIN_CELL_V, SENSOR_FAULT_PERSIST_MS, SOC_DERATE_END};
 use aer::can::PrechargeState;
 use aer_control::Persist;
 

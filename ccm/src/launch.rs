@@ -14,7 +14,7 @@
 //! the band the reduction holds; below it the reduction bleeds off back to the driver's
 //! request.
 
-use crate::config::{LAUNCH_SLIP, MIN_SLIP_SPEED_RAD_S, MOTOR_MAX_TORQUE_NM, PEDAL_RELEASED};
+use crate::constants::{LAUNCH_SLIP, MIN_SLIP_SPEED_RAD_S, MOTOR_MAX_TORQUE_NM, PEDAL_RELEASED};
 use aer_control::{Pid, PidGains};
 
 /// Where the launch sequence is.

@@ -7,7 +7,7 @@
 //! driver, the rules or the inverter allow.
 
 use crate::apps::AppsReading;
-use crate::config::{
+use crate::constants::{
     DRIVETRAIN_EFFICIENCY, EFFICIENCY_MEASURABLE_SHARE, EFFICIENCY_RELAX_S,
     EFFICIENCY_RISE_PER_STEP, EFFICIENCY_SETTLED_SHARE, MONITOR_MARGIN, PEDAL_DEADBAND,
     POWER_LIMIT_MARGIN,

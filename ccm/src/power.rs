@@ -20,7 +20,7 @@
 //! measured power is produced by the previous, already limited command, so in closed loop
 //! that settles near sqrt(demand x limit), above the limit (87-115 kW at 3,300-5,000 rpm).
 
-use crate::config::{
+use crate::constants::{
     DRIVETRAIN_EFFICIENCY, MOTOR_MAX_TORQUE_NM, POWER_CEILING_MIN_RAD_S, POWER_LIMIT_MARGIN,
     POWER_LIMIT_W, POWER_SETTLED_FRACTION, POWER_TRIM_FLOOR, POWER_TRIM_GAIN, POWER_TRIM_RELAX_S,
     SOC_DERATE_END, SOC_DERATE_START,

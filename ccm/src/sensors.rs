@@ -6,7 +6,7 @@ use crate::apps::{Apps, AppsReading};
 use crate::brakes::{BrakeReading, Brakes};
 use crate::calibration::SensorCalibration;
 use crate::chassis::shock_travel_mm;
-use crate::config::ADC_PERIOD_MS;
+use crate::constants::ADC_PERIOD_MS;
 use crate::io::SensorSample;
 
 /// The sensors as last sampled.

@@ -1,6 +1,6 @@
 //! Cooling: pump and fan duty from temperatures.
 
-use crate::config::{FAN_RAMP_DEGC, PUMP_DUTY};
+use crate::constants::{FAN_RAMP_DEGC, PUMP_DUTY};
 
 /// PWM duty cycles (0..1).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]

@@ -2,7 +2,7 @@
 //! SOC derating -> power ceiling -> the torque monitor, which alone has the last word.
 
 use crate::apps::AppsReading;
-use crate::config::{GEAR_RATIO, MOTOR_MAX_TORQUE_NM, PEDAL_DEADBAND};
+use crate::constants::{GEAR_RATIO, MOTOR_MAX_TORQUE_NM, PEDAL_DEADBAND};
 use crate::faults::FaultMap;
 use crate::launch::{LaunchControl, LaunchInputs, LaunchState};
 use crate::monitor::{EfficiencyBound, MonitorInputs, allowed_torque};

@@ -5,7 +5,7 @@
 //! result is within 0..driver torque. The integral never goes below zero, so a long stretch
 //! without slip cannot store up a negative reduction that would delay the next intervention.
 
-use crate::config::{MIN_SLIP_SPEED_RAD_S, MOTOR_MAX_TORQUE_NM, TRACTION_SLIP};
+use crate::constants::{MIN_SLIP_SPEED_RAD_S, MOTOR_MAX_TORQUE_NM, TRACTION_SLIP};
 use aer_control::{LowPass, Pid, PidGains};
 
 /// Gains: 30 % slip over the threshold takes away about 100 Nm at once.

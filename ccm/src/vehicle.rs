@@ -5,7 +5,7 @@
 //! frame at every step, the button pressed with the brakes engaged, and the ready-to-drive
 //! sound played for its full length first (EV.9.2).
 
-use crate::config::{RTD_SOUND_MS, RTM_DEBOUNCE_MS};
+use crate::constants::{RTD_SOUND_MS, RTM_DEBOUNCE_MS};
 use crate::faults::FaultMap;
 use aer::can::PrechargeState;
 use aer_control::Persist;
@@ -47,7 +47,7 @@ impl State {
 pub struct VehicleInputs {
     /// Free-running milliseconds.
     pub now_ms: u32,
-    /// The PCC's state, if its status is fresh (see [`crate::config::PCC_STATUS_TIMEOUT_MS`]).
+    /// The PCC's state, if its status is fresh (see [`crate::constants::PCC_STATUS_TIMEOUT_MS`]).
     pub pcc: Option<PrechargeState>,
     /// Ready-to-move button, raw (debounced here).
     pub rtm_button: bool,

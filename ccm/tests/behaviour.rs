@@ -482,7 +482,7 @@ fn the_telemetry_packet_reaches_an_iso_tp_receiver_intact() {
 #[test]
 fn a_received_value_is_fresh_up_to_its_limit_and_lost_after_it_or_after_the_grace_period() {
     use aer_ccm::bus::Received;
-    use aer_ccm::config::START_UP_GRACE_MS;
+    use aer_ccm::constants::START_UP_GRACE_MS;
     let mut received: Received<u8> = Received::default();
     assert!(
         !received.lost(START_UP_GRACE_MS, 100, 0),
@@ -509,7 +509,7 @@ const CAR: aer_ccm::power::PowerLimits = aer_ccm::power::PowerLimits::CAR;
 /// with it.
 #[test]
 fn the_monitor_bounds_the_rules_power_at_its_efficiency() {
-    use aer_ccm::config::{DRIVETRAIN_EFFICIENCY, MONITOR_MARGIN};
+    use aer_ccm::constants::{DRIVETRAIN_EFFICIENCY, MONITOR_MARGIN};
     use aer_ccm::monitor::{MonitorInputs, allowed_torque};
     use aer_ccm::power::PowerLimits;
     let omega = 500.0;
@@ -543,7 +543,7 @@ fn the_monitor_bounds_the_rules_power_at_its_efficiency() {
 /// while the power is too small to measure it.
 #[test]
 fn the_monitors_efficiency_trusts_a_reading_only_once_it_settled() {
-    use aer_ccm::config::{DRIVETRAIN_EFFICIENCY, EFFICIENCY_RISE_PER_STEP};
+    use aer_ccm::constants::{DRIVETRAIN_EFFICIENCY, EFFICIENCY_RISE_PER_STEP};
     use aer_ccm::monitor::EfficiencyBound;
     let (lowest, highest) = DRIVETRAIN_EFFICIENCY;
     let mut bound = EfficiencyBound::new(10);
@@ -689,7 +689,7 @@ fn the_monitor_allows_nothing_without_fresh_inputs_or_with_a_stopping_fault() {
 
 #[test]
 fn the_power_ceiling_starts_safe_trims_up_only_when_settled_and_down_at_once() {
-    use aer_ccm::config::DRIVETRAIN_EFFICIENCY;
+    use aer_ccm::constants::DRIVETRAIN_EFFICIENCY;
     use aer_ccm::power::{PowerLimiter, PowerLimits};
     let (lowest, highest) = DRIVETRAIN_EFFICIENCY;
     let target = PowerLimits::CAR.power_target_w;

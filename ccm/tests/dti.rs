@@ -8,7 +8,7 @@ use aer::can::{
     AnyMessage, DtiDriveEnable, DtiSetCurrent, DtiSetDriveEnable, DtiSetMaxBrakeCurrentDc,
     DtiSetMaxCurrentDc,
 };
-use aer_ccm::config::{DTI_ENABLE_MISMATCH_MS, MOTOR_TORQUE_PER_PEAK_A};
+use aer_ccm::constants::{DTI_ENABLE_MISMATCH_MS, MOTOR_TORQUE_PER_PEAK_A};
 use aer_ccm::faults::Fault;
 use aer_ccm::inverter::{DriveCommand, dti};
 use aer_ccm::vehicle::State;

@@ -5,7 +5,7 @@
 
 mod rig;
 
-use aer_ccm::config::{BMS_PACK_TIMEOUT_MS, PEDAL_CONVERSION_TIMEOUT_MS};
+use aer_ccm::constants::{BMS_PACK_TIMEOUT_MS, PEDAL_CONVERSION_TIMEOUT_MS};
 use aer_ccm::faults::Fault;
 use aer_ccm::launch::LaunchState;
 use aer_ccm::vehicle::State;

@@ -14,7 +14,7 @@
 mod rig;
 
 use aer_ccm::ControlOutputs;
-use aer_ccm::config::{DRIVETRAIN_EFFICIENCY, MOTOR_MAX_TORQUE_NM, POWER_LIMIT_W};
+use aer_ccm::constants::{DRIVETRAIN_EFFICIENCY, MOTOR_MAX_TORQUE_NM, POWER_LIMIT_W};
 use aer_ccm::power::PowerLimits;
 use aer_ccm::vehicle::State;
 use proptest::prelude::*;

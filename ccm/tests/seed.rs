@@ -1,7 +1,7 @@
 //! The team documentation's test plans (../shared/seed), case by case.
 
 use aer_ccm::chassis::{WheelSpeed, shock_raw_for_volts, shock_travel_mm};
-use aer_ccm::config::SHOCK_TRAVEL_MAX_MM;
+use aer_ccm::constants::SHOCK_TRAVEL_MAX_MM;
 use aer_ccm::launch::{LaunchControl, LaunchInputs, LaunchState};
 use aer_ccm::power::{PowerLimiter, PowerLimits};
 use aer_ccm::watchdog::{Supervisor, Task};
@@ -41,7 +41,7 @@ fn power_limit_case_3_deviation_the_ceiling_comes_from_speed_not_from_the_last_m
     let motor_rad_s = 400.0;
     // 200 Nm at 400 rad/s is 80 kW of shaft power: above what the target allows.
     let ceiling = limiter.step(motor_rad_s, 120.0, 200.0);
-    let (lowest, _) = aer_ccm::config::DRIVETRAIN_EFFICIENCY;
+    let (lowest, _) = aer_ccm::constants::DRIVETRAIN_EFFICIENCY;
     let target = PowerLimits::CAR.power_target_w;
     assert!(
         (ceiling - lowest * target / motor_rad_s).abs() < 1e-3,

@@ -2,7 +2,8 @@
 //! message into an [`Update`], decoded with the topic's own payload type. The connection is
 //! retried every second for as long as the dashboard runs; every loss is reported, so the
 //! screens can show it. CAN topics are subscribed to only while the pit view shows their
-//! message ([`CanTopics`]), so the link carries what the screen needs and no more.
+//! message (the application says which through the link's [`Control`]), so the link carries
+//! what the screen needs and no more.
 
 use crate::config::Config;
 use crate::model::Update;
@@ -10,19 +11,17 @@ use crate::model::can::CanMessages;
 use aer::mqtt::TELEMETRY;
 use aer_host::status::{METRICS, STATUS};
 use iced::futures::channel::mpsc;
-use iced::futures::{SinkExt, Stream};
+use iced::futures::{SinkExt, Stream, StreamExt};
 use rumqttc::{
-    AsyncClient, ConnectReturnCode, ConnectionError, Event, EventLoop, MqttOptions, Packet, QoS,
-    StateError, SubscribeFilter,
+    AsyncClient, ConnectReturnCode, ConnectionError, Event as MqttEvent, EventLoop, MqttOptions,
+    Packet, QoS, StateError, SubscribeFilter,
 };
 use std::collections::BTreeSet;
-use std::hash::{Hash, Hasher};
-use std::sync::{Arc, Mutex, PoisonError};
 use std::time::{Duration, Instant};
 use tracing::warn;
 
-/// Where to connect and what to subscribe to. Part of the subscription's identity: a change
-/// reconnects.
+/// Where to connect and what to subscribe to first. The subscription's identity: a change
+/// reconnects (the CAN topics shown later go through [`Control`], on the live connection).
 #[derive(Debug, Clone, PartialEq, Eq, Hash)]
 pub struct Settings {
     pub host: String,
@@ -30,103 +29,113 @@ pub struct Settings {
     pub credentials: Option<(String, String)>,
     /// `aer/<car>`.
     pub prefix: String,
-    /// The CAN topics the screens show, shared with the application.
-    pub can: CanTopics,
+    /// The CAN topics (below the prefix) the pit view shows when the link starts.
+    pub can: Vec<&'static str>,
 }
 
-/// The CAN topics the pit view shows, shared by the application (which picks them) and the
-/// link (which subscribes to them): a pick is subscribed to or dropped at once, on the live
-/// connection, without reconnecting; every new connection subscribes to the picks of the moment.
-#[derive(Debug, Clone, Default)]
-pub struct CanTopics(Arc<Mutex<Picks>>);
-
-#[derive(Debug, Default)]
-struct Picks {
-    suffixes: BTreeSet<&'static str>,
-    /// The connection's client, once the link has one.
-    client: Option<AsyncClient>,
+/// What the link hands the application: first the [`Control`] to steer it with, then every
+/// update with the time it arrived.
+#[derive(Debug, Clone)]
+pub enum Event {
+    Ready(Control),
+    Update(Instant, Update),
 }
 
-impl CanTopics {
-    /// Showing the CAN topics `suffixes` (below the car's prefix).
-    pub fn new(suffixes: impl IntoIterator<Item = &'static str>) -> Self {
-        Self(Arc::new(Mutex::new(Picks {
-            suffixes: suffixes.into_iter().collect(),
-            client: None,
-        })))
+/// The application's side of the link (iced's worker pattern: the link hands back a sender):
+/// which CAN topics the pit view shows now. The link subscribes to the new ones and
+/// unsubscribes from the others on the live connection, without reconnecting; every new
+/// connection subscribes to the picks of the moment.
+#[derive(Debug, Clone)]
+pub struct Control(mpsc::UnboundedSender<Vec<&'static str>>);
+
+impl Control {
+    /// A control and the receiving end the link reads (tests drive an application with it).
+    pub fn channel() -> (Self, mpsc::UnboundedReceiver<Vec<&'static str>>) {
+        let (sender, receiver) = mpsc::unbounded();
+        (Self(sender), receiver)
     }
 
-    /// The topics shown now.
-    pub fn suffixes(&self) -> Vec<&'static str> {
-        self.lock().suffixes.iter().copied().collect()
+    /// Shows exactly `suffixes` (below the car's prefix) from now on. A link that has ended
+    /// (the dashboard closing) ignores it.
+    pub fn show_can(&self, suffixes: impl IntoIterator<Item = &'static str>) {
+        let _ = self.0.unbounded_send(suffixes.into_iter().collect());
+    }
+}
+
+/// What the link subscribes to: the base topics and the CAN topics the application picks. It
+/// owns the picks and the client's subscriptions, on a task of its own: the application's
+/// picks and the connection's arrivals come to it as messages, so nothing is shared and the
+/// connection's polling is never interrupted.
+struct Subscriptions {
+    client: AsyncClient,
+    prefix: String,
+    base: [String; 3],
+    shown: BTreeSet<&'static str>,
+    /// Whether the broker has accepted the current connection (picks go out at once).
+    live: bool,
+}
+
+impl Subscriptions {
+    async fn run(
+        mut self,
+        mut picks: mpsc::UnboundedReceiver<Vec<&'static str>>,
+        mut connections: mpsc::UnboundedReceiver<bool>,
+    ) {
+        loop {
+            tokio::select! {
+                connection = connections.next() => match connection {
+                    Some(true) => self.connected(),
+                    Some(false) => self.live = false,
+                    // The link has ended.
+                    None => return,
+                },
+                Some(wanted) = picks.next() => self.show(wanted),
+            }
+        }
     }
 
-    /// Shows exactly `suffixes` from now on: subscribes to the new ones and unsubscribes from
-    /// the others on the live connection (if there is none, the next one subscribes).
-    pub fn set(&self, prefix: &str, suffixes: impl IntoIterator<Item = &'static str>) {
-        let wanted: BTreeSet<&'static str> = suffixes.into_iter().collect();
-        let mut picks = self.lock();
-        if let Some(client) = &picks.client {
+    /// A clean session forgets subscriptions: subscribes a new connection to every topic, in
+    /// one request (the client's queue holds 16, so this never waits on the link).
+    fn connected(&mut self) {
+        self.live = true;
+        let can = self
+            .shown
+            .iter()
+            .map(|suffix| format!("{}/{suffix}", self.prefix));
+        let all = self.base.iter().cloned().chain(can);
+        if let Err(error) = self
+            .client
+            .try_subscribe_many(all.map(|topic| SubscribeFilter::new(topic, QoS::AtMostOnce)))
+        {
+            warn!(%error, "subscribing a new connection");
+        }
+    }
+
+    /// Shows `wanted` from now on: on a live connection, subscribes to the new topics and
+    /// unsubscribes from the others.
+    fn show(&mut self, wanted: Vec<&'static str>) {
+        let wanted: BTreeSet<&'static str> = wanted.into_iter().collect();
+        if self.live {
+            let prefix = &self.prefix;
             let added: Vec<_> = wanted
-                .difference(&picks.suffixes)
+                .difference(&self.shown)
                 .map(|suffix| SubscribeFilter::new(format!("{prefix}/{suffix}"), QoS::AtMostOnce))
                 .collect();
             // The client's queue holds 16 requests and the link drains it as it runs, so a
             // request only fails to fit when the link is stuck; it is logged, and the next
             // connection subscribes to every pick.
-            if !added.is_empty() {
-                if let Err(error) = client.try_subscribe_many(added) {
-                    warn!(%error, "subscribing to a CAN topic the pit view shows");
-                }
+            if !added.is_empty()
+                && let Err(error) = self.client.try_subscribe_many(added)
+            {
+                warn!(%error, "subscribing to a CAN topic the pit view shows");
             }
-            for suffix in picks.suffixes.difference(&wanted) {
-                if let Err(error) = client.try_unsubscribe(format!("{prefix}/{suffix}")) {
+            for suffix in self.shown.difference(&wanted) {
+                if let Err(error) = self.client.try_unsubscribe(format!("{prefix}/{suffix}")) {
                     warn!(%error, "unsubscribing from a CAN topic the pit view no longer shows");
                 }
             }
         }
-        picks.suffixes = wanted;
-    }
-
-    /// Subscribes a new connection's `client` to `base` and the topics shown now, and keeps
-    /// the client for later picks. Under the lock, so a pick made meanwhile is not missed.
-    fn connected(
-        &self,
-        client: &AsyncClient,
-        prefix: &str,
-        base: impl IntoIterator<Item = String>,
-    ) -> Result<(), rumqttc::ClientError> {
-        let mut picks = self.lock();
-        picks.client = Some(client.clone());
-        let can = picks
-            .suffixes
-            .iter()
-            .map(|suffix| format!("{prefix}/{suffix}"));
-        client.try_subscribe_many(
-            base.into_iter()
-                .chain(can)
-                .map(|topic| SubscribeFilter::new(topic, QoS::AtMostOnce)),
-        )
-    }
-
-    fn lock(&self) -> std::sync::MutexGuard<'_, Picks> {
-        // The picks stay consistent whatever panicked while holding them.
-        self.0.lock().unwrap_or_else(PoisonError::into_inner)
-    }
-}
-
-/// The same picks, shared: a subscription keeps its identity while the picks change.
-impl PartialEq for CanTopics {
-    fn eq(&self, other: &Self) -> bool {
-        Arc::ptr_eq(&self.0, &other.0)
-    }
-}
-
-impl Eq for CanTopics {}
-
-impl Hash for CanTopics {
-    fn hash<H: Hasher>(&self, state: &mut H) {
-        std::ptr::hash(Arc::as_ptr(&self.0), state);
+        self.shown = wanted;
     }
 }
 
@@ -142,7 +151,7 @@ impl Settings {
                 .clone()
                 .zip(config.mqtt.password.clone()),
             prefix: config.topic_prefix(),
-            can: CanTopics::new(CanMessages::new(&config.display.can_messages).suffixes()),
+            can: CanMessages::new(&config.display.can_messages).suffixes(),
         }
     }
 
@@ -187,30 +196,50 @@ pub fn decode(prefix: &str, topic: &str, payload: &[u8]) -> Update {
     }
 }
 
-/// Updates from the broker, each with the time it arrived, for as long as the stream is
-/// polled. Runs on the dashboard's async executor (tokio).
-pub fn stream(settings: Settings) -> impl Stream<Item = (Instant, Update)> {
-    iced::stream::channel(
-        256,
-        async move |mut output: mpsc::Sender<(Instant, Update)>| {
-            let (client, mut eventloop) = connect(&settings);
-            let mut accepted = false;
-            loop {
-                let update = next(&client, &mut eventloop, &mut accepted, &settings).await;
-                let failed = matches!(update, Some(Update::Disconnected(_)));
-                if let Some(update) = update {
-                    // Waits while the screen catches up; the broker then holds (or, beyond its
-                    // segments, drops) messages, which show up as lost packets.
-                    if output.send((Instant::now(), update)).await.is_err() {
-                        return;
-                    }
-                }
-                if failed {
-                    tokio::time::sleep(Duration::from_secs(1)).await;
+/// The link's events (its [`Control`] first, then updates from the broker, each with the time
+/// it arrived) for as long as the stream is polled. Runs on the dashboard's async executor
+/// (tokio).
+pub fn stream(settings: Settings) -> impl Stream<Item = Event> {
+    iced::stream::channel(256, async move |mut output: mpsc::Sender<Event>| {
+        let (control, picks) = Control::channel();
+        if output.send(Event::Ready(control)).await.is_err() {
+            return;
+        }
+        let (client, mut eventloop) = connect(&settings);
+        let (connections, connection_events) = mpsc::unbounded();
+        let subscriptions = Subscriptions {
+            client,
+            prefix: settings.prefix.clone(),
+            base: settings.topics(),
+            shown: settings.can.iter().copied().collect(),
+            live: false,
+        };
+        tokio::spawn(subscriptions.run(picks, connection_events));
+        let mut accepted = false;
+        loop {
+            let was_accepted = accepted;
+            let update = next(&mut eventloop, &mut accepted, &settings.prefix).await;
+            let failed = matches!(update, Some(Update::Disconnected(_)));
+            // The subscriptions follow the connection (their task ends with this loop).
+            if accepted != was_accepted {
+                let _ = connections.unbounded_send(accepted);
+            }
+            if let Some(update) = update {
+                // Waits while the screen catches up; the broker then holds (or, beyond its
+                // segments, drops) messages, which show up as lost packets.
+                if output
+                    .send(Event::Update(Instant::now(), update))
+                    .await
+                    .is_err()
+                {
+                    return;
                 }
             }
-        },
-    )
+            if failed {
+                tokio::time::sleep(Duration::from_secs(1)).await;
+            }
+        }
+    })
 }
 
 fn connect(settings: &Settings) -> (AsyncClient, EventLoop) {
@@ -233,29 +262,16 @@ fn connect(settings: &Settings) -> (AsyncClient, EventLoop) {
 
 /// Polls the connection once: an update for the screens, or `None` for protocol traffic.
 /// `accepted` tracks whether the broker has accepted the current connection.
-async fn next(
-    client: &AsyncClient,
-    eventloop: &mut EventLoop,
-    accepted: &mut bool,
-    settings: &Settings,
-) -> Option<Update> {
+async fn next(eventloop: &mut EventLoop, accepted: &mut bool, prefix: &str) -> Option<Update> {
     match eventloop.poll().await {
-        Ok(Event::Incoming(Packet::ConnAck(_))) => {
+        Ok(MqttEvent::Incoming(Packet::ConnAck(_))) => {
             *accepted = true;
-            // A clean session forgets subscriptions: subscribe on every connection, all topics
-            // in one request (the queue holds 16, so this never blocks the loop draining it).
-            match settings
-                .can
-                .connected(client, &settings.prefix, settings.topics())
-            {
-                Ok(()) => None,
-                Err(error) => Some(Update::Disconnected(format!("subscribing: {error}"))),
-            }
+            None
         }
         // Connected means subscribed: nothing published from here on is missed.
-        Ok(Event::Incoming(Packet::SubAck(_))) => Some(Update::Connected),
-        Ok(Event::Incoming(Packet::Publish(publish))) => {
-            Some(decode(&settings.prefix, &publish.topic, &publish.payload))
+        Ok(MqttEvent::Incoming(Packet::SubAck(_))) => Some(Update::Connected),
+        Ok(MqttEvent::Incoming(Packet::Publish(publish))) => {
+            Some(decode(prefix, &publish.topic, &publish.payload))
         }
         Ok(_) => None,
         Err(error) => {

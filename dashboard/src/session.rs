@@ -1,10 +1,10 @@
 //! A recorded session (a candump log of the car) as the telemetry the Pi publishes: decoded
-//! by the Pi service's own ingest code (`aer_host::ingest`: ISO-TP, fingerprint check,
+//! by the Pi service's own ingest code (`aer_host::decode`: ISO-TP, fingerprint check,
 //! generated unpacker), so a screenshot shows exactly what the car sent.
 
 use aer::mqtt::{Sample, TelemetryRecord};
 use aer_host::clock::seconds;
-use aer_host::ingest::decode_log;
+use aer_host::decode::decode_log;
 use aer_host::status::{Metrics, Problems, Status, status};
 
 /// The session the Pi's demo replays (recorded from the CCM's own logic).

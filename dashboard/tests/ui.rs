@@ -444,10 +444,12 @@ fn a_clicked_can_message_is_subscribed_and_shows_its_signals_in_words() {
     use aer::can::DtiTemperatures;
     let t0 = Instant::now();
     let mut app = app_with(View::Pit, driving(), t0);
-    assert!(
-        app.link().can.suffixes().is_empty(),
-        "nothing shown, nothing subscribed"
-    );
+    // The link starts and hands the application its control; what the application tells it
+    // is what it subscribes to.
+    let (control, mut link_told) = aer_dashboard::link::Control::channel();
+    app.update(Message::LinkReady(control));
+    let mut shown = || link_told.try_recv().ok();
+    assert_eq!(shown(), Some(vec![]), "nothing shown, nothing subscribed");
     let messages: Vec<Message> = {
         // Tall enough that the panel, below the telemetry fields, needs no scrolling.
         let tall = iced::Size::new(PIT_SIZE.width, 2_400.0);
@@ -459,7 +461,7 @@ fn a_clicked_can_message_is_subscribed_and_shows_its_signals_in_words() {
         panic!("{messages:?}");
     };
     app.update(Message::ToggleCan(*index));
-    assert_eq!(app.link().can.suffixes(), ["can/dti_temperatures"]);
+    assert_eq!(shown(), Some(vec!["can/dti_temperatures"]));
     assert!(shows(&app, "no frame yet"));
 
     // Controller 45.6 degC, motor -12.3 degC (big-endian, 0.1 degC), fault code 0x04.
@@ -475,7 +477,7 @@ fn a_clicked_can_message_is_subscribed_and_shows_its_signals_in_words() {
 
     // Hidden again: unsubscribed, and its signals gone.
     app.update(Message::ToggleCan(*index));
-    assert!(app.link().can.suffixes().is_empty());
+    assert_eq!(shown(), Some(vec![]));
     assert!(!shows(&app, "DTI_ControllerTemp"));
 }
 

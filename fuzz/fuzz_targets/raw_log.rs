@@ -7,7 +7,7 @@
 #![no_main]
 
 use aer_host::candump::LoggedFrame;
-use aer_host::rawlog::{BlockEncoder, MAGIC, SegmentReader};
+use aer_host::raw_format::{BlockEncoder, MAGIC, SegmentReader};
 use embedded_can::{ExtendedId, Id, StandardId};
 use libfuzzer_sys::fuzz_target;
 use std::sync::Arc;

@@ -2,9 +2,9 @@
 //! alike, with nothing of either: no broker, no database, no UI.
 //!
 //! - [`candump`]: candump log lines, the interchange format of recorded sessions;
-//! - [`rawlog`]: the raw log's segment format, written before decoding, read by replays;
-//! - [`ingest`]: frames in, decoded records out (ISO-TP reassembly, fingerprint check, the
-//!   generated decoders), and [`ingest::decode_log`] for whole logs;
+//! - [`raw_format`]: the raw log's segment format, written before decoding, read by replays;
+//! - [`decode`]: frames in, decoded records out (ISO-TP reassembly, fingerprint check, the
+//!   generated decoders), and [`decode::decode_log`] for whole logs;
 //! - [`counters`]: the service's counters, one set for counting and publishing;
 //! - [`status`]: the service's status and metrics payloads and their typed topics;
 //! - [`traffic`]: each bus's measured load and each message's measured rate;
@@ -16,9 +16,9 @@ pub mod candump;
 pub mod clock;
 pub mod config;
 pub mod counters;
-pub mod ingest;
+pub mod decode;
 pub mod logging;
-pub mod rawlog;
+pub mod raw_format;
 pub mod status;
 pub mod traffic;
 pub mod varint;

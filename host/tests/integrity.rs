@@ -6,7 +6,7 @@ use aer::can::{Mcu1, Vcu1};
 use aer::runtime::CounterSender;
 use aer_host::candump::LoggedFrame;
 use aer_host::counters::{Counters, MessageHealth};
-use aer_host::ingest::{Ingest, Record};
+use aer_host::decode::{Ingest, Record};
 use embedded_can::{Id, StandardId};
 use std::sync::Arc;
 

@@ -2,7 +2,7 @@
 //! times) against what the schema declares: every message at its cycle time on each bus, and
 //! each bus's load at the build-time figure of `generated/docs/can.md`.
 
-use aer_host::ingest::decode_log;
+use aer_host::decode::decode_log;
 use aer_host::status::{Problems, status};
 
 const SESSION: &str = include_str!("../../raspi/data/session.log");

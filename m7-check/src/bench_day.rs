@@ -11,10 +11,10 @@ use aer::can::{
 use aer_boards::Mode;
 use aer_ccm::InverterKind;
 use aer_ccm::calibration::{BenchPoint, BenchRecorder};
-use aer_ccm::config::DTI_ASSUMED_COMMAND_TIMEOUT_MS;
 use aer_ccm::console::bringup::{self, Report};
 use aer_ccm::console::dti::DtiBench;
 use aer_ccm::console::{self as ccm_console, BootloaderAnswer};
+use aer_ccm::constants::DTI_ASSUMED_COMMAND_TIMEOUT_MS;
 use aer_ccm::control::HandoverRefusal;
 use aer_console::LogBuffer;
 use aer_console::bringup::{

@@ -1,8 +1,9 @@
 //! The generated CAN codec and telemetry packer over pseudo-random payloads.
 
-use crate::{Digest, Rng};
+use crate::Digest;
 use aer::can::{AnyMessage, MESSAGES};
 use aer::telemetry::{TELEMETRY_FINGERPRINT, Telemetry, TelemetryHeader};
+use aer_car_model::rng::Rng;
 use core::fmt::Write;
 
 /// Payloads per message.

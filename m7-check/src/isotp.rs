@@ -1,6 +1,7 @@
 //! ISO-TP sender and receiver against each other, every length class up to 4095 bytes.
 
-use crate::{Digest, Rng};
+use crate::Digest;
+use aer_car_model::rng::Rng;
 use aer_isotp::{Config, Received, Receiver, Sender, StMin};
 use core::fmt::Write;
 

@@ -30,31 +30,3 @@ pub fn run(out: &mut impl core::fmt::Write) -> core::fmt::Result {
     bench_day::transcripts(out)?;
     writeln!(out, "done")
 }
-
-/// A small deterministic generator (xorshift32), identical on every target.
-#[derive(Debug, Clone)]
-pub struct Rng(u32);
-
-impl Rng {
-    /// A generator from a non-zero seed.
-    pub fn new(seed: u32) -> Self {
-        Self(seed.max(1))
-    }
-
-    /// The next 32 random bits.
-    pub fn next_u32(&mut self) -> u32 {
-        let mut x = self.0;
-        x ^= x << 13;
-        x ^= x >> 17;
-        x ^= x << 5;
-        self.0 = x;
-        x
-    }
-
-    /// Fills `bytes`.
-    pub fn fill(&mut self, bytes: &mut [u8]) {
-        for byte in bytes {
-            *byte = self.next_u32().to_le_bytes()[0];
-        }
-    }
-}

@@ -4,7 +4,7 @@
 //! precharge-time and bus lines and its answer to `bootloader`; the bring-up image's start-up
 //! lines and its report every second.
 
-use crate::config::VfConfig;
+use crate::constants::VfConfig;
 use crate::machine::HandoverRefusal;
 use crate::relays::Relays;
 use crate::state::{Errors, State};

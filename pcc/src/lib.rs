@@ -10,8 +10,8 @@
 #![no_std]
 
 pub mod bms;
-pub mod config;
 pub mod console;
+pub mod constants;
 pub mod machine;
 pub mod measurement;
 pub mod relays;
@@ -19,7 +19,7 @@ mod state;
 mod status;
 pub mod watchdog;
 
-pub use config::{PrechargeConfig, TASK_PERIOD_MS, VfConfig};
+pub use constants::{PrechargeConfig, TASK_PERIOD_MS, VfConfig};
 pub use machine::{HandoverRefusal, Inputs, Precharge, PrechargeTiming};
 pub use relays::Relays;
 pub use state::{Errors, State};

@@ -26,7 +26,7 @@
 //! Time is a free-running millisecond counter that may wrap; every comparison is on
 //! differences, so a wrap (after 49.7 days) changes nothing.
 
-use crate::config::PrechargeConfig;
+use crate::constants::PrechargeConfig;
 use crate::relays::Relays;
 use crate::state::{Errors, State};
 use aer_control::Persist;

@@ -5,7 +5,7 @@
 //! edge across sample windows, so a slow pulse train (low voltage, fewer than one edge per
 //! window) still reads right instead of alternating with zero.
 
-use crate::config::VfConfig;
+use crate::constants::VfConfig;
 use aer_control::LowPass;
 
 /// Edge-to-edge frequency measurement on one input.

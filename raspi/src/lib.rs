@@ -1,10 +1,10 @@
 //! The Pi's ingest service as a library: the binary (`aer-raspi`), the end-to-end tests and the
 //! benchmarks run the same stages.
 //!
-//! Data flow, one way: [`source`] (SocketCAN, a candump log, the car model) -> [`ingest`]
-//! (decoding, shared with the dashboard in `aer-host`) -> [`sink`]s: typed MQTT topics on the
-//! embedded [`broker`], and the SQLite [`store`] -> [`forward`] (TDengine). [`export`] reads
-//! the store back out.
+//! Data flow, one way: [`source`] (SocketCAN, a candump log, the car model) -> the ingest
+//! [`stage`] (decoding, shared with the dashboard in `aer-host`) -> [`sink`]s: typed MQTT
+//! topics on the embedded [`broker`], and the SQLite [`store`] -> [`forward`] (TDengine).
+//! [`export`] reads the store back out.
 //! [`report`] publishes the service's status and metrics; [`service`] assembles it all.
 
 pub mod broker;
@@ -15,10 +15,10 @@ pub mod disk;
 pub mod export;
 pub mod forward;
 pub mod health;
-pub mod ingest;
 pub mod rawlog;
 pub mod report;
 pub mod service;
 pub mod sink;
 pub mod source;
+pub mod stage;
 pub mod store;

@@ -5,7 +5,7 @@
 //! hold every row.
 
 use aer::mqtt::{Sample, TELEMETRY, TelemetryRecord};
-use aer_host::ingest::decode_log;
+use aer_host::decode::decode_log;
 use aer_host::status::STATUS;
 use aer_raspi::broker;
 use aer_raspi::config::Config;

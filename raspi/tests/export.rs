@@ -8,7 +8,7 @@
 
 use aer::tables::TABLES;
 use aer_host::counters::Counters;
-use aer_host::ingest::{Ingest, Record};
+use aer_host::decode::{Ingest, Record};
 use aer_raspi::export::load::Selection;
 use aer_raspi::export::{self, Format, Request};
 use aer_raspi::service::DEMO_LOG;

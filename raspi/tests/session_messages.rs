@@ -6,7 +6,7 @@
 mod common;
 
 use aer::can::{AnyMessage, Vcu1};
-use aer_host::ingest::FrameCheck;
+use aer_host::decode::FrameCheck;
 use aer_raspi::store::session::{self, Metadata};
 use aer_raspi::store::session_messages::{self, MessageStats};
 use aer_raspi::store::{self, Row, RowData, writer};

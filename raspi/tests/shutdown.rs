@@ -7,8 +7,8 @@
 #![cfg(unix)]
 
 use aer_host::counters::Counters;
-use aer_host::ingest::{Ingest, Record};
-use aer_host::rawlog::SegmentReader;
+use aer_host::decode::{Ingest, Record};
+use aer_host::raw_format::SegmentReader;
 use aer_raspi::rawlog::segments;
 use aer_raspi::store;
 use std::path::{Path, PathBuf};

@@ -10,7 +10,7 @@ use aer::runtime::CounterSender;
 use aer_ccm::bus::BusState;
 use aer_host::candump::LoggedFrame;
 use aer_host::counters::Counters;
-use aer_host::ingest::{FrameCheck, Ingest, Record};
+use aer_host::decode::{FrameCheck, Ingest, Record};
 use embedded_can::{Frame, Id, StandardId};
 use std::sync::Arc;
 

@@ -5,7 +5,7 @@
 
 use aer::can::{AnyMessage, DtiTemperatures, PccStatus};
 use aer_dashboard::config::{Config, View};
-use aer_dashboard::link::{self, CanTopics, Settings};
+use aer_dashboard::link::{self, Control, Event, Settings};
 use aer_dashboard::model::health::SchemaMatch;
 use aer_dashboard::model::{Dashboard, Update};
 use aer_dashboard::screenshot::PIT_SIZE;
@@ -30,14 +30,30 @@ fn free_port() -> u16 {
         .expect("a free port")
 }
 
-/// Waits for the next update; a stuck link fails the test instead of hanging it.
-async fn next(
-    stream: &mut (impl iced::futures::Stream<Item = (Instant, Update)> + Unpin),
-) -> (Instant, Update) {
+/// Waits for the link's next event; a stuck link fails the test instead of hanging it.
+async fn next_event(stream: &mut (impl iced::futures::Stream<Item = Event> + Unpin)) -> Event {
     tokio::time::timeout(Duration::from_secs(30), stream.next())
         .await
-        .expect("an update within 30 s")
+        .expect("an event within 30 s")
         .expect("the link never ends")
+}
+
+/// Waits for the next update.
+async fn next(
+    stream: &mut (impl iced::futures::Stream<Item = Event> + Unpin),
+) -> (Instant, Update) {
+    match next_event(stream).await {
+        Event::Update(at, update) => (at, update),
+        Event::Ready(_) => panic!("the link started twice"),
+    }
+}
+
+/// A link's control, the first thing it hands over.
+async fn started(stream: &mut (impl iced::futures::Stream<Item = Event> + Unpin)) -> Control {
+    match next_event(stream).await {
+        Event::Ready(control) => control,
+        Event::Update(_, update) => panic!("an update before the link's control: {update:?}"),
+    }
 }
 
 /// The Pi service's configuration in `dir`: the repository's broker config on `port`, with
@@ -91,9 +107,10 @@ async fn a_replayed_session_reaches_the_dashboard_intact() {
         port,
         credentials: None,
         prefix: "aer/car1".into(),
-        can: CanTopics::new([shown]),
+        can: vec![shown],
     };
-    let mut updates = Box::pin(link::stream(settings.clone()));
+    let mut updates = Box::pin(link::stream(settings));
+    let control = started(&mut updates).await;
     let mut config = Config::default();
     config.display.can_messages = vec![DtiTemperatures::META.name.into()];
     let mut model = Dashboard::new(&config);
@@ -170,10 +187,7 @@ async fn a_replayed_session_reaches_the_dashboard_intact() {
     assert!(ui.find("DTI_ControllerTemp").is_ok());
 
     // Picking another message subscribes to it on the live connection, no reconnect.
-    settings.can.set(
-        &settings.prefix,
-        [shown, aer::mqtt::can::PCC_STATUS.suffix()],
-    );
+    control.show_can([shown, aer::mqtt::can::PCC_STATUS.suffix()]);
     loop {
         // The broker's acknowledgement of the new subscription.
         if next(&mut updates).await.1 == Update::Connected {
@@ -234,7 +248,7 @@ async fn a_listener_with_credentials_admits_only_the_right_ones() {
         port,
         credentials: credentials.map(|(u, p)| (u.into(), p.into())),
         prefix: "aer/car1".into(),
-        can: CanTopics::default(),
+        can: Vec::new(),
     };
     for refused in [
         None,
@@ -242,6 +256,7 @@ async fn a_listener_with_credentials_admits_only_the_right_ones() {
         Some(("driver", "Xq7-fast-laps")),
     ] {
         let mut updates = Box::pin(link::stream(settings(refused)));
+        started(&mut updates).await;
         let (_, update) = next(&mut updates).await;
         match update {
             Update::Disconnected(reason) => {
@@ -254,6 +269,7 @@ async fn a_listener_with_credentials_admits_only_the_right_ones() {
         }
     }
     let mut updates = Box::pin(link::stream(settings(Some(("pit", "Xq7-fast-laps")))));
+    started(&mut updates).await;
     let (_, update) = next(&mut updates).await;
     assert_eq!(update, Update::Connected);
 }

@@ -5,7 +5,7 @@
 //! ([`EnableTimeout`]): drive enable commanded (by the bring-up's own [`EnableTest`] or by a CAN
 //! adapter), then silence, and the time until packet 0x24 reports the drive disabled.
 
-use crate::config::{DTI_ASSUMED_COMMAND_TIMEOUT_MS, DTI_CAN_MAP_VERSION};
+use crate::constants::{DTI_ASSUMED_COMMAND_TIMEOUT_MS, DTI_CAN_MAP_VERSION};
 use crate::inverter::dti;
 use crate::inverter::{DriveCommand, OutFrames};
 use aer::can::{DtiDriveEnable, DtiFaultCode, DtiFlags, DtiSetDriveEnable, DtiSpeed};

@@ -11,7 +11,7 @@
 
 use super::{DriveCommand, InverterStatus, OutFrame, OutFrames, finite_or_zero};
 use crate::bus::BusState;
-use crate::config::{
+use crate::constants::{
     DTI_AC_LIMITS_TIMEOUT_MS, DTI_CAN_MAP_VERSION, DTI_CURRENTS_TIMEOUT_MS, DTI_ENABLE_MISMATCH_MS,
     DTI_FLAGS_TIMEOUT_MS, DTI_SPEED_TIMEOUT_MS, DTI_TEMPERATURES_TIMEOUT_MS, MOTOR_MAX_TORQUE_NM,
     MOTOR_POLE_PAIRS, MOTOR_TORQUE_PER_PEAK_A,

@@ -5,7 +5,7 @@
 
 use super::{DriveCommand, InverterStatus, OutFrame, OutFrames, finite_or_zero};
 use crate::bus::BusState;
-use crate::config::{MCU1_TIMEOUT_MS, MCU2_TIMEOUT_MS, MCU3_TIMEOUT_MS};
+use crate::constants::{MCU1_TIMEOUT_MS, MCU2_TIMEOUT_MS, MCU3_TIMEOUT_MS};
 use aer::can::{Bms1, Bms2, GearLeverPos, KeyPosition, Mcu2, McuWarningLevel, MotorMode, Vcu1};
 use aer::runtime::{CounterSender, EncodeError};
 

@@ -1,6 +1,6 @@
 //! The inverter behind one interface. The CCM drives either the comp car's DTI HV-550
 //! ([`dti`]) or the HIMaC bench's IFL100 ([`ifl100`]); which one is the car's configuration
-//! ([`crate::config::INVERTER`], a build-time setting). Whichever it is, the control step reads
+//! ([`crate::constants::INVERTER`], a build-time setting). Whichever it is, the control step reads
 //! one [`InverterStatus`] and asks for one [`DriveCommand`], so the freshness limits, the
 //! torque monitor, the power limiter and every fault reaction are the same code for both.
 
@@ -9,8 +9,8 @@ pub mod ifl100;
 
 use crate::bus::BusState;
 pub use crate::bus::InverterStatus;
-pub use crate::config::InverterKind;
-use crate::config::{
+pub use crate::constants::InverterKind;
+use crate::constants::{
     DTI_COMMAND_PERIOD_MS, DTI_SPEED_TIMEOUT_MS, IFL100_COMMAND_PERIOD_MS, MCU1_TIMEOUT_MS,
 };
 use aer::runtime::EncodeError;

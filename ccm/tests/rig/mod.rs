@@ -12,7 +12,7 @@ use aer::runtime::{CounterSender, EncodeError};
 use aer_ccm::apps::AppsCalibration;
 use aer_ccm::brakes::volts_for;
 use aer_ccm::calibration::SensorCalibration;
-use aer_ccm::config::WHEEL_TEETH;
+use aer_ccm::constants::WHEEL_TEETH;
 use aer_ccm::vehicle::State;
 use aer_ccm::{Ccm, ControlOutputs, DriverInputs, InverterKind, SensorSample};
 use aer_flexcan::CanFrame;
@@ -97,7 +97,7 @@ impl Tick {
     /// Driving with `pedal` travel on both sensors at `rpm`, the front wheels rolling with
     /// the motor (no slip).
     pub fn driving(pedal: f32, rpm: f32) -> Self {
-        let wheels = rpm * std::f32::consts::TAU / 60.0 / aer_ccm::config::GEAR_RATIO;
+        let wheels = rpm * std::f32::consts::TAU / 60.0 / aer_ccm::constants::GEAR_RATIO;
         Self {
             pedal: (pedal, pedal),
             brake_psi: (0.0, 0.0),
@@ -140,7 +140,7 @@ pub const INVERTERS: [InverterKind; 2] = [InverterKind::Dti, InverterKind::Ifl10
 impl Rig {
     /// A CCM driving the car's configured inverter.
     pub fn new() -> Self {
-        Self::with_inverter(aer_ccm::config::INVERTER)
+        Self::with_inverter(aer_ccm::constants::INVERTER)
     }
 
     /// A CCM driving `inverter`; the rig's inverter frames are that inverter's.
@@ -239,7 +239,7 @@ impl Rig {
     fn dti(&mut self, inverter: &Inverter) {
         let (volts, amps) = inverter.dc;
         let speed = DtiSpeed {
-            dti_erpm: (inverter.rpm * aer_ccm::config::MOTOR_POLE_PAIRS).round() as i32,
+            dti_erpm: (inverter.rpm * aer_ccm::constants::MOTOR_POLE_PAIRS).round() as i32,
             dti_duty_cycle: 0.0,
             dti_input_voltage: volts.round() as i16,
         };

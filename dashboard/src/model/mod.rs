@@ -23,8 +23,8 @@ use history::History;
 use laps::LapTimer;
 use std::time::{Duration, Instant};
 
-/// The car's own constants (ccm/src/config.rs): one place for them, shared with the firmware.
-use aer_params::{GEAR_RATIO, POWER_LIMIT_W, WHEEL_RADIUS_M};
+/// The car's own constants (ccm/src/constants.rs): one place for them, shared with the firmware.
+use aer_params::{POWER_LIMIT_W, road_speed_m_s};
 
 /// Something the dashboard learns from the broker.
 #[derive(Debug, Clone, PartialEq)]
@@ -347,10 +347,10 @@ impl Dashboard {
     }
 }
 
-/// Road speed (m/s) from the motor speed, through the gear ratio and the wheel radius.
+/// Road speed (m/s) from the motor speed, by the car's own formula (the gear ratio and wheel
+/// radius in aer-params).
 fn speed_m_s(telemetry: &Telemetry) -> f64 {
-    f64::from(telemetry.motor_speed) / f64::from(GEAR_RATIO) * std::f64::consts::TAU / 60.0
-        * f64::from(WHEEL_RADIUS_M)
+    f64::from(road_speed_m_s(telemetry.motor_speed))
 }
 
 #[cfg(test)]

@@ -24,6 +24,8 @@ pub const TICK: Duration = Duration::from_millis(50);
 pub enum Message {
     /// An update from the broker and when it arrived.
     Link(Instant, Update),
+    /// The link is running: how to tell it which CAN topics to carry.
+    LinkReady(link::Control),
     /// The clock.
     Tick(Instant),
     /// Switch between the driver and pit views (Tab).
@@ -39,6 +41,8 @@ pub enum Message {
 /// The dashboard application.
 pub struct App {
     link: link::Settings,
+    /// The running link's control, once it has started.
+    link_control: Option<link::Control>,
     model: Dashboard,
     view: View,
     now: Instant,
@@ -49,6 +53,7 @@ impl App {
     pub fn new(config: &Config, now: Instant) -> Self {
         Self {
             link: link::Settings::from_config(config),
+            link_control: None,
             model: Dashboard::new(config),
             view: config.display.view,
             now,
@@ -59,6 +64,7 @@ impl App {
     pub fn with_model(config: &Config, model: Dashboard, view: View, now: Instant) -> Self {
         Self {
             link: link::Settings::from_config(config),
+            link_control: None,
             model,
             view,
             now,
@@ -77,6 +83,11 @@ impl App {
                 self.model.apply(update, at);
                 self.now = self.now.max(at);
             }
+            Message::LinkReady(control) => {
+                // The picks of the moment: made before the link ran, or since it restarted.
+                control.show_can(self.model.can().suffixes());
+                self.link_control = Some(control);
+            }
             Message::Tick(at) => self.now = self.now.max(at),
             Message::ToggleView => {
                 self.view = match self.view {
@@ -88,9 +99,9 @@ impl App {
             Message::TogglePlot(index) => self.model.toggle_plot(index),
             Message::ToggleCan(index) => {
                 self.model.toggle_can(index);
-                self.link
-                    .can
-                    .set(&self.link.prefix, self.model.can().suffixes());
+                if let Some(control) = &self.link_control {
+                    control.show_can(self.model.can().suffixes());
+                }
             }
         }
     }
@@ -101,11 +112,6 @@ impl App {
             View::Driver => driver::view(&self.model, self.now),
             View::Pit => pit::view(&self.model, self.now),
         }
-    }
-
-    /// The link's settings (what it subscribes to).
-    pub fn link(&self) -> &link::Settings {
-        &self.link
     }
 
     /// The window title.
@@ -122,7 +128,10 @@ impl App {
     pub fn subscription(&self) -> Subscription<Message> {
         Subscription::batch([
             Subscription::run_with(self.link.clone(), |settings| link::stream(settings.clone()))
-                .map(|(at, update)| Message::Link(at, update)),
+                .map(|event| match event {
+                    link::Event::Ready(control) => Message::LinkReady(control),
+                    link::Event::Update(at, update) => Message::Link(at, update),
+                }),
             iced::time::every(TICK).map(Message::Tick),
             keyboard::listen().filter_map(key_message),
         ])

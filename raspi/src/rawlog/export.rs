@@ -1,7 +1,7 @@
 //! Raw log segments as candump `-l` text: the same timestamps, interfaces, ids and data.
 
 use super::segments;
-use aer_host::rawlog::SegmentReader;
+use aer_host::raw_format::SegmentReader;
 use anyhow::{Context, Result};
 use std::io::Write;
 use std::path::{Path, PathBuf};

@@ -10,7 +10,7 @@ use super::segments::{self, Budget};
 use crate::health::Health;
 use aer_host::clock::now_us;
 use aer_host::counters::{Counters, worth_logging};
-use aer_host::rawlog::{Joiner, MAGIC};
+use aer_host::raw_format::{Joiner, MAGIC};
 use std::fs::File;
 use std::io::Write;
 use std::path::PathBuf;

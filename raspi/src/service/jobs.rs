@@ -7,7 +7,7 @@ use crate::health::Health;
 use crate::source::replay::{ReplayOptions, replay, replay_segment};
 use crate::source::{self, Replies};
 use aer_host::counters::Counters;
-use aer_host::rawlog::SegmentReader;
+use aer_host::raw_format::SegmentReader;
 use anyhow::{Context, Result};
 use std::io::BufReader;
 use std::sync::Arc;

@@ -5,7 +5,7 @@
 pub mod mqtt;
 pub mod store;
 
-use aer_host::ingest::Record;
+use aer_host::decode::Record;
 use std::sync::Arc;
 
 /// A consumer of records.

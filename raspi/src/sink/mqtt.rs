@@ -14,7 +14,7 @@ use aer::mqtt::{TELEMETRY, TelemetryRecord, Topic, encode_message};
 use aer_host::clock::seconds;
 use aer_host::config::BrokerConfig;
 use aer_host::counters::{Counters, worth_logging};
-use aer_host::ingest::Record;
+use aer_host::decode::Record;
 use rumqttc::{AsyncClient, Event, EventLoop, MqttOptions, Packet, QoS};
 use rumqttd::local::{LinkRx, LinkTx};
 use serde::Serialize;

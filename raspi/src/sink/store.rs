@@ -2,7 +2,7 @@
 
 use super::Sink;
 use crate::store::{RowSender, row};
-use aer_host::ingest::Record;
+use aer_host::decode::Record;
 use std::sync::Arc;
 
 /// The store as a sink: every record becomes a row for the writer.

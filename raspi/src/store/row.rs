@@ -5,7 +5,7 @@ use aer::can::AnyMessage;
 use aer::runtime::{SignalMeta, SignalVisitor, Value};
 use aer::tables::{self, Table};
 use aer::telemetry::{Telemetry, TelemetryHeader};
-use aer_host::ingest::{FrameCheck, Record};
+use aer_host::decode::{FrameCheck, Record};
 use rusqlite::Statement;
 use std::sync::Arc;
 

@@ -50,9 +50,9 @@ mod app {
     use aer_ccm::analog;
     use aer_ccm::calibration::measured::MEASURED;
     use aer_ccm::chassis::PulseTimer;
-    use aer_ccm::config::WHEEL_TEETH;
-    use aer_ccm::config::{CONTROL_PERIOD_MS, INVERTER, TELEMETRY_PERIOD_MS, WATCHDOG_CHECK_MS};
     use aer_ccm::console::{BootloaderAnswer, LOG_BYTES};
+    use aer_ccm::constants::WHEEL_TEETH;
+    use aer_ccm::constants::{CONTROL_PERIOD_MS, INVERTER, TELEMETRY_PERIOD_MS, WATCHDOG_CHECK_MS};
     use aer_ccm::control::Control;
     use aer_ccm::faults::{Fault, FaultMap};
     use aer_ccm::sensors::Sensors;

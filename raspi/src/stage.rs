@@ -1,6 +1,6 @@
 //! The ingest stage: batches from the sources in, decoded records out to every sink, on one
 //! task. Every frame goes to the raw log first, before anything decodes it. Decoding itself
-//! is `aer_host::ingest`, shared with the dashboard; this stage keeps the bus names the
+//! is `aer_host::decode`, shared with the dashboard; this stage keeps the bus names the
 //! sources announce, sends ISO-TP flow control back to the source's bus, and flushes the raw
 //! log and the sinks whenever it is about to wait.
 
@@ -9,7 +9,7 @@ use crate::sink::Sink;
 use crate::source::replay::{ReplayOptions, ReplayStats, replay};
 use crate::source::{self, Input, Receiver, Replies};
 use aer_host::counters::Counters;
-use aer_host::ingest::{Ingest, Record};
+use aer_host::decode::{Ingest, Record};
 use std::sync::Arc;
 use tokio_util::sync::CancellationToken;
 
