@@ -1,7 +1,7 @@
 //! The team's boards, described once: every pin the CCM (Teensy 4.1) and the PCC (Teensy 4.0)
 //! use, what it carries, how its pad is set up, and where that fact comes from.
 //!
-//! The firmware takes its pins from here (each typed pin in a firmware's `board.rs` is checked
+//! The firmware takes its pins from here (each typed pin in a firmware's `hw/board.rs` is checked
 //! against this description when it compiles), `cargo xtask pins` prints it, and the bring-up
 //! images name what they measure with it. `no_std`, no dependencies: the firmware, the host
 //! tools and the documentation read the same tables.

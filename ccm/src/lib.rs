@@ -1,6 +1,6 @@
 //! Central computer (CCM) logic: hardware-free, `no_std`, tested on the host and on an
-//! emulated Cortex-M7. The firmware (`src/bin/ccm/`) only moves data between [`Ccm`] and the
-//! hardware.
+//! emulated Cortex-M7. The firmware images (`src/bin/`) only move data between [`Ccm`] and
+//! the hardware, which `hw` (feature `firmware`) sets up one way for both.
 //!
 //! Data flow: 1 kHz sensor samples ([`apps`], [`brakes`], [`chassis`]) and CAN frames
 //! ([`bus`], every value kept with its arrival time) -> 100 Hz control ([`faults`],
@@ -25,6 +25,8 @@ pub mod console;
 pub mod constants;
 pub mod control;
 pub mod faults;
+#[cfg(feature = "firmware")]
+pub mod hw;
 pub mod inverter;
 mod io;
 pub mod launch;

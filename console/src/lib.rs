@@ -6,6 +6,7 @@
 //! bootloader that `teensy_loader_cli -s` asks for.
 #![no_std]
 
+pub mod bench;
 pub mod bringup;
 pub mod command;
 pub mod log;
@@ -15,9 +16,16 @@ pub mod usb;
 pub use command::{Command, CommandError, Level, PedalPosition};
 
 /// A value the race firmware logs when it changes (a state, a fault map, a bus's health).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Watch<T> {
     last: Option<T>,
+}
+
+/// Nothing seen yet, whatever `T` is.
+impl<T> Default for Watch<T> {
+    fn default() -> Self {
+        Self { last: None }
+    }
 }
 
 impl<T: PartialEq + Copy> Watch<T> {

@@ -10,8 +10,9 @@
 
 pub use teensy4_bsp::usbd::EndpointState;
 
-use crate::REBOOT_BAUD;
+use crate::bench::Line;
 use crate::log::{LineReader, LogBuffer};
+use crate::{Command, REBOOT_BAUD, RebootRequest};
 use core::sync::atomic::{AtomicU32, Ordering};
 use rtic_core::Mutex;
 use teensy4_bsp::hal::gpio::Input;
@@ -149,6 +150,51 @@ impl UsbConsole {
             log.lock(|log| log.consume(polled.sent));
         }
         polled.reboot_requested
+    }
+}
+
+/// The race images' console task: the log out, typed bytes in. Only `bootloader` is taken,
+/// as a request the control task grants or refuses (the host's 134 baud asks the same). An
+/// image without a console (`None`: the USB device did not start) runs as before.
+pub fn serve_race<const N: usize>(
+    console: Option<&mut UsbConsole>,
+    log: &mut impl Mutex<T = LogBuffer<N>>,
+    typed: &mut LineReader<64>,
+    reboot: &RebootRequest,
+) {
+    let Some(console) = console else {
+        return;
+    };
+    let host_asks = console.serve(log, typed, |line| {
+        if matches!(Command::parse(line), Ok(Command::Bootloader)) {
+            reboot.request();
+        }
+    });
+    if host_asks {
+        reboot.request();
+    }
+}
+
+/// The bring-up images' console task: every typed line goes to the bench loop
+/// ([`crate::bench`]); typing faster than the loop takes lines drops them.
+pub fn serve_bench<const N: usize>(
+    console: Option<&mut UsbConsole>,
+    log: &mut impl Mutex<T = LogBuffer<N>>,
+    typed: &mut LineReader<64>,
+    lines: &mut heapless::spsc::Producer<'static, Line>,
+    reboot: &RebootRequest,
+) {
+    let Some(console) = console else {
+        return;
+    };
+    let host_asks = console.serve(log, typed, |typed| {
+        let mut line = Line::new();
+        if line.push_str(typed).is_ok() {
+            let _dropped = lines.enqueue(line);
+        }
+    });
+    if host_asks {
+        reboot.request();
     }
 }
 

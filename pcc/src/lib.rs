@@ -12,6 +12,8 @@
 pub mod bms;
 pub mod console;
 pub mod constants;
+#[cfg(feature = "firmware")]
+pub mod hw;
 pub mod machine;
 pub mod measurement;
 pub mod relays;

@@ -46,8 +46,11 @@ pub struct Pins {
     /// The on-board LED (pin 13).
     pub led: pins::P13,
     /// Precharge-resistor thermistors (A7 = pin 21, A8 = pin 22).
-    pub thermistors: (pins::P21, pins::P22),
+    pub thermistors: ThermistorPins,
 }
+
+/// The precharge-resistor thermistors' pins (A7 = pin 21, A8 = pin 22).
+pub type ThermistorPins = (pins::P21, pins::P22);
 
 /// GPIO2 bit of the AIR+ output on pin 11: the panic handler clears it without the HAL.
 pub const AIR_PLUS_GPIO2_MASK: u32 = 1 << <pins::P11 as GpioPin<2>>::OFFSET;

@@ -67,6 +67,9 @@ pub const FAN_PWM_HZ: u32 = 500;
 /// Buzzer tone (Hz): FlexPWM2 submodule 0, A (pin 4).
 pub const BUZZER_HZ: u32 = 2_000;
 
+/// Thermistor 1's pin (A0).
+pub type ThermistorPin = pins::P14;
+
 /// The pedal front-end's pins: APPS1 (A5) and APPS2 (A4) on the on-chip ADC, or, with the
 /// ADS1115 option, LPI2C1's SCL (19) and SDA (18).
 pub type PedalPins = (pins::P19, pins::P18);
@@ -86,7 +89,7 @@ pub struct Pins {
     /// Shock potentiometers 1-4 (A6-A9).
     pub shocks: (pins::P20, pins::P21, pins::P22, pins::P23),
     /// Thermistor 1 (A0).
-    pub thermistor: pins::P14,
+    pub thermistor: ThermistorPin,
     /// Front wheel-speed sensors 1 and 2.
     pub wheels: (pins::P2, pins::P3),
     /// Ready-to-move button (active high).

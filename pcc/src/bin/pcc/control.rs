@@ -1,0 +1,145 @@
+//! The 10 ms control task: voltages and BMS frames in, the state machine, the relays in the
+//! same period, the status frame, the console's log lines, the watchdog's service and the
+//! bootloader's handover.
+
+use crate::app::control;
+use crate::{Mono, REBOOT, RX_QUEUE_OVERFLOWS, STATUS_ENCODE_FAILURES, TX_BUSY};
+use aer_console::Watch;
+use aer_flexcan::CanFrame;
+use aer_pcc::console::{BootloaderAnswer, CountersLine, StateLine};
+use aer_pcc::hw::{board, feed_watchdog};
+use aer_pcc::watchdog::LoopMonitor;
+use aer_pcc::{
+    Errors, Inputs, Precharge, PrechargeConfig, PrechargeTiming, Relays, State, TASK_PERIOD_MS,
+    bms::BmsLink,
+};
+use core::sync::atomic::Ordering;
+use rtic::Mutex;
+use rtic_monotonics::imxrt::prelude::*;
+use teensy4_bsp::hal::gpio;
+
+/// The board's one relay output: pin 11, close AIR+.
+pub(crate) struct RelayPins {
+    air_plus: gpio::Output,
+}
+
+impl RelayPins {
+    pub(crate) fn new(air_plus: gpio::Output) -> Self {
+        Self { air_plus }
+    }
+
+    /// Drives the board's relay outputs (`Relays::outputs` over the board map: pin 11, the
+    /// typed pin checked against it in `aer_pcc::hw::board`).
+    pub(crate) fn apply(&mut self, relays: Relays) {
+        let [(_pin_11, high)] = relays.outputs(&board::REVISION);
+        if high {
+            self.air_plus.set();
+        } else {
+            self.air_plus.clear();
+        }
+    }
+}
+
+/// What the control task logs when it changes.
+#[derive(Default)]
+pub(crate) struct StateWatches {
+    state: Watch<(State, Errors)>,
+    precharge: Watch<Option<PrechargeTiming>>,
+}
+
+pub(crate) async fn control(mut cx: control::Context<'_>) {
+    let start = Mono::now();
+    let start_ms = (start.as_ticks() / 1_000) as u32;
+    let mut pcc = if *cx.local.watchdog_reset {
+        Precharge::after_watchdog_reset(PrechargeConfig::CAR, start_ms)
+    } else {
+        Precharge::new(PrechargeConfig::CAR, start_ms)
+    };
+    let mut bms = BmsLink::default();
+    let mut health = LoopMonitor::new(TASK_PERIOD_MS);
+    let mut next = start;
+    loop {
+        next += u64::from(TASK_PERIOD_MS).millis();
+        let now = Mono::now();
+        let now_ms = (now.as_ticks() / 1_000) as u32;
+        let now_us = now.as_ticks() as u32;
+
+        while let Some(frame) = cx.local.rx_consumer.dequeue() {
+            bms.on_frame(now_ms, &frame);
+        }
+        let inputs = Inputs {
+            now_ms,
+            accumulator_v: cx.shared.accumulator.lock(|channel| channel.sample(now_us)),
+            tractive_v: cx.shared.tractive.lock(|channel| channel.sample(now_us)),
+            bms_last_seen_ms: bms.last_seen_ms(),
+            charger_safety: bms.charger_safety(),
+        };
+        let relays = pcc.step(&inputs);
+        cx.local.relays.apply(relays);
+        if REBOOT.take() {
+            let answer = match pcc.handover() {
+                Ok(safe) => {
+                    cx.local.relays.apply(safe);
+                    BootloaderAnswer::Obeyed
+                }
+                Err(why) => BootloaderAnswer::Refused(why),
+            };
+            cx.shared
+                .log
+                .lock(|log| log.line(format_args!("t={now_ms} ms {answer}")));
+            if answer == BootloaderAnswer::Obeyed {
+                aer_console::usb::reboot_to_bootloader();
+            }
+        }
+        let watches = &mut cx.local.watches;
+        if let Some((state, errors)) = watches.state.changed((pcc.state(), pcc.errors())) {
+            let line = StateLine {
+                now_ms,
+                state,
+                relays,
+                errors,
+                accumulator_v: pcc.accumulator_v(),
+                tractive_v: pcc.tractive_v(),
+            };
+            cx.shared.log.lock(|log| log.line(format_args!("{line}")));
+        }
+        if let Some(Some(timing)) = watches.precharge.changed(pcc.last_precharge()) {
+            cx.shared
+                .log
+                .lock(|log| log.line(format_args!("t={now_ms} ms {timing}")));
+        }
+        if now_ms % 5_000 < TASK_PERIOD_MS {
+            let bus = cx.shared.can.lock(|can| can.status());
+            cx.shared.log.lock(|log| {
+                let line = CountersLine {
+                    now_ms,
+                    bus,
+                    rx_queue_overflows: RX_QUEUE_OVERFLOWS.load(Ordering::Relaxed),
+                    status_not_sent: TX_BUSY.load(Ordering::Relaxed),
+                    log_dropped: log.dropped(),
+                };
+                log.line(format_args!("{line}"))
+            });
+        }
+        // Heartbeat: the LED toggles every second (0.5 Hz) while the loop runs, so a hung PCC
+        // shows on the bench.
+        if now_ms % 1_000 < TASK_PERIOD_MS {
+            cx.local.led.toggle();
+        }
+
+        match pcc.status_frame::<CanFrame>() {
+            Some(frame) => {
+                if cx.shared.can.lock(|can| can.transmit(&frame)).is_err() {
+                    TX_BUSY.fetch_add(1, Ordering::Relaxed);
+                }
+            }
+            None => {
+                STATUS_ENCODE_FAILURES.fetch_add(1, Ordering::Relaxed);
+            }
+        }
+        if health.step_completed(Mono::now().as_ticks() as u32) {
+            feed_watchdog(cx.local.wdog);
+        }
+        Mono::delay_until(next).await;
+    }
+}
