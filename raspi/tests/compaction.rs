@@ -117,7 +117,7 @@ fn a_closed_session_compacts_to_a_fraction_and_reads_back_exactly() {
         .columns()
         .find(|(c, _)| c.name == "ts_us")
         .map(|(_, v)| v.clone());
-    let Some(load::Values::Int(ts)) = ts_column else {
+    let Some(aer_raspi::export::columns::Values::Int(ts)) = ts_column else {
         panic!("no ts_us column");
     };
     let (from, to) = (ts[100].expect("ts"), ts[199].expect("ts"));

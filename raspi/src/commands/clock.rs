@@ -33,7 +33,7 @@ pub fn show(
                     .map_or_else(String::new, |s| utc(s.started_us)),
                 open.as_ref().map_or("", |s| s.clock.as_str())
             )?;
-            for (at, step) in clock::steps(&store.db, id)? {
+            for (at, step) in session::clock_steps(&store.db, id)? {
                 writeln!(out, "step\t{}", clock::describe_step(at, step))?;
             }
         }

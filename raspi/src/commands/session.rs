@@ -16,7 +16,7 @@ pub fn list(located: &Located, out: &mut dyn Write, notes: &mut dyn Write) -> Re
         "id\tstarted (UTC)\tended (UTC)\tsource\trows\tdriver\ttrack\trun\tnotes\tclock"
     )?;
     for (s, rows) in &sessions {
-        let steps = clock::steps(&store.db, s.id)?;
+        let steps = session::clock_steps(&store.db, s.id)?;
         let clock = if steps.is_empty() {
             s.clock.clone()
         } else {

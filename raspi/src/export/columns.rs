@@ -12,9 +12,48 @@
 //!
 //! The store keeps the wire's values; only the exports change them, here, once.
 
-use super::load::{TableData, Values};
 use crate::describe::{self, Description};
 use aer::tables::{ColumnType, TELEMETRY, Table};
+
+/// One column's values, typed as the generated column type says; `None` is SQL NULL (a
+/// multiplexed signal that was absent, a value the wire could not carry).
+#[derive(Debug, Clone, PartialEq)]
+pub enum Values {
+    Bool(Vec<Option<bool>>),
+    /// Timestamps and every integer type up to `u32` and `i64`.
+    Int(Vec<Option<i64>>),
+    UInt(Vec<Option<u64>>),
+    F32(Vec<Option<f32>>),
+    F64(Vec<Option<f64>>),
+    Text(Vec<Option<String>>),
+}
+
+/// A table's selected rows, as the exports name and type them.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TableData {
+    pub table: &'static Table,
+    pub rows: usize,
+    /// The exported columns: tags, then columns, as [`Table::local_columns`] lists them.
+    pub columns: Vec<ExportColumn>,
+    /// Each column's values.
+    pub values: Vec<Values>,
+}
+
+impl TableData {
+    /// Each column with its values.
+    pub fn columns(&self) -> impl Iterator<Item = (&ExportColumn, &Values)> {
+        self.columns.iter().zip(&self.values)
+    }
+
+    /// The `ts_us` column (microseconds since the epoch).
+    pub(crate) fn timestamps(&self) -> &[Option<i64>] {
+        let ts = self.table.tags.len();
+        match self.values.get(ts) {
+            Some(Values::Int(v)) => v,
+            _ => &[],
+        }
+    }
+}
 
 /// One exported column.
 #[derive(Debug, Clone, Copy, PartialEq)]

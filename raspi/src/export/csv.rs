@@ -3,7 +3,7 @@
 //! column's type, unit, label, description and value names, and `session.csv` with the
 //! session's metadata.
 
-use super::load::{TableData, Values};
+use super::columns::{TableData, Values};
 use super::{ExportError, Written};
 use std::fmt::Write as _;
 use std::path::Path;

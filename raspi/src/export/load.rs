@@ -3,7 +3,7 @@
 //! a recorded log into a store in memory first.
 
 use super::ExportError;
-use super::columns::{self, ExportColumn};
+use super::columns::{self, TableData, Values};
 use crate::store::{compact, row, schema, session};
 use aer::tables::{ColumnType, TABLES, Table};
 use aer_host::candump::parse_line;
@@ -25,19 +25,7 @@ pub struct Selection {
     pub to_us: Option<i64>,
 }
 
-/// One column's values, typed as the generated column type says; `None` is SQL NULL (a
-/// multiplexed signal that was absent, a value the wire could not carry).
-#[derive(Debug, Clone, PartialEq)]
-pub enum Values {
-    Bool(Vec<Option<bool>>),
-    /// Timestamps and every integer type up to `u32` and `i64`.
-    Int(Vec<Option<i64>>),
-    UInt(Vec<Option<u64>>),
-    F32(Vec<Option<f32>>),
-    F64(Vec<Option<f64>>),
-    Text(Vec<Option<String>>),
-}
-
+/// Reading the store's values: typed by the generated column type.
 impl Values {
     fn for_type(ty: ColumnType, capacity: usize) -> Self {
         match ty {
@@ -86,33 +74,6 @@ impl Values {
                 ValueRef::Real(f) => Some(f.to_string()),
                 _ => None,
             }),
-        }
-    }
-}
-
-/// A table's selected rows, as the exports name and type them ([`columns`](super::columns)).
-#[derive(Debug, Clone, PartialEq)]
-pub struct TableData {
-    pub table: &'static Table,
-    pub rows: usize,
-    /// The exported columns: tags, then columns, as [`Table::local_columns`] lists them.
-    pub columns: Vec<ExportColumn>,
-    /// Each column's values.
-    pub values: Vec<Values>,
-}
-
-impl TableData {
-    /// Each column with its values.
-    pub fn columns(&self) -> impl Iterator<Item = (&ExportColumn, &Values)> {
-        self.columns.iter().zip(&self.values)
-    }
-
-    /// The `ts_us` column (microseconds since the epoch).
-    pub(crate) fn timestamps(&self) -> &[Option<i64>] {
-        let ts = self.table.tags.len();
-        match self.values.get(ts) {
-            Some(Values::Int(v)) => v,
-            _ => &[],
         }
     }
 }

@@ -4,7 +4,7 @@
 //! values), and the session's metadata as an MCAP metadata record.
 
 use super::columns::ExportColumn;
-use super::load::{TableData, Values};
+use super::columns::{TableData, Values};
 use super::{ExportError, Written};
 use crate::describe::{self, Property};
 use std::collections::BTreeMap;

@@ -16,7 +16,8 @@ use crate::store::{
     self,
     session::{self, Session},
 };
-use load::{Selection, TableData};
+use columns::TableData;
+use load::Selection;
 use rusqlite::Connection;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
@@ -227,7 +228,7 @@ pub fn export(db: &Connection, request: &Request) -> Result<Report, ExportError>
     let session = match request.selection.session {
         Some(id) => Some((
             session::get(db, id)?.ok_or(ExportError::NoSession(id))?,
-            store::clock::steps(db, id)?,
+            store::session::clock_steps(db, id)?,
         )),
         None => None,
     };

@@ -6,7 +6,7 @@
 //! with the Parquet file alone can decode every enum. Written column by column with the
 //! parquet crate's own writer (no Arrow: less to build).
 
-use super::load::{TableData, Values};
+use super::columns::{TableData, Values};
 use super::{ExportError, Written};
 use aer::tables::ColumnType;
 use parquet::data_type::{

@@ -5,11 +5,11 @@
 //! while it is open (set by hand, or synchronized late): with both, an analyst knows which of
 //! a session's times to trust and by how much to move the others.
 
-use rusqlite::{Connection, params};
 use std::path::Path;
 use std::time::{Instant, SystemTime, UNIX_EPOCH};
 
-/// Every step of the wall clock while a session was open.
+/// Every step of the wall clock while a session was open (written and read by
+/// [`super::session`], which owns the sessions' tables).
 pub(crate) const SESSION_CLOCK_TABLE: &str = "CREATE TABLE IF NOT EXISTS \"session_clock\" (\"session_id\" INTEGER NOT NULL, \"at_us\" INTEGER NOT NULL, \"step_us\" INTEGER NOT NULL)";
 
 /// systemd-timesyncd makes this file once it has synchronized the clock (and removes it at
@@ -70,30 +70,6 @@ impl StepWatch {
         let step = offset.saturating_sub(previous);
         (step.abs() >= STEP_MIN_US).then_some((wall_us, step))
     }
-}
-
-/// Records a step of `step_us` seen at `at_us` in the open session; false if none is open.
-pub fn record_step(db: &Connection, at_us: i64, step_us: i64) -> rusqlite::Result<bool> {
-    let Some(session) = super::session::current(db)? else {
-        return Ok(false);
-    };
-    db.execute(
-        "INSERT INTO session_clock (session_id, at_us, step_us) VALUES (?1, ?2, ?3)",
-        params![session, at_us, step_us],
-    )?;
-    Ok(true)
-}
-
-/// The steps of session `id`, oldest first: (when, by how much), microseconds.
-pub fn steps(db: &Connection, id: i64) -> rusqlite::Result<Vec<(i64, i64)>> {
-    // A store from before steps were recorded, read without migrating it, has none.
-    if !super::session::has_column(db, "session_clock", "step_us")? {
-        return Ok(Vec::new());
-    }
-    let mut statement = db
-        .prepare("SELECT at_us, step_us FROM session_clock WHERE session_id = ?1 ORDER BY rowid")?;
-    let steps = statement.query_map([id], |r| Ok((r.get(0)?, r.get(1)?)))?;
-    steps.collect()
 }
 
 /// A step as text: `+3 d 2 h 5 min 10.5 s at 2026-11-26T10:00:00Z`.

@@ -154,6 +154,30 @@ fn from_row(r: &rusqlite::Row<'_>) -> rusqlite::Result<Session> {
     })
 }
 
+/// Records a step of the wall clock (`step_us`, seen at `at_us`) in the open session; false if none is open.
+pub fn record_clock_step(db: &Connection, at_us: i64, step_us: i64) -> rusqlite::Result<bool> {
+    let Some(session) = current(db)? else {
+        return Ok(false);
+    };
+    db.execute(
+        "INSERT INTO session_clock (session_id, at_us, step_us) VALUES (?1, ?2, ?3)",
+        params![session, at_us, step_us],
+    )?;
+    Ok(true)
+}
+
+/// The wall clock's steps while session `id` was open, oldest first: (when, by how much), microseconds.
+pub fn clock_steps(db: &Connection, id: i64) -> rusqlite::Result<Vec<(i64, i64)>> {
+    // A store from before steps were recorded, read without migrating it, has none.
+    if !has_column(db, "session_clock", "step_us")? {
+        return Ok(Vec::new());
+    }
+    let mut statement = db
+        .prepare("SELECT at_us, step_us FROM session_clock WHERE session_id = ?1 ORDER BY rowid")?;
+    let steps = statement.query_map([id], |r| Ok((r.get(0)?, r.get(1)?)))?;
+    steps.collect()
+}
+
 /// Whether `table` has `column` (false for a table that does not exist).
 pub(crate) fn has_column(db: &Connection, table: &str, column: &str) -> rusqlite::Result<bool> {
     db.query_row(

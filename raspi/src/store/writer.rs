@@ -3,12 +3,13 @@
 //! reported; while it fails the queue fills and new rows are dropped and counted, but nothing
 //! upstream waits. Between batches it applies the retention budget.
 
-use super::clock::{StepWatch, describe_step, record_step};
+use super::clock::{StepWatch, describe_step};
 use super::compact::Compaction;
 use super::queue::{BATCH_ROWS, BATCH_WAIT, QUEUE_ROWS, Queue, RowSender, WhenFull};
 use super::retention::Retention;
 use super::row::Row;
 use super::session;
+use super::session::record_clock_step;
 use super::session_messages::Tally;
 use crate::health::Health;
 use aer::tables::TABLES;
@@ -128,7 +129,7 @@ impl Writer {
             }
             if let Some((at_us, step_us)) = self.clock.check() {
                 warn!(step = %describe_step(at_us, step_us), "the wall clock stepped; the open session records it");
-                if let Err(error) = record_step(&self.db, at_us, step_us) {
+                if let Err(error) = record_clock_step(&self.db, at_us, step_us) {
                     warn!(%error, "recording the clock step failed");
                 }
             }
