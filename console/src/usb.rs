@@ -10,7 +10,7 @@
 
 pub use teensy4_bsp::usbd::EndpointState;
 
-use crate::bench::Line;
+use crate::bench::{After, BenchBoard, BenchLoop, Line};
 use crate::log::{LineReader, LogBuffer};
 use crate::{Command, REBOOT_BAUD, RebootRequest};
 use core::sync::atomic::{AtomicU32, Ordering};
@@ -48,19 +48,27 @@ pub struct UsbConsole {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct UsbError;
 
+/// The static memory the USB device keeps (the image's `#[init(local = [..])]`): endpoint
+/// memory and state (read by the controller's DMA), the bus, the serial number's text.
+pub struct UsbMemory {
+    pub memory: &'static mut Memory,
+    pub state: &'static mut EndpointState,
+    pub bus: &'static mut Option<Bus>,
+    pub serial: &'static mut [u8; 16],
+}
+
 impl UsbConsole {
-    /// Builds the device on USB1, naming itself `product` with `serial_number` (see
-    /// [`chip_serial`]). The GPT0 timer of the USB block interrupts every 10 ms, so the log
-    /// drains while the host is idle too.
+    /// Builds the device on USB1, naming itself `product` with the chip's unique id as its
+    /// serial number ([`chip_serial`]). The GPT0 timer of the USB block interrupts every
+    /// 10 ms, so the log drains while the host is idle too.
     pub fn new(
         usb: teensy4_bsp::usbd::Instances<1>,
-        memory: &'static Memory,
-        state: &'static EndpointState,
-        slot: &'static mut Option<Bus>,
+        kept: UsbMemory,
         product: &'static str,
-        serial_number: &'static str,
     ) -> Result<Self, UsbError> {
-        let adapter = BusAdapter::with_speed(usb, memory, state, Speed::LowFull);
+        let serial_number = chip_serial(kept.serial);
+        let slot = kept.bus;
+        let adapter = BusAdapter::with_speed(usb, kept.memory, kept.state, Speed::LowFull);
         adapter.set_interrupts(true);
         adapter.gpt_mut(Gpt0, |gpt| {
             gpt.stop();
@@ -195,6 +203,25 @@ pub fn serve_bench<const N: usize>(
     });
     if host_asks {
         reboot.request();
+    }
+}
+
+/// One step of a bring-up image's bench loop as its task runs it: the lines typed since the
+/// last step (from the USB interrupt), the log under its lock, and the reboot into the
+/// bootloader once the loop has made every output safe.
+pub fn bench_step<B: BenchBoard, const N: usize>(
+    bench: &mut BenchLoop,
+    board: &mut B,
+    now_ms: u32,
+    lines: &mut heapless::spsc::Consumer<'static, Line>,
+    shared: &B::Shared,
+    log: &mut impl Mutex<T = LogBuffer<N>>,
+    reboot: &RebootRequest,
+) {
+    let typed = core::iter::from_fn(|| lines.dequeue());
+    let after = log.lock(|log| bench.step(board, now_ms, typed, reboot, shared, log));
+    if after == After::Bootloader {
+        reboot_to_bootloader();
     }
 }
 

@@ -10,7 +10,7 @@ pub mod pedals;
 pub mod pwm;
 
 use aer_console::bringup::ResetCause;
-use aer_console::usb::{Bus, EndpointState, Memory, UsbConsole, chip_serial};
+use aer_console::usb::{UsbConsole, UsbMemory};
 use aer_flexcan::{Flexcan, InitError};
 use pedals::PedalFrontEnd;
 use pwm::PwmBlock;
@@ -62,14 +62,6 @@ pub struct Ccm {
     pub reset_cause: ResetCause,
     /// The USB serial console, if the device started (the images run without it).
     pub console: Option<UsbConsole>,
-}
-
-/// The static memory the USB device keeps (the image's `#[init(local = [..])]`).
-pub struct UsbMemory {
-    pub memory: &'static mut Memory,
-    pub state: &'static mut EndpointState,
-    pub bus: &'static mut Option<Bus>,
-    pub serial: &'static mut [u8; 16],
 }
 
 /// Start-up failed (a pin on the wrong port, a PWM period that does not fit): the image
@@ -170,15 +162,7 @@ pub fn start(
     let inverter_can = Flexcan::new(can2_regs, tx2, rx2, &ccm, board::CAN_BITRATE);
     start_watchdog(&wdog);
 
-    let console = UsbConsole::new(
-        usb,
-        usb_memory.memory,
-        usb_memory.state,
-        usb_memory.bus,
-        product,
-        chip_serial(usb_memory.serial),
-    )
-    .ok();
+    let console = UsbConsole::new(usb, usb_memory, product).ok();
     Ok(Ccm {
         brake_light,
         led,

@@ -9,7 +9,7 @@
 pub mod board;
 
 use aer_console::bringup::ResetCause;
-use aer_console::usb::{Bus, EndpointState, Memory, UsbConsole, chip_serial};
+use aer_console::usb::{UsbConsole, UsbMemory};
 use aer_flexcan::{Flexcan, InitError};
 use core::panic::PanicInfo;
 use teensy4_bsp::{
@@ -43,14 +43,6 @@ pub struct Pcc {
     pub reset_cause: ResetCause,
     /// The USB serial console, if the device started (the images run without it).
     pub console: Option<UsbConsole>,
-}
-
-/// The static memory the USB device keeps (the image's `#[init(local = [..])]`).
-pub struct UsbMemory {
-    pub memory: &'static mut Memory,
-    pub state: &'static mut EndpointState,
-    pub bus: &'static mut Option<Bus>,
-    pub serial: &'static mut [u8; 16],
 }
 
 /// Start-up failed (a pin on the wrong port): the image halts with pin 11 low.
@@ -120,15 +112,7 @@ pub fn start(
     ral::write_reg!(ral::src, src, SRSR, srsr);
     let can = Flexcan::new(can_regs, pins.can_tx, pins.can_rx, &ccm, board::CAN_BITRATE);
 
-    let console = UsbConsole::new(
-        usb,
-        usb_memory.memory,
-        usb_memory.state,
-        usb_memory.bus,
-        product,
-        chip_serial(usb_memory.serial),
-    )
-    .ok();
+    let console = UsbConsole::new(usb, usb_memory, product).ok();
     Ok(Pcc {
         air_plus,
         led,

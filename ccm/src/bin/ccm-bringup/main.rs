@@ -38,10 +38,12 @@ mod app {
     use crate::bench::CcmBench;
     use crate::{Mono, REBOOT, WHEEL_EDGES};
     use aer_ccm::console::bringup::{self, LOG_BYTES};
-    use aer_ccm::hw::{self, UsbMemory, halt};
-    use aer_console::bench::{After, BenchLoop, Line, QUEUED_LINES};
+    use aer_ccm::hw::{self, halt};
+    use aer_console::bench::{BenchLoop, Line, QUEUED_LINES};
     use aer_console::bringup::Clocks;
-    use aer_console::usb::{Bus, EndpointState, Memory, UsbConsole, serve_bench};
+    use aer_console::usb::{
+        Bus, EndpointState, Memory, UsbConsole, UsbMemory, bench_step, serve_bench,
+    };
     use aer_console::{LineReader, LogBuffer};
     use heapless::spsc::{Consumer, Producer, Queue};
     use rtic_monotonics::imxrt::prelude::*;
@@ -142,14 +144,15 @@ mod app {
                 .shared
                 .wheels
                 .lock(|wheels| wheels.each_ref().map(|input| input.is_set()));
-            let lines = core::iter::from_fn(|| cx.local.lines.dequeue());
-            let after = cx
-                .shared
-                .log
-                .lock(|log| bench_loop.step(cx.local.bench, now_ms, lines, &REBOOT, &levels, log));
-            if after == After::Bootloader {
-                aer_console::usb::reboot_to_bootloader();
-            }
+            bench_step(
+                &mut bench_loop,
+                cx.local.bench,
+                now_ms,
+                cx.local.lines,
+                &levels,
+                &mut cx.shared.log,
+                &REBOOT,
+            );
             Mono::delay(1u64.millis()).await;
         }
     }

@@ -87,11 +87,11 @@ mod app {
     use aer_ccm::console::LOG_BYTES;
     use aer_ccm::constants::INVERTER;
     use aer_ccm::control::Control;
-    use aer_ccm::hw::{self, UsbMemory, halt, pedals::PedalFrontEnd, pwm::PwmBlock};
+    use aer_ccm::hw::{self, halt, pedals::PedalFrontEnd, pwm::PwmBlock};
     use aer_ccm::sensors::Sensors;
     use aer_ccm::telemetry::TelemetryLink;
     use aer_ccm::watchdog::Supervisor;
-    use aer_console::usb::{Bus, EndpointState, Memory, UsbConsole, serve_race};
+    use aer_console::usb::{Bus, EndpointState, Memory, UsbConsole, UsbMemory, serve_race};
     use aer_console::{LineReader, LogBuffer};
     use aer_flexcan::{CanFrame, Flexcan};
     use heapless::spsc::{Consumer, Producer, Queue};

@@ -34,12 +34,14 @@ static EDGES: [AtomicU32; 2] = [AtomicU32::new(0), AtomicU32::new(0)];
 mod app {
     use crate::bench::PccBench;
     use crate::{EDGES, Mono, REBOOT};
-    use aer_console::bench::{After, BenchLoop, Line, QUEUED_LINES};
+    use aer_console::bench::{BenchLoop, Line, QUEUED_LINES};
     use aer_console::bringup::Clocks;
-    use aer_console::usb::{Bus, EndpointState, Memory, UsbConsole, serve_bench};
+    use aer_console::usb::{
+        Bus, EndpointState, Memory, UsbConsole, UsbMemory, bench_step, serve_bench,
+    };
     use aer_console::{LineReader, LogBuffer};
     use aer_pcc::console::BRINGUP_LOG_BYTES as LOG_BYTES;
-    use aer_pcc::hw::{self, UsbMemory, WatchdogTimeout, board, halt_safe};
+    use aer_pcc::hw::{self, WatchdogTimeout, board, halt_safe};
     use heapless::spsc::{Consumer, Producer, Queue};
     use rtic_monotonics::imxrt::prelude::*;
     use teensy4_bsp::{board as bsp, hal::gpio, ral};
@@ -142,14 +144,15 @@ mod app {
                 .shared
                 .vf
                 .lock(|vf| vf.each_ref().map(|input| input.is_set()));
-            let lines = core::iter::from_fn(|| cx.local.lines.dequeue());
-            let after = cx
-                .shared
-                .log
-                .lock(|log| bench_loop.step(cx.local.bench, now_ms, lines, &REBOOT, &levels, log));
-            if after == After::Bootloader {
-                aer_console::usb::reboot_to_bootloader();
-            }
+            bench_step(
+                &mut bench_loop,
+                cx.local.bench,
+                now_ms,
+                cx.local.lines,
+                &levels,
+                &mut cx.shared.log,
+                &REBOOT,
+            );
             Mono::delay(10u64.millis()).await;
         }
     }

@@ -58,11 +58,11 @@ mod app {
     use crate::control::{RelayPins, StateWatches, control};
     use crate::inputs::{can_receive, voltage_edge};
     use crate::{Mono, REBOOT, RX_QUEUE};
-    use aer_console::usb::{Bus, EndpointState, Memory, UsbConsole, serve_race};
+    use aer_console::usb::{Bus, EndpointState, Memory, UsbConsole, UsbMemory, serve_race};
     use aer_console::{LineReader, LogBuffer};
     use aer_flexcan::{CanFrame, Flexcan};
     use aer_pcc::console::LOG_BYTES;
-    use aer_pcc::hw::{self, UsbMemory, WatchdogTimeout, board, halt_safe};
+    use aer_pcc::hw::{self, WatchdogTimeout, board, halt_safe};
     use aer_pcc::measurement::VoltageChannel;
     use aer_pcc::watchdog::reset_by_watchdog;
     use aer_pcc::{Relays, TASK_PERIOD_MS, VfConfig};
