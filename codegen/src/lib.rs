@@ -147,11 +147,7 @@ pub fn codec_files(
 }
 
 /// Formats the Rust files and writes those that changed under `out_dir`.
-pub fn write_files(
-    out_dir: &Path,
-    files: &[GeneratedFile],
-    report: &mut Report,
-) -> Result<(), Error> {
+fn write_files(out_dir: &Path, files: &[GeneratedFile], report: &mut Report) -> Result<(), Error> {
     report.formatted = true;
     for f in files {
         let path = out_dir.join(&f.path);

@@ -319,7 +319,10 @@ mod tests {
             years: "2025-2026".into(),
             epoch: "1795507200".into(),
         };
-        let package = &super::super::PACKAGES[2];
+        let package = super::super::PACKAGES
+            .iter()
+            .find(|package| package.name == "aer-car-display")
+            .expect("the car display's package");
         let text = control(package, None, &release, &[], 12);
         assert!(text.contains("Architecture: all\n"), "{text}");
         assert!(text.contains("aer-dashboard (>= 0.1.0-1)"), "{text}");
