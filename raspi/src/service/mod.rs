@@ -73,8 +73,20 @@ impl Job {
 pub async fn serve(config: Config, job: Job) -> Result<()> {
     let pipeline = Pipeline::start(config, job).await?;
     let stop = stop_signal()?;
+    tell_systemd_ready();
     pipeline.run(stop).await?;
     Ok(())
+}
+
+/// Under systemd (`Type=notify`) the unit turns active only now: the broker's listeners are
+/// bound and the stop signals handled, so a client started after `systemctl start` returns
+/// (a dashboard, `mosquitto_sub`) connects at once instead of racing the service's start.
+/// Outside systemd there is no notify socket and this does nothing.
+fn tell_systemd_ready() {
+    #[cfg(unix)]
+    if let Err(error) = sd_notify::notify(true, &[sd_notify::NotifyState::Ready]) {
+        tracing::warn!(%error, "could not tell systemd the service is ready");
+    }
 }
 
 /// Completes on SIGINT (Ctrl-C) or SIGTERM (what systemd sends to stop a service). The
