@@ -87,6 +87,24 @@ pub enum Code {
     UnknownBus,
     /// E0216: a packet timeout shorter than its period (every packet would be late).
     PacketTimeout,
+    /// E0301: the calibration schema cannot be read.
+    CalibrationUnreadable,
+    /// E0302: the calibration schema does not parse.
+    CalibrationSyntax,
+    /// E0303: an unusable or duplicate parameter name.
+    ParameterName,
+    /// E0304: a parameter type the calibration cannot hold.
+    ParameterType,
+    /// E0305: a default whose shape does not match its elements or axis, or an unusable axis.
+    ParameterShape,
+    /// E0306: limits the parameter's type cannot hold, or in the wrong order.
+    ParameterLimits,
+    /// E0307: a default outside its limits, or not increasing where it must.
+    ParameterDefault,
+    /// E0308: an unknown change condition.
+    ChangeCondition,
+    /// E0309: a parameter without the label, unit or description a calibration tool shows.
+    ParameterText,
     /// W0201: a name that is a Rust keyword.
     KeywordName,
     /// W0202: a range the raw value cannot reach.
@@ -110,7 +128,7 @@ pub enum Code {
 }
 
 /// Every code, for [`Code::parse`].
-const ALL: [Code; 45] = [
+const ALL: [Code; 54] = [
     Code::DbcUnreadable,
     Code::DbcEncoding,
     Code::DbcSyntax,
@@ -146,6 +164,15 @@ const ALL: [Code; 45] = [
     Code::Thresholds,
     Code::UnknownBus,
     Code::PacketTimeout,
+    Code::CalibrationUnreadable,
+    Code::CalibrationSyntax,
+    Code::ParameterName,
+    Code::ParameterType,
+    Code::ParameterShape,
+    Code::ParameterLimits,
+    Code::ParameterDefault,
+    Code::ChangeCondition,
+    Code::ParameterText,
     Code::KeywordName,
     Code::RangeBeyondRaw,
     Code::UnusableValues,
@@ -197,6 +224,15 @@ impl Code {
             Code::Thresholds => "E0214",
             Code::UnknownBus => "E0215",
             Code::PacketTimeout => "E0216",
+            Code::CalibrationUnreadable => "E0301",
+            Code::CalibrationSyntax => "E0302",
+            Code::ParameterName => "E0303",
+            Code::ParameterType => "E0304",
+            Code::ParameterShape => "E0305",
+            Code::ParameterLimits => "E0306",
+            Code::ParameterDefault => "E0307",
+            Code::ChangeCondition => "E0308",
+            Code::ParameterText => "E0309",
             Code::KeywordName => "W0201",
             Code::RangeBeyondRaw => "W0202",
             Code::UnusableValues => "W0203",

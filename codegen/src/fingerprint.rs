@@ -113,3 +113,30 @@ pub fn telemetry(db: &Database, t: &crate::model::Telemetry) -> u32 {
     }
     h.finish()
 }
+
+/// Fingerprint of the calibration's layout: what a saved page or a calibration tool's
+/// description must agree on (names, types, offsets, counts, limits, change conditions, axes).
+/// Defaults and texts are left out: changing them changes no page's meaning.
+pub fn calibration(c: &crate::model::Calibration) -> u32 {
+    let mut h = Fnv1a::new();
+    h.field(&format!("calibration {} {}", c.name, c.page_len));
+    for p in &c.parameters {
+        h.field(&format!(
+            "param {} {} {} {} {:016x} {:016x} {} {:?}",
+            p.name,
+            p.element.rust(),
+            p.offset,
+            p.defaults.len(),
+            p.min.to_bits(),
+            p.max.to_bits(),
+            p.increasing,
+            p.change
+        ));
+        if let Some(axis) = &p.axis {
+            for point in &axis.points {
+                h.field(&format!("axis {:016x}", point.to_bits()));
+            }
+        }
+    }
+    h.finish()
+}

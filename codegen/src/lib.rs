@@ -27,7 +27,10 @@ mod render;
 mod runtime;
 mod validate;
 
-pub use fingerprint::{database as database_fingerprint, telemetry as telemetry_fingerprint};
+pub use fingerprint::{
+    calibration as calibration_fingerprint, database as database_fingerprint,
+    telemetry as telemetry_fingerprint,
+};
 pub use load::dbc::decode_text as decode_dbc_text;
 
 use std::path::{Path, PathBuf};
@@ -127,6 +130,7 @@ pub fn codec_files(
                 title,
                 source,
                 telemetry: false,
+                calibration: false,
             }
             .render()?,
         ),
@@ -169,15 +173,27 @@ fn write_files(out_dir: &Path, files: &[GeneratedFile], report: &mut Report) -> 
     Ok(())
 }
 
-/// The car's schema: the CAN database and the telemetry packet that references it.
+/// Parses and checks calibration YAML; `path` names it in diagnostics. The calibration plus
+/// any warnings, or every error found.
+pub fn parse_calibration(
+    path: &Path,
+    text: String,
+) -> Result<(model::Calibration, Vec<Diagnostic>), Diagnostics> {
+    let loaded = load::calibration::parse(path, text)?;
+    validate::calibration::validate(path, &loaded)
+}
+
+/// The car's schema: the CAN database, the telemetry packet that references it and the
+/// CCM's calibration.
 pub struct CarSchema {
     pub db: Database,
     pub telemetry: model::Telemetry,
+    pub calibration: model::Calibration,
 }
 
 impl CarSchema {
-    /// Loads `aer.dbc` and `telemetry.yaml` from `schema_dir`. Warnings are denied: the car's own
-    /// schema must be clean.
+    /// Loads `aer.dbc`, `telemetry.yaml` and `calibration.yaml` from `schema_dir`. Warnings are
+    /// denied: the car's own schema must be clean.
     pub fn load(schema_dir: &Path) -> Result<Self, Error> {
         let (db, warnings) = load_dbc(&schema_dir.join("aer.dbc"))?;
         if !warnings.is_empty() {
@@ -189,14 +205,25 @@ impl CarSchema {
         if !warnings.is_empty() {
             return Err(Error::DeniedWarnings(warnings));
         }
-        Ok(Self { db, telemetry })
+        let yaml = schema_dir.join("calibration.yaml");
+        let loaded = load::calibration::load(&yaml)?;
+        let (calibration, warnings) = validate::calibration::validate(&yaml, &loaded)?;
+        if !warnings.is_empty() {
+            return Err(Error::DeniedWarnings(warnings));
+        }
+        Ok(Self {
+            db,
+            telemetry,
+            calibration,
+        })
     }
 
     /// Every file of the contract crate, relative to `generated/`.
     pub fn files(&self) -> Result<Vec<GeneratedFile>, Error> {
-        let (db, t) = (&self.db, &self.telemetry);
+        let (db, t, c) = (&self.db, &self.telemetry, &self.calibration);
         let dbc = "schema/aer.dbc";
         let yaml = "schema/telemetry.yaml";
+        let calibration = "schema/calibration.yaml";
         let file = |path: &str, content: String| GeneratedFile {
             path: PathBuf::from(path),
             content,
@@ -205,6 +232,7 @@ impl CarSchema {
             title: "The car's wire contract: CAN frames, the telemetry packet, its storage and topics.",
             source: "schema/",
             telemetry: true,
+            calibration: true,
         };
         Ok(vec![
             file("lib.rs", lib.render()?),
@@ -220,6 +248,10 @@ impl CarSchema {
             file(
                 "telemetry_deku.rs",
                 render::telemetry::render_deku(db, t, yaml)?,
+            ),
+            file(
+                "calibration.rs",
+                render::calibration::render(c, calibration, fingerprint::calibration(c))?,
             ),
             file("tables.rs", render::tables::render_rust(db, t, "schema/")?),
             file(
@@ -243,6 +275,10 @@ impl CarSchema {
             file(
                 "docs/telemetry.md",
                 render::docs::render_telemetry(db, t, yaml, fingerprint::telemetry(db, t))?,
+            ),
+            file(
+                "docs/calibration.md",
+                render::calibration::render_docs(c, calibration, fingerprint::calibration(c))?,
             ),
             file(
                 "examples/decode.rs",

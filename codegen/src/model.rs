@@ -433,3 +433,154 @@ pub struct TelemetryField {
     /// `MESSAGE.SIGNAL` this field mirrors, when it references the DBC.
     pub source: Option<String>,
 }
+
+/// The CCM's calibration: the tuned numbers, laid out in one little-endian page (the working
+/// page a calibration tool reads and writes).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Calibration {
+    /// The schema's name for it (`ccm`).
+    pub name: String,
+    pub description: String,
+    pub parameters: Vec<Parameter>,
+    /// Bytes of the page.
+    pub page_len: usize,
+}
+
+/// One tuned number, or a list of them that changes as one.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Parameter {
+    /// The field name (snake_case).
+    pub name: String,
+    pub label: String,
+    pub group: String,
+    pub description: String,
+    pub unit: String,
+    pub element: ElementType,
+    /// A single value rather than a list.
+    pub scalar: bool,
+    /// The default of every element (one for a scalar).
+    pub defaults: Vec<f64>,
+    /// The limits every element keeps.
+    pub min: f64,
+    pub max: f64,
+    /// Each element must lie above the one before.
+    pub increasing: bool,
+    /// What each element of a list without an axis is.
+    pub elements: Vec<String>,
+    /// A curve's fixed input points.
+    pub axis: Option<Axis>,
+    pub change: ChangeWhen,
+    /// Where it starts in the page (aligned to its element).
+    pub offset: usize,
+}
+
+impl Parameter {
+    /// Bytes it takes in the page.
+    pub fn len(&self) -> usize {
+        self.defaults.len() * self.element.size()
+    }
+
+    /// Whether it has no elements (never, once validated).
+    pub fn is_empty(&self) -> bool {
+        self.defaults.is_empty()
+    }
+}
+
+/// A curve's input: fixed points, strictly increasing.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Axis {
+    pub label: String,
+    pub unit: String,
+    pub points: Vec<f64>,
+}
+
+/// The type of a parameter's elements.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ElementType {
+    F32,
+    U8,
+    U16,
+    U32,
+    I16,
+    I32,
+}
+
+impl ElementType {
+    /// Its name in the schema and in Rust.
+    pub fn rust(self) -> &'static str {
+        match self {
+            Self::F32 => "f32",
+            Self::U8 => "u8",
+            Self::U16 => "u16",
+            Self::U32 => "u32",
+            Self::I16 => "i16",
+            Self::I32 => "i32",
+        }
+    }
+
+    /// Bytes per element.
+    pub fn size(self) -> usize {
+        match self {
+            Self::U8 => 1,
+            Self::U16 | Self::I16 => 2,
+            Self::F32 | Self::U32 | Self::I32 => 4,
+        }
+    }
+
+    /// The values it holds: an integer type's range, or f32's finite range.
+    pub fn range(self) -> (f64, f64) {
+        match self {
+            Self::F32 => (f64::from(f32::MIN), f64::from(f32::MAX)),
+            Self::U8 => (0.0, f64::from(u8::MAX)),
+            Self::U16 => (0.0, f64::from(u16::MAX)),
+            Self::U32 => (0.0, f64::from(u32::MAX)),
+            Self::I16 => (f64::from(i16::MIN), f64::from(i16::MAX)),
+            Self::I32 => (f64::from(i32::MIN), f64::from(i32::MAX)),
+        }
+    }
+
+    /// Whether it holds only whole numbers.
+    pub fn is_integer(self) -> bool {
+        self != Self::F32
+    }
+}
+
+/// When a calibration tool may change a parameter: each condition includes the ones after it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+pub enum ChangeWhen {
+    /// Any time, while driving too.
+    Driving,
+    /// Only with the car stopped.
+    Standstill,
+    /// Only stopped with the tractive system off.
+    TractiveOff,
+}
+
+impl ChangeWhen {
+    /// Its name in the schema.
+    pub fn schema_name(self) -> &'static str {
+        match self {
+            Self::Driving => "driving",
+            Self::Standstill => "standstill",
+            Self::TractiveOff => "tractive_off",
+        }
+    }
+
+    /// When it allows a change, in words.
+    pub fn words(self) -> &'static str {
+        match self {
+            Self::Driving => "any time",
+            Self::Standstill => "at standstill",
+            Self::TractiveOff => "with the tractive system off",
+        }
+    }
+
+    /// Its variant in the generated code.
+    pub fn variant(self) -> &'static str {
+        match self {
+            Self::Driving => "Driving",
+            Self::Standstill => "Standstill",
+            Self::TractiveOff => "TractiveOff",
+        }
+    }
+}

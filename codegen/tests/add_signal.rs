@@ -21,6 +21,11 @@ const SHOCKTRAVEL5: &str = "  - name: shocktravel5
 fn schema_with_shocktravel5(dir: &Path) {
     let schema = Path::new(env!("CARGO_MANIFEST_DIR")).join("../schema");
     std::fs::copy(schema.join("aer.dbc"), dir.join("aer.dbc")).expect("copy aer.dbc");
+    std::fs::copy(
+        schema.join("calibration.yaml"),
+        dir.join("calibration.yaml"),
+    )
+    .expect("copy calibration.yaml");
     let yaml = std::fs::read_to_string(schema.join("telemetry.yaml")).expect("read yaml");
     let anchor = "    description: Rear-right shock travel.\n";
     assert!(

@@ -32,9 +32,29 @@ fn telemetry(field: &str) -> Result<CarSchema, Diagnostics> {
     let db = car_dbc();
     // Labels and units (warnings) are beside the point here.
     let (telemetry, _) = aer_codegen::parse_telemetry(path, yaml, &db)?;
-    let schema = CarSchema { db, telemetry };
+    let (calibration, _) = calibration(CAR_CALIBRATION.to_owned())?;
+    let schema = CarSchema {
+        db,
+        telemetry,
+        calibration,
+    };
     schema.files().expect("a valid schema renders");
     Ok(schema)
+}
+
+/// The car's calibration schema, the starting point of the calibration cases.
+const CAR_CALIBRATION: &str = include_str!("../../schema/calibration.yaml");
+
+fn calibration(
+    yaml: String,
+) -> Result<
+    (
+        aer_codegen::model::Calibration,
+        Vec<aer_codegen::diagnostic::Diagnostic>,
+    ),
+    Diagnostics,
+> {
+    aer_codegen::parse_calibration(Path::new("calibration.yaml"), yaml)
 }
 
 /// Numbers as YAML and DBC files write them, from ordinary to absurd.
@@ -147,6 +167,32 @@ proptest! {
                 }
                 _ => {}
             }
+        }
+    }
+
+    #[test]
+    fn any_numbers_in_a_calibration_parameter_give_a_page_or_a_diagnostic(
+        element in prop::sample::select(vec!["f32", "u8", "u16", "u32", "i16", "i32"]),
+        default in number(),
+        min in number(),
+        max in number(),
+    ) {
+        let yaml = format!(
+            "calibration: {{ name: ccm }}\nparameters:\n  - {{ name: value, label: Value, \
+             group: test, unit: V, type: {element}, default: {}, min: {}, max: {}, \
+             change: driving, description: A value. }}\n",
+            yaml_number(default), yaml_number(min), yaml_number(max),
+        );
+        if let Ok((c, _)) = calibration(yaml) {
+            // What the generator accepts holds in its type, within its limits.
+            let p = &c.parameters[0];
+            let (low, high) = p.element.range();
+            prop_assert!(low <= p.min && p.min < p.max && p.max <= high, "{p:?}");
+            prop_assert!((p.min..=p.max).contains(&p.defaults[0]), "{p:?}");
+            if p.element.is_integer() {
+                prop_assert_eq!(p.defaults[0].fract(), 0.0);
+            }
+            prop_assert_eq!(c.page_len, p.len());
         }
     }
 

@@ -6,7 +6,7 @@ use std::path::Path;
 use serde::Deserialize;
 use serde_saphyr::Spanned;
 
-use crate::diagnostic::{Code, Diagnostics, Reporter};
+use crate::diagnostic::{Code, Diagnostics};
 
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -84,36 +84,17 @@ pub(crate) struct LoadedTelemetry {
 }
 
 pub(crate) fn load(path: &Path) -> Result<LoadedTelemetry, Diagnostics> {
-    let text = std::fs::read_to_string(path).map_err(|e| {
-        let mut r = Reporter::new(path, "");
-        r.report(
-            Code::TelemetryUnreadable,
-            0,
-            format!("cannot read the file: {e}"),
-            "check the path and that the file is UTF-8",
-        );
-        Diagnostics(r.diagnostics)
-    })?;
+    let text = super::read(path, Code::TelemetryUnreadable)?;
     parse(path, text)
 }
 
 pub(crate) fn parse(path: &Path, text: String) -> Result<LoadedTelemetry, Diagnostics> {
-    match serde_saphyr::from_str::<TelemetryFile>(&text) {
-        Ok(file) => Ok(LoadedTelemetry { text, file }),
-        Err(err) => {
-            let line = err
-                .location()
-                .map_or(0, |l| usize::try_from(l.line()).unwrap_or(0));
-            let message = err.to_string();
-            let first = message.lines().next().unwrap_or("invalid YAML").to_owned();
-            let mut r = Reporter::new(path, &text);
-            r.report(
-                Code::TelemetrySyntax,
-                line,
-                format!("the telemetry schema is not valid: {first}"),
-                "compare with the description at the top of telemetry.yaml (known keys, YAML indentation)",
-            );
-            Err(Diagnostics(r.diagnostics))
-        }
-    }
+    let file = super::parse_yaml(
+        path,
+        &text,
+        Code::TelemetrySyntax,
+        "telemetry schema",
+        "telemetry.yaml",
+    )?;
+    Ok(LoadedTelemetry { text, file })
 }

@@ -9,6 +9,8 @@ pub(crate) struct LibTemplate<'a> {
     pub source: &'a str,
     /// Whether the crate also carries the telemetry packet, TDengine schema and MQTT topics.
     pub telemetry: bool,
+    /// Whether the crate also carries the CCM's calibration.
+    pub calibration: bool,
 }
 
 #[derive(Template)]

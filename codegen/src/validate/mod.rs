@@ -1,4 +1,5 @@
 //! Validate: a parsed schema -> the model, or diagnostics saying exactly what to fix.
 
+pub(crate) mod calibration;
 pub(crate) mod dbc;
 pub(crate) mod telemetry;
