@@ -11,7 +11,7 @@ use crate::powertrain::{Inverter, efficiency};
 use crate::precharge::PccNode;
 use crate::sensors::{PedalSignals, Sensors};
 use aer::can::AnyMessage;
-use aer_ccm::apps::AppsCalibration;
+use aer_ccm::calibration::AppsCalibration;
 use aer_ccm::vehicle::State;
 use aer_ccm::{InverterKind, SensorSample};
 use aer_flexcan::CanFrame;

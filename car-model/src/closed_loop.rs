@@ -11,7 +11,7 @@ use crate::params::ModelParams;
 use crate::rules::Rules;
 use aer::can::{CcmStatus, PccStatus};
 use aer::telemetry::Telemetry;
-use aer_ccm::calibration::SensorCalibration;
+use aer_ccm::calibration::Calibration;
 use aer_ccm::constants::{CONTROL_PERIOD_MS, TELEMETRY_PERIOD_MS};
 use aer_ccm::{BusHealth, Ccm, ControlOutputs, DriverCounters, DriverInputs, OutFrame};
 use aer_flexcan::CanFrame;
@@ -56,7 +56,7 @@ impl ClosedLoop {
     /// the car and drive `cycle`, and the faults in `plan`.
     pub fn new(params: ModelParams, mode: Mode, cycle: Cycle, plan: FaultPlan) -> Self {
         Self {
-            ccm: Ccm::with_limits(SensorCalibration::DEFAULT, params.inverter, params.limits),
+            ccm: Ccm::with_limits(Calibration::DEFAULT, params.inverter, params.limits),
             car: Car::new(params, mode, cycle, plan),
             rules: Rules::new(params.frame_jitter_ms),
             pi: Receiver::new(Config::CAR),

@@ -7,11 +7,11 @@ use crate::faults::{Fault, FaultPlan};
 use crate::rng::Rng;
 use aer_ccm::SensorSample;
 use aer_ccm::ads1115::{counts_to_volts, volts_to_counts};
-use aer_ccm::apps::AppsCalibration;
+use aer_ccm::calibration::AppsCalibration;
 use aer_ccm::chassis::shock_raw_for_volts;
 use aer_ccm::constants::{
-    APPS1_SUPPLY_V, APPS2_SUPPLY_V, BSE_FULL_SCALE_PSI, BSE_VALID_V, SHOCK_SPAN_V,
-    SHOCK_TRAVEL_MAX_MM, WHEEL_TEETH,
+    APPS1_SUPPLY_V, APPS2_SUPPLY_V, BSE_FULL_SCALE_PSI, BSE_VALID_V, SHOCK_TRAVEL_MAX_MM,
+    WHEEL_TEETH,
 };
 
 /// ADS1115 conversions per millisecond (860 samples/s, alternating between the channels).
@@ -138,9 +138,11 @@ impl Sensors {
             )
         };
         // Squat under acceleration: rear shocks compress, fronts extend (2 mm per m/s^2).
+        // The potentiometers are the nominal ones the calibration's defaults describe.
+        let nominal = aer_ccm::calibration::Calibration::DEFAULT;
         let travel = |mm: f32| {
             let mm = mm.clamp(0.0, SHOCK_TRAVEL_MAX_MM);
-            shock_raw_for_volts(5.0 - mm / SHOCK_TRAVEL_MAX_MM * SHOCK_SPAN_V)
+            shock_raw_for_volts(5.0 - mm / SHOCK_TRAVEL_MAX_MM * nominal.shock_span_v)
         };
         let front = 25.0 - 2.0 * accel_m_s2;
         let rear = 25.0 + 2.0 * accel_m_s2;

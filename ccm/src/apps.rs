@@ -4,6 +4,7 @@
 //! filtered, calibrated to 0..1, checked for wiring faults, disagreement and lost conversions,
 //! and the APPS/brake plausibility latch.
 
+use crate::calibration::AppsCalibration;
 use crate::constants::{
     APPS_BRAKE_RESET, APPS_BRAKE_TRIP, APPS_IMPLAUSIBLE, APPS1_SUPPLY_V, APPS2_SUPPLY_V,
     PEDAL_CONVERSION_TIMEOUT_MS, PEDAL_FILTER_HZ, SENSOR_FAULT_GAP_MS, SENSOR_FAULT_PERSIST_MS,
@@ -13,26 +14,6 @@ use aer_control::{LowPass, Persist};
 /// New readings of APPS1 and APPS2 (volts at the sensor) delivered by one sample; `None`
 /// where nothing new arrived (the front-end is slower than the sample rate, or lost).
 pub type PedalVolts = [Option<f32>; 2];
-
-/// Sensor voltages at pedal rest and full travel, measured on the installed pedal (the
-/// bring-up image's pedal calibration step prints them).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct AppsCalibration {
-    /// APPS1 (3.3 V sensor) at rest and at full travel (V).
-    pub apps1: (f32, f32),
-    /// APPS2 (5 V sensor) at rest and at full travel (V).
-    pub apps2: (f32, f32),
-}
-
-impl AppsCalibration {
-    /// Placeholder calibration (assumed: 0.5-2.8 V and 0.75-4.2 V), what the tests and the
-    /// car model use; the car's measured values reach the firmware images through
-    /// `ccm/calibration.toml` ([`crate::calibration`]).
-    pub const DEFAULT: Self = Self {
-        apps1: (0.5, 2.8),
-        apps2: (0.75, 4.2),
-    };
-}
 
 /// What the pedal reads this sample.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -103,7 +84,6 @@ impl Channel {
 /// The APPS channel.
 #[derive(Debug, Clone)]
 pub struct Apps {
-    calibration: AppsCalibration,
     sensors: [Channel; 2],
     range: Persist,
     disagreement: Persist,
@@ -113,10 +93,9 @@ pub struct Apps {
 
 impl Apps {
     /// A channel sampled every `period_ms`.
-    pub fn new(calibration: AppsCalibration, period_ms: u32) -> Self {
+    pub fn new(period_ms: u32) -> Self {
         let period_s = period_ms as f32 / 1_000.0;
         Self {
-            calibration,
             sensors: [Channel::new(period_s), Channel::new(period_s)],
             range: Persist::default(),
             disagreement: Persist::default(),
@@ -130,9 +109,11 @@ impl Apps {
         self.reading
     }
 
-    /// Feeds the readings that arrived this sample (`None`: nothing new on that channel).
+    /// Feeds the readings that arrived this sample (`None`: nothing new on that channel),
+    /// mapped to travel with the pedal's `calibration` as it is now.
     pub fn update(
         &mut self,
+        calibration: &AppsCalibration,
         readings: PedalVolts,
         brakes_engaged: bool,
         now_ms: u32,
@@ -142,8 +123,8 @@ impl Apps {
         let volts1 = sensor1.update(new1, now_ms);
         let volts2 = sensor2.update(new2, now_ms);
         let signal_lost = sensor1.lost(now_ms) || sensor2.lost(now_ms);
-        let apps1 = map(volts1, self.calibration.apps1);
-        let apps2 = map(volts2, self.calibration.apps2);
+        let apps1 = map(volts1, calibration.apps1);
+        let apps2 = map(volts2, calibration.apps2);
         let in_range = |volts: f32, supply: f32| (0.1 * supply..=0.9 * supply).contains(&volts);
         let bad_range = !(in_range(volts1, APPS1_SUPPLY_V) && in_range(volts2, APPS2_SUPPLY_V));
         // A sample or two back inside the limits (noise, the filter gliding through) does not

@@ -32,7 +32,6 @@ pub struct BrakeReading {
 /// The brake channel.
 #[derive(Debug, Clone)]
 pub struct Brakes {
-    calibration: BrakeCalibration,
     front: LowPass,
     rear: LowPass,
     range: Persist,
@@ -42,12 +41,10 @@ pub struct Brakes {
 }
 
 impl Brakes {
-    /// A channel sampled every `period_ms`, its pressures measured from the `calibration`'s
-    /// zero.
-    pub fn new(period_ms: u32, calibration: BrakeCalibration) -> Self {
+    /// A channel sampled every `period_ms`.
+    pub fn new(period_ms: u32) -> Self {
         let period_s = period_ms as f32 / 1_000.0;
         Self {
-            calibration,
             front: LowPass::new(PEDAL_FILTER_HZ, period_s),
             rear: LowPass::new(PEDAL_FILTER_HZ, period_s),
             range: Persist::default(),
@@ -63,8 +60,15 @@ impl Brakes {
     }
 
     /// Feeds one pair of sensor voltages (after the board's divider). A voltage that is not
-    /// a number reads as 0 V: out of range, so it becomes a sensor fault.
-    pub fn update(&mut self, front_v: f32, rear_v: f32, now_ms: u32) -> BrakeReading {
+    /// a number reads as 0 V: out of range, so it becomes a sensor fault. The pressures are
+    /// measured from the `calibration`'s zero as it is now.
+    pub fn update(
+        &mut self,
+        calibration: &BrakeCalibration,
+        front_v: f32,
+        rear_v: f32,
+        now_ms: u32,
+    ) -> BrakeReading {
         let number = |volts: f32| if volts.is_finite() { volts } else { 0.0 };
         let front_v = self.front.update(number(front_v));
         let rear_v = self.rear.update(number(rear_v));
@@ -73,8 +77,8 @@ impl Brakes {
             .range
             .update(!(valid(front_v) && valid(rear_v)), now_ms)
             .is_some_and(|held| held > SENSOR_FAULT_PERSIST_MS);
-        let front_psi = pressure(front_v, self.calibration.front_zero_v);
-        let rear_psi = pressure(rear_v, self.calibration.rear_zero_v);
+        let front_psi = pressure(front_v, calibration.front_zero_v);
+        let rear_psi = pressure(rear_v, calibration.rear_zero_v);
         let (high, low, persist_ms) = BRAKE_CIRCUITS_IMPLAUSIBLE;
         let one_sided =
             (front_psi > high && rear_psi < low) || (rear_psi > high && front_psi < low);

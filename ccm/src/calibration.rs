@@ -1,13 +1,33 @@
-//! The car's sensor calibration: the pedal sensors at rest and at full travel, and each brake
-//! pressure sensor with the brakes released. Measured on the bench with the bring-up image
-//! ([`BenchRecorder`]), kept in `ccm/calibration.toml`, read by the firmware images' build and
-//! checked here, by the same [`SensorCalibration::check`] on the bench and at build time. The
-//! tests and the car model keep [`SensorCalibration::DEFAULT`]: a measured pedal changes the
-//! car, not the proofs.
+//! The car's calibration: every tuned number, declared in `schema/calibration.yaml` and
+//! generated as [`Calibration`] (its defaults, limits and change conditions), and the part of
+//! it the bench measures, the sensors ([`SensorCalibration`]): the pedal sensors at rest and at
+//! full travel and each brake pressure sensor with the brakes released. The bench measures
+//! them with the bring-up image ([`BenchRecorder`]); `ccm/calibration.toml` keeps them, the
+//! firmware images' build reads them and [`SensorCalibration::check`] checks them, on the bench
+//! and at build time. The tests and the car model keep [`Calibration::DEFAULT`]: a measured
+//! pedal changes the car, not the proofs.
 
-use crate::apps::AppsCalibration;
+pub use aer::calibration::Calibration;
+
 use crate::constants::{APPS1_SUPPLY_V, APPS2_SUPPLY_V, BSE_ZERO_V, MIN_PEDAL_TRAVEL_V};
 use core::fmt;
+
+/// Sensor voltages at pedal rest and full travel, measured on the installed pedal (the
+/// bring-up image's pedal calibration step prints them).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AppsCalibration {
+    /// APPS1 (3.3 V sensor) at rest and at full travel (V).
+    pub apps1: (f32, f32),
+    /// APPS2 (5 V sensor) at rest and at full travel (V).
+    pub apps2: (f32, f32),
+}
+
+impl AppsCalibration {
+    /// The schema's placeholder calibration (assumed: 0.5-2.8 V and 0.75-4.2 V), what the
+    /// tests and the car model use; the car's measured values reach the firmware images
+    /// through `ccm/calibration.toml`.
+    pub const DEFAULT: Self = SensorCalibration::of(&Calibration::DEFAULT).pedals;
+}
 
 /// Each brake pressure sensor's reading with the brakes released (V at the sensor): the
 /// pressure the CCM computes is measured from it.
@@ -20,11 +40,8 @@ pub struct BrakeCalibration {
 }
 
 impl BrakeCalibration {
-    /// The sensors' nominal 0.5 V at 0 psi.
-    pub const DEFAULT: Self = Self {
-        front_zero_v: 0.5,
-        rear_zero_v: 0.5,
-    };
+    /// The schema's default: the sensors' nominal 0.5 V at 0 psi.
+    pub const DEFAULT: Self = SensorCalibration::of(&Calibration::DEFAULT).brakes;
 }
 
 /// Everything the bench measures about the sensors.
@@ -112,12 +129,36 @@ impl CalibrationError {
 }
 
 impl SensorCalibration {
-    /// The library's defaults (placeholders until measured): what the tests and the car
+    /// The schema's defaults (placeholders until measured): what the tests and the car
     /// model use.
-    pub const DEFAULT: Self = Self {
-        pedals: AppsCalibration::DEFAULT,
-        brakes: BrakeCalibration::DEFAULT,
-    };
+    pub const DEFAULT: Self = Self::of(&Calibration::DEFAULT);
+
+    /// The sensors' part of `calibration`.
+    pub const fn of(calibration: &Calibration) -> Self {
+        let [apps1_rest, apps1_full] = calibration.apps1_v;
+        let [apps2_rest, apps2_full] = calibration.apps2_v;
+        let [front_zero_v, rear_zero_v] = calibration.brake_zero_v;
+        Self {
+            pedals: AppsCalibration {
+                apps1: (apps1_rest, apps1_full),
+                apps2: (apps2_rest, apps2_full),
+            },
+            brakes: BrakeCalibration {
+                front_zero_v,
+                rear_zero_v,
+            },
+        }
+    }
+
+    /// `calibration` with these sensors: what a firmware image starts with.
+    pub const fn applied_to(self, calibration: Calibration) -> Calibration {
+        Calibration {
+            apps1_v: [self.pedals.apps1.0, self.pedals.apps1.1],
+            apps2_v: [self.pedals.apps2.0, self.pedals.apps2.1],
+            brake_zero_v: [self.brakes.front_zero_v, self.brakes.rear_zero_v],
+            ..calibration
+        }
+    }
 
     /// Whether the CCM can run with this calibration: every pedal point inside its sensor's
     /// valid band, enough travel on each sensor, each brake zero inside [`BSE_ZERO_V`]. A
@@ -341,7 +382,6 @@ impl fmt::Display for BenchResult {
 /// The car's measured calibration, from `ccm/calibration.toml` (read by the build): what the
 /// firmware images start with.
 pub mod measured {
-    use super::{BrakeCalibration, SensorCalibration};
-    use crate::apps::AppsCalibration;
+    use super::{AppsCalibration, BrakeCalibration, SensorCalibration};
     include!(concat!(env!("OUT_DIR"), "/measured_calibration.rs"));
 }

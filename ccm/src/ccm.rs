@@ -10,7 +10,7 @@
 use crate::apps::AppsReading;
 use crate::brakes::BrakeReading;
 use crate::bus::BusState;
-use crate::calibration::SensorCalibration;
+use crate::calibration::Calibration;
 use crate::chassis::PulseTimer;
 use crate::constants::WHEEL_TEETH;
 use crate::control::{Control, Due, HandoverRefusal};
@@ -24,9 +24,10 @@ use aer::runtime::EncodeError;
 use aer::telemetry::Telemetry;
 use embedded_can::Frame;
 
-/// The CCM: its four parts, driven together.
+/// The CCM: its four parts and the calibration they run with, driven together.
 #[derive(Debug, Clone)]
 pub struct Ccm {
+    calibration: Calibration,
     wheels: [PulseTimer; 2],
     sensors: Sensors,
     link: TelemetryLink,
@@ -34,29 +35,42 @@ pub struct Ccm {
 }
 
 impl Ccm {
-    /// A CCM at reset (vehicle OFF, no torque) with the sensors' `calibration`, driving the
-    /// car's configured inverter ([`INVERTER`](crate::constants::INVERTER)).
-    pub fn new(calibration: SensorCalibration) -> Self {
+    /// A CCM at reset (vehicle OFF, no torque) running with `calibration`, driving the car's
+    /// configured inverter ([`INVERTER`](crate::constants::INVERTER)).
+    pub fn new(calibration: Calibration) -> Self {
         Self::with_inverter(calibration, crate::constants::INVERTER)
     }
 
     /// A CCM at reset driving the `inverter`.
-    pub fn with_inverter(calibration: SensorCalibration, inverter: InverterKind) -> Self {
+    pub fn with_inverter(calibration: Calibration, inverter: InverterKind) -> Self {
         Self::with_limits(calibration, inverter, PowerLimits::CAR)
     }
 
     /// A CCM at reset driving the `inverter` within `limits` (a lower power cap, say).
     pub fn with_limits(
-        calibration: SensorCalibration,
+        calibration: Calibration,
         inverter: InverterKind,
         limits: PowerLimits,
     ) -> Self {
         Self {
+            calibration,
             wheels: [PulseTimer::new(), PulseTimer::new()],
-            sensors: Sensors::new(calibration),
+            sensors: Sensors::new(),
             link: TelemetryLink::new(),
             control: Control::with_limits(inverter, limits),
         }
+    }
+
+    /// The calibration it runs with.
+    pub fn calibration(&self) -> &Calibration {
+        &self.calibration
+    }
+
+    /// Runs with `calibration` from the next sensor sample and control step on, whole (a
+    /// calibration tool's change, checked against the limits by
+    /// [`Calibration::from_page`]).
+    pub fn set_calibration(&mut self, calibration: Calibration) {
+        self.calibration = calibration;
     }
 
     /// The inverter this CCM drives.
@@ -108,7 +122,7 @@ impl Ccm {
 
     /// The 1 kHz sensor step.
     pub fn sample(&mut self, sample: &SensorSample, now_ms: u32) {
-        self.sensors.sample(sample, now_ms);
+        self.sensors.sample(&self.calibration, sample, now_ms);
     }
 
     /// The 100 Hz control step.
@@ -117,8 +131,14 @@ impl Ccm {
             self.wheels[0].speed(WHEEL_TEETH),
             self.wheels[1].speed(WHEEL_TEETH),
         ];
-        self.control
-            .step(&self.sensors.reading(), wheels, driver, now_ms, now_us)
+        self.control.step(
+            &self.calibration,
+            &self.sensors.reading(),
+            wheels,
+            driver,
+            now_ms,
+            now_us,
+        )
     }
 
     /// What is due after control step `step` (see [`Control::due`]).

@@ -1,15 +1,19 @@
 //! Shock travel (linear potentiometers) and wheel speed (gear-tooth pulses).
 
-use crate::constants::{SHOCK_ADC_FULL, SHOCK_SPAN_V, SHOCK_TRAVEL_MAX_MM, WHEEL_STOP_TIMEOUT_US};
+use crate::constants::{SHOCK_ADC_FULL, SHOCK_TRAVEL_MAX_MM, WHEEL_STOP_TIMEOUT_US};
 use core::sync::atomic::{AtomicU8, AtomicU32, Ordering};
 
-/// Shock travel in mm for a raw 12-bit ADC reading (team documentation: the signal rests at
-/// 5 V and drops 0.14 V over the full travel, so the drop below full scale is the travel).
-pub fn shock_travel_mm(raw: u16) -> f32 {
+/// Shock travel in mm for a raw 12-bit ADC reading, from the sensor's calibration: its
+/// voltage at full extension (`rest_v`) and its drop over the full travel (`span_v`) (team
+/// documentation: it rests at 5 V and drops 0.14 V).
+pub fn shock_travel_mm(raw: u16, rest_v: f32, span_v: f32) -> f32 {
     let (full_counts, full_volts) = SHOCK_ADC_FULL;
+    // Measured down from full scale, then moved to the rest voltage: a sensor resting at
+    // full scale reads exactly as before the rest voltage was calibratable.
     let drop_counts = full_counts.saturating_sub(raw.min(full_counts));
-    let drop_volts = f32::from(drop_counts) * full_volts / f32::from(full_counts);
-    (drop_volts / SHOCK_SPAN_V * SHOCK_TRAVEL_MAX_MM).clamp(0.0, SHOCK_TRAVEL_MAX_MM)
+    let drop_volts =
+        f32::from(drop_counts) * full_volts / f32::from(full_counts) - (full_volts - rest_v);
+    (drop_volts / span_v * SHOCK_TRAVEL_MAX_MM).clamp(0.0, SHOCK_TRAVEL_MAX_MM)
 }
 
 /// The raw reading for a sensor voltage (for tests and simulations).

@@ -1,7 +1,10 @@
 //! The CCM's constants, in one place (vehicle-facts.md and the team's documentation; values
 //! marked "assumed" are this firmware's choices and should be checked on the car). The car's
 //! physical parameters and rule limits, which the dashboard and the car model need too, come
-//! from `aer-params` and are re-exported here.
+//! from `aer-params` and are re-exported here. The numbers the team tunes (launch and traction
+//! control, the power trim's gain, the cooling ramps, the sensors' calibration) are not here:
+//! they are `schema/calibration.yaml`'s, read from the active
+//! [`Calibration`](crate::calibration::Calibration) every step.
 
 use aer::can::{
     DtiAcLimits, DtiCurrents, DtiFlags, DtiSetCurrent, DtiSpeed, DtiTemperatures, Mcu1, Mcu2, Mcu3,
@@ -133,9 +136,6 @@ pub const EFFICIENCY_RISE_PER_STEP: f32 = 0.005;
 /// Time constant (s) with which the monitor's efficiency returns to the lowest while the
 /// power is too small to measure it.
 pub const EFFICIENCY_RELAX_S: f32 = 0.5;
-/// Integral gain of the power trim (per second, on the relative power error): the
-/// efficiency estimate settles in about 0.2 s.
-pub const POWER_TRIM_GAIN: f32 = 5.0;
 /// The trim raises the efficiency estimate only while the measured power moved by less than
 /// this fraction of the target since the last step...
 pub const POWER_SETTLED_FRACTION: f32 = 0.01;
@@ -202,8 +202,6 @@ pub const BRAKE_CIRCUITS_IMPLAUSIBLE: (f32, f32, u32) = (400.0, 20.0, 500);
 
 /// Shock travel at full compression (mm).
 pub const SHOCK_TRAVEL_MAX_MM: f32 = 76.2;
-/// The potentiometer's signal drop over the full travel (V), below its 5 V rest.
-pub const SHOCK_SPAN_V: f32 = 0.14;
 /// On-chip ADC counts at full scale (12 bit) and the sensor voltage that gives it.
 pub const SHOCK_ADC_FULL: (u16, f32) = (4095, 5.0);
 /// Teeth on each wheel-speed encoder gear (assumed).
@@ -220,19 +218,8 @@ pub const RTD_SOUND_MS: u32 = 2_000;
 
 // --- Launch and traction control ---------------------------------------------------------
 
-/// Launch control slip target and band (team documentation: 0.07, 0.05-0.10).
-pub const LAUNCH_SLIP: (f32, f32, f32) = (0.07, 0.05, 0.10);
-/// Traction control intervenes above this slip (assumed).
-pub const TRACTION_SLIP: f32 = 0.10;
 /// Below this free-rolling wheel speed (rad/s) slip is not defined (about 1 m/s).
 pub const MIN_SLIP_SPEED_RAD_S: f32 = 3.0;
-
-// --- Cooling -----------------------------------------------------------------------------
-
-/// Pump duty while the tractive system is live, and its ramp with inverter temperature.
-pub const PUMP_DUTY: (f32, f32, f32) = (0.3, 40.0, 60.0);
-/// Fan off below the first temperature, full at the second (hottest of motor/inverter, degC).
-pub const FAN_RAMP_DEGC: (f32, f32) = (45.0, 70.0);
 
 // --- Fault thresholds --------------------------------------------------------------------
 

@@ -3,6 +3,7 @@
 //! wheel speeds as inputs, so the firmware locks it only at the control step's priority.
 
 use crate::bus::{BusInputs, BusState};
+use crate::calibration::Calibration;
 use crate::chassis::WheelSpeed;
 use crate::constants::{
     BMS_LIMITS_TIMEOUT_MS, CONTROL_PERIOD_MS, DTI_FLAGS_TIMEOUT_MS, INVERTER,
@@ -159,9 +160,11 @@ impl Control {
         started
     }
 
-    /// The 100 Hz control step, from the sensors and front wheel speeds as they are now.
+    /// The 100 Hz control step, from the sensors and front wheel speeds as they are now, with
+    /// the `calibration` as it is now (a change takes effect here, whole).
     pub fn step(
         &mut self,
+        calibration: &Calibration,
         sensors: &SensorReading,
         wheels: [WheelSpeed; 2],
         driver: DriverInputs,
@@ -196,24 +199,27 @@ impl Control {
             faults,
         });
         let [left, right] = wheels;
-        let torque = self.torque_path.step(&TorqueInputs {
-            apps,
-            brakes_engaged: brakes.engaged,
-            sensors_fresh: !sensors_stale,
-            torque_enabled: vehicle.torque_enabled,
-            faults,
-            soc: bus.pack.map(|pack| pack.orion_pack_soc as f32 / 100.0),
-            motor_rad_s: bus.inverter.motor_rpm.map(aer_params::motor_rad_s),
-            inverter_max_nm: bus.inverter.available_torque_nm,
-            dc_power_w: dc_power_w(&bus),
-            shaft_power_w: bus
-                .inverter
-                .torque_nm
-                .zip(bus.inverter.motor_rpm)
-                .map(|(torque, rpm)| torque * aer_params::motor_rad_s(rpm)),
-            front_rad_s: (left.rad_per_s(now_us), right.rad_per_s(now_us)),
-            launch_button: driver.launch,
-        });
+        let torque = self.torque_path.step(
+            calibration,
+            &TorqueInputs {
+                apps,
+                brakes_engaged: brakes.engaged,
+                sensors_fresh: !sensors_stale,
+                torque_enabled: vehicle.torque_enabled,
+                faults,
+                soc: bus.pack.map(|pack| pack.orion_pack_soc as f32 / 100.0),
+                motor_rad_s: bus.inverter.motor_rpm.map(aer_params::motor_rad_s),
+                inverter_max_nm: bus.inverter.available_torque_nm,
+                dc_power_w: dc_power_w(&bus),
+                shaft_power_w: bus
+                    .inverter
+                    .torque_nm
+                    .zip(bus.inverter.motor_rpm)
+                    .map(|(torque, rpm)| torque * aer_params::motor_rad_s(rpm)),
+                front_rad_s: (left.rad_per_s(now_us), right.rad_per_s(now_us)),
+                launch_button: driver.launch,
+            },
+        );
         let temperatures = bus
             .inverter
             .temperatures_degc
@@ -223,7 +229,12 @@ impl Control {
             torque,
             faults,
             brake_light: brakes.engaged,
-            cooling: cooling(vehicle.precharge_complete, temperatures.0, temperatures.1),
+            cooling: cooling(
+                calibration,
+                vehicle.precharge_complete,
+                temperatures.0,
+                temperatures.1,
+            ),
         };
         self.last = outputs;
         outputs

@@ -10,11 +10,13 @@
 //!   ends it on the brake only).
 //!
 //! Slip = (driven - free rolling) / free rolling, with the slower front wheel as the
-//! free-rolling reference. Above the band (10 %) torque is taken away, aiming at 7 %; inside
-//! the band the reduction holds; below it the reduction bleeds off back to the driver's
-//! request.
+//! free-rolling reference. The calibration sets the slip target over the front wheels' speed
+//! (7 % by default) and the band around it (5-10 %): above the band torque is taken away,
+//! aiming at the target; inside the band the reduction holds; below it the reduction bleeds
+//! off back to the driver's request. The calibration's gains apply from the next step.
 
-use crate::constants::{LAUNCH_SLIP, MIN_SLIP_SPEED_RAD_S, MOTOR_MAX_TORQUE_NM, PEDAL_RELEASED};
+use crate::calibration::Calibration;
+use crate::constants::{MIN_SLIP_SPEED_RAD_S, MOTOR_MAX_TORQUE_NM, PEDAL_RELEASED, WHEEL_RADIUS_M};
 use aer_control::{Pid, PidGains};
 
 /// Where the launch sequence is.
@@ -48,14 +50,17 @@ pub struct LaunchInputs {
 /// The motor counts as stopped below this (rad/s).
 pub const STOPPED_RAD_S: f32 = 0.5;
 
-/// Gains of the torque reduction: 30 % slip above the target takes away about 60 Nm at once.
-pub const LAUNCH_GAINS: PidGains = PidGains {
-    kp: 200.0,
-    ki: 100.0,
-    kd: 0.0,
-    integral_range: (0.0, 60.0),
-    output_range: (0.0, MOTOR_MAX_TORQUE_NM),
-};
+/// The torque reduction's gains with the calibration's `kp` and `ki` (at the defaults, 30 %
+/// slip above the target takes away about 60 Nm at once).
+const fn gains(kp: f32, ki: f32) -> PidGains {
+    PidGains {
+        kp,
+        ki,
+        kd: 0.0,
+        integral_range: (0.0, 60.0),
+        output_range: (0.0, MOTOR_MAX_TORQUE_NM),
+    }
+}
 
 /// Launch control.
 #[derive(Debug, Clone)]
@@ -70,7 +75,13 @@ impl LaunchControl {
     pub fn new(period_ms: u32) -> Self {
         Self {
             state: LaunchState::Off,
-            reduction: Pid::new(LAUNCH_GAINS, period_ms as f32 / 1_000.0),
+            reduction: Pid::new(
+                gains(
+                    Calibration::DEFAULT.launch_kp,
+                    Calibration::DEFAULT.launch_ki,
+                ),
+                period_ms as f32 / 1_000.0,
+            ),
             slip: 0.0,
         }
     }
@@ -85,8 +96,9 @@ impl LaunchControl {
         self.slip
     }
 
-    /// One 100 Hz step: the torque to command, never above the driver's request.
-    pub fn step(&mut self, inputs: &LaunchInputs) -> f32 {
+    /// One 100 Hz step: the torque to command, never above the driver's request, with the
+    /// `calibration`'s slip target, band and gains as they are now.
+    pub fn step(&mut self, calibration: &Calibration, inputs: &LaunchInputs) -> f32 {
         let driver = inputs.driver_torque_nm.clamp(0.0, MOTOR_MAX_TORQUE_NM);
         let stopped = inputs.driven_rad_s.abs() < STOPPED_RAD_S;
         let released = inputs.pedal.is_nan() || inputs.pedal < PEDAL_RELEASED;
@@ -101,7 +113,7 @@ impl LaunchControl {
                 if !inputs.brakes_engaged && !released {
                     self.state = LaunchState::Active;
                     self.reduction.reset();
-                    return self.active(inputs, driver);
+                    return self.active(calibration, inputs, driver);
                 }
                 if !stopped {
                     // Rolled away without launching.
@@ -115,13 +127,12 @@ impl LaunchControl {
                     self.reduction.reset();
                     return driver;
                 }
-                self.active(inputs, driver)
+                self.active(calibration, inputs, driver)
             }
         }
     }
 
-    fn active(&mut self, inputs: &LaunchInputs, driver: f32) -> f32 {
-        let (target, low, high) = LAUNCH_SLIP;
+    fn active(&mut self, calibration: &Calibration, inputs: &LaunchInputs, driver: f32) -> f32 {
         let free = inputs.front_rad_s.0.min(inputs.front_rad_s.1);
         if free.is_nan() || free < MIN_SLIP_SPEED_RAD_S {
             // Rolling off the line: slip is not defined yet, pass the driver's torque.
@@ -129,11 +140,16 @@ impl LaunchControl {
             return driver;
         }
         self.slip = (inputs.driven_rad_s - free) / free;
+        let target = calibration.launch_slip_target_at(free * WHEEL_RADIUS_M);
+        let [below, above] = calibration.launch_slip_band;
+        self.reduction
+            .set_gains(gains(calibration.launch_kp, calibration.launch_ki));
         // Inside the band the reduction holds; outside it the error moves it.
-        let error = if (low..=high).contains(&self.slip) {
+        let error = self.slip - target;
+        let error = if (-below..=above).contains(&error) {
             0.0
         } else {
-            self.slip - target
+            error
         };
         let reduction = self.reduction.step(error);
         (driver - reduction).clamp(0.0, driver)

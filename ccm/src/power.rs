@@ -22,8 +22,8 @@
 
 use crate::constants::{
     DRIVETRAIN_EFFICIENCY, MOTOR_MAX_TORQUE_NM, POWER_CEILING_MIN_RAD_S, POWER_LIMIT_MARGIN,
-    POWER_LIMIT_W, POWER_SETTLED_FRACTION, POWER_TRIM_FLOOR, POWER_TRIM_GAIN, POWER_TRIM_RELAX_S,
-    SOC_DERATE_END, SOC_DERATE_START,
+    POWER_LIMIT_W, POWER_SETTLED_FRACTION, POWER_TRIM_FLOOR, POWER_TRIM_RELAX_S, SOC_DERATE_END,
+    SOC_DERATE_START,
 };
 
 /// The fixed limits, one set for the limiter and the torque monitor alike: motor maximum,
@@ -119,8 +119,15 @@ impl PowerLimiter {
 
     /// One control step: the torque ceiling (Nm) for motor speed `motor_rad_s`, after
     /// trimming with the DC power measured now (`measured_w`, battery to inverter) while the
-    /// driver asks for `demand_nm`.
-    pub fn step(&mut self, motor_rad_s: f32, measured_w: f32, demand_nm: f32) -> f32 {
+    /// driver asks for `demand_nm`; the trim moves at `trim_gain` (per second, on the relative
+    /// power error: the calibration's `power_trim_gain`).
+    pub fn step(
+        &mut self,
+        trim_gain: f32,
+        motor_rad_s: f32,
+        measured_w: f32,
+        demand_nm: f32,
+    ) -> f32 {
         let target = self.target_w;
         let ceiling_before = ceiling(self.efficiency, target, motor_rad_s);
         let binds = demand_nm >= ceiling_before;
@@ -132,7 +139,7 @@ impl PowerLimiter {
         self.last_measured_w = measured_w;
         let error = (target - measured_w) / target;
         if measured_w > target || (binds && caught_up && error.is_finite()) {
-            self.efficiency += POWER_TRIM_GAIN * error * self.period_s;
+            self.efficiency += trim_gain * error * self.period_s;
         } else if !binds || !measured_w.is_finite() {
             let relax = (self.period_s / POWER_TRIM_RELAX_S).min(1.0);
             self.efficiency += (low - self.efficiency) * relax;

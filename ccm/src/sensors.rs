@@ -4,7 +4,7 @@
 
 use crate::apps::{Apps, AppsReading};
 use crate::brakes::{BrakeReading, Brakes};
-use crate::calibration::SensorCalibration;
+use crate::calibration::{Calibration, SensorCalibration};
 use crate::chassis::shock_travel_mm;
 use crate::constants::ADC_PERIOD_MS;
 use crate::io::SensorSample;
@@ -32,27 +32,42 @@ pub struct Sensors {
     sampled_ms: Option<u32>,
 }
 
+impl Default for Sensors {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
 impl Sensors {
-    /// Nothing sampled yet, with the sensors' `calibration`.
-    pub fn new(calibration: SensorCalibration) -> Self {
+    /// Nothing sampled yet.
+    pub fn new() -> Self {
         Self {
-            apps: Apps::new(calibration.pedals, ADC_PERIOD_MS),
-            brakes: Brakes::new(ADC_PERIOD_MS, calibration.brakes),
+            apps: Apps::new(ADC_PERIOD_MS),
+            brakes: Brakes::new(ADC_PERIOD_MS),
             shock_mm: [0.0; 4],
             first_ms: None,
             sampled_ms: None,
         }
     }
 
-    /// The 1 kHz sensor step.
-    pub fn sample(&mut self, sample: &SensorSample, now_ms: u32) {
+    /// The 1 kHz sensor step, with the `calibration` as it is now.
+    pub fn sample(&mut self, calibration: &Calibration, sample: &SensorSample, now_ms: u32) {
         self.first_ms.get_or_insert(now_ms);
         self.sampled_ms = Some(now_ms);
-        let brakes = self
-            .brakes
-            .update(sample.brake_v.0, sample.brake_v.1, now_ms);
-        self.apps.update(sample.apps_v, brakes.engaged, now_ms);
-        self.shock_mm = sample.shock_raw.map(shock_travel_mm);
+        let sensors = SensorCalibration::of(calibration);
+        let brakes =
+            self.brakes
+                .update(&sensors.brakes, sample.brake_v.0, sample.brake_v.1, now_ms);
+        self.apps
+            .update(&sensors.pedals, sample.apps_v, brakes.engaged, now_ms);
+        for ((travel, raw), rest_v) in self
+            .shock_mm
+            .iter_mut()
+            .zip(sample.shock_raw)
+            .zip(calibration.shock_rest_v)
+        {
+            *travel = shock_travel_mm(raw, rest_v, calibration.shock_span_v);
+        }
     }
 
     pub fn reading(&self) -> SensorReading {

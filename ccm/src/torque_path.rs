@@ -2,6 +2,7 @@
 //! SOC derating -> power ceiling -> the torque monitor, which alone has the last word.
 
 use crate::apps::AppsReading;
+use crate::calibration::Calibration;
 use crate::constants::{GEAR_RATIO, MOTOR_MAX_TORQUE_NM, PEDAL_DEADBAND};
 use crate::faults::FaultMap;
 use crate::launch::{LaunchControl, LaunchInputs, LaunchState};
@@ -84,8 +85,8 @@ impl TorquePath {
         }
     }
 
-    /// One step.
-    pub fn step(&mut self, inputs: &TorqueInputs) -> TorqueCommand {
+    /// One step, with the `calibration` as it is now.
+    pub fn step(&mut self, calibration: &Calibration, inputs: &TorqueInputs) -> TorqueCommand {
         let apps = &inputs.apps;
         let may_drive = inputs.torque_enabled
             && !inputs.faults.stops_torque()
@@ -99,16 +100,21 @@ impl TorquePath {
         };
         let motor_rad_s = inputs.motor_rad_s.unwrap_or(0.0);
         let driven_rad_s = motor_rad_s / GEAR_RATIO;
-        let launch_torque = self.launch.step(&LaunchInputs {
-            button: inputs.launch_button && may_drive,
-            brakes_engaged: inputs.brakes_engaged,
-            pedal: apps.travel,
-            front_rad_s: inputs.front_rad_s,
-            driven_rad_s,
-            driver_torque_nm: driver,
-        });
+        let launch_torque = self.launch.step(
+            calibration,
+            &LaunchInputs {
+                button: inputs.launch_button && may_drive,
+                brakes_engaged: inputs.brakes_engaged,
+                pedal: apps.travel,
+                front_rad_s: inputs.front_rad_s,
+                driven_rad_s,
+                driver_torque_nm: driver,
+            },
+        );
         let front_average = (inputs.front_rad_s.0 + inputs.front_rad_s.1) / 2.0;
-        let traction_torque = self.traction.step(front_average, driven_rad_s, driver);
+        let traction_torque = self
+            .traction
+            .step(calibration, front_average, driven_rad_s, driver);
         let (controlled, slip) = if self.launch.state() == LaunchState::Active {
             (launch_torque, self.launch.slip())
         } else {
@@ -138,6 +144,7 @@ impl TorquePath {
         // The limiter sees what the monitor leaves: where the monitor binds, the ceiling does
         // not, and the trim neither winds up behind it nor overshoots once it lets go.
         let power_ceiling = self.power.step(
+            calibration.power_trim_gain,
             motor_rad_s,
             inputs.dc_power_w.unwrap_or(f32::NAN),
             derated.min(allowed),

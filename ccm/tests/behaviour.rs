@@ -2,9 +2,10 @@
 
 use aer::can::{AnyMessage, PccStatus, PrechargeState, Vcu1};
 use aer::telemetry::Telemetry;
-use aer_ccm::apps::{Apps, AppsCalibration};
+use aer_ccm::apps::Apps;
 use aer_ccm::brakes::{Brakes, volts_for};
-use aer_ccm::calibration::{BrakeCalibration, SensorCalibration};
+use aer_ccm::calibration::AppsCalibration;
+use aer_ccm::calibration::{BrakeCalibration, Calibration};
 use aer_ccm::faults::{Fault, FaultMap};
 use aer_ccm::inverter::DriveCommand;
 use aer_ccm::inverter::ifl100::Vcu1Builder;
@@ -28,63 +29,71 @@ fn pedal(travel1: f32, travel2: f32) -> (f32, f32) {
 
 #[test]
 fn apps_maps_the_calibration_to_0_1_and_takes_the_lower_sensor() {
-    let mut apps = Apps::new(CAL, 1);
+    let mut apps = Apps::new(1);
     let (a, b) = pedal(0.5, 0.5);
-    let reading = apps.update([Some(a), Some(b)], false, 0);
+    let reading = apps.update(&CAL, [Some(a), Some(b)], false, 0);
     assert!((reading.travel - 0.5).abs() < 1e-3, "{reading:?}");
     let (a, b) = pedal(1.3, -0.2);
-    let mut clamped = Apps::new(CAL, 1);
-    let reading = clamped.update([Some(a), Some(b)], false, 0);
+    let mut clamped = Apps::new(1);
+    let reading = clamped.update(&CAL, [Some(a), Some(b)], false, 0);
     assert_eq!((reading.apps1, reading.apps2), (1.0, 0.0));
 }
 
 #[test]
 fn apps_range_fault_needs_more_than_100_ms() {
-    let mut apps = Apps::new(CAL, 1);
+    let mut apps = Apps::new(1);
     // 0.2 V on APPS1: below 10 % of 3.3 V (an open wire pulls the signal low).
     let low = 0.2;
     let (_, b) = pedal(0.0, 0.0);
     for t in 0..=100 {
         assert!(
-            !apps.update([Some(low), Some(b)], false, t).out_of_range,
+            !apps
+                .update(&CAL, [Some(low), Some(b)], false, t)
+                .out_of_range,
             "t = {t}"
         );
     }
-    assert!(apps.update([Some(low), Some(b)], false, 101).out_of_range);
+    assert!(
+        apps.update(&CAL, [Some(low), Some(b)], false, 101)
+            .out_of_range
+    );
     let (a, b) = pedal(0.0, 0.0);
     // The filter needs a few samples to come back; the fault clears with it.
-    let cleared = (102..200).any(|t| !apps.update([Some(a), Some(b)], false, t).out_of_range);
+    let cleared = (102..200).any(|t| !apps.update(&CAL, [Some(a), Some(b)], false, t).out_of_range);
     assert!(cleared);
 }
 
 #[test]
 fn apps_disagreement_over_10_percent_for_over_100_ms_is_implausible() {
-    let mut apps = Apps::new(CAL, 1);
+    let mut apps = Apps::new(1);
     let (a, b) = pedal(0.50, 0.39);
     for t in 0..=100 {
-        apps.update([Some(a), Some(b)], false, t);
+        apps.update(&CAL, [Some(a), Some(b)], false, t);
     }
     assert!(!apps.reading().implausible, "at 100 ms");
-    assert!(apps.update([Some(a), Some(b)], false, 101).implausible);
+    assert!(
+        apps.update(&CAL, [Some(a), Some(b)], false, 101)
+            .implausible
+    );
 
-    let mut close = Apps::new(CAL, 1);
+    let mut close = Apps::new(1);
     let (a, b) = pedal(0.50, 0.41);
     for t in 0..500 {
-        close.update([Some(a), Some(b)], false, t);
+        close.update(&CAL, [Some(a), Some(b)], false, t);
     }
     assert!(!close.reading().implausible, "9 % apart is plausible");
 }
 
 #[test]
 fn apps_brake_plausibility_latches_above_25_percent_and_resets_below_5() {
-    let mut apps = Apps::new(CAL, 1);
+    let mut apps = Apps::new(1);
     let mut t = 0;
     let mut hold = |apps: &mut Apps, travel: f32, brake: bool| {
         let (a, b) = pedal(travel, travel);
-        let mut reading = apps.update([Some(a), Some(b)], brake, t);
+        let mut reading = apps.update(&CAL, [Some(a), Some(b)], brake, t);
         for _ in 0..50 {
             t += 1;
-            reading = apps.update([Some(a), Some(b)], brake, t);
+            reading = apps.update(&CAL, [Some(a), Some(b)], brake, t);
         }
         reading
     };
@@ -114,19 +123,30 @@ fn apps_brake_plausibility_latches_above_25_percent_and_resets_below_5() {
 
 #[test]
 fn brake_sensor_fault_light_and_circuits() {
-    let mut brakes = Brakes::new(1, BrakeCalibration::DEFAULT);
+    let mut brakes = Brakes::new(1);
     for t in 0..=100 {
         assert!(
-            !brakes.update(4.6, volts_for(0.0), t).sensor_fault,
+            !brakes
+                .update(&BrakeCalibration::DEFAULT, 4.6, volts_for(0.0), t)
+                .sensor_fault,
             "t = {t}"
         );
     }
-    assert!(brakes.update(4.6, volts_for(0.0), 101).sensor_fault);
+    assert!(
+        brakes
+            .update(&BrakeCalibration::DEFAULT, 4.6, volts_for(0.0), 101)
+            .sensor_fault
+    );
 
-    let mut brakes = Brakes::new(1, BrakeCalibration::DEFAULT);
+    let mut brakes = Brakes::new(1);
     let settle = |brakes: &mut Brakes, front: f32, rear: f32, from: u32| {
         (from..from + 50).for_each(|t| {
-            brakes.update(volts_for(front), volts_for(rear), t);
+            brakes.update(
+                &BrakeCalibration::DEFAULT,
+                volts_for(front),
+                volts_for(rear),
+                t,
+            );
         });
         brakes.reading()
     };
@@ -143,10 +163,15 @@ fn brake_sensor_fault_light_and_circuits() {
     assert!(settle(&mut brakes, 60.0, 60.0, 200).engaged);
 
     // One circuit at 500 psi, the other empty, for over 500 ms.
-    let mut brakes = Brakes::new(1, BrakeCalibration::DEFAULT);
+    let mut brakes = Brakes::new(1);
     settle(&mut brakes, 500.0, 0.0, 0);
     for t in 50..=500 {
-        brakes.update(volts_for(500.0), volts_for(0.0), t);
+        brakes.update(
+            &BrakeCalibration::DEFAULT,
+            volts_for(500.0),
+            volts_for(0.0),
+            t,
+        );
     }
     assert!(!brakes.reading().circuits_implausible);
     assert!(settle(&mut brakes, 500.0, 0.0, 560).circuits_implausible);
@@ -348,16 +373,22 @@ fn vcu1_counts_and_carries_a_valid_checksum() {
     assert_eq!(nan[0], 0);
 }
 
+/// The schema's power trim gain.
+const GAIN: f32 = Calibration::DEFAULT.power_trim_gain;
+
 // --- Cooling, traction ---------------------------------------------------------------------------
 
 #[test]
 fn cooling_ramps_with_temperature() {
-    assert_eq!(cooling(false, 20.0, 20.0).pump, 0.0);
-    assert_eq!(cooling(true, 20.0, 20.0).pump, 0.3);
-    assert_eq!(cooling(true, 60.0, 20.0).pump, 1.0);
-    assert_eq!(cooling(true, 20.0, 20.0).fan, 0.0);
-    assert!((cooling(true, 20.0, 57.5).fan - 0.5).abs() < 1e-6);
-    assert_eq!(cooling(true, f32::NAN, 20.0).fan, 1.0);
+    assert_eq!(cooling(&Calibration::DEFAULT, false, 20.0, 20.0).pump, 0.0);
+    assert_eq!(cooling(&Calibration::DEFAULT, true, 20.0, 20.0).pump, 0.3);
+    assert_eq!(cooling(&Calibration::DEFAULT, true, 60.0, 20.0).pump, 1.0);
+    assert_eq!(cooling(&Calibration::DEFAULT, true, 20.0, 20.0).fan, 0.0);
+    assert!((cooling(&Calibration::DEFAULT, true, 20.0, 57.5).fan - 0.5).abs() < 1e-6);
+    assert_eq!(
+        cooling(&Calibration::DEFAULT, true, f32::NAN, 20.0).fan,
+        1.0
+    );
 }
 
 #[test]
@@ -365,24 +396,24 @@ fn traction_control_only_removes_torque_and_returns_it() {
     let mut traction = TractionControl::new(10);
     for _ in 0..100 {
         assert_eq!(
-            traction.step(50.0, 52.0, 200.0),
+            traction.step(&Calibration::DEFAULT, 50.0, 52.0, 200.0),
             200.0,
             "4 % slip: untouched"
         );
     }
     let mut reduced = 200.0;
     for _ in 0..20 {
-        reduced = traction.step(50.0, 70.0, 200.0);
+        reduced = traction.step(&Calibration::DEFAULT, 50.0, 70.0, 200.0);
     }
     assert!(reduced < 150.0, "40 % slip: {reduced}");
     let mut recovered = reduced;
     for _ in 0..300 {
-        recovered = traction.step(50.0, 51.0, 200.0);
+        recovered = traction.step(&Calibration::DEFAULT, 50.0, 51.0, 200.0);
     }
     assert_eq!(recovered, 200.0);
     let mut rolling_off = TractionControl::new(10);
     assert_eq!(
-        rolling_off.step(1.0, 30.0, 120.0),
+        rolling_off.step(&Calibration::DEFAULT, 1.0, 30.0, 120.0),
         120.0,
         "below 3 rad/s slip is undefined"
     );
@@ -396,7 +427,7 @@ fn frame(id: u16, data: &[u8]) -> CanFrame {
 
 #[test]
 fn bus_frames_fill_the_mirror_and_bad_ones_are_counted() {
-    let mut ccm = Ccm::new(SensorCalibration::DEFAULT);
+    let mut ccm = Ccm::new(Calibration::DEFAULT);
     let status = PccStatus {
         pcc_state: PrechargeState::Online,
         pcc_error_too_fast: false,
@@ -433,7 +464,7 @@ fn bus_frames_fill_the_mirror_and_bad_ones_are_counted() {
 
 #[test]
 fn the_telemetry_packet_reaches_an_iso_tp_receiver_intact() {
-    let mut ccm = Ccm::new(SensorCalibration::DEFAULT);
+    let mut ccm = Ccm::new(Calibration::DEFAULT);
     let (a, b) = pedal(0.4, 0.4);
     for t in 0..20 {
         ccm.sample(
@@ -695,11 +726,11 @@ fn the_power_ceiling_starts_safe_trims_up_only_when_settled_and_down_at_once() {
     let target = PowerLimits::CAR.power_target_w;
     let mut limiter = PowerLimiter::new(10, target);
     let omega = 350.0;
-    let first = limiter.step(omega, 0.0, 260.0);
+    let first = limiter.step(GAIN, omega, 0.0, 260.0);
     assert!((first - lowest * target / omega).abs() < 0.5, "{first}");
     // The measurement still rising: no trim up.
     for measured in [10_000.0, 30_000.0, 50_000.0, 65_000.0] {
-        limiter.step(omega, measured, 260.0);
+        limiter.step(GAIN, omega, measured, 260.0);
         assert_eq!(
             limiter.efficiency(),
             lowest,
@@ -708,16 +739,16 @@ fn the_power_ceiling_starts_safe_trims_up_only_when_settled_and_down_at_once() {
     }
     // Settled below the target: trims up, towards (not past) the highest efficiency.
     for _ in 0..200 {
-        limiter.step(omega, 70_000.0, 260.0);
+        limiter.step(GAIN, omega, 70_000.0, 260.0);
     }
     assert_eq!(limiter.efficiency(), highest);
     // Above the target: down at once, settled or not.
     let before = limiter.efficiency();
-    limiter.step(omega, 90_000.0, 260.0);
+    limiter.step(GAIN, omega, 90_000.0, 260.0);
     assert!(limiter.efficiency() < before);
     // Not binding: back to the lowest efficiency.
     for _ in 0..500 {
-        limiter.step(omega, 20_000.0, 10.0);
+        limiter.step(GAIN, omega, 20_000.0, 10.0);
     }
     assert!(limiter.efficiency() - lowest < 1e-3);
 }

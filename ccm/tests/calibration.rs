@@ -2,8 +2,8 @@
 //! `ccm/calibration.toml` the firmware images start with, the bench's recorder, and the brake
 //! sensors' zero in the pressure the CCM computes.
 
-use aer_ccm::apps::AppsCalibration;
 use aer_ccm::brakes::{Brakes, volts_for};
+use aer_ccm::calibration::AppsCalibration;
 use aer_ccm::calibration::{
     BenchPoint, BenchRecorder, BenchResult, BrakeCalibration, CALIBRATION_SAMPLES,
     CalibrationError, SensorCalibration, measured,
@@ -109,11 +109,11 @@ fn a_brake_sensors_zero_is_where_its_pressure_starts() {
         front_zero_v: 0.58,
         rear_zero_v: 0.58,
     };
-    let mut nominal = Brakes::new(1, BrakeCalibration::DEFAULT);
-    let mut calibrated = Brakes::new(1, offset);
+    let mut nominal = Brakes::new(1);
+    let mut calibrated = Brakes::new(1);
     for t in 0..200 {
-        nominal.update(0.58, 0.58, t);
-        calibrated.update(0.58, 0.58, t);
+        nominal.update(&BrakeCalibration::DEFAULT, 0.58, 0.58, t);
+        calibrated.update(&offset, 0.58, 0.58, t);
     }
     assert!(nominal.reading().engaged);
     assert!(nominal.reading().front_psi > 30.0);
@@ -122,7 +122,7 @@ fn a_brake_sensors_zero_is_where_its_pressure_starts() {
     // The gain is the sensor's own: 4 V of span is full scale from either zero.
     let step = volts_for(500.0) - volts_for(0.0);
     for t in 200..400 {
-        calibrated.update(0.58 + step, 0.58 + step, t);
+        calibrated.update(&offset, 0.58 + step, 0.58 + step, t);
     }
     assert!((calibrated.reading().front_psi - 500.0).abs() < 1.0);
 }

@@ -1,5 +1,6 @@
 //! The team documentation's test plans (../shared/seed), case by case.
 
+use aer_ccm::calibration::Calibration;
 use aer_ccm::chassis::{WheelSpeed, shock_raw_for_volts, shock_travel_mm};
 use aer_ccm::constants::SHOCK_TRAVEL_MAX_MM;
 use aer_ccm::launch::{LaunchControl, LaunchInputs, LaunchState};
@@ -40,7 +41,12 @@ fn power_limit_case_3_deviation_the_ceiling_comes_from_speed_not_from_the_last_m
     let mut limiter = PowerLimiter::new(10, PowerLimits::CAR.power_target_w);
     let motor_rad_s = 400.0;
     // 200 Nm at 400 rad/s is 80 kW of shaft power: above what the target allows.
-    let ceiling = limiter.step(motor_rad_s, 120.0, 200.0);
+    let ceiling = limiter.step(
+        Calibration::DEFAULT.power_trim_gain,
+        motor_rad_s,
+        120.0,
+        200.0,
+    );
     let (lowest, _) = aer_ccm::constants::DRIVETRAIN_EFFICIENCY;
     let target = PowerLimits::CAR.power_target_w;
     assert!(
@@ -77,8 +83,11 @@ fn inputs(front: (f32, f32), driven: f32, torque: f32, brakes_engaged: bool) -> 
 /// pedal pressed.
 fn active() -> LaunchControl {
     let mut launch = LaunchControl::new(10);
-    launch.step(&inputs((0.0, 0.0), 0.0, 0.0, true));
-    launch.step(&inputs((0.0, 0.0), 0.0, 130.0, false));
+    launch.step(&Calibration::DEFAULT, &inputs((0.0, 0.0), 0.0, 0.0, true));
+    launch.step(
+        &Calibration::DEFAULT,
+        &inputs((0.0, 0.0), 0.0, 130.0, false),
+    );
     assert_eq!(launch.state(), LaunchState::Active);
     launch
 }
@@ -86,7 +95,7 @@ fn active() -> LaunchControl {
 #[test]
 fn launch_case_1_brake_held_at_standstill_turns_launch_on() {
     let mut launch = LaunchControl::new(10);
-    launch.step(&inputs((0.0, 0.0), 0.0, 0.0, true));
+    launch.step(&Calibration::DEFAULT, &inputs((0.0, 0.0), 0.0, 0.0, true));
     assert_eq!(
         launch.state(),
         LaunchState::Armed,
@@ -97,7 +106,10 @@ fn launch_case_1_brake_held_at_standstill_turns_launch_on() {
 #[test]
 fn launch_case_2_no_slip_barely_changes_the_torque() {
     let mut launch = active();
-    let torque = launch.step(&inputs((80.0, 82.0), 80.0, 150.0, false));
+    let torque = launch.step(
+        &Calibration::DEFAULT,
+        &inputs((80.0, 82.0), 80.0, 150.0, false),
+    );
     assert!(launch.slip().abs() <= 0.02, "slip {}", launch.slip());
     assert_eq!(torque, 150.0, "unchanged");
     assert_eq!(launch.state(), LaunchState::Active);
@@ -106,7 +118,10 @@ fn launch_case_2_no_slip_barely_changes_the_torque() {
 #[test]
 fn launch_case_3_very_high_slip_takes_the_torque_to_near_zero() {
     let mut launch = active();
-    let torque = launch.step(&inputs((40.0, 42.0), 100.0, 200.0, false));
+    let torque = launch.step(
+        &Calibration::DEFAULT,
+        &inputs((40.0, 42.0), 100.0, 200.0, false),
+    );
     assert!(launch.slip() > 1.4, "slip {}", launch.slip());
     assert!(torque < 5.0, "{torque}");
 }
@@ -118,7 +133,10 @@ fn launch_case_3_very_high_slip_takes_the_torque_to_near_zero() {
 #[test]
 fn launch_case_4_deviation_slip_below_target_never_adds_torque() {
     let mut launch = active();
-    let torque = launch.step(&inputs((100.0, 99.0), 100.0, 250.0, false));
+    let torque = launch.step(
+        &Calibration::DEFAULT,
+        &inputs((100.0, 99.0), 100.0, 250.0, false),
+    );
     assert!(launch.slip() < 0.07);
     assert_eq!(torque, 250.0);
 }
@@ -127,25 +145,43 @@ fn launch_case_4_deviation_slip_below_target_never_adds_torque() {
 fn launch_case_5_brake_ends_launch_and_resets_the_pid() {
     let mut launch = active();
     for _ in 0..20 {
-        launch.step(&inputs((40.0, 42.0), 100.0, 200.0, false));
+        launch.step(
+            &Calibration::DEFAULT,
+            &inputs((40.0, 42.0), 100.0, 200.0, false),
+        );
     }
-    let torque = launch.step(&inputs((40.0, 42.0), 100.0, 0.9 * 260.0, true));
+    let torque = launch.step(
+        &Calibration::DEFAULT,
+        &inputs((40.0, 42.0), 100.0, 0.9 * 260.0, true),
+    );
     assert_eq!(launch.state(), LaunchState::Off);
     assert_eq!(torque, 0.9 * 260.0, "torque = raw input");
     // Re-armed, the controller starts from zero: the first correction equals a fresh one's.
     let mut fresh = active();
     let mut reused = launch;
-    reused.step(&inputs((0.0, 0.0), 0.0, 0.0, true));
-    reused.step(&inputs((0.0, 0.0), 0.0, 130.0, false));
+    reused.step(&Calibration::DEFAULT, &inputs((0.0, 0.0), 0.0, 0.0, true));
+    reused.step(
+        &Calibration::DEFAULT,
+        &inputs((0.0, 0.0), 0.0, 130.0, false),
+    );
     let step = inputs((40.0, 42.0), 50.0, 150.0, false);
-    assert_eq!(reused.step(&step), fresh.step(&step));
+    assert_eq!(
+        reused.step(&Calibration::DEFAULT, &step),
+        fresh.step(&Calibration::DEFAULT, &step)
+    );
 }
 
 #[test]
 fn launch_ends_when_the_pedal_drops_below_5_percent() {
     let mut launch = active();
-    launch.step(&inputs((80.0, 82.0), 80.0, 150.0, false));
-    let torque = launch.step(&inputs((80.0, 82.0), 80.0, 10.0, false));
+    launch.step(
+        &Calibration::DEFAULT,
+        &inputs((80.0, 82.0), 80.0, 150.0, false),
+    );
+    let torque = launch.step(
+        &Calibration::DEFAULT,
+        &inputs((80.0, 82.0), 80.0, 10.0, false),
+    );
     assert_eq!(launch.state(), LaunchState::Off, "3.8 % pedal");
     assert_eq!(torque, 10.0);
 }
@@ -155,37 +191,52 @@ fn launch_reduction_state_persists_between_steps() {
     // Fixed defect: with the PID rebuilt every step the correction would never grow.
     let mut launch = active();
     let step = inputs((80.0, 82.0), 100.0, 200.0, false);
-    let first = launch.step(&step);
-    let second = launch.step(&step);
+    let first = launch.step(&Calibration::DEFAULT, &step);
+    let second = launch.step(&Calibration::DEFAULT, &step);
     assert!(second < first, "{first} -> {second}");
 }
 
 // --- Shock travel ----------------------------------------------------------------------------
 
+/// The travel a sensor with the schema's default calibration (5 V at rest, 0.14 V span) reads.
+fn travel_mm(raw: u16) -> f32 {
+    let nominal = Calibration::DEFAULT;
+    shock_travel_mm(raw, nominal.shock_rest_v[0], nominal.shock_span_v)
+}
+
+/// A sensor that rests lower (its calibrated rest voltage) reads zero there, not travel.
+#[test]
+fn shock_a_calibrated_rest_voltage_is_zero_travel() {
+    let raw = shock_raw_for_volts(4.9);
+    let rest_v = f32::from(raw) * 5.0 / 4095.0;
+    let span_v = Calibration::DEFAULT.shock_span_v;
+    assert!(shock_travel_mm(raw, rest_v, span_v) < 0.01);
+    let half = shock_raw_for_volts(rest_v - span_v / 2.0);
+    let travel = shock_travel_mm(half, rest_v, span_v);
+    assert!((travel - 0.5 * SHOCK_TRAVEL_MAX_MM).abs() < 0.5, "{travel}");
+}
+
 #[test]
 fn shock_case_2_fully_extended_is_zero() {
-    assert_eq!(shock_travel_mm(4095), 0.0);
+    assert_eq!(travel_mm(4095), 0.0);
 }
 
 #[test]
 fn shock_case_3_half_the_span_is_half_the_travel() {
-    let travel = shock_travel_mm(shock_raw_for_volts(4.93));
+    let travel = travel_mm(shock_raw_for_volts(4.93));
     assert!((travel - 0.5 * SHOCK_TRAVEL_MAX_MM).abs() < 0.5, "{travel}");
 }
 
 #[test]
 fn shock_case_4_full_compression_is_full_travel() {
-    let travel = shock_travel_mm(shock_raw_for_volts(4.86));
+    let travel = travel_mm(shock_raw_for_volts(4.86));
     assert!((travel - SHOCK_TRAVEL_MAX_MM).abs() < 0.5, "{travel}");
 }
 
 #[test]
 fn shock_case_5_beyond_the_span_is_clamped() {
-    assert_eq!(
-        shock_travel_mm(shock_raw_for_volts(4.0)),
-        SHOCK_TRAVEL_MAX_MM
-    );
-    assert_eq!(shock_travel_mm(0), SHOCK_TRAVEL_MAX_MM);
+    assert_eq!(travel_mm(shock_raw_for_volts(4.0)), SHOCK_TRAVEL_MAX_MM);
+    assert_eq!(travel_mm(0), SHOCK_TRAVEL_MAX_MM);
 }
 
 // --- Wheel speed -----------------------------------------------------------------------------

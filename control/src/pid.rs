@@ -60,6 +60,12 @@ impl Pid {
             .min(output_range.1)
     }
 
+    /// New gains from the next step on (a calibration change). The integral is kept as the
+    /// contribution it has built up, so a new integral gain does not make the output jump.
+    pub fn set_gains(&mut self, gains: PidGains) {
+        self.gains = gains;
+    }
+
     /// Clears the integral and derivative history.
     pub fn reset(&mut self) {
         self.integral = 0.0;

@@ -2,7 +2,7 @@
 //! instruction counting); the host run does not print them.
 
 use aer::telemetry::{Telemetry, TelemetryHeader};
-use aer_ccm::calibration::SensorCalibration;
+use aer_ccm::calibration::Calibration;
 use aer_ccm::{Ccm, DriverInputs, SensorSample};
 use aer_pcc::{Inputs, Precharge, PrechargeConfig};
 
@@ -51,7 +51,7 @@ fn ccm_control(iterations: u32) {
 }
 
 fn ccm_sample(iterations: u32) {
-    let mut ccm = Ccm::new(SensorCalibration::DEFAULT);
+    let mut ccm = Ccm::new(Calibration::DEFAULT);
     let sample = SensorSample {
         apps_v: [Some(0.75), Some(1.125)],
         brake_v: (0.6, 0.6),

@@ -9,9 +9,9 @@ use aer::can::{
     OrionCellVoltages, OrionLimits, OrionPackStatus, PccStatus, PrechargeState,
 };
 use aer::runtime::{CounterSender, EncodeError};
-use aer_ccm::apps::AppsCalibration;
 use aer_ccm::brakes::volts_for;
-use aer_ccm::calibration::SensorCalibration;
+use aer_ccm::calibration::AppsCalibration;
+use aer_ccm::calibration::Calibration;
 use aer_ccm::constants::WHEEL_TEETH;
 use aer_ccm::vehicle::State;
 use aer_ccm::{Ccm, ControlOutputs, DriverInputs, InverterKind, SensorSample};
@@ -146,7 +146,7 @@ impl Rig {
     /// A CCM driving `inverter`; the rig's inverter frames are that inverter's.
     pub fn with_inverter(inverter: InverterKind) -> Self {
         Self {
-            ccm: Ccm::with_inverter(SensorCalibration::DEFAULT, inverter),
+            ccm: Ccm::with_inverter(Calibration::DEFAULT, inverter),
             now_ms: 0,
             pcc_online_at: None,
             soc: None,

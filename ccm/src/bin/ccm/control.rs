@@ -47,6 +47,7 @@ pub(crate) async fn control(mut cx: control::Context<'_>) {
             buses: [health(&vehicle_bus), health(&inverter_bus)],
         };
         let sensors = cx.shared.sensors.lock(|sensors| sensors.reading());
+        let calibration = cx.shared.calibration.lock(|calibration| *calibration);
         let [left, right] = &WHEELS;
         let wheels = [left.speed(WHEEL_TEETH), right.speed(WHEEL_TEETH)];
         let (outputs, due, handover) = cx.shared.control.lock(|control| {
@@ -57,7 +58,7 @@ pub(crate) async fn control(mut cx: control::Context<'_>) {
             while let Some(frame) = inverter_frames.dequeue() {
                 control.on_frame(&frame, now);
             }
-            let outputs = control.step(&sensors, wheels, driver, now, now_micros);
+            let outputs = control.step(&calibration, &sensors, wheels, driver, now, now_micros);
             let due = control.due(step);
             let handover = REBOOT.take().then(|| control.handover());
             (outputs, due, handover)

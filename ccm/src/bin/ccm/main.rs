@@ -83,6 +83,7 @@ mod app {
     use crate::telemetry::telemetry;
     use crate::watchdog::watchdog;
     use crate::{Mono, REBOOT, RX_QUEUE};
+    use aer_ccm::calibration::Calibration;
     use aer_ccm::calibration::measured::MEASURED;
     use aer_ccm::console::LOG_BYTES;
     use aer_ccm::constants::INVERTER;
@@ -103,6 +104,9 @@ mod app {
 
     #[shared]
     struct Shared {
+        /// The calibration the sensor and control steps run with: each copies it whole at
+        /// the start of its step, so a change is never seen half done.
+        calibration: Calibration,
         sensors: Sensors,
         link: TelemetryLink,
         control: Control,
@@ -194,7 +198,8 @@ mod app {
         let [s1, s2, s3, s4] = board.shocks;
         (
             Shared {
-                sensors: Sensors::new(MEASURED),
+                calibration: MEASURED.applied_to(Calibration::DEFAULT),
+                sensors: Sensors::new(),
                 link: TelemetryLink::new(),
                 control: Control::new(INVERTER),
                 vehicle_can,
@@ -248,7 +253,7 @@ mod app {
         #[task(binds = GPIO4_COMBINED_0_15, priority = 5, local = [wheels])]
         fn wheel_edge(cx: wheel_edge::Context);
 
-        #[task(priority = 4, local = [adc, analog, pedals], shared = [sensors, supervisor])]
+        #[task(priority = 4, local = [adc, analog, pedals], shared = [calibration, sensors, supervisor])]
         async fn sensors(cx: sensors::Context);
 
         #[task(binds = CAN3, priority = 3, local = [vehicle_rx], shared = [vehicle_can, link])]
@@ -260,7 +265,7 @@ mod app {
         #[task(priority = 2,
                local = [ready_to_move, launch, brake_light, led, pumps, fan, buzzer,
                         vehicle_frames, inverter_frames, watches],
-               shared = [sensors, control, vehicle_can, inverter_can, supervisor, log])]
+               shared = [calibration, sensors, control, vehicle_can, inverter_can, supervisor, log])]
         async fn control(cx: control::Context);
 
         #[task(priority = 1, shared = [sensors, control, link, vehicle_can, supervisor])]
