@@ -10,7 +10,7 @@ use super::runtime::{
 /// Fingerprint of the schema's wire layout (ids, bit positions, types, scaling, value names).
 /// Sent by the firmware and checked by receivers, so a mismatched flash is detected instead of
 /// mis-decoded.
-pub const SCHEMA_FINGERPRINT: u32 = 0xA7B512D5;
+pub const SCHEMA_FINGERPRINT: u32 = 0xA5C2387C;
 
 /// Values of `MCU1.MCU_RotateDirection`.
 ///
@@ -1084,6 +1084,522 @@ impl serde::Serialize for DtiDriveEnable {
 
 #[cfg(feature = "serde")]
 impl<'de> serde::Deserialize<'de> for DtiDriveEnable {
+    fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        <u8 as serde::Deserialize>::deserialize(deserializer).map(Self::from_raw)
+    }
+}
+
+/// Values of `CCM_Calibration.CCM_CalStartup`.
+///
+/// `Unknown` holds any raw value the schema does not name; decoding never fails on one.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum CcmCalibrationCcmCalStartup {
+    /// NONE_SAVED (raw 0)
+    NoneSaved,
+    /// SAVED (raw 1)
+    Saved,
+    /// CORRUPT (raw 2)
+    Corrupt,
+    /// OTHER_SCHEMA (raw 3)
+    OtherSchema,
+    /// OUT_OF_LIMITS (raw 4)
+    OutOfLimits,
+    /// A raw value the schema does not name.
+    Unknown(u8),
+}
+
+impl CcmCalibrationCcmCalStartup {
+    /// The variant for a raw value.
+    pub const fn from_raw(raw: u8) -> Self {
+        match raw {
+            0 => Self::NoneSaved,
+            1 => Self::Saved,
+            2 => Self::Corrupt,
+            3 => Self::OtherSchema,
+            4 => Self::OutOfLimits,
+            other => Self::Unknown(other),
+        }
+    }
+
+    /// The raw value on the wire.
+    pub const fn into_raw(self) -> u8 {
+        match self {
+            Self::NoneSaved => 0,
+            Self::Saved => 1,
+            Self::Corrupt => 2,
+            Self::OtherSchema => 3,
+            Self::OutOfLimits => 4,
+            Self::Unknown(raw) => raw,
+        }
+    }
+
+    /// The name the schema gives this value.
+    pub const fn label(self) -> Option<&'static str> {
+        match self {
+            Self::NoneSaved => Some("NONE_SAVED"),
+            Self::Saved => Some("SAVED"),
+            Self::Corrupt => Some("CORRUPT"),
+            Self::OtherSchema => Some("OTHER_SCHEMA"),
+            Self::OutOfLimits => Some("OUT_OF_LIMITS"),
+            Self::Unknown(_) => None,
+        }
+    }
+}
+
+impl From<u8> for CcmCalibrationCcmCalStartup {
+    fn from(raw: u8) -> Self {
+        Self::from_raw(raw)
+    }
+}
+
+impl From<CcmCalibrationCcmCalStartup> for u8 {
+    fn from(value: CcmCalibrationCcmCalStartup) -> Self {
+        value.into_raw()
+    }
+}
+
+/// Serialized as the raw number (what plots and databases want); labels are in the metadata.
+#[cfg(feature = "serde")]
+impl serde::Serialize for CcmCalibrationCcmCalStartup {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        serde::Serialize::serialize(&self.into_raw(), serializer)
+    }
+}
+
+#[cfg(feature = "serde")]
+impl<'de> serde::Deserialize<'de> for CcmCalibrationCcmCalStartup {
+    fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        <u8 as serde::Deserialize>::deserialize(deserializer).map(Self::from_raw)
+    }
+}
+
+/// Values of `CCM_Calibration.CCM_CalPage`.
+///
+/// `Unknown` holds any raw value the schema does not name; decoding never fails on one.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum CcmCalibrationCcmCalPage {
+    /// WORKING (raw 0)
+    Working,
+    /// REFERENCE (raw 1)
+    Reference,
+    /// A raw value the schema does not name.
+    Unknown(u8),
+}
+
+impl CcmCalibrationCcmCalPage {
+    /// The variant for a raw value.
+    pub const fn from_raw(raw: u8) -> Self {
+        match raw {
+            0 => Self::Working,
+            1 => Self::Reference,
+            other => Self::Unknown(other),
+        }
+    }
+
+    /// The raw value on the wire.
+    pub const fn into_raw(self) -> u8 {
+        match self {
+            Self::Working => 0,
+            Self::Reference => 1,
+            Self::Unknown(raw) => raw,
+        }
+    }
+
+    /// The name the schema gives this value.
+    pub const fn label(self) -> Option<&'static str> {
+        match self {
+            Self::Working => Some("WORKING"),
+            Self::Reference => Some("REFERENCE"),
+            Self::Unknown(_) => None,
+        }
+    }
+}
+
+impl From<u8> for CcmCalibrationCcmCalPage {
+    fn from(raw: u8) -> Self {
+        Self::from_raw(raw)
+    }
+}
+
+impl From<CcmCalibrationCcmCalPage> for u8 {
+    fn from(value: CcmCalibrationCcmCalPage) -> Self {
+        value.into_raw()
+    }
+}
+
+/// Serialized as the raw number (what plots and databases want); labels are in the metadata.
+#[cfg(feature = "serde")]
+impl serde::Serialize for CcmCalibrationCcmCalPage {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        serde::Serialize::serialize(&self.into_raw(), serializer)
+    }
+}
+
+#[cfg(feature = "serde")]
+impl<'de> serde::Deserialize<'de> for CcmCalibrationCcmCalPage {
+    fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        <u8 as serde::Deserialize>::deserialize(deserializer).map(Self::from_raw)
+    }
+}
+
+/// Values of `XCP_Cmd.XCP_CommandCode`.
+///
+/// `Unknown` holds any raw value the schema does not name; decoding never fails on one.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum XcpCmdXcpCommandCode {
+    /// ALLOC_ODT_ENTRY (raw 211)
+    AllocOdtEntry,
+    /// ALLOC_ODT (raw 212)
+    AllocOdt,
+    /// ALLOC_DAQ (raw 213)
+    AllocDaq,
+    /// FREE_DAQ (raw 214)
+    FreeDaq,
+    /// GET_DAQ_EVENT_INFO (raw 215)
+    GetDaqEventInfo,
+    /// GET_DAQ_LIST_INFO (raw 216)
+    GetDaqListInfo,
+    /// GET_DAQ_RESOLUTION_INFO (raw 217)
+    GetDaqResolutionInfo,
+    /// GET_DAQ_PROCESSOR_INFO (raw 218)
+    GetDaqProcessorInfo,
+    /// READ_DAQ (raw 219)
+    ReadDaq,
+    /// GET_DAQ_CLOCK (raw 220)
+    GetDaqClock,
+    /// START_STOP_SYNCH (raw 221)
+    StartStopSynch,
+    /// START_STOP_DAQ_LIST (raw 222)
+    StartStopDaqList,
+    /// GET_DAQ_LIST_MODE (raw 223)
+    GetDaqListMode,
+    /// SET_DAQ_LIST_MODE (raw 224)
+    SetDaqListMode,
+    /// WRITE_DAQ (raw 225)
+    WriteDaq,
+    /// SET_DAQ_PTR (raw 226)
+    SetDaqPtr,
+    /// CLEAR_DAQ_LIST (raw 227)
+    ClearDaqList,
+    /// COPY_CAL_PAGE (raw 228)
+    CopyCalPage,
+    /// GET_SEGMENT_MODE (raw 229)
+    GetSegmentMode,
+    /// SET_SEGMENT_MODE (raw 230)
+    SetSegmentMode,
+    /// GET_PAGE_INFO (raw 231)
+    GetPageInfo,
+    /// GET_SEGMENT_INFO (raw 232)
+    GetSegmentInfo,
+    /// GET_PAG_PROCESSOR_INFO (raw 233)
+    GetPagProcessorInfo,
+    /// GET_CAL_PAGE (raw 234)
+    GetCalPage,
+    /// SET_CAL_PAGE (raw 235)
+    SetCalPage,
+    /// MODIFY_BITS (raw 236)
+    ModifyBits,
+    /// SHORT_DOWNLOAD (raw 237)
+    ShortDownload,
+    /// DOWNLOAD_MAX (raw 238)
+    DownloadMax,
+    /// DOWNLOAD_NEXT (raw 239)
+    DownloadNext,
+    /// DOWNLOAD (raw 240)
+    Download,
+    /// USER_CMD (raw 241)
+    UserCmd,
+    /// TRANSPORT_LAYER_CMD (raw 242)
+    TransportLayerCmd,
+    /// BUILD_CHECKSUM (raw 243)
+    BuildChecksum,
+    /// SHORT_UPLOAD (raw 244)
+    ShortUpload,
+    /// UPLOAD (raw 245)
+    Upload,
+    /// SET_MTA (raw 246)
+    SetMta,
+    /// UNLOCK (raw 247)
+    Unlock,
+    /// GET_SEED (raw 248)
+    GetSeed,
+    /// SET_REQUEST (raw 249)
+    SetRequest,
+    /// GET_ID (raw 250)
+    GetId,
+    /// GET_COMM_MODE_INFO (raw 251)
+    GetCommModeInfo,
+    /// SYNCH (raw 252)
+    Synch,
+    /// GET_STATUS (raw 253)
+    GetStatus,
+    /// DISCONNECT (raw 254)
+    Disconnect,
+    /// CONNECT (raw 255)
+    Connect,
+    /// A raw value the schema does not name.
+    Unknown(u8),
+}
+
+impl XcpCmdXcpCommandCode {
+    /// The variant for a raw value.
+    pub const fn from_raw(raw: u8) -> Self {
+        match raw {
+            211 => Self::AllocOdtEntry,
+            212 => Self::AllocOdt,
+            213 => Self::AllocDaq,
+            214 => Self::FreeDaq,
+            215 => Self::GetDaqEventInfo,
+            216 => Self::GetDaqListInfo,
+            217 => Self::GetDaqResolutionInfo,
+            218 => Self::GetDaqProcessorInfo,
+            219 => Self::ReadDaq,
+            220 => Self::GetDaqClock,
+            221 => Self::StartStopSynch,
+            222 => Self::StartStopDaqList,
+            223 => Self::GetDaqListMode,
+            224 => Self::SetDaqListMode,
+            225 => Self::WriteDaq,
+            226 => Self::SetDaqPtr,
+            227 => Self::ClearDaqList,
+            228 => Self::CopyCalPage,
+            229 => Self::GetSegmentMode,
+            230 => Self::SetSegmentMode,
+            231 => Self::GetPageInfo,
+            232 => Self::GetSegmentInfo,
+            233 => Self::GetPagProcessorInfo,
+            234 => Self::GetCalPage,
+            235 => Self::SetCalPage,
+            236 => Self::ModifyBits,
+            237 => Self::ShortDownload,
+            238 => Self::DownloadMax,
+            239 => Self::DownloadNext,
+            240 => Self::Download,
+            241 => Self::UserCmd,
+            242 => Self::TransportLayerCmd,
+            243 => Self::BuildChecksum,
+            244 => Self::ShortUpload,
+            245 => Self::Upload,
+            246 => Self::SetMta,
+            247 => Self::Unlock,
+            248 => Self::GetSeed,
+            249 => Self::SetRequest,
+            250 => Self::GetId,
+            251 => Self::GetCommModeInfo,
+            252 => Self::Synch,
+            253 => Self::GetStatus,
+            254 => Self::Disconnect,
+            255 => Self::Connect,
+            other => Self::Unknown(other),
+        }
+    }
+
+    /// The raw value on the wire.
+    pub const fn into_raw(self) -> u8 {
+        match self {
+            Self::AllocOdtEntry => 211,
+            Self::AllocOdt => 212,
+            Self::AllocDaq => 213,
+            Self::FreeDaq => 214,
+            Self::GetDaqEventInfo => 215,
+            Self::GetDaqListInfo => 216,
+            Self::GetDaqResolutionInfo => 217,
+            Self::GetDaqProcessorInfo => 218,
+            Self::ReadDaq => 219,
+            Self::GetDaqClock => 220,
+            Self::StartStopSynch => 221,
+            Self::StartStopDaqList => 222,
+            Self::GetDaqListMode => 223,
+            Self::SetDaqListMode => 224,
+            Self::WriteDaq => 225,
+            Self::SetDaqPtr => 226,
+            Self::ClearDaqList => 227,
+            Self::CopyCalPage => 228,
+            Self::GetSegmentMode => 229,
+            Self::SetSegmentMode => 230,
+            Self::GetPageInfo => 231,
+            Self::GetSegmentInfo => 232,
+            Self::GetPagProcessorInfo => 233,
+            Self::GetCalPage => 234,
+            Self::SetCalPage => 235,
+            Self::ModifyBits => 236,
+            Self::ShortDownload => 237,
+            Self::DownloadMax => 238,
+            Self::DownloadNext => 239,
+            Self::Download => 240,
+            Self::UserCmd => 241,
+            Self::TransportLayerCmd => 242,
+            Self::BuildChecksum => 243,
+            Self::ShortUpload => 244,
+            Self::Upload => 245,
+            Self::SetMta => 246,
+            Self::Unlock => 247,
+            Self::GetSeed => 248,
+            Self::SetRequest => 249,
+            Self::GetId => 250,
+            Self::GetCommModeInfo => 251,
+            Self::Synch => 252,
+            Self::GetStatus => 253,
+            Self::Disconnect => 254,
+            Self::Connect => 255,
+            Self::Unknown(raw) => raw,
+        }
+    }
+
+    /// The name the schema gives this value.
+    pub const fn label(self) -> Option<&'static str> {
+        match self {
+            Self::AllocOdtEntry => Some("ALLOC_ODT_ENTRY"),
+            Self::AllocOdt => Some("ALLOC_ODT"),
+            Self::AllocDaq => Some("ALLOC_DAQ"),
+            Self::FreeDaq => Some("FREE_DAQ"),
+            Self::GetDaqEventInfo => Some("GET_DAQ_EVENT_INFO"),
+            Self::GetDaqListInfo => Some("GET_DAQ_LIST_INFO"),
+            Self::GetDaqResolutionInfo => Some("GET_DAQ_RESOLUTION_INFO"),
+            Self::GetDaqProcessorInfo => Some("GET_DAQ_PROCESSOR_INFO"),
+            Self::ReadDaq => Some("READ_DAQ"),
+            Self::GetDaqClock => Some("GET_DAQ_CLOCK"),
+            Self::StartStopSynch => Some("START_STOP_SYNCH"),
+            Self::StartStopDaqList => Some("START_STOP_DAQ_LIST"),
+            Self::GetDaqListMode => Some("GET_DAQ_LIST_MODE"),
+            Self::SetDaqListMode => Some("SET_DAQ_LIST_MODE"),
+            Self::WriteDaq => Some("WRITE_DAQ"),
+            Self::SetDaqPtr => Some("SET_DAQ_PTR"),
+            Self::ClearDaqList => Some("CLEAR_DAQ_LIST"),
+            Self::CopyCalPage => Some("COPY_CAL_PAGE"),
+            Self::GetSegmentMode => Some("GET_SEGMENT_MODE"),
+            Self::SetSegmentMode => Some("SET_SEGMENT_MODE"),
+            Self::GetPageInfo => Some("GET_PAGE_INFO"),
+            Self::GetSegmentInfo => Some("GET_SEGMENT_INFO"),
+            Self::GetPagProcessorInfo => Some("GET_PAG_PROCESSOR_INFO"),
+            Self::GetCalPage => Some("GET_CAL_PAGE"),
+            Self::SetCalPage => Some("SET_CAL_PAGE"),
+            Self::ModifyBits => Some("MODIFY_BITS"),
+            Self::ShortDownload => Some("SHORT_DOWNLOAD"),
+            Self::DownloadMax => Some("DOWNLOAD_MAX"),
+            Self::DownloadNext => Some("DOWNLOAD_NEXT"),
+            Self::Download => Some("DOWNLOAD"),
+            Self::UserCmd => Some("USER_CMD"),
+            Self::TransportLayerCmd => Some("TRANSPORT_LAYER_CMD"),
+            Self::BuildChecksum => Some("BUILD_CHECKSUM"),
+            Self::ShortUpload => Some("SHORT_UPLOAD"),
+            Self::Upload => Some("UPLOAD"),
+            Self::SetMta => Some("SET_MTA"),
+            Self::Unlock => Some("UNLOCK"),
+            Self::GetSeed => Some("GET_SEED"),
+            Self::SetRequest => Some("SET_REQUEST"),
+            Self::GetId => Some("GET_ID"),
+            Self::GetCommModeInfo => Some("GET_COMM_MODE_INFO"),
+            Self::Synch => Some("SYNCH"),
+            Self::GetStatus => Some("GET_STATUS"),
+            Self::Disconnect => Some("DISCONNECT"),
+            Self::Connect => Some("CONNECT"),
+            Self::Unknown(_) => None,
+        }
+    }
+}
+
+impl From<u8> for XcpCmdXcpCommandCode {
+    fn from(raw: u8) -> Self {
+        Self::from_raw(raw)
+    }
+}
+
+impl From<XcpCmdXcpCommandCode> for u8 {
+    fn from(value: XcpCmdXcpCommandCode) -> Self {
+        value.into_raw()
+    }
+}
+
+/// Serialized as the raw number (what plots and databases want); labels are in the metadata.
+#[cfg(feature = "serde")]
+impl serde::Serialize for XcpCmdXcpCommandCode {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        serde::Serialize::serialize(&self.into_raw(), serializer)
+    }
+}
+
+#[cfg(feature = "serde")]
+impl<'de> serde::Deserialize<'de> for XcpCmdXcpCommandCode {
+    fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        <u8 as serde::Deserialize>::deserialize(deserializer).map(Self::from_raw)
+    }
+}
+
+/// Values of `XCP_Res.XCP_PacketId`.
+///
+/// `Unknown` holds any raw value the schema does not name; decoding never fails on one.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum XcpResXcpPacketId {
+    /// SERV (raw 252)
+    Serv,
+    /// EV (raw 253)
+    Ev,
+    /// ERR (raw 254)
+    Err,
+    /// RES (raw 255)
+    Res,
+    /// A raw value the schema does not name.
+    Unknown(u8),
+}
+
+impl XcpResXcpPacketId {
+    /// The variant for a raw value.
+    pub const fn from_raw(raw: u8) -> Self {
+        match raw {
+            252 => Self::Serv,
+            253 => Self::Ev,
+            254 => Self::Err,
+            255 => Self::Res,
+            other => Self::Unknown(other),
+        }
+    }
+
+    /// The raw value on the wire.
+    pub const fn into_raw(self) -> u8 {
+        match self {
+            Self::Serv => 252,
+            Self::Ev => 253,
+            Self::Err => 254,
+            Self::Res => 255,
+            Self::Unknown(raw) => raw,
+        }
+    }
+
+    /// The name the schema gives this value.
+    pub const fn label(self) -> Option<&'static str> {
+        match self {
+            Self::Serv => Some("SERV"),
+            Self::Ev => Some("EV"),
+            Self::Err => Some("ERR"),
+            Self::Res => Some("RES"),
+            Self::Unknown(_) => None,
+        }
+    }
+}
+
+impl From<u8> for XcpResXcpPacketId {
+    fn from(raw: u8) -> Self {
+        Self::from_raw(raw)
+    }
+}
+
+impl From<XcpResXcpPacketId> for u8 {
+    fn from(value: XcpResXcpPacketId) -> Self {
+        value.into_raw()
+    }
+}
+
+/// Serialized as the raw number (what plots and databases want); labels are in the metadata.
+#[cfg(feature = "serde")]
+impl serde::Serialize for XcpResXcpPacketId {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        serde::Serialize::serialize(&self.into_raw(), serializer)
+    }
+}
+
+#[cfg(feature = "serde")]
+impl<'de> serde::Deserialize<'de> for XcpResXcpPacketId {
     fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
         <u8 as serde::Deserialize>::deserialize(deserializer).map(Self::from_raw)
     }
@@ -2548,6 +3064,651 @@ impl CcmStatus {
 }
 
 impl CanMessage for CcmStatus {
+    const META: &'static MessageMeta = Self::META;
+
+    fn decode(data: &[u8]) -> Result<Self, DecodeError> {
+        Self::decode(data)
+    }
+
+    fn encode(&self, out: &mut [u8]) -> Result<usize, EncodeError> {
+        self.encode(out)
+    }
+
+    fn visit(&self, visitor: &mut impl SignalVisitor) {
+        self.visit(visitor)
+    }
+
+    fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
+        Self::from_signals(source)
+    }
+}
+
+/// The CCM's active calibration (schema/calibration.yaml), every 100 ms on the vehicle bus: which numbers the control step runs on, where they came from, and the XCP slave's state, so the Pi records which calibration every session ran.
+///
+/// `CCM_Calibration`: standard id 0xA1, 8 bytes, every 100 ms, lost after 500 ms, sent by CCM.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct CcmCalibration {
+    /// CRC-32 (IEEE 802.3) of the calibration page the control step runs on (aer::calibration::PAGE_LEN bytes, as XCP reads it); equal checksums, equal calibrations.
+    ///
+    /// `CCM_CalChecksum`: 32 bits from bit 0 (Intel), unsigned, range [0.0, 4294967295.0].
+    pub ccm_cal_checksum: u32,
+    /// What start-up loaded: the newest good saved copy of this schema (EPK), or the schema's defaults and why.
+    ///
+    /// `CCM_CalStartup`: 3 bits from bit 32 (Intel), unsigned, range [0.0, 4.0].
+    pub ccm_cal_startup: CcmCalibrationCcmCalStartup,
+    /// The page the control step runs on: the working page (tunable) or the reference page (the schema's defaults).
+    ///
+    /// `CCM_CalPage`: 1 bit from bit 35 (Intel), unsigned, range [0.0, 1.0].
+    pub ccm_cal_page: CcmCalibrationCcmCalPage,
+    /// The working page differs from what start-up loaded: changed over XCP and not saved to flash.
+    ///
+    /// `CCM_CalUnsaved`: 1 bit from bit 36 (Intel), unsigned, range [0.0, 1.0].
+    pub ccm_cal_unsaved: bool,
+    /// An XCP master is connected to the CCM's slave.
+    ///
+    /// `CCM_XcpConnected`: 1 bit from bit 37 (Intel), unsigned, range [0.0, 1.0].
+    pub ccm_xcp_connected: bool,
+    /// The XCP master has unlocked calibration (GET_SEED/UNLOCK); locked again at every connect.
+    ///
+    /// `CCM_XcpUnlocked`: 1 bit from bit 38 (Intel), unsigned, range [0.0, 1.0].
+    pub ccm_xcp_unlocked: bool,
+    /// Calibration writes the CCM accepted since start-up (wraps at 256): a step means the numbers changed.
+    ///
+    /// `CCM_CalChanges`: 8 bits from bit 40 (Intel), unsigned, range [0.0, 255.0].
+    pub ccm_cal_changes: u8,
+    /// Calibration writes the CCM refused since start-up (out of range, not allowed in this state, locked; wraps at 256).
+    ///
+    /// `CCM_CalRefusals`: 8 bits from bit 48 (Intel), unsigned, range [0.0, 255.0].
+    pub ccm_cal_refusals: u8,
+}
+
+static CCM_CALIBRATION_SIGNALS: [SignalMeta; 8] = [
+    SignalMeta {
+        name: "CCM_CalChecksum",
+        index: 0,
+        unit: "",
+        comment: "CRC-32 (IEEE 802.3) of the calibration page the control step runs on (aer::calibration::PAGE_LEN bytes, as XCP reads it); equal checksums, equal calibrations.",
+        start_bit: 0,
+        len: 32,
+        byte_order: ByteOrder::LittleEndian,
+        signed: false,
+        factor: 1.0,
+        offset: 0.0,
+        min: Some(0.0),
+        max: Some(4294967295.0),
+        labels: &[],
+        multiplexed: false,
+    },
+    SignalMeta {
+        name: "CCM_CalStartup",
+        index: 1,
+        unit: "",
+        comment: "What start-up loaded: the newest good saved copy of this schema (EPK), or the schema's defaults and why.",
+        start_bit: 32,
+        len: 3,
+        byte_order: ByteOrder::LittleEndian,
+        signed: false,
+        factor: 1.0,
+        offset: 0.0,
+        min: Some(0.0),
+        max: Some(4.0),
+        labels: &[
+            (0, "NONE_SAVED"),
+            (1, "SAVED"),
+            (2, "CORRUPT"),
+            (3, "OTHER_SCHEMA"),
+            (4, "OUT_OF_LIMITS"),
+        ],
+        multiplexed: false,
+    },
+    SignalMeta {
+        name: "CCM_CalPage",
+        index: 2,
+        unit: "",
+        comment: "The page the control step runs on: the working page (tunable) or the reference page (the schema's defaults).",
+        start_bit: 35,
+        len: 1,
+        byte_order: ByteOrder::LittleEndian,
+        signed: false,
+        factor: 1.0,
+        offset: 0.0,
+        min: Some(0.0),
+        max: Some(1.0),
+        labels: &[(0, "WORKING"), (1, "REFERENCE")],
+        multiplexed: false,
+    },
+    SignalMeta {
+        name: "CCM_CalUnsaved",
+        index: 3,
+        unit: "",
+        comment: "The working page differs from what start-up loaded: changed over XCP and not saved to flash.",
+        start_bit: 36,
+        len: 1,
+        byte_order: ByteOrder::LittleEndian,
+        signed: false,
+        factor: 1.0,
+        offset: 0.0,
+        min: Some(0.0),
+        max: Some(1.0),
+        labels: &[],
+        multiplexed: false,
+    },
+    SignalMeta {
+        name: "CCM_XcpConnected",
+        index: 4,
+        unit: "",
+        comment: "An XCP master is connected to the CCM's slave.",
+        start_bit: 37,
+        len: 1,
+        byte_order: ByteOrder::LittleEndian,
+        signed: false,
+        factor: 1.0,
+        offset: 0.0,
+        min: Some(0.0),
+        max: Some(1.0),
+        labels: &[],
+        multiplexed: false,
+    },
+    SignalMeta {
+        name: "CCM_XcpUnlocked",
+        index: 5,
+        unit: "",
+        comment: "The XCP master has unlocked calibration (GET_SEED/UNLOCK); locked again at every connect.",
+        start_bit: 38,
+        len: 1,
+        byte_order: ByteOrder::LittleEndian,
+        signed: false,
+        factor: 1.0,
+        offset: 0.0,
+        min: Some(0.0),
+        max: Some(1.0),
+        labels: &[],
+        multiplexed: false,
+    },
+    SignalMeta {
+        name: "CCM_CalChanges",
+        index: 6,
+        unit: "",
+        comment: "Calibration writes the CCM accepted since start-up (wraps at 256): a step means the numbers changed.",
+        start_bit: 40,
+        len: 8,
+        byte_order: ByteOrder::LittleEndian,
+        signed: false,
+        factor: 1.0,
+        offset: 0.0,
+        min: Some(0.0),
+        max: Some(255.0),
+        labels: &[],
+        multiplexed: false,
+    },
+    SignalMeta {
+        name: "CCM_CalRefusals",
+        index: 7,
+        unit: "",
+        comment: "Calibration writes the CCM refused since start-up (out of range, not allowed in this state, locked; wraps at 256).",
+        start_bit: 48,
+        len: 8,
+        byte_order: ByteOrder::LittleEndian,
+        signed: false,
+        factor: 1.0,
+        offset: 0.0,
+        min: Some(0.0),
+        max: Some(255.0),
+        labels: &[],
+        multiplexed: false,
+    },
+];
+
+impl CcmCalibration {
+    pub const META: &'static MessageMeta = &MessageMeta {
+        name: "CCM_Calibration",
+        id: 0xA1,
+        extended: false,
+        len: 8,
+        cycle_time_ms: Some(100),
+        timeout_ms: Some(500),
+        comment: "The CCM's active calibration (schema/calibration.yaml), every 100 ms on the vehicle bus: which numbers the control step runs on, where they came from, and the XCP slave's state, so the Pi records which calibration every session ran.",
+        signals: &CCM_CALIBRATION_SIGNALS,
+        counter: None,
+        checksum: None,
+    };
+    pub const ID: u32 = 0xA1;
+    pub const EXTENDED: bool = false;
+    pub const LEN: usize = 8;
+    pub const CYCLE_TIME_MS: u32 = 100;
+    /// How old the last frame may be before receivers count the message lost.
+    pub const TIMEOUT_MS: u32 = 500;
+
+    /// Decodes a payload of at least [`Self::LEN`] bytes. Values outside the schema's range are
+    /// decoded as they are; only a short payload fails.
+    pub fn decode(data: &[u8]) -> Result<Self, DecodeError> {
+        let data = runtime::payload::<8>(data, "CCM_Calibration")?;
+        let ccm_cal_checksum = Self::ccm_cal_checksum_from_raw(bits::read_le(data, 0, 32) as u32);
+        let ccm_cal_startup = Self::ccm_cal_startup_from_raw(bits::read_le(data, 32, 3) as u8);
+        let ccm_cal_page = Self::ccm_cal_page_from_raw(bits::read_le(data, 35, 1) as u8);
+        let ccm_cal_unsaved = Self::ccm_cal_unsaved_from_raw(bits::read_le(data, 36, 1) as u8);
+        let ccm_xcp_connected = Self::ccm_xcp_connected_from_raw(bits::read_le(data, 37, 1) as u8);
+        let ccm_xcp_unlocked = Self::ccm_xcp_unlocked_from_raw(bits::read_le(data, 38, 1) as u8);
+        let ccm_cal_changes = Self::ccm_cal_changes_from_raw(bits::read_le(data, 40, 8) as u8);
+        let ccm_cal_refusals = Self::ccm_cal_refusals_from_raw(bits::read_le(data, 48, 8) as u8);
+        Ok(Self {
+            ccm_cal_checksum,
+            ccm_cal_startup,
+            ccm_cal_page,
+            ccm_cal_unsaved,
+            ccm_xcp_connected,
+            ccm_xcp_unlocked,
+            ccm_cal_changes,
+            ccm_cal_refusals,
+        })
+    }
+
+    /// Encodes into the first [`Self::LEN`] bytes of `out` and returns that length. Fails, naming
+    /// the signal, when a value is outside its range or its multiplexor disagrees.
+    pub fn encode(&self, out: &mut [u8]) -> Result<usize, EncodeError> {
+        let out = runtime::payload_mut::<8>(out, "CCM_Calibration")?;
+        bits::write_le(
+            out,
+            0,
+            32,
+            u64::from(Self::ccm_cal_checksum_to_raw(self.ccm_cal_checksum)?),
+        );
+        bits::write_le(
+            out,
+            32,
+            3,
+            u64::from(Self::ccm_cal_startup_to_raw(self.ccm_cal_startup)?),
+        );
+        bits::write_le(
+            out,
+            35,
+            1,
+            u64::from(Self::ccm_cal_page_to_raw(self.ccm_cal_page)?),
+        );
+        bits::write_le(
+            out,
+            36,
+            1,
+            u64::from(Self::ccm_cal_unsaved_to_raw(self.ccm_cal_unsaved)?),
+        );
+        bits::write_le(
+            out,
+            37,
+            1,
+            u64::from(Self::ccm_xcp_connected_to_raw(self.ccm_xcp_connected)?),
+        );
+        bits::write_le(
+            out,
+            38,
+            1,
+            u64::from(Self::ccm_xcp_unlocked_to_raw(self.ccm_xcp_unlocked)?),
+        );
+        bits::write_le(
+            out,
+            40,
+            8,
+            u64::from(Self::ccm_cal_changes_to_raw(self.ccm_cal_changes)?),
+        );
+        bits::write_le(
+            out,
+            48,
+            8,
+            u64::from(Self::ccm_cal_refusals_to_raw(self.ccm_cal_refusals)?),
+        );
+        Ok(Self::LEN)
+    }
+
+    /// Calls `visitor` with every present signal's physical value.
+    pub fn visit(&self, visitor: &mut impl SignalVisitor) {
+        let v = self.ccm_cal_checksum;
+        visitor.signal(&CCM_CALIBRATION_SIGNALS[0], Value::from(v), None);
+        let v = self.ccm_cal_startup;
+        visitor.signal(
+            &CCM_CALIBRATION_SIGNALS[1],
+            Value::from(v.into_raw()),
+            v.label(),
+        );
+        let v = self.ccm_cal_page;
+        visitor.signal(
+            &CCM_CALIBRATION_SIGNALS[2],
+            Value::from(v.into_raw()),
+            v.label(),
+        );
+        let v = self.ccm_cal_unsaved;
+        visitor.signal(&CCM_CALIBRATION_SIGNALS[3], Value::from(v), None);
+        let v = self.ccm_xcp_connected;
+        visitor.signal(&CCM_CALIBRATION_SIGNALS[4], Value::from(v), None);
+        let v = self.ccm_xcp_unlocked;
+        visitor.signal(&CCM_CALIBRATION_SIGNALS[5], Value::from(v), None);
+        let v = self.ccm_cal_changes;
+        visitor.signal(&CCM_CALIBRATION_SIGNALS[6], Value::from(v), None);
+        let v = self.ccm_cal_refusals;
+        visitor.signal(&CCM_CALIBRATION_SIGNALS[7], Value::from(v), None);
+    }
+
+    /// Decodes a payload and calls `visitor` with every present signal's physical value, as
+    /// [`Self::decode`] and then [`Self::visit`] would, without building the message: the
+    /// values go from the payload straight to the visitor (an enum's as its raw number, which
+    /// is what `visit` hands on), so nothing is stored and read back.
+    pub fn decode_visit(data: &[u8], visitor: &mut impl SignalVisitor) -> Result<(), DecodeError> {
+        let data = runtime::payload::<8>(data, "CCM_Calibration")?;
+        let ccm_cal_checksum = Self::ccm_cal_checksum_from_raw(bits::read_le(data, 0, 32) as u32);
+        let ccm_cal_startup = bits::read_le(data, 32, 3) as u8;
+        let ccm_cal_page = bits::read_le(data, 35, 1) as u8;
+        let ccm_cal_unsaved = Self::ccm_cal_unsaved_from_raw(bits::read_le(data, 36, 1) as u8);
+        let ccm_xcp_connected = Self::ccm_xcp_connected_from_raw(bits::read_le(data, 37, 1) as u8);
+        let ccm_xcp_unlocked = Self::ccm_xcp_unlocked_from_raw(bits::read_le(data, 38, 1) as u8);
+        let ccm_cal_changes = Self::ccm_cal_changes_from_raw(bits::read_le(data, 40, 8) as u8);
+        let ccm_cal_refusals = Self::ccm_cal_refusals_from_raw(bits::read_le(data, 48, 8) as u8);
+        visitor.signal(
+            &CCM_CALIBRATION_SIGNALS[0],
+            Value::from(ccm_cal_checksum),
+            None,
+        );
+        visitor.signal(
+            &CCM_CALIBRATION_SIGNALS[1],
+            Value::from(ccm_cal_startup),
+            CcmCalibrationCcmCalStartup::from_raw(ccm_cal_startup).label(),
+        );
+        visitor.signal(
+            &CCM_CALIBRATION_SIGNALS[2],
+            Value::from(ccm_cal_page),
+            CcmCalibrationCcmCalPage::from_raw(ccm_cal_page).label(),
+        );
+        visitor.signal(
+            &CCM_CALIBRATION_SIGNALS[3],
+            Value::from(ccm_cal_unsaved),
+            None,
+        );
+        visitor.signal(
+            &CCM_CALIBRATION_SIGNALS[4],
+            Value::from(ccm_xcp_connected),
+            None,
+        );
+        visitor.signal(
+            &CCM_CALIBRATION_SIGNALS[5],
+            Value::from(ccm_xcp_unlocked),
+            None,
+        );
+        visitor.signal(
+            &CCM_CALIBRATION_SIGNALS[6],
+            Value::from(ccm_cal_changes),
+            None,
+        );
+        visitor.signal(
+            &CCM_CALIBRATION_SIGNALS[7],
+            Value::from(ccm_cal_refusals),
+            None,
+        );
+        Ok(())
+    }
+
+    /// Builds the message from physical values looked up by signal.
+    pub fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
+        Ok(Self {
+            ccm_cal_checksum: {
+                let v = source.value(&CCM_CALIBRATION_SIGNALS[0]).ok_or(
+                    EncodeError::MissingSignal {
+                        message: "CCM_Calibration",
+                        signal: "CCM_CalChecksum",
+                    },
+                )?;
+                v.to_int::<u32>().ok_or(EncodeError::InvalidValue {
+                    message: "CCM_Calibration",
+                    signal: "CCM_CalChecksum",
+                })?
+            },
+            ccm_cal_startup: {
+                let v = source.value(&CCM_CALIBRATION_SIGNALS[1]).ok_or(
+                    EncodeError::MissingSignal {
+                        message: "CCM_Calibration",
+                        signal: "CCM_CalStartup",
+                    },
+                )?;
+                v.to_int::<u8>()
+                    .map(CcmCalibrationCcmCalStartup::from_raw)
+                    .ok_or(EncodeError::InvalidValue {
+                        message: "CCM_Calibration",
+                        signal: "CCM_CalStartup",
+                    })?
+            },
+            ccm_cal_page: {
+                let v = source.value(&CCM_CALIBRATION_SIGNALS[2]).ok_or(
+                    EncodeError::MissingSignal {
+                        message: "CCM_Calibration",
+                        signal: "CCM_CalPage",
+                    },
+                )?;
+                v.to_int::<u8>()
+                    .map(CcmCalibrationCcmCalPage::from_raw)
+                    .ok_or(EncodeError::InvalidValue {
+                        message: "CCM_Calibration",
+                        signal: "CCM_CalPage",
+                    })?
+            },
+            ccm_cal_unsaved: {
+                let v = source.value(&CCM_CALIBRATION_SIGNALS[3]).ok_or(
+                    EncodeError::MissingSignal {
+                        message: "CCM_Calibration",
+                        signal: "CCM_CalUnsaved",
+                    },
+                )?;
+                v.to_bool().ok_or(EncodeError::InvalidValue {
+                    message: "CCM_Calibration",
+                    signal: "CCM_CalUnsaved",
+                })?
+            },
+            ccm_xcp_connected: {
+                let v = source.value(&CCM_CALIBRATION_SIGNALS[4]).ok_or(
+                    EncodeError::MissingSignal {
+                        message: "CCM_Calibration",
+                        signal: "CCM_XcpConnected",
+                    },
+                )?;
+                v.to_bool().ok_or(EncodeError::InvalidValue {
+                    message: "CCM_Calibration",
+                    signal: "CCM_XcpConnected",
+                })?
+            },
+            ccm_xcp_unlocked: {
+                let v = source.value(&CCM_CALIBRATION_SIGNALS[5]).ok_or(
+                    EncodeError::MissingSignal {
+                        message: "CCM_Calibration",
+                        signal: "CCM_XcpUnlocked",
+                    },
+                )?;
+                v.to_bool().ok_or(EncodeError::InvalidValue {
+                    message: "CCM_Calibration",
+                    signal: "CCM_XcpUnlocked",
+                })?
+            },
+            ccm_cal_changes: {
+                let v = source.value(&CCM_CALIBRATION_SIGNALS[6]).ok_or(
+                    EncodeError::MissingSignal {
+                        message: "CCM_Calibration",
+                        signal: "CCM_CalChanges",
+                    },
+                )?;
+                v.to_int::<u8>().ok_or(EncodeError::InvalidValue {
+                    message: "CCM_Calibration",
+                    signal: "CCM_CalChanges",
+                })?
+            },
+            ccm_cal_refusals: {
+                let v = source.value(&CCM_CALIBRATION_SIGNALS[7]).ok_or(
+                    EncodeError::MissingSignal {
+                        message: "CCM_Calibration",
+                        signal: "CCM_CalRefusals",
+                    },
+                )?;
+                v.to_int::<u8>().ok_or(EncodeError::InvalidValue {
+                    message: "CCM_Calibration",
+                    signal: "CCM_CalRefusals",
+                })?
+            },
+        })
+    }
+
+    /// Physical value of `CCM_CalChecksum` for a raw value.
+    pub fn ccm_cal_checksum_from_raw(raw: u32) -> u32 {
+        raw
+    }
+
+    /// Raw value of `CCM_CalChecksum` for a physical value, range-checked.
+    pub fn ccm_cal_checksum_to_raw(v: u32) -> Result<u32, EncodeError> {
+        runtime::check_range(
+            f64::from(v),
+            0.0,
+            4294967295.0,
+            1e-6,
+            "CCM_Calibration",
+            "CCM_CalChecksum",
+        )?;
+        Ok(v)
+    }
+
+    /// Physical value of `CCM_CalStartup` for a raw value.
+    pub fn ccm_cal_startup_from_raw(raw: u8) -> CcmCalibrationCcmCalStartup {
+        CcmCalibrationCcmCalStartup::from_raw(raw)
+    }
+
+    /// Raw value of `CCM_CalStartup` for a physical value, range-checked.
+    pub fn ccm_cal_startup_to_raw(v: CcmCalibrationCcmCalStartup) -> Result<u8, EncodeError> {
+        if let CcmCalibrationCcmCalStartup::Unknown(raw) = v {
+            runtime::check_range(
+                raw as f64,
+                0.0,
+                4.0,
+                1e-6,
+                "CCM_Calibration",
+                "CCM_CalStartup",
+            )?;
+        }
+        let raw = v.into_raw();
+        if (0..=7).contains(&raw) {
+            Ok(raw)
+        } else {
+            Err(EncodeError::OutOfRange {
+                message: "CCM_Calibration",
+                signal: "CCM_CalStartup",
+            })
+        }
+    }
+
+    /// Physical value of `CCM_CalPage` for a raw value.
+    pub fn ccm_cal_page_from_raw(raw: u8) -> CcmCalibrationCcmCalPage {
+        CcmCalibrationCcmCalPage::from_raw(raw)
+    }
+
+    /// Raw value of `CCM_CalPage` for a physical value, range-checked.
+    pub fn ccm_cal_page_to_raw(v: CcmCalibrationCcmCalPage) -> Result<u8, EncodeError> {
+        if let CcmCalibrationCcmCalPage::Unknown(raw) = v {
+            runtime::check_range(raw as f64, 0.0, 1.0, 1e-6, "CCM_Calibration", "CCM_CalPage")?;
+        }
+        let raw = v.into_raw();
+        if (0..=1).contains(&raw) {
+            Ok(raw)
+        } else {
+            Err(EncodeError::OutOfRange {
+                message: "CCM_Calibration",
+                signal: "CCM_CalPage",
+            })
+        }
+    }
+
+    /// Physical value of `CCM_CalUnsaved` for a raw value.
+    pub fn ccm_cal_unsaved_from_raw(raw: u8) -> bool {
+        raw != 0
+    }
+
+    /// Raw value of `CCM_CalUnsaved` for a physical value, range-checked.
+    pub fn ccm_cal_unsaved_to_raw(v: bool) -> Result<u8, EncodeError> {
+        runtime::check_range(
+            f64::from(u8::from(v)),
+            0.0,
+            1.0,
+            1e-6,
+            "CCM_Calibration",
+            "CCM_CalUnsaved",
+        )?;
+        Ok(u8::from(v))
+    }
+
+    /// Physical value of `CCM_XcpConnected` for a raw value.
+    pub fn ccm_xcp_connected_from_raw(raw: u8) -> bool {
+        raw != 0
+    }
+
+    /// Raw value of `CCM_XcpConnected` for a physical value, range-checked.
+    pub fn ccm_xcp_connected_to_raw(v: bool) -> Result<u8, EncodeError> {
+        runtime::check_range(
+            f64::from(u8::from(v)),
+            0.0,
+            1.0,
+            1e-6,
+            "CCM_Calibration",
+            "CCM_XcpConnected",
+        )?;
+        Ok(u8::from(v))
+    }
+
+    /// Physical value of `CCM_XcpUnlocked` for a raw value.
+    pub fn ccm_xcp_unlocked_from_raw(raw: u8) -> bool {
+        raw != 0
+    }
+
+    /// Raw value of `CCM_XcpUnlocked` for a physical value, range-checked.
+    pub fn ccm_xcp_unlocked_to_raw(v: bool) -> Result<u8, EncodeError> {
+        runtime::check_range(
+            f64::from(u8::from(v)),
+            0.0,
+            1.0,
+            1e-6,
+            "CCM_Calibration",
+            "CCM_XcpUnlocked",
+        )?;
+        Ok(u8::from(v))
+    }
+
+    /// Physical value of `CCM_CalChanges` for a raw value.
+    pub fn ccm_cal_changes_from_raw(raw: u8) -> u8 {
+        raw
+    }
+
+    /// Raw value of `CCM_CalChanges` for a physical value, range-checked.
+    pub fn ccm_cal_changes_to_raw(v: u8) -> Result<u8, EncodeError> {
+        runtime::check_range(
+            f64::from(v),
+            0.0,
+            255.0,
+            1e-6,
+            "CCM_Calibration",
+            "CCM_CalChanges",
+        )?;
+        Ok(v)
+    }
+
+    /// Physical value of `CCM_CalRefusals` for a raw value.
+    pub fn ccm_cal_refusals_from_raw(raw: u8) -> u8 {
+        raw
+    }
+
+    /// Raw value of `CCM_CalRefusals` for a physical value, range-checked.
+    pub fn ccm_cal_refusals_to_raw(v: u8) -> Result<u8, EncodeError> {
+        runtime::check_range(
+            f64::from(v),
+            0.0,
+            255.0,
+            1e-6,
+            "CCM_Calibration",
+            "CCM_CalRefusals",
+        )?;
+        Ok(v)
+    }
+}
+
+impl CanMessage for CcmCalibration {
     const META: &'static MessageMeta = Self::META;
 
     fn decode(data: &[u8]) -> Result<Self, DecodeError> {
@@ -8369,6 +9530,339 @@ impl PccStatus {
 }
 
 impl CanMessage for PccStatus {
+    const META: &'static MessageMeta = Self::META;
+
+    fn decode(data: &[u8]) -> Result<Self, DecodeError> {
+        Self::decode(data)
+    }
+
+    fn encode(&self, out: &mut [u8]) -> Result<usize, EncodeError> {
+        self.encode(out)
+    }
+
+    fn visit(&self, visitor: &mut impl SignalVisitor) {
+        self.visit(visitor)
+    }
+
+    fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
+        Self::from_signals(source)
+    }
+}
+
+/// XCP on CAN, master to the CCM's calibration slave (ASAM MCD-1 XCP): command packets, always 8 bytes (MAX_DLC_REQUIRED). Sent on demand by the XCP master: the Pi's gateway at the track, a laptop's CAN interface on the bench. Layout: generated/aer.a2l.
+///
+/// `XCP_Cmd`: standard id 0x6F0, 8 bytes, sent by RASPI.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct XcpCmd {
+    /// The command (PID) of the XCP command packet; the parameters follow in bytes 1-7.
+    ///
+    /// `XCP_CommandCode`: 8 bits from bit 0 (Intel), unsigned, range [0.0, 255.0].
+    pub xcp_command_code: XcpCmdXcpCommandCode,
+}
+
+static XCP_CMD_SIGNALS: [SignalMeta; 1] = [SignalMeta {
+    name: "XCP_CommandCode",
+    index: 0,
+    unit: "",
+    comment: "The command (PID) of the XCP command packet; the parameters follow in bytes 1-7.",
+    start_bit: 0,
+    len: 8,
+    byte_order: ByteOrder::LittleEndian,
+    signed: false,
+    factor: 1.0,
+    offset: 0.0,
+    min: Some(0.0),
+    max: Some(255.0),
+    labels: &[
+        (211, "ALLOC_ODT_ENTRY"),
+        (212, "ALLOC_ODT"),
+        (213, "ALLOC_DAQ"),
+        (214, "FREE_DAQ"),
+        (215, "GET_DAQ_EVENT_INFO"),
+        (216, "GET_DAQ_LIST_INFO"),
+        (217, "GET_DAQ_RESOLUTION_INFO"),
+        (218, "GET_DAQ_PROCESSOR_INFO"),
+        (219, "READ_DAQ"),
+        (220, "GET_DAQ_CLOCK"),
+        (221, "START_STOP_SYNCH"),
+        (222, "START_STOP_DAQ_LIST"),
+        (223, "GET_DAQ_LIST_MODE"),
+        (224, "SET_DAQ_LIST_MODE"),
+        (225, "WRITE_DAQ"),
+        (226, "SET_DAQ_PTR"),
+        (227, "CLEAR_DAQ_LIST"),
+        (228, "COPY_CAL_PAGE"),
+        (229, "GET_SEGMENT_MODE"),
+        (230, "SET_SEGMENT_MODE"),
+        (231, "GET_PAGE_INFO"),
+        (232, "GET_SEGMENT_INFO"),
+        (233, "GET_PAG_PROCESSOR_INFO"),
+        (234, "GET_CAL_PAGE"),
+        (235, "SET_CAL_PAGE"),
+        (236, "MODIFY_BITS"),
+        (237, "SHORT_DOWNLOAD"),
+        (238, "DOWNLOAD_MAX"),
+        (239, "DOWNLOAD_NEXT"),
+        (240, "DOWNLOAD"),
+        (241, "USER_CMD"),
+        (242, "TRANSPORT_LAYER_CMD"),
+        (243, "BUILD_CHECKSUM"),
+        (244, "SHORT_UPLOAD"),
+        (245, "UPLOAD"),
+        (246, "SET_MTA"),
+        (247, "UNLOCK"),
+        (248, "GET_SEED"),
+        (249, "SET_REQUEST"),
+        (250, "GET_ID"),
+        (251, "GET_COMM_MODE_INFO"),
+        (252, "SYNCH"),
+        (253, "GET_STATUS"),
+        (254, "DISCONNECT"),
+        (255, "CONNECT"),
+    ],
+    multiplexed: false,
+}];
+
+impl XcpCmd {
+    pub const META: &'static MessageMeta = &MessageMeta {
+        name: "XCP_Cmd",
+        id: 0x6F0,
+        extended: false,
+        len: 8,
+        cycle_time_ms: None,
+        timeout_ms: None,
+        comment: "XCP on CAN, master to the CCM's calibration slave (ASAM MCD-1 XCP): command packets, always 8 bytes (MAX_DLC_REQUIRED). Sent on demand by the XCP master: the Pi's gateway at the track, a laptop's CAN interface on the bench. Layout: generated/aer.a2l.",
+        signals: &XCP_CMD_SIGNALS,
+        counter: None,
+        checksum: None,
+    };
+    pub const ID: u32 = 0x6F0;
+    pub const EXTENDED: bool = false;
+    pub const LEN: usize = 8;
+
+    /// Decodes a payload of at least [`Self::LEN`] bytes. Values outside the schema's range are
+    /// decoded as they are; only a short payload fails.
+    pub fn decode(data: &[u8]) -> Result<Self, DecodeError> {
+        let data = runtime::payload::<8>(data, "XCP_Cmd")?;
+        let xcp_command_code = Self::xcp_command_code_from_raw(bits::read_le(data, 0, 8) as u8);
+        Ok(Self { xcp_command_code })
+    }
+
+    /// Encodes into the first [`Self::LEN`] bytes of `out` and returns that length. Fails, naming
+    /// the signal, when a value is outside its range or its multiplexor disagrees.
+    pub fn encode(&self, out: &mut [u8]) -> Result<usize, EncodeError> {
+        let out = runtime::payload_mut::<8>(out, "XCP_Cmd")?;
+        bits::write_le(
+            out,
+            0,
+            8,
+            u64::from(Self::xcp_command_code_to_raw(self.xcp_command_code)?),
+        );
+        Ok(Self::LEN)
+    }
+
+    /// Calls `visitor` with every present signal's physical value.
+    pub fn visit(&self, visitor: &mut impl SignalVisitor) {
+        let v = self.xcp_command_code;
+        visitor.signal(&XCP_CMD_SIGNALS[0], Value::from(v.into_raw()), v.label());
+    }
+
+    /// Decodes a payload and calls `visitor` with every present signal's physical value, as
+    /// [`Self::decode`] and then [`Self::visit`] would, without building the message: the
+    /// values go from the payload straight to the visitor (an enum's as its raw number, which
+    /// is what `visit` hands on), so nothing is stored and read back.
+    pub fn decode_visit(data: &[u8], visitor: &mut impl SignalVisitor) -> Result<(), DecodeError> {
+        let data = runtime::payload::<8>(data, "XCP_Cmd")?;
+        let xcp_command_code = bits::read_le(data, 0, 8) as u8;
+        visitor.signal(
+            &XCP_CMD_SIGNALS[0],
+            Value::from(xcp_command_code),
+            XcpCmdXcpCommandCode::from_raw(xcp_command_code).label(),
+        );
+        Ok(())
+    }
+
+    /// Builds the message from physical values looked up by signal.
+    pub fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
+        Ok(Self {
+            xcp_command_code: {
+                let v = source
+                    .value(&XCP_CMD_SIGNALS[0])
+                    .ok_or(EncodeError::MissingSignal {
+                        message: "XCP_Cmd",
+                        signal: "XCP_CommandCode",
+                    })?;
+                v.to_int::<u8>().map(XcpCmdXcpCommandCode::from_raw).ok_or(
+                    EncodeError::InvalidValue {
+                        message: "XCP_Cmd",
+                        signal: "XCP_CommandCode",
+                    },
+                )?
+            },
+        })
+    }
+
+    /// Physical value of `XCP_CommandCode` for a raw value.
+    pub fn xcp_command_code_from_raw(raw: u8) -> XcpCmdXcpCommandCode {
+        XcpCmdXcpCommandCode::from_raw(raw)
+    }
+
+    /// Raw value of `XCP_CommandCode` for a physical value, range-checked.
+    pub fn xcp_command_code_to_raw(v: XcpCmdXcpCommandCode) -> Result<u8, EncodeError> {
+        if let XcpCmdXcpCommandCode::Unknown(raw) = v {
+            runtime::check_range(raw as f64, 0.0, 255.0, 1e-6, "XCP_Cmd", "XCP_CommandCode")?;
+        }
+        Ok(v.into_raw())
+    }
+}
+
+impl CanMessage for XcpCmd {
+    const META: &'static MessageMeta = Self::META;
+
+    fn decode(data: &[u8]) -> Result<Self, DecodeError> {
+        Self::decode(data)
+    }
+
+    fn encode(&self, out: &mut [u8]) -> Result<usize, EncodeError> {
+        self.encode(out)
+    }
+
+    fn visit(&self, visitor: &mut impl SignalVisitor) {
+        self.visit(visitor)
+    }
+
+    fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
+        Self::from_signals(source)
+    }
+}
+
+/// XCP on CAN, the CCM's calibration slave to the master: responses, errors, events and DAQ packets, always 8 bytes. The cycle time is the slave's budget, not a period: it sends at most one frame per 4 ms on average (DAQ lists are refused beyond it), so the bus load table counts a full DAQ list.
+///
+/// `XCP_Res`: standard id 0x6F1, 8 bytes, every 4 ms, lost after 20 ms, sent by CCM.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct XcpRes {
+    /// The packet identifier: a positive response, an error, an event, a service request, or below 0xFC the absolute ODT number of a DAQ packet.
+    ///
+    /// `XCP_PacketId`: 8 bits from bit 0 (Intel), unsigned, range [0.0, 255.0].
+    pub xcp_packet_id: XcpResXcpPacketId,
+}
+
+static XCP_RES_SIGNALS: [SignalMeta; 1] = [SignalMeta {
+    name: "XCP_PacketId",
+    index: 0,
+    unit: "",
+    comment: "The packet identifier: a positive response, an error, an event, a service request, or below 0xFC the absolute ODT number of a DAQ packet.",
+    start_bit: 0,
+    len: 8,
+    byte_order: ByteOrder::LittleEndian,
+    signed: false,
+    factor: 1.0,
+    offset: 0.0,
+    min: Some(0.0),
+    max: Some(255.0),
+    labels: &[(252, "SERV"), (253, "EV"), (254, "ERR"), (255, "RES")],
+    multiplexed: false,
+}];
+
+impl XcpRes {
+    pub const META: &'static MessageMeta = &MessageMeta {
+        name: "XCP_Res",
+        id: 0x6F1,
+        extended: false,
+        len: 8,
+        cycle_time_ms: Some(4),
+        timeout_ms: Some(20),
+        comment: "XCP on CAN, the CCM's calibration slave to the master: responses, errors, events and DAQ packets, always 8 bytes. The cycle time is the slave's budget, not a period: it sends at most one frame per 4 ms on average (DAQ lists are refused beyond it), so the bus load table counts a full DAQ list.",
+        signals: &XCP_RES_SIGNALS,
+        counter: None,
+        checksum: None,
+    };
+    pub const ID: u32 = 0x6F1;
+    pub const EXTENDED: bool = false;
+    pub const LEN: usize = 8;
+    pub const CYCLE_TIME_MS: u32 = 4;
+    /// How old the last frame may be before receivers count the message lost.
+    pub const TIMEOUT_MS: u32 = 20;
+
+    /// Decodes a payload of at least [`Self::LEN`] bytes. Values outside the schema's range are
+    /// decoded as they are; only a short payload fails.
+    pub fn decode(data: &[u8]) -> Result<Self, DecodeError> {
+        let data = runtime::payload::<8>(data, "XCP_Res")?;
+        let xcp_packet_id = Self::xcp_packet_id_from_raw(bits::read_le(data, 0, 8) as u8);
+        Ok(Self { xcp_packet_id })
+    }
+
+    /// Encodes into the first [`Self::LEN`] bytes of `out` and returns that length. Fails, naming
+    /// the signal, when a value is outside its range or its multiplexor disagrees.
+    pub fn encode(&self, out: &mut [u8]) -> Result<usize, EncodeError> {
+        let out = runtime::payload_mut::<8>(out, "XCP_Res")?;
+        bits::write_le(
+            out,
+            0,
+            8,
+            u64::from(Self::xcp_packet_id_to_raw(self.xcp_packet_id)?),
+        );
+        Ok(Self::LEN)
+    }
+
+    /// Calls `visitor` with every present signal's physical value.
+    pub fn visit(&self, visitor: &mut impl SignalVisitor) {
+        let v = self.xcp_packet_id;
+        visitor.signal(&XCP_RES_SIGNALS[0], Value::from(v.into_raw()), v.label());
+    }
+
+    /// Decodes a payload and calls `visitor` with every present signal's physical value, as
+    /// [`Self::decode`] and then [`Self::visit`] would, without building the message: the
+    /// values go from the payload straight to the visitor (an enum's as its raw number, which
+    /// is what `visit` hands on), so nothing is stored and read back.
+    pub fn decode_visit(data: &[u8], visitor: &mut impl SignalVisitor) -> Result<(), DecodeError> {
+        let data = runtime::payload::<8>(data, "XCP_Res")?;
+        let xcp_packet_id = bits::read_le(data, 0, 8) as u8;
+        visitor.signal(
+            &XCP_RES_SIGNALS[0],
+            Value::from(xcp_packet_id),
+            XcpResXcpPacketId::from_raw(xcp_packet_id).label(),
+        );
+        Ok(())
+    }
+
+    /// Builds the message from physical values looked up by signal.
+    pub fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
+        Ok(Self {
+            xcp_packet_id: {
+                let v = source
+                    .value(&XCP_RES_SIGNALS[0])
+                    .ok_or(EncodeError::MissingSignal {
+                        message: "XCP_Res",
+                        signal: "XCP_PacketId",
+                    })?;
+                v.to_int::<u8>().map(XcpResXcpPacketId::from_raw).ok_or(
+                    EncodeError::InvalidValue {
+                        message: "XCP_Res",
+                        signal: "XCP_PacketId",
+                    },
+                )?
+            },
+        })
+    }
+
+    /// Physical value of `XCP_PacketId` for a raw value.
+    pub fn xcp_packet_id_from_raw(raw: u8) -> XcpResXcpPacketId {
+        XcpResXcpPacketId::from_raw(raw)
+    }
+
+    /// Raw value of `XCP_PacketId` for a physical value, range-checked.
+    pub fn xcp_packet_id_to_raw(v: XcpResXcpPacketId) -> Result<u8, EncodeError> {
+        if let XcpResXcpPacketId::Unknown(raw) = v {
+            runtime::check_range(raw as f64, 0.0, 255.0, 1e-6, "XCP_Res", "XCP_PacketId")?;
+        }
+        Ok(v.into_raw())
+    }
+}
+
+impl CanMessage for XcpRes {
     const META: &'static MessageMeta = Self::META;
 
     fn decode(data: &[u8]) -> Result<Self, DecodeError> {
@@ -16659,8 +18153,9 @@ impl CanMessage for DtiDcLimits {
 }
 
 /// Metadata of every message, in schema order.
-pub static MESSAGES: [&MessageMeta; 36] = [
+pub static MESSAGES: [&MessageMeta; 39] = [
     CcmStatus::META,
+    CcmCalibration::META,
     Vcu1::META,
     Mcu1::META,
     Mcu2::META,
@@ -16671,6 +18166,8 @@ pub static MESSAGES: [&MessageMeta; 36] = [
     OrionLimits::META,
     OrionCellVoltages::META,
     PccStatus::META,
+    XcpCmd::META,
+    XcpRes::META,
     ImdInfoGeneral::META,
     ImdInfoIsolationDetail::META,
     ImdInfoVoltage::META,
@@ -16702,6 +18199,7 @@ pub static MESSAGES: [&MessageMeta; 36] = [
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum AnyMessage {
     CcmStatus(CcmStatus),
+    CcmCalibration(CcmCalibration),
     Vcu1(Vcu1),
     Mcu1(Mcu1),
     Mcu2(Mcu2),
@@ -16712,6 +18210,8 @@ pub enum AnyMessage {
     OrionLimits(OrionLimits),
     OrionCellVoltages(OrionCellVoltages),
     PccStatus(PccStatus),
+    XcpCmd(XcpCmd),
+    XcpRes(XcpRes),
     ImdInfoGeneral(ImdInfoGeneral),
     ImdInfoIsolationDetail(ImdInfoIsolationDetail),
     ImdInfoVoltage(ImdInfoVoltage),
@@ -16744,6 +18244,7 @@ impl AnyMessage {
     pub fn decode(id: u32, extended: bool, data: &[u8]) -> Result<Self, DecodeError> {
         match (id, extended) {
             (0xA0, false) => CcmStatus::decode(data).map(Self::CcmStatus),
+            (0xA1, false) => CcmCalibration::decode(data).map(Self::CcmCalibration),
             (0x101, false) => Vcu1::decode(data).map(Self::Vcu1),
             (0x105, false) => Mcu1::decode(data).map(Self::Mcu1),
             (0x106, false) => Mcu2::decode(data).map(Self::Mcu2),
@@ -16754,6 +18255,8 @@ impl AnyMessage {
             (0x6B1, false) => OrionLimits::decode(data).map(Self::OrionLimits),
             (0x6B2, false) => OrionCellVoltages::decode(data).map(Self::OrionCellVoltages),
             (0x222, false) => PccStatus::decode(data).map(Self::PccStatus),
+            (0x6F0, false) => XcpCmd::decode(data).map(Self::XcpCmd),
+            (0x6F1, false) => XcpRes::decode(data).map(Self::XcpRes),
             (0x18FF01F4, true) => ImdInfoGeneral::decode(data).map(Self::ImdInfoGeneral),
             (0x18FF02F4, true) => {
                 ImdInfoIsolationDetail::decode(data).map(Self::ImdInfoIsolationDetail)
@@ -16802,6 +18305,7 @@ impl AnyMessage {
     ) -> Result<(), DecodeError> {
         match (id, extended) {
             (0xA0, false) => CcmStatus::decode_visit(data, visitor),
+            (0xA1, false) => CcmCalibration::decode_visit(data, visitor),
             (0x101, false) => Vcu1::decode_visit(data, visitor),
             (0x105, false) => Mcu1::decode_visit(data, visitor),
             (0x106, false) => Mcu2::decode_visit(data, visitor),
@@ -16812,6 +18316,8 @@ impl AnyMessage {
             (0x6B1, false) => OrionLimits::decode_visit(data, visitor),
             (0x6B2, false) => OrionCellVoltages::decode_visit(data, visitor),
             (0x222, false) => PccStatus::decode_visit(data, visitor),
+            (0x6F0, false) => XcpCmd::decode_visit(data, visitor),
+            (0x6F1, false) => XcpRes::decode_visit(data, visitor),
             (0x18FF01F4, true) => ImdInfoGeneral::decode_visit(data, visitor),
             (0x18FF02F4, true) => ImdInfoIsolationDetail::decode_visit(data, visitor),
             (0x18FF03F4, true) => ImdInfoVoltage::decode_visit(data, visitor),
@@ -16855,6 +18361,7 @@ impl AnyMessage {
     ) -> Result<Self, EncodeError> {
         match (id, extended) {
             (0xA0, false) => CcmStatus::from_signals(source).map(Self::CcmStatus),
+            (0xA1, false) => CcmCalibration::from_signals(source).map(Self::CcmCalibration),
             (0x101, false) => Vcu1::from_signals(source).map(Self::Vcu1),
             (0x105, false) => Mcu1::from_signals(source).map(Self::Mcu1),
             (0x106, false) => Mcu2::from_signals(source).map(Self::Mcu2),
@@ -16865,6 +18372,8 @@ impl AnyMessage {
             (0x6B1, false) => OrionLimits::from_signals(source).map(Self::OrionLimits),
             (0x6B2, false) => OrionCellVoltages::from_signals(source).map(Self::OrionCellVoltages),
             (0x222, false) => PccStatus::from_signals(source).map(Self::PccStatus),
+            (0x6F0, false) => XcpCmd::from_signals(source).map(Self::XcpCmd),
+            (0x6F1, false) => XcpRes::from_signals(source).map(Self::XcpRes),
             (0x18FF01F4, true) => ImdInfoGeneral::from_signals(source).map(Self::ImdInfoGeneral),
             (0x18FF02F4, true) => {
                 ImdInfoIsolationDetail::from_signals(source).map(Self::ImdInfoIsolationDetail)
@@ -16909,6 +18418,7 @@ impl AnyMessage {
     pub fn meta(&self) -> &'static MessageMeta {
         match *self {
             Self::CcmStatus(_) => CcmStatus::META,
+            Self::CcmCalibration(_) => CcmCalibration::META,
             Self::Vcu1(_) => Vcu1::META,
             Self::Mcu1(_) => Mcu1::META,
             Self::Mcu2(_) => Mcu2::META,
@@ -16919,6 +18429,8 @@ impl AnyMessage {
             Self::OrionLimits(_) => OrionLimits::META,
             Self::OrionCellVoltages(_) => OrionCellVoltages::META,
             Self::PccStatus(_) => PccStatus::META,
+            Self::XcpCmd(_) => XcpCmd::META,
+            Self::XcpRes(_) => XcpRes::META,
             Self::ImdInfoGeneral(_) => ImdInfoGeneral::META,
             Self::ImdInfoIsolationDetail(_) => ImdInfoIsolationDetail::META,
             Self::ImdInfoVoltage(_) => ImdInfoVoltage::META,
@@ -16952,6 +18464,7 @@ impl AnyMessage {
     pub fn encode(&self, out: &mut [u8]) -> Result<usize, EncodeError> {
         match self {
             Self::CcmStatus(m) => m.encode(out),
+            Self::CcmCalibration(m) => m.encode(out),
             Self::Vcu1(m) => m.encode(out),
             Self::Mcu1(m) => m.encode(out),
             Self::Mcu2(m) => m.encode(out),
@@ -16962,6 +18475,8 @@ impl AnyMessage {
             Self::OrionLimits(m) => m.encode(out),
             Self::OrionCellVoltages(m) => m.encode(out),
             Self::PccStatus(m) => m.encode(out),
+            Self::XcpCmd(m) => m.encode(out),
+            Self::XcpRes(m) => m.encode(out),
             Self::ImdInfoGeneral(m) => m.encode(out),
             Self::ImdInfoIsolationDetail(m) => m.encode(out),
             Self::ImdInfoVoltage(m) => m.encode(out),
@@ -16994,6 +18509,7 @@ impl AnyMessage {
     pub fn visit(&self, visitor: &mut impl SignalVisitor) {
         match self {
             Self::CcmStatus(m) => m.visit(visitor),
+            Self::CcmCalibration(m) => m.visit(visitor),
             Self::Vcu1(m) => m.visit(visitor),
             Self::Mcu1(m) => m.visit(visitor),
             Self::Mcu2(m) => m.visit(visitor),
@@ -17004,6 +18520,8 @@ impl AnyMessage {
             Self::OrionLimits(m) => m.visit(visitor),
             Self::OrionCellVoltages(m) => m.visit(visitor),
             Self::PccStatus(m) => m.visit(visitor),
+            Self::XcpCmd(m) => m.visit(visitor),
+            Self::XcpRes(m) => m.visit(visitor),
             Self::ImdInfoGeneral(m) => m.visit(visitor),
             Self::ImdInfoIsolationDetail(m) => m.visit(visitor),
             Self::ImdInfoVoltage(m) => m.visit(visitor),
@@ -17036,6 +18554,7 @@ impl AnyMessage {
     pub fn to_frame<F: embedded_can::Frame>(&self) -> Result<F, EncodeError> {
         match self {
             Self::CcmStatus(m) => m.to_frame(),
+            Self::CcmCalibration(m) => m.to_frame(),
             Self::Vcu1(m) => m.to_frame(),
             Self::Mcu1(m) => m.to_frame(),
             Self::Mcu2(m) => m.to_frame(),
@@ -17046,6 +18565,8 @@ impl AnyMessage {
             Self::OrionLimits(m) => m.to_frame(),
             Self::OrionCellVoltages(m) => m.to_frame(),
             Self::PccStatus(m) => m.to_frame(),
+            Self::XcpCmd(m) => m.to_frame(),
+            Self::XcpRes(m) => m.to_frame(),
             Self::ImdInfoGeneral(m) => m.to_frame(),
             Self::ImdInfoIsolationDetail(m) => m.to_frame(),
             Self::ImdInfoVoltage(m) => m.to_frame(),

@@ -405,6 +405,10 @@ pub mod can {
     /// Frames of `CcmStatus`.
     pub const CCM_STATUS: Topic<Sample<crate::can::CcmStatus>> = Topic::new("can/ccm_status");
 
+    /// Frames of `CcmCalibration`.
+    pub const CCM_CALIBRATION: Topic<Sample<crate::can::CcmCalibration>> =
+        Topic::new("can/ccm_calibration");
+
     /// Frames of `Vcu1`.
     pub const VCU1: Topic<Sample<crate::can::Vcu1>> = Topic::new("can/vcu1");
 
@@ -436,6 +440,12 @@ pub mod can {
 
     /// Frames of `PccStatus`.
     pub const PCC_STATUS: Topic<Sample<crate::can::PccStatus>> = Topic::new("can/pcc_status");
+
+    /// Frames of `XcpCmd`.
+    pub const XCP_CMD: Topic<Sample<crate::can::XcpCmd>> = Topic::new("can/xcp_cmd");
+
+    /// Frames of `XcpRes`.
+    pub const XCP_RES: Topic<Sample<crate::can::XcpRes>> = Topic::new("can/xcp_res");
 
     /// Frames of `ImdInfoGeneral`.
     pub const IMD_INFO_GENERAL: Topic<Sample<crate::can::ImdInfoGeneral>> =
@@ -535,9 +545,10 @@ pub mod can {
 
 /// Every topic suffix of the schema: telemetry, then the CAN messages (for subscriptions and
 /// documentation).
-pub const SUFFIXES: [&str; 37] = [
+pub const SUFFIXES: [&str; 40] = [
     TELEMETRY.suffix(),
     can::CCM_STATUS.suffix(),
+    can::CCM_CALIBRATION.suffix(),
     can::VCU1.suffix(),
     can::MCU1.suffix(),
     can::MCU2.suffix(),
@@ -548,6 +559,8 @@ pub const SUFFIXES: [&str; 37] = [
     can::ORION_LIMITS.suffix(),
     can::ORION_CELL_VOLTAGES.suffix(),
     can::PCC_STATUS.suffix(),
+    can::XCP_CMD.suffix(),
+    can::XCP_RES.suffix(),
     can::IMD_INFO_GENERAL.suffix(),
     can::IMD_INFO_ISOLATION_DETAIL.suffix(),
     can::IMD_INFO_VOLTAGE.suffix(),
@@ -585,10 +598,14 @@ pub struct CanTopic {
 }
 
 /// Every CAN message's topic, in the schema's order (as [`crate::can::MESSAGES`]).
-pub static CAN_TOPICS: [CanTopic; 36] = [
+pub static CAN_TOPICS: [CanTopic; 39] = [
     CanTopic {
         meta: crate::can::CcmStatus::META,
         suffix: can::CCM_STATUS.suffix(),
+    },
+    CanTopic {
+        meta: crate::can::CcmCalibration::META,
+        suffix: can::CCM_CALIBRATION.suffix(),
     },
     CanTopic {
         meta: crate::can::Vcu1::META,
@@ -629,6 +646,14 @@ pub static CAN_TOPICS: [CanTopic; 36] = [
     CanTopic {
         meta: crate::can::PccStatus::META,
         suffix: can::PCC_STATUS.suffix(),
+    },
+    CanTopic {
+        meta: crate::can::XcpCmd::META,
+        suffix: can::XCP_CMD.suffix(),
+    },
+    CanTopic {
+        meta: crate::can::XcpRes::META,
+        suffix: can::XCP_RES.suffix(),
     },
     CanTopic {
         meta: crate::can::ImdInfoGeneral::META,
@@ -744,6 +769,10 @@ pub fn decode_message(
             ts: s.ts,
             value: AnyMessage::CcmStatus(s.value),
         }),
+        "can/ccm_calibration" => can::CCM_CALIBRATION.decode(payload).map(|s| Sample {
+            ts: s.ts,
+            value: AnyMessage::CcmCalibration(s.value),
+        }),
         "can/vcu1" => can::VCU1.decode(payload).map(|s| Sample {
             ts: s.ts,
             value: AnyMessage::Vcu1(s.value),
@@ -783,6 +812,14 @@ pub fn decode_message(
         "can/pcc_status" => can::PCC_STATUS.decode(payload).map(|s| Sample {
             ts: s.ts,
             value: AnyMessage::PccStatus(s.value),
+        }),
+        "can/xcp_cmd" => can::XCP_CMD.decode(payload).map(|s| Sample {
+            ts: s.ts,
+            value: AnyMessage::XcpCmd(s.value),
+        }),
+        "can/xcp_res" => can::XCP_RES.decode(payload).map(|s| Sample {
+            ts: s.ts,
+            value: AnyMessage::XcpRes(s.value),
         }),
         "can/imd_info_general" => can::IMD_INFO_GENERAL.decode(payload).map(|s| Sample {
             ts: s.ts,
@@ -924,6 +961,10 @@ pub fn encode_message(
     use crate::can::AnyMessage;
     match message {
         AnyMessage::CcmStatus(value) => (can::CCM_STATUS.suffix(), ccm_status_json(value, ts, bus)),
+        AnyMessage::CcmCalibration(value) => (
+            can::CCM_CALIBRATION.suffix(),
+            ccm_calibration_json(value, ts, bus),
+        ),
         AnyMessage::Vcu1(value) => (can::VCU1.suffix(), vcu1_json(value, ts, bus)),
         AnyMessage::Mcu1(value) => (can::MCU1.suffix(), mcu1_json(value, ts, bus)),
         AnyMessage::Mcu2(value) => (can::MCU2.suffix(), mcu2_json(value, ts, bus)),
@@ -943,6 +984,8 @@ pub fn encode_message(
             orion_cell_voltages_json(value, ts, bus),
         ),
         AnyMessage::PccStatus(value) => (can::PCC_STATUS.suffix(), pcc_status_json(value, ts, bus)),
+        AnyMessage::XcpCmd(value) => (can::XCP_CMD.suffix(), xcp_cmd_json(value, ts, bus)),
+        AnyMessage::XcpRes(value) => (can::XCP_RES.suffix(), xcp_res_json(value, ts, bus)),
         AnyMessage::ImdInfoGeneral(value) => (
             can::IMD_INFO_GENERAL.suffix(),
             imd_info_general_json(value, ts, bus),
@@ -1087,6 +1130,37 @@ fn ccm_status_json(value: &crate::can::CcmStatus, ts: f64, bus: &str) -> Vec<u8>
     json_bool(out, value.ccm_fault_inverter_warning);
     out.extend_from_slice(b",\"ccm_fault_pcc_error\":");
     json_bool(out, value.ccm_fault_pcc_error);
+    out.push(b'}');
+    payload
+}
+
+fn ccm_calibration_json(value: &crate::can::CcmCalibration, ts: f64, bus: &str) -> Vec<u8> {
+    let mut payload = Vec::with_capacity(522 + bus.len());
+    let out = &mut payload;
+    out.extend_from_slice(b"{\"ts\":");
+    json_float(out, ts);
+    out.extend_from_slice(b",\"bus\":");
+    json_str(out, bus);
+    out.extend_from_slice(b",\"ccm_cal_checksum\":");
+    json_int(out, value.ccm_cal_checksum);
+    out.extend_from_slice(b",\"ccm_cal_startup\":");
+    json_int(out, value.ccm_cal_startup.into_raw());
+    out.extend_from_slice(b",\"ccm_cal_startup_label\":");
+    json_label(out, value.ccm_cal_startup.label());
+    out.extend_from_slice(b",\"ccm_cal_page\":");
+    json_int(out, value.ccm_cal_page.into_raw());
+    out.extend_from_slice(b",\"ccm_cal_page_label\":");
+    json_label(out, value.ccm_cal_page.label());
+    out.extend_from_slice(b",\"ccm_cal_unsaved\":");
+    json_bool(out, value.ccm_cal_unsaved);
+    out.extend_from_slice(b",\"ccm_xcp_connected\":");
+    json_bool(out, value.ccm_xcp_connected);
+    out.extend_from_slice(b",\"ccm_xcp_unlocked\":");
+    json_bool(out, value.ccm_xcp_unlocked);
+    out.extend_from_slice(b",\"ccm_cal_changes\":");
+    json_int(out, value.ccm_cal_changes);
+    out.extend_from_slice(b",\"ccm_cal_refusals\":");
+    json_int(out, value.ccm_cal_refusals);
     out.push(b'}');
     payload
 }
@@ -1367,6 +1441,36 @@ fn pcc_status_json(value: &crate::can::PccStatus, ts: f64, bus: &str) -> Vec<u8>
     json_fixed(out, value.pcc_tractive_voltage, 2);
     out.extend_from_slice(b",\"pcc_precharge_progress\":");
     json_fixed(out, value.pcc_precharge_progress, 2);
+    out.push(b'}');
+    payload
+}
+
+fn xcp_cmd_json(value: &crate::can::XcpCmd, ts: f64, bus: &str) -> Vec<u8> {
+    let mut payload = Vec::with_capacity(164 + bus.len());
+    let out = &mut payload;
+    out.extend_from_slice(b"{\"ts\":");
+    json_float(out, ts);
+    out.extend_from_slice(b",\"bus\":");
+    json_str(out, bus);
+    out.extend_from_slice(b",\"xcp_command_code\":");
+    json_int(out, value.xcp_command_code.into_raw());
+    out.extend_from_slice(b",\"xcp_command_code_label\":");
+    json_label(out, value.xcp_command_code.label());
+    out.push(b'}');
+    payload
+}
+
+fn xcp_res_json(value: &crate::can::XcpRes, ts: f64, bus: &str) -> Vec<u8> {
+    let mut payload = Vec::with_capacity(161 + bus.len());
+    let out = &mut payload;
+    out.extend_from_slice(b"{\"ts\":");
+    json_float(out, ts);
+    out.extend_from_slice(b",\"bus\":");
+    json_str(out, bus);
+    out.extend_from_slice(b",\"xcp_packet_id\":");
+    json_int(out, value.xcp_packet_id.into_raw());
+    out.extend_from_slice(b",\"xcp_packet_id_label\":");
+    json_label(out, value.xcp_packet_id.label());
     out.push(b'}');
     payload
 }

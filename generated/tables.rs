@@ -607,10 +607,77 @@ pub static CAN_CCM_STATUS: Table = Table {
     },
 };
 
+/// CAN message `CCM_Calibration` (0xA1), one row per frame; multiplexed signals are NULL when absent.
+pub static CAN_CCM_CALIBRATION: Table = Table {
+    name: "can_ccm_calibration",
+    index: 2,
+    tags: &[
+        Column {
+            name: "car_id",
+            ty: ColumnType::VarChar(32),
+        },
+        Column {
+            name: "bus",
+            ty: ColumnType::VarChar(16),
+        },
+        Column {
+            name: "schema_fingerprint",
+            ty: ColumnType::U32,
+        },
+    ],
+    columns: &[
+        Column {
+            name: "ts",
+            ty: ColumnType::Timestamp,
+        },
+        Column {
+            name: "ccm_cal_checksum",
+            ty: ColumnType::U32,
+        },
+        Column {
+            name: "ccm_cal_startup",
+            ty: ColumnType::U8,
+        },
+        Column {
+            name: "ccm_cal_page",
+            ty: ColumnType::U8,
+        },
+        Column {
+            name: "ccm_cal_unsaved",
+            ty: ColumnType::Bool,
+        },
+        Column {
+            name: "ccm_xcp_connected",
+            ty: ColumnType::Bool,
+        },
+        Column {
+            name: "ccm_xcp_unlocked",
+            ty: ColumnType::Bool,
+        },
+        Column {
+            name: "ccm_cal_changes",
+            ty: ColumnType::U8,
+        },
+        Column {
+            name: "ccm_cal_refusals",
+            ty: ColumnType::U8,
+        },
+    ],
+    signals: super::can::CcmCalibration::META.signals,
+    tdengine: TdengineTable {
+        create: "CREATE STABLE IF NOT EXISTS `can_ccm_calibration` (`ts` TIMESTAMP, `ccm_cal_checksum` INT UNSIGNED, `ccm_cal_startup` TINYINT UNSIGNED, `ccm_cal_page` TINYINT UNSIGNED, `ccm_cal_unsaved` BOOL, `ccm_xcp_connected` BOOL, `ccm_xcp_unlocked` BOOL, `ccm_cal_changes` TINYINT UNSIGNED, `ccm_cal_refusals` TINYINT UNSIGNED) TAGS (`car_id` VARCHAR(32), `bus` VARCHAR(16), `schema_fingerprint` INT UNSIGNED)",
+        insert: "INSERT INTO ? USING `can_ccm_calibration` TAGS (?, ?, ?) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)",
+    },
+    sqlite: SqliteTable {
+        create: r#"CREATE TABLE IF NOT EXISTS "can_ccm_calibration" ("id" INTEGER PRIMARY KEY AUTOINCREMENT, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "ccm_cal_checksum" INTEGER, "ccm_cal_startup" INTEGER, "ccm_cal_page" INTEGER, "ccm_cal_unsaved" INTEGER, "ccm_xcp_connected" INTEGER, "ccm_xcp_unlocked" INTEGER, "ccm_cal_changes" INTEGER, "ccm_cal_refusals" INTEGER)"#,
+        insert: r#"INSERT INTO "can_ccm_calibration" ("car_id", "bus", "schema_fingerprint", "ts", "ccm_cal_checksum", "ccm_cal_startup", "ccm_cal_page", "ccm_cal_unsaved", "ccm_xcp_connected", "ccm_xcp_unlocked", "ccm_cal_changes", "ccm_cal_refusals") VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12)"#,
+    },
+};
+
 /// CAN message `VCU1` (0x101), one row per frame; multiplexed signals are NULL when absent.
 pub static CAN_VCU1: Table = Table {
     name: "can_vcu1",
-    index: 2,
+    index: 3,
     tags: &[
         Column {
             name: "car_id",
@@ -717,7 +784,7 @@ pub static CAN_VCU1: Table = Table {
 /// CAN message `MCU1` (0x105), one row per frame; multiplexed signals are NULL when absent.
 pub static CAN_MCU1: Table = Table {
     name: "can_mcu1",
-    index: 3,
+    index: 4,
     tags: &[
         Column {
             name: "car_id",
@@ -788,7 +855,7 @@ pub static CAN_MCU1: Table = Table {
 /// CAN message `MCU2` (0x106), one row per frame; multiplexed signals are NULL when absent.
 pub static CAN_MCU2: Table = Table {
     name: "can_mcu2",
-    index: 4,
+    index: 5,
     tags: &[
         Column {
             name: "car_id",
@@ -907,7 +974,7 @@ pub static CAN_MCU2: Table = Table {
 /// CAN message `MCU3` (0x107), one row per frame; multiplexed signals are NULL when absent.
 pub static CAN_MCU3: Table = Table {
     name: "can_mcu3",
-    index: 5,
+    index: 6,
     tags: &[
         Column {
             name: "car_id",
@@ -954,7 +1021,7 @@ pub static CAN_MCU3: Table = Table {
 /// CAN message `BMS1` (0x1A0), one row per frame; multiplexed signals are NULL when absent.
 pub static CAN_BMS1: Table = Table {
     name: "can_bms1",
-    index: 6,
+    index: 7,
     tags: &[
         Column {
             name: "car_id",
@@ -997,7 +1064,7 @@ pub static CAN_BMS1: Table = Table {
 /// CAN message `BMS2` (0x1A1), one row per frame; multiplexed signals are NULL when absent.
 pub static CAN_BMS2: Table = Table {
     name: "can_bms2",
-    index: 7,
+    index: 8,
     tags: &[
         Column {
             name: "car_id",
@@ -1036,7 +1103,7 @@ pub static CAN_BMS2: Table = Table {
 /// CAN message `Orion_PackStatus` (0x6B0), one row per frame; multiplexed signals are NULL when absent.
 pub static CAN_ORION_PACK_STATUS: Table = Table {
     name: "can_orion_pack_status",
-    index: 8,
+    index: 9,
     tags: &[
         Column {
             name: "car_id",
@@ -1087,7 +1154,7 @@ pub static CAN_ORION_PACK_STATUS: Table = Table {
 /// CAN message `Orion_Limits` (0x6B1), one row per frame; multiplexed signals are NULL when absent.
 pub static CAN_ORION_LIMITS: Table = Table {
     name: "can_orion_limits",
-    index: 9,
+    index: 10,
     tags: &[
         Column {
             name: "car_id",
@@ -1138,7 +1205,7 @@ pub static CAN_ORION_LIMITS: Table = Table {
 /// CAN message `Orion_CellVoltages` (0x6B2), one row per frame; multiplexed signals are NULL when absent.
 pub static CAN_ORION_CELL_VOLTAGES: Table = Table {
     name: "can_orion_cell_voltages",
-    index: 10,
+    index: 11,
     tags: &[
         Column {
             name: "car_id",
@@ -1189,7 +1256,7 @@ pub static CAN_ORION_CELL_VOLTAGES: Table = Table {
 /// CAN message `PCC_Status` (0x222), one row per frame; multiplexed signals are NULL when absent.
 pub static CAN_PCC_STATUS: Table = Table {
     name: "can_pcc_status",
-    index: 11,
+    index: 12,
     tags: &[
         Column {
             name: "car_id",
@@ -1257,10 +1324,88 @@ pub static CAN_PCC_STATUS: Table = Table {
     },
 };
 
+/// CAN message `XCP_Cmd` (0x6F0), one row per frame; multiplexed signals are NULL when absent.
+pub static CAN_XCP_CMD: Table = Table {
+    name: "can_xcp_cmd",
+    index: 13,
+    tags: &[
+        Column {
+            name: "car_id",
+            ty: ColumnType::VarChar(32),
+        },
+        Column {
+            name: "bus",
+            ty: ColumnType::VarChar(16),
+        },
+        Column {
+            name: "schema_fingerprint",
+            ty: ColumnType::U32,
+        },
+    ],
+    columns: &[
+        Column {
+            name: "ts",
+            ty: ColumnType::Timestamp,
+        },
+        Column {
+            name: "xcp_command_code",
+            ty: ColumnType::U8,
+        },
+    ],
+    signals: super::can::XcpCmd::META.signals,
+    tdengine: TdengineTable {
+        create: "CREATE STABLE IF NOT EXISTS `can_xcp_cmd` (`ts` TIMESTAMP, `xcp_command_code` TINYINT UNSIGNED) TAGS (`car_id` VARCHAR(32), `bus` VARCHAR(16), `schema_fingerprint` INT UNSIGNED)",
+        insert: "INSERT INTO ? USING `can_xcp_cmd` TAGS (?, ?, ?) VALUES (?, ?)",
+    },
+    sqlite: SqliteTable {
+        create: r#"CREATE TABLE IF NOT EXISTS "can_xcp_cmd" ("id" INTEGER PRIMARY KEY AUTOINCREMENT, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "xcp_command_code" INTEGER)"#,
+        insert: r#"INSERT INTO "can_xcp_cmd" ("car_id", "bus", "schema_fingerprint", "ts", "xcp_command_code") VALUES (?1, ?2, ?3, ?4, ?5)"#,
+    },
+};
+
+/// CAN message `XCP_Res` (0x6F1), one row per frame; multiplexed signals are NULL when absent.
+pub static CAN_XCP_RES: Table = Table {
+    name: "can_xcp_res",
+    index: 14,
+    tags: &[
+        Column {
+            name: "car_id",
+            ty: ColumnType::VarChar(32),
+        },
+        Column {
+            name: "bus",
+            ty: ColumnType::VarChar(16),
+        },
+        Column {
+            name: "schema_fingerprint",
+            ty: ColumnType::U32,
+        },
+    ],
+    columns: &[
+        Column {
+            name: "ts",
+            ty: ColumnType::Timestamp,
+        },
+        Column {
+            name: "xcp_packet_id",
+            ty: ColumnType::U8,
+        },
+    ],
+    signals: super::can::XcpRes::META.signals,
+    tdengine: TdengineTable {
+        create: "CREATE STABLE IF NOT EXISTS `can_xcp_res` (`ts` TIMESTAMP, `xcp_packet_id` TINYINT UNSIGNED) TAGS (`car_id` VARCHAR(32), `bus` VARCHAR(16), `schema_fingerprint` INT UNSIGNED)",
+        insert: "INSERT INTO ? USING `can_xcp_res` TAGS (?, ?, ?) VALUES (?, ?)",
+    },
+    sqlite: SqliteTable {
+        create: r#"CREATE TABLE IF NOT EXISTS "can_xcp_res" ("id" INTEGER PRIMARY KEY AUTOINCREMENT, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "xcp_packet_id" INTEGER)"#,
+        insert: r#"INSERT INTO "can_xcp_res" ("car_id", "bus", "schema_fingerprint", "ts", "xcp_packet_id") VALUES (?1, ?2, ?3, ?4, ?5)"#,
+    },
+};
+
 /// CAN message `IMD_InfoGeneral` (0x18FF01F4), one row per frame; multiplexed signals are NULL when absent.
 pub static CAN_IMD_INFO_GENERAL: Table = Table {
     name: "can_imd_info_general",
-    index: 12,
+    index: 15,
     tags: &[
         Column {
             name: "car_id",
@@ -1355,7 +1500,7 @@ pub static CAN_IMD_INFO_GENERAL: Table = Table {
 /// CAN message `IMD_InfoIsolationDetail` (0x18FF02F4), one row per frame; multiplexed signals are NULL when absent.
 pub static CAN_IMD_INFO_ISOLATION_DETAIL: Table = Table {
     name: "can_imd_info_isolation_detail",
-    index: 13,
+    index: 16,
     tags: &[
         Column {
             name: "car_id",
@@ -1410,7 +1555,7 @@ pub static CAN_IMD_INFO_ISOLATION_DETAIL: Table = Table {
 /// CAN message `IMD_InfoVoltage` (0x18FF03F4), one row per frame; multiplexed signals are NULL when absent.
 pub static CAN_IMD_INFO_VOLTAGE: Table = Table {
     name: "can_imd_info_voltage",
-    index: 14,
+    index: 17,
     tags: &[
         Column {
             name: "car_id",
@@ -1465,7 +1610,7 @@ pub static CAN_IMD_INFO_VOLTAGE: Table = Table {
 /// CAN message `IMD_InfoItSystem` (0x18FF04F4), one row per frame; multiplexed signals are NULL when absent.
 pub static CAN_IMD_INFO_IT_SYSTEM: Table = Table {
     name: "can_imd_info_it_system",
-    index: 15,
+    index: 18,
     tags: &[
         Column {
             name: "car_id",
@@ -1520,7 +1665,7 @@ pub static CAN_IMD_INFO_IT_SYSTEM: Table = Table {
 /// CAN message `IMD_Request` (0x18EFF417), one row per frame; multiplexed signals are NULL when absent.
 pub static CAN_IMD_REQUEST: Table = Table {
     name: "can_imd_request",
-    index: 16,
+    index: 19,
     tags: &[
         Column {
             name: "car_id",
@@ -1563,7 +1708,7 @@ pub static CAN_IMD_REQUEST: Table = Table {
 /// CAN message `DTI_SetCurrent` (0x141), one row per frame; multiplexed signals are NULL when absent.
 pub static CAN_DTI_SET_CURRENT: Table = Table {
     name: "can_dti_set_current",
-    index: 17,
+    index: 20,
     tags: &[
         Column {
             name: "car_id",
@@ -1602,7 +1747,7 @@ pub static CAN_DTI_SET_CURRENT: Table = Table {
 /// CAN message `DTI_SetBrakeCurrent` (0x241), one row per frame; multiplexed signals are NULL when absent.
 pub static CAN_DTI_SET_BRAKE_CURRENT: Table = Table {
     name: "can_dti_set_brake_current",
-    index: 18,
+    index: 21,
     tags: &[
         Column {
             name: "car_id",
@@ -1641,7 +1786,7 @@ pub static CAN_DTI_SET_BRAKE_CURRENT: Table = Table {
 /// CAN message `DTI_SetErpm` (0x341), one row per frame; multiplexed signals are NULL when absent.
 pub static CAN_DTI_SET_ERPM: Table = Table {
     name: "can_dti_set_erpm",
-    index: 19,
+    index: 22,
     tags: &[
         Column {
             name: "car_id",
@@ -1680,7 +1825,7 @@ pub static CAN_DTI_SET_ERPM: Table = Table {
 /// CAN message `DTI_SetPosition` (0x441), one row per frame; multiplexed signals are NULL when absent.
 pub static CAN_DTI_SET_POSITION: Table = Table {
     name: "can_dti_set_position",
-    index: 20,
+    index: 23,
     tags: &[
         Column {
             name: "car_id",
@@ -1719,7 +1864,7 @@ pub static CAN_DTI_SET_POSITION: Table = Table {
 /// CAN message `DTI_SetRelativeCurrent` (0x541), one row per frame; multiplexed signals are NULL when absent.
 pub static CAN_DTI_SET_RELATIVE_CURRENT: Table = Table {
     name: "can_dti_set_relative_current",
-    index: 21,
+    index: 24,
     tags: &[
         Column {
             name: "car_id",
@@ -1758,7 +1903,7 @@ pub static CAN_DTI_SET_RELATIVE_CURRENT: Table = Table {
 /// CAN message `DTI_SetRelativeBrakeCurrent` (0x641), one row per frame; multiplexed signals are NULL when absent.
 pub static CAN_DTI_SET_RELATIVE_BRAKE_CURRENT: Table = Table {
     name: "can_dti_set_relative_brake_current",
-    index: 22,
+    index: 25,
     tags: &[
         Column {
             name: "car_id",
@@ -1797,7 +1942,7 @@ pub static CAN_DTI_SET_RELATIVE_BRAKE_CURRENT: Table = Table {
 /// CAN message `DTI_SetDigitalOutputs` (0x741), one row per frame; multiplexed signals are NULL when absent.
 pub static CAN_DTI_SET_DIGITAL_OUTPUTS: Table = Table {
     name: "can_dti_set_digital_outputs",
-    index: 23,
+    index: 26,
     tags: &[
         Column {
             name: "car_id",
@@ -1848,7 +1993,7 @@ pub static CAN_DTI_SET_DIGITAL_OUTPUTS: Table = Table {
 /// CAN message `DTI_SetMaxCurrentAc` (0x841), one row per frame; multiplexed signals are NULL when absent.
 pub static CAN_DTI_SET_MAX_CURRENT_AC: Table = Table {
     name: "can_dti_set_max_current_ac",
-    index: 24,
+    index: 27,
     tags: &[
         Column {
             name: "car_id",
@@ -1887,7 +2032,7 @@ pub static CAN_DTI_SET_MAX_CURRENT_AC: Table = Table {
 /// CAN message `DTI_SetMaxBrakeCurrentAc` (0x941), one row per frame; multiplexed signals are NULL when absent.
 pub static CAN_DTI_SET_MAX_BRAKE_CURRENT_AC: Table = Table {
     name: "can_dti_set_max_brake_current_ac",
-    index: 25,
+    index: 28,
     tags: &[
         Column {
             name: "car_id",
@@ -1926,7 +2071,7 @@ pub static CAN_DTI_SET_MAX_BRAKE_CURRENT_AC: Table = Table {
 /// CAN message `DTI_SetMaxCurrentDc` (0xA41), one row per frame; multiplexed signals are NULL when absent.
 pub static CAN_DTI_SET_MAX_CURRENT_DC: Table = Table {
     name: "can_dti_set_max_current_dc",
-    index: 26,
+    index: 29,
     tags: &[
         Column {
             name: "car_id",
@@ -1965,7 +2110,7 @@ pub static CAN_DTI_SET_MAX_CURRENT_DC: Table = Table {
 /// CAN message `DTI_SetMaxBrakeCurrentDc` (0xB41), one row per frame; multiplexed signals are NULL when absent.
 pub static CAN_DTI_SET_MAX_BRAKE_CURRENT_DC: Table = Table {
     name: "can_dti_set_max_brake_current_dc",
-    index: 27,
+    index: 30,
     tags: &[
         Column {
             name: "car_id",
@@ -2004,7 +2149,7 @@ pub static CAN_DTI_SET_MAX_BRAKE_CURRENT_DC: Table = Table {
 /// CAN message `DTI_SetDriveEnable` (0xC41), one row per frame; multiplexed signals are NULL when absent.
 pub static CAN_DTI_SET_DRIVE_ENABLE: Table = Table {
     name: "can_dti_set_drive_enable",
-    index: 28,
+    index: 31,
     tags: &[
         Column {
             name: "car_id",
@@ -2043,7 +2188,7 @@ pub static CAN_DTI_SET_DRIVE_ENABLE: Table = Table {
 /// CAN message `DTI_Control` (0x1F41), one row per frame; multiplexed signals are NULL when absent.
 pub static CAN_DTI_CONTROL: Table = Table {
     name: "can_dti_control",
-    index: 29,
+    index: 32,
     tags: &[
         Column {
             name: "car_id",
@@ -2094,7 +2239,7 @@ pub static CAN_DTI_CONTROL: Table = Table {
 /// CAN message `DTI_Speed` (0x2041), one row per frame; multiplexed signals are NULL when absent.
 pub static CAN_DTI_SPEED: Table = Table {
     name: "can_dti_speed",
-    index: 30,
+    index: 33,
     tags: &[
         Column {
             name: "car_id",
@@ -2141,7 +2286,7 @@ pub static CAN_DTI_SPEED: Table = Table {
 /// CAN message `DTI_Currents` (0x2141), one row per frame; multiplexed signals are NULL when absent.
 pub static CAN_DTI_CURRENTS: Table = Table {
     name: "can_dti_currents",
-    index: 31,
+    index: 34,
     tags: &[
         Column {
             name: "car_id",
@@ -2184,7 +2329,7 @@ pub static CAN_DTI_CURRENTS: Table = Table {
 /// CAN message `DTI_Temperatures` (0x2241), one row per frame; multiplexed signals are NULL when absent.
 pub static CAN_DTI_TEMPERATURES: Table = Table {
     name: "can_dti_temperatures",
-    index: 32,
+    index: 35,
     tags: &[
         Column {
             name: "car_id",
@@ -2231,7 +2376,7 @@ pub static CAN_DTI_TEMPERATURES: Table = Table {
 /// CAN message `DTI_FocCurrents` (0x2341), one row per frame; multiplexed signals are NULL when absent.
 pub static CAN_DTI_FOC_CURRENTS: Table = Table {
     name: "can_dti_foc_currents",
-    index: 33,
+    index: 36,
     tags: &[
         Column {
             name: "car_id",
@@ -2274,7 +2419,7 @@ pub static CAN_DTI_FOC_CURRENTS: Table = Table {
 /// CAN message `DTI_Flags` (0x2441), one row per frame; multiplexed signals are NULL when absent.
 pub static CAN_DTI_FLAGS: Table = Table {
     name: "can_dti_flags",
-    index: 34,
+    index: 37,
     tags: &[
         Column {
             name: "car_id",
@@ -2401,7 +2546,7 @@ pub static CAN_DTI_FLAGS: Table = Table {
 /// CAN message `DTI_AcLimits` (0x2541), one row per frame; multiplexed signals are NULL when absent.
 pub static CAN_DTI_AC_LIMITS: Table = Table {
     name: "can_dti_ac_limits",
-    index: 35,
+    index: 38,
     tags: &[
         Column {
             name: "car_id",
@@ -2452,7 +2597,7 @@ pub static CAN_DTI_AC_LIMITS: Table = Table {
 /// CAN message `DTI_DcLimits` (0x2641), one row per frame; multiplexed signals are NULL when absent.
 pub static CAN_DTI_DC_LIMITS: Table = Table {
     name: "can_dti_dc_limits",
-    index: 36,
+    index: 39,
     tags: &[
         Column {
             name: "car_id",
@@ -2501,9 +2646,10 @@ pub static CAN_DTI_DC_LIMITS: Table = Table {
 };
 
 /// Every table: telemetry first, then one per CAN message in schema order.
-pub static TABLES: [&Table; 37] = [
+pub static TABLES: [&Table; 40] = [
     &TELEMETRY,
     &CAN_CCM_STATUS,
+    &CAN_CCM_CALIBRATION,
     &CAN_VCU1,
     &CAN_MCU1,
     &CAN_MCU2,
@@ -2514,6 +2660,8 @@ pub static TABLES: [&Table; 37] = [
     &CAN_ORION_LIMITS,
     &CAN_ORION_CELL_VOLTAGES,
     &CAN_PCC_STATUS,
+    &CAN_XCP_CMD,
+    &CAN_XCP_RES,
     &CAN_IMD_INFO_GENERAL,
     &CAN_IMD_INFO_ISOLATION_DETAIL,
     &CAN_IMD_INFO_VOLTAGE,
@@ -2545,6 +2693,7 @@ pub static TABLES: [&Table; 37] = [
 pub fn for_message(message: &AnyMessage) -> &'static Table {
     match message {
         AnyMessage::CcmStatus(_) => &CAN_CCM_STATUS,
+        AnyMessage::CcmCalibration(_) => &CAN_CCM_CALIBRATION,
         AnyMessage::Vcu1(_) => &CAN_VCU1,
         AnyMessage::Mcu1(_) => &CAN_MCU1,
         AnyMessage::Mcu2(_) => &CAN_MCU2,
@@ -2555,6 +2704,8 @@ pub fn for_message(message: &AnyMessage) -> &'static Table {
         AnyMessage::OrionLimits(_) => &CAN_ORION_LIMITS,
         AnyMessage::OrionCellVoltages(_) => &CAN_ORION_CELL_VOLTAGES,
         AnyMessage::PccStatus(_) => &CAN_PCC_STATUS,
+        AnyMessage::XcpCmd(_) => &CAN_XCP_CMD,
+        AnyMessage::XcpRes(_) => &CAN_XCP_RES,
         AnyMessage::ImdInfoGeneral(_) => &CAN_IMD_INFO_GENERAL,
         AnyMessage::ImdInfoIsolationDetail(_) => &CAN_IMD_INFO_ISOLATION_DETAIL,
         AnyMessage::ImdInfoVoltage(_) => &CAN_IMD_INFO_VOLTAGE,

@@ -7,6 +7,9 @@ CREATE TABLE IF NOT EXISTS "telemetry" ("id" INTEGER PRIMARY KEY AUTOINCREMENT, 
 -- CAN message `CCM_Status` (0xA0), one row per frame; multiplexed signals are NULL when absent.
 CREATE TABLE IF NOT EXISTS "can_ccm_status" ("id" INTEGER PRIMARY KEY AUTOINCREMENT, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "ccm_vehicle_state" INTEGER, "ccm_fault_over_current" INTEGER, "ccm_fault_under_voltage" INTEGER, "ccm_fault_over_temperature" INTEGER, "ccm_fault_apps" INTEGER, "ccm_fault_bse" INTEGER, "ccm_fault_bpps" INTEGER, "ccm_fault_apps_brake_plausibility" INTEGER, "ccm_fault_low_battery_voltage" INTEGER, "ccm_schema_fingerprint" INTEGER, "ccm_rolling_counter" INTEGER, "ccm_ready_to_drive" INTEGER, "ccm_fault_pedal_signal_lost" INTEGER, "ccm_fault_sensors_stale" INTEGER, "ccm_fault_bms_timeout" INTEGER, "ccm_fault_inverter_timeout" INTEGER, "ccm_fault_pcc_timeout" INTEGER, "ccm_fault_inverter_fault" INTEGER, "ccm_fault_inverter_warning" INTEGER, "ccm_fault_pcc_error" INTEGER);
 
+-- CAN message `CCM_Calibration` (0xA1), one row per frame; multiplexed signals are NULL when absent.
+CREATE TABLE IF NOT EXISTS "can_ccm_calibration" ("id" INTEGER PRIMARY KEY AUTOINCREMENT, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "ccm_cal_checksum" INTEGER, "ccm_cal_startup" INTEGER, "ccm_cal_page" INTEGER, "ccm_cal_unsaved" INTEGER, "ccm_xcp_connected" INTEGER, "ccm_xcp_unlocked" INTEGER, "ccm_cal_changes" INTEGER, "ccm_cal_refusals" INTEGER);
+
 -- CAN message `VCU1` (0x101), one row per frame; multiplexed signals are NULL when absent.
 CREATE TABLE IF NOT EXISTS "can_vcu1" ("id" INTEGER PRIMARY KEY AUTOINCREMENT, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "vcu_torque_req" REAL, "vcu_motor_spd_req" INTEGER, "vcu_authentication_status" INTEGER, "vcu_change_gear_alarm" INTEGER, "vcu_vehicle_state" INTEGER, "vcu_brake_pedal_sts" INTEGER, "vcu_bms_main_relay_cmd" INTEGER, "vcu_gear_lever_pos_sts" INTEGER, "vcu_gear_lever_pos_sts_f" INTEGER, "vcu_ac_control_cmd" INTEGER, "vcu_work_mode" INTEGER, "vcu_motor_mode" INTEGER, "vcu_warning_level" INTEGER, "vcu_key_position" INTEGER, "vcu_rolling_counter" INTEGER, "vcu_bms_aux_relay_cmd" INTEGER, "vcu_power_reduce_req" INTEGER, "vcu_check_sum" INTEGER);
 
@@ -36,6 +39,12 @@ CREATE TABLE IF NOT EXISTS "can_orion_cell_voltages" ("id" INTEGER PRIMARY KEY A
 
 -- CAN message `PCC_Status` (0x222), one row per frame; multiplexed signals are NULL when absent.
 CREATE TABLE IF NOT EXISTS "can_pcc_status" ("id" INTEGER PRIMARY KEY AUTOINCREMENT, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "pcc_state" INTEGER, "pcc_error_too_fast" INTEGER, "pcc_error_too_slow" INTEGER, "pcc_error_bms_timeout" INTEGER, "pcc_error_shutdown" INTEGER, "pcc_error_undefined_state" INTEGER, "pcc_accumulator_voltage" REAL, "pcc_tractive_voltage" REAL, "pcc_precharge_progress" REAL);
+
+-- CAN message `XCP_Cmd` (0x6F0), one row per frame; multiplexed signals are NULL when absent.
+CREATE TABLE IF NOT EXISTS "can_xcp_cmd" ("id" INTEGER PRIMARY KEY AUTOINCREMENT, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "xcp_command_code" INTEGER);
+
+-- CAN message `XCP_Res` (0x6F1), one row per frame; multiplexed signals are NULL when absent.
+CREATE TABLE IF NOT EXISTS "can_xcp_res" ("id" INTEGER PRIMARY KEY AUTOINCREMENT, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "xcp_packet_id" INTEGER);
 
 -- CAN message `IMD_InfoGeneral` (0x18FF01F4), one row per frame; multiplexed signals are NULL when absent.
 CREATE TABLE IF NOT EXISTS "can_imd_info_general" ("id" INTEGER PRIMARY KEY AUTOINCREMENT, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "imd_r_iso_corrected" INTEGER, "imd_r_iso_status" INTEGER, "imd_measurement_counter" INTEGER, "imd_device_error" INTEGER, "imd_hv_pos_connection_failure" INTEGER, "imd_hv_neg_connection_failure" INTEGER, "imd_earth_connection_failure" INTEGER, "imd_iso_alarm" INTEGER, "imd_iso_warning" INTEGER, "imd_iso_outdated" INTEGER, "imd_unbalance_alarm" INTEGER, "imd_undervoltage_alarm" INTEGER, "imd_unsafe_to_start" INTEGER, "imd_earthlift_open" INTEGER, "imd_device_activity" INTEGER);

@@ -8,6 +8,9 @@ CREATE STABLE IF NOT EXISTS `telemetry` (`ts` TIMESTAMP, `sequence` SMALLINT UNS
 -- CAN message `CCM_Status` (0xA0), one row per frame; multiplexed signals are NULL when absent.
 CREATE STABLE IF NOT EXISTS `can_ccm_status` (`ts` TIMESTAMP, `ccm_vehicle_state` TINYINT UNSIGNED, `ccm_fault_over_current` BOOL, `ccm_fault_under_voltage` BOOL, `ccm_fault_over_temperature` BOOL, `ccm_fault_apps` BOOL, `ccm_fault_bse` BOOL, `ccm_fault_bpps` BOOL, `ccm_fault_apps_brake_plausibility` BOOL, `ccm_fault_low_battery_voltage` BOOL, `ccm_schema_fingerprint` INT UNSIGNED, `ccm_rolling_counter` TINYINT UNSIGNED, `ccm_ready_to_drive` BOOL, `ccm_fault_pedal_signal_lost` BOOL, `ccm_fault_sensors_stale` BOOL, `ccm_fault_bms_timeout` BOOL, `ccm_fault_inverter_timeout` BOOL, `ccm_fault_pcc_timeout` BOOL, `ccm_fault_inverter_fault` BOOL, `ccm_fault_inverter_warning` BOOL, `ccm_fault_pcc_error` BOOL) TAGS (`car_id` VARCHAR(32), `bus` VARCHAR(16), `schema_fingerprint` INT UNSIGNED);
 
+-- CAN message `CCM_Calibration` (0xA1), one row per frame; multiplexed signals are NULL when absent.
+CREATE STABLE IF NOT EXISTS `can_ccm_calibration` (`ts` TIMESTAMP, `ccm_cal_checksum` INT UNSIGNED, `ccm_cal_startup` TINYINT UNSIGNED, `ccm_cal_page` TINYINT UNSIGNED, `ccm_cal_unsaved` BOOL, `ccm_xcp_connected` BOOL, `ccm_xcp_unlocked` BOOL, `ccm_cal_changes` TINYINT UNSIGNED, `ccm_cal_refusals` TINYINT UNSIGNED) TAGS (`car_id` VARCHAR(32), `bus` VARCHAR(16), `schema_fingerprint` INT UNSIGNED);
+
 -- CAN message `VCU1` (0x101), one row per frame; multiplexed signals are NULL when absent.
 CREATE STABLE IF NOT EXISTS `can_vcu1` (`ts` TIMESTAMP, `vcu_torque_req` DOUBLE, `vcu_motor_spd_req` SMALLINT UNSIGNED, `vcu_authentication_status` TINYINT UNSIGNED, `vcu_change_gear_alarm` BOOL, `vcu_vehicle_state` BOOL, `vcu_brake_pedal_sts` TINYINT UNSIGNED, `vcu_bms_main_relay_cmd` BOOL, `vcu_gear_lever_pos_sts` TINYINT UNSIGNED, `vcu_gear_lever_pos_sts_f` BOOL, `vcu_ac_control_cmd` BOOL, `vcu_work_mode` BOOL, `vcu_motor_mode` TINYINT UNSIGNED, `vcu_warning_level` TINYINT UNSIGNED, `vcu_key_position` TINYINT UNSIGNED, `vcu_rolling_counter` TINYINT UNSIGNED, `vcu_bms_aux_relay_cmd` BOOL, `vcu_power_reduce_req` TINYINT UNSIGNED, `vcu_check_sum` TINYINT UNSIGNED) TAGS (`car_id` VARCHAR(32), `bus` VARCHAR(16), `schema_fingerprint` INT UNSIGNED);
 
@@ -37,6 +40,12 @@ CREATE STABLE IF NOT EXISTS `can_orion_cell_voltages` (`ts` TIMESTAMP, `orion_lo
 
 -- CAN message `PCC_Status` (0x222), one row per frame; multiplexed signals are NULL when absent.
 CREATE STABLE IF NOT EXISTS `can_pcc_status` (`ts` TIMESTAMP, `pcc_state` TINYINT UNSIGNED, `pcc_error_too_fast` BOOL, `pcc_error_too_slow` BOOL, `pcc_error_bms_timeout` BOOL, `pcc_error_shutdown` BOOL, `pcc_error_undefined_state` BOOL, `pcc_accumulator_voltage` DOUBLE, `pcc_tractive_voltage` DOUBLE, `pcc_precharge_progress` DOUBLE) TAGS (`car_id` VARCHAR(32), `bus` VARCHAR(16), `schema_fingerprint` INT UNSIGNED);
+
+-- CAN message `XCP_Cmd` (0x6F0), one row per frame; multiplexed signals are NULL when absent.
+CREATE STABLE IF NOT EXISTS `can_xcp_cmd` (`ts` TIMESTAMP, `xcp_command_code` TINYINT UNSIGNED) TAGS (`car_id` VARCHAR(32), `bus` VARCHAR(16), `schema_fingerprint` INT UNSIGNED);
+
+-- CAN message `XCP_Res` (0x6F1), one row per frame; multiplexed signals are NULL when absent.
+CREATE STABLE IF NOT EXISTS `can_xcp_res` (`ts` TIMESTAMP, `xcp_packet_id` TINYINT UNSIGNED) TAGS (`car_id` VARCHAR(32), `bus` VARCHAR(16), `schema_fingerprint` INT UNSIGNED);
 
 -- CAN message `IMD_InfoGeneral` (0x18FF01F4), one row per frame; multiplexed signals are NULL when absent.
 CREATE STABLE IF NOT EXISTS `can_imd_info_general` (`ts` TIMESTAMP, `imd_r_iso_corrected` SMALLINT UNSIGNED, `imd_r_iso_status` TINYINT UNSIGNED, `imd_measurement_counter` TINYINT UNSIGNED, `imd_device_error` BOOL, `imd_hv_pos_connection_failure` BOOL, `imd_hv_neg_connection_failure` BOOL, `imd_earth_connection_failure` BOOL, `imd_iso_alarm` BOOL, `imd_iso_warning` BOOL, `imd_iso_outdated` BOOL, `imd_unbalance_alarm` BOOL, `imd_undervoltage_alarm` BOOL, `imd_unsafe_to_start` BOOL, `imd_earthlift_open` BOOL, `imd_device_activity` TINYINT UNSIGNED) TAGS (`car_id` VARCHAR(32), `bus` VARCHAR(16), `schema_fingerprint` INT UNSIGNED);
