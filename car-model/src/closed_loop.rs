@@ -9,7 +9,7 @@ use crate::faults::{Fault, FaultPlan};
 use crate::nodes::{CAN1, CAN2};
 use crate::params::ModelParams;
 use crate::rules::Rules;
-use aer::can::{CcmStatus, PccStatus};
+use aer::can::{CcmCalibration, CcmStatus, PccStatus};
 use aer::telemetry::Telemetry;
 use aer_ccm::calibration::Calibration;
 use aer_ccm::constants::{CONTROL_PERIOD_MS, TELEMETRY_PERIOD_MS};
@@ -208,6 +208,15 @@ impl ClosedLoop {
                             tap.frame(now_us + 150, bus, &frame);
                         }
                     }
+                }
+            }
+        }
+        if due.calibration && !self.was_off[0] {
+            let mut data = [0u8; CcmCalibration::LEN];
+            let status = self.ccm.calibration_state().status();
+            if status.encode(&mut data).is_ok() {
+                if let Some(frame) = standard_frame(CcmCalibration::ID, &data) {
+                    tap.frame(now_us + 160, CAN1, &frame);
                 }
             }
         }

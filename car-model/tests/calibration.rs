@@ -8,6 +8,7 @@ use aer_car_model::driver::Cycle;
 use aer_car_model::faults::FaultPlan;
 use aer_car_model::{ClosedLoop, ModelParams, NoTap};
 use aer_ccm::calibration::Calibration;
+use aer_ccm::calibration::store::Startup;
 use aer_ccm::launch::LaunchState;
 
 /// What an acceleration run did while launch control was active.
@@ -23,7 +24,7 @@ struct Launch {
 /// The acceleration run from the line with `calibration` applied at the start.
 fn launch(started: &ClosedLoop, calibration: Calibration) -> Launch {
     let mut run = started.clone();
-    run.ccm.set_calibration(calibration);
+    run.ccm.set_calibration(calibration, Startup::NoneSaved);
     let start = run.now_ms();
     let (mut slip_sum, mut torque_sum, mut steps) = (0.0f32, 0.0f32, 0u32);
     while run.car.chassis.distance_m < 75.0 && run.now_ms() < start + 10_000 {

@@ -11,6 +11,8 @@ use crate::apps::AppsReading;
 use crate::brakes::BrakeReading;
 use crate::bus::BusState;
 use crate::calibration::Calibration;
+use crate::calibration::state::CalibrationState;
+use crate::calibration::store::Startup;
 use crate::chassis::PulseTimer;
 use crate::constants::WHEEL_TEETH;
 use crate::control::{Control, Due, HandoverRefusal};
@@ -27,7 +29,7 @@ use embedded_can::Frame;
 /// The CCM: its four parts and the calibration they run with, driven together.
 #[derive(Debug, Clone)]
 pub struct Ccm {
-    calibration: Calibration,
+    calibration: CalibrationState,
     wheels: [PulseTimer; 2],
     sensors: Sensors,
     link: TelemetryLink,
@@ -53,7 +55,7 @@ impl Ccm {
         limits: PowerLimits,
     ) -> Self {
         Self {
-            calibration,
+            calibration: CalibrationState::new(calibration, Startup::NoneSaved),
             wheels: [PulseTimer::new(), PulseTimer::new()],
             sensors: Sensors::new(),
             link: TelemetryLink::new(),
@@ -61,16 +63,26 @@ impl Ccm {
         }
     }
 
-    /// The calibration it runs with.
-    pub fn calibration(&self) -> &Calibration {
+    /// The calibration it runs with now.
+    pub fn calibration(&self) -> Calibration {
+        self.calibration.active()
+    }
+
+    /// Runs with `calibration` from the next sensor sample and control step on, whole, as
+    /// start-up would have loaded it (`startup` says from where).
+    pub fn set_calibration(&mut self, calibration: Calibration, startup: Startup) {
+        self.calibration = CalibrationState::new(calibration, startup);
+    }
+
+    /// The live calibration: what a calibration tool reads and changes (each change takes
+    /// effect whole at the next sensor sample and control step).
+    pub fn calibration_state(&self) -> &CalibrationState {
         &self.calibration
     }
 
-    /// Runs with `calibration` from the next sensor sample and control step on, whole (a
-    /// calibration tool's change, checked against the limits by
-    /// [`Calibration::from_page`]).
-    pub fn set_calibration(&mut self, calibration: Calibration) {
-        self.calibration = calibration;
+    /// See [`Ccm::calibration_state`].
+    pub fn calibration_state_mut(&mut self) -> &mut CalibrationState {
+        &mut self.calibration
     }
 
     /// The inverter this CCM drives.
@@ -122,7 +134,8 @@ impl Ccm {
 
     /// The 1 kHz sensor step.
     pub fn sample(&mut self, sample: &SensorSample, now_ms: u32) {
-        self.sensors.sample(&self.calibration, sample, now_ms);
+        self.sensors
+            .sample(&self.calibration.active(), sample, now_ms);
     }
 
     /// The 100 Hz control step.
@@ -132,7 +145,7 @@ impl Ccm {
             self.wheels[1].speed(WHEEL_TEETH),
         ];
         self.control.step(
-            &self.calibration,
+            &self.calibration.active(),
             &self.sensors.reading(),
             wheels,
             driver,

@@ -20,19 +20,22 @@ use crate::telemetry::LinkCounters;
 use crate::thermal::cooling;
 use crate::torque_path::{TorqueInputs, TorquePath};
 use crate::vehicle::{State, Vehicle, VehicleInputs};
-use aer::can::{AnyMessage, CcmStatus, PrechargeState, SCHEMA_FINGERPRINT};
+use aer::can::{AnyMessage, CcmCalibration, CcmStatus, PrechargeState, SCHEMA_FINGERPRINT};
 use aer::runtime::EncodeError;
 use aer::telemetry::{Telemetry, TelemetryOwnFields};
 use embedded_can::Frame;
 
-/// What goes out after a control step: the inverter's commands every command period, and
-/// CCM_Status every [`STATUS_PERIOD_MS`].
+/// What goes out after a control step: the inverter's commands every command period,
+/// CCM_Status every [`STATUS_PERIOD_MS`] and CCM_Calibration every its cycle time.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Due {
     /// The inverter's frames, if due (an encoding failure is the codec's defect: counted).
     pub inverter: Option<Result<OutFrames, EncodeError>>,
     /// CCM_Status, if due (its rolling counter advanced).
     pub status: Option<CcmStatus>,
+    /// Whether CCM_Calibration is due (the calibration's owner,
+    /// [`crate::calibration::state::CalibrationState::status`], has its content).
+    pub calibration: bool,
 }
 
 /// Why the CCM keeps running instead of handing the chip to the bootloader.
@@ -248,6 +251,7 @@ impl Control {
         Due {
             inverter: every(self.inverter.command_period_ms()).then(|| self.inverter_frames()),
             status: every(STATUS_PERIOD_MS).then(|| self.next_status()),
+            calibration: every(CcmCalibration::CYCLE_TIME_MS),
         }
     }
 

@@ -5,7 +5,7 @@
 use crate::app::control;
 use crate::{Mono, PEDAL_BUS_ERRORS, REBOOT, RX_QUEUE_OVERFLOWS, TX_NOT_SENT, WHEELS};
 use crate::{now_ms, now_us};
-use aer::can::CcmStatus;
+use aer::can::{CcmCalibration, CcmStatus};
 use aer_ccm::console::{BootloaderAnswer, LOG_BYTES};
 use aer_ccm::constants::{CONTROL_PERIOD_MS, WHEEL_TEETH};
 use aer_ccm::faults::{Fault, FaultMap};
@@ -47,7 +47,10 @@ pub(crate) async fn control(mut cx: control::Context<'_>) {
             buses: [health(&vehicle_bus), health(&inverter_bus)],
         };
         let sensors = cx.shared.sensors.lock(|sensors| sensors.reading());
-        let calibration = cx.shared.calibration.lock(|calibration| *calibration);
+        let calibration = cx
+            .shared
+            .calibration
+            .lock(|calibration| calibration.active());
         let [left, right] = &WHEELS;
         let wheels = [left.speed(WHEEL_TEETH), right.speed(WHEEL_TEETH)];
         let (outputs, due, handover) = cx.shared.control.lock(|control| {
@@ -117,6 +120,24 @@ pub(crate) async fn control(mut cx: control::Context<'_>) {
                 );
             } else {
                 TX_NOT_SENT.fetch_add(2, Ordering::Relaxed);
+            }
+        }
+        if due.calibration {
+            let status = cx
+                .shared
+                .calibration
+                .lock(|calibration| calibration.status());
+            let mut data = [0u8; CcmCalibration::LEN];
+            if status.encode(&mut data).is_ok() {
+                send(
+                    &mut cx.shared.vehicle_can,
+                    CcmCalibration::ID,
+                    false,
+                    &data,
+                    Queueing::Behind,
+                );
+            } else {
+                TX_NOT_SENT.fetch_add(1, Ordering::Relaxed);
             }
         }
         if let Some(handover) = handover {

@@ -85,6 +85,8 @@ mod app {
     use crate::{Mono, REBOOT, RX_QUEUE};
     use aer_ccm::calibration::Calibration;
     use aer_ccm::calibration::measured::MEASURED;
+    use aer_ccm::calibration::state::CalibrationState;
+    use aer_ccm::calibration::store::Startup;
     use aer_ccm::console::LOG_BYTES;
     use aer_ccm::constants::INVERTER;
     use aer_ccm::control::Control;
@@ -104,9 +106,9 @@ mod app {
 
     #[shared]
     struct Shared {
-        /// The calibration the sensor and control steps run with: each copies it whole at
-        /// the start of its step, so a change is never seen half done.
-        calibration: Calibration,
+        /// The live calibration: the sensor and control steps copy its active page whole at
+        /// the start of each step, so a change is never seen half done.
+        calibration: CalibrationState,
         sensors: Sensors,
         link: TelemetryLink,
         control: Control,
@@ -198,7 +200,10 @@ mod app {
         let [s1, s2, s3, s4] = board.shocks;
         (
             Shared {
-                calibration: MEASURED.applied_to(Calibration::DEFAULT),
+                calibration: CalibrationState::new(
+                    MEASURED.applied_to(Calibration::DEFAULT),
+                    Startup::NoneSaved,
+                ),
                 sensors: Sensors::new(),
                 link: TelemetryLink::new(),
                 control: Control::new(INVERTER),

@@ -44,7 +44,10 @@ pub(crate) async fn sensors(mut cx: sensors::Context<'_>) {
             shock_raw: [s1, s2, s3, s4],
         };
         let now = now_ms();
-        let calibration = cx.shared.calibration.lock(|calibration| *calibration);
+        let calibration = cx
+            .shared
+            .calibration
+            .lock(|calibration| calibration.active());
         cx.shared
             .sensors
             .lock(|sensors| sensors.sample(&calibration, &sample, now));

@@ -7,6 +7,9 @@
 //! and at build time. The tests and the car model keep [`Calibration::DEFAULT`]: a measured
 //! pedal changes the car, not the proofs.
 
+pub mod state;
+pub mod store;
+
 pub use aer::calibration::Calibration;
 
 use crate::constants::{APPS1_SUPPLY_V, APPS2_SUPPLY_V, BSE_ZERO_V, MIN_PEDAL_TRAVEL_V};
