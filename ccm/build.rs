@@ -1,5 +1,6 @@
-//! Links the firmware images, and turns `calibration.toml` (the car's measured sensor
-//! calibration) into `MEASURED`, the constant the firmware images start with.
+//! Links the firmware images, turns `calibration.toml` (the car's measured sensor
+//! calibration) into `MEASURED`, the constant the firmware images start with, and reads the
+//! team's XCP secret (`xcp-secret.key`, never committed) into `XCP_SECRET`.
 
 use std::fmt::Write as _;
 use std::path::Path;
@@ -21,6 +22,57 @@ fn main() {
         }
         Err(error) => fail(&format!("ccm/calibration.toml: {error}")),
     }
+    let code = match xcp_secret() {
+        Ok(code) => code,
+        Err(error) => fail(&error),
+    };
+    if let Err(error) = std::fs::write(out.join("xcp_secret.rs"), code) {
+        fail(&format!("writing xcp_secret.rs: {error}"));
+    }
+}
+
+/// The team's secret for the XCP seed and key: 64 hex digits in the file `AER_XCP_SECRET_FILE`
+/// names, or `xcp-secret.key` beside this script (ignored by git). Without one the images are
+/// built locked: they measure, but no key unlocks calibration.
+fn xcp_secret() -> Result<String, String> {
+    println!("cargo:rerun-if-env-changed=AER_XCP_SECRET_FILE");
+    let path = std::env::var_os("AER_XCP_SECRET_FILE")
+        .map_or_else(|| Path::new("xcp-secret.key").to_path_buf(), Into::into);
+    println!("cargo:rerun-if-changed={}", path.display());
+    let text = match std::fs::read_to_string(&path) {
+        Ok(text) => text,
+        Err(error) if error.kind() == std::io::ErrorKind::NotFound => {
+            if std::env::var_os("CARGO_FEATURE_FIRMWARE").is_some() {
+                println!(
+                    "cargo:warning=no XCP secret ({}): this image measures but can never be unlocked for calibration (docs/calibration.md, \"The secret\")",
+                    path.display()
+                );
+            }
+            return Ok(
+                "/// No secret was given at build time: calibration stays locked.\n\
+                       pub const XCP_SECRET: Option<[u8; 32]> = None;\n"
+                    .into(),
+            );
+        }
+        Err(error) => return Err(format!("{}: {error}", path.display())),
+    };
+    let hex = text.trim();
+    if hex.len() != 64 || !hex.bytes().all(|b| b.is_ascii_hexdigit()) {
+        return Err(format!(
+            "{}: expected 64 hex digits (32 bytes), e.g. from `openssl rand -hex 32`",
+            path.display()
+        ));
+    }
+    let mut bytes = String::new();
+    for pair in hex.as_bytes().chunks(2) {
+        let digits = std::str::from_utf8(pair).map_err(|error| error.to_string())?;
+        let byte = u8::from_str_radix(digits, 16).map_err(|error| error.to_string())?;
+        let _ = write!(bytes, "0x{byte:02X}, ");
+    }
+    Ok(format!(
+        "/// The team's secret, from {} at build time.\npub const XCP_SECRET: Option<[u8; 32]> = Some([{bytes}]);\n",
+        path.display()
+    ))
 }
 
 fn fail(message: &str) -> ! {

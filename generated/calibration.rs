@@ -10,9 +10,9 @@
 //! parameter may change in the car's present state.
 
 /// Fingerprint of the calibration's layout (names, types, offsets, limits, change conditions,
-/// axes): a saved page or a calibration tool's description with another fingerprint does not
-/// describe this firmware's page.
-pub const CALIBRATION_FINGERPRINT: u32 = 0xB4A5C19E;
+/// axes), the internals' block and the XCP settings: a saved page or a calibration tool's
+/// description with another fingerprint does not describe this firmware's page.
+pub const CALIBRATION_FINGERPRINT: u32 = 0x0BA0BB9C;
 
 /// Bytes of the page.
 pub const PAGE_LEN: usize = 112;
@@ -669,6 +669,267 @@ impl Calibration {
     pub fn launch_slip_target_at(&self, input: f32) -> f32 {
         interpolate(&LAUNCH_SLIP_TARGET_AXIS, &self.launch_slip_target, input)
     }
+}
+
+/// The controllers' internal values a tuner samples with XCP (the firmware fills them each
+/// control step). [`Internals::to_bytes`] is the block a calibration tool reads at
+/// [`xcp::INTERNALS_ADDRESS`]: every value an `f32`, little-endian, in this order.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Internals {
+    /// The torque the pedal map asks for.
+    ///
+    /// Expected 0 to 260 Nm; bytes 0 to 3 of the block.
+    pub driver_torque_nm: f32,
+    /// The launch controller's torque limit.
+    ///
+    /// Expected 0 to 260 Nm; bytes 4 to 7 of the block.
+    pub launch_torque_nm: f32,
+    /// The slip target in force now, from the launch slip target curve.
+    ///
+    /// Expected 0 to 1; bytes 8 to 11 of the block.
+    pub launch_slip_target: f32,
+    /// Traction control's torque limit.
+    ///
+    /// Expected 0 to 260 Nm; bytes 12 to 15 of the block.
+    pub traction_torque_nm: f32,
+    /// The slip estimate of the driven wheels over the free-rolling front wheels.
+    ///
+    /// Expected -1 to 5; bytes 16 to 19 of the block.
+    pub slip_ratio: f32,
+    /// The power limiter's torque cap.
+    ///
+    /// Expected 0 to 260 Nm; bytes 20 to 23 of the block.
+    pub power_allowed_nm: f32,
+    /// The power limiter's estimate of the drivetrain's efficiency.
+    ///
+    /// Expected 0 to 1; bytes 24 to 27 of the block.
+    pub power_efficiency: f32,
+    /// The power monitor's efficiency bound.
+    ///
+    /// Expected 0 to 1; bytes 28 to 31 of the block.
+    pub monitor_efficiency: f32,
+    /// The torque commanded after every limit.
+    ///
+    /// Expected -260 to 260 Nm; bytes 32 to 35 of the block.
+    pub torque_command_nm: f32,
+}
+
+impl Internals {
+    /// Bytes of [`Self::to_bytes`].
+    pub const LEN: usize = 36;
+
+    /// The block: every value little-endian, 4 bytes each, in declared order.
+    pub fn to_bytes(&self) -> [u8; Self::LEN] {
+        let mut bytes = [0; Self::LEN];
+        put(&mut bytes, 0, &self.driver_torque_nm.to_le_bytes());
+        put(&mut bytes, 4, &self.launch_torque_nm.to_le_bytes());
+        put(&mut bytes, 8, &self.launch_slip_target.to_le_bytes());
+        put(&mut bytes, 12, &self.traction_torque_nm.to_le_bytes());
+        put(&mut bytes, 16, &self.slip_ratio.to_le_bytes());
+        put(&mut bytes, 20, &self.power_allowed_nm.to_le_bytes());
+        put(&mut bytes, 24, &self.power_efficiency.to_le_bytes());
+        put(&mut bytes, 28, &self.monitor_efficiency.to_le_bytes());
+        put(&mut bytes, 32, &self.torque_command_nm.to_le_bytes());
+        bytes
+    }
+}
+
+/// One internal value as the calibration tools address it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Internal {
+    /// The field of [`Internals`].
+    pub name: &'static str,
+    /// Its physical unit (`1` for ratios).
+    pub unit: &'static str,
+    /// What it is.
+    pub description: &'static str,
+    /// Where it starts in [`Internals::to_bytes`].
+    pub offset: usize,
+    /// The range it is expected in (the tools' display range; not enforced).
+    pub min: f64,
+    /// See `min`.
+    pub max: f64,
+}
+
+/// Every internal value, in the order of [`Internals::to_bytes`].
+pub const INTERNALS: [Internal; 9] = [
+    Internal {
+        name: "driver_torque_nm",
+        unit: "Nm",
+        description: "The torque the pedal map asks for.",
+        offset: 0,
+        min: 0.0,
+        max: 260.0,
+    },
+    Internal {
+        name: "launch_torque_nm",
+        unit: "Nm",
+        description: "The launch controller's torque limit.",
+        offset: 4,
+        min: 0.0,
+        max: 260.0,
+    },
+    Internal {
+        name: "launch_slip_target",
+        unit: "1",
+        description: "The slip target in force now, from the launch slip target curve.",
+        offset: 8,
+        min: 0.0,
+        max: 1.0,
+    },
+    Internal {
+        name: "traction_torque_nm",
+        unit: "Nm",
+        description: "Traction control's torque limit.",
+        offset: 12,
+        min: 0.0,
+        max: 260.0,
+    },
+    Internal {
+        name: "slip_ratio",
+        unit: "1",
+        description: "The slip estimate of the driven wheels over the free-rolling front wheels.",
+        offset: 16,
+        min: -1.0,
+        max: 5.0,
+    },
+    Internal {
+        name: "power_allowed_nm",
+        unit: "Nm",
+        description: "The power limiter's torque cap.",
+        offset: 20,
+        min: 0.0,
+        max: 260.0,
+    },
+    Internal {
+        name: "power_efficiency",
+        unit: "1",
+        description: "The power limiter's estimate of the drivetrain's efficiency.",
+        offset: 24,
+        min: 0.0,
+        max: 1.0,
+    },
+    Internal {
+        name: "monitor_efficiency",
+        unit: "1",
+        description: "The power monitor's efficiency bound.",
+        offset: 28,
+        min: 0.0,
+        max: 1.0,
+    },
+    Internal {
+        name: "torque_command_nm",
+        unit: "Nm",
+        description: "The torque commanded after every limit.",
+        offset: 32,
+        min: -260.0,
+        max: 260.0,
+    },
+];
+
+/// XCP (ASAM MCD-1 XCP 1.0) on CAN and on TCP: the address map and the settings that the CCM's
+/// slave and `generated/aer.a2l` share, so the slave answers what the calibration tool reads
+/// in its description.
+///
+/// Addresses are byte addresses with address extension 0; everything at them is
+/// little-endian. Commands come in `XCP_Cmd` ([`CAN_ID_MASTER`]);
+/// responses, events and DAQ packets go out in `XCP_Res` ([`CAN_ID_SLAVE`]);
+/// both on the vehicle bus, always 8 bytes.
+pub mod xcp {
+    use super::{Internals, PAGE_LEN};
+
+    /// The calibration page, [`CALIBRATION_LEN`] bytes, laid out as
+    /// [`Calibration::to_page`](super::Calibration::to_page) does. [`WORKING_PAGE`] is what the
+    /// car runs on; [`REFERENCE_PAGE`] the schema's defaults.
+    pub const CALIBRATION_ADDRESS: u32 = 0x0001_0000;
+    /// Bytes at [`CALIBRATION_ADDRESS`].
+    pub const CALIBRATION_LEN: usize = PAGE_LEN;
+    /// XCP page 0: the working page, in RAM, which the control steps read and the master
+    /// writes (DOWNLOAD, within each parameter's limits and change condition).
+    pub const WORKING_PAGE: u8 = 0;
+    /// XCP page 1: the reference page, [`Calibration::DEFAULT`](super::Calibration::DEFAULT),
+    /// read-only (COPY_CAL_PAGE from it restores the defaults).
+    pub const REFERENCE_PAGE: u8 = 1;
+    /// The telemetry packet exactly as last sent, [`TELEMETRY_LEN`] bytes.
+    pub const TELEMETRY_ADDRESS: u32 = 0x0002_0000;
+    /// Bytes at [`TELEMETRY_ADDRESS`].
+    pub const TELEMETRY_LEN: usize = crate::telemetry::Telemetry::LEN;
+    /// The controllers' internals, [`Internals::to_bytes`], [`INTERNALS_LEN`] bytes.
+    pub const INTERNALS_ADDRESS: u32 = 0x0003_0000;
+    /// Bytes at [`INTERNALS_ADDRESS`].
+    pub const INTERNALS_LEN: usize = Internals::LEN;
+    /// The ECU program identifier's ASCII bytes ([`EPK`]).
+    pub const EPK_ADDRESS: u32 = 0x0004_0000;
+    /// The ECU program identifier: `AER`, the telemetry fingerprint (the DBC and the packet)
+    /// and the calibration fingerprint, in hex. A tool compares it with its description's,
+    /// so a description of another build is noticed at connection.
+    pub const EPK: &str = "AER DCF4C63B 0BA0BB9C";
+
+    /// The master's command id (`XCP_Cmd`, standard).
+    pub const CAN_ID_MASTER: u32 = 0x6F0;
+    /// The slave's id (`XCP_Res`, standard): responses, events and DAQ packets.
+    pub const CAN_ID_SLAVE: u32 = 0x6F1;
+    /// The bus's bit rate (bit/s).
+    pub const BIT_RATE: u32 = 500_000;
+    /// The host (test) endpoint's TCP port, on 127.0.0.1.
+    pub const TCP_PORT: u16 = 5555;
+
+    /// Bytes of a command or response packet (CTO): one CAN frame.
+    pub const MAX_CTO: u8 = 8;
+    /// Bytes of a DAQ packet (DTO): one CAN frame.
+    pub const MAX_DTO: u16 = 8;
+    /// Master block mode (GET_COMM_MODE_INFO): command packets in one DOWNLOAD/DOWNLOAD_NEXT
+    /// sequence (32 x 6 bytes, more than a whole page).
+    pub const MAX_BS: u8 = 32;
+    /// The separation the slave needs between a block's packets, in 100 us.
+    pub const MIN_ST: u8 = 0;
+    /// BUILD_CHECKSUM's type: XCP_CRC_16_CITT (CRC-16 CCITT, initial value 0xFFFF).
+    pub const CHECKSUM_TYPE: u8 = 0x08;
+    /// The largest block BUILD_CHECKSUM takes, in bytes.
+    pub const MAX_CHECKSUM_BLOCK: u32 = 0xFFFF;
+    /// The A2L file's name without path and extension (GET_ID type 1): `generated/aer.a2l`.
+    pub const A2L_NAME: &str = "aer";
+    /// Bytes of a DAQ timestamp (GET_DAQ_RESOLUTION_INFO).
+    pub const TIMESTAMP_SIZE: u8 = 4;
+    /// Timestamp ticks per unit; the unit is 1 us.
+    pub const TIMESTAMP_TICKS: u16 = 1;
+
+    /// DAQ lists the master may allocate (dynamic configuration).
+    pub const MAX_DAQ: u16 = 4;
+    /// ODT entries the master may allocate over all DAQ lists.
+    pub const ODT_ENTRIES: u16 = 64;
+    /// Bytes one ODT entry may sample.
+    pub const MAX_ODT_ENTRY_SIZE: u8 = 4;
+    /// The slave's frame budget (frames per second): `XCP_Res` every
+    /// 4 ms on average. DAQ lists whose frames would exceed it are refused.
+    pub const DAQ_FRAMES_PER_S: u32 = 250;
+
+    /// An event channel: a point in the firmware where DAQ lists are sampled.
+    #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+    pub struct Event {
+        /// Its name (the A2L's event name).
+        pub name: &'static str,
+        /// How often it fires, in microseconds.
+        pub period_us: u32,
+    }
+
+    /// Every event channel; its index is its channel number.
+    pub const EVENTS: [Event; 2] = [
+        Event {
+            name: "control",
+            period_us: 10_000,
+        },
+        Event {
+            name: "sensors",
+            period_us: 1_000,
+        },
+    ];
+
+    /// Channel `control`, every 10 ms: after each control step.
+    pub const EVENT_CONTROL: u16 = 0;
+
+    /// Channel `sensors`, every 1 ms: after each sensor sample.
+    pub const EVENT_SENSORS: u16 = 1;
 }
 
 /// `N` bytes of `bytes` from `offset`, `None` past its end.

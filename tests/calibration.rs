@@ -1,12 +1,16 @@
 //! The generated calibration: the page round-trips, a value outside its limits never gets
 //! through `from_page`, every byte of the page belongs to the parameter the table says, the
-//! curve lookup stays between its values, and each change condition allows exactly what it
-//! names.
+//! curve lookup stays between its values, each change condition allows exactly what it
+//! names, the internals' block is laid out as its table says and the XCP settings agree with
+//! the DBC and the fingerprints.
 
 use aer::calibration::{
     CALIBRATION_FINGERPRINT, Calibration, CalibrationError, ChangeWhen, PAGE_LEN, PARAMETERS,
     VehicleState, check_page, parameter_at,
 };
+use aer::calibration::{INTERNALS, Internals, xcp};
+use aer::can::{XcpCmd, XcpRes};
+use aer::telemetry::{TELEMETRY_FINGERPRINT, Telemetry};
 use proptest::prelude::*;
 
 #[test]
@@ -177,4 +181,79 @@ proptest! {
         }
         prop_assert_eq!(calibration.launch_slip_target_at(f32::NAN), values[0]);
     }
+}
+
+#[test]
+fn the_internals_block_is_every_value_in_declared_order() {
+    assert_eq!(Internals::LEN, INTERNALS.len() * 4);
+    assert_eq!(Internals::default().to_bytes(), [0; Internals::LEN]);
+    for (index, i) in INTERNALS.iter().enumerate() {
+        assert_eq!(i.offset, index * 4, "{}", i.name);
+        assert!(i.min < i.max && !i.unit.is_empty() && !i.description.is_empty());
+    }
+    let internals = Internals {
+        driver_torque_nm: 120.5,
+        slip_ratio: -0.25,
+        torque_command_nm: -42.0,
+        ..Internals::default()
+    };
+    let bytes = internals.to_bytes();
+    let at = |name: &str| {
+        let i = INTERNALS.iter().find(|i| i.name == name).expect(name);
+        f32::from_le_bytes(bytes[i.offset..i.offset + 4].try_into().expect("4 bytes"))
+    };
+    assert_eq!(at("driver_torque_nm"), 120.5);
+    assert_eq!(at("slip_ratio"), -0.25);
+    assert_eq!(at("torque_command_nm"), -42.0);
+    assert_eq!(at("power_efficiency"), 0.0);
+}
+
+#[test]
+fn the_xcp_settings_agree_with_the_dbc_and_name_the_schema() {
+    // The messages, the bit rate and the frame budget come from the DBC.
+    assert_eq!(xcp::CAN_ID_MASTER, XcpCmd::ID);
+    assert_eq!(xcp::CAN_ID_SLAVE, XcpRes::ID);
+    const { assert!(!XcpCmd::EXTENDED && !XcpRes::EXTENDED) };
+    assert_eq!((XcpCmd::LEN, XcpRes::LEN), (8, 8));
+    let cycle = XcpRes::META.cycle_time_ms.expect("XCP_Res's frame budget");
+    assert_eq!(xcp::DAQ_FRAMES_PER_S, 1000 / cycle);
+    assert_eq!(xcp::BIT_RATE, 500_000);
+    // The address map: four areas, apart, each holding what it names.
+    let areas = [
+        (xcp::CALIBRATION_ADDRESS, xcp::CALIBRATION_LEN),
+        (xcp::TELEMETRY_ADDRESS, xcp::TELEMETRY_LEN),
+        (xcp::INTERNALS_ADDRESS, xcp::INTERNALS_LEN),
+        (xcp::EPK_ADDRESS, xcp::EPK.len()),
+    ];
+    for pair in areas.windows(2) {
+        let [(a, len), (b, _)] = pair else { continue };
+        assert!(*a as usize + len <= *b as usize, "{a:#x} overlaps {b:#x}");
+    }
+    assert_eq!(xcp::CALIBRATION_LEN, PAGE_LEN);
+    assert_eq!(xcp::TELEMETRY_LEN, Telemetry::LEN);
+    assert_eq!(xcp::INTERNALS_LEN, Internals::LEN);
+    // The EPK names both fingerprints, so it changes with any layout.
+    assert_eq!(
+        xcp::EPK,
+        format!("AER {TELEMETRY_FINGERPRINT:08X} {CALIBRATION_FINGERPRINT:08X}")
+    );
+    assert!(xcp::EPK.is_ascii());
+    // One frame per packet; a block of DOWNLOAD_NEXTs holds the whole page; an ODT entry
+    // holds an f32 and fits a DAQ packet after its PID.
+    assert_eq!((xcp::MAX_CTO, xcp::MAX_DTO), (8, 8));
+    assert!(usize::from(xcp::MAX_BS) * 6 >= PAGE_LEN);
+    assert!((4..xcp::MAX_DTO).contains(&u16::from(xcp::MAX_ODT_ENTRY_SIZE)));
+    const { assert!(xcp::ODT_ENTRIES >= xcp::MAX_DAQ) };
+    // The events, numbered in order.
+    assert_eq!(xcp::EVENTS.len(), 2);
+    assert_eq!(xcp::EVENTS[usize::from(xcp::EVENT_CONTROL)].name, "control");
+    assert_eq!(
+        xcp::EVENTS[usize::from(xcp::EVENT_CONTROL)].period_us,
+        10_000
+    );
+    assert_eq!(xcp::EVENTS[usize::from(xcp::EVENT_SENSORS)].name, "sensors");
+    assert_eq!(
+        xcp::EVENTS[usize::from(xcp::EVENT_SENSORS)].period_us,
+        1_000
+    );
 }

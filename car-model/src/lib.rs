@@ -11,7 +11,8 @@
 //!   lag and the BMS's delay ([`nodes`]), and the CCM's sensors ([`sensors`]);
 //! - a driver who starts the car and follows a drive cycle ([`driver`]);
 //! - fault injection ([`faults`]);
-//! - the FSAE rules as invariants, checked every millisecond ([`rules`]).
+//! - the FSAE rules as invariants, checked every millisecond ([`rules`]);
+//! - the CCM's XCP slave around the loop, for calibration tools ([`xcp_car`]).
 //!
 //! [`ClosedLoop`] ties them together. `no_std` and allocation-free, so the same run also
 //! executes on the emulated Cortex-M7 (`cargo xtask m7-check`).
@@ -30,6 +31,8 @@ pub mod precharge;
 pub mod rng;
 pub mod rules;
 pub mod sensors;
+pub mod xcp_car;
 
 pub use closed_loop::{BusTap, ClosedLoop, NoTap};
 pub use params::ModelParams;
+pub use xcp_car::XcpCar;

@@ -21,6 +21,8 @@ use crate::io::{ControlOutputs, DriverCounters, DriverInputs, SensorSample};
 use crate::power::PowerLimits;
 use crate::sensors::Sensors;
 use crate::telemetry::TelemetryLink;
+use crate::xcp::Measurements;
+use aer::calibration::VehicleState;
 use aer::can::CcmStatus;
 use aer::runtime::EncodeError;
 use aer::telemetry::Telemetry;
@@ -65,7 +67,7 @@ impl Ccm {
 
     /// The calibration it runs with now.
     pub fn calibration(&self) -> Calibration {
-        self.calibration.active()
+        *self.calibration.active()
     }
 
     /// Runs with `calibration` from the next sensor sample and control step on, whole, as
@@ -83,6 +85,26 @@ impl Ccm {
     /// See [`Ccm::calibration_state`].
     pub fn calibration_state_mut(&mut self) -> &mut CalibrationState {
         &mut self.calibration
+    }
+
+    /// Whether the car moves and the tractive system is live, as the last control step saw
+    /// it: what calibration changes and saving are checked against.
+    pub fn vehicle_state(&self) -> VehicleState {
+        self.control.vehicle_state()
+    }
+
+    /// What XCP measures: the telemetry packet as last sent and the last control step's
+    /// internals.
+    pub fn measurements(&self) -> Measurements {
+        Measurements {
+            telemetry: *self.link.last_packet(),
+            internals: self.internals().to_bytes(),
+        }
+    }
+
+    /// The last control step's intermediate values (see [`Control::internals`]).
+    pub fn internals(&self) -> aer::calibration::Internals {
+        self.control.internals()
     }
 
     /// The inverter this CCM drives.
@@ -145,7 +167,7 @@ impl Ccm {
             self.wheels[1].speed(WHEEL_TEETH),
         ];
         self.control.step(
-            &self.calibration.active(),
+            self.calibration.active(),
             &self.sensors.reading(),
             wheels,
             driver,

@@ -227,3 +227,14 @@ pub const MIN_SLIP_SPEED_RAD_S: f32 = 3.0;
 pub const MIN_CELL_V: f32 = 2.8;
 /// Motor, inverter and pack temperature limits (degC) for OVER_TEMPERATURE.
 pub const MAX_TEMP_DEGC: (f32, f32, f32) = (120.0, 85.0, 60.0);
+
+// --- Calibration ---------------------------------------------------------------------------
+
+/// The tractive system counts as off (for calibration changes and saving) only while the
+/// PCC reports STANDBY with its tractive-system voltage below this (the 60 V DC low-voltage
+/// limit of the rules, as the PCC's own handover uses).
+pub const TRACTIVE_OFF_V: f32 = 60.0;
+/// The car counts as stopped (for calibration changes and saving) only while the motor, on a
+/// fresh inverter status, and both front wheels turn slower than this (rad/s, about 0.1 m/s at
+/// the wheel); an unknown speed counts as moving.
+pub const STANDSTILL_RAD_S: f32 = 0.5;

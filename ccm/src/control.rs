@@ -7,7 +7,8 @@ use crate::calibration::Calibration;
 use crate::chassis::WheelSpeed;
 use crate::constants::{
     BMS_LIMITS_TIMEOUT_MS, CONTROL_PERIOD_MS, DTI_FLAGS_TIMEOUT_MS, INVERTER,
-    MOTOR_TORQUE_PER_PEAK_A, PCC_STATUS_TIMEOUT_MS, SAMPLE_TIMEOUT_MS, STATUS_PERIOD_MS,
+    MOTOR_TORQUE_PER_PEAK_A, PCC_STATUS_TIMEOUT_MS, SAMPLE_TIMEOUT_MS, STANDSTILL_RAD_S,
+    STATUS_PERIOD_MS, TRACTIVE_OFF_V,
 };
 use crate::faults::{Fault, FaultInputs, FaultMonitor};
 use crate::inverter::dti::{self, EnableWatch};
@@ -20,6 +21,7 @@ use crate::telemetry::LinkCounters;
 use crate::thermal::cooling;
 use crate::torque_path::{TorqueInputs, TorquePath};
 use crate::vehicle::{State, Vehicle, VehicleInputs};
+use aer::calibration::{Internals, VehicleState};
 use aer::can::{AnyMessage, CcmCalibration, CcmStatus, PrechargeState, SCHEMA_FINGERPRINT};
 use aer::runtime::EncodeError;
 use aer::telemetry::{Telemetry, TelemetryOwnFields};
@@ -91,6 +93,8 @@ pub struct Control {
     started_ms: Option<u32>,
     /// When the last control step ran (ms).
     stepped_ms: u32,
+    /// Whether the car moves and the tractive system is live, as the last step saw it.
+    vehicle_state: VehicleState,
 }
 
 impl Default for Control {
@@ -122,6 +126,10 @@ impl Control {
             driver: DriverCounters::default(),
             started_ms: None,
             stepped_ms: 0,
+            vehicle_state: VehicleState {
+                moving: true,
+                tractive_live: true,
+            },
         }
     }
 
@@ -223,6 +231,21 @@ impl Control {
                 launch_button: driver.launch,
             },
         );
+        let standing = |rad_s: f32| rad_s.abs() < STANDSTILL_RAD_S;
+        self.vehicle_state = VehicleState {
+            moving: !(bus
+                .inverter
+                .motor_rpm
+                .map(aer_params::motor_rad_s)
+                .is_some_and(standing)
+                && standing(left.rad_per_s(now_us))
+                && standing(right.rad_per_s(now_us))),
+            tractive_live: vehicle.torque_enabled
+                || !bus.pcc.is_some_and(|pcc| {
+                    pcc.pcc_state == PrechargeState::Standby
+                        && pcc.pcc_tractive_voltage < f64::from(TRACTIVE_OFF_V)
+                }),
+        };
         let temperatures = bus
             .inverter
             .temperatures_degc
@@ -241,6 +264,18 @@ impl Control {
         };
         self.last = outputs;
         outputs
+    }
+
+    /// Whether the car moves and the tractive system is live, as the last control step saw it
+    /// (both true before the first): what calibration changes and saving are checked against.
+    pub fn vehicle_state(&self) -> VehicleState {
+        self.vehicle_state
+    }
+
+    /// The last control step's intermediate values (launch, traction, the power limiter and
+    /// the monitor), what XCP samples at the control event.
+    pub fn internals(&self) -> Internals {
+        self.torque_path.internals()
     }
 
     /// The control schedule, in one place for the firmware, the car model and the tests: what

@@ -68,6 +68,7 @@ pub struct LaunchControl {
     state: LaunchState,
     reduction: Pid,
     slip: f32,
+    target: f32,
 }
 
 impl LaunchControl {
@@ -83,6 +84,7 @@ impl LaunchControl {
                 period_ms as f32 / 1_000.0,
             ),
             slip: 0.0,
+            target: 0.0,
         }
     }
 
@@ -94,6 +96,12 @@ impl LaunchControl {
     /// Slip ratio of the last active step.
     pub fn slip(&self) -> f32 {
         self.slip
+    }
+
+    /// The slip target of the last active step (from the calibration's curve at the speed
+    /// then), 0 before the first.
+    pub fn target(&self) -> f32 {
+        self.target
     }
 
     /// One 100 Hz step: the torque to command, never above the driver's request, with the
@@ -141,6 +149,7 @@ impl LaunchControl {
         }
         self.slip = (inputs.driven_rad_s - free) / free;
         let target = calibration.launch_slip_target_at(free * WHEEL_RADIUS_M);
+        self.target = target;
         let [below, above] = calibration.launch_slip_band;
         self.reduction
             .set_gains(gains(calibration.launch_kp, calibration.launch_ki));

@@ -39,6 +39,7 @@ pub mod torque_path;
 pub mod traction;
 pub mod vehicle;
 pub mod watchdog;
+pub mod xcp;
 
 pub use ccm::Ccm;
 pub use inverter::{InverterKind, OutFrame, OutFrames};

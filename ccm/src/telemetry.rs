@@ -32,6 +32,7 @@ pub struct TelemetryLink {
     sequence: u16,
     counters: LinkCounters,
     last_error: Option<SendError>,
+    last_packet: [u8; Telemetry::LEN],
 }
 
 impl Default for TelemetryLink {
@@ -53,12 +54,18 @@ impl TelemetryLink {
                 saturated_fields: 0,
             },
             last_error: None,
+            last_packet: [0; Telemetry::LEN],
         }
     }
 
     /// Counters so far.
     pub fn counters(&self) -> LinkCounters {
         self.counters
+    }
+
+    /// The packet last packed, exactly as sent (what XCP reads at the telemetry address).
+    pub fn last_packet(&self) -> &[u8; Telemetry::LEN] {
+        &self.last_packet
     }
 
     /// The last ISO-TP error, for diagnostics.
@@ -78,6 +85,7 @@ impl TelemetryLink {
             .counters
             .saturated_fields
             .wrapping_add(u32::from(snapshot.pack(header, &mut packet)));
+        self.last_packet = packet;
         if !self.sender.is_idle() {
             self.sender.abort();
             self.counters.superseded = self.counters.superseded.wrapping_add(1);

@@ -9,6 +9,7 @@ use crate::launch::{LaunchControl, LaunchInputs, LaunchState};
 use crate::monitor::{EfficiencyBound, MonitorInputs, allowed_torque};
 use crate::power::{PowerLimiter, PowerLimits};
 use crate::traction::TractionControl;
+use aer::calibration::Internals;
 
 /// Everything the torque path reads in one 100 Hz step; bus values are `None` unless fresh.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -71,6 +72,8 @@ pub struct TorquePath {
     power: PowerLimiter,
     /// The monitor's own efficiency, from the readings.
     efficiency: EfficiencyBound,
+    /// The last step's intermediate values, for calibration tools.
+    internals: Internals,
 }
 
 impl TorquePath {
@@ -82,7 +85,13 @@ impl TorquePath {
             limits,
             power: PowerLimiter::new(period_ms, limits.power_target_w),
             efficiency: EfficiencyBound::new(period_ms),
+            internals: Internals::default(),
         }
+    }
+
+    /// The last step's intermediate values (what XCP samples at the control event).
+    pub fn internals(&self) -> Internals {
+        self.internals
     }
 
     /// One step, with the `calibration` as it is now.
@@ -150,12 +159,24 @@ impl TorquePath {
             derated.min(allowed),
         );
         let torque = derated.min(power_ceiling).min(allowed);
+        let torque_nm = if may_drive && torque.is_finite() {
+            torque.max(0.0)
+        } else {
+            0.0
+        };
+        self.internals = Internals {
+            driver_torque_nm: driver,
+            launch_torque_nm: launch_torque,
+            launch_slip_target: self.launch.target(),
+            traction_torque_nm: traction_torque,
+            slip_ratio: slip,
+            power_allowed_nm: power_ceiling,
+            power_efficiency: self.power.efficiency(),
+            monitor_efficiency: self.efficiency.efficiency(),
+            torque_command_nm: torque_nm,
+        };
         TorqueCommand {
-            torque_nm: if may_drive && torque.is_finite() {
-                torque.max(0.0)
-            } else {
-                0.0
-            },
+            torque_nm,
             allowed_nm: allowed,
             launch: self.launch.state(),
             slip,

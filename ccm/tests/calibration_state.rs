@@ -133,7 +133,7 @@ fn the_reference_page_is_the_defaults_and_switching_to_it_obeys_the_change_condi
     assert_eq!(state.select(Page::Reference, DRIVING), Err(Refused::NotNow));
     assert_eq!(state.ecu_page(), Page::Working);
     assert_eq!(state.select(Page::Reference, PARKED), Ok(()));
-    assert_eq!(state.active(), Calibration::DEFAULT);
+    assert_eq!(*state.active(), Calibration::DEFAULT);
     let status = state.status();
     assert_eq!(status.ccm_cal_page, CcmCalibrationCcmCalPage::Reference);
     assert_eq!(
@@ -145,7 +145,7 @@ fn the_reference_page_is_the_defaults_and_switching_to_it_obeys_the_change_condi
         state.write(launch, &120.0f32.to_le_bytes(), DRIVING),
         Ok(())
     );
-    assert_eq!(state.active(), Calibration::DEFAULT);
+    assert_eq!(*state.active(), Calibration::DEFAULT);
     assert_eq!(state.select(Page::Working, PARKED), Ok(()));
     assert_eq!(state.active().launch_kp, 120.0);
 }
@@ -159,7 +159,7 @@ fn reverting_copies_the_defaults_over_the_working_page() {
         Ok(())
     );
     assert_eq!(state.revert_to_reference(DRIVING), Ok(()));
-    assert_eq!(state.active(), Calibration::DEFAULT);
+    assert_eq!(*state.active(), Calibration::DEFAULT);
     assert!(!state.status().ccm_cal_unsaved);
 }
 

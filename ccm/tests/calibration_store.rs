@@ -276,3 +276,41 @@ fn write_record(flash: &mut RamFlash, slot: Slot, generation: u32, page: &[u8; P
     record[RECORD_LEN - 4..RECORD_LEN].copy_from_slice(&crc.to_le_bytes());
     *flash.slot_mut(slot) = record;
 }
+
+fn drain<const N: usize>(log: &mut aer_console::LogBuffer<N>) -> Vec<String> {
+    let mut bytes = vec![0u8; N];
+    let taken = log.peek(&mut bytes);
+    log.consume(taken);
+    String::from_utf8_lossy(&bytes[..taken])
+        .lines()
+        .map(str::to_owned)
+        .collect()
+}
+
+#[test]
+fn the_bring_up_saves_and_loads_back_what_start_up_would_load() {
+    use aer_ccm::console::bringup::{bench_calibration, cal_load, cal_save};
+    let mut log = aer_console::LogBuffer::<4096>::new();
+    let mut flash = RamFlash::default();
+    let calibration = bench_calibration(&aer_ccm::calibration::BenchRecorder::default());
+    let checksum = crc32(&calibration.to_page());
+    assert_eq!(cal_load(&mut log, &mut flash, EPK), 0);
+    assert_eq!(cal_save(&mut log, &mut flash, &calibration, EPK, true), 0);
+    assert_eq!(cal_save(&mut log, &mut flash, &calibration, EPK, false), 0);
+    assert_eq!(cal_load(&mut log, &mut flash, EPK), 0);
+    flash.slot_mut(Slot::A)[20] ^= 1;
+    assert_eq!(cal_load(&mut log, &mut flash, EPK), 0);
+    let defaults = crc32(&Calibration::DEFAULT.to_page());
+    assert_eq!(
+        drain(&mut log),
+        [
+            format!("calibration: the schema's defaults (none saved), checksum 0x{defaults:08X}"),
+            "not saved: only at standstill with the tractive system off".to_owned(),
+            format!("saved as copy A (generation 1), checksum 0x{checksum:08X}"),
+            format!("calibration: saved copy A (generation 1), checksum 0x{checksum:08X}"),
+            format!(
+                "calibration: the schema's defaults (saved copy corrupt), checksum 0x{defaults:08X}"
+            ),
+        ]
+    );
+}

@@ -105,6 +105,21 @@ pub enum Code {
     ChangeCondition,
     /// E0309: a parameter without the label, unit or description a calibration tool shows.
     ParameterText,
+    /// E0310: an unusable or duplicate internal's name, or no internals at all.
+    InternalName,
+    /// E0311: an internal's limits that are not finite f32 values in increasing order.
+    InternalLimits,
+    /// E0312: an internal without the unit or description a calibration tool shows.
+    InternalText,
+    /// E0313: XCP messages the slave cannot use: missing from the DBC or from the bus, not 8
+    /// bytes, extended, one message for both directions, a response without a cycle time (its
+    /// frame budget) or a DBC without a bit rate.
+    XcpMessage,
+    /// E0314: an XCP setting the slave cannot keep (port, DAQ lists, ODT entries, entry size).
+    XcpSetting,
+    /// E0315: unusable XCP events: none, a name that is not snake_case, a keyword or declared
+    /// twice, a period an A2L event cannot state, or no description.
+    XcpEvent,
     /// W0201: a name that is a Rust keyword.
     KeywordName,
     /// W0202: a range the raw value cannot reach.
@@ -128,7 +143,7 @@ pub enum Code {
 }
 
 /// Every code, for [`Code::parse`].
-const ALL: [Code; 54] = [
+const ALL: [Code; 60] = [
     Code::DbcUnreadable,
     Code::DbcEncoding,
     Code::DbcSyntax,
@@ -173,6 +188,12 @@ const ALL: [Code; 54] = [
     Code::ParameterDefault,
     Code::ChangeCondition,
     Code::ParameterText,
+    Code::InternalName,
+    Code::InternalLimits,
+    Code::InternalText,
+    Code::XcpMessage,
+    Code::XcpSetting,
+    Code::XcpEvent,
     Code::KeywordName,
     Code::RangeBeyondRaw,
     Code::UnusableValues,
@@ -233,6 +254,12 @@ impl Code {
             Code::ParameterDefault => "E0307",
             Code::ChangeCondition => "E0308",
             Code::ParameterText => "E0309",
+            Code::InternalName => "E0310",
+            Code::InternalLimits => "E0311",
+            Code::InternalText => "E0312",
+            Code::XcpMessage => "E0313",
+            Code::XcpSetting => "E0314",
+            Code::XcpEvent => "E0315",
             Code::KeywordName => "W0201",
             Code::RangeBeyondRaw => "W0202",
             Code::UnusableValues => "W0203",

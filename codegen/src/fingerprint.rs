@@ -115,8 +115,10 @@ pub fn telemetry(db: &Database, t: &crate::model::Telemetry) -> u32 {
 }
 
 /// Fingerprint of the calibration's layout: what a saved page or a calibration tool's
-/// description must agree on (names, types, offsets, counts, limits, change conditions, axes).
-/// Defaults and texts are left out: changing them changes no page's meaning.
+/// description must agree on (names, types, offsets, counts, limits, change conditions, axes),
+/// the internals' block (names, order, ranges) and the XCP slave's settings (ids, bit rate,
+/// port, DAQ resources, events). Defaults and texts are left out: changing them changes no
+/// page's meaning.
 pub fn calibration(c: &crate::model::Calibration) -> u32 {
     let mut h = Fnv1a::new();
     h.field(&format!("calibration {} {}", c.name, c.page_len));
@@ -137,6 +139,30 @@ pub fn calibration(c: &crate::model::Calibration) -> u32 {
                 h.field(&format!("axis {:016x}", point.to_bits()));
             }
         }
+    }
+    for i in &c.internals {
+        h.field(&format!(
+            "internal {} {:016x} {:016x}",
+            i.name,
+            i.min.to_bits(),
+            i.max.to_bits()
+        ));
+    }
+    let x = &c.xcp;
+    h.field(&format!(
+        "xcp {} {} {} {} {} {} {} {} {}",
+        x.can_id_master,
+        x.can_id_slave,
+        x.bit_rate,
+        x.response_cycle_ms,
+        x.tcp_port,
+        x.max_daq,
+        x.odt_entries,
+        x.max_odt_entry_size,
+        x.bus.as_deref().unwrap_or("")
+    ));
+    for e in &x.events {
+        h.field(&format!("event {} {}", e.name, e.period_us));
     }
     h.finish()
 }

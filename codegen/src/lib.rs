@@ -173,14 +173,15 @@ fn write_files(out_dir: &Path, files: &[GeneratedFile], report: &mut Report) -> 
     Ok(())
 }
 
-/// Parses and checks calibration YAML; `path` names it in diagnostics. The calibration plus
-/// any warnings, or every error found.
+/// Parses and checks calibration YAML against the database its XCP messages are in; `path`
+/// names it in diagnostics. The calibration plus any warnings, or every error found.
 pub fn parse_calibration(
     path: &Path,
     text: String,
+    db: &Database,
 ) -> Result<(model::Calibration, Vec<Diagnostic>), Diagnostics> {
     let loaded = load::calibration::parse(path, text)?;
-    validate::calibration::validate(path, &loaded)
+    validate::calibration::validate(path, &loaded, db)
 }
 
 /// The car's schema: the CAN database, the telemetry packet that references it and the
@@ -207,7 +208,7 @@ impl CarSchema {
         }
         let yaml = schema_dir.join("calibration.yaml");
         let loaded = load::calibration::load(&yaml)?;
-        let (calibration, warnings) = validate::calibration::validate(&yaml, &loaded)?;
+        let (calibration, warnings) = validate::calibration::validate(&yaml, &loaded, &db)?;
         if !warnings.is_empty() {
             return Err(Error::DeniedWarnings(warnings));
         }
@@ -228,6 +229,7 @@ impl CarSchema {
             path: PathBuf::from(path),
             content,
         };
+        let epk = render::a2l::Epk::new(fingerprint::telemetry(db, t), fingerprint::calibration(c));
         let lib = render::standalone::LibTemplate {
             title: "The car's wire contract: CAN frames, the telemetry packet, its storage and topics.",
             source: "schema/",
@@ -251,7 +253,7 @@ impl CarSchema {
             ),
             file(
                 "calibration.rs",
-                render::calibration::render(c, calibration, fingerprint::calibration(c))?,
+                render::calibration::render(c, calibration, &epk)?,
             ),
             file("tables.rs", render::tables::render_rust(db, t, "schema/")?),
             file(
@@ -278,7 +280,11 @@ impl CarSchema {
             ),
             file(
                 "docs/calibration.md",
-                render::calibration::render_docs(c, calibration, fingerprint::calibration(c))?,
+                render::calibration::render_docs(c, calibration, &epk, t.len)?,
+            ),
+            file(
+                &format!("{}.a2l", render::a2l::A2L_NAME),
+                render::a2l::render(db, t, c, &epk)?,
             ),
             file(
                 "examples/decode.rs",

@@ -444,6 +444,99 @@ pub struct Calibration {
     pub parameters: Vec<Parameter>,
     /// Bytes of the page.
     pub page_len: usize,
+    /// The controllers' internal values a tuner samples, in their block's order.
+    pub internals: Vec<Internal>,
+    /// How a calibration tool reaches the slave.
+    pub xcp: Xcp,
+}
+
+/// A controller's internal value (an `f32`) a tuner samples with XCP; the values lie one after
+/// the other, 4 bytes each, little-endian, in declared order.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Internal {
+    /// The field name (snake_case).
+    pub name: String,
+    pub unit: String,
+    /// The range it is expected in (for the calibration tool's display; not enforced).
+    pub min: f64,
+    pub max: f64,
+    pub description: String,
+}
+
+/// Bytes of one internal value (an `f32`).
+pub const INTERNAL_SIZE: usize = 4;
+
+impl Calibration {
+    /// Bytes of the internals' block: every value an `f32`, in declared order.
+    pub fn internals_len(&self) -> usize {
+        self.internals.len() * INTERNAL_SIZE
+    }
+}
+
+/// The XCP slave's settings that the firmware and the calibration tool's description share.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Xcp {
+    /// The bus its messages are on (an `AerBus` name), if the schema says.
+    pub bus: Option<String>,
+    /// The DBC message the master sends commands in.
+    pub command_message: String,
+    /// The DBC message the slave answers (and sends DAQ packets) in.
+    pub response_message: String,
+    /// The command message's standard id.
+    pub can_id_master: u32,
+    /// The response message's standard id.
+    pub can_id_slave: u32,
+    /// The bus's bit rate (the DBC's `Baudrate`).
+    pub bit_rate: u32,
+    /// The response message's cycle time: the slave's frame budget, one frame per this many
+    /// milliseconds on average.
+    pub response_cycle_ms: u32,
+    /// The TCP port of the host (test) endpoint.
+    pub tcp_port: u16,
+    /// DAQ lists the master may allocate.
+    pub max_daq: u16,
+    /// ODT entries the master may allocate over all DAQ lists.
+    pub odt_entries: u16,
+    /// Bytes one ODT entry may sample.
+    pub max_odt_entry_size: u8,
+    /// The event channels, numbered from 0 in this order.
+    pub events: Vec<XcpEvent>,
+}
+
+/// An XCP event channel.
+#[derive(Debug, Clone, PartialEq)]
+pub struct XcpEvent {
+    /// Its name (snake_case).
+    pub name: String,
+    /// How often it fires, in microseconds.
+    pub period_us: u32,
+    pub description: String,
+}
+
+impl XcpEvent {
+    /// The period as an A2L event states it: a cycle of at most 255 units and the unit's
+    /// code (3 = 1 us, 4 = 10 us, ..., 9 = 1 s), the finest unit that holds it exactly (10 ms
+    /// is 100 x 100 us, as the slave's GET_DAQ_EVENT_INFO says it); `None` when none does.
+    pub fn time_cycle(&self) -> Option<(u8, u8)> {
+        time_cycle(self.period_us)
+    }
+}
+
+/// See [`XcpEvent::time_cycle`].
+pub fn time_cycle(period_us: u32) -> Option<(u8, u8)> {
+    let units: [(u32, u8); 7] = [
+        (1, 3),
+        (10, 4),
+        (100, 5),
+        (1_000, 6),
+        (10_000, 7),
+        (100_000, 8),
+        (1_000_000, 9),
+    ];
+    units.into_iter().find_map(|(unit_us, code)| {
+        let cycle = u8::try_from(period_us / unit_us).ok()?;
+        (period_us % unit_us == 0 && cycle > 0).then_some((cycle, code))
+    })
 }
 
 /// One tuned number, or a list of them that changes as one.

@@ -12,8 +12,8 @@
 //! parameter may change in the car's present state.
 
 /// Fingerprint of the calibration's layout (names, types, offsets, limits, change conditions,
-/// axes): a saved page or a calibration tool's description with another fingerprint does not
-/// describe this firmware's page.
+/// axes), the internals' block and the XCP settings: a saved page or a calibration tool's
+/// description with another fingerprint does not describe this firmware's page.
 pub const CALIBRATION_FINGERPRINT: u32 = {{ fingerprint }};
 
 /// Bytes of the page.
@@ -321,6 +321,166 @@ impl Calibration {
     }
 {%- when None %}
 {%- endmatch %}
+{%- endfor %}
+}
+
+/// The controllers' internal values a tuner samples with XCP (the firmware fills them each
+/// control step). [`Internals::to_bytes`] is the block a calibration tool reads at
+/// [`xcp::INTERNALS_ADDRESS`]: every value an `f32`, little-endian, in this order.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Internals {
+{%- for i in internals %}
+{%- for line in i.doc %}
+    ///{% if !line.is_empty() %} {{ line }}{% endif %}
+{%- endfor %}
+    pub {{ i.name }}: f32,
+{%- endfor %}
+}
+
+impl Internals {
+    /// Bytes of [`Self::to_bytes`].
+    pub const LEN: usize = {{ internals_len }};
+
+    /// The block: every value little-endian, 4 bytes each, in declared order.
+    pub fn to_bytes(&self) -> [u8; Self::LEN] {
+        let mut bytes = [0; Self::LEN];
+{%- for i in internals %}
+        put(&mut bytes, {{ i.offset }}, &self.{{ i.name }}.to_le_bytes());
+{%- endfor %}
+        bytes
+    }
+}
+
+/// One internal value as the calibration tools address it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Internal {
+    /// The field of [`Internals`].
+    pub name: &'static str,
+    /// Its physical unit (`1` for ratios).
+    pub unit: &'static str,
+    /// What it is.
+    pub description: &'static str,
+    /// Where it starts in [`Internals::to_bytes`].
+    pub offset: usize,
+    /// The range it is expected in (the tools' display range; not enforced).
+    pub min: f64,
+    /// See `min`.
+    pub max: f64,
+}
+
+/// Every internal value, in the order of [`Internals::to_bytes`].
+pub const INTERNALS: [Internal; {{ internals.len() }}] = [
+{%- for i in internals %}
+    Internal {
+        name: {{ "{:?}"|format(i.name) }},
+        unit: {{ "{:?}"|format(i.unit) }},
+        description: {{ "{:?}"|format(i.description) }},
+        offset: {{ i.offset }},
+        min: {{ i.min }},
+        max: {{ i.max }},
+    },
+{%- endfor %}
+];
+
+/// XCP (ASAM MCD-1 XCP 1.0) on CAN and on TCP: the address map and the settings that the CCM's
+/// slave and `generated/aer.a2l` share, so the slave answers what the calibration tool reads
+/// in its description.
+///
+/// Addresses are byte addresses with address extension 0; everything at them is
+/// little-endian. Commands come in `{{ xcp.command_message }}` ([`CAN_ID_MASTER`]);
+/// responses, events and DAQ packets go out in `{{ xcp.response_message }}` ([`CAN_ID_SLAVE`]);
+/// both on the {{ xcp.bus }} bus, always 8 bytes.
+pub mod xcp {
+    use super::{Internals, PAGE_LEN};
+
+    /// The calibration page, [`CALIBRATION_LEN`] bytes, laid out as
+    /// [`Calibration::to_page`](super::Calibration::to_page) does. [`WORKING_PAGE`] is what the
+    /// car runs on; [`REFERENCE_PAGE`] the schema's defaults.
+    pub const CALIBRATION_ADDRESS: u32 = {{ xcp.calibration_address }};
+    /// Bytes at [`CALIBRATION_ADDRESS`].
+    pub const CALIBRATION_LEN: usize = PAGE_LEN;
+    /// XCP page 0: the working page, in RAM, which the control steps read and the master
+    /// writes (DOWNLOAD, within each parameter's limits and change condition).
+    pub const WORKING_PAGE: u8 = 0;
+    /// XCP page 1: the reference page, [`Calibration::DEFAULT`](super::Calibration::DEFAULT),
+    /// read-only (COPY_CAL_PAGE from it restores the defaults).
+    pub const REFERENCE_PAGE: u8 = 1;
+    /// The telemetry packet exactly as last sent, [`TELEMETRY_LEN`] bytes.
+    pub const TELEMETRY_ADDRESS: u32 = {{ xcp.telemetry_address }};
+    /// Bytes at [`TELEMETRY_ADDRESS`].
+    pub const TELEMETRY_LEN: usize = crate::telemetry::Telemetry::LEN;
+    /// The controllers' internals, [`Internals::to_bytes`], [`INTERNALS_LEN`] bytes.
+    pub const INTERNALS_ADDRESS: u32 = {{ xcp.internals_address }};
+    /// Bytes at [`INTERNALS_ADDRESS`].
+    pub const INTERNALS_LEN: usize = Internals::LEN;
+    /// The ECU program identifier's ASCII bytes ([`EPK`]).
+    pub const EPK_ADDRESS: u32 = {{ xcp.epk_address }};
+    /// The ECU program identifier: `AER`, the telemetry fingerprint (the DBC and the packet)
+    /// and the calibration fingerprint, in hex. A tool compares it with its description's,
+    /// so a description of another build is noticed at connection.
+    pub const EPK: &str = {{ "{:?}"|format(xcp.epk) }};
+
+    /// The master's command id (`{{ xcp.command_message }}`, standard).
+    pub const CAN_ID_MASTER: u32 = {{ xcp.can_id_master }};
+    /// The slave's id (`{{ xcp.response_message }}`, standard): responses, events and DAQ packets.
+    pub const CAN_ID_SLAVE: u32 = {{ xcp.can_id_slave }};
+    /// The bus's bit rate (bit/s).
+    pub const BIT_RATE: u32 = {{ xcp.bit_rate }};
+    /// The host (test) endpoint's TCP port, on 127.0.0.1.
+    pub const TCP_PORT: u16 = {{ xcp.tcp_port }};
+
+    /// Bytes of a command or response packet (CTO): one CAN frame.
+    pub const MAX_CTO: u8 = {{ xcp.max_cto }};
+    /// Bytes of a DAQ packet (DTO): one CAN frame.
+    pub const MAX_DTO: u16 = {{ xcp.max_dto }};
+    /// Master block mode (GET_COMM_MODE_INFO): command packets in one DOWNLOAD/DOWNLOAD_NEXT
+    /// sequence ({{ xcp.max_bs }} x 6 bytes, more than a whole page).
+    pub const MAX_BS: u8 = {{ xcp.max_bs }};
+    /// The separation the slave needs between a block's packets, in 100 us.
+    pub const MIN_ST: u8 = {{ xcp.min_st }};
+    /// BUILD_CHECKSUM's type: {{ xcp.checksum_name }} (CRC-16 CCITT, initial value 0xFFFF).
+    pub const CHECKSUM_TYPE: u8 = {{ xcp.checksum_type }};
+    /// The largest block BUILD_CHECKSUM takes, in bytes.
+    pub const MAX_CHECKSUM_BLOCK: u32 = {{ xcp.max_checksum_block }};
+    /// The A2L file's name without path and extension (GET_ID type 1): `generated/{{ xcp.a2l_name }}.a2l`.
+    pub const A2L_NAME: &str = {{ "{:?}"|format(xcp.a2l_name) }};
+    /// Bytes of a DAQ timestamp (GET_DAQ_RESOLUTION_INFO).
+    pub const TIMESTAMP_SIZE: u8 = {{ xcp.timestamp_size }};
+    /// Timestamp ticks per unit; the unit is 1 us.
+    pub const TIMESTAMP_TICKS: u16 = {{ xcp.timestamp_ticks }};
+
+    /// DAQ lists the master may allocate (dynamic configuration).
+    pub const MAX_DAQ: u16 = {{ xcp.max_daq }};
+    /// ODT entries the master may allocate over all DAQ lists.
+    pub const ODT_ENTRIES: u16 = {{ xcp.odt_entries }};
+    /// Bytes one ODT entry may sample.
+    pub const MAX_ODT_ENTRY_SIZE: u8 = {{ xcp.max_odt_entry_size }};
+    /// The slave's frame budget (frames per second): `{{ xcp.response_message }}` every
+    /// {{ xcp.response_cycle_ms }} ms on average. DAQ lists whose frames would exceed it are refused.
+    pub const DAQ_FRAMES_PER_S: u32 = {{ xcp.daq_frames_per_s }};
+
+    /// An event channel: a point in the firmware where DAQ lists are sampled.
+    #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+    pub struct Event {
+        /// Its name (the A2L's event name).
+        pub name: &'static str,
+        /// How often it fires, in microseconds.
+        pub period_us: u32,
+    }
+
+    /// Every event channel; its index is its channel number.
+    pub const EVENTS: [Event; {{ xcp.events.len() }}] = [
+{%- for e in xcp.events %}
+        Event {
+            name: {{ "{:?}"|format(e.name) }},
+            period_us: {{ e.period_us }},
+        },
+{%- endfor %}
+    ];
+{%- for e in xcp.events %}
+
+    /// Channel `{{ e.name }}`, every {{ e.period }}: {{ e.description }}.
+    pub const EVENT_{{ e.upper }}: u16 = {{ e.channel }};
 {%- endfor %}
 }
 

@@ -1,6 +1,6 @@
 //! The point of the project: one schema edit (a new field `shocktravel5` next to
-//! `shocktravel4`) reaches all four outputs: the firmware packer, the Pi's Deku decoder, the
-//! tables (TDengine and SQLite) and the MQTT payload.
+//! `shocktravel4`) reaches every output: the firmware packer, the Pi's Deku decoder, the
+//! tables (TDengine and SQLite), the MQTT payload and the calibration tools' A2L.
 
 use std::path::Path;
 
@@ -121,6 +121,28 @@ fn a_new_field_reaches_every_tier() {
     assert!(mqtt.contains("pub const TELEMETRY: Topic<Sample<TelemetryRecord>>"));
     assert!(mqtt.contains("pub telemetry: Telemetry,"));
     assert!(packer.contains("#[cfg_attr(feature = \"serde\", derive(serde::Serialize, serde::Deserialize))]\npub struct Telemetry {"));
+
+    // The A2L: a MEASUREMENT at its byte in the packet (the telemetry area at 0x20000), with its
+    // wire type, scaling, unit and range; and a new EPK, so a tool holding the old description
+    // notices.
+    let a2l = file(&files, "aer.a2l");
+    let measurement = format!(
+        "    /begin MEASUREMENT telemetry.shocktravel5 \"Fifth shock travel sensor.\"\n      \
+         UWORD cm.mm 0 0 0 76.2\n      ECU_ADDRESS 0x{:X}\n    /end MEASUREMENT\n",
+        0x2_0000 + st4 + 2
+    );
+    assert!(a2l.contains(&measurement), "{measurement}");
+    assert!(a2l.contains("/begin COMPU_METHOD cm.mm \"raw * 0.01 + 0, mm\"\n      LINEAR \"%12.2\" \"mm\"\n      COEFFS_LINEAR 0.01 0\n"));
+    assert!(a2l.contains(&format!("VARIABLES RAM INTERN 0x20000 {len} ")));
+    let epk = |s: &CarSchema| {
+        format!(
+            "EPK \"AER {:08X} {:08X}\"",
+            fp(s),
+            aer_codegen::calibration_fingerprint(&s.calibration)
+        )
+    };
+    assert!(a2l.contains(&epk(&after)), "{}", epk(&after));
+    assert_ne!(epk(&after), epk(&before));
 }
 
 #[test]

@@ -45,6 +45,16 @@ fn telemetry(field: &str) -> Result<CarSchema, Diagnostics> {
 /// The car's calibration schema, the starting point of the calibration cases.
 const CAR_CALIBRATION: &str = include_str!("../../schema/calibration.yaml");
 
+/// The car's DBC: the calibration's XCP messages are in it.
+const CAR_DBC: &str = include_str!("../../schema/aer.dbc");
+
+/// What every calibration file declares besides its parameters: an internal and the XCP
+/// settings of the car's DBC.
+const INTERNALS_AND_XCP: &str = "internals:\n  - { name: x, unit: V, min: 0, max: 1, description: X. }\n\
+xcp:\n  bus: vehicle\n  command_message: XCP_Cmd\n  response_message: XCP_Res\n  tcp_port: 5555\n  \
+max_daq: 4\n  odt_entries: 64\n  max_odt_entry_size: 4\n  events:\n    \
+- { name: control, period_ms: 10, description: After each step. }\n";
+
 fn calibration(
     yaml: String,
 ) -> Result<
@@ -54,7 +64,10 @@ fn calibration(
     ),
     Diagnostics,
 > {
-    aer_codegen::parse_calibration(Path::new("calibration.yaml"), yaml)
+    let db = aer_codegen::parse_dbc(Path::new("aer.dbc"), CAR_DBC.to_owned(), &[])
+        .expect("the car's DBC")
+        .0;
+    aer_codegen::parse_calibration(Path::new("calibration.yaml"), yaml, &db)
 }
 
 /// Numbers as YAML and DBC files write them, from ordinary to absurd.
@@ -180,7 +193,7 @@ proptest! {
         let yaml = format!(
             "calibration: {{ name: ccm }}\nparameters:\n  - {{ name: value, label: Value, \
              group: test, unit: V, type: {element}, default: {}, min: {}, max: {}, \
-             change: driving, description: A value. }}\n",
+             change: driving, description: A value. }}\n{INTERNALS_AND_XCP}",
             yaml_number(default), yaml_number(min), yaml_number(max),
         );
         if let Ok((c, _)) = calibration(yaml) {
@@ -193,6 +206,37 @@ proptest! {
                 prop_assert_eq!(p.defaults[0].fract(), 0.0);
             }
             prop_assert_eq!(c.page_len, p.len());
+        }
+    }
+
+    #[test]
+    fn any_numbers_in_the_xcp_settings_give_a_slave_or_a_diagnostic(
+        port in number(),
+        daq in number(),
+        entries in number(),
+        entry_size in number(),
+        period in number(),
+        (min, max) in (number(), number()),
+    ) {
+        let yaml = format!(
+            "calibration: {{ name: ccm }}\nparameters:\n  - {{ name: value, label: Value, \
+             group: test, unit: V, type: f32, default: 1, min: 0, max: 2, change: driving, \
+             description: A value. }}\ninternals:\n  - {{ name: x, unit: V, min: {}, max: {}, \
+             description: X. }}\nxcp:\n  command_message: XCP_Cmd\n  response_message: XCP_Res\n  \
+             tcp_port: {}\n  max_daq: {}\n  odt_entries: {}\n  max_odt_entry_size: {}\n  \
+             events:\n    - {{ name: e, period_ms: {}, description: E. }}\n",
+            yaml_number(min), yaml_number(max), yaml_number(port), yaml_number(daq),
+            yaml_number(entries), yaml_number(entry_size), yaml_number(period),
+        );
+        if let Ok((c, _)) = calibration(yaml) {
+            // What the generator accepts is what the slave and an A2L can state.
+            let x = &c.xcp;
+            prop_assert!(x.tcp_port > 0 && (1..=252).contains(&x.max_daq));
+            prop_assert!(x.odt_entries >= x.max_daq && (4..=7).contains(&x.max_odt_entry_size));
+            prop_assert!(x.events[0].time_cycle().is_some());
+            let i = &c.internals[0];
+            prop_assert!(i.min < i.max && i.min.abs() <= f64::from(f32::MAX));
+            prop_assert!(i.max.abs() <= f64::from(f32::MAX));
         }
     }
 

@@ -26,6 +26,11 @@ pub enum Command<'a> {
     /// `cal rest` / `cal full`: record the pedal sensors (and, at rest, the brake sensors'
     /// zero) with the pedal released or fully pressed.
     Calibrate(PedalPosition),
+    /// `cal save`: save the calibration the bench measured (the schema's defaults with the
+    /// recorded sensors) to the CCM's flash, as the race image's XCP save does.
+    CalSave,
+    /// `cal load`: read the flash back as start-up would, and say what it would load.
+    CalLoad,
     /// `i2c scan`: every 7-bit address that acknowledges (ADS1115 boards).
     I2cScan,
     /// `watchdog test`: stop feeding the watchdog; the next start reports the reset cause.
@@ -87,7 +92,13 @@ impl<'a> Command<'a> {
             ("can", [None, ..]) => Self::CanTest,
             ("cal", [Some("rest"), None, _]) => Self::Calibrate(PedalPosition::Rest),
             ("cal", [Some("full"), None, _]) => Self::Calibrate(PedalPosition::Full),
-            ("cal", _) => return Err(CommandError::Usage("cal rest | cal full")),
+            ("cal", [Some("save"), None, _]) => Self::CalSave,
+            ("cal", [Some("load"), None, _]) => Self::CalLoad,
+            ("cal", _) => {
+                return Err(CommandError::Usage(
+                    "cal rest | cal full | cal save | cal load",
+                ));
+            }
             ("i2c", [Some("scan"), None, _]) => Self::I2cScan,
             ("watchdog", [Some("test"), None, _]) => Self::WatchdogTest,
             ("dti", [Some("enable"), None, _]) => Self::DtiEnable,
@@ -138,7 +149,7 @@ impl Level {
 }
 
 /// The help text, one command per line.
-pub const HELP: [&str; 12] = [
+pub const HELP: [&str; 13] = [
     "help                       this list",
     "report                     print every input, bus and counter now",
     "out <signal> on|off|<pct>  drive one output (names as in `cargo xtask pins`)",
@@ -146,6 +157,7 @@ pub const HELP: [&str; 12] = [
     "off                        every output back to its safe level",
     "can                        loopback self-test of each controller, then heartbeats",
     "cal rest | cal full        record the pedal and brake sensors (CCM)",
+    "cal save | cal load        save the bench calibration to flash, read back what start-up loads (CCM)",
     "i2c scan                   addresses that answer (ADS1115 board)",
     "dti enable                 1 s of drive enable at 0 A, then silence: times the DTI's timeout (CCM)",
     "watchdog test              stop feeding the watchdog: the chip resets within 1 s",

@@ -12,6 +12,15 @@ pub mod store;
 
 pub use aer::calibration::Calibration;
 
+/// The ECU program identifier (the schema's layouts, `aer::calibration::xcp::EPK`): what the
+/// saved copies carry and XCP masters compare with their A2L.
+pub const EPK: &[u8] = aer::calibration::xcp::EPK.as_bytes();
+
+const _: () = assert!(
+    EPK.len() <= store::EPK_FIELD_LEN,
+    "the EPK must fit the saved record"
+);
+
 use crate::constants::{APPS1_SUPPLY_V, APPS2_SUPPLY_V, BSE_ZERO_V, MIN_PEDAL_TRAVEL_V};
 use core::fmt;
 

@@ -89,10 +89,10 @@ impl CalibrationState {
     }
 
     /// The calibration the control step runs on now.
-    pub fn active(&self) -> Calibration {
+    pub fn active(&self) -> &Calibration {
         match self.ecu_page {
-            Page::Working => self.working_calibration,
-            Page::Reference => Calibration::DEFAULT,
+            Page::Working => &self.working_calibration,
+            Page::Reference => &Calibration::DEFAULT,
         }
     }
 

@@ -4,7 +4,9 @@
 
 use super::dti::DtiBench;
 use crate::apps::PedalVolts;
-use crate::calibration::{BenchRecorder, BenchResult};
+use crate::calibration::store::{self, CalibrationFlash, CalibrationStore, crc32};
+use crate::calibration::{BenchRecorder, BenchResult, Calibration};
+use aer::calibration::VehicleState;
 use aer_console::LogBuffer;
 use aer_console::bringup::{
     AnalogReading, BusLine, Clocks, DigitalReading, ReportHeader, ResetCause, Startup,
@@ -120,4 +122,58 @@ pub fn calibration<const N: usize>(log: &mut LogBuffer<N>, recorder: &BenchRecor
         }
     }
     missed
+}
+
+/// The calibration `cal save` saves: the schema's defaults with the sensors the bench measured
+/// (`cal rest` and `cal full` this session, else `ccm/calibration.toml`'s).
+pub fn bench_calibration(recorder: &BenchRecorder) -> Calibration {
+    let sensors = match recorder.result() {
+        BenchResult::Complete(sensors, _) => sensors,
+        _ => crate::calibration::measured::MEASURED,
+    };
+    sensors.applied_to(Calibration::DEFAULT)
+}
+
+/// `cal save`: saves `calibration` as the newest copy and says where, or why not. The bench
+/// image never commands torque; the tractive system counts as live while the DTI reports 60 V
+/// or more on its DC link, or `dti enable` runs. Returns the lines that did not fit.
+pub fn cal_save<const N: usize>(
+    log: &mut LogBuffer<N>,
+    flash: &mut impl CalibrationFlash,
+    calibration: &Calibration,
+    epk: &[u8],
+    tractive_live: bool,
+) -> u32 {
+    let (mut store, _) = CalibrationStore::load(flash, epk);
+    let page = calibration.to_page();
+    let state = VehicleState {
+        moving: false,
+        tractive_live,
+    };
+    let written = match store.save(flash, &page, epk, state) {
+        Ok(store::Startup::Saved { slot, generation }) => log.line(format_args!(
+            "saved as copy {} (generation {generation}), checksum 0x{:08X}",
+            slot.name(),
+            crc32(&page)
+        )),
+        Ok(other) => log.line(format_args!("{other}")),
+        Err(error) => log.line(format_args!("{error}")),
+    };
+    u32::from(!written)
+}
+
+/// `cal load`: what start-up would load now, and its checksum. Returns the lines that did not
+/// fit.
+pub fn cal_load<const N: usize>(
+    log: &mut LogBuffer<N>,
+    flash: &mut impl CalibrationFlash,
+    epk: &[u8],
+) -> u32 {
+    let (_, loaded) = CalibrationStore::load(flash, epk);
+    let written = log.line(format_args!(
+        "{}, checksum 0x{:08X}",
+        loaded.startup,
+        crc32(&loaded.calibration.to_page())
+    ));
+    u32::from(!written)
 }

@@ -6,6 +6,7 @@
 //! this is the thin layer at the edge that touches registers.
 
 pub mod board;
+pub mod flash;
 pub mod pedals;
 pub mod pwm;
 
@@ -62,6 +63,9 @@ pub struct Ccm {
     pub reset_cause: ResetCause,
     /// The USB serial console, if the device started (the images run without it).
     pub console: Option<UsbConsole>,
+    /// 64 bits from the TRNG, to start the XCP seed generator (0 if the TRNG gave nothing
+    /// within its bound: the seeds are then predictable, the key still needs the secret).
+    pub entropy: u64,
 }
 
 /// Start-up failed (a pin on the wrong port, a PWM period that does not fit): the image
@@ -89,6 +93,7 @@ pub fn start(
         flexpwm2,
         flexpwm3,
         usb,
+        mut trng,
         ..
     } = bsp::t41(device);
     let mut pins = board::pins(pins);
@@ -163,6 +168,7 @@ pub fn start(
     start_watchdog(&wdog);
 
     let console = UsbConsole::new(usb, usb_memory, product).ok();
+    let entropy = random_u64(&mut trng);
     Ok(Ccm {
         brake_light,
         led,
@@ -182,7 +188,22 @@ pub fn start(
         wdog,
         reset_cause: ResetCause(srsr),
         console,
+        entropy,
     })
+}
+
+/// Two words from the TRNG, each polled a bounded number of times (its first entropy takes a
+/// few milliseconds after reset).
+fn random_u64(trng: &mut hal::trng::Trng) -> u64 {
+    let mut word = || {
+        for _ in 0..2_000_000u32 {
+            if let core::task::Poll::Ready(result) = trng.next_u32() {
+                return result.unwrap_or(0);
+            }
+        }
+        0
+    };
+    (u64::from(word()) << 32) | u64::from(word())
 }
 
 /// WDOG1 with a 1 s timeout: WT = 1 (0.5 s steps, plus one), enabled. The power-down counter

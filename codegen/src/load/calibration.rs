@@ -13,6 +13,8 @@ use crate::diagnostic::{Code, Diagnostics};
 pub(crate) struct CalibrationFile {
     pub calibration: Spanned<CalibrationSpec>,
     pub parameters: Vec<Spanned<ParameterSpec>>,
+    pub internals: Spanned<Vec<Spanned<InternalSpec>>>,
+    pub xcp: Spanned<XcpSpec>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -63,6 +65,45 @@ pub(crate) struct AxisSpec {
     pub label: String,
     pub unit: String,
     pub points: Spanned<Vec<f64>>,
+}
+
+/// A controller's internal value a tuner samples (always f32).
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct InternalSpec {
+    pub name: Spanned<String>,
+    #[serde(default)]
+    pub unit: Option<String>,
+    pub min: Spanned<f64>,
+    pub max: Spanned<f64>,
+    #[serde(default)]
+    pub description: Option<String>,
+}
+
+/// The XCP slave's settings. Numbers are read as numbers and checked by validation, so a
+/// port of 0 or 70000 is reported with its own code rather than as a YAML type error.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct XcpSpec {
+    #[serde(default)]
+    pub bus: Option<Spanned<String>>,
+    pub command_message: Spanned<String>,
+    pub response_message: Spanned<String>,
+    pub tcp_port: Spanned<f64>,
+    pub max_daq: Spanned<f64>,
+    pub odt_entries: Spanned<f64>,
+    pub max_odt_entry_size: Spanned<f64>,
+    pub events: Spanned<Vec<Spanned<EventSpec>>>,
+}
+
+/// An XCP event channel: a point in the firmware where DAQ lists are sampled.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct EventSpec {
+    pub name: Spanned<String>,
+    pub period_ms: Spanned<f64>,
+    #[serde(default)]
+    pub description: Option<String>,
 }
 
 /// A parsed calibration file with its source, for diagnostics.

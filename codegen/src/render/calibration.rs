@@ -4,8 +4,9 @@
 
 use askama::Template;
 
+use super::a2l::{self, Epk};
 use super::doc_lines;
-use crate::model::{Calibration, ElementType, Parameter};
+use crate::model::{Calibration, ElementType, INTERNAL_SIZE, Internal, Parameter, Xcp};
 
 #[derive(Template)]
 #[template(path = "calibration.rs", escape = "none")]
@@ -19,6 +20,62 @@ pub(crate) struct CalibrationTemplate<'a> {
     pub element_types: Vec<ElementView>,
     /// Some parameter is a curve (the interpolation is emitted only then).
     pub curves: bool,
+    pub internals: Vec<InternalView>,
+    pub internals_len: usize,
+    pub xcp: XcpView,
+}
+
+pub(crate) struct InternalView {
+    pub name: String,
+    pub doc: Vec<String>,
+    pub unit: String,
+    pub description: String,
+    pub offset: usize,
+    pub min: String,
+    pub max: String,
+}
+
+/// The `xcp` module's constants, as Rust literals.
+pub(crate) struct XcpView {
+    pub calibration_address: String,
+    pub telemetry_address: String,
+    pub internals_address: String,
+    pub epk_address: String,
+    pub epk: String,
+    pub command_message: String,
+    pub response_message: String,
+    pub bus: String,
+    pub can_id_master: String,
+    pub can_id_slave: String,
+    pub bit_rate: String,
+    pub response_cycle_ms: u32,
+    pub daq_frames_per_s: u32,
+    pub tcp_port: u16,
+    pub max_cto: u8,
+    pub max_dto: u16,
+    pub max_bs: u8,
+    pub min_st: u8,
+    pub checksum_name: &'static str,
+    pub checksum_type: String,
+    pub max_checksum_block: String,
+    pub a2l_name: &'static str,
+    pub timestamp_size: u8,
+    pub timestamp_ticks: u16,
+    pub max_daq: u16,
+    pub odt_entries: u16,
+    pub max_odt_entry_size: u8,
+    pub events: Vec<EventView>,
+}
+
+pub(crate) struct EventView {
+    pub name: String,
+    pub upper: String,
+    pub description: String,
+    /// The period in microseconds, as a Rust literal.
+    pub period_us: String,
+    /// The period for people (`10 ms`, `500 us`).
+    pub period: String,
+    pub channel: usize,
 }
 
 /// An element type as the generated enum names it.
@@ -81,6 +138,102 @@ fn literal(element: ElementType, value: f64) -> String {
 fn list(element: ElementType, values: &[f64]) -> String {
     let items: Vec<String> = values.iter().map(|v| literal(element, *v)).collect();
     format!("[{}]", items.join(", "))
+}
+
+/// An address as a Rust literal, in 16-bit groups (`0x0001_0000`).
+fn address(value: u32) -> String {
+    format!("0x{:04X}_{:04X}", value >> 16, value & 0xFFFF)
+}
+
+/// A whole number as a Rust literal, in groups of three digits (`500_000`).
+fn grouped(value: u32) -> String {
+    let digits = value.to_string();
+    let mut out = String::new();
+    for (index, c) in digits.chars().enumerate() {
+        if index > 0 && (digits.len() - index) % 3 == 0 {
+            out.push('_');
+        }
+        out.push(c);
+    }
+    out
+}
+
+/// A period for people: whole milliseconds in ms, else microseconds.
+fn period(period_us: u32) -> String {
+    if period_us % 1000 == 0 {
+        format!("{} ms", period_us / 1000)
+    } else {
+        format!("{period_us} us")
+    }
+}
+
+fn internal_view(index: usize, i: &Internal) -> InternalView {
+    let mut doc = wrap(&i.description, DOC_WIDTH);
+    doc.push(String::new());
+    doc.extend(wrap(
+        &format!(
+            "Expected {} to {}; bytes {} to {} of the block.",
+            number(i.min),
+            with_unit(&number(i.max), &i.unit),
+            index * INTERNAL_SIZE,
+            index * INTERNAL_SIZE + INTERNAL_SIZE - 1
+        ),
+        DOC_WIDTH,
+    ));
+    InternalView {
+        name: i.name.clone(),
+        doc,
+        unit: i.unit.clone(),
+        description: i.description.clone(),
+        offset: index * INTERNAL_SIZE,
+        min: format!("{:?}", i.min),
+        max: format!("{:?}", i.max),
+    }
+}
+
+fn xcp_view(x: &Xcp, epk: &Epk) -> XcpView {
+    XcpView {
+        calibration_address: address(a2l::CALIBRATION_ADDRESS),
+        telemetry_address: address(a2l::TELEMETRY_ADDRESS),
+        internals_address: address(a2l::INTERNALS_ADDRESS),
+        epk_address: address(a2l::EPK_ADDRESS),
+        epk: epk.text.clone(),
+        command_message: x.command_message.clone(),
+        response_message: x.response_message.clone(),
+        bus: x.bus.clone().unwrap_or_else(|| "the DBC's".to_owned()),
+        can_id_master: format!("0x{:03X}", x.can_id_master),
+        can_id_slave: format!("0x{:03X}", x.can_id_slave),
+        bit_rate: grouped(x.bit_rate),
+        response_cycle_ms: x.response_cycle_ms,
+        daq_frames_per_s: 1000 / x.response_cycle_ms.max(1),
+        tcp_port: x.tcp_port,
+        max_cto: a2l::MAX_CTO,
+        max_dto: a2l::MAX_DTO,
+        max_bs: a2l::MAX_BS,
+        min_st: a2l::MIN_ST,
+        checksum_name: a2l::CHECKSUM_TYPE.0,
+        checksum_type: format!("0x{:02X}", a2l::CHECKSUM_TYPE.1),
+        max_checksum_block: format!("0x{:04X}", a2l::MAX_CHECKSUM_BLOCK),
+        a2l_name: a2l::A2L_NAME,
+        timestamp_size: a2l::TIMESTAMP_SIZE.1,
+        timestamp_ticks: a2l::TIMESTAMP_TICKS,
+        max_daq: x.max_daq,
+        odt_entries: x.odt_entries,
+        max_odt_entry_size: x.max_odt_entry_size,
+        events: x
+            .events
+            .iter()
+            .enumerate()
+            .map(|(channel, e)| EventView {
+                name: e.name.clone(),
+                upper: e.name.to_uppercase(),
+                description: e.description.trim_end_matches('.').to_owned(),
+                period_us: grouped(e.period_us),
+                period: period(e.period_us),
+                channel,
+            })
+            .collect(),
+    }
 }
 
 /// A value as people read it (`2000`, `0.07`).
@@ -192,11 +345,7 @@ fn view(p: &Parameter) -> ParameterView {
     }
 }
 
-pub(crate) fn render(
-    c: &Calibration,
-    source: &str,
-    fingerprint: u32,
-) -> Result<String, askama::Error> {
+pub(crate) fn render(c: &Calibration, source: &str, epk: &Epk) -> Result<String, askama::Error> {
     let mut element_types: Vec<ElementType> = Vec::new();
     for p in &c.parameters {
         if !element_types.contains(&p.element) {
@@ -206,11 +355,19 @@ pub(crate) fn render(
     CalibrationTemplate {
         source,
         description: doc_lines(&c.description),
-        fingerprint: format!("0x{fingerprint:08X}"),
+        fingerprint: format!("0x{:08X}", epk.calibration),
         page_len: c.page_len,
         parameters: c.parameters.iter().map(view).collect(),
         element_types: element_types.into_iter().map(element_view).collect(),
         curves: c.parameters.iter().any(|p| p.axis.is_some()),
+        internals: c
+            .internals
+            .iter()
+            .enumerate()
+            .map(|(index, i)| internal_view(index, i))
+            .collect(),
+        internals_len: c.internals_len(),
+        xcp: xcp_view(&c.xcp, epk),
     }
     .render()
 }
@@ -224,6 +381,20 @@ pub(crate) struct CalibrationDoc<'a> {
     pub description: &'a str,
     pub page_len: usize,
     pub groups: Vec<GroupDoc>,
+    pub internals: Vec<InternalDoc>,
+    pub internals_len: usize,
+    pub xcp: XcpView,
+    /// The address map: address, bytes, what lies there.
+    pub areas: Vec<(String, usize, &'static str)>,
+    pub bit_rate: String,
+}
+
+pub(crate) struct InternalDoc {
+    pub address: String,
+    pub name: String,
+    pub limits: String,
+    pub unit: String,
+    pub description: String,
 }
 
 /// One section of the docs: the parameters of a group, in page order.
@@ -280,7 +451,8 @@ fn row(p: &Parameter) -> RowDoc {
 pub(crate) fn render_docs(
     c: &Calibration,
     source: &str,
-    fingerprint: u32,
+    epk: &Epk,
+    telemetry_len: usize,
 ) -> Result<String, askama::Error> {
     let mut groups: Vec<GroupDoc> = Vec::new();
     for p in &c.parameters {
@@ -294,11 +466,52 @@ pub(crate) fn render_docs(
     }
     CalibrationDoc {
         source,
-        fingerprint: format!("0x{fingerprint:08X}"),
+        fingerprint: format!("0x{:08X}", epk.calibration),
         name: &c.name,
         description: &c.description,
         page_len: c.page_len,
         groups,
+        internals: c
+            .internals
+            .iter()
+            .enumerate()
+            .map(|(index, i)| InternalDoc {
+                address: format!(
+                    "0x{:X}",
+                    a2l::INTERNALS_ADDRESS as usize + index * INTERNAL_SIZE
+                ),
+                name: i.name.clone(),
+                limits: format!("{} .. {}", number(i.min), number(i.max)),
+                unit: i.unit.clone(),
+                description: i.description.replace('\n', " ").replace('|', "\\|"),
+            })
+            .collect(),
+        internals_len: c.internals_len(),
+        xcp: xcp_view(&c.xcp, epk),
+        areas: vec![
+            (
+                format!("0x{:X}", a2l::CALIBRATION_ADDRESS),
+                c.page_len,
+                "the calibration page: XCP page 0 working (RAM, what the car runs on), page 1 \
+                 reference (the defaults, read-only)",
+            ),
+            (
+                format!("0x{:X}", a2l::TELEMETRY_ADDRESS),
+                telemetry_len,
+                "the telemetry packet exactly as last sent (`telemetry.md`'s layout)",
+            ),
+            (
+                format!("0x{:X}", a2l::INTERNALS_ADDRESS),
+                c.internals_len(),
+                "the internals above",
+            ),
+            (
+                format!("0x{:X}", a2l::EPK_ADDRESS),
+                epk.text.len(),
+                "the EPK, ASCII",
+            ),
+        ],
+        bit_rate: format!("{} kbit/s", c.xcp.bit_rate / 1000),
     }
     .render()
 }

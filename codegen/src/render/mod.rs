@@ -1,5 +1,6 @@
 //! Render: the model -> source files, through askama templates (one per output).
 
+pub(crate) mod a2l;
 pub(crate) mod calibration;
 pub(crate) mod codec;
 pub(crate) mod docs;

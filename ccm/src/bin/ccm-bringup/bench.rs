@@ -5,12 +5,12 @@
 
 use crate::WHEEL_EDGES;
 use aer_boards::Pin;
-use aer_ccm::calibration::{BenchPoint, BenchRecorder};
+use aer_ccm::calibration::{BenchPoint, BenchRecorder, EPK};
 use aer_ccm::console::bringup::{self, Report};
 use aer_ccm::console::dti::DtiBench;
 #[cfg(feature = "pedals-ads1115")]
 use aer_ccm::hw::pedals::{self, PedalFrontEnd};
-use aer_ccm::hw::{self, SetupFailed, board, pwm::PwmBlock};
+use aer_ccm::hw::{self, SetupFailed, board, flash::TeensyFlash, pwm::PwmBlock};
 use aer_console::bench::{BenchBoard, Reply};
 use aer_console::bringup::{
     AnalogReading, BusLine, DigitalReading, Heard, HvGate, HvReadings, ReportHeader, SelfTestLine,
@@ -58,6 +58,7 @@ pub struct CcmBench {
     inverter_can: Option<Flexcan<2>>,
     wdog: ral::wdog::WDOG1,
     calibration: BenchRecorder,
+    flash: TeensyFlash,
     heard: [Heard; 2],
     dti: DtiBench,
     gate: HvGate,
@@ -144,6 +145,7 @@ impl CcmBench {
             inverter_can,
             wdog: board.wdog,
             calibration: BenchRecorder::default(),
+            flash: TeensyFlash::new(),
             heard: [Heard::default(); 2],
             dti: DtiBench::default(),
             gate: HvGate::new(DISCHARGED_V),
@@ -382,6 +384,19 @@ impl BenchBoard for CcmBench {
                     PedalPosition::Full => BenchPoint::Full,
                 });
                 "recording for 1 s: hold the pedal still"
+            }
+            Command::CalSave => {
+                let calibration = bringup::bench_calibration(&self.calibration);
+                let live = self.dti.test.active()
+                    || dc_link
+                        .iter()
+                        .any(|(_, volts)| volts.is_some_and(|v| v >= DISCHARGED_V));
+                bringup::cal_save(log, &mut self.flash, &calibration, EPK, live);
+                "the line above says what was saved"
+            }
+            Command::CalLoad => {
+                bringup::cal_load(log, &mut self.flash, EPK);
+                "the line above is what start-up loads"
             }
             Command::I2cScan => self.i2c_scan(log),
             // The loop answers these itself.

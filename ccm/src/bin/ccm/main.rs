@@ -40,6 +40,7 @@ mod control;
 mod sensors;
 mod telemetry;
 mod watchdog;
+mod xcp;
 
 use aer_ccm::chassis::PulseTimer;
 use aer_console::RebootRequest;
@@ -51,6 +52,8 @@ imxrt_gpt1_monotonic!(Mono, 1_000_000);
 
 /// Received frames waiting for the control task, per bus.
 const RX_QUEUE: usize = 64;
+/// XCP commands waiting for the XCP task: a whole master block (MAX_BS packets) and more.
+const XCP_QUEUE: usize = 64;
 
 /// Frames dropped because a receive queue was full.
 static RX_QUEUE_OVERFLOWS: AtomicU32 = AtomicU32::new(0);
@@ -82,18 +85,21 @@ mod app {
     use crate::sensors::{sensors, wheel_edge};
     use crate::telemetry::telemetry;
     use crate::watchdog::watchdog;
-    use crate::{Mono, REBOOT, RX_QUEUE};
-    use aer_ccm::calibration::Calibration;
+    use crate::xcp::xcp;
+    use crate::{Mono, REBOOT, RX_QUEUE, XCP_QUEUE};
     use aer_ccm::calibration::measured::MEASURED;
     use aer_ccm::calibration::state::CalibrationState;
-    use aer_ccm::calibration::store::Startup;
+    use aer_ccm::calibration::store::CalibrationStore;
+    use aer_ccm::calibration::{Calibration, EPK};
     use aer_ccm::console::LOG_BYTES;
     use aer_ccm::constants::INVERTER;
     use aer_ccm::control::Control;
+    use aer_ccm::hw::flash::TeensyFlash;
     use aer_ccm::hw::{self, halt, pedals::PedalFrontEnd, pwm::PwmBlock};
     use aer_ccm::sensors::Sensors;
     use aer_ccm::telemetry::TelemetryLink;
     use aer_ccm::watchdog::Supervisor;
+    use aer_ccm::xcp::{SeedKey, XcpNode, team::XCP_SECRET};
     use aer_console::usb::{Bus, EndpointState, Memory, UsbConsole, UsbMemory, serve_race};
     use aer_console::{LineReader, LogBuffer};
     use aer_flexcan::{CanFrame, Flexcan};
@@ -109,6 +115,8 @@ mod app {
         /// The live calibration: the sensor and control steps copy its active page whole at
         /// the start of each step, so a change is never seen half done.
         calibration: CalibrationState,
+        /// The XCP slave, its saved copies' flash and what DAQ samples.
+        xcp: XcpNode<TeensyFlash>,
         sensors: Sensors,
         link: TelemetryLink,
         control: Control,
@@ -133,6 +141,8 @@ mod app {
         fan: PwmBlock,
         buzzer: PwmBlock,
         vehicle_rx: Producer<'static, CanFrame>,
+        xcp_rx: Producer<'static, CanFrame>,
+        xcp_commands: Consumer<'static, CanFrame>,
         inverter_rx: Producer<'static, CanFrame>,
         vehicle_frames: Consumer<'static, CanFrame>,
         inverter_frames: Consumer<'static, CanFrame>,
@@ -145,6 +155,7 @@ mod app {
     #[init(local = [
         vehicle_queue: Queue<CanFrame, RX_QUEUE> = Queue::new(),
         inverter_queue: Queue<CanFrame, RX_QUEUE> = Queue::new(),
+        xcp_queue: Queue<CanFrame, XCP_QUEUE> = Queue::new(),
         usb_memory: Memory = Memory::new(),
         usb_state: EndpointState = EndpointState::max_endpoints(),
         usb_bus: Option<Bus> = None,
@@ -187,12 +198,26 @@ mod app {
         // leaves the pad alone.
         let _thermistor = board.thermistor;
 
+        // The calibration: the newest good saved copy of this schema, else the schema's
+        // defaults with the measured sensors; the console says which.
+        let mut flash = TeensyFlash::new();
+        let (store, loaded) = CalibrationStore::load(&mut flash, EPK);
+        let calibration = if loaded.startup.is_saved() {
+            loaded.calibration
+        } else {
+            MEASURED.applied_to(Calibration::DEFAULT)
+        };
+        log.line(format_args!("{}", loaded.startup));
+        let xcp_node = XcpNode::new(SeedKey::new(XCP_SECRET, board.entropy), store, flash);
+
         let (vehicle_rx, vehicle_frames) = cx.local.vehicle_queue.split();
+        let (xcp_rx, xcp_commands) = cx.local.xcp_queue.split();
         let (inverter_rx, inverter_frames) = cx.local.inverter_queue.split();
         if sensors::spawn().is_err()
             || control::spawn().is_err()
             || telemetry::spawn().is_err()
             || watchdog::spawn().is_err()
+            || xcp::spawn().is_err()
         {
             halt();
         }
@@ -200,10 +225,8 @@ mod app {
         let [s1, s2, s3, s4] = board.shocks;
         (
             Shared {
-                calibration: CalibrationState::new(
-                    MEASURED.applied_to(Calibration::DEFAULT),
-                    Startup::NoneSaved,
-                ),
+                calibration: CalibrationState::new(calibration, loaded.startup),
+                xcp: xcp_node,
                 sensors: Sensors::new(),
                 link: TelemetryLink::new(),
                 control: Control::new(INVERTER),
@@ -225,6 +248,8 @@ mod app {
                 fan: board.fan,
                 buzzer: board.buzzer,
                 vehicle_rx,
+                xcp_rx,
+                xcp_commands,
                 inverter_rx,
                 vehicle_frames,
                 inverter_frames,
@@ -258,10 +283,11 @@ mod app {
         #[task(binds = GPIO4_COMBINED_0_15, priority = 5, local = [wheels])]
         fn wheel_edge(cx: wheel_edge::Context);
 
-        #[task(priority = 4, local = [adc, analog, pedals], shared = [calibration, sensors, supervisor])]
+        #[task(priority = 4, local = [adc, analog, pedals],
+               shared = [calibration, xcp, sensors, vehicle_can, supervisor])]
         async fn sensors(cx: sensors::Context);
 
-        #[task(binds = CAN3, priority = 3, local = [vehicle_rx], shared = [vehicle_can, link])]
+        #[task(binds = CAN3, priority = 3, local = [vehicle_rx, xcp_rx], shared = [vehicle_can, link])]
         fn vehicle_receive(cx: vehicle_receive::Context);
 
         #[task(binds = CAN2, priority = 3, local = [inverter_rx], shared = [inverter_can, link])]
@@ -273,8 +299,11 @@ mod app {
                shared = [calibration, sensors, control, vehicle_can, inverter_can, supervisor, log])]
         async fn control(cx: control::Context);
 
-        #[task(priority = 1, shared = [sensors, control, link, vehicle_can, supervisor])]
+        #[task(priority = 1, shared = [sensors, control, link, vehicle_can, calibration, xcp, supervisor])]
         async fn telemetry(cx: telemetry::Context);
+
+        #[task(priority = 1, local = [xcp_commands], shared = [xcp, calibration, control, vehicle_can])]
+        async fn xcp(cx: xcp::Context);
 
         #[task(priority = 1, local = [wdog], shared = [supervisor])]
         async fn watchdog(cx: watchdog::Context);

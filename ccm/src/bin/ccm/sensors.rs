@@ -1,13 +1,16 @@
 //! The sensing tasks: front wheel-speed edges (interrupt) and the 1 kHz analog sampling.
 
 use crate::app::{sensors, wheel_edge};
+use crate::xcp::send_dto;
 use crate::{Mono, PEDAL_BUS_ERRORS, WHEELS, now_ms, now_us};
+use aer::calibration::xcp::EVENT_SENSORS;
 use aer_ccm::SensorSample;
 use aer_ccm::analog;
 use aer_ccm::hw::{board, pedals};
 use aer_ccm::watchdog::Task;
 use core::sync::atomic::Ordering;
 use rtic::Mutex;
+use rtic::mutex_prelude::*;
 use rtic_monotonics::imxrt::prelude::*;
 
 /// Time-stamps the pulse of whichever wheel-speed input rose.
@@ -51,6 +54,18 @@ pub(crate) async fn sensors(mut cx: sensors::Context<'_>) {
         cx.shared
             .sensors
             .lock(|sensors| sensors.sample(&calibration, &sample, now));
+        // The sensor event: DAQ lists on it sample the latest measurements every sample.
+        let now_micros = now_us();
+        (
+            &mut cx.shared.xcp,
+            &mut cx.shared.calibration,
+            &mut cx.shared.vehicle_can,
+        )
+            .lock(|node, calibration, can| {
+                node.event(calibration, EVENT_SENSORS, now_micros, &mut |dto| {
+                    send_dto(can, dto)
+                })
+            });
         cx.shared
             .supervisor
             .lock(|supervisor| supervisor.beat(Task::Sensors, now));

@@ -2,13 +2,17 @@
 //! ISO-TP on 0x666 on the vehicle bus, frame by frame as mailboxes free up.
 
 use crate::app::telemetry;
+use crate::xcp::send_dto;
 use crate::{Mono, now_ms, now_us};
+use aer::calibration::xcp::EVENT_CONTROL;
 use aer::telemetry::Telemetry;
 use aer_ccm::constants::TELEMETRY_PERIOD_MS;
 use aer_ccm::watchdog::Task;
+use aer_ccm::xcp::Measurements;
 use aer_flexcan::CanFrame;
 use embedded_can::{Frame, StandardId};
 use rtic::Mutex;
+use rtic::mutex_prelude::*;
 use rtic_monotonics::imxrt::prelude::*;
 
 pub(crate) async fn telemetry(mut cx: telemetry::Context<'_>) {
@@ -23,6 +27,28 @@ pub(crate) async fn telemetry(mut cx: telemetry::Context<'_>) {
             .control
             .lock(|control| control.snapshot(&sensors, counters));
         cx.shared.link.lock(|link| link.send(&snapshot, started));
+        // The control event: DAQ samples the packet just packed and the control step's
+        // internals.
+        let telemetry = cx.shared.link.lock(|link| *link.last_packet());
+        let internals = cx
+            .shared
+            .control
+            .lock(|control| control.internals())
+            .to_bytes();
+        (
+            &mut cx.shared.xcp,
+            &mut cx.shared.calibration,
+            &mut cx.shared.vehicle_can,
+        )
+            .lock(|node, calibration, can| {
+                node.measurements = Measurements {
+                    telemetry,
+                    internals,
+                };
+                node.event(calibration, EVENT_CONTROL, started, &mut |dto| {
+                    send_dto(can, dto)
+                })
+            });
         // Feed the ISO-TP frames out as mailboxes free up, until the packet is done or the
         // next snapshot is due (which then supersedes it, counted by the link).
         while Mono::now() < next {

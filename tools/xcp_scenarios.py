@@ -1,0 +1,589 @@
+#!/usr/bin/env python3
+"""The calibration engineer's scenarios, played with the real pyxcp master against the CCM's
+XCP slave in the closed-loop car model (XCP on TCP, 127.0.0.1:$AER_XCP_PORT).
+
+Run by car-model/tests/xcp_pyxcp.rs, which drives the car. The two talk over this script's
+stdin and stdout, one JSON object per line: the script writes a request, the harness answers
+with exactly one line (`{"ok": true, ...}` or `{"ok": false, "error": ...}`). Requests:
+start_up, drive_until_moving, drive {ms}, restart, corrupt, result {name, value}, done. While
+a request is outstanding the harness reads no XCP commands, so none are sent then.
+
+Environment: AER_XCP_PORT, AER_XCP_SECRET (32 bytes, hex: the key is the first 16 bytes of
+HMAC-SHA256(secret, seed)), AER_XCP_EXPECTED (JSON written by the harness: EPK, A2L path,
+addresses, parameters, internals).
+
+Every diagnostic goes to stderr: stdout carries the protocol only, so the file descriptor the
+harness reads is kept private and everything else written to "stdout" (pyxcp's rich logging,
+the A2L parser) is sent to stderr. Exits 0 after `done`, non-zero on anything unexpected.
+"""
+
+import os
+import sys
+
+# Keep the protocol channel private before any library can print to it.
+_PROTOCOL_OUT = os.fdopen(os.dup(1), "w", encoding="utf-8")
+os.dup2(2, 1)
+sys.stdout = sys.stderr
+
+import hashlib  # noqa: E402
+import hmac  # noqa: E402
+import json  # noqa: E402
+import logging  # noqa: E402
+import re  # noqa: E402
+import shutil  # noqa: E402
+import struct  # noqa: E402
+import tempfile  # noqa: E402
+import threading  # noqa: E402
+import time  # noqa: E402
+import traceback  # noqa: E402
+
+from pyxcp import types  # noqa: E402
+from pyxcp.config import create_application_from_config  # noqa: E402
+from pyxcp.master import Master  # noqa: E402
+from pyxcp.transport.transport_ext import FrameCategory  # noqa: E402
+
+# XCP numbers used here (ASAM MCD-1 XCP part 2).
+RESOURCE_CAL_PAG = 0x01
+GET_ID_EPK = 5
+STORE_CAL_REQ = 0x01
+PAGE_MODE_ECU = 0x01
+DAQ_MODE_TIMESTAMP = 0x10
+DAQ_LIST_STOP, DAQ_LIST_START, DAQ_LIST_SELECT = 0, 1, 2
+SYNCH_STOP_ALL, SYNCH_START_SELECTED = 0, 1
+BIT_OFFSET_NONE = 0xFF
+ERR_DAQ_CONFIG = 0x2A
+EVENT_CONTROL = 0
+DTO_TIMESTAMP_LEN = 4
+MAX_ODT_ENTRY_SIZE = 4  # the slave's (GET_DAQ_RESOLUTION_INFO checks it below)
+
+KEY_LEN = 16
+
+
+class Failure(Exception):
+    """Something the scenarios did not expect: the script stops with this message."""
+
+
+def log(message):
+    print(f"xcp_scenarios: {message}", file=sys.stderr, flush=True)
+
+
+# ---------------------------------------------------------------------------------------------
+# The harness protocol.
+
+
+def ask(request):
+    """Sends one request line and returns the harness's answer (only if it says ok)."""
+    _PROTOCOL_OUT.write(json.dumps(request) + "\n")
+    _PROTOCOL_OUT.flush()
+    line = sys.stdin.readline()
+    if not line:
+        raise Failure(f"the harness closed stdin instead of answering {request!r}")
+    try:
+        answer = json.loads(line)
+    except json.JSONDecodeError as error:
+        raise Failure(f"unreadable answer to {request!r}: {line!r} ({error})") from None
+    if not isinstance(answer, dict) or answer.get("ok") is not True:
+        raise Failure(f"the harness refused {request!r}: {answer!r}")
+    return answer
+
+
+def result(name, value):
+    log(f"result {name} = {json.dumps(value)}")
+    ask({"cmd": "result", "name": name, "value": value})
+
+
+# ---------------------------------------------------------------------------------------------
+# Values and checksums.
+
+
+def f32s(data):
+    """Little-endian f32 elements as Python floats (each exactly the f32's value)."""
+    return [value for (value,) in struct.iter_unpack("<f", bytes(data))]
+
+
+def f32_bytes(values):
+    return b"".join(struct.pack("<f", value) for value in values)
+
+
+def as_f32(value):
+    return struct.unpack("<f", struct.pack("<f", value))[0]
+
+
+def crc16_ccitt(data):
+    """CRC-16 CCITT: polynomial 0x1021, initial 0xFFFF, no reflection, no final XOR."""
+    crc = 0xFFFF
+    for byte in data:
+        crc ^= byte << 8
+        for _ in range(8):
+            crc = ((crc << 1) ^ 0x1021) if crc & 0x8000 else (crc << 1)
+            crc &= 0xFFFF
+    return crc
+
+
+def key_for(secret, seed):
+    return hmac.new(secret, bytes(seed), hashlib.sha256).digest()[:KEY_LEN]
+
+
+def error_code(error):
+    """The numeric ERR_* code of an XCP error packet pyxcp raised."""
+    code = error.get_error_code()
+    try:
+        return int(code)
+    except (TypeError, ValueError):
+        return int(types.XcpError.encmapping[str(code)])
+
+
+def a2l_epk(path):
+    """The A2L's EPK through pya2ldb (an independent parser), else from its `EPK "..."` line."""
+    try:
+        import pya2l
+        from pya2l import model
+
+        workdir = tempfile.mkdtemp(prefix="xcp_scenarios")
+        try:
+            copy = os.path.join(workdir, "aer.a2l")
+            shutil.copyfile(path, copy)
+            session = pya2l.import_a2l(copy, in_memory=True, progress_bar=False, loglevel="ERROR", encoding="utf-8")
+            mod_par = session.query(model.ModPar).one()
+            if mod_par.epk is not None:
+                return mod_par.epk.identifier
+        finally:
+            shutil.rmtree(workdir, ignore_errors=True)
+    except Exception as error:  # noqa: BLE001 - the regex below is the documented fallback
+        log(f"pya2ldb could not read the A2L ({error!r}); reading its EPK line instead")
+    with open(path, encoding="utf-8") as a2l:
+        match = re.search(r'^\s*EPK\s+"([^"]*)"', a2l.read(), re.MULTILINE)
+    if match is None:
+        raise Failure(f"no EPK in {path}")
+    return match.group(1)
+
+
+# ---------------------------------------------------------------------------------------------
+# DAQ packets as pyxcp hands them over.
+
+
+class DtoCollector:
+    """A frame acquisition policy for pyxcp's transport: the transport calls `feed` from its
+    listener thread with every frame it sees (commands, responses, errors, DTOs). The DTOs
+    (FrameCategory.DAQ: the packet from its PID on, framing header removed) are kept in
+    arrival order with the transport counter they came with."""
+
+    def __init__(self):
+        self._lock = threading.Lock()
+        self._dtos = []
+        self.xcp_master = None  # pyxcp sets this on every policy
+
+    def feed(self, category, counter, timestamp, payload):
+        if category == FrameCategory.DAQ:
+            with self._lock:
+                self._dtos.append((int(counter), bytes(payload)))
+
+    def finalize(self):
+        pass
+
+    def count(self):
+        with self._lock:
+            return len(self._dtos)
+
+    def take(self):
+        with self._lock:
+            dtos, self._dtos = self._dtos, []
+        return dtos
+
+    def drain(self, quiet_s=0.5, limit_s=20.0):
+        """Waits until no DTO has arrived for `quiet_s` (at most `limit_s`)."""
+        started = time.monotonic()
+        count, since = self.count(), time.monotonic()
+        while time.monotonic() - started < limit_s:
+            time.sleep(0.05)
+            now = self.count()
+            if now != count:
+                count, since = now, time.monotonic()
+            elif time.monotonic() - since >= quiet_s:
+                return count
+        log(f"DTOs still arriving after {limit_s} s ({count} so far)")
+        return count
+
+
+# ---------------------------------------------------------------------------------------------
+# One XCP session with the slave.
+
+
+class Session:
+    """A pyxcp Master connected to the slave, with the few operations the scenarios use."""
+
+    def __init__(self, app, expected):
+        self.expected = expected
+        self.dtos = DtoCollector()
+        self.master = None
+        last = None
+        for _ in range(50):
+            master = Master("eth", config=app, policy=self.dtos)
+            try:
+                master.transport.connect()
+            except ConnectionRefusedError as error:
+                last = error
+                master.close()
+                time.sleep(0.1)
+                continue
+            self.master = master
+            break
+        if self.master is None:
+            raise Failure(f"cannot reach the slave on port {app.transport.eth.port}: {last!r}")
+        response = self.master.connect()
+        props = self.master.slaveProperties
+        log(
+            f"CONNECT: resources {response.resource}, MAX_CTO {props.maxCto}, MAX_DTO {props.maxDto}, "
+            f"byte order {props.byteOrder}"
+        )
+        if props.optionalCommMode:
+            info = self.master.getCommModeInfo()
+            log(f"GET_COMM_MODE_INFO: master block mode {info.commModeOptional.masterBlockMode}, MAX_BS {info.maxBs}")
+        if not props.get("masterBlockMode"):
+            raise Failure("the slave does not offer master block mode: a multi-element write would not be one block")
+
+    def close(self):
+        if self.master is None:
+            return
+        try:
+            self.master.disconnect()
+        finally:
+            self.master.close()
+            self.master = None
+
+    # Memory.
+
+    def read(self, address, length):
+        """`length` bytes at `address`: SHORT_UPLOAD when it fits one response, else SET_MTA
+        and UPLOADs (pyxcp's fetch)."""
+        if length <= self.master.slaveProperties.maxCto - 1:
+            return bytes(self.master.shortUpload(length, address, 0))
+        self.master.setMta(address, 0)
+        return bytes(self.master.fetch(length))
+
+    def write(self, address, data):
+        """SET_MTA and one master-block-mode DOWNLOAD sequence (pyxcp's push): the slave
+        gets the bytes as one block. Returns None, or the XCP error code of a refusal."""
+        try:
+            self.master.push(address, 0, bytes(data))
+        except types.XcpResponseError as error:
+            return error_code(error)
+        return None
+
+    def parameter(self, name):
+        for parameter in self.expected["parameters"]:
+            if parameter["name"] == name:
+                return parameter
+        raise Failure(f"no parameter {name!r} in the expected description")
+
+    def read_parameter(self, name):
+        parameter = self.parameter(name)
+        return f32s(self.read(parameter["address"], 4 * parameter["count"]))
+
+    def write_parameter(self, name, values):
+        parameter = self.parameter(name)
+        if len(values) != parameter["count"]:
+            raise Failure(f"{name} has {parameter['count']} elements, not {len(values)}")
+        return self.write(parameter["address"], f32_bytes(values))
+
+    # Seed and key.
+
+    def protection_locked(self):
+        return bool(self.master.getStatus().resourceProtectionStatus.calpag)
+
+    def unlock(self):
+        """GET_SEED and UNLOCK through pyxcp's helper (cond_unlock) with our key function;
+        True if the slave then reports calibration unlocked."""
+        self.master.cond_unlock("calpag")
+        return not self.protection_locked()
+
+
+def seed_and_key(secret):
+    def compute(resource, seed):
+        if resource != RESOURCE_CAL_PAG:
+            raise Failure(f"asked for the key of resource {resource:#x}")
+        if len(seed) != 6:
+            raise Failure(f"seed of {len(seed)} bytes: {bytes(seed).hex()}")
+        return key_for(secret, seed)
+
+    return compute
+
+
+# ---------------------------------------------------------------------------------------------
+# DAQ.
+
+
+def pack_odts(entries, timestamp):
+    """Entries (name, address, size) packed in order into ODTs of MAX_DTO-1 data bytes (the
+    first one less the timestamp)."""
+    odts, current, room = [], [], 7 - (DTO_TIMESTAMP_LEN if timestamp else 0)
+    for entry in entries:
+        size = entry[2]
+        if size > MAX_ODT_ENTRY_SIZE:
+            raise Failure(f"entry {entry[0]} of {size} bytes exceeds the slave's ODT entry size")
+        if size > room:
+            odts.append(current)
+            current, room = [], 7
+        current.append(entry)
+        room -= size
+    odts.append(current)
+    return odts
+
+
+class DaqList:
+    """One dynamic DAQ list on one event channel, configured with FREE_DAQ, ALLOC_DAQ,
+    ALLOC_ODT, ALLOC_ODT_ENTRY, SET_DAQ_PTR, WRITE_DAQ and SET_DAQ_LIST_MODE."""
+
+    def __init__(self, session, entries, event, prescaler):
+        master = session.master
+        self.odts = pack_odts(entries, timestamp=True)
+        master.freeDaq()
+        master.allocDaq(1)
+        master.allocOdt(0, len(self.odts))
+        for number, odt in enumerate(self.odts):
+            master.allocOdtEntry(0, number, len(odt))
+        for number, odt in enumerate(self.odts):
+            master.setDaqPtr(0, number, 0)
+            for _, address, size in odt:
+                master.writeDaq(BIT_OFFSET_NONE, size, 0, address)
+        master.setDaqListMode(DAQ_MODE_TIMESTAMP, 0, event, prescaler, 0)
+        self.first_pid = None
+        self.prescaler = prescaler
+        self.master = master
+
+    def start(self):
+        """Selects the list (START_STOP_DAQ_LIST select, which answers FIRST_PID) and starts
+        it with START_STOP_SYNCH start-selected."""
+        self.first_pid = int(self.master.startStopDaqList(DAQ_LIST_SELECT, 0).firstPid)
+        self.master.startStopSynch(SYNCH_START_SELECTED)
+
+    def stop(self):
+        self.master.startStopSynch(SYNCH_STOP_ALL)
+
+    def decode(self, dtos):
+        """Samples out of DTOs in arrival order: the first ODT (PID, timestamp, entries) opens
+        a sample, the following ODTs complete it in order. Anything out of order is reported
+        and ends the run."""
+        samples, current, next_odt = [], None, 0
+        for index, (counter, packet) in enumerate(dtos):
+            if not packet:
+                raise Failure(f"empty DTO at {index}")
+            odt = packet[0] - self.first_pid
+            if odt < 0 or odt >= len(self.odts):
+                raise Failure(f"DTO {index} (ctr {counter}) has PID {packet[0]:#x}: {packet.hex()}")
+            if odt != next_odt:
+                raise Failure(f"DTO {index} (ctr {counter}) is ODT {odt}, expected ODT {next_odt}: {packet.hex()}")
+            at = 1
+            if odt == 0:
+                current = {"timestamp_us": struct.unpack_from("<I", packet, at)[0]}
+                at += DTO_TIMESTAMP_LEN
+            expected_len = at + sum(size for _, _, size in self.odts[odt])
+            if len(packet) != expected_len:
+                raise Failure(f"DTO {index} (ctr {counter}) has {len(packet)} bytes, not {expected_len}: {packet.hex()}")
+            for name, _, size in self.odts[odt]:
+                raw = packet[at : at + size]
+                current[name] = struct.unpack("<H", raw)[0] if name == "sequence" else struct.unpack("<f", raw)[0]
+                at += size
+            next_odt = (odt + 1) % len(self.odts)
+            if next_odt == 0:
+                samples.append(current)
+                current = None
+        if next_odt != 0:
+            log(f"the last sample is incomplete (ODT {next_odt} missing); left out")
+        return samples
+
+
+# ---------------------------------------------------------------------------------------------
+# The scenarios.
+
+
+def scenarios(app, expected, secret):
+    params = {p["name"]: p for p in expected["parameters"]}
+    internals = {i["name"]: i["offset"] for i in expected["internals"]}
+
+    # 1. Connect; the EPK from the slave and from the A2L.
+    session = Session(app, expected)
+    result("epk", session.master.identifier(GET_ID_EPK))
+    result("a2l_epk", a2l_epk(expected["a2l"]))
+
+    # 2. Every parameter as the slave has it.
+    defaults = {name: session.read_parameter(name) for name in params}
+    result("defaults", defaults)
+
+    # 3. Writing before unlocking is refused; then seed and key.
+    kp = params["traction_kp"]
+    locked_value = as_f32((kp["min"] + kp["max"]) / 2)
+    result("locked_write", session.write_parameter("traction_kp", [locked_value]))
+    if not session.protection_locked():
+        raise Failure("calibration reports unlocked before UNLOCK")
+    result("unlocked", session.unlock())
+
+    # 4. A value outside the limits is refused and changes nothing.
+    code = session.write_parameter("launch_kp", [1e6])
+    result("out_of_range", {"code": code, "after": session.read_parameter("launch_kp")[0]})
+
+    # 5. BUILD_CHECKSUM over the working page, and the same CRC over the page as uploaded.
+    page_address, page_len = expected["calibration_address"], expected["page_len"]
+    session.master.setMta(page_address, 0)
+    checksum = session.master.buildChecksum(page_len)
+    page = session.read(page_address, page_len)
+    result(
+        "checksum",
+        {"slave": int(checksum.checksum), "type": int(checksum.checksumType), "computed": crc16_ccitt(page)},
+    )
+
+    # 6. A curve written as one block.
+    target = [0.03, 0.03, 0.03, 0.03]
+    code = session.write_parameter("launch_slip_target", target)
+    if code is not None:
+        raise Failure(f"writing launch_slip_target was refused with {code:#04x}")
+    result("launch_target", session.read_parameter("launch_slip_target"))
+
+    # 7. Saved to the flash.
+    try:
+        session.master.setRequest(STORE_CAL_REQ, 0)
+        result("stored", True)
+    except types.XcpResponseError as error:
+        code = error_code(error)
+        log(f"SET_REQUEST STORE_CAL_REQ refused with error code {code:#04x}")
+        result("stored", False)
+
+    # 8. The tractive system is live: sensor calibration is locked out.
+    ask({"cmd": "start_up"})
+    apps = list(defaults["apps1_v"])
+    apps[0] = as_f32(apps[0] + 0.01)
+    result("tractive_off_write", session.write_parameter("apps1_v", apps))
+
+    # 9. DAQ during a launch; writes while moving.
+    sequence_address = expected["telemetry_address"] + expected["telemetry_sequence_offset"]
+    entries = [("sequence", sequence_address, 2)] + [
+        (name, expected["internals_address"] + internals[name], 4)
+        for name in ("launch_slip_target", "slip_ratio", "torque_command_nm")
+    ]
+    resolution = session.master.getDaqResolutionInfo()
+    log(f"GET_DAQ_RESOLUTION_INFO: {dict(resolution)}")
+    daq = DaqList(session, entries, EVENT_CONTROL, prescaler=1)
+    log(f"DAQ list: {[[name for name, _, _ in odt] for odt in daq.odts]} on event {EVENT_CONTROL}, prescaler 1")
+    try:
+        daq.start()
+    except types.XcpResponseError as error:
+        code = error_code(error)
+        if code != ERR_DAQ_CONFIG:
+            raise
+        # The slave refuses lists that exceed its DTO frame budget: report it, and measure
+        # at the smallest prescaler it accepts so the rest of the scenario still runs.
+        log(
+            f"START refused with ERR_DAQ_CONFIG: {len(daq.odts)} ODTs every control step exceed the slave's "
+            "DAQ frame budget; trying larger prescalers"
+        )
+        for prescaler in range(2, 11):
+            session.master.setDaqListMode(DAQ_MODE_TIMESTAMP, 0, EVENT_CONTROL, prescaler, 0)
+            try:
+                daq.start()
+            except types.XcpResponseError as again:
+                if error_code(again) != ERR_DAQ_CONFIG:
+                    raise
+                continue
+            daq.prescaler = prescaler
+            log(f"DAQ started at prescaler {prescaler}")
+            break
+        else:
+            raise Failure("no prescaler up to 10 lets the DAQ list start") from None
+    session.dtos.take()
+    ask({"cmd": "drive_until_moving"})
+
+    launch_kp = params["launch_kp"]
+    current = session.read_parameter("launch_kp")[0]
+    changed = current + 10.0 if current + 10.0 <= launch_kp["max"] else current - 10.0
+    code = session.write_parameter("launch_kp", [as_f32(changed)])
+    result("moving_standstill_write", {"code": code, "after": session.read_parameter("launch_kp")[0]})
+    code = session.write_parameter("traction_kp", [650.0])
+    result("moving_driving_write", {"code": code, "after": session.read_parameter("traction_kp")[0]})
+    try:
+        session.master.setCalPage(PAGE_MODE_ECU, 0, 1)
+        code = None
+    except types.XcpResponseError as error:
+        code = error_code(error)
+    result("moving_page_switch", code)
+
+    ask({"cmd": "drive", "ms": 300})
+    daq.stop()
+    total = session.dtos.drain()
+    dtos = session.dtos.take()
+    log(f"{total} DTOs collected (first PID {daq.first_pid}, prescaler {daq.prescaler})")
+    result("daq", daq.decode(dtos))
+
+    # 10. Power cycle: the saved calibration comes back.
+    session.close()
+    answer = ask({"cmd": "restart"})
+    result("restart_startup", answer.get("startup"))
+    session = Session(app, expected)
+    result(
+        "restored",
+        {
+            "launch_slip_target": session.read_parameter("launch_slip_target"),
+            "traction_kp": session.read_parameter("traction_kp")[0],
+        },
+    )
+
+    # 11. The reference page copied onto the working page restores the defaults.
+    if not session.unlock():
+        raise Failure("calibration still locked after UNLOCK (second session)")
+    session.master.copyCalPage(0, 1, 0, 0)
+    result("reverted", session.read_parameter("launch_slip_target"))
+
+    # 12. Both saved copies corrupt: start-up falls back to the defaults.
+    session.close()
+    answer = ask({"cmd": "corrupt"})
+    result("corrupt_startup", answer.get("startup"))
+    session = Session(app, expected)
+    result("after_corrupt", session.read_parameter("launch_slip_target"))
+    session.close()
+
+    # 13.
+    ask({"cmd": "done"})
+
+
+def main():
+    try:
+        port = int(os.environ["AER_XCP_PORT"])
+        secret = bytes.fromhex(os.environ["AER_XCP_SECRET"])
+        with open(os.environ["AER_XCP_EXPECTED"], encoding="utf-8") as file:
+            expected = json.load(file)
+    except (KeyError, ValueError, OSError) as error:
+        log(f"bad environment: {error!r} (needs AER_XCP_PORT, AER_XCP_SECRET, AER_XCP_EXPECTED)")
+        return 2
+    if len(secret) != 32:
+        log(f"AER_XCP_SECRET has {len(secret)} bytes, not 32")
+        return 2
+
+    app = create_application_from_config(
+        {
+            "Transport": {"Eth": {"host": "127.0.0.1", "port": port, "protocol": "TCP", "tcp_nodelay": True}},
+            "General": {
+                # Error packets reach us as XcpResponseError with their code: the scenarios
+                # expect refusals, and pyxcp's error matrix would otherwise retry or ask a
+                # seed-and-key DLL for ERR_ACCESS_LOCKED.
+                "disable_error_handling": True,
+                "seed_n_key_function": seed_and_key(secret),
+            },
+        },
+        log_level=logging.WARNING,
+    )
+    app.transport.timeout = 5.0
+
+    try:
+        scenarios(app, expected, secret)
+    except Failure as failure:
+        log(f"FAILED: {failure}")
+        return 1
+    except Exception:  # noqa: BLE001 - anything else is unexpected: say where, then fail
+        log("FAILED with an unexpected exception:")
+        traceback.print_exc(file=sys.stderr)
+        return 1
+    log("all scenarios played")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
