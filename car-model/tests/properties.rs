@@ -162,3 +162,28 @@ proptest! {
         );
     }
 }
+
+/// Found by the property above on 2026-11-26, and older than the calibration work (the same
+/// case fails on e02f532): a DTI whose status frames freeze at the start of the launch (its
+/// packets carry no counter, so the CCM cannot tell them from fresh ones) keeps reporting the
+/// motor at rest; the monitor's power bound then uses that speed and allows full torque, and
+/// the 100 ms average reaches 106 kW. docs/known-issues.md; the fix (a plausibility check of
+/// the motor speed against the front wheels) is not made yet.
+#[test]
+#[ignore = "known defect: a DTI frozen from the launch breaks the 80 kW rule (docs/known-issues.md)"]
+fn a_dti_frozen_from_the_launch_still_keeps_the_power_rule() {
+    let mut run = started(Cycle::Acceleration, InverterKind::Dti);
+    let start = run.now_ms();
+    let params = ModelParams {
+        efficiency: 0.85,
+        ..ModelParams::NOMINAL
+    };
+    let stuck = FaultPlan::NONE.with(Injection {
+        fault: Fault::InverterStuck,
+        from_ms: start,
+        until_ms: u32::MAX,
+    });
+    run.retune(params, stuck);
+    run.run_until(start + RUN_MS, &mut NoTap);
+    assert_eq!(run.rules.first_violation(), None);
+}

@@ -167,11 +167,6 @@ impl CalibrationState {
         self.xcp_unlocked = unlocked;
     }
 
-    /// Counts a refusal made before reaching the page (a locked write).
-    pub fn count_refusal(&mut self) {
-        self.refusals = self.refusals.wrapping_add(1);
-    }
-
     /// `CCM_Calibration` as it stands.
     pub fn status(&self) -> CcmCalibration {
         CcmCalibration {

@@ -2,17 +2,18 @@
 //! boot ROM's FlexSPI NOR driver (the ROM API tree; NXP's `fsl_romapi.c` for the MIMXRT1062
 //! gives its layout).
 //!
-//! The firmware runs from this flash (execute in place), and the flash cannot be read while it
-//! erases or programs: the ROM's routines run from ROM with interrupts off, so nothing fetches
-//! from the flash meanwhile, and the caches and the FlexSPI's read buffers are invalidated
-//! before the code reads the slots again. An erase takes up to 400 ms (W25Q64JV sector erase,
-//! worst case), within the 1 s hardware watchdog; this is why the store saves only at
-//! standstill with the tractive system off.
+//! The flash cannot be read while it erases or programs. The images run from RAM (imxrt-rt
+//! copies code to ITCM and data to DTCM/OCRAM at boot), but to be safe interrupts are off for
+//! each ROM operation, so nothing can reach the flash meanwhile, and the data cache and the
+//! FlexSPI's read buffers are invalidated before the slots are read again. An erase takes up
+//! to 400 ms (W25Q64JV sector erase, worst case), within the 1 s hardware watchdog, and stalls
+//! every task: this is why the store saves only at standstill with the tractive system off
+//! (a stale-sensor fault for that moment is expected and clears).
 //!
 //! Assumed (the bring-up image's `cal save` / `cal load` check them on the bench):
 //! - the slot offsets below: the last two 4 KiB sectors of the first 2 MiB, the flash size the
 //!   Teensy's boot configuration block (teensy4-fcb 0.5) declares; the CCM's image ends far
-//!   below (about 160 KiB), and on the Teensy 4.1's 8 MiB part nothing else lives there;
+//!   below (about 200 KiB), and on the Teensy 4.1's 8 MiB part nothing else lives there;
 //! - the boot configuration block at the start of flash carries the sector-erase and
 //!   page-program sequences the ROM driver uses (teensy4-fcb defines them);
 //! - whether loading a new image with the Teensy loader keeps these sectors.

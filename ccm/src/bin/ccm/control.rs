@@ -50,7 +50,7 @@ pub(crate) async fn control(mut cx: control::Context<'_>) {
         let calibration = cx
             .shared
             .calibration
-            .lock(|calibration| calibration.active());
+            .lock(|calibration| *calibration.active());
         let [left, right] = &WHEELS;
         let wheels = [left.speed(WHEEL_TEETH), right.speed(WHEEL_TEETH)];
         let (outputs, due, handover) = cx.shared.control.lock(|control| {

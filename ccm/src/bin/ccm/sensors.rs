@@ -50,7 +50,7 @@ pub(crate) async fn sensors(mut cx: sensors::Context<'_>) {
         let calibration = cx
             .shared
             .calibration
-            .lock(|calibration| calibration.active());
+            .lock(|calibration| *calibration.active());
         cx.shared
             .sensors
             .lock(|sensors| sensors.sample(&calibration, &sample, now));

@@ -192,7 +192,11 @@ impl BenchBoard for PccBench {
                 self.heartbeats = true;
                 "heartbeats 0x7F2 every second from now"
             }
-            Command::Calibrate(_) | Command::I2cScan | Command::DtiEnable => "not on the PCC",
+            Command::Calibrate(_)
+            | Command::CalSave
+            | Command::CalLoad
+            | Command::I2cScan
+            | Command::DtiEnable => "not on the PCC",
             // The loop answers these itself.
             Command::Help | Command::Report | Command::WatchdogTest | Command::Bootloader => {
                 "taken by the bench loop"
