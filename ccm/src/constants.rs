@@ -112,6 +112,22 @@ pub const DTI_ASSUMED_COMMAND_TIMEOUT_MS: u32 = 100;
 /// than this (ms): it is not obeying, an inverter fault. Two command periods and a status
 /// period of slack.
 pub const DTI_ENABLE_MISMATCH_MS: u32 = 50;
+/// How far the motor speed the inverter reports (at the wheel) may read below the slower front
+/// wheel under torque, for [`SPEED_IMPLAUSIBLE_MS`], before it counts as an inverter fault:
+/// (from this front wheel speed in rad/s, this share of it). Slip is never negative under
+/// drive, so a slower motor is a frozen or wrong reading; the loose first tier covers the
+/// launch, where the readings' lag is a large share of the speed, the tight second one speed,
+/// where a reading 10 % low would let the power bounds allow about that much too much.
+pub const SPEED_IMPLAUSIBLE: [(f32, f32); 2] = [(MIN_SLIP_SPEED_RAD_S, 0.5), (30.0, 0.9)];
+/// See [`SPEED_IMPLAUSIBLE`].
+pub const SPEED_IMPLAUSIBLE_MS: u32 = 200;
+/// A motor speed reading unchanged bit for bit this long (five DTI status periods) ...
+pub const SPEED_FROZEN_MS: u32 = 50;
+/// ... while the slower front wheel changed by more than this share under torque is frozen.
+pub const SPEED_FROZEN_CHANGE: f32 = 0.02;
+/// Below this commanded torque (Nm) the speed check rests: coasting and braking may lock the
+/// driven wheels.
+pub const SPEED_WATCH_MIN_TORQUE_NM: f32 = 20.0;
 
 // --- Power limiting ----------------------------------------------------------------------
 

@@ -13,6 +13,7 @@ use crate::constants::{
 use crate::faults::{Fault, FaultInputs, FaultMonitor};
 use crate::inverter::dti::{self, EnableWatch};
 use crate::inverter::ifl100::{self, Vcu1Builder};
+use crate::inverter::speed_watch::SpeedWatch;
 use crate::inverter::{DriveCommand, InverterKind, OutFrames};
 use crate::io::{ControlOutputs, DriverCounters, DriverInputs};
 use crate::power::PowerLimits;
@@ -85,6 +86,8 @@ pub struct Control {
     /// The torque the inverter was last asked for (Nm), as its command carried it.
     torque_sent_nm: f32,
     enable_watch: EnableWatch,
+    /// The reported motor speed against the front wheels (both inverters).
+    speed_watch: SpeedWatch,
     status_counter: u8,
     bus: BusState,
     last: ControlOutputs,
@@ -120,6 +123,7 @@ impl Control {
             enable_sent: false,
             torque_sent_nm: 0.0,
             enable_watch: EnableWatch::default(),
+            speed_watch: SpeedWatch::default(),
             status_counter: 0,
             bus: BusState::default(),
             last: ControlOutputs::RESET,
@@ -193,6 +197,14 @@ impl Control {
                 self.enable_watch
                     .disobeyed(self.enable_sent, flags.as_ref(), now_ms);
         }
+        let [left, right] = wheels;
+        let front_rad_s = (left.rad_per_s(now_us), right.rad_per_s(now_us));
+        bus.inverter.fault |= self.speed_watch.implausible(
+            bus.inverter.motor_rpm.map(aer_params::motor_rad_s),
+            front_rad_s,
+            self.torque_sent_nm,
+            now_ms,
+        );
         let sampled = sensors.sampled_ms.unwrap_or(started);
         let sensors_stale = now_ms.wrapping_sub(sampled) > SAMPLE_TIMEOUT_MS;
         let faults = self.fault_monitor.evaluate(&FaultInputs {
@@ -209,7 +221,6 @@ impl Control {
             brakes_engaged: brakes.engaged,
             faults,
         });
-        let [left, right] = wheels;
         let torque = self.torque_path.step(
             calibration,
             &TorqueInputs {
@@ -227,7 +238,7 @@ impl Control {
                     .torque_nm
                     .zip(bus.inverter.motor_rpm)
                     .map(|(torque, rpm)| torque * aer_params::motor_rad_s(rpm)),
-                front_rad_s: (left.rad_per_s(now_us), right.rad_per_s(now_us)),
+                front_rad_s,
                 launch_button: driver.launch,
             },
         );
@@ -238,8 +249,8 @@ impl Control {
                 .motor_rpm
                 .map(aer_params::motor_rad_s)
                 .is_some_and(standing)
-                && standing(left.rad_per_s(now_us))
-                && standing(right.rad_per_s(now_us))),
+                && standing(front_rad_s.0)
+                && standing(front_rad_s.1)),
             tractive_live: vehicle.torque_enabled
                 || !bus.pcc.is_some_and(|pcc| {
                     pcc.pcc_state == PrechargeState::Standby

@@ -121,6 +121,17 @@ impl TorquePath {
             },
         );
         let front_average = (inputs.front_rad_s.0 + inputs.front_rad_s.1) / 2.0;
+        // The power bounds divide by the motor speed: they take the larger of the reported
+        // one and what the front wheels prove (under drive the driven wheels turn at least as
+        // fast), so a frozen or low reading cannot raise the torque they allow.
+        let power_rad_s = inputs.motor_rad_s.map(|motor| {
+            let proven = front_average * GEAR_RATIO;
+            if proven.is_finite() {
+                motor.abs().max(proven)
+            } else {
+                motor
+            }
+        });
         let traction_torque = self
             .traction
             .step(calibration, front_average, driven_rad_s, driver);
@@ -138,7 +149,7 @@ impl TorquePath {
                 faults: inputs.faults,
                 apps: *apps,
                 sensors_fresh: inputs.sensors_fresh,
-                motor_rad_s: inputs.motor_rad_s,
+                motor_rad_s: power_rad_s,
                 soc: inputs.soc,
                 inverter_max_nm: inputs.inverter_max_nm,
                 dc_power_w: inputs.dc_power_w,
@@ -154,7 +165,7 @@ impl TorquePath {
         // not, and the trim neither winds up behind it nor overshoots once it lets go.
         let power_ceiling = self.power.step(
             calibration.power_trim_gain,
-            motor_rad_s,
+            power_rad_s.unwrap_or(0.0),
             inputs.dc_power_w.unwrap_or(f32::NAN),
             derated.min(allowed),
         );

@@ -22,9 +22,10 @@ fn a_replayed_session_has_every_message_at_its_cycle_time() {
 
     let db = store::open(&path).expect("store");
     let messages = session_messages::list(&db, id).expect("list");
-    // CCM_Status on both buses, the vehicle's other five on can0, the DTI's twelve on can1.
+    // CCM_Status on both buses, the vehicle's other six on can0 (CCM_Calibration with them),
+    // the DTI's twelve on can1.
     let on = |bus: &str| messages.iter().filter(|m| m.bus == bus).count();
-    assert_eq!((on("can0"), on("can1")), (6, 13), "{messages:#?}");
+    assert_eq!((on("can0"), on("can1")), (7, 13), "{messages:#?}");
     for m in &messages {
         let (measured, declared) = (m.measured_hz().unwrap(), m.declared_hz().unwrap());
         assert!(

@@ -6,6 +6,7 @@
 
 pub mod dti;
 pub mod ifl100;
+pub mod speed_watch;
 
 use crate::bus::BusState;
 pub use crate::bus::InverterStatus;
