@@ -123,8 +123,11 @@ pub const SPEED_IMPLAUSIBLE: [(f32, f32); 2] = [(MIN_SLIP_SPEED_RAD_S, 0.5), (30
 pub const SPEED_IMPLAUSIBLE_MS: u32 = 200;
 /// A motor speed reading unchanged bit for bit this long (five DTI status periods) ...
 pub const SPEED_FROZEN_MS: u32 = 50;
-/// ... while the slower front wheel changed by more than this share under torque is frozen.
+/// ... while the slower front wheel changed by more than this share under torque is frozen ...
 pub const SPEED_FROZEN_CHANGE: f32 = 0.02;
+/// ... from this front wheel speed on (rad/s, about 2.3 m/s): slower wheels are timed over few
+/// pulses, and their noise is no evidence.
+pub const SPEED_FROZEN_FROM_RAD_S: f32 = 10.0;
 /// Below this commanded torque (Nm) the speed check rests: coasting and braking may lock the
 /// driven wheels.
 pub const SPEED_WATCH_MIN_TORQUE_NM: f32 = 20.0;

@@ -7,8 +7,8 @@
 //! whatever its value.
 
 use crate::constants::{
-    GEAR_RATIO, SPEED_FROZEN_CHANGE, SPEED_FROZEN_MS, SPEED_IMPLAUSIBLE, SPEED_IMPLAUSIBLE_MS,
-    SPEED_WATCH_MIN_TORQUE_NM,
+    GEAR_RATIO, SPEED_FROZEN_CHANGE, SPEED_FROZEN_FROM_RAD_S, SPEED_FROZEN_MS, SPEED_IMPLAUSIBLE,
+    SPEED_IMPLAUSIBLE_MS, SPEED_WATCH_MIN_TORQUE_NM,
 };
 use aer_control::Persist;
 
@@ -57,9 +57,11 @@ impl SpeedWatch {
         };
         match self.unchanged {
             Some((bits, since_ms, free_then)) if bits == motor.to_bits() => {
+                // Slow wheels are timed over few pulses: their noise is no evidence.
                 torque_nm >= SPEED_WATCH_MIN_TORQUE_NM
+                    && free_then >= SPEED_FROZEN_FROM_RAD_S
                     && now_ms.wrapping_sub(since_ms) >= SPEED_FROZEN_MS
-                    && (free - free_then).abs() > SPEED_FROZEN_CHANGE * free_then.abs().max(1.0)
+                    && (free - free_then).abs() > SPEED_FROZEN_CHANGE * free_then
             }
             _ => {
                 self.unchanged = Some((motor.to_bits(), now_ms, free));
@@ -85,11 +87,13 @@ mod tests {
     #[test]
     fn a_reading_frozen_at_speed_trips_once_the_car_is_10_percent_faster() {
         let mut watch = SpeedWatch::default();
-        let frozen = Some(40.0 * GEAR_RATIO);
-        assert!(!watch.implausible(frozen, (42.0, 42.0), 200.0, 0));
-        assert!(!watch.implausible(frozen, (45.0, 45.0), 200.0, 100));
-        assert!(!watch.implausible(frozen, (45.0, 45.0), 200.0, 100 + SPEED_IMPLAUSIBLE_MS - 10));
-        assert!(watch.implausible(frozen, (45.0, 45.0), 200.0, 100 + SPEED_IMPLAUSIBLE_MS));
+        // A reading that still moves a little (not frozen) but stays low.
+        let low = |now: u32| Some(40.0 * GEAR_RATIO + now as f32 * 1e-3);
+        assert!(!watch.implausible(low(0), (42.0, 42.0), 200.0, 0));
+        assert!(!watch.implausible(low(100), (45.0, 45.0), 200.0, 100));
+        let limit = 100 + SPEED_IMPLAUSIBLE_MS;
+        assert!(!watch.implausible(low(limit - 10), (45.0, 45.0), 200.0, limit - 10));
+        assert!(watch.implausible(low(limit), (45.0, 45.0), 200.0, limit));
     }
 
     #[test]
@@ -107,18 +111,32 @@ mod tests {
     }
 
     #[test]
-    fn slip_braking_rest_and_an_unknown_speed_never_trip_it() {
-        let mut watch = SpeedWatch::default();
+    fn slip_braking_rest_slow_wheels_and_an_unknown_speed_never_trip_it() {
         let front = (20.0, 20.0);
-        for now in (0..2_000).step_by(10) {
+        let cases: [(Option<f32>, (f32, f32), f32); 4] = [
             // Driving with slip: the motor turns faster than the front wheels.
-            assert!(!watch.implausible(Some(20.0 * GEAR_RATIO * 1.2), front, 200.0, now));
+            (Some(20.0 * GEAR_RATIO * 1.2), front, 200.0),
             // Braking: rear wheels locked, no torque.
-            assert!(!watch.implausible(Some(0.0), front, 0.0, now + 5_000));
+            (Some(0.0), front, 0.0),
             // At rest.
-            assert!(!watch.implausible(Some(0.0), (0.0, 0.0), 200.0, now + 10_000));
+            (Some(0.0), (0.0, 0.0), 200.0),
             // Unknown.
-            assert!(!watch.implausible(None, front, 200.0, now + 15_000));
+            (None, front, 200.0),
+        ];
+        for (motor, front, torque) in cases {
+            let mut watch = SpeedWatch::default();
+            for now in (0..2_000).step_by(10) {
+                assert!(
+                    !watch.implausible(motor, front, torque, now),
+                    "{motor:?} {front:?}"
+                );
+            }
+        }
+        // Slow, noisy wheels under an unchanged reading.
+        let mut watch = SpeedWatch::default();
+        for now in (0..2_000).step_by(10) {
+            let noisy = 4.0 + (now % 30) as f32 * 0.05;
+            assert!(!watch.implausible(Some(4.5 * GEAR_RATIO), (noisy, noisy), 100.0, now));
         }
     }
 }
