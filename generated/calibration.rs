@@ -832,8 +832,8 @@ pub const INTERNALS: [Internal; 9] = [
 /// in its description.
 ///
 /// Addresses are byte addresses with address extension 0; everything at them is
-/// little-endian. Commands come in `XCP_Cmd` ([`CAN_ID_MASTER`]);
-/// responses, events and DAQ packets go out in `XCP_Res` ([`CAN_ID_SLAVE`]);
+/// little-endian. Commands come in `XCP_Cmd` ([`CAN_ID_MASTER`](xcp::CAN_ID_MASTER));
+/// responses, events and DAQ packets go out in `XCP_Res` ([`CAN_ID_SLAVE`](xcp::CAN_ID_SLAVE));
 /// both on the vehicle bus, always 8 bytes.
 pub mod xcp {
     use super::{Internals, PAGE_LEN};

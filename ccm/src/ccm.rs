@@ -157,7 +157,7 @@ impl Ccm {
     /// The 1 kHz sensor step.
     pub fn sample(&mut self, sample: &SensorSample, now_ms: u32) {
         self.sensors
-            .sample(&self.calibration.active(), sample, now_ms);
+            .sample(self.calibration.active(), sample, now_ms);
     }
 
     /// The 100 Hz control step.

@@ -387,8 +387,8 @@ pub const INTERNALS: [Internal; {{ internals.len() }}] = [
 /// in its description.
 ///
 /// Addresses are byte addresses with address extension 0; everything at them is
-/// little-endian. Commands come in `{{ xcp.command_message }}` ([`CAN_ID_MASTER`]);
-/// responses, events and DAQ packets go out in `{{ xcp.response_message }}` ([`CAN_ID_SLAVE`]);
+/// little-endian. Commands come in `{{ xcp.command_message }}` ([`CAN_ID_MASTER`](xcp::CAN_ID_MASTER));
+/// responses, events and DAQ packets go out in `{{ xcp.response_message }}` ([`CAN_ID_SLAVE`](xcp::CAN_ID_SLAVE));
 /// both on the {{ xcp.bus }} bus, always 8 bytes.
 pub mod xcp {
     use super::{Internals, PAGE_LEN};

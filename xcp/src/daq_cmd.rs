@@ -60,8 +60,8 @@ impl<const LISTS: usize, const ODTS: usize, const ENTRIES: usize> Slave<LISTS, O
             .ok_or(fail(err::OUT_OF_RANGE))?;
         let (cycle, unit) = event.cycle();
         let name_len = u8::try_from(event.name.len()).unwrap_or(u8::MAX);
-        self.mta = crate::memory::Mta::Text {
-            text: crate::memory::Text::EventName(number),
+        self.mta = crate::transfer::Mta::Text {
+            text: crate::transfer::Text::EventName(number),
             offset: 0,
         };
         Ok(Answer::Reply(Packet::ok(&[

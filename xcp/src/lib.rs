@@ -72,6 +72,7 @@ mod pages;
 pub mod protocol;
 mod slave;
 mod target;
+mod transfer;
 pub mod transport;
 mod wire;
 

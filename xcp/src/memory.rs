@@ -7,125 +7,8 @@ use crate::config::{BLOCK_MAX, DOWNLOAD_CHUNK};
 use crate::protocol::{MAX_CTO, checksum_type, err, id_type};
 use crate::slave::Slave;
 use crate::target::Target;
+use crate::transfer::{Block, Mta, Text, after_packet, expected};
 use crate::wire::{Answer, Args, Fail, Outcome, Packet};
-
-/// A text the slave serves through UPLOAD after GET_ID or GET_DAQ_EVENT_INFO set the MTA to it.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) enum Text {
-    /// GET_ID type 0.
-    Ascii,
-    /// GET_ID type 1.
-    A2lName,
-    /// GET_ID type 5, from the target.
-    Epk,
-    /// An event channel's name.
-    EventName(u16),
-    /// An identification type the slave does not have (length 0).
-    Empty,
-}
-
-/// The memory transfer address: an XCP address, or a position in one of the slave's texts.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) enum Mta {
-    /// An address in the target's map.
-    Memory { ext: u8, address: u32 },
-    /// An offset into a text.
-    Text { text: Text, offset: u32 },
-}
-
-impl Mta {
-    /// The MTA of a new session.
-    pub(crate) const START: Self = Mta::Memory { ext: 0, address: 0 };
-
-    /// The MTA `count` bytes further on, or `None` past the end of the address space.
-    fn advanced(self, count: usize) -> Option<Self> {
-        let count = u32::try_from(count).ok()?;
-        Some(match self {
-            Mta::Memory { ext, address } => Mta::Memory {
-                ext,
-                address: address.checked_add(count)?,
-            },
-            Mta::Text { text, offset } => Mta::Text {
-                text,
-                offset: offset.checked_add(count)?,
-            },
-        })
-    }
-}
-
-/// A master-block-mode download being collected: written to the target in one call when its
-/// last byte has arrived. A block that failed (its error already answered) is still followed
-/// to its end so its remaining packets can be dropped without answers: every block gets
-/// exactly one answer, and a master that streams the packets (pyxcp reads no answers mid-block
-/// and never drains stale ones) is not left with extra errors for its next commands.
-#[derive(Debug, Clone, Copy)]
-pub(crate) struct Block {
-    data: [u8; BLOCK_MAX],
-    /// Bytes announced (0: no block open).
-    total: usize,
-    /// Bytes received.
-    got: usize,
-    /// The block's error was answered; its remaining packets are dropped.
-    failed: bool,
-    /// Where the block goes.
-    ext: u8,
-    address: u32,
-}
-
-impl Block {
-    /// No block open.
-    pub(crate) const IDLE: Self = Block {
-        data: [0; BLOCK_MAX],
-        total: 0,
-        got: 0,
-        failed: false,
-        ext: 0,
-        address: 0,
-    };
-
-    /// The rest of a failed block: `remaining` more bytes to drop (none: no block open).
-    fn failed(remaining: usize) -> Self {
-        Block {
-            total: remaining,
-            failed: true,
-            ..Self::IDLE
-        }
-    }
-
-    fn is_open(&self) -> bool {
-        self.total != 0
-    }
-
-    /// Bytes still to come.
-    fn remaining(&self) -> usize {
-        self.total.saturating_sub(self.got)
-    }
-
-    /// Appends received bytes (never past the announced total).
-    fn append(&mut self, bytes: &[u8]) {
-        let end = self.got.saturating_add(bytes.len()).min(self.total);
-        if let Some(slots) = self.data.get_mut(self.got..end) {
-            for (slot, byte) in slots.iter_mut().zip(bytes) {
-                *slot = *byte;
-            }
-        }
-        self.got = end;
-    }
-
-    fn bytes(&self) -> &[u8] {
-        self.data.get(..self.got).unwrap_or(&[])
-    }
-}
-
-/// The remaining-elements byte of DOWNLOAD_NEXT's ERR_SEQUENCE (at most 255 by construction).
-fn expected(block: &Block) -> u8 {
-    u8::try_from(block.remaining()).unwrap_or(u8::MAX)
-}
-
-/// What is left of a block whose packet announced `count` remaining bytes, after that packet.
-fn after_packet(count: usize) -> Block {
-    Block::failed(count.saturating_sub(DOWNLOAD_CHUNK))
-}
 
 impl<const LISTS: usize, const ODTS: usize, const ENTRIES: usize> Slave<LISTS, ODTS, ENTRIES> {
     /// The bytes of a text the MTA can point at.
@@ -338,12 +221,7 @@ impl<const LISTS: usize, const ODTS: usize, const ENTRIES: usize> Slave<LISTS, O
         if count <= DOWNLOAD_CHUNK {
             return self.commit(target, ext, address, data);
         }
-        self.block = Block {
-            total: count,
-            ext,
-            address,
-            ..Block::IDLE
-        };
+        self.block = Block::open(count, ext, address);
         self.block.append(data);
         Ok(Answer::Silent)
     }

@@ -4,9 +4,9 @@
 
 use crate::config::Config;
 use crate::daq::Daq;
-use crate::memory::{Block, Mta};
 use crate::protocol::{MAX_CTO, MAX_DTO, cmd, comm_mode, err, resource, session};
 use crate::target::{KEY_MAX, SEED_LEN, Target};
+use crate::transfer::{Block, Mta};
 use crate::wire::{Answer, Args, Fail, Outcome, Packet};
 
 /// Running totals the ECU can log or show (all wrap at u32::MAX).
