@@ -9,7 +9,7 @@ use aer::calibration::{Internals, PARAMETERS, VehicleState};
 use aer_ccm::calibration::state::CalibrationState;
 use aer_ccm::calibration::store::{CalibrationStore, RamFlash, Startup};
 use aer_ccm::calibration::{self, Calibration};
-use aer_ccm::xcp::{CcmSlave, CcmTarget, Measurements, SECRET_LEN, SeedKey, key_for, slave};
+use aer_ccm::xcp::{SECRET_LEN, SeedKey, XcpNode, key_for};
 
 const SECRET: [u8; SECRET_LEN] = *b"test secret, not the team's one!";
 const PARKED: VehicleState = VehicleState {
@@ -28,12 +28,8 @@ const ERR_ACCESS_DENIED: u8 = 0x24;
 const ERR_ACCESS_LOCKED: u8 = 0x25;
 
 struct Ecu {
-    slave: CcmSlave,
+    node: XcpNode<RamFlash>,
     calibration: CalibrationState,
-    measurements: Measurements,
-    keys: SeedKey,
-    store: CalibrationStore,
-    flash: RamFlash,
     vehicle: VehicleState,
 }
 
@@ -42,29 +38,17 @@ impl Ecu {
         let mut flash = RamFlash::default();
         let (store, loaded) = CalibrationStore::load(&mut flash, calibration::EPK);
         Self {
-            slave: slave(),
+            node: XcpNode::new(SeedKey::new(Some(SECRET), 0x1234_5678), store, flash),
             calibration: CalibrationState::new(loaded.calibration, loaded.startup),
-            measurements: Measurements::default(),
-            keys: SeedKey::new(Some(SECRET), 0x1234_5678),
-            store,
-            flash,
             vehicle: PARKED,
         }
     }
 
     fn command(&mut self, packet: &[u8]) -> Vec<u8> {
-        let mut target = CcmTarget {
-            calibration: &mut self.calibration,
-            measurements: &self.measurements,
-            vehicle: self.vehicle,
-            keys: &mut self.keys,
-            store: &mut self.store,
-            flash: &mut self.flash,
-        };
         let mut reply = [0u8; 8];
         let len = self
-            .slave
-            .command(&mut target, packet, 0, &mut reply)
+            .node
+            .command(&mut self.calibration, self.vehicle, packet, 0, &mut reply)
             .unwrap_or(0);
         reply[..len].to_vec()
     }
@@ -149,8 +133,8 @@ fn the_epk_is_the_schemas_and_every_parameter_reads_its_default() {
 #[test]
 fn measurements_read_the_last_telemetry_and_internals_and_nothing_else_is_mapped() {
     let mut ecu = Ecu::new();
-    ecu.measurements.telemetry[6] = 0xAB;
-    ecu.measurements.internals = Internals {
+    ecu.node.measurements.telemetry[6] = 0xAB;
+    ecu.node.measurements.internals = Internals {
         slip_ratio: 0.125,
         ..Internals::default()
     }
@@ -205,7 +189,7 @@ fn calibration_is_locked_until_the_seeds_key_unlocks_it() {
 #[test]
 fn an_image_without_a_secret_never_unlocks() {
     let mut ecu = Ecu::new();
-    ecu.keys = SeedKey::new(None, 7);
+    ecu.node.keys = SeedKey::new(None, 7);
     ecu.ok(&[0xFF, 0]);
     assert_eq!(ecu.unlock(&SECRET), [ERR, ERR_ACCESS_LOCKED]);
 }
@@ -254,7 +238,7 @@ fn store_cal_req_saves_only_when_parked_and_start_up_loads_it() {
     ecu.vehicle = PARKED;
     ecu.ok(&[0xF9, 0x01, 0, 0]);
     assert!(!ecu.calibration.status().ccm_cal_unsaved);
-    let (_, loaded) = CalibrationStore::load(&mut ecu.flash, calibration::EPK);
+    let (_, loaded) = CalibrationStore::load(&mut ecu.node.flash, calibration::EPK);
     assert_eq!(
         loaded.startup,
         Startup::Saved {
