@@ -1,14 +1,16 @@
 #!/usr/bin/env python3
 """The calibration engineer's scenarios, played with the real pyxcp master against the CCM's
-XCP slave in the closed-loop car model (XCP on TCP, 127.0.0.1:$AER_XCP_PORT).
+XCP slave in the closed-loop car model: XCP on TCP (the host's tests) or XCP on CAN through
+python-can's socketcan interface (a vcan in the virtual Pi).
 
-Run by car-model/tests/xcp_pyxcp.rs, which drives the car. The two talk over this script's
+Run by `aer-car-node scenarios` (car-node/src/scenarios.rs), which drives the car. The two talk over this script's
 stdin and stdout, one JSON object per line: the script writes a request, the harness answers
 with exactly one line (`{"ok": true, ...}` or `{"ok": false, "error": ...}`). Requests:
 start_up, drive_until_moving, drive {ms}, restart, corrupt, result {name, value}, done. While
 a request is outstanding the harness reads no XCP commands, so none are sent then.
 
-Environment: AER_XCP_PORT, AER_XCP_SECRET (32 bytes, hex: the key is the first 16 bytes of
+Environment: AER_XCP_TRANSPORT (tcp: AER_XCP_HOST, AER_XCP_PORT; can: AER_XCP_CAN_CHANNEL,
+AER_XCP_CAN_ID_MASTER, AER_XCP_CAN_ID_SLAVE, AER_XCP_CAN_BIT_RATE), AER_XCP_SECRET (32 bytes, hex: the key is the first 16 bytes of
 HMAC-SHA256(secret, seed)), AER_XCP_EXPECTED (JSON written by the harness: EPK, A2L path,
 addresses, parameters, internals).
 
@@ -55,6 +57,7 @@ DTO_TIMESTAMP_LEN = 4
 MAX_ODT_ENTRY_SIZE = 4  # the slave's (GET_DAQ_RESOLUTION_INFO checks it below)
 
 KEY_LEN = 16
+CAN_DLC = 8
 
 
 class Failure(Exception):
@@ -192,12 +195,12 @@ class DtoCollector:
 class Session:
     """A pyxcp Master connected to the slave, with the few operations the scenarios use."""
 
-    def __init__(self, app, expected):
+    def __init__(self, app, expected, layer):
         self.expected = expected
         self.dtos = DtoCollector()
         # The harness listens before the script starts and again before it answers `restart`:
         # the connection is accepted from the listen queue, so one attempt is enough.
-        self.master = Master("eth", config=app, policy=self.dtos)
+        self.master = Master(layer, config=app, policy=self.dtos)
         self.master.transport.connect()
         response = self.master.connect()
         props = self.master.slaveProperties
@@ -330,7 +333,7 @@ class DaqList:
     def stop(self):
         self.master.startStopSynch(SYNCH_STOP_ALL)
 
-    def decode(self, dtos):
+    def decode(self, dtos, padded):
         """Samples out of DTOs in arrival order: the first ODT (PID, timestamp, entries) opens
         a sample, the following ODTs complete it in order. Anything out of order is reported
         and ends the run."""
@@ -350,7 +353,8 @@ class DaqList:
                     current["timestamp_us"] = struct.unpack_from("<I", packet, at)[0]
                     at += DTO_TIMESTAMP_LEN
             expected_len = at + sum(size for _, _, size in self.odts[odt])
-            if len(packet) != expected_len:
+            # On CAN every frame is 8 bytes (MAX_DLC_REQUIRED): the padding follows the data.
+            if len(packet) != expected_len and not (padded and len(packet) == CAN_DLC and expected_len < CAN_DLC):
                 raise Failure(f"DTO {index} (ctr {counter}) has {len(packet)} bytes, not {expected_len}: {packet.hex()}")
             for name, _, size in self.odts[odt]:
                 raw = packet[at : at + size]
@@ -369,12 +373,12 @@ class DaqList:
 # The scenarios.
 
 
-def scenarios(app, expected):
+def scenarios(app, expected, layer):
     params = {p["name"]: p for p in expected["parameters"]}
     internals = {i["name"]: i["offset"] for i in expected["internals"]}
 
     # 1. Connect; the EPK from the slave and from the A2L.
-    session = Session(app, expected)
+    session = Session(app, expected, layer)
     result("epk", session.master.identifier(GET_ID_EPK))
     result("a2l_epk", a2l_epk(expected["a2l"]))
 
@@ -464,14 +468,14 @@ def scenarios(app, expected):
     dtos = session.dtos.take()
     total = len(dtos)
     log(f"{total} DTOs collected (first PID {daq.first_pid}, prescaler {daq.prescaler})")
-    result("daq", daq.decode(dtos))
+    result("daq", daq.decode(dtos, padded=layer == "can"))
 
     # 10. Power cycle: the saved calibration comes back.
     session.close()
     # The harness answers, then waits for the new connection before it reads any request:
     # connect first, report after.
     answer = ask({"cmd": "restart"})
-    session = Session(app, expected)
+    session = Session(app, expected, layer)
     result("restart_startup", answer.get("startup"))
     result(
         "restored",
@@ -490,7 +494,7 @@ def scenarios(app, expected):
     # 12. Both saved copies corrupt: start-up falls back to the defaults.
     session.close()
     answer = ask({"cmd": "corrupt"})
-    session = Session(app, expected)
+    session = Session(app, expected, layer)
     result("corrupt_startup", answer.get("startup"))
     result("after_corrupt", session.read_parameter("launch_slip_target"))
     session.close()
@@ -499,14 +503,35 @@ def scenarios(app, expected):
     ask({"cmd": "done"})
 
 
+def transport_config(env):
+    """pyxcp's transport name and Transport section for the link the harness serves."""
+    kind = env["AER_XCP_TRANSPORT"]
+    if kind == "tcp":
+        host, port = env["AER_XCP_HOST"], int(env["AER_XCP_PORT"])
+        return "eth", {"Eth": {"host": host, "port": port, "protocol": "TCP", "tcp_nodelay": True}}
+    if kind == "can":
+        return "can", {
+            "Can": {
+                "interface": "socketcan",
+                "channel": env["AER_XCP_CAN_CHANNEL"],
+                "can_id_master": int(env["AER_XCP_CAN_ID_MASTER"]),
+                "can_id_slave": int(env["AER_XCP_CAN_ID_SLAVE"]),
+                "bitrate": int(env["AER_XCP_CAN_BIT_RATE"]),
+                # The DBC declares XCP_Cmd with 8 bytes: every command frame is padded.
+                "max_dlc_required": True,
+            },
+        }
+    raise ValueError(f"AER_XCP_TRANSPORT={kind!r}: tcp or can")
+
+
 def main():
     try:
-        port = int(os.environ["AER_XCP_PORT"])
+        layer, transport = transport_config(os.environ)
         secret = bytes.fromhex(os.environ["AER_XCP_SECRET"])
         with open(os.environ["AER_XCP_EXPECTED"], encoding="utf-8") as file:
             expected = json.load(file)
     except (KeyError, ValueError, OSError) as error:
-        log(f"bad environment: {error!r} (needs AER_XCP_PORT, AER_XCP_SECRET, AER_XCP_EXPECTED)")
+        log(f"bad environment: {error!r} (see the docstring)")
         return 2
     if len(secret) != 32:
         log(f"AER_XCP_SECRET has {len(secret)} bytes, not 32")
@@ -514,7 +539,7 @@ def main():
 
     app = create_application_from_config(
         {
-            "Transport": {"Eth": {"host": "127.0.0.1", "port": port, "protocol": "TCP", "tcp_nodelay": True}},
+            "Transport": transport,
             "General": {
                 # Error packets reach us as XcpResponseError with their code: the scenarios
                 # expect refusals, and pyxcp's error matrix would otherwise retry or ask a
@@ -528,7 +553,7 @@ def main():
     app.transport.timeout = 5.0
 
     try:
-        scenarios(app, expected)
+        scenarios(app, expected, layer)
     except Failure as failure:
         log(f"FAILED: {failure}")
         return 1

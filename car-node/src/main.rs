@@ -1,0 +1,112 @@
+//! `aer-car-node`: the car model's CCM as an XCP slave on TCP or SocketCAN.
+
+use aer_car_model::driver::Cycle;
+use aer_car_node::{checks, link, scenarios, serve};
+use anyhow::{Result, bail};
+use clap::{Parser, Subcommand, ValueEnum};
+use std::path::PathBuf;
+
+#[derive(Parser)]
+#[command(version, about)]
+struct Cli {
+    #[command(subcommand)]
+    command: Job,
+}
+
+#[derive(Subcommand)]
+enum Job {
+    /// Runs the car in real time and serves its XCP slave (Ctrl-C stops).
+    Serve {
+        /// `tcp:ADDRESS` (the A2L names tcp:127.0.0.1:5555) or `can:INTERFACE`.
+        #[arg(long, default_value = "tcp:127.0.0.1:5555")]
+        link: String,
+        /// What the driver does.
+        #[arg(long, value_enum, default_value_t = DriveCycle::Autocross)]
+        cycle: DriveCycle,
+        /// The team's secret (64 hex digits, as ccm/xcp-secret.key); without it calibration
+        /// stays locked, as on an image built without one.
+        #[arg(long)]
+        secret_file: Option<PathBuf>,
+    },
+    /// Plays tools/xcp_scenarios.py (pyxcp) against the slave and checks what it saw;
+    /// exits non-zero unless every check passed.
+    Scenarios {
+        /// `tcp:ADDRESS` (port 0: any) or `can:INTERFACE`.
+        #[arg(long, default_value = "tcp:127.0.0.1:0")]
+        link: String,
+        /// A Python with pyxcp and pya2ldb.
+        #[arg(long, default_value = "python3")]
+        python: PathBuf,
+        /// The scenario script.
+        #[arg(long, default_value = "tools/xcp_scenarios.py")]
+        script: PathBuf,
+        /// The A2L whose EPK must be the slave's.
+        #[arg(long, default_value = "generated/aer.a2l")]
+        a2l: PathBuf,
+    },
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum DriveCycle {
+    Acceleration,
+    Skidpad,
+    Autocross,
+}
+
+impl From<DriveCycle> for Cycle {
+    fn from(cycle: DriveCycle) -> Self {
+        match cycle {
+            DriveCycle::Acceleration => Cycle::Acceleration,
+            DriveCycle::Skidpad => Cycle::Skidpad,
+            DriveCycle::Autocross => Cycle::Autocross,
+        }
+    }
+}
+
+fn main() -> Result<()> {
+    match Cli::parse().command {
+        Job::Serve {
+            link,
+            cycle,
+            secret_file,
+        } => {
+            let secret = secret_file.as_deref().map(serve::read_secret).transpose()?;
+            let mut link = link::open(&link)?;
+            eprintln!(
+                "aer-car-node: the CCM's XCP slave, {}; calibration {}",
+                link.describe(),
+                if secret.is_some() {
+                    "unlockable"
+                } else {
+                    "locked (no secret)"
+                }
+            );
+            serve::serve(link.as_mut(), cycle.into(), secret, |_| true)?;
+            Ok(())
+        }
+        Job::Scenarios {
+            link,
+            python,
+            script,
+            a2l,
+        } => {
+            let mut link = link::open(&link)?;
+            let script = scenarios::Script {
+                python,
+                path: script,
+                a2l,
+            };
+            let outcome = scenarios::play(link.as_mut(), &script)?;
+            let checks = checks::judge(&outcome);
+            for check in &checks {
+                println!("{check}");
+            }
+            let failed = checks.iter().filter(|c| c.failure.is_some()).count();
+            if failed > 0 {
+                bail!("{failed} of {} checks failed", checks.len());
+            }
+            println!("every one of {} checks passed", checks.len());
+            Ok(())
+        }
+    }
+}

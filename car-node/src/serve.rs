@@ -1,0 +1,71 @@
+//! The car on the desk: the closed loop runs in real time (one model millisecond per
+//! millisecond) and its CCM's XCP slave answers a calibration tool (CANape, INCA, pyxcp) over
+//! the link, as on the car, so a tuner can try the A2L, the DAQ lists and the refusals before
+//! the car exists.
+
+use crate::link::Link;
+use aer_car_model::chassis::Mode;
+use aer_car_model::driver::Cycle;
+use aer_car_model::faults::FaultPlan;
+use aer_car_model::{ClosedLoop, ModelParams, NoTap, XcpCar};
+use aer_ccm::calibration::store::RamFlash;
+use aer_ccm::xcp::SECRET_LEN;
+use aer_xcp::MAX_CTO;
+use anyhow::{Context, Result, bail};
+use std::path::Path;
+use std::time::{Duration, Instant, SystemTime};
+
+/// Reads the team's secret: 64 hex digits (the format of `ccm/xcp-secret.key`).
+pub fn read_secret(path: &Path) -> Result<[u8; SECRET_LEN]> {
+    let text = std::fs::read_to_string(path)
+        .with_context(|| format!("reading the XCP secret {}", path.display()))?;
+    let hex = text.trim();
+    if hex.len() != 2 * SECRET_LEN || !hex.bytes().all(|b| b.is_ascii_hexdigit()) {
+        bail!(
+            "{}: the secret is {} hex digits, nothing else",
+            path.display(),
+            2 * SECRET_LEN
+        );
+    }
+    let mut secret = [0u8; SECRET_LEN];
+    for (byte, pair) in secret.iter_mut().zip(hex.as_bytes().chunks(2)) {
+        let pair = std::str::from_utf8(pair)?;
+        *byte = u8::from_str_radix(pair, 16)?;
+    }
+    Ok(secret)
+}
+
+/// Runs `cycle` in real time and serves the slave on `link` until `running` says stop (or
+/// for ever). Returns the model milliseconds run.
+pub fn serve(
+    link: &mut dyn Link,
+    cycle: Cycle,
+    secret: Option<[u8; SECRET_LEN]>,
+    mut running: impl FnMut(u32) -> bool,
+) -> Result<u32> {
+    let run = ClosedLoop::new(ModelParams::NOMINAL, Mode::Road, cycle, FaultPlan::NONE);
+    let entropy = SystemTime::now()
+        .duration_since(SystemTime::UNIX_EPOCH)
+        .map_or(0, |t| t.as_nanos() as u64);
+    let mut car = XcpCar::new(run, RamFlash::default(), secret, entropy);
+    let started = Instant::now();
+    let mut ms: u32 = 0;
+    while running(ms) {
+        // Commands until this millisecond's step is due; a late step runs at once.
+        let due = started + Duration::from_millis(u64::from(ms) + 1);
+        loop {
+            if let Some(packet) = link.receive()? {
+                let mut reply = [0u8; MAX_CTO];
+                if let Some(len) = car.command(&packet, &mut reply) {
+                    link.send(reply.get(..len).unwrap_or_default());
+                }
+            }
+            if Instant::now() >= due {
+                break;
+            }
+        }
+        car.step(&mut NoTap, &mut |packet| link.send(packet));
+        ms = ms.wrapping_add(1);
+    }
+    Ok(ms)
+}
