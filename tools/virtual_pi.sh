@@ -11,6 +11,10 @@
 # its [CAN] bit timing (a vcan has none). Everything else is the package as shipped.
 #
 # Needs: root, debootstrap, systemd-container, qemu-system-x86, e2fsprogs; Debian's mirror.
+# The calibration scenario adds the car model's CCM as an XCP-on-CAN node on can0
+# (aer-car-node, from this checkout's build: AER_CAR_NODE or target/debug/aer-car-node) and
+# pyxcp with pya2ldb (the versions tools/requirements.txt pins) in a venv in the guest.
+#
 # Usage: virtual_pi.sh [PACKAGES_DIR] [BASE_ROOT_DIR]
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -19,6 +23,9 @@ base=${2:-target/pi-boot-root}
 root=target/virtual-pi-root
 image=target/virtual-pi.img
 console=target/virtual-pi.console
+car_node=${AER_CAR_NODE:-target/debug/aer-car-node}
+[ -x "$car_node" ] || cargo build -p aer-car-node
+xcp_tools=$(grep -E '^(pyxcp|pya2ldb)==' tools/requirements.txt | tr '\n' ' ')
 
 bash tools/debian_root.sh "$base"
 rm -rf "$root"
@@ -28,13 +35,21 @@ nspawn=(systemd-nspawn --quiet --keep-unit --register=no -D "$root")
 echo "--- install: Debian's kernel, can-utils, mosquitto-clients, the packages"
 mkdir -p "$root/root/debs"
 rm -f "$root"/root/debs/*.deb
+# The guest's pip has no route to PyPI of its own: the host's venv (the same Python, 3.11)
+# fetches the wheels, the guest installs them offline.
+rm -rf "$root/root/wheels"
+.venv/bin/pip download --quiet --disable-pip-version-check --only-binary=:all: \
+  --dest "$root/root/wheels" $xcp_tools
 cp "$out"/aer-tools_*_amd64.deb "$out"/aer-raspi_*_all.deb "$root/root/debs/"
 # The base root may have held the package before (the boot test): back to a fresh system.
 "${nspawn[@]}" sh -c 'dpkg --purge aer-car-display aer-dashboard aer-raspi aer-tools >/dev/null 2>&1;
   rm -rf /var/lib/aer; userdel aer 2>/dev/null; groupdel aer 2>/dev/null;
   apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq \
   --no-install-recommends linux-image-amd64 initramfs-tools can-utils mosquitto-clients \
-  iproute2 udev /root/debs/*.deb' > "$root.install.log" 2>&1 || {
+  iproute2 udev python3-venv /root/debs/*.deb &&
+  python3 -m venv /opt/xcp && /opt/xcp/bin/pip install --quiet --disable-pip-version-check \
+    --no-index --find-links /root/wheels '"$xcp_tools"'' \
+  > "$root.install.log" 2>&1 || {
   tail -30 "$root.install.log"; exit 1; }
 kernel=$(ls "$root"/boot/vmlinuz-* | sort -V | tail -1)
 initrd=$(ls "$root"/boot/initrd.img-* | sort -V | tail -1)
@@ -53,7 +68,8 @@ grep -v -e '^\[CAN\]' -e '^BitRate' -e '^RestartSec' "$root/usr/lib/systemd/netw
 echo "virtual-pi" > "$root/etc/hostname"
 echo "/dev/vda / ext4 rw,noatime 0 1" > "$root/etc/fstab"
 mkdir -p "$root/root/virtual-pi"
-cp tools/virtual_pi/scenarios.py raspi/data/session.log "$root/root/virtual-pi/"
+cp tools/virtual_pi/scenarios.py raspi/data/session.log tools/xcp_scenarios.py generated/aer.a2l \
+  "$car_node" "$root/root/virtual-pi/"
 cat > "$root/etc/systemd/system/virtual-pi-scenarios.service" <<'UNIT'
 [Unit]
 Description=The virtual Pi's scenarios

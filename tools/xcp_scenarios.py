@@ -511,7 +511,8 @@ def transport_config(env):
         return "eth", {"Eth": {"host": host, "port": port, "protocol": "TCP", "tcp_nodelay": True}}
     if kind == "can":
         return "can", {
-            "Can": {
+            # pyxcp reads this section under "CAN" (and Ethernet's under "Eth").
+            "CAN": {
                 "interface": "socketcan",
                 "channel": env["AER_XCP_CAN_CHANNEL"],
                 "can_id_master": int(env["AER_XCP_CAN_ID_MASTER"]),

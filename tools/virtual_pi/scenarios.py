@@ -373,6 +373,43 @@ def disk_smaller_than_floor(slice_log, want):
         subprocess.run(["umount", "/var/lib/aer"])
 
 
+def xcp_on_can():
+    """The CCM's XCP slave in the closed-loop car (aer-car-node) on can0, the vehicle bus, and
+    pyxcp on the same vcan through python-can's socketcan interface: the calibration
+    engineer's scenarios over XCP on CAN, with the Pi's service listening on the bus."""
+    if not start_service():
+        return
+    node = subprocess.run(
+        [
+            os.path.join(HERE, "aer-car-node"), "scenarios", "--link", "can:can0",
+            "--python", "/opt/xcp/bin/python",
+            "--script", os.path.join(HERE, "xcp_scenarios.py"),
+            "--a2l", os.path.join(HERE, "aer.a2l"),
+        ],
+        capture_output=True, text=True, timeout=900,
+    )
+    for line in node.stdout.splitlines():
+        say(f"  xcp on can: {line}")
+    if node.returncode != 0:
+        for line in node.stderr.splitlines()[-40:]:
+            say(f"  xcp on can (stderr): {line}")
+    check("pyxcp over XCP on CAN (vcan): every calibration scenario passed", node.returncode == 0)
+    # The service keeps every frame on the bus: the master's commands are in the store, each
+    # of the scenarios' three sessions starting with CONNECT (0xFF).
+    def connects():
+        db = sqlite3.connect(f"file:{store_path()}?mode=ro", uri=True)
+        try:
+            return db.execute("SELECT count(*) FROM can_xcp_cmd WHERE xcp_command_code = 255").fetchone()[0]
+        except sqlite3.OperationalError:
+            return 0  # the table comes with the first row
+        finally:
+            db.close()
+
+    seen = wait_for("the XCP commands in the store", lambda: connects() >= 3, 60)
+    check("the Pi stored the XCP traffic (XCP_Cmd rows, 3 CONNECTs)", bool(seen), f"{connects()} CONNECTs")
+    stop("SIGTERM")
+
+
 def main():
     say(f"kernel {os.uname().release}, {run('systemctl', '--version').splitlines()[0]}")
     modules = open("/proc/modules").read()
@@ -393,6 +430,7 @@ def main():
     malformed_isotp("userspace", short, part)
     flood_and_error_storm(short, part)
     disk_smaller_than_floor(short, part)
+    xcp_on_can()
     journal = run("journalctl", "-u", "aer-raspi", "-b", "--no-pager", "-o", "cat")
     check("no refused system call in the journal", "SIGSYS" not in journal and "Operation not permitted" not in journal)
     if failures:
