@@ -163,6 +163,7 @@ mod tests {
             "AER_MQTT_PORT" => Some("1999".into()),
             "AER_MQTT_USERNAME" => Some("pit".into()),
             "AER_MQTT_PASSWORD" => Some("secret".into()),
+            "AER_MQTT_TLS_CA" => Some("/etc/aer/team-ca.pem".into()),
             _ => None,
         })
         .unwrap();
@@ -172,6 +173,10 @@ mod tests {
         assert_eq!(config.mqtt.host, "10.0.0.2");
         assert_eq!(config.mqtt.port, 1999);
         assert_eq!(config.mqtt.username.as_deref(), Some("pit"));
+        assert_eq!(
+            config.mqtt.tls_ca.as_deref(),
+            Some(std::path::Path::new("/etc/aer/team-ca.pem"))
+        );
         assert!(Config::load(None, |k| (k == "AER_MQTT_PORT").then(|| "x".into())).is_err());
     }
 

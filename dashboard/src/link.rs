@@ -14,9 +14,10 @@ use iced::futures::channel::mpsc;
 use iced::futures::{SinkExt, Stream, StreamExt};
 use rumqttc::{
     AsyncClient, ConnectReturnCode, ConnectionError, Event as MqttEvent, EventLoop, MqttOptions,
-    Packet, QoS, StateError, SubscribeFilter,
+    Packet, QoS, StateError, SubscribeFilter, TlsConfiguration, Transport,
 };
 use std::collections::BTreeSet;
+use std::path::PathBuf;
 use std::time::{Duration, Instant};
 use tracing::warn;
 
@@ -27,6 +28,8 @@ pub struct Settings {
     pub host: String,
     pub port: u16,
     pub credentials: Option<(String, String)>,
+    /// TLS, trusting the certificates in this PEM file (the pit listener is TLS-only).
+    pub tls_ca: Option<PathBuf>,
     /// `aer/<car>`.
     pub prefix: String,
     /// The CAN topics (below the prefix) the pit view shows when the link starts.
@@ -150,6 +153,7 @@ impl Settings {
                 .username
                 .clone()
                 .zip(config.mqtt.password.clone()),
+            tls_ca: config.mqtt.tls_ca.clone(),
             prefix: config.topic_prefix(),
             can: CanMessages::new(&config.display.can_messages).suffixes(),
         }
@@ -205,7 +209,15 @@ pub fn stream(settings: Settings) -> impl Stream<Item = Event> {
         if output.send(Event::Ready(control)).await.is_err() {
             return;
         }
-        let (client, mut eventloop) = connect(&settings);
+        let (client, mut eventloop) = match connect(&settings) {
+            Ok(connection) => connection,
+            Err(why) => {
+                // Nothing to retry: the settings are wrong until the dashboard restarts.
+                let update = Update::Disconnected(why);
+                let _ = output.send(Event::Update(Instant::now(), update)).await;
+                return;
+            }
+        };
         let (connections, connection_events) = mpsc::unbounded();
         let subscriptions = Subscriptions {
             client,
@@ -218,7 +230,7 @@ pub fn stream(settings: Settings) -> impl Stream<Item = Event> {
         let mut accepted = false;
         loop {
             let was_accepted = accepted;
-            let update = next(&mut eventloop, &mut accepted, &settings.prefix).await;
+            let update = next(&mut eventloop, &mut accepted, &settings).await;
             let failed = matches!(update, Some(Update::Disconnected(_)));
             // The subscriptions follow the connection (their task ends with this loop).
             if accepted != was_accepted {
@@ -242,7 +254,8 @@ pub fn stream(settings: Settings) -> impl Stream<Item = Event> {
     })
 }
 
-fn connect(settings: &Settings) -> (AsyncClient, EventLoop) {
+/// The client and its event loop, or why the settings cannot work (an unreadable CA file).
+fn connect(settings: &Settings) -> Result<(AsyncClient, EventLoop), String> {
     // Unique per process, so the driver and pit dashboards never take over each other's session.
     let client_id = format!(
         "aer-dashboard-{}-{}",
@@ -257,12 +270,21 @@ fn connect(settings: &Settings) -> (AsyncClient, EventLoop) {
     if let Some((user, password)) = &settings.credentials {
         options.set_credentials(user.clone(), password.clone());
     }
-    AsyncClient::new(options, 16)
+    if let Some(trusted) = &settings.tls_ca {
+        let config = aer_host::tls::client_config(trusted)
+            .map_err(|error| format!("TLS cannot start: {error} (AER_MQTT_TLS_CA)"))?;
+        options.set_transport(Transport::tls_with_config(TlsConfiguration::Rustls(config)));
+    }
+    Ok(AsyncClient::new(options, 16))
 }
 
 /// Polls the connection once: an update for the screens, or `None` for protocol traffic.
 /// `accepted` tracks whether the broker has accepted the current connection.
-async fn next(eventloop: &mut EventLoop, accepted: &mut bool, prefix: &str) -> Option<Update> {
+async fn next(
+    eventloop: &mut EventLoop,
+    accepted: &mut bool,
+    settings: &Settings,
+) -> Option<Update> {
     match eventloop.poll().await {
         Ok(MqttEvent::Incoming(Packet::ConnAck(_))) => {
             *accepted = true;
@@ -271,11 +293,11 @@ async fn next(eventloop: &mut EventLoop, accepted: &mut bool, prefix: &str) -> O
         // Connected means subscribed: nothing published from here on is missed.
         Ok(MqttEvent::Incoming(Packet::SubAck(_))) => Some(Update::Connected),
         Ok(MqttEvent::Incoming(Packet::Publish(publish))) => {
-            Some(decode(prefix, &publish.topic, &publish.payload))
+            Some(decode(&settings.prefix, &publish.topic, &publish.payload))
         }
         Ok(_) => None,
         Err(error) => {
-            let reason = why_down(&error, *accepted);
+            let reason = why_down(&error, *accepted, settings);
             *accepted = false;
             Some(Update::Disconnected(reason))
         }
@@ -283,8 +305,19 @@ async fn next(eventloop: &mut EventLoop, accepted: &mut bool, prefix: &str) -> O
 }
 
 /// Why the link is down, in words the pit crew can act on.
-fn why_down(error: &ConnectionError, accepted: bool) -> String {
+fn why_down(error: &ConnectionError, accepted: bool, settings: &Settings) -> String {
+    let tls = settings.tls_ca.is_some();
+    if let Some(failure) = aer_host::tls::tls_failure(error) {
+        return aer_host::tls::explain(failure, &settings.host, "AER_MQTT_TLS_CA");
+    }
     match error {
+        // The gate answers a CONNECT sent in the clear to a TLS listener with "not
+        // authorised" (MQTT 3.1.1 has no code for "use TLS").
+        ConnectionError::ConnectionRefused(ConnectReturnCode::NotAuthorized) if !tls => {
+            "the listener refused a connection without TLS: the pit listener speaks only TLS \
+             (set AER_MQTT_TLS_CA to the team's CA, docs/dashboard.md)"
+                .into()
+        }
         // rumqttd answers a wrong or missing username/password by closing the connection, not
         // with a refusal code.
         ConnectionError::MqttState(StateError::ConnectionAborted) if !accepted => {

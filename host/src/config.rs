@@ -59,6 +59,10 @@ pub struct BrokerConfig {
     pub port: u16,
     pub username: Option<String>,
     pub password: Option<String>,
+    /// Set: the connection speaks TLS and the broker's certificate must chain to a
+    /// certificate in this PEM file (the team's CA, or the Pi's own certificate pinned). The
+    /// Pi's pit listener is TLS-only.
+    pub tls_ca: Option<PathBuf>,
     /// The root of every topic: `<topic_prefix>/<car_id>/...`.
     pub topic_prefix: String,
 }
@@ -70,14 +74,15 @@ impl Default for BrokerConfig {
             port: 1883,
             username: None,
             password: None,
+            tls_ca: None,
             topic_prefix: "aer".into(),
         }
     }
 }
 
 impl BrokerConfig {
-    /// Applies `AER_MQTT_HOST`, `AER_MQTT_PORT`, `AER_MQTT_USERNAME`, `AER_MQTT_PASSWORD` and
-    /// `AER_MQTT_PREFIX` from `env`.
+    /// Applies `AER_MQTT_HOST`, `AER_MQTT_PORT`, `AER_MQTT_USERNAME`, `AER_MQTT_PASSWORD`,
+    /// `AER_MQTT_TLS_CA` and `AER_MQTT_PREFIX` from `env`.
     pub fn apply_env(&mut self, env: &impl Fn(&str) -> Option<String>) -> Result<(), ConfigError> {
         if let Some(v) = env("AER_MQTT_HOST") {
             self.host = v;
@@ -94,6 +99,9 @@ impl BrokerConfig {
         }
         if let Some(v) = env("AER_MQTT_PASSWORD") {
             self.password = Some(v);
+        }
+        if let Some(v) = env("AER_MQTT_TLS_CA") {
+            self.tls_ca = Some(PathBuf::from(v));
         }
         if let Some(v) = env("AER_MQTT_PREFIX") {
             self.topic_prefix = v;

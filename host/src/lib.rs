@@ -9,6 +9,7 @@
 //! - [`status`]: the service's status and metrics payloads and their typed topics;
 //! - [`traffic`]: each bus's measured load and each message's measured rate;
 //! - [`config`]: reading configuration files and the broker settings both tiers use;
+//! - [`tls`]: TLS for MQTT clients off the Pi, trusting the team's certificates only;
 //! - [`clock`]: timestamps as the topics carry them;
 //! - [`logging`]: log output fit for a terminal and for the journal.
 
@@ -20,5 +21,6 @@ pub mod decode;
 pub mod logging;
 pub mod raw_format;
 pub mod status;
+pub mod tls;
 pub mod traffic;
 pub mod varint;

@@ -133,7 +133,8 @@ fn bench(c: &mut Criterion) {
         );
         tokio::spawn(publish::drive(driver, tokio::sync::watch::channel(false).0));
         let (today, driver) =
-            publish::connect(&mqtt, QUEUE, "today", "today/car1".into(), counters.clone());
+            publish::connect(&mqtt, QUEUE, "today", "today/car1".into(), counters.clone())
+                .expect("no TLS to set up");
         let (up_tx, mut up) = tokio::sync::watch::channel(false);
         tokio::spawn(publish::drive(driver, up_tx));
         let _ = tokio::time::timeout(Duration::from_secs(10), up.wait_for(|u| *u)).await;

@@ -106,6 +106,7 @@ async fn a_replayed_session_reaches_the_dashboard_intact() {
         host: "127.0.0.1".into(),
         port,
         credentials: None,
+        tls_ca: None,
         prefix: "aer/car1".into(),
         can: vec![shown],
     };
@@ -247,6 +248,7 @@ async fn a_listener_with_credentials_admits_only_the_right_ones() {
         host: "127.0.0.1".into(),
         port,
         credentials: credentials.map(|(u, p)| (u.into(), p.into())),
+        tls_ca: None,
         prefix: "aer/car1".into(),
         can: Vec::new(),
     };
@@ -271,5 +273,108 @@ async fn a_listener_with_credentials_admits_only_the_right_ones() {
     let mut updates = Box::pin(link::stream(settings(Some(("pit", "Xq7-fast-laps")))));
     started(&mut updates).await;
     let (_, update) = next(&mut updates).await;
+    assert_eq!(update, Update::Connected);
+}
+
+/// Certificates as docs/dashboard.md has the team make them: a CA, and the Pi's certificate
+/// (its name and address) signed by it. Returns the CA's PEM, the Pi's certificate and key.
+fn team_certificates(names: &[&str]) -> (String, String, String) {
+    use rcgen::{BasicConstraints, CertificateParams, IsCa, Issuer, KeyPair, KeyUsagePurpose};
+    let mut ca = CertificateParams::new(Vec::new()).expect("CA params");
+    ca.is_ca = IsCa::Ca(BasicConstraints::Unconstrained);
+    ca.key_usages = vec![
+        KeyUsagePurpose::KeyCertSign,
+        KeyUsagePurpose::DigitalSignature,
+    ];
+    let ca_key = KeyPair::generate().expect("CA key");
+    let ca_cert = ca.self_signed(&ca_key).expect("CA");
+    let issuer = Issuer::new(ca, ca_key);
+    let names: Vec<String> = names.iter().map(|n| (*n).to_owned()).collect();
+    let pi = CertificateParams::new(names).expect("Pi params");
+    let pi_key = KeyPair::generate().expect("Pi key");
+    let pi_cert = pi.signed_by(&pi_key, &issuer).expect("Pi certificate");
+    (ca_cert.pem(), pi_cert.pem(), pi_key.serialize_pem())
+}
+
+/// The pit laptop on the service's TLS listener with credentials, as at the track: with the
+/// team's CA and the right password it connects; a wrong
+/// password, a certificate of another CA, and a plaintext attempt each get their own message.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_pit_connects_over_tls_and_each_mistake_is_named() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let (ca, pi_cert, pi_key) = team_certificates(&["localhost", "127.0.0.1"]);
+    let (other_ca, _, _) = team_certificates(&["localhost"]);
+    let write = |name: &str, text: &str| {
+        let path = dir.path().join(name);
+        std::fs::write(&path, text).expect("write");
+        path
+    };
+    let (ca, other_ca) = (write("team-ca.pem", &ca), write("other-ca.pem", &other_ca));
+    let (cert, key) = (write("pi.cert.pem", &pi_cert), write("pi.key.pem", &pi_key));
+    let port = free_port();
+    let text = broker::DEFAULT_CONFIG
+        .replace("127.0.0.1:1883", &format!("127.0.0.1:{port}"))
+        .replacen(
+            "    [v4.1.connections]",
+            &format!(
+                "    [v4.1.tls]\n    certpath = \"{}\"\n    keypath = \"{}\"\n    [v4.1.connections]",
+                cert.display(),
+                key.display()
+            ),
+            1,
+        )
+        .replacen(
+            "    dynamic_filters = true",
+            "    dynamic_filters = true\n    auth = { pit = \"Xq7-fast-laps\" }",
+            1,
+        );
+    let broker_config = broker::parse(&text).expect("broker config");
+    let _broker = broker::start(
+        broker_config,
+        Arc::new(Counters::default()),
+        CancellationToken::new(),
+    )
+    .await
+    .expect("broker");
+
+    let settings = |password: &str, tls_ca: Option<&Path>| Settings {
+        host: "127.0.0.1".into(),
+        port,
+        credentials: Some(("pit".into(), password.into())),
+        tls_ca: tls_ca.map(Path::to_path_buf),
+        prefix: "aer/car1".into(),
+        can: Vec::new(),
+    };
+    let first_update = async |settings: Settings| {
+        let mut updates = Box::pin(link::stream(settings));
+        started(&mut updates).await;
+        next(&mut updates).await.1
+    };
+    for (what, settings, expected) in [
+        (
+            "a wrong password",
+            settings("guess", Some(&ca)),
+            "username/password",
+        ),
+        (
+            "a certificate of another CA",
+            settings("Xq7-fast-laps", Some(&other_ca)),
+            "not one AER_MQTT_TLS_CA trusts",
+        ),
+        ("no TLS", settings("Xq7-fast-laps", None), "without TLS"),
+    ] {
+        match first_update(settings).await {
+            Update::Disconnected(reason) => {
+                assert!(reason.contains(expected), "{what}: {reason}")
+            }
+            other => panic!("{what}: expected a refusal, got {other:?}"),
+        }
+    }
+    // The Pi's CA-signed certificate is no anchor of its own: trusting it alone fails.
+    match first_update(settings("Xq7-fast-laps", Some(&cert))).await {
+        Update::Disconnected(reason) => assert!(reason.contains("not one"), "{reason}"),
+        other => panic!("a leaf as anchor: expected a refusal, got {other:?}"),
+    }
+    let update = first_update(settings("Xq7-fast-laps", Some(&ca))).await;
     assert_eq!(update, Update::Connected);
 }

@@ -137,6 +137,22 @@ pub async fn start(
                 let (gate, listener, acceptor) = (gate.clone(), listener.clone(), acceptor.clone());
                 tokio::spawn(async move {
                     match acceptor {
+                        Some(_) if sent_in_the_clear(&stream).await => {
+                            // MQTT 3.1.1 has no code for "use TLS": "not authorised" (5),
+                            // sent in the clear, is an answer the client can show.
+                            // The CONNECT is read first: closing with it unread would
+                            // reset the connection and could discard the answer.
+                            let mut stream = stream;
+                            let mut buffer = Vec::with_capacity(256);
+                            let _ = tokio::time::timeout(
+                                HANDSHAKE,
+                                read_packet(&mut stream, &mut buffer),
+                            )
+                            .await;
+                            let _ = stream.write_all(&packet::connack(5)).await;
+                            let _ = stream.shutdown().await;
+                            gate.refused(peer, "MQTT without TLS on a TLS listener");
+                        }
                         Some(acceptor) => {
                             match tokio::time::timeout(HANDSHAKE, acceptor.accept(stream)).await {
                                 Ok(Ok(stream)) => gate.serve(stream, &listener, peer).await,
@@ -150,6 +166,16 @@ pub async fn start(
         });
     }
     Ok(())
+}
+
+/// True if the client's first byte opens an MQTT CONNECT (0x10) rather than a TLS record
+/// (0x16): a client that forgot TLS. Waits at most the handshake time for that byte.
+async fn sent_in_the_clear(stream: &TcpStream) -> bool {
+    let mut first = [0u8; 1];
+    matches!(
+        tokio::time::timeout(HANDSHAKE, stream.peek(&mut first)).await,
+        Ok(Ok(1))
+    ) && first[0] == CONNECT << 4
 }
 
 /// Bytes the kernel may hold for a client before a write waits.

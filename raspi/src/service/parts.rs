@@ -173,6 +173,7 @@ pub(super) async fn start_mqtt(
             config.topic_prefix(),
             counters.clone(),
         )
+        .context("the MQTT broker's TLS (mqtt.tls_ca)")?
     };
     let (connected_tx, mut connected) = tokio::sync::watch::channel(false);
     let connection = tokio::spawn(mqtt::drive(driver, connected_tx));

@@ -128,20 +128,28 @@ pub struct EmbeddedDriver {
     health: Arc<Health>,
 }
 
-/// A publisher to the broker `config` names, over TCP, queueing up to `queue` messages. It
-/// connects lazily: [`drive`] connects, and reconnects after a failure.
+/// A publisher to the broker `config` names, over TCP (TLS when `config.tls_ca` names the
+/// trusted certificates), queueing up to `queue` messages. It connects lazily: [`drive`]
+/// connects, and reconnects after a failure. Fails only if the trusted certificates cannot
+/// be read.
 pub fn connect(
     config: &BrokerConfig,
     queue: usize,
     client_id: &str,
     prefix: String,
     counters: Arc<Counters>,
-) -> (Publisher, Driver) {
+) -> Result<(Publisher, Driver), aer_host::tls::TlsSetupError> {
     let mut options = MqttOptions::new(client_id, config.host.clone(), config.port);
     options.set_keep_alive(Duration::from_secs(5));
     options.set_max_packet_size(64 * 1024, 64 * 1024);
     if let (Some(user), Some(password)) = (&config.username, &config.password) {
         options.set_credentials(user.clone(), password.clone());
+    }
+    if let Some(trusted) = &config.tls_ca {
+        let tls = aer_host::tls::client_config(trusted)?;
+        options.set_transport(rumqttc::Transport::tls_with_config(
+            rumqttc::TlsConfiguration::Rustls(tls),
+        ));
     }
     let (client, mut eventloop) = AsyncClient::new(options, queue.max(1));
     // Without TCP_NODELAY, Nagle's algorithm holds small publishes back for up to the peer's
@@ -149,10 +157,10 @@ pub fn connect(
     let mut network = eventloop.network_options();
     network.set_tcp_nodelay(true);
     eventloop.set_network_options(network);
-    (
+    Ok((
         Publisher::new(Connection::Remote(client), prefix, counters),
         Driver::Remote(Box::new(eventloop)),
-    )
+    ))
 }
 
 /// Keeps the publisher's connection going until it is closed; `connected` is set on every
