@@ -16,7 +16,37 @@ pub struct Config {
     pub car_id: String,
     /// Where the telemetry comes from (the Pi service's `[mqtt]` section).
     pub mqtt: BrokerConfig,
+    pub link: LinkConfig,
     pub display: DisplayConfig,
+}
+
+/// How the dashboard reads the car.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct LinkConfig {
+    /// What it subscribes to for telemetry and CAN.
+    pub stream: StreamFormat,
+}
+
+/// The form telemetry and CAN arrive in.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum StreamFormat {
+    /// The Pi's compact stream (`aer-pit/<car>/stream`): every frame and packet, batched and
+    /// compressed, about 58 kbit/s for the bundled session. Fits a long-range radio.
+    #[default]
+    Compact,
+    /// The JSON topics, one message per packet and frame (about 3.9 Mbit/s with every CAN
+    /// topic): fine on loopback and Wi-Fi, or against a broker without the stream.
+    Json,
+}
+
+impl Default for LinkConfig {
+    fn default() -> Self {
+        Self {
+            stream: StreamFormat::Compact,
+        }
+    }
 }
 
 /// What the screens show and how.
@@ -57,6 +87,7 @@ impl Default for Config {
         Self {
             car_id: "car1".into(),
             mqtt: BrokerConfig::default(),
+            link: LinkConfig::default(),
             display: DisplayConfig::default(),
         }
     }

@@ -5,9 +5,10 @@
 //! message (the application says which through the link's [`Control`]), so the link carries
 //! what the screen needs and no more.
 
-use crate::config::Config;
+use crate::config::{Config, StreamFormat};
 use crate::model::Update;
 use crate::model::can::CanMessages;
+use crate::pit_stream::StreamDecoder;
 use aer::mqtt::TELEMETRY;
 use aer_host::status::{METRICS, STATUS};
 use iced::futures::channel::mpsc;
@@ -34,6 +35,8 @@ pub struct Settings {
     pub prefix: String,
     /// The CAN topics (below the prefix) the pit view shows when the link starts.
     pub can: Vec<&'static str>,
+    /// Telemetry and CAN from the compact stream or the JSON topics.
+    pub format: StreamFormat,
 }
 
 /// What the link hands the application: first the [`Control`] to steer it with, then every
@@ -76,6 +79,8 @@ struct Subscriptions {
     shown: BTreeSet<&'static str>,
     /// Whether the broker has accepted the current connection (picks go out at once).
     live: bool,
+    /// The compact stream carries every CAN message: picks subscribe to nothing.
+    compact: bool,
 }
 
 impl Subscriptions {
@@ -104,6 +109,7 @@ impl Subscriptions {
         let can = self
             .shown
             .iter()
+            .filter(|_| !self.compact)
             .map(|suffix| format!("{}/{suffix}", self.prefix));
         let all = self.base.iter().cloned().chain(can);
         if let Err(error) = self
@@ -118,7 +124,7 @@ impl Subscriptions {
     /// unsubscribes from the others.
     fn show(&mut self, wanted: Vec<&'static str>) {
         let wanted: BTreeSet<&'static str> = wanted.into_iter().collect();
-        if self.live {
+        if self.live && !self.compact {
             let prefix = &self.prefix;
             let added: Vec<_> = wanted
                 .difference(&self.shown)
@@ -156,16 +162,18 @@ impl Settings {
             tls_ca: config.mqtt.tls_ca.clone(),
             prefix: config.topic_prefix(),
             can: CanMessages::new(&config.display.can_messages).suffixes(),
+            format: config.link.stream,
         }
     }
 
-    /// The topics the dashboard always reads (CAN topics come and go with the pit view).
+    /// The topics the dashboard always reads: the compact stream (which carries every CAN
+    /// message), or the telemetry topic (CAN topics then come and go with the pit view).
     pub fn topics(&self) -> [String; 3] {
-        [
-            TELEMETRY.path(&self.prefix),
-            STATUS.path(&self.prefix),
-            METRICS.path(&self.prefix),
-        ]
+        let data = match self.format {
+            StreamFormat::Compact => aer_host::pit_stream::topic(&self.prefix),
+            StreamFormat::Json => TELEMETRY.path(&self.prefix),
+        };
+        [data, STATUS.path(&self.prefix), METRICS.path(&self.prefix)]
     }
 }
 
@@ -225,25 +233,32 @@ pub fn stream(settings: Settings) -> impl Stream<Item = Event> {
             base: settings.topics(),
             shown: settings.can.iter().copied().collect(),
             live: false,
+            compact: settings.format == StreamFormat::Compact,
         };
         tokio::spawn(subscriptions.run(picks, connection_events));
         let mut accepted = false;
+        let mut decoder = StreamDecoder::default();
+        let mut updates = Vec::new();
         loop {
             let was_accepted = accepted;
-            let update = next(&mut eventloop, &mut accepted, &settings).await;
-            let failed = matches!(update, Some(Update::Disconnected(_)));
+            next(
+                &mut eventloop,
+                &mut accepted,
+                &settings,
+                &mut decoder,
+                &mut updates,
+            )
+            .await;
+            let failed = matches!(updates.last(), Some(Update::Disconnected(_)));
             // The subscriptions follow the connection (their task ends with this loop).
             if accepted != was_accepted {
                 let _ = connections.unbounded_send(accepted);
             }
-            if let Some(update) = update {
+            let arrived = Instant::now();
+            for update in updates.drain(..) {
                 // Waits while the screen catches up; the broker then holds (or, beyond its
                 // segments, drops) messages, which show up as lost packets.
-                if output
-                    .send(Event::Update(Instant::now(), update))
-                    .await
-                    .is_err()
-                {
+                if output.send(Event::Update(arrived, update)).await.is_err() {
                     return;
                 }
             }
@@ -278,28 +293,33 @@ fn connect(settings: &Settings) -> Result<(AsyncClient, EventLoop), String> {
     Ok(AsyncClient::new(options, 16))
 }
 
-/// Polls the connection once: an update for the screens, or `None` for protocol traffic.
-/// `accepted` tracks whether the broker has accepted the current connection.
+/// Polls the connection once: the updates for the screens go into `out` (none for protocol
+/// traffic, many for a batch of the compact stream). `accepted` tracks whether the broker has
+/// accepted the current connection.
 async fn next(
     eventloop: &mut EventLoop,
     accepted: &mut bool,
     settings: &Settings,
-) -> Option<Update> {
+    decoder: &mut StreamDecoder,
+    out: &mut Vec<Update>,
+) {
     match eventloop.poll().await {
-        Ok(MqttEvent::Incoming(Packet::ConnAck(_))) => {
-            *accepted = true;
-            None
-        }
+        Ok(MqttEvent::Incoming(Packet::ConnAck(_))) => *accepted = true,
         // Connected means subscribed: nothing published from here on is missed.
-        Ok(MqttEvent::Incoming(Packet::SubAck(_))) => Some(Update::Connected),
+        Ok(MqttEvent::Incoming(Packet::SubAck(_))) => out.push(Update::Connected),
         Ok(MqttEvent::Incoming(Packet::Publish(publish))) => {
-            Some(decode(&settings.prefix, &publish.topic, &publish.payload))
+            let stream = publish.topic == aer_host::pit_stream::topic(&settings.prefix);
+            if stream {
+                decoder.decode(&publish.topic, &publish.payload, out);
+            } else {
+                out.push(decode(&settings.prefix, &publish.topic, &publish.payload));
+            }
         }
-        Ok(_) => None,
+        Ok(_) => {}
         Err(error) => {
             let reason = why_down(&error, *accepted, settings);
             *accepted = false;
-            Some(Update::Disconnected(reason))
+            out.push(Update::Disconnected(reason));
         }
     }
 }

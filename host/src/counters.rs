@@ -81,6 +81,11 @@ counters! {
     published,
     /// MQTT messages dropped because the broker's queue was full.
     publish_dropped,
+    /// Batches of the pit stream published (`aer-pit/<car>/stream`).
+    pit_batches,
+    /// Frames and packets the pit stream could not take (its task behind): they are in the
+    /// raw log and the store, not on the pit's stream.
+    pit_dropped,
     /// Rows committed to the local store.
     stored,
     /// Rows the local store could not take (behind or failing); their frames stay in the

@@ -9,6 +9,7 @@
 //! - [`status`]: the service's status and metrics payloads and their typed topics;
 //! - [`traffic`]: each bus's measured load and each message's measured rate;
 //! - [`config`]: reading configuration files and the broker settings both tiers use;
+//! - [`pit_stream`]: the compact stream for the pit: ingest's input in compressed batches;
 //! - [`tls`]: TLS for MQTT clients off the Pi, trusting the team's certificates only;
 //! - [`clock`]: timestamps as the topics carry them;
 //! - [`logging`]: log output fit for a terminal and for the journal.
@@ -19,6 +20,7 @@ pub mod config;
 pub mod counters;
 pub mod decode;
 pub mod logging;
+pub mod pit_stream;
 pub mod raw_format;
 pub mod status;
 pub mod tls;

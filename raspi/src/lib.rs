@@ -15,6 +15,7 @@ pub mod disk;
 pub mod export;
 pub mod forward;
 pub mod health;
+pub mod pit;
 pub mod rawlog;
 pub mod report;
 pub mod service;

@@ -4,6 +4,7 @@
 //! sources announce, sends ISO-TP flow control back to the source's bus, and flushes the raw
 //! log and the sinks whenever it is about to wait.
 
+use crate::pit::PitTap;
 use crate::rawlog::RawTap;
 use crate::sink::Sink;
 use crate::source::replay::{ReplayOptions, ReplayStats, replay};
@@ -20,6 +21,7 @@ pub struct Stage {
     sinks: Vec<Box<dyn Sink>>,
     replies: Replies,
     raw: Option<RawTap>,
+    pit: Option<PitTap>,
 }
 
 impl Stage {
@@ -32,7 +34,14 @@ impl Stage {
             sinks,
             replies,
             raw: None,
+            pit: None,
         }
+    }
+
+    /// Copies every input to the pit stream through `tap`.
+    pub fn with_pit_stream(mut self, tap: PitTap) -> Self {
+        self.pit = Some(tap);
+        self
     }
 
     /// Appends every frame to the raw log through `tap` before decoding it.
@@ -49,12 +58,16 @@ impl Stage {
 
     /// Takes one input through decoding to the sinks.
     pub fn take(&mut self, input: Input) {
+        if let Some(pit) = &mut self.pit {
+            pit.take(&input);
+        }
         let Self {
             ingest,
             buses,
             sinks,
             replies,
             raw,
+            pit: _,
         } = self;
         match input {
             Input::Bus { index, name } => {
@@ -92,6 +105,9 @@ impl Stage {
     pub fn flush(&mut self) {
         if let Some(raw) = &mut self.raw {
             raw.flush();
+        }
+        if let Some(pit) = &mut self.pit {
+            pit.flush();
         }
         for sink in &mut self.sinks {
             sink.flush();

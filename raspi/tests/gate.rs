@@ -133,10 +133,18 @@ async fn service_still_publishes(
 async fn no_client_can_publish_under_the_cars_topics() {
     let service = service(|_| {}).await;
     let (_watcher, mut seen) = subscriber(service.port, "watcher", "aer/#").await;
-    // A spoofer publishes fake telemetry and a retained status.
-    for (topic, retain) in [("aer/car1/telemetry", false), ("aer/car1/status", true)] {
+    // A spoofer publishes fake telemetry, a retained status, and a forged pit stream batch.
+    for (topic, retain) in [
+        ("aer/car1/telemetry", false),
+        ("aer/car1/status", true),
+        ("aer-pit/car1/stream", false),
+    ] {
         let (spoofer, mut events) = AsyncClient::new(
-            MqttOptions::new(format!("spoofer-{retain}"), "127.0.0.1", service.port),
+            MqttOptions::new(
+                format!("spoofer-{}", topic.replace('/', "-")),
+                "127.0.0.1",
+                service.port,
+            ),
             10,
         );
         spoofer
@@ -157,7 +165,7 @@ async fn no_client_can_publish_under_the_cars_topics() {
         .expect("answered in time");
         assert!(cut, "{topic}: the publish was not refused");
     }
-    assert!(service.counters.snapshot().mqtt_refused >= 2);
+    assert!(service.counters.snapshot().mqtt_refused >= 3);
     // Publishing elsewhere is fine (the pit crew's own topics).
     let (pit, mut events) =
         AsyncClient::new(MqttOptions::new("pit-notes", "127.0.0.1", service.port), 10);
@@ -310,7 +318,7 @@ async fn a_client_id_the_broker_did_not_acknowledge_is_never_offered_to_it_again
             broker,
             broker_user: "aer-gate".into(),
             broker_password: "a-long-password".into(),
-            protected: "aer/".into(),
+            protected: vec!["aer/".into(), "aer-pit/".into()],
             reserved_ids: "aer-raspi".into(),
             max_clients: 8,
             stall_limit: Duration::from_secs(5),

@@ -4,7 +4,7 @@
 //! topics only those of the messages the pit view shows.
 
 use aer::can::{AnyMessage, DtiTemperatures, PccStatus};
-use aer_dashboard::config::{Config, View};
+use aer_dashboard::config::{Config, StreamFormat, View};
 use aer_dashboard::link::{self, Control, Event, Settings};
 use aer_dashboard::model::health::SchemaMatch;
 use aer_dashboard::model::{Dashboard, Update};
@@ -20,6 +20,7 @@ use aer_raspi::source::replay::{ReplayOptions, replay};
 use iced::futures::StreamExt;
 use std::path::Path;
 use std::sync::Arc;
+use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 use tokio_util::sync::CancellationToken;
 
@@ -109,6 +110,7 @@ async fn a_replayed_session_reaches_the_dashboard_intact() {
         tls_ca: None,
         prefix: "aer/car1".into(),
         can: vec![shown],
+        format: StreamFormat::Json,
     };
     let mut updates = Box::pin(link::stream(settings));
     let control = started(&mut updates).await;
@@ -222,6 +224,81 @@ async fn a_replayed_session_reaches_the_dashboard_intact() {
     drop(stop);
 }
 
+/// The dashboard's default: the compact stream. The Pi service replays the bundled session;
+/// the dashboard's link, subscribed to `aer/car1/stream` only, gets every telemetry packet in
+/// order with the values the generated decoder reads from the log, and every CAN message the
+/// Pi decoded, and its model counts nothing lost or undecodable.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_compact_stream_carries_the_whole_session_to_the_dashboard() {
+    let expected = session::load(BUNDLED_SESSION, "car1");
+    let dir = tempfile::tempdir().expect("temp dir");
+    let port = free_port();
+    let mut pipeline = Pipeline::start(service_config(dir.path(), port), Job::Fed)
+        .await
+        .expect("the Pi service starts");
+    let counters = pipeline.counters();
+    let input = pipeline.input().expect("a fed pipeline's input");
+
+    let config = Config::default();
+    assert_eq!(config.link.stream, StreamFormat::Compact, "the default");
+    let mut settings = Settings::from_config(&config);
+    settings.port = port;
+    let mut updates = Box::pin(link::stream(settings));
+    started(&mut updates).await;
+    let mut model = Dashboard::new(&config);
+    loop {
+        let (at, update) = next(&mut updates).await;
+        let connected = update == Update::Connected;
+        model.apply(update, at);
+        if connected {
+            break;
+        }
+    }
+
+    // The session through the service while the dashboard reads, as at the track.
+    let (stop, stopped) = tokio::sync::oneshot::channel::<()>();
+    let running = tokio::spawn(pipeline.run(async {
+        let _ = stopped.await;
+    }));
+    let replaying = {
+        let (input, counters) = (input.clone(), counters.clone());
+        tokio::spawn(async move { feed(BUNDLED_SESSION, &input, &counters).await })
+    };
+    let mut received = Vec::new();
+    let mut can_messages = 0u64;
+    let decoded = |counters: &Counters| counters.messages.load(Ordering::Relaxed);
+    while received.len() < expected.samples.len()
+        || !replaying.is_finished()
+        || can_messages < decoded(&counters)
+    {
+        let (at, update) = next(&mut updates).await;
+        match &update {
+            Update::Telemetry(sample) => received.push((**sample).clone()),
+            Update::Can(_) => can_messages += 1,
+            Update::Undecodable { topic, error } => panic!("{topic}: {error}"),
+            _ => {}
+        }
+        model.apply(update, at);
+    }
+    replaying.await.expect("the replay");
+    drop(input);
+    running
+        .await
+        .expect("the pipeline's task")
+        .expect("the pipeline stops cleanly");
+    drop(stop);
+    let pi = counters.snapshot();
+    assert_eq!(pi.publish_dropped, 0);
+    assert_eq!(pi.pit_dropped, 0);
+    assert!(pi.pit_batches > 0);
+    assert_eq!(received, expected.samples);
+    assert_eq!(can_messages, pi.messages);
+    let health = model.health();
+    assert_eq!(health.packets, 4_500);
+    assert_eq!(health.lost, 0);
+    assert_eq!(health.undecodable, 0);
+}
+
 /// A pit laptop on a broker listener with credentials (as the Pi's network listener must have):
 /// without them or with a wrong password the link reports why it is down, with the right
 /// ones it connects.
@@ -251,6 +328,7 @@ async fn a_listener_with_credentials_admits_only_the_right_ones() {
         tls_ca: None,
         prefix: "aer/car1".into(),
         can: Vec::new(),
+        format: StreamFormat::Json,
     };
     for refused in [
         None,
@@ -344,6 +422,7 @@ async fn the_pit_connects_over_tls_and_each_mistake_is_named() {
         tls_ca: tls_ca.map(Path::to_path_buf),
         prefix: "aer/car1".into(),
         can: Vec::new(),
+        format: StreamFormat::Compact,
     };
     let first_update = async |settings: Settings| {
         let mut updates = Box::pin(link::stream(settings));

@@ -53,8 +53,9 @@ pub struct Settings {
     pub broker: SocketAddr,
     pub broker_user: String,
     pub broker_password: String,
-    /// Topics only the service may publish under (`aer/`).
-    pub protected: String,
+    /// Topic roots only the service may publish under (`aer/`, and the pit stream's
+    /// `aer-pit/`).
+    pub protected: Vec<String>,
     /// Client ids only the service may use (`aer-raspi`).
     pub reserved_ids: String,
     /// Clients at once, beyond which a stalled one makes room or the newcomer is refused.
@@ -196,6 +197,14 @@ impl Gate {
         (self.started.elapsed().as_micros() as u64).max(1)
     }
 
+    /// True for a topic under one of the service's roots.
+    fn is_protected(&self, topic: &str) -> bool {
+        self.settings
+            .protected
+            .iter()
+            .any(|root| topic.starts_with(root.as_str()))
+    }
+
     /// Checks a new client's CONNECT; the reason and CONNACK code if it is refused.
     fn admit(&self, connect: &Connect, listener: &Listener) -> Result<(), (&'static str, u8)> {
         if connect.client_id.starts_with(&self.settings.reserved_ids) {
@@ -214,7 +223,7 @@ impl Gate {
         if connect
             .will
             .as_ref()
-            .is_some_and(|(topic, ..)| topic.starts_with(&self.settings.protected))
+            .is_some_and(|(topic, ..)| self.is_protected(topic))
         {
             return Err(("will under the service's topics", 5));
         }
@@ -374,7 +383,7 @@ impl Gate {
             }
             if kind == PUBLISH {
                 match packet::publish_topic(bytes) {
-                    Ok(topic) if !topic.starts_with(&self.settings.protected) => {}
+                    Ok(topic) if !self.is_protected(&topic) => {}
                     Ok(_) => return self.refused(peer, "publish under the service's topics"),
                     Err(error) => return self.refused(peer, &error.to_string()),
                 }

@@ -174,14 +174,16 @@ pub struct Broker {
 /// Client ids the service uses; the gate refuses them to clients.
 pub(crate) const SERVICE_IDS: &str = "aer-raspi";
 
-/// The broker and its gate as the service runs them, with the topic root `aer/` protected
-/// (tests and benchmarks; the service derives the root from its configuration).
+/// The broker and its gate as the service runs them, with the topic roots `aer/` and
+/// `aer-pit/` protected (tests and benchmarks; the service derives them from its
+/// configuration).
 pub async fn start(
     config: BrokerConfig,
     counters: std::sync::Arc<aer_host::counters::Counters>,
     cancel: tokio_util::sync::CancellationToken,
 ) -> Result<Broker> {
-    let broker = spawn(config, SERVICE_IDS, "aer/")?;
+    let protected = ["aer/".to_owned(), "aer-pit/".to_owned()];
+    let broker = spawn(config, SERVICE_IDS, &protected)?;
     gate::start(broker.gate.clone(), counters, cancel).await?;
     Ok(broker)
 }
@@ -192,8 +194,8 @@ const SPARE_LINKS: usize = 2;
 /// Starts the broker on a thread of its own (rumqttd's `start` blocks) with one listener, on
 /// loopback, for the gate; waits (up to 2 s) until it is bound and turns Nagle's algorithm
 /// off on it (see [`nodelay`]). `reserved_ids` prefixes the service's link ids, which the
-/// gate refuses to clients; `protected` is the topic prefix only the service publishes under.
-pub fn spawn(config: BrokerConfig, reserved_ids: &str, protected: &str) -> Result<Broker> {
+/// gate refuses to clients; `protected` are the topic roots only the service publishes under.
+pub fn spawn(config: BrokerConfig, reserved_ids: &str, protected: &[String]) -> Result<Broker> {
     let BrokerConfig {
         mut broker,
         listeners,
@@ -258,7 +260,7 @@ pub fn spawn(config: BrokerConfig, reserved_ids: &str, protected: &str) -> Resul
             broker: internal,
             broker_user: user,
             broker_password: password,
-            protected: protected.to_owned(),
+            protected: protected.to_vec(),
             reserved_ids: reserved_ids.to_owned(),
             max_clients,
             stall_limit,

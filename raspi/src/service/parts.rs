@@ -12,8 +12,8 @@ use crate::sink::mqtt::{self, Publisher};
 use crate::store::{
     self, Budget, Compaction, Retention, StoreWriter, WhenFull, WriterOptions, session,
 };
-use aer_host::clock;
 use aer_host::counters::Counters;
+use aer_host::{clock, pit_stream};
 use anyhow::{Context, Result};
 use std::sync::Arc;
 use std::sync::mpsc::SyncSender;
@@ -154,7 +154,11 @@ pub(super) async fn start_mqtt(
             address = listener.to_string();
         }
         // Only the service publishes under the topic root, whatever the car.
-        let protected = format!("{}/", config.mqtt.topic_prefix.trim_end_matches('/'));
+        let root = config.mqtt.topic_prefix.trim_end_matches('/');
+        let protected = [
+            format!("{root}/"),
+            format!("{root}{}/", pit_stream::ROOT_SUFFIX),
+        ];
         let broker = broker::spawn(broker_config, SERVICE_IDS, &protected)?;
         broker::gate::start(broker.gate, counters.clone(), cancel.clone()).await?;
         mqtt::embedded(

@@ -149,6 +149,21 @@ impl Pipeline {
         if self.job == Job::Live && self.config.can.isotp == config::IsoTpMode::Kernel {
             stage = stage.with_kernel_isotp();
         }
+        let mut pit_stream = None;
+        if self.config.pit_stream.enabled {
+            let kernel_isotp =
+                self.job == Job::Live && self.config.can.isotp == config::IsoTpMode::Kernel;
+            let (tap, inputs) = crate::pit::PitTap::new(self.counters.clone(), kernel_isotp);
+            stage = stage.with_pit_stream(tap);
+            pit_stream = Some(tokio::spawn(crate::pit::run(
+                self.mqtt.publisher.clone(),
+                aer_host::pit_stream::topic(&self.config.topic_prefix()),
+                self.counters.clone(),
+                inputs,
+                Duration::from_millis(self.config.pit_stream.window_ms),
+                self.cancel.clone(),
+            )));
+        }
         let mut raw_writer = None;
         if let Some((writer, blocks)) = self.raw_log {
             stage = stage.with_raw_log(RawTap::new(blocks, self.counters.clone()));
@@ -170,6 +185,10 @@ impl Pipeline {
             parts::finish_blocking("raw log", move || raw_writer.finish()).await;
         }
         let _ = tokio::time::timeout(Duration::from_secs(2), self.reporter).await;
+        if let Some(pit_stream) = pit_stream {
+            // Its last batch, before MQTT is drained.
+            let _ = tokio::time::timeout(Duration::from_secs(2), pit_stream).await;
+        }
         if let Some(forwarder) = self.forwarder {
             let _ = tokio::time::timeout(parts::STOP_WAIT, forwarder).await;
         }

@@ -322,6 +322,17 @@ impl Publisher {
         }
     }
 
+    /// Publishes a binary `payload` on `topic` now (the pit stream's batches, outside the
+    /// car's JSON topics).
+    pub fn publish_bytes(&self, topic: &str, payload: Vec<u8>) {
+        self.send(
+            bytes::Bytes::copy_from_slice(topic.as_bytes()),
+            payload,
+            false,
+            true,
+        );
+    }
+
     /// Publishes `value` on `topic`, typed by the topic.
     pub fn publish_on<P: Serialize>(&self, topic: &Topic<P>, value: &P, retain: bool) {
         match topic.encode(value) {

@@ -1,0 +1,180 @@
+//! Reads the Pi's compact pit stream (`aer_host::pit_stream`) with the same ingest and
+//! generated decoders the Pi runs: frames and packets in, the same telemetry and CAN samples
+//! the JSON topics would have carried out. Telemetry from firmware of another schema is named,
+//! as on the Pi.
+
+use crate::model::Update;
+use aer::mqtt::{Sample, TelemetryRecord};
+use aer::telemetry::TELEMETRY_FINGERPRINT;
+use aer_host::clock::seconds;
+use aer_host::counters::Counters;
+use aer_host::decode::{Ingest, Record};
+use aer_host::pit_stream::{Item, decode};
+use std::sync::Arc;
+use std::sync::atomic::Ordering;
+
+/// The decoder's state across batches (an ISO-TP transfer may span two).
+pub struct StreamDecoder {
+    ingest: Ingest,
+    counters: Arc<Counters>,
+    /// Fingerprint mismatches already reported.
+    mismatches: u64,
+}
+
+impl Default for StreamDecoder {
+    fn default() -> Self {
+        let counters = Arc::new(Counters::default());
+        Self {
+            ingest: Ingest::new(counters.clone()),
+            counters,
+            mismatches: 0,
+        }
+    }
+}
+
+fn update(record: Record) -> Update {
+    match record {
+        Record::Telemetry {
+            ts_us,
+            header,
+            telemetry,
+            ..
+        } => Update::Telemetry(Box::new(Sample {
+            ts: seconds(ts_us),
+            value: TelemetryRecord {
+                header,
+                telemetry: *telemetry,
+            },
+        })),
+        Record::Can { ts_us, message, .. } => Update::Can(Box::new(Sample {
+            ts: seconds(ts_us),
+            value: message,
+        })),
+    }
+}
+
+impl StreamDecoder {
+    /// Decodes one batch published on `topic` into `out`, in the order the Pi took it in.
+    pub fn decode(&mut self, topic: &str, payload: &[u8], out: &mut Vec<Update>) {
+        let batch = match decode(payload) {
+            Ok(batch) => batch,
+            Err(error) => {
+                out.push(Update::Undecodable {
+                    topic: topic.to_owned(),
+                    error: error.to_string(),
+                });
+                return;
+            }
+        };
+        for (index, name) in batch.buses.iter().enumerate() {
+            if let Ok(index) = u8::try_from(index) {
+                self.ingest.name_bus(index, name);
+            }
+        }
+        for item in &batch.items {
+            match item {
+                Item::Frame(frame) => {
+                    self.ingest
+                        .on_frame(frame, |record| out.push(update(record)), |_, _| {})
+                }
+                Item::Packet { ts_us, bus, packet } => {
+                    self.ingest
+                        .on_packet(*ts_us, *bus, packet, |record| out.push(update(record)))
+                }
+            }
+        }
+        let mismatches = self.counters.fingerprint_mismatches.load(Ordering::Relaxed);
+        if mismatches > self.mismatches {
+            self.mismatches = mismatches;
+            let found = self.counters.mismatched_fingerprint.load(Ordering::Relaxed);
+            out.push(Update::Undecodable {
+                topic: topic.to_owned(),
+                error: format!(
+                    "telemetry from firmware built from another schema ({found:#010x}; this \
+                     dashboard reads {TELEMETRY_FINGERPRINT:#010x}): flash the CCM and install \
+                     the dashboard from the same commit"
+                ),
+            });
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use aer::telemetry::{Telemetry, TelemetryHeader};
+    use aer_host::pit_stream::BatchEncoder;
+
+    fn packet(sequence: u16) -> [u8; Telemetry::LEN] {
+        let mut out = [0u8; Telemetry::LEN];
+        let header = TelemetryHeader {
+            sequence,
+            timestamp_us: 0,
+        };
+        Telemetry::zeroed().pack(header, &mut out);
+        out
+    }
+
+    fn batch(packets: &[[u8; Telemetry::LEN]]) -> Vec<u8> {
+        let mut encoder = BatchEncoder::new(0, 1_000_000, &["can0".into()]);
+        for (i, packet) in packets.iter().enumerate() {
+            encoder.packet(1_000_000 + i as u64 * 10_000, 0, packet);
+        }
+        encoder.finish()
+    }
+
+    #[test]
+    fn packets_become_telemetry_samples_in_order() {
+        let mut out = Vec::new();
+        StreamDecoder::default().decode(
+            "aer-pit/car1/stream",
+            &batch(&[packet(1), packet(2)]),
+            &mut out,
+        );
+        let sequences: Vec<u16> = out
+            .iter()
+            .filter_map(|u| match u {
+                Update::Telemetry(sample) => Some(sample.value.header.sequence),
+                _ => None,
+            })
+            .collect();
+        assert_eq!(sequences, [1, 2]);
+        assert!(matches!(&out[0], Update::Telemetry(s) if s.ts == 1.0));
+    }
+
+    #[test]
+    fn another_schemas_telemetry_is_named_once_per_batch() {
+        let mut foreign = packet(1);
+        foreign[..4].copy_from_slice(&0x1234_5678u32.to_le_bytes());
+        let mut out = Vec::new();
+        StreamDecoder::default().decode(
+            "aer-pit/car1/stream",
+            &batch(&[foreign, foreign]),
+            &mut out,
+        );
+        assert_eq!(out.len(), 1, "{out:?}");
+        match &out[0] {
+            Update::Undecodable { topic, error } => {
+                assert_eq!(topic, "aer-pit/car1/stream");
+                assert!(error.contains("0x12345678"), "{error}");
+                assert!(
+                    error.contains(&format!("{TELEMETRY_FINGERPRINT:#010x}")),
+                    "{error}"
+                );
+            }
+            other => panic!("{other:?}"),
+        }
+    }
+
+    #[test]
+    fn a_damaged_batch_is_undecodable_with_the_reason() {
+        let mut message = batch(&[packet(1)]);
+        message.truncate(message.len() - 3);
+        let mut out = Vec::new();
+        StreamDecoder::default().decode("aer-pit/car1/stream", &message, &mut out);
+        assert!(
+            matches!(&out[..], [Update::Undecodable { error, .. }] if !error.is_empty()),
+            "{out:?}"
+        );
+    }
+}

@@ -1,0 +1,354 @@
+//! The pit stream: what the Pi's ingest takes in (every CAN frame as received, and every
+//! telemetry packet the kernel's ISO-TP reassembled), in batches of a short window,
+//! zstd-compressed, one MQTT message per batch. The pit decodes it with the same ingest and
+//! generated decoders as the Pi ([`crate::decode::Ingest`]), so it sees what the Pi sees at a
+//! few bytes a frame instead of a JSON document per message: the stream fits a long-range
+//! radio. Each batch is numbered, so a receiver knows what it missed.
+//!
+//! ```text
+//! message: "AERP" | version u8 (1) | batch number u32 LE | first timestamp u64 LE (us since
+//!          the epoch) | payload length u32 LE | the payload, zstd-compressed
+//! payload: bus count u8, then per bus: name length u8, name (UTF-8, the index is the order)
+//!          then records:
+//!   0x02 frame:  time since the previous record (zigzag LEB128, us), bus u8,
+//!                flags u8 (bit 0: extended id), id (LEB128), length u8 (0-8), data
+//!   0x04 packet: time since the previous record (zigzag LEB128, us), bus u8,
+//!                length (LEB128), the packet
+//! ```
+
+use crate::candump::LoggedFrame;
+use crate::varint::{put_varint, read_varint, unzigzag, zigzag};
+use embedded_can::{ExtendedId, Id, StandardId};
+use std::sync::Arc;
+use thiserror::Error;
+
+/// What the stream's topic root adds to the topic root: `aer` -> `aer-pit`. The stream is
+/// binary, so it stays out of `aer/#`, which Grafana, Node-RED and `mosquitto_sub -v` read as
+/// JSON text.
+pub const ROOT_SUFFIX: &str = "-pit";
+
+/// The stream's topic for the car whose topics are below `car_prefix` (`aer/car1` ->
+/// `aer-pit/car1/stream`).
+pub fn topic(car_prefix: &str) -> String {
+    match car_prefix.rsplit_once('/') {
+        Some((root, car)) => format!("{root}{ROOT_SUFFIX}/{car}/stream"),
+        None => format!("{car_prefix}{ROOT_SUFFIX}/stream"),
+    }
+}
+/// Uncompressed payload at which a batch goes out before its window ends: even
+/// incompressible, it stays under the broker's 20 KiB message limit.
+pub const MAX_BATCH_PAYLOAD: usize = 16 * 1024;
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn the_stream_sits_beside_the_cars_json_topics() {
+        assert_eq!(super::topic("aer/car1"), "aer-pit/car1/stream");
+        assert_eq!(super::topic("team/aer/car7"), "team/aer-pit/car7/stream");
+        assert_eq!(super::topic("car1"), "car1-pit/stream");
+    }
+}
+
+/// The first bytes of every batch.
+pub const MAGIC: [u8; 4] = *b"AERP";
+/// The format this build writes and reads.
+pub const VERSION: u8 = 1;
+/// Bytes before the compressed payload.
+pub const HEADER_LEN: usize = 4 + 1 + 4 + 8 + 4;
+/// The largest payload a batch may decompress to: a second of a saturated 1 Mbit/s bus is
+/// about 8,000 frames of at most 20 bytes; anything longer is not a batch of ours.
+pub const MAX_PAYLOAD: usize = 1 << 20;
+/// The largest packet a record may carry (the ISO-TP maximum).
+pub const MAX_PACKET: usize = 4095;
+/// The zstd level: small batches gain little from more.
+const ZSTD_LEVEL: i32 = 3;
+
+const TAG_FRAME: u8 = 0x02;
+const TAG_PACKET: u8 = 0x04;
+const FLAG_EXTENDED: u8 = 0x01;
+
+/// Why a message is not a batch this build can read.
+#[derive(Debug, Clone, PartialEq, Eq, Error)]
+pub enum StreamError {
+    #[error("not a pit stream batch (no AERP header)")]
+    NotABatch,
+    #[error("pit stream version {0} is newer than this build reads")]
+    Version(u8),
+    #[error("the batch's payload does not decompress: {0}")]
+    Compression(String),
+    #[error("the batch says {said} payload bytes, it holds {held}")]
+    Length { said: usize, held: usize },
+    #[error("the batch is damaged at payload byte {offset}: {why}")]
+    Damaged { offset: usize, why: &'static str },
+}
+
+/// One thing ingest took in.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Item {
+    /// A CAN frame as received.
+    Frame(LoggedFrame),
+    /// A telemetry packet the kernel reassembled.
+    Packet {
+        ts_us: u64,
+        bus: u8,
+        packet: Vec<u8>,
+    },
+}
+
+impl Item {
+    /// When it arrived (us since the epoch).
+    pub fn ts_us(&self) -> u64 {
+        match self {
+            Self::Frame(frame) => frame.ts_us,
+            Self::Packet { ts_us, .. } => *ts_us,
+        }
+    }
+}
+
+/// A batch as read back.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Batch {
+    /// Its number: one more than the previous batch of the same stream.
+    pub number: u32,
+    /// The buses' names by index.
+    pub buses: Vec<Arc<str>>,
+    /// Its frames and packets in arrival order.
+    pub items: Vec<Item>,
+}
+
+/// Builds one batch.
+#[derive(Debug)]
+pub struct BatchEncoder {
+    number: u32,
+    first_us: u64,
+    last_us: u64,
+    payload: Vec<u8>,
+    items: usize,
+}
+
+impl BatchEncoder {
+    /// Batch `number`, its timestamps counting from `first_us`, naming `buses` by index.
+    pub fn new(number: u32, first_us: u64, buses: &[Arc<str>]) -> Self {
+        let mut payload = Vec::with_capacity(8 * 1024);
+        let named: Vec<&Arc<str>> = buses.iter().take(usize::from(u8::MAX)).collect();
+        payload.push(named.len() as u8);
+        for name in named {
+            let bytes = name.as_bytes();
+            let len = bytes.len().min(usize::from(u8::MAX));
+            payload.push(len as u8);
+            payload.extend_from_slice(bytes.get(..len).unwrap_or_default());
+        }
+        Self {
+            number,
+            first_us,
+            last_us: first_us,
+            payload,
+            items: 0,
+        }
+    }
+
+    fn time(&mut self, ts_us: u64) {
+        let delta = ts_us.wrapping_sub(self.last_us) as i64;
+        self.last_us = ts_us;
+        put_varint(&mut self.payload, zigzag(delta));
+    }
+
+    /// Appends a frame.
+    pub fn frame(&mut self, frame: &LoggedFrame) {
+        self.payload.push(TAG_FRAME);
+        self.time(frame.ts_us);
+        let (flags, id) = match frame.id {
+            Id::Standard(id) => (0, u32::from(id.as_raw())),
+            Id::Extended(id) => (FLAG_EXTENDED, id.as_raw()),
+        };
+        self.payload.extend_from_slice(&[frame.bus, flags]);
+        put_varint(&mut self.payload, u64::from(id));
+        let data = frame.payload();
+        self.payload.push(data.len() as u8);
+        self.payload.extend_from_slice(data);
+        self.items += 1;
+    }
+
+    /// Appends a packet (longer than [`MAX_PACKET`]: cut there, as no receiver would take it).
+    pub fn packet(&mut self, ts_us: u64, bus: u8, packet: &[u8]) {
+        let packet = packet
+            .get(..packet.len().min(MAX_PACKET))
+            .unwrap_or_default();
+        self.payload.push(TAG_PACKET);
+        self.time(ts_us);
+        self.payload.push(bus);
+        put_varint(&mut self.payload, packet.len() as u64);
+        self.payload.extend_from_slice(packet);
+        self.items += 1;
+    }
+
+    /// Frames and packets so far.
+    pub fn items(&self) -> usize {
+        self.items
+    }
+
+    /// The first timestamp.
+    pub fn first_us(&self) -> u64 {
+        self.first_us
+    }
+
+    /// Uncompressed payload bytes so far.
+    pub fn payload_len(&self) -> usize {
+        self.payload.len()
+    }
+
+    /// The message to publish.
+    pub fn finish(self) -> Vec<u8> {
+        let compressed = zstd::bulk::compress(&self.payload, ZSTD_LEVEL).unwrap_or_default();
+        let mut message = Vec::with_capacity(HEADER_LEN + compressed.len());
+        message.extend_from_slice(&MAGIC);
+        message.push(VERSION);
+        message.extend_from_slice(&self.number.to_le_bytes());
+        message.extend_from_slice(&self.first_us.to_le_bytes());
+        message.extend_from_slice(&(self.payload.len() as u32).to_le_bytes());
+        message.extend_from_slice(&compressed);
+        message
+    }
+}
+
+/// A cursor over the payload with the offset for errors.
+struct Reader<'a> {
+    data: &'a [u8],
+    at: usize,
+}
+
+impl<'a> Reader<'a> {
+    fn damaged(&self, why: &'static str) -> StreamError {
+        StreamError::Damaged {
+            offset: self.at,
+            why,
+        }
+    }
+
+    fn u8(&mut self, what: &'static str) -> Result<u8, StreamError> {
+        let byte = *self.data.get(self.at).ok_or_else(|| self.damaged(what))?;
+        self.at += 1;
+        Ok(byte)
+    }
+
+    fn bytes(&mut self, len: usize, what: &'static str) -> Result<&'a [u8], StreamError> {
+        let data: &'a [u8] = self.data;
+        let end = self.at.checked_add(len).ok_or_else(|| self.damaged(what))?;
+        let bytes = data.get(self.at..end).ok_or_else(|| self.damaged(what))?;
+        self.at = end;
+        Ok(bytes)
+    }
+
+    fn varint(&mut self, what: &'static str) -> Result<u64, StreamError> {
+        let (data, mut at) = (self.data, self.at);
+        let value = read_varint(|| {
+            let byte = data.get(at).copied();
+            at += 1;
+            byte
+        });
+        self.at = at.min(data.len());
+        value.ok_or_else(|| self.damaged(what))
+    }
+}
+
+fn header_field<const N: usize>(message: &[u8], at: usize) -> Result<[u8; N], StreamError> {
+    message
+        .get(at..at + N)
+        .and_then(|bytes| bytes.try_into().ok())
+        .ok_or(StreamError::NotABatch)
+}
+
+/// Reads one batch.
+pub fn decode(message: &[u8]) -> Result<Batch, StreamError> {
+    if message.get(..4) != Some(&MAGIC[..]) {
+        return Err(StreamError::NotABatch);
+    }
+    let version = *message.get(4).ok_or(StreamError::NotABatch)?;
+    if version != VERSION {
+        return Err(StreamError::Version(version));
+    }
+    let number = u32::from_le_bytes(header_field(message, 5)?);
+    let first_us = u64::from_le_bytes(header_field(message, 9)?);
+    let said = u32::from_le_bytes(header_field(message, 17)?) as usize;
+    if said > MAX_PAYLOAD {
+        return Err(StreamError::Length { said, held: 0 });
+    }
+    let compressed = message.get(HEADER_LEN..).unwrap_or_default();
+    let payload = zstd::bulk::decompress(compressed, said.max(1))
+        .map_err(|error| StreamError::Compression(error.to_string()))?;
+    if payload.len() != said {
+        return Err(StreamError::Length {
+            said,
+            held: payload.len(),
+        });
+    }
+    let mut reader = Reader {
+        data: &payload,
+        at: 0,
+    };
+    let count = reader.u8("bus count")?;
+    let mut buses = Vec::with_capacity(usize::from(count));
+    for _ in 0..count {
+        let len = reader.u8("bus name length")?;
+        let name = std::str::from_utf8(reader.bytes(usize::from(len), "bus name")?)
+            .map_err(|_| reader.damaged("bus name not UTF-8"))?;
+        buses.push(Arc::from(name));
+    }
+    let mut items = Vec::new();
+    let mut last_us = first_us;
+    while reader.at < payload.len() {
+        let tag = reader.u8("record tag")?;
+        let delta = unzigzag(reader.varint("time")?);
+        last_us = last_us.wrapping_add(delta as u64);
+        let bus = reader.u8("bus")?;
+        match tag {
+            TAG_FRAME => {
+                let flags = reader.u8("flags")?;
+                let raw = u32::try_from(reader.varint("id")?)
+                    .map_err(|_| reader.damaged("id too large"))?;
+                let id = if flags & FLAG_EXTENDED != 0 {
+                    ExtendedId::new(raw).map(Id::Extended)
+                } else {
+                    u16::try_from(raw)
+                        .ok()
+                        .and_then(StandardId::new)
+                        .map(Id::Standard)
+                }
+                .ok_or_else(|| reader.damaged("id out of range"))?;
+                let len = reader.u8("length")?;
+                if len > 8 {
+                    return Err(reader.damaged("frame longer than 8 bytes"));
+                }
+                let mut data = [0u8; 8];
+                let bytes = reader.bytes(usize::from(len), "frame data")?;
+                for (slot, byte) in data.iter_mut().zip(bytes) {
+                    *slot = *byte;
+                }
+                items.push(Item::Frame(LoggedFrame {
+                    ts_us: last_us,
+                    bus,
+                    id,
+                    len,
+                    data,
+                }));
+            }
+            TAG_PACKET => {
+                let len = reader.varint("packet length")? as usize;
+                if len > MAX_PACKET {
+                    return Err(reader.damaged("packet longer than ISO-TP allows"));
+                }
+                let packet = reader.bytes(len, "packet")?.to_vec();
+                items.push(Item::Packet {
+                    ts_us: last_us,
+                    bus,
+                    packet,
+                });
+            }
+            _ => return Err(reader.damaged("unknown record")),
+        }
+    }
+    Ok(Batch {
+        number,
+        buses,
+        items,
+    })
+}
