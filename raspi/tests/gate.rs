@@ -491,3 +491,109 @@ async fn network_listeners_speak_tls() {
         "then closed"
     );
 }
+
+/// Runs `command` to its end off the async workers (the broker runs on them).
+async fn blocking_output(command: &mut std::process::Command) -> std::process::Output {
+    let mut command = std::mem::replace(command, std::process::Command::new("true"));
+    tokio::task::spawn_blocking(move || command.output().expect("the command runs"))
+        .await
+        .expect("join")
+}
+
+/// The venv's Python when it has paho-mqtt (`.ci/run` installs it; `AER_REQUIRE_PYTHON`
+/// makes its absence a failure).
+fn paho_python() -> Option<std::path::PathBuf> {
+    let python = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../.venv/bin/python");
+    let usable = std::process::Command::new(&python)
+        .args(["-c", "import paho.mqtt"])
+        .output()
+        .is_ok_and(|o| o.status.success());
+    if usable {
+        return Some(python);
+    }
+    assert!(
+        std::env::var_os("AER_REQUIRE_PYTHON").is_none(),
+        "AER_REQUIRE_PYTHON is set but {} cannot import paho.mqtt",
+        python.display()
+    );
+    eprintln!("SKIPPED: the paho-mqtt checks need .venv with tools/requirements.txt");
+    None
+}
+
+/// A client of a version the gate does not serve (MQTT 5, MQTT 3.1) gets its protocol's
+/// refusal at once, so it stops and says why instead of reconnecting for ever: mosquitto_sub
+/// and paho-mqtt, as people use them. An MQTT 3.1.1 client of either make is served.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn clients_of_other_versions_are_told_so() {
+    let service = service(|_| {}).await;
+    let port = service.port.to_string();
+    for (version, expected) in [
+        ("mqttv5", "protocol version"),
+        ("mqttv31", "protocol version"),
+    ] {
+        let output = blocking_output(
+            std::process::Command::new("mosquitto_sub")
+                .args(["-h", "127.0.0.1", "-p", &port, "-V", version])
+                .args(["-t", "aer/car1/status", "-C", "1", "-W", "20"]),
+        )
+        .await;
+        let said = String::from_utf8_lossy(&output.stderr).to_lowercase();
+        assert!(!output.status.success(), "{version}: served?");
+        assert!(said.contains(expected), "{version}: {said}");
+        // Refused at CONNECT, not by the 20 s timeout.
+        assert!(!said.contains("timed out"), "{version}: {said}");
+    }
+    // A retained message, which a served client gets at once.
+    service
+        .publisher
+        .publish_json("probe", &serde_json::json!({"served": true}), true);
+    service.publisher.flush();
+    let output = blocking_output(
+        std::process::Command::new("mosquitto_sub")
+            .args(["-h", "127.0.0.1", "-p", &port, "-V", "mqttv311"])
+            .args(["-t", "aer/car1/probe", "-C", "1", "-W", "20"]),
+    )
+    .await;
+    assert!(output.status.success(), "3.1.1 is served: {output:?}");
+    assert!(String::from_utf8_lossy(&output.stdout).contains("served"));
+    assert!(service.counters.snapshot().mqtt_refused >= 2);
+
+    let Some(python) = paho_python() else {
+        return;
+    };
+    // paho's CONNACK reason for each protocol, as its callback reports it.
+    let script = r#"
+import sys, threading
+import paho.mqtt.client as mqtt
+port, protocol = int(sys.argv[1]), {"5": mqtt.MQTTv5, "311": mqtt.MQTTv311}[sys.argv[2]]
+done = threading.Event()
+result = {}
+def on_connect(client, userdata, flags, reason, properties=None):
+    result["reason"] = str(reason)
+    result["failure"] = reason.is_failure if hasattr(reason, "is_failure") else reason != 0
+    done.set()
+client = mqtt.Client(mqtt.CallbackAPIVersion.VERSION2, protocol=protocol)
+client.on_connect = on_connect
+client.connect("127.0.0.1", port)
+client.loop_start()
+answered = done.wait(20)
+client.loop_stop()
+print("answered" if answered else "silence", result.get("failure"), result.get("reason"))
+"#;
+    for (protocol, refused) in [("5", true), ("311", false)] {
+        let output = blocking_output(
+            std::process::Command::new(&python).args(["-c", script, &port, protocol]),
+        )
+        .await;
+        let said = String::from_utf8_lossy(&output.stdout);
+        assert!(said.starts_with("answered"), "paho MQTT {protocol}: {said}");
+        assert_eq!(
+            said.contains("True"),
+            refused,
+            "paho MQTT {protocol}: {said}"
+        );
+        if refused {
+            assert!(said.to_lowercase().contains("protocol version"), "{said}");
+        }
+    }
+}

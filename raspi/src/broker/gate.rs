@@ -91,6 +91,8 @@ struct Gate {
     unacknowledged_ids: Mutex<HashSet<String>>,
     /// The serial in rewritten client ids.
     rewritten: AtomicU64,
+    /// Clients refused for their protocol version (MQTT 5, 3.1).
+    version_refusals: AtomicU64,
 }
 
 /// Binds every listener (so a taken port fails at start-up) and serves them until `cancel`.
@@ -118,6 +120,7 @@ pub async fn start(
         started: Instant::now(),
         unacknowledged_ids: Mutex::new(HashSet::new()),
         rewritten: AtomicU64::new(0),
+        version_refusals: AtomicU64::new(0),
     });
     for (socket, acceptor, listener) in bound {
         let (gate, cancel) = (gate.clone(), cancel.clone());
@@ -291,6 +294,19 @@ impl Gate {
         };
         let mut connect = match Connect::parse(buffer.get(..len).unwrap_or_default()) {
             Ok(connect) => connect,
+            Err(error @ packet::PacketError::Protocol { level, .. }) => {
+                // Answered as the client's protocol defines, so it stops retrying and says
+                // why, instead of reconnecting for ever.
+                let _ = stream.write_all(&packet::unsupported_version(level)).await;
+                let _ = stream.shutdown().await;
+                Counters::bump(&self.counters.mqtt_refused);
+                // Counted apart from other refusals, so the first of its kind is always logged.
+                let count = self.version_refusals.fetch_add(1, Ordering::Relaxed) + 1;
+                if worth_logging(count) {
+                    warn!(%peer, level, count, "MQTT client refused: {error}; it was told so (CONNACK 'unsupported protocol version')");
+                }
+                return;
+            }
             Err(error) => return self.refused(peer, &error.to_string()),
         };
         buffer.drain(..len);

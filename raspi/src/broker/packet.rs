@@ -198,6 +198,17 @@ pub fn connack(code: u8) -> [u8; 4] {
     [0x20, 2, 0, code]
 }
 
+/// The refusal a client of protocol `level` understands when the gate does not serve its
+/// version: MQTT 5 defines a CONNACK with reason 0x84 (unsupported protocol version) and an
+/// empty property list; 3.1 and 3.1.1 define return code 1 (unacceptable protocol version).
+pub fn unsupported_version(level: u8) -> Vec<u8> {
+    if level >= 5 {
+        vec![0x20, 3, 0, 0x84, 0]
+    } else {
+        connack(1).to_vec()
+    }
+}
+
 fn put_binary(out: &mut Vec<u8>, bytes: &[u8]) {
     let len = u16::try_from(bytes.len()).unwrap_or(u16::MAX);
     out.extend_from_slice(&len.to_be_bytes());
