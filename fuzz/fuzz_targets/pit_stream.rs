@@ -6,12 +6,12 @@
 
 use aer_host::candump::LoggedFrame;
 use aer_host::pit_stream::{BatchEncoder, Item, MAGIC, VERSION, decode};
-use embedded_can::{ExtendedId, Id, StandardId};
+use frames::{FRAME_INPUT, frame_from};
 use libfuzzer_sys::fuzz_target;
 use std::sync::Arc;
 
-/// Bytes of input per frame: delta time (2), bus (1), flags (1), id (4), length (1), data (8).
-const FRAME_INPUT: usize = 17;
+#[path = "frames.rs"]
+mod frames;
 
 fuzz_target!(|data: &[u8]| {
     let _ = decode(data);
@@ -27,7 +27,7 @@ fn round_trip(data: &[u8]) {
     let mut ts_us = 1_700_000_000_000_000u64;
     let frames: Vec<LoggedFrame> = data
         .chunks_exact(FRAME_INPUT)
-        .map(|chunk| frame_from(chunk, &mut ts_us))
+        .map(|chunk| frame_from(chunk, &mut ts_us, 2))
         .collect();
     let mut encoder = BatchEncoder::new(7, ts_us, &buses);
     for frame in &frames {
@@ -38,24 +38,4 @@ fn round_trip(data: &[u8]) {
     assert_eq!(batch.buses, buses);
     let written: Vec<Item> = frames.into_iter().map(Item::Frame).collect();
     assert_eq!(batch.items, written);
-}
-
-fn frame_from(chunk: &[u8], ts_us: &mut u64) -> LoggedFrame {
-    *ts_us += u64::from(u16::from_le_bytes([chunk[0], chunk[1]]));
-    let raw_id = u32::from_le_bytes([chunk[4], chunk[5], chunk[6], chunk[7]]);
-    let id = if chunk[3] & 1 != 0 {
-        Id::Extended(ExtendedId::new(raw_id & 0x1FFF_FFFF).expect("29 bits"))
-    } else {
-        Id::Standard(StandardId::new((raw_id & 0x7FF) as u16).expect("11 bits"))
-    };
-    let len = chunk[8] % 9;
-    let mut payload = [0u8; 8];
-    payload[..usize::from(len)].copy_from_slice(&chunk[9..9 + usize::from(len)]);
-    LoggedFrame {
-        ts_us: *ts_us,
-        bus: chunk[2] % 2,
-        id,
-        len,
-        data: payload,
-    }
 }

@@ -74,6 +74,53 @@ fn service_config(dir: &Path, port: u16) -> ServiceConfig {
     config
 }
 
+/// Applies updates to `model` until the link says it is connected (and so subscribed).
+async fn until_connected(
+    updates: &mut (impl iced::futures::Stream<Item = Event> + Unpin),
+    model: &mut Dashboard,
+) {
+    loop {
+        let (at, update) = next(updates).await;
+        let connected = update == Update::Connected;
+        model.apply(update, at);
+        if connected {
+            return;
+        }
+    }
+}
+
+/// The pipeline's task: its counters as it ended, or why it failed.
+type Running = tokio::task::JoinHandle<
+    Result<aer_host::counters::ServiceCounters, Box<dyn std::error::Error + Send + Sync>>,
+>;
+
+/// Runs `pipeline` until the returned sender is dropped, and replays the bundled session into
+/// it flat out meanwhile (its input stays open).
+fn run_and_replay(
+    pipeline: Pipeline,
+    input: &aer_raspi::source::Sender,
+    counters: &Arc<Counters>,
+) -> (
+    tokio::sync::oneshot::Sender<()>,
+    Running,
+    tokio::task::JoinHandle<()>,
+) {
+    let (stop, stopped) = tokio::sync::oneshot::channel::<()>();
+    let running = tokio::spawn(async move {
+        pipeline
+            .run(async {
+                let _ = stopped.await;
+            })
+            .await
+            .map_err(Into::into)
+    });
+    let replaying = {
+        let (input, counters) = (input.clone(), counters.clone());
+        tokio::spawn(async move { feed(BUNDLED_SESSION, &input, &counters).await })
+    };
+    (stop, running, replaying)
+}
+
 /// Replays candump `log` flat out into a fed pipeline's `input`.
 async fn feed(log: &str, input: &aer_raspi::source::Sender, counters: &Counters) {
     let stats = replay(
@@ -117,25 +164,11 @@ async fn a_replayed_session_reaches_the_dashboard_intact() {
     let mut config = Config::default();
     config.display.can_messages = vec![DtiTemperatures::META.name.into()];
     let mut model = Dashboard::new(&config);
-    loop {
-        let (at, update) = next(&mut updates).await;
-        let connected = update == Update::Connected;
-        model.apply(update, at);
-        if connected {
-            break;
-        }
-    }
+    until_connected(&mut updates, &mut model).await;
 
     // The session through the service (replay -> ingest -> typed topics), while the dashboard
     // reads; the input stays open until the end of the test.
-    let (stop, stopped) = tokio::sync::oneshot::channel::<()>();
-    let running = tokio::spawn(pipeline.run(async {
-        let _ = stopped.await;
-    }));
-    let replaying = {
-        let (input, counters) = (input.clone(), counters.clone());
-        tokio::spawn(async move { feed(BUNDLED_SESSION, &input, &counters).await })
-    };
+    let (stop, running, replaying) = run_and_replay(pipeline, &input, &counters);
 
     // The session's DTI_Temperatures frames: the only CAN frames the dashboard may get.
     let dti_temperatures = BUNDLED_SESSION
@@ -246,24 +279,10 @@ async fn the_compact_stream_carries_the_whole_session_to_the_dashboard() {
     let mut updates = Box::pin(link::stream(settings));
     started(&mut updates).await;
     let mut model = Dashboard::new(&config);
-    loop {
-        let (at, update) = next(&mut updates).await;
-        let connected = update == Update::Connected;
-        model.apply(update, at);
-        if connected {
-            break;
-        }
-    }
+    until_connected(&mut updates, &mut model).await;
 
     // The session through the service while the dashboard reads, as at the track.
-    let (stop, stopped) = tokio::sync::oneshot::channel::<()>();
-    let running = tokio::spawn(pipeline.run(async {
-        let _ = stopped.await;
-    }));
-    let replaying = {
-        let (input, counters) = (input.clone(), counters.clone());
-        tokio::spawn(async move { feed(BUNDLED_SESSION, &input, &counters).await })
-    };
+    let (stop, running, replaying) = run_and_replay(pipeline, &input, &counters);
     let mut received = Vec::new();
     let mut can_messages = 0u64;
     let decoded = |counters: &Counters| counters.messages.load(Ordering::Relaxed);
