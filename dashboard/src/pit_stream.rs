@@ -19,6 +19,8 @@ pub struct StreamDecoder {
     counters: Arc<Counters>,
     /// Fingerprint mismatches already reported.
     mismatches: u64,
+    /// The batch number expected next.
+    next: Option<u32>,
 }
 
 impl Default for StreamDecoder {
@@ -28,6 +30,7 @@ impl Default for StreamDecoder {
             ingest: Ingest::new(counters.clone()),
             counters,
             mismatches: 0,
+            next: None,
         }
     }
 }
@@ -66,6 +69,14 @@ impl StreamDecoder {
                 return;
             }
         };
+        if let Some(expected) = self.next {
+            let missed = batch.number.wrapping_sub(expected);
+            // A number behind the expected one is a restarted Pi (numbering from 0), not a gap.
+            if missed != 0 && missed < u32::MAX / 2 {
+                out.push(Update::StreamGap(missed));
+            }
+        }
+        self.next = Some(batch.number.wrapping_add(1));
         for (index, name) in batch.buses.iter().enumerate() {
             if let Ok(index) = u8::try_from(index) {
                 self.ingest.name_bus(index, name);
@@ -116,7 +127,11 @@ mod tests {
     }
 
     fn batch(packets: &[[u8; Telemetry::LEN]]) -> Vec<u8> {
-        let mut encoder = BatchEncoder::new(0, 1_000_000, &["can0".into()]);
+        numbered(0, packets)
+    }
+
+    fn numbered(number: u32, packets: &[[u8; Telemetry::LEN]]) -> Vec<u8> {
+        let mut encoder = BatchEncoder::new(number, 1_000_000, &["can0".into()]);
         for (i, packet) in packets.iter().enumerate() {
             encoder.packet(1_000_000 + i as u64 * 10_000, 0, packet);
         }
@@ -176,5 +191,35 @@ mod tests {
             matches!(&out[..], [Update::Undecodable { error, .. }] if !error.is_empty()),
             "{out:?}"
         );
+    }
+
+    /// Batches that never arrived are reported by count; a Pi that restarts its numbering is
+    /// not a gap.
+    #[test]
+    fn missing_batches_are_counted_and_a_restart_is_not() {
+        let mut decoder = StreamDecoder::default();
+        let gaps = |decoder: &mut StreamDecoder, number| {
+            let mut out = Vec::new();
+            decoder.decode("aer-pit/car1/stream", &numbered(number, &[]), &mut out);
+            out.into_iter()
+                .filter_map(|u| match u {
+                    Update::StreamGap(n) => Some(n),
+                    _ => None,
+                })
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(
+            gaps(&mut decoder, 7),
+            Vec::<u32>::new(),
+            "the first batch seen"
+        );
+        assert_eq!(gaps(&mut decoder, 8), Vec::<u32>::new());
+        assert_eq!(gaps(&mut decoder, 158), [149]);
+        assert_eq!(gaps(&mut decoder, 0), Vec::<u32>::new(), "the Pi restarted");
+        assert_eq!(gaps(&mut decoder, 3), [2]);
+        let mut decoder = StreamDecoder::default();
+        assert_eq!(gaps(&mut decoder, u32::MAX), Vec::<u32>::new());
+        assert_eq!(gaps(&mut decoder, 0), Vec::<u32>::new(), "numbers wrap");
+        assert_eq!(gaps(&mut decoder, 2), [1]);
     }
 }

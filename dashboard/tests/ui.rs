@@ -419,6 +419,23 @@ fn the_pit_view_fits_both_screens() {
     }
 }
 
+/// Batches of the compact stream that never came (a radio dropout) are counted in the link
+/// panel, beside the lost packets.
+#[test]
+fn the_link_panel_counts_missed_stream_batches() {
+    let t0 = Instant::now();
+    let mut app = app_with(View::Pit, driving(), t0);
+    app.update(Message::Link(t0, Update::StreamGap(149)));
+    app.update(Message::Link(t0, Update::StreamGap(1)));
+    let shown = simulate(&app).find(|candidate: Candidate<'_>| match candidate {
+        Candidate::Text { content, .. } if content.contains("missed 150 stream batches") => {
+            Some(())
+        }
+        _ => None,
+    });
+    assert!(shown.is_ok(), "the missed batches in the link panel");
+}
+
 /// A frame of all-zero bytes of `meta`'s message, as the Pi publishes it on its CAN topic,
 /// read back with the topic's own type.
 fn can_frame(meta: &aer::runtime::MessageMeta, bytes: &[u8]) -> Update {

@@ -35,9 +35,10 @@ pub fn topic(car_prefix: &str) -> String {
         None => format!("{car_prefix}{ROOT_SUFFIX}/stream"),
     }
 }
-/// Uncompressed payload at which a batch goes out before its window ends: even
-/// incompressible, it stays under the broker's 20 KiB message limit.
-pub const MAX_BATCH_PAYLOAD: usize = 16 * 1024;
+/// Uncompressed payload at which a batch goes out before its window ends. With one more
+/// record (at most a [`MAX_PACKET`] packet) and even incompressible, the message stays under
+/// the broker's 20 KiB limit.
+pub const MAX_BATCH_PAYLOAD: usize = 12 * 1024;
 #[cfg(test)]
 mod tests {
     #[test]

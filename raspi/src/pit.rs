@@ -1,8 +1,8 @@
 //! The pit stream's producer (`aer_host::pit_stream`): ingest's input (bus names, frames as
 //! received, packets the kernel reassembled) is copied to a task that batches it over a short
-//! window and publishes each batch on `aer-pit/<car>/stream` ([`aer_host::pit_stream::topic`]). Ingest never waits on it: a full queue
-//! drops the input from the stream only (counted in `pit_dropped`; the raw log and the store
-//! keep it).
+//! window and publishes each batch on `aer-pit/<car>/stream` ([`aer_host::pit_stream::topic`]).
+//! Ingest never waits on it: a full queue drops the input from the stream only (counted in
+//! `pit_dropped`; the raw log and the store keep it).
 
 use crate::sink::mqtt::Publisher;
 use crate::source::Input;
@@ -187,4 +187,59 @@ pub async fn run(
         }
     }
     batcher.publish();
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use aer_host::candump::LoggedFrame;
+    use embedded_can::{Id, StandardId};
+
+    fn frame(id: u16) -> Input {
+        let id = Id::Standard(StandardId::new(id).expect("11 bits"));
+        Input::Frame(LoggedFrame::new(1, 0, id, &[1, 2]).expect("a frame"))
+    }
+
+    fn handed(kernel_isotp: bool, inputs: &[Input]) -> Vec<Input> {
+        let (mut tap, mut receiver) = PitTap::new(Arc::new(Counters::default()), kernel_isotp);
+        for input in inputs {
+            tap.take(input);
+        }
+        drop(tap);
+        let mut out = Vec::new();
+        while let Ok(handed) = receiver.try_recv() {
+            out.extend(handed);
+        }
+        out
+    }
+
+    /// With kernel ISO-TP the stream carries the packets, so their ISO-TP frames (0x666 and
+    /// the flow control 0x777) are left out; with user-space ISO-TP the frames are the data.
+    #[test]
+    fn telemetry_goes_once_as_packets_or_as_frames() {
+        let packet = Input::Packet {
+            ts_us: 2,
+            bus: 0,
+            packet: vec![0; 76],
+        };
+        let inputs = [frame(0x666), frame(0x777), frame(0x100), packet.clone()];
+        assert_eq!(handed(true, &inputs), [frame(0x100), packet]);
+        assert_eq!(handed(false, &inputs), inputs);
+    }
+
+    /// A task that is behind loses hand-overs, counted, and ingest does not wait.
+    #[test]
+    fn a_full_queue_counts_what_it_leaves_out() {
+        let counters = Arc::new(Counters::default());
+        let (mut tap, _receiver) = PitTap::new(counters.clone(), false);
+        for _ in 0..(QUEUE + 1) * HAND_OVER {
+            tap.take(&frame(0x100));
+        }
+        assert_eq!(
+            counters
+                .pit_dropped
+                .load(std::sync::atomic::Ordering::Relaxed),
+            HAND_OVER as u64
+        );
+    }
 }

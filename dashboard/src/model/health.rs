@@ -34,6 +34,8 @@ pub struct Health {
     pub lost: u64,
     /// Payloads that did not decode as their topic's type (another schema, or corrupted).
     pub undecodable: u64,
+    /// Batches of the compact stream that never arrived (numbering gaps).
+    pub stream_gaps: u64,
     /// The last decode error, for the link panel.
     pub last_error: Option<String>,
     /// The Pi's retained status.
@@ -53,6 +55,7 @@ impl Default for Health {
             packets: 0,
             lost: 0,
             undecodable: 0,
+            stream_gaps: 0,
             last_error: None,
             status: None,
             metrics: None,

@@ -40,6 +40,9 @@ pub enum Update {
     Status(Box<Status>),
     /// The Pi service's counters, every second.
     Metrics(Box<Metrics>),
+    /// Batches of the compact stream missing between received ones (a dropout, or a radio
+    /// that lost them): their frames and packets did not arrive.
+    StreamGap(u32),
     /// A payload that is not its topic's type.
     Undecodable {
         topic: String,
@@ -137,6 +140,7 @@ impl Dashboard {
             Update::Status(status) => self.health.status(*status),
             Update::Metrics(metrics) => self.health.metrics = Some(*metrics),
             Update::Undecodable { topic, error } => self.health.undecodable(&topic, &error),
+            Update::StreamGap(missed) => self.health.stream_gaps += u64::from(missed),
         }
     }
 

@@ -96,20 +96,22 @@ fn link(model: &Dashboard, now: Instant, narrow: bool) -> Element<'_, Message> {
         ),
     };
     let here = format!(
-        "{} packets/s   lost {} packets   unreadable {} payloads",
+        "{} packets/s   lost {} packets   missed {} stream batches   unreadable {} payloads",
         health.rate(now),
         health.lost,
+        health.stream_gaps,
         health.undecodable
     );
     let pi = health.metrics.as_ref().map_or_else(
         || "Pi: no metrics yet".to_owned(),
         |m| {
             format!(
-                "Pi: ISO-TP errors {}   decode errors {}   fingerprint rejects {}   MQTT drops {}   store lag {} rows",
+                "Pi: ISO-TP errors {}   decode errors {}   fingerprint rejects {}   MQTT drops {}   stream drops {}   store lag {} rows",
                 m.counters.isotp_errors,
                 m.counters.decode_errors + m.counters.packet_errors,
                 m.counters.fingerprint_mismatches,
                 m.counters.publish_dropped,
+                m.counters.pit_dropped,
                 m.store_lag
             )
         },
@@ -120,6 +122,7 @@ fn link(model: &Dashboard, now: Instant, narrow: bool) -> Element<'_, Message> {
             + m.counters.packet_errors
             + m.counters.fingerprint_mismatches
             + m.counters.publish_dropped
+            + m.counters.pit_dropped
             > 0
     }) {
         style::WARN
