@@ -1,9 +1,12 @@
 //! Latency from a packet's last CAN frame entering the service's pipeline (`Pipeline`, as
 //! `serve` runs it: ingest, raw log, store writer, embedded broker) to its delivery at an MQTT
-//! subscriber (rumqttc, loopback), at 100 Hz and 1 kHz.
-//! The traffic is the closed-loop car model's (every frame on both buses), one telemetry
-//! packet per 10 ms of model time. Prints p50, p99 and max. Run: `cargo bench -p aer-raspi
-//! --bench latency`.
+//! subscriber (rumqttc, loopback), at 100 Hz and 1 kHz, in one run for both forms the pit can
+//! read: the JSON telemetry topic, and the compact pit stream (`aer-pit/car1/stream`, decoded
+//! with the Pi's own ingest as the dashboard does). The traffic is the closed-loop car model's
+//! (every frame on both buses), one telemetry packet per 10 ms of model time. Prints, for each,
+//! p50, p99 and max, and the bytes on MQTT per second for what it carries (the JSON: the
+//! telemetry topic only; the stream: every frame). Run: `cargo bench -p aer-raspi --bench
+//! latency`.
 
 use aer::mqtt::{Sample, TELEMETRY, TelemetryRecord};
 use aer::telemetry::Telemetry;
@@ -14,6 +17,9 @@ use aer_car_model::{BusTap, ClosedLoop, ModelParams};
 use aer_flexcan::CanFrame;
 use aer_host::candump::LoggedFrame;
 use aer_host::clock::now_us;
+use aer_host::counters::Counters;
+use aer_host::decode::{Ingest, Record};
+use aer_host::pit_stream::{self, Item};
 use aer_raspi::broker;
 use aer_raspi::config::Config;
 use aer_raspi::service::{Job, Pipeline};
@@ -31,6 +37,28 @@ struct Frames(Vec<(usize, CanFrame)>);
 impl BusTap for Frames {
     fn frame(&mut self, _: u64, bus: usize, frame: &CanFrame) {
         self.0.push((bus, *frame));
+    }
+}
+
+/// What one form delivered: latencies and bytes on MQTT (payload, topic, fixed header).
+#[derive(Default)]
+struct Delivered {
+    latencies: Vec<Duration>,
+    bytes: usize,
+}
+
+impl Delivered {
+    fn report(&self, what: &str, packets: u16, seconds: f64) {
+        let mut latencies = self.latencies.clone();
+        latencies.sort();
+        println!(
+            "    {what:<12} {} of {packets} delivered; p50 {:?}, p99 {:?}, max {:?}; {:.1} kbit/s on MQTT",
+            latencies.len(),
+            percentile(&latencies, 0.5),
+            percentile(&latencies, 0.99),
+            latencies.last().copied().unwrap_or_default(),
+            self.bytes as f64 * 8.0 / seconds / 1000.0
+        );
     }
 }
 
@@ -68,32 +96,63 @@ fn main() {
         let mut network = events.network_options();
         network.set_tcp_nodelay(true);
         events.set_network_options(network);
-        subscriber
-            .subscribe("aer/car1/telemetry", QoS::AtMostOnce)
-            .await
-            .expect("subscribe");
-        loop {
-            if let Ok(Event::Incoming(Packet::SubAck(_))) = events.poll().await {
-                break;
+        let stream_topic = pit_stream::topic("aer/car1");
+        for topic in ["aer/car1/telemetry", stream_topic.as_str()] {
+            subscriber
+                .subscribe(topic, QoS::AtMostOnce)
+                .await
+                .expect("subscribe");
+            loop {
+                if let Ok(Event::Incoming(Packet::SubAck(_))) = events.poll().await {
+                    break;
+                }
             }
         }
         let sent: Arc<Mutex<HashMap<u16, Instant>>> = Arc::default();
-        let received: Arc<Mutex<Vec<Duration>>> = Arc::default();
+        let json: Arc<Mutex<Delivered>> = Arc::default();
+        let stream: Arc<Mutex<Delivered>> = Arc::default();
         {
-            let (sent, received) = (sent.clone(), received.clone());
+            let (sent, json, stream) = (sent.clone(), json.clone(), stream.clone());
+            let mut ingest = Ingest::new(Arc::new(Counters::default()));
             tokio::spawn(async move {
                 while let Ok(event) = events.poll().await {
-                    if let Event::Incoming(Packet::Publish(p)) = event {
-                        let at = Instant::now();
-                        if let Ok(sample) = TELEMETRY.decode(&p.payload) {
-                            let sample: Sample<TelemetryRecord> = sample;
-                            let start = sent
-                                .lock()
-                                .ok()
-                                .and_then(|s| s.get(&sample.value.header.sequence).copied());
-                            if let (Some(start), Ok(mut received)) = (start, received.lock()) {
-                                received.push(at - start);
+                    let Event::Incoming(Packet::Publish(p)) = event else {
+                        continue;
+                    };
+                    let at = Instant::now();
+                    let latency = |sequence: u16| {
+                        let start = sent.lock().ok().and_then(|s| s.get(&sequence).copied());
+                        start.map(|start| at - start)
+                    };
+                    let wire = p.payload.len() + p.topic.len() + 4;
+                    if p.topic == stream_topic {
+                        let Ok(batch) = pit_stream::decode(&p.payload) else {
+                            continue;
+                        };
+                        let mut sequences = Vec::new();
+                        for item in &batch.items {
+                            if let Item::Frame(frame) = item {
+                                ingest.on_frame(
+                                    frame,
+                                    |record| {
+                                        if let Record::Telemetry { header, .. } = record {
+                                            sequences.push(header.sequence);
+                                        }
+                                    },
+                                    |_, _| {},
+                                );
                             }
+                        }
+                        if let Ok(mut stream) = stream.lock() {
+                            stream.bytes += wire;
+                            let latencies = sequences.into_iter().filter_map(latency);
+                            stream.latencies.extend(latencies);
+                        }
+                    } else if let Ok(sample) = TELEMETRY.decode(&p.payload) {
+                        let sample: Sample<TelemetryRecord> = sample;
+                        if let Ok(mut json) = json.lock() {
+                            json.bytes += wire;
+                            json.latencies.extend(latency(sample.value.header.sequence));
                         }
                     }
                 }
@@ -111,8 +170,10 @@ fn main() {
         let telemetry = Id::Standard(embedded_can::StandardId::new(Telemetry::TX_ID).expect("id"));
 
         for (rate, packets) in [(100u32, 1_000u16), (1_000, 5_000)] {
-            if let Ok(mut r) = received.lock() {
-                r.clear();
+            for delivered in [&json, &stream] {
+                if let Ok(mut d) = delivered.lock() {
+                    *d = Delivered::default();
+                }
             }
             if let Ok(mut s) = sent.lock() {
                 s.clear();
@@ -124,7 +185,8 @@ fn main() {
                 FaultPlan::NONE,
             );
             let period = Duration::from_secs(1) / rate;
-            let mut next = tokio::time::Instant::now();
+            let started = tokio::time::Instant::now();
+            let mut next = started;
             for sequence in 0..packets {
                 next += period;
                 let mut frames = Frames::default();
@@ -148,22 +210,22 @@ fn main() {
                 input.send(batch).await.expect("pipeline running");
                 tokio::time::sleep_until(next).await;
             }
+            let seconds = started.elapsed().as_secs_f64();
             // Let the last deliveries arrive (bounded wait for the tail, not a synchronisation).
             let deadline = tokio::time::Instant::now() + Duration::from_secs(2);
-            while received.lock().map_or(0, |r| r.len()) < usize::from(packets)
+            let delivered = |d: &Arc<Mutex<Delivered>>| d.lock().map_or(0, |d| d.latencies.len());
+            while (delivered(&json) < usize::from(packets)
+                || delivered(&stream) < usize::from(packets))
                 && tokio::time::Instant::now() < deadline
             {
                 tokio::time::sleep(Duration::from_millis(10)).await;
             }
-            let mut latencies = received.lock().map(|r| r.clone()).unwrap_or_default();
-            latencies.sort();
-            println!(
-                "{rate:>5} Hz: {} of {packets} delivered; p50 {:?}, p99 {:?}, max {:?}",
-                latencies.len(),
-                percentile(&latencies, 0.5),
-                percentile(&latencies, 0.99),
-                latencies.last().copied().unwrap_or_default()
-            );
+            println!("{rate:>5} Hz:");
+            for (what, delivered) in [("JSON topic", &json), ("pit stream", &stream)] {
+                if let Ok(d) = delivered.lock() {
+                    d.report(what, packets, seconds);
+                }
+            }
         }
         drop(input);
         running
