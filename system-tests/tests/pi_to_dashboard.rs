@@ -121,6 +121,21 @@ fn run_and_replay(
     (stop, running, replaying)
 }
 
+/// The loopback listener's connection settings with the pit's username and password.
+const PIT_AUTH: &str = "    dynamic_filters = true\n    auth = { pit = \"Xq7-fast-laps\" }";
+
+/// The embedded broker and its gate, configured by `text`.
+async fn start_broker(text: &str) -> broker::Broker {
+    let broker_config = broker::parse(text).expect("broker config");
+    broker::start(
+        broker_config,
+        Arc::new(Counters::default()),
+        CancellationToken::new(),
+    )
+    .await
+    .expect("broker")
+}
+
 /// Replays candump `log` flat out into a fed pipeline's `input`.
 async fn feed(log: &str, input: &aer_raspi::source::Sender, counters: &Counters) {
     let stats = replay(
@@ -326,19 +341,8 @@ async fn a_listener_with_credentials_admits_only_the_right_ones() {
     let port = free_port();
     let text = broker::DEFAULT_CONFIG
         .replace("127.0.0.1:1883", &format!("127.0.0.1:{port}"))
-        .replacen(
-            "    dynamic_filters = true",
-            "    dynamic_filters = true\n    auth = { pit = \"Xq7-fast-laps\" }",
-            1,
-        );
-    let broker_config = broker::parse(&text).expect("broker config");
-    let _broker = broker::start(
-        broker_config,
-        Arc::new(Counters::default()),
-        CancellationToken::new(),
-    )
-    .await
-    .expect("broker");
+        .replacen("    dynamic_filters = true", PIT_AUTH, 1);
+    let _broker = start_broker(&text).await;
 
     let settings = |credentials: Option<(&str, &str)>| Settings {
         host: "127.0.0.1".into(),
@@ -420,19 +424,8 @@ async fn the_pit_connects_over_tls_and_each_mistake_is_named() {
             ),
             1,
         )
-        .replacen(
-            "    dynamic_filters = true",
-            "    dynamic_filters = true\n    auth = { pit = \"Xq7-fast-laps\" }",
-            1,
-        );
-    let broker_config = broker::parse(&text).expect("broker config");
-    let _broker = broker::start(
-        broker_config,
-        Arc::new(Counters::default()),
-        CancellationToken::new(),
-    )
-    .await
-    .expect("broker");
+        .replacen("    dynamic_filters = true", PIT_AUTH, 1);
+    let _broker = start_broker(&text).await;
 
     let settings = |password: &str, tls_ca: Option<&Path>| Settings {
         host: "127.0.0.1".into(),
