@@ -96,6 +96,12 @@ echo "--- disk image"
 rm -f "$image"
 truncate -s 3G "$image"
 mkfs.ext4 -q -F -L virtual-pi -d "$root" "$image"
+# The image holds the root now: keep the kernel and initrd QEMU boots, give the disk back.
+cp "$kernel" target/virtual-pi.vmlinuz
+cp "$initrd" target/virtual-pi.initrd
+kernel=target/virtual-pi.vmlinuz
+initrd=target/virtual-pi.initrd
+rm -rf "$root"
 
 echo "--- boot (QEMU, TCG)"
 start=$(date +%s)

@@ -26,6 +26,9 @@ pub trait Link {
     fn await_master(&mut self, still_waiting: &mut dyn FnMut() -> Result<()>) -> Result<()>;
     /// Forgets the master (the CCM power-cycles: a TCP master must reconnect).
     fn drop_master(&mut self);
+    /// Packets received that were not XCP (a broken TCP frame, a CAN frame of the wrong
+    /// length), all ignored so far.
+    fn malformed(&self) -> u64;
     /// What a pyxcp script needs to reach this link, as the scenario script's environment.
     fn script_env(&self) -> Vec<(String, String)>;
     /// Where a master finds the slave, for people.
@@ -41,8 +44,8 @@ pub struct TcpLink {
     encoder: TcpEncoder,
     /// Packets decoded but not yet handed out (one read may carry several).
     pending: VecDeque<Vec<u8>>,
-    /// Malformed TCP frames received (the connection is closed on the first).
-    pub malformed: u64,
+    /// Malformed TCP frames received (the connection is closed on each).
+    malformed: u64,
 }
 
 impl TcpLink {
@@ -162,6 +165,10 @@ impl Link for TcpLink {
         self.pending.clear();
     }
 
+    fn malformed(&self) -> u64 {
+        self.malformed
+    }
+
     fn script_env(&self) -> Vec<(String, String)> {
         vec![
             ("AER_XCP_TRANSPORT".into(), "tcp".into()),
@@ -181,7 +188,7 @@ pub struct CanLink {
     socket: socketcan::CanSocket,
     interface: String,
     /// Frames on the command id that are not 8 bytes (the DBC's XCP_Cmd is), ignored.
-    pub malformed: u64,
+    malformed: u64,
 }
 
 #[cfg(target_os = "linux")]
@@ -243,6 +250,10 @@ impl Link for CanLink {
     }
 
     fn drop_master(&mut self) {}
+
+    fn malformed(&self) -> u64 {
+        self.malformed
+    }
 
     fn script_env(&self) -> Vec<(String, String)> {
         use aer::calibration::xcp::{BIT_RATE, CAN_ID_MASTER, CAN_ID_SLAVE};

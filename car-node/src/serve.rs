@@ -50,6 +50,7 @@ pub fn serve(
     let mut car = XcpCar::new(run, RamFlash::default(), secret, entropy);
     let started = Instant::now();
     let mut ms: u32 = 0;
+    let mut malformed_reported = 0;
     while running(ms) {
         // Commands until this millisecond's step is due; a late step runs at once.
         let due = started + Duration::from_millis(u64::from(ms) + 1);
@@ -66,6 +67,11 @@ pub fn serve(
         }
         car.step(&mut NoTap, &mut |packet| link.send(packet));
         ms = ms.wrapping_add(1);
+        // Said at most once a second, not per packet: a babbling node must not flood the log.
+        if ms % 1000 == 0 && link.malformed() != malformed_reported {
+            malformed_reported = link.malformed();
+            eprintln!("{malformed_reported} malformed XCP packets ignored so far");
+        }
     }
     Ok(ms)
 }

@@ -29,7 +29,7 @@ pub struct LinkConfig {
 }
 
 /// The form telemetry and CAN arrive in.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Deserialize, clap::ValueEnum)]
 #[serde(rename_all = "lowercase")]
 pub enum StreamFormat {
     /// The Pi's compact stream (`aer-pit/<car>/stream`): every frame and packet, batched and

@@ -1,7 +1,7 @@
 //! aer-dashboard: the driver's display and the pit crew's view of the car's telemetry, fed by
 //! the generated typed MQTT topics on the Pi's broker.
 
-use aer_dashboard::config::{Config, View};
+use aer_dashboard::config::{Config, StreamFormat, View};
 use aer_dashboard::screenshot::{self, DRIVER_SIZE, FONT, PIT_SIZE};
 use aer_dashboard::session;
 use aer_dashboard::ui::App;
@@ -38,6 +38,10 @@ enum Command {
         /// Fill the screen (the car's display).
         #[arg(long)]
         fullscreen: bool,
+        /// What to subscribe to (default: the configuration's, compact). The car's own display
+        /// reads the broker on the same Pi: `json` spares it the stream's batching window.
+        #[arg(long, value_enum)]
+        stream: Option<StreamFormat>,
     },
     /// Render both views, filled from a recorded session, without a display, each at 800x480
     /// and 1280x800 (DIR/driver-800x480.png, DIR/pit-1280x800.png, ...).
@@ -61,10 +65,16 @@ fn main() -> Result<()> {
     match cli.command.unwrap_or(Command::Run {
         view: None,
         fullscreen: false,
+        stream: None,
     }) {
-        Command::Run { view, fullscreen } => {
+        Command::Run {
+            view,
+            fullscreen,
+            stream,
+        } => {
             config.display.view = view.unwrap_or(config.display.view);
             config.display.fullscreen |= fullscreen;
+            config.link.stream = stream.unwrap_or(config.link.stream);
             run(config)
         }
         Command::Screenshot { out, log, at } => {
