@@ -70,6 +70,21 @@ echo "/dev/vda / ext4 rw,noatime 0 1" > "$root/etc/fstab"
 mkdir -p "$root/root/virtual-pi"
 cp tools/virtual_pi/scenarios.py raspi/data/session.log tools/xcp_scenarios.py generated/aer.a2l \
   "$car_node" "$root/root/virtual-pi/"
+# The pit's side of the radio scenario: the dashboard from its package (the release binary;
+# it loads its display libraries only when it opens a window), and the team's CA with the
+# Pi's certificate for the pit listener, made as docs/dashboard.md says.
+dpkg-deb --fsys-tarfile "$(ls "$out"/aer-dashboard_*_amd64.deb)" | tar -xO ./usr/bin/aer-dashboard \
+  > "$root/root/virtual-pi/aer-dashboard"
+chmod 755 "$root/root/virtual-pi/aer-dashboard"
+tls="$root/root/virtual-pi/tls"
+mkdir -p "$tls"
+openssl req -x509 -newkey ec -pkeyopt ec_paramgen_curve:P-256 -nodes -days 30 \
+  -subj "/CN=virtual team CA" -keyout "$tls/team-ca.key" -out "$tls/team-ca.pem" 2>/dev/null
+openssl req -newkey ec -pkeyopt ec_paramgen_curve:P-256 -nodes -subj "/CN=virtual-pi" \
+  -keyout "$tls/pit.key.pem" -out "$tls/pit.csr" 2>/dev/null
+openssl x509 -req -in "$tls/pit.csr" -CA "$tls/team-ca.pem" -CAkey "$tls/team-ca.key" -days 30 \
+  -out "$tls/pit.cert.pem" -extfile <(printf "subjectAltName=IP:10.9.0.1\nbasicConstraints=CA:FALSE\nextendedKeyUsage=serverAuth") \
+  2>/dev/null
 cat > "$root/etc/systemd/system/virtual-pi-scenarios.service" <<'UNIT'
 [Unit]
 Description=The virtual Pi's scenarios

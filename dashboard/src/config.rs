@@ -26,6 +26,9 @@ pub struct Config {
 pub struct LinkConfig {
     /// What it subscribes to for telemetry and CAN.
     pub stream: StreamFormat,
+    /// With the compact stream, how far back a pit that joins mid-session asks the Pi for
+    /// what it missed (s; 0: nothing). Gaps after a dropout are always asked for.
+    pub join_history_s: u64,
 }
 
 /// The form telemetry and CAN arrive in.
@@ -45,6 +48,7 @@ impl Default for LinkConfig {
     fn default() -> Self {
         Self {
             stream: StreamFormat::Compact,
+            join_history_s: 1800,
         }
     }
 }

@@ -1,13 +1,16 @@
 //! The driver and pit dashboard as a library: the binary (`aer-dashboard`), the headless UI
 //! tests, the end-to-end test and the benchmark use the same code.
 //!
-//! Data flow: [`link`] (MQTT: the Pi's compact stream, read by [`pit_stream`], or the
-//! generated typed JSON topics, on the Pi's broker) -> [`model`] (the
+//! Data flow: [`link`] (MQTT: the Pi's compact stream, read by [`pit_stream`], with what it
+//! missed fetched by [`backfill`], or the generated typed JSON topics, on the Pi's broker) ->
+//! [`model`] (the
 //! latest packet, alarms, plots, laps, link health; no UI types) -> [`ui`] (iced: the driver
 //! and pit views). [`session`] and [`screenshot`] render the views from a recorded session
-//! without a display.
+//! without a display; [`follow`] runs the link and the model without a window.
 
+pub mod backfill;
 pub mod config;
+pub mod follow;
 pub mod link;
 pub mod model;
 pub mod pit_stream;

@@ -5,6 +5,7 @@
 //! message (the application says which through the link's [`Control`]), so the link carries
 //! what the screen needs and no more.
 
+use crate::backfill::Backfill;
 use crate::config::{Config, StreamFormat};
 use crate::model::Update;
 use crate::model::can::CanMessages;
@@ -37,6 +38,8 @@ pub struct Settings {
     pub can: Vec<&'static str>,
     /// Telemetry and CAN from the compact stream or the JSON topics.
     pub format: StreamFormat,
+    /// How far back a pit that joins asks for history (s).
+    pub join_history_s: u64,
 }
 
 /// What the link hands the application: first the [`Control`] to steer it with, then every
@@ -75,7 +78,7 @@ impl Control {
 struct Subscriptions {
     client: AsyncClient,
     prefix: String,
-    base: [String; 3],
+    base: Vec<String>,
     shown: BTreeSet<&'static str>,
     /// Whether the broker has accepted the current connection (picks go out at once).
     live: bool,
@@ -163,6 +166,7 @@ impl Settings {
             prefix: config.topic_prefix(),
             can: CanMessages::new(&config.display.can_messages).suffixes(),
             format: config.link.stream,
+            join_history_s: config.link.join_history_s,
         }
     }
 
@@ -217,7 +221,16 @@ pub fn stream(settings: Settings) -> impl Stream<Item = Event> {
         if output.send(Event::Ready(control)).await.is_err() {
             return;
         }
-        let (client, mut eventloop) = match connect(&settings) {
+        // Unique per process, so the driver and pit dashboards never take over each other's
+        // session; also the name of this dashboard's history answers.
+        let client_id = format!(
+            "aer-dashboard-{}-{}",
+            std::process::id(),
+            std::time::SystemTime::now()
+                .duration_since(std::time::UNIX_EPOCH)
+                .map_or(0, |d| d.subsec_nanos())
+        );
+        let (client, mut eventloop) = match connect(&settings, &client_id) {
             Ok(connection) => connection,
             Err(why) => {
                 // Nothing to retry: the settings are wrong until the dashboard restarts.
@@ -226,11 +239,16 @@ pub fn stream(settings: Settings) -> impl Stream<Item = Event> {
                 return;
             }
         };
+        let mut backfill = (settings.format == StreamFormat::Compact)
+            .then(|| Backfill::new(&settings.prefix, &client_id, settings.join_history_s));
+        let mut base = settings.topics().to_vec();
+        base.extend(backfill.as_ref().map(Backfill::reply_topic));
+        let requests = client.clone();
         let (connections, connection_events) = mpsc::unbounded();
         let subscriptions = Subscriptions {
             client,
             prefix: settings.prefix.clone(),
-            base: settings.topics(),
+            base,
             shown: settings.can.iter().copied().collect(),
             live: false,
             compact: settings.format == StreamFormat::Compact,
@@ -241,14 +259,22 @@ pub fn stream(settings: Settings) -> impl Stream<Item = Event> {
         let mut updates = Vec::new();
         loop {
             let was_accepted = accepted;
-            next(
+            let request = next(
                 &mut eventloop,
                 &mut accepted,
                 &settings,
                 &mut decoder,
+                backfill.as_mut(),
                 &mut updates,
             )
             .await;
+            if let (Some(request), Some(backfill)) = (request, &backfill)
+                && let Err(error) =
+                    requests.try_publish(backfill.request_topic(), QoS::AtMostOnce, false, request)
+            {
+                // Asked again when the answer stays away.
+                warn!(%error, "asking the Pi for missed history");
+            }
             let failed = matches!(updates.last(), Some(Update::Disconnected(_)));
             // The subscriptions follow the connection (their task ends with this loop).
             if accepted != was_accepted {
@@ -270,15 +296,7 @@ pub fn stream(settings: Settings) -> impl Stream<Item = Event> {
 }
 
 /// The client and its event loop, or why the settings cannot work (an unreadable CA file).
-fn connect(settings: &Settings) -> Result<(AsyncClient, EventLoop), String> {
-    // Unique per process, so the driver and pit dashboards never take over each other's session.
-    let client_id = format!(
-        "aer-dashboard-{}-{}",
-        std::process::id(),
-        std::time::SystemTime::now()
-            .duration_since(std::time::UNIX_EPOCH)
-            .map_or(0, |d| d.subsec_nanos())
-    );
+fn connect(settings: &Settings, client_id: &str) -> Result<(AsyncClient, EventLoop), String> {
     let mut options = MqttOptions::new(client_id, settings.host.clone(), settings.port);
     options.set_keep_alive(Duration::from_secs(5));
     options.set_max_packet_size(64 * 1024, 64 * 1024);
@@ -295,24 +313,46 @@ fn connect(settings: &Settings) -> Result<(AsyncClient, EventLoop), String> {
 
 /// Polls the connection once: the updates for the screens go into `out` (none for protocol
 /// traffic, many for a batch of the compact stream). `accepted` tracks whether the broker has
-/// accepted the current connection.
+/// accepted the current connection. Returns a history request to publish, if one is due.
 async fn next(
     eventloop: &mut EventLoop,
     accepted: &mut bool,
     settings: &Settings,
     decoder: &mut StreamDecoder,
+    mut backfill: Option<&mut Backfill>,
     out: &mut Vec<Update>,
-) {
+) -> Option<Vec<u8>> {
+    let mut request = None;
     match eventloop.poll().await {
         Ok(MqttEvent::Incoming(Packet::ConnAck(_))) => *accepted = true,
         // Connected means subscribed: nothing published from here on is missed.
-        Ok(MqttEvent::Incoming(Packet::SubAck(_))) => out.push(Update::Connected),
+        Ok(MqttEvent::Incoming(Packet::SubAck(_))) => {
+            out.push(Update::Connected);
+            request = backfill.as_deref_mut().and_then(Backfill::reconnected);
+        }
         Ok(MqttEvent::Incoming(Packet::Publish(publish))) => {
             let stream = publish.topic == aer_host::pit_stream::topic(&settings.prefix);
             if stream {
-                decoder.decode(&publish.topic, &publish.payload, out);
+                let received = decoder.decode(&publish.topic, &publish.payload, out);
+                if let (Some(received), Some(backfill)) = (received, backfill.as_deref_mut()) {
+                    request = backfill.live(received);
+                    out.push(Update::Backfill(backfill.progress()));
+                }
+            } else if let Some(backfill) = backfill
+                .as_deref_mut()
+                .filter(|b| publish.topic == b.reply_topic())
+            {
+                request = backfill.history(&publish.topic, &publish.payload, out);
+                out.push(Update::Backfill(backfill.progress()));
             } else {
-                out.push(decode(&settings.prefix, &publish.topic, &publish.payload));
+                let update = decode(&settings.prefix, &publish.topic, &publish.payload);
+                if let (Update::Metrics(metrics), Some(backfill)) = (&update, backfill) {
+                    let now_us = std::time::SystemTime::now()
+                        .duration_since(std::time::UNIX_EPOCH)
+                        .map_or(0, |d| d.as_micros() as u64);
+                    request = backfill.published(metrics.counters.pit_batches, now_us);
+                }
+                out.push(update);
             }
         }
         Ok(_) => {}
@@ -322,6 +362,7 @@ async fn next(
             out.push(Update::Disconnected(reason));
         }
     }
+    request
 }
 
 /// Why the link is down, in words the pit crew can act on.

@@ -56,6 +56,19 @@ enum Command {
         #[arg(long)]
         at: Option<f64>,
     },
+    /// Follow the car without a window (the pit view's link and model) until the session is
+    /// whole, then print what arrived as JSON: packets held, history merged, stream gaps,
+    /// live latency, catch-up time after each dropout. Exit status 1 if it never became
+    /// whole. For checking a link.
+    Follow {
+        /// The session is whole once this many telemetry packets are held and nothing is
+        /// being caught up.
+        #[arg(long)]
+        packets: usize,
+        /// Give up after this many seconds.
+        #[arg(long, default_value_t = 600)]
+        timeout_s: u64,
+    },
 }
 
 fn main() -> Result<()> {
@@ -93,6 +106,25 @@ fn main() -> Result<()> {
             }
             for path in screenshot::both_views(&config, &session, at, &out)? {
                 println!("{}", path.display());
+            }
+            Ok(())
+        }
+        Command::Follow { packets, timeout_s } => {
+            let runtime = tokio::runtime::Builder::new_multi_thread()
+                .enable_all()
+                .build()
+                .context("starting the async runtime")?;
+            let report = runtime.block_on(aer_dashboard::follow::follow(
+                &config,
+                packets,
+                std::time::Duration::from_secs(timeout_s),
+            ));
+            println!("{}", serde_json::to_string(&report)?);
+            if !report.whole {
+                anyhow::bail!(
+                    "the session was not whole after {timeout_s} s: {} of {packets} packets",
+                    report.packets
+                );
             }
             Ok(())
         }

@@ -19,20 +19,26 @@ pub struct StreamDecoder {
     counters: Arc<Counters>,
     /// Fingerprint mismatches already reported.
     mismatches: u64,
-    /// The batch number expected next.
+    /// The batch number expected next (the live stream's: history arrives in ranges).
     next: Option<u32>,
+    live: bool,
 }
 
 impl Default for StreamDecoder {
     fn default() -> Self {
-        let counters = Arc::new(Counters::default());
-        Self {
-            ingest: Ingest::new(counters.clone()),
-            counters,
-            mismatches: 0,
-            next: None,
-        }
+        Self::new(true)
     }
+}
+
+/// A batch as it arrived, for the history's bookkeeping.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Received {
+    pub number: u32,
+    /// Its first and newest records' times (us since the epoch).
+    pub first_us: u64,
+    pub last_us: u64,
+    /// The first number missing before it, when batches went missing (live only).
+    pub missed_from: Option<u32>,
 }
 
 fn update(record: Record) -> Update {
@@ -57,8 +63,26 @@ fn update(record: Record) -> Update {
 }
 
 impl StreamDecoder {
-    /// Decodes one batch published on `topic` into `out`, in the order the Pi took it in.
-    pub fn decode(&mut self, topic: &str, payload: &[u8], out: &mut Vec<Update>) {
+    /// A decoder for the live stream (`live`: its numbering gaps are reported) or for history.
+    pub fn new(live: bool) -> Self {
+        let counters = Arc::new(Counters::default());
+        Self {
+            ingest: Ingest::new(counters.clone()),
+            counters,
+            mismatches: 0,
+            next: None,
+            live,
+        }
+    }
+
+    /// Decodes one batch published on `topic` into `out`, in the order the Pi took it in;
+    /// what it was, unless it did not decode.
+    pub fn decode(
+        &mut self,
+        topic: &str,
+        payload: &[u8],
+        out: &mut Vec<Update>,
+    ) -> Option<Received> {
         let batch = match decode(payload) {
             Ok(batch) => batch,
             Err(error) => {
@@ -66,17 +90,28 @@ impl StreamDecoder {
                     topic: topic.to_owned(),
                     error: error.to_string(),
                 });
-                return;
+                return None;
             }
         };
-        if let Some(expected) = self.next {
+        let mut missed_from = None;
+        if let Some(expected) = self.next.filter(|_| self.live) {
             let missed = batch.number.wrapping_sub(expected);
             // A number behind the expected one is a restarted Pi (numbering from 0), not a gap.
             if missed != 0 && missed < u32::MAX / 2 {
                 out.push(Update::StreamGap(missed));
+                missed_from = Some(expected);
+                // A transfer cut by the gap must not be completed with another's frames.
+                self.ingest = Ingest::new(self.counters.clone());
             }
         }
         self.next = Some(batch.number.wrapping_add(1));
+        let first_us = batch.items.first().map_or(0, Item::ts_us);
+        let received = Received {
+            number: batch.number,
+            first_us,
+            last_us: batch.items.last().map_or(first_us, Item::ts_us),
+            missed_from,
+        };
         for (index, name) in batch.buses.iter().enumerate() {
             if let Ok(index) = u8::try_from(index) {
                 self.ingest.name_bus(index, name);
@@ -107,6 +142,7 @@ impl StreamDecoder {
                 ),
             });
         }
+        Some(received)
     }
 }
 

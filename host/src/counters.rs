@@ -86,6 +86,12 @@ counters! {
     /// Frames and packets the pit stream could not take (its task behind): they are in the
     /// raw log and the store, not on the pit's stream.
     pit_dropped,
+    /// History requests a pit sent (`aer-pit/<car>/history/request`).
+    history_requests,
+    /// History requests refused: malformed, or more waiting than the Pi serves.
+    history_refused,
+    /// Batches sent again as history.
+    history_batches,
     /// Rows committed to the local store.
     stored,
     /// Rows the local store could not take (behind or failing); their frames stay in the

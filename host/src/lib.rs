@@ -10,6 +10,7 @@
 //! - [`traffic`]: each bus's measured load and each message's measured rate;
 //! - [`config`]: reading configuration files and the broker settings both tiers use;
 //! - [`pit_stream`]: the compact stream for the pit: ingest's input in compressed batches;
+//! - [`pit_history`]: what a pit that missed batches asks for, and how the Pi answers;
 //! - [`tls`]: TLS for MQTT clients off the Pi, trusting the team's certificates only;
 //! - [`clock`]: timestamps as the topics carry them;
 //! - [`logging`]: log output fit for a terminal and for the journal.
@@ -20,6 +21,7 @@ pub mod config;
 pub mod counters;
 pub mod decode;
 pub mod logging;
+pub mod pit_history;
 pub mod pit_stream;
 pub mod raw_format;
 pub mod status;

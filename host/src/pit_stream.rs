@@ -192,6 +192,16 @@ impl BatchEncoder {
         self.first_us
     }
 
+    /// The newest record's timestamp (the first, before any).
+    pub fn last_us(&self) -> u64 {
+        self.last_us
+    }
+
+    /// Its number.
+    pub fn number(&self) -> u32 {
+        self.number
+    }
+
     /// Uncompressed payload bytes so far.
     pub fn payload_len(&self) -> usize {
         self.payload.len()
@@ -256,6 +266,17 @@ fn header_field<const N: usize>(message: &[u8], at: usize) -> Result<[u8; N], St
         .get(at..at + N)
         .and_then(|bytes| bytes.try_into().ok())
         .ok_or(StreamError::NotABatch)
+}
+
+/// A batch's number and first timestamp, read from its header alone.
+pub fn peek(message: &[u8]) -> Result<(u32, u64), StreamError> {
+    if message.get(..4) != Some(&MAGIC[..]) {
+        return Err(StreamError::NotABatch);
+    }
+    Ok((
+        u32::from_le_bytes(header_field(message, 5)?),
+        u64::from_le_bytes(header_field(message, 9)?),
+    ))
 }
 
 /// Reads one batch.

@@ -138,6 +138,24 @@ pub struct PitStreamConfig {
     /// How long a batch collects (ms, 10-1000): the latency it adds. Shorter costs bandwidth:
     /// the bundled session needs about 79 kbit/s at 50 ms, 58 at 100, 41 at 250.
     pub window_ms: u64,
+    /// Memory kept of what the stream published, for pits that missed it (MiB, 0-1024; 0:
+    /// no history). The bundled session's stream is about 7 KiB/s: 64 MiB hold 2.5 hours.
+    pub history_mib: u64,
+    /// The pace of history answers (kbit/s, 8-100000): with the live stream, within the
+    /// radio's rate (about 60 kbit/s live + 100 history within a 250 kbit/s link).
+    pub history_kbit_s: u64,
+}
+
+impl PitStreamConfig {
+    /// True when pits may ask for what they missed.
+    pub fn keeps_history(&self) -> bool {
+        self.enabled && self.history_mib > 0
+    }
+
+    /// The history ring's budget.
+    pub fn history_bytes(&self) -> usize {
+        usize::try_from(self.history_mib.saturating_mul(1 << 20)).unwrap_or(usize::MAX)
+    }
 }
 
 impl Default for PitStreamConfig {
@@ -145,6 +163,8 @@ impl Default for PitStreamConfig {
         Self {
             enabled: true,
             window_ms: 100,
+            history_mib: 64,
+            history_kbit_s: 100,
         }
     }
 }
@@ -278,6 +298,18 @@ impl Config {
             anyhow::bail!(
                 "[pit_stream] window_ms = {}: use 10 to 1000",
                 config.pit_stream.window_ms
+            );
+        }
+        if config.pit_stream.history_mib > 1024 {
+            anyhow::bail!(
+                "[pit_stream] history_mib = {}: use 0 to 1024",
+                config.pit_stream.history_mib
+            );
+        }
+        if !(8..=100_000).contains(&config.pit_stream.history_kbit_s) {
+            anyhow::bail!(
+                "[pit_stream] history_kbit_s = {}: use 8 to 100000",
+                config.pit_stream.history_kbit_s
             );
         }
         let database = &config.tdengine.database;

@@ -319,6 +319,7 @@ async fn a_client_id_the_broker_did_not_acknowledge_is_never_offered_to_it_again
             broker_user: "aer-gate".into(),
             broker_password: "a-long-password".into(),
             protected: vec!["aer/".into(), "aer-pit/".into()],
+            open: Vec::new(),
             reserved_ids: "aer-raspi".into(),
             max_clients: 8,
             stall_limit: Duration::from_secs(5),

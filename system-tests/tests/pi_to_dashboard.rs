@@ -173,6 +173,7 @@ async fn a_replayed_session_reaches_the_dashboard_intact() {
         prefix: "aer/car1".into(),
         can: vec![shown],
         format: StreamFormat::Json,
+        join_history_s: 0,
     };
     let mut updates = Box::pin(link::stream(settings));
     let control = started(&mut updates).await;
@@ -333,6 +334,198 @@ async fn the_compact_stream_carries_the_whole_session_to_the_dashboard() {
     assert_eq!(health.undecodable, 0);
 }
 
+/// A radio between the dashboard and the Pi's broker that can drop out: a TCP proxy that,
+/// while cut, closes every connection through it and every new one.
+struct Radio {
+    port: u16,
+    cut: tokio::sync::watch::Sender<bool>,
+}
+
+async fn radio_to(upstream: u16) -> Radio {
+    let listener = tokio::net::TcpListener::bind("127.0.0.1:0")
+        .await
+        .expect("the radio's port");
+    let port = listener.local_addr().expect("an address").port();
+    let (cut, watch) = tokio::sync::watch::channel(false);
+    tokio::spawn(async move {
+        while let Ok((mut pit, _)) = listener.accept().await {
+            if *watch.borrow() {
+                continue;
+            }
+            let mut dropped = watch.clone();
+            tokio::spawn(async move {
+                let Ok(mut pi) = tokio::net::TcpStream::connect(("127.0.0.1", upstream)).await
+                else {
+                    return;
+                };
+                tokio::select! {
+                    _ = tokio::io::copy_bidirectional(&mut pit, &mut pi) => {}
+                    _ = dropped.wait_for(|cut| *cut) => {}
+                }
+            });
+        }
+    });
+    Radio { port, cut }
+}
+
+/// Waits until the Pi has taken in `frames` frames (a fed replay's lines are sent before
+/// they are ingested).
+async fn ingested(counters: &Counters, frames: u64) {
+    let deadline = Instant::now() + Duration::from_secs(30);
+    while counters.frames.load(Ordering::Relaxed) < frames {
+        assert!(
+            Instant::now() < deadline,
+            "the Pi did not take in {frames} frames"
+        );
+        tokio::time::sleep(Duration::from_millis(5)).await;
+    }
+}
+
+/// A dropout in the middle of the session: the dashboard's link loses the Pi for the middle
+/// third of the bundled session, sees the numbering gap when it is back, asks the Pi for the
+/// batches it missed and merges them, so its record of the session holds every telemetry
+/// packet, in order, equal to the log, and its plots, faults and laps are rebuilt from it.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn after_a_dropout_the_pit_fetches_what_it_missed() {
+    let expected = session::load(BUNDLED_SESSION, "car1");
+    let dir = tempfile::tempdir().expect("temp dir");
+    let port = free_port();
+    let mut pipeline = Pipeline::start(service_config(dir.path(), port), Job::Fed)
+        .await
+        .expect("the Pi service starts");
+    let counters = pipeline.counters();
+    let input = pipeline.input().expect("a fed pipeline's input");
+    let radio = radio_to(port).await;
+
+    let config = Config::default();
+    let mut settings = Settings::from_config(&config);
+    settings.port = radio.port;
+    let mut updates = Box::pin(link::stream(settings));
+    started(&mut updates).await;
+    let mut model = Dashboard::new(&config);
+    until_connected(&mut updates, &mut model).await;
+
+    let (stop, stopped) = tokio::sync::oneshot::channel::<()>();
+    let running = tokio::spawn(async move {
+        pipeline
+            .run(async {
+                let _ = stopped.await;
+            })
+            .await
+    });
+    let lines: Vec<&str> = BUNDLED_SESSION.lines().collect();
+    // Each part ends where a telemetry packet's first frame begins: each feed is a replay of
+    // its own, and a packet cut between two would be an ISO-TP error at the Pi already.
+    let packet_starts_at = |from: usize| {
+        (from..lines.len())
+            .find(|&at| lines[at].contains(" 666#1"))
+            .expect("a packet after it")
+    };
+    let third = packet_starts_at(lines.len() / 3);
+    let two_thirds = packet_starts_at(2 * lines.len() / 3);
+    let part = |range: std::ops::Range<usize>| {
+        let mut text = lines[range].join("\n");
+        text.push('\n');
+        text
+    };
+
+    // The first third arrives live.
+    feed(&part(0..third), &input, &counters).await;
+    ingested(&counters, third as u64).await;
+    while model.health().packets < counters.packets.load(Ordering::Relaxed) {
+        let (at, update) = next(&mut updates).await;
+        model.apply(update, at);
+    }
+
+    // The middle third while the radio is out.
+    radio.cut.send_replace(true);
+    feed(&part(third..two_thirds), &input, &counters).await;
+    ingested(&counters, two_thirds as u64).await;
+    radio.cut.send_replace(false);
+    until_connected(&mut updates, &mut model).await;
+
+    // The rest live again; the gap is fetched meanwhile (seen in the numbering of the next
+    // live batch, or in the Pi's metrics, whichever comes first).
+    feed(&part(two_thirds..lines.len()), &input, &counters).await;
+    let deadline = Instant::now() + Duration::from_secs(60);
+    loop {
+        if Instant::now() >= deadline {
+            let held: std::collections::BTreeSet<u16> = model
+                .session_record()
+                .into_iter()
+                .flat_map(|record| record.rows().map(|row| row.sequence))
+                .collect();
+            let missing: Vec<(f64, u16)> = expected
+                .samples
+                .iter()
+                .map(|s| (s.ts, s.value.header.sequence))
+                .filter(|(_, sequence)| !held.contains(sequence))
+                .take(10)
+                .collect();
+            panic!(
+                "the session never became whole: {} packets, missing {missing:?}, {:?}; the \
+                 Pi decoded {} packets",
+                held.len(),
+                model.health().backfill,
+                counters.packets.load(Ordering::Relaxed)
+            );
+        }
+        let (at, update) = next(&mut updates).await;
+        if let Update::Undecodable { topic, error } = &update {
+            panic!("{topic}: {error}");
+        }
+        model.apply(update, at);
+        model.settle(at + Duration::from_secs(2));
+        let whole = model
+            .session_record()
+            .is_some_and(|record| record.len() >= expected.samples.len());
+        let settled = model.health().backfill.is_some_and(|b| !b.catching_up);
+        if whole && settled {
+            break;
+        }
+    }
+    drop(input);
+    drop(stop);
+    running
+        .await
+        .expect("the pipeline's task")
+        .expect("the pipeline stops cleanly");
+
+    let health = model.health();
+    let progress = health.backfill.expect("the link reports the history");
+    assert!(
+        health.stream_gaps > 0,
+        "the dropout left a gap: {progress:?}, {} merged",
+        health.backfilled
+    );
+    assert!(progress.recovered > 0, "{progress:?}");
+    assert_eq!(progress.not_held, 0);
+    assert!((progress.complete - 1.0).abs() < 1e-9, "{progress:?}");
+    assert!(health.backfilled > 0);
+    let record: Vec<(f64, u16)> = model
+        .session_record()
+        .expect("the compact stream keeps a record")
+        .rows()
+        .map(|row| (row.ts, row.sequence))
+        .collect();
+    let wanted: Vec<(f64, u16)> = expected
+        .samples
+        .iter()
+        .map(|sample| (sample.ts, sample.value.header.sequence))
+        .collect();
+    assert_eq!(record, wanted, "every packet once, in order");
+    let telemetry_equal = model
+        .session_record()
+        .into_iter()
+        .flat_map(|record| record.rows())
+        .zip(&expected.samples)
+        .all(|(row, sample)| row.telemetry == sample.value.telemetry);
+    assert!(telemetry_equal, "the values are the log's");
+    let counters = counters.snapshot();
+    assert!(counters.history_batches > 0);
+    assert_eq!(counters.history_refused, 0);
+}
+
 /// A pit laptop on a broker listener with credentials (as the Pi's network listener must have):
 /// without them or with a wrong password the link reports why it is down, with the right
 /// ones it connects.
@@ -352,6 +545,7 @@ async fn a_listener_with_credentials_admits_only_the_right_ones() {
         prefix: "aer/car1".into(),
         can: Vec::new(),
         format: StreamFormat::Json,
+        join_history_s: 0,
     };
     for refused in [
         None,
@@ -435,6 +629,7 @@ async fn the_pit_connects_over_tls_and_each_mistake_is_named() {
         prefix: "aer/car1".into(),
         can: Vec::new(),
         format: StreamFormat::Compact,
+        join_history_s: 0,
     };
     let first_update = async |settings: Settings| {
         let mut updates = Box::pin(link::stream(settings));

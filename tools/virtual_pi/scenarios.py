@@ -410,6 +410,98 @@ def xcp_on_can():
     stop("SIGTERM")
 
 
+PIT_PASSWORD = "radio-pit-7c1e"
+PI_ADDRESS = "10.9.0.1"
+
+
+def pit_radio(want):
+    """The pit as at the track: its dashboard's own link and model (`aer-dashboard follow`,
+    the release binary from the package) in a network namespace behind a veth shaped with
+    netem (250 kbit/s, 100 ms each way), through the service's TLS pit listener with its
+    credentials. The session plays at recorded speed on vcan; 15 s in, the radio drops out
+    for 30 s (link down). The pit must end with every telemetry packet of the session: what
+    the outage missed fetched from the Pi's history."""
+    tls = os.path.join(HERE, "tls")
+    for name in ("pit.cert.pem", "pit.key.pem"):
+        run("install", "-m", "0640", "-g", "aer", os.path.join(tls, name), f"/etc/aer/{name}")
+    with open("/etc/aer/rumqttd.toml") as f:
+        broker = f.read()
+    broker += (
+        f'\n[v4.2]\nname = "v4-pit"\nlisten = "{PI_ADDRESS}:8883"\nnext_connection_delay_ms = 1\n'
+        '    [v4.2.tls]\n    certpath = "/etc/aer/pit.cert.pem"\n    keypath = "/etc/aer/pit.key.pem"\n'
+        '    [v4.2.connections]\n    connection_timeout_ms = 60000\n    max_payload_size = 20480\n'
+        f'    max_inflight_count = 100\n    dynamic_filters = true\n    auth = {{ pit = "{PIT_PASSWORD}" }}\n'
+    )
+    with open("/etc/aer/rumqttd.toml", "w") as f:
+        f.write(broker)
+    run("ip", "netns", "add", "pit")
+    run("ip", "link", "add", "radio", "type", "veth", "peer", "name", "radio-pit")
+    run("ip", "link", "set", "radio-pit", "netns", "pit")
+    run("ip", "addr", "add", f"{PI_ADDRESS}/24", "dev", "radio")
+    run("ip", "link", "set", "radio", "up")
+    pit = ["ip", "netns", "exec", "pit"]
+    run(*pit, "ip", "addr", "add", "10.9.0.2/24", "dev", "radio-pit")
+    run(*pit, "ip", "link", "set", "radio-pit", "up")
+    run(*pit, "ip", "link", "set", "lo", "up")
+    shape = ["netem", "rate", "250kbit", "delay", "100ms", "limit", "10000"]
+    run("tc", "qdisc", "add", "dev", "radio", "root", *shape)
+    run(*pit, "tc", "qdisc", "add", "dev", "radio-pit", "root", *shape)
+    set_isotp("kernel")
+    if not start_service():
+        return
+    env = dict(
+        os.environ,
+        AER_MQTT_HOST=PI_ADDRESS,
+        AER_MQTT_PORT="8883",
+        AER_MQTT_USERNAME="pit",
+        AER_MQTT_PASSWORD=PIT_PASSWORD,
+        AER_MQTT_TLS_CA=os.path.join(tls, "team-ca.pem"),
+    )
+    follower = subprocess.Popen(
+        [*pit, os.path.join(HERE, "aer-dashboard"), "follow", "--packets", str(want[0]), "--timeout-s", "400"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
+    )
+    connected = wait_for(
+        "the pit's connection through the radio",
+        lambda: run("ss", "-Htn", "state", "established", "( sport = :8883 )").strip(),
+        60,
+    )
+    if not check("the pit connects over the radio (TLS, credentials)", bool(connected)):
+        follower.kill()
+        return
+    sent_before = int(open("/sys/class/net/radio/statistics/tx_bytes").read())
+    player = subprocess.Popen(["canplayer", "-I", LOG])
+    began = time.monotonic()
+    wait_for("15 s of the session", lambda: time.monotonic() - began >= 15, 30)
+    run("ip", "link", "set", "radio", "down")
+    wait_for("a 30 s outage", lambda: time.monotonic() - began >= 45, 60)
+    run("ip", "link", "set", "radio", "up")
+    player.wait(timeout=120)
+    out, err = follower.communicate(timeout=500)
+    sent = int(open("/sys/class/net/radio/statistics/tx_bytes").read()) - sent_before
+    elapsed = time.monotonic() - began
+    try:
+        report = json.loads(out.strip().splitlines()[-1])
+    except (json.JSONDecodeError, IndexError):
+        for line in err.splitlines()[-20:]:
+            say(f"  follow (stderr): {line}")
+        check("the pit's report", False, out[-300:])
+        return
+    say(
+        f"  radio: {sent * 8 / elapsed / 1000:.1f} kbit/s to the pit over {elapsed:.0f} s; "
+        f"live latency p50 {report['latency_p50_ms']:.0f} ms, p99 {report['latency_p99_ms']:.0f} ms; "
+        f"catch-up after the outage {report['catch_up_s']} s; {report['recovered']} batches "
+        f"({report['backfilled']} packets) from history, {report['stream_gaps']} missed live"
+    )
+    check(
+        "after a 30 s outage at 250 kbit/s the pit holds every telemetry packet",
+        report["whole"] and report["packets"] == want[0] and report["not_held"] == 0,
+        f"{report['packets']} of {want[0]}",
+    )
+    check("the outage's gap came from the Pi's history", report["backfilled"] > 0, str(report["backfilled"]))
+    stop("SIGTERM")
+
+
 def main():
     say(f"kernel {os.uname().release}, {run('systemctl', '--version').splitlines()[0]}")
     modules = open("/proc/modules").read()
@@ -431,6 +523,7 @@ def main():
     flood_and_error_storm(short, part)
     disk_smaller_than_floor(short, part)
     xcp_on_can()
+    pit_radio(whole)
     journal = run("journalctl", "-u", "aer-raspi", "-b", "--no-pager", "-o", "cat")
     check("no refused system call in the journal", "SIGSYS" not in journal and "Operation not permitted" not in journal)
     if failures:

@@ -36,6 +36,10 @@ pub struct Health {
     pub undecodable: u64,
     /// Batches of the compact stream that never arrived (numbering gaps).
     pub stream_gaps: u64,
+    /// Telemetry packets merged from the Pi's history (what the gaps missed).
+    pub backfilled: u64,
+    /// How far the history has caught up (with the compact stream, once the link reports).
+    pub backfill: Option<super::BackfillProgress>,
     /// The last decode error, for the link panel.
     pub last_error: Option<String>,
     /// The Pi's retained status.
@@ -56,6 +60,8 @@ impl Default for Health {
             lost: 0,
             undecodable: 0,
             stream_gaps: 0,
+            backfilled: 0,
+            backfill: None,
             last_error: None,
             status: None,
             metrics: None,

@@ -8,6 +8,7 @@ pub mod fields;
 pub mod health;
 pub mod history;
 pub mod laps;
+pub mod record;
 
 use crate::config::Config;
 use aer::can::AnyMessage;
@@ -21,6 +22,7 @@ use fields::{Field, FieldValue, Schema};
 use health::{Connection, Health};
 use history::History;
 use laps::LapTimer;
+use record::{Row, SessionRecord};
 use std::time::{Duration, Instant};
 
 /// The car's own constants (ccm/src/constants.rs): one place for them, shared with the firmware.
@@ -41,13 +43,35 @@ pub enum Update {
     /// The Pi service's counters, every second.
     Metrics(Box<Metrics>),
     /// Batches of the compact stream missing between received ones (a dropout, or a radio
-    /// that lost them): their frames and packets did not arrive.
+    /// that lost them): their frames and packets did not arrive (yet: the link asks the Pi
+    /// for them).
     StreamGap(u32),
+    /// A telemetry packet the live stream missed, fetched from the Pi's history.
+    PastTelemetry(Box<Sample<TelemetryRecord>>),
+    /// How far the history has caught up.
+    Backfill(BackfillProgress),
     /// A payload that is not its topic's type.
     Undecodable {
         topic: String,
         error: String,
     },
+}
+
+/// How complete the pit's copy of the session is, while history fills its gaps.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct BackfillProgress {
+    /// Seconds of the session still missing.
+    pub behind_s: f64,
+    /// The share of the session held (0-1).
+    pub complete: f64,
+    /// A gap is being filled, or waits to be.
+    pub catching_up: bool,
+    /// Batches recovered from the Pi's history so far.
+    pub recovered: u64,
+    /// Batches missed that the Pi no longer holds.
+    pub not_held: u64,
+    /// History batches that were not what was asked (left out).
+    pub unexpected: u64,
 }
 
 /// The newest telemetry packet.
@@ -93,7 +117,15 @@ pub struct Dashboard {
     health: Health,
     plots: Vec<usize>,
     can: CanMessages,
+    /// The session so far, for merging history (with the compact stream only: the JSON
+    /// topics have no history to fetch).
+    record: Option<SessionRecord>,
+    lap_length_m: Option<f64>,
+    last_merge: Option<Instant>,
 }
+
+/// History is merged at most this often while it flows (each merge replays the session).
+const MERGE_EVERY: Duration = Duration::from_secs(1);
 
 impl Dashboard {
     /// An empty dashboard for the car's telemetry, set up from `config`.
@@ -120,6 +152,10 @@ impl Dashboard {
             health: Health::default(),
             plots,
             can: CanMessages::new(&config.display.can_messages),
+            record: (config.link.stream == crate::config::StreamFormat::Compact)
+                .then(SessionRecord::default),
+            lap_length_m: config.display.lap_length_m,
+            last_merge: None,
         }
     }
 
@@ -141,11 +177,78 @@ impl Dashboard {
             Update::Metrics(metrics) => self.health.metrics = Some(*metrics),
             Update::Undecodable { topic, error } => self.health.undecodable(&topic, &error),
             Update::StreamGap(missed) => self.health.stream_gaps += u64::from(missed),
+            Update::PastTelemetry(sample) => {
+                if let Some(record) = &mut self.record {
+                    record.history(row(&sample));
+                }
+            }
+            Update::Backfill(progress) => self.health.backfill = Some(progress),
         }
+    }
+
+    /// Merges the history that arrived into the plots, the fault history and the lap times
+    /// (at most every [`MERGE_EVERY`] while it flows; at once when it has caught up). Call it
+    /// after taking updates.
+    pub fn settle(&mut self, now: Instant) {
+        let Some(record) = &mut self.record else {
+            return;
+        };
+        let catching_up = self.health.backfill.is_some_and(|b| b.catching_up);
+        let due = self
+            .last_merge
+            .is_none_or(|last| now.saturating_duration_since(last) >= MERGE_EVERY);
+        if !record.has_pending() || (catching_up && !due) {
+            return;
+        }
+        self.last_merge = Some(now);
+        let added = record.merge();
+        self.health.backfilled += added as u64;
+        if added > 0 {
+            self.replay();
+        }
+    }
+
+    /// Rebuilds what the packets' order matters to from the session record, as if every
+    /// packet had arrived live and in order.
+    fn replay(&mut self) {
+        let Some(record) = &self.record else {
+            return;
+        };
+        let mut alarms = Alarms::new(self.schema);
+        let mut laps = LapTimer::new(self.lap_length_m);
+        let mut history = History::new(self.history.window_s(), self.schema.fields.len());
+        let newest = record.rows().last().map_or(0.0, |row| row.ts);
+        let mut marks = record.marks().to_vec();
+        marks.sort_by(f64::total_cmp);
+        let mut marks = marks.into_iter().peekable();
+        let mut values = Vec::with_capacity(self.schema.fields.len());
+        for row in record.rows() {
+            while let Some(mark) = marks.next_if(|&mark| mark <= row.ts) {
+                laps.mark(mark);
+            }
+            let telemetry = row.telemetry;
+            laps.update(
+                row.ts,
+                speed_m_s(&telemetry),
+                telemetry.vehicle_state == VehicleState::Driving,
+            );
+            fields::read(&telemetry, &mut values);
+            alarms.update(row.ts, &values);
+            if row.ts >= newest - history.window_s() {
+                history.push(row.ts, &values);
+            }
+        }
+        marks.for_each(|mark| laps.mark(mark));
+        self.alarms = alarms;
+        self.laps = laps;
+        self.history = history;
     }
 
     /// Takes one telemetry packet received at `now`.
     pub fn telemetry(&mut self, sample: &Sample<TelemetryRecord>, now: Instant) {
+        if let Some(record) = &mut self.record {
+            record.live(row(sample));
+        }
         let telemetry = sample.value.telemetry;
         self.laps.update(
             sample.ts,
@@ -309,6 +412,11 @@ impl Dashboard {
         &self.history
     }
 
+    /// The session so far, history merged (with the compact stream).
+    pub fn session_record(&self) -> Option<&SessionRecord> {
+        self.record.as_ref()
+    }
+
     /// The lap timer.
     pub fn laps(&self) -> &LapTimer {
         &self.laps
@@ -318,6 +426,9 @@ impl Dashboard {
     pub fn mark_lap(&mut self, now: Instant) {
         if let Some(ts) = self.car_time(now) {
             self.laps.mark(ts);
+            if let Some(record) = &mut self.record {
+                record.mark(ts);
+            }
         }
     }
 
@@ -348,6 +459,14 @@ impl Dashboard {
         } else if index < self.schema.fields.len() {
             self.plots.push(index);
         }
+    }
+}
+
+fn row(sample: &Sample<TelemetryRecord>) -> Row {
+    Row {
+        ts: sample.ts,
+        sequence: sample.value.header.sequence,
+        telemetry: sample.value.telemetry,
     }
 }
 

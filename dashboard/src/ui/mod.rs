@@ -88,7 +88,10 @@ impl App {
                 control.show_can(self.model.can().suffixes());
                 self.link_control = Some(control);
             }
-            Message::Tick(at) => self.now = self.now.max(at),
+            Message::Tick(at) => {
+                self.now = self.now.max(at);
+                self.model.settle(at);
+            }
             Message::ToggleView => {
                 self.view = match self.view {
                     View::Driver => View::Pit,

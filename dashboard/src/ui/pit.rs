@@ -6,7 +6,7 @@ use super::plot::{MAX_POINTS, Plot};
 use super::{Message, status_banner, style};
 use crate::model::fields::{Field, heading};
 use crate::model::health::{Carried, Connection, SchemaMatch, fingerprint};
-use crate::model::{Dashboard, Freshness};
+use crate::model::{BackfillProgress, Dashboard, Freshness};
 use aer::telemetry::Level;
 use iced::widget::{
     button, canvas, column, container, responsive, row, scrollable, space, text, tooltip,
@@ -146,6 +146,9 @@ fn link(model: &Dashboard, now: Instant, narrow: bool) -> Element<'_, Message> {
     if let Some((buses, color)) = health.status.as_ref().and_then(bus_traffic) {
         panel = panel.push(text(buses).size(14).color(color));
     }
+    if let Some((history, color)) = health.backfill.map(|b| backfill(&b, health.backfilled)) {
+        panel = panel.push(text(history).size(14).color(color));
+    }
     if let Some(error) = &health.last_error {
         panel = panel.push(
             text(format!("last unreadable payload: {error}"))
@@ -158,6 +161,37 @@ fn link(model: &Dashboard, now: Instant, narrow: bool) -> Element<'_, Message> {
         .width(Fill)
         .style(style::panel)
         .into()
+}
+
+/// How complete the pit's copy of the session is: amber while it catches up, red for batches
+/// the Pi no longer held.
+fn backfill(progress: &BackfillProgress, packets: u64) -> (String, iced::Color) {
+    let complete = progress.complete * 100.0;
+    let mut line = if progress.catching_up {
+        format!(
+            "catching up: {:.0} s behind, {complete:.1} %",
+            progress.behind_s
+        )
+    } else {
+        format!("session {complete:.1} % complete")
+    };
+    if progress.recovered > 0 {
+        line += &format!(
+            "   history: {} batches, {packets} packets merged",
+            progress.recovered
+        );
+    }
+    if progress.not_held > 0 {
+        line += &format!("   {} batches no longer on the Pi", progress.not_held);
+    }
+    let color = if progress.not_held > 0 {
+        style::CRITICAL
+    } else if progress.catching_up {
+        style::WARN
+    } else {
+        style::DIM
+    };
+    (line, color)
 }
 
 /// The Pi's measured bus loads, and the messages slower than their cycle time (fewer than

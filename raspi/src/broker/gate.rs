@@ -4,7 +4,8 @@
 //! - checks the listener's credentials and refuses the service's own client ids (a client
 //!   with the same id would take the service's link off the broker);
 //! - refuses a will, and disconnects any publish, under the protected topic prefix: only the
-//!   service publishes there;
+//!   service publishes there, but for the few topics open to clients (the pits' history
+//!   requests, which the service reads and checks);
 //! - caps the keep-alive, so a dead client's slot frees within a minute and a half;
 //! - waits for the broker's CONNACK before relaying anything, even if the client has gone
 //!   meanwhile, and never offers the broker again a client id it did not acknowledge.
@@ -56,6 +57,9 @@ pub struct Settings {
     /// Topic roots only the service may publish under (`aer/`, and the pit stream's
     /// `aer-pit/`).
     pub protected: Vec<String>,
+    /// Topics under those roots that clients may publish on: the pits' history requests
+    /// (`aer-pit/<car>/history/request`).
+    pub open: Vec<String>,
     /// Client ids only the service may use (`aer-raspi`).
     pub reserved_ids: String,
     /// Clients at once, beyond which a stalled one makes room or the newcomer is refused.
@@ -206,6 +210,7 @@ impl Gate {
             .protected
             .iter()
             .any(|root| topic.starts_with(root.as_str()))
+            && !self.settings.open.iter().any(|open| open == topic)
     }
 
     /// Checks a new client's CONNECT; the reason and CONNACK code if it is refused.

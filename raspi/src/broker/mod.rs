@@ -183,7 +183,8 @@ pub async fn start(
     cancel: tokio_util::sync::CancellationToken,
 ) -> Result<Broker> {
     let protected = ["aer/".to_owned(), "aer-pit/".to_owned()];
-    let broker = spawn(config, SERVICE_IDS, &protected)?;
+    let open = [aer_host::pit_history::request_topic("aer/car1")];
+    let broker = spawn(config, SERVICE_IDS, &protected, &open)?;
     gate::start(broker.gate.clone(), counters, cancel).await?;
     Ok(broker)
 }
@@ -194,8 +195,14 @@ const SPARE_LINKS: usize = 2;
 /// Starts the broker on a thread of its own (rumqttd's `start` blocks) with one listener, on
 /// loopback, for the gate; waits (up to 2 s) until it is bound and turns Nagle's algorithm
 /// off on it (see [`nodelay`]). `reserved_ids` prefixes the service's link ids, which the
-/// gate refuses to clients; `protected` are the topic roots only the service publishes under.
-pub fn spawn(config: BrokerConfig, reserved_ids: &str, protected: &[String]) -> Result<Broker> {
+/// gate refuses to clients; `protected` are the topic roots only the service publishes under,
+/// but for the `open` topics.
+pub fn spawn(
+    config: BrokerConfig,
+    reserved_ids: &str,
+    protected: &[String],
+    open: &[String],
+) -> Result<Broker> {
     let BrokerConfig {
         mut broker,
         listeners,
@@ -261,6 +268,7 @@ pub fn spawn(config: BrokerConfig, reserved_ids: &str, protected: &[String]) -> 
             broker_user: user,
             broker_password: password,
             protected: protected.to_vec(),
+            open: open.to_vec(),
             reserved_ids: reserved_ids.to_owned(),
             max_clients,
             stall_limit,

@@ -31,6 +31,8 @@ pub(super) struct Mqtt {
     pub(super) publisher: Publisher,
     pub(super) connection: JoinHandle<()>,
     pub(super) address: String,
+    /// The pits' history requests, when the stream keeps history.
+    pub(super) history_requests: Option<tokio::sync::mpsc::Receiver<Vec<u8>>>,
 }
 
 /// Runs `finish` off the runtime, waiting at most [`STOP_WAIT`] for it.
@@ -139,6 +141,9 @@ pub(super) fn start_raw_log(
     Ok(Some(started))
 }
 
+/// History requests that may arrive before the history task reads them.
+const HISTORY_INTAKE: usize = 16;
+
 /// Starts the embedded broker and publishes into it, or connects to the configured broker.
 pub(super) async fn start_mqtt(
     config: &Config,
@@ -159,7 +164,9 @@ pub(super) async fn start_mqtt(
             format!("{root}/"),
             format!("{root}{}/", pit_stream::ROOT_SUFFIX),
         ];
-        let broker = broker::spawn(broker_config, SERVICE_IDS, &protected)?;
+        // ... but for the pits' history requests, which the history task checks.
+        let open = [aer_host::pit_history::request_topic(&config.topic_prefix())];
+        let broker = broker::spawn(broker_config, SERVICE_IDS, &protected, &open)?;
         broker::gate::start(broker.gate, counters.clone(), cancel.clone()).await?;
         mqtt::embedded(
             broker.link,
@@ -179,6 +186,17 @@ pub(super) async fn start_mqtt(
         )
         .context("the MQTT broker's TLS (mqtt.tls_ca)")?
     };
+    let (driver, history_requests) = if config.pit_stream.keeps_history() {
+        let (sender, receiver) = tokio::sync::mpsc::channel(HISTORY_INTAKE);
+        let intake = mqtt::Intake {
+            filter: aer_host::pit_history::request_topic(&config.topic_prefix()),
+            sender,
+            counters: counters.clone(),
+        };
+        (driver.with_intake(intake), Some(receiver))
+    } else {
+        (driver, None)
+    };
     let (connected_tx, mut connected) = tokio::sync::watch::channel(false);
     let connection = tokio::spawn(mqtt::drive(driver, connected_tx));
     // Give the broker a moment so the first packets are not dropped for want of a connection;
@@ -193,5 +211,6 @@ pub(super) async fn start_mqtt(
         publisher,
         connection,
         address,
+        history_requests,
     })
 }

@@ -155,14 +155,31 @@ impl Pipeline {
                 self.job == Job::Live && self.config.can.isotp == config::IsoTpMode::Kernel;
             let (tap, inputs) = crate::pit::PitTap::new(self.counters.clone(), kernel_isotp);
             stage = stage.with_pit_stream(tap);
+            let ring = Arc::new(std::sync::Mutex::new(crate::pit::history::Ring::new(
+                self.config.pit_stream.history_bytes(),
+            )));
             pit_stream = Some(tokio::spawn(crate::pit::run(
                 self.mqtt.publisher.clone(),
                 aer_host::pit_stream::topic(&self.config.topic_prefix()),
                 self.counters.clone(),
                 inputs,
                 Duration::from_millis(self.config.pit_stream.window_ms),
+                ring.clone(),
                 self.cancel.clone(),
             )));
+            if let Some(requests) = self.mqtt.history_requests.take() {
+                tokio::spawn(crate::pit::history::serve(
+                    self.mqtt.publisher.clone(),
+                    ring,
+                    self.counters.clone(),
+                    crate::pit::history::Settings {
+                        car_prefix: self.config.topic_prefix(),
+                        bytes_per_s: self.config.pit_stream.history_kbit_s * 1000 / 8,
+                    },
+                    requests,
+                    self.cancel.clone(),
+                ));
+            }
         }
         let mut raw_writer = None;
         if let Some((writer, blocks)) = self.raw_log {

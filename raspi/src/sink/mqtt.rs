@@ -86,7 +86,57 @@ pub enum Driver {
     /// publisher disconnects.
     Embedded(Box<EmbeddedDriver>),
     /// The rumqttc event loop.
-    Remote(Box<EventLoop>),
+    Remote(Box<RemoteDriver>),
+}
+
+/// Where the connection hands what arrives on one topic filter (the pits' history
+/// requests): a bounded queue; what does not fit is dropped, counted in `history_refused`.
+pub struct Intake {
+    pub filter: String,
+    pub sender: tokio::sync::mpsc::Sender<Vec<u8>>,
+    pub counters: Arc<Counters>,
+}
+
+impl Intake {
+    fn deliver(&self, payload: &[u8]) {
+        if self.sender.try_send(payload.to_vec()).is_err() {
+            let count = Counters::bump(&self.counters.history_refused);
+            if worth_logging(count) {
+                warn!(
+                    count,
+                    "history requests arrive faster than they are served: refused"
+                );
+            }
+        }
+    }
+}
+
+impl Driver {
+    /// Subscribes the connection to `intake.filter` and hands what arrives there to it.
+    pub fn with_intake(self, intake: Intake) -> Self {
+        match self {
+            Self::Embedded(mut driver) => {
+                if let Ok(mut link) = driver.link.lock()
+                    && let Err(error) = link.tx.subscribe(intake.filter.clone())
+                {
+                    warn!(%error, filter = %intake.filter, "could not subscribe");
+                }
+                driver.intake = Some(intake);
+                Self::Embedded(driver)
+            }
+            Self::Remote(mut driver) => {
+                driver.intake = Some(intake);
+                Self::Remote(driver)
+            }
+        }
+    }
+}
+
+/// The rumqttc event loop, and the client to subscribe with after each connection.
+pub struct RemoteDriver {
+    eventloop: EventLoop,
+    client: AsyncClient,
+    intake: Option<Intake>,
 }
 
 /// A publisher into the embedded broker over its in-process `link`; should the broker drop
@@ -114,6 +164,7 @@ pub fn embedded(
             spares,
             closed,
             health,
+            intake: None,
         })),
     )
 }
@@ -126,6 +177,7 @@ pub struct EmbeddedDriver {
     spares: Vec<broker::Link>,
     closed: Arc<tokio::sync::Notify>,
     health: Arc<Health>,
+    intake: Option<Intake>,
 }
 
 /// A publisher to the broker `config` names, over TCP (TLS when `config.tls_ca` names the
@@ -158,8 +210,12 @@ pub fn connect(
     network.set_tcp_nodelay(true);
     eventloop.set_network_options(network);
     Ok((
-        Publisher::new(Connection::Remote(client), prefix, counters),
-        Driver::Remote(Box::new(eventloop)),
+        Publisher::new(Connection::Remote(client.clone()), prefix, counters),
+        Driver::Remote(Box::new(RemoteDriver {
+            eventloop,
+            client,
+            intake: None,
+        })),
     ))
 }
 
@@ -178,17 +234,34 @@ pub async fn drive(driver: Driver, connected_tx: tokio::sync::watch::Sender<bool
             loop {
                 tokio::select! {
                     () = driver.closed.notified() => return,
-                    received = driver.rx.next() => if received.is_err() && !driver.replace() {
-                        return;
+                    received = driver.rx.next() => match received {
+                        Ok(Some(rumqttd::Notification::Forward(forward))) => {
+                            if let Some(intake) = &driver.intake {
+                                intake.deliver(&forward.publish.payload);
+                            }
+                        }
+                        // The router paused forwarding (the link's buffer filled): resume.
+                        Ok(Some(rumqttd::Notification::Unschedule)) => {
+                            let _ = driver.rx.ready();
+                        }
+                        Ok(_) => {}
+                        Err(_) => if !driver.replace() {
+                            return;
+                        },
                     },
                 }
             }
         }
-        Driver::Remote(eventloop) => drive_remote(*eventloop, connected_tx).await,
+        Driver::Remote(driver) => drive_remote(*driver, connected_tx).await,
     }
 }
 
-async fn drive_remote(mut eventloop: EventLoop, connected_tx: tokio::sync::watch::Sender<bool>) {
+async fn drive_remote(driver: RemoteDriver, connected_tx: tokio::sync::watch::Sender<bool>) {
+    let RemoteDriver {
+        mut eventloop,
+        client,
+        intake,
+    } = driver;
     let mut connected = false;
     let mut closing = false;
     loop {
@@ -197,6 +270,17 @@ async fn drive_remote(mut eventloop: EventLoop, connected_tx: tokio::sync::watch
                 connected = true;
                 let _ = connected_tx.send(true);
                 info!("connected to the MQTT broker");
+                // A clean session forgets subscriptions: subscribe on every connection.
+                if let Some(intake) = &intake
+                    && let Err(error) = client.try_subscribe(&intake.filter, QoS::AtMostOnce)
+                {
+                    warn!(%error, filter = %intake.filter, "could not subscribe");
+                }
+            }
+            Ok(Event::Incoming(Packet::Publish(publish))) => {
+                if let Some(intake) = &intake {
+                    intake.deliver(&publish.payload);
+                }
             }
             Ok(Event::Outgoing(rumqttc::Outgoing::Disconnect)) => closing = true,
             Ok(_) => {}
@@ -226,6 +310,11 @@ impl EmbeddedDriver {
         if let Ok(mut link) = self.link.lock() {
             link.tx = spare.tx;
             link.held = None;
+            if let Some(intake) = &self.intake
+                && let Err(error) = link.tx.subscribe(intake.filter.clone())
+            {
+                warn!(%error, filter = %intake.filter, "could not subscribe the spare link");
+            }
         }
         self.rx = spare.rx;
         self.health.mqtt.failed(&format!(
@@ -282,6 +371,18 @@ impl Publisher {
             }
         };
         self.send(topic, payload, false, false);
+    }
+
+    /// True while the broker's queue is less than half full: what can wait (history for a
+    /// pit) waits for this, so it never takes the live records' room. Always true for a
+    /// broker elsewhere (its client's queue is not visible).
+    pub fn has_room(&self) -> bool {
+        match &self.connection {
+            Connection::Embedded(link, _) => link
+                .lock()
+                .is_ok_and(|link| link.tx.buffer().len() < link.queue / 2),
+            Connection::Remote(_) => true,
+        }
     }
 
     /// Hands every published record to the broker now.

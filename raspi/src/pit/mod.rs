@@ -2,13 +2,16 @@
 //! received, packets the kernel reassembled) is copied to a task that batches it over a short
 //! window and publishes each batch on `aer-pit/<car>/stream` ([`aer_host::pit_stream::topic`]).
 //! Ingest never waits on it: a full queue drops the input from the stream only (counted in
-//! `pit_dropped`; the raw log and the store keep it).
+//! `pit_dropped`; the raw log and the store keep it). Each published batch is also kept for
+//! pits that missed it ([`history`]).
+
+pub mod history;
 
 use crate::sink::mqtt::Publisher;
 use crate::source::Input;
 use aer_host::counters::{Counters, worth_logging};
 use aer_host::pit_stream::{BatchEncoder, MAX_BATCH_PAYLOAD};
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 use std::time::Duration;
 use tokio::sync::mpsc::{Receiver, Sender, error::TrySendError};
 use tokio_util::sync::CancellationToken;
@@ -103,6 +106,7 @@ struct Batcher {
     buses: Vec<Arc<str>>,
     current: Option<BatchEncoder>,
     number: u32,
+    ring: Arc<Mutex<history::Ring>>,
 }
 
 impl Batcher {
@@ -144,20 +148,26 @@ impl Batcher {
         if batch.items() == 0 {
             return;
         }
-        self.publisher.publish_bytes(&self.topic, batch.finish());
+        let (number, last_us) = (batch.number(), batch.last_us());
+        let message = batch.finish();
+        if let Ok(mut ring) = self.ring.lock() {
+            ring.push(number, last_us, Arc::from(message.as_slice()));
+        }
+        self.publisher.publish_bytes(&self.topic, message);
         Counters::bump(&self.counters.pit_batches);
         self.number = self.number.wrapping_add(1);
     }
 }
 
-/// Batches `inputs` every `window` and publishes them on `topic` until the tap is dropped
-/// (then the last batch goes out) or `cancel` fires.
+/// Batches `inputs` every `window` and publishes them on `topic` (keeping each in `ring`)
+/// until the tap is dropped (then the last batch goes out) or `cancel` fires.
 pub async fn run(
     publisher: Publisher,
     topic: String,
     counters: Arc<Counters>,
     mut inputs: Receiver<Vec<Input>>,
     window: Duration,
+    ring: Arc<Mutex<history::Ring>>,
     cancel: CancellationToken,
 ) {
     let mut batcher = Batcher {
@@ -167,6 +177,7 @@ pub async fn run(
         buses: Vec::new(),
         current: None,
         number: 0,
+        ring,
     };
     let mut tick = tokio::time::interval(window);
     tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
