@@ -273,6 +273,35 @@ async fn a_replayed_session_reaches_the_dashboard_intact() {
     drop(stop);
 }
 
+/// The Pi service as a fed pipeline, its broker on `port`: the pipeline, its counters and
+/// its input.
+async fn fed_pi(dir: &Path, port: u16) -> (Pipeline, Arc<Counters>, aer_raspi::source::Sender) {
+    let mut pipeline = Pipeline::start(service_config(dir, port), Job::Fed)
+        .await
+        .expect("the Pi service starts");
+    let counters = pipeline.counters();
+    let input = pipeline.input().expect("a fed pipeline's input");
+    (pipeline, counters, input)
+}
+
+/// The dashboard of `config` on the broker at `port`, connected: its link's updates and its
+/// model.
+async fn connected_dashboard(
+    config: &Config,
+    port: u16,
+) -> (
+    impl iced::futures::Stream<Item = Event> + Unpin + use<>,
+    Dashboard,
+) {
+    let mut settings = Settings::from_config(config);
+    settings.port = port;
+    let mut updates = Box::pin(link::stream(settings));
+    started(&mut updates).await;
+    let mut model = Dashboard::new(config);
+    until_connected(&mut updates, &mut model).await;
+    (updates, model)
+}
+
 /// The dashboard's default: the compact stream. The Pi service replays the bundled session;
 /// the dashboard's link, subscribed to `aer/car1/stream` only, gets every telemetry packet in
 /// order with the values the generated decoder reads from the log, and every CAN message the
@@ -282,20 +311,10 @@ async fn the_compact_stream_carries_the_whole_session_to_the_dashboard() {
     let expected = session::load(BUNDLED_SESSION, "car1");
     let dir = tempfile::tempdir().expect("temp dir");
     let port = free_port();
-    let mut pipeline = Pipeline::start(service_config(dir.path(), port), Job::Fed)
-        .await
-        .expect("the Pi service starts");
-    let counters = pipeline.counters();
-    let input = pipeline.input().expect("a fed pipeline's input");
-
+    let (pipeline, counters, input) = fed_pi(dir.path(), port).await;
     let config = Config::default();
     assert_eq!(config.link.stream, StreamFormat::Compact, "the default");
-    let mut settings = Settings::from_config(&config);
-    settings.port = port;
-    let mut updates = Box::pin(link::stream(settings));
-    started(&mut updates).await;
-    let mut model = Dashboard::new(&config);
-    until_connected(&mut updates, &mut model).await;
+    let (mut updates, mut model) = connected_dashboard(&config, port).await;
 
     // The session through the service while the dashboard reads, as at the track.
     let (stop, running, replaying) = run_and_replay(pipeline, &input, &counters);
@@ -390,20 +409,9 @@ async fn after_a_dropout_the_pit_fetches_what_it_missed() {
     let expected = session::load(BUNDLED_SESSION, "car1");
     let dir = tempfile::tempdir().expect("temp dir");
     let port = free_port();
-    let mut pipeline = Pipeline::start(service_config(dir.path(), port), Job::Fed)
-        .await
-        .expect("the Pi service starts");
-    let counters = pipeline.counters();
-    let input = pipeline.input().expect("a fed pipeline's input");
+    let (pipeline, counters, input) = fed_pi(dir.path(), port).await;
     let radio = radio_to(port).await;
-
-    let config = Config::default();
-    let mut settings = Settings::from_config(&config);
-    settings.port = radio.port;
-    let mut updates = Box::pin(link::stream(settings));
-    started(&mut updates).await;
-    let mut model = Dashboard::new(&config);
-    until_connected(&mut updates, &mut model).await;
+    let (mut updates, mut model) = connected_dashboard(&Config::default(), radio.port).await;
 
     let (stop, stopped) = tokio::sync::oneshot::channel::<()>();
     let running = tokio::spawn(async move {
