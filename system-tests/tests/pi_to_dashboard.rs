@@ -105,6 +105,16 @@ fn run_and_replay(
     Running,
     tokio::task::JoinHandle<()>,
 ) {
+    let (stop, running) = run_until_stopped(pipeline);
+    let replaying = {
+        let (input, counters) = (input.clone(), counters.clone());
+        tokio::spawn(async move { feed(BUNDLED_SESSION, &input, &counters).await })
+    };
+    (stop, running, replaying)
+}
+
+/// Runs `pipeline` until the returned sender is dropped.
+fn run_until_stopped(pipeline: Pipeline) -> (tokio::sync::oneshot::Sender<()>, Running) {
     let (stop, stopped) = tokio::sync::oneshot::channel::<()>();
     let running = tokio::spawn(async move {
         pipeline
@@ -114,11 +124,7 @@ fn run_and_replay(
             .await
             .map_err(Into::into)
     });
-    let replaying = {
-        let (input, counters) = (input.clone(), counters.clone());
-        tokio::spawn(async move { feed(BUNDLED_SESSION, &input, &counters).await })
-    };
-    (stop, running, replaying)
+    (stop, running)
 }
 
 /// The loopback listener's connection settings with the pit's username and password.
@@ -413,14 +419,7 @@ async fn after_a_dropout_the_pit_fetches_what_it_missed() {
     let radio = radio_to(port).await;
     let (mut updates, mut model) = connected_dashboard(&Config::default(), radio.port).await;
 
-    let (stop, stopped) = tokio::sync::oneshot::channel::<()>();
-    let running = tokio::spawn(async move {
-        pipeline
-            .run(async {
-                let _ = stopped.await;
-            })
-            .await
-    });
+    let (stop, running) = run_until_stopped(pipeline);
     let lines: Vec<&str> = BUNDLED_SESSION.lines().collect();
     // Each part ends where a telemetry packet's first frame begins: each feed is a replay of
     // its own, and a packet cut between two would be an ISO-TP error at the Pi already.
