@@ -76,6 +76,8 @@ cp tools/virtual_pi/scenarios.py raspi/data/session.log tools/xcp_scenarios.py g
 dpkg-deb --fsys-tarfile "$(ls "$out"/aer-dashboard_*_amd64.deb)" | tar -xO ./usr/bin/aer-dashboard \
   > "$root/root/virtual-pi/aer-dashboard"
 chmod 755 "$root/root/virtual-pi/aer-dashboard"
+# The radio's conditions: the 30 s outage (CI), or every one (AER_VIRTUAL_PI_RADIO=all).
+echo "${AER_VIRTUAL_PI_RADIO:-ci}" > "$root/root/virtual-pi/radio"
 tls="$root/root/virtual-pi/tls"
 mkdir -p "$tls"
 openssl req -x509 -newkey ec -pkeyopt ec_paramgen_curve:P-256 -nodes -days 30 \

@@ -22,6 +22,9 @@ const AFTER_REFUSAL: u32 = 20;
 /// Live batches without a word of the answer before the request counts as lost (it went
 /// at QoS 0) and is sent again.
 const ANSWER_WAIT: u32 = 50;
+/// The Pi's metrics (one a second) in a row without a live batch before a tail they show is
+/// asked for: over a slow radio a batch may still be on its way when the metrics overtake it.
+const QUIET_METRICS: u32 = 3;
 
 /// A run of missing batches.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -65,8 +68,8 @@ pub struct Backfill {
     quiet: u32,
     /// The end of the highest range asked for (what is below it is not asked again).
     asked_to: u32,
-    /// A live batch arrived since the Pi's last metrics.
-    live_since_metrics: bool,
+    /// The Pi's metrics in a row without a live batch.
+    quiet_metrics: u32,
     recovered: u64,
     not_held: u64,
     /// History batches that were not what was asked (a duplicate, another numbering).
@@ -90,7 +93,7 @@ impl Backfill {
             refused: false,
             quiet: 0,
             asked_to: 0,
-            live_since_metrics: false,
+            quiet_metrics: 0,
             recovered: 0,
             not_held: 0,
             unexpected: 0,
@@ -143,7 +146,7 @@ impl Backfill {
             (Some(_), None) => {}
         }
         self.newest = Some(batch);
-        self.live_since_metrics = true;
+        self.quiet_metrics = 0;
         self.since_refusal = self.since_refusal.saturating_add(1);
         if self.asking.is_some() {
             self.quiet += 1;
@@ -155,15 +158,15 @@ impl Backfill {
     }
 
     /// The Pi's metrics (every second) say it has published `published` batches. When no
-    /// live batch came since the previous metrics and the newest held is not the last
+    /// live batch came for [`QUIET_METRICS`] of them and the newest held is not the last
     /// published, the tail is missing: a dropout that lasted past the session's end leaves no
     /// later batch to show the gap. `now_us` is the wall clock.
     pub fn published(&mut self, published: u64, now_us: u64) -> Option<Vec<u8>> {
-        let quiet = !std::mem::replace(&mut self.live_since_metrics, false);
+        self.quiet_metrics = self.quiet_metrics.saturating_add(1);
         let newest = self.newest?;
         let published = u32::try_from(published).ok()?;
         let next = newest.number.saturating_add(1).max(self.asked_to);
-        if !quiet || published <= next {
+        if self.quiet_metrics <= QUIET_METRICS || published <= next {
             return None;
         }
         self.todo.push_back(Gap {
@@ -386,12 +389,10 @@ mod tests {
         let mut backfill = Backfill::new("aer/car1", "pit", 0);
         backfill.live(live(0, None));
         backfill.live(live(1, None));
-        assert_eq!(
-            backfill.published(2, 0),
-            None,
-            "live batches came meanwhile"
-        );
         assert_eq!(backfill.published(2, 0), None, "nothing missing");
+        for _ in 1..QUIET_METRICS {
+            assert_eq!(backfill.published(30, 0), None, "a batch may be on its way");
+        }
         let asked = request(backfill.published(30, 3_000_000));
         assert_eq!((asked.from, asked.to), (1, 30));
         // The live batch after it does not ask for the same again.

@@ -412,15 +412,23 @@ def xcp_on_can():
 
 PIT_PASSWORD = "radio-pit-7c1e"
 PI_ADDRESS = "10.9.0.1"
+PIT = ["ip", "netns", "exec", "pit"]
+# (name, outage s, delay ms each way, loss %): CI runs the first; AER_VIRTUAL_PI_RADIO=all
+# runs every condition the pit link is specified for.
+RADIO_CONDITIONS = [
+    ("30 s outage", 30, 100, 0),
+    ("5 s outage", 5, 100, 0),
+    ("120 s outage", 120, 100, 0),
+    ("50 ms delay", 0, 50, 0),
+    ("300 ms delay", 0, 300, 0),
+    ("1 % loss", 0, 100, 1),
+    ("20 % loss", 0, 100, 20),
+]
 
 
-def pit_radio(want):
-    """The pit as at the track: its dashboard's own link and model (`aer-dashboard follow`,
-    the release binary from the package) in a network namespace behind a veth shaped with
-    netem (250 kbit/s, 100 ms each way), through the service's TLS pit listener with its
-    credentials. The session plays at recorded speed on vcan; 15 s in, the radio drops out
-    for 30 s (link down). The pit must end with every telemetry packet of the session: what
-    the outage missed fetched from the Pi's history."""
+def radio_setup():
+    """The service's TLS pit listener on the radio's address, with credentials, and the pit
+    in a network namespace at the far end of a veth (the radio)."""
     tls = os.path.join(HERE, "tls")
     for name in ("pit.cert.pem", "pit.key.pem"):
         run("install", "-m", "0640", "-g", "aer", os.path.join(tls, name), f"/etc/aer/{name}")
@@ -439,14 +447,26 @@ def pit_radio(want):
     run("ip", "link", "set", "radio-pit", "netns", "pit")
     run("ip", "addr", "add", f"{PI_ADDRESS}/24", "dev", "radio")
     run("ip", "link", "set", "radio", "up")
-    pit = ["ip", "netns", "exec", "pit"]
-    run(*pit, "ip", "addr", "add", "10.9.0.2/24", "dev", "radio-pit")
-    run(*pit, "ip", "link", "set", "radio-pit", "up")
-    run(*pit, "ip", "link", "set", "lo", "up")
-    shape = ["netem", "rate", "250kbit", "delay", "100ms", "limit", "10000"]
-    run("tc", "qdisc", "add", "dev", "radio", "root", *shape)
-    run(*pit, "tc", "qdisc", "add", "dev", "radio-pit", "root", *shape)
+    run(*PIT, "ip", "addr", "add", "10.9.0.2/24", "dev", "radio-pit")
+    run(*PIT, "ip", "link", "set", "radio-pit", "up")
+    run(*PIT, "ip", "link", "set", "lo", "up")
+
+
+def pit_radio(want, name, outage_s, delay_ms, loss_pct):
+    """The pit as at the track: its dashboard's own link and model (`aer-dashboard follow`,
+    the release binary from the package) in the pit's namespace, behind the radio shaped with
+    netem both ways (250 kbit/s, `delay_ms`, `loss_pct`), through the TLS pit listener with
+    its credentials. The session plays at recorded speed on vcan; with `outage_s`, 15 s in,
+    the radio goes down for that long. The pit must end with every telemetry packet of the
+    session: what it missed fetched from the Pi's history."""
+    shape = ["netem", "rate", "250kbit", "delay", f"{delay_ms}ms", "limit", "10000"]
+    if loss_pct:
+        shape += ["loss", f"{loss_pct}%"]
+    run("tc", "qdisc", "replace", "dev", "radio", "root", *shape)
+    run(*PIT, "tc", "qdisc", "replace", "dev", "radio-pit", "root", *shape)
     set_isotp("kernel")
+    # A fresh service per condition: its stream numbered from 0, its history holding only this.
+    run("systemctl", "stop", "aer-raspi")
     if not start_service():
         return
     env = dict(
@@ -455,10 +475,10 @@ def pit_radio(want):
         AER_MQTT_PORT="8883",
         AER_MQTT_USERNAME="pit",
         AER_MQTT_PASSWORD=PIT_PASSWORD,
-        AER_MQTT_TLS_CA=os.path.join(tls, "team-ca.pem"),
+        AER_MQTT_TLS_CA=os.path.join(HERE, "tls", "team-ca.pem"),
     )
     follower = subprocess.Popen(
-        [*pit, os.path.join(HERE, "aer-dashboard"), "follow", "--packets", str(want[0]), "--timeout-s", "400"],
+        [*PIT, os.path.join(HERE, "aer-dashboard"), "follow", "--packets", str(want[0]), "--timeout-s", "500"],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
     )
     connected = wait_for(
@@ -466,18 +486,19 @@ def pit_radio(want):
         lambda: run("ss", "-Htn", "state", "established", "( sport = :8883 )").strip(),
         60,
     )
-    if not check("the pit connects over the radio (TLS, credentials)", bool(connected)):
+    if not check(f"radio, {name}: the pit connects (TLS, credentials)", bool(connected)):
         follower.kill()
         return
     sent_before = int(open("/sys/class/net/radio/statistics/tx_bytes").read())
     player = subprocess.Popen(["canplayer", "-I", LOG])
     began = time.monotonic()
-    wait_for("15 s of the session", lambda: time.monotonic() - began >= 15, 30)
-    run("ip", "link", "set", "radio", "down")
-    wait_for("a 30 s outage", lambda: time.monotonic() - began >= 45, 60)
-    run("ip", "link", "set", "radio", "up")
-    player.wait(timeout=120)
-    out, err = follower.communicate(timeout=500)
+    if outage_s:
+        wait_for("15 s of the session", lambda: time.monotonic() - began >= 15, 30)
+        run("ip", "link", "set", "radio", "down")
+        wait_for("the outage", lambda: time.monotonic() - began >= 15 + outage_s, outage_s + 30)
+        run("ip", "link", "set", "radio", "up")
+    player.wait(timeout=300)
+    out, err = follower.communicate(timeout=600)
     sent = int(open("/sys/class/net/radio/statistics/tx_bytes").read()) - sent_before
     elapsed = time.monotonic() - began
     try:
@@ -485,20 +506,30 @@ def pit_radio(want):
     except (json.JSONDecodeError, IndexError):
         for line in err.splitlines()[-20:]:
             say(f"  follow (stderr): {line}")
-        check("the pit's report", False, out[-300:])
+        check(f"radio, {name}: the pit's report", False, out[-300:])
         return
     say(
-        f"  radio: {sent * 8 / elapsed / 1000:.1f} kbit/s to the pit over {elapsed:.0f} s; "
+        f"  radio, {name}: {sent * 8 / elapsed / 1000:.1f} kbit/s to the pit over {elapsed:.0f} s; "
         f"live latency p50 {report['latency_p50_ms']:.0f} ms, p99 {report['latency_p99_ms']:.0f} ms; "
-        f"catch-up after the outage {report['catch_up_s']} s; {report['recovered']} batches "
-        f"({report['backfilled']} packets) from history, {report['stream_gaps']} missed live"
+        f"catch-up after the outage {[round(s, 1) for s in report['catch_up_s']]} s; "
+        f"{report['recovered']} batches ({report['backfilled']} packets) from history, "
+        f"{report['stream_gaps']} missed live, {report['dropouts']} dropouts"
     )
     check(
-        "after a 30 s outage at 250 kbit/s the pit holds every telemetry packet",
+        f"radio, {name}: the pit holds every telemetry packet of the session",
         report["whole"] and report["packets"] == want[0] and report["not_held"] == 0,
         f"{report['packets']} of {want[0]}",
     )
-    check("the outage's gap came from the Pi's history", report["backfilled"] > 0, str(report["backfilled"]))
+    if outage_s:
+        check(f"radio, {name}: the outage's gap came from the Pi's history", report["backfilled"] > 0,
+              str(report["backfilled"]))
+
+
+def pit_radio_conditions(want):
+    radio_setup()
+    which = open(os.path.join(HERE, "radio")).read().strip()
+    for condition in RADIO_CONDITIONS if which == "all" else RADIO_CONDITIONS[:1]:
+        pit_radio(want, *condition)
     stop("SIGTERM")
 
 
@@ -523,7 +554,7 @@ def main():
     flood_and_error_storm(short, part)
     disk_smaller_than_floor(short, part)
     xcp_on_can()
-    pit_radio(whole)
+    pit_radio_conditions(whole)
     journal = run("journalctl", "-u", "aer-raspi", "-b", "--no-pager", "-o", "cat")
     check("no refused system call in the journal", "SIGSYS" not in journal and "Operation not permitted" not in journal)
     if failures:
