@@ -112,6 +112,16 @@ impl Backfill {
 
     /// A live batch arrived; the request to publish now, if any.
     pub fn live(&mut self, batch: Received) -> Option<Vec<u8>> {
+        if self
+            .newest
+            .is_some_and(|newest| batch.number < newest.number)
+        {
+            // The Pi restarted (numbering from 0): what was asked of the old numbering is
+            // gone with its memory, and the new numbering is asked for afresh.
+            self.todo.clear();
+            self.asking = None;
+            self.asked_to = 0;
+        }
         match (self.newest, batch.missed_from) {
             (None, _) => {
                 self.span_start_us = Some(batch.first_us);
@@ -158,7 +168,7 @@ impl Backfill {
     }
 
     /// The Pi's metrics (every second) say it has published `published` batches. When no
-    /// live batch came for [`QUIET_METRICS`] of them and the newest held is not the last
+    /// live batch came for `QUIET_METRICS` (3) of them and the newest held is not the last
     /// published, the tail is missing: a dropout that lasted past the session's end leaves no
     /// later batch to show the gap. `now_us` is the wall clock.
     pub fn published(&mut self, published: u64, now_us: u64) -> Option<Vec<u8>> {
@@ -404,6 +414,18 @@ mod tests {
         // Only the batches past the tail's range (one more before, for a packet across).
         let next = request(backfill.history("t", &done.to_json(), &mut Vec::new()));
         assert_eq!((next.from, next.to), (29, 32));
+    }
+
+    /// A restarted Pi numbers from 0 again: gaps in the new numbering are asked for, not
+    /// taken for ranges asked of the old one.
+    #[test]
+    fn a_restarted_pi_is_asked_afresh() {
+        let mut backfill = Backfill::new("aer/car1", "pit", 0);
+        backfill.live(live(500, None));
+        request(backfill.live(live(600, Some(501))));
+        assert_eq!(backfill.live(live(0, None)), None, "a restart, not a gap");
+        let asked = request(backfill.live(live(20, Some(1))));
+        assert_eq!((asked.from, asked.to), (0, 21));
     }
 
     #[test]

@@ -122,10 +122,15 @@ pub struct Dashboard {
     record: Option<SessionRecord>,
     lap_length_m: Option<f64>,
     last_merge: Option<Instant>,
+    /// How long the last replay took.
+    replay_took: Duration,
 }
 
 /// History is merged at most this often while it flows (each merge replays the session).
 const MERGE_EVERY: Duration = Duration::from_secs(1);
+/// ... and a long session's replay takes at most this share of the time while it flows, so
+/// the screen stays responsive (an hour at 100 Hz replays in about a second).
+const MERGE_SHARE: u32 = 10;
 
 impl Dashboard {
     /// An empty dashboard for the car's telemetry, set up from `config`.
@@ -156,6 +161,7 @@ impl Dashboard {
                 .then(SessionRecord::default),
             lap_length_m: config.display.lap_length_m,
             last_merge: None,
+            replay_took: Duration::ZERO,
         }
     }
 
@@ -187,16 +193,17 @@ impl Dashboard {
     }
 
     /// Merges the history that arrived into the plots, the fault history and the lap times
-    /// (at most every [`MERGE_EVERY`] while it flows; at once when it has caught up). Call it
-    /// after taking updates.
+    /// (at most every second while it flows, less often for a long session; at once when it
+    /// has caught up). Call it after taking updates.
     pub fn settle(&mut self, now: Instant) {
         let Some(record) = &mut self.record else {
             return;
         };
         let catching_up = self.health.backfill.is_some_and(|b| b.catching_up);
+        let every = MERGE_EVERY.max(self.replay_took * MERGE_SHARE);
         let due = self
             .last_merge
-            .is_none_or(|last| now.saturating_duration_since(last) >= MERGE_EVERY);
+            .is_none_or(|last| now.saturating_duration_since(last) >= every);
         if !record.has_pending() || (catching_up && !due) {
             return;
         }
@@ -204,7 +211,9 @@ impl Dashboard {
         let added = record.merge();
         self.health.backfilled += added as u64;
         if added > 0 {
+            let started = Instant::now();
             self.replay();
+            self.replay_took = started.elapsed();
         }
     }
 
