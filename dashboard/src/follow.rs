@@ -34,6 +34,10 @@ pub struct Report {
     pub catch_up_s: Vec<f64>,
     /// Seconds followed.
     pub followed_s: f64,
+    /// How far behind the Pi's gate saw this client at worst, by its status each second
+    /// (ms), and the live messages it dropped for it (the newest were sent instead).
+    pub gate_lag_max_ms: u64,
+    pub gate_dropped: u64,
 }
 
 /// Follows the car `config` describes until `packets` are held and nothing is being caught
@@ -73,6 +77,10 @@ pub async fn follow(config: &Config, packets: usize, timeout: Duration) -> Repor
         }
         model.apply(update, at);
         model.settle(at);
+        if let Some(served) = model.health().served() {
+            report.gate_lag_max_ms = report.gate_lag_max_ms.max(served.lag_ms);
+            report.gate_dropped = report.gate_dropped.max(served.dropped);
+        }
         let catching_up = model.health().backfill.is_some_and(|b| b.catching_up);
         if let Some(back) = back_at {
             if catching_up {

@@ -239,6 +239,14 @@ pub fn stream(settings: Settings) -> impl Stream<Item = Event> {
                 return;
             }
         };
+        let identity = Update::Identity(client_id.clone());
+        if output
+            .send(Event::Update(Instant::now(), identity))
+            .await
+            .is_err()
+        {
+            return;
+        }
         let mut backfill = (settings.format == StreamFormat::Compact)
             .then(|| Backfill::new(&settings.prefix, &client_id, settings.join_history_s));
         let mut base = settings.topics().to_vec();

@@ -166,7 +166,57 @@ fn pi_status(telemetry_fingerprint: u32, firmware_ok: Option<bool>) -> Update {
         message_health: Default::default(),
         bus_traffic: Default::default(),
         message_rates: Default::default(),
+        mqtt_clients: Default::default(),
     }))
+}
+
+#[test]
+fn the_link_panel_shows_how_far_behind_the_pi_serves_this_pit_and_the_pis_problems() {
+    let t0 = Instant::now();
+    let mut config = Config::default();
+    config.display.view = View::Pit;
+    let mut app = App::new(&config, t0);
+    app.update(Message::Link(
+        t0,
+        Update::Identity("aer-dashboard-7".into()),
+    ));
+    app.update(Message::Link(t0, Update::Connected));
+    let client = |id: &str, lag_ms: u64, dropped: u64| aer_host::status::MqttClient {
+        client_id: id.into(),
+        listener: "v4-pit".into(),
+        protocol: "3.1.1".into(),
+        lag_ms,
+        queued_bytes: 48_000,
+        dropped,
+    };
+    let clients = vec![
+        client("aer-dashboard-7", 2_100, 312),
+        client("grafana", 0, 0),
+    ];
+    let recent = [40, 0];
+    let Update::Status(mut status) = pi_status(aer::telemetry::TELEMETRY_FINGERPRINT, Some(true))
+    else {
+        unreachable!("pi_status makes a status");
+    };
+    status.problems.mqtt_clients = aer_host::status::clients_behind(&clients, &recent);
+    status.mqtt_clients = clients;
+    app.update(Message::Link(t0, Update::Status(status)));
+    assert!(shows_part(
+        &app,
+        "Pi to here: 2.1 s behind   312 live messages dropped   48 kB waiting   MQTT 3.1.1 on `v4-pit`   1 other clients"
+    ));
+    assert!(shows_part(
+        &app,
+        "Pi problem, MQTT clients: MQTT clients not keeping up"
+    ));
+    assert!(shows_part(
+        &app,
+        "`aer-dashboard-7` (v4-pit) 2.1 s behind, 40 messages dropped"
+    ));
+    assert!(
+        !shows_part(&app, "`grafana`"),
+        "a client keeping up is no problem"
+    );
 }
 
 #[test]

@@ -124,6 +124,9 @@ counters! {
     mqtt_refused,
     /// Broker clients disconnected for not reading what they subscribed to.
     mqtt_slow_clients,
+    /// Live messages the gate dropped for clients that could not keep up (each got the
+    /// newest instead; the status names the clients).
+    mqtt_client_dropped,
 }
 
 /// What went wrong with one message's frames, as the status reports it.

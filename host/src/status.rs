@@ -49,6 +49,78 @@ pub struct Status {
         String,
         std::collections::BTreeMap<String, crate::traffic::MessageRate>,
     >,
+    /// The clients connected through the gate (embedded broker only), each with how far
+    /// behind it is.
+    #[serde(default)]
+    pub mqtt_clients: Vec<MqttClient>,
+}
+
+/// One MQTT client as the gate serves it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct MqttClient {
+    /// The client id it connected with.
+    pub client_id: String,
+    /// The listener it came through (`pit`, `local`, ...).
+    pub listener: String,
+    /// `3.1.1` or `5`.
+    pub protocol: String,
+    /// How long the oldest message the gate holds for it has waited (0: it is keeping up).
+    /// The gate drops live messages older than its bound, so this stays about that bound
+    /// for a client that cannot keep up.
+    pub lag_ms: u64,
+    /// What the gate holds for it now (bytes).
+    pub queued_bytes: u64,
+    /// Live messages dropped for it since it connected (newest data first: a pit fetches
+    /// them from the Pi's history).
+    pub dropped: u64,
+}
+
+impl Problems {
+    /// Each problem there is, with the part's name.
+    pub fn named(&self) -> Vec<(&'static str, &str)> {
+        [
+            ("store", &self.store),
+            ("store recovered", &self.store_recovered),
+            ("raw log", &self.raw_log),
+            ("disk", &self.disk),
+            ("TDengine", &self.forward),
+            ("TDengine refused", &self.forward_refused),
+            ("MQTT", &self.mqtt),
+            ("CAN", &self.can),
+            ("firmware", &self.firmware),
+            ("MQTT clients", &self.mqtt_clients),
+        ]
+        .into_iter()
+        .filter_map(|(part, problem)| problem.as_deref().map(|p| (part, p)))
+        .collect()
+    }
+}
+
+/// A client this far behind (or losing messages) is a problem the status names.
+pub const CLIENT_BEHIND_MS: u64 = 1_000;
+
+/// The problem line for clients behind, `None` while every client keeps up.
+pub fn clients_behind(clients: &[MqttClient], dropped_since_last: &[u64]) -> Option<String> {
+    let behind: Vec<String> = clients
+        .iter()
+        .zip(dropped_since_last.iter().chain(std::iter::repeat(&0)))
+        .filter(|(client, dropped)| client.lag_ms >= CLIENT_BEHIND_MS || **dropped > 0)
+        .map(|(client, dropped)| {
+            format!(
+                "`{}` ({}) {:.1} s behind, {dropped} messages dropped in the last second",
+                client.client_id,
+                client.listener,
+                client.lag_ms as f64 / 1000.0
+            )
+        })
+        .collect();
+    (!behind.is_empty()).then(|| {
+        format!(
+            "MQTT clients not keeping up (served the newest data; a pit fetches the rest from \
+             history): {}",
+            behind.join("; ")
+        )
+    })
 }
 
 /// What is failing in the service, part by part (`None`: working).
@@ -77,6 +149,10 @@ pub struct Problems {
     /// packets are of another schema.
     #[serde(default)]
     pub firmware: Option<String>,
+    /// MQTT clients behind by a second or more, or losing live messages (their link is
+    /// slower than what they subscribed to).
+    #[serde(default)]
+    pub mqtt_clients: Option<String>,
 }
 
 /// The ingest service's counters, published every second.
@@ -135,6 +211,7 @@ pub fn status(car_id: &str, counters: &Counters, problems: Problems) -> Status {
             .unwrap_or_default(),
         bus_traffic,
         message_rates,
+        mqtt_clients: Vec::new(),
     }
 }
 

@@ -99,8 +99,9 @@ impl Health {
             forward_refused: self.forward_refused.error(),
             mqtt: self.mqtt.error(),
             can: self.can.error(),
-            // The status fills it from what the ingest counted.
+            // The status fills these from what the ingest counted and what the gate measures.
             firmware: None,
+            mqtt_clients: None,
         }
     }
 }

@@ -1,11 +1,13 @@
 //! The service's own topics, every second: the retained status (which schema it decodes,
 //! which the firmware sends, when data last came) and the metrics (every counter, packet
-//! rate, store lag); in the demo also a console line.
+//! rate, store lag), with the clients the gate serves and how far behind each is; in the demo
+//! also a console line.
 
+use crate::broker::gate::Clients;
 use crate::health::Health;
 use crate::sink::mqtt::Publisher;
 use aer_host::counters::Counters;
-use aer_host::status::{METRICS, STATUS, metrics, status};
+use aer_host::status::{METRICS, STATUS, clients_behind, metrics, status};
 use std::sync::Arc;
 use std::time::Duration;
 use tokio_util::sync::CancellationToken;
@@ -16,6 +18,7 @@ pub async fn run(
     car_id: String,
     counters: Arc<Counters>,
     health: Arc<Health>,
+    clients: Option<Arc<Clients>>,
     cancel: CancellationToken,
     console: bool,
 ) {
@@ -28,7 +31,12 @@ pub async fn run(
         }
         let now = counters.snapshot();
         let metrics = metrics(now, previous);
-        let status = status(&car_id, &counters, health.problems());
+        let mut status = status(&car_id, &counters, health.problems());
+        if let Some(clients) = &clients {
+            let (served, recent_drops): (Vec<_>, Vec<_>) = clients.snapshot().into_iter().unzip();
+            status.problems.mqtt_clients = clients_behind(&served, &recent_drops);
+            status.mqtt_clients = served;
+        }
         // The next status measures the next second's traffic.
         if let Ok(mut traffic) = counters.traffic.lock() {
             traffic.restart();

@@ -1,5 +1,6 @@
 //! The broker's gate against clients that misbehave: spoofing the car's topics, taking the
-//! service's client id, subscribing and never reading, and TLS on a network listener.
+//! service's client id, subscribing and never reading or reading too slowly, TLS on a network
+//! listener; and MQTT 5 clients served with the same rules as 3.1.1.
 
 use aer_host::counters::Counters;
 use aer_raspi::broker::{self, packet};
@@ -28,6 +29,7 @@ struct Service {
     broker_address: std::net::SocketAddr,
     broker_password: String,
     service_id: String,
+    clients: Arc<broker::gate::Clients>,
 }
 
 /// The service's broker (the shipped configuration on a free port, `edit`ed) with its
@@ -45,6 +47,7 @@ async fn service(edit: impl FnOnce(&mut broker::BrokerConfig)) -> Service {
     let (broker_address, broker_password) =
         (broker.gate.broker, broker.gate.broker_password.clone());
     let service_id = broker.service_id.clone();
+    let clients = broker.clients.clone().expect("the gate started");
     let (publisher, driver) = publish::embedded(
         broker.link,
         broker.spares,
@@ -64,6 +67,7 @@ async fn service(edit: impl FnOnce(&mut broker::BrokerConfig)) -> Service {
         broker_address,
         broker_password,
         service_id,
+        clients,
     }
 }
 
@@ -251,6 +255,7 @@ async fn the_services_client_ids_are_refused_and_its_link_survives_a_takeover() 
 async fn connack_code(port: u16, id: &str) -> u8 {
     let mut stream = TcpStream::connect(("127.0.0.1", port)).await.expect("gate");
     let connect = packet::Connect {
+        version: packet::Version::V311,
         client_id: id.into(),
         clean_session: true,
         keep_alive_s: 30,
@@ -314,6 +319,7 @@ async fn a_client_id_the_broker_did_not_acknowledge_is_never_offered_to_it_again
                 listen: ([127, 0, 0, 1], port).into(),
                 auth: None,
                 tls: None,
+                newest_first: true,
             }],
             broker,
             broker_user: "aer-gate".into(),
@@ -323,6 +329,8 @@ async fn a_client_id_the_broker_did_not_acknowledge_is_never_offered_to_it_again
             reserved_ids: "aer-raspi".into(),
             max_clients: 8,
             stall_limit: Duration::from_secs(5),
+            max_lag: Duration::from_secs(2),
+            max_queue_bytes: 1 << 20,
             max_keep_alive_s: 60,
             connack_timeout: Duration::from_millis(300),
         },
@@ -353,6 +361,7 @@ async fn idle_subscriber(port: u16, index: usize) -> Option<TcpStream> {
         .await
         .ok()?;
     let connect = packet::Connect {
+        version: packet::Version::V311,
         client_id: format!("idle-{index}"),
         clean_session: true,
         keep_alive_s: 0,
@@ -461,6 +470,7 @@ async fn network_listeners_speak_tls() {
     let name = rustls::pki_types::ServerName::try_from("localhost").expect("name");
     let mut tls = connector.connect(name, tcp).await.expect("TLS handshake");
     let connect = packet::Connect {
+        version: packet::Version::V311,
         client_id: "pit-laptop".into(),
         clean_session: true,
         keep_alive_s: 30,
@@ -525,76 +535,243 @@ fn paho_python() -> Option<std::path::PathBuf> {
 /// refusal at once, so it stops and says why instead of reconnecting for ever: mosquitto_sub
 /// and paho-mqtt, as people use them. An MQTT 3.1.1 client of either make is served.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn clients_of_other_versions_are_told_so() {
+async fn mqtt_5_is_served_as_3_1_1_is_and_older_versions_are_told_so() {
     let service = service(|_| {}).await;
     let port = service.port.to_string();
-    for (version, expected) in [
-        ("mqttv5", "protocol version"),
-        ("mqttv31", "protocol version"),
-    ] {
-        let output = blocking_output(
-            std::process::Command::new("mosquitto_sub")
-                .args(["-h", "127.0.0.1", "-p", &port, "-V", version])
-                .args(["-t", "aer/car1/status", "-C", "1", "-W", "20"]),
-        )
-        .await;
-        let said = String::from_utf8_lossy(&output.stderr).to_lowercase();
-        assert!(!output.status.success(), "{version}: served?");
-        assert!(said.contains(expected), "{version}: {said}");
-        // Refused at CONNECT, not by the 20 s timeout.
-        assert!(!said.contains("timed out"), "{version}: {said}");
-    }
-    // A retained message, which a served client gets at once.
+    // MQTT 3.1: refused at CONNECT with the code its protocol defines, not by the timeout.
+    let output = blocking_output(
+        std::process::Command::new("mosquitto_sub")
+            .args(["-h", "127.0.0.1", "-p", &port, "-V", "mqttv31"])
+            .args(["-t", "aer/car1/status", "-C", "1", "-W", "20"]),
+    )
+    .await;
+    let said = String::from_utf8_lossy(&output.stderr).to_lowercase();
+    assert!(!output.status.success(), "3.1 served?");
+    assert!(said.contains("protocol version"), "{said}");
+    assert!(!said.contains("timed out"), "{said}");
+    let refused = service.counters.snapshot().mqtt_refused;
+    assert!(refused >= 1);
+
+    // A retained message, which a served client gets at once: both versions get it.
     service
         .publisher
         .publish_json("probe", &serde_json::json!({"served": true}), true);
     service.publisher.flush();
+    for version in ["mqttv5", "mqttv311"] {
+        let output = blocking_output(
+            std::process::Command::new("mosquitto_sub")
+                .args(["-h", "127.0.0.1", "-p", &port, "-V", version])
+                .args(["-t", "aer/car1/probe", "-C", "1", "-W", "20"]),
+        )
+        .await;
+        assert!(output.status.success(), "{version} is served: {output:?}");
+        assert!(String::from_utf8_lossy(&output.stdout).contains("served"));
+    }
+    // An MQTT 5 client's publish reaches a 3.1.1 subscriber (user properties dropped) ...
+    let output = blocking_output(
+        std::process::Command::new("mosquitto_pub")
+            .args([
+                "-h",
+                "127.0.0.1",
+                "-p",
+                &port,
+                "-V",
+                "mqttv5",
+                "-q",
+                "1",
+                "-r",
+            ])
+            .args(["-D", "publish", "user-property", "lap", "3"])
+            .args(["-t", "pit/notes", "-m", "tyres cold"]),
+    )
+    .await;
+    assert!(output.status.success(), "MQTT 5 publish: {output:?}");
     let output = blocking_output(
         std::process::Command::new("mosquitto_sub")
             .args(["-h", "127.0.0.1", "-p", &port, "-V", "mqttv311"])
-            .args(["-t", "aer/car1/probe", "-C", "1", "-W", "20"]),
+            .args(["-t", "pit/notes", "-C", "1", "-W", "20"]),
     )
     .await;
-    assert!(output.status.success(), "3.1.1 is served: {output:?}");
-    assert!(String::from_utf8_lossy(&output.stdout).contains("served"));
-    assert!(service.counters.snapshot().mqtt_refused >= 2);
+    assert_eq!(String::from_utf8_lossy(&output.stdout).trim(), "tyres cold");
+    // ... and under the car's topics it is refused as a 3.1.1 client's is.
+    let _ = blocking_output(
+        std::process::Command::new("mosquitto_pub")
+            .args(["-h", "127.0.0.1", "-p", &port, "-V", "mqttv5"])
+            .args(["-t", "aer/car1/telemetry", "-m", "{\"spoofed\":true}"]),
+    )
+    .await;
+    assert_eq!(service.counters.snapshot().mqtt_refused, refused + 1);
+    assert_eq!(service.clients.snapshot().len(), 0, "every client gone");
 
     let Some(python) = paho_python() else {
         return;
     };
-    // paho's CONNACK reason for each protocol, as its callback reports it.
+    // paho in each version: connects, subscribes (MQTT 5 with options the gate drops) and
+    // gets the retained message.
     let script = r#"
 import sys, threading
 import paho.mqtt.client as mqtt
 port, protocol = int(sys.argv[1]), {"5": mqtt.MQTTv5, "311": mqtt.MQTTv311}[sys.argv[2]]
-done = threading.Event()
+got = threading.Event()
 result = {}
 def on_connect(client, userdata, flags, reason, properties=None):
     result["reason"] = str(reason)
-    result["failure"] = reason.is_failure if hasattr(reason, "is_failure") else reason != 0
-    done.set()
+    if protocol == mqtt.MQTTv5:
+        client.subscribe("aer/car1/probe", options=mqtt.SubscribeOptions(qos=1, noLocal=True))
+    else:
+        client.subscribe("aer/car1/probe", qos=1)
+def on_message(client, userdata, message):
+    result["payload"] = message.payload.decode()
+    got.set()
 client = mqtt.Client(mqtt.CallbackAPIVersion.VERSION2, protocol=protocol)
 client.on_connect = on_connect
+client.on_message = on_message
 client.connect("127.0.0.1", port)
 client.loop_start()
-answered = done.wait(20)
+answered = got.wait(20)
+client.disconnect()
 client.loop_stop()
-print("answered" if answered else "silence", result.get("failure"), result.get("reason"))
+print("received" if answered else "silence", result.get("reason"), result.get("payload"))
 "#;
-    for (protocol, refused) in [("5", true), ("311", false)] {
+    for protocol in ["5", "311"] {
         let output = blocking_output(
             std::process::Command::new(&python).args(["-c", script, &port, protocol]),
         )
         .await;
         let said = String::from_utf8_lossy(&output.stdout);
-        assert!(said.starts_with("answered"), "paho MQTT {protocol}: {said}");
-        assert_eq!(
-            said.contains("True"),
-            refused,
-            "paho MQTT {protocol}: {said}"
+        assert!(
+            said.starts_with("received Success"),
+            "paho MQTT {protocol}: {said} {output:?}"
         );
-        if refused {
-            assert!(said.to_lowercase().contains("protocol version"), "{said}");
+        assert!(said.contains("served"), "paho MQTT {protocol}: {said}");
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_client_that_cannot_keep_up_gets_the_newest_data_and_is_reported() {
+    // A small backlog bound, so a client that reads nothing for a moment is over it; the
+    // loopback listener served as a network one is.
+    let service = service(|config| {
+        config.max_queue_bytes = 32 * 1024;
+        config.listeners[0].newest_first = true;
+    })
+    .await;
+    let mut slow = raw_subscriber(service.port, "pit-slow", "aer/car1/lap/#").await;
+    // 2,000 messages of 1 kB (2 MB) while the client reads nothing: more than its queue and
+    // every buffer between the gate and it hold.
+    let filler = "x".repeat(1000);
+    let published = 2000u32;
+    for seq in 0..published {
+        service.publisher.publish_json(
+            "lap/beacon",
+            &serde_json::json!({"seq": seq, "pad": filler}),
+            false,
+        );
+        if seq % 50 == 49 {
+            service.publisher.flush();
         }
     }
+    service.publisher.flush();
+    // Wait (bounded) until the gate has read everything from the broker: the client's
+    // backlog is then what it will get, the rest dropped.
+    let dropped = tokio::time::timeout(Duration::from_secs(20), async {
+        loop {
+            let snapshot = service.clients.snapshot();
+            if let Some((client, _)) = snapshot.iter().find(|(c, _)| c.client_id == "pit-slow")
+                && client.dropped > 0
+                && service.counters.snapshot().published >= u64::from(published)
+            {
+                return (client.clone(), snapshot);
+            }
+            tokio::time::sleep(Duration::from_millis(10)).await;
+        }
+    })
+    .await
+    .expect("the gate drops for the slow client");
+    let (client, snapshot) = dropped;
+    assert_eq!(
+        (client.listener.as_str(), client.protocol.as_str()),
+        ("v4-loopback", "3.1.1")
+    );
+    assert!(client.queued_bytes <= 32 * 1024 + 1100, "{client:?}");
+    let (served, recent): (Vec<_>, Vec<_>) = snapshot.into_iter().unzip();
+    let problem = aer_host::status::clients_behind(&served, &recent).expect("reported");
+    assert!(problem.contains("`pit-slow` (v4-loopback)"), "{problem}");
+    assert!(service.counters.snapshot().mqtt_client_dropped >= client.dropped);
+
+    // Now it reads: what it gets is in order, ends with the newest, and misses what was
+    // dropped (no ever-growing queue).
+    let mut seqs = Vec::new();
+    let mut buffer = Vec::new();
+    while seqs.last() != Some(&(published - 1)) {
+        let mut chunk = [0u8; 8192];
+        let n = tokio::time::timeout(Duration::from_secs(20), slow.read(&mut chunk))
+            .await
+            .expect("data in time")
+            .expect("read");
+        assert!(n > 0, "the gate closed the slow client");
+        buffer.extend_from_slice(&chunk[..n]);
+        while let Ok(Some((kind, len))) = packet::frame(&buffer) {
+            let body: Vec<u8> = buffer.drain(..len).collect();
+            if kind == 3 {
+                let text = String::from_utf8_lossy(&body);
+                let seq = text
+                    .split("\"seq\":")
+                    .nth(1)
+                    .map(|rest| {
+                        rest.chars()
+                            .take_while(char::is_ascii_digit)
+                            .collect::<String>()
+                    })
+                    .and_then(|n| n.parse::<u32>().ok())
+                    .expect("a beacon");
+                seqs.push(seq);
+            }
+        }
+    }
+    assert!(seqs.windows(2).all(|w| w[0] < w[1]), "in order");
+    assert!(
+        (seqs.len() as u64) < u64::from(published),
+        "{} of {published} arrived: nothing was dropped?",
+        seqs.len()
+    );
+    assert!(
+        seqs.len() as u64 + client.dropped <= u64::from(published),
+        "what arrived and what was dropped are apart"
+    );
+}
+
+/// A 3.1.1 client with a small receive buffer, subscribed to `filter` (SUBACK read).
+async fn raw_subscriber(port: u16, id: &str, filter: &str) -> TcpStream {
+    let socket = tokio::net::TcpSocket::new_v4().expect("socket");
+    socket.set_recv_buffer_size(4096).expect("buffer");
+    let mut stream = socket
+        .connect(std::net::SocketAddr::from(([127, 0, 0, 1], port)))
+        .await
+        .expect("connect");
+    let connect = packet::Connect {
+        version: packet::Version::V311,
+        client_id: id.to_owned(),
+        clean_session: true,
+        keep_alive_s: 60,
+        will: None,
+        username: None,
+        password: None,
+    };
+    stream.write_all(&connect.encode()).await.expect("CONNECT");
+    let mut connack = [0u8; 4];
+    stream.read_exact(&mut connack).await.expect("CONNACK");
+    assert_eq!(connack[3], 0, "accepted");
+    let mut body = vec![0u8, 1];
+    body.extend_from_slice(&(filter.len() as u16).to_be_bytes());
+    body.extend_from_slice(filter.as_bytes());
+    body.push(0);
+    stream
+        .write_all(&packet::with_header(0x82, &body))
+        .await
+        .expect("SUBSCRIBE");
+    let mut suback = [0u8; 5];
+    stream.read_exact(&mut suback).await.expect("SUBACK");
+    assert_eq!(suback[0] >> 4, 9, "SUBACK");
+    stream
 }

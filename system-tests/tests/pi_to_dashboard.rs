@@ -51,10 +51,16 @@ async fn next(
 
 /// A link's control, the first thing it hands over.
 async fn started(stream: &mut (impl iced::futures::Stream<Item = Event> + Unpin)) -> Control {
-    match next_event(stream).await {
+    let control = match next_event(stream).await {
         Event::Ready(control) => control,
         Event::Update(_, update) => panic!("an update before the link's control: {update:?}"),
+    };
+    match next_event(stream).await {
+        Event::Update(_, Update::Identity(id)) => assert!(id.starts_with("aer-dashboard-")),
+        Event::Update(_, other) => panic!("the link's client id first, got {other:?}"),
+        Event::Ready(_) => panic!("the link started twice"),
     }
+    control
 }
 
 /// The Pi service's configuration in `dir`: the repository's broker config on `port`, with

@@ -513,7 +513,9 @@ def pit_radio(want, name, outage_s, delay_ms, loss_pct):
         f"live latency p50 {report['latency_p50_ms']:.0f} ms, p99 {report['latency_p99_ms']:.0f} ms; "
         f"catch-up after the outage {[round(s, 1) for s in report['catch_up_s']]} s; "
         f"{report['recovered']} batches ({report['backfilled']} packets) from history, "
-        f"{report['stream_gaps']} missed live, {report['dropouts']} dropouts"
+        f"{report['stream_gaps']} missed live, {report['dropouts']} dropouts; "
+        f"the Pi's gate saw it at most {report['gate_lag_max_ms']} ms behind and dropped "
+        f"{report['gate_dropped']} live messages for it"
     )
     check(
         f"radio, {name}: the pit holds every telemetry packet of the session",

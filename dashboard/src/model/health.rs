@@ -2,7 +2,7 @@
 //! CCM's sequence numbers), payloads this dashboard could not read, and what the Pi reports
 //! (its counters and whether the firmware's schema matches).
 
-use aer_host::status::{Metrics, Status};
+use aer_host::status::{Metrics, MqttClient, Status};
 use std::collections::VecDeque;
 use std::time::{Duration, Instant};
 
@@ -44,6 +44,8 @@ pub struct Health {
     pub last_error: Option<String>,
     /// The Pi's retained status.
     pub status: Option<Status>,
+    /// The client id this dashboard connects with.
+    pub client_id: Option<String>,
     /// The Pi's latest counters.
     pub metrics: Option<Metrics>,
     /// Every CAN message the Pi's status has reported frames of, on any bus.
@@ -64,6 +66,7 @@ impl Default for Health {
             backfill: None,
             last_error: None,
             status: None,
+            client_id: None,
             metrics: None,
             heard: std::collections::BTreeSet::new(),
             last_sequence: None,
@@ -108,6 +111,17 @@ impl Health {
             }
         }
         self.status = Some(status);
+    }
+
+    /// This dashboard as the Pi's gate serves it (how far behind, what it dropped), once the
+    /// status lists it.
+    pub fn served(&self) -> Option<&MqttClient> {
+        let ours = self.client_id.as_deref()?;
+        self.status
+            .as_ref()?
+            .mqtt_clients
+            .iter()
+            .find(|client| client.client_id == ours)
     }
 
     /// Whether the car's buses carry `message` (a DBC message name).
@@ -232,6 +246,7 @@ mod tests {
             message_health: Default::default(),
             bus_traffic: Default::default(),
             message_rates: Default::default(),
+            mqtt_clients: Default::default(),
         };
         health.status = Some(status(&ours, Some(true)));
         assert_eq!(health.schema_match(), SchemaMatch::Match);

@@ -33,6 +33,9 @@ use aer_params::{POWER_LIMIT_W, road_speed_m_s};
 pub enum Update {
     /// Connected (again) and subscribed.
     Connected,
+    /// The client id this dashboard connects with, to find itself among the clients the Pi's
+    /// status lists (how far behind the Pi's gate sees it).
+    Identity(String),
     /// The connection failed or was lost; the link retries by itself.
     Disconnected(String),
     Telemetry(Box<Sample<TelemetryRecord>>),
@@ -169,6 +172,7 @@ impl Dashboard {
     pub fn apply(&mut self, update: Update, now: Instant) {
         match update {
             Update::Connected => self.health.connection = Connection::Connected,
+            Update::Identity(client_id) => self.health.client_id = Some(client_id),
             Update::Disconnected(reason) => {
                 // Keep the time of the first failure while it stays down.
                 if !matches!(self.health.connection, Connection::Lost { .. }) {

@@ -146,6 +146,18 @@ fn link(model: &Dashboard, now: Instant, narrow: bool) -> Element<'_, Message> {
     if let Some((buses, color)) = health.status.as_ref().and_then(bus_traffic) {
         panel = panel.push(text(buses).size(14).color(color));
     }
+    if let Some((served, color)) = served(health) {
+        panel = panel.push(text(served).size(14).color(color));
+    }
+    if let Some(status) = &health.status {
+        for (part, problem) in status.problems.named() {
+            panel = panel.push(
+                text(format!("Pi problem, {part}: {problem}"))
+                    .size(14)
+                    .color(style::CRITICAL),
+            );
+        }
+    }
     if let Some((history, color)) = health.backfill.map(|b| backfill(&b, health.backfilled)) {
         panel = panel.push(text(history).size(14).color(color));
     }
@@ -161,6 +173,31 @@ fn link(model: &Dashboard, now: Instant, narrow: bool) -> Element<'_, Message> {
         .width(Fill)
         .style(style::panel)
         .into()
+}
+
+/// How the Pi's gate serves this dashboard: how far behind it is, and what it dropped for it
+/// (in amber once it is a second behind or has lost live data: the radio is slower than the
+/// stream), with how many other clients it serves.
+fn served(health: &crate::model::health::Health) -> Option<(String, iced::Color)> {
+    let served = health.served()?;
+    let others = health
+        .status
+        .as_ref()
+        .map_or(0, |status| status.mqtt_clients.len().saturating_sub(1));
+    let line = format!(
+        "Pi to here: {:.1} s behind   {} live messages dropped   {} kB waiting   MQTT {} on `{}`   {others} other clients",
+        served.lag_ms as f64 / 1000.0,
+        served.dropped,
+        served.queued_bytes / 1000,
+        served.protocol,
+        served.listener
+    );
+    let color = if served.lag_ms >= aer_host::status::CLIENT_BEHIND_MS || served.dropped > 0 {
+        style::WARN
+    } else {
+        style::DIM
+    };
+    Some((line, color))
 }
 
 /// How complete the pit's copy of the session is: amber while it catches up, red for batches

@@ -16,15 +16,27 @@
 //!   Waiting for the CONNACK keeps a client that leaves while connecting from causing it; an
 //!   id the broker still did not acknowledge (no room, no answer) is rewritten from then on
 //!   (`<id>-gate<serial>`, a new one each time);
-//! - disconnects a client that stops reading what it subscribed to (its data is dropped, not
-//!   queued), and at the connection limit makes room by disconnecting one that stalled;
+//! - keeps what a client has not taken in its own bounded queue
+//!   (`broker/client_queue.rs`), whose age is the client's lag. On a network
+//!   listener the gate reads the broker without waiting on the client, so the connection
+//!   behind the gate never backs up, and a client that cannot keep up gets the newest live
+//!   data, the rest dropped and counted (`mqtt_client_dropped`, and per client on the status).
+//!   On loopback (the car's display, tools on the Pi) a client gets everything: with its queue
+//!   full the gate stops reading the broker for it;
+//! - disconnects a client that stops reading altogether, and at the connection limit makes
+//!   room by disconnecting one that stalled;
+//! - serves MQTT 5 clients by rewriting their packets to 3.1.1 and back
+//!   (`broker/mqtt5.rs`), so the same rules apply to both;
 //! - speaks TLS on listeners that have certificates.
 //!
 //! Everything refused is counted (`mqtt_refused`, `mqtt_slow_clients`) and logged.
 
-use super::packet::{self, CONNACK, CONNECT, Connect, PUBLISH};
+use super::client_queue::ClientQueue;
+use super::mqtt5::{self, Unsubscribes};
+use super::packet::{self, CONNACK, CONNECT, Connect, PUBLISH, Refusal, Version};
 use super::tls;
 use aer_host::counters::{Counters, worth_logging};
+use aer_host::status::MqttClient;
 use std::collections::{HashMap, HashSet};
 use std::net::SocketAddr;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -44,6 +56,10 @@ pub struct Listener {
     pub auth: Option<HashMap<String, String>>,
     /// Certificate and key (PEM): TLS on this listener.
     pub tls: Option<tls::Files>,
+    /// A client that falls behind gets the newest live data, its oldest dropped (network
+    /// listeners: a pit's radio). Otherwise (loopback: the car's display, tools on the Pi) it
+    /// gets everything and the broker waits for it, its backlog still bounded and measured.
+    pub newest_first: bool,
 }
 
 /// How the gate treats clients.
@@ -66,31 +82,97 @@ pub struct Settings {
     pub max_clients: usize,
     /// A client that has not taken data for this long is disconnected.
     pub stall_limit: Duration,
+    /// Live messages that waited longer than this for their client are dropped.
+    pub max_lag: Duration,
+    /// The most the gate holds for one client (bytes).
+    pub max_queue_bytes: usize,
     /// Keep-alive asked for by clients is capped at this (0, "never", included).
     pub max_keep_alive_s: u16,
     /// How long the broker has to acknowledge a connection.
     pub connack_timeout: Duration,
 }
 
-/// The connected clients, for the connection limit.
+/// The connected clients: for the connection limit, and for the status.
+pub struct Clients {
+    started: Instant,
+    by_id: Mutex<ClientTable>,
+}
+
 #[derive(Default)]
-struct Clients {
+struct ClientTable {
     next: u64,
     by_id: HashMap<u64, Client>,
 }
 
 struct Client {
+    client_id: String,
+    listener: String,
+    version: Version,
+    load: Arc<ClientLoad>,
+    /// Drops already reported on the status.
+    dropped_reported: u64,
+    disconnect: CancellationToken,
+}
+
+/// What the gate measures of one client while serving it.
+#[derive(Default)]
+struct ClientLoad {
     /// Since when a write to the client has been waiting (us since the gate started; 0 when
     /// none waits).
-    stalled_since: Arc<AtomicU64>,
-    disconnect: CancellationToken,
+    stalled_since: AtomicU64,
+    /// When the oldest message held for it came (us; 0 when none waits).
+    oldest_us: AtomicU64,
+    queued_bytes: AtomicU64,
+    dropped: AtomicU64,
+}
+
+impl Clients {
+    fn now_us(&self) -> u64 {
+        (self.started.elapsed().as_micros() as u64).max(1)
+    }
+
+    /// Every client now, with the live messages each lost since the previous call.
+    pub fn snapshot(&self) -> Vec<(MqttClient, u64)> {
+        let now = self.now_us();
+        let Ok(mut table) = self.by_id.lock() else {
+            return Vec::new();
+        };
+        let mut clients: Vec<(MqttClient, u64)> = table
+            .by_id
+            .values_mut()
+            .map(|client| {
+                let load = &client.load;
+                let oldest = load.oldest_us.load(Ordering::Relaxed);
+                let dropped = load.dropped.load(Ordering::Relaxed);
+                let recent = dropped.saturating_sub(client.dropped_reported);
+                client.dropped_reported = dropped;
+                let lag_us = if oldest == 0 {
+                    0
+                } else {
+                    now.saturating_sub(oldest)
+                };
+                (
+                    MqttClient {
+                        client_id: client.client_id.clone(),
+                        listener: client.listener.clone(),
+                        protocol: client.version.name().to_owned(),
+                        lag_ms: lag_us / 1000,
+                        queued_bytes: load.queued_bytes.load(Ordering::Relaxed),
+                        dropped,
+                    },
+                    recent,
+                )
+            })
+            .collect();
+        clients.sort_by(|a, b| a.0.client_id.cmp(&b.0.client_id));
+        clients
+    }
 }
 
 struct Gate {
     settings: Settings,
     counters: Arc<Counters>,
-    clients: Mutex<Clients>,
-    started: Instant,
+    clients: Arc<Clients>,
     /// Client ids the broker did not acknowledge: never offered to it again.
     unacknowledged_ids: Mutex<HashSet<String>>,
     /// The serial in rewritten client ids.
@@ -99,12 +181,13 @@ struct Gate {
     version_refusals: AtomicU64,
 }
 
-/// Binds every listener (so a taken port fails at start-up) and serves them until `cancel`.
+/// Binds every listener (so a taken port fails at start-up) and serves them until `cancel`;
+/// the clients it serves, for the status.
 pub async fn start(
     settings: Settings,
     counters: Arc<Counters>,
     cancel: CancellationToken,
-) -> anyhow::Result<()> {
+) -> anyhow::Result<Arc<Clients>> {
     let mut bound = Vec::new();
     for listener in &settings.listeners {
         let socket = TcpListener::bind(listener.listen).await.map_err(|e| {
@@ -117,11 +200,14 @@ pub async fn start(
         let acceptor = listener.tls.as_ref().map(tls::acceptor).transpose()?;
         bound.push((socket, acceptor, listener.clone()));
     }
+    let clients = Arc::new(Clients {
+        started: Instant::now(),
+        by_id: Mutex::new(ClientTable::default()),
+    });
     let gate = Arc::new(Gate {
         settings,
         counters,
-        clients: Mutex::new(Clients::default()),
-        started: Instant::now(),
+        clients: clients.clone(),
         unacknowledged_ids: Mutex::new(HashSet::new()),
         rewritten: AtomicU64::new(0),
         version_refusals: AtomicU64::new(0),
@@ -157,7 +243,10 @@ pub async fn start(
                                 read_packet(&mut stream, &mut buffer),
                             )
                             .await;
-                            let _ = stream.write_all(&packet::connack(5)).await;
+                            let version = Connect::parse(&buffer)
+                                .map_or(Version::V311, |connect| connect.version);
+                            let refusal = packet::refusal(version, Refusal::NotAuthorised);
+                            let _ = stream.write_all(&refusal).await;
                             let _ = stream.shutdown().await;
                             gate.refused(peer, "MQTT without TLS on a TLS listener");
                         }
@@ -173,7 +262,7 @@ pub async fn start(
             }
         });
     }
-    Ok(())
+    Ok(clients)
 }
 
 /// True if the client's first byte opens an MQTT CONNECT (0x10) rather than a TLS record
@@ -186,8 +275,17 @@ async fn sent_in_the_clear(stream: &TcpStream) -> bool {
     ) && first[0] == CONNECT << 4
 }
 
-/// Bytes the kernel may hold for a client before a write waits.
-const CLIENT_SEND_BUFFER: usize = 64 * 1024;
+/// Bytes the kernel may hold for a client before a write waits (Linux doubles it). Small, so
+/// the backlog shows in the gate's queue, where it is measured, rather than hiding in the
+/// kernel: 32 KiB is about a second of a 250 kbit/s radio, and still 13 Mbit/s at 20 ms.
+const CLIENT_SEND_BUFFER: usize = 16 * 1024;
+
+/// What the gate writes to a client at once, at most (one packet more may overrun it).
+const WRITE_BATCH: usize = 16 * 1024;
+
+/// The gate's receive buffer on its connection to the broker: the gate reads it at once
+/// whatever the client does, so little is ever in it.
+const BROKER_RECEIVE_BUFFER: u32 = 64 * 1024;
 
 /// How long a new client has for TLS and its CONNECT.
 const HANDSHAKE: Duration = Duration::from_secs(10);
@@ -201,7 +299,7 @@ impl Gate {
     }
 
     fn now_us(&self) -> u64 {
-        (self.started.elapsed().as_micros() as u64).max(1)
+        self.clients.now_us()
     }
 
     /// True for a topic under one of the service's roots.
@@ -213,10 +311,10 @@ impl Gate {
             && !self.settings.open.iter().any(|open| open == topic)
     }
 
-    /// Checks a new client's CONNECT; the reason and CONNACK code if it is refused.
-    fn admit(&self, connect: &Connect, listener: &Listener) -> Result<(), (&'static str, u8)> {
+    /// Checks a new client's CONNECT; the reason if it is refused.
+    fn admit(&self, connect: &Connect, listener: &Listener) -> Result<(), (&'static str, Refusal)> {
         if connect.client_id.starts_with(&self.settings.reserved_ids) {
-            return Err(("client id reserved for the service", 2));
+            return Err(("client id reserved for the service", Refusal::IdRejected));
         }
         if let Some(users) = listener.auth.as_ref().filter(|users| !users.is_empty()) {
             let matches = connect
@@ -225,7 +323,7 @@ impl Gate {
                 .and_then(|user| users.get(user))
                 .is_some_and(|password| connect.password.as_deref() == Some(password.as_bytes()));
             if !matches {
-                return Err(("bad username or password", 4));
+                return Err(("bad username or password", Refusal::BadCredentials));
             }
         }
         if connect
@@ -233,14 +331,14 @@ impl Gate {
             .as_ref()
             .is_some_and(|(topic, ..)| self.is_protected(topic))
         {
-            return Err(("will under the service's topics", 5));
+            return Err(("will under the service's topics", Refusal::NotAuthorised));
         }
         Ok(())
     }
 
     /// Makes room for one more client: true if there is (or now is) room.
     fn make_room(&self) -> bool {
-        let Ok(clients) = self.clients.lock() else {
+        let Ok(clients) = self.clients.by_id.lock() else {
             return false;
         };
         if clients.by_id.len() < self.settings.max_clients {
@@ -251,7 +349,7 @@ impl Gate {
         let stalled = clients
             .by_id
             .values()
-            .map(|c| (c, c.stalled_since.load(Ordering::Relaxed)))
+            .map(|c| (c, c.load.stalled_since.load(Ordering::Relaxed)))
             .filter(|(_, since)| *since != 0 && *since <= stalled_before)
             .min_by_key(|(_, since)| *since)
             .map(|(c, _)| c);
@@ -265,24 +363,32 @@ impl Gate {
         }
     }
 
-    fn register(&self) -> Option<(u64, Arc<AtomicU64>, CancellationToken)> {
-        let mut clients = self.clients.lock().ok()?;
+    fn register(
+        &self,
+        connect: &Connect,
+        listener: &Listener,
+    ) -> Option<(u64, Arc<ClientLoad>, CancellationToken)> {
+        let mut clients = self.clients.by_id.lock().ok()?;
         clients.next += 1;
         let id = clients.next;
-        let stalled_since = Arc::new(AtomicU64::new(0));
+        let load = Arc::new(ClientLoad::default());
         let disconnect = CancellationToken::new();
         clients.by_id.insert(
             id,
             Client {
-                stalled_since: stalled_since.clone(),
+                client_id: connect.client_id.clone(),
+                listener: listener.name.clone(),
+                version: connect.version,
+                load: load.clone(),
+                dropped_reported: 0,
                 disconnect: disconnect.clone(),
             },
         );
-        Some((id, stalled_since, disconnect))
+        Some((id, load, disconnect))
     }
 
     fn unregister(&self, id: u64) {
-        if let Ok(mut clients) = self.clients.lock() {
+        if let Ok(mut clients) = self.clients.by_id.lock() {
             clients.by_id.remove(&id);
         }
     }
@@ -315,23 +421,28 @@ impl Gate {
             Err(error) => return self.refused(peer, &error.to_string()),
         };
         buffer.drain(..len);
-        if let Err((why, code)) = self.admit(&connect, listener) {
-            let _ = stream.write_all(&packet::connack(code)).await;
+        let version = connect.version;
+        if let Err((why, refusal)) = self.admit(&connect, listener) {
+            let _ = stream.write_all(&packet::refusal(version, refusal)).await;
             return self.refused(peer, why);
         }
         if !self.make_room() {
-            let _ = stream.write_all(&packet::connack(3)).await;
+            let _ = stream
+                .write_all(&packet::refusal(version, Refusal::Busy))
+                .await;
             return self.refused(peer, "connection limit reached");
         }
-        let Ok(mut broker) = TcpStream::connect(self.settings.broker).await else {
-            let _ = stream.write_all(&packet::connack(3)).await;
+        let Ok(mut broker) = self.connect_broker().await else {
+            let _ = stream
+                .write_all(&packet::refusal(version, Refusal::Unavailable))
+                .await;
             return self.refused(peer, "broker not reachable");
         };
-        let _ = broker.set_nodelay(true);
         let max = self.settings.max_keep_alive_s;
         if connect.keep_alive_s == 0 || connect.keep_alive_s > max {
             connect.keep_alive_s = max;
         }
+        let client = connect.client_id.clone();
         let unacknowledged = self
             .unacknowledged_ids
             .lock()
@@ -356,23 +467,41 @@ impl Gate {
             if !unacknowledged && let Ok(mut ids) = self.unacknowledged_ids.lock() {
                 ids.insert(connect.client_id.clone());
             }
-            let _ = stream.write_all(&packet::connack(3)).await;
+            let _ = stream
+                .write_all(&packet::refusal(version, Refusal::Unavailable))
+                .await;
             return self.refused(peer, "the broker did not acknowledge the connection");
         }
+        let pending = Unsubscribes::default();
+        let acknowledgement = match version {
+            Version::V311 => Ok(acknowledgement),
+            Version::V5 => acknowledgement
+                .get(..4)
+                .ok_or(packet::PacketError::Short)
+                .and_then(|connack| mqtt5::to_client(connack, &pending)),
+        };
+        let Ok(acknowledgement) = acknowledgement else {
+            return;
+        };
         if stream.write_all(&acknowledgement).await.is_err() {
             return;
         }
-        let Some((id, stalled_since, disconnect)) = self.register() else {
+        let connect = Connect {
+            client_id: client,
+            ..connect
+        };
+        let Some((id, load, disconnect)) = self.register(&connect, listener) else {
             return;
         };
         // Clients come and go all day (a laptop's Wi-Fi, a dashboard restarted): not news.
-        let client = connect.client_id.clone();
-        debug!(%peer, client, listener = listener.name, "MQTT client connected");
+        let client = connect.client_id;
+        debug!(%peer, client, listener = listener.name, version = version.name(), "MQTT client connected");
         let (client_read, client_write) = tokio::io::split(stream);
         let (broker_read, broker_write) = broker.into_split();
+        let translation = (version == Version::V5).then_some(&pending);
         tokio::select! {
-            () = self.upstream(client_read, broker_write, buffer, peer) => {}
-            () = self.downstream(broker_read, client_write, &stalled_since, peer) => {}
+            () = self.upstream(client_read, broker_write, buffer, translation, peer) => {}
+            () = self.downstream(broker_read, client_write, &load, translation, listener.newest_first, peer) => {}
             () = disconnect.cancelled() => {
                 warn!(%peer, "MQTT client disconnected to make room: it stopped reading");
             }
@@ -381,13 +510,27 @@ impl Gate {
         self.unregister(id);
     }
 
-    /// Client to broker, packet by packet: a publish under the protected prefix (or a second
-    /// CONNECT) ends the connection.
+    /// A connection to the broker whose receive buffer stays small (see
+    /// [`BROKER_RECEIVE_BUFFER`]).
+    async fn connect_broker(&self) -> std::io::Result<TcpStream> {
+        let socket = match self.settings.broker {
+            SocketAddr::V4(_) => tokio::net::TcpSocket::new_v4()?,
+            SocketAddr::V6(_) => tokio::net::TcpSocket::new_v6()?,
+        };
+        socket.set_recv_buffer_size(BROKER_RECEIVE_BUFFER)?;
+        let stream = socket.connect(self.settings.broker).await?;
+        stream.set_nodelay(true)?;
+        Ok(stream)
+    }
+
+    /// Client to broker, packet by packet (an MQTT 5 client's rewritten to 3.1.1 first): a
+    /// publish under the protected prefix (or a second CONNECT) ends the connection.
     async fn upstream(
         &self,
         mut client: impl AsyncRead + Unpin,
         mut broker: impl AsyncWrite + Unpin,
         mut buffer: Vec<u8>,
+        translation: Option<&Unsubscribes>,
         peer: SocketAddr,
     ) {
         loop {
@@ -402,6 +545,17 @@ impl Gate {
             if kind == CONNECT {
                 return self.refused(peer, "second CONNECT");
             }
+            let translated;
+            let bytes = match translation {
+                None => bytes,
+                Some(pending) => match mqtt5::to_broker(bytes, pending) {
+                    Ok(packet) => {
+                        translated = packet;
+                        translated.as_slice()
+                    }
+                    Err(error) => return self.refused(peer, &error.to_string()),
+                },
+            };
             if kind == PUBLISH {
                 match packet::publish_topic(bytes) {
                     Ok(topic) if !self.is_protected(&topic) => {}
@@ -416,39 +570,132 @@ impl Gate {
         }
     }
 
-    /// Broker to client: a client that takes nothing for the stall limit is disconnected
-    /// (what it did not read is dropped).
+    /// Broker to client. The broker is read at once, whatever the client does, into the
+    /// client's queue; the client is written from it. A client that takes nothing for the
+    /// stall limit is disconnected, and so is one whose backlog is over its bound with nothing
+    /// it may drop.
     async fn downstream(
         &self,
         mut broker: impl AsyncRead + Unpin,
         mut client: impl AsyncWrite + Unpin,
-        stalled_since: &AtomicU64,
+        load: &ClientLoad,
+        translation: Option<&Unsubscribes>,
+        newest_first: bool,
         peer: SocketAddr,
     ) {
-        let mut chunk = vec![0u8; 16 * 1024];
-        loop {
-            let n = match broker.read(&mut chunk).await {
-                Ok(0) | Err(_) => return,
-                Ok(n) => n,
-            };
-            let Some(data) = chunk.get(..n) else {
-                return;
-            };
-            stalled_since.store(self.now_us(), Ordering::Relaxed);
-            let written =
-                tokio::time::timeout(self.settings.stall_limit, client.write_all(data)).await;
-            stalled_since.store(0, Ordering::Relaxed);
-            match written {
-                Ok(Ok(())) => {}
-                Ok(Err(_)) => return,
-                Err(_) => {
-                    let count = Counters::bump(&self.counters.mqtt_slow_clients);
-                    if worth_logging(count) {
-                        warn!(%peer, count, "MQTT client stopped reading: disconnected, its data dropped");
+        let max_lag_us = u64::try_from(self.settings.max_lag.as_micros()).unwrap_or(u64::MAX);
+        let max_bytes = self.settings.max_queue_bytes;
+        let queue = Mutex::new(if newest_first {
+            ClientQueue::newest_first(max_bytes, max_lag_us)
+        } else {
+            ClientQueue::everything()
+        });
+        let arrived = tokio::sync::Notify::new();
+        let room = tokio::sync::Notify::new();
+        let publish_load = |queue: &ClientQueue, writing_since: Option<u64>| {
+            let oldest = writing_since.or(queue.oldest_us()).unwrap_or(0);
+            load.oldest_us.store(oldest, Ordering::Relaxed);
+            load.queued_bytes
+                .store(queue.bytes() as u64, Ordering::Relaxed);
+            let dropped = queue.dropped();
+            let before = load.dropped.swap(dropped, Ordering::Relaxed);
+            if dropped > before {
+                self.counters
+                    .mqtt_client_dropped
+                    .fetch_add(dropped - before, Ordering::Relaxed);
+            }
+        };
+        let read = async {
+            let mut buffer = Vec::with_capacity(16 * 1024);
+            loop {
+                let len = match read_packet(&mut broker, &mut buffer).await {
+                    Ok(Some((_, len))) => len,
+                    Ok(None) | Err(_) => return,
+                };
+                let packet: Vec<u8> = buffer.drain(..len).collect();
+                let queued = queue.lock().ok().map(|mut queue| {
+                    let queued = queue.push(self.now_us(), packet);
+                    publish_load(&queue, None);
+                    queued
+                });
+                match queued {
+                    Some(Ok(full)) => {
+                        arrived.notify_one();
+                        // Everything for this client: the broker waits while its queue is full.
+                        if full > max_bytes {
+                            room.notified().await;
+                        }
                     }
-                    return;
+                    Some(Err(_)) => {
+                        let count = Counters::bump(&self.counters.mqtt_slow_clients);
+                        if worth_logging(count) {
+                            warn!(%peer, count, "MQTT client cannot keep up with what it must be sent: disconnected");
+                        }
+                        return;
+                    }
+                    None => return,
                 }
             }
+        };
+        let write = async {
+            let mut batch = Vec::with_capacity(WRITE_BATCH);
+            loop {
+                // What waits, up to a batch, in one write (one TLS record, one system call).
+                let taken = queue.lock().ok().map(|mut queue| {
+                    let now = self.now_us();
+                    let mut first = None;
+                    batch.clear();
+                    while batch.len() < WRITE_BATCH {
+                        let Some(packet) = queue.pop(now) else {
+                            break;
+                        };
+                        first.get_or_insert(now);
+                        match translation {
+                            None => batch.extend_from_slice(&packet),
+                            Some(pending) => {
+                                let translated = mqtt5::to_client(&packet, pending)?;
+                                batch.extend_from_slice(&translated);
+                            }
+                        }
+                    }
+                    publish_load(&queue, first);
+                    if queue.bytes() <= max_bytes {
+                        room.notify_one();
+                    }
+                    Ok::<bool, packet::PacketError>(first.is_some())
+                });
+                match taken {
+                    None => return,
+                    Some(Err(error)) => return self.refused(peer, &error.to_string()),
+                    Some(Ok(false)) => {
+                        arrived.notified().await;
+                        continue;
+                    }
+                    Some(Ok(true)) => {}
+                }
+                load.stalled_since.store(self.now_us(), Ordering::Relaxed);
+                let written = tokio::time::timeout(self.settings.stall_limit, async {
+                    client.write_all(&batch).await?;
+                    client.flush().await
+                })
+                .await;
+                load.stalled_since.store(0, Ordering::Relaxed);
+                match written {
+                    Ok(Ok(())) => {}
+                    Ok(Err(_)) => return,
+                    Err(_) => {
+                        let count = Counters::bump(&self.counters.mqtt_slow_clients);
+                        if worth_logging(count) {
+                            warn!(%peer, count, "MQTT client stopped reading: disconnected, its data dropped");
+                        }
+                        return;
+                    }
+                }
+            }
+        };
+        tokio::select! {
+            () = read => {}
+            () = write => {}
         }
     }
 }

@@ -2,7 +2,9 @@
 //! listens only on loopback, on a port and with a password only the gate knows; the
 //! listeners of the configuration file are the gate's.
 
+mod client_queue;
 pub mod gate;
+mod mqtt5;
 pub mod packet;
 pub mod tls;
 
@@ -27,6 +29,10 @@ pub struct BrokerConfig {
     pub listeners: Vec<gate::Listener>,
     /// A client that takes nothing for this long is disconnected (5 s).
     pub stall_limit: Duration,
+    /// Live messages that waited longer than this for a client are dropped (2 s).
+    pub max_lag: Duration,
+    /// The most the gate holds for one client (2 MiB).
+    pub max_queue_bytes: usize,
 }
 
 /// Reads a broker configuration (the shipped one when `path` is `None`) and checks it.
@@ -57,18 +63,21 @@ pub fn parse(text: &str) -> Result<BrokerConfig> {
         broker,
         listeners,
         stall_limit: Duration::from_secs(5),
+        max_lag: CLIENT_MAX_LAG,
+        max_queue_bytes: CLIENT_MAX_QUEUE,
     })
 }
 
-/// Sections the gate cannot guard are refused: MQTT 5 and websocket listeners (the gate
-/// speaks MQTT 3.1.1 over TCP), bridges and clusters (outside connections), and a console or
+/// Sections the gate cannot guard are refused: rumqttd's own MQTT 5 and websocket listeners
+/// (the gate serves MQTT 3.1.1 and 5 over TCP on the [v4.x] listeners), bridges and clusters (outside connections), and a console or
 /// Prometheus endpoint off loopback (neither has credentials).
 fn check_sections(raw: &toml::Table) -> Result<()> {
     for section in ["v5", "ws", "bridge", "cluster"] {
         if raw.contains_key(section) {
             bail!(
                 "broker configuration: [{section}] is not supported: clients reach the broker \
-                 through the service's gate, which serves MQTT 3.1.1 listeners ([v4.x]) only"
+                 through the service's gate, which serves MQTT 3.1.1 and 5 on the [v4.x] \
+                 listeners"
             );
         }
     }
@@ -149,6 +158,7 @@ fn listener(server: &ServerSettings) -> Result<gate::Listener> {
         listen: server.listen,
         auth,
         tls,
+        newest_first: !server.listen.ip().is_loopback(),
     })
 }
 
@@ -169,6 +179,8 @@ pub struct Broker {
     pub spares: Vec<Link>,
     /// The gate's view: the file's listeners and the broker's own.
     pub gate: gate::Settings,
+    /// The clients the gate serves, once it is started.
+    pub clients: Option<std::sync::Arc<gate::Clients>>,
 }
 
 /// Client ids the service uses; the gate refuses them to clients.
@@ -184,10 +196,18 @@ pub async fn start(
 ) -> Result<Broker> {
     let protected = ["aer/".to_owned(), "aer-pit/".to_owned()];
     let open = [aer_host::pit_history::request_topic("aer/car1")];
-    let broker = spawn(config, SERVICE_IDS, &protected, &open)?;
-    gate::start(broker.gate.clone(), counters, cancel).await?;
+    let mut broker = spawn(config, SERVICE_IDS, &protected, &open)?;
+    broker.clients = Some(gate::start(broker.gate.clone(), counters, cancel).await?);
     Ok(broker)
 }
+
+/// Live messages older than this are dropped for a client that cannot keep up: it gets the
+/// newest data (a pit fetches the rest from history) instead of an ever-growing delay.
+const CLIENT_MAX_LAG: Duration = Duration::from_secs(2);
+
+/// The most the gate holds for one client: 2 s of everything under `aer/car1/#` (about
+/// 490 kB/s of JSON), beyond which its oldest live messages go.
+const CLIENT_MAX_QUEUE: usize = 2 << 20;
 
 /// Links kept in reserve for the service.
 const SPARE_LINKS: usize = 2;
@@ -207,6 +227,8 @@ pub fn spawn(
         mut broker,
         listeners,
         stall_limit,
+        max_lag,
+        max_queue_bytes,
     } = config;
     let internal = SocketAddr::from((Ipv4Addr::LOCALHOST, free_port()?));
     let (user, password) = ("aer-gate".to_owned(), secret()?);
@@ -272,9 +294,12 @@ pub fn spawn(
             reserved_ids: reserved_ids.to_owned(),
             max_clients,
             stall_limit,
+            max_lag,
+            max_queue_bytes,
             max_keep_alive_s: 60,
             connack_timeout: Duration::from_secs(10),
         },
+        clients: None,
     })
 }
 

@@ -33,6 +33,8 @@ pub(super) struct Mqtt {
     pub(super) address: String,
     /// The pits' history requests, when the stream keeps history.
     pub(super) history_requests: Option<tokio::sync::mpsc::Receiver<Vec<u8>>>,
+    /// The clients the gate serves (embedded broker only), for the status.
+    pub(super) clients: Option<Arc<broker::gate::Clients>>,
 }
 
 /// Runs `finish` off the runtime, waiting at most [`STOP_WAIT`] for it.
@@ -153,6 +155,7 @@ pub(super) async fn start_mqtt(
 ) -> Result<Mqtt> {
     let client_id = format!("{SERVICE_IDS}-{}", config.car_id);
     let mut address = format!("{}:{}", config.mqtt.host, config.mqtt.port);
+    let mut clients = None;
     let (publisher, driver) = if config.broker.embedded {
         let broker_config = broker::load(config.broker.config.as_deref())?;
         if let Some(listener) = broker::listeners(&broker_config).first() {
@@ -167,7 +170,7 @@ pub(super) async fn start_mqtt(
         // ... but for the pits' history requests, which the history task checks.
         let open = [aer_host::pit_history::request_topic(&config.topic_prefix())];
         let broker = broker::spawn(broker_config, SERVICE_IDS, &protected, &open)?;
-        broker::gate::start(broker.gate, counters.clone(), cancel.clone()).await?;
+        clients = Some(broker::gate::start(broker.gate, counters.clone(), cancel.clone()).await?);
         mqtt::embedded(
             broker.link,
             broker.spares,
@@ -212,5 +215,6 @@ pub(super) async fn start_mqtt(
         connection,
         address,
         history_requests,
+        clients,
     })
 }

@@ -64,6 +64,7 @@ impl Pipeline {
             config.car_id.clone(),
             counters.clone(),
             health.clone(),
+            mqtt.clients.clone(),
             cancel.clone(),
             job == Job::Demo,
         ));
