@@ -39,6 +39,24 @@ async fn next_event(stream: &mut (impl iced::futures::Stream<Item = Event> + Unp
         .expect("the link never ends")
 }
 
+/// Draws the pit view of `model` at both screen sizes into the tests' target directory
+/// (`pit-<name>-1280x800.png`, ...), for the docs and a reviewer's eye; returns the files.
+fn pit_screenshots(model: &Dashboard, now: Instant, name: &str) -> Vec<std::path::PathBuf> {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("pit-link");
+    std::fs::create_dir_all(&dir).expect("screenshot dir");
+    let mut offscreen = aer_dashboard::screenshot::Offscreen::new().expect("software renderer");
+    aer_dashboard::screenshot::SIZES
+        .iter()
+        .map(|size| {
+            let app = App::with_model(&Config::default(), model.clone(), View::Pit, now);
+            let path = dir.join(format!("pit-{name}-{}x{}.png", size.width, size.height));
+            let pixels = offscreen.render(&app, *size);
+            aer_dashboard::screenshot::write_png(&path, &pixels, *size).expect("png");
+            path
+        })
+        .collect()
+}
+
 /// Waits for the next update.
 async fn next(
     stream: &mut (impl iced::futures::Stream<Item = Event> + Unpin),
@@ -50,17 +68,20 @@ async fn next(
 }
 
 /// A link's control, the first thing it hands over.
-async fn started(stream: &mut (impl iced::futures::Stream<Item = Event> + Unpin)) -> Control {
+async fn started(
+    stream: &mut (impl iced::futures::Stream<Item = Event> + Unpin),
+) -> (Control, Update) {
     let control = match next_event(stream).await {
         Event::Ready(control) => control,
         Event::Update(_, update) => panic!("an update before the link's control: {update:?}"),
     };
     match next_event(stream).await {
-        Event::Update(_, Update::Identity(id)) => assert!(id.starts_with("aer-dashboard-")),
+        Event::Update(_, Update::Identity(id)) if id.starts_with("aer-dashboard-") => {
+            (control, Update::Identity(id))
+        }
         Event::Update(_, other) => panic!("the link's client id first, got {other:?}"),
         Event::Ready(_) => panic!("the link started twice"),
     }
-    control
 }
 
 /// The Pi service's configuration in `dir`: the repository's broker config on `port`, with
@@ -188,7 +209,7 @@ async fn a_replayed_session_reaches_the_dashboard_intact() {
         join_history_s: 0,
     };
     let mut updates = Box::pin(link::stream(settings));
-    let control = started(&mut updates).await;
+    let (control, _) = started(&mut updates).await;
     let mut config = Config::default();
     config.display.can_messages = vec![DtiTemperatures::META.name.into()];
     let mut model = Dashboard::new(&config);
@@ -308,8 +329,9 @@ async fn connected_dashboard(
     let mut settings = Settings::from_config(config);
     settings.port = port;
     let mut updates = Box::pin(link::stream(settings));
-    started(&mut updates).await;
+    let (_, identity) = started(&mut updates).await;
     let mut model = Dashboard::new(config);
+    model.apply(identity, Instant::now());
     until_connected(&mut updates, &mut model).await;
     (updates, model)
 }
@@ -461,6 +483,7 @@ async fn after_a_dropout_the_pit_fetches_what_it_missed() {
     // live batch, or in the Pi's metrics, whichever comes first).
     feed(&part(two_thirds..lines.len()), &input, &counters).await;
     let deadline = Instant::now() + Duration::from_secs(60);
+    let mut caught_on_screen = Vec::new();
     loop {
         if Instant::now() >= deadline {
             let held: std::collections::BTreeSet<u16> = model
@@ -489,6 +512,15 @@ async fn after_a_dropout_the_pit_fetches_what_it_missed() {
         }
         model.apply(update, at);
         model.settle(at + Duration::from_secs(2));
+        // The pit view while history flows, as the pit crew sees it (once some has merged).
+        if caught_on_screen.is_empty()
+            && model
+                .health()
+                .backfill
+                .is_some_and(|b| b.catching_up && b.recovered > 0)
+        {
+            caught_on_screen = pit_screenshots(&model, at, "catching-up");
+        }
         let whole = model
             .session_record()
             .is_some_and(|record| record.len() >= expected.samples.len());
@@ -504,6 +536,8 @@ async fn after_a_dropout_the_pit_fetches_what_it_missed() {
         .expect("the pipeline's task")
         .expect("the pipeline stops cleanly");
 
+    assert!(!caught_on_screen.is_empty(), "the catch-up was never drawn");
+    pit_screenshots(&model, Instant::now(), "whole");
     let health = model.health();
     let progress = health.backfill.expect("the link reports the history");
     assert!(

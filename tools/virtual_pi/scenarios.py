@@ -14,6 +14,7 @@ import os
 import sqlite3
 import subprocess
 import sys
+import threading
 import time
 import tomllib
 
@@ -527,11 +528,75 @@ def pit_radio(want, name, outage_s, delay_ms, loss_pct):
               str(report["backfilled"]))
 
 
+def pit_json(want):
+    """mosquitto_sub in the pit on the JSON telemetry (about 2 Mbit/s) through the same radio
+    (250 kbit/s, 100 ms) and the TLS pit listener: far more than the radio carries. The gate
+    must keep it bounded (the newest data, a few seconds behind at most, however long the
+    session) and the Pi's status must name it while it is behind."""
+    shape = ["netem", "rate", "250kbit", "delay", "100ms", "limit", "10000"]
+    run("tc", "qdisc", "replace", "dev", "radio", "root", *shape)
+    run(*PIT, "tc", "qdisc", "replace", "dev", "radio-pit", "root", *shape)
+    set_isotp("kernel")
+    run("systemctl", "stop", "aer-raspi")
+    if not start_service():
+        return
+    subscriber = subprocess.Popen(
+        [*PIT, "mosquitto_sub", "-h", PI_ADDRESS, "-p", "8883", "--cafile", os.path.join(HERE, "tls", "team-ca.pem"),
+         "-u", "pit", "-P", PIT_PASSWORD, "-i", "pit-json", "-t", f"{PREFIX}/telemetry"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    )
+    received = {"count": 0, "last_ts": None}
+
+    def read():
+        for line in subscriber.stdout:
+            try:
+                received["last_ts"] = json.loads(line)["ts"]
+                received["count"] += 1
+            except (json.JSONDecodeError, KeyError, TypeError):
+                pass
+
+    reader = threading.Thread(target=read, daemon=True)
+    reader.start()
+    connected = wait_for(
+        "mosquitto_sub's connection through the radio",
+        lambda: run("ss", "-Htn", "state", "established", "( sport = :8883 )").strip(),
+        60,
+    )
+    if not check("json over the radio: mosquitto_sub connects (TLS, credentials)", bool(connected)):
+        subscriber.kill()
+        return
+    player = subprocess.Popen(["canplayer", "-I", LOG])
+    worst_lag_ms, named, dropped = 0, None, 0
+    while player.poll() is None:
+        status = latest("status", 5) or {}
+        for client in status.get("mqtt_clients", []):
+            if client.get("client_id") == "pit-json":
+                worst_lag_ms = max(worst_lag_ms, client["lag_ms"])
+                dropped = client["dropped"]
+        problem = (status.get("problems") or {}).get("mqtt_clients")
+        if problem and "pit-json" in problem:
+            named = named or problem
+    behind = time.time() - received["last_ts"] if received["last_ts"] else float("inf")
+    subscriber.terminate()
+    subscriber.wait(timeout=30)
+    reader.join(timeout=30)
+    packets = want[0]
+    say(
+        f"  json over the radio: mosquitto_sub got {received['count']} of {packets} telemetry messages "
+        f"(the newest first), {behind:.1f} s behind when the session ended; the gate saw it at most "
+        f"{worst_lag_ms} ms behind and dropped {dropped} live messages for it"
+    )
+    check("json over the radio: the Pi's status names the client that falls behind", bool(named), named or "")
+    check("json over the radio: the client stays within seconds of the car, never an ever-growing queue",
+          behind <= 10, f"{behind:.1f} s behind at the end")
+
+
 def pit_radio_conditions(want):
     radio_setup()
     which = open(os.path.join(HERE, "radio")).read().strip()
     for condition in RADIO_CONDITIONS if which == "all" else RADIO_CONDITIONS[:1]:
         pit_radio(want, *condition)
+    pit_json(want)
     stop("SIGTERM")
 
 
