@@ -775,3 +775,115 @@ async fn raw_subscriber(port: u16, id: &str, filter: &str) -> TcpStream {
     assert_eq!(suback[0] >> 4, 9, "SUBACK");
     stream
 }
+
+/// A pit whose link is full gets no more history until it drains: history takes only what
+/// the radio has spare, and the gate never drops it as stale live data. Without that, a pit
+/// that cannot take the history as fast as the Pi sends it would lose most of it here (the
+/// gate holds 32 KiB for it, the history is 200 kB sent at 10 MB/s).
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn history_waits_for_a_pit_whose_link_is_full_and_none_of_it_is_dropped() {
+    use aer_host::pit_history::{Answer, Request, reply_topic};
+    use aer_raspi::pit::history::{Ring, Settings, serve};
+
+    let service = service(|config| {
+        config.max_queue_bytes = 32 * 1024;
+        config.listeners[0].newest_first = true;
+    })
+    .await;
+    let batches = 200u32;
+    let mut ring = Ring::new(1 << 20);
+    for number in 0..batches {
+        let mut message = vec![0u8; 1000];
+        message[..4].copy_from_slice(&number.to_be_bytes());
+        ring.push(number, u64::from(number) * 100_000, message.into());
+    }
+    let mut pit = raw_subscriber(
+        service.port,
+        "pit-hist",
+        &reply_topic("aer/car1", "pit-hist"),
+    )
+    .await;
+    let (requests, intake) = mpsc::channel(4);
+    tokio::spawn(serve(
+        service.publisher.clone(),
+        Arc::new(std::sync::Mutex::new(ring)),
+        service.counters.clone(),
+        Settings {
+            car_prefix: "aer/car1".into(),
+            bytes_per_s: 10_000_000,
+            clients: Some(service.clients.clone()),
+        },
+        intake,
+        CancellationToken::new(),
+    ));
+    let request = Request {
+        reply: "pit-hist".into(),
+        from: 0,
+        to: batches,
+        since_us: 0,
+    };
+    requests
+        .send(request.to_json())
+        .await
+        .expect("the history task");
+    // The pit reads nothing until its link is full (the gate holds more than the history's
+    // room for it), and nothing for half a second more: time for the whole history to go out
+    // were it not held back (it takes 20 ms at this pace). Then it takes everything.
+    tokio::time::timeout(Duration::from_secs(20), async {
+        while service
+            .clients
+            .queued_for("pit-hist")
+            .is_none_or(|queued| queued <= aer_raspi::pit::history::REQUESTER_ROOM)
+        {
+            tokio::time::sleep(Duration::from_millis(10)).await;
+        }
+    })
+    .await
+    .expect("the pit's link fills");
+    tokio::time::sleep(Duration::from_millis(500)).await;
+    assert!(
+        service.counters.snapshot().history_batches < u64::from(batches),
+        "the history went on while the pit's link was full"
+    );
+    let (mut numbers, mut buffer) = (Vec::new(), Vec::new());
+    let answer = loop {
+        let mut chunk = [0u8; 8192];
+        let n = tokio::time::timeout(Duration::from_secs(20), pit.read(&mut chunk))
+            .await
+            .expect("history in time")
+            .expect("read");
+        assert!(n > 0, "the gate closed the pit");
+        buffer.extend_from_slice(&chunk[..n]);
+        let mut answer = None;
+        while let Ok(Some((kind, len))) = packet::frame(&buffer) {
+            let publish: Vec<u8> = buffer.drain(..len).collect();
+            if kind != 3 {
+                continue;
+            }
+            // Fixed header (the type, then the length's bytes), topic, payload.
+            let header = 2 + publish[1..].iter().take_while(|b| **b & 0x80 != 0).count();
+            let topic_len = usize::from(u16::from_be_bytes([publish[header], publish[header + 1]]));
+            let payload = &publish[header + 2 + topic_len..];
+            match Answer::parse(payload) {
+                Ok(done) => answer = Some(done),
+                Err(_) => numbers.push(u32::from_be_bytes(payload[..4].try_into().expect("4"))),
+            }
+        }
+        if let Some(answer) = answer {
+            break answer;
+        }
+    };
+    assert_eq!(answer.sent, batches);
+    assert_eq!(
+        numbers,
+        (0..batches).collect::<Vec<_>>(),
+        "every batch, in order"
+    );
+    let dropped = service
+        .clients
+        .snapshot()
+        .into_iter()
+        .find(|(client, _)| client.client_id == "pit-hist")
+        .map(|(client, _)| client.dropped);
+    assert_eq!(dropped, Some(0), "the gate dropped none of the history");
+}

@@ -126,9 +126,29 @@ struct ClientLoad {
     dropped: AtomicU64,
 }
 
+impl std::fmt::Debug for Clients {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let count = self.by_id.lock().map_or(0, |table| table.by_id.len());
+        f.debug_struct("Clients")
+            .field("connected", &count)
+            .finish()
+    }
+}
+
 impl Clients {
     fn now_us(&self) -> u64 {
         (self.started.elapsed().as_micros() as u64).max(1)
+    }
+
+    /// What the gate holds for the client `client_id` now (bytes), if it is connected.
+    pub fn queued_for(&self, client_id: &str) -> Option<u64> {
+        let table = self.by_id.lock().ok()?;
+        table
+            .by_id
+            .values()
+            .filter(|client| client.client_id == client_id)
+            .map(|client| client.load.queued_bytes.load(Ordering::Relaxed))
+            .max()
     }
 
     /// Every client now, with the live messages each lost since the previous call.

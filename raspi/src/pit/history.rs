@@ -119,7 +119,14 @@ pub struct Settings {
     pub car_prefix: String,
     /// The pace of answers (bytes per second on the broker).
     pub bytes_per_s: u64,
+    /// The gate's clients (embedded broker): a requester whose link is full (what the gate
+    /// holds for it over [`REQUESTER_ROOM`]) gets no more history until it drains, so history
+    /// only takes what its radio has spare and the gate never drops it as stale live data.
+    pub clients: Option<Arc<crate::broker::gate::Clients>>,
 }
+
+/// What the gate may hold for a requester before its history waits (bytes): a few batches.
+pub const REQUESTER_ROOM: u64 = 8 * 1024;
 
 /// Serves the requests arriving on `requests` from `ring` until `cancel` fires or the intake
 /// ends.
@@ -167,7 +174,13 @@ pub async fn serve(
                 tokio::select! {
                     () = cancel.cancelled() => return,
                     () = wait => {
-                        if publisher.has_room() {
+                        // A pit's dashboard names its answers after its client id.
+                        let requester_full = settings.clients.as_ref().is_some_and(|clients| {
+                            clients
+                                .queued_for(&request.reply)
+                                .is_some_and(|queued| queued > REQUESTER_ROOM)
+                        });
+                        if publisher.has_room() && !requester_full {
                             break;
                         }
                         next_at = Instant::now() + Duration::from_millis(10);

@@ -176,6 +176,7 @@ impl Pipeline {
                     crate::pit::history::Settings {
                         car_prefix: self.config.topic_prefix(),
                         bytes_per_s: self.config.pit_stream.history_kbit_s * 1000 / 8,
+                        clients: self.mqtt.clients.clone(),
                     },
                     requests,
                     self.cancel.clone(),
