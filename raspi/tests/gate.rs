@@ -649,13 +649,7 @@ print("received" if answered else "silence", result.get("reason"), result.get("p
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_client_that_cannot_keep_up_gets_the_newest_data_and_is_reported() {
-    // A small backlog bound, so a client that reads nothing for a moment is over it; the
-    // loopback listener served as a network one is.
-    let service = service(|config| {
-        config.max_queue_bytes = 32 * 1024;
-        config.listeners[0].newest_first = true;
-    })
-    .await;
+    let service = network_service().await;
     let mut slow = raw_subscriber(service.port, "pit-slow", "aer/car1/lap/#").await;
     // 2,000 messages of 1 kB (2 MB) while the client reads nothing: more than its queue and
     // every buffer between the gate and it hold.
@@ -741,6 +735,17 @@ async fn a_client_that_cannot_keep_up_gets_the_newest_data_and_is_reported() {
     );
 }
 
+/// The service with its loopback listener served as a network one is (newest data first for
+/// a client behind), and a small backlog bound, so a client that reads nothing for a moment
+/// is over it.
+async fn network_service() -> Service {
+    service(|config| {
+        config.max_queue_bytes = 32 * 1024;
+        config.listeners[0].newest_first = true;
+    })
+    .await
+}
+
 /// A 3.1.1 client with a small receive buffer, subscribed to `filter` (SUBACK read).
 async fn raw_subscriber(port: u16, id: &str, filter: &str) -> TcpStream {
     let socket = tokio::net::TcpSocket::new_v4().expect("socket");
@@ -785,11 +790,7 @@ async fn history_waits_for_a_pit_whose_link_is_full_and_none_of_it_is_dropped() 
     use aer_host::pit_history::{Answer, Request, reply_topic};
     use aer_raspi::pit::history::{Ring, Settings, serve};
 
-    let service = service(|config| {
-        config.max_queue_bytes = 32 * 1024;
-        config.listeners[0].newest_first = true;
-    })
-    .await;
+    let service = network_service().await;
     let batches = 200u32;
     let mut ring = Ring::new(1 << 20);
     for number in 0..batches {

@@ -453,6 +453,29 @@ def radio_setup():
     run(*PIT, "ip", "link", "set", "lo", "up")
 
 
+def shaped_radio_and_fresh_service(delay_ms, loss_pct):
+    """The radio shaped with netem both ways (250 kbit/s, `delay_ms`, `loss_pct`), and a fresh
+    service (its stream numbered from 0, its history holding only what follows); true once it
+    runs."""
+    shape = ["netem", "rate", "250kbit", "delay", f"{delay_ms}ms", "limit", "10000"]
+    if loss_pct:
+        shape += ["loss", f"{loss_pct}%"]
+    run("tc", "qdisc", "replace", "dev", "radio", "root", *shape)
+    run(*PIT, "tc", "qdisc", "replace", "dev", "radio-pit", "root", *shape)
+    set_isotp("kernel")
+    run("systemctl", "stop", "aer-raspi")
+    return start_service()
+
+
+def pit_connected():
+    """Waits (bounded) until a client in the pit holds a connection to the pit listener."""
+    return wait_for(
+        "the pit's connection through the radio",
+        lambda: run("ss", "-Htn", "state", "established", "( sport = :8883 )").strip(),
+        60,
+    )
+
+
 def pit_radio(want, name, outage_s, delay_ms, loss_pct):
     """The pit as at the track: its dashboard's own link and model (`aer-dashboard follow`,
     the release binary from the package) in the pit's namespace, behind the radio shaped with
@@ -460,15 +483,7 @@ def pit_radio(want, name, outage_s, delay_ms, loss_pct):
     its credentials. The session plays at recorded speed on vcan; with `outage_s`, 15 s in,
     the radio goes down for that long. The pit must end with every telemetry packet of the
     session: what it missed fetched from the Pi's history."""
-    shape = ["netem", "rate", "250kbit", "delay", f"{delay_ms}ms", "limit", "10000"]
-    if loss_pct:
-        shape += ["loss", f"{loss_pct}%"]
-    run("tc", "qdisc", "replace", "dev", "radio", "root", *shape)
-    run(*PIT, "tc", "qdisc", "replace", "dev", "radio-pit", "root", *shape)
-    set_isotp("kernel")
-    # A fresh service per condition: its stream numbered from 0, its history holding only this.
-    run("systemctl", "stop", "aer-raspi")
-    if not start_service():
+    if not shaped_radio_and_fresh_service(delay_ms, loss_pct):
         return
     env = dict(
         os.environ,
@@ -482,12 +497,7 @@ def pit_radio(want, name, outage_s, delay_ms, loss_pct):
         [*PIT, os.path.join(HERE, "aer-dashboard"), "follow", "--packets", str(want[0]), "--timeout-s", "500"],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
     )
-    connected = wait_for(
-        "the pit's connection through the radio",
-        lambda: run("ss", "-Htn", "state", "established", "( sport = :8883 )").strip(),
-        60,
-    )
-    if not check(f"radio, {name}: the pit connects (TLS, credentials)", bool(connected)):
+    if not check(f"radio, {name}: the pit connects (TLS, credentials)", bool(pit_connected())):
         follower.kill()
         return
     sent_before = int(open("/sys/class/net/radio/statistics/tx_bytes").read())
@@ -533,12 +543,7 @@ def pit_json(want):
     (250 kbit/s, 100 ms) and the TLS pit listener: far more than the radio carries. The gate
     must keep it bounded (the newest data, a few seconds behind at most, however long the
     session) and the Pi's status must name it while it is behind."""
-    shape = ["netem", "rate", "250kbit", "delay", "100ms", "limit", "10000"]
-    run("tc", "qdisc", "replace", "dev", "radio", "root", *shape)
-    run(*PIT, "tc", "qdisc", "replace", "dev", "radio-pit", "root", *shape)
-    set_isotp("kernel")
-    run("systemctl", "stop", "aer-raspi")
-    if not start_service():
+    if not shaped_radio_and_fresh_service(100, 0):
         return
     subscriber = subprocess.Popen(
         [*PIT, "mosquitto_sub", "-h", PI_ADDRESS, "-p", "8883", "--cafile", os.path.join(HERE, "tls", "team-ca.pem"),
@@ -557,12 +562,7 @@ def pit_json(want):
 
     reader = threading.Thread(target=read, daemon=True)
     reader.start()
-    connected = wait_for(
-        "mosquitto_sub's connection through the radio",
-        lambda: run("ss", "-Htn", "state", "established", "( sport = :8883 )").strip(),
-        60,
-    )
-    if not check("json over the radio: mosquitto_sub connects (TLS, credentials)", bool(connected)):
+    if not check("json over the radio: mosquitto_sub connects (TLS, credentials)", bool(pit_connected())):
         subscriber.kill()
         return
     player = subprocess.Popen(["canplayer", "-I", LOG])
