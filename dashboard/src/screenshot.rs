@@ -112,17 +112,34 @@ pub fn both_views(
     at: Option<f64>,
     dir: &Path,
 ) -> Result<Vec<std::path::PathBuf>> {
-    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     let (model, now) = replayed(config, session, at);
     let mut offscreen = Offscreen::new()?;
     let mut written = Vec::new();
     for (view, name) in [(View::Driver, "driver"), (View::Pit, "pit")] {
-        for size in SIZES {
-            let app = App::with_model(config, model.clone(), view, now);
-            let path = dir.join(format!("{name}-{}x{}.png", size.width, size.height));
-            write_png(&path, &offscreen.render(&app, size), size)?;
-            written.push(path);
-        }
+        written.extend(every_size(
+            &mut offscreen,
+            &App::with_model(config, model.clone(), view, now),
+            dir,
+            name,
+        )?);
+    }
+    Ok(written)
+}
+
+/// Renders `app` at every size in [`SIZES`] into `dir` as `<name>-<width>x<height>.png`;
+/// returns the files written.
+pub fn every_size(
+    offscreen: &mut Offscreen,
+    app: &App,
+    dir: &Path,
+    name: &str,
+) -> Result<Vec<std::path::PathBuf>> {
+    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    let mut written = Vec::new();
+    for size in SIZES {
+        let path = dir.join(format!("{name}-{}x{}.png", size.width, size.height));
+        write_png(&path, &offscreen.render(app, size), size)?;
+        written.push(path);
     }
     Ok(written)
 }

@@ -190,16 +190,15 @@ fn the_link_panel_shows_how_far_behind_the_pi_serves_this_pit_and_the_pis_proble
         dropped,
     };
     let clients = vec![
-        client("aer-dashboard-7", 2_100, 312),
-        client("grafana", 0, 0),
+        (client("aer-dashboard-7", 2_100, 312), 40),
+        (client("grafana", 0, 0), 0),
     ];
-    let recent = [40, 0];
     let Update::Status(mut status) = pi_status(aer::telemetry::TELEMETRY_FINGERPRINT, Some(true))
     else {
         unreachable!("pi_status makes a status");
     };
-    status.problems.mqtt_clients = aer_host::status::clients_behind(&clients, &recent);
-    status.mqtt_clients = clients;
+    status.problems.mqtt_clients = aer_host::status::clients_behind(&clients);
+    status.mqtt_clients = clients.into_iter().map(|(client, _)| client).collect();
     app.update(Message::Link(t0, Update::Status(status)));
     assert!(shows_part(
         &app,

@@ -99,12 +99,12 @@ impl Problems {
 /// A client this far behind (or losing messages) is a problem the status names.
 pub const CLIENT_BEHIND_MS: u64 = 1_000;
 
-/// The problem line for clients behind, `None` while every client keeps up.
-pub fn clients_behind(clients: &[MqttClient], dropped_since_last: &[u64]) -> Option<String> {
+/// The problem line for clients behind, `None` while every client keeps up. Each client comes
+/// with the messages dropped for it since the last status.
+pub fn clients_behind(clients: &[(MqttClient, u64)]) -> Option<String> {
     let behind: Vec<String> = clients
         .iter()
-        .zip(dropped_since_last.iter().chain(std::iter::repeat(&0)))
-        .filter(|(client, dropped)| client.lag_ms >= CLIENT_BEHIND_MS || **dropped > 0)
+        .filter(|(client, dropped)| client.lag_ms >= CLIENT_BEHIND_MS || *dropped > 0)
         .map(|(client, dropped)| {
             format!(
                 "`{}` ({}) {:.1} s behind, {dropped} messages dropped in the last second",

@@ -33,9 +33,9 @@ pub async fn run(
         let metrics = metrics(now, previous);
         let mut status = status(&car_id, &counters, health.problems());
         if let Some(clients) = &clients {
-            let (served, recent_drops): (Vec<_>, Vec<_>) = clients.snapshot().into_iter().unzip();
-            status.problems.mqtt_clients = clients_behind(&served, &recent_drops);
-            status.mqtt_clients = served;
+            let served = clients.snapshot();
+            status.problems.mqtt_clients = clients_behind(&served);
+            status.mqtt_clients = served.into_iter().map(|(client, _)| client).collect();
         }
         // The next status measures the next second's traffic.
         if let Ok(mut traffic) = counters.traffic.lock() {

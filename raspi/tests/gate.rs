@@ -354,6 +354,18 @@ async fn a_client_id_the_broker_did_not_acknowledge_is_never_offered_to_it_again
 
 /// A client that connects, subscribes to everything and never reads again.
 async fn idle_subscriber(port: u16, index: usize) -> Option<TcpStream> {
+    subscribe_raw(port, &format!("idle-{index}"), 0, "aer/#").await
+}
+
+/// A 3.1.1 client with a 4 KiB receive buffer that connects, is accepted, and sends
+/// SUBSCRIBE for `filter` (packet id 1, QoS 0) without waiting for the SUBACK: it reads only
+/// what its caller reads.
+async fn subscribe_raw(
+    port: u16,
+    client_id: &str,
+    keep_alive_s: u16,
+    filter: &str,
+) -> Option<TcpStream> {
     let socket = tokio::net::TcpSocket::new_v4().ok()?;
     socket.set_recv_buffer_size(4096).ok()?;
     let mut stream = socket
@@ -362,9 +374,9 @@ async fn idle_subscriber(port: u16, index: usize) -> Option<TcpStream> {
         .ok()?;
     let connect = packet::Connect {
         version: packet::Version::V311,
-        client_id: format!("idle-{index}"),
+        client_id: client_id.to_owned(),
         clean_session: true,
-        keep_alive_s: 0,
+        keep_alive_s,
         will: None,
         username: None,
         password: None,
@@ -375,8 +387,10 @@ async fn idle_subscriber(port: u16, index: usize) -> Option<TcpStream> {
     if connack[3] != 0 {
         return None;
     }
-    // SUBSCRIBE, packet id 1, `aer/#` at QoS 0.
-    let body = [&[0u8, 1, 0, 5][..], b"aer/#", &[0]].concat();
+    let mut body = vec![0u8, 1];
+    body.extend_from_slice(&u16::try_from(filter.len()).ok()?.to_be_bytes());
+    body.extend_from_slice(filter.as_bytes());
+    body.push(0);
     stream
         .write_all(&packet::with_header(0x82, &body))
         .await
@@ -688,8 +702,7 @@ async fn a_client_that_cannot_keep_up_gets_the_newest_data_and_is_reported() {
         ("v4-loopback", "3.1.1")
     );
     assert!(client.queued_bytes <= 32 * 1024 + 1100, "{client:?}");
-    let (served, recent): (Vec<_>, Vec<_>) = snapshot.into_iter().unzip();
-    let problem = aer_host::status::clients_behind(&served, &recent).expect("reported");
+    let problem = aer_host::status::clients_behind(&snapshot).expect("reported");
     assert!(problem.contains("`pit-slow` (v4-loopback)"), "{problem}");
     assert!(service.counters.snapshot().mqtt_client_dropped >= client.dropped);
 
@@ -748,33 +761,9 @@ async fn network_service() -> Service {
 
 /// A 3.1.1 client with a small receive buffer, subscribed to `filter` (SUBACK read).
 async fn raw_subscriber(port: u16, id: &str, filter: &str) -> TcpStream {
-    let socket = tokio::net::TcpSocket::new_v4().expect("socket");
-    socket.set_recv_buffer_size(4096).expect("buffer");
-    let mut stream = socket
-        .connect(std::net::SocketAddr::from(([127, 0, 0, 1], port)))
+    let mut stream = subscribe_raw(port, id, 60, filter)
         .await
-        .expect("connect");
-    let connect = packet::Connect {
-        version: packet::Version::V311,
-        client_id: id.to_owned(),
-        clean_session: true,
-        keep_alive_s: 60,
-        will: None,
-        username: None,
-        password: None,
-    };
-    stream.write_all(&connect.encode()).await.expect("CONNECT");
-    let mut connack = [0u8; 4];
-    stream.read_exact(&mut connack).await.expect("CONNACK");
-    assert_eq!(connack[3], 0, "accepted");
-    let mut body = vec![0u8, 1];
-    body.extend_from_slice(&(filter.len() as u16).to_be_bytes());
-    body.extend_from_slice(filter.as_bytes());
-    body.push(0);
-    stream
-        .write_all(&packet::with_header(0x82, &body))
-        .await
-        .expect("SUBSCRIBE");
+        .expect("connected, accepted and subscribed");
     let mut suback = [0u8; 5];
     stream.read_exact(&mut suback).await.expect("SUBACK");
     assert_eq!(suback[0] >> 4, 9, "SUBACK");

@@ -43,18 +43,10 @@ async fn next_event(stream: &mut (impl iced::futures::Stream<Item = Event> + Unp
 /// (`pit-<name>-1280x800.png`, ...), for the docs and a reviewer's eye; returns the files.
 fn pit_screenshots(model: &Dashboard, now: Instant, name: &str) -> Vec<std::path::PathBuf> {
     let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("pit-link");
-    std::fs::create_dir_all(&dir).expect("screenshot dir");
     let mut offscreen = aer_dashboard::screenshot::Offscreen::new().expect("software renderer");
-    aer_dashboard::screenshot::SIZES
-        .iter()
-        .map(|size| {
-            let app = App::with_model(&Config::default(), model.clone(), View::Pit, now);
-            let path = dir.join(format!("pit-{name}-{}x{}.png", size.width, size.height));
-            let pixels = offscreen.render(&app, *size);
-            aer_dashboard::screenshot::write_png(&path, &pixels, *size).expect("png");
-            path
-        })
-        .collect()
+    let app = App::with_model(&Config::default(), model.clone(), View::Pit, now);
+    aer_dashboard::screenshot::every_size(&mut offscreen, &app, &dir, &format!("pit-{name}"))
+        .expect("screenshots written")
 }
 
 /// Waits for the next update.

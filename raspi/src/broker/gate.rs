@@ -258,13 +258,18 @@ pub async fn start(
                             // reset the connection and could discard the answer.
                             let mut stream = stream;
                             let mut buffer = Vec::with_capacity(256);
-                            let _ = tokio::time::timeout(
+                            let read = tokio::time::timeout(
                                 HANDSHAKE,
                                 read_packet(&mut stream, &mut buffer),
                             )
                             .await;
-                            let version = Connect::parse(&buffer)
-                                .map_or(Version::V311, |connect| connect.version);
+                            let version = match read {
+                                Ok(Ok(Some((CONNECT, len)))) => {
+                                    Connect::parse(buffer.get(..len).unwrap_or_default())
+                                        .map_or(Version::V311, |connect| connect.version)
+                                }
+                                _ => Version::V311,
+                            };
                             let refusal = packet::refusal(version, Refusal::NotAuthorised);
                             let _ = stream.write_all(&refusal).await;
                             let _ = stream.shutdown().await;
