@@ -107,11 +107,17 @@ enum Command {
     /// `compact = false` season.
     Compact,
     /// Print raw log segments as candump -l text (every frame, losslessly), oldest first; a
-    /// folder means every segment in it.
+    /// folder means every segment in it. With --format, write them as BLF, ASC or MF4 to --out.
     RawExport {
         /// Segment files or raw log folders.
         #[arg(required = true)]
         paths: Vec<PathBuf>,
+        /// blf, asc or mf4 (CANalyzer, CANoe, CANape, asammdf) instead of candump text.
+        #[arg(long, value_enum, requires = "out")]
+        format: Option<Format>,
+        /// The file to write with --format.
+        #[arg(long, requires = "format")]
+        out: Option<PathBuf>,
     },
 }
 
@@ -170,10 +176,11 @@ struct ExportArgs {
     /// would store it; the session flags label it).
     #[arg(long)]
     log: Option<PathBuf>,
-    /// The formats (default: all three).
+    /// The formats (default: all six; BLF, ASC and MF4 hold the raw log's frames).
     #[arg(long = "format", value_enum)]
     formats: Vec<Format>,
-    /// Where to write: DIR/session.mcap, DIR/parquet/<table>.parquet, DIR/csv/<table>.csv.
+    /// Where to write: DIR/session.mcap, DIR/parquet/<table>.parquet, DIR/csv/<table>.csv,
+    /// DIR/session.{blf,asc,mf4}.
     #[arg(long)]
     out: Option<PathBuf>,
     /// Write one tar archive instead (`-`: to standard output, e.g. through ssh): the export
@@ -201,8 +208,20 @@ fn parse_time(text: &str) -> Result<i64, String> {
 fn main() -> Result<()> {
     aer_host::logging::init("info,rumqttd=warn", BROKER_ROUTINE);
     let cli = Cli::parse();
-    if let Command::RawExport { paths } = &cli.command {
-        return aer_raspi::rawlog::export::candump(paths, std::io::stdout().lock());
+    if let Command::RawExport { paths, format, out } = &cli.command {
+        return match (format, out) {
+            (Some(format), Some(out)) => {
+                let written = aer_raspi::rawlog::export::to_file(paths, *format, out)?;
+                println!(
+                    "{} frames to {} ({} bytes)",
+                    written.rows,
+                    written.path.display(),
+                    written.bytes
+                );
+                Ok(())
+            }
+            _ => aer_raspi::rawlog::export::candump(paths, std::io::stdout().lock()),
+        };
     }
     if matches!(
         cli.command,

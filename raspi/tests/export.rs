@@ -6,16 +6,19 @@
 //! which `.ci/run` installs); without them the comparison says SKIPPED, unless
 //! `AER_REQUIRE_PYTHON` is set (CI sets it), when it fails.
 
+mod common;
+
 use aer::tables::TABLES;
 use aer_host::counters::Counters;
 use aer_host::decode::{Ingest, Record};
+use aer_raspi::export::frames::source::FrameSource;
 use aer_raspi::export::load::Selection;
 use aer_raspi::export::{self, Format, Request};
 use aer_raspi::service::DEMO_LOG;
 use aer_raspi::store::session::{self, Metadata};
 use aer_raspi::store::{self, row, writer};
 use std::collections::HashMap;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::Command;
 use std::sync::Arc;
 
@@ -45,29 +48,6 @@ fn session_rows(limit: usize) -> Vec<row::Row> {
         );
     }
     rows
-}
-
-fn python() -> Option<PathBuf> {
-    let venv = Path::new(env!("CARGO_MANIFEST_DIR")).join("../.venv/bin/python");
-    let python = std::env::var_os("AER_PYTHON").map_or(venv, PathBuf::from);
-    let usable = Command::new(&python)
-        .args(["-c", "import mcap, polars"])
-        .output()
-        .is_ok_and(|o| o.status.success());
-    if usable {
-        return Some(python);
-    }
-    assert!(
-        std::env::var_os("AER_REQUIRE_PYTHON").is_none(),
-        "AER_REQUIRE_PYTHON is set but {} cannot import mcap and polars",
-        python.display()
-    );
-    eprintln!(
-        "SKIPPED: reading the exports back needs {} with mcap and polars \
-         (python3 -m venv .venv && .venv/bin/pip install -r tools/requirements.txt)",
-        python.display()
-    );
-    None
 }
 
 #[test]
@@ -100,11 +80,20 @@ fn a_session_exported_in_every_format_reads_back_equal_to_the_store() {
         out_dir: out.clone(),
         topic_root: "aer/car1".into(),
         extra: Vec::new(),
+        frames: Some(FrameSource {
+            files: vec![common::session_log()],
+            ..FrameSource::default()
+        }),
     };
     let report = export::export(&db, &request).expect("export");
     let exported: usize = report.rows.iter().map(|(_, n)| n).sum();
     assert_eq!(exported, rows.len(), "every row of the session, no other");
-    for format in &report.formats {
+    let frames = DEMO_LOG.lines().count();
+    for format in report.formats.iter().filter(|f| f.format.holds_frames()) {
+        assert_eq!(format.files.len(), 1, "{:?}", format.format);
+        assert_eq!(format.files[0].rows, frames, "{:?}", format.format);
+    }
+    for format in report.formats.iter().filter(|f| !f.format.holds_frames()) {
         assert!(
             !format.files.is_empty(),
             "{:?} wrote nothing",
@@ -126,7 +115,9 @@ fn a_session_exported_in_every_format_reads_back_equal_to_the_store() {
         .collect();
     let types_path = dir.path().join("types.json");
     std::fs::write(&types_path, serde_json::to_string(&types).expect("json")).expect("write");
-    let Some(python) = python() else { return };
+    let Some(python) = common::python() else {
+        return;
+    };
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("../tools/check_exports.py");
     let result = Command::new(python)
         .arg(script)
@@ -145,10 +136,28 @@ fn a_session_exported_in_every_format_reads_back_equal_to_the_store() {
     println!("{stdout}");
     assert!(stdout.contains(&format!("{} rows", rows.len())), "{stdout}");
 
+    // The frames: python-can reads the BLF and ASC files, asammdf the MF4 (and decodes it with
+    // the DBC into signals that must equal the Parquet files' columns).
+    let stdout = common::check_frames(
+        &common::session_log(),
+        &out,
+        Some(&dir.path().join("messages.json")),
+    );
+    assert!(
+        stdout.contains(&format!("session.mf4 (asammdf): {frames} frames equal")),
+        "{stdout}"
+    );
+    assert!(
+        stdout.contains("signals of 20 messages equal to the export"),
+        "{stdout}"
+    );
+
     // The runbook's join of telemetry and a CAN message in time (docs/test-day.md) runs on
     // this export as it stands in the document.
     let join = Path::new(env!("CARGO_MANIFEST_DIR")).join("../docs/examples/join_telemetry_can.py");
-    let Some(python) = self::python() else { return };
+    let Some(python) = common::python() else {
+        return;
+    };
     let joined = Command::new(python)
         .arg(join)
         .arg(&out)

@@ -9,6 +9,7 @@ use aer::mqtt::TELEMETRY;
 use aer_host::counters::Counters;
 use aer_host::raw_format::SegmentReader;
 use aer_raspi::broker;
+use aer_raspi::export::Format;
 use aer_raspi::health::Health;
 use aer_raspi::rawlog::RawTap;
 use aer_raspi::rawlog::segments;
@@ -335,6 +336,26 @@ fn the_raw_log_keeps_every_frame_and_reads_back_as_the_log() {
             .iter()
             .zip(&original)
             .all(|(ours, theirs)| ours == theirs)
+    );
+
+    // `aer-raspi raw-export --format`: the segments as the bus tools' files, which python-can
+    // (BLF, ASC) and asammdf (MF4) read back frame for frame as the log.
+    let out = dir.path().join("bus-tools");
+    std::fs::create_dir_all(&out).expect("folder");
+    for (format, name) in [
+        (Format::Blf, "session.blf"),
+        (Format::Asc, "session.asc"),
+        (Format::Mf4, "session.mf4"),
+    ] {
+        let written =
+            aer_raspi::rawlog::export::to_file(&[dir.path().join("raw")], format, &out.join(name))
+                .expect("written");
+        assert_eq!(written.rows, original.len(), "{format:?}");
+    }
+    let checked = common::check_frames(&common::session_log(), &out, None);
+    assert!(
+        checked.is_empty() || checked.contains(&format!("{} frames equal", original.len())),
+        "{checked}"
     );
 }
 

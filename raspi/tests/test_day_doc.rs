@@ -45,11 +45,15 @@ fn car() -> (tempfile::TempDir, Located) {
     db.execute("UPDATE sessions SET clock = ?1", [UNSYNCHRONIZED])
         .expect("clock");
     drop(db);
-    // The raw log: the segment the service started at boot, before the run.
+    // The raw log: the segment the service started at boot, before the run, holding the run.
     let raw = dir.path().join("raw");
     std::fs::create_dir(&raw).expect("raw");
     let boot = RUN_START_US - 20_000_000;
-    std::fs::write(raw.join(format!("raw-{boot:020}.aerraw")), b"frames").expect("segment");
+    std::fs::write(
+        raw.join(format!("raw-{boot:020}.aerraw")),
+        common::session_segment(),
+    )
+    .expect("segment");
     let config = dir.path().join("aer-raspi.toml");
     std::fs::write(
         &config,

@@ -11,6 +11,7 @@ Waits are for a condition with a deadline, never a fixed sleep.
 
 import json
 import os
+import re
 import sqlite3
 import subprocess
 import sys
@@ -229,6 +230,40 @@ def replay_live(log, name, want):
     return sub
 
 
+ASC_FRAME = re.compile(r"^\s*\d+\.\d{6} (\d+)\s+([0-9A-F]+x?)\s+Rx\s+d [0-9A-F]+((?: [0-9A-F]{2})*)$")
+
+
+def bus_tool_export(log, name):
+    """`aer-raspi export --session latest` on the running service's store and raw log, as BLF,
+    ASC and MF4: the ASC file must hold every frame of the played log, in order (channel N is
+    canN-1; times are the live ones, so they are not compared)."""
+    played = []
+    for line in open(log):
+        _, interface, frame = line.split()
+        can_id, data = frame.split("#")
+        ident = f"{int(can_id, 16):X}" + ("x" if len(can_id) == 8 else "")
+        played.append((int(interface.removeprefix("can")) + 1, ident, data.upper()))
+    out = f"/root/{name}-bus-tools"
+
+    def exported():
+        run("aer-raspi", "--config", CONFIG, "export", "--session", "latest", "--replace",
+            "--format", "blf", "--format", "asc", "--format", "mf4", "--out", out)
+        frames = []
+        for line in open(f"{out}/session.asc"):
+            if m := ASC_FRAME.match(line):
+                frames.append((int(m[1]), m[2], m[3].replace(" ", "")))
+        return frames
+
+    # The raw log reaches the disk within its sync interval: export until it has them all.
+    frames = wait_for("every frame in the raw log", lambda: (f := exported()) and len(f) >= len(played) and f, 30)
+    sizes = {ext: os.path.getsize(f"{out}/session.{ext}") for ext in ("blf", "mf4")}
+    check(
+        f"{name}: export --session latest writes BLF, ASC and MF4 with every frame of the session",
+        frames == played and all(sizes.values()),
+        f"{len(frames or [])} of {len(played)} frames in the ASC file, in order: {frames == played}; BLF {sizes['blf']} bytes, MF4 {sizes['mf4']} bytes",
+    )
+
+
 def session_in(mode, want):
     set_isotp(mode)
     run("systemctl", "restart", "aer-raspi")
@@ -239,6 +274,8 @@ def session_in(mode, want):
     after = counters()
     errors = after.get("isotp_errors", 0) - before.get("isotp_errors", 0)
     check(f"{mode} ISO-TP: no ISO-TP errors on a clean bus", errors == 0, f"{errors}")
+    if mode == "kernel":
+        bus_tool_export(LOG, f"session-{mode}")
     rows = session_rows(store_path())
     took = stop("SIGTERM")
     result = run("systemctl", "show", "-P", "Result", "aer-raspi").strip()

@@ -1,14 +1,15 @@
 //! `aer-raspi export`: a session (or a time range, or a recorded log) as MCAP, Parquet and CSV,
-//! into a folder of its own, or as one tar archive with the session's raw log beside the
-//! exports, so it leaves the car in one step (`ssh` to stdout, docs/test-day.md).
+//! and its frames (from the raw log) as BLF, ASC and MF4, into a folder of its own, or as one
+//! tar archive with the session's raw log beside the exports, so it leaves the car in one step
+//! (`ssh` to stdout, docs/test-day.md).
 //!
 //! An export that would select nothing is an error that says what has data; an export into a
 //! folder that holds another export refuses, or with `--replace` removes that one first, so
 //! two exports never mix.
 
 use super::Located;
+use crate::export::frames::{self, source::FrameSource};
 use crate::export::{self, Format, load::Selection};
-use crate::rawlog::segments;
 use crate::store::session::{self, Session};
 use crate::store::utc;
 use anyhow::{Context, Result, bail};
@@ -36,7 +37,14 @@ pub struct Wanted {
 }
 
 /// What an export folder holds: anything of these is an earlier export.
-const LAYOUT: [&str; 3] = ["session.mcap", "parquet", "csv"];
+const LAYOUT: [&str; 6] = [
+    "session.mcap",
+    "parquet",
+    "csv",
+    "session.blf",
+    "session.asc",
+    "session.mf4",
+];
 
 /// Runs the export.
 pub fn run(
@@ -108,6 +116,7 @@ pub fn run(
     } else {
         wanted.formats.clone()
     };
+    let frames = frame_source(located, wanted, session.as_ref());
     let (folder, scratch) = match (&wanted.out, &wanted.archive) {
         (Some(dir), None) => {
             prepare(dir, wanted.replace, notes)?;
@@ -125,6 +134,7 @@ pub fn run(
         out_dir: folder.clone(),
         topic_root: located.config.topic_prefix(),
         extra,
+        frames,
     };
     let written = export::export(&db, &request).map(|report| {
         let rows: usize = report.rows.iter().map(|(_, n)| n).sum();
@@ -143,7 +153,13 @@ pub fn run(
                 report.rows.len(),
                 report.load.as_secs_f64() * 1e3
             )?;
-            for format in &report.formats {
+            frames_note(&report, &request, wanted.formats.is_empty(), notes)?;
+            // A bus-logging format without frames was said above.
+            for format in report
+                .formats
+                .iter()
+                .filter(|f| !(f.format.holds_frames() && f.files.is_empty()))
+            {
                 let bytes: u64 = format.files.iter().map(|f| f.bytes).sum();
                 writeln!(
                     notes,
@@ -176,6 +192,88 @@ pub fn run(
         let _ = std::fs::remove_dir_all(scratch);
     }
     outcome
+}
+
+/// Where the bus-logging formats take their frames: the recorded log itself, or the raw log's
+/// segments over the session (or the time range). The demo records no raw log.
+fn frame_source(
+    located: &Located,
+    wanted: &Wanted,
+    session: Option<&Session>,
+) -> Option<FrameSource> {
+    let micros = |us: Option<i64>| us.and_then(|us| u64::try_from(us).ok());
+    let (mut from_us, mut to_us) = (micros(wanted.from_us), micros(wanted.to_us));
+    if let Some(session) = session {
+        from_us = from_us.max(micros(Some(session.started_us)));
+        to_us = match (to_us, micros(session.ended_us)) {
+            (Some(a), Some(b)) => Some(a.min(b)),
+            (a, b) => a.or(b),
+        };
+    }
+    let files = match &wanted.log {
+        Some(log) => vec![log.clone()],
+        None if wanted.demo => return None,
+        None => frames::segments_between(
+            &located.config.raw_log.dir,
+            from_us.unwrap_or(0),
+            to_us.unwrap_or(u64::MAX),
+        ),
+    };
+    Some(FrameSource {
+        files,
+        from_us,
+        to_us,
+    })
+}
+
+/// Says how many frames the bus-logging formats hold, and why they were not written when a
+/// selection has none (an error if they were asked for by name).
+fn frames_note(
+    report: &export::Report,
+    request: &export::Request,
+    by_default: bool,
+    notes: &mut dyn Write,
+) -> Result<()> {
+    let asked: Vec<String> = request
+        .formats
+        .iter()
+        .filter(|f| f.holds_frames())
+        .map(|f| format!("{f:?}"))
+        .collect();
+    if asked.is_empty() {
+        return Ok(());
+    }
+    match &report.frames {
+        Some(summary) if summary.frames > 0 => {
+            writeln!(
+                notes,
+                "{} frames on channels {} for {}",
+                summary.frames,
+                summary.channels.describe(),
+                asked.join(", ")
+            )?;
+            if summary.skipped > 0 {
+                writeln!(
+                    notes,
+                    "{} lines or blocks of the frames' files do not parse: skipped",
+                    summary.skipped
+                )?;
+            }
+            Ok(())
+        }
+        _ if by_default => {
+            writeln!(
+                notes,
+                "no raw log frames for this selection: {} not written",
+                asked.join(", ")
+            )?;
+            Ok(())
+        }
+        _ => bail!(
+            "{} hold the raw log's frames, and it has none for this selection (the demo keeps no raw log; `aer-raspi raw-export` reads segments)",
+            asked.join(", ")
+        ),
+    }
 }
 
 /// The session `which` names (`latest`, or an id), if it has rows; otherwise an error naming
@@ -289,29 +387,14 @@ fn scratch_dir() -> Result<PathBuf> {
     Ok(dir)
 }
 
-/// The raw log segments that hold frames of `session`: each segment runs from its start to
-/// the next one's.
+/// The raw log segments that hold frames of `session`.
 fn session_segments(dir: &Path, session: &Session) -> Vec<PathBuf> {
-    let listed = segments::list(dir);
-    let end = session.ended_us.unwrap_or(i64::MAX);
-    let starts: Vec<i64> = listed
-        .iter()
-        .map(|(path, _)| {
-            segments::started_us(path)
-                .and_then(|us| i64::try_from(us).ok())
-                .unwrap_or(0)
-        })
-        .collect();
-    listed
-        .iter()
-        .enumerate()
-        .filter(|(i, _)| {
-            let start = starts.get(*i).copied().unwrap_or(0);
-            let next = starts.get(i + 1).copied().unwrap_or(i64::MAX);
-            start <= end && next > session.started_us
-        })
-        .map(|(_, (path, _))| path.clone())
-        .collect()
+    let micros = |us: i64| u64::try_from(us).unwrap_or(0);
+    frames::segments_between(
+        dir,
+        micros(session.started_us),
+        session.ended_us.map_or(u64::MAX, micros),
+    )
 }
 
 /// Writes `folder` and the `raw` segments as one tar archive under `name/` (to `out` for

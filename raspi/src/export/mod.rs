@@ -1,13 +1,15 @@
 //! Session exports: the store's rows (or a recorded log's, decoded) as files engineers open
 //! after a test day: MCAP for Foxglove and PlotJuggler, Parquet for pandas/polars, CSV for
 //! spreadsheets. Each carries the session's metadata (driver, track, run, notes) and what
-//! every column means (label, unit, values), all from the generated schema.
+//! every column means (label, unit, values), all from the generated schema. Beside them, the
+//! session's frames from the raw log in the bus tools' formats: BLF, ASC and MF4.
 //!
 //! [`load`] selects and reads the rows, [`describe`](crate::describe) says what each column is, and [`mcap`],
-//! [`parquet`] and [`csv`] write them.
+//! [`parquet`] and [`csv`] write them; [`frames`] writes the frames.
 
 pub mod columns;
 pub mod csv;
+pub mod frames;
 pub mod load;
 pub mod mcap;
 pub mod parquet;
@@ -67,12 +69,23 @@ pub enum Format {
     Mcap,
     Parquet,
     Csv,
+    /// Vector binary logging (CANalyzer, CANoe): the raw log's frames.
+    Blf,
+    /// Vector ASCII logging (CANalyzer, CANoe): the raw log's frames.
+    Asc,
+    /// ASAM MDF 4 bus logging (CANape, asammdf): the raw log's frames.
+    Mf4,
 }
 
 impl Format {
     /// Every format, in declaration order: what an export writes unless told otherwise.
     pub fn all() -> Vec<Self> {
         <Self as clap::ValueEnum>::value_variants().to_vec()
+    }
+
+    /// True for the formats that hold frames (from the raw log) rather than decoded rows.
+    pub fn holds_frames(self) -> bool {
+        frames::file_name(self).is_some()
     }
 }
 
@@ -141,6 +154,8 @@ pub struct Report {
     /// Reading the rows from the store.
     pub load: Duration,
     pub formats: Vec<FormatReport>,
+    /// The frames the bus-logging formats hold, if any were asked for and a source given.
+    pub frames: Option<frames::source::Summary>,
 }
 
 /// An export's settings.
@@ -153,6 +168,8 @@ pub struct Request {
     pub topic_root: String,
     /// Metadata for an export of a log (which has no session of its own), or extra keys.
     pub extra: Vec<(String, String)>,
+    /// Where the bus-logging formats take the frames from; without it they are not written.
+    pub frames: Option<frames::source::FrameSource>,
 }
 
 /// The metadata every export carries: the session's (if one was chosen), what was selected,
@@ -240,10 +257,24 @@ pub fn export(db: &Connection, request: &Request) -> Result<Report, ExportError>
         request.selection,
         &request.extra,
     );
+    let wants_frames = request.formats.iter().any(|f| f.holds_frames());
+    let summary = match &request.frames {
+        Some(source) if wants_frames => Some(source.summary()?),
+        _ => None,
+    };
     let mut formats = Vec::new();
     for &format in &request.formats {
         let started = Instant::now();
-        let files = write(format, &tables, &metadata, request)?;
+        let files = match (frames::file_name(format), &request.frames, &summary) {
+            (None, _, _) => write(format, &tables, &metadata, request)?,
+            (Some(name), Some(source), Some(summary)) if summary.frames > 0 => {
+                std::fs::create_dir_all(&request.out_dir)
+                    .map_err(|e| ExportError::write(&request.out_dir, e))?;
+                let path = request.out_dir.join(name);
+                vec![frames::write(format, source, summary, &path, &metadata)?]
+            }
+            (Some(_), _, _) => Vec::new(),
+        };
         formats.push(FormatReport {
             format,
             files,
@@ -258,6 +289,7 @@ pub fn export(db: &Connection, request: &Request) -> Result<Report, ExportError>
             .collect(),
         load,
         formats,
+        frames: summary,
     })
 }
 
@@ -277,5 +309,8 @@ fn write(
         )?]),
         Format::Parquet => parquet::write(&dir.join("parquet"), tables, metadata),
         Format::Csv => csv::write(&dir.join("csv"), tables, metadata),
+        Format::Blf | Format::Asc | Format::Mf4 => {
+            Err(ExportError::Internal("frames are written by frames::write"))
+        }
     }
 }

@@ -1,10 +1,40 @@
-//! Raw log segments as candump `-l` text: the same timestamps, interfaces, ids and data.
+//! Raw log segments as candump `-l` text (the same timestamps, interfaces, ids and data), or
+//! as a BLF, ASC or MF4 file for the bus tools.
 
-use super::segments;
+use crate::export::frames::{self, source::FrameSource, source::expand};
+use crate::export::{Format, Written};
 use aer_host::raw_format::SegmentReader;
-use anyhow::{Context, Result};
+use anyhow::{Context, Result, bail};
 use std::io::Write;
 use std::path::{Path, PathBuf};
+
+/// Writes every frame of `paths` (segments, or folders of them, oldest first) to `out` as
+/// `format`, a bus-logging format, with the file names as metadata.
+pub fn to_file(paths: &[PathBuf], format: Format, out: &Path) -> Result<Written> {
+    if !format.holds_frames() {
+        bail!("{format:?} holds decoded rows: `aer-raspi export --log SEGMENT` writes it");
+    }
+    let source = FrameSource {
+        files: expand(paths),
+        from_us: None,
+        to_us: None,
+    };
+    let summary = source.summary()?;
+    let named: Vec<String> = source
+        .files
+        .iter()
+        .map(|p| p.display().to_string())
+        .collect();
+    let metadata = vec![("raw_log".to_owned(), named.join(", "))];
+    let written = frames::write(format, &source, &summary, out, &metadata)?;
+    if summary.skipped > 0 {
+        eprintln!(
+            "{} damaged blocks skipped (`aer-raspi raw-export` without --format names them)",
+            summary.skipped
+        );
+    }
+    Ok(written)
+}
 
 /// Writes every frame of `paths` (segments, or folders of them, oldest first) to `out`, one
 /// candump line each. Damage is reported on stderr with the file and block, and skipped. A
@@ -36,18 +66,4 @@ fn write_all(paths: &[PathBuf], out: &mut impl Write) -> Result<()> {
         }
     }
     Ok(())
-}
-
-/// The segment files `paths` name, folders expanded to their segments in time order.
-fn expand(paths: &[PathBuf]) -> Vec<PathBuf> {
-    paths
-        .iter()
-        .flat_map(|path| {
-            if Path::is_dir(path) {
-                segments::list(path).into_iter().map(|(p, _)| p).collect()
-            } else {
-                vec![path.clone()]
-            }
-        })
-        .collect()
 }

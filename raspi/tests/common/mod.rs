@@ -7,7 +7,7 @@ use aer_raspi::sink::store::StoreSink;
 use aer_raspi::source::Replies;
 use aer_raspi::stage::Stage;
 use aer_raspi::store::{self, StoreWriter, WhenFull, WriterOptions, session};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 use std::sync::Arc;
 
@@ -114,4 +114,117 @@ pub fn text(output: &Output) -> (String, String) {
         String::from_utf8_lossy(&output.stdout).into_owned(),
         String::from_utf8_lossy(&output.stderr).into_owned(),
     )
+}
+
+/// The bundled session's candump log file.
+pub fn session_log() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("data/session.log")
+}
+
+/// Runs `tools/check_frame_exports.py` on the bus-logging files in `dir` against `reference`
+/// (a candump log), and with `messages` (written here) the MF4's signals against the Parquet
+/// files; its output. Skips (empty output) without the Python readers.
+pub fn check_frames(reference: &Path, dir: &Path, messages: Option<&Path>) -> String {
+    let Some(python) = python() else {
+        return String::new();
+    };
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("../tools/check_frame_exports.py");
+    let mut command = Command::new(python);
+    command
+        .arg(script)
+        .arg("--reference")
+        .arg(reference)
+        .args(["--channels", "1=can0,2=can1", "--dir"])
+        .arg(dir);
+    if let Some(path) = messages {
+        // Each DBC message's table and columns in the export.
+        let messages: serde_json::Map<String, serde_json::Value> = aer::can::MESSAGES
+            .iter()
+            .filter_map(|message| {
+                let table = aer::tables::TABLES
+                    .iter()
+                    .find(|t| std::ptr::eq(t.signals, message.signals))?;
+                let columns = aer_raspi::export::columns::of(table);
+                let signals: serde_json::Map<String, serde_json::Value> = message
+                    .signals
+                    .iter()
+                    .filter_map(|signal| {
+                        let column = table.columns.get(1 + usize::from(signal.index))?;
+                        let exported = columns.iter().find(|c| c.stored == column.name)?;
+                        Some((signal.name.to_owned(), exported.name.into()))
+                    })
+                    .collect();
+                Some((
+                    message.name.to_owned(),
+                    serde_json::json!({"table": table.name, "signals": signals}),
+                ))
+            })
+            .collect();
+        std::fs::write(path, serde_json::to_string(&messages).expect("json")).expect("write");
+        let dbc = Path::new(env!("CARGO_MANIFEST_DIR")).join("../schema/aer.dbc");
+        command.arg("--dbc").arg(dbc).arg("--messages").arg(path);
+    }
+    let result = command.output().expect("run check_frame_exports.py");
+    let stdout = String::from_utf8_lossy(&result.stdout).into_owned();
+    assert!(
+        result.status.success(),
+        "{stdout}\n{}",
+        String::from_utf8_lossy(&result.stderr)
+    );
+    println!("{stdout}");
+    stdout
+}
+
+/// The project venv's Python with the exports' independent readers; `None` (said as
+/// SKIPPED) without them, unless `AER_REQUIRE_PYTHON` is set.
+pub fn python() -> Option<PathBuf> {
+    let venv = Path::new(env!("CARGO_MANIFEST_DIR")).join("../.venv/bin/python");
+    let python = std::env::var_os("AER_PYTHON").map_or(venv, PathBuf::from);
+    let usable = Command::new(&python)
+        .args(["-c", "import mcap, polars, can, asammdf"])
+        .output()
+        .is_ok_and(|o| o.status.success());
+    if usable {
+        return Some(python);
+    }
+    assert!(
+        std::env::var_os("AER_REQUIRE_PYTHON").is_none(),
+        "AER_REQUIRE_PYTHON is set but {} cannot import mcap, polars, can and asammdf",
+        python.display()
+    );
+    eprintln!(
+        "SKIPPED: reading the exports back needs {} with mcap, polars, python-can and asammdf \
+         (python3 -m venv .venv && .venv/bin/pip install -r tools/requirements.txt)",
+        python.display()
+    );
+    None
+}
+
+/// The bundled session as one raw log segment, as the service writes it: the header, then
+/// blocks of 4,096 frames.
+pub fn session_segment() -> Vec<u8> {
+    use aer_host::raw_format::{BlockEncoder, MAGIC};
+    let mut buses: Vec<Arc<str>> = Vec::new();
+    let frames: Vec<_> = SESSION
+        .lines()
+        .map(|line| {
+            aer_host::candump::parse_line(line, |name| {
+                let index = buses.iter().position(|b| &**b == name).unwrap_or_else(|| {
+                    buses.push(name.into());
+                    buses.len() - 1
+                });
+                u8::try_from(index).expect("few buses")
+            })
+            .expect("the bundled log parses")
+        })
+        .collect();
+    let mut segment = MAGIC.to_vec();
+    for chunk in frames.chunks(4096) {
+        let mut block = BlockEncoder::new(chunk[0].ts_us, &buses);
+        for frame in chunk {
+            block.push(frame);
+        }
+        segment.extend_from_slice(&block.finish());
+    }
+    segment
 }
