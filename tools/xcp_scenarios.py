@@ -9,7 +9,8 @@ with exactly one line (`{"ok": true, ...}` or `{"ok": false, "error": ...}`). Re
 start_up, drive_until_moving, drive {ms}, restart, corrupt, result {name, value}, done. While
 a request is outstanding the harness reads no XCP commands, so none are sent then.
 
-Environment: AER_XCP_TRANSPORT (tcp: AER_XCP_HOST, AER_XCP_PORT; can: AER_XCP_CAN_CHANNEL,
+Environment: AER_XCP_TRANSPORT (tcp: AER_XCP_HOST, AER_XCP_PORT, and AER_XCP_PADDED=1 through
+the Pi's gateway, whose packets are the slave's CAN frames; can: AER_XCP_CAN_CHANNEL,
 AER_XCP_CAN_ID_MASTER, AER_XCP_CAN_ID_SLAVE, AER_XCP_CAN_BIT_RATE), AER_XCP_SECRET (32 bytes, hex: the key is the first 16 bytes of
 HMAC-SHA256(secret, seed)), AER_XCP_EXPECTED (JSON written by the harness: EPK, A2L path,
 addresses, parameters, internals).
@@ -468,7 +469,9 @@ def scenarios(app, expected, layer):
     dtos = session.dtos.take()
     total = len(dtos)
     log(f"{total} DTOs collected (first PID {daq.first_pid}, prescaler {daq.prescaler})")
-    result("daq", daq.decode(dtos, padded=layer == "can"))
+    # On CAN every DTO is a padded 8-byte frame; through the Pi's gateway it still is.
+    padded = layer == "can" or os.environ.get("AER_XCP_PADDED") == "1"
+    result("daq", daq.decode(dtos, padded=padded))
 
     # 10. Power cycle: the saved calibration comes back.
     session.close()

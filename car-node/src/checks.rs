@@ -28,6 +28,15 @@ pub struct Check {
     pub detail: Option<String>,
 }
 
+/// The checks that failed, each as its line.
+pub fn failed(checks: &[Check]) -> Vec<String> {
+    checks
+        .iter()
+        .filter(|c| c.failure.is_some())
+        .map(ToString::to_string)
+        .collect()
+}
+
 impl fmt::Display for Check {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match &self.failure {

@@ -101,7 +101,7 @@ fn main() -> Result<()> {
             for check in &checks {
                 println!("{check}");
             }
-            let failed = checks.iter().filter(|c| c.failure.is_some()).count();
+            let failed = checks::failed(&checks).len();
             if failed > 0 {
                 bail!("{failed} of {} checks failed", checks.len());
             }

@@ -58,11 +58,7 @@ fn pyxcp_calibrates_and_measures_the_ccm_in_the_car_model() {
         eprintln!("{verdict}");
     }
     assert!(verdicts.len() >= 20, "{} checks", verdicts.len());
-    let failed: Vec<String> = verdicts
-        .iter()
-        .filter(|v| v.failure.is_some())
-        .map(ToString::to_string)
-        .collect();
+    let failed = checks::failed(&verdicts);
     assert!(failed.is_empty(), "{failed:#?}");
 }
 

@@ -167,6 +167,7 @@ fn pi_status(telemetry_fingerprint: u32, firmware_ok: Option<bool>) -> Update {
         bus_traffic: Default::default(),
         message_rates: Default::default(),
         mqtt_clients: Default::default(),
+        xcp_gateway: None,
     }))
 }
 

@@ -127,6 +127,17 @@ counters! {
     /// Live messages the gate dropped for clients that could not keep up (each got the
     /// newest instead; the status names the clients).
     mqtt_client_dropped,
+    /// XCP masters the gateway refused: an address outside its allow list, or another
+    /// master while one is connected.
+    xcp_refused,
+    /// XCP command packets the gateway forwarded from the pit to the CCM.
+    xcp_commands,
+    /// XCP packets (responses, events, DAQ) the gateway forwarded from the CCM to the pit.
+    xcp_responses,
+    /// XCP packets from the CCM with no master to take them (after a master vanished: the
+    /// answer to the DISCONNECT the gateway sent for it, DAQ still running), and packets a
+    /// master sent that were not XCP on TCP (its connection is closed).
+    xcp_dropped,
 }
 
 /// What went wrong with one message's frames, as the status reports it.

@@ -53,6 +53,26 @@ pub struct Status {
     /// behind it is.
     #[serde(default)]
     pub mqtt_clients: Vec<MqttClient>,
+    /// The pit's XCP gateway to the CCM's calibration slave, when the service runs one.
+    #[serde(default)]
+    pub xcp_gateway: Option<XcpGateway>,
+}
+
+/// The XCP gateway as the status reports it.
+#[derive(Debug, Clone, PartialEq, Eq, Default, Serialize, Deserialize)]
+pub struct XcpGateway {
+    /// Where pit masters connect (XCP on TCP).
+    pub listen: String,
+    /// The CAN interface the CCM's slave is on.
+    pub interface: String,
+    /// The master connected now (its address), if any: one at a time.
+    pub master: Option<String>,
+    /// When it connected (us since the epoch).
+    pub master_since_us: Option<u64>,
+    /// The master holds an XCP session with the CCM (its CONNECT was answered).
+    pub session: bool,
+    /// The last refusal, with the address and why.
+    pub last_refusal: Option<String>,
 }
 
 /// One MQTT client as the gate serves it.
@@ -89,6 +109,7 @@ impl Problems {
             ("CAN", &self.can),
             ("firmware", &self.firmware),
             ("MQTT clients", &self.mqtt_clients),
+            ("XCP gateway", &self.xcp_gateway),
         ]
         .into_iter()
         .filter_map(|(part, problem)| problem.as_deref().map(|p| (part, p)))
@@ -153,6 +174,9 @@ pub struct Problems {
     /// slower than what they subscribed to).
     #[serde(default)]
     pub mqtt_clients: Option<String>,
+    /// The XCP gateway could not start (its address taken, its CAN interface missing).
+    #[serde(default)]
+    pub xcp_gateway: Option<String>,
 }
 
 /// The ingest service's counters, published every second.
@@ -212,6 +236,7 @@ pub fn status(car_id: &str, counters: &Counters, problems: Problems) -> Status {
         bus_traffic,
         message_rates,
         mqtt_clients: Vec::new(),
+        xcp_gateway: None,
     }
 }
 

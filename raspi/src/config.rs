@@ -23,6 +23,8 @@ pub struct Config {
     pub pit_stream: PitStreamConfig,
     pub retention: RetentionConfig,
     pub tdengine: TdengineConfig,
+    /// The pit's XCP gateway to the CCM's calibration slave.
+    pub xcp_gateway: XcpGatewayConfig,
     /// Who drives, where, which run: stored with the session's data and carried into every
     /// export (the command line's `--driver` etc. override it).
     pub session: Metadata,
@@ -123,8 +125,65 @@ impl Default for Config {
             pit_stream: PitStreamConfig::default(),
             retention: RetentionConfig::default(),
             tdengine: TdengineConfig::default(),
+            xcp_gateway: XcpGatewayConfig::default(),
             session: Metadata::default(),
         }
+    }
+}
+
+/// The pit's XCP gateway (`crate::xcp_gateway`): XCP on TCP from the pit to the CCM's slave on
+/// CAN. It runs with the live service (`aer-raspi run`), not with replays or the demo.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct XcpGatewayConfig {
+    pub enabled: bool,
+    /// Where masters connect (the A2L's XCP_ON_TCP_IP names port 5555). The default, the
+    /// loopback address, serves a pit through `ssh -L 5555:127.0.0.1:5555 pi@car`; the pit
+    /// radio's address serves it directly.
+    pub listen: std::net::SocketAddr,
+    /// The addresses masters may connect from (`10.9.0.2`, `10.9.0.0/24`); anyone else is
+    /// refused and counted.
+    pub allow: Vec<String>,
+    /// The CAN interface the CCM's slave is on; empty: the first of `[can] interfaces`, the
+    /// vehicle bus.
+    pub interface: String,
+    /// A master that sends nothing for this long (s) is taken as gone, and its session with
+    /// the CCM ended.
+    pub idle_s: u64,
+}
+
+impl Default for XcpGatewayConfig {
+    fn default() -> Self {
+        Self {
+            enabled: true,
+            listen: std::net::SocketAddr::from(([127, 0, 0, 1], 5555)),
+            allow: vec!["127.0.0.1/32".into(), "::1/128".into()],
+            interface: String::new(),
+            idle_s: 300,
+        }
+    }
+}
+
+impl XcpGatewayConfig {
+    /// The gateway's settings; an allow-list entry that is not a network is an error.
+    pub fn settings(&self, can: &CanConfig) -> Result<crate::xcp_gateway::Settings> {
+        let allow = self
+            .allow
+            .iter()
+            .map(|entry| entry.parse())
+            .collect::<Result<Vec<_>, _>>()
+            .map_err(|e| anyhow::anyhow!("[xcp_gateway] allow: {e}"))?;
+        let interface = if self.interface.is_empty() {
+            can.interfaces.first().cloned().unwrap_or_default()
+        } else {
+            self.interface.clone()
+        };
+        Ok(crate::xcp_gateway::Settings {
+            listen: self.listen,
+            allow,
+            interface,
+            idle: std::time::Duration::from_secs(self.idle_s.max(1)),
+        })
     }
 }
 
@@ -312,6 +371,7 @@ impl Config {
                 config.pit_stream.history_kbit_s
             );
         }
+        config.xcp_gateway.settings(&config.can)?;
         let database = &config.tdengine.database;
         if database.is_empty()
             || !database
@@ -404,6 +464,30 @@ mod tests {
         let shipped = Path::new(env!("CARGO_MANIFEST_DIR")).join("config/aer-raspi.toml");
         let config = Config::load(Some(&shipped), |_| None).unwrap();
         assert_eq!(config, Config::default());
+    }
+
+    #[test]
+    fn the_xcp_gateway_serves_the_vehicle_bus_and_refuses_an_allow_list_it_cannot_read() {
+        let config = Config::default();
+        let settings = config.xcp_gateway.settings(&config.can).unwrap();
+        assert_eq!(settings.interface, "can0");
+        assert!(
+            settings
+                .allow
+                .iter()
+                .any(|n| n.contains([127, 0, 0, 1].into()))
+        );
+        assert!(
+            !settings
+                .allow
+                .iter()
+                .any(|n| n.contains([10, 9, 0, 2].into()))
+        );
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("aer-raspi.toml");
+        std::fs::write(&path, "[xcp_gateway]\nallow = [\"10.9.0.0/33\"]\n").unwrap();
+        let error = Config::load(Some(&path), |_| None).unwrap_err().to_string();
+        assert!(error.contains("[xcp_gateway] allow"), "{error}");
     }
 
     #[test]

@@ -85,6 +85,8 @@ pub struct Health {
     pub mqtt: PartHealth,
     /// The CAN interfaces `run` reads.
     pub can: BusHealth,
+    /// The XCP gateway's start.
+    pub xcp_gateway: PartHealth,
 }
 
 impl Health {
@@ -102,6 +104,7 @@ impl Health {
             // The status fills these from what the ingest counted and what the gate measures.
             firmware: None,
             mqtt_clients: None,
+            xcp_gateway: self.xcp_gateway.error(),
         }
     }
 }

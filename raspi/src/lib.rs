@@ -23,3 +23,4 @@ pub mod sink;
 pub mod source;
 pub mod stage;
 pub mod store;
+pub mod xcp_gateway;

@@ -6,11 +6,21 @@
 use crate::broker::gate::Clients;
 use crate::health::Health;
 use crate::sink::mqtt::Publisher;
+use crate::xcp_gateway;
 use aer_host::counters::Counters;
 use aer_host::status::{METRICS, STATUS, clients_behind, metrics, status};
 use std::sync::Arc;
 use std::time::Duration;
 use tokio_util::sync::CancellationToken;
+
+/// What the service serves besides ingest, whose state the status reports.
+#[derive(Default)]
+pub struct Served {
+    /// The gate's MQTT clients (embedded broker only).
+    pub clients: Option<Arc<Clients>>,
+    /// The pit's XCP gateway, when it runs.
+    pub xcp_gateway: Option<Arc<xcp_gateway::State>>,
+}
 
 /// Publishes status and metrics every second until `cancel`; `console` also prints a line.
 pub async fn run(
@@ -18,7 +28,7 @@ pub async fn run(
     car_id: String,
     counters: Arc<Counters>,
     health: Arc<Health>,
-    clients: Option<Arc<Clients>>,
+    served: Served,
     cancel: CancellationToken,
     console: bool,
 ) {
@@ -32,11 +42,12 @@ pub async fn run(
         let now = counters.snapshot();
         let metrics = metrics(now, previous);
         let mut status = status(&car_id, &counters, health.problems());
-        if let Some(clients) = &clients {
+        if let Some(clients) = &served.clients {
             let served = clients.snapshot();
             status.problems.mqtt_clients = clients_behind(&served);
             status.mqtt_clients = served.into_iter().map(|(client, _)| client).collect();
         }
+        status.xcp_gateway = served.xcp_gateway.as_ref().map(|state| state.snapshot());
         // The next status measures the next second's traffic.
         if let Ok(mut traffic) = counters.traffic.lock() {
             traffic.restart();

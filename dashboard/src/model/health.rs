@@ -247,6 +247,7 @@ mod tests {
             bus_traffic: Default::default(),
             message_rates: Default::default(),
             mqtt_clients: Default::default(),
+            xcp_gateway: None,
         };
         health.status = Some(status(&ours, Some(true)));
         assert_eq!(health.schema_match(), SchemaMatch::Match);

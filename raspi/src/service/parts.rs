@@ -218,3 +218,38 @@ pub(super) async fn start_mqtt(
         clients,
     })
 }
+
+/// The pit's XCP gateway, for the live service when configured: `None` otherwise, or when it
+/// cannot start (which the status names; the rest of the service runs).
+pub(super) async fn start_xcp_gateway(
+    config: &Config,
+    job: &Job,
+    counters: &Arc<Counters>,
+    health: &Arc<Health>,
+    cancel: &CancellationToken,
+) -> Option<crate::xcp_gateway::Gateway> {
+    if *job != Job::Live || !config.xcp_gateway.enabled {
+        return None;
+    }
+    let started = async {
+        let settings = config.xcp_gateway.settings(&config.can)?;
+        #[cfg(target_os = "linux")]
+        let link = crate::xcp_gateway::can::open(&settings.interface, cancel.child_token())
+            .map_err(|e| anyhow::anyhow!("opening {}: {e}", settings.interface))?;
+        #[cfg(not(target_os = "linux"))]
+        anyhow::bail!("XCP on CAN needs Linux's SocketCAN");
+        let listen = settings.listen;
+        crate::xcp_gateway::spawn(settings, link, counters.clone(), cancel.child_token())
+            .await
+            .map_err(|e| anyhow::anyhow!("listening on {listen}: {e}"))
+    };
+    match started.await {
+        Ok(gateway) => Some(gateway),
+        Err(error) => {
+            let error = format!("{error:#}");
+            warn!(%error, "the XCP gateway did not start; the rest of the service runs");
+            health.xcp_gateway.failed(&error);
+            None
+        }
+    }
+}

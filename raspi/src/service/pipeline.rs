@@ -40,6 +40,7 @@ pub struct Pipeline {
     mqtt: Mqtt,
     reporter: JoinHandle<()>,
     forwarder: Option<JoinHandle<()>>,
+    xcp_gateway: Option<crate::xcp_gateway::Gateway>,
     inputs: Option<source::Sender>,
     batches: source::Receiver,
 }
@@ -59,12 +60,17 @@ impl Pipeline {
             mqtt.publisher
                 .publish_json(&format!("schema/{suffix}"), &schema, true);
         }
+        let xcp_gateway =
+            parts::start_xcp_gateway(&config, &job, &counters, &health, &cancel).await;
         let reporter = tokio::spawn(report::run(
             mqtt.publisher.clone(),
             config.car_id.clone(),
             counters.clone(),
             health.clone(),
-            mqtt.clients.clone(),
+            report::Served {
+                clients: mqtt.clients.clone(),
+                xcp_gateway: xcp_gateway.as_ref().map(|g| g.state.clone()),
+            },
             cancel.clone(),
             job == Job::Demo,
         ));
@@ -90,6 +96,7 @@ impl Pipeline {
             mqtt,
             reporter,
             forwarder,
+            xcp_gateway,
             inputs: Some(inputs),
             batches,
         })
@@ -210,6 +217,10 @@ impl Pipeline {
         }
         if let Some(forwarder) = self.forwarder {
             let _ = tokio::time::timeout(parts::STOP_WAIT, forwarder).await;
+        }
+        if let Some(gateway) = self.xcp_gateway {
+            // It ends a connected master's session with the CCM first.
+            let _ = tokio::time::timeout(Duration::from_secs(1), gateway.task).await;
         }
         // An unreachable broker with a full queue would make this wait for ever.
         let publisher = self.mqtt.publisher;

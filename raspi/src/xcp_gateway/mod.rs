@@ -1,0 +1,343 @@
+//! The pit's XCP gateway: XCP on TCP from a calibration tool on the pit laptop (pyxcp, CANape,
+//! the dashboard's Tune page) to the CCM's XCP slave on CAN (the DBC's XCP_Cmd/XCP_Res), and
+//! back. The Pi is the only node on both the pit's network and the car's bus, so it forwards:
+//! each command packet becomes one 8-byte frame (MAX_DLC_REQUIRED), each frame from the slave
+//! one TCP packet. The protocol is the slave's, end to end; the gateway adds who may talk:
+//!
+//! - **Who.** A master must connect from an address in the allow list (`[xcp_gateway]
+//!   allow`); anyone else is refused (the connection closed at once), counted
+//!   (`xcp_refused`) and named in the status. Changing calibration needs more: the CCM's own
+//!   seed and key (GET_SEED/UNLOCK with the team's secret), which the gateway passes through.
+//! - **One at a time.** A second master is refused while one is connected.
+//! - **A master that vanishes** (its connection closed or reset, silent for `idle`, or TCP
+//!   keepalive finding it gone) is disconnected from the CCM: the gateway sends the slave a
+//!   DISCONNECT, which ends its session and locks calibration again. A download cut off
+//!   mid-block never reaches the calibration page (the slave writes a block as one
+//!   transaction), so the CCM stays consistent and the next master connects.
+//!
+//! The gateway has its own task and its own CAN socket; it shares nothing with ingest, the
+//! store or the live MQTT path but the counters and the status.
+
+pub mod allow;
+#[cfg(target_os = "linux")]
+pub mod can;
+
+use aer_host::counters::Counters;
+use aer_host::status::XcpGateway;
+use aer_xcp::transport::{CAN_DLC, TCP_FRAME_MAX, TcpDecoder, TcpEncoder, can_frame};
+use allow::Network;
+use std::net::SocketAddr;
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+use tokio::io::{AsyncReadExt, AsyncWriteExt};
+use tokio::net::{TcpListener, TcpStream};
+use tokio::sync::mpsc;
+use tokio::task::JoinHandle;
+use tokio_util::sync::CancellationToken;
+use tracing::{info, warn};
+
+/// XCP command codes the gateway watches (ASAM MCD-1 XCP part 2).
+const CONNECT: u8 = 0xFF;
+const DISCONNECT: u8 = 0xFE;
+/// The packet id of a positive response.
+const RES: u8 = 0xFF;
+/// How long a write to the master may wait before it counts as gone.
+const WRITE_LIMIT: Duration = Duration::from_secs(2);
+/// Frames waiting for the CAN socket: room for a block-mode download (MAX_BS 32) and more.
+pub const TO_SLAVE_FRAMES: usize = 256;
+
+/// Where the gateway listens and whom it serves.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Settings {
+    pub listen: SocketAddr,
+    pub allow: Vec<Network>,
+    /// The CAN interface the slave is on (for the status).
+    pub interface: String,
+    /// A master that sends nothing for this long is taken as gone.
+    pub idle: Duration,
+}
+
+/// The slave's side: command frames out, the slave's packets in.
+pub struct SlaveLink {
+    pub to_slave: mpsc::Sender<[u8; CAN_DLC]>,
+    pub from_slave: mpsc::Receiver<Vec<u8>>,
+}
+
+/// The gateway's state, as the status reports it.
+#[derive(Debug, Default)]
+pub struct State {
+    now: Mutex<XcpGateway>,
+}
+
+impl State {
+    /// The state now.
+    pub fn snapshot(&self) -> XcpGateway {
+        self.now.lock().map(|s| s.clone()).unwrap_or_default()
+    }
+
+    fn update(&self, change: impl FnOnce(&mut XcpGateway)) {
+        if let Ok(mut now) = self.now.lock() {
+            change(&mut now);
+        }
+    }
+}
+
+/// A running gateway.
+pub struct Gateway {
+    pub state: Arc<State>,
+    /// The address it listens on (the port the system chose, for port 0).
+    pub address: SocketAddr,
+    pub task: JoinHandle<()>,
+}
+
+/// Starts listening and serving; fails only if the address cannot be bound.
+pub async fn spawn(
+    settings: Settings,
+    link: SlaveLink,
+    counters: Arc<Counters>,
+    cancel: CancellationToken,
+) -> std::io::Result<Gateway> {
+    let listener = TcpListener::bind(settings.listen).await?;
+    let address = listener.local_addr()?;
+    let state = Arc::new(State::default());
+    state.update(|s| {
+        s.listen = address.to_string();
+        s.interface.clone_from(&settings.interface);
+    });
+    info!(%address, interface = %settings.interface, "XCP gateway listening");
+    let mut gateway = Forwarder {
+        settings,
+        link,
+        counters,
+        state: state.clone(),
+        master: None,
+    };
+    let task = tokio::spawn(async move { gateway.run(listener, cancel).await });
+    Ok(Gateway {
+        state,
+        address,
+        task,
+    })
+}
+
+/// The master connected now.
+struct Master {
+    stream: TcpStream,
+    peer: SocketAddr,
+    decoder: TcpDecoder,
+    encoder: TcpEncoder,
+    last_heard: Instant,
+    /// The last command sent to the slave (to tell which response answers CONNECT).
+    last_command: Option<u8>,
+}
+
+struct Forwarder {
+    settings: Settings,
+    link: SlaveLink,
+    counters: Arc<Counters>,
+    state: Arc<State>,
+    master: Option<Master>,
+}
+
+/// What woke the gateway.
+enum Event {
+    Accepted(std::io::Result<(TcpStream, SocketAddr)>),
+    FromMaster(std::io::Result<usize>),
+    FromSlave(Option<Vec<u8>>),
+    Idle,
+    Stop,
+}
+
+impl Forwarder {
+    async fn run(&mut self, listener: TcpListener, cancel: CancellationToken) {
+        let mut buffer = [0u8; 1024];
+        loop {
+            let idle_at = self
+                .master
+                .as_ref()
+                .map(|m| m.last_heard + self.settings.idle);
+            let event = tokio::select! {
+                () = cancel.cancelled() => Event::Stop,
+                accepted = listener.accept() => Event::Accepted(accepted),
+                read = read_master(&mut self.master, &mut buffer) => Event::FromMaster(read),
+                packet = self.link.from_slave.recv() => Event::FromSlave(packet),
+                () = sleep_until(idle_at) => Event::Idle,
+            };
+            match event {
+                Event::Stop => {
+                    self.end_master("the service stopped").await;
+                    return;
+                }
+                Event::Accepted(Ok((stream, peer))) => self.accept(stream, peer),
+                Event::Accepted(Err(error)) => warn!(%error, "XCP gateway: accept failed"),
+                Event::FromMaster(Ok(0)) => self.end_master("it closed the connection").await,
+                Event::FromMaster(Ok(read)) => {
+                    let input = buffer.get(..read).unwrap_or_default().to_vec();
+                    self.forward_commands(&input).await;
+                }
+                Event::FromMaster(Err(error)) => {
+                    self.end_master(&format!("its connection failed: {error}"))
+                        .await;
+                }
+                Event::FromSlave(Some(packet)) => self.forward_answer(&packet).await,
+                Event::FromSlave(None) => {
+                    warn!("XCP gateway: the CAN side ended; the gateway stops");
+                    self.end_master("the CAN side ended").await;
+                    return;
+                }
+                Event::Idle => {
+                    let idle = self.settings.idle.as_secs();
+                    self.end_master(&format!("silent for {idle} s")).await;
+                }
+            }
+        }
+    }
+
+    fn accept(&mut self, stream: TcpStream, peer: SocketAddr) {
+        let why = if !self.settings.allow.iter().any(|n| n.contains(peer.ip())) {
+            Some("its address is not in the gateway's allow list")
+        } else if self.master.is_some() {
+            Some("another master is connected (one at a time)")
+        } else {
+            None
+        };
+        if let Some(why) = why {
+            let count = Counters::bump(&self.counters.xcp_refused);
+            warn!(%peer, why, count, "XCP master refused");
+            self.state
+                .update(|s| s.last_refusal = Some(format!("{peer}: {why}")));
+            drop(stream);
+            return;
+        }
+        let _ = stream.set_nodelay(true);
+        // A master that vanishes without closing (the radio gone) shows within about 16 s.
+        let keepalive = socket2::TcpKeepalive::new()
+            .with_time(Duration::from_secs(10))
+            .with_interval(Duration::from_secs(2))
+            .with_retries(3);
+        let _ = socket2::SockRef::from(&stream).set_tcp_keepalive(&keepalive);
+        info!(%peer, "XCP master connected");
+        self.state.update(|s| {
+            s.master = Some(peer.to_string());
+            s.master_since_us = Some(aer_host::clock::now_us());
+            s.session = false;
+        });
+        self.master = Some(Master {
+            stream,
+            peer,
+            decoder: TcpDecoder::new(),
+            encoder: TcpEncoder::new(),
+            last_heard: Instant::now(),
+            last_command: None,
+        });
+    }
+
+    /// Forwards every whole packet in `input` to the slave, one frame each.
+    async fn forward_commands(&mut self, mut input: &[u8]) {
+        let Some(master) = self.master.as_mut() else {
+            return;
+        };
+        master.last_heard = Instant::now();
+        let mut broken = false;
+        while !input.is_empty() {
+            let (used, packet) = master.decoder.decode(input);
+            input = input.get(used..).unwrap_or_default();
+            match packet {
+                Some(Ok(packet)) => match can_frame(packet.data) {
+                    Some(frame) => {
+                        master.last_command = packet.data.first().copied();
+                        if self.link.to_slave.try_send(frame).is_ok() {
+                            Counters::bump(&self.counters.xcp_commands);
+                        } else {
+                            Counters::bump(&self.counters.xcp_dropped);
+                        }
+                    }
+                    None => broken = true,
+                },
+                Some(Err(_)) => broken = true,
+                None => {}
+            }
+            if broken || used == 0 {
+                break;
+            }
+        }
+        if broken {
+            // A broken stream cannot be resynchronised.
+            Counters::bump(&self.counters.xcp_dropped);
+            self.end_master("it sent something that is not XCP on TCP")
+                .await;
+        }
+    }
+
+    /// Forwards a packet of the slave's to the master, if there is one.
+    async fn forward_answer(&mut self, packet: &[u8]) {
+        let Some(master) = self.master.as_mut() else {
+            Counters::bump(&self.counters.xcp_dropped);
+            return;
+        };
+        if packet.first() == Some(&RES) {
+            match master.last_command {
+                Some(CONNECT) => self.state.update(|s| s.session = true),
+                Some(DISCONNECT) => self.state.update(|s| s.session = false),
+                _ => {}
+            }
+        }
+        let mut frame = [0u8; TCP_FRAME_MAX];
+        let Ok(len) = master.encoder.encode(packet, &mut frame) else {
+            Counters::bump(&self.counters.xcp_dropped);
+            return;
+        };
+        let write = master
+            .stream
+            .write_all(frame.get(..len).unwrap_or_default());
+        match tokio::time::timeout(WRITE_LIMIT, write).await {
+            Ok(Ok(())) => {
+                Counters::bump(&self.counters.xcp_responses);
+            }
+            Ok(Err(error)) => {
+                self.end_master(&format!("writing to it failed: {error}"))
+                    .await;
+            }
+            Err(_) => self.end_master("it stopped reading").await,
+        }
+    }
+
+    /// Forgets the master and, if it held a session with the slave, ends that session.
+    async fn end_master(&mut self, why: &str) {
+        let Some(master) = self.master.take() else {
+            return;
+        };
+        let had_session = self.state.snapshot().session;
+        if had_session {
+            if let Some(disconnect) = can_frame(&[DISCONNECT]) {
+                let _ = self.link.to_slave.send(disconnect).await;
+            }
+        }
+        info!(
+            peer = %master.peer,
+            why,
+            ended_session = had_session,
+            "XCP master gone"
+        );
+        self.state.update(|s| {
+            s.master = None;
+            s.master_since_us = None;
+            s.session = false;
+        });
+    }
+}
+
+/// Reads from the master, or waits for ever when there is none.
+async fn read_master(master: &mut Option<Master>, buffer: &mut [u8]) -> std::io::Result<usize> {
+    match master {
+        Some(master) => master.stream.read(buffer).await,
+        None => std::future::pending().await,
+    }
+}
+
+async fn sleep_until(at: Option<Instant>) {
+    match at {
+        Some(at) => tokio::time::sleep_until(at.into()).await,
+        None => std::future::pending().await,
+    }
+}

@@ -1,0 +1,346 @@
+//! The Pi's XCP gateway between a master on the pit's network and the CCM's slave on CAN:
+//! pyxcp plays every calibration scenario through it against the closed-loop car model; a
+//! stranger and a second master are refused and counted; a master that vanishes in the middle
+//! of a block download leaves the calibration page as it was, its session ended, and the next
+//! master connects. The CAN side here is the gateway's channel pair, which on the Pi its
+//! SocketCAN task serves (the virtual Pi runs that on vcan).
+
+use aer::calibration::xcp::CALIBRATION_ADDRESS;
+use aer_car_model::driver::Cycle;
+use aer_car_node::link::Link;
+use aer_car_node::{checks, scenarios, serve};
+use aer_host::counters::Counters;
+use aer_raspi::xcp_gateway::{self, Gateway, Settings, SlaveLink};
+use aer_xcp::transport::{CAN_DLC, TCP_FRAME_MAX, TcpDecoder, TcpEncoder, can_frame};
+use std::io::{Read, Write};
+use std::net::{SocketAddr, TcpStream};
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Duration;
+use tokio::sync::mpsc;
+use tokio_util::sync::CancellationToken;
+
+/// The slave's end of the gateway's CAN side, as car-node's links are: commands in, the
+/// slave's packets out as 8-byte frames (what XCP on CAN carries).
+struct GatewayLink {
+    commands: std::sync::mpsc::Receiver<[u8; CAN_DLC]>,
+    /// Every command code the slave was sent, in order.
+    seen: Arc<std::sync::Mutex<Vec<u8>>>,
+    answers: mpsc::Sender<Vec<u8>>,
+    gateway: SocketAddr,
+}
+
+impl Link for GatewayLink {
+    fn receive(&mut self) -> anyhow::Result<Option<Vec<u8>>> {
+        match self.commands.recv_timeout(Duration::from_millis(1)) {
+            Ok(frame) => {
+                if let Ok(mut seen) = self.seen.lock() {
+                    seen.push(frame[0]);
+                }
+                Ok(Some(frame.to_vec()))
+            }
+            Err(std::sync::mpsc::RecvTimeoutError::Timeout) => Ok(None),
+            Err(std::sync::mpsc::RecvTimeoutError::Disconnected) => {
+                anyhow::bail!("the gateway ended")
+            }
+        }
+    }
+
+    fn send(&mut self, packet: &[u8]) -> bool {
+        can_frame(packet).is_some_and(|frame| self.answers.blocking_send(frame.to_vec()).is_ok())
+    }
+
+    fn await_master(
+        &mut self,
+        _still_waiting: &mut dyn FnMut() -> anyhow::Result<()>,
+    ) -> anyhow::Result<()> {
+        Ok(())
+    }
+
+    fn drop_master(&mut self) {}
+
+    fn malformed(&self) -> u64 {
+        0
+    }
+
+    fn script_env(&self) -> Vec<(String, String)> {
+        vec![
+            ("AER_XCP_TRANSPORT".into(), "tcp".into()),
+            ("AER_XCP_HOST".into(), self.gateway.ip().to_string()),
+            ("AER_XCP_PORT".into(), self.gateway.port().to_string()),
+            ("AER_XCP_PADDED".into(), "1".into()),
+        ]
+    }
+
+    fn describe(&self) -> String {
+        format!("the Pi's XCP gateway at {}", self.gateway)
+    }
+}
+
+/// A gateway on a free loopback port that allows `allow`, and the slave's link to it.
+fn gateway(
+    runtime: &tokio::runtime::Runtime,
+    allow: &str,
+    counters: &Arc<Counters>,
+) -> (Gateway, GatewayLink) {
+    let (to_slave, mut commands) = mpsc::channel(xcp_gateway::TO_SLAVE_FRAMES);
+    let (answers, from_slave) = mpsc::channel(xcp_gateway::TO_SLAVE_FRAMES);
+    let settings = Settings {
+        listen: "127.0.0.1:0".parse().expect("address"),
+        allow: vec![allow.parse().expect("network")],
+        interface: "can0".into(),
+        idle: Duration::from_secs(60),
+    };
+    let gateway = runtime
+        .block_on(xcp_gateway::spawn(
+            settings,
+            SlaveLink {
+                to_slave,
+                from_slave,
+            },
+            counters.clone(),
+            CancellationToken::new(),
+        ))
+        .expect("listening");
+    // The car's side reads with a timeout, as car-node's links do.
+    let (forward, commands_for_car) = std::sync::mpsc::channel();
+    runtime.spawn(async move {
+        while let Some(frame) = commands.recv().await {
+            if forward.send(frame).is_err() {
+                return;
+            }
+        }
+    });
+    let link = GatewayLink {
+        commands: commands_for_car,
+        seen: Arc::default(),
+        answers,
+        gateway: gateway.address,
+    };
+    (gateway, link)
+}
+
+fn root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
+}
+
+/// The venv's Python with pyxcp and pya2ldb (`.ci/run` installs them).
+fn python() -> Option<PathBuf> {
+    let python = std::env::var_os("AER_PYTHON")
+        .map_or_else(|| root().join(".venv/bin/python"), PathBuf::from);
+    let usable = Command::new(&python)
+        .args(["-c", "import pyxcp, pya2l"])
+        .output()
+        .is_ok_and(|o| o.status.success());
+    if !usable {
+        assert!(
+            std::env::var_os("AER_REQUIRE_PYTHON").is_none(),
+            "AER_REQUIRE_PYTHON is set but {} cannot import pyxcp",
+            python.display()
+        );
+        eprintln!(
+            "SKIPPED: pyxcp through the gateway needs {}",
+            python.display()
+        );
+        return None;
+    }
+    Some(python)
+}
+
+#[test]
+fn pyxcp_calibrates_and_measures_the_ccm_through_the_pis_gateway() {
+    let Some(python) = python() else { return };
+    let runtime = tokio::runtime::Runtime::new().expect("runtime");
+    let counters = Arc::new(Counters::default());
+    let (gateway, mut link) = gateway(&runtime, "127.0.0.1/32", &counters);
+    let script = scenarios::in_checkout(&root(), python);
+    let outcome = scenarios::play(&mut link, &script).expect("the scenarios played");
+    let verdicts = checks::judge(&outcome);
+    for verdict in &verdicts {
+        eprintln!("{verdict}");
+    }
+    assert!(verdicts.len() >= 20, "{} checks", verdicts.len());
+    let failed = checks::failed(&verdicts);
+    assert!(failed.is_empty(), "{failed:#?}");
+    let seen = counters.snapshot();
+    eprintln!(
+        "through the gateway: {} commands, {} responses and DAQ packets",
+        seen.xcp_commands, seen.xcp_responses
+    );
+    assert!(seen.xcp_commands > 100 && seen.xcp_responses > seen.xcp_commands);
+    assert_eq!(seen.xcp_refused, 0);
+    assert_eq!(gateway.state.snapshot().listen, gateway.address.to_string());
+}
+
+/// One master's connection, speaking XCP on TCP.
+struct Master {
+    stream: TcpStream,
+    encoder: TcpEncoder,
+    decoder: TcpDecoder,
+}
+
+impl Master {
+    fn connect(address: SocketAddr) -> Self {
+        let stream = TcpStream::connect(address).expect("connect");
+        stream
+            .set_read_timeout(Some(Duration::from_secs(10)))
+            .expect("timeout");
+        Self {
+            stream,
+            encoder: TcpEncoder::new(),
+            decoder: TcpDecoder::new(),
+        }
+    }
+
+    fn send(&mut self, packet: &[u8]) {
+        let mut frame = [0u8; TCP_FRAME_MAX];
+        let len = self.encoder.encode(packet, &mut frame).expect("encoded");
+        self.stream.write_all(&frame[..len]).expect("sent");
+    }
+
+    /// Sends `packet` and returns the response (positive or error).
+    fn command(&mut self, packet: &[u8]) -> Vec<u8> {
+        self.send(packet);
+        let mut byte = [0u8; 1];
+        loop {
+            let read = self.stream.read(&mut byte).expect("a response");
+            assert_eq!(read, 1, "the gateway closed the connection");
+            if let (_, Some(packet)) = self.decoder.decode(&byte) {
+                return packet.expect("XCP on TCP").data.to_vec();
+            }
+        }
+    }
+
+    /// True once the gateway has closed the connection.
+    fn closed(&mut self) -> bool {
+        let mut byte = [0u8; 1];
+        matches!(self.stream.read(&mut byte), Ok(0) | Err(_))
+    }
+
+    fn read_calibration(&mut self, len: usize) -> Vec<u8> {
+        let mut bytes = Vec::new();
+        while bytes.len() < len {
+            let n = (len - bytes.len()).min(7);
+            let address = CALIBRATION_ADDRESS + bytes.len() as u32;
+            let mut upload = vec![0xF4, n as u8, 0, 0];
+            upload.extend_from_slice(&address.to_le_bytes());
+            let response = self.command(&upload);
+            assert_eq!(response[0], 0xFF, "SHORT_UPLOAD: {response:02x?}");
+            bytes.extend_from_slice(&response[1..=n]);
+        }
+        bytes
+    }
+
+    /// GET_SEED and UNLOCK for calibration with the scenarios' secret.
+    fn unlock(&mut self) {
+        let seed = self.command(&[0xF8, 0, 0x01]);
+        assert_eq!(seed[0], 0xFF, "GET_SEED: {seed:02x?}");
+        let key = aer_ccm::xcp::key_for(&scenarios::SECRET, &seed[2..2 + usize::from(seed[1])]);
+        let mut remaining = key.len();
+        for chunk in key.chunks(6) {
+            let mut unlock = vec![0xF7, remaining as u8];
+            unlock.extend_from_slice(chunk);
+            let answer = self.command(&unlock);
+            assert_eq!(answer[0], 0xFF, "UNLOCK: {answer:02x?}");
+            remaining -= chunk.len();
+        }
+    }
+}
+
+#[test]
+fn strangers_and_second_masters_are_refused_and_a_vanished_master_leaves_the_ccm_consistent() {
+    let runtime = tokio::runtime::Runtime::new().expect("runtime");
+    let counters = Arc::new(Counters::default());
+
+    // Only the pit's network may connect: a master from elsewhere is closed at once.
+    let (elsewhere, _unused) = gateway(&runtime, "10.9.0.0/24", &counters);
+    let mut stranger = Master::connect(elsewhere.address);
+    assert!(stranger.closed(), "a stranger is closed");
+    assert_eq!(counters.snapshot().xcp_refused, 1);
+    let refusal = elsewhere.state.snapshot().last_refusal.expect("named");
+    assert!(
+        refusal.contains("not in the gateway's allow list"),
+        "{refusal}"
+    );
+
+    // The car, with its slave behind the pit's gateway.
+    let (gateway, mut link) = gateway(&runtime, "127.0.0.1/32", &counters);
+    let seen = link.seen.clone();
+    let stop = Arc::new(AtomicBool::new(false));
+    let car = {
+        let stop = stop.clone();
+        std::thread::spawn(move || {
+            serve::serve(
+                &mut link,
+                Cycle::Acceleration,
+                Some(scenarios::SECRET),
+                |_| !stop.load(Ordering::Relaxed),
+            )
+        })
+    };
+
+    let mut first = Master::connect(gateway.address);
+    let connected = first.command(&[0xFF, 0x00]);
+    assert_eq!(connected[0], 0xFF, "CONNECT: {connected:02x?}");
+    assert!(
+        gateway.state.snapshot().session,
+        "the status shows the session"
+    );
+    let before = first.read_calibration(16);
+    first.unlock();
+
+    // One master at a time.
+    let mut second = Master::connect(gateway.address);
+    assert!(second.closed(), "a second master is closed");
+    assert_eq!(counters.snapshot().xcp_refused, 2);
+    let refusal = gateway.state.snapshot().last_refusal.expect("named");
+    assert!(refusal.contains("another master is connected"), "{refusal}");
+
+    // A block download of the first 16 bytes, cut off after its first packet.
+    let mut set_mta = vec![0xF6, 0, 0, 0];
+    set_mta.extend_from_slice(&CALIBRATION_ADDRESS.to_le_bytes());
+    assert_eq!(first.command(&set_mta)[0], 0xFF, "SET_MTA");
+    first.send(&[0xF0, 16, 0x00, 0x00, 0x80, 0x3F, 0x00, 0x00]);
+    drop(first);
+
+    // The gateway notices, ends the session with the CCM, and the next master connects.
+    let deadline = std::time::Instant::now() + Duration::from_secs(10);
+    while gateway.state.snapshot().master.is_some() {
+        assert!(
+            std::time::Instant::now() < deadline,
+            "the gateway never noticed"
+        );
+        std::thread::yield_now();
+    }
+    // It ended the vanished master's session: DISCONNECT was the slave's last command.
+    let deadline = std::time::Instant::now() + Duration::from_secs(10);
+    while seen.lock().expect("seen").last() != Some(&0xFE) {
+        assert!(
+            std::time::Instant::now() < deadline,
+            "no DISCONNECT reached the slave"
+        );
+        std::thread::yield_now();
+    }
+    assert!(!gateway.state.snapshot().session);
+    let mut next = Master::connect(gateway.address);
+    let connected = next.command(&[0xFF, 0x00]);
+    assert_eq!(
+        connected[0], 0xFF,
+        "CONNECT after the vanished master: {connected:02x?}"
+    );
+    // Calibration is locked again (bit 0 of the resource protection status).
+    let status = next.command(&[0xFD]);
+    assert_eq!(status[0], 0xFF, "GET_STATUS: {status:02x?}");
+    assert_eq!(status[2] & 0x01, 0x01, "calibration locked: {status:02x?}");
+    assert_eq!(
+        next.read_calibration(16),
+        before,
+        "the half-sent block never landed"
+    );
+    drop(next);
+
+    stop.store(true, Ordering::Relaxed);
+    car.join().expect("the car ran").expect("served");
+}
