@@ -69,6 +69,7 @@ echo "virtual-pi" > "$root/etc/hostname"
 echo "/dev/vda / ext4 rw,noatime 0 1" > "$root/etc/fstab"
 mkdir -p "$root/root/virtual-pi"
 cp tools/virtual_pi/scenarios.py raspi/data/session.log tools/xcp_scenarios.py generated/aer.a2l \
+  tools/xcp_gateway_client.py \
   "$car_node" "$root/root/virtual-pi/"
 # The pit's side of the radio scenario: the dashboard from its package (the release binary;
 # it loads its display libraries only when it opens a window), and the team's CA with the

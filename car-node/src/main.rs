@@ -43,6 +43,13 @@ enum Job {
         /// The A2L whose EPK must be the slave's.
         #[arg(long, default_value = "generated/aer.a2l")]
         a2l: PathBuf,
+        /// The master connects through the Pi's XCP gateway at this address (XCP on TCP)
+        /// while the slave serves the link.
+        #[arg(long)]
+        through: Option<std::net::SocketAddr>,
+        /// Run the script in this network namespace (the pit's).
+        #[arg(long)]
+        netns: Option<String>,
     },
 }
 
@@ -89,12 +96,16 @@ fn main() -> Result<()> {
             python,
             script,
             a2l,
+            through,
+            netns,
         } => {
             let mut link = link::open(&link)?;
             let script = scenarios::Script {
                 python,
                 path: script,
                 a2l,
+                through,
+                netns,
             };
             let outcome = scenarios::play(link.as_mut(), &script)?;
             let checks = checks::judge(&outcome);

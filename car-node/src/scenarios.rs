@@ -42,6 +42,42 @@ pub struct Script {
     pub path: PathBuf,
     /// `generated/aer.a2l`.
     pub a2l: PathBuf,
+    /// The master reaches the slave through an XCP gateway at this TCP address (the Pi's)
+    /// rather than on the link itself.
+    pub through: Option<std::net::SocketAddr>,
+    /// The script runs in this network namespace (`ip netns exec`): the pit's, behind its
+    /// radio.
+    pub netns: Option<String>,
+}
+
+impl Script {
+    /// What the script needs to reach the slave: the link's own transport, or the gateway's
+    /// TCP, whose packets are the slave's CAN frames (padded to 8 bytes).
+    fn env(&self, link: &dyn Link) -> Vec<(String, String)> {
+        match self.through {
+            None => link.script_env(),
+            Some(gateway) => vec![
+                ("AER_XCP_TRANSPORT".into(), "tcp".into()),
+                ("AER_XCP_HOST".into(), gateway.ip().to_string()),
+                ("AER_XCP_PORT".into(), gateway.port().to_string()),
+                ("AER_XCP_PADDED".into(), "1".into()),
+            ],
+        }
+    }
+
+    /// The command that starts the script.
+    fn command(&self) -> Command {
+        let mut command = match &self.netns {
+            None => Command::new(&self.python),
+            Some(namespace) => {
+                let mut command = Command::new("ip");
+                command.args(["netns", "exec", namespace]).arg(&self.python);
+                command
+            }
+        };
+        command.arg(&self.path);
+        command
+    }
 }
 
 /// What the control events measured, by the telemetry packet's sequence number (one per
@@ -109,9 +145,9 @@ pub fn play(link: &mut dyn Link, script: &Script) -> Result<Outcome> {
     )
     .context("writing expected.json")?;
     let secret: String = SECRET.iter().map(|b| format!("{b:02x}")).collect();
-    let mut child = Command::new(&script.python)
-        .arg(&script.path)
-        .envs(link.script_env())
+    let mut child = script
+        .command()
+        .envs(script.env(link))
         .env("AER_XCP_SECRET", secret)
         .env("AER_XCP_EXPECTED", &expected_path)
         .stdin(Stdio::piped())
@@ -331,5 +367,7 @@ pub fn in_checkout(root: &Path, python: PathBuf) -> Script {
         python,
         path: root.join("tools/xcp_scenarios.py"),
         a2l: root.join("generated/aer.a2l"),
+        through: None,
+        netns: None,
     }
 }

@@ -66,12 +66,8 @@ impl Link for GatewayLink {
     }
 
     fn script_env(&self) -> Vec<(String, String)> {
-        vec![
-            ("AER_XCP_TRANSPORT".into(), "tcp".into()),
-            ("AER_XCP_HOST".into(), self.gateway.ip().to_string()),
-            ("AER_XCP_PORT".into(), self.gateway.port().to_string()),
-            ("AER_XCP_PADDED".into(), "1".into()),
-        ]
+        // The master reaches the slave through the gateway (`Script::through`).
+        Vec::new()
     }
 
     fn describe(&self) -> String {
@@ -155,7 +151,10 @@ fn pyxcp_calibrates_and_measures_the_ccm_through_the_pis_gateway() {
     let runtime = tokio::runtime::Runtime::new().expect("runtime");
     let counters = Arc::new(Counters::default());
     let (gateway, mut link) = gateway(&runtime, "127.0.0.1/32", &counters);
-    let script = scenarios::in_checkout(&root(), python);
+    let script = scenarios::Script {
+        through: Some(gateway.address),
+        ..scenarios::in_checkout(&root(), python)
+    };
     let outcome = scenarios::play(&mut link, &script).expect("the scenarios played");
     let verdicts = checks::judge(&outcome);
     for verdict in &verdicts {

@@ -12,6 +12,7 @@ Waits are for a condition with a deadline, never a fixed sleep.
 import json
 import os
 import re
+import socket
 import sqlite3
 import subprocess
 import sys
@@ -24,6 +25,8 @@ LOG = os.path.join(HERE, "session.log")
 CONFIG = "/etc/aer/aer-raspi.toml"
 PREFIX = "aer/car1"
 TELEMETRY_ID = "666"
+# The Pi's ISO-TP flow control (aer::telemetry::Telemetry::FLOW_CONTROL_ID), as ASC writes it.
+FLOW_CONTROL_ID = "777"
 failures = []
 
 
@@ -235,14 +238,19 @@ ASC_FRAME = re.compile(r"^\s*\d+\.\d{6} (\d+)\s+([0-9A-F]+x?)\s+Rx\s+d [0-9A-F]+
 
 def bus_tool_export(log, name):
     """`aer-raspi export --session latest` on the running service's store and raw log, as BLF,
-    ASC and MF4: the ASC file must hold every frame of the played log, in order (channel N is
-    canN-1; times are the live ones, so they are not compared)."""
+    ASC and MF4: the ASC file must hold every frame of the played log, each bus's in order
+    (channel N is canN-1; the two buses are read by two sockets, so how their frames
+    interleave, and the times, are the live ones and not compared). Flow control frames (0x777)
+    are compared by count: the log has the recording's, and the Pi's kernel ISO-TP sends its
+    own (one per telemetry packet), which the raw log keeps too, interleaved as they came."""
     played = []
     for line in open(log):
         _, interface, frame = line.split()
         can_id, data = frame.split("#")
         ident = f"{int(can_id, 16):X}" + ("x" if len(can_id) == 8 else "")
         played.append((int(interface.removeprefix("can")) + 1, ident, data.upper()))
+    played_fc = sum(1 for p in played if p[1] == FLOW_CONTROL_ID)
+    played = [p for p in played if p[1] != FLOW_CONTROL_ID]
     out = f"/root/{name}-bus-tools"
 
     def exported():
@@ -254,13 +262,26 @@ def bus_tool_export(log, name):
                 frames.append((int(m[1]), m[2], m[3].replace(" ", "")))
         return frames
 
+    def from_the_bus():
+        frames = exported()
+        return [f for f in frames if f[1] != FLOW_CONTROL_ID], len(frames)
+
     # The raw log reaches the disk within its sync interval: export until it has them all.
-    frames = wait_for("every frame in the raw log", lambda: (f := exported()) and len(f) >= len(played) and f, 30)
+    # (An export of the whole session takes some seconds under emulation.)
+    began = time.monotonic()
+    frames, total = wait_for("every frame in the raw log", lambda: (f := from_the_bus()) and len(f[0]) >= len(played) and f, 300) or ([], 0)
+    took = time.monotonic() - began
     sizes = {ext: os.path.getsize(f"{out}/session.{ext}") for ext in ("blf", "mf4")}
+
+    def per_bus(frames):
+        return {channel: [f for f in frames if f[0] == channel] for channel in (1, 2)}
+
+    in_order = per_bus(frames) == per_bus(played)
     check(
         f"{name}: export --session latest writes BLF, ASC and MF4 with every frame of the session",
-        frames == played and all(sizes.values()),
-        f"{len(frames or [])} of {len(played)} frames in the ASC file, in order: {frames == played}; BLF {sizes['blf']} bytes, MF4 {sizes['mf4']} bytes",
+        in_order and len(frames) == len(played) and total - len(frames) >= played_fc and all(sizes.values()),
+        f"{len(frames)} of {len(played)} played frames in the ASC file, each bus's in order: {in_order}; "
+        f"{total - len(frames)} flow control frames ({played_fc} played); BLF {sizes['blf']} bytes, MF4 {sizes['mf4']} bytes; {took:.1f} s",
     )
 
 
@@ -628,6 +649,127 @@ def pit_json(want):
           behind <= 10, f"{behind:.1f} s behind at the end")
 
 
+# The secret aer-car-node's scenarios unlock with (car-node/src/scenarios.rs), as hex.
+XCP_SECRET = b"the pyxcp test's secret (32 B)!!".hex()
+
+
+def set_xcp_gateway(listen, allow):
+    """The service's XCP gateway on `listen`, for masters from `allow` (a TOML list)."""
+    with open(CONFIG) as f:
+        text = f.read()
+    lines = []
+    for line in text.splitlines():
+        if line.startswith("listen = ") and "5555" in line:
+            line = f'listen = "{listen}"'
+        elif line.startswith("allow = "):
+            line = f"allow = {allow}"
+        lines.append(line)
+    with open(CONFIG, "w") as f:
+        f.write("\n".join(lines) + "\n")
+
+
+def gateway_client(action):
+    """tools/xcp_gateway_client.py (pyxcp) in the pit's namespace: its exit code and output."""
+    done = subprocess.run(
+        [*PIT, "/opt/xcp/bin/python", os.path.join(HERE, "xcp_gateway_client.py"),
+         PI_ADDRESS, "5555", XCP_SECRET, action],
+        capture_output=True, text=True, timeout=120,
+    )
+    return done.returncode, done.stdout.strip(), done.stderr.strip()
+
+
+def ended_sessions():
+    """How often the gateway sent the CCM a DISCONNECT for a master that vanished."""
+    journal = run("journalctl", "-u", "aer-raspi", "-b", "--no-pager", "-o", "cat")
+    return sum(1 for line in journal.splitlines() if "XCP master gone" in line and "ended_session=true" in line)
+
+
+def xcp_gateway_from_the_pit():
+    """The pit's calibration tool on the Pi's XCP gateway over the radio (netem, 250 kbit/s,
+    100 ms each way): pyxcp in the pit's namespace plays every calibration scenario through
+    the gateway against the CCM's slave on can0; a master from another address is refused and
+    counted; a pyxcp master killed in the middle of a block download leaves the page as it
+    was, the status shows its session ended, and the next master connects."""
+    set_xcp_gateway(f"{PI_ADDRESS}:5555", '["10.9.0.2"]')
+    run("systemctl", "restart", "aer-raspi")
+    if not start_service():
+        return
+    gateway = (latest("status") or {}).get("xcp_gateway") or {}
+    check("the XCP gateway listens on the radio's address", gateway.get("listen") == f"{PI_ADDRESS}:5555", f"{gateway}")
+    before = counters()
+    node = subprocess.run(
+        [
+            os.path.join(HERE, "aer-car-node"), "scenarios", "--link", "can:can0",
+            "--through", f"{PI_ADDRESS}:5555", "--netns", "pit",
+            "--python", "/opt/xcp/bin/python",
+            "--script", os.path.join(HERE, "xcp_scenarios.py"),
+            "--a2l", os.path.join(HERE, "aer.a2l"),
+        ],
+        capture_output=True, text=True, timeout=900,
+    )
+    for line in node.stdout.splitlines():
+        say(f"  xcp through the gateway: {line}")
+    if node.returncode != 0:
+        for line in node.stderr.splitlines()[-40:]:
+            say(f"  xcp through the gateway (stderr): {line}")
+    after = counters()
+    forwarded = (
+        after.get("xcp_commands", 0) - before.get("xcp_commands", 0),
+        after.get("xcp_responses", 0) - before.get("xcp_responses", 0),
+    )
+    check(
+        "pyxcp in the pit's namespace, through the Pi's XCP gateway over the radio: every calibration scenario passed",
+        node.returncode == 0 and forwarded[0] > 100,
+        f"{forwarded[0]} commands and {forwarded[1]} responses and DAQ packets forwarded",
+    )
+
+    # A master from an address outside the allow list (the Pi's own radio address).
+    refused_before = counters().get("xcp_refused", 0)
+    with socket.create_connection((PI_ADDRESS, 5555), timeout=10) as stranger:
+        stranger.settimeout(10)
+        try:
+            closed = stranger.recv(1) == b""
+        except OSError:
+            closed = True
+    status = wait_for(
+        "the refusal in the status",
+        lambda: (s := latest("status")) and PI_ADDRESS in ((s.get("xcp_gateway") or {}).get("last_refusal") or "") and s,
+        30,
+    )
+    refused = counters().get("xcp_refused", 0) - refused_before
+    check(
+        "a master from outside the allow list is closed, counted and named",
+        closed and refused == 1 and bool(status),
+        f"closed {closed}, xcp_refused +{refused}, {((status or {}).get('xcp_gateway') or {}).get('last_refusal')}",
+    )
+
+    # A pyxcp master killed in the middle of a block download.
+    secret = "/root/xcp-secret.key"
+    with open(secret, "w") as f:
+        f.write(XCP_SECRET + "\n")
+    serve = subprocess.Popen(
+        [os.path.join(HERE, "aer-car-node"), "serve", "--link", "can:can0", "--secret-file", secret],
+        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+    )
+    try:
+        read_before = wait_for("the slave to answer through the gateway", lambda: (r := gateway_client("read"))[0] == 0 and r, 60)
+        ended_before = ended_sessions()
+        cut = gateway_client("cut")
+        # The gateway says it ended the vanished master's session with the CCM (the status
+        # shows only the state now, which a clean disconnect leaves the same).
+        ended = wait_for("the gateway to end the vanished master's session", lambda: ended_sessions() > ended_before, 60)
+        read_after = gateway_client("read")
+    finally:
+        serve.terminate()
+        serve.wait(timeout=30)
+    check(
+        "a pyxcp master killed mid-DOWNLOAD: its session ended, the page unchanged, the next master connects",
+        bool(read_before) and cut[0] == -9 and bool(ended) and read_after[0] == 0 and read_after[1] == read_before[1],
+        f"before {read_before and read_before[1]}, killed with {cut[0]} after \"{cut[1]}\", after {read_after[1]} (exit {read_after[0]})",
+    )
+    stop("SIGTERM")
+
+
 def pit_radio_conditions(want):
     radio_setup()
     which = open(os.path.join(HERE, "radio")).read().strip()
@@ -659,6 +801,7 @@ def main():
     disk_smaller_than_floor(short, part)
     xcp_on_can()
     pit_radio_conditions(whole)
+    xcp_gateway_from_the_pit()
     journal = run("journalctl", "-u", "aer-raspi", "-b", "--no-pager", "-o", "cat")
     check("no refused system call in the journal", "SIGSYS" not in journal and "Operation not permitted" not in journal)
     if failures:
