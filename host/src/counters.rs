@@ -135,8 +135,9 @@ counters! {
     /// XCP packets (responses, events, DAQ) the gateway forwarded from the CCM to the pit.
     xcp_responses,
     /// XCP packets from the CCM with no master to take them (after a master vanished: the
-    /// answer to the DISCONNECT the gateway sent for it, DAQ still running), and packets a
-    /// master sent that were not XCP on TCP (its connection is closed).
+    /// answer to the DISCONNECT the gateway sent for it, DAQ still running), packets a master
+    /// sent that were not XCP on TCP, and commands the bus would not take (for both, the
+    /// master is disconnected).
     xcp_dropped,
 }
 

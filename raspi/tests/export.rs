@@ -84,6 +84,7 @@ fn a_session_exported_in_every_format_reads_back_equal_to_the_store() {
             files: vec![common::session_log()],
             ..FrameSource::default()
         }),
+        frames_required: true,
     };
     let report = export::export(&db, &request).expect("export");
     let exported: usize = report.rows.iter().map(|(_, n)| n).sum();
@@ -258,4 +259,42 @@ fn the_demo_store_is_found_with_the_flag_the_error_names() {
         String::from_utf8_lossy(&with.stderr)
     );
     assert!(dir.path().join("out/csv/telemetry.csv").exists());
+}
+
+/// The bus-logging formats asked for by name with no frames to hold is an error found before
+/// anything is written, so the folder is not left half-written.
+#[test]
+fn bus_logging_formats_without_frames_fail_before_writing_anything() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let mut db = store::open(&dir.path().join("store.sqlite")).expect("store");
+    let id = session::begin(&db, &Metadata::default(), "replay", 1).expect("session");
+    writer::commit(&mut db, &session_rows(3000)).expect("commit");
+    let out = dir.path().join("export");
+    let request = Request {
+        selection: Selection {
+            session: Some(id),
+            ..Selection::default()
+        },
+        formats: vec![Format::Parquet, Format::Blf],
+        out_dir: out.clone(),
+        topic_root: "aer/car1".into(),
+        extra: Vec::new(),
+        frames: Some(FrameSource {
+            files: vec![dir.path().join("no-such-segment.aerraw")],
+            ..FrameSource::default()
+        }),
+        frames_required: true,
+    };
+    let error = export::export(&db, &request).expect_err("no frames");
+    assert!(
+        matches!(error, export::ExportError::Read { .. }),
+        "a single missing file is an error: {error}"
+    );
+    let request = Request {
+        frames: None,
+        ..request
+    };
+    let error = export::export(&db, &request).expect_err("no frames");
+    assert!(matches!(error, export::ExportError::NoFrames), "{error}");
+    assert!(!out.exists(), "nothing written");
 }

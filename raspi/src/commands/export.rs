@@ -135,10 +135,12 @@ pub fn run(
         topic_root: located.config.topic_prefix(),
         extra,
         frames,
+        frames_required: !wanted.formats.is_empty(),
     };
     let written = export::export(&db, &request).map(|report| {
         let rows: usize = report.rows.iter().map(|(_, n)| n).sum();
-        (rows > 0).then_some((report, rows))
+        let frames = report.frames.as_ref().map_or(0, |s| s.frames);
+        (rows > 0 || frames > 0).then_some((report, rows))
     });
     let outcome = match written {
         Err(error) => Err(anyhow::Error::new(error)),
@@ -153,7 +155,7 @@ pub fn run(
                 report.rows.len(),
                 report.load.as_secs_f64() * 1e3
             )?;
-            frames_note(&report, &request, wanted.formats.is_empty(), notes)?;
+            frames_note(&report, &request, notes)?;
             // A bus-logging format without frames was said above.
             for format in report
                 .formats
@@ -226,12 +228,10 @@ fn frame_source(
     })
 }
 
-/// Says how many frames the bus-logging formats hold, and why they were not written when a
-/// selection has none (an error if they were asked for by name).
+/// Says how many frames the bus-logging formats hold, or that a selection has none.
 fn frames_note(
     report: &export::Report,
     request: &export::Request,
-    by_default: bool,
     notes: &mut dyn Write,
 ) -> Result<()> {
     let asked: Vec<String> = request
@@ -261,7 +261,8 @@ fn frames_note(
             }
             Ok(())
         }
-        _ if by_default => {
+        // Asked for by name, no frames is the export's error, before anything was written.
+        _ => {
             writeln!(
                 notes,
                 "no raw log frames for this selection: {} not written",
@@ -269,10 +270,6 @@ fn frames_note(
             )?;
             Ok(())
         }
-        _ => bail!(
-            "{} hold the raw log's frames, and it has none for this selection (the demo keeps no raw log; `aer-raspi raw-export` reads segments)",
-            asked.join(", ")
-        ),
     }
 }
 
@@ -445,4 +442,61 @@ fn write_archive(
         raw.len()
     )?;
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::config::{Config, Origin};
+
+    fn session(started_us: i64, ended_us: Option<i64>) -> Session {
+        Session {
+            id: 1,
+            started_us,
+            ended_us,
+            source: "live".into(),
+            metadata: Default::default(),
+            clock: String::new(),
+        }
+    }
+
+    #[test]
+    fn a_sessions_frames_are_those_of_its_time_within_the_range_asked_for() {
+        let located = Located {
+            config: Config::default(),
+            origin: Origin::Defaults,
+        };
+        let window = |from_us, to_us, s: Option<&Session>| {
+            let wanted = Wanted {
+                from_us,
+                to_us,
+                ..Wanted::default()
+            };
+            frame_source(&located, &wanted, s).map(|f| (f.from_us, f.to_us))
+        };
+        let closed = session(1_000, Some(5_000));
+        assert_eq!(
+            window(None, None, Some(&closed)),
+            Some((Some(1_000), Some(5_000)))
+        );
+        // The narrower of the two, at each end.
+        assert_eq!(
+            window(Some(2_000), Some(9_000), Some(&closed)),
+            Some((Some(2_000), Some(5_000)))
+        );
+        assert_eq!(
+            window(Some(500), Some(3_000), Some(&closed)),
+            Some((Some(1_000), Some(3_000)))
+        );
+        // An open session runs to now; no session: the range alone.
+        let open = session(1_000, None);
+        assert_eq!(window(None, None, Some(&open)), Some((Some(1_000), None)));
+        assert_eq!(window(Some(7), None, None), Some((Some(7), None)));
+        // The demo keeps no raw log.
+        let demo = Wanted {
+            demo: true,
+            ..Wanted::default()
+        };
+        assert!(frame_source(&located, &demo, None).is_none());
+    }
 }

@@ -50,6 +50,10 @@ pub enum ExportError {
     Parquet(#[from] ::parquet::errors::ParquetError),
     #[error("writing MCAP: {0}")]
     Mcap(#[from] ::mcap::McapError),
+    #[error(
+        "BLF, ASC and MF4 hold the raw log's frames, and it has none for this selection (the demo keeps no raw log; `aer-raspi raw-export` reads segments)"
+    )]
+    NoFrames,
     #[error("internal error: {0}")]
     Internal(&'static str),
 }
@@ -170,6 +174,9 @@ pub struct Request {
     pub extra: Vec<(String, String)>,
     /// Where the bus-logging formats take the frames from; without it they are not written.
     pub frames: Option<frames::source::FrameSource>,
+    /// The bus-logging formats were asked for by name: no frames is an error, found before
+    /// anything is written.
+    pub frames_required: bool,
 }
 
 /// The metadata every export carries: the session's (if one was chosen), what was selected,
@@ -262,8 +269,19 @@ pub fn export(db: &Connection, request: &Request) -> Result<Report, ExportError>
         Some(source) if wants_frames => Some(source.summary()?),
         _ => None,
     };
+    let frames_found = summary.as_ref().map_or(0, |s| s.frames);
+    if request.frames_required && wants_frames && frames_found == 0 {
+        return Err(ExportError::NoFrames);
+    }
+    let rows_found: usize = tables.iter().map(|t| t.rows).sum();
     let mut formats = Vec::new();
-    for &format in &request.formats {
+    // Nothing selected writes nothing: the caller says so, and the folder stays empty.
+    let writes = if rows_found == 0 && frames_found == 0 {
+        &[][..]
+    } else {
+        &request.formats[..]
+    };
+    for &format in writes {
         let started = Instant::now();
         let files = match (frames::file_name(format), &request.frames, &summary) {
             (None, _, _) => write(format, &tables, &metadata, request)?,

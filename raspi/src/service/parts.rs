@@ -234,7 +234,7 @@ pub(super) async fn start_xcp_gateway(
     let started = async {
         let settings = config.xcp_gateway.settings(&config.can)?;
         #[cfg(target_os = "linux")]
-        let link = crate::xcp_gateway::can::open(&settings.interface, cancel.child_token())
+        let link = crate::xcp_gateway::can::open(&settings.interface)
             .map_err(|e| anyhow::anyhow!("opening {}: {e}", settings.interface))?;
         #[cfg(not(target_os = "linux"))]
         anyhow::bail!("XCP on CAN needs Linux's SocketCAN");

@@ -2,7 +2,9 @@
 //! receives only the slave's id (XCP_Res) and sends the master's (XCP_Cmd). Ingest's sockets
 //! see both directions on the bus (the kernel loops sent frames back to other sockets), so
 //! the store keeps the calibration traffic. A socket that fails (the interface went away) is
-//! opened again every second until it works.
+//! opened again every second until it works. The task ends when the gateway does (its
+//! command queue closes), after writing what the gateway queued last: the DISCONNECT that
+//! ends a master's session when the service stops.
 
 use super::{SlaveLink, TO_SLAVE_FRAMES};
 use aer::calibration::xcp::{CAN_ID_MASTER, CAN_ID_SLAVE};
@@ -10,14 +12,13 @@ use aer_xcp::transport::CAN_DLC;
 use socketcan::{CanFilter, EmbeddedFrame, SocketOptions, StandardId};
 use std::time::Duration;
 use tokio::sync::mpsc;
-use tokio_util::sync::CancellationToken;
 use tracing::{info, warn};
 
 const REOPEN_EVERY: Duration = Duration::from_secs(1);
 
 /// Starts the task that moves frames between `interface` and the gateway. Fails if the
 /// interface cannot be opened now (a wrong name in the configuration).
-pub fn open(interface: &str, cancel: CancellationToken) -> std::io::Result<SlaveLink> {
+pub fn open(interface: &str) -> std::io::Result<SlaveLink> {
     let first = open_socket(interface)?;
     let (to_slave, mut commands) = mpsc::channel::<[u8; CAN_DLC]>(TO_SLAVE_FRAMES);
     let (answers, from_slave) = mpsc::channel::<Vec<u8>>(TO_SLAVE_FRAMES);
@@ -27,7 +28,8 @@ pub fn open(interface: &str, cancel: CancellationToken) -> std::io::Result<Slave
         loop {
             let Some(open) = socket.take() else {
                 tokio::select! {
-                    () = cancel.cancelled() => return,
+                    // Commands while the bus is away are lost (the gateway hears no answer).
+                    command = commands.recv() => if command.is_none() { return },
                     () = tokio::time::sleep(REOPEN_EVERY) => {}
                 }
                 socket = open_socket(&name).ok();
@@ -36,7 +38,7 @@ pub fn open(interface: &str, cancel: CancellationToken) -> std::io::Result<Slave
                 }
                 continue;
             };
-            match serve(&open, &mut commands, &answers, &cancel).await {
+            match serve(&open, &mut commands, &answers).await {
                 Ok(()) => return,
                 Err(err) => {
                     warn!(interface = %name, error = %err, "XCP gateway: the bus failed; opening it again");
@@ -60,12 +62,11 @@ fn open_socket(interface: &str) -> std::io::Result<socketcan::tokio::CanSocket> 
     Ok(socket)
 }
 
-/// Moves frames until the socket fails (`Err`) or the gateway or service ends (`Ok`).
+/// Moves frames until the socket fails (`Err`) or the gateway ends (`Ok`).
 async fn serve(
     socket: &socketcan::tokio::CanSocket,
     commands: &mut mpsc::Receiver<[u8; CAN_DLC]>,
     answers: &mpsc::Sender<Vec<u8>>,
-    cancel: &CancellationToken,
 ) -> std::io::Result<()> {
     let command_id = u16::try_from(CAN_ID_MASTER)
         .ok()
@@ -73,7 +74,6 @@ async fn serve(
         .ok_or_else(|| std::io::Error::other("XCP_Cmd's id is not a standard id"))?;
     loop {
         tokio::select! {
-            () = cancel.cancelled() => return Ok(()),
             read = socket.read_frame() => {
                 if let socketcan::CanFrame::Data(frame) = read?
                     && answers.send(frame.data().to_vec()).await.is_err()

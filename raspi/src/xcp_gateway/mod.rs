@@ -39,10 +39,19 @@ use tracing::{info, warn};
 /// XCP command codes the gateway watches (ASAM MCD-1 XCP part 2).
 const CONNECT: u8 = 0xFF;
 const DISCONNECT: u8 = 0xFE;
-/// The packet id of a positive response.
+/// The packet ids of a positive response and of an error.
 const RES: u8 = 0xFF;
+const ERR: u8 = 0xFE;
 /// How long a write to the master may wait before it counts as gone.
 const WRITE_LIMIT: Duration = Duration::from_secs(2);
+/// How long the slave may take to answer the gateway's DISCONNECT (a CAN round trip is a
+/// millisecond or two).
+const DISCONNECT_ANSWER: Duration = Duration::from_millis(500);
+/// The pause after a failed accept.
+const ACCEPT_RETRY: Duration = Duration::from_millis(100);
+/// A master whose packets go unacknowledged this long is gone (TCP_USER_TIMEOUT): the
+/// keepalive covers an idle connection, this one a connection with data in flight.
+const UNACKNOWLEDGED_LIMIT: Duration = Duration::from_secs(16);
 /// Frames waiting for the CAN socket: room for a block-mode download (MAX_BS 32) and more.
 pub const TO_SLAVE_FRAMES: usize = 256;
 
@@ -169,7 +178,12 @@ impl Forwarder {
                     return;
                 }
                 Event::Accepted(Ok((stream, peer))) => self.accept(stream, peer),
-                Event::Accepted(Err(error)) => warn!(%error, "XCP gateway: accept failed"),
+                Event::Accepted(Err(error)) => {
+                    // Out of file descriptors, say: a moment before trying again, rather than
+                    // a loop that fills the journal.
+                    warn!(%error, "XCP gateway: accept failed");
+                    tokio::time::sleep(ACCEPT_RETRY).await;
+                }
                 Event::FromMaster(Ok(0)) => self.end_master("it closed the connection").await,
                 Event::FromMaster(Ok(read)) => {
                     let input = buffer.get(..read).unwrap_or_default().to_vec();
@@ -215,7 +229,10 @@ impl Forwarder {
             .with_time(Duration::from_secs(10))
             .with_interval(Duration::from_secs(2))
             .with_retries(3);
-        let _ = socket2::SockRef::from(&stream).set_tcp_keepalive(&keepalive);
+        let socket = socket2::SockRef::from(&stream);
+        let _ = socket.set_tcp_keepalive(&keepalive);
+        #[cfg(target_os = "linux")]
+        let _ = socket.set_tcp_user_timeout(Some(UNACKNOWLEDGED_LIMIT));
         info!(%peer, "XCP master connected");
         self.state.update(|s| {
             s.master = Some(peer.to_string());
@@ -239,6 +256,7 @@ impl Forwarder {
         };
         master.last_heard = Instant::now();
         let mut broken = false;
+        let mut stalled = false;
         while !input.is_empty() {
             let (used, packet) = master.decoder.decode(input);
             input = input.get(used..).unwrap_or_default();
@@ -249,7 +267,11 @@ impl Forwarder {
                         if self.link.to_slave.try_send(frame).is_ok() {
                             Counters::bump(&self.counters.xcp_commands);
                         } else {
+                            // The bus is not taking commands (it is being reopened): a
+                            // command lost in the middle of a session would leave the master
+                            // and the slave disagreeing, so the master goes.
                             Counters::bump(&self.counters.xcp_dropped);
+                            stalled = true;
                         }
                     }
                     None => broken = true,
@@ -257,11 +279,13 @@ impl Forwarder {
                 Some(Err(_)) => broken = true,
                 None => {}
             }
-            if broken || used == 0 {
+            if broken || stalled || used == 0 {
                 break;
             }
         }
-        if broken {
+        if stalled {
+            self.end_master("the CAN bus is not taking commands").await;
+        } else if broken {
             // A broken stream cannot be resynchronised.
             Counters::bump(&self.counters.xcp_dropped);
             self.end_master("it sent something that is not XCP on TCP")
@@ -292,6 +316,9 @@ impl Forwarder {
             .write_all(frame.get(..len).unwrap_or_default());
         match tokio::time::timeout(WRITE_LIMIT, write).await {
             Ok(Ok(())) => {
+                // A master that only measures (DAQ) sends nothing for minutes: what it takes
+                // counts as alive too.
+                master.last_heard = Instant::now();
                 Counters::bump(&self.counters.xcp_responses);
             }
             Ok(Err(error)) => {
@@ -309,9 +336,7 @@ impl Forwarder {
         };
         let had_session = self.state.snapshot().session;
         if had_session {
-            if let Some(disconnect) = can_frame(&[DISCONNECT]) {
-                let _ = self.link.to_slave.send(disconnect).await;
-            }
+            self.disconnect_slave().await;
         }
         info!(
             peer = %master.peer,
@@ -324,6 +349,37 @@ impl Forwarder {
             s.master_since_us = None;
             s.session = false;
         });
+    }
+}
+
+impl Forwarder {
+    /// Sends the slave a DISCONNECT and waits (a little) for its answer, dropping what the
+    /// slave still sends for the old master (DAQ), so none of it reaches the next one.
+    async fn disconnect_slave(&mut self) {
+        let deadline = tokio::time::Instant::now() + DISCONNECT_ANSWER;
+        let Some(disconnect) = can_frame(&[DISCONNECT]) else {
+            return;
+        };
+        let queued = tokio::time::timeout_at(deadline, self.link.to_slave.send(disconnect)).await;
+        if !matches!(queued, Ok(Ok(()))) {
+            warn!("XCP gateway: the DISCONNECT for a vanished master could not be queued");
+            return;
+        }
+        loop {
+            match tokio::time::timeout_at(deadline, self.link.from_slave.recv()).await {
+                Ok(Some(packet)) => {
+                    Counters::bump(&self.counters.xcp_dropped);
+                    if matches!(packet.first(), Some(&RES | &ERR)) {
+                        return;
+                    }
+                }
+                Ok(None) => return,
+                Err(_) => {
+                    warn!("XCP gateway: the slave did not answer the DISCONNECT");
+                    return;
+                }
+            }
+        }
     }
 }
 

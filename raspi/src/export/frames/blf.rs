@@ -110,7 +110,11 @@ impl<W: Write + Seek> FrameWriter for BlfWriter<W> {
         if self.objects.len() + CAN_MESSAGE_BYTES > CONTAINER_BYTES {
             self.flush_container()?;
         }
-        let nanos = frame.frame.ts_us.saturating_sub(self.start_us) * 1_000;
+        let nanos = frame
+            .frame
+            .ts_us
+            .saturating_sub(self.start_us)
+            .saturating_mul(1_000);
         let id = match frame.frame.id {
             Id::Standard(id) => u32::from(id.as_raw()),
             Id::Extended(id) => id.as_raw() | EXTENDED_ID,

@@ -8,6 +8,7 @@ pub mod asc;
 pub mod blf;
 pub mod channels;
 pub mod mf4;
+mod order;
 pub mod source;
 
 use super::{ExportError, Format, Written};
@@ -47,21 +48,31 @@ pub fn write(
         path: path.to_owned(),
         source: e,
     };
+    if !format.holds_frames() {
+        return Err(ExportError::Internal("not a bus-logging format"));
+    }
     let file = BufWriter::new(std::fs::File::create(path).map_err(failed)?);
-    let mut writer: Box<dyn FrameWriter> = match format {
-        Format::Blf => Box::new(blf::BlfWriter::new(file, summary).map_err(failed)?),
-        Format::Asc => Box::new(asc::AscWriter::new(file, summary, metadata).map_err(failed)?),
-        Format::Mf4 => Box::new(mf4::Mf4Writer::new(file, summary, metadata).map_err(failed)?),
-        Format::Mcap | Format::Parquet | Format::Csv => {
-            return Err(ExportError::Internal("not a bus-logging format"));
-        }
-    };
-    source.each(|frame| {
-        writer
-            .frame(frame, summary.channels.of(&frame.interface))
-            .map_err(failed)
-    })?;
-    writer.finish().map_err(failed)?;
+    let written = (|| {
+        let mut writer: Box<dyn FrameWriter> = match format {
+            Format::Blf => Box::new(blf::BlfWriter::new(file, summary).map_err(failed)?),
+            Format::Asc => Box::new(asc::AscWriter::new(file, summary, metadata).map_err(failed)?),
+            _ => Box::new(mf4::Mf4Writer::new(file, summary, metadata).map_err(failed)?),
+        };
+        let mut ordered = order::TimeOrder::default();
+        let mut emit = |frame: &Frame| {
+            writer
+                .frame(frame, summary.channels.of(&frame.interface))
+                .map_err(failed)
+        };
+        source.each(|frame| ordered.push(frame, &mut emit))?;
+        ordered.finish(&mut emit)?;
+        writer.finish().map_err(failed)
+    })();
+    if let Err(error) = written {
+        // A file cut short would read as a shorter session.
+        let _ = std::fs::remove_file(path);
+        return Err(error);
+    }
     Written::file(path, usize::try_from(summary.frames).unwrap_or(usize::MAX))
 }
 

@@ -29,7 +29,8 @@ pub struct Summary {
     pub first_us: u64,
     pub last_us: u64,
     pub channels: Channels,
-    /// Lines or blocks that do not parse: skipped, and said in the export's notes.
+    /// Lines or blocks that do not parse, and segments gone before they were read (retention
+    /// pruned them): skipped, and said in the export's notes.
     pub skipped: u64,
 }
 
@@ -63,10 +64,21 @@ impl FrameSource {
         let window = self.from_us.unwrap_or(0)..=self.to_us.unwrap_or(u64::MAX);
         let mut skipped = 0;
         for path in &self.files {
-            let data = std::fs::read(path).map_err(|source| ExportError::Read {
-                path: path.clone(),
-                source,
-            })?;
+            let data = match std::fs::read(path) {
+                Ok(data) => data,
+                Err(error)
+                    if error.kind() == std::io::ErrorKind::NotFound && self.files.len() > 1 =>
+                {
+                    skipped += 1;
+                    continue;
+                }
+                Err(source) => {
+                    return Err(ExportError::Read {
+                        path: path.clone(),
+                        source,
+                    });
+                }
+            };
             skipped += each_in_file(&data, |frame| {
                 if window.contains(&frame.frame.ts_us) {
                     each(frame)
