@@ -18,7 +18,7 @@ use aer_raspi::service::DEMO_LOG;
 use aer_raspi::store::session::{self, Metadata};
 use aer_raspi::store::{self, row, writer};
 use std::collections::HashMap;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::sync::Arc;
 
@@ -50,6 +50,26 @@ fn session_rows(limit: usize) -> Vec<row::Row> {
     rows
 }
 
+/// An export of session `id` in `formats` into `out`, its frames from `frames` (a log or
+/// segment), the bus-logging formats asked for by name.
+fn session_request(id: i64, formats: Vec<Format>, out: &Path, frames: PathBuf) -> Request {
+    Request {
+        selection: Selection {
+            session: Some(id),
+            ..Selection::default()
+        },
+        formats,
+        out_dir: out.to_owned(),
+        topic_root: "aer/car1".into(),
+        extra: Vec::new(),
+        frames: Some(FrameSource {
+            files: vec![frames],
+            ..FrameSource::default()
+        }),
+        frames_required: true,
+    }
+}
+
 #[test]
 fn a_session_exported_in_every_format_reads_back_equal_to_the_store() {
     let dir = tempfile::tempdir().expect("temp dir");
@@ -71,21 +91,7 @@ fn a_session_exported_in_every_format_reads_back_equal_to_the_store() {
     writer::commit(&mut db, &session_rows(3000)).expect("commit");
 
     let out = dir.path().join("export");
-    let request = Request {
-        selection: Selection {
-            session: Some(id),
-            ..Selection::default()
-        },
-        formats: Format::all(),
-        out_dir: out.clone(),
-        topic_root: "aer/car1".into(),
-        extra: Vec::new(),
-        frames: Some(FrameSource {
-            files: vec![common::session_log()],
-            ..FrameSource::default()
-        }),
-        frames_required: true,
-    };
+    let request = session_request(id, Format::all(), &out, common::session_log());
     let report = export::export(&db, &request).expect("export");
     let exported: usize = report.rows.iter().map(|(_, n)| n).sum();
     assert_eq!(exported, rows.len(), "every row of the session, no other");
@@ -270,21 +276,12 @@ fn bus_logging_formats_without_frames_fail_before_writing_anything() {
     let id = session::begin(&db, &Metadata::default(), "replay", 1).expect("session");
     writer::commit(&mut db, &session_rows(3000)).expect("commit");
     let out = dir.path().join("export");
-    let request = Request {
-        selection: Selection {
-            session: Some(id),
-            ..Selection::default()
-        },
-        formats: vec![Format::Parquet, Format::Blf],
-        out_dir: out.clone(),
-        topic_root: "aer/car1".into(),
-        extra: Vec::new(),
-        frames: Some(FrameSource {
-            files: vec![dir.path().join("no-such-segment.aerraw")],
-            ..FrameSource::default()
-        }),
-        frames_required: true,
-    };
+    let request = session_request(
+        id,
+        vec![Format::Parquet, Format::Blf],
+        &out,
+        dir.path().join("no-such-segment.aerraw"),
+    );
     let error = export::export(&db, &request).expect_err("no frames");
     assert!(
         matches!(error, export::ExportError::Read { .. }),

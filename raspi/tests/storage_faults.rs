@@ -352,6 +352,13 @@ fn the_raw_log_keeps_every_frame_and_reads_back_as_the_log() {
                 .expect("written");
         assert_eq!(written.rows, original.len(), "{format:?}");
     }
+    // Segments with no frames write nothing and say so.
+    let empty = dir.path().join("no-segments");
+    std::fs::create_dir_all(&empty).expect("folder");
+    let nothing = aer_raspi::rawlog::export::to_file(&[empty], Format::Blf, &out.join("none.blf"))
+        .expect_err("nothing to write");
+    assert!(nothing.to_string().contains("no frames in"), "{nothing}");
+    assert!(!out.join("none.blf").exists());
     let checked = common::check_frames(&common::session_log(), &out, None);
     assert!(
         checked.is_empty() || checked.contains(&format!("{} frames equal", original.len())),

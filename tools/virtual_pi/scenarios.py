@@ -432,15 +432,12 @@ def disk_smaller_than_floor(slice_log, want):
         subprocess.run(["umount", "/var/lib/aer"])
 
 
-def xcp_on_can():
-    """The CCM's XCP slave in the closed-loop car (aer-car-node) on can0, the vehicle bus, and
-    pyxcp on the same vcan through python-can's socketcan interface: the calibration
-    engineer's scenarios over XCP on CAN, with the Pi's service listening on the bus."""
-    if not start_service():
-        return
+def car_node_scenarios(label, *extra):
+    """`aer-car-node scenarios` with the CCM's slave on can0 (and `extra` options): the
+    calibration scenarios played by pyxcp, each line said under `label`."""
     node = subprocess.run(
         [
-            os.path.join(HERE, "aer-car-node"), "scenarios", "--link", "can:can0",
+            os.path.join(HERE, "aer-car-node"), "scenarios", "--link", "can:can0", *extra,
             "--python", "/opt/xcp/bin/python",
             "--script", os.path.join(HERE, "xcp_scenarios.py"),
             "--a2l", os.path.join(HERE, "aer.a2l"),
@@ -448,10 +445,20 @@ def xcp_on_can():
         capture_output=True, text=True, timeout=900,
     )
     for line in node.stdout.splitlines():
-        say(f"  xcp on can: {line}")
+        say(f"  {label}: {line}")
     if node.returncode != 0:
         for line in node.stderr.splitlines()[-40:]:
-            say(f"  xcp on can (stderr): {line}")
+            say(f"  {label} (stderr): {line}")
+    return node
+
+
+def xcp_on_can():
+    """The CCM's XCP slave in the closed-loop car (aer-car-node) on can0, the vehicle bus, and
+    pyxcp on the same vcan through python-can's socketcan interface: the calibration
+    engineer's scenarios over XCP on CAN, with the Pi's service listening on the bus."""
+    if not start_service():
+        return
+    node = car_node_scenarios("xcp on can")
     check("pyxcp over XCP on CAN (vcan): every calibration scenario passed", node.returncode == 0)
     # The service keeps every frame on the bus: the master's commands are in the store, each
     # of the scenarios' three sessions starting with CONNECT (0xFF).
@@ -697,21 +704,7 @@ def xcp_gateway_from_the_pit():
     gateway = (latest("status") or {}).get("xcp_gateway") or {}
     check("the XCP gateway listens on the radio's address", gateway.get("listen") == f"{PI_ADDRESS}:5555", f"{gateway}")
     before = counters()
-    node = subprocess.run(
-        [
-            os.path.join(HERE, "aer-car-node"), "scenarios", "--link", "can:can0",
-            "--through", f"{PI_ADDRESS}:5555", "--netns", "pit",
-            "--python", "/opt/xcp/bin/python",
-            "--script", os.path.join(HERE, "xcp_scenarios.py"),
-            "--a2l", os.path.join(HERE, "aer.a2l"),
-        ],
-        capture_output=True, text=True, timeout=900,
-    )
-    for line in node.stdout.splitlines():
-        say(f"  xcp through the gateway: {line}")
-    if node.returncode != 0:
-        for line in node.stderr.splitlines()[-40:]:
-            say(f"  xcp through the gateway (stderr): {line}")
+    node = car_node_scenarios("xcp through the gateway", "--through", f"{PI_ADDRESS}:5555", "--netns", "pit")
     after = counters()
     forwarded = (
         after.get("xcp_commands", 0) - before.get("xcp_commands", 0),

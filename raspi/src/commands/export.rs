@@ -36,16 +36,9 @@ pub struct Wanted {
     pub demo: bool,
 }
 
-/// What an export folder holds: anything of these is an earlier export.
-const LAYOUT: [&str; 6] = [
-    "session.mcap",
-    "parquet",
-    "csv",
-    "session.blf",
-    "session.asc",
-    "session.mf4",
-];
-
+/// What an export folder holds of the decoded rows' formats; with the bus-logging formats'
+/// files ([`frames::file_name`]), anything of these is an earlier export.
+const LAYOUT: [&str; 3] = ["session.mcap", "parquet", "csv"];
 /// Runs the export.
 pub fn run(
     located: &Located,
@@ -346,8 +339,10 @@ fn describe_selection(selection: &Selection) -> String {
 
 /// Makes sure `dir` holds no earlier export: refuses, or with `replace` removes it whole.
 fn prepare(dir: &Path, replace: bool, notes: &mut dyn Write) -> Result<()> {
+    let frame_files = Format::all().into_iter().filter_map(frames::file_name);
     let earlier: Vec<PathBuf> = LAYOUT
-        .iter()
+        .into_iter()
+        .chain(frame_files)
         .map(|name| dir.join(name))
         .filter(|path| path.exists())
         .collect();

@@ -20,6 +20,17 @@ pub fn to_file(paths: &[PathBuf], format: Format, out: &Path) -> Result<Written>
         to_us: None,
     };
     let summary = source.summary()?;
+    if summary.frames == 0 {
+        bail!(
+            "no frames in {} ({} damaged blocks): nothing written",
+            paths
+                .iter()
+                .map(|p| p.display().to_string())
+                .collect::<Vec<_>>()
+                .join(", "),
+            summary.skipped
+        );
+    }
     let named: Vec<String> = source
         .files
         .iter()
