@@ -139,6 +139,14 @@ counters! {
     /// sent that were not XCP on TCP, and commands the bus would not take (for both, the
     /// master is disconnected).
     xcp_dropped,
+    /// Calibration changes the CCM accepted from a master through the gateway (each
+    /// parameter element changed, each revert, page switch and save).
+    calibration_changes,
+    /// Calibration changes the CCM refused (out of range, not in this vehicle state, locked).
+    calibration_refusals,
+    /// Calibration entries the store could not record (behind, failing, or no session open);
+    /// the journal and the status still show the changes.
+    calibration_unrecorded,
 }
 
 /// What went wrong with one message's frames, as the status reports it.

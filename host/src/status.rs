@@ -73,6 +73,13 @@ pub struct XcpGateway {
     pub session: bool,
     /// The last refusal, with the address and why.
     pub last_refusal: Option<String>,
+    /// The last calibration change (or refused change) a master made, as one line.
+    #[serde(default)]
+    pub last_change: Option<String>,
+    /// CRC-32 of the calibration the CCM runs on, as the gateway last knew it (hex, the value
+    /// `CCM_CalChecksum` carries).
+    #[serde(default)]
+    pub checksum: Option<String>,
 }
 
 /// One MQTT client as the gate serves it.

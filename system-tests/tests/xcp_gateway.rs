@@ -97,6 +97,7 @@ fn gateway(
                 from_slave,
             },
             counters.clone(),
+            None,
             CancellationToken::new(),
         ))
         .expect("listening");

@@ -226,6 +226,7 @@ pub(super) async fn start_xcp_gateway(
     job: &Job,
     counters: &Arc<Counters>,
     health: &Arc<Health>,
+    record: crate::store::CalibrationSender,
     cancel: &CancellationToken,
 ) -> Option<crate::xcp_gateway::Gateway> {
     if *job != Job::Live || !config.xcp_gateway.enabled {
@@ -239,9 +240,15 @@ pub(super) async fn start_xcp_gateway(
         #[cfg(not(target_os = "linux"))]
         anyhow::bail!("XCP on CAN needs Linux's SocketCAN");
         let listen = settings.listen;
-        crate::xcp_gateway::spawn(settings, link, counters.clone(), cancel.child_token())
-            .await
-            .map_err(|e| anyhow::anyhow!("listening on {listen}: {e}"))
+        crate::xcp_gateway::spawn(
+            settings,
+            link,
+            counters.clone(),
+            Some(record),
+            cancel.child_token(),
+        )
+        .await
+        .map_err(|e| anyhow::anyhow!("listening on {listen}: {e}"))
     };
     match started.await {
         Ok(gateway) => Some(gateway),

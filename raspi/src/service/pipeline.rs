@@ -60,8 +60,15 @@ impl Pipeline {
             mqtt.publisher
                 .publish_json(&format!("schema/{suffix}"), &schema, true);
         }
-        let xcp_gateway =
-            parts::start_xcp_gateway(&config, &job, &counters, &health, &cancel).await;
+        let xcp_gateway = parts::start_xcp_gateway(
+            &config,
+            &job,
+            &counters,
+            &health,
+            store.calibration_sender(),
+            &cancel,
+        )
+        .await;
         let reporter = tokio::spawn(report::run(
             mqtt.publisher.clone(),
             config.car_id.clone(),

@@ -3,6 +3,7 @@
 //! reported; while it fails the queue fills and new rows are dropped and counted, but nothing
 //! upstream waits. Between batches it applies the retention budget.
 
+use super::calibration::{self, Entry};
 use super::clock::{StepWatch, describe_step};
 use super::compact::Compaction;
 use super::queue::{BATCH_ROWS, BATCH_WAIT, QUEUE_ROWS, Queue, RowSender, WhenFull};
@@ -28,10 +29,44 @@ const RETRY_MAX: Duration = Duration::from_secs(30);
 /// it holds (counted as dropped; the raw log has their frames).
 const STOP_GRACE: Duration = Duration::from_secs(3);
 
+/// Calibration entries that may wait for the writer (a tuner makes a few a minute).
+const CALIBRATION_ENTRIES: usize = 1024;
+
 /// The writer thread, and the sender it keeps until it finishes.
 pub struct StoreWriter {
     sender: Option<RowSender>,
+    calibration: CalibrationSender,
     thread: Option<JoinHandle<()>>,
+}
+
+/// Hands calibration entries to the writer, which records them in the open session. Never
+/// waits: an entry the writer cannot take is counted (`calibration_unrecorded`).
+#[derive(Clone)]
+pub struct CalibrationSender {
+    entries: std::sync::mpsc::SyncSender<Entry>,
+    counters: Arc<Counters>,
+}
+
+impl CalibrationSender {
+    /// A sender to `entries`, which counts in `counters` what it could not hand over.
+    pub fn new(entries: std::sync::mpsc::SyncSender<Entry>, counters: Arc<Counters>) -> Self {
+        Self { entries, counters }
+    }
+
+    /// Hands `entry` over; false (and counted) if the writer is behind or gone.
+    pub fn send(&self, entry: Entry) -> bool {
+        let sent = self.entries.try_send(entry).is_ok();
+        if !sent {
+            let count = Counters::bump(&self.counters.calibration_unrecorded);
+            if worth_logging(count) {
+                warn!(
+                    count,
+                    "a calibration entry could not be recorded (the store is behind or stopped)"
+                );
+            }
+        }
+        sent
+    }
 }
 
 /// What the writer does besides writing.
@@ -62,9 +97,13 @@ impl StoreWriter {
             options.when_full,
             counters.clone(),
         );
+        let (calibration, calibration_entries) = std::sync::mpsc::sync_channel(CALIBRATION_ENTRIES);
+        let calibration = CalibrationSender::new(calibration, counters.clone());
         let writer = Writer {
             db,
             queue,
+            calibration: calibration_entries,
+            calibration_pending: Vec::new(),
             counters,
             health: options.health,
             retention: options.retention,
@@ -78,6 +117,7 @@ impl StoreWriter {
             .ok();
         Self {
             sender: Some(sender),
+            calibration,
             thread,
         }
     }
@@ -85,6 +125,11 @@ impl StoreWriter {
     /// A handle producers send rows with.
     pub fn sender(&self) -> Option<RowSender> {
         self.sender.clone()
+    }
+
+    /// A handle the XCP gateway hands its calibration entries to.
+    pub fn calibration_sender(&self) -> CalibrationSender {
+        self.calibration.clone()
     }
 
     /// Writes every queued row and stops the writer, once every other sender is dropped. A
@@ -101,6 +146,9 @@ impl StoreWriter {
 struct Writer {
     db: Connection,
     queue: Arc<Queue>,
+    /// Calibration entries from the XCP gateway, and those a failing store still owes.
+    calibration: std::sync::mpsc::Receiver<Entry>,
+    calibration_pending: Vec<Entry>,
     counters: Arc<Counters>,
     health: Arc<Health>,
     retention: Option<Retention>,
@@ -122,11 +170,13 @@ impl Writer {
         let mut batch: Vec<Row> = Vec::with_capacity(BATCH_ROWS);
         loop {
             let Some(open) = self.queue.take(&mut batch, BATCH_WAIT) else {
+                self.record_calibration();
                 return;
             };
             if !batch.is_empty() {
                 self.write(&mut batch, open);
             }
+            self.record_calibration();
             if let Some((at_us, step_us)) = self.clock.check() {
                 warn!(step = %describe_step(at_us, step_us), "the wall clock stepped; the open session records it");
                 if let Err(error) = record_clock_step(&self.db, at_us, step_us) {
@@ -139,9 +189,52 @@ impl Writer {
             if open {
                 self.compact();
             } else {
+                self.record_calibration();
                 return;
             }
         }
+    }
+
+    /// Records the calibration entries that came in, in the open session. A failing store
+    /// keeps them for the next try (up to the channel's bound; beyond it the oldest are
+    /// counted as unrecorded); with no session open they are counted too.
+    fn record_calibration(&mut self) {
+        self.calibration_pending.extend(self.calibration.try_iter());
+        if self.calibration_pending.is_empty() {
+            return;
+        }
+        let recorded = session::current(&self.db).and_then(|session| match session {
+            Some(session) => {
+                calibration::record(&self.db, session, &self.calibration_pending).map(|()| true)
+            }
+            None => Ok(false),
+        });
+        match recorded {
+            Ok(true) => self.calibration_pending.clear(),
+            Ok(false) => {
+                warn!(
+                    entries = self.calibration_pending.len(),
+                    "calibration entries with no session open: not recorded"
+                );
+                self.unrecorded(self.calibration_pending.len());
+                self.calibration_pending.clear();
+            }
+            Err(error) => {
+                warn!(%error, "recording calibration entries failed; retrying");
+                let over = self
+                    .calibration_pending
+                    .len()
+                    .saturating_sub(CALIBRATION_ENTRIES);
+                self.calibration_pending.drain(..over);
+                self.unrecorded(over);
+            }
+        }
+    }
+
+    fn unrecorded(&self, entries: usize) {
+        self.counters
+            .calibration_unrecorded
+            .fetch_add(entries as u64, Ordering::Relaxed);
     }
 
     /// Compacts closed sessions' rows, if due (never while stopping: a stop stays quick, and

@@ -15,17 +15,31 @@
 //!   mid-block never reaches the calibration page (the slave writes a block as one
 //!   transaction), so the CCM stays consistent and the next master connects.
 //!
+//! - **Every change recorded.** When a master connects, the gateway reads the working page
+//!   (SHORT_UPLOAD, before the master sees the CONNECT answer) and the page the CCM runs on;
+//!   then [`record::Recorder`] follows every write, revert, page switch and save and the
+//!   slave's answer to it. Each becomes an entry (old and new value, accepted or refused and
+//!   why, the checksum after) in the session's record in the store, the status and the
+//!   journal.
+//!
 //! The gateway has its own task and its own CAN socket; it shares nothing with ingest, the
 //! store or the live MQTT path but the counters and the status.
 
 pub mod allow;
 #[cfg(target_os = "linux")]
 pub mod can;
+pub mod record;
 
+use crate::store::CalibrationSender;
+use crate::store::calibration::{Entry, Kind};
+use aer::calibration::PAGE_LEN;
+use aer::calibration::xcp::CALIBRATION_ADDRESS;
 use aer_host::counters::Counters;
 use aer_host::status::XcpGateway;
+use aer_xcp::protocol::{cmd, page_mode};
 use aer_xcp::transport::{CAN_DLC, TCP_FRAME_MAX, TcpDecoder, TcpEncoder, can_frame};
 use allow::Network;
+use record::Recorder;
 use std::net::SocketAddr;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
@@ -44,9 +58,11 @@ const RES: u8 = 0xFF;
 const ERR: u8 = 0xFE;
 /// How long a write to the master may wait before it counts as gone.
 const WRITE_LIMIT: Duration = Duration::from_secs(2);
-/// How long the slave may take to answer the gateway's DISCONNECT (a CAN round trip is a
-/// millisecond or two).
-const DISCONNECT_ANSWER: Duration = Duration::from_millis(500);
+/// How long the slave may take to answer the gateway's own commands: its DISCONNECT, its
+/// reading of the page (a CAN round trip is a millisecond or two).
+const SLAVE_ANSWER: Duration = Duration::from_millis(500);
+/// Bytes one SHORT_UPLOAD reads at MAX_CTO 8.
+const UPLOAD_CHUNK: usize = 7;
 /// The pause after a failed accept.
 const ACCEPT_RETRY: Duration = Duration::from_millis(100);
 /// A master whose packets go unacknowledged this long is gone (TCP_USER_TIMEOUT): the
@@ -104,6 +120,7 @@ pub async fn spawn(
     settings: Settings,
     link: SlaveLink,
     counters: Arc<Counters>,
+    record: Option<CalibrationSender>,
     cancel: CancellationToken,
 ) -> std::io::Result<Gateway> {
     let listener = TcpListener::bind(settings.listen).await?;
@@ -120,6 +137,8 @@ pub async fn spawn(
         counters,
         state: state.clone(),
         master: None,
+        recorder: Recorder::new(),
+        record,
     };
     let task = tokio::spawn(async move { gateway.run(listener, cancel).await });
     Ok(Gateway {
@@ -146,6 +165,9 @@ struct Forwarder {
     counters: Arc<Counters>,
     state: Arc<State>,
     master: Option<Master>,
+    recorder: Recorder,
+    /// Where the entries go to be stored (none without a store).
+    record: Option<CalibrationSender>,
 }
 
 /// What woke the gateway.
@@ -263,6 +285,7 @@ impl Forwarder {
             match packet {
                 Some(Ok(packet)) => match can_frame(packet.data) {
                     Some(frame) => {
+                        self.recorder.command(packet.data);
                         master.last_command = packet.data.first().copied();
                         if self.link.to_slave.try_send(frame).is_ok() {
                             Counters::bump(&self.counters.xcp_commands);
@@ -293,19 +316,33 @@ impl Forwarder {
         }
     }
 
-    /// Forwards a packet of the slave's to the master, if there is one.
+    /// Forwards a packet of the slave's to the master, if there is one, and records what it
+    /// answered.
     async fn forward_answer(&mut self, packet: &[u8]) {
-        let Some(master) = self.master.as_mut() else {
+        let Some(master) = self.master.as_ref() else {
             Counters::bump(&self.counters.xcp_dropped);
             return;
         };
-        if packet.first() == Some(&RES) {
-            match master.last_command {
-                Some(CONNECT) => self.state.update(|s| s.session = true),
-                Some(DISCONNECT) => self.state.update(|s| s.session = false),
-                _ => {}
+        let (peer, last_command) = (master.peer.to_string(), master.last_command);
+        if matches!(packet.first(), Some(&RES | &ERR)) {
+            let at_us = now_us();
+            let entries = self.recorder.answer(packet, at_us, &peer);
+            self.publish(entries);
+            if packet.first() == Some(&RES) {
+                match last_command {
+                    Some(CONNECT) => {
+                        self.state.update(|s| s.session = true);
+                        // Before the master sees the answer, so nothing of its own is lost.
+                        self.read_page(&peer).await;
+                    }
+                    Some(DISCONNECT) => self.state.update(|s| s.session = false),
+                    _ => {}
+                }
             }
         }
+        let Some(master) = self.master.as_mut() else {
+            return;
+        };
         let mut frame = [0u8; TCP_FRAME_MAX];
         let Ok(len) = master.encoder.encode(packet, &mut frame) else {
             Counters::bump(&self.counters.xcp_dropped);
@@ -338,6 +375,7 @@ impl Forwarder {
         if had_session {
             self.disconnect_slave().await;
         }
+        self.recorder.session_ended();
         info!(
             peer = %master.peer,
             why,
@@ -353,34 +391,110 @@ impl Forwarder {
 }
 
 impl Forwarder {
-    /// Sends the slave a DISCONNECT and waits (a little) for its answer, dropping what the
-    /// slave still sends for the old master (DAQ), so none of it reaches the next one.
-    async fn disconnect_slave(&mut self) {
-        let deadline = tokio::time::Instant::now() + DISCONNECT_ANSWER;
-        let Some(disconnect) = can_frame(&[DISCONNECT]) else {
-            return;
-        };
-        let queued = tokio::time::timeout_at(deadline, self.link.to_slave.send(disconnect)).await;
+    /// Sends the slave a command of the gateway's own and waits (a little) for its answer,
+    /// dropping what the slave sends first (an old session's DAQ): `None` if it does not
+    /// answer in time.
+    async fn ask(&mut self, command: &[u8]) -> Option<Vec<u8>> {
+        let deadline = tokio::time::Instant::now() + SLAVE_ANSWER;
+        let frame = can_frame(command)?;
+        let queued = tokio::time::timeout_at(deadline, self.link.to_slave.send(frame)).await;
         if !matches!(queued, Ok(Ok(()))) {
-            warn!("XCP gateway: the DISCONNECT for a vanished master could not be queued");
-            return;
+            return None;
         }
         loop {
             match tokio::time::timeout_at(deadline, self.link.from_slave.recv()).await {
-                Ok(Some(packet)) => {
-                    Counters::bump(&self.counters.xcp_dropped);
-                    if matches!(packet.first(), Some(&RES | &ERR)) {
-                        return;
-                    }
+                Ok(Some(packet)) if matches!(packet.first(), Some(&RES | &ERR)) => {
+                    return Some(packet);
                 }
-                Ok(None) => return,
-                Err(_) => {
-                    warn!("XCP gateway: the slave did not answer the DISCONNECT");
+                Ok(Some(_)) => {
+                    Counters::bump(&self.counters.xcp_dropped);
+                }
+                Ok(None) | Err(_) => return None,
+            }
+        }
+    }
+
+    /// Ends the slave's session for a vanished master, so none of its state (unlocked
+    /// calibration, DAQ) reaches the next one; the answer is not the next master's either.
+    async fn disconnect_slave(&mut self) {
+        if self.ask(&[DISCONNECT]).await.is_some() {
+            Counters::bump(&self.counters.xcp_dropped);
+        } else {
+            warn!("XCP gateway: the slave did not answer the DISCONNECT for a vanished master");
+        }
+    }
+
+    /// Reads the working page and the page the CCM runs on, for the record's old values and
+    /// checksum, and records what it found. A page it cannot read leaves old values unknown.
+    async fn read_page(&mut self, peer: &str) {
+        let mut page = [0u8; PAGE_LEN];
+        for (chunk, start) in (0..PAGE_LEN).step_by(UPLOAD_CHUNK).enumerate() {
+            let len = UPLOAD_CHUNK.min(PAGE_LEN - start);
+            let address = u32::try_from(start)
+                .ok()
+                .and_then(|offset| CALIBRATION_ADDRESS.checked_add(offset));
+            let (Some(address), Ok(count)) = (address, u8::try_from(len)) else {
+                return;
+            };
+            let mut upload = [cmd::SHORT_UPLOAD, count, 0, 0, 0, 0, 0, 0];
+            if let Some(at) = upload.get_mut(4..8) {
+                at.copy_from_slice(&address.to_le_bytes());
+            }
+            let answer = self.ask(&upload).await;
+            let data = answer
+                .as_deref()
+                .filter(|a| a.first() == Some(&RES))
+                .and_then(|a| a.get(1..=len));
+            match (data, page.get_mut(start..start + len)) {
+                (Some(data), Some(slot)) => slot.copy_from_slice(data),
+                _ => {
+                    warn!(
+                        chunk,
+                        "XCP gateway: the calibration page could not be read; old values stay unknown"
+                    );
                     return;
                 }
             }
         }
+        let ecu_page = self
+            .ask(&[cmd::GET_CAL_PAGE, page_mode::ECU, 0])
+            .await
+            .filter(|a| a.first() == Some(&RES))
+            .and_then(|a| a.get(3).copied());
+        let entries = self.recorder.found(page, ecu_page, now_us(), peer);
+        self.publish(entries);
     }
+
+    /// Counts, logs, shows and stores what the recorder made of an answer.
+    fn publish(&mut self, entries: Vec<Entry>) {
+        let checksum = self.recorder.checksum();
+        let mut last = None;
+        for entry in entries {
+            if entry.kind != Kind::Found {
+                let counter = if entry.accepted {
+                    &self.counters.calibration_changes
+                } else {
+                    &self.counters.calibration_refusals
+                };
+                Counters::bump(counter);
+                info!(change = %entry, "calibration");
+                last = Some(entry.to_string());
+            }
+            if let Some(record) = &self.record {
+                record.send(entry);
+            }
+        }
+        self.state.update(|s| {
+            s.checksum = checksum.map(|c| format!("{c:08X}"));
+            if last.is_some() {
+                s.last_change = last;
+            }
+        });
+    }
+}
+
+fn now_us() -> i64 {
+    i64::try_from(aer_host::clock::now_us()).unwrap_or(i64::MAX)
 }
 
 /// Reads from the master, or waits for ever when there is none.

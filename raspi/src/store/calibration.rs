@@ -1,0 +1,272 @@
+//! Each session's calibration record: every change a pit master made to the CCM's calibration
+//! through the XCP gateway (when, from where, which parameter, old and new value, accepted or
+//! refused and why, and the checksum the CCM runs on after it), and the values the gateway
+//! found when each master connected. With it, a run's data says which calibration produced
+//! it, and two runs' calibrations compare. `aer-raspi session calibration` prints it; the
+//! exports carry it.
+
+use rusqlite::{Connection, params};
+use std::fmt;
+
+/// One row per entry, in the session that was open when the store took it.
+pub(crate) const CALIBRATION_TABLE: &str = "CREATE TABLE IF NOT EXISTS \"session_calibration\" (\"session_id\" INTEGER NOT NULL, \"at_us\" INTEGER NOT NULL, \"master\" TEXT NOT NULL, \"kind\" TEXT NOT NULL, \"parameter\" TEXT NOT NULL, \"element\" INTEGER, \"old\" REAL, \"new\" REAL, \"accepted\" INTEGER NOT NULL, \"reason\" TEXT NOT NULL, \"checksum\" INTEGER)";
+
+/// What an entry records.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Kind {
+    /// The value as the gateway read it when a master connected (old and new alike).
+    Found,
+    /// A value written (DOWNLOAD).
+    Write,
+    /// A value the reference page (the schema's defaults) restored (COPY_CAL_PAGE).
+    Revert,
+    /// The page the control step runs on (SET_CAL_PAGE): 0 working, 1 reference.
+    Page,
+    /// The working page saved to flash, for the next start (SET_REQUEST).
+    Save,
+}
+
+impl Kind {
+    /// The name the store and the exports use.
+    pub const fn name(self) -> &'static str {
+        match self {
+            Self::Found => "found",
+            Self::Write => "write",
+            Self::Revert => "revert",
+            Self::Page => "page",
+            Self::Save => "save",
+        }
+    }
+
+    fn from_name(name: &str) -> Option<Self> {
+        [
+            Self::Found,
+            Self::Write,
+            Self::Revert,
+            Self::Page,
+            Self::Save,
+        ]
+        .into_iter()
+        .find(|kind| kind.name() == name)
+    }
+}
+
+/// The parameter name of a [`Kind::Page`] entry.
+pub const ECU_PAGE: &str = "ecu_page";
+
+/// One change (or attempt, or finding) of the CCM's calibration.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Entry {
+    /// When the CCM answered (us since the epoch).
+    pub at_us: i64,
+    /// The master's address (`10.9.0.2:51234`).
+    pub master: String,
+    pub kind: Kind,
+    /// The parameter's name in the schema ([`ECU_PAGE`] for a page switch, empty for a save;
+    /// the address in hex for a write outside the calibration page).
+    pub parameter: String,
+    /// The element of a curve or list (`None` for a scalar).
+    pub element: Option<u32>,
+    /// The value before (`None` when the gateway did not know it).
+    pub old: Option<f64>,
+    /// The value after, or the one refused.
+    pub new: Option<f64>,
+    pub accepted: bool,
+    /// Why the CCM refused it (empty when accepted).
+    pub reason: String,
+    /// CRC-32 of the page the CCM runs on afterwards, as `CCM_CalChecksum` reports it
+    /// (`None` when the gateway did not know the whole page).
+    pub checksum: Option<u32>,
+}
+
+impl Entry {
+    /// The parameter with its element: `tc_slip_target`, `pedal_map[3]`.
+    pub fn target(&self) -> String {
+        match self.element {
+            Some(index) => format!("{}[{index}]", self.parameter),
+            None => self.parameter.clone(),
+        }
+    }
+}
+
+impl fmt::Display for Entry {
+    /// One line: `write tc_gain 0.1 -> 0.14 accepted (10.9.0.2:51234)`.
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let value = |v: Option<f64>| v.map_or_else(|| "?".to_owned(), number);
+        write!(f, "{} {}", self.kind.name(), self.target())?;
+        if self.kind != Kind::Save {
+            write!(f, " {} -> {}", value(self.old), value(self.new))?;
+        }
+        if self.accepted {
+            write!(f, " accepted")?;
+        } else {
+            write!(f, " refused: {}", self.reason)?;
+        }
+        write!(f, " ({})", self.master)
+    }
+}
+
+/// A value as people write it: `0.02`, not `0.019999999552965164` (every parameter is
+/// an `f32` on the CCM).
+pub fn number(value: f64) -> String {
+    let single = value as f32;
+    if f64::from(single) == value {
+        format!("{single}")
+    } else {
+        format!("{value}")
+    }
+}
+
+/// Adds `entries` to session `session`.
+pub(crate) fn record(db: &Connection, session: i64, entries: &[Entry]) -> rusqlite::Result<()> {
+    let mut insert = db.prepare_cached(
+        "INSERT INTO session_calibration (session_id, at_us, master, kind, parameter, element, \
+         old, new, accepted, reason, checksum) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11)",
+    )?;
+    for e in entries {
+        insert.execute(params![
+            session,
+            e.at_us,
+            e.master,
+            e.kind.name(),
+            e.parameter,
+            e.element,
+            e.old.filter(|v| v.is_finite()),
+            e.new.filter(|v| v.is_finite()),
+            e.accepted,
+            e.reason,
+            e.checksum,
+        ])?;
+    }
+    Ok(())
+}
+
+/// Session `session`'s entries between `from_us` and `to_us` (inclusive, either open), in
+/// the order they were recorded. A store from before the record was kept has none.
+pub fn list(
+    db: &Connection,
+    session: i64,
+    from_us: Option<i64>,
+    to_us: Option<i64>,
+) -> rusqlite::Result<Vec<Entry>> {
+    if !super::session::has_column(db, "session_calibration", "checksum")? {
+        return Ok(Vec::new());
+    }
+    let mut query = db.prepare(
+        "SELECT at_us, master, kind, parameter, element, old, new, accepted, reason, checksum \
+         FROM session_calibration WHERE session_id = ?1 AND at_us >= ?2 AND at_us <= ?3 \
+         ORDER BY rowid",
+    )?;
+    let rows = query.query_map(
+        params![
+            session,
+            from_us.unwrap_or(i64::MIN),
+            to_us.unwrap_or(i64::MAX)
+        ],
+        |r| {
+            let kind: String = r.get(2)?;
+            Ok(Entry {
+                at_us: r.get(0)?,
+                master: r.get(1)?,
+                // A kind this build does not know (a newer build's store) reads as a write:
+                // the values stay visible.
+                kind: Kind::from_name(&kind).unwrap_or(Kind::Write),
+                parameter: r.get(3)?,
+                element: r.get(4)?,
+                old: r.get(5)?,
+                new: r.get(6)?,
+                accepted: r.get(7)?,
+                reason: r.get(8)?,
+                checksum: r.get(9)?,
+            })
+        },
+    )?;
+    rows.collect()
+}
+
+/// The calibration as a session's record knows it at its end: per parameter and element, the
+/// last value found or accepted (refusals change nothing; a page switch or save is not a
+/// value). Sorted by parameter, then element.
+pub fn values_at_end(entries: &[Entry]) -> Vec<(String, Option<u32>, f64)> {
+    let mut values: std::collections::BTreeMap<(String, Option<u32>), f64> = Default::default();
+    for e in entries.iter().filter(|e| e.accepted) {
+        if let (Kind::Found | Kind::Write | Kind::Revert, Some(new)) = (e.kind, e.new) {
+            values.insert((e.parameter.clone(), e.element), new);
+        }
+    }
+    values
+        .into_iter()
+        .map(|((parameter, element), value)| (parameter, element, value))
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn entry(kind: Kind, parameter: &str, new: f64, accepted: bool) -> Entry {
+        Entry {
+            at_us: 1_000,
+            master: "10.9.0.2:5000".into(),
+            kind,
+            parameter: parameter.into(),
+            element: None,
+            old: Some(0.1),
+            new: Some(new),
+            accepted,
+            reason: if accepted {
+                String::new()
+            } else {
+                "only at standstill".into()
+            },
+            checksum: Some(0xDEAD_BEEF),
+        }
+    }
+
+    #[test]
+    fn entries_round_trip_through_the_store_in_their_session_and_window() {
+        let db = Connection::open_in_memory().expect("db");
+        db.execute(super::super::session::SESSIONS_TABLE, [])
+            .expect("sessions");
+        db.execute(CALIBRATION_TABLE, []).expect("table");
+        let mut written = vec![
+            entry(Kind::Found, "tc_gain", 0.1, true),
+            entry(Kind::Write, "tc_gain", 0.14, true),
+            entry(Kind::Write, "launch_rpm", 0.3, false),
+        ];
+        written[2].at_us = 5_000;
+        written[1].element = Some(3);
+        record(&db, 7, &written).expect("recorded");
+        record(&db, 8, &written[..1]).expect("another session");
+        assert_eq!(list(&db, 7, None, None).expect("listed"), written);
+        assert_eq!(list(&db, 7, None, Some(4_999)).expect("listed").len(), 2);
+        assert_eq!(list(&db, 8, Some(1_001), None).expect("listed"), []);
+    }
+
+    #[test]
+    fn the_values_at_the_end_take_the_last_accepted_value_of_each_parameter() {
+        let entries = [
+            entry(Kind::Found, "tc_gain", 0.1, true),
+            entry(Kind::Write, "tc_gain", 0.14, true),
+            entry(Kind::Write, "tc_gain", 0.5, false),
+            entry(Kind::Found, "launch_rpm", 3.0, true),
+            entry(Kind::Save, "", 0.0, true),
+        ];
+        assert_eq!(
+            values_at_end(&entries),
+            [
+                ("launch_rpm".to_owned(), None, 3.0),
+                ("tc_gain".to_owned(), None, 0.14)
+            ]
+        );
+    }
+
+    #[test]
+    fn an_entry_reads_as_one_line() {
+        let refused = entry(Kind::Write, "tc_gain", 0.5, false);
+        assert_eq!(
+            refused.to_string(),
+            "write tc_gain 0.1 -> 0.5 refused: only at standstill (10.9.0.2:5000)"
+        );
+    }
+}
