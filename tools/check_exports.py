@@ -204,6 +204,67 @@ def check_mcap(path, types, db, session, meta):
     return sum(len(v) for v in seen.values())
 
 
+CALIBRATION = ["ts_us", "master", "kind", "parameter", "element", "old", "new", "accepted", "reason", "checksum"]
+
+
+def check_calibration(out, db, session):
+    """The session's calibration record (`session_calibration`) in `calibration.parquet`,
+    `calibration.csv` and the MCAP's `calibration` metadata records, entry for entry."""
+    stored = db.execute(
+        "SELECT at_us, master, kind, parameter, element, old, new, accepted, reason, checksum "
+        "FROM session_calibration WHERE session_id = ? ORDER BY rowid",
+        (session,),
+    ).fetchall()
+    parquet = out / "parquet" / "calibration.parquet"
+    csv_path = out / "csv" / "calibration.csv"
+    if not stored:
+        if parquet.exists() or csv_path.exists():
+            fail("calibration: exported, but the session has no record")
+        return 0
+    types = {"ts_us": "Timestamp", "element": "I32", "old": "F64", "new": "F64", "accepted": "Bool", "checksum": "U32"}
+    frame = pl.read_parquet(parquet)
+    # The exports add the parameter's unit from the schema.
+    if frame.columns != CALIBRATION[:5] + ["unit"] + CALIBRATION[5:]:
+        fail(f"{parquet}: columns {frame.columns}")
+    for name, ty in types.items():
+        if frame.schema.get(name) != POLARS[ty]:
+            fail(f"{parquet}: {name} is {frame.schema.get(name)}, want {POLARS[ty]}")
+    rows = frame.to_dicts()
+    with open(csv_path, newline="") as f:
+        text = list(csv.DictReader(f))
+    with open(out / "session.mcap", "rb") as f:
+        records = [dict(r.metadata) for r in make_reader(f).iter_metadata() if r.name == "calibration"]
+    for source, got in (("parquet", len(rows)), ("csv", len(text)), ("mcap", len(records))):
+        if got != len(stored):
+            fail(f"calibration.{source}: {got} entries, the store has {len(stored)}")
+    for i, entry in enumerate(stored):
+        want = dict(zip(CALIBRATION, entry))
+        want["accepted"] = bool(want["accepted"])
+        read = rows[i] if i < len(rows) else {}
+        read = {**read, "ts_us": int(read["ts_us"].timestamp() * 1_000_000) if read.get("ts_us") else None}
+        for name in CALIBRATION:
+            if name == "ts_us":
+                if abs((read["ts_us"] or 0) - want["ts_us"]) > 1:
+                    fail(f"calibration.parquet[{i}].ts_us = {read['ts_us']}, stored {want['ts_us']}")
+            elif read.get(name) != want[name]:
+                fail(f"calibration.parquet[{i}].{name} = {read.get(name)!r}, stored {want[name]!r}")
+        line = text[i] if i < len(text) else {}
+        for name in CALIBRATION:
+            value = want[name]
+            shown = "" if value is None else str(value).lower() if name == "accepted" else str(value)
+            if name in ("old", "new") and value is not None:
+                ok = line.get(name) not in (None, "") and float(line[name]) == value
+            else:
+                ok = line.get(name) == shown
+            if not ok:
+                fail(f"calibration.csv[{i}].{name} = {line.get(name)!r}, stored {value!r}")
+        record = records[i] if i < len(records) else {}
+        if record.get("ts_us") != str(want["ts_us"]) or record.get("parameter") != want["parameter"] \
+                or record.get("accepted") != str(want["accepted"]).lower() or record.get("reason") != want["reason"]:
+            fail(f"session.mcap calibration[{i}] = {record}, stored {want}")
+    return len(stored)
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--store", required=True)
@@ -242,12 +303,14 @@ def main():
         if session_csv.get(key) != value:
             fail(f"session.csv: {key} = {session_csv.get(key)!r}, want {value!r}")
     messages = check_mcap(args.out / "session.mcap", types, db, args.session, meta)
+    entries = check_calibration(args.out, db, args.session)
     if failures:
         print(f"{len(failures)} mismatch(es)", file=sys.stderr)
         sys.exit(1)
     print(
         f"exports match the store: {tables} tables, {rows_total} rows in Parquet and CSV, "
-        f"{messages} MCAP messages (mcap {version('mcap')}, polars {pl.__version__})"
+        f"{messages} MCAP messages, calibration record of {entries} entries "
+        f"(mcap {version('mcap')}, polars {pl.__version__})"
     )
 
 

@@ -157,6 +157,16 @@ enum SessionAction {
         #[arg(long)]
         id: Option<i64>,
     },
+    /// The calibration record of the open session (or of session --id): every change a pit
+    /// master made through the XCP gateway (accepted or refused and why), then the values the
+    /// session ended with; with --compare, those values beside another session's.
+    Calibration {
+        #[arg(long)]
+        id: Option<i64>,
+        /// The session to compare with.
+        #[arg(long)]
+        compare: Option<i64>,
+    },
 }
 
 #[derive(Args)]
@@ -289,6 +299,9 @@ fn store_command(located: &Located, cli: &Cli) -> Result<()> {
             ),
             SessionAction::Messages { id } => {
                 commands::session::messages(located, *id, &mut out, &mut notes)
+            }
+            SessionAction::Calibration { id, compare } => {
+                commands::session::calibration(located, *id, *compare, &mut out, &mut notes)
             }
         },
         Command::Export(args) => {

@@ -15,6 +15,7 @@ use aer_raspi::export::frames::source::FrameSource;
 use aer_raspi::export::load::Selection;
 use aer_raspi::export::{self, Format, Request};
 use aer_raspi::service::DEMO_LOG;
+use aer_raspi::store::calibration::{ECU_PAGE, Entry, Kind};
 use aer_raspi::store::session::{self, Metadata};
 use aer_raspi::store::{self, row, writer};
 use std::collections::HashMap;
@@ -48,6 +49,62 @@ fn session_rows(limit: usize) -> Vec<row::Row> {
         );
     }
     rows
+}
+
+/// A calibration record with one entry of each kind, refusals with text CSV must quote.
+fn calibration_record() -> Vec<Entry> {
+    let entry =
+        |kind, parameter: &str, element: Option<u32>, old, new, accepted, reason: &str| Entry {
+            at_us: 1_764_000_000_000_000 + i64::from(element.unwrap_or(0)),
+            master: "10.9.0.2:51234".into(),
+            kind,
+            parameter: parameter.into(),
+            element,
+            old,
+            new,
+            accepted,
+            reason: reason.into(),
+            checksum: accepted.then_some(0xDEAD_BEEF),
+        };
+    vec![
+        entry(
+            Kind::Found,
+            "traction_kp",
+            None,
+            Some(400.0),
+            Some(400.0),
+            true,
+            "",
+        ),
+        entry(
+            Kind::Write,
+            "launch_slip_target",
+            Some(2),
+            Some(0.12),
+            Some(0.03),
+            true,
+            "",
+        ),
+        entry(
+            Kind::Write,
+            "launch_kp",
+            None,
+            Some(300.0),
+            Some(1e6),
+            false,
+            "out of range 0-2000, \"really\"",
+        ),
+        entry(
+            Kind::Page,
+            ECU_PAGE,
+            None,
+            Some(0.0),
+            Some(1.0),
+            false,
+            "only at standstill",
+        ),
+        entry(Kind::Save, "", None, None, None, true, ""),
+    ]
 }
 
 /// An export of session `id` in `formats` into `out`, its frames from `frames` (a log or
@@ -86,9 +143,12 @@ fn a_session_exported_in_every_format_reads_back_equal_to_the_store() {
     for batch in rows.chunks(5000) {
         writer::commit(&mut db, batch).expect("commit");
     }
+    let record = calibration_record();
+    store::calibration::record(&db, id, &record).expect("calibration record");
     // A second session: none of its rows may appear in the first one's export.
-    session::begin(&db, &Metadata::default(), "replay", 2).expect("session");
+    let second = session::begin(&db, &Metadata::default(), "replay", 2).expect("session");
     writer::commit(&mut db, &session_rows(3000)).expect("commit");
+    store::calibration::record(&db, second, &record[..1]).expect("calibration record");
 
     let out = dir.path().join("export");
     let request = session_request(id, Format::all(), &out, common::session_log());
@@ -106,8 +166,23 @@ fn a_session_exported_in_every_format_reads_back_equal_to_the_store() {
             "{:?} wrote nothing",
             format.format
         );
-        let rows_in_files: usize = format.files.iter().map(|f| f.rows).sum();
+        let (record_files, data_files): (Vec<_>, Vec<_>) = format
+            .files
+            .iter()
+            .partition(|f| f.path.file_stem().is_some_and(|s| s == "calibration"));
+        let rows_in_files: usize = data_files.iter().map(|f| f.rows).sum();
         assert_eq!(rows_in_files, rows.len(), "{:?}", format.format);
+        let entries: usize = record_files.iter().map(|f| f.rows).sum();
+        let expected = if format.format == Format::Mcap {
+            0
+        } else {
+            record.len()
+        };
+        assert_eq!(
+            entries, expected,
+            "{:?}: the calibration record",
+            format.format
+        );
     }
 
     let types: HashMap<&str, Vec<(&str, &str, String)>> = TABLES
@@ -142,6 +217,10 @@ fn a_session_exported_in_every_format_reads_back_equal_to_the_store() {
     assert!(result.status.success(), "{stdout}\n{stderr}");
     println!("{stdout}");
     assert!(stdout.contains(&format!("{} rows", rows.len())), "{stdout}");
+    assert!(
+        stdout.contains(&format!("calibration record of {} entries", record.len())),
+        "{stdout}"
+    );
 
     // The frames: python-can reads the BLF and ASC files, asammdf the MF4 (and decodes it with
     // the DBC into signals that must equal the Parquet files' columns).

@@ -10,6 +10,9 @@ use aer_car_model::driver::Cycle;
 use aer_car_node::link::Link;
 use aer_car_node::{checks, scenarios, serve};
 use aer_host::counters::Counters;
+use aer_raspi::store::calibration::{self, Kind};
+use aer_raspi::store::session::{self, Metadata};
+use aer_raspi::store::{self, CalibrationSender, StoreWriter};
 use aer_raspi::xcp_gateway::{self, Gateway, Settings, SlaveLink};
 use aer_xcp::transport::{CAN_DLC, TCP_FRAME_MAX, TcpDecoder, TcpEncoder, can_frame};
 use std::io::{Read, Write};
@@ -75,11 +78,13 @@ impl Link for GatewayLink {
     }
 }
 
-/// A gateway on a free loopback port that allows `allow`, and the slave's link to it.
+/// A gateway on a free loopback port that allows `allow`, and the slave's link to it; its
+/// calibration record goes to `record`.
 fn gateway(
     runtime: &tokio::runtime::Runtime,
     allow: &str,
     counters: &Arc<Counters>,
+    record: Option<CalibrationSender>,
 ) -> (Gateway, GatewayLink) {
     let (to_slave, mut commands) = mpsc::channel(xcp_gateway::TO_SLAVE_FRAMES);
     let (answers, from_slave) = mpsc::channel(xcp_gateway::TO_SLAVE_FRAMES);
@@ -97,7 +102,7 @@ fn gateway(
                 from_slave,
             },
             counters.clone(),
-            None,
+            record,
             CancellationToken::new(),
         ))
         .expect("listening");
@@ -151,7 +156,18 @@ fn pyxcp_calibrates_and_measures_the_ccm_through_the_pis_gateway() {
     let Some(python) = python() else { return };
     let runtime = tokio::runtime::Runtime::new().expect("runtime");
     let counters = Arc::new(Counters::default());
-    let (gateway, mut link) = gateway(&runtime, "127.0.0.1/32", &counters);
+    // The service's store, its session open, taking the gateway's calibration record.
+    let dir = tempfile::tempdir().expect("temp dir");
+    let store_path = dir.path().join("store.sqlite");
+    let db = store::open(&store_path).expect("store");
+    let session = session::begin(&db, &Metadata::default(), "live", 1).expect("session");
+    let writer = StoreWriter::start(db, counters.clone());
+    let (gateway, mut link) = gateway(
+        &runtime,
+        "127.0.0.1/32",
+        &counters,
+        Some(writer.calibration_sender()),
+    );
     let script = scenarios::Script {
         through: Some(gateway.address),
         ..scenarios::in_checkout(&root(), python)
@@ -171,7 +187,77 @@ fn pyxcp_calibrates_and_measures_the_ccm_through_the_pis_gateway() {
     );
     assert!(seen.xcp_commands > 100 && seen.xcp_responses > seen.xcp_commands);
     assert_eq!(seen.xcp_refused, 0);
-    assert_eq!(gateway.state.snapshot().listen, gateway.address.to_string());
+    let status = gateway.state.snapshot();
+    assert_eq!(status.listen, gateway.address.to_string());
+
+    // Every change the scenarios made, in the session's record, as the status and the
+    // counters saw them.
+    drop(gateway);
+    writer.finish();
+    let db = store::open(&store_path).expect("store");
+    let entries = calibration::list(&db, Some(session), None, None).expect("record");
+    let changes: Vec<String> = entries
+        .iter()
+        .filter(|e| e.kind != Kind::Found)
+        .map(|e| e.to_string())
+        .collect();
+    for change in &changes {
+        eprintln!("{change}");
+    }
+    let has = |text: &str| changes.iter().any(|c| c.contains(text));
+    let defaults = aer::calibration::Calibration::DEFAULT.to_page();
+    let default = |name: &str| {
+        let parameter = aer::calibration::PARAMETERS
+            .iter()
+            .find(|p| p.name == name)
+            .expect("in the schema");
+        calibration::number(parameter.value(&defaults, 0).expect("value"))
+    };
+    let (kp, launch_kp) = (default("traction_kp"), default("launch_kp"));
+    let (slip, apps) = (default("launch_slip_target"), default("apps1_v"));
+    for expected in [
+        format!("write traction_kp {kp} -> 1000 refused: calibration is locked"),
+        format!("write launch_kp {launch_kp} -> 1000000 refused: out of range 0-2000"),
+        format!("write launch_slip_target[0] {slip} -> 0.03 accepted"),
+        format!("write launch_slip_target[3] {slip} -> 0.03 accepted"),
+        "save  accepted".to_owned(),
+        format!(
+            "write apps1_v[0] {apps} -> {} refused: only at standstill with the tractive system off",
+            calibration::number(f64::from(apps.parse::<f32>().expect("number") + 0.01))
+        ),
+        format!("write launch_kp {launch_kp} -> 210 refused: only at standstill"),
+        format!("write traction_kp {kp} -> 650 accepted"),
+        "page ecu_page 0 -> 1 refused: not in this vehicle state".to_owned(),
+        format!("revert launch_slip_target[0] 0.03 -> {slip} accepted"),
+    ] {
+        assert!(
+            has(&expected),
+            "no {expected:?} in the record: {changes:#?}"
+        );
+    }
+    assert!(
+        !has("apps1_v[1]"),
+        "an element the write left as it was is no entry: {changes:#?}"
+    );
+    let counted = counters.snapshot();
+    let accepted = entries
+        .iter()
+        .filter(|e| e.kind != Kind::Found && e.accepted)
+        .count();
+    assert_eq!(counted.calibration_changes, accepted as u64);
+    assert_eq!(
+        counted.calibration_refusals,
+        (changes.len() - accepted) as u64
+    );
+    assert_eq!(counted.calibration_unrecorded, 0);
+    assert_eq!(
+        status.last_change.as_deref(),
+        changes.last().map(String::as_str)
+    );
+    // After the last start-up (both saved copies corrupt) the CCM runs on the defaults.
+    let defaults = crc32fast::hash(&aer::calibration::Calibration::DEFAULT.to_page());
+    assert_eq!(status.checksum, Some(format!("{defaults:08X}")));
+    assert_eq!(entries.last().and_then(|e| e.checksum), Some(defaults));
 }
 
 /// One master's connection, speaking XCP on TCP.
@@ -255,7 +341,7 @@ fn strangers_and_second_masters_are_refused_and_a_vanished_master_leaves_the_ccm
     let counters = Arc::new(Counters::default());
 
     // Only the pit's network may connect: a master from elsewhere is closed at once.
-    let (elsewhere, _unused) = gateway(&runtime, "10.9.0.0/24", &counters);
+    let (elsewhere, _unused) = gateway(&runtime, "10.9.0.0/24", &counters, None);
     let mut stranger = Master::connect(elsewhere.address);
     assert!(stranger.closed(), "a stranger is closed");
     assert_eq!(counters.snapshot().xcp_refused, 1);
@@ -266,7 +352,7 @@ fn strangers_and_second_masters_are_refused_and_a_vanished_master_leaves_the_ccm
     );
 
     // The car, with its slave behind the pit's gateway.
-    let (gateway, mut link) = gateway(&runtime, "127.0.0.1/32", &counters);
+    let (gateway, mut link) = gateway(&runtime, "127.0.0.1/32", &counters, None);
     let seen = link.seen.clone();
     let stop = Arc::new(AtomicBool::new(false));
     let car = {

@@ -1,7 +1,9 @@
 //! `aer-raspi session ...`: list the sessions (times in UTC, rows, how far the clock was
-//! trusted), change one's metadata, start the next, or count one's CAN messages.
+//! trusted), change one's metadata, start the next, count one's CAN messages, or show its
+//! calibration record.
 
 use super::Located;
+use crate::store::calibration::{self as record, Kind, number};
 use crate::store::session::{self, Changes, Metadata};
 use crate::store::{clock, session_messages, utc};
 use anyhow::{Context, Result, bail};
@@ -128,6 +130,104 @@ pub fn messages(
             m.counter_jumps,
             m.late_frames
         )?;
+    }
+    Ok(())
+}
+
+/// `session calibration`: the open session's (or `id`'s) calibration changes and the values
+/// it ended with; with `compare`, those values beside session `compare`'s.
+pub fn calibration(
+    located: &Located,
+    id: Option<i64>,
+    compare: Option<i64>,
+    out: &mut dyn Write,
+    notes: &mut dyn Write,
+) -> Result<()> {
+    let store = located.read(notes)?;
+    let id = match id {
+        Some(id) => id,
+        None => session::current(&store.db)?.context("no session is open; give --id")?,
+    };
+    let entries = record::list(&store.db, Some(id), None, None)?;
+    let value = |v: Option<f64>| v.map_or_else(|| "?".to_owned(), number);
+    let unit = |name: &str| {
+        aer::calibration::PARAMETERS
+            .iter()
+            .find(|p| p.name == name)
+            .map_or("", |p| p.unit)
+    };
+    if let Some(other) = compare {
+        let theirs = record::values_at_end(&record::list(&store.db, Some(other), None, None)?);
+        let ours = record::values_at_end(&entries);
+        writeln!(out, "parameter\tunit\tsession {id}\tsession {other}\tsame")?;
+        let mut names: Vec<(String, Option<u32>)> = ours
+            .iter()
+            .chain(&theirs)
+            .map(|(p, e, _)| (p.clone(), *e))
+            .collect();
+        names.sort();
+        names.dedup();
+        let find = |values: &[(String, Option<u32>, f64)], key: &(String, Option<u32>)| {
+            values
+                .iter()
+                .find(|(p, e, _)| (p, e) == (&key.0, &key.1))
+                .map(|(_, _, v)| *v)
+        };
+        for key in &names {
+            let (a, b) = (find(&ours, key), find(&theirs, key));
+            let target = key
+                .1
+                .map_or_else(|| key.0.clone(), |i| format!("{}[{i}]", key.0));
+            let same = match (a, b) {
+                (Some(a), Some(b)) if a == b => "yes",
+                (Some(_), Some(_)) => "NO",
+                _ => "?",
+            };
+            writeln!(
+                out,
+                "{target}\t{}\t{}\t{}\t{same}",
+                unit(&key.0),
+                value(a),
+                value(b)
+            )?;
+        }
+        if names.is_empty() {
+            bail!(
+                "neither session has a calibration record (no master connected through the gateway)"
+            );
+        }
+        return Ok(());
+    }
+    if entries.is_empty() {
+        bail!("session {id} has no calibration record (no master connected through the gateway)");
+    }
+    writeln!(
+        out,
+        "time (UTC)\tmaster\tkind\tparameter\tunit\told\tnew\tresult\tchecksum"
+    )?;
+    for e in entries.iter().filter(|e| e.kind != Kind::Found) {
+        writeln!(
+            out,
+            "{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}",
+            utc(e.at_us),
+            e.master,
+            e.kind.name(),
+            e.target(),
+            unit(&e.parameter),
+            value(e.old),
+            value(e.new),
+            if e.accepted {
+                "accepted".to_owned()
+            } else {
+                format!("refused: {}", e.reason)
+            },
+            e.checksum.map(|c| format!("0x{c:08x}")).unwrap_or_default()
+        )?;
+    }
+    writeln!(out, "\nat the end of session {id}:\nparameter\tunit\tvalue")?;
+    for (parameter, element, v) in record::values_at_end(&entries) {
+        let target = element.map_or_else(|| parameter.clone(), |i| format!("{parameter}[{i}]"));
+        writeln!(out, "{target}\t{}\t{}", unit(&parameter), number(v))?;
     }
     Ok(())
 }

@@ -1,17 +1,20 @@
 //! CSV: one file per table (header = the exported column names, one line per row, empty for
 //! NULL, `ts_us` in microseconds since the epoch, UTC), `columns.csv` beside them with each
 //! column's type, unit, label, description and value names, and `session.csv` with the
-//! session's metadata.
+//! session's metadata; `calibration.csv` with the session's calibration record, if it has one.
 
+use super::calibration::{self, CalibrationTable};
 use super::columns::{TableData, Values};
 use super::{ExportError, Written};
 use std::fmt::Write as _;
 use std::path::Path;
 
-/// Writes the CSV files of `tables` (those with rows) into `dir`.
+/// Writes the CSV files of `tables` (those with rows) and of the calibration `record` (if it
+/// has rows) into `dir`.
 pub fn write(
     dir: &Path,
     tables: &[TableData],
+    record: &CalibrationTable,
     metadata: &[(String, String)],
 ) -> Result<Vec<Written>, ExportError> {
     std::fs::create_dir_all(dir).map_err(|e| ExportError::write(dir, e))?;
@@ -41,6 +44,25 @@ pub fn write(
         }
         Ok(())
     })?;
+    if record.rows > 0 {
+        let path = dir.join(format!("{}.csv", calibration::NAME));
+        let mut out = writer(&path)?;
+        out.write_record(calibration::COLUMNS.iter().map(|c| c.name))?;
+        write_rows(&mut out, record.rows, &record.values)?;
+        out.flush().map_err(|e| ExportError::write(&path, e))?;
+        written.push(Written::file(&path, record.rows)?);
+        for column in &calibration::COLUMNS {
+            columns.write_record([
+                calibration::NAME,
+                column.name,
+                &column.ty.tdengine(),
+                "",
+                "",
+                column.description,
+                "",
+            ])?;
+        }
+    }
     columns.flush().map_err(|e| ExportError::write(dir, e))?;
     written.push(Written::file(&dir.join("columns.csv"), 0)?);
     let path = dir.join("session.csv");
@@ -62,16 +84,26 @@ fn writer(path: &Path) -> Result<csv::Writer<std::fs::File>, ExportError> {
 fn table(path: &Path, data: &TableData) -> Result<(), ExportError> {
     let mut out = writer(path)?;
     out.write_record(data.columns.iter().map(|c| c.name))?;
+    write_rows(&mut out, data.rows, &data.values)?;
+    out.flush().map_err(|e| ExportError::write(path, e))
+}
+
+/// `rows` lines, one field per column of `values`.
+fn write_rows(
+    out: &mut csv::Writer<std::fs::File>,
+    rows: usize,
+    values: &[Values],
+) -> Result<(), ExportError> {
     let mut field = String::new();
-    for row in 0..data.rows {
-        for values in &data.values {
+    for row in 0..rows {
+        for values in values {
             field.clear();
             cell(&mut field, values, row);
             out.write_field(&field)?;
         }
         out.write_record(None::<&[u8]>)?;
     }
-    out.flush().map_err(|e| ExportError::write(path, e))
+    Ok(())
 }
 
 /// Row `row` of a column as text: integers exactly, floats as the shortest text that reads

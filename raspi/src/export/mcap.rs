@@ -1,12 +1,14 @@
 //! MCAP for Foxglove and PlotJuggler: one channel per table (the telemetry packet, each CAN
 //! message) on the topic the live service publishes it on, JSON messages in receive-time
 //! order, each channel with a JSON Schema generated from the schema (labels, units, enum
-//! values), and the session's metadata as an MCAP metadata record.
+//! values), the session's metadata as an MCAP metadata record, and each entry of its
+//! calibration record as a `calibration` metadata record.
 
 use super::columns::ExportColumn;
 use super::columns::{TableData, Values};
 use super::{ExportError, Written};
 use crate::describe::{self, Property};
+use crate::store::calibration::{Entry, number};
 use std::collections::BTreeMap;
 use std::io::{BufWriter, Write as _};
 use std::path::Path;
@@ -23,6 +25,7 @@ pub fn topic(root: &str, table: &str) -> String {
 pub fn write(
     path: &Path,
     tables: &[TableData],
+    calibration: &[Entry],
     metadata: &[(String, String)],
     topic_root: &str,
 ) -> Result<Written, ExportError> {
@@ -93,9 +96,39 @@ pub fn write(
         name: "session".into(),
         metadata: metadata.iter().cloned().collect(),
     })?;
+    for entry in calibration {
+        out.write_metadata(&mcap::records::Metadata {
+            name: super::calibration::NAME.into(),
+            metadata: calibration_record(entry),
+        })?;
+    }
     out.finish()?;
     drop(out);
     Written::file(path, order.len())
+}
+
+/// An entry of the calibration record as MCAP metadata (the CSV's columns, as text).
+fn calibration_record(e: &Entry) -> BTreeMap<String, String> {
+    let optional = |v: Option<f64>| v.map(number).unwrap_or_default();
+    BTreeMap::from([
+        ("ts_us".to_owned(), e.at_us.to_string()),
+        ("utc".to_owned(), crate::store::utc(e.at_us)),
+        ("master".to_owned(), e.master.clone()),
+        ("kind".to_owned(), e.kind.name().to_owned()),
+        ("parameter".to_owned(), e.parameter.clone()),
+        (
+            "element".to_owned(),
+            e.element.map(|i| i.to_string()).unwrap_or_default(),
+        ),
+        ("old".to_owned(), optional(e.old)),
+        ("new".to_owned(), optional(e.new)),
+        ("accepted".to_owned(), e.accepted.to_string()),
+        ("reason".to_owned(), e.reason.clone()),
+        (
+            "checksum".to_owned(),
+            e.checksum.map(|c| format!("0x{c:08x}")).unwrap_or_default(),
+        ),
+    ])
 }
 
 /// One row as a JSON object: every exported column (`ts_us` in microseconds, as in the other

@@ -5,8 +5,10 @@
 //! session's frames from the raw log in the bus tools' formats: BLF, ASC and MF4.
 //!
 //! [`load`] selects and reads the rows, [`describe`](crate::describe) says what each column is, and [`mcap`],
-//! [`parquet`] and [`csv`] write them; [`frames`] writes the frames.
+//! [`parquet`] and [`csv`] write them, with the session's [`calibration`] record; [`frames`]
+//! writes the frames.
 
+pub mod calibration;
 pub mod columns;
 pub mod csv;
 pub mod frames;
@@ -258,12 +260,17 @@ pub fn export(db: &Connection, request: &Request) -> Result<Report, ExportError>
     };
     let started = Instant::now();
     let tables = load::tables(db, request.selection)?;
+    let selection = request.selection;
+    let entries =
+        store::calibration::list(db, selection.session, selection.from_us, selection.to_us)?;
     let load = started.elapsed();
-    let metadata = metadata(
+    let mut metadata = metadata(
         session.as_ref().map(|(s, steps)| (s, steps.as_slice())),
         request.selection,
         &request.extra,
     );
+    metadata.extend(calibration::metadata(&entries, &tables));
+    let record = calibration::CalibrationTable::of(&entries);
     let wants_frames = request.formats.iter().any(|f| f.holds_frames());
     let summary = match &request.frames {
         Some(source) if wants_frames => Some(source.summary()?),
@@ -284,7 +291,7 @@ pub fn export(db: &Connection, request: &Request) -> Result<Report, ExportError>
     for &format in writes {
         let started = Instant::now();
         let files = match (frames::file_name(format), &request.frames, &summary) {
-            (None, _, _) => write(format, &tables, &metadata, request)?,
+            (None, _, _) => write(format, &tables, (&entries, &record), &metadata, request)?,
             (Some(name), Some(source), Some(summary)) if summary.frames > 0 => {
                 std::fs::create_dir_all(&request.out_dir)
                     .map_err(|e| ExportError::write(&request.out_dir, e))?;
@@ -314,6 +321,7 @@ pub fn export(db: &Connection, request: &Request) -> Result<Report, ExportError>
 fn write(
     format: Format,
     tables: &[TableData],
+    (entries, record): (&[store::calibration::Entry], &calibration::CalibrationTable),
     metadata: &[(String, String)],
     request: &Request,
 ) -> Result<Vec<Written>, ExportError> {
@@ -322,11 +330,19 @@ fn write(
         Format::Mcap => Ok(vec![mcap::write(
             &dir.join("session.mcap"),
             tables,
+            entries,
             metadata,
             &request.topic_root,
         )?]),
-        Format::Parquet => parquet::write(&dir.join("parquet"), tables, metadata),
-        Format::Csv => csv::write(&dir.join("csv"), tables, metadata),
+        Format::Parquet => {
+            let dir = dir.join("parquet");
+            let mut written = parquet::write(&dir, tables, metadata)?;
+            if record.rows > 0 {
+                written.push(parquet::write_calibration(&dir, record, metadata)?);
+            }
+            Ok(written)
+        }
+        Format::Csv => csv::write(&dir.join("csv"), tables, record, metadata),
         Format::Blf | Format::Asc | Format::Mf4 => {
             Err(ExportError::Internal("frames are written by frames::write"))
         }

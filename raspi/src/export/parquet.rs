@@ -6,6 +6,7 @@
 //! with the Parquet file alone can decode every enum. Written column by column with the
 //! parquet crate's own writer (no Arrow: less to build).
 
+use super::calibration::{self, CalibrationTable};
 use super::columns::{TableData, Values};
 use super::{ExportError, Written};
 use aer::tables::ColumnType;
@@ -88,20 +89,74 @@ fn key_values(data: &TableData, metadata: &[(String, String)]) -> Vec<KeyValue> 
 }
 
 fn table(path: &Path, data: &TableData, metadata: &[(String, String)]) -> Result<(), ExportError> {
-    let schema = Arc::new(parse_message_type(&message_type(data))?);
+    let columns = data.columns().map(|(c, values)| (c.ty, values));
+    write_file(
+        path,
+        &message_type(data),
+        key_values(data, metadata),
+        columns,
+    )
+}
+
+/// Writes the session's calibration record as `dir/calibration.parquet`, the columns'
+/// descriptions in its metadata.
+pub fn write_calibration(
+    dir: &Path,
+    record: &CalibrationTable,
+    metadata: &[(String, String)],
+) -> Result<Written, ExportError> {
+    std::fs::create_dir_all(dir).map_err(|e| ExportError::write(dir, e))?;
+    let fields: Vec<String> = calibration::COLUMNS
+        .iter()
+        .map(|c| {
+            let repetition = if c.required { "REQUIRED" } else { "OPTIONAL" };
+            format!(
+                "  {repetition} {};",
+                parquet_type(c.ty).replace("{}", c.name)
+            )
+        })
+        .collect();
+    let message = format!(
+        "message {} {{\n{}\n}}",
+        calibration::NAME,
+        fields.join("\n")
+    );
+    let mut key_values: Vec<KeyValue> = metadata
+        .iter()
+        .map(|(k, v)| KeyValue::new(format!("aer.{k}"), v.clone()))
+        .collect();
+    key_values.extend(calibration::COLUMNS.iter().map(|c| {
+        KeyValue::new(
+            format!("aer.description.{}", c.name),
+            c.description.to_owned(),
+        )
+    }));
+    let path = dir.join(format!("{}.parquet", calibration::NAME));
+    let columns = record.columns().map(|(c, values)| (c.ty, values));
+    write_file(&path, &message, key_values, columns)?;
+    Written::file(&path, record.rows)
+}
+
+/// Writes one row group of `columns` (each column's type and values, in `message`'s order).
+fn write_file<'v>(
+    path: &Path,
+    message: &str,
+    key_values: Vec<KeyValue>,
+    mut columns: impl Iterator<Item = (ColumnType, &'v Values)>,
+) -> Result<(), ExportError> {
+    let schema = Arc::new(parse_message_type(message)?);
     let properties = WriterProperties::builder()
         .set_created_by(format!("aer-raspi {}", env!("CARGO_PKG_VERSION")))
-        .set_key_value_metadata(Some(key_values(data, metadata)))
+        .set_key_value_metadata(Some(key_values))
         .build();
     let file = std::fs::File::create(path).map_err(|e| ExportError::write(path, e))?;
     let mut writer = SerializedFileWriter::new(file, schema, Arc::new(properties))?;
     let mut group = writer.next_row_group()?;
-    let mut columns = data.columns();
     while let Some(mut column) = group.next_column()? {
-        let Some((described, values)) = columns.next() else {
+        let Some((ty, values)) = columns.next() else {
             return Err(ExportError::Internal("more Parquet columns than values"));
         };
-        let wide = matches!(described.ty, ColumnType::Timestamp | ColumnType::I64);
+        let wide = matches!(ty, ColumnType::Timestamp | ColumnType::I64);
         match values {
             Values::Bool(v) => {
                 let (present, levels) = split(v, |b| b);

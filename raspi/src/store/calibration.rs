@@ -118,7 +118,7 @@ pub fn number(value: f64) -> String {
 }
 
 /// Adds `entries` to session `session`.
-pub(crate) fn record(db: &Connection, session: i64, entries: &[Entry]) -> rusqlite::Result<()> {
+pub fn record(db: &Connection, session: i64, entries: &[Entry]) -> rusqlite::Result<()> {
     let mut insert = db.prepare_cached(
         "INSERT INTO session_calibration (session_id, at_us, master, kind, parameter, element, \
          old, new, accepted, reason, checksum) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11)",
@@ -141,11 +141,12 @@ pub(crate) fn record(db: &Connection, session: i64, entries: &[Entry]) -> rusqli
     Ok(())
 }
 
-/// Session `session`'s entries between `from_us` and `to_us` (inclusive, either open), in
-/// the order they were recorded. A store from before the record was kept has none.
+/// The entries between `from_us` and `to_us` (inclusive, either open) of session `session`
+/// (or of every session), in the order they were recorded. A store from before the record
+/// was kept has none.
 pub fn list(
     db: &Connection,
-    session: i64,
+    session: Option<i64>,
     from_us: Option<i64>,
     to_us: Option<i64>,
 ) -> rusqlite::Result<Vec<Entry>> {
@@ -154,8 +155,8 @@ pub fn list(
     }
     let mut query = db.prepare(
         "SELECT at_us, master, kind, parameter, element, old, new, accepted, reason, checksum \
-         FROM session_calibration WHERE session_id = ?1 AND at_us >= ?2 AND at_us <= ?3 \
-         ORDER BY rowid",
+         FROM session_calibration WHERE (?1 IS NULL OR session_id = ?1) AND at_us >= ?2 \
+         AND at_us <= ?3 ORDER BY rowid",
     )?;
     let rows = query.query_map(
         params![
@@ -238,9 +239,13 @@ mod tests {
         written[1].element = Some(3);
         record(&db, 7, &written).expect("recorded");
         record(&db, 8, &written[..1]).expect("another session");
-        assert_eq!(list(&db, 7, None, None).expect("listed"), written);
-        assert_eq!(list(&db, 7, None, Some(4_999)).expect("listed").len(), 2);
-        assert_eq!(list(&db, 8, Some(1_001), None).expect("listed"), []);
+        assert_eq!(list(&db, Some(7), None, None).expect("listed"), written);
+        assert_eq!(
+            list(&db, Some(7), None, Some(4_999)).expect("listed").len(),
+            2
+        );
+        assert_eq!(list(&db, Some(8), Some(1_001), None).expect("listed"), []);
+        assert_eq!(list(&db, None, None, None).expect("listed").len(), 4);
     }
 
     #[test]

@@ -317,32 +317,35 @@ impl Recorder {
                 .then(|| parameter.value(&after, index))
                 .flatten()
         };
-        let entries = touched_elements(range.clone())
-            .filter_map(|(parameter, index)| {
-                let old = self
+        let reason = |parameter: &Parameter, new| {
+            if accepted {
+                String::new()
+            } else if code == err::WRITE_PROTECTED && self.xcp_page != WORKING_PAGE {
+                "written to the read-only reference page".into()
+            } else {
+                refusal_text(code, Some(parameter), new)
+            }
+        };
+        let touched: Vec<Entry> = touched_elements(range.clone())
+            .map(|(parameter, index)| Entry {
+                element: element_of(parameter, index),
+                old: self
                     .working
                     .as_ref()
-                    .and_then(|page| parameter.value(page, index));
-                let new = known_after(parameter, index);
-                // An accepted write that leaves a value as it was changes nothing.
-                if accepted && old.is_some() && old == new {
-                    return None;
-                }
-                Some(Entry {
-                    element: element_of(parameter, index),
-                    old,
-                    new,
-                    reason: if accepted {
-                        String::new()
-                    } else if code == err::WRITE_PROTECTED && self.xcp_page != WORKING_PAGE {
-                        "written to the read-only reference page".into()
-                    } else {
-                        refusal_text(code, Some(parameter), new)
-                    },
-                    ..stamp(Kind::Write, parameter.name)
-                })
+                    .and_then(|page| parameter.value(page, index)),
+                new: known_after(parameter, index),
+                reason: reason(parameter, known_after(parameter, index)),
+                ..stamp(Kind::Write, parameter.name)
             })
             .collect();
+        // A value written as it was changes nothing: only the others are entries. A refused
+        // write of nothing but such values still is one (the refusal is the news).
+        let unchanged = |e: &Entry| e.old.is_some() && e.old == e.new;
+        let entries = if !accepted && touched.iter().all(unchanged) {
+            touched
+        } else {
+            touched.into_iter().filter(|e| !unchanged(e)).collect()
+        };
         if accepted && self.working.is_some() {
             self.working = Some(after);
         }
@@ -437,7 +440,7 @@ pub fn refusal_text(code: u8, parameter: Option<&Parameter>, new: Option<f64>) -
             ChangeWhen::Driving => "refused with the write's other values".into(),
         },
         (err::WRITE_PROTECTED, None) => {
-            "not now: a value it changes may not change in this vehicle state".into()
+            "not in this vehicle state: it changes values that may change only at standstill".into()
         }
         (err::OUT_OF_RANGE, Some(p)) => match new {
             Some(value) if !(p.min..=p.max).contains(&value) => {
