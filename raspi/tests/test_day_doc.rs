@@ -6,9 +6,12 @@
 
 mod common;
 
+use aer::calibration::Calibration;
+use aer::calibration::xcp::CALIBRATION_ADDRESS;
 use aer_raspi::commands::{self, Located, export::Wanted};
 use aer_raspi::config::Origin;
-use aer_raspi::store::{self, session};
+use aer_raspi::store::{self, calibration, session};
+use aer_raspi::xcp_gateway::record::Recorder;
 use std::collections::BTreeMap;
 use std::path::Path;
 
@@ -40,7 +43,37 @@ fn car() -> (tempfile::TempDir, Located) {
     drop(db);
     common::record_session(&path);
     let db = store::open(&path).expect("store");
+    // The tuner, through the Pi's gateway: traction_kp raised while driving (accepted), the
+    // launch gain refused while moving, a slip threshold past its limit refused.
+    let mut gateway = Recorder::new();
+    let tuner = "10.9.0.2:51234";
+    let mut at = RUN_START_US + 60_000_000;
+    let mut entries = gateway.found(Calibration::DEFAULT.to_page(), Some(0), at, tuner);
+    for (name, value, answer) in [
+        ("traction_kp", 650.0, &[0xFF][..]),
+        ("launch_kp", 210.0, &[0xFE, 0x23][..]),
+        ("traction_slip_threshold", 0.75, &[0xFE, 0x22][..]),
+    ] {
+        at += 20_000_000;
+        entries.extend(write(&mut gateway, name, value, answer, at, tuner));
+    }
+    calibration::record(&db, 1, &entries).expect("record");
     session::begin(&db, &session::Metadata::default(), "live", POWER_CYCLE_US).expect("session");
+    // After the power cycle the tuner connects again and lowers the slip threshold.
+    let mut page = Calibration::DEFAULT.to_page();
+    page[parameter("traction_kp").offset..][..4].copy_from_slice(&650.0f32.to_le_bytes());
+    let mut gateway = Recorder::new();
+    let at = POWER_CYCLE_US + 30_000_000;
+    let mut entries = gateway.found(page, Some(0), at, tuner);
+    entries.extend(write(
+        &mut gateway,
+        "traction_slip_threshold",
+        0.08,
+        &[0xFF],
+        at + 5_000_000,
+        tuner,
+    ));
+    calibration::record(&db, 2, &entries).expect("record");
     // What an unsynchronized Pi records, whatever this machine's clock is.
     db.execute("UPDATE sessions SET clock = ?1", [UNSYNCHRONIZED])
         .expect("clock");
@@ -66,6 +99,34 @@ fn car() -> (tempfile::TempDir, Located) {
     .expect("config");
     let located = Located::load(Origin::Installed(config), |_| None).expect("config");
     (dir, located)
+}
+
+fn parameter(name: &str) -> &'static aer::calibration::Parameter {
+    aer::calibration::PARAMETERS
+        .iter()
+        .find(|p| p.name == name)
+        .expect("in the schema")
+}
+
+/// What the gateway records of a master writing `value` to `name` (SET_MTA, DOWNLOAD) and the
+/// CCM answering `answer`.
+fn write(
+    gateway: &mut Recorder,
+    name: &str,
+    value: f32,
+    answer: &[u8],
+    at_us: i64,
+    master: &str,
+) -> Vec<calibration::Entry> {
+    let address = CALIBRATION_ADDRESS + u32::try_from(parameter(name).offset).expect("offset");
+    let mut set_mta = vec![0xF6, 0, 0, 0];
+    set_mta.extend(address.to_le_bytes());
+    gateway.command(&set_mta);
+    gateway.answer(&[0xFF], at_us, master);
+    let mut download = vec![0xF0, 4];
+    download.extend(value.to_le_bytes());
+    gateway.command(&download);
+    gateway.answer(answer, at_us, master)
 }
 
 /// What a command printed: its output, then its notes, with the temporary folder's path
@@ -105,6 +166,18 @@ fn examples() -> BTreeMap<&'static str, String> {
         "session-messages",
         printed(&dir, |out, notes| {
             commands::session::messages(&car, Some(1), out, notes).expect("messages")
+        }),
+    );
+    examples.insert(
+        "session-calibration",
+        printed(&dir, |out, notes| {
+            commands::session::calibration(&car, Some(1), None, out, notes).expect("calibration")
+        }),
+    );
+    examples.insert(
+        "session-calibration-compare",
+        printed(&dir, |out, notes| {
+            commands::session::calibration(&car, Some(2), Some(1), out, notes).expect("calibration")
         }),
     );
     examples.insert(

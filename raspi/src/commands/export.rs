@@ -148,6 +148,13 @@ pub fn run(
                 report.rows.len(),
                 report.load.as_secs_f64() * 1e3
             )?;
+            if report.calibration_entries > 0 {
+                writeln!(
+                    notes,
+                    "calibration record: {} entries (`calibration` in Parquet and CSV, metadata in MCAP)",
+                    report.calibration_entries
+                )?;
+            }
             frames_note(&report, &request, notes)?;
             // A bus-logging format without frames was said above.
             for format in report

@@ -135,7 +135,8 @@ pub fn messages(
 }
 
 /// `session calibration`: the open session's (or `id`'s) calibration changes and the values
-/// it ended with; with `compare`, those values beside session `compare`'s.
+/// it ended with; with `compare`, the values that differ from those session `compare` ended
+/// with (or that one of the two does not know).
 pub fn calibration(
     located: &Located,
     id: Option<i64>,
@@ -159,7 +160,7 @@ pub fn calibration(
     if let Some(other) = compare {
         let theirs = record::values_at_end(&record::list(&store.db, Some(other), None, None)?);
         let ours = record::values_at_end(&entries);
-        writeln!(out, "parameter\tunit\tsession {id}\tsession {other}\tsame")?;
+        writeln!(out, "parameter\tunit\tsession {id}\tsession {other}")?;
         let mut names: Vec<(String, Option<u32>)> = ours
             .iter()
             .chain(&theirs)
@@ -173,29 +174,30 @@ pub fn calibration(
                 .find(|(p, e, _)| (p, e) == (&key.0, &key.1))
                 .map(|(_, _, v)| *v)
         };
-        for key in &names {
-            let (a, b) = (find(&ours, key), find(&theirs, key));
-            let target = key
-                .1
-                .map_or_else(|| key.0.clone(), |i| format!("{}[{i}]", key.0));
-            let same = match (a, b) {
-                (Some(a), Some(b)) if a == b => "yes",
-                (Some(_), Some(_)) => "NO",
-                _ => "?",
-            };
-            writeln!(
-                out,
-                "{target}\t{}\t{}\t{}\t{same}",
-                unit(&key.0),
-                value(a),
-                value(b)
-            )?;
-        }
         if names.is_empty() {
             bail!(
                 "neither session has a calibration record (no master connected through the gateway)"
             );
         }
+        let mut same = 0;
+        for key in &names {
+            let (a, b) = (find(&ours, key), find(&theirs, key));
+            if a.is_some() && a == b {
+                same += 1;
+                continue;
+            }
+            let target = key
+                .1
+                .map_or_else(|| key.0.clone(), |i| format!("{}[{i}]", key.0));
+            writeln!(
+                out,
+                "{target}\t{}\t{}\t{}",
+                unit(&key.0),
+                value(a),
+                value(b)
+            )?;
+        }
+        writeln!(out, "({same} other values the same)")?;
         return Ok(());
     }
     if entries.is_empty() {

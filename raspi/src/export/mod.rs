@@ -162,6 +162,8 @@ pub struct Report {
     pub formats: Vec<FormatReport>,
     /// The frames the bus-logging formats hold, if any were asked for and a source given.
     pub frames: Option<frames::source::Summary>,
+    /// Entries of the session's calibration record the export carries.
+    pub calibration_entries: usize,
 }
 
 /// An export's settings.
@@ -315,6 +317,7 @@ pub fn export(db: &Connection, request: &Request) -> Result<Report, ExportError>
         load,
         formats,
         frames: summary,
+        calibration_entries: entries.len(),
     })
 }
 
