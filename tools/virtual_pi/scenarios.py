@@ -715,6 +715,7 @@ def xcp_gateway_from_the_pit():
         node.returncode == 0 and forwarded[0] > 100,
         f"{forwarded[0]} commands and {forwarded[1]} responses and DAQ packets forwarded",
     )
+    calibration_recorded()
 
     # A master from an address outside the allow list (the Pi's own radio address).
     refused_before = counters().get("xcp_refused", 0)
@@ -761,6 +762,46 @@ def xcp_gateway_from_the_pit():
         f"before {read_before and read_before[1]}, killed with {cut[0]} after \"{cut[1]}\", after {read_after[1]} (exit {read_after[0]})",
     )
     stop("SIGTERM")
+
+
+def session_calibration():
+    """`aer-raspi session calibration` on the installed service's store, or "" before it has a
+    record."""
+    try:
+        return run("aer-raspi", "--config", CONFIG, "session", "calibration")
+    except subprocess.CalledProcessError:
+        return ""
+
+
+def calibration_recorded():
+    """The scenarios' calibration changes, as the service's store, status and counters hold
+    them: the while-driving gain accepted while moving, the standstill-only gain refused, each
+    from the pit laptop's address with its old and new value."""
+    wanted = (
+        "\ttraction_kp\tNm\t500\t650\taccepted",
+        "\tlaunch_kp\tNm\t200\t210\trefused: only at standstill",
+        "\tlaunch_kp\tNm\t200\t1000000\trefused: out of range 0-2000",
+        "\tecu_page\t\t0\t1\trefused: not in this vehicle state",
+    )
+
+    def seen():
+        text = session_calibration()
+        lines = [line for line in text.splitlines() if "\t10.9.0.2:" in line]
+        now = counters()
+        gateway = (latest("status") or {}).get("xcp_gateway") or {}
+        counted = now.get("calibration_changes", 0) + now.get("calibration_refusals", 0)
+        complete = all(w in text for w in wanted) and len(lines) == counted and gateway.get("last_change")
+        return (lines, now, gateway, complete)
+
+    lines, now, gateway, complete = wait_for("the calibration record in the store and the status", lambda: (r := seen())[3] and r, 30) or seen()
+    check(
+        "the store's session record, the status and the counters hold every change the pit made through the gateway",
+        bool(complete) and bool(gateway.get("checksum")) and now.get("calibration_unrecorded", 0) == 0,
+        f"{len(lines)} entries from the pit ({now.get('calibration_changes', 0)} accepted, "
+        f"{now.get('calibration_refusals', 0)} refused), e.g. "
+        f"{next((l for l in lines if 'traction_kp' in l and '650' in l), '(none)')!r}; "
+        f"status: last change {gateway.get('last_change')!r}, checksum {gateway.get('checksum')}",
+    )
 
 
 def pit_radio_conditions(want):
