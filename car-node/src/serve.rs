@@ -19,20 +19,14 @@ use std::time::{Duration, Instant, SystemTime};
 pub fn read_secret(path: &Path) -> Result<[u8; SECRET_LEN]> {
     let text = std::fs::read_to_string(path)
         .with_context(|| format!("reading the XCP secret {}", path.display()))?;
-    let hex = text.trim();
-    if hex.len() != 2 * SECRET_LEN || !hex.bytes().all(|b| b.is_ascii_hexdigit()) {
-        bail!(
+    match aer_xcp::seed_key::parse_secret(&text) {
+        Some(secret) => Ok(secret),
+        None => bail!(
             "{}: the secret is {} hex digits, nothing else",
             path.display(),
             2 * SECRET_LEN
-        );
+        ),
     }
-    let mut secret = [0u8; SECRET_LEN];
-    for (byte, pair) in secret.iter_mut().zip(hex.as_bytes().chunks(2)) {
-        let pair = std::str::from_utf8(pair)?;
-        *byte = u8::from_str_radix(pair, 16)?;
-    }
-    Ok(secret)
 }
 
 /// Runs `cycle` in real time and serves the slave on `link` until `running` says stop (or

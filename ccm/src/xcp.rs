@@ -24,9 +24,8 @@ use aer::calibration::xcp::{
     INTERNALS_ADDRESS, INTERNALS_LEN, MAX_BS, MAX_CHECKSUM_BLOCK, MAX_DAQ, MAX_ODT_ENTRY_SIZE,
     MIN_ST, ODT_ENTRIES, TELEMETRY_ADDRESS, TELEMETRY_LEN,
 };
+pub use aer_xcp::seed_key::{KEY_LEN, SECRET_LEN, key_for};
 use aer_xcp::{Config, DaqReport, EventChannel, Refusal, SEED_LEN, Segment, Slave, Target};
-use hmac::{Hmac, Mac};
-use sha2::Sha256;
 
 /// The team's secret as the build found it (`ccm/xcp-secret.key` or `AER_XCP_SECRET_FILE`;
 /// `None` without one: the images then never unlock).
@@ -34,10 +33,6 @@ pub mod team {
     include!(concat!(env!("OUT_DIR"), "/xcp_secret.rs"));
 }
 
-/// Bytes of the key UNLOCK takes (sent in three UNLOCK commands on CAN).
-pub const KEY_LEN: usize = 16;
-/// Bytes of the team's secret.
-pub const SECRET_LEN: usize = 32;
 /// ODTs the master may allocate over all DAQ lists: with [`ODT_ENTRIES`] entries of up to
 /// [`MAX_ODT_ENTRY_SIZE`] bytes, more ODTs than the frame budget could carry at the control
 /// rate, so a tuner can spread lists over slower prescalers.
@@ -135,21 +130,6 @@ impl SeedKey {
         self.state ^= self.state >> 27;
         self.state.wrapping_mul(0x2545_F491_4F6C_DD1D)
     }
-}
-
-/// The key for `seed` under `secret`: the first [`KEY_LEN`] bytes of HMAC-SHA256(secret,
-/// seed). What the tuner's seed-and-key function computes.
-pub fn key_for(secret: &[u8; SECRET_LEN], seed: &[u8]) -> [u8; KEY_LEN] {
-    let mut key = [0u8; KEY_LEN];
-    // HMAC takes a key of any length: this cannot fail.
-    if let Ok(mut mac) = Hmac::<Sha256>::new_from_slice(secret) {
-        mac.update(seed);
-        let digest = mac.finalize().into_bytes();
-        for (out, byte) in key.iter_mut().zip(digest.iter()) {
-            *out = *byte;
-        }
-    }
-    key
 }
 
 /// Where an XCP address lies.

@@ -18,6 +18,29 @@ pub struct Config {
     pub mqtt: BrokerConfig,
     pub link: LinkConfig,
     pub display: DisplayConfig,
+    pub tune: TuneConfig,
+}
+
+/// How the Tune page reaches the CCM's calibration.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct TuneConfig {
+    /// The Pi's XCP gateway (`host:port`).
+    pub gateway: String,
+    /// The team's XCP secret (64 hex digits); without it calibration stays locked.
+    pub secret_file: Option<std::path::PathBuf>,
+    /// How long one command may wait for its answer (ms).
+    pub timeout_ms: u64,
+}
+
+impl Default for TuneConfig {
+    fn default() -> Self {
+        Self {
+            gateway: "127.0.0.1:5555".into(),
+            secret_file: None,
+            timeout_ms: 2000,
+        }
+    }
 }
 
 /// How the dashboard reads the car.
@@ -84,6 +107,8 @@ pub enum View {
     Driver,
     /// A laptop on the Pi's network: every field, plots, fault history, link health.
     Pit,
+    /// The pit's calibration page: every parameter of the CCM through the Pi's XCP gateway.
+    Tune,
 }
 
 impl Default for Config {
@@ -93,6 +118,7 @@ impl Default for Config {
             mqtt: BrokerConfig::default(),
             link: LinkConfig::default(),
             display: DisplayConfig::default(),
+            tune: TuneConfig::default(),
         }
     }
 }
@@ -157,6 +183,15 @@ impl Config {
             .is_some_and(|m| !(m > 0.0 && m.is_finite()))
         {
             bail!("display.lap_length_m must be a positive distance");
+        }
+        if self.tune.gateway.parse::<std::net::SocketAddr>().is_err() {
+            bail!(
+                "tune.gateway `{}` is not an address and port (such as 127.0.0.1:5555)",
+                self.tune.gateway
+            );
+        }
+        if self.tune.timeout_ms == 0 {
+            bail!("tune.timeout_ms must be at least 1 ms");
         }
         if self.mqtt.username.is_some() != self.mqtt.password.is_some() {
             bail!("mqtt.username and mqtt.password go together");

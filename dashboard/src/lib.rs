@@ -5,7 +5,7 @@
 //! missed fetched by [`backfill`], or the generated typed JSON topics, on the Pi's broker) ->
 //! [`model`] (the
 //! latest packet, alarms, plots, laps, link health; no UI types) -> [`ui`] (iced: the driver
-//! and pit views). [`session`] and [`screenshot`] render the views from a recorded session
+//! and pit views, and the pit's Tune page, whose XCP master is [`tune`]). [`session`] and [`screenshot`] render the views from a recorded session
 //! without a display; [`follow`] runs the link and the model without a window.
 
 pub mod backfill;
@@ -16,4 +16,5 @@ pub mod model;
 pub mod pit_stream;
 pub mod screenshot;
 pub mod session;
+pub mod tune;
 pub mod ui;

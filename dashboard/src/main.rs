@@ -134,7 +134,7 @@ fn main() -> Result<()> {
 fn run(config: Config) -> Result<()> {
     let size = match config.display.view {
         View::Driver => DRIVER_SIZE,
-        View::Pit => PIT_SIZE,
+        View::Pit | View::Tune => PIT_SIZE,
     };
     let window = iced::window::Settings {
         size,

@@ -66,6 +66,17 @@ impl Offscreen {
     pub fn render(&mut self, app: &App, size: Size) -> Vec<u8> {
         let renderer = &mut self.renderer;
         let mut ui = UserInterface::build(app.view(), size, Cache::default(), renderer);
+        // Widgets settle what they show (a button: whether it can be pressed) on the first
+        // redraw request, as a window's first frame does.
+        let redraw = iced::Event::Window(iced::window::Event::RedrawRequested(Instant::now()));
+        let mut ignored = Vec::new();
+        let _ = ui.update(
+            &[redraw],
+            mouse::Cursor::Unavailable,
+            renderer,
+            &mut iced::advanced::clipboard::Null,
+            &mut ignored,
+        );
         ui.draw(
             renderer,
             &app.theme(),

@@ -9,6 +9,8 @@ use aer_dashboard::config::{Config, View};
 use aer_dashboard::model::fields::{FieldValue, Schema};
 use aer_dashboard::model::{Dashboard, Update};
 use aer_dashboard::screenshot::{DRIVER_SIZE, PIT_SIZE};
+use aer_dashboard::tune;
+use aer_dashboard::ui::tune as tune_ui;
 use aer_dashboard::ui::{App, Message};
 use iced::{Element, Settings};
 use iced_test::Simulator;
@@ -57,7 +59,7 @@ fn app_with(view: View, telemetry: Telemetry, t0: Instant) -> App {
 fn simulate(app: &App) -> Simulator<'_, Message> {
     let size = match app.current_view() {
         View::Driver => DRIVER_SIZE,
-        View::Pit => PIT_SIZE,
+        View::Pit | View::Tune => PIT_SIZE,
     };
     Simulator::with_size(Settings::default(), size, app.view())
 }
@@ -689,4 +691,113 @@ fn the_pit_view_marks_the_other_inverters_fields_not_fitted() {
         .find(|d| d.label == "Motor state")
         .and_then(|d| d.mirrors);
     assert_eq!(motor_state, Some("MCU1"));
+}
+
+/// A connected Tune page (unlocked, on the defaults) on an app that got `telemetry` at `t0`,
+/// and the requests its XCP worker would carry out.
+fn tune_page(telemetry: Telemetry, t0: Instant) -> (App, std::sync::mpsc::Receiver<tune::Request>) {
+    let mut app = app_with(View::Tune, telemetry, t0);
+    let (control, requests) = tune::Control::channel();
+    app.update(Message::TuneWorker(tune::Event::Ready(control)));
+    assert_eq!(
+        requests.try_recv(),
+        Ok(tune::Request::Connect),
+        "shown: it connects"
+    );
+    app.update(Message::TuneWorker(tune::Event::Connected {
+        page: Box::new(aer::calibration::Calibration::DEFAULT.to_page()),
+        ecu_page: 0,
+        locked: false,
+    }));
+    (app, requests)
+}
+
+/// Clicks `label` and applies what the page sends; the messages sent.
+fn click(app: &mut App, label: &str) -> Vec<Message> {
+    let messages: Vec<Message> = {
+        let mut ui = simulate(app);
+        ui.click(label).expect(label);
+        ui.into_messages().collect()
+    };
+    for message in messages.clone() {
+        app.update(message);
+    }
+    messages
+}
+
+#[test]
+fn tab_reaches_the_tune_page_which_connects_when_first_shown() {
+    let t0 = Instant::now();
+    let mut app = app_with(View::Driver, driving(), t0);
+    let (control, requests) = tune::Control::channel();
+    app.update(Message::TuneWorker(tune::Event::Ready(control)));
+    assert!(
+        requests.try_recv().is_err(),
+        "the driver view connects nothing"
+    );
+    app.update(Message::ToggleView);
+    app.update(Message::ToggleView);
+    assert_eq!(app.current_view(), View::Tune);
+    assert_eq!(requests.try_recv(), Ok(tune::Request::Connect));
+    assert!(shows(&app, "connecting"));
+    app.update(Message::TuneWorker(tune::Event::Disconnected(
+        "cannot reach the CCM through 127.0.0.1:5555: connection refused".into(),
+    )));
+    assert!(shows_part(&app, "not connected: cannot reach the CCM"));
+    // Every parameter of the schema is listed, by section, with its limits.
+    assert!(shows(&app, "traction_kp"));
+    assert!(shows(&app, "launch_slip_target[3] @ 20 m/s"));
+    assert!(shows(&app, "TRACTION"));
+    app.update(Message::ToggleView);
+    assert_eq!(app.current_view(), View::Driver);
+}
+
+#[test]
+fn saving_is_offered_only_parked_with_the_tractive_system_off() {
+    let t0 = Instant::now();
+    let (mut driving_app, requests) = tune_page(driving(), t0);
+    assert!(shows(&driving_app, "Save (stop, tractive off)"));
+    assert!(
+        click(&mut driving_app, "Save (stop, tractive off)").is_empty(),
+        "not while driving"
+    );
+    assert!(requests.try_recv().is_err());
+
+    let parked = Telemetry {
+        vehicle_state: VehicleState::Standby,
+        ..Telemetry::zeroed()
+    };
+    let (mut parked_app, requests) = tune_page(parked, t0);
+    click(&mut parked_app, "Save to flash");
+    assert_eq!(requests.try_recv(), Ok(tune::Request::Save));
+    parked_app.update(Message::TuneWorker(tune::Event::Saved));
+    assert!(shows_part(&parked_app, "saved to flash"));
+}
+
+#[test]
+fn a_write_goes_to_the_worker_and_its_refusal_shows_at_the_parameter() {
+    let t0 = Instant::now();
+    let (mut app, requests) = tune_page(driving(), t0);
+    let kp = aer::calibration::PARAMETERS
+        .iter()
+        .position(|p| p.name == "launch_kp")
+        .expect("in the schema");
+    app.update(Message::Tune(tune_ui::Action::Edit((kp, 0), "210".into())));
+    app.update(Message::Tune(tune_ui::Action::Write((kp, 0))));
+    let request = requests.try_recv().expect("a write");
+    assert_eq!(
+        request,
+        tune::Request::Write {
+            parameter: kp,
+            element: 0,
+            value: 210.0
+        }
+    );
+    app.update(Message::TuneWorker(tune::Event::Refused {
+        request,
+        reason: "only at standstill".into(),
+        value_now: Some(200.0),
+    }));
+    assert!(shows(&app, "refused: only at standstill"));
+    assert!(shows(&app, "200 Nm"), "the value as the CCM has it");
 }

@@ -15,6 +15,7 @@
 //! - [`clock`]: timestamps as the topics carry them;
 //! - [`logging`]: log output fit for a terminal and for the journal.
 
+pub mod calibration;
 pub mod candump;
 pub mod clock;
 pub mod config;
@@ -28,3 +29,4 @@ pub mod status;
 pub mod tls;
 pub mod traffic;
 pub mod varint;
+pub mod xcp_master;

@@ -9,6 +9,11 @@ use aer::calibration::xcp::CALIBRATION_ADDRESS;
 use aer_car_model::driver::Cycle;
 use aer_car_node::link::Link;
 use aer_car_node::{checks, scenarios, serve};
+use aer_dashboard::config::{Config, View};
+use aer_dashboard::screenshot::PIT_SIZE;
+use aer_dashboard::tune::{Control, Event, Request, Worker};
+use aer_dashboard::ui::tune::Action;
+use aer_dashboard::ui::{App, Message};
 use aer_host::counters::Counters;
 use aer_raspi::store::calibration::{self, Kind};
 use aer_raspi::store::session::{self, Metadata};
@@ -21,7 +26,10 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::time::Duration;
+
+use iced_test::Simulator;
+use iced_test::selector::Candidate;
+use std::time::{Duration, Instant};
 use tokio::sync::mpsc;
 use tokio_util::sync::CancellationToken;
 
@@ -429,4 +437,189 @@ fn strangers_and_second_masters_are_refused_and_a_vanished_master_leaves_the_ccm
 
     stop.store(true, Ordering::Relaxed);
     car.join().expect("the car ran").expect("served");
+}
+
+/// The car for the Tune page: parked with the tractive system off until `drive` is set, then
+/// driving; its slave answers the gateway's frames between model milliseconds. Says `moving`
+/// once it rolls at 5 m/s.
+fn tune_car(
+    mut link: GatewayLink,
+    drive: Arc<AtomicBool>,
+    stop: Arc<AtomicBool>,
+    moving: std::sync::mpsc::Sender<()>,
+) -> std::thread::JoinHandle<()> {
+    std::thread::spawn(move || {
+        let mut car = scenarios::power_up(aer_ccm::calibration::store::RamFlash::default());
+        let mut said = false;
+        let mut retuned = false;
+        while !stop.load(Ordering::Relaxed) {
+            if let Ok(Some(packet)) = link.receive() {
+                let mut reply = [0u8; aer_xcp::MAX_CTO];
+                if let Some(len) = car.command(&packet, &mut reply) {
+                    link.send(&reply[..len]);
+                }
+            }
+            if drive.load(Ordering::Relaxed) {
+                if !retuned {
+                    car.run.retune(
+                        aer_car_model::ModelParams::NOMINAL,
+                        aer_car_model::faults::FaultPlan::NONE,
+                    );
+                    retuned = true;
+                }
+                // Ten model milliseconds per command slot: the car drives off in a second or
+                // two rather than in real time.
+                for _ in 0..10 {
+                    car.step(&mut aer_car_model::NoTap, &mut |_| true);
+                }
+                if !said && car.run.car.chassis.speed_m_s > 5.0 {
+                    said = moving.send(()).is_ok();
+                }
+            }
+        }
+    })
+}
+
+/// Carries out every request the Tune page made, in order, and hands it the answers.
+fn pump(app: &mut App, requests: &std::sync::mpsc::Receiver<Request>, worker: &mut Worker) {
+    while let Ok(request) = requests.try_recv() {
+        let event = worker.handle(request);
+        app.update(Message::TuneWorker(event));
+    }
+}
+
+/// Clicks the button labelled `label` on the page as it stands and applies what it sends.
+fn click(app: &mut App, label: &str) {
+    let messages: Vec<Message> = {
+        let mut ui = Simulator::with_size(iced::Settings::default(), PIT_SIZE, app.view());
+        ui.click(label)
+            .unwrap_or_else(|_| panic!("no `{label}` on the page"));
+        ui.into_messages().collect()
+    };
+    assert!(!messages.is_empty(), "`{label}` is not enabled");
+    for message in messages {
+        app.update(message);
+    }
+}
+
+fn on_page(app: &App, part: &str) -> bool {
+    let part = part.to_owned();
+    Simulator::with_size(iced::Settings::default(), PIT_SIZE, app.view())
+        .find(move |candidate: Candidate<'_>| match candidate {
+            Candidate::Text { content, .. } if content.contains(part.as_str()) => Some(()),
+            _ => None,
+        })
+        .is_ok()
+}
+
+#[test]
+fn the_tune_page_calibrates_the_ccm_through_the_pis_gateway() {
+    let runtime = tokio::runtime::Runtime::new().expect("runtime");
+    let counters = Arc::new(Counters::default());
+    let (gateway, link) = gateway(&runtime, "127.0.0.1/32", &counters, None);
+    let (drive, stop) = (
+        Arc::new(AtomicBool::new(false)),
+        Arc::new(AtomicBool::new(false)),
+    );
+    let (moving_tx, moving) = std::sync::mpsc::channel();
+    let car = tune_car(link, drive.clone(), stop.clone(), moving_tx);
+
+    // The dashboard on the Tune page, its XCP worker driven here step by step.
+    let mut config = Config::default();
+    config.tune.gateway = gateway.address.to_string();
+    let mut app = App::new(&config, Instant::now());
+    let (control, requests) = Control::channel();
+    let mut worker = Worker::new(aer_dashboard::tune::Settings {
+        gateway: gateway.address,
+        secret: Some(scenarios::SECRET),
+        no_secret: String::new(),
+        timeout: Duration::from_secs(10),
+    });
+    app.update(Message::TuneWorker(Event::Ready(control)));
+    for _ in 0..2 {
+        app.update(Message::ToggleView); // driver -> pit -> tune, which connects
+    }
+    assert_eq!(app.current_view(), View::Tune);
+    pump(&mut app, &requests, &mut worker);
+    assert!(
+        on_page(&app, "connected, LOCKED"),
+        "{:?}",
+        app.tune().session
+    );
+    let parameter = |name: &str| {
+        aer::calibration::PARAMETERS
+            .iter()
+            .position(|p| p.name == name)
+            .expect("in the schema")
+    };
+    let (launch_kp, traction_kp) = ((parameter("launch_kp"), 0), (parameter("traction_kp"), 0));
+    let write = |app: &mut App, at, typed: &str| {
+        app.update(Message::Tune(Action::Edit(at, typed.into())));
+        app.update(Message::Tune(Action::Write(at)));
+    };
+
+    // Locked: a write is refused with the reason.
+    write(&mut app, launch_kp, "210");
+    pump(&mut app, &requests, &mut worker);
+    assert!(on_page(&app, "refused: calibration is locked"));
+
+    // Parked, tractive system off: unlock, a standstill-only gain written and read back,
+    // saved to flash.
+    click(&mut app, "Unlock");
+    pump(&mut app, &requests, &mut worker);
+    assert!(on_page(&app, "calibration unlocked"));
+    write(&mut app, launch_kp, "210");
+    pump(&mut app, &requests, &mut worker);
+    assert!(on_page(&app, "read back 210 Nm"));
+    click(&mut app, "Save to flash");
+    pump(&mut app, &requests, &mut worker);
+    assert!(on_page(&app, "saved to flash"), "{:?}", app.tune().note);
+
+    // Driving: the standstill-only gain refused (the value stays), the while-driving gain
+    // written and read back, a value outside the limits refused with them, text that is no
+    // number never sent, the revert refused (it would change the launch gain while moving).
+    drive.store(true, Ordering::Relaxed);
+    moving
+        .recv_timeout(Duration::from_secs(60))
+        .expect("the car drives off");
+    write(&mut app, launch_kp, "220");
+    pump(&mut app, &requests, &mut worker);
+    assert!(on_page(&app, "refused: only at standstill"));
+    assert_eq!(app.tune().value(launch_kp), Some(210.0));
+    write(&mut app, traction_kp, "650");
+    pump(&mut app, &requests, &mut worker);
+    assert!(on_page(&app, "read back 650 Nm"));
+    let threshold = (parameter("traction_slip_threshold"), 0);
+    write(&mut app, threshold, "0.75");
+    pump(&mut app, &requests, &mut worker);
+    assert!(on_page(&app, "refused: out of range 0.02-0.5"));
+    let sent = counters.snapshot().xcp_commands;
+    write(&mut app, threshold, "O.2");
+    pump(&mut app, &requests, &mut worker);
+    assert!(on_page(&app, "not sent: `O.2` is not a number"));
+    assert_eq!(counters.snapshot().xcp_commands, sent, "nothing sent");
+    click(&mut app, "Revert to defaults");
+    pump(&mut app, &requests, &mut worker);
+    assert!(
+        on_page(&app, "revert: not in this vehicle state"),
+        "{:?}",
+        app.tune().note
+    );
+
+    // The page at both screen sizes, for the docs and a reviewer's eye.
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("tune");
+    let mut offscreen = aer_dashboard::screenshot::Offscreen::new().expect("software renderer");
+    let shots = aer_dashboard::screenshot::every_size(&mut offscreen, &app, &dir, "tune")
+        .expect("screenshots written");
+    for shot in &shots {
+        eprintln!("screenshot: {}", shot.display());
+    }
+
+    // Disconnecting ends the session; the gateway is free for the next master.
+    click(&mut app, "Disconnect");
+    pump(&mut app, &requests, &mut worker);
+    assert!(on_page(&app, "not connected: disconnected"));
+    assert!(gateway.state.snapshot().master.is_none() || !gateway.state.snapshot().session);
+    stop.store(true, Ordering::Relaxed);
+    car.join().expect("the car ran");
 }

@@ -70,6 +70,7 @@ mod daq_cmd;
 mod memory;
 mod pages;
 pub mod protocol;
+pub mod seed_key;
 mod slave;
 mod target;
 mod transfer;

@@ -9,6 +9,7 @@ pub mod health;
 pub mod history;
 pub mod laps;
 pub mod record;
+pub mod tune;
 
 use crate::config::Config;
 use aer::can::AnyMessage;

@@ -6,11 +6,14 @@ pub mod driver;
 pub mod pit;
 pub mod plot;
 pub mod style;
+pub mod tune;
 
 use crate::config::{Config, View};
 use crate::link;
 use crate::model::health::{Connection, SchemaMatch};
+use crate::model::tune::{Session, Tune};
 use crate::model::{Dashboard, Freshness, Update};
+use crate::tune as worker;
 use iced::keyboard::{self, Key, key::Named};
 use iced::widget::{container, text};
 use iced::{Element, Fill, Subscription, Theme};
@@ -36,6 +39,10 @@ pub enum Message {
     TogglePlot(usize),
     /// Show CAN message `index` (of `CanMessages::topics`), or hide it (a click on its name).
     ToggleCan(usize),
+    /// Something the tuner did on the Tune page.
+    Tune(tune::Action),
+    /// What the Tune page's XCP worker reports (its control first).
+    TuneWorker(worker::Event),
 }
 
 /// The dashboard application.
@@ -46,18 +53,16 @@ pub struct App {
     model: Dashboard,
     view: View,
     now: Instant,
+    tune: Tune,
+    tune_settings: worker::Settings,
+    /// The running XCP worker's control, once it has started.
+    tune_control: Option<worker::Control>,
 }
 
 impl App {
     /// A dashboard for `config`, before any data, at `now`.
     pub fn new(config: &Config, now: Instant) -> Self {
-        Self {
-            link: link::Settings::from_config(config),
-            link_control: None,
-            model: Dashboard::new(config),
-            view: config.display.view,
-            now,
-        }
+        Self::with_model(config, Dashboard::new(config), config.display.view, now)
     }
 
     /// A dashboard showing `model` in `view` at `now` (screenshots, tests).
@@ -68,7 +73,15 @@ impl App {
             model,
             view,
             now,
+            tune: Tune::new(&config.tune.gateway),
+            tune_settings: worker::Settings::from_config(&config.tune),
+            tune_control: None,
         }
+    }
+
+    /// The Tune page's state.
+    pub fn tune(&self) -> &Tune {
+        &self.tune
     }
 
     /// The view shown.
@@ -93,10 +106,12 @@ impl App {
                 self.model.settle(at);
             }
             Message::ToggleView => {
-                self.view = match self.view {
+                let next = match self.view {
                     View::Driver => View::Pit,
-                    View::Pit => View::Driver,
-                }
+                    View::Pit => View::Tune,
+                    View::Tune => View::Driver,
+                };
+                self.show(next);
             }
             Message::MarkLap => self.model.mark_lap(self.now),
             Message::TogglePlot(index) => self.model.toggle_plot(index),
@@ -106,6 +121,65 @@ impl App {
                     control.show_can(self.model.can().suffixes());
                 }
             }
+            Message::Tune(action) => self.tune_action(action),
+            Message::TuneWorker(worker::Event::Ready(control)) => {
+                self.tune_control = Some(control);
+                // Opened on the Tune page before the worker ran: connect now.
+                if self.view == View::Tune && self.tune.session == Session::Closed(String::new()) {
+                    self.request(worker::Request::Connect);
+                }
+            }
+            Message::TuneWorker(event) => self.tune.apply(event),
+        }
+    }
+
+    /// Switches to `view`; the Tune page connects the first time it is shown.
+    fn show(&mut self, view: View) {
+        self.view = view;
+        if view == View::Tune && self.tune.session == Session::Closed(String::new()) {
+            self.request(worker::Request::Connect);
+        }
+    }
+
+    fn tune_action(&mut self, action: tune::Action) {
+        let request = match action {
+            tune::Action::Connect => worker::Request::Connect,
+            tune::Action::Disconnect => worker::Request::Disconnect,
+            tune::Action::Unlock => worker::Request::Unlock,
+            tune::Action::Revert => worker::Request::Revert,
+            tune::Action::Save => worker::Request::Save,
+            tune::Action::Edit(element, typed) => {
+                self.tune.set_edit(element, typed);
+                return;
+            }
+            tune::Action::Write(element) => match self.tune.write_request(element) {
+                Some(request) => request,
+                None => return,
+            },
+            tune::Action::Live => {
+                self.view = View::Pit;
+                return;
+            }
+        };
+        self.request(request);
+    }
+
+    /// Hands `request` to the XCP worker (one at a time: the page waits for its answer).
+    fn request(&mut self, request: worker::Request) {
+        if self.tune.busy {
+            return;
+        }
+        match &self.tune_control {
+            Some(control) if control.send(request) => self.tune.sent(request),
+            _ => {
+                if request == worker::Request::Connect {
+                    // The worker starts with the application; the Ready handler connects.
+                    return;
+                }
+                self.tune.apply(worker::Event::Disconnected(
+                    "the XCP worker is not running".into(),
+                ));
+            }
         }
     }
 
@@ -114,6 +188,15 @@ impl App {
         match self.view {
             View::Driver => driver::view(&self.model, self.now),
             View::Pit => pit::view(&self.model, self.now),
+            View::Tune => {
+                let fresh = self.model.freshness(self.now) == crate::model::Freshness::Fresh;
+                let telemetry = self
+                    .model
+                    .latest()
+                    .filter(|_| fresh)
+                    .map(|latest| &latest.telemetry);
+                tune::view(&self.tune, telemetry)
+            }
         }
     }
 
@@ -135,6 +218,10 @@ impl App {
                     link::Event::Ready(control) => Message::LinkReady(control),
                     link::Event::Update(at, update) => Message::Link(at, update),
                 }),
+            Subscription::run_with(self.tune_settings.clone(), |settings| {
+                worker::stream(settings.clone())
+            })
+            .map(Message::TuneWorker),
             iced::time::every(TICK).map(Message::Tick),
             keyboard::listen().filter_map(key_message),
         ])

@@ -82,3 +82,21 @@ pub fn field_row(plotted: bool) -> impl Fn(&Theme, button::Status) -> button::St
         }
     }
 }
+
+/// A command button: lit while it can be pressed, dim and flat while it cannot (so the Tune
+/// page shows what the session allows now).
+pub fn command(_: &Theme, status: button::Status) -> button::Style {
+    let (background, text_color) = match status {
+        button::Status::Disabled => (Color::from_rgb(0.16, 0.16, 0.18), STALE),
+        button::Status::Hovered | button::Status::Pressed => {
+            (Color::from_rgb(0.22, 0.36, 0.62), TEXT)
+        }
+        button::Status::Active => (Color::from_rgb(0.17, 0.29, 0.52), TEXT),
+    };
+    button::Style {
+        background: Some(background.into()),
+        text_color,
+        border: Border::default().rounded(4),
+        ..button::Style::default()
+    }
+}

@@ -5,6 +5,7 @@
 //! it, and two runs' calibrations compare. `aer-raspi session calibration` prints it; the
 //! exports carry it.
 
+pub use aer_host::calibration::number;
 use rusqlite::{Connection, params};
 use std::fmt;
 
@@ -103,17 +104,6 @@ impl fmt::Display for Entry {
             write!(f, " refused: {}", self.reason)?;
         }
         write!(f, " ({})", self.master)
-    }
-}
-
-/// A value as people write it: `0.02`, not `0.019999999552965164` (every parameter is
-/// an `f32` on the CCM).
-pub fn number(value: f64) -> String {
-    let single = value as f32;
-    if f64::from(single) == value {
-        format!("{single}")
-    } else {
-        format!("{value}")
     }
 }
 

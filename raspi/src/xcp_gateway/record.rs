@@ -9,9 +9,10 @@
 //! judges every change; the recorder only follows what it answered, so it never disagrees
 //! with the CCM about what happened.
 
-use crate::store::calibration::{ECU_PAGE, Entry, Kind, number};
+use crate::store::calibration::{ECU_PAGE, Entry, Kind};
 use aer::calibration::xcp::{CALIBRATION_ADDRESS, CALIBRATION_LEN, REFERENCE_PAGE, WORKING_PAGE};
-use aer::calibration::{Calibration, ChangeWhen, PAGE_LEN, PARAMETERS, Parameter};
+use aer::calibration::{Calibration, PAGE_LEN, PARAMETERS, Parameter};
+use aer_host::calibration::refusal_text;
 use aer_xcp::protocol::{cmd, err, page_mode, pid, session};
 
 /// Data bytes in one DOWNLOAD or DOWNLOAD_NEXT at MAX_CTO 8.
@@ -426,40 +427,4 @@ fn element_of(parameter: &Parameter, index: usize) -> Option<u32> {
     (parameter.count > 1)
         .then(|| u32::try_from(index).ok())
         .flatten()
-}
-
-/// Why the slave refused, in the words a tuner reads on the Tune page: XCP error `code`, for
-/// `parameter` when one was written with value `new`.
-pub fn refusal_text(code: u8, parameter: Option<&Parameter>, new: Option<f64>) -> String {
-    match (code, parameter) {
-        (err::ACCESS_LOCKED, _) => "calibration is locked (unlock with seed and key first)".into(),
-        (err::WRITE_PROTECTED, Some(p)) => match p.change {
-            ChangeWhen::Standstill => "only at standstill".into(),
-            ChangeWhen::TractiveOff => "only at standstill with the tractive system off".into(),
-            // Such a value is refused only with another of the same write.
-            ChangeWhen::Driving => "refused with the write's other values".into(),
-        },
-        (err::WRITE_PROTECTED, None) => {
-            "not in this vehicle state: it changes values that may change only at standstill".into()
-        }
-        (err::OUT_OF_RANGE, Some(p)) => match new {
-            Some(value) if !(p.min..=p.max).contains(&value) => {
-                format!("out of range {}-{}", number(p.min), number(p.max))
-            }
-            Some(_) if p.increasing => {
-                "refused: each point must lie above the one before, and the sensor checks must pass"
-                    .into()
-            }
-            Some(_) => "refused by the sensor cross-checks".into(),
-            None => format!("out of range {}-{}", number(p.min), number(p.max)),
-        },
-        (err::OUT_OF_RANGE, None) => "out of range".into(),
-        (err::ACCESS_DENIED, _) => "not in the calibration page".into(),
-        (err::SEQUENCE, _) => "a block download out of sequence".into(),
-        (err::PAGE_NOT_VALID, _) => "no such page".into(),
-        (err::MODE_NOT_VALID, _) => "no such page mode".into(),
-        (err::SEGMENT_NOT_VALID, _) => "no such segment".into(),
-        (err::GENERIC, _) => "the CCM could not do it (saving to flash failed)".into(),
-        (code, _) => format!("refused (XCP error 0x{code:02X})"),
-    }
 }
