@@ -82,13 +82,7 @@ impl Master {
     /// Sends `packet` and returns the positive response (an error response is
     /// [`MasterError::Refused`]).
     pub fn command(&mut self, packet: &[u8]) -> Result<Vec<u8>, MasterError> {
-        let mut frame = [0u8; TCP_FRAME_MAX];
-        let len = self
-            .encoder
-            .encode(packet, &mut frame)
-            .map_err(|_| MasterError::Protocol("a command too long for XCP on TCP"))?;
-        self.stream
-            .write_all(frame.get(..len).unwrap_or_default())?;
+        self.send_unanswered(packet)?;
         loop {
             let answer = self.next_packet()?;
             match answer.first() {
@@ -228,6 +222,7 @@ impl Master {
         Ok(())
     }
 
+    /// Sends `packet` without waiting for an answer.
     fn send_unanswered(&mut self, packet: &[u8]) -> Result<(), MasterError> {
         let mut frame = [0u8; TCP_FRAME_MAX];
         let len = self

@@ -93,6 +93,14 @@ pub fn new(
     Ok(())
 }
 
+/// Session `id`, or the open one.
+fn given_or_open(db: &rusqlite::Connection, id: Option<i64>) -> Result<i64> {
+    match id {
+        Some(id) => Ok(id),
+        None => session::current(db)?.context("no session is open; give --id"),
+    }
+}
+
 /// `session messages`: each CAN message of the open session (or `id`) per bus.
 pub fn messages(
     located: &Located,
@@ -101,10 +109,7 @@ pub fn messages(
     notes: &mut dyn Write,
 ) -> Result<()> {
     let store = located.read(notes)?;
-    let id = match id {
-        Some(id) => id,
-        None => session::current(&store.db)?.context("no session is open; give --id")?,
-    };
+    let id = given_or_open(&store.db, id)?;
     let hz = |rate: Option<f64>| rate.map_or_else(|| "-".to_owned(), |r| format!("{r:.2}"));
     let messages = session_messages::list(&store.db, id)?;
     if messages.is_empty() {
@@ -145,10 +150,7 @@ pub fn calibration(
     notes: &mut dyn Write,
 ) -> Result<()> {
     let store = located.read(notes)?;
-    let id = match id {
-        Some(id) => id,
-        None => session::current(&store.db)?.context("no session is open; give --id")?,
-    };
+    let id = given_or_open(&store.db, id)?;
     let entries = record::list(&store.db, Some(id), None, None)?;
     let value = |v: Option<f64>| v.map_or_else(|| "?".to_owned(), number);
     let unit = |name: &str| {
