@@ -63,15 +63,17 @@ impl Settings {
 }
 
 /// What the page asks of the CCM.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub enum Request {
     Connect,
     Unlock,
-    /// Element `element` of parameter `parameter` (an index into `PARAMETERS`) to `value`.
+    /// Parameter `parameter` (an index into `PARAMETERS`) to `values`, every element at once,
+    /// so the CCM checks a curve whole (its points must rise); `edited` are the elements the
+    /// tuner typed.
     Write {
         parameter: usize,
-        element: usize,
-        value: f32,
+        values: Vec<f32>,
+        edited: Vec<usize>,
     },
     /// The reference page (the schema's defaults) over the working page.
     Revert,
@@ -92,22 +94,22 @@ pub enum Event {
         locked: bool,
     },
     Unlocked,
-    /// A value written and read back.
+    /// A parameter written and read back (every element), `edited` as the request said.
     Written {
         parameter: usize,
-        element: usize,
-        value: Option<f64>,
+        edited: Vec<usize>,
+        values: Vec<Option<f64>>,
     },
     /// The working page after a revert.
     Reverted {
         page: Box<[u8; PAGE_LEN]>,
     },
     Saved,
-    /// The CCM refused `request`: why, and the element's value now (for a write).
+    /// The CCM refused `request`: why, and (for a write) the parameter's values now.
     Refused {
         request: Request,
         reason: String,
-        value_now: Option<f64>,
+        values_now: Vec<Option<f64>>,
     },
     /// The session ended (asked for, or the connection failed).
     Disconnected(String),
@@ -208,7 +210,7 @@ impl Worker {
         let Some(master) = self.master.as_mut() else {
             return Event::Disconnected("not connected".into());
         };
-        let result = match request {
+        let result = match request.clone() {
             Request::Connect => return Event::Disconnected("not connected".into()),
             Request::Disconnect => {
                 let ended = self.master.take().map(Master::disconnect);
@@ -225,16 +227,16 @@ impl Worker {
                             "no XCP secret ({}): calibration stays locked",
                             self.settings.no_secret
                         ),
-                        value_now: None,
+                        values_now: Vec::new(),
                     };
                 }
                 other => other.map(|()| Event::Unlocked),
             },
             Request::Write {
                 parameter,
-                element,
-                value,
-            } => write(master, parameter, element, value),
+                values,
+                edited,
+            } => write(master, parameter, &values, edited),
             Request::Revert => master.revert_to_reference().and_then(|()| {
                 Ok(Event::Reverted {
                     page: Box::new(master.read_page()?),
@@ -253,49 +255,61 @@ impl Worker {
     }
 }
 
-/// Writes one element and reads it back.
+/// Writes a parameter whole and reads it back.
 fn write(
     master: &mut Master,
     parameter: usize,
-    element: usize,
-    value: f32,
+    values: &[f32],
+    edited: Vec<usize>,
 ) -> Result<Event, MasterError> {
-    let address = element_address(parameter, element)
-        .ok_or(MasterError::Protocol("no such parameter element"))?;
+    let address =
+        element_address(parameter, 0).ok_or(MasterError::Protocol("no such parameter"))?;
     // Every element type the schema has, so a new one is a compile error here.
-    let bytes = match PARAMETERS.get(parameter).map(|p| p.element) {
-        Some(ElementType::F32) | None => value.to_le_bytes(),
+    let bytes: Vec<u8> = match PARAMETERS.get(parameter).map(|p| p.element) {
+        Some(ElementType::F32) | None => values.iter().flat_map(|v| v.to_le_bytes()).collect(),
     };
     master.write(address, &bytes)?;
     Ok(Event::Written {
         parameter,
-        element,
-        value: read_element(master, address),
+        edited,
+        values: read_parameter(master, parameter),
     })
 }
 
-/// The refusal of `request` with XCP error `code`, in a tuner's words, with the value as it
-/// stands now.
+/// The refusal of `request` with XCP error `code`, in a tuner's words, with the values as
+/// they stand now.
 fn refused(master: &mut Master, request: Request, code: u8) -> Event {
-    let (reason, value_now) = match request {
+    let (reason, values_now) = match &request {
         Request::Write {
             parameter,
-            element,
-            value,
-        } => (
-            refusal_text(code, PARAMETERS.get(parameter), Some(f64::from(value))),
-            element_address(parameter, element).and_then(|a| read_element(master, a)),
-        ),
+            values,
+            edited,
+        } => {
+            let p = PARAMETERS.get(*parameter);
+            // The value the reason is about: an edited one outside the limits, else the first
+            // edited one.
+            let typed = edited
+                .iter()
+                .filter_map(|&e| values.get(e))
+                .map(|v| f64::from(*v));
+            let outside = typed
+                .clone()
+                .find(|v| p.is_some_and(|p| !(p.min..=p.max).contains(v)));
+            (
+                refusal_text(code, p, outside.or(typed.clone().next())),
+                read_parameter(master, *parameter),
+            )
+        }
         Request::Save if code == aer_xcp::protocol::err::WRITE_PROTECTED => (
             "saving to flash only at standstill with the tractive system off".into(),
-            None,
+            Vec::new(),
         ),
-        _ => (refusal_text(code, None, None), None),
+        _ => (refusal_text(code, None, None), Vec::new()),
     };
     Event::Refused {
         request,
         reason,
-        value_now,
+        values_now,
     }
 }
 
@@ -309,11 +323,22 @@ pub fn element_address(parameter: usize, element: usize) -> Option<u32> {
     CALIBRATION_ADDRESS.checked_add(u32::try_from(offset).ok()?)
 }
 
-fn read_element(master: &mut Master, address: u32) -> Option<f64> {
-    let bytes: [u8; 4] = master
-        .read(address, ElementType::F32.size())
-        .ok()?
-        .try_into()
-        .ok()?;
-    Some(f64::from(f32::from_le_bytes(bytes)))
+/// Every element of a parameter as the CCM has it now (`None` where it did not answer).
+fn read_parameter(master: &mut Master, parameter: usize) -> Vec<Option<f64>> {
+    let Some(p) = PARAMETERS.get(parameter) else {
+        return Vec::new();
+    };
+    let page_bytes = element_address(parameter, 0).and_then(|a| master.read(a, p.len()).ok());
+    (0..p.count)
+        .map(|element| {
+            let bytes = page_bytes.as_ref()?;
+            let at = element * p.element.size();
+            match p.element {
+                ElementType::F32 => {
+                    let raw: [u8; 4] = bytes.get(at..at + 4)?.try_into().ok()?;
+                    Some(f64::from(f32::from_le_bytes(raw)))
+                }
+            }
+        })
+        .collect()
 }

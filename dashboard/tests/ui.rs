@@ -789,14 +789,14 @@ fn a_write_goes_to_the_worker_and_its_refusal_shows_at_the_parameter() {
         request,
         tune::Request::Write {
             parameter: kp,
-            element: 0,
-            value: 210.0
+            values: vec![210.0],
+            edited: vec![0],
         }
     );
     app.update(Message::TuneWorker(tune::Event::Refused {
         request,
         reason: "only at standstill".into(),
-        value_now: Some(200.0),
+        values_now: vec![Some(200.0)],
     }));
     assert!(shows(&app, "refused: only at standstill"));
     assert!(shows(&app, "200 Nm"), "the value as the CCM has it");

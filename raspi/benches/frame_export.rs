@@ -57,7 +57,12 @@ for suffix in (".blf", ".asc"):
         print(f"python-can {can.__version__} {suffix[1:].upper()}: {len(frames)} frames in {best * 1e3:.0f} ms "
               f"({len(frames) / best / 1e3:.0f} kframes/s; best of 3, the log already read)")
 "#;
-    match Command::new(&python).arg("-c").arg(script).arg(log).output() {
+    match Command::new(&python)
+        .arg("-c")
+        .arg(script)
+        .arg(log)
+        .output()
+    {
         Ok(out) if out.status.success() => print!("{}", String::from_utf8_lossy(&out.stdout)),
         _ => println!(
             "SKIPPED: python-can's writers need {} with python-can (tools/requirements.txt)",

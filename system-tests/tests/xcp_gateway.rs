@@ -589,6 +589,19 @@ fn the_tune_page_calibrates_the_ccm_through_the_pis_gateway() {
     write(&mut app, traction_kp, "650");
     pump(&mut app, &requests, &mut worker);
     assert!(on_page(&app, "read back 650 Nm"));
+    // A curve whose points must rise, both moved past the old upper point: written whole, in
+    // one block (point by point the first would be refused, above the second).
+    let ramp = parameter("pump_ramp_degc");
+    app.update(Message::Tune(Action::Edit((ramp, 0), "65".into())));
+    write(&mut app, (ramp, 1), "80");
+    pump(&mut app, &requests, &mut worker);
+    assert_eq!(
+        (app.tune().value((ramp, 0)), app.tune().value((ramp, 1))),
+        (Some(65.0), Some(80.0)),
+        "{:?}",
+        app.tune().outcome((ramp, 0))
+    );
+    assert!(on_page(&app, "read back 80 degC"));
     let threshold = (parameter("traction_slip_threshold"), 0);
     write(&mut app, threshold, "0.75");
     pump(&mut app, &requests, &mut worker);

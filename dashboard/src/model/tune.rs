@@ -94,33 +94,52 @@ impl Tune {
         self.edits.insert(element, text);
     }
 
-    /// The write request for an element's typed value, or why there is none (shown at the
+    /// The write request for the parameter of `at`: every element the tuner typed, the
+    /// others as the CCM has them, written at once; or why there is none (shown at the
     /// element).
-    pub fn write_request(&mut self, (parameter, element): Element) -> Option<Request> {
-        let text = self.edit((parameter, element)).trim().to_owned();
-        match text.parse::<f32>() {
-            Ok(value) if value.is_finite() => Some(Request::Write {
-                parameter,
-                element,
-                value,
-            }),
-            _ => {
-                let why = if text.is_empty() {
-                    "type a value first".to_owned()
-                } else {
-                    format!("`{text}` is not a number")
-                };
-                self.outcomes
-                    .insert((parameter, element), Outcome::NotSent(why));
-                None
+    pub fn write_request(&mut self, at: Element) -> Option<Request> {
+        let parameter = at.0;
+        let p = PARAMETERS.get(parameter)?;
+        let mut values = Vec::with_capacity(p.count);
+        let mut edited = Vec::new();
+        for element in 0..p.count {
+            let text = self.edit((parameter, element)).trim().to_owned();
+            if text.is_empty() {
+                match self.value((parameter, element)) {
+                    Some(value) => values.push(value as f32),
+                    None => return self.not_sent(at, "not read from the CCM yet".into()),
+                }
+                continue;
+            }
+            match text.parse::<f32>() {
+                Ok(value) if value.is_finite() => {
+                    values.push(value);
+                    edited.push(element);
+                }
+                _ => {
+                    return self.not_sent((parameter, element), format!("`{text}` is not a number"));
+                }
             }
         }
+        if edited.is_empty() {
+            return self.not_sent(at, "type a value first".into());
+        }
+        Some(Request::Write {
+            parameter,
+            values,
+            edited,
+        })
+    }
+
+    fn not_sent(&mut self, at: Element, why: String) -> Option<Request> {
+        self.outcomes.insert(at, Outcome::NotSent(why));
+        None
     }
 
     /// A request went out.
-    pub fn sent(&mut self, request: Request) {
+    pub fn sent(&mut self, request: &Request) {
         self.busy = true;
-        if request == Request::Connect {
+        if *request == Request::Connect {
             self.session = Session::Connecting;
         }
     }
@@ -148,13 +167,16 @@ impl Tune {
             }
             Event::Written {
                 parameter,
-                element,
-                value,
+                edited,
+                values,
             } => {
-                self.store((parameter, element), value);
-                self.edits.remove(&(parameter, element));
-                self.outcomes
-                    .insert((parameter, element), Outcome::Written(value));
+                self.store(parameter, &values);
+                for element in edited {
+                    self.edits.remove(&(parameter, element));
+                    let value = values.get(element).copied().flatten();
+                    self.outcomes
+                        .insert((parameter, element), Outcome::Written(value));
+                }
             }
             Event::Reverted { page } => {
                 self.page = Some(*page);
@@ -167,16 +189,18 @@ impl Tune {
             Event::Refused {
                 request,
                 reason,
-                value_now,
+                values_now,
             } => match request {
                 Request::Write {
-                    parameter, element, ..
+                    parameter, edited, ..
                 } => {
-                    self.store((parameter, element), value_now);
-                    self.outcomes
-                        .insert((parameter, element), Outcome::Refused(reason));
+                    self.store(parameter, &values_now);
+                    for element in edited {
+                        self.outcomes
+                            .insert((parameter, element), Outcome::Refused(reason.clone()));
+                    }
                 }
-                _ => self.note = Some((false, format!("{}: {reason}", action(request)))),
+                _ => self.note = Some((false, format!("{}: {reason}", action(&request)))),
             },
             Event::Disconnected(why) => {
                 self.session = Session::Closed(why);
@@ -184,19 +208,20 @@ impl Tune {
         }
     }
 
-    /// Keeps a value read back in the page.
-    fn store(&mut self, (parameter, element): Element, value: Option<f64>) {
-        let (Some(page), Some(p), Some(value)) =
-            (self.page.as_mut(), PARAMETERS.get(parameter), value)
-        else {
+    /// Keeps the values read back in the page (`None`: not read, left as it was).
+    fn store(&mut self, parameter: usize, values: &[Option<f64>]) {
+        let (Some(page), Some(p)) = (self.page.as_mut(), PARAMETERS.get(parameter)) else {
             return;
         };
-        let at = p.offset + element * p.element.size();
-        let bytes = match p.element {
-            ElementType::F32 => (value as f32).to_le_bytes(),
-        };
-        if let Some(slot) = page.get_mut(at..at + bytes.len()) {
-            slot.copy_from_slice(&bytes);
+        for (element, value) in values.iter().enumerate().take(p.count) {
+            let Some(value) = value else { continue };
+            let at = p.offset + element * p.element.size();
+            let bytes = match p.element {
+                ElementType::F32 => (*value as f32).to_le_bytes(),
+            };
+            if let Some(slot) = page.get_mut(at..at + bytes.len()) {
+                slot.copy_from_slice(&bytes);
+            }
         }
     }
 
@@ -221,7 +246,7 @@ fn lock_text(locked: bool) -> &'static str {
     }
 }
 
-fn action(request: Request) -> &'static str {
+fn action(request: &Request) -> &'static str {
     match request {
         Request::Connect => "connect",
         Request::Unlock => "unlock",
@@ -276,25 +301,49 @@ mod tests {
             request,
             Request::Write {
                 parameter: kp(),
-                element: 0,
-                value: 650.0
+                values: vec![650.0],
+                edited: vec![0],
             }
         );
         tune.apply(Event::Written {
             parameter: kp(),
-            element: 0,
-            value: Some(650.0),
+            edited: vec![0],
+            values: vec![Some(650.0)],
         });
         assert_eq!(tune.value((kp(), 0)), Some(650.0));
         assert_eq!(tune.edit((kp(), 0)), "");
         tune.apply(Event::Refused {
             request,
             reason: "only at standstill".into(),
-            value_now: Some(650.0),
+            values_now: vec![Some(650.0)],
         });
         assert_eq!(
             tune.outcome((kp(), 0)),
             Some(&Outcome::Refused("only at standstill".into()))
+        );
+    }
+
+    #[test]
+    fn a_curve_is_written_whole_with_the_points_not_typed_as_the_ccm_has_them() {
+        let ramp = PARAMETERS
+            .iter()
+            .position(|p| p.name == "pump_ramp_degc")
+            .expect("in the schema");
+        let mut tune = Tune::new("127.0.0.1:5555");
+        tune.apply(Event::Connected {
+            page: Box::new(Calibration::DEFAULT.to_page()),
+            ecu_page: 0,
+            locked: false,
+        });
+        tune.set_edit((ramp, 1), "80".into());
+        let current = Tune::default_value((ramp, 0)).expect("a default") as f32;
+        assert_eq!(
+            tune.write_request((ramp, 1)),
+            Some(Request::Write {
+                parameter: ramp,
+                values: vec![current, 80.0],
+                edited: vec![1],
+            })
         );
     }
 

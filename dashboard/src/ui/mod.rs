@@ -170,7 +170,7 @@ impl App {
             return;
         }
         match &self.tune_control {
-            Some(control) if control.send(request) => self.tune.sent(request),
+            Some(control) if control.send(request.clone()) => self.tune.sent(&request),
             _ => {
                 if request == worker::Request::Connect {
                     // The worker starts with the application; the Ready handler connects.
