@@ -163,6 +163,10 @@ pub fn stream(settings: Settings) -> impl Stream<Item = Event> {
                 return;
             }
         }
+        // The worker thread ended (it cannot start, or it failed): the page must not wait.
+        let _ = output
+            .send(Event::Disconnected("the XCP worker stopped".into()))
+            .await;
     })
 }
 
@@ -244,9 +248,25 @@ impl Worker {
             }),
             Request::Save => master.save().map(|()| Event::Saved),
         };
+        let result = match result {
+            // A wrong key ends the slave's session (the standard's rule).
+            Err(MasterError::Refused(aer_xcp::protocol::err::ACCESS_LOCKED))
+                if request == Request::Unlock =>
+            {
+                self.master = None;
+                return Event::Disconnected(
+                    "the CCM refused the key and ended the session (is secret_file the secret \
+                     the firmware was built with?)"
+                        .into(),
+                );
+            }
+            Err(MasterError::Refused(code)) => refused(master, request, code),
+            other => other,
+        };
         match result {
             Ok(event) => event,
-            Err(MasterError::Refused(code)) => refused(master, request, code),
+            // Anything else (no answer in time, the connection gone) ends the session: a late
+            // answer would otherwise pass for the answer to the next command.
             Err(error) => {
                 self.master = None;
                 Event::Disconnected(format!("the session with the CCM ended: {error}"))
@@ -272,13 +292,13 @@ fn write(
     Ok(Event::Written {
         parameter,
         edited,
-        values: read_parameter(master, parameter),
+        values: read_parameter(master, parameter)?,
     })
 }
 
 /// The refusal of `request` with XCP error `code`, in a tuner's words, with the values as
 /// they stand now.
-fn refused(master: &mut Master, request: Request, code: u8) -> Event {
+fn refused(master: &mut Master, request: Request, code: u8) -> Result<Event, MasterError> {
     let (reason, values_now) = match &request {
         Request::Write {
             parameter,
@@ -297,7 +317,7 @@ fn refused(master: &mut Master, request: Request, code: u8) -> Event {
                 .find(|v| p.is_some_and(|p| !(p.min..=p.max).contains(v)));
             (
                 refusal_text(code, p, outside.or(typed.clone().next())),
-                read_parameter(master, *parameter),
+                read_parameter(master, *parameter)?,
             )
         }
         Request::Save if code == aer_xcp::protocol::err::WRITE_PROTECTED => (
@@ -306,11 +326,11 @@ fn refused(master: &mut Master, request: Request, code: u8) -> Event {
         ),
         _ => (refusal_text(code, None, None), Vec::new()),
     };
-    Event::Refused {
+    Ok(Event::Refused {
         request,
         reason,
         values_now,
-    }
+    })
 }
 
 /// The XCP address of an element.
@@ -323,15 +343,16 @@ pub fn element_address(parameter: usize, element: usize) -> Option<u32> {
     CALIBRATION_ADDRESS.checked_add(u32::try_from(offset).ok()?)
 }
 
-/// Every element of a parameter as the CCM has it now (`None` where it did not answer).
-fn read_parameter(master: &mut Master, parameter: usize) -> Vec<Option<f64>> {
-    let Some(p) = PARAMETERS.get(parameter) else {
-        return Vec::new();
-    };
-    let page_bytes = element_address(parameter, 0).and_then(|a| master.read(a, p.len()).ok());
-    (0..p.count)
+/// Every element of a parameter as the CCM has it now.
+fn read_parameter(master: &mut Master, parameter: usize) -> Result<Vec<Option<f64>>, MasterError> {
+    let p = PARAMETERS
+        .get(parameter)
+        .ok_or(MasterError::Protocol("no such parameter"))?;
+    let address =
+        element_address(parameter, 0).ok_or(MasterError::Protocol("no such parameter"))?;
+    let bytes = master.read(address, p.len())?;
+    Ok((0..p.count)
         .map(|element| {
-            let bytes = page_bytes.as_ref()?;
             let at = element * p.element.size();
             match p.element {
                 ElementType::F32 => {
@@ -340,5 +361,5 @@ fn read_parameter(master: &mut Master, parameter: usize) -> Vec<Option<f64>> {
                 }
             }
         })
-        .collect()
+        .collect())
 }

@@ -42,6 +42,13 @@ impl Watched {
             recorder: Recorder::new(),
             entries: Vec::new(),
         };
+        watched.reconnect();
+        watched
+    }
+
+    /// CONNECT and the gateway's page read.
+    fn reconnect(&mut self) {
+        let watched = self;
         assert_eq!(watched.send(&[0xFF, 0]).expect("CONNECT")[0], 0xFF);
         let mut page = [0u8; PAGE_LEN];
         for start in (0..PAGE_LEN).step_by(7) {
@@ -59,7 +66,6 @@ impl Watched {
             .recorder
             .found(page, Some(reply[3]), 0, "127.0.0.1:5000");
         watched.entries.extend(found);
-        watched
     }
 
     fn unlock(&mut self) {
@@ -110,6 +116,17 @@ enum Step {
     Save,
     /// The car runs on.
     Run(u32),
+    /// BUILD_CHECKSUM over the page's first `len` bytes, then a DOWNLOAD with no SET_MTA: it
+    /// lands where the checksum left the MTA.
+    ChecksumThenWrite {
+        len: u8,
+        bytes: Vec<u8>,
+    },
+    /// GET_ID (the MTA on a text), then a DOWNLOAD with no SET_MTA (refused: not memory).
+    IdThenWrite(Vec<u8>),
+    /// A wrong key, which ends the session; then the master connects again, as the gateway
+    /// sees it (the page read anew), and unlocks.
+    WrongKey,
 }
 
 fn step() -> impl Strategy<Value = Step> {
@@ -124,6 +141,10 @@ fn step() -> impl Strategy<Value = Step> {
         1 => (0u8..2).prop_map(Step::XcpPage),
         1 => Just(Step::Save),
         2 => (1u32..200).prop_map(Step::Run),
+        1 => (1u8..100, proptest::collection::vec(any::<u8>(), 1..6))
+            .prop_map(|(len, bytes)| Step::ChecksumThenWrite { len, bytes }),
+        1 => proptest::collection::vec(any::<u8>(), 1..6).prop_map(Step::IdThenWrite),
+        1 => Just(Step::WrongKey),
     ]
 }
 
@@ -180,6 +201,36 @@ fn play(watched: &mut Watched, step: &Step) {
             for _ in 0..*ms {
                 watched.car.step(&mut NoTap, &mut |_| true);
             }
+        }
+        Step::ChecksumThenWrite { len, bytes } => {
+            let mut set_mta = vec![0xF6, 0, 0, 0];
+            set_mta.extend(CALIBRATION_ADDRESS.to_le_bytes());
+            watched.send(&set_mta);
+            let mut checksum = vec![0xF3, 0, 0, 0];
+            checksum.extend(u32::from(*len).to_le_bytes());
+            watched.send(&checksum);
+            let mut download = vec![0xF0, bytes.len() as u8];
+            download.extend(bytes);
+            watched.send(&download);
+        }
+        Step::IdThenWrite(bytes) => {
+            watched.send(&[0xFA, 1]);
+            let mut download = vec![0xF0, bytes.len() as u8];
+            download.extend(bytes);
+            watched.send(&download);
+        }
+        Step::WrongKey => {
+            let seed = watched.send(&[0xF8, 0, 0x01]).expect("GET_SEED");
+            if seed[0] == 0xFF && seed[1] > 0 {
+                // Sixteen key bytes, every one wrong.
+                for (remaining, chunk) in [(16u8, [0u8; 6]), (10, [0; 6]), (4, [0; 6])] {
+                    let mut unlock = vec![0xF7, remaining];
+                    unlock.extend(&chunk[..usize::from(remaining.min(6))]);
+                    watched.send(&unlock);
+                }
+            }
+            watched.reconnect();
+            watched.unlock();
         }
     }
 }

@@ -636,3 +636,44 @@ fn the_tune_page_calibrates_the_ccm_through_the_pis_gateway() {
     stop.store(true, Ordering::Relaxed);
     car.join().expect("the car ran");
 }
+
+#[test]
+fn a_ccm_that_stops_answering_the_page_read_ends_the_master_and_keeps_late_answers_from_the_next() {
+    let runtime = tokio::runtime::Runtime::new().expect("runtime");
+    let counters = Arc::new(Counters::default());
+    let (gateway, link) = gateway(&runtime, "127.0.0.1/32", &counters, None);
+    // A slave that answers CONNECT and then falls silent (its answers to the page read come
+    // far too late: held back here until the master is gone).
+    let slave = std::thread::spawn(move || {
+        let frame = link.commands.recv().expect("CONNECT");
+        assert_eq!(frame[0], 0xFF);
+        link.answers
+            .blocking_send(
+                can_frame(&[0xFF, 0x05, 0x00, 8, 8, 0, 1, 1])
+                    .expect("8")
+                    .to_vec(),
+            )
+            .expect("answered");
+        let upload = link.commands.recv().expect("the page read");
+        assert_eq!(upload[0], 0xF4, "the gateway reads the page");
+        link
+    });
+    let mut master = Master::connect(gateway.address);
+    master.send(&[0xFF, 0x00]);
+    assert!(master.closed(), "no CONNECT answer: the master is ended");
+    let link = slave.join().expect("the slave");
+    // The late answer to the page read: no master is there to take it as its own.
+    link.answers
+        .blocking_send(can_frame(&[0xFF, 1, 2, 3, 4, 5, 6, 7]).expect("8").to_vec())
+        .expect("sent");
+    let mut next = Master::connect(gateway.address);
+    assert!(
+        next.closed(),
+        "a new master waits until the CCM's late answers are past"
+    );
+    let refusal = gateway.state.snapshot().last_refusal.expect("named");
+    assert!(
+        refusal.contains("the CCM just stopped answering"),
+        "{refusal}"
+    );
+}

@@ -117,7 +117,8 @@ impl Tune {
                     edited.push(element);
                 }
                 _ => {
-                    return self.not_sent((parameter, element), format!("`{text}` is not a number"));
+                    return self
+                        .not_sent((parameter, element), format!("`{text}` is not a number"));
                 }
             }
         }

@@ -124,6 +124,8 @@ impl App {
             Message::Tune(action) => self.tune_action(action),
             Message::TuneWorker(worker::Event::Ready(control)) => {
                 self.tune_control = Some(control);
+                // A worker (re)started: nothing of an earlier one's session holds.
+                self.tune.apply(worker::Event::Disconnected(String::new()));
                 // Opened on the Tune page before the worker ran: connect now.
                 if self.view == View::Tune && self.tune.session == Session::Closed(String::new()) {
                     self.request(worker::Request::Connect);

@@ -109,7 +109,9 @@ impl fmt::Display for Entry {
 
 /// Adds `entries` to session `session`.
 pub fn record(db: &Connection, session: i64, entries: &[Entry]) -> rusqlite::Result<()> {
-    let mut insert = db.prepare_cached(
+    // All or none: the writer retries a failed batch whole, which must not store any twice.
+    let transaction = db.unchecked_transaction()?;
+    let mut insert = transaction.prepare_cached(
         "INSERT INTO session_calibration (session_id, at_us, master, kind, parameter, element, \
          old, new, accepted, reason, checksum) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11)",
     )?;
@@ -128,7 +130,8 @@ pub fn record(db: &Connection, session: i64, entries: &[Entry]) -> rusqlite::Res
             e.checksum,
         ])?;
     }
-    Ok(())
+    drop(insert);
+    transaction.commit()
 }
 
 /// The entries between `from_us` and `to_us` (inclusive, either open) of session `session`
@@ -176,12 +179,13 @@ pub fn list(
 }
 
 /// The calibration as a session's record knows it at its end: per parameter and element, the
-/// last value found or accepted (refusals change nothing; a page switch or save is not a
-/// value). Sorted by parameter, then element.
+/// last value found or accepted, and the page the CCM ran on ([`ECU_PAGE`]); refusals change
+/// nothing, a save is not a value. Sorted by parameter, then element.
 pub fn values_at_end(entries: &[Entry]) -> Vec<(String, Option<u32>, f64)> {
     let mut values: std::collections::BTreeMap<(String, Option<u32>), f64> = Default::default();
     for e in entries.iter().filter(|e| e.accepted) {
-        if let (Kind::Found | Kind::Write | Kind::Revert, Some(new)) = (e.kind, e.new) {
+        if let (Kind::Found | Kind::Write | Kind::Revert | Kind::Page, Some(new)) = (e.kind, e.new)
+        {
             values.insert((e.parameter.clone(), e.element), new);
         }
     }
@@ -246,10 +250,13 @@ mod tests {
             entry(Kind::Write, "tc_gain", 0.5, false),
             entry(Kind::Found, "launch_rpm", 3.0, true),
             entry(Kind::Save, "", 0.0, true),
+            entry(Kind::Found, ECU_PAGE, 0.0, true),
+            entry(Kind::Page, ECU_PAGE, 1.0, true),
         ];
         assert_eq!(
             values_at_end(&entries),
             [
+                (ECU_PAGE.to_owned(), None, 1.0),
                 ("launch_rpm".to_owned(), None, 3.0),
                 ("tc_gain".to_owned(), None, 0.14)
             ]

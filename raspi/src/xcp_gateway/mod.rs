@@ -61,6 +61,10 @@ const WRITE_LIMIT: Duration = Duration::from_secs(2);
 /// How long the slave may take to answer the gateway's own commands: its DISCONNECT, its
 /// reading of the page (a CAN round trip is a millisecond or two).
 const SLAVE_ANSWER: Duration = Duration::from_millis(500);
+/// After the slave failed to answer one of the gateway's own commands in time, how long new
+/// masters are refused: its late answer must not reach a new master as the answer to
+/// something else.
+const QUIET_AFTER_SILENCE: Duration = Duration::from_secs(2);
 /// Bytes one SHORT_UPLOAD reads at MAX_CTO 8.
 const UPLOAD_CHUNK: usize = 7;
 /// The pause after a failed accept.
@@ -139,6 +143,7 @@ pub async fn spawn(
         master: None,
         recorder: Recorder::new(),
         record,
+        quiet_until: None,
     };
     let task = tokio::spawn(async move { gateway.run(listener, cancel).await });
     Ok(Gateway {
@@ -168,6 +173,8 @@ struct Forwarder {
     recorder: Recorder,
     /// Where the entries go to be stored (none without a store).
     record: Option<CalibrationSender>,
+    /// Until when masters are refused after the slave went silent on the gateway.
+    quiet_until: Option<Instant>,
 }
 
 /// What woke the gateway.
@@ -232,6 +239,8 @@ impl Forwarder {
     fn accept(&mut self, stream: TcpStream, peer: SocketAddr) {
         let why = if !self.settings.allow.iter().any(|n| n.contains(peer.ip())) {
             Some("its address is not in the gateway's allow list")
+        } else if self.quiet_until.is_some_and(|until| Instant::now() < until) {
+            Some("the CCM just stopped answering (try again in a few seconds)")
         } else if self.master.is_some() {
             Some("another master is connected (one at a time)")
         } else {
@@ -328,16 +337,24 @@ impl Forwarder {
             let at_us = now_us();
             let entries = self.recorder.answer(packet, at_us, &peer);
             self.publish(entries);
-            if packet.first() == Some(&RES) {
-                match last_command {
-                    Some(CONNECT) => {
-                        self.state.update(|s| s.session = true);
-                        // Before the master sees the answer, so nothing of its own is lost.
-                        self.read_page(&peer).await;
+            match (packet.first(), last_command) {
+                (Some(&RES), Some(CONNECT)) => {
+                    self.state.update(|s| s.session = true);
+                    // Before the master sees the answer, so nothing of its own is lost.
+                    if !self.read_page(&peer).await {
+                        self.end_master("the CCM did not answer the gateway's page read")
+                            .await;
+                        return;
                     }
-                    Some(DISCONNECT) => self.state.update(|s| s.session = false),
-                    _ => {}
                 }
+                (Some(&RES), Some(DISCONNECT)) => self.state.update(|s| s.session = false),
+                // A wrong key ends the slave's session (the standard's rule).
+                (Some(&ERR), Some(cmd::UNLOCK))
+                    if packet.get(1) == Some(&aer_xcp::protocol::err::ACCESS_LOCKED) =>
+                {
+                    self.state.update(|s| s.session = false);
+                }
+                _ => {}
             }
         }
         let Some(master) = self.master.as_mut() else {
@@ -409,7 +426,11 @@ impl Forwarder {
                 Ok(Some(_)) => {
                     Counters::bump(&self.counters.xcp_dropped);
                 }
-                Ok(None) | Err(_) => return None,
+                Ok(None) => return None,
+                Err(_) => {
+                    self.quiet_until = Some(Instant::now() + QUIET_AFTER_SILENCE);
+                    return None;
+                }
             }
         }
     }
@@ -425,8 +446,10 @@ impl Forwarder {
     }
 
     /// Reads the working page and the page the CCM runs on, for the record's old values and
-    /// checksum, and records what it found. A page it cannot read leaves old values unknown.
-    async fn read_page(&mut self, peer: &str) {
+    /// checksum, and records what it found. A page the slave refuses to give leaves old values
+    /// unknown; false if the slave stopped answering (the master must go: a late answer would
+    /// reach it as the answer to its next command).
+    async fn read_page(&mut self, peer: &str) -> bool {
         let mut page = [0u8; PAGE_LEN];
         for (chunk, start) in (0..PAGE_LEN).step_by(UPLOAD_CHUNK).enumerate() {
             let len = UPLOAD_CHUNK.min(PAGE_LEN - start);
@@ -434,15 +457,17 @@ impl Forwarder {
                 .ok()
                 .and_then(|offset| CALIBRATION_ADDRESS.checked_add(offset));
             let (Some(address), Ok(count)) = (address, u8::try_from(len)) else {
-                return;
+                return true;
             };
             let mut upload = [cmd::SHORT_UPLOAD, count, 0, 0, 0, 0, 0, 0];
             if let Some(at) = upload.get_mut(4..8) {
                 at.copy_from_slice(&address.to_le_bytes());
             }
-            let answer = self.ask(&upload).await;
-            let data = answer
-                .as_deref()
+            let Some(answer) = self.ask(&upload).await else {
+                warn!(chunk, "XCP gateway: the CCM did not answer the page read");
+                return false;
+            };
+            let data = Some(answer.as_slice())
                 .filter(|a| a.first() == Some(&RES))
                 .and_then(|a| a.get(1..=len));
             match (data, page.get_mut(start..start + len)) {
@@ -452,17 +477,19 @@ impl Forwarder {
                         chunk,
                         "XCP gateway: the calibration page could not be read; old values stay unknown"
                     );
-                    return;
+                    return true;
                 }
             }
         }
-        let ecu_page = self
-            .ask(&[cmd::GET_CAL_PAGE, page_mode::ECU, 0])
-            .await
+        let Some(answer) = self.ask(&[cmd::GET_CAL_PAGE, page_mode::ECU, 0]).await else {
+            return false;
+        };
+        let ecu_page = Some(answer)
             .filter(|a| a.first() == Some(&RES))
             .and_then(|a| a.get(3).copied());
         let entries = self.recorder.found(page, ecu_page, now_us(), peer);
         self.publish(entries);
+        true
     }
 
     /// Counts, logs, shows and stores what the recorder made of an answer.

@@ -23,12 +23,32 @@ const DOWNLOAD_CHUNK: usize = 6;
 enum Pending {
     Connect,
     Disconnect,
-    SetMta { ext: u8, address: u32 },
-    Upload { count: u32 },
-    ShortUpload { ext: u8, address: u32, count: u32 },
+    /// UNLOCK: a wrong key ends the session.
+    Unlock,
+    /// A command that points the MTA somewhere the recorder does not follow (a text).
+    MtaElsewhere,
+    /// BUILD_CHECKSUM: the MTA moves past the block.
+    Checksum {
+        size: u32,
+    },
+    SetMta {
+        ext: u8,
+        address: u32,
+    },
+    Upload {
+        count: u32,
+    },
+    ShortUpload {
+        ext: u8,
+        address: u32,
+        count: u32,
+    },
     Write(Write),
     Revert,
-    SetPage { mode: u8, page: u8 },
+    SetPage {
+        mode: u8,
+        page: u8,
+    },
     Save,
 }
 
@@ -108,6 +128,9 @@ impl Recorder {
         self.pending = match byte(0) {
             cmd::CONNECT => Some(Pending::Connect),
             cmd::DISCONNECT => Some(Pending::Disconnect),
+            cmd::UNLOCK => Some(Pending::Unlock),
+            cmd::GET_ID | cmd::GET_DAQ_EVENT_INFO => Some(Pending::MtaElsewhere),
+            cmd::BUILD_CHECKSUM => Some(Pending::Checksum { size: word(4) }),
             cmd::SET_MTA => Some(Pending::SetMta {
                 ext: byte(3),
                 address: word(4),
@@ -124,9 +147,11 @@ impl Recorder {
                 // pyxcp sends the tail of a 7..11-byte block as a DOWNLOAD, which the slave
                 // takes as the block's last packet.
                 Some(Pending::Write(mut open))
-                    if open.remaining() > 0 && count == open.remaining() =>
+                    if open.remaining() > 0
+                        && count == open.remaining()
+                        && count <= DOWNLOAD_CHUNK =>
                 {
-                    open.data.extend(data(2, count.min(DOWNLOAD_CHUNK)));
+                    open.data.extend(data(2, count));
                     Some(Pending::Write(open))
                 }
                 _ => Some(Pending::Write(Write {
@@ -194,7 +219,21 @@ impl Recorder {
         };
         let mut entries = Vec::new();
         match pending {
-            Pending::Connect | Pending::Disconnect if accepted => self.session_ended(),
+            Pending::Connect if accepted => {
+                // A new session may follow a restart of the CCM (its page reloaded from
+                // flash): nothing known of the page holds until it is read again.
+                self.session_ended();
+                self.working = None;
+                self.ecu_page = None;
+            }
+            Pending::Disconnect if accepted => self.session_ended(),
+            Pending::Unlock if code == err::ACCESS_LOCKED => self.session_ended(),
+            Pending::MtaElsewhere if accepted => self.mta = None,
+            Pending::Checksum { size } if accepted => {
+                self.mta = self
+                    .mta
+                    .and_then(|(ext, at)| Some((ext, at.checked_add(size)?)));
+            }
             Pending::SetMta { ext, address } if accepted => self.mta = Some((ext, address)),
             Pending::Upload { count } if accepted => {
                 self.mta = self
@@ -208,6 +247,9 @@ impl Recorder {
             } if accepted => self.mta = address.checked_add(count).map(|end| (ext, end)),
             Pending::Connect
             | Pending::Disconnect
+            | Pending::Unlock
+            | Pending::MtaElsewhere
+            | Pending::Checksum { .. }
             | Pending::SetMta { .. }
             | Pending::Upload { .. }
             | Pending::ShortUpload { .. } => {}
@@ -283,7 +325,12 @@ impl Recorder {
             (ext == 0 && offset + write.data.len() <= CALIBRATION_LEN).then_some(offset)
         });
         let Some(offset) = offset else {
-            // Not the calibration page (or not known where): the slave refuses such writes.
+            // Not the calibration page (the slave refuses such writes), or not known where: a
+            // write taken where the gateway cannot see leaves the page unknown until read.
+            if accepted {
+                self.working = None;
+                self.mta = None;
+            }
             let place = write.at.map_or_else(
                 || "(address not seen)".to_owned(),
                 |(_, address)| format!("0x{address:08X}"),
