@@ -38,7 +38,17 @@ fn xcp_secret() -> Result<String, String> {
     println!("cargo:rerun-if-env-changed=AER_XCP_SECRET_FILE");
     let path = std::env::var_os("AER_XCP_SECRET_FILE")
         .map_or_else(|| Path::new("xcp-secret.key").to_path_buf(), Into::into);
-    println!("cargo:rerun-if-changed={}", path.display());
+    // Cargo takes a missing file as changed on every build: watch the folder it would appear
+    // in instead, so a build without a secret is fresh the second time.
+    let watched = if path.exists() {
+        path.clone()
+    } else {
+        match path.parent() {
+            Some(parent) if !parent.as_os_str().is_empty() => parent.to_path_buf(),
+            _ => Path::new(".").to_path_buf(),
+        }
+    };
+    println!("cargo:rerun-if-changed={}", watched.display());
     let text = match std::fs::read_to_string(&path) {
         Ok(text) => text,
         Err(error) if error.kind() == std::io::ErrorKind::NotFound => {
@@ -86,7 +96,7 @@ fn fail(message: &str) -> ! {
 fn measured(path: &Path) -> Result<String, String> {
     let text = std::fs::read_to_string(path).map_err(|error| error.to_string())?;
     let table: toml::Table = text.parse().map_err(|error| format!("{error}"))?;
-    let known = ["source", "pedals", "brakes"];
+    let known = ["source", "pedals", "brakes", "shocks"];
     if let Some(key) = table.keys().find(|key| !known.contains(&key.as_str())) {
         return Err(format!("unknown key `{key}` (expected {known:?})"));
     }
@@ -97,6 +107,8 @@ fn measured(path: &Path) -> Result<String, String> {
     };
     let pedals = section(&table, "pedals", &["apps1", "apps2"])?;
     let brakes = section(&table, "brakes", &["front_zero_v", "rear_zero_v"])?;
+    let corners = ["fl", "fr", "rl", "rr"];
+    let shocks = section(&table, "shocks", &corners)?;
     let pedal = |name: &str| -> Result<(f64, f64), String> {
         let point = match pedals.get(name) {
             Some(toml::Value::Table(point)) => point,
@@ -120,6 +132,27 @@ fn measured(path: &Path) -> Result<String, String> {
     let (apps1, apps2) = (pedal("apps1")?, pedal("apps2")?);
     let front = volts(brakes, "front_zero_v", "[brakes]")?;
     let rear = volts(brakes, "rear_zero_v", "[brakes]")?;
+    let mut extended = Vec::new();
+    let mut compressed = Vec::new();
+    for corner in corners {
+        let place = format!("[shocks] {corner}");
+        let ends = match shocks.get(corner) {
+            Some(toml::Value::Table(ends)) => ends,
+            _ => {
+                return Err(format!(
+                    "{place} must be {{ extended_v = .., compressed_v = .. }}"
+                ));
+            }
+        };
+        if let Some(key) = ends
+            .keys()
+            .find(|key| !["extended_v", "compressed_v"].contains(&key.as_str()))
+        {
+            return Err(format!("{place}: unknown key `{key}`"));
+        }
+        extended.push(volts(ends, "extended_v", &place)? as f32);
+        compressed.push(volts(ends, "compressed_v", &place)? as f32);
+    }
     let mut code = String::new();
     let _ = write!(
         code,
@@ -130,7 +163,9 @@ fn measured(path: &Path) -> Result<String, String> {
          pedals: AppsCalibration {{\n        \
          apps1: ({:?}, {:?}),\n        apps2: ({:?}, {:?}),\n    }},\n    \
          brakes: BrakeCalibration {{\n        \
-         front_zero_v: {:?},\n        rear_zero_v: {:?},\n    }},\n}};\n",
+         front_zero_v: {:?},\n        rear_zero_v: {:?},\n    }},\n    \
+         shocks: ShockCalibration {{\n        \
+         extended_v: {extended:?},\n        compressed_v: {compressed:?},\n    }},\n}};\n",
         apps1.0 as f32, apps1.1 as f32, apps2.0 as f32, apps2.1 as f32, front as f32, rear as f32
     );
     Ok(code)

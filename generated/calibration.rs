@@ -4,7 +4,7 @@
 //!
 //! [`Calibration`] holds every tuned number; [`Calibration::DEFAULT`] is the schema's defaults
 //! (the calibration tools' reference page). The page is the form the tools address: every
-//! parameter little-endian at its [`Parameter::offset`], 112 bytes in all.
+//! parameter little-endian at its [`Parameter::offset`], 124 bytes in all.
 //! [`Calibration::from_page`] takes a page only when every element keeps its limits, so a
 //! value outside them never reaches the control step; [`ChangeWhen::allows`] says whether a
 //! parameter may change in the car's present state.
@@ -12,10 +12,10 @@
 /// Fingerprint of the calibration's layout (names, types, offsets, limits, change conditions,
 /// axes), the internals' block and the XCP settings: a saved page or a calibration tool's
 /// description with another fingerprint does not describe this firmware's page.
-pub const CALIBRATION_FINGERPRINT: u32 = 0x0BA0BB9C;
+pub const CALIBRATION_FINGERPRINT: u32 = 0x61EC7CFC;
 
 /// Bytes of the page.
-pub const PAGE_LEN: usize = 112;
+pub const PAGE_LEN: usize = 124;
 
 /// When a calibration tool may change a parameter.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
@@ -426,15 +426,15 @@ pub const PARAMETERS: [Parameter; 16] = [
         axis: None,
     },
     Parameter {
-        name: "shock_rest_v",
-        label: "Shock sensors extended",
+        name: "shock_extended_v",
+        label: "Shock sensors fully extended",
         group: "shocks",
         unit: "V",
-        description: "Each shock potentiometer's voltage at full extension, the zero its travel is measured from (team documentation: 5 V).",
+        description: "Each shock potentiometer's voltage at full extension, the zero its travel is measured from (team documentation: 5.00 V; the bring-up image measures it, `cal shock`). The inputs' order is the board table's (FL, FR, RL, RR assumed until the bench settles it).",
         offset: 92,
         element: ElementType::F32,
         count: 4,
-        min: 4.5,
+        min: 0.2,
         max: 5.0,
         increasing: false,
         change: ChangeWhen::TractiveOff,
@@ -442,19 +442,19 @@ pub const PARAMETERS: [Parameter; 16] = [
         axis: None,
     },
     Parameter {
-        name: "shock_span_v",
-        label: "Shock sensor span",
+        name: "shock_compressed_v",
+        label: "Shock sensors fully compressed",
         group: "shocks",
         unit: "V",
-        description: "How far a shock potentiometer's signal drops over the full 76.2 mm of travel (team documentation: 0.14 V).",
+        description: "Each shock potentiometer's voltage at full compression, 76.2 mm of travel from full extension (team documentation: 4.86 V, 0.14 V below rest); must lie at least 0.05 V from the extended reading, on either side.",
         offset: 108,
         element: ElementType::F32,
-        count: 1,
-        min: 0.05,
-        max: 1.0,
+        count: 4,
+        min: 0.2,
+        max: 5.0,
         increasing: false,
         change: ChangeWhen::TractiveOff,
-        elements: &[],
+        elements: &["front left", "front right", "rear left", "rear right"],
         axis: None,
     },
 ];
@@ -548,16 +548,19 @@ pub struct Calibration {
     /// the tractive system off.
     pub brake_zero_v: [f32; 2],
     /// Each shock potentiometer's voltage at full extension, the zero its travel is measured from
-    /// (team documentation: 5 V).
+    /// (team documentation: 5.00 V; the bring-up image measures it, `cal shock`). The inputs'
+    /// order is the board table's (FL, FR, RL, RR assumed until the bench settles it).
     ///
-    /// Shock sensors extended: 4.5 to 5 V; elements: front left, front right, rear left, rear
-    /// right; changes with the tractive system off.
-    pub shock_rest_v: [f32; 4],
-    /// How far a shock potentiometer's signal drops over the full 76.2 mm of travel (team
-    /// documentation: 0.14 V).
+    /// Shock sensors fully extended: 0.2 to 5 V; elements: front left, front right, rear left,
+    /// rear right; changes with the tractive system off.
+    pub shock_extended_v: [f32; 4],
+    /// Each shock potentiometer's voltage at full compression, 76.2 mm of travel from full
+    /// extension (team documentation: 4.86 V, 0.14 V below rest); must lie at least 0.05 V from
+    /// the extended reading, on either side.
     ///
-    /// Shock sensor span: 0.05 to 1 V; changes with the tractive system off.
-    pub shock_span_v: f32,
+    /// Shock sensors fully compressed: 0.2 to 5 V; elements: front left, front right, rear left,
+    /// rear right; changes with the tractive system off.
+    pub shock_compressed_v: [f32; 4],
 }
 
 impl Default for Calibration {
@@ -583,8 +586,8 @@ impl Calibration {
         apps1_v: [0.5, 2.8],
         apps2_v: [0.75, 4.2],
         brake_zero_v: [0.5, 0.5],
-        shock_rest_v: [5.0, 5.0, 5.0, 5.0],
-        shock_span_v: 0.14,
+        shock_extended_v: [5.0, 5.0, 5.0, 5.0],
+        shock_compressed_v: [4.86, 4.86, 4.86, 4.86],
     };
 
     /// The page: every parameter little-endian at its offset, padding zero.
@@ -618,10 +621,12 @@ impl Calibration {
         for (index, value) in self.brake_zero_v.iter().enumerate() {
             put(&mut page, 84 + index * 4, &value.to_le_bytes());
         }
-        for (index, value) in self.shock_rest_v.iter().enumerate() {
+        for (index, value) in self.shock_extended_v.iter().enumerate() {
             put(&mut page, 92 + index * 4, &value.to_le_bytes());
         }
-        put(&mut page, 108, &self.shock_span_v.to_le_bytes());
+        for (index, value) in self.shock_compressed_v.iter().enumerate() {
+            put(&mut page, 108 + index * 4, &value.to_le_bytes());
+        }
         page
     }
 
@@ -657,10 +662,12 @@ impl Calibration {
             brake_zero_v: core::array::from_fn(|index| {
                 f32::from_le_bytes(take(page, 84 + index * 4).unwrap_or_default())
             }),
-            shock_rest_v: core::array::from_fn(|index| {
+            shock_extended_v: core::array::from_fn(|index| {
                 f32::from_le_bytes(take(page, 92 + index * 4).unwrap_or_default())
             }),
-            shock_span_v: f32::from_le_bytes(take(page, 108).unwrap_or_default()),
+            shock_compressed_v: core::array::from_fn(|index| {
+                f32::from_le_bytes(take(page, 108 + index * 4).unwrap_or_default())
+            }),
         })
     }
 
@@ -863,7 +870,7 @@ pub mod xcp {
     /// The ECU program identifier: `AER`, the telemetry fingerprint (the DBC and the packet)
     /// and the calibration fingerprint, in hex. A tool compares it with its description's,
     /// so a description of another build is noticed at connection.
-    pub const EPK: &str = "AER DCF4C63B 0BA0BB9C";
+    pub const EPK: &str = "AER DCF4C63B 61EC7CFC";
 
     /// The master's command id (`XCP_Cmd`, standard).
     pub const CAN_ID_MASTER: u32 = 0x6F0;

@@ -142,7 +142,9 @@ impl Sensors {
         let nominal = aer_ccm::calibration::Calibration::DEFAULT;
         let travel = |mm: f32| {
             let mm = mm.clamp(0.0, SHOCK_TRAVEL_MAX_MM);
-            shock_raw_for_volts(5.0 - mm / SHOCK_TRAVEL_MAX_MM * nominal.shock_span_v)
+            let [extended_v, ..] = nominal.shock_extended_v;
+            let [compressed_v, ..] = nominal.shock_compressed_v;
+            shock_raw_for_volts(extended_v + mm / SHOCK_TRAVEL_MAX_MM * (compressed_v - extended_v))
         };
         let front = 25.0 - 2.0 * accel_m_s2;
         let rear = 25.0 + 2.0 * accel_m_s2;

@@ -1,19 +1,32 @@
 //! Shock travel (linear potentiometers) and wheel speed (gear-tooth pulses).
 
-use crate::constants::{SHOCK_ADC_FULL, SHOCK_TRAVEL_MAX_MM, WHEEL_STOP_TIMEOUT_US};
+use crate::constants::{
+    MIN_SHOCK_SPAN_V, SHOCK_ADC_FULL, SHOCK_TRAVEL_MAX_MM, WHEEL_STOP_TIMEOUT_US,
+};
 use core::sync::atomic::{AtomicU8, AtomicU32, Ordering};
 
-/// Shock travel in mm for a raw 12-bit ADC reading, from the sensor's calibration: its
-/// voltage at full extension (`rest_v`) and its drop over the full travel (`span_v`) (team
-/// documentation: it rests at 5 V and drops 0.14 V).
-pub fn shock_travel_mm(raw: u16, rest_v: f32, span_v: f32) -> f32 {
+/// A shock sensor's voltage for a raw 12-bit ADC reading.
+pub fn shock_volts(raw: u16) -> f32 {
     let (full_counts, full_volts) = SHOCK_ADC_FULL;
-    // Measured down from full scale, then moved to the rest voltage: a sensor resting at
-    // full scale reads exactly as before the rest voltage was calibratable.
-    let drop_counts = full_counts.saturating_sub(raw.min(full_counts));
-    let drop_volts =
-        f32::from(drop_counts) * full_volts / f32::from(full_counts) - (full_volts - rest_v);
-    (drop_volts / span_v * SHOCK_TRAVEL_MAX_MM).clamp(0.0, SHOCK_TRAVEL_MAX_MM)
+    f32::from(raw.min(full_counts)) * full_volts / f32::from(full_counts)
+}
+
+/// Shock travel in mm for a raw 12-bit ADC reading, from the sensor's calibration: its
+/// voltage at full extension (zero travel) and at full compression
+/// ([`SHOCK_TRAVEL_MAX_MM`]), measured on the bench (team documentation: 5.00 V and 4.86 V).
+/// Linear between the two, either way round, clamped to the travel; a calibration whose ends
+/// are not at least [`MIN_SHOCK_SPAN_V`] apart (the calibration check refuses it) reads 0.
+pub fn shock_travel_mm(raw: u16, extended_v: f32, compressed_v: f32) -> f32 {
+    let span_v = compressed_v - extended_v;
+    if !span_v.is_finite() || span_v.abs() < MIN_SHOCK_SPAN_V {
+        return 0.0;
+    }
+    let travel = (shock_volts(raw) - extended_v) / span_v * SHOCK_TRAVEL_MAX_MM;
+    if travel.is_finite() {
+        travel.clamp(0.0, SHOCK_TRAVEL_MAX_MM)
+    } else {
+        0.0
+    }
 }
 
 /// The raw reading for a sensor voltage (for tests and simulations).

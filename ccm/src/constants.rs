@@ -221,8 +221,15 @@ pub const BRAKE_CIRCUITS_IMPLAUSIBLE: (f32, f32, u32) = (400.0, 20.0, 500);
 
 /// Shock travel at full compression (mm).
 pub const SHOCK_TRAVEL_MAX_MM: f32 = 76.2;
-/// On-chip ADC counts at full scale (12 bit) and the sensor voltage that gives it.
+/// On-chip ADC counts at full scale (12 bit) and the sensor voltage that gives it (3.3 V at
+/// the pin behind the board's 1.515 divider, assumed on every CCM analog input).
 pub const SHOCK_ADC_FULL: (u16, f32) = (4095, 5.0);
+/// A shock sensor's calibrated ends must lie here (V at the sensor): the ADC reads up to
+/// 5.0 V; an open or unpowered input reads near 0 V.
+pub const SHOCK_VALID_V: (f32, f32) = (0.2, 5.0);
+/// A shock sensor's calibrated ends must lie at least this far apart (V): closer, the ADC's
+/// steps (1.2 mV) and noise are a large share of the travel (the team's sensors span 0.14 V).
+pub const MIN_SHOCK_SPAN_V: f32 = 0.05;
 /// Teeth on each wheel-speed encoder gear (assumed).
 pub const WHEEL_TEETH: u32 = 24;
 /// No pulse for this long means the wheel stands still (us).

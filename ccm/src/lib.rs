@@ -11,11 +11,15 @@
 //! State is split by writer so the firmware locks each part at its own priority: the wheel
 //! pulse timers ([`chassis::PulseTimer`], lock-free), [`sensors::Sensors`], the
 //! [`telemetry::TelemetryLink`] and [`control::Control`]; [`Ccm`] drives all four together.
+//!
+//! The bring-up image's bench ([`bench`]) is here too, over a hardware trait, so the bench
+//! day's transcripts are what the image does.
 #![no_std]
 
 pub mod ads1115;
 pub mod analog;
 pub mod apps;
+pub mod bench;
 pub mod brakes;
 pub mod bus;
 pub mod calibration;

@@ -60,13 +60,14 @@ impl Sensors {
                 .update(&sensors.brakes, sample.brake_v.0, sample.brake_v.1, now_ms);
         self.apps
             .update(&sensors.pedals, sample.apps_v, brakes.engaged, now_ms);
-        for ((travel, raw), rest_v) in self
+        for (((travel, raw), extended_v), compressed_v) in self
             .shock_mm
             .iter_mut()
             .zip(sample.shock_raw)
-            .zip(calibration.shock_rest_v)
+            .zip(calibration.shock_extended_v)
+            .zip(calibration.shock_compressed_v)
         {
-            *travel = shock_travel_mm(raw, rest_v, calibration.shock_span_v);
+            *travel = shock_travel_mm(raw, extended_v, compressed_v);
         }
     }
 

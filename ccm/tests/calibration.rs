@@ -4,9 +4,10 @@
 
 use aer_ccm::brakes::{Brakes, volts_for};
 use aer_ccm::calibration::AppsCalibration;
+use aer_ccm::calibration::bench::{NothingToSave, PedalResult};
 use aer_ccm::calibration::{
-    BenchPoint, BenchRecorder, BenchResult, BrakeCalibration, CALIBRATION_SAMPLES,
-    CalibrationError, SensorCalibration, measured,
+    BenchPoint, BenchRecorder, BenchSample, BrakeCalibration, CALIBRATION_SAMPLES,
+    CalibrationError, SensorCalibration, ShockCalibration, ShockEnd, measured,
 };
 
 #[test]
@@ -128,6 +129,16 @@ fn a_brake_sensors_zero_is_where_its_pressure_starts() {
 }
 
 fn record(recorder: &mut BenchRecorder, point: BenchPoint, pedals: [f32; 2], brakes: [f32; 2]) {
+    record_all(recorder, point, pedals, brakes, [4.2; 4]);
+}
+
+fn record_all(
+    recorder: &mut BenchRecorder,
+    point: BenchPoint,
+    pedals: [f32; 2],
+    brakes: [f32; 2],
+    shocks: [f32; 4],
+) {
     recorder.start(point);
     let mut step = 0u32;
     while recorder.recording() {
@@ -138,35 +149,52 @@ fn record(recorder: &mut BenchRecorder, point: BenchPoint, pedals: [f32; 2], bra
         } else {
             [Some(pedals[0] + wobble), Some(pedals[1] - wobble)]
         };
-        recorder.sample(pedal_reading, [brakes[0] + wobble, brakes[1]]);
+        let completed = recorder.sample(&BenchSample {
+            pedals: pedal_reading,
+            brakes: [brakes[0] + wobble, brakes[1]],
+            shocks: shocks.map(|volts| volts + wobble),
+        });
         step += 1;
+        assert_eq!(
+            completed.is_some(),
+            !recorder.recording(),
+            "the point is reported once, as it completes"
+        );
     }
-    assert!(
-        step > CALIBRATION_SAMPLES,
-        "missing readings are not counted"
-    );
+    if matches!(point, BenchPoint::Rest | BenchPoint::Full) {
+        assert!(
+            step > CALIBRATION_SAMPLES,
+            "missing readings are not counted"
+        );
+    }
 }
 
 #[test]
 fn the_bench_records_rest_and_full_and_prints_the_file_lines() {
     let mut recorder = BenchRecorder::default();
-    assert_eq!(recorder.result(), BenchResult::Nothing);
+    assert_eq!(recorder.pedals(), PedalResult::Nothing);
+    assert_eq!(recorder.measured(), Err(NothingToSave::NothingMeasured));
     record(
         &mut recorder,
         BenchPoint::Rest,
         [0.512, 0.771],
         [0.503, 0.508],
     );
-    assert!(matches!(recorder.result(), BenchResult::RestOnly(_)));
+    assert!(matches!(recorder.pedals(), PedalResult::RestOnly(_)));
+    assert_eq!(recorder.measured(), Err(NothingToSave::NothingMeasured));
     record(&mut recorder, BenchPoint::Full, [2.793, 4.187], [1.9, 2.1]);
-    let BenchResult::Complete(calibration, Ok(())) = recorder.result() else {
-        panic!("{:?}", recorder.result());
+    let PedalResult::Complete(pedals, brakes, Ok(())) = recorder.pedals() else {
+        panic!("{:?}", recorder.pedals());
     };
-    let lines: Vec<String> = calibration
-        .toml_lines()
-        .iter()
-        .map(ToString::to_string)
-        .collect();
+    let lines: Vec<String> = SensorCalibration {
+        pedals,
+        brakes,
+        shocks: ShockCalibration::DEFAULT,
+    }
+    .pedal_toml_lines()
+    .iter()
+    .map(ToString::to_string)
+    .collect();
     assert_eq!(
         lines,
         [
@@ -178,20 +206,129 @@ fn the_bench_records_rest_and_full_and_prints_the_file_lines() {
             "rear_zero_v = 0.508",
         ]
     );
-    // Recording the rest point again with a sensor that sits too low: refused, with why.
+    let measured = recorder.measured().expect("pedals complete and checked");
+    assert!(measured.shocks.is_none(), "shocks not measured");
+    // Recording the rest point again with a sensor that sits too low: refused, with why, and
+    // `cal save` refuses it too.
     record(
         &mut recorder,
         BenchPoint::Rest,
         [0.2, 0.771],
         [0.503, 0.508],
     );
-    let BenchResult::Complete(_, Err(error)) = recorder.result() else {
-        panic!("{:?}", recorder.result());
+    let PedalResult::Complete(_, _, Err(error)) = recorder.pedals() else {
+        panic!("{:?}", recorder.pedals());
     };
     assert_eq!(
-        recorder.result().to_string(),
+        recorder.pedals().to_string(),
         format!(
-            "calibration: REFUSED, {error}; check the sensor and repeat (the firmware's build refuses these values too)"
+            "calibration: REFUSED, {error}; check the sensor and repeat (`cal save` and the firmware's build refuse these values too)"
         )
     );
+    assert_eq!(recorder.measured(), Err(NothingToSave::Refused(error)));
+}
+
+fn shock(sensors: [bool; 4], end: ShockEnd) -> BenchPoint {
+    BenchPoint::Shock { sensors, end }
+}
+
+#[test]
+fn the_bench_records_each_shock_sensors_ends_and_the_file_lines() {
+    let mut recorder = BenchRecorder::default();
+    let all = [true; 4];
+    let extended = [4.981, 4.975, 4.990, 4.968];
+    record_all(
+        &mut recorder,
+        shock(all, ShockEnd::Extended),
+        [0.5; 2],
+        [0.5; 2],
+        extended,
+    );
+    assert_eq!(
+        recorder.shocks().to_string(),
+        "shocks: fl 4.981 V / -, fr 4.975 V / -, rl 4.990 V / -, rr 4.968 V / - (extended / compressed); each still `-` needs its `cal shock`"
+    );
+    // One corner at a time: only that sensor's end is taken.
+    let compressed = [4.842, 4.851, 4.839, 4.830];
+    for corner in 0..4 {
+        let mut sensors = [false; 4];
+        sensors[corner] = true;
+        // The other sensors read anything meanwhile (their dampers are not moved).
+        let mut volts = [1.0; 4];
+        volts[corner] = compressed[corner];
+        record_all(
+            &mut recorder,
+            shock(sensors, ShockEnd::Compressed),
+            [0.5; 2],
+            [0.5; 2],
+            volts,
+        );
+    }
+    let Some((shocks, Ok(()))) = recorder.shocks().complete() else {
+        panic!("{:?}", recorder.shocks());
+    };
+    for (got, want) in shocks.extended_v.iter().zip(extended) {
+        assert!((got - want).abs() < 1e-3, "{got} {want}");
+    }
+    for (got, want) in shocks.compressed_v.iter().zip(compressed) {
+        assert!((got - want).abs() < 1e-3, "{got} {want}");
+    }
+    let lines: Vec<String> = shocks
+        .toml_lines()
+        .iter()
+        .map(ToString::to_string)
+        .collect();
+    assert_eq!(lines[0], "[shocks]");
+    assert_eq!(
+        lines[1],
+        "fl = { extended_v = 4.981, compressed_v = 4.842 }"
+    );
+    assert_eq!(lines.len(), 5);
+    let measured = recorder.measured().expect("shocks complete");
+    assert!(measured.pedals.is_none() && measured.shocks.is_some());
+    // A damper that was not really moved: refused.
+    record_all(
+        &mut recorder,
+        shock([false, false, false, true], ShockEnd::Compressed),
+        [0.5; 2],
+        [0.5; 2],
+        [0.0, 0.0, 0.0, 4.95],
+    );
+    let Some((_, Err(error))) = recorder.shocks().complete() else {
+        panic!("{:?}", recorder.shocks());
+    };
+    assert_eq!(
+        error.to_string(),
+        "the rr shock sensor moves 0.018 V from extended to compressed, less than 0.05 V (was the damper really moved end to end?)"
+    );
+    assert_eq!(recorder.measured(), Err(NothingToSave::Refused(error)));
+}
+
+#[test]
+fn shock_ends_outside_their_band_or_too_close_are_refused_either_way_round() {
+    let with = |extended_v: [f32; 4], compressed_v: [f32; 4]| SensorCalibration {
+        shocks: ShockCalibration {
+            extended_v,
+            compressed_v,
+        },
+        ..SensorCalibration::DEFAULT
+    };
+    assert_eq!(
+        with([1.0; 4], [4.0; 4]).check(),
+        Ok(()),
+        "rising with compression"
+    );
+    assert!(matches!(
+        with([5.0, 5.0, 0.1, 5.0], [4.86; 4]).check(),
+        Err(CalibrationError::ShockOutOfBand {
+            corner: "rl",
+            point: "extended",
+            ..
+        })
+    ));
+    assert!(matches!(
+        with([5.0; 4], [4.86, 4.98, 4.86, 4.86]).check(),
+        Err(CalibrationError::ShockTooLittleTravel { corner: "fr", .. })
+    ));
+    assert!(with([f32::NAN; 4], [4.86; 4]).check().is_err());
 }

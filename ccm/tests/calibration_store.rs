@@ -287,30 +287,120 @@ fn drain<const N: usize>(log: &mut aer_console::LogBuffer<N>) -> Vec<String> {
         .collect()
 }
 
+/// Records a pedal (and brakes) at rest and fully pressed, as `cal rest` and `cal full` do.
+fn measured_pedals(
+    rest: [f32; 2],
+    full: [f32; 2],
+    brakes: [f32; 2],
+) -> aer_ccm::calibration::BenchRecorder {
+    use aer_ccm::calibration::{BenchPoint, BenchRecorder, BenchSample};
+    let mut recorder = BenchRecorder::default();
+    for (point, pedals) in [(BenchPoint::Rest, rest), (BenchPoint::Full, full)] {
+        recorder.start(point);
+        while recorder.recording() {
+            recorder.sample(&BenchSample {
+                pedals: pedals.map(Some),
+                brakes,
+                shocks: [5.0; 4],
+            });
+        }
+    }
+    recorder
+}
+
 #[test]
-fn the_bring_up_saves_and_loads_back_what_start_up_would_load() {
-    use aer_ccm::console::bringup::{bench_calibration, cal_load, cal_save};
+fn the_bring_up_saves_what_it_measured_over_the_tuned_values_and_loads_it_back() {
+    use aer_ccm::calibration::measured::{MEASURED, SOURCE};
+    use aer_ccm::calibration::{BenchRecorder, SensorCalibration};
+    use aer_ccm::console::bringup::{cal_erase, cal_load, cal_save};
     let mut log = aer_console::LogBuffer::<4096>::new();
     let mut flash = RamFlash::default();
-    let calibration = bench_calibration(&aer_ccm::calibration::BenchRecorder::default());
-    let checksum = crc32(&calibration.to_page());
-    assert_eq!(cal_load(&mut log, &mut flash, EPK), 0);
-    assert_eq!(cal_save(&mut log, &mut flash, &calibration, EPK, true), 0);
-    assert_eq!(cal_save(&mut log, &mut flash, &calibration, EPK, false), 0);
-    assert_eq!(cal_load(&mut log, &mut flash, EPK), 0);
+    let file = MEASURED.applied_to(Calibration::DEFAULT);
+    let file_crc = crc32(&file.to_page());
+    assert_eq!(cal_load(&mut log, &mut flash, MEASURED, SOURCE, EPK), 0);
+    // Nothing measured yet: nothing to save (the defaults never overwrite a copy).
+    assert_eq!(
+        cal_save(
+            &mut log,
+            &mut flash,
+            &BenchRecorder::default(),
+            MEASURED,
+            EPK,
+            false
+        ),
+        0
+    );
+    // A tuner's save over XCP: a tuned gain in copy A.
+    let tuned = Calibration {
+        traction_kp: 650.0,
+        ..file
+    };
+    let (mut store, _) = CalibrationStore::load(&mut flash, EPK);
+    store
+        .save(&mut flash, &tuned.to_page(), EPK, PARKED)
+        .expect("saved");
+    // The bench measures the pedal and saves: refused while live, then copy B with the
+    // tuned gain kept.
+    let recorder = measured_pedals([0.512, 0.771], [2.793, 4.187], [0.508, 0.514]);
+    assert_eq!(
+        cal_save(&mut log, &mut flash, &recorder, MEASURED, EPK, true),
+        0
+    );
+    assert_eq!(
+        cal_save(&mut log, &mut flash, &recorder, MEASURED, EPK, false),
+        0
+    );
+    let (_, loaded) = CalibrationStore::load(&mut flash, EPK);
+    assert_eq!(
+        loaded.startup,
+        Startup::Saved {
+            slot: Slot::B,
+            generation: 2
+        }
+    );
+    assert_eq!(loaded.calibration.traction_kp, 650.0, "the tuning is kept");
+    let sensors = SensorCalibration::of(&loaded.calibration);
+    let near = |a: f32, b: f32| (a - b).abs() < 1e-4;
+    assert!(near(sensors.pedals.apps1.0, 0.512) && near(sensors.pedals.apps1.1, 2.793));
+    assert!(near(sensors.brakes.rear_zero_v, 0.514));
+    let saved_crc = crc32(&loaded.calibration.to_page());
+    assert_eq!(cal_load(&mut log, &mut flash, MEASURED, SOURCE, EPK), 0);
+    // A refused measurement saves nothing.
+    let refused = measured_pedals([0.2, 0.771], [2.793, 4.187], [0.508, 0.514]);
+    assert_eq!(
+        cal_save(&mut log, &mut flash, &refused, MEASURED, EPK, false),
+        0
+    );
+    assert_eq!(
+        CalibrationStore::load(&mut flash, EPK).1.startup,
+        Startup::Saved {
+            slot: Slot::B,
+            generation: 2
+        }
+    );
+    // `cal erase` goes back to the file; a torn copy is named.
+    assert_eq!(cal_erase(&mut log, &mut flash, EPK, true), 0);
+    assert_eq!(cal_erase(&mut log, &mut flash, EPK, false), 0);
+    assert_eq!(cal_load(&mut log, &mut flash, MEASURED, SOURCE, EPK), 0);
+    let (mut store, _) = CalibrationStore::load(&mut flash, EPK);
+    store
+        .save(&mut flash, &tuned.to_page(), EPK, PARKED)
+        .expect("saved");
     flash.slot_mut(Slot::A)[20] ^= 1;
-    assert_eq!(cal_load(&mut log, &mut flash, EPK), 0);
-    let defaults = crc32(&Calibration::DEFAULT.to_page());
+    assert_eq!(cal_load(&mut log, &mut flash, MEASURED, SOURCE, EPK), 0);
     assert_eq!(
         drain(&mut log),
         [
-            format!("calibration: the schema's defaults (none saved), checksum 0x{defaults:08X}"),
+            format!("calibration: ccm/calibration.toml's sensors ({SOURCE}) on the schema's defaults, checksum 0x{file_crc:08X}; no copy saved"),
+            "not saved: nothing measured this session (`cal rest` and `cal full`, or `cal shock` for every sensor's two ends, first)".to_owned(),
             "not saved: only at standstill with the tractive system off".to_owned(),
-            format!("saved as copy A (generation 1), checksum 0x{checksum:08X}"),
-            format!("calibration: saved copy A (generation 1), checksum 0x{checksum:08X}"),
-            format!(
-                "calibration: the schema's defaults (saved copy corrupt), checksum 0x{defaults:08X}"
-            ),
+            format!("saved as copy B (generation 2), checksum 0x{saved_crc:08X}: the pedal and brake sensors measured now, over copy A (generation 1); every other value as it was"),
+            format!("calibration: saved copy B (generation 2), checksum 0x{saved_crc:08X}; a saved copy wins over ccm/calibration.toml"),
+            "not saved: the measurement was REFUSED (APPS1 at rest reads 0.200 V, outside its valid band 0.330-2.970 V (a sensor fault there)); measure again".to_owned(),
+            "not erased: only with the tractive system off".to_owned(),
+            "erased both saved copies: start-up now runs ccm/calibration.toml's sensors on the schema's defaults (`cal load` says so)".to_owned(),
+            format!("calibration: ccm/calibration.toml's sensors ({SOURCE}) on the schema's defaults, checksum 0x{file_crc:08X}; no copy saved"),
+            format!("calibration: ccm/calibration.toml's sensors ({SOURCE}) on the schema's defaults, checksum 0x{file_crc:08X}; the saved copy is corrupt"),
         ]
     );
 }

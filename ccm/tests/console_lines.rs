@@ -6,12 +6,15 @@
 mod rig;
 
 use aer_ccm::InverterKind;
+use aer_ccm::calibration::store::{Slot, Startup};
 use aer_ccm::calibration::{BenchPoint, BenchRecorder};
+use aer_ccm::calibration::{BenchSample, ShockEnd};
 use aer_ccm::console::bringup::{self, Report};
 use aer_ccm::console::dti::DtiBench;
-use aer_ccm::console::{self, BootloaderAnswer};
+use aer_ccm::console::{self, CalibrationLine, RebootAnswer};
 use aer_ccm::control::HandoverRefusal;
 use aer_console::LogBuffer;
+use aer_console::Reboot;
 use aer_console::bringup::{
     AnalogReading, BusLine, DigitalReading, HEARD_IDS, Heard, ReportHeader, ResetCause,
 };
@@ -97,6 +100,7 @@ fn the_bring_up_start_up_and_a_worst_case_report_fit_the_log_together() {
             header: ReportHeader {
                 now_ms: u32::MAX,
                 dropped: u32::MAX,
+                dropped_total: u32::MAX,
             },
             analog: &analog,
             ads1115: Some(([None, Some(-6.144)], u32::MAX)),
@@ -118,17 +122,36 @@ fn the_bring_up_start_up_and_a_worst_case_report_fit_the_log_together() {
         };
         assert_eq!(report.write(&mut log), 0, "{}", board.name);
         let mut recorder = BenchRecorder::default();
+        let worst = BenchSample {
+            pedals: [Some(-1.0e9), Some(1.0e9)],
+            brakes: [-1.0e9, 1.0e9],
+            shocks: [-1.0e9; 4],
+        };
         for point in [BenchPoint::Rest, BenchPoint::Full] {
             recorder.start(point);
-            while !recorder.sample([Some(-1.0e9), Some(1.0e9)], [-1.0e9, 1.0e9]) {}
+            while recorder.sample(&worst).is_none() {}
         }
-        assert_eq!(bringup::calibration(&mut log, &recorder), 0);
+        assert_eq!(
+            bringup::calibration(&mut log, &recorder, BenchPoint::Full),
+            0
+        );
+        // The shocks' longest line: three sensors recorded, far out of range.
+        recorder.start(BenchPoint::Shock {
+            sensors: [true, true, true, false],
+            end: ShockEnd::Extended,
+        });
+        while recorder.sample(&worst).is_none() {}
+        let shock = BenchPoint::Shock {
+            sensors: [true; 4],
+            end: ShockEnd::Compressed,
+        };
+        assert_eq!(bringup::calibration(&mut log, &recorder, shock), 0);
         assert_eq!(log.dropped(), 0, "{}", board.name);
         let lines = drain(&mut log);
-        // Start-up: name, reset cause, clocks, every pin, the hint; the report; the result
-        // and its six file lines.
+        // Start-up: name, reset cause, clocks, every pin, the hint; the report; the pedal
+        // result (refused: no file lines) and the shocks' line.
         let report_lines = 1 + analog.len() + 1 + digital.len() + 2 + 3;
-        assert_eq!(lines.len(), 3 + pins.len() + 1 + report_lines + 7);
+        assert_eq!(lines.len(), 3 + pins.len() + 1 + report_lines + 2);
         let longest = lines.iter().map(String::len).max().unwrap_or(0);
         assert!(
             lines
@@ -148,26 +171,44 @@ fn the_bring_up_start_up_and_a_worst_case_report_fit_the_log_together() {
 fn the_race_start_up_and_the_bootloader_answers_fit_the_race_log() {
     for inverter in [InverterKind::Dti, InverterKind::Ifl100] {
         let mut log = LogBuffer::<{ console::LOG_BYTES }>::new();
+        let long_source = "x".repeat(200);
         assert_eq!(
             console::race_startup(
                 &mut log,
                 aer_boards::ccm::COMP_CAR.name,
                 inverter,
-                ResetCause(0x1FF)
+                ResetCause(0x1FF),
+                CalibrationLine {
+                    startup: Startup::OtherSchema,
+                    checksum: u32::MAX,
+                    file_source: &long_source,
+                },
             ),
             0
         );
-        for answer in [
-            BootloaderAnswer::Obeyed,
-            BootloaderAnswer::Refused(HandoverRefusal::Driving),
-            BootloaderAnswer::Refused(HandoverRefusal::TorqueCommanded {
-                torque_nm: f32::MAX,
-            }),
-        ] {
-            assert!(log.line(format_args!("t={} ms {answer}", u32::MAX)));
+        let saved = CalibrationLine {
+            startup: Startup::Saved {
+                slot: Slot::B,
+                generation: u32::MAX,
+            },
+            checksum: 0,
+            file_source: "",
+        };
+        assert!(log.line(format_args!("{saved}")));
+        for reboot in [Reboot::Bootloader, Reboot::Restart] {
+            for outcome in [
+                Ok(()),
+                Err(HandoverRefusal::Driving),
+                Err(HandoverRefusal::TorqueCommanded {
+                    torque_nm: f32::MAX,
+                }),
+            ] {
+                let answer = RebootAnswer { reboot, outcome };
+                assert!(log.line(format_args!("t={} ms {answer}", u32::MAX)));
+            }
         }
         let lines = drain(&mut log);
-        assert_eq!(lines.len(), 3 + 3);
+        assert_eq!(lines.len(), 3 + 1 + 6);
         assert!(
             lines[0].starts_with(&format!("AER CCM for the {}", inverter.name())),
             "{}",

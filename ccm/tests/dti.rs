@@ -267,35 +267,68 @@ fn the_bench_check_names_node_map_drive_and_fault() {
     );
 }
 
-/// The bring-up's `dti enable`: 0 A and drive enable every command period for one second,
-/// then silence; the timeout measurement follows packet 0x24.
-#[test]
-fn the_bench_times_the_dtis_command_timeout_from_packet_0x24() {
-    use aer::can::{AnyMessage, DtiDriveEnable, DtiFlags};
-    use aer_ccm::console::dti::{DtiBench, EnableTest, TimeoutResult};
-    let mut bench = DtiBench::default();
-    assert_eq!(
-        bench.timeout.to_string(),
-        "DTI command timeout: not measured (`confirm hv-disconnected`, then `dti enable`, or drive enable from a CAN adapter, then silence)"
-    );
-    let flags = |enabled: bool| {
-        let mut data = [0u8; 8];
-        DtiFlags {
-            dti_drive_enabled: if enabled {
-                DtiDriveEnable::Enabled
-            } else {
-                DtiDriveEnable::Disabled
-            },
-            ..dti_flags()
+/// A DTI (and the PCC beside it) as the bring-up hears them: status packets at their cycle
+/// times, with the DC link, motor speed, fault code and PCC state each test sets.
+struct Heard {
+    dc_link_v: Option<i16>,
+    erpm: i32,
+    fault: aer::can::DtiFaultCode,
+    pcc: Option<aer::can::PrechargeState>,
+    /// The DTI drops its drive enable this long after the last enable command (ms); `None`:
+    /// never.
+    timeout_ms: Option<u32>,
+}
+
+impl Heard {
+    fn low_voltage() -> Self {
+        Self {
+            dc_link_v: Some(0),
+            erpm: 0,
+            fault: aer::can::DtiFaultCode::None,
+            pcc: None,
+            timeout_ms: Some(80),
         }
-        .encode(&mut data)
-        .unwrap();
-        data
-    };
-    bench.test.start(1_000);
-    let mut sent = Vec::new();
-    for now in 1_000..1_000 + EnableTest::DURATION_MS + 500 {
-        if let Some(frames) = bench.due(now) {
+    }
+
+    fn high_voltage() -> Self {
+        Self {
+            dc_link_v: Some(392),
+            pcc: Some(aer::can::PrechargeState::Online),
+            ..Self::low_voltage()
+        }
+    }
+}
+
+/// What the bench sent, from `DtiBench::due`'s frames.
+#[derive(Default)]
+struct Sent {
+    enables: Vec<u32>,
+    disables: Vec<u32>,
+    stopped: Vec<String>,
+}
+
+/// Runs the bench from `from` to `to` (ms) against `heard`, every millisecond as the bring-up
+/// loop does.
+fn run(
+    bench: &mut aer_ccm::console::dti::DtiBench,
+    heard: &Heard,
+    sent: &mut Sent,
+    from: u32,
+    to: u32,
+) {
+    use aer::can::{AnyMessage, DtiDriveEnable, DtiFlags, DtiSpeed, DtiTemperatures, PccStatus};
+    use aer_ccm::console::dti::Step;
+    for now in from..to {
+        let mut frames = None;
+        match bench.due(now) {
+            Some(Step::Send(out)) => frames = Some(out),
+            Some(Step::Stopped(why, out)) => {
+                sent.stopped.push(why.to_string());
+                frames = Some(out);
+            }
+            None => {}
+        }
+        if let Some(frames) = frames {
             for frame in frames.expect("encodes").iter() {
                 match AnyMessage::decode(frame.id, frame.extended, frame.data()).unwrap() {
                     AnyMessage::DtiSetCurrent(current) => assert_eq!(current.dti_current_cmd, 0.0),
@@ -303,21 +336,102 @@ fn the_bench_times_the_dtis_command_timeout_from_packet_0x24() {
                         assert_eq!(limit.dti_max_current_dc_cmd, 0.0)
                     }
                     AnyMessage::DtiSetDriveEnable(enable) => {
-                        assert_eq!(enable.dti_drive_enable_cmd, DtiDriveEnable::Enabled);
-                        sent.push(now);
+                        if enable.dti_drive_enable_cmd == DtiDriveEnable::Enabled {
+                            sent.enables.push(now);
+                        } else {
+                            sent.disables.push(now);
+                        }
                     }
                     _ => {}
                 }
             }
         }
-        // A DTI whose timeout is 80 ms, reporting every 10 ms.
+        let mut data = [0u8; 8];
         if now % 10 == 3 {
-            let enabled = sent.last().is_some_and(|&at| now - at <= 80);
-            bench.frame(now, DtiFlags::ID, true, &flags(enabled));
+            let enabled = sent.enables.last().is_some_and(|&at| {
+                sent.disables.last().is_none_or(|&off| off < at)
+                    && heard.timeout_ms.is_none_or(|limit| now - at <= limit)
+            });
+            DtiFlags {
+                dti_drive_enabled: if enabled {
+                    DtiDriveEnable::Enabled
+                } else {
+                    DtiDriveEnable::Disabled
+                },
+                ..dti_flags()
+            }
+            .encode(&mut data)
+            .unwrap();
+            bench.frame(now, DtiFlags::ID, true, &data);
+            if let Some(volts) = heard.dc_link_v {
+                DtiSpeed {
+                    dti_erpm: heard.erpm,
+                    dti_duty_cycle: 0.0,
+                    dti_input_voltage: volts,
+                }
+                .encode(&mut data)
+                .unwrap();
+                bench.frame(now, DtiSpeed::ID, true, &data);
+            }
+            if let Some(state) = heard.pcc {
+                PccStatus {
+                    pcc_state: state,
+                    pcc_error_too_fast: false,
+                    pcc_error_too_slow: false,
+                    pcc_error_bms_timeout: false,
+                    pcc_error_shutdown: false,
+                    pcc_error_undefined_state: false,
+                    pcc_accumulator_voltage: 392.0,
+                    pcc_tractive_voltage: 392.0,
+                    pcc_precharge_progress: 100.0,
+                }
+                .encode(&mut data)
+                .unwrap();
+                bench.vehicle_frame(now, PccStatus::ID, false, &data);
+            }
+        }
+        if now % 100 == 7 {
+            DtiTemperatures {
+                dti_controller_temp: 25.0,
+                dti_motor_temp: 25.0,
+                dti_fault_code: heard.fault,
+            }
+            .encode(&mut data)
+            .unwrap();
+            bench.frame(now, DtiTemperatures::ID, true, &data);
         }
         bench.poll(now);
     }
-    assert_eq!(sent.len(), 100, "every 10 ms for one second");
+}
+
+/// The bring-up's `dti enable` below 60 V: 0 A and drive enable every command period for one
+/// second, then silence; the timeout measurement follows packet 0x24.
+#[test]
+fn the_bench_times_the_dtis_command_timeout_from_packet_0x24() {
+    use aer_ccm::console::dti::{DtiBench, EnableTest, Path, TimeoutResult};
+    let mut bench = DtiBench::default();
+    assert_eq!(
+        bench.timeout.to_string(),
+        "DTI command timeout: not measured (`confirm hv-disconnected`, then `dti enable`, or drive enable from a CAN adapter, then silence)"
+    );
+    let heard = Heard::low_voltage();
+    let mut sent = Sent::default();
+    run(&mut bench, &heard, &mut sent, 0, 1_000);
+    bench
+        .guard
+        .confirm_hv_disconnected(1_000, &bench.evidence)
+        .expect("the DTI reads 0 V");
+    assert_eq!(bench.enable(1_000), Ok(Path::LowVoltage));
+    run(
+        &mut bench,
+        &heard,
+        &mut sent,
+        1_000,
+        1_000 + EnableTest::DURATION_MS + 500,
+    );
+    assert_eq!(sent.enables.len(), 100, "every 10 ms for one second");
+    assert!(sent.stopped.is_empty(), "{:?}", sent.stopped);
+    assert!(sent.disables.is_empty(), "a timeout is measured on silence");
     assert!(!bench.test.active());
     let Some(TimeoutResult::Dropped(ms)) = bench.timeout.result() else {
         panic!("{:?}", bench.timeout.result());
@@ -326,14 +440,18 @@ fn the_bench_times_the_dtis_command_timeout_from_packet_0x24() {
 
     // A DTI without a timeout: still enabled a second after the last command.
     let mut stuck = DtiBench::default();
-    stuck.test.start(0);
-    for now in 0..3_000 {
-        let _ = stuck.due(now);
-        if now % 10 == 3 {
-            stuck.frame(now, DtiFlags::ID, true, &flags(true));
-        }
-        stuck.poll(now);
-    }
+    let never = Heard {
+        timeout_ms: None,
+        ..Heard::low_voltage()
+    };
+    let mut sent = Sent::default();
+    run(&mut stuck, &never, &mut sent, 0, 500);
+    stuck
+        .guard
+        .confirm_hv_disconnected(500, &stuck.evidence)
+        .expect("0 V");
+    assert_eq!(stuck.enable(500), Ok(Path::LowVoltage));
+    run(&mut stuck, &never, &mut sent, 500, 3_000);
     assert_eq!(stuck.timeout.result(), Some(TimeoutResult::NotDropped));
     assert!(stuck.timeout.to_string().contains("STILL ENABLED 1000 ms"));
 
@@ -341,34 +459,208 @@ fn the_bench_times_the_dtis_command_timeout_from_packet_0x24() {
     let mut adapter = DtiBench::default();
     let mut enable = [0u8; 1];
     aer::can::DtiSetDriveEnable {
-        dti_drive_enable_cmd: DtiDriveEnable::Enabled,
+        dti_drive_enable_cmd: aer::can::DtiDriveEnable::Enabled,
     }
     .encode(&mut enable)
     .unwrap();
+    let flags = |enabled| {
+        let mut data = [0u8; 8];
+        aer::can::DtiFlags {
+            dti_drive_enabled: if enabled {
+                aer::can::DtiDriveEnable::Enabled
+            } else {
+                aer::can::DtiDriveEnable::Disabled
+            },
+            ..dti_flags()
+        }
+        .encode(&mut data)
+        .unwrap();
+        data
+    };
     adapter.frame(0, aer::can::DtiSetDriveEnable::ID, true, &enable);
-    adapter.frame(5, DtiFlags::ID, true, &flags(true));
+    adapter.frame(5, aer::can::DtiFlags::ID, true, &flags(true));
     let disable = [0u8; 1];
     adapter.frame(10, aer::can::DtiSetDriveEnable::ID, true, &disable);
-    adapter.frame(15, DtiFlags::ID, true, &flags(false));
+    adapter.frame(15, aer::can::DtiFlags::ID, true, &flags(false));
     adapter.poll(2_000);
     assert_eq!(adapter.timeout.result(), None);
 }
 
+/// Below 60 V the guard needs `confirm hv-disconnected` and the DTI's own fresh DC link
+/// reading; always a DTI heard without fault and a motor standing still. Silence, an old
+/// reading or a fault is no evidence.
 #[test]
-fn the_hv_gate_of_dti_enable_reads_the_dtis_own_dc_link() {
-    use aer::can::DtiSpeed;
-    use aer_ccm::console::dti::DtiBench;
+fn dti_enable_below_60_v_needs_the_confirmation_and_live_readings() {
+    use aer::can::DtiFaultCode;
+    use aer_ccm::console::dti::{DtiBench, DtiRefusal};
+    use aer_console::hv_gate::{HvRefusal, Unknown};
+    let mut sent = Sent::default();
+
     let mut bench = DtiBench::default();
-    assert_eq!(bench.dc_link_v(0), None, "nothing heard");
-    let mut data = [0u8; 8];
-    DtiSpeed {
-        dti_erpm: 0,
-        dti_duty_cycle: 0.0,
-        dti_input_voltage: 392,
+    run(&mut bench, &Heard::low_voltage(), &mut sent, 0, 300);
+    assert_eq!(
+        bench.enable(300),
+        Err(DtiRefusal::Hv(HvRefusal::NotConfirmed)),
+        "no confirmation"
+    );
+
+    // No packet 0x20 at all: the DC link is unknown, not 0 V.
+    let mut silent = DtiBench::default();
+    let no_dc_link = Heard {
+        dc_link_v: None,
+        ..Heard::low_voltage()
+    };
+    run(&mut silent, &no_dc_link, &mut sent, 0, 300);
+    let refusal = silent
+        .guard
+        .confirm_hv_disconnected(300, &silent.evidence)
+        .unwrap_err();
+    assert!(matches!(
+        refusal,
+        HvRefusal::Unknown {
+            why: Unknown::Silent(_),
+            ..
+        }
+    ));
+    assert_eq!(
+        refusal.to_string(),
+        "DTI DC link gives no reading: no packet 0x20 heard from the DTI: check its logic supply, CAN2 and its node id"
+    );
+
+    // Confirmed, then the DTI falls silent: the test stops at the first step past 20 ms.
+    let mut bench = DtiBench::default();
+    run(&mut bench, &Heard::low_voltage(), &mut sent, 0, 300);
+    bench
+        .guard
+        .confirm_hv_disconnected(300, &bench.evidence)
+        .expect("0 V");
+    bench.enable(300).expect("allowed");
+    let mut sent = Sent::default();
+    run(&mut bench, &Heard::low_voltage(), &mut sent, 300, 500);
+    run(&mut bench, &no_dc_link, &mut sent, 500, 600);
+    assert!(!bench.test.active());
+    assert_eq!(sent.disables.len(), 1, "stopped with an explicit disable");
+    let stopped_at = sent.disables[0];
+    assert!((510..=525).contains(&stopped_at), "{stopped_at}");
+    assert!(
+        sent.stopped[0].starts_with("DTI DC link's reading is 2"),
+        "{:?}",
+        sent.stopped
+    );
+
+    // A DTI with a fault, or a motor that turns, refuses it too.
+    for (heard, expected) in [
+        (
+            Heard {
+                fault: DtiFaultCode::Overvoltage,
+                ..Heard::low_voltage()
+            },
+            DtiRefusal::Fault(DtiFaultCode::Overvoltage),
+        ),
+        (
+            Heard {
+                erpm: 900,
+                ..Heard::low_voltage()
+            },
+            DtiRefusal::Turning(Some(900)),
+        ),
+    ] {
+        let mut bench = DtiBench::default();
+        run(&mut bench, &heard, &mut sent, 0, 300);
+        bench
+            .guard
+            .confirm_hv_disconnected(300, &bench.evidence)
+            .expect("0 V");
+        assert_eq!(bench.enable(300), Err(expected));
     }
-    .encode(&mut data)
-    .unwrap();
-    bench.frame(100, DtiSpeed::ID, true, &data);
-    assert_eq!(bench.dc_link_v(100 + DtiSpeed::TIMEOUT_MS), Some(392.0));
-    assert_eq!(bench.dc_link_v(101 + DtiSpeed::TIMEOUT_MS), None, "stale");
+}
+
+/// At 60 V or more `confirm hv-disconnected` is refused and `dti enable` needs `confirm
+/// wheels-off-ground` with the PCC heard ONLINE; it stops with an explicit disable the step
+/// the PCC leaves ONLINE, the DTI reports a fault or the motor turns.
+#[test]
+fn dti_enable_at_high_voltage_needs_wheels_off_the_ground_and_the_pcc_online() {
+    use aer::can::{DtiFaultCode, PrechargeState};
+    use aer_ccm::console::dti::{DtiBench, DtiRefusal, Path, TimeoutResult};
+    use aer_console::hv_gate::HvRefusal;
+    let mut sent = Sent::default();
+    let mut bench = DtiBench::default();
+    run(&mut bench, &Heard::high_voltage(), &mut sent, 0, 300);
+    assert!(matches!(
+        bench.guard.confirm_hv_disconnected(300, &bench.evidence),
+        Err(HvRefusal::Live { .. })
+    ));
+    assert_eq!(bench.enable(300), Err(DtiRefusal::WheelsNotConfirmed));
+    bench.guard.confirm_wheels_off_ground(300);
+    for (pcc, expected) in [
+        (None, DtiRefusal::PccNotOnline(None)),
+        (
+            Some(PrechargeState::Precharge),
+            DtiRefusal::PccNotOnline(Some(PrechargeState::Precharge)),
+        ),
+    ] {
+        let mut bench = DtiBench::default();
+        let heard = Heard {
+            pcc,
+            ..Heard::high_voltage()
+        };
+        run(&mut bench, &heard, &mut sent, 0, 300);
+        bench.guard.confirm_wheels_off_ground(300);
+        assert_eq!(bench.enable(300), Err(expected));
+    }
+
+    // Allowed: the whole second runs and the timeout is measured at high voltage.
+    assert_eq!(bench.enable(300), Ok(Path::HighVoltage));
+    let mut sent = Sent::default();
+    run(&mut bench, &Heard::high_voltage(), &mut sent, 300, 2_000);
+    assert_eq!(sent.enables.len(), 100);
+    assert!(matches!(
+        bench.timeout.result(),
+        Some(TimeoutResult::Dropped(80..=90))
+    ));
+
+    // Each fault mid-test stops it within a step or two of being heard.
+    for (name, fault) in [
+        (
+            "the PCC leaves ONLINE",
+            Heard {
+                pcc: Some(PrechargeState::Error),
+                ..Heard::high_voltage()
+            },
+        ),
+        (
+            "the DTI reports a fault",
+            Heard {
+                fault: DtiFaultCode::MotorOvertemp,
+                ..Heard::high_voltage()
+            },
+        ),
+        (
+            "the motor turns",
+            Heard {
+                erpm: -2_000,
+                ..Heard::high_voltage()
+            },
+        ),
+    ] {
+        let mut bench = DtiBench::default();
+        let mut sent = Sent::default();
+        run(&mut bench, &Heard::high_voltage(), &mut sent, 0, 300);
+        bench.guard.confirm_wheels_off_ground(300);
+        assert_eq!(bench.enable(300), Ok(Path::HighVoltage), "{name}");
+        run(&mut bench, &Heard::high_voltage(), &mut sent, 300, 600);
+        run(&mut bench, &fault, &mut sent, 600, 800);
+        assert!(!bench.test.active(), "{name}");
+        assert_eq!(sent.disables.len(), 1, "{name}: an explicit disable");
+        assert!(
+            sent.disables[0] <= 710,
+            "{name}: stopped at {}",
+            sent.disables[0]
+        );
+        assert_eq!(
+            bench.timeout.result(),
+            None,
+            "{name}: a stop is not a timeout"
+        );
+    }
 }

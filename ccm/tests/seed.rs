@@ -198,22 +198,30 @@ fn launch_reduction_state_persists_between_steps() {
 
 // --- Shock travel ----------------------------------------------------------------------------
 
-/// The travel a sensor with the schema's default calibration (5 V at rest, 0.14 V span) reads.
+/// The travel a sensor with the schema's default calibration (5.00 V extended, 4.86 V
+/// compressed: the team's 0.14 V span) reads.
 fn travel_mm(raw: u16) -> f32 {
     let nominal = Calibration::DEFAULT;
-    shock_travel_mm(raw, nominal.shock_rest_v[0], nominal.shock_span_v)
+    shock_travel_mm(
+        raw,
+        nominal.shock_extended_v[0],
+        nominal.shock_compressed_v[0],
+    )
 }
 
-/// A sensor that rests lower (its calibrated rest voltage) reads zero there, not travel.
+/// A sensor whose calibrated ends differ from the team's reads zero at its own extension and
+/// full travel at its own compression, either way round.
 #[test]
-fn shock_a_calibrated_rest_voltage_is_zero_travel() {
-    let raw = shock_raw_for_volts(4.9);
-    let rest_v = f32::from(raw) * 5.0 / 4095.0;
-    let span_v = Calibration::DEFAULT.shock_span_v;
-    assert!(shock_travel_mm(raw, rest_v, span_v) < 0.01);
-    let half = shock_raw_for_volts(rest_v - span_v / 2.0);
-    let travel = shock_travel_mm(half, rest_v, span_v);
-    assert!((travel - 0.5 * SHOCK_TRAVEL_MAX_MM).abs() < 0.5, "{travel}");
+fn shock_a_calibrated_sensor_reads_its_own_ends() {
+    for (extended_v, compressed_v) in [(4.9, 4.75), (1.2, 3.8)] {
+        let at = |volts: f32| shock_travel_mm(shock_raw_for_volts(volts), extended_v, compressed_v);
+        assert!(at(extended_v) < 0.1, "{extended_v}");
+        let half = at((extended_v + compressed_v) / 2.0);
+        assert!((half - 0.5 * SHOCK_TRAVEL_MAX_MM).abs() < 0.5, "{half}");
+        assert!((at(compressed_v) - SHOCK_TRAVEL_MAX_MM).abs() < 0.5);
+    }
+    // Ends closer than the minimum span are no calibration: 0, not a huge gain.
+    assert_eq!(shock_travel_mm(shock_raw_for_volts(4.9), 4.95, 4.94), 0.0);
 }
 
 #[test]

@@ -79,7 +79,7 @@ fn the_cars_calibration_lays_out_every_tuned_number_in_one_page() {
     assert_eq!(change("power_trim_gain"), ChangeWhen::Driving);
     assert_eq!(change("apps1_v"), ChangeWhen::TractiveOff);
     assert_eq!(change("brake_zero_v"), ChangeWhen::TractiveOff);
-    assert_eq!(change("shock_span_v"), ChangeWhen::TractiveOff);
+    assert_eq!(change("shock_compressed_v"), ChangeWhen::TractiveOff);
     let curve = c
         .parameters
         .iter()

@@ -1,14 +1,15 @@
 //! The bring-up images' loop, one for both boards: what every step does (feed the watchdog
-//! unless a `watchdog test` stopped it, obey `bootloader` with every output safe, let the
-//! board read and run its tests, take the typed lines, print the report every second) and
-//! the commands every board answers alike (`help`, `report`, `watchdog test`, `bootloader`,
-//! and a line it does not understand). What differs between the boards (their inputs,
+//! unless a `watchdog test` stopped it, obey `bootloader` and `restart` with every output
+//! safe, let the board read its inputs and check its tests and gates, take the typed lines,
+//! print the report every second) and the commands every board answers alike (`help`,
+//! `report`, `watchdog test`, `bootloader`, `restart`, and a line it does not understand). What differs between the boards (their inputs,
 //! outputs and checks) is the [`BenchBoard`] each image implements.
 //!
 //! Portable and host-tested: the image moves data between it and the hardware.
 
+use crate::bringup::ReportHeader;
 use crate::command::HELP;
-use crate::{Command, CommandError, LogBuffer, RebootRequest};
+use crate::{Command, CommandError, LogBuffer, Reboot, RebootRequest};
 
 /// A typed line, handed from the USB interrupt to the bench loop.
 pub type Line = heapless::String<64>;
@@ -27,8 +28,8 @@ pub enum Reply {
 
 /// One board's bring-up image, as the loop drives it.
 pub trait BenchBoard {
-    /// What the image reads outside the loop's board (inputs shared with an interrupt),
-    /// passed through to [`Self::report`].
+    /// What the image reads outside the loop's board (inputs shared with an interrupt), read
+    /// at every step and passed to [`Self::step`] and [`Self::report`].
     type Shared;
     /// The board, in messages ("CCM", "PCC").
     const NAME: &'static str;
@@ -39,8 +40,9 @@ pub trait BenchBoard {
     fn feed_watchdog(&mut self);
     /// Every output to its safe level (before the bootloader).
     fn all_off(&mut self);
-    /// Every step: read what arrived, sample what a test records, stop a test that must stop.
-    fn step<const N: usize>(&mut self, now_ms: u32, log: &mut LogBuffer<N>);
+    /// Every step: read what arrived, sample what a test records, check every gate again and
+    /// stop what it no longer allows.
+    fn step<const N: usize>(&mut self, now_ms: u32, shared: &Self::Shared, log: &mut LogBuffer<N>);
     /// A command the board answers itself (outputs, tests, calibration).
     fn command<const N: usize>(
         &mut self,
@@ -48,11 +50,11 @@ pub trait BenchBoard {
         now_ms: u32,
         log: &mut LogBuffer<N>,
     ) -> Reply;
-    /// Every second (and on `report`): every input, bus and counter. `elapsed_ms` is the time
-    /// since the last report, for edge rates.
+    /// Every second (and on `report`): `header`, then every input, bus and counter.
+    /// `elapsed_ms` is the time since the last report, for edge rates.
     fn report<const N: usize>(
         &mut self,
-        now_ms: u32,
+        header: ReportHeader,
         elapsed_ms: u32,
         shared: &Self::Shared,
         log: &mut LogBuffer<N>,
@@ -69,6 +71,8 @@ pub enum After {
     Continue,
     /// Every output is safe: reboot into the bootloader now.
     Bootloader,
+    /// Every output is safe: restart the image now.
+    Restart,
 }
 
 /// The loop's own state: whether it still feeds the watchdog, when it last reported.
@@ -76,6 +80,8 @@ pub enum After {
 pub struct BenchLoop {
     feeding: bool,
     last_report_ms: u32,
+    /// The log's dropped lines at the last report.
+    dropped_at_report: u32,
     /// `report` was typed: report at this step, over the time since the last one (so edge
     /// rates stay true).
     report_now: bool,
@@ -93,6 +99,7 @@ impl BenchLoop {
         Self {
             feeding: true,
             last_report_ms: 0,
+            dropped_at_report: 0,
             report_now: false,
         }
     }
@@ -110,11 +117,14 @@ impl BenchLoop {
         if self.feeding {
             board.feed_watchdog();
         }
-        if reboot.take() {
+        if let Some(reboot) = reboot.take() {
             board.all_off();
-            return After::Bootloader;
+            return match reboot {
+                Reboot::Bootloader => After::Bootloader,
+                Reboot::Restart => After::Restart,
+            };
         }
-        board.step(now_ms, log);
+        board.step(now_ms, shared, log);
         for line in lines {
             match self.command(board, &line, now_ms, reboot, log) {
                 Some(Reply::Say(text)) => {
@@ -129,7 +139,13 @@ impl BenchLoop {
             self.last_report_ms = now_ms;
             self.report_now = false;
             board.toggle_led();
-            board.report(now_ms, elapsed_ms, shared, log);
+            let header = ReportHeader {
+                now_ms,
+                dropped: log.dropped().wrapping_sub(self.dropped_at_report),
+                dropped_total: log.dropped(),
+            };
+            self.dropped_at_report = header.dropped_total;
+            board.report(header, elapsed_ms, shared, log);
         }
         After::Continue
     }
@@ -161,11 +177,16 @@ impl BenchLoop {
                 return None;
             }
             Ok(Command::Bootloader) => {
-                reboot.request();
+                reboot.request(Reboot::Bootloader);
                 log.line(format_args!(
                     "> {line}: rebooting into the bootloader, {}",
                     B::SAFE
                 ));
+                return None;
+            }
+            Ok(Command::Restart) => {
+                reboot.request(Reboot::Restart);
+                log.line(format_args!("> {line}: restarting, {}", B::SAFE));
                 return None;
             }
             Ok(command) => board.command(command, now_ms, log),
@@ -191,6 +212,7 @@ mod tests {
         steps: u32,
         commands: Vec<String>,
         reports: Vec<(u32, u32, u8)>,
+        headers: Vec<ReportHeader>,
         led: bool,
     }
 
@@ -205,7 +227,7 @@ mod tests {
         fn all_off(&mut self) {
             self.all_off += 1;
         }
-        fn step<const N: usize>(&mut self, _: u32, _: &mut LogBuffer<N>) {
+        fn step<const N: usize>(&mut self, _: u32, _: &u8, _: &mut LogBuffer<N>) {
             self.steps += 1;
         }
         fn command<const N: usize>(
@@ -219,12 +241,13 @@ mod tests {
         }
         fn report<const N: usize>(
             &mut self,
-            now_ms: u32,
+            header: ReportHeader,
             elapsed_ms: u32,
             shared: &u8,
             _: &mut LogBuffer<N>,
         ) {
-            self.reports.push((now_ms, elapsed_ms, *shared));
+            self.reports.push((header.now_ms, elapsed_ms, *shared));
+            self.headers.push(header);
         }
         fn toggle_led(&mut self) {
             self.led = !self.led;
@@ -317,8 +340,39 @@ mod tests {
         let after = bench.step(&mut board, 20, [], &reboot, &0, &mut log);
         assert_eq!((after, board.all_off), (After::Bootloader, 1));
         // The host's 134 baud asks the same way.
-        reboot.request();
+        reboot.request(Reboot::Bootloader);
         let after = bench.step(&mut board, 30, [], &reboot, &0, &mut log);
         assert_eq!((after, board.all_off), (After::Bootloader, 2));
+        // `restart` too makes every output safe first.
+        let after = bench.step(&mut board, 40, [line("restart")], &reboot, &0, &mut log);
+        assert_eq!(after, After::Continue);
+        assert!(logged(&mut log).contains("> restart: restarting, every output off"));
+        let after = bench.step(&mut board, 50, [], &reboot, &0, &mut log);
+        assert_eq!((after, board.all_off), (After::Restart, 3));
+    }
+
+    #[test]
+    fn the_report_header_counts_drops_since_the_last_report_and_in_all() {
+        let (mut bench, mut board, mut log) = (
+            BenchLoop::new(),
+            Recorder::default(),
+            LogBuffer::<64>::new(),
+        );
+        let reboot = RebootRequest::new();
+        // Nobody reads: three lines of 40 bytes fit once, the rest drop.
+        for _ in 0..3 {
+            log.line(format_args!("{:40}", "a line nobody reads"));
+        }
+        let _ = bench.step(&mut board, 1_000, [], &reboot, &0, &mut log);
+        let mut drained = [0u8; 64];
+        let count = log.peek(&mut drained);
+        log.consume(count);
+        let _ = bench.step(&mut board, 2_000, [], &reboot, &0, &mut log);
+        let counts: Vec<(u32, u32)> = board
+            .headers
+            .iter()
+            .map(|header| (header.dropped, header.dropped_total))
+            .collect();
+        assert_eq!(counts, [(2, 2), (0, 2)], "a terminal that reads sees 0 now");
     }
 }

@@ -1,14 +1,11 @@
-//! What the bring-up images report and decide, without hardware types: reset causes, the
-//! readings' report lines, edge rates, the pedal calibration, and the gate in front of the
-//! outputs that switch high voltage.
+//! What the bring-up images report, without hardware types: reset causes, the readings'
+//! report lines, edge rates, the buses, the start-up lines. The gate in front of the outputs
+//! that matter at high voltage is [`crate::hv_gate`].
 
 use crate::log::LogBuffer;
 use aer_boards::{Mode, Pin};
 use aer_flexcan::{BusStatus, FaultState, SelfTestError};
 use core::fmt;
-
-/// How long a typed `confirm hv-disconnected` arms the HV-switching outputs (ms).
-pub const HV_CONFIRMATION_MS: u32 = 30_000;
 
 /// The i.MX RT1062's reset causes (SRC_SRSR bits, RM "System Reset Controller").
 pub const RESET_CAUSES: [(u32, &str); 9] = [
@@ -108,119 +105,6 @@ pub fn edge_rate_hz(before: u32, after: u32, elapsed_ms: u32) -> f32 {
         return 0.0;
     }
     after.wrapping_sub(before) as f32 * 1_000.0 / elapsed_ms as f32
-}
-
-/// The gate in front of an output that can switch high voltage (the PCC's AIR+): it may be
-/// driven only within [`HV_CONFIRMATION_MS`] of a typed confirmation that the high voltage is
-/// disconnected, and only while the board's own readings agree: every high-voltage reading
-/// below the discharged limit. A typed word alone never arms it.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct HvGate {
-    confirmed_ms: Option<u32>,
-    /// Volts below which a reading counts as discharged (the rules' 60 V DC).
-    discharged_v: f32,
-}
-
-/// The high-voltage readings a board has of its own (V): the PCC's accumulator and
-/// tractive-system converters, or an inverter's DC link as it reports it.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct HvReadings<'a> {
-    /// Each reading's name and volts; `None` where there is no reading (an inverter not
-    /// heard): that is not "discharged".
-    pub volts: &'a [(&'a str, Option<f32>)],
-}
-
-/// Why the gate is closed.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum HvRefusal<'a> {
-    /// No `confirm hv-disconnected`, or it was revoked.
-    NotConfirmed,
-    /// The confirmation is older than [`HV_CONFIRMATION_MS`].
-    Expired,
-    /// A reading is missing (`None`) or at or above the discharged limit.
-    Live {
-        /// The reading's name.
-        name: &'a str,
-        /// What it read.
-        volts: Option<f32>,
-        /// The limit.
-        limit_v: f32,
-    },
-}
-
-impl fmt::Display for HvRefusal<'_> {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            Self::NotConfirmed => f.write_str("type `confirm hv-disconnected` first"),
-            Self::Expired => f.write_str("the HV confirmation expired (30 s): confirm again"),
-            Self::Live {
-                name,
-                volts: Some(volts),
-                limit_v,
-            } => write!(
-                f,
-                "{name} reads {volts:.1} V, not below {limit_v:.0} V: the high voltage is not disconnected and discharged"
-            ),
-            Self::Live {
-                name,
-                volts: None,
-                limit_v,
-            } => write!(
-                f,
-                "no {name} reading: cannot see that it is below {limit_v:.0} V"
-            ),
-        }
-    }
-}
-
-impl HvGate {
-    /// A closed gate for readings that count as discharged below `discharged_v`.
-    pub const fn new(discharged_v: f32) -> Self {
-        Self {
-            confirmed_ms: None,
-            discharged_v,
-        }
-    }
-
-    /// The user confirmed at `now_ms` that the high voltage is disconnected; taken only if
-    /// the readings agree.
-    pub fn confirm<'a>(
-        &mut self,
-        now_ms: u32,
-        readings: HvReadings<'a>,
-    ) -> Result<(), HvRefusal<'a>> {
-        self.discharged(readings)?;
-        self.confirmed_ms = Some(now_ms);
-        Ok(())
-    }
-
-    /// Whether the HV outputs may move (or stay moved) at `now_ms` with these readings.
-    pub fn allows<'a>(&self, now_ms: u32, readings: HvReadings<'a>) -> Result<(), HvRefusal<'a>> {
-        let at = self.confirmed_ms.ok_or(HvRefusal::NotConfirmed)?;
-        if now_ms.wrapping_sub(at) >= HV_CONFIRMATION_MS {
-            return Err(HvRefusal::Expired);
-        }
-        self.discharged(readings)
-    }
-
-    /// Forgets the confirmation (on `off`, or when it expired and the output dropped).
-    pub fn revoke(&mut self) {
-        self.confirmed_ms = None;
-    }
-
-    fn discharged<'a>(&self, readings: HvReadings<'a>) -> Result<(), HvRefusal<'a>> {
-        let live = readings.volts.iter().find(|(_, volts)| {
-            volts.is_none_or(|volts| volts.is_nan() || volts >= self.discharged_v)
-        });
-        match live {
-            Some(&(name, volts)) => Err(HvRefusal::Live {
-                name,
-                volts,
-                limit_v: self.discharged_v,
-            }),
-            None => Ok(()),
-        }
-    }
 }
 
 /// What a bus delivered since the last report: frames per identifier (the first
@@ -418,21 +302,25 @@ impl fmt::Display for Startup<'_> {
 }
 
 /// The first line of every periodic report: when, and how many lines the log had to drop
-/// (a terminal that was not reading).
+/// because no terminal read them, since the last report and since start-up (a board
+/// powered with no terminal open fills its log in seconds; what matters while you watch is
+/// the first count).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct ReportHeader {
     /// Milliseconds since start-up.
     pub now_ms: u32,
-    /// Lines dropped since start-up.
+    /// Lines dropped since the last report.
     pub dropped: u32,
+    /// Lines dropped since start-up.
+    pub dropped_total: u32,
 }
 
 impl fmt::Display for ReportHeader {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         write!(
             f,
-            "--- t={} ms, log lines dropped {}",
-            self.now_ms, self.dropped
+            "--- t={} ms, log lines dropped {} since the last report ({} since start-up)",
+            self.now_ms, self.dropped, self.dropped_total
         )
     }
 }
@@ -452,71 +340,6 @@ mod tests {
         assert_eq!(
             format!("{}", ResetCause(0)),
             "reset cause (SRC_SRSR 0x000): none recorded"
-        );
-    }
-
-    const DISCHARGED: [(&str, Option<f32>); 2] =
-        [("accumulator", Some(0.0)), ("tractive system", Some(3.2))];
-
-    fn readings(volts: &[(&'static str, Option<f32>)]) -> HvReadings<'static> {
-        HvReadings {
-            volts: std::vec::Vec::leak(volts.to_vec()),
-        }
-    }
-
-    #[test]
-    fn the_hv_gate_opens_only_for_30_s_after_the_confirmation() {
-        let ok = readings(&DISCHARGED);
-        let mut gate = HvGate::new(60.0);
-        assert_eq!(gate.allows(0, ok), Err(HvRefusal::NotConfirmed));
-        assert_eq!(gate.confirm(u32::MAX - 10, ok), Ok(()));
-        assert_eq!(gate.allows(u32::MAX, ok), Ok(()));
-        assert_eq!(
-            gate.allows(HV_CONFIRMATION_MS - 12, ok),
-            Ok(()),
-            "across the wrap"
-        );
-        assert_eq!(
-            gate.allows(HV_CONFIRMATION_MS - 11, ok),
-            Err(HvRefusal::Expired)
-        );
-        assert_eq!(gate.confirm(5, ok), Ok(()));
-        gate.revoke();
-        assert_eq!(gate.allows(6, ok), Err(HvRefusal::NotConfirmed));
-    }
-
-    #[test]
-    fn the_hv_gate_believes_the_boards_readings_over_the_typed_word() {
-        let mut gate = HvGate::new(60.0);
-        let live = readings(&[("accumulator", Some(402.5)), ("tractive system", Some(0.0))]);
-        let refusal = gate.confirm(0, live).unwrap_err();
-        assert_eq!(
-            format!("{refusal}"),
-            "accumulator reads 402.5 V, not below 60 V: the high voltage is not disconnected and discharged"
-        );
-        assert_eq!(
-            gate.allows(1, readings(&DISCHARGED)),
-            Err(HvRefusal::NotConfirmed)
-        );
-        // Armed, then the tractive system rises: the gate closes at once.
-        assert_eq!(gate.confirm(10, readings(&DISCHARGED)), Ok(()));
-        let rising = readings(&[("accumulator", Some(0.0)), ("tractive system", Some(60.0))]);
-        assert!(matches!(
-            gate.allows(20, rising),
-            Err(HvRefusal::Live { .. })
-        ));
-        // No reading, or not a number, is not "discharged".
-        for unknown in [None, Some(f32::NAN)] {
-            let missing = readings(&[("DTI DC link", unknown)]);
-            assert!(gate.allows(30, missing).is_err(), "{unknown:?}");
-        }
-        assert_eq!(
-            format!(
-                "{}",
-                gate.allows(30, readings(&[("DTI DC link", None)]))
-                    .unwrap_err()
-            ),
-            "no DTI DC link reading: cannot see that it is below 60 V"
         );
     }
 

@@ -17,8 +17,13 @@ pub enum Command<'a> {
         level: Level,
     },
     /// `confirm hv-disconnected`: the tractive system is disconnected and discharged; arms
-    /// the HV-switching outputs for [`crate::bringup::HV_CONFIRMATION_MS`].
+    /// the HV-switching outputs for [`crate::hv_gate::HV_CONFIRMATION_MS`] while the board's
+    /// own readings agree.
     ConfirmHvDisconnected,
+    /// `confirm wheels-off-ground` (CCM): the car is on stands with the driven wheels free;
+    /// with the PCC ONLINE, arms `dti enable` at high voltage for
+    /// [`crate::hv_gate::HV_CONFIRMATION_MS`].
+    ConfirmWheelsOffGround,
     /// Every output back to its safe level.
     AllOff,
     /// `can`: the CAN controllers' loopback self-test, then a heartbeat on each bus.
@@ -26,11 +31,21 @@ pub enum Command<'a> {
     /// `cal rest` / `cal full`: record the pedal sensors (and, at rest, the brake sensors'
     /// zero) with the pedal released or fully pressed.
     Calibrate(PedalPosition),
-    /// `cal save`: save the calibration the bench measured (the schema's defaults with the
-    /// recorded sensors) to the CCM's flash, as the race image's XCP save does.
+    /// `cal shock <fl|fr|rl|rr|all> extended|compressed`: record one shock sensor (or all
+    /// four) at full extension or full compression.
+    CalibrateShock {
+        /// Which sensor.
+        corner: ShockCorner,
+        /// Which end of its travel.
+        point: ShockPoint,
+    },
+    /// `cal save`: save the sensors measured this session to the CCM's flash, over what
+    /// start-up loads now (every other value kept), as the race image's XCP save does.
     CalSave,
     /// `cal load`: read the flash back as start-up would, and say what it would load.
     CalLoad,
+    /// `cal erase`: erase both saved copies, so start-up runs `ccm/calibration.toml` again.
+    CalErase,
     /// `i2c scan`: every 7-bit address that acknowledges (ADS1115 boards).
     I2cScan,
     /// `watchdog test`: stop feeding the watchdog; the next start reports the reset cause.
@@ -41,6 +56,9 @@ pub enum Command<'a> {
     DtiEnable,
     /// `bootloader`: reboot into the Teensy's bootloader (as `teensy_loader_cli -s` does).
     Bootloader,
+    /// `restart`: start the image again (a software reset: clears what a watchdog restart
+    /// latched, as a power cycle does).
+    Restart,
 }
 
 /// An output level.
@@ -63,6 +81,73 @@ pub enum PedalPosition {
     Full,
 }
 
+/// A shock sensor, by the corner the board table maps it to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ShockCorner {
+    /// Front left (input 1).
+    FrontLeft,
+    /// Front right (input 2).
+    FrontRight,
+    /// Rear left (input 3).
+    RearLeft,
+    /// Rear right (input 4).
+    RearRight,
+    /// All four at once.
+    All,
+}
+
+impl ShockCorner {
+    /// The corners one by one, in input order.
+    pub const EACH: [Self; 4] = [
+        Self::FrontLeft,
+        Self::FrontRight,
+        Self::RearLeft,
+        Self::RearRight,
+    ];
+
+    fn parse(word: &str) -> Option<Self> {
+        match word {
+            "fl" => Some(Self::FrontLeft),
+            "fr" => Some(Self::FrontRight),
+            "rl" => Some(Self::RearLeft),
+            "rr" => Some(Self::RearRight),
+            "all" => Some(Self::All),
+            _ => None,
+        }
+    }
+
+    /// The sensors' indices (0-3) this names.
+    pub fn indices(self) -> &'static [usize] {
+        match self {
+            Self::FrontLeft => &[0],
+            Self::FrontRight => &[1],
+            Self::RearLeft => &[2],
+            Self::RearRight => &[3],
+            Self::All => &[0, 1, 2, 3],
+        }
+    }
+
+    /// The short name typed and printed: `fl`, `fr`, `rl`, `rr`, `all`.
+    pub const fn name(self) -> &'static str {
+        match self {
+            Self::FrontLeft => "fl",
+            Self::FrontRight => "fr",
+            Self::RearLeft => "rl",
+            Self::RearRight => "rr",
+            Self::All => "all",
+        }
+    }
+}
+
+/// An end of a shock sensor's travel.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ShockPoint {
+    /// Fully extended (droop): the zero its travel is measured from.
+    Extended,
+    /// Fully compressed (on the bump stop): the end of its travel.
+    Compressed,
+}
+
 /// Why a line is not a command.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum CommandError<'a> {
@@ -77,33 +162,50 @@ impl<'a> Command<'a> {
     pub fn parse(line: &'a str) -> Result<Self, CommandError<'a>> {
         let mut words = line.split_ascii_whitespace();
         let first = words.next().unwrap_or("");
-        let rest: [Option<&str>; 3] = [words.next(), words.next(), words.next()];
+        let rest: [Option<&str>; 4] = [words.next(), words.next(), words.next(), words.next()];
         let command = match (first, rest) {
             ("help" | "?", [None, ..]) => Self::Help,
             ("report", [None, ..]) => Self::Report,
-            ("out", [Some(signal), Some(level), None]) => Self::Output {
+            ("out", [Some(signal), Some(level), None, _]) => Self::Output {
                 signal,
                 level: Level::parse(level).ok_or(CommandError::Usage(OUT_USAGE))?,
             },
             ("out", _) => return Err(CommandError::Usage(OUT_USAGE)),
-            ("confirm", [Some("hv-disconnected"), None, _]) => Self::ConfirmHvDisconnected,
-            ("confirm", _) => return Err(CommandError::Usage("confirm hv-disconnected")),
-            ("off", [None, ..]) => Self::AllOff,
-            ("can", [None, ..]) => Self::CanTest,
-            ("cal", [Some("rest"), None, _]) => Self::Calibrate(PedalPosition::Rest),
-            ("cal", [Some("full"), None, _]) => Self::Calibrate(PedalPosition::Full),
-            ("cal", [Some("save"), None, _]) => Self::CalSave,
-            ("cal", [Some("load"), None, _]) => Self::CalLoad,
-            ("cal", _) => {
+            ("confirm", [Some("hv-disconnected"), None, ..]) => Self::ConfirmHvDisconnected,
+            ("confirm", [Some("wheels-off-ground"), None, ..]) => Self::ConfirmWheelsOffGround,
+            ("confirm", _) => {
                 return Err(CommandError::Usage(
-                    "cal rest | cal full | cal save | cal load",
+                    "confirm hv-disconnected | confirm wheels-off-ground",
                 ));
             }
-            ("i2c", [Some("scan"), None, _]) => Self::I2cScan,
-            ("watchdog", [Some("test"), None, _]) => Self::WatchdogTest,
-            ("dti", [Some("enable"), None, _]) => Self::DtiEnable,
+            ("off", [None, ..]) => Self::AllOff,
+            ("can", [None, ..]) => Self::CanTest,
+            ("cal", [Some("rest"), None, ..]) => Self::Calibrate(PedalPosition::Rest),
+            ("cal", [Some("full"), None, ..]) => Self::Calibrate(PedalPosition::Full),
+            ("cal", [Some("shock"), Some(corner), Some(point), None]) => {
+                let corner = ShockCorner::parse(corner).ok_or(CommandError::Usage(SHOCK_USAGE))?;
+                let point = match point {
+                    "extended" => ShockPoint::Extended,
+                    "compressed" => ShockPoint::Compressed,
+                    _ => return Err(CommandError::Usage(SHOCK_USAGE)),
+                };
+                Self::CalibrateShock { corner, point }
+            }
+            ("cal", [Some("shock"), ..]) => return Err(CommandError::Usage(SHOCK_USAGE)),
+            ("cal", [Some("save"), None, ..]) => Self::CalSave,
+            ("cal", [Some("load"), None, ..]) => Self::CalLoad,
+            ("cal", [Some("erase"), None, ..]) => Self::CalErase,
+            ("cal", _) => {
+                return Err(CommandError::Usage(
+                    "cal rest | cal full | cal shock <corner> extended|compressed | cal save | cal load | cal erase",
+                ));
+            }
+            ("i2c", [Some("scan"), None, ..]) => Self::I2cScan,
+            ("watchdog", [Some("test"), None, ..]) => Self::WatchdogTest,
+            ("dti", [Some("enable"), None, ..]) => Self::DtiEnable,
             ("bootloader", [None, ..]) => Self::Bootloader,
-            ("help" | "?" | "report" | "off" | "can" | "bootloader", _) => {
+            ("restart", [None, ..]) => Self::Restart,
+            ("help" | "?" | "report" | "off" | "can" | "bootloader" | "restart", _) => {
                 return Err(CommandError::Usage("no arguments"));
             }
             ("i2c", _) => return Err(CommandError::Usage("i2c scan")),
@@ -116,6 +218,7 @@ impl<'a> Command<'a> {
 }
 
 const OUT_USAGE: &str = "out <signal> on|off|<0-100>";
+const SHOCK_USAGE: &str = "cal shock fl|fr|rl|rr|all extended|compressed";
 
 impl Level {
     fn parse(word: &str) -> Option<Self> {
@@ -149,20 +252,25 @@ impl Level {
 }
 
 /// The help text, one command per line.
-pub const HELP: [&str; 13] = [
+pub const HELP: [&str; 18] = [
     "help                       this list",
     "report                     print every input, bus and counter now",
     "out <signal> on|off|<pct>  drive one output (names as in `cargo xtask pins`)",
-    "confirm hv-disconnected    HV off and discharged (the board's readings must agree): arms HV outputs for 30 s",
-    "off                        every output back to its safe level",
+    "confirm hv-disconnected    HV off and discharged (the board's live readings must agree): arms HV outputs for 30 s",
+    "confirm wheels-off-ground  car on stands, driven wheels free (CCM): with the PCC ONLINE, arms `dti enable` at HV for 30 s",
+    "off                        every output back to its safe level, confirmations revoked",
     "can                        loopback self-test of each controller, then heartbeats",
-    "cal rest | cal full        record the pedal and brake sensors (CCM)",
-    "cal save | cal load        save the bench calibration to flash, read back what start-up loads (CCM)",
+    "cal rest | cal full        record the pedal and brake sensors, released / pedal pressed (CCM)",
+    "cal shock <c> extended     record a shock sensor fully extended; <c> = fl fr rl rr all (CCM)",
+    "cal shock <c> compressed   record a shock sensor fully compressed (CCM)",
+    "cal save | cal load        save what was measured to flash (tuned values kept) / what start-up loads (CCM)",
+    "cal erase                  erase the saved copies: start-up runs ccm/calibration.toml (CCM)",
     "i2c scan                   addresses that answer (ADS1115 board)",
     "dti enable                 1 s of drive enable at 0 A, then silence: times the DTI's timeout (CCM)",
     "watchdog test              stop feeding the watchdog: the chip resets within 1 s",
     "bootloader                 reboot into the Teensy bootloader",
-    "(the race images accept only `bootloader`, and only in a safe state; 134 baud asks the same)",
+    "restart                    start the image again (clears a watchdog restart's latch)",
+    "(the race images accept only `bootloader` and `restart`, and only in a safe state; 134 baud asks for the bootloader)",
 ];
 
 #[cfg(test)]
@@ -224,8 +332,43 @@ mod tests {
         );
         assert_eq!(
             Command::parse("confirm hv"),
-            Err(CommandError::Usage("confirm hv-disconnected"))
+            Err(CommandError::Usage(
+                "confirm hv-disconnected | confirm wheels-off-ground"
+            ))
         );
+        assert_eq!(
+            Command::parse("confirm wheels-off-ground"),
+            Ok(Command::ConfirmWheelsOffGround)
+        );
+        assert_eq!(Command::parse("restart"), Ok(Command::Restart));
+        assert_eq!(Command::parse("cal erase"), Ok(Command::CalErase));
+        assert_eq!(
+            Command::parse("cal shock rr compressed"),
+            Ok(Command::CalibrateShock {
+                corner: ShockCorner::RearRight,
+                point: ShockPoint::Compressed
+            })
+        );
+        assert_eq!(
+            Command::parse("cal shock all extended"),
+            Ok(Command::CalibrateShock {
+                corner: ShockCorner::All,
+                point: ShockPoint::Extended
+            })
+        );
+        for bad in [
+            "cal shock",
+            "cal shock fl",
+            "cal shock xx extended",
+            "cal shock fl halfway",
+            "cal shock fl extended now",
+        ] {
+            assert_eq!(
+                Command::parse(bad),
+                Err(CommandError::Usage(SHOCK_USAGE)),
+                "{bad}"
+            );
+        }
         assert_eq!(
             Command::parse("relay on"),
             Err(CommandError::Unknown("relay"))

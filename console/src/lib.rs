@@ -1,7 +1,8 @@
 //! The USB serial console both firmwares talk on.
 //!
 //! Portable, `no_std` and host-tested: the bounded log ([`log`]), typed commands
-//! ([`command`]) and the bring-up images' checks ([`bringup`]). Behind the `firmware` feature,
+//! ([`command`]), the bring-up images' report lines ([`bringup`]) and the gate in front of
+//! what matters at high voltage ([`hv_gate`]). Behind the `firmware` feature,
 //! `usb` is the Teensy's USB CDC device that carries them, with the reboot into the
 //! bootloader that `teensy_loader_cli -s` asks for.
 #![no_std]
@@ -9,11 +10,12 @@
 pub mod bench;
 pub mod bringup;
 pub mod command;
+pub mod hv_gate;
 pub mod log;
 #[cfg(feature = "firmware")]
 pub mod usb;
 
-pub use command::{Command, CommandError, Level, PedalPosition};
+pub use command::{Command, CommandError, Level, PedalPosition, ShockCorner, ShockPoint};
 
 /// A value the race firmware logs when it changes (a state, a fault map, a bus's health).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -62,25 +64,44 @@ pub fn serial_number(id: u64, text: &mut [u8; 16]) -> &str {
     core::str::from_utf8(text).unwrap_or("0000000000000000")
 }
 
-/// A request for the bootloader, from the console (`bootloader`) or the USB host (134 baud),
-/// handed from the USB interrupt to the task that knows whether it is safe to obey.
+/// What a person asked the image to do with the chip.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Reboot {
+    /// Hand the chip to the Teensy's bootloader, to be flashed (`bootloader`, or 134 baud
+    /// from the host as `teensy_loader_cli -s` sets it).
+    Bootloader,
+    /// Start the image again from reset (`restart`): a software reset, which clears what a
+    /// watchdog restart latched, as a power cycle does (even with the Teensy fed by USB).
+    Restart,
+}
+
+/// A [`Reboot`] request from the console or the USB host, handed from the USB interrupt to
+/// the task that knows whether it is safe to obey.
 #[derive(Debug, Default)]
-pub struct RebootRequest(core::sync::atomic::AtomicBool);
+pub struct RebootRequest(core::sync::atomic::AtomicU8);
 
 impl RebootRequest {
     /// No request.
     pub const fn new() -> Self {
-        Self(core::sync::atomic::AtomicBool::new(false))
+        Self(core::sync::atomic::AtomicU8::new(0))
     }
 
-    /// Asks for the bootloader.
-    pub fn request(&self) {
-        self.0.store(true, core::sync::atomic::Ordering::Relaxed);
+    /// Asks for `reboot` (a later request replaces an earlier one not yet taken).
+    pub fn request(&self, reboot: Reboot) {
+        let code = match reboot {
+            Reboot::Bootloader => 1,
+            Reboot::Restart => 2,
+        };
+        self.0.store(code, core::sync::atomic::Ordering::Relaxed);
     }
 
-    /// Takes the request: true once per request.
-    pub fn take(&self) -> bool {
-        self.0.swap(false, core::sync::atomic::Ordering::Relaxed)
+    /// Takes the request: `Some` once per request.
+    pub fn take(&self) -> Option<Reboot> {
+        match self.0.swap(0, core::sync::atomic::Ordering::Relaxed) {
+            1 => Some(Reboot::Bootloader),
+            2 => Some(Reboot::Restart),
+            _ => None,
+        }
     }
 }
 
@@ -100,12 +121,17 @@ mod tests {
 
     #[test]
     fn a_reboot_request_is_taken_once() {
+        use super::Reboot;
         let request = super::RebootRequest::new();
-        assert!(!request.take());
-        request.request();
-        request.request();
-        assert!(request.take());
-        assert!(!request.take());
+        assert_eq!(request.take(), None);
+        request.request(Reboot::Bootloader);
+        request.request(Reboot::Bootloader);
+        assert_eq!(request.take(), Some(Reboot::Bootloader));
+        assert_eq!(request.take(), None);
+        request.request(Reboot::Bootloader);
+        request.request(Reboot::Restart);
+        assert_eq!(request.take(), Some(Reboot::Restart), "the later request");
+        assert_eq!(request.take(), None);
     }
 
     #[test]

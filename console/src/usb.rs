@@ -12,7 +12,7 @@ pub use teensy4_bsp::usbd::EndpointState;
 
 use crate::bench::{After, BenchBoard, BenchLoop, Line};
 use crate::log::{LineReader, LogBuffer};
-use crate::{Command, REBOOT_BAUD, RebootRequest};
+use crate::{Command, REBOOT_BAUD, Reboot, RebootRequest};
 use core::sync::atomic::{AtomicU32, Ordering};
 use rtic_core::Mutex;
 use teensy4_bsp::hal::gpio::Input;
@@ -161,9 +161,10 @@ impl UsbConsole {
     }
 }
 
-/// The race images' console task: the log out, typed bytes in. Only `bootloader` is taken,
-/// as a request the control task grants or refuses (the host's 134 baud asks the same). An
-/// image without a console (`None`: the USB device did not start) runs as before.
+/// The race images' console task: the log out, typed bytes in. Only `bootloader` and
+/// `restart` are taken, as requests the control task grants or refuses (the host's 134 baud
+/// asks for the bootloader). An image without a console (`None`: the USB device did not
+/// start) runs as before.
 pub fn serve_race<const N: usize>(
     console: Option<&mut UsbConsole>,
     log: &mut impl Mutex<T = LogBuffer<N>>,
@@ -173,13 +174,13 @@ pub fn serve_race<const N: usize>(
     let Some(console) = console else {
         return;
     };
-    let host_asks = console.serve(log, typed, |line| {
-        if matches!(Command::parse(line), Ok(Command::Bootloader)) {
-            reboot.request();
-        }
+    let host_asks = console.serve(log, typed, |line| match Command::parse(line) {
+        Ok(Command::Bootloader) => reboot.request(Reboot::Bootloader),
+        Ok(Command::Restart) => reboot.request(Reboot::Restart),
+        _ => {}
     });
     if host_asks {
-        reboot.request();
+        reboot.request(Reboot::Bootloader);
     }
 }
 
@@ -202,7 +203,7 @@ pub fn serve_bench<const N: usize>(
         }
     });
     if host_asks {
-        reboot.request();
+        reboot.request(Reboot::Bootloader);
     }
 }
 
@@ -219,9 +220,10 @@ pub fn bench_step<B: BenchBoard, const N: usize>(
     reboot: &RebootRequest,
 ) {
     let typed = core::iter::from_fn(|| lines.dequeue());
-    let after = log.lock(|log| bench.step(board, now_ms, typed, reboot, shared, log));
-    if after == After::Bootloader {
-        reboot_to_bootloader();
+    match log.lock(|log| bench.step(board, now_ms, typed, reboot, shared, log)) {
+        After::Continue => {}
+        After::Bootloader => reboot_to_bootloader(),
+        After::Restart => restart(),
     }
 }
 
@@ -263,6 +265,25 @@ pub fn count_rising_edges(inputs: &[Input], counters: &[AtomicU32]) {
 /// own firmware executes for a soft reboot on a Teensy 4 that is not locked.
 pub fn reboot_to_bootloader() -> ! {
     cortex_m_bkpt_251();
+    loop {
+        core::hint::spin_loop();
+    }
+}
+
+/// Starts the image again from reset: a system reset request (AIRCR SYSRESETREQ), which
+/// SRC_SRSR reports as a software reset, not a watchdog's, so the image starts as after a
+/// power cycle. The caller has made every output safe.
+pub fn restart() -> ! {
+    const AIRCR: *mut u32 = 0xE000_ED0C as *mut u32;
+    const VECTKEY_SYSRESETREQ: u32 = 0x05FA_0004;
+    // SAFETY: AIRCR is the Cortex-M7's Application Interrupt and Reset Control Register
+    // (ARMv7-M ARM B3.2.6); writing the key with SYSRESETREQ only requests a reset. Every
+    // memory write before it is finished first (the barrier).
+    unsafe {
+        core::arch::asm!("dsb");
+        core::ptr::write_volatile(AIRCR, VECTKEY_SYSRESETREQ);
+        core::arch::asm!("dsb");
+    }
     loop {
         core::hint::spin_loop();
     }

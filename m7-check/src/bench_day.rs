@@ -1,52 +1,61 @@
 //! The bench day's console transcripts: what a good board prints at each step of
-//! docs/bench-day.md, built by the same library code the images call (`aer_ccm::console`,
-//! `aer_pcc::console`, `aer_console::bringup`) and passed through the images' log buffer.
-//! `cargo xtask m7-check` prints them from QEMU's Cortex-M7 and requires the host's to be the
-//! same; `tests/bench_day_doc.rs` requires docs/bench-day.md to quote them exactly.
+//! docs/bench-day.md. The bring-up images' transcripts come from the images' own bench code
+//! (`aer_ccm::bench`, `aer_pcc::bench`) driven by the console's bench loop over a simulated
+//! board (`bench_sim`), with typed commands, at the images' own periods; the race images'
+//! from their library code (`aer_ccm::console`, `aer_pcc::console`, the precharge state
+//! machine behind the V/F measurement chain). `cargo xtask m7-check` prints them from QEMU's
+//! Cortex-M7 and requires the host's to be the same; `tests/bench_day_doc.rs` requires
+//! docs/bench-day.md to quote them exactly (`cargo run -p aer-m7-check --example bench_day`
+//! prints them all).
 
-use aer::can::{
-    DtiAcLimits, DtiControl, DtiCurrents, DtiDcLimits, DtiDriveEnable, DtiFlags, DtiFocCurrents,
-    DtiSpeed, DtiTemperatures, OrionCellVoltages, OrionLimits, OrionPackStatus, PccStatus,
+use crate::bench_sim::{
+    ACTIVE, CcmSession, Discard, Keep, PccSession, PulseTrain, Pulses, SimCcm, SimDti, SimPcc,
 };
-use aer_boards::Mode;
+use aer::can::{OrionLimits, PrechargeState};
 use aer_ccm::InverterKind;
-use aer_ccm::calibration::{BenchPoint, BenchRecorder};
-use aer_ccm::console::bringup::{self, Report};
-use aer_ccm::console::dti::DtiBench;
-use aer_ccm::console::{self as ccm_console, BootloaderAnswer};
-use aer_ccm::constants::DTI_ASSUMED_COMMAND_TIMEOUT_MS;
+use aer_ccm::calibration::Calibration;
+use aer_ccm::calibration::measured::{MEASURED, SOURCE};
+use aer_ccm::calibration::store::{Startup, crc32};
+use aer_ccm::console::bringup;
+use aer_ccm::console::{self as ccm_console, CalibrationLine};
 use aer_ccm::control::HandoverRefusal;
-use aer_console::LogBuffer;
-use aer_console::bringup::{
-    AnalogReading, BusLine, DigitalReading, Heard, HvGate, HvReadings, ReportHeader, ResetCause,
-    SelfTestLine,
-};
-use aer_flexcan::{BusStatus, FaultState};
-use aer_pcc::console::{self as pcc_console, BringupReport, StateLine, VfReading};
-use aer_pcc::{Inputs, Precharge, PrechargeConfig, VfConfig};
+use aer_console::bringup::ResetCause;
+use aer_console::{LogBuffer, Reboot};
+use aer_pcc::console::{self as pcc_console, CountersLine, RaceLog, RebootAnswer};
+use aer_pcc::measurement::VoltageChannel;
+use aer_pcc::{Inputs, Precharge, PrechargeConfig, Relays, TASK_PERIOD_MS, VfConfig};
 use core::fmt::{self, Write};
 
 /// A named transcript.
 pub type Example = (&'static str, fn(&mut dyn Write) -> fmt::Result);
 
 /// Every transcript docs/bench-day.md quotes, by the name its marker gives.
-pub const EXAMPLES: [Example; 16] = [
+pub const EXAMPLES: [Example; 25] = [
     ("ccm-bringup-startup", ccm_bringup_startup),
     ("ccm-report-alone", ccm_report_alone),
     ("ccm-can-self-test", ccm_can_self_test),
     ("ccm-report-on-the-car", ccm_report_on_the_car),
     ("ccm-calibration", ccm_calibration),
-    ("ccm-dti-timeout", ccm_dti_timeout),
+    ("ccm-shock-calibration", ccm_shock_calibration),
+    ("ccm-cal-save", ccm_cal_save),
     ("ccm-race-startup", ccm_race_startup),
+    ("ccm-race-startup-saved", ccm_race_startup_saved),
     ("ccm-bootloader", ccm_bootloader),
     ("pcc-bringup-startup", pcc_bringup_startup),
     ("pcc-report-bench-supply", pcc_report_bench_supply),
+    ("pcc-confirm-silent", pcc_confirm_silent),
     ("pcc-confirm-refused", pcc_confirm_refused),
+    ("pcc-air-plus", pcc_air_plus),
     ("pcc-generator-frequencies", pcc_generator_frequencies),
     ("pcc-bms-heartbeat", pcc_bms_heartbeat),
     ("pcc-race-startup", pcc_race_startup),
     ("pcc-race-precharge", pcc_race_precharge),
+    ("pcc-race-shutdown", pcc_race_shutdown),
     ("pcc-bootloader", pcc_bootloader),
+    ("pcc-race-watchdog", pcc_race_watchdog),
+    ("ccm-dti-timeout", ccm_dti_timeout),
+    ("ccm-dti-refused", ccm_dti_refused),
+    ("ccm-dti-hv", ccm_dti_hv),
 ];
 
 /// Writes every transcript, each under a `--- bench-day <name>` line.
@@ -58,443 +67,379 @@ pub fn transcripts(out: &mut impl Write) -> fmt::Result {
     Ok(())
 }
 
-/// The log as the images keep it: lines queue here, then go to `out` as the host reads them.
-struct Console {
-    log: LogBuffer<{ bringup::LOG_BYTES }>,
-}
-
-impl Console {
-    fn new() -> Self {
-        Self {
-            log: LogBuffer::new(),
+/// The lines of a log, copied to `out` as the host reads them.
+fn flush<const N: usize>(log: &mut LogBuffer<N>, out: &mut dyn Write) -> fmt::Result {
+    let mut line = [0u8; 512];
+    let mut len = 0;
+    let mut chunk = [0u8; 64];
+    loop {
+        let count = log.peek(&mut chunk);
+        if count == 0 {
+            break;
         }
-    }
-
-    /// Copies every queued line to `out` (without the line ends) and checks none was dropped.
-    fn flush(&mut self, out: &mut dyn Write) -> fmt::Result {
-        let mut chunk = [0u8; 64];
-        let mut line = heapless_line::Line::new();
-        loop {
-            let count = self.log.peek(&mut chunk);
-            if count == 0 {
-                break;
-            }
-            for &byte in chunk.get(..count).unwrap_or(&[]) {
-                if byte == b'\n' {
-                    writeln!(out, "{}", line.as_str())?;
-                    line.clear();
-                } else if byte != b'\r' {
-                    line.push(byte);
+        for &byte in chunk.get(..count).unwrap_or(&[]) {
+            match byte {
+                b'\n' => {
+                    let text = core::str::from_utf8(line.get(..len).unwrap_or(&[]))
+                        .unwrap_or("(not text)");
+                    writeln!(out, "{text}")?;
+                    len = 0;
+                }
+                b'\r' => {}
+                byte => {
+                    if let Some(slot) = line.get_mut(len) {
+                        *slot = byte;
+                        len += 1;
+                    }
                 }
             }
-            self.log.consume(count);
         }
-        if self.log.dropped() > 0 {
-            writeln!(out, "(log dropped {} lines)", self.log.dropped())?;
-        }
-        Ok(())
+        log.consume(count);
     }
-}
-
-/// A line being gathered from the log's bytes, without an allocator.
-mod heapless_line {
-    /// Up to 512 bytes of one line.
-    pub struct Line {
-        bytes: [u8; 512],
-        len: usize,
-    }
-
-    impl Line {
-        pub const fn new() -> Self {
-            Self {
-                bytes: [0; 512],
-                len: 0,
-            }
-        }
-
-        pub fn push(&mut self, byte: u8) {
-            if let Some(slot) = self.bytes.get_mut(self.len) {
-                *slot = byte;
-                self.len += 1;
-            }
-        }
-
-        pub fn clear(&mut self) {
-            self.len = 0;
-        }
-
-        pub fn as_str(&self) -> &str {
-            core::str::from_utf8(self.bytes.get(..self.len).unwrap_or(&[])).unwrap_or("(not text)")
-        }
-    }
-}
-
-const POWER_ON: ResetCause = ResetCause(0x1);
-
-const ACTIVE: BusStatus = BusStatus {
-    state: FaultState::ErrorActive,
-    tx_errors: 0,
-    rx_errors: 0,
-    rx_fifo_overflows: 0,
-    bus_off_events: 0,
-    tx_dropped: 0,
-};
-
-/// A board alone on its bus after `can`: its heartbeats go unacknowledged.
-const ALONE: BusStatus = BusStatus {
-    state: FaultState::ErrorPassive,
-    tx_errors: 128,
-    ..ACTIVE
-};
-
-/// The 12-bit ADC counts for `volts` at a sensor behind `divider`.
-fn counts_for(volts: f32, divider: f32) -> u16 {
-    (volts / divider / 3.3 * 4_095.0 + 0.5) as u16
-}
-
-/// The CCM's analog inputs at rest: pedal released, brakes released, shocks extended, the
-/// thermistor at room temperature.
-fn ccm_analog_at_rest() -> [AnalogReading; 9] {
-    let board = aer_boards::ccm::COMP_CAR;
-    let divider = board.adc_divider;
-    let rest_volts = |signal: &str| match signal {
-        "apps1" => 0.52,
-        "apps2" => 0.77,
-        "bse1" | "bse2" => 0.51,
-        "thermistor1" => 2.45,
-        _ => 4.98,
-    };
-    let mut readings = [AnalogReading {
-        pin: board.led,
-        counts: 0,
-        divider,
-    }; 9];
-    let analog = board
-        .pins()
-        .into_iter()
-        .filter(|pin| matches!(pin.mode, Mode::Analog(_)));
-    for (slot, pin) in readings.iter_mut().zip(analog) {
-        *slot = AnalogReading {
-            pin,
-            counts: counts_for(rest_volts(pin.signal), divider),
-            divider,
-        };
-    }
-    readings
-}
-
-fn ccm_digital_at_rest() -> [DigitalReading; 4] {
-    let board = aer_boards::ccm::COMP_CAR;
-    let [wheel1, wheel2] = board.wheel_speed;
-    [
-        (wheel1, true),
-        (wheel2, true),
-        (board.ready_to_move, false),
-        (board.launch, false),
-    ]
-    .map(|(pin, high)| DigitalReading {
-        pin,
-        high,
-        edges: 0,
-        hz: 0.0,
-    })
-}
-
-fn ccm_bringup_startup(out: &mut dyn Write) -> fmt::Result {
-    let mut console = Console::new();
-    bringup::startup(&mut console.log, &aer_boards::ccm::COMP_CAR, POWER_ON);
-    console.flush(out)
-}
-
-fn ccm_report(
-    out: &mut dyn Write,
-    now_ms: u32,
-    buses: [(BusStatus, Heard); 2],
-    dti: &DtiBench,
-) -> fmt::Result {
-    let mut console = Console::new();
-    let analog = ccm_analog_at_rest();
-    let digital = ccm_digital_at_rest();
-    let [(vehicle, heard_vehicle), (inverter, heard_inverter)] = buses;
-    Report {
-        header: ReportHeader { now_ms, dropped: 0 },
-        analog: &analog,
-        ads1115: None,
-        digital: &digital,
-        buses: [
-            BusLine {
-                name: "CAN3 (vehicle)",
-                status: Some(vehicle),
-                heard: &heard_vehicle,
-            },
-            BusLine {
-                name: "CAN2 (inverter)",
-                status: Some(inverter),
-                heard: &heard_inverter,
-            },
-        ],
-        dti,
-        brake_light: false,
-    }
-    .write(&mut console.log);
-    console.flush(out)
-}
-
-fn ccm_report_alone(out: &mut dyn Write) -> fmt::Result {
-    // The CCM's own heartbeats are not received back: nothing heard on either bus.
-    let empty = Heard::default();
-    ccm_report(
-        out,
-        12_004,
-        [(ALONE, empty), (ALONE, empty)],
-        &DtiBench::default(),
-    )
-}
-
-fn ccm_can_self_test(out: &mut dyn Write) -> fmt::Result {
-    let mut console = Console::new();
-    for name in ["CAN3 (vehicle)", "CAN2 (inverter)"] {
-        console.log.line(format_args!(
-            "{}",
-            SelfTestLine {
-                name,
-                result: Some(Ok(())),
-            }
-        ));
-    }
-    console.flush(out)
-}
-
-/// A second of frames: `count` of each id (its cycle time's worth).
-fn heard(ids: &[(u32, u32)]) -> Heard {
-    let mut heard = Heard::default();
-    for &(id, cycle_ms) in ids {
-        for _ in 0..1_000 / cycle_ms {
-            heard.frame(id);
-        }
-    }
-    heard
-}
-
-/// Packet 0x24 of a DTI at rest: CAN map 2.5 (25), every other field 0 (drive `enabled` or
-/// not).
-fn flags(enabled: bool) -> Result<DtiFlags, fmt::Error> {
-    let mut data = [0u8; 8];
-    if let Some(map) = data.get_mut(7) {
-        *map = 25;
-    }
-    let flags = DtiFlags::decode(&data).map_err(|_| fmt::Error)?;
-    Ok(DtiFlags {
-        dti_drive_enabled: if enabled {
-            DtiDriveEnable::Enabled
-        } else {
-            DtiDriveEnable::Disabled
-        },
-        ..flags
-    })
-}
-
-/// One second of a DTI at rest on its bus, drive disabled, no fault, DC link at 0 V (low
-/// voltage only): its status packets at their cycle times.
-fn dti_second(dti: &mut DtiBench, start_ms: u32) -> fmt::Result {
-    let mut data = [0u8; 8];
-    for tick in 0..100u32 {
-        let now = start_ms + tick * 10;
-        flags(false)?.encode(&mut data).map_err(|_| fmt::Error)?;
-        dti.frame(now, DtiFlags::ID, true, &data);
-        let speed = DtiSpeed {
-            dti_erpm: 0,
-            dti_duty_cycle: 0.0,
-            dti_input_voltage: 0,
-        };
-        speed.encode(&mut data).map_err(|_| fmt::Error)?;
-        dti.frame(now, DtiSpeed::ID, true, &data);
-        if tick % 10 == 0 {
-            let temperatures = DtiTemperatures {
-                dti_controller_temp: 24.5,
-                dti_motor_temp: 23.0,
-                dti_fault_code: aer::can::DtiFaultCode::None,
-            };
-            temperatures.encode(&mut data).map_err(|_| fmt::Error)?;
-            dti.frame(now, DtiTemperatures::ID, true, &data);
-        }
-        dti.poll(now);
+    if log.dropped() > 0 {
+        writeln!(out, "(log dropped {} lines)", log.dropped())?;
     }
     Ok(())
 }
 
+const POWER_ON: ResetCause = ResetCause(0x1);
+/// SRC_SRSR after a watchdog restart (WDOG1).
+const WATCHDOG: ResetCause = ResetCause(1 << 4);
+/// SRC_SRSR after `restart` (SYSRESETREQ).
+const SOFTWARE: ResetCause = ResetCause(1 << 1);
+
+/// The CCM's report lines end with this one.
+const CCM_REPORT_END: Keep = Keep::NoReports {
+    last: "brake light ",
+};
+/// Console exchanges and events, without the periodic reports.
+const EXCHANGE: Keep = Keep::Starting(&["> ", "refused", "t="]);
+
+fn ccm() -> CcmSession {
+    let board = aer_boards::ccm::COMP_CAR;
+    CcmSession::new(SimCcm::at_rest(&board), board)
+}
+
+/// The CCM bring-up image on the car's buses: the PCC (its race image, in STANDBY), the BMS,
+/// and the DTI at rest.
+fn ccm_on_the_car() -> CcmSession {
+    let mut session = ccm();
+    let sim = session.sim();
+    sim.buses = [Some(ACTIVE); 2];
+    sim.pcc = Some(PrechargeState::Standby);
+    sim.bms = true;
+    sim.dti = Some(SimDti::AT_REST);
+    session
+}
+
+fn ccm_bringup_startup(out: &mut dyn Write) -> fmt::Result {
+    let mut log = LogBuffer::<{ bringup::LOG_BYTES }>::new();
+    bringup::startup(&mut log, &aer_boards::ccm::COMP_CAR, POWER_ON);
+    flush(&mut log, out)
+}
+
+fn ccm_report_alone(out: &mut dyn Write) -> fmt::Result {
+    // Alone on both buses after `can`: its heartbeats go unacknowledged, nothing is heard.
+    let mut session = ccm();
+    session.skip(11_999)?;
+    session.run(12_001, out, Keep::All)
+}
+
+fn ccm_can_self_test(out: &mut dyn Write) -> fmt::Result {
+    let mut session = ccm();
+    session.skip(5_500)?;
+    session.type_line("can", out, Keep::All)
+}
+
 fn ccm_report_on_the_car(out: &mut dyn Write) -> fmt::Result {
-    let vehicle = heard(&[
-        (PccStatus::ID, PccStatus::CYCLE_TIME_MS),
-        (OrionPackStatus::ID, OrionPackStatus::CYCLE_TIME_MS),
-        (OrionLimits::ID, OrionLimits::CYCLE_TIME_MS),
-        (OrionCellVoltages::ID, OrionCellVoltages::CYCLE_TIME_MS),
-    ]);
-    let inverter = heard(&[
-        (DtiControl::ID, DtiControl::CYCLE_TIME_MS),
-        (DtiSpeed::ID, DtiSpeed::CYCLE_TIME_MS),
-        (DtiCurrents::ID, DtiCurrents::CYCLE_TIME_MS),
-        (DtiTemperatures::ID, DtiTemperatures::CYCLE_TIME_MS),
-        (DtiFocCurrents::ID, DtiFocCurrents::CYCLE_TIME_MS),
-        (DtiFlags::ID, DtiFlags::CYCLE_TIME_MS),
-        (DtiAcLimits::ID, DtiAcLimits::CYCLE_TIME_MS),
-        (DtiDcLimits::ID, DtiDcLimits::CYCLE_TIME_MS),
-    ]);
-    let mut dti = DtiBench::default();
-    dti_second(&mut dti, 20_000)?;
-    ccm_report(out, 21_004, [(ACTIVE, vehicle), (ACTIVE, inverter)], &dti)
+    let mut session = ccm_on_the_car();
+    session.skip(20_999)?;
+    session.run(21_001, out, Keep::All)
+}
+
+/// Records the pedal at rest and fully pressed, `cal rest` and `cal full`.
+fn record_pedal(session: &mut CcmSession, out: &mut dyn Write, keep: Keep) -> fmt::Result {
+    let sim = session.sim();
+    for (signal, volts) in [
+        ("apps1", 0.512),
+        ("apps2", 0.771),
+        ("bse1", 0.508),
+        ("bse2", 0.514),
+    ] {
+        sim.set(signal, volts);
+    }
+    let start = session.now_ms();
+    session.type_line("cal rest", out, keep)?;
+    session.run(start + 1_100, out, keep)?;
+    let sim = session.sim();
+    sim.set("apps1", 2.793);
+    sim.set("apps2", 4.187);
+    session.type_line("cal full", out, keep)?;
+    session.run(start + 2_200, out, keep)
 }
 
 fn ccm_calibration(out: &mut dyn Write) -> fmt::Result {
-    let mut console = Console::new();
-    let mut recorder = BenchRecorder::default();
-    let points = [
-        (BenchPoint::Rest, [0.512f32, 0.771], [0.508f32, 0.514]),
-        (BenchPoint::Full, [2.793, 4.187], [0.51, 0.52]),
-    ];
-    for (point, pedals, brakes) in points {
-        recorder.start(point);
-        let mut step = 0u32;
-        while recorder.recording() {
-            let wobble = (step % 7) as f32 * 0.000_5 - 0.001_5;
-            recorder.sample(
-                [Some(pedals[0] + wobble), Some(pedals[1] - wobble)],
-                [brakes[0] + wobble, brakes[1] - wobble],
-            );
-            step += 1;
-        }
-        bringup::calibration(&mut console.log, &recorder);
-    }
-    console.flush(out)
+    let mut session = ccm();
+    session.skip(40_250)?;
+    record_pedal(&mut session, out, CCM_REPORT_END)
 }
 
-fn ccm_dti_timeout(out: &mut dyn Write) -> fmt::Result {
-    let mut console = Console::new();
-    let mut dti = DtiBench::default();
-    dti_second(&mut dti, 30_000)?;
-    let mut gate = HvGate::new(60.0);
-    let start = 31_000;
-    let dc_link = [("DTI DC link", dti.dc_link_v(start))];
-    gate.confirm(start, HvReadings { volts: &dc_link })
-        .map_err(|_| fmt::Error)?;
-    console.log.line(format_args!("{}", dti.timeout));
-    // `dti enable`: the bring-up's commands every 10 ms for 1 s; a DTI that obeys them and
-    // drops its drive enable the assumed timeout after the last one (status every 10 ms).
-    dti.test.start(start);
-    let mut last_command = None;
-    for ms in 0..2_000u32 {
-        let now = start + ms;
-        if dti.due(now).is_some() {
-            last_command = Some(now);
-        }
-        if ms % 10 == 5 {
-            let enabled = last_command.is_some_and(|at| now - at <= DTI_ASSUMED_COMMAND_TIMEOUT_MS);
-            let mut data = [0u8; 8];
-            flags(enabled)?.encode(&mut data).map_err(|_| fmt::Error)?;
-            dti.frame(now, DtiFlags::ID, true, &data);
-        }
-        dti.poll(now);
+/// The team's shock sensors fully compressed (V), one corner after another.
+const SHOCKS_COMPRESSED: [(&str, &str, f32); 4] = [
+    ("fl", "shock1", 4.842),
+    ("fr", "shock2", 4.851),
+    ("rl", "shock3", 4.839),
+    ("rr", "shock4", 4.830),
+];
+
+/// Records every shock sensor: all four extended at once, then each compressed in turn.
+fn record_shocks(session: &mut CcmSession, out: &mut dyn Write, keep: Keep) -> fmt::Result {
+    let mut at = session.now_ms();
+    session.type_line("cal shock all extended", out, keep)?;
+    at += 1_100;
+    session.run(at, out, keep)?;
+    let mut line = [0u8; 40];
+    for (corner, signal, volts) in SHOCKS_COMPRESSED {
+        session.sim().set(signal, volts);
+        let mut typed = Text::new(&mut line);
+        write!(typed, "cal shock {corner} compressed")?;
+        session.type_line(typed.as_str(), out, keep)?;
+        at += 1_100;
+        session.run(at, out, keep)?;
+        session.sim().set(signal, 4.98);
     }
-    console.log.line(format_args!("{}", dti.timeout));
-    console.flush(out)
+    Ok(())
+}
+
+/// A short line written into a borrowed buffer, without an allocator.
+struct Text<'a> {
+    bytes: &'a mut [u8],
+    len: usize,
+}
+
+impl<'a> Text<'a> {
+    fn new(bytes: &'a mut [u8]) -> Self {
+        Self { bytes, len: 0 }
+    }
+
+    fn as_str(&self) -> &str {
+        core::str::from_utf8(self.bytes.get(..self.len).unwrap_or(&[])).unwrap_or("")
+    }
+}
+
+impl Write for Text<'_> {
+    fn write_str(&mut self, text: &str) -> fmt::Result {
+        let end = self.len + text.len();
+        self.bytes
+            .get_mut(self.len..end)
+            .ok_or(fmt::Error)?
+            .copy_from_slice(text.as_bytes());
+        self.len = end;
+        Ok(())
+    }
+}
+
+fn ccm_shock_calibration(out: &mut dyn Write) -> fmt::Result {
+    let mut session = ccm();
+    session.skip(60_250)?;
+    record_shocks(&mut session, out, CCM_REPORT_END)
+}
+
+fn ccm_cal_save(out: &mut dyn Write) -> fmt::Result {
+    let mut session = ccm();
+    session.skip(80_250)?;
+    session.type_line("cal load", out, CCM_REPORT_END)?;
+    record_pedal(&mut session, &mut Discard, Keep::Nothing)?;
+    record_shocks(&mut session, &mut Discard, Keep::Nothing)?;
+    for line in ["cal save", "cal load", "cal save"] {
+        session.type_line(line, out, CCM_REPORT_END)?;
+    }
+    Ok(())
 }
 
 fn ccm_race_startup(out: &mut dyn Write) -> fmt::Result {
-    let mut console = Console::new();
+    let mut log = LogBuffer::<{ ccm_console::LOG_BYTES }>::new();
+    let calibration = MEASURED.applied_to(Calibration::DEFAULT);
     ccm_console::race_startup(
-        &mut console.log,
+        &mut log,
         aer_boards::ccm::COMP_CAR.name,
         InverterKind::Dti,
         POWER_ON,
+        CalibrationLine {
+            startup: Startup::NoneSaved,
+            checksum: crc32(&calibration.to_page()),
+            file_source: SOURCE,
+        },
     );
-    console.flush(out)
+    flush(&mut log, out)
+}
+
+fn ccm_race_startup_saved(out: &mut dyn Write) -> fmt::Result {
+    let mut log = LogBuffer::<{ ccm_console::LOG_BYTES }>::new();
+    // After step 5's `cal save`: copy A, with the measured sensors.
+    let mut session = ccm();
+    record_pedal(&mut session, &mut Discard, Keep::Nothing)?;
+    record_shocks(&mut session, &mut Discard, Keep::Nothing)?;
+    session.type_line("cal save", &mut Discard, Keep::Nothing)?;
+    let (_, loaded) = aer_ccm::calibration::store::CalibrationStore::load(
+        aer_ccm::bench::CcmHardware::flash(session.sim()),
+        aer_ccm::calibration::EPK,
+    );
+    ccm_console::race_startup(
+        &mut log,
+        aer_boards::ccm::COMP_CAR.name,
+        InverterKind::Dti,
+        POWER_ON,
+        CalibrationLine {
+            startup: loaded.startup,
+            checksum: crc32(&loaded.calibration.to_page()),
+            file_source: SOURCE,
+        },
+    );
+    flush(&mut log, out)
 }
 
 fn ccm_bootloader(out: &mut dyn Write) -> fmt::Result {
-    let mut console = Console::new();
-    for (now, answer) in [
-        (84_310, BootloaderAnswer::Refused(HandoverRefusal::Driving)),
-        (96_020, BootloaderAnswer::Obeyed),
+    let mut log = LogBuffer::<{ ccm_console::LOG_BYTES }>::new();
+    for (now, reboot, outcome) in [
+        (84_310, Reboot::Bootloader, Err(HandoverRefusal::Driving)),
+        (96_020, Reboot::Bootloader, Ok(())),
+        (131_400, Reboot::Restart, Ok(())),
     ] {
-        console.log.line(format_args!("t={now} ms {answer}"));
+        let answer = ccm_console::RebootAnswer { reboot, outcome };
+        log.line(format_args!("t={now} ms {answer}"));
     }
-    console.flush(out)
+    flush(&mut log, out)
+}
+
+fn ccm_dti_timeout(out: &mut dyn Write) -> fmt::Result {
+    let mut session = ccm_on_the_car();
+    session.skip(30_250)?;
+    let keep = Keep::Starting(&[
+        "> ",
+        "refused",
+        "t=",
+        "DTI command timeout: drive",
+        "DTI command timeout: STILL",
+        "DTI command timeout: the DTI never",
+    ]);
+    session.type_line("confirm hv-disconnected", out, keep)?;
+    session.type_line("dti enable", out, keep)?;
+    session.run(32_100, out, keep)
+}
+
+fn ccm_dti_refused(out: &mut dyn Write) -> fmt::Result {
+    // The DTI's logic not powered: nothing on the inverter bus.
+    let mut session = ccm();
+    session.skip(30_250)?;
+    session.type_line("confirm hv-disconnected", out, EXCHANGE)?;
+    // High voltage on the DTI's DC link while the PCC precharges.
+    let sim = session.sim();
+    sim.buses = [Some(ACTIVE); 2];
+    sim.dti = Some(SimDti {
+        dc_link_v: 36,
+        ..SimDti::AT_REST
+    });
+    sim.pcc = Some(PrechargeState::Precharge);
+    session.skip(31_250)?;
+    session.sim().dti = Some(SimDti {
+        dc_link_v: 344,
+        ..SimDti::AT_REST
+    });
+    session.skip(31_500)?;
+    for line in [
+        "confirm hv-disconnected",
+        "dti enable",
+        "confirm wheels-off-ground",
+        "dti enable",
+    ] {
+        session.type_line(line, out, EXCHANGE)?;
+    }
+    Ok(())
+}
+
+fn ccm_dti_hv(out: &mut dyn Write) -> fmt::Result {
+    let mut session = ccm_on_the_car();
+    let sim = session.sim();
+    sim.pcc = Some(PrechargeState::Online);
+    sim.dti = Some(SimDti {
+        dc_link_v: 392,
+        ..SimDti::AT_REST
+    });
+    session.skip(50_250)?;
+    let keep = Keep::Starting(&["> ", "refused", "t=", "DTI command timeout: drive"]);
+    session.type_line("confirm wheels-off-ground", out, keep)?;
+    session.type_line("dti enable", out, keep)?;
+    session.run(52_100, out, keep)?;
+    // Again, and the shutdown circuit opens mid-test: the PCC reports ERROR.
+    session.type_line("dti enable", out, keep)?;
+    session.run(52_500, out, keep)?;
+    session.sim().pcc = Some(PrechargeState::Error);
+    session.run(52_700, out, keep)
 }
 
 fn pcc_bringup_startup(out: &mut dyn Write) -> fmt::Result {
-    let mut console = Console::new();
-    pcc_console::bringup_startup(&mut console.log, &aer_boards::pcc::COMP_CAR, POWER_ON);
-    console.flush(out)
+    let mut log = LogBuffer::<{ pcc_console::BRINGUP_LOG_BYTES }>::new();
+    pcc_console::bringup_startup(&mut log, &aer_boards::pcc::COMP_CAR, POWER_ON);
+    flush(&mut log, out)
 }
 
-/// The PCC bring-up's report with `hz` on the accumulator and tractive-system inputs.
-fn pcc_report(console: &mut Console, now_ms: u32, hz: [f32; 2]) {
-    let board = aer_boards::pcc::COMP_CAR;
-    let mut vf = board.voltage_freq.map(|pin| VfReading {
-        input: DigitalReading {
-            pin,
-            high: false,
-            edges: 0,
-            hz: 0.0,
-        },
-        vf: VfConfig::PCC_BOARD,
-    });
-    let seconds = now_ms / 1_000;
-    for (reading, hz) in vf.iter_mut().zip(hz) {
-        reading.input.hz = hz;
-        reading.input.edges = (hz * seconds as f32) as u32;
+/// The PCC bring-up image with the bench supply at `volts` on each converter's sense input
+/// (`None`: that converter unplugged) and a CAN adapter sending the BMS's frame.
+fn pcc(volts: [Option<f32>; 2]) -> PccSession {
+    let mut sim = SimPcc::new();
+    for (input, volts) in sim.inputs.iter_mut().zip(volts) {
+        input.pulses = volts.map_or(Pulses::None, Pulses::volts);
     }
-    let thermistors = board.thermistors.map(|pin| AnalogReading {
-        pin,
-        counts: 2_048,
-        divider: 1.0,
-    });
-    let mut heard = Heard::default();
-    for _ in 0..10 {
-        heard.frame(OrionLimits::ID);
-    }
-    BringupReport {
-        header: ReportHeader { now_ms, dropped: 0 },
-        vf,
-        thermistors,
-        bus: BusLine {
-            name: "CAN2",
-            status: Some(ACTIVE),
-            heard: &heard,
-        },
-        air_plus: false,
-    }
-    .write(&mut console.log);
+    sim.bms = true;
+    PccSession::new(sim)
 }
 
 fn pcc_report_bench_supply(out: &mut dyn Write) -> fmt::Result {
-    let mut console = Console::new();
     // 30.0 V from a bench supply on the accumulator sense input; nothing on the tractive one.
-    pcc_report(
-        &mut console,
-        15_003,
-        [VfConfig::PCC_BOARD.hz_for_volts(30.0), 0.0],
-    );
-    console.flush(out)
+    let mut session = pcc([Some(30.0), None]);
+    session.skip(14_990)?;
+    session.run(15_000, out, Keep::All)
+}
+
+fn pcc_confirm_silent(out: &mut dyn Write) -> fmt::Result {
+    // Both converters unplugged (or broken): no pulses, so no reading.
+    let mut session = pcc([None, None]);
+    session.skip(5_250)?;
+    session.type_line("confirm hv-disconnected", out, EXCHANGE)?;
+    session.type_line("out air-plus-close on", out, EXCHANGE)
 }
 
 fn pcc_confirm_refused(out: &mut dyn Write) -> fmt::Result {
-    let mut console = Console::new();
-    let mut gate = HvGate::new(PrechargeConfig::CAR.discharged_v);
-    let live = [
-        ("accumulator (pin 14)", Some(388.2)),
-        ("tractive system (pin 15)", Some(0.0)),
-    ];
-    if let Err(refusal) = gate.confirm(1_000, HvReadings { volts: &live }) {
-        console.log.line(format_args!("refused: {refusal}"));
-    }
-    console.flush(out)
+    let mut session = pcc([Some(388.2), Some(24.0)]);
+    session.skip(5_250)?;
+    session.type_line("confirm hv-disconnected", out, EXCHANGE)
+}
+
+fn pcc_air_plus(out: &mut dyn Write) -> fmt::Result {
+    // Step 6c: the bench supply (24 V) on both sense inputs.
+    let mut session = pcc([Some(24.0), Some(24.0)]);
+    session.skip(8_250)?;
+    session.type_line("confirm hv-disconnected", out, EXCHANGE)?;
+    session.type_line("out air-plus-close on", out, EXCHANGE)?;
+    // The supply on the tractive input turned up past 60 V: AIR+ drops within two steps.
+    session.run(9_500, out, EXCHANGE)?;
+    session.sim().inputs[1].pulses = Pulses::volts(61.0);
+    session.run(10_250, out, EXCHANGE)?;
+    session.sim().inputs[1].pulses = Pulses::volts(24.0);
+    session.run(10_500, out, EXCHANGE)?;
+    session.type_line("confirm hv-disconnected", out, EXCHANGE)?;
+    session.type_line("out air-plus-close on", out, EXCHANGE)?;
+    // A converter's wire comes off: silent after its 100 ms edge timeout, AIR+ drops.
+    session.run(11_500, out, EXCHANGE)?;
+    session.sim().inputs[0].pulses = Pulses::None;
+    session.run(12_000, out, EXCHANGE)
 }
 
 fn pcc_generator_frequencies(out: &mut dyn Write) -> fmt::Result {
     let vf = VfConfig::PCC_BOARD;
     writeln!(out, "volts at the input  Hz at pin 14 or 15")?;
-    for volts in [30.0f32, 60.0, 100.0, 200.0, 300.0, 400.0] {
+    for volts in [24.0f32, 30.0, 60.0, 100.0, 200.0, 300.0, 400.0] {
         writeln!(out, "{volts:>17.0}  {:>18.1}", vf.hz_for_volts(volts))?;
     }
     Ok(())
@@ -520,95 +465,153 @@ fn pcc_bms_heartbeat(out: &mut dyn Write) -> fmt::Result {
 }
 
 fn pcc_race_startup(out: &mut dyn Write) -> fmt::Result {
-    let mut console = Console::new();
-    pcc_console::race_startup(&mut console.log, &aer_boards::pcc::COMP_CAR, POWER_ON);
-    console.flush(out)
+    let mut log = LogBuffer::<{ pcc_console::LOG_BYTES }>::new();
+    pcc_console::race_startup(&mut log, &aer_boards::pcc::COMP_CAR, POWER_ON);
+    flush(&mut log, out)
 }
 
-/// The race PCC on the bench with a signal generator: pin 14 at 300 V's frequency, pin 15
-/// swept linearly from 0 to the same frequency over 9.9 s, the BMS's frames from a CAN
-/// adapter. Every line the race image logs on the way to ONLINE.
-fn pcc_race_precharge(out: &mut dyn Write) -> fmt::Result {
-    let mut console = Console::new();
-    let config = PrechargeConfig::CAR;
-    let mut pcc = Precharge::new(config, 0);
-    let mut last = None;
-    let mut last_timing = None;
-    let sweep_start = 5_000u32;
-    let sweep_ms = 9_900u32;
-    for tick in 0..2_000u32 {
-        let now_ms = tick * 10;
-        let swept = now_ms.saturating_sub(sweep_start).min(sweep_ms) as f32 / sweep_ms as f32;
+/// The race PCC on the bench: its control task every 10 ms, the V/F inputs from signal
+/// generators through the image's measurement chain (edges time-stamped, `VoltageChannel`),
+/// the BMS's frame from a CAN adapter every 100 ms, the log the image keeps.
+struct RacePcc {
+    pcc: Precharge,
+    channels: [VoltageChannel; 2],
+    inputs: [PulseTrain; 2],
+    race_log: RaceLog,
+    log: LogBuffer<{ pcc_console::LOG_BYTES }>,
+    now_ms: u32,
+    relays: Relays,
+}
+
+impl RacePcc {
+    fn new(pcc: Precharge) -> Self {
+        let vf = VfConfig::PCC_BOARD;
+        Self {
+            pcc,
+            channels: [VoltageChannel::new(vf, TASK_PERIOD_MS); 2],
+            inputs: [PulseTrain::new(); 2],
+            race_log: RaceLog::default(),
+            log: LogBuffer::new(),
+            now_ms: 0,
+            relays: Relays::ALL_OPEN,
+        }
+    }
+
+    /// Runs the control task up to `until_ms`; with `out`, what it logs is the transcript.
+    fn run(&mut self, until_ms: u32, mut out: Option<&mut dyn Write>) -> fmt::Result {
+        while self.now_ms < until_ms {
+            self.step();
+            if let Some(out) = out.as_mut() {
+                flush(&mut self.log, &mut **out)?;
+            } else {
+                self.log.consume(self.log.len());
+            }
+        }
+        Ok(())
+    }
+
+    fn step(&mut self) {
+        let now_ms = self.now_ms;
+        let now_us = now_ms.wrapping_mul(1_000);
         let inputs = Inputs {
             now_ms,
-            accumulator_v: 300.0,
-            tractive_v: 300.0 * swept,
+            accumulator_v: self.channels[0].sample(now_us),
+            tractive_v: self.channels[1].sample(now_us),
             bms_last_seen_ms: Some(now_ms - now_ms % 100),
             charger_safety: false,
         };
-        let relays = pcc.step(&inputs);
-        let now = (pcc.state(), pcc.errors());
-        if last != Some(now) {
-            last = Some(now);
-            let line = StateLine {
-                now_ms,
-                state: now.0,
-                relays,
-                errors: now.1,
-                accumulator_v: pcc.accumulator_v(),
-                tractive_v: pcc.tractive_v(),
-            };
-            console.log.line(format_args!("{line}"));
+        self.relays = self.pcc.step(&inputs);
+        self.race_log
+            .changes(now_ms, &self.pcc, self.relays, &mut self.log);
+        if RaceLog::counters_due(now_ms) {
+            let dropped = self.log.dropped();
+            self.log.line(format_args!(
+                "{}",
+                CountersLine {
+                    now_ms,
+                    bus: ACTIVE,
+                    rx_queue_overflows: 0,
+                    status_not_sent: 0,
+                    log_dropped: dropped,
+                }
+            ));
         }
-        if pcc.last_precharge() != last_timing {
-            last_timing = pcc.last_precharge();
-            if let Some(timing) = last_timing {
-                console.log.line(format_args!("t={now_ms} ms {timing}"));
+        // The next period's edges.
+        for ms in now_ms..now_ms + TASK_PERIOD_MS {
+            for (input, channel) in self.inputs.iter_mut().zip(self.channels.iter_mut()) {
+                input.slice(u64::from(ms) * 1_000, |at_us| channel.on_edge(at_us as u32));
             }
         }
+        self.now_ms += TASK_PERIOD_MS;
     }
-    console.flush(out)
+
+    /// The race image's answer to `reboot` now.
+    fn ask(&mut self, reboot: Reboot) {
+        let outcome = self.pcc.handover().map(|_| ());
+        let answer = RebootAnswer { reboot, outcome };
+        self.log.line(format_args!("t={} ms {answer}", self.now_ms));
+    }
+}
+
+/// Pin 14 at 300 V; pin 15 swept from 0 to 300 V's frequency over 9.9 s from 5 s on: the
+/// precharge the race PCC sees on the bench.
+fn precharging() -> RacePcc {
+    let mut pcc = RacePcc::new(Precharge::new(PrechargeConfig::CAR, 0));
+    let full = VfConfig::PCC_BOARD.hz_for_volts(300.0);
+    pcc.inputs[0].pulses = Pulses::Hz(full);
+    pcc.inputs[1].pulses = Pulses::Sweep {
+        from_hz: 0.0,
+        to_hz: full,
+        start_ms: 5_000,
+        duration_ms: 9_900,
+    };
+    pcc
+}
+
+fn pcc_race_precharge(out: &mut dyn Write) -> fmt::Result {
+    precharging().run(15_000, Some(out))
+}
+
+fn pcc_race_shutdown(out: &mut dyn Write) -> fmt::Result {
+    let mut pcc = precharging();
+    pcc.run(19_990, None)?;
+    // The shutdown circuit opens: the tractive input's generator stops.
+    pcc.inputs[1].pulses = Pulses::None;
+    pcc.run(21_000, Some(out))
 }
 
 fn pcc_bootloader(out: &mut dyn Write) -> fmt::Result {
-    let mut console = Console::new();
+    let mut pcc = precharging();
+    pcc.run(15_000, None)?;
+    pcc.ask(Reboot::Bootloader);
+    flush(&mut pcc.log, out)?;
+    // The shutdown circuit opens; asked while the tractive system discharges, and once it
+    // is discharged.
+    pcc.inputs[1].pulses = Pulses::Sweep {
+        from_hz: VfConfig::PCC_BOARD.hz_for_volts(300.0),
+        to_hz: 0.0,
+        start_ms: 15_000,
+        duration_ms: 600,
+    };
+    pcc.run(15_300, None)?;
+    pcc.ask(Reboot::Bootloader);
+    flush(&mut pcc.log, out)?;
+    pcc.run(19_000, None)?;
+    pcc.ask(Reboot::Bootloader);
+    pcc.ask(Reboot::Restart);
+    flush(&mut pcc.log, out)
+}
+
+fn pcc_race_watchdog(out: &mut dyn Write) -> fmt::Result {
     let config = PrechargeConfig::CAR;
-    let mut pcc = Precharge::new(config, 0);
-    let mut inputs = Inputs {
-        now_ms: 0,
-        accumulator_v: 300.0,
-        tractive_v: 0.0,
-        bms_last_seen_ms: Some(0),
-        charger_safety: false,
-    };
-    // Precharge to ONLINE in 8.8 s, then ask.
-    for tick in 0..1_100u32 {
-        inputs.now_ms = tick * 10;
-        inputs.bms_last_seen_ms = Some(inputs.now_ms);
-        inputs.tractive_v = (300.0 * inputs.now_ms as f32 / 9_500.0).min(300.0);
-        pcc.step(&inputs);
-    }
-    let answer = |pcc: &Precharge| match pcc.handover() {
-        Ok(_) => pcc_console::BootloaderAnswer::Obeyed,
-        Err(why) => pcc_console::BootloaderAnswer::Refused(why),
-    };
-    console
-        .log
-        .line(format_args!("t={} ms {}", inputs.now_ms, answer(&pcc)));
-    // The shutdown circuit opens: the tractive system falls away, ERROR, then below 60 V.
-    for tick in 1_100..1_400u32 {
-        inputs.now_ms = tick * 10;
-        inputs.bms_last_seen_ms = Some(inputs.now_ms);
-        inputs.tractive_v *= 0.97;
-        pcc.step(&inputs);
-        if tick == 1_130 {
-            console
-                .log
-                .line(format_args!("t={} ms {}", inputs.now_ms, answer(&pcc)));
-        }
-    }
-    console
-        .log
-        .line(format_args!("t={} ms {}", inputs.now_ms, answer(&pcc)));
-    console.flush(out)
+    // The PCC hung and its watchdog restarted it: ERROR, latched.
+    let mut pcc = RacePcc::new(Precharge::after_watchdog_reset(config, 0));
+    pcc_console::race_startup(&mut pcc.log, &aer_boards::pcc::COMP_CAR, WATCHDOG);
+    pcc.run(7_000, Some(&mut *out))?;
+    pcc.ask(Reboot::Restart);
+    flush(&mut pcc.log, out)?;
+    // The software reset starts it as a power cycle does.
+    let mut pcc = RacePcc::new(Precharge::new(config, 0));
+    pcc_console::race_startup(&mut pcc.log, &aer_boards::pcc::COMP_CAR, SOFTWARE);
+    pcc.run(10, Some(out))
 }

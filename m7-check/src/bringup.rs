@@ -4,10 +4,9 @@
 
 use crate::Digest;
 use aer_boards::{ccm, pcc};
-use aer_ccm::calibration::{BenchPoint, BenchRecorder};
-use aer_console::bringup::{
-    AnalogReading, DigitalReading, Heard, HvGate, HvReadings, ResetCause, edge_rate_hz,
-};
+use aer_ccm::calibration::{BenchPoint, BenchRecorder, BenchSample};
+use aer_console::bringup::{AnalogReading, DigitalReading, Heard, ResetCause, edge_rate_hz};
+use aer_console::hv_gate::{HvGate, HvReading, HvSensor};
 use aer_console::{Command, LineReader, LogBuffer};
 use core::fmt::Write;
 
@@ -22,22 +21,25 @@ pub fn checks(out: &mut impl Write) -> core::fmt::Result {
             log.line(format_args!("{line} -> {:?}", Command::parse(line)));
         }
     }
-    let mut gate = HvGate::new(60.0);
-    let discharged = [("tractive system", Some(12.5f32))];
-    let discharged = HvReadings { volts: &discharged };
-    let live = [("tractive system", Some(60.0f32))];
-    let live = HvReadings { volts: &live };
+    let mut gate = HvGate::new(60.0, 10);
+    let sensor = |volts: Option<f32>, at_ms: u32| HvSensor {
+        name: "tractive system",
+        reading: volts.map_or(HvReading::Silent, |volts| HvReading::Volts { volts, at_ms }),
+        silent: "no pulses",
+    };
     log.line(format_args!(
-        "gate {:?} {:?}",
-        gate.confirm(1_000, live),
-        gate.confirm(1_000, discharged)
+        "gate {:?} {:?} {:?}",
+        gate.confirm(1_000, &[sensor(Some(60.0), 1_000)]),
+        gate.confirm(1_000, &[sensor(None, 1_000)]),
+        gate.confirm(1_000, &[sensor(Some(12.5), 1_000)])
     ));
     log.line(format_args!(
-        "gate {:?} {:?} {:?} {:?}",
-        gate.allows(999 + 30_000, discharged),
-        gate.allows(1_000 + 29_999, discharged),
-        gate.allows(1_000 + 30_000, discharged),
-        gate.allows(1_000 + 10, live)
+        "gate {:?} {:?} {:?} {:?} {:?}",
+        gate.allows(999 + 30_000, &[sensor(Some(12.5), 999 + 30_000)]),
+        gate.allows(1_000 + 29_999, &[sensor(Some(12.5), 1_000 + 29_990)]),
+        gate.allows(1_000 + 29_999, &[sensor(Some(12.5), 1_000 + 29_988)]),
+        gate.allows(1_000 + 30_000, &[sensor(Some(12.5), 1_000 + 30_000)]),
+        gate.allows(1_000 + 10, &[sensor(Some(60.0), 1_010)])
     ));
     let mut calibration = BenchRecorder::default();
     for (point, apps) in [
@@ -48,14 +50,15 @@ pub fn checks(out: &mut impl Write) -> core::fmt::Result {
         let mut step = 0u32;
         while calibration.recording() {
             let wobble = (step % 7) as f32 * 0.001;
-            calibration.sample(
-                [Some(apps[0] + wobble), Some(apps[1] - wobble)],
-                [0.52 + wobble, 0.53 - wobble],
-            );
+            calibration.sample(&BenchSample {
+                pedals: [Some(apps[0] + wobble), Some(apps[1] - wobble)],
+                brakes: [0.52 + wobble, 0.53 - wobble],
+                shocks: [4.98 - wobble; 4],
+            });
             step += 1;
         }
     }
-    log.line(format_args!("{:?}", calibration.result()));
+    log.line(format_args!("{:?}", calibration.pedals()));
     log.line(format_args!("{}", ResetCause(0x13)));
     let divider = ccm::COMP_CAR.adc_divider;
     for (pin, counts) in ccm::COMP_CAR.pins().into_iter().zip((0u16..).step_by(181)) {

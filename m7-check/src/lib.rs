@@ -8,6 +8,7 @@
 #![no_std]
 
 pub mod bench_day;
+mod bench_sim;
 mod bringup;
 mod ccm;
 mod codec;

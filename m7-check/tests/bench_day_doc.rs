@@ -1,6 +1,7 @@
 //! docs/bench-day.md quotes what a good board prints; every quote is a transcript the images'
 //! own code produces (`aer_m7_check::bench_day`), so the document cannot drift from the
-//! firmware. A quote sits in a ```text block right after a `<!-- bench-day: NAME -->` line.
+//! firmware. A quote sits in a ```text block right after a `<!-- bench-day: NAME -->` line;
+//! `cargo xtask docs` rewrites them all.
 
 use aer_m7_check::bench_day::EXAMPLES;
 
@@ -39,6 +40,7 @@ fn quotes() -> Vec<(String, String)> {
 #[test]
 fn every_quote_in_the_bench_day_procedure_is_what_the_code_prints() {
     let quotes = quotes();
+    let mut differ = Vec::new();
     for (name, block) in &quotes {
         let (_, example) = EXAMPLES
             .iter()
@@ -48,15 +50,19 @@ fn every_quote_in_the_bench_day_procedure_is_what_the_code_prints() {
             });
         let mut printed = String::new();
         example(&mut printed).expect("the example runs");
-        assert_eq!(
-            block, &printed,
-            "docs/bench-day.md's `{name}` differs from what the code prints:\n{printed}"
-        );
+        if block != &printed {
+            differ.push(format!("`{name}`, which the code prints as:\n{printed}"));
+        }
     }
+    assert!(
+        differ.is_empty(),
+        "docs/bench-day.md's quotes differ from what the code prints (run `cargo xtask docs` to rewrite them all):\n{}",
+        differ.join("\n")
+    );
     for (name, _) in EXAMPLES {
         assert!(
             quotes.iter().any(|(quoted, _)| quoted == name),
-            "`{name}` is never quoted in docs/bench-day.md"
+            "`{name}` is never quoted in docs/bench-day.md: add its marker where it belongs, then `cargo xtask docs`"
         );
     }
 }

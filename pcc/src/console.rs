@@ -1,18 +1,20 @@
 //! What the PCC's images print on the USB console, without hardware types, so every line a
 //! bench procedure relies on is built here, tested on the host (worst cases included) and
 //! quoted in docs/bench-day.md from the test that prints it: the race image's start-up, state,
-//! precharge-time and bus lines and its answer to `bootloader`; the bring-up image's start-up
-//! lines and its report every second.
+//! precharge-time and bus lines ([`RaceLog`]) and its answer to `bootloader` and `restart`;
+//! the bring-up image's start-up lines and its report every second.
 
+use crate::bringup::GateLine;
+use crate::constants::TASK_PERIOD_MS;
 use crate::constants::VfConfig;
-use crate::machine::HandoverRefusal;
+use crate::machine::{HandoverRefusal, Precharge, PrechargeTiming};
 use crate::relays::Relays;
 use crate::state::{Errors, State};
 use aer_boards::pcc::Revision;
-use aer_console::LogBuffer;
 use aer_console::bringup::{
     AnalogReading, BusLine, Clocks, DigitalReading, ReportHeader, ResetCause, Startup,
 };
+use aer_console::{LogBuffer, Reboot, Watch};
 use aer_flexcan::BusStatus;
 use core::fmt;
 
@@ -99,23 +101,64 @@ impl fmt::Display for CountersLine {
     }
 }
 
-/// The race image's answer to a bootloader request (typed `bootloader`, or 134 baud).
+/// The race image's answer to `bootloader` (or 134 baud) and `restart`.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub enum BootloaderAnswer {
-    /// Obeyed: AIR+ open.
-    Obeyed,
-    /// Refused, and why.
-    Refused(HandoverRefusal),
+pub struct RebootAnswer {
+    /// What was asked.
+    pub reboot: Reboot,
+    /// Obeyed (AIR+ open), or refused and why.
+    pub outcome: Result<(), HandoverRefusal>,
 }
 
-impl fmt::Display for BootloaderAnswer {
+impl fmt::Display for RebootAnswer {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            Self::Obeyed => {
-                f.write_str("bootloader: pin 11 (AIR+) low; rebooting into the bootloader")
-            }
-            Self::Refused(why) => write!(f, "bootloader REFUSED: {why}"),
+        let (asked, doing) = match self.reboot {
+            Reboot::Bootloader => ("bootloader", "rebooting into the bootloader"),
+            Reboot::Restart => ("restart", "restarting"),
+        };
+        match self.outcome {
+            Ok(()) => write!(f, "{asked}: pin 11 (AIR+) low; {doing}"),
+            Err(why) => write!(f, "{asked} REFUSED: {why}"),
         }
+    }
+}
+
+/// What the race image's control task logs: the state and errors when they change, each
+/// precharge's timing when it ends, and every 5 s the bus and drop counters.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct RaceLog {
+    state: Watch<(State, Errors)>,
+    precharge: Watch<Option<PrechargeTiming>>,
+}
+
+impl RaceLog {
+    /// Logs what changed in the step at `now_ms` that left `pcc` with `relays` applied.
+    pub fn changes<const N: usize>(
+        &mut self,
+        now_ms: u32,
+        pcc: &Precharge,
+        relays: Relays,
+        log: &mut LogBuffer<N>,
+    ) {
+        if let Some((state, errors)) = self.state.changed((pcc.state(), pcc.errors())) {
+            let line = StateLine {
+                now_ms,
+                state,
+                relays,
+                errors,
+                accumulator_v: pcc.accumulator_v(),
+                tractive_v: pcc.tractive_v(),
+            };
+            log.line(format_args!("{line}"));
+        }
+        if let Some(Some(timing)) = self.precharge.changed(pcc.last_precharge()) {
+            log.line(format_args!("t={now_ms} ms {timing}"));
+        }
+    }
+
+    /// Whether the step at `now_ms` logs the counters (the first step of every 5 s).
+    pub const fn counters_due(now_ms: u32) -> bool {
+        now_ms % 5_000 < TASK_PERIOD_MS
     }
 }
 
@@ -135,7 +178,7 @@ pub fn bringup_startup<const N: usize>(
     }
     .write(log);
     if !log.line(format_args!(
-        "pin 11 (AIR+) is low; `confirm hv-disconnected` (with both V/F converters reading below 60 V) then `out air-plus-close on` to move it; `help`"
+        "pin 11 (AIR+) is low; `confirm hv-disconnected` (both V/F converters alive and below 60 V) then `out air-plus-close on` to move it; `help`"
     )) {
         missed += 1;
     }
@@ -161,7 +204,12 @@ impl VfReading {
 
 impl fmt::Display for VfReading {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "{} = {:.1} V", self.input, self.volts())
+        if self.input.hz > 0.0 {
+            write!(f, "{} = {:.1} V", self.input, self.volts())
+        } else {
+            // No pulses is not 0 V: the converter may be unplugged, unpowered or broken.
+            write!(f, "{} = no reading (no pulses)", self.input)
+        }
     }
 }
 
@@ -176,8 +224,8 @@ pub struct BringupReport<'a> {
     pub thermistors: [AnalogReading; 2],
     /// The CAN controller.
     pub bus: BusLine<'a>,
-    /// Pin 11 (AIR+) is high.
-    pub air_plus: bool,
+    /// Pin 11 (AIR+) and its gate.
+    pub gate: GateLine,
 }
 
 impl BringupReport<'_> {
@@ -197,10 +245,7 @@ impl BringupReport<'_> {
             line(format_args!("{reading}"));
         }
         line(format_args!("{}", self.bus));
-        line(format_args!(
-            "pin 11 (AIR+) {}",
-            if self.air_plus { "HIGH" } else { "low" }
-        ));
+        line(format_args!("{}", self.gate));
         missed
     }
 }

@@ -6,10 +6,13 @@
 //! ([`machine`]) turns both plus the shutdown input into a state, the relays follow from the
 //! state alone ([`relays`]), and the status frame is built by the generated codec
 //! ([`status`](Precharge::status)). [`watchdog`] decides when the hardware watchdog may be
-//! serviced and what a restart after it expired means.
+//! serviced and what a restart after it expired means. [`bench`] is the bring-up image's bench
+//! and [`bringup`] its gate in front of pin 11.
 #![no_std]
 
+pub mod bench;
 pub mod bms;
+pub mod bringup;
 pub mod console;
 pub mod constants;
 #[cfg(feature = "firmware")]

@@ -54,6 +54,15 @@ impl FrequencyMeter {
         self.last_hz = hz;
         hz
     }
+
+    /// [`Self::sample`], or `None` while the input is silent: no period measured yet, or no
+    /// edge for `edge_timeout_us`. Silence is not 0 Hz: a converter unplugged, unpowered or
+    /// broken gives no pulses either, so whoever needs to tell "low" from "unknown" (the
+    /// bring-up's HV gate) reads this.
+    pub fn reading(&mut self, now_us: u32, edge_timeout_us: u32) -> Option<f32> {
+        let hz = self.sample(now_us, edge_timeout_us);
+        (hz > 0.0).then_some(hz)
+    }
 }
 
 /// Pulse train in, filtered high voltage out.
@@ -139,6 +148,19 @@ mod tests {
         assert!(meter.sample(last + 99_999, 100_000) > 0.0);
         assert_eq!(meter.sample(last + 100_000, 100_000), 0.0);
         assert_eq!(FrequencyMeter::default().sample(123, 100_000), 0.0);
+    }
+
+    #[test]
+    fn silence_reads_as_no_reading_not_as_zero() {
+        let mut meter = FrequencyMeter::default();
+        assert_eq!(meter.reading(0, 100_000), None, "never an edge");
+        meter.on_edge(1_000);
+        assert_eq!(meter.reading(2_000, 100_000), None, "one edge is no period");
+        let last = feed(&mut meter, 1_000 + 2_822, 2_822, 5);
+        let hz = meter.reading(last + 100, 100_000).expect("alive");
+        assert!((hz - 1e6 / 2_822.0).abs() < 0.01, "{hz}");
+        assert!(meter.reading(last + 99_999, 100_000).is_some());
+        assert_eq!(meter.reading(last + 100_000, 100_000), None, "silent again");
     }
 
     #[test]

@@ -5,11 +5,14 @@
 
 use aer_boards::pcc::COMP_CAR;
 use aer_console::LogBuffer;
+use aer_console::Reboot;
 use aer_console::bringup::{
     AnalogReading, BusLine, DigitalReading, HEARD_IDS, Heard, ReportHeader, ResetCause,
 };
+use aer_console::hv_gate::HvReading;
 use aer_flexcan::{BusStatus, FaultState};
-use aer_pcc::console::{self, BootloaderAnswer, BringupReport, CountersLine, StateLine, VfReading};
+use aer_pcc::bringup::AirPlusBench;
+use aer_pcc::console::{self, BringupReport, CountersLine, RebootAnswer, StateLine, VfReading};
 use aer_pcc::{Errors, HandoverRefusal, PrechargeTiming, Relays, State, VfConfig};
 
 fn drain<const N: usize>(log: &mut LogBuffer<N>) -> Vec<String> {
@@ -61,6 +64,7 @@ fn the_bring_up_start_up_and_a_worst_case_report_fit_the_log_together() {
         header: ReportHeader {
             now_ms: u32::MAX,
             dropped: u32::MAX,
+            dropped_total: u32::MAX,
         },
         vf,
         thermistors,
@@ -69,7 +73,7 @@ fn the_bring_up_start_up_and_a_worst_case_report_fit_the_log_together() {
             status: Some(WORST_STATUS),
             heard: &heard,
         },
-        air_plus: true,
+        gate: worst_gate_line(),
     };
     assert_eq!(report.write(&mut log), 0);
     assert_eq!(log.dropped(), 0);
@@ -80,6 +84,27 @@ fn the_bring_up_start_up_and_a_worst_case_report_fit_the_log_together() {
         .find(|line| line.starts_with("pin 11 air-plus-close"))
         .expect("pin 11's line, the longest, is printed");
     assert!(pin_11.len() > 192, "{} bytes", pin_11.len());
+}
+
+/// The gate's longest line: armed, then a converter silent (the refusal with the most text).
+fn worst_gate_line() -> aer_pcc::bringup::GateLine {
+    let mut gate = AirPlusBench::new();
+    let alive = [HvReading::Volts {
+        volts: 24.0,
+        at_ms: 0,
+    }; 2];
+    gate.confirm(0, alive).expect("alive and low");
+    let silent = [HvReading::Silent; 2];
+    let implausible = [HvReading::Volts {
+        volts: -f32::MAX,
+        at_ms: 0,
+    }; 2];
+    let lines = [gate.line(0, silent), gate.line(0, implausible)];
+    let longest = lines
+        .iter()
+        .max_by_key(|line| line.to_string().len())
+        .copied();
+    longest.expect("two lines")
 }
 
 #[test]
@@ -117,10 +142,13 @@ fn the_race_lines_fit_the_race_log() {
         target_percent: u8::MAX,
         window_ms: (u32::MAX, u32::MAX),
     };
-    let refused = BootloaderAnswer::Refused(HandoverRefusal::Charged {
-        tractive_v: f32::MAX,
-        limit_v: f32::MAX,
-    });
+    let refused = RebootAnswer {
+        reboot: Reboot::Bootloader,
+        outcome: Err(HandoverRefusal::Charged {
+            tractive_v: f32::MAX,
+            limit_v: f32::MAX,
+        }),
+    };
     assert!(log.line(format_args!("{state}")));
     assert!(log.line(format_args!("{counters}")));
     assert!(log.line(format_args!("t={} ms {timing}", u32::MAX)));

@@ -1,7 +1,9 @@
 //! Project tasks that need more than `cargo build`: `cargo xtask firmware` builds the
 //! flashable images, `cargo xtask m7-check` runs the portable code on an emulated Cortex-M7,
-//! `cargo xtask pi-package` builds the Debian packages for the car's Pi and a pit laptop.
+//! `cargo xtask docs` rewrites the documentation's quoted transcripts, `cargo xtask
+//! pi-package` builds the Debian packages for the car's Pi and a pit laptop.
 
+mod docs;
 mod ihex;
 mod image;
 mod m7_check;
@@ -43,6 +45,9 @@ enum Task {
     /// Record a driving session of the CCM logic as a candump log (raspi/data/session.log, the
     /// Pi demo's input).
     SessionLog,
+    /// Rewrite the console transcripts docs/bench-day.md quotes from the code that prints them
+    /// (every quote at once; the doc test then passes).
+    Docs,
     /// Run the portable code (codec, telemetry packer, PCC logic) on an emulated Cortex-M7
     /// (qemu-system-arm, mps2-an500) and require the same transcript as on the host.
     M7Check {
@@ -152,13 +157,17 @@ fn main() -> Result<()> {
             );
             Ok(())
         }
+        Task::Docs => docs::run(&workspace_root()),
         Task::SessionLog => {
             let path = workspace_root().join("raspi/data/session.log");
             let frames = session::write(&path)?;
             println!("{}: {frames} frames", path.display());
             Ok(())
         }
-        Task::M7Check { timeout } => m7_check::run(&workspace_root(), TARGET, timeout),
+        Task::M7Check { timeout } => {
+            ensure_target()?;
+            m7_check::run(&workspace_root(), TARGET, timeout)
+        }
         Task::PiPackage { arches, out } => {
             let arches = if arches.is_empty() {
                 vec![package::Arch::Arm64, package::Arch::Amd64]
@@ -189,7 +198,36 @@ pub(crate) fn cargo() -> Command {
     Command::new(std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into()))
 }
 
+/// Installs the firmware target with rustup when it is missing, saying so (a fresh machine
+/// has only the host's).
+pub(crate) fn ensure_target() -> Result<()> {
+    let installed = Command::new("rustup")
+        .args(["target", "list", "--installed"])
+        .output();
+    let Ok(installed) = installed else {
+        bail!(
+            "rustup not found: install Rust with rustup (https://rustup.rs), then `rustup target add {TARGET}`"
+        );
+    };
+    if String::from_utf8_lossy(&installed.stdout)
+        .lines()
+        .any(|line| line.trim() == TARGET)
+    {
+        return Ok(());
+    }
+    eprintln!("installing the firmware target: rustup target add {TARGET}");
+    let status = Command::new("rustup")
+        .args(["target", "add", TARGET])
+        .status()
+        .context("running rustup target add")?;
+    if !status.success() {
+        bail!("`rustup target add {TARGET}` failed: run it by hand, then again");
+    }
+    Ok(())
+}
+
 fn firmware() -> Result<()> {
+    ensure_target()?;
     let root = workspace_root();
     let out_dir = target_dir(&root).join("firmware");
     std::fs::create_dir_all(&out_dir).with_context(|| format!("creating {}", out_dir.display()))?;

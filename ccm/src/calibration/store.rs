@@ -173,6 +173,22 @@ pub struct Loaded {
     pub startup: Startup,
 }
 
+impl Loaded {
+    /// The one rule for what a firmware image runs: the saved copy start-up found, if it found
+    /// a good one; else the schema's defaults with `measured`, the sensors
+    /// `ccm/calibration.toml` records.
+    pub fn or_measured(self, measured: SensorCalibration) -> Self {
+        if self.startup.is_saved() {
+            self
+        } else {
+            Self {
+                calibration: measured.applied_to(Calibration::DEFAULT),
+                startup: self.startup,
+            }
+        }
+    }
+}
+
 /// Which slot holds the newest good copy, so a save never touches it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct CalibrationStore {
@@ -270,6 +286,25 @@ impl CalibrationStore {
             .map_err(SaveError::Flash)?;
         self.newest = Some((slot, generation));
         Ok(Startup::Saved { slot, generation })
+    }
+}
+
+impl CalibrationStore {
+    /// Erases both slots, so start-up runs the defaults with `ccm/calibration.toml`'s
+    /// sensors again. Refused unless the car stands with the tractive system off, as a save.
+    pub fn erase(
+        &mut self,
+        flash: &mut impl CalibrationFlash,
+        state: VehicleState,
+    ) -> Result<(), SaveError> {
+        if state.moving || state.tractive_live {
+            return Err(SaveError::NotAllowedNow);
+        }
+        for slot in [Slot::A, Slot::B] {
+            flash.erase(slot).map_err(SaveError::Flash)?;
+        }
+        self.newest = None;
+        Ok(())
     }
 }
 

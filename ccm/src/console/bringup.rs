@@ -1,11 +1,14 @@
 //! The CCM bring-up image's lines: start-up (every pin with its source), the report every
 //! second (every analog input, every digital input with its edge rate, both buses, the DTI),
-//! and the sensor calibration in the form `ccm/calibration.toml` takes.
+//! the sensor calibration in the form `ccm/calibration.toml` takes, and the saved copies:
+//! `cal save` (what was measured, over what start-up loads now), `cal load`, `cal erase`.
 
+use super::CalibrationLine;
 use super::dti::DtiBench;
 use crate::apps::PedalVolts;
+use crate::calibration::SensorCalibration;
+use crate::calibration::bench::{BenchPoint, BenchRecorder, PedalResult};
 use crate::calibration::store::{self, CalibrationFlash, CalibrationStore, crc32};
-use crate::calibration::{BenchRecorder, BenchResult, Calibration};
 use aer::calibration::VehicleState;
 use aer_console::LogBuffer;
 use aer_console::bringup::{
@@ -111,69 +114,152 @@ impl fmt::Display for Volts {
     }
 }
 
-/// The calibration's state after `cal rest` / `cal full`: one line, then, once both points
-/// are in, the lines for `ccm/calibration.toml`. Returns the lines that did not fit.
-pub fn calibration<const N: usize>(log: &mut LogBuffer<N>, recorder: &BenchRecorder) -> u32 {
-    let result = recorder.result();
-    let mut missed = u32::from(!log.line(format_args!("{result}")));
-    if let BenchResult::Complete(calibration, _) = result {
-        for toml in calibration.toml_lines() {
-            missed += u32::from(!log.line(format_args!("    {toml}")));
+/// What the recording has after `point` completed: one line, then, once a group is complete
+/// and checked, the lines for `ccm/calibration.toml`. Returns the lines that did not fit.
+pub fn calibration<const N: usize>(
+    log: &mut LogBuffer<N>,
+    recorder: &BenchRecorder,
+    point: BenchPoint,
+) -> u32 {
+    let mut missed = 0;
+    let mut line = |args: fmt::Arguments<'_>| missed += u32::from(!log.line(args));
+    match point {
+        BenchPoint::Rest | BenchPoint::Full => {
+            let result = recorder.pedals();
+            line(format_args!("{result}"));
+            if let PedalResult::Complete(pedals, brakes, Ok(())) = result {
+                let sensors = SensorCalibration {
+                    pedals,
+                    brakes,
+                    shocks: crate::calibration::ShockCalibration::DEFAULT,
+                };
+                for toml in sensors.pedal_toml_lines() {
+                    line(format_args!("    {toml}"));
+                }
+            }
+        }
+        BenchPoint::Shock { .. } => {
+            let result = recorder.shocks();
+            line(format_args!("{result}"));
+            if let Some((shocks, Ok(()))) = result.complete() {
+                for toml in shocks.toml_lines() {
+                    line(format_args!("    {toml}"));
+                }
+            }
         }
     }
     missed
 }
 
-/// The calibration `cal save` saves: the schema's defaults with the sensors the bench measured
-/// (`cal rest` and `cal full` this session, else `ccm/calibration.toml`'s).
-pub fn bench_calibration(recorder: &BenchRecorder) -> Calibration {
-    let sensors = match recorder.result() {
-        BenchResult::Complete(sensors, _) => sensors,
-        _ => crate::calibration::measured::MEASURED,
-    };
-    sensors.applied_to(Calibration::DEFAULT)
-}
-
-/// `cal save`: saves `calibration` as the newest copy and says where, or why not. The bench
-/// image never commands torque; the tractive system counts as live while the DTI reports 60 V
-/// or more on its DC link, or `dti enable` runs. Returns the lines that did not fit.
+/// `cal save`: the sensors this session measured and checked, over what start-up loads now
+/// (the newest good saved copy, else the defaults with `file`, `ccm/calibration.toml`'s
+/// sensors), every other value (the tuned ones) kept; saved as the newest copy, and the line
+/// says where and over what. Refused when nothing was measured, a measurement was refused, or
+/// the tractive system is live (the DTI reports 60 V or more on its DC link, or `dti enable`
+/// runs). Returns the lines that did not fit.
 pub fn cal_save<const N: usize>(
     log: &mut LogBuffer<N>,
     flash: &mut impl CalibrationFlash,
-    calibration: &Calibration,
+    recorder: &BenchRecorder,
+    file: SensorCalibration,
     epk: &[u8],
     tractive_live: bool,
 ) -> u32 {
-    let (mut store, _) = CalibrationStore::load(flash, epk);
+    let measured = match recorder.measured() {
+        Ok(measured) => measured,
+        Err(why) => return u32::from(!log.line(format_args!("{why}"))),
+    };
+    let (mut store, loaded) = CalibrationStore::load(flash, epk);
+    let over = loaded.startup;
+    let calibration = measured.applied_to(loaded.or_measured(file).calibration);
     let page = calibration.to_page();
     let state = VehicleState {
         moving: false,
         tractive_live,
     };
     let written = match store.save(flash, &page, epk, state) {
-        Ok(store::Startup::Saved { slot, generation }) => log.line(format_args!(
-            "saved as copy {} (generation {generation}), checksum 0x{:08X}",
-            slot.name(),
-            crc32(&page)
-        )),
+        Ok(store::Startup::Saved { slot, generation }) => {
+            let base = Base(over);
+            log.line(format_args!(
+                "saved as copy {} (generation {generation}), checksum 0x{:08X}: the {} measured now, over {base}; every other value as it was",
+                slot.name(),
+                crc32(&page),
+                measured.what(),
+            ))
+        }
         Ok(other) => log.line(format_args!("{other}")),
         Err(error) => log.line(format_args!("{error}")),
     };
     u32::from(!written)
 }
 
-/// `cal load`: what start-up would load now, and its checksum. Returns the lines that did not
-/// fit.
+/// What a save went over, in words.
+struct Base(store::Startup);
+
+impl fmt::Display for Base {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self.0 {
+            store::Startup::Saved { slot, generation } => {
+                write!(f, "copy {} (generation {generation})", slot.name())
+            }
+            _ => f.write_str("the schema's defaults with ccm/calibration.toml's sensors"),
+        }
+    }
+}
+
+/// `cal load`: what start-up would load now, as the race image's start-up line says it.
+/// Returns the lines that did not fit.
 pub fn cal_load<const N: usize>(
     log: &mut LogBuffer<N>,
     flash: &mut impl CalibrationFlash,
+    file: SensorCalibration,
+    file_source: &str,
     epk: &[u8],
 ) -> u32 {
     let (_, loaded) = CalibrationStore::load(flash, epk);
-    let written = log.line(format_args!(
-        "{}, checksum 0x{:08X}",
-        loaded.startup,
-        crc32(&loaded.calibration.to_page())
-    ));
+    let loaded = loaded.or_measured(file);
+    let line = CalibrationLine {
+        startup: loaded.startup,
+        checksum: crc32(&loaded.calibration.to_page()),
+        file_source,
+    };
+    u32::from(!log.line(format_args!("{line}")))
+}
+
+/// `cal erase`: both saved copies erased, so start-up runs the file's sensors on the
+/// defaults; refused while the tractive system is live. Returns the lines that did not fit.
+pub fn cal_erase<const N: usize>(
+    log: &mut LogBuffer<N>,
+    flash: &mut impl CalibrationFlash,
+    epk: &[u8],
+    tractive_live: bool,
+) -> u32 {
+    let (mut store, _) = CalibrationStore::load(flash, epk);
+    let state = VehicleState {
+        moving: false,
+        tractive_live,
+    };
+    let written = match store.erase(flash, state) {
+        Ok(()) => log.line(format_args!(
+            "erased both saved copies: start-up now runs ccm/calibration.toml's sensors on the schema's defaults (`cal load` says so)"
+        )),
+        Err(error) => log.line(format_args!("{}", Erase(error))),
+    };
     u32::from(!written)
+}
+
+/// A refused erase, in words.
+struct Erase(store::SaveError);
+
+impl fmt::Display for Erase {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self.0 {
+            store::SaveError::NotAllowedNow => {
+                f.write_str("not erased: only with the tractive system off")
+            }
+            store::SaveError::Flash(_) | store::SaveError::EpkTooLong => f.write_str(
+                "not erased: the flash failed (a copy may remain; `cal load` says which)",
+            ),
+        }
+    }
 }

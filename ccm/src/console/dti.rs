@@ -1,15 +1,24 @@
 //! The DTI HV-550 on the bench, from what the bring-up image hears on the inverter bus and
 //! sends to it: the node id, CAN map, drive enable and fault code beside the schema's
-//! ([`BenchCheck`], one report period); the DC link voltage it reports, which the `dti enable`
-//! test's high-voltage gate reads; and its command timeout, measured at low voltage
-//! ([`EnableTimeout`]): drive enable commanded (by the bring-up's own [`EnableTest`] or by a CAN
-//! adapter), then silence, and the time until packet 0x24 reports the drive disabled.
+//! ([`BenchCheck`], one report period); and its command timeout ([`EnableTimeout`]): drive
+//! enable commanded (by the bring-up's own [`EnableTest`] or by a CAN adapter), then silence,
+//! and the time until packet 0x24 reports the drive disabled.
+//!
+//! `dti enable` is guarded at every voltage ([`DtiGuard`]), when it is typed and at every step
+//! while it runs: below 60 V on the DTI's own, fresh DC link reading, by `confirm
+//! hv-disconnected`; at 60 V or more, by `confirm wheels-off-ground` with the PCC heard ONLINE.
+//! Always with the DTI heard without a fault and the motor still. Anything else stops the test
+//! with an explicit drive disable.
 
-use crate::constants::{DTI_ASSUMED_COMMAND_TIMEOUT_MS, DTI_CAN_MAP_VERSION};
+use crate::constants::{DTI_ASSUMED_COMMAND_TIMEOUT_MS, DTI_CAN_MAP_VERSION, TRACTIVE_OFF_V};
 use crate::inverter::dti;
 use crate::inverter::{DriveCommand, OutFrames};
-use aer::can::{DtiDriveEnable, DtiFaultCode, DtiFlags, DtiSetDriveEnable, DtiSpeed};
+use aer::can::{
+    DtiDriveEnable, DtiFaultCode, DtiFlags, DtiSetDriveEnable, DtiSpeed, DtiTemperatures,
+    PccStatus, PrechargeState,
+};
 use aer::runtime::EncodeError;
+use aer_console::hv_gate::{self, HV_CONFIRMATION_MS, HvGate, HvReading, HvRefusal, HvSensor};
 use core::fmt;
 
 /// What a report period heard of the DTI: the node id its status packets carry, the CAN map
@@ -205,9 +214,23 @@ impl EnableTest {
         self.sent_ms = None;
     }
 
-    /// Stops it (`off`, an expired or revoked HV gate).
+    /// Stops it (`off`, a guard that no longer allows it).
     pub fn stop(&mut self) {
         self.started_ms = None;
+    }
+
+    /// The frames that end a test at once instead of by the DTI's timeout: zero current,
+    /// drive disabled.
+    pub fn disable_frames() -> Result<OutFrames, EncodeError> {
+        let command = DriveCommand {
+            torque_nm: 0.0,
+            drive: false,
+            main_relay: false,
+            precharging: false,
+            brakes_engaged: false,
+            discharge_limit_a: 0.0,
+        };
+        dti::frames(&command).map(|(_, frames)| frames)
     }
 
     /// True while it commands drive enable.
@@ -243,7 +266,7 @@ impl EnableTest {
     }
 }
 
-/// Everything the CCM bring-up image keeps about the DTI.
+/// Everything the CCM bring-up image keeps about the DTI and the PCC beside it.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct DtiBench {
     /// This report period's check.
@@ -252,8 +275,10 @@ pub struct DtiBench {
     pub timeout: EnableTimeout,
     /// The `dti enable` test.
     pub test: EnableTest,
-    /// The DC link voltage the DTI last reported (V) and when (ms).
-    dc_link: Option<(f32, u32)>,
+    /// What `dti enable` needs.
+    pub guard: DtiGuard,
+    /// What the guard reads.
+    pub evidence: DtiEvidence,
 }
 
 impl DtiBench {
@@ -271,7 +296,12 @@ impl DtiBench {
             }
         } else if id == DtiSpeed::ID {
             if let Ok(speed) = DtiSpeed::decode(data) {
-                self.dc_link = Some((f32::from(speed.dti_input_voltage), now_ms));
+                self.evidence.dc_link = Some((f32::from(speed.dti_input_voltage), now_ms));
+                self.evidence.erpm = Some((speed.dti_erpm, now_ms));
+            }
+        } else if id == DtiTemperatures::ID {
+            if let Ok(temperatures) = DtiTemperatures::decode(data) {
+                self.evidence.fault = Some((temperatures.dti_fault_code, now_ms));
             }
         } else if id == DtiSetDriveEnable::ID {
             if let Ok(command) = DtiSetDriveEnable::decode(data) {
@@ -281,18 +311,37 @@ impl DtiBench {
         }
     }
 
-    /// The DC link voltage reported within the packet's freshness limit (V), else `None`.
-    pub fn dc_link_v(&self, now_ms: u32) -> Option<f32> {
-        self.dc_link
-            .filter(|(_, at)| now_ms.wrapping_sub(*at) <= DtiSpeed::TIMEOUT_MS)
-            .map(|(volts, _)| volts)
+    /// Looks at one frame heard on the vehicle bus at `now_ms`: the PCC's status.
+    pub fn vehicle_frame(&mut self, now_ms: u32, id: u32, extended: bool, data: &[u8]) {
+        if !extended && id == PccStatus::ID {
+            if let Ok(status) = PccStatus::decode(data) {
+                self.evidence.pcc = Some((status.pcc_state, now_ms));
+            }
+        }
     }
 
-    /// The `dti enable` frames due at `now_ms` (counted as enable commands for the timeout).
-    pub fn due(&mut self, now_ms: u32) -> Option<Result<OutFrames, EncodeError>> {
+    /// `dti enable` at `now_ms`: starts the test if the guard allows it.
+    pub fn enable(&mut self, now_ms: u32) -> Result<Path, DtiRefusal> {
+        let path = self.guard.allows(now_ms, &self.evidence)?;
+        self.test.start(now_ms);
+        Ok(path)
+    }
+
+    /// Every step while the test runs: the frames due, or, when the guard no longer allows
+    /// it, the test stopped with an explicit drive disable and the reason. Counts sent enable
+    /// commands for the timeout.
+    pub fn due(&mut self, now_ms: u32) -> Option<Step> {
+        if !self.test.active() {
+            return None;
+        }
+        if let Err(why) = self.guard.allows(now_ms, &self.evidence) {
+            self.test.stop();
+            self.timeout.command(now_ms, false);
+            return Some(Step::Stopped(why, EnableTest::disable_frames()));
+        }
         let frames = self.test.due(now_ms)?;
         self.timeout.command(now_ms, true);
-        Some(frames)
+        Some(Step::Send(frames))
     }
 
     /// Ends a timeout measurement that waited long enough.
@@ -303,5 +352,194 @@ impl DtiBench {
     /// A report was printed: the next period's check starts empty.
     pub fn report_done(&mut self) {
         self.check = BenchCheck::default();
+    }
+}
+
+/// What a step of a running `dti enable` does.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Step {
+    /// Send these frames (zero current, drive enabled).
+    Send(Result<OutFrames, EncodeError>),
+    /// The guard stopped the test: send these (drive disabled) and say why.
+    Stopped(DtiRefusal, Result<OutFrames, EncodeError>),
+}
+
+/// The DTI's DC link reading is evidence for two of its status periods (its packet 0x20
+/// comes every 10 ms): older, it is unknown.
+pub const DC_LINK_MAX_AGE_MS: u32 = 2 * DtiSpeed::CYCLE_TIME_MS;
+/// Above this the motor turns (electrical rpm; 30 rpm of a 10-pole-pair motor) although the
+/// test commands 0 A: stop.
+pub const STILL_ERPM: i32 = 300;
+
+/// What the guard reads: the last of each, with when it arrived.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct DtiEvidence {
+    /// The DC link voltage the DTI reported (V, packet 0x20).
+    pub dc_link: Option<(f32, u32)>,
+    /// The motor's electrical rpm (packet 0x20).
+    pub erpm: Option<(i32, u32)>,
+    /// The DTI's fault code (packet 0x22).
+    pub fault: Option<(DtiFaultCode, u32)>,
+    /// The PCC's state (PCC_Status on the vehicle bus).
+    pub pcc: Option<(PrechargeState, u32)>,
+}
+
+impl DtiEvidence {
+    /// The DC link as the HV gate reads it.
+    fn dc_link_sensor(&self) -> HvSensor<'static> {
+        HvSensor {
+            name: "DTI DC link",
+            reading: match self.dc_link {
+                Some((volts, at_ms)) => HvReading::Volts { volts, at_ms },
+                None => HvReading::Silent,
+            },
+            silent: "no packet 0x20 heard from the DTI: check its logic supply, CAN2 and its node id",
+        }
+    }
+}
+
+/// Which way `dti enable` was allowed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Path {
+    /// Below 60 V, with `confirm hv-disconnected`.
+    LowVoltage,
+    /// At high voltage, with `confirm wheels-off-ground` and the PCC ONLINE.
+    HighVoltage,
+}
+
+/// Why `dti enable` may not run (or must stop).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum DtiRefusal {
+    /// The DC link reading, or the low-voltage path's confirmation.
+    Hv(HvRefusal<'static>),
+    /// At high voltage without `confirm wheels-off-ground` (or it expired).
+    WheelsNotConfirmed,
+    /// At high voltage without the PCC heard ONLINE.
+    PccNotOnline(Option<PrechargeState>),
+    /// No fresh fault code from the DTI.
+    FaultUnknown,
+    /// The DTI reports a fault.
+    Fault(DtiFaultCode),
+    /// No fresh motor speed, or the motor turns.
+    Turning(Option<i32>),
+}
+
+impl fmt::Display for DtiRefusal {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::Hv(why) => write!(f, "{why}"),
+            Self::WheelsNotConfirmed => f.write_str(
+                "the DTI reads its DC link at 60 V or more: type `confirm wheels-off-ground` (car on stands, driven wheels free) first",
+            ),
+            Self::PccNotOnline(None) => write!(
+                f,
+                "at high voltage the PCC must be heard ONLINE, and no PCC_Status came in the last {} ms",
+                PccStatus::TIMEOUT_MS
+            ),
+            Self::PccNotOnline(Some(state)) => write!(
+                f,
+                "at high voltage the PCC must be ONLINE, and it reports {}",
+                state.label().unwrap_or("an unknown state")
+            ),
+            Self::FaultUnknown => write!(
+                f,
+                "no fault code from the DTI (packet 0x22) in the last {} ms",
+                DtiTemperatures::TIMEOUT_MS
+            ),
+            Self::Fault(fault) => write!(
+                f,
+                "the DTI reports fault {}: clear it first (the DTI tool)",
+                fault.label().unwrap_or("UNKNOWN")
+            ),
+            Self::Turning(None) => write!(
+                f,
+                "no motor speed from the DTI (packet 0x20) in the last {DC_LINK_MAX_AGE_MS} ms"
+            ),
+            Self::Turning(Some(erpm)) => write!(
+                f,
+                "the motor turns ({erpm} ERPM) with 0 A commanded: stop and find out why before anything else"
+            ),
+        }
+    }
+}
+
+/// What `dti enable` needs (see the module's description).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DtiGuard {
+    hv: HvGate,
+    wheels_off_ms: Option<u32>,
+}
+
+impl Default for DtiGuard {
+    fn default() -> Self {
+        Self {
+            hv: HvGate::new(TRACTIVE_OFF_V, DC_LINK_MAX_AGE_MS),
+            wheels_off_ms: None,
+        }
+    }
+}
+
+impl DtiGuard {
+    /// `confirm hv-disconnected` at `now_ms`: taken only if the DTI's fresh DC link reading
+    /// is below 60 V.
+    pub fn confirm_hv_disconnected(
+        &mut self,
+        now_ms: u32,
+        evidence: &DtiEvidence,
+    ) -> Result<(), HvRefusal<'static>> {
+        self.hv.confirm(now_ms, &[evidence.dc_link_sensor()])
+    }
+
+    /// `confirm wheels-off-ground` at `now_ms`.
+    pub fn confirm_wheels_off_ground(&mut self, now_ms: u32) {
+        self.wheels_off_ms = Some(now_ms);
+    }
+
+    /// `off`: both confirmations revoked.
+    pub fn revoke(&mut self) {
+        self.hv.revoke();
+        self.wheels_off_ms = None;
+    }
+
+    /// Whether `dti enable` may run at `now_ms`, and by which path.
+    pub fn allows(&self, now_ms: u32, evidence: &DtiEvidence) -> Result<Path, DtiRefusal> {
+        let fresh = |at: u32, limit_ms: u32| now_ms.wrapping_sub(at) <= limit_ms;
+        let sensor = evidence.dc_link_sensor();
+        let volts =
+            hv_gate::evidence(&sensor, now_ms, DC_LINK_MAX_AGE_MS).map_err(DtiRefusal::Hv)?;
+        match evidence.fault {
+            Some((DtiFaultCode::None, at)) if fresh(at, DtiTemperatures::TIMEOUT_MS) => {}
+            Some((fault, at)) if fresh(at, DtiTemperatures::TIMEOUT_MS) => {
+                return Err(DtiRefusal::Fault(fault));
+            }
+            _ => return Err(DtiRefusal::FaultUnknown),
+        }
+        match evidence.erpm {
+            Some((erpm, at)) if fresh(at, DC_LINK_MAX_AGE_MS) => {
+                if erpm.unsigned_abs() > STILL_ERPM.unsigned_abs() {
+                    return Err(DtiRefusal::Turning(Some(erpm)));
+                }
+            }
+            _ => return Err(DtiRefusal::Turning(None)),
+        }
+        if volts < TRACTIVE_OFF_V {
+            self.hv.allows(now_ms, &[sensor]).map_err(DtiRefusal::Hv)?;
+            return Ok(Path::LowVoltage);
+        }
+        let confirmed = self
+            .wheels_off_ms
+            .is_some_and(|at| now_ms.wrapping_sub(at) < HV_CONFIRMATION_MS);
+        if !confirmed {
+            return Err(DtiRefusal::WheelsNotConfirmed);
+        }
+        match evidence.pcc {
+            Some((PrechargeState::Online, at)) if fresh(at, PccStatus::TIMEOUT_MS) => {
+                Ok(Path::HighVoltage)
+            }
+            Some((state, at)) if fresh(at, PccStatus::TIMEOUT_MS) => {
+                Err(DtiRefusal::PccNotOnline(Some(state)))
+            }
+            _ => Err(DtiRefusal::PccNotOnline(None)),
+        }
     }
 }

@@ -1,29 +1,31 @@
 //! What the CCM's images print on the USB console, without hardware types, so every line a
 //! bench procedure relies on is built here, tested on the host (worst cases included) and
 //! quoted in docs/bench-day.md from the test that prints it: the race image's start-up lines
-//! and its answer to `bootloader`, the bring-up image's report ([`bringup`]) and its DTI checks
-//! ([`dti`]).
+//! (with the calibration it runs) and its answer to `bootloader` and `restart`, the bring-up
+//! image's report and calibration ([`bringup`]) and its DTI checks ([`dti`]).
 
 pub mod bringup;
 pub mod dti;
 
-use crate::calibration::measured;
+use crate::calibration::store::Startup as Loaded;
 use crate::control::HandoverRefusal;
 use crate::inverter::InverterKind;
-use aer_console::LogBuffer;
 use aer_console::bringup::{ResetCause, Startup};
+use aer_console::{LogBuffer, Reboot};
+use core::fmt;
 
 /// Bytes of log the race image keeps for the host.
 pub const LOG_BYTES: usize = 4_096;
 
 /// The race image's start-up lines: the inverter it was built for, the board, the
-/// fingerprints, why it started, the sensor calibration it runs with. Returns the lines that
-/// did not fit.
+/// fingerprints, why it started, the calibration it runs and where that came from. Returns
+/// the lines that did not fit.
 pub fn race_startup<const N: usize>(
     log: &mut LogBuffer<N>,
     board: &str,
     inverter: InverterKind,
     reset: ResetCause,
+    calibration: CalibrationLine<'_>,
 ) -> u32 {
     let image = match inverter {
         InverterKind::Dti => "AER CCM for the DTI HV-550 (comp car)",
@@ -41,31 +43,71 @@ pub fn race_startup<const N: usize>(
         pins: &[],
     }
     .write(log);
-    if !log.line(format_args!(
-        "sensor calibration: ccm/calibration.toml ({})",
-        measured::SOURCE
-    )) {
+    if !log.line(format_args!("{calibration}")) {
         missed += 1;
     }
     missed
 }
 
-/// The race image's answer to a bootloader request (typed `bootloader`, or 134 baud).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum BootloaderAnswer {
-    /// Obeyed: the inverter was sent its safe commands.
-    Obeyed,
-    /// Refused, and why.
-    Refused(HandoverRefusal),
+/// The one line that says which calibration runs and where it came from, by the one rule
+/// (`Loaded::or_measured`): the newest good saved copy, else the schema's defaults with
+/// `ccm/calibration.toml`'s sensors. The race image prints it at start-up, the bring-up
+/// image's `cal load` prints what start-up would.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct CalibrationLine<'a> {
+    /// What start-up found in the flash.
+    pub startup: Loaded,
+    /// CRC-32 of the page that runs (`CCM_CalChecksum`).
+    pub checksum: u32,
+    /// `ccm/calibration.toml`'s `source`.
+    pub file_source: &'a str,
 }
 
-impl core::fmt::Display for BootloaderAnswer {
-    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        match self {
-            Self::Obeyed => f.write_str(
-                "bootloader: inverter commanded to zero torque, drive disabled; rebooting into the bootloader",
+impl fmt::Display for CalibrationLine<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let why = match self.startup {
+            Loaded::Saved { slot, generation } => {
+                return write!(
+                    f,
+                    "calibration: saved copy {} (generation {generation}), checksum 0x{:08X}; a saved copy wins over ccm/calibration.toml",
+                    slot.name(),
+                    self.checksum
+                );
+            }
+            Loaded::NoneSaved => "no copy saved",
+            Loaded::Corrupt => "the saved copy is corrupt",
+            Loaded::OtherSchema => "the saved copy is of another schema",
+            Loaded::OutOfLimits => "the saved copy is outside the limits",
+        };
+        write!(
+            f,
+            "calibration: ccm/calibration.toml's sensors ({}) on the schema's defaults, checksum 0x{:08X}; {why}",
+            self.file_source, self.checksum
+        )
+    }
+}
+
+/// The race image's answer to `bootloader` (or 134 baud) and `restart`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RebootAnswer {
+    /// What was asked.
+    pub reboot: Reboot,
+    /// Obeyed (the inverter sent its safe commands), or refused and why.
+    pub outcome: Result<(), HandoverRefusal>,
+}
+
+impl fmt::Display for RebootAnswer {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let (asked, doing) = match self.reboot {
+            Reboot::Bootloader => ("bootloader", "rebooting into the bootloader"),
+            Reboot::Restart => ("restart", "restarting"),
+        };
+        match self.outcome {
+            Ok(()) => write!(
+                f,
+                "{asked}: inverter commanded to zero torque, drive disabled; {doing}"
             ),
-            Self::Refused(why) => write!(f, "bootloader REFUSED: {why}"),
+            Err(why) => write!(f, "{asked} REFUSED: {why}"),
         }
     }
 }

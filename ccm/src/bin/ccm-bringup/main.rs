@@ -7,15 +7,16 @@
 //! speed in Hz), both CAN controllers' state and what each heard (and, of a DTI on the
 //! inverter bus, its node id, CAN map version, drive enable, fault code and command timeout),
 //! the outputs. Outputs move only on a typed `out <signal> ...`; `can` runs both controllers'
-//! loopback self-tests and starts heartbeats; `cal rest` / `cal full` record the pedal and
-//! brake sensors and print the lines for `ccm/calibration.toml`; `dti enable` (after
-//! `confirm hv-disconnected`, with the DTI's own DC link below 60 V) times the DTI's command
-//! timeout at low voltage. `help` lists the commands.
+//! loopback self-tests and starts heartbeats; `cal rest` / `cal full` and `cal shock ...`
+//! record the pedal, brake and shock sensors and print the lines for `ccm/calibration.toml`;
+//! `cal save`, `cal load` and `cal erase` work the saved copies; `dti enable` times the DTI's
+//! command timeout behind its guard (below 60 V after `confirm hv-disconnected`; at high
+//! voltage after `confirm wheels-off-ground` with the PCC ONLINE). `help` lists the commands.
 //!
 //! The hardware is set up by `aer_ccm::hw`, as in the race image; the loop and the commands
-//! every board answers alike are `aer_console::bench`; this board's checks are `bench.rs`.
-//! Every line is built by `aer_ccm::console` (host-tested; docs/bench-day.md quotes the
-//! tests).
+//! every board answers alike are `aer_console::bench`; this board's checks and answers are
+//! `aer_ccm::bench`, over the pins in `bench.rs`. docs/bench-day.md quotes that library
+//! driven by a simulated board.
 #![no_std]
 #![no_main]
 
@@ -35,8 +36,9 @@ static WHEEL_EDGES: [AtomicU32; 2] = [AtomicU32::new(0), AtomicU32::new(0)];
 
 #[rtic::app(device = teensy4_bsp, peripherals = true, dispatchers = [KPP])]
 mod app {
-    use crate::bench::CcmBench;
+    use crate::bench::TeensyCcm;
     use crate::{Mono, REBOOT, WHEEL_EDGES};
+    use aer_ccm::bench::CcmBench;
     use aer_ccm::console::bringup::{self, LOG_BYTES};
     use aer_ccm::hw::{self, halt};
     use aer_console::bench::{BenchLoop, Line, QUEUED_LINES};
@@ -69,7 +71,7 @@ mod app {
         typed: LineReader<64>,
         lines_in: Producer<'static, Line>,
         lines: Consumer<'static, Line>,
-        bench: CcmBench,
+        bench: CcmBench<TeensyCcm>,
     }
 
     #[init(local = [
@@ -97,9 +99,10 @@ mod app {
         let mut log = LogBuffer::new();
         bringup::startup(&mut log, &hw::board::REVISION, board.reset_cause);
         // The wheel inputs are shared with their edge interrupt, the console with the USB's.
-        let Ok((bench, wheels, console)) = CcmBench::new(board, &mut log) else {
+        let Ok((teensy, wheels, console)) = TeensyCcm::new(board, &mut log) else {
             halt()
         };
+        let bench = CcmBench::new(teensy, hw::board::REVISION);
         let (lines_in, lines) = cx.local.queue.split();
         if bench::spawn().is_err() {
             halt();

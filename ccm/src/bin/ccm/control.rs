@@ -1,17 +1,17 @@
 //! The 100 Hz control task: CAN intake, bus health, the library's control step, the outputs,
-//! the frames the library's schedule says are due, the console's log lines and the
-//! bootloader's handover.
+//! the frames the library's schedule says are due, the console's log lines and the handover
+//! to the bootloader or a restart.
 
 use crate::app::control;
 use crate::{Mono, PEDAL_BUS_ERRORS, REBOOT, RX_QUEUE_OVERFLOWS, TX_NOT_SENT, WHEELS};
 use crate::{now_ms, now_us};
 use aer::can::{CcmCalibration, CcmStatus};
-use aer_ccm::console::{BootloaderAnswer, LOG_BYTES};
+use aer_ccm::console::{LOG_BYTES, RebootAnswer};
 use aer_ccm::constants::{CONTROL_PERIOD_MS, WHEEL_TEETH};
 use aer_ccm::faults::{Fault, FaultMap};
 use aer_ccm::watchdog::Task;
 use aer_ccm::{BusHealth, ControlOutputs, DriverCounters, DriverInputs, OutFrames};
-use aer_console::{LogBuffer, Watch};
+use aer_console::{LogBuffer, Reboot, Watch};
 use aer_flexcan::{BusStatus, CanFrame, FaultState, Flexcan};
 use core::sync::atomic::Ordering;
 use embedded_can::{ExtendedId, Frame, Id, StandardId};
@@ -63,7 +63,7 @@ pub(crate) async fn control(mut cx: control::Context<'_>) {
             }
             let outputs = control.step(&calibration, &sensors, wheels, driver, now, now_micros);
             let due = control.due(step);
-            let handover = REBOOT.take().then(|| control.handover());
+            let handover = REBOOT.take().map(|reboot| (reboot, control.handover()));
             (outputs, due, handover)
         });
         let watches = &mut cx.local.watches;
@@ -140,27 +140,26 @@ pub(crate) async fn control(mut cx: control::Context<'_>) {
                 TX_NOT_SENT.fetch_add(1, Ordering::Relaxed);
             }
         }
-        if let Some(handover) = handover {
-            let answer = match handover {
-                Ok(frames) => {
-                    send_inverter(&mut cx.shared.inverter_can, &frames);
-                    cx.local.brake_light.clear();
-                    cx.local.pumps.set_duty(Channel::A, 0.0);
-                    cx.local.pumps.set_duty(Channel::B, 0.0);
-                    cx.local.fan.set_duty(Channel::B, 0.0);
-                    cx.local.buzzer.set_duty(Channel::A, 0.0);
-                    BootloaderAnswer::Obeyed
-                }
-                Err(why) => BootloaderAnswer::Refused(why),
-            };
+        if let Some((reboot, handover)) = handover {
+            let outcome = handover.map(|frames| {
+                send_inverter(&mut cx.shared.inverter_can, &frames);
+                cx.local.brake_light.clear();
+                cx.local.pumps.set_duty(Channel::A, 0.0);
+                cx.local.pumps.set_duty(Channel::B, 0.0);
+                cx.local.fan.set_duty(Channel::B, 0.0);
+                cx.local.buzzer.set_duty(Channel::A, 0.0);
+            });
+            let answer = RebootAnswer { reboot, outcome };
             cx.shared
                 .log
                 .lock(|log| log.line(format_args!("t={now} ms {answer}")));
-            if answer == BootloaderAnswer::Obeyed {
-                // Two frame times at 500 kbit/s for the safe commands to leave the mailboxes,
-                // then the bootloader.
+            if outcome.is_ok() {
+                // Two frame times at 500 kbit/s for the safe commands to leave the mailboxes.
                 Mono::delay(2u64.millis()).await;
-                aer_console::usb::reboot_to_bootloader();
+                match reboot {
+                    Reboot::Bootloader => aer_console::usb::reboot_to_bootloader(),
+                    Reboot::Restart => aer_console::usb::restart(),
+                }
             }
         }
         cx.shared.supervisor.lock(|supervisor| {

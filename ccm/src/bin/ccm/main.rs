@@ -22,9 +22,9 @@
 //! - `usb` (USB interrupt, 1): the USB serial console. `control` logs state changes, faults
 //!   and bus errors into a bounded buffer (a full one drops lines and counts them; nothing
 //!   waits for the host); typing `bootloader`, or `teensy_loader_cli -s` (134 baud), asks for
-//!   the bootloader, which the control task grants only outside DRIVING with zero torque
-//!   commanded (`Control::handover`), after sending the inverter zero torque and drive
-//!   disabled, and otherwise refuses with the reason.
+//!   the bootloader, and `restart` for a software reset; the control task grants either only
+//!   outside DRIVING with zero torque commanded (`Control::handover`), after sending the
+//!   inverter zero torque and drive disabled, and otherwise refuses with the reason.
 //!
 //! Torque is zero until the first control step says otherwise. The LED on pin 13 toggles
 //! every second (0.5 Hz) while the control task runs.
@@ -87,11 +87,11 @@ mod app {
     use crate::watchdog::watchdog;
     use crate::xcp::xcp;
     use crate::{Mono, REBOOT, RX_QUEUE, XCP_QUEUE};
-    use aer_ccm::calibration::measured::MEASURED;
+    use aer_ccm::calibration::EPK;
+    use aer_ccm::calibration::measured::{MEASURED, SOURCE};
     use aer_ccm::calibration::state::CalibrationState;
-    use aer_ccm::calibration::store::CalibrationStore;
-    use aer_ccm::calibration::{Calibration, EPK};
-    use aer_ccm::console::LOG_BYTES;
+    use aer_ccm::calibration::store::{CalibrationStore, crc32};
+    use aer_ccm::console::{CalibrationLine, LOG_BYTES};
     use aer_ccm::constants::INVERTER;
     use aer_ccm::control::Control;
     use aer_ccm::hw::flash::TeensyFlash;
@@ -180,12 +180,22 @@ mod app {
             unsafe { ral::gpt::GPT1::instance() },
             Priority::rtic_default(),
         );
+        // The calibration, by the one rule: the newest good saved copy of this schema, else the
+        // schema's defaults with ccm/calibration.toml's sensors; the start-up line says which.
+        let mut flash = TeensyFlash::new();
+        let (store, loaded) = CalibrationStore::load(&mut flash, EPK);
+        let loaded = loaded.or_measured(MEASURED);
         let mut log = LogBuffer::new();
         aer_ccm::console::race_startup(
             &mut log,
             hw::board::REVISION.name,
             INVERTER,
             board.reset_cause,
+            CalibrationLine {
+                startup: loaded.startup,
+                checksum: crc32(&loaded.calibration.to_page()),
+                file_source: SOURCE,
+            },
         );
         // Without both buses the CCM cannot command the inverter: it halts with no torque.
         let (Ok(mut vehicle_can), Ok(mut inverter_can)) = (board.vehicle_can, board.inverter_can)
@@ -198,16 +208,6 @@ mod app {
         // leaves the pad alone.
         let _thermistor = board.thermistor;
 
-        // The calibration: the newest good saved copy of this schema, else the schema's
-        // defaults with the measured sensors; the console says which.
-        let mut flash = TeensyFlash::new();
-        let (store, loaded) = CalibrationStore::load(&mut flash, EPK);
-        let calibration = if loaded.startup.is_saved() {
-            loaded.calibration
-        } else {
-            MEASURED.applied_to(Calibration::DEFAULT)
-        };
-        log.line(format_args!("{}", loaded.startup));
         let xcp_node = XcpNode::new(SeedKey::new(XCP_SECRET, board.entropy), store, flash);
 
         let (vehicle_rx, vehicle_frames) = cx.local.vehicle_queue.split();
@@ -225,7 +225,7 @@ mod app {
         let [s1, s2, s3, s4] = board.shocks;
         (
             Shared {
-                calibration: CalibrationState::new(calibration, loaded.startup),
+                calibration: CalibrationState::new(loaded.calibration, loaded.startup),
                 xcp: xcp_node,
                 sensors: Sensors::new(),
                 link: TelemetryLink::new(),

@@ -5,15 +5,19 @@
 //! shows here after the reset), clocks. Every second: both V/F converters' levels, edge counts
 //! and frequencies (with the voltage they mean), both thermistor inputs' counts and volts,
 //! the CAN controller's state and what it heard. Pin 11 (AIR+) stays low unless typed:
-//! `confirm hv-disconnected` (taken only while both converters read below 60 V), then
-//! `out air-plus-close on` within 30 s; it drops again when the confirmation expires, when a
-//! converter reads 60 V or more, on `off`, on `bootloader` and on every reset. `help` lists
+//! `confirm hv-disconnected` (taken only while both converters are alive and read below
+//! 60 V), then `out air-plus-close on` within 30 s; it drops again at the first 10 ms step
+//! where the confirmation has expired or a converter reads 60 V or more or goes silent, on
+//! `off`, on `bootloader`, on `restart` and on every reset. `help` lists
 //! the commands.
+//!
+//! The gate reads both converters at every 10 ms step from the edge interrupt's time stamps:
+//! a converter that gives no pulses is no reading (not 0 V), and no reading never arms pin 11.
 //!
 //! The hardware is set up by `aer_pcc::hw`, as in the race image (its panic handler opens
 //! AIR+ here too); the loop and the commands every board answers alike are
-//! `aer_console::bench`; this board's checks are `bench.rs`. Every line is built by
-//! `aer_pcc::console` (host-tested; docs/bench-day.md quotes the tests).
+//! `aer_console::bench`; this board's checks and answers are `aer_pcc::bench`, over the pins
+//! in `bench.rs`. docs/bench-day.md quotes that library driven by a simulated board.
 #![no_std]
 #![no_main]
 
@@ -32,7 +36,7 @@ static EDGES: [AtomicU32; 2] = [AtomicU32::new(0), AtomicU32::new(0)];
 
 #[rtic::app(device = teensy4_bsp, peripherals = true, dispatchers = [KPP])]
 mod app {
-    use crate::bench::PccBench;
+    use crate::bench::TeensyPcc;
     use crate::{EDGES, Mono, REBOOT};
     use aer_console::bench::{BenchLoop, Line, QUEUED_LINES};
     use aer_console::bringup::Clocks;
@@ -40,8 +44,11 @@ mod app {
         Bus, EndpointState, Memory, UsbConsole, UsbMemory, bench_step, serve_bench,
     };
     use aer_console::{LineReader, LogBuffer};
+    use aer_pcc::VfConfig;
+    use aer_pcc::bench::{PccBench, VfInputs};
     use aer_pcc::console::BRINGUP_LOG_BYTES as LOG_BYTES;
     use aer_pcc::hw::{self, WatchdogTimeout, board, halt_safe};
+    use aer_pcc::measurement::FrequencyMeter;
     use heapless::spsc::{Consumer, Producer, Queue};
     use rtic_monotonics::imxrt::prelude::*;
     use teensy4_bsp::{board as bsp, hal::gpio, ral};
@@ -59,6 +66,8 @@ mod app {
         log: LogBuffer<LOG_BYTES>,
         /// The V/F converters' inputs: the edge interrupt counts, the report reads levels.
         vf: [gpio::Input; 2],
+        /// Each converter's edges, time-stamped by the interrupt, read by every bench step.
+        meters: [FrequencyMeter; 2],
     }
 
     #[local]
@@ -67,7 +76,7 @@ mod app {
         typed: LineReader<64>,
         lines_in: Producer<'static, Line>,
         lines: Consumer<'static, Line>,
-        bench: PccBench,
+        bench: PccBench<TeensyPcc>,
     }
 
     #[init(local = [
@@ -97,15 +106,20 @@ mod app {
         // WDOG1 at 1 s, fed by the bench loop (`watchdog test` stops feeding it).
         hw::start_watchdog(&board.wdog, WatchdogTimeout::OneSecond);
         // The V/F inputs are shared with their edge interrupt, the console with the USB's.
-        let Ok((bench, vf, console)) = PccBench::new(board, &mut log) else {
+        let Ok((teensy, vf, console)) = TeensyPcc::new(board, &mut log) else {
             halt_safe()
         };
+        let bench = PccBench::new(teensy, board::REVISION);
         let (lines_in, lines) = cx.local.queue.split();
         if bench::spawn().is_err() {
             halt_safe();
         }
         (
-            Shared { log, vf },
+            Shared {
+                log,
+                vf,
+                meters: [FrequencyMeter::default(); 2],
+            },
             Local {
                 console,
                 typed: LineReader::new(),
@@ -116,11 +130,22 @@ mod app {
         )
     }
 
-    #[task(binds = GPIO1_COMBINED_16_31, priority = 2, shared = [vf])]
+    /// Counts and time-stamps each converter's rising edges.
+    #[task(binds = GPIO1_COMBINED_16_31, priority = 2, shared = [vf, meters])]
     fn vf_edge(mut cx: vf_edge::Context) {
-        cx.shared
-            .vf
-            .lock(|vf| aer_console::usb::count_rising_edges(vf, &EDGES));
+        let now_us = Mono::now().as_ticks() as u32;
+        let meters = &mut cx.shared.meters;
+        cx.shared.vf.lock(|vf| {
+            meters.lock(|meters| {
+                for ((input, edges), meter) in vf.iter().zip(&EDGES).zip(meters.iter_mut()) {
+                    if input.is_triggered() {
+                        input.clear_triggered();
+                        edges.fetch_add(1, core::sync::atomic::Ordering::Relaxed);
+                        meter.on_edge(now_us);
+                    }
+                }
+            })
+        });
     }
 
     #[task(binds = USB_OTG1, priority = 1, local = [console, typed, lines_in], shared = [log])]
@@ -135,21 +160,30 @@ mod app {
     }
 
     /// The bench loop, every 10 ms.
-    #[task(priority = 1, local = [lines, bench], shared = [log, vf])]
+    #[task(priority = 1, local = [lines, bench], shared = [log, vf, meters])]
     async fn bench(mut cx: bench::Context) {
         let mut bench_loop = BenchLoop::new();
+        let timeout_us = VfConfig::PCC_BOARD.edge_timeout_us;
         loop {
-            let now_ms = (Mono::now().as_ticks() / 1_000) as u32;
+            let now = Mono::now().as_ticks();
+            let now_ms = (now / 1_000) as u32;
+            let now_us = now as u32;
             let levels = cx
                 .shared
                 .vf
                 .lock(|vf| vf.each_ref().map(|input| input.is_set()));
+            let hz = cx.shared.meters.lock(|meters| {
+                meters
+                    .each_mut()
+                    .map(|meter| meter.reading(now_us, timeout_us))
+            });
+            let inputs = VfInputs { levels, hz };
             bench_step(
                 &mut bench_loop,
                 cx.local.bench,
                 now_ms,
                 cx.local.lines,
-                &levels,
+                &inputs,
                 &mut cx.shared.log,
                 &REBOOT,
             );

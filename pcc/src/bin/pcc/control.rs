@@ -1,18 +1,15 @@
 //! The 10 ms control task: voltages and BMS frames in, the state machine, the relays in the
 //! same period, the status frame, the console's log lines, the watchdog's service and the
-//! bootloader's handover.
+//! handover to the bootloader or a restart.
 
 use crate::app::control;
 use crate::{Mono, REBOOT, RX_QUEUE_OVERFLOWS, STATUS_ENCODE_FAILURES, TX_BUSY};
-use aer_console::Watch;
+use aer_console::Reboot;
 use aer_flexcan::CanFrame;
-use aer_pcc::console::{BootloaderAnswer, CountersLine, StateLine};
+use aer_pcc::console::{CountersLine, RaceLog, RebootAnswer};
 use aer_pcc::hw::{board, feed_watchdog};
 use aer_pcc::watchdog::LoopMonitor;
-use aer_pcc::{
-    Errors, Inputs, Precharge, PrechargeConfig, PrechargeTiming, Relays, State, TASK_PERIOD_MS,
-    bms::BmsLink,
-};
+use aer_pcc::{Inputs, Precharge, PrechargeConfig, Relays, TASK_PERIOD_MS, bms::BmsLink};
 use core::sync::atomic::Ordering;
 use rtic::Mutex;
 use rtic_monotonics::imxrt::prelude::*;
@@ -38,13 +35,6 @@ impl RelayPins {
             self.air_plus.clear();
         }
     }
-}
-
-/// What the control task logs when it changes.
-#[derive(Default)]
-pub(crate) struct StateWatches {
-    state: Watch<(State, Errors)>,
-    precharge: Watch<Option<PrechargeTiming>>,
 }
 
 pub(crate) async fn control(mut cx: control::Context<'_>) {
@@ -76,39 +66,23 @@ pub(crate) async fn control(mut cx: control::Context<'_>) {
         };
         let relays = pcc.step(&inputs);
         cx.local.relays.apply(relays);
-        if REBOOT.take() {
-            let answer = match pcc.handover() {
-                Ok(safe) => {
-                    cx.local.relays.apply(safe);
-                    BootloaderAnswer::Obeyed
-                }
-                Err(why) => BootloaderAnswer::Refused(why),
-            };
+        if let Some(reboot) = REBOOT.take() {
+            let outcome = pcc.handover().map(|safe| cx.local.relays.apply(safe));
+            let answer = RebootAnswer { reboot, outcome };
             cx.shared
                 .log
                 .lock(|log| log.line(format_args!("t={now_ms} ms {answer}")));
-            if answer == BootloaderAnswer::Obeyed {
-                aer_console::usb::reboot_to_bootloader();
+            match (outcome, reboot) {
+                (Ok(()), Reboot::Bootloader) => aer_console::usb::reboot_to_bootloader(),
+                (Ok(()), Reboot::Restart) => aer_console::usb::restart(),
+                (Err(_), _) => {}
             }
         }
-        let watches = &mut cx.local.watches;
-        if let Some((state, errors)) = watches.state.changed((pcc.state(), pcc.errors())) {
-            let line = StateLine {
-                now_ms,
-                state,
-                relays,
-                errors,
-                accumulator_v: pcc.accumulator_v(),
-                tractive_v: pcc.tractive_v(),
-            };
-            cx.shared.log.lock(|log| log.line(format_args!("{line}")));
-        }
-        if let Some(Some(timing)) = watches.precharge.changed(pcc.last_precharge()) {
-            cx.shared
-                .log
-                .lock(|log| log.line(format_args!("t={now_ms} ms {timing}")));
-        }
-        if now_ms % 5_000 < TASK_PERIOD_MS {
+        let race_log = &mut cx.local.race_log;
+        cx.shared
+            .log
+            .lock(|log| race_log.changes(now_ms, &pcc, relays, log));
+        if RaceLog::counters_due(now_ms) {
             let bus = cx.shared.can.lock(|can| can.status());
             cx.shared.log.lock(|log| {
                 let line = CountersLine {

@@ -13,9 +13,10 @@
 //!   schedule.
 //! - `usb` (USB interrupt, priority 1): the USB serial console. The log is a bounded buffer
 //!   (a full one drops lines and counts them; nothing waits for the host); typing
-//!   `bootloader`, or `teensy_loader_cli -s` (134 baud), asks for the bootloader, which the
-//!   control task grants only in STANDBY or ERROR with the tractive system below 60 V
-//!   (`Precharge::handover`), after opening AIR+, and otherwise refuses with the reason.
+//!   `bootloader`, or `teensy_loader_cli -s` (134 baud), asks for the bootloader, and
+//!   `restart` for a software reset; the control task grants either only in STANDBY or ERROR
+//!   with the tractive system below 60 V (`Precharge::handover`), after opening AIR+, and
+//!   otherwise refuses with the reason.
 //!
 //! The board (`aer_boards::pcc::COMP_CAR`, typed in `aer_pcc::hw::board`) has one relay
 //! output: pin 11 closes AIR+. AIR- and the precharge relay are the shutdown circuit's.
@@ -27,7 +28,8 @@
 //! only by an on-time control loop, so a hang restarts the PCC, and a restart leaves pin 11 an
 //! input again; the panic handler (`aer_pcc::hw`) drives pin 11 low before anything else and
 //! then lets the watchdog restart it. After a watchdog restart the PCC starts in ERROR with
-//! the "undefined state" cause latched until a power cycle.
+//! the "undefined state" cause latched until a power cycle (LV off and USB unplugged) or a
+//! typed `restart` (a software reset, which the next start does not take for a watchdog's).
 #![no_std]
 #![no_main]
 
@@ -55,13 +57,13 @@ static REBOOT: RebootRequest = RebootRequest::new();
 
 #[rtic::app(device = teensy4_bsp, peripherals = true, dispatchers = [KPP])]
 mod app {
-    use crate::control::{RelayPins, StateWatches, control};
+    use crate::control::{RelayPins, control};
     use crate::inputs::{can_receive, voltage_edge};
     use crate::{Mono, REBOOT, RX_QUEUE};
     use aer_console::usb::{Bus, EndpointState, Memory, UsbConsole, UsbMemory, serve_race};
     use aer_console::{LineReader, LogBuffer};
     use aer_flexcan::{CanFrame, Flexcan};
-    use aer_pcc::console::LOG_BYTES;
+    use aer_pcc::console::{LOG_BYTES, RaceLog};
     use aer_pcc::hw::{self, WatchdogTimeout, board, halt_safe};
     use aer_pcc::measurement::VoltageChannel;
     use aer_pcc::watchdog::reset_by_watchdog;
@@ -87,7 +89,7 @@ mod app {
         rx_consumer: Consumer<'static, CanFrame>,
         wdog: ral::wdog::WDOG1,
         watchdog_reset: bool,
-        watches: StateWatches,
+        race_log: RaceLog,
         console: Option<UsbConsole>,
         typed: LineReader<64>,
     }
@@ -146,7 +148,7 @@ mod app {
                 rx_consumer,
                 wdog: board.wdog,
                 watchdog_reset: reset_by_watchdog(board.reset_cause.0),
-                watches: StateWatches::default(),
+                race_log: RaceLog::default(),
                 console: board.console,
                 typed: LineReader::new(),
             },
@@ -173,7 +175,7 @@ mod app {
         #[task(binds = CAN2, priority = 2, local = [rx_producer], shared = [can])]
         fn can_receive(cx: can_receive::Context);
 
-        #[task(priority = 1, local = [relays, led, rx_consumer, wdog, watchdog_reset, watches],
+        #[task(priority = 1, local = [relays, led, rx_consumer, wdog, watchdog_reset, race_log],
                shared = [accumulator, tractive, can, log])]
         async fn control(cx: control::Context);
     }
