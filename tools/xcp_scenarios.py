@@ -18,6 +18,17 @@ addresses, parameters, internals).
 Every diagnostic goes to stderr: stdout carries the protocol only, so the file descriptor the
 harness reads is kept private and everything else written to "stdout" (pyxcp's rich logging,
 the A2L parser) is sent to stderr. Exits 0 after `done`, non-zero on anything unexpected.
+
+With `--seed-key-library PATH` the script plays one scenario instead, and asks the harness
+nothing: pyxcp unlocks calibration by itself through the team's seed-and-key library
+(xcp-seedkey/, the .so built for Linux) named in its `seed_n_key_dll` option, which reads the
+secret beside itself or from AER_XCP_SECRET_FILE (AER_XCP_SECRET is not used). By default
+pyxcp runs the library in its `asamkeydll` helper program; `--same-bit-width` sets
+`seed_n_key_dll_same_bit_width`, and pyxcp loads it into Python with ctypes. The script writes
+traction_kp while locked, unlocks, writes it again, reads it back, and prints one JSON object
+on stdout: locked_before, locked_write (the refusal's error code), unlock_error (null, or what
+pyxcp raised), unlocked, value, write (null when accepted), read_back. Run by
+car-node/tests/pyxcp.rs against the desk server (`aer-car-node serve`).
 """
 
 import os
@@ -28,6 +39,7 @@ _PROTOCOL_OUT = os.fdopen(os.dup(1), "w", encoding="utf-8")
 os.dup2(2, 1)
 sys.stdout = sys.stderr
 
+import argparse  # noqa: E402
 import hashlib  # noqa: E402
 import hmac  # noqa: E402
 import json  # noqa: E402
@@ -283,6 +295,45 @@ def seed_and_key(secret):
 
 
 # ---------------------------------------------------------------------------------------------
+# Unlocking through the seed-and-key library (--seed-key-library).
+
+
+def unlock_with_library(app, expected, layer):
+    """pyxcp unlocks by itself, with the library its configuration names: a write refused while
+    locked, cond_unlock (GET_SEED, the library's key, UNLOCK), the same write accepted and read
+    back. Returns what happened; a failed unlock is reported, not raised."""
+    session = Session(app, expected, layer)
+    try:
+        # traction_kp may change at any time (even driving): only the lock can refuse it.
+        kp = session.parameter("traction_kp")
+        value = as_f32((kp["defaults"][0] + kp["max"]) / 2)
+        outcome = {
+            "locked_before": session.protection_locked(),
+            "locked_write": session.write_parameter("traction_kp", [value]),
+            "unlock_error": None,
+        }
+        try:
+            session.master.cond_unlock("calpag")
+        except Exception as error:  # noqa: BLE001 - the harness judges it; say what it was
+            outcome["unlock_error"] = f"{type(error).__name__}: {error}"
+            log(f"unlocking through the library failed: {outcome['unlock_error']}")
+        # A wrong key ends the session: the slave answers nothing more then.
+        outcome["unlocked"] = outcome["unlock_error"] is None and not session.protection_locked()
+        outcome["value"] = value
+        outcome["write"] = None
+        outcome["read_back"] = None
+        if outcome["unlocked"]:
+            outcome["write"] = session.write_parameter("traction_kp", [value])
+            outcome["read_back"] = session.read_parameter("traction_kp")[0]
+    finally:
+        try:
+            session.close()
+        except Exception as error:  # noqa: BLE001 - after a wrong key no DISCONNECT is answered
+            log(f"closing the session: {error!r}")
+    return outcome
+
+
+# ---------------------------------------------------------------------------------------------
 # DAQ.
 
 
@@ -528,35 +579,54 @@ def transport_config(env):
     raise ValueError(f"AER_XCP_TRANSPORT={kind!r}: tcp or can")
 
 
+def arguments():
+    parser = argparse.ArgumentParser(description="pyxcp against the CCM's XCP slave (see the module's docstring)")
+    parser.add_argument(
+        "--seed-key-library",
+        metavar="PATH",
+        help="play only the unlock scenario, pyxcp unlocking through this seed-and-key library",
+    )
+    parser.add_argument(
+        "--same-bit-width",
+        action="store_true",
+        help="with --seed-key-library: pyxcp loads the library with ctypes, not in its asamkeydll helper",
+    )
+    return parser.parse_args()
+
+
 def main():
+    args = arguments()
     try:
         layer, transport = transport_config(os.environ)
-        secret = bytes.fromhex(os.environ["AER_XCP_SECRET"])
+        secret = None if args.seed_key_library else bytes.fromhex(os.environ["AER_XCP_SECRET"])
         with open(os.environ["AER_XCP_EXPECTED"], encoding="utf-8") as file:
             expected = json.load(file)
     except (KeyError, ValueError, OSError) as error:
         log(f"bad environment: {error!r} (see the docstring)")
         return 2
-    if len(secret) != 32:
+    if secret is not None and len(secret) != 32:
         log(f"AER_XCP_SECRET has {len(secret)} bytes, not 32")
         return 2
 
-    app = create_application_from_config(
-        {
-            "Transport": transport,
-            "General": {
-                # Error packets reach us as XcpResponseError with their code: the scenarios
-                # expect refusals, and pyxcp's error matrix would otherwise retry or ask a
-                # seed-and-key DLL for ERR_ACCESS_LOCKED.
-                "disable_error_handling": True,
-                "seed_n_key_function": seed_and_key(secret),
-            },
-        },
-        log_level=logging.WARNING,
-    )
+    # Error packets reach us as XcpResponseError with their code: the scenarios expect
+    # refusals, and pyxcp's error matrix would otherwise retry or try to unlock by itself on
+    # ERR_ACCESS_LOCKED.
+    general = {"disable_error_handling": True}
+    if args.seed_key_library:
+        general["seed_n_key_dll"] = args.seed_key_library
+        general["seed_n_key_dll_same_bit_width"] = args.same_bit_width
+    else:
+        general["seed_n_key_function"] = seed_and_key(secret)
+    app = create_application_from_config({"Transport": transport, "General": general}, log_level=logging.WARNING)
     app.transport.timeout = 5.0
 
     try:
+        if args.seed_key_library:
+            outcome = unlock_with_library(app, expected, layer)
+            log(f"unlock through {args.seed_key_library}: {json.dumps(outcome)}")
+            _PROTOCOL_OUT.write(json.dumps(outcome) + "\n")
+            _PROTOCOL_OUT.flush()
+            return 0
         scenarios(app, expected, layer)
     except Failure as failure:
         log(f"FAILED: {failure}")

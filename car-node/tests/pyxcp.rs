@@ -5,15 +5,20 @@
 //!
 //! Needs the venv's Python with pyxcp (`.ci/run` installs it); without it the test says
 //! SKIPPED, unless `AER_REQUIRE_PYTHON` is set (CI sets it), when it fails.
+//!
+//! pyxcp also unlocks by itself through the team's seed-and-key library (`xcp-seedkey/`, the
+//! Linux .so its `seed_n_key_dll` option names), against the desk server (`aer-car-node
+//! serve`): see [`pyxcp_unlocks_through_the_seed_and_key_library`].
 
 use aer_car_model::driver::Cycle;
 use aer_car_node::link::{Link, TcpLink};
-use aer_car_node::{checks, scenarios, serve};
+use aer_car_node::{checks, expected, scenarios, serve};
 use aer_xcp::transport::{TCP_FRAME_MAX, TcpDecoder, TcpEncoder};
+use serde_json::Value;
 use std::io::{Read, Write};
 use std::net::TcpStream;
 use std::path::{Path, PathBuf};
-use std::process::Command;
+use std::process::{Command, Stdio};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 
@@ -104,4 +109,155 @@ fn the_desk_server_answers_connect_over_tcp() {
     assert_eq!(response.get(3), Some(&8), "MAX_CTO: {response:02x?}");
     assert!(link.describe().contains("XCP on TCP"));
     eprintln!("served {ran_ms} model ms before the master had its answer");
+}
+
+/// The seed-and-key library pyxcp loads: `AER_XCP_SEEDKEY_LIBRARY` when set (a library built
+/// beforehand), else the one `cargo build -p aer-xcp-seedkey` leaves. A test has no stable way
+/// to depend on another package's cdylib (artifact dependencies are unstable; the copy a
+/// dependency's build leaves in `deps/` is Cargo's internal layout), so this asks Cargo, which
+/// builds it if it is stale (a few seconds, once) and names the file in its JSON messages,
+/// wherever the target directory is. The outer `cargo test` holds no build lock while tests
+/// run.
+fn seed_key_library() -> PathBuf {
+    if let Some(path) = std::env::var_os("AER_XCP_SEEDKEY_LIBRARY") {
+        return PathBuf::from(path);
+    }
+    let cargo = std::env::var_os("CARGO").unwrap_or_else(|| env!("CARGO").into());
+    let output = Command::new(cargo)
+        .current_dir(root())
+        .args([
+            "build",
+            "-p",
+            "aer-xcp-seedkey",
+            "--lib",
+            "--message-format=json",
+        ])
+        .stderr(Stdio::inherit())
+        .output()
+        .expect("running cargo");
+    assert!(
+        output.status.success(),
+        "cargo build -p aer-xcp-seedkey failed: {}",
+        output.status
+    );
+    let name = format!(
+        "{}aer_xcp_seedkey{}",
+        std::env::consts::DLL_PREFIX,
+        std::env::consts::DLL_SUFFIX
+    );
+    String::from_utf8_lossy(&output.stdout)
+        .lines()
+        .filter_map(|line| serde_json::from_str::<Value>(line).ok())
+        .filter(|message| message["reason"] == "compiler-artifact")
+        .flat_map(|message| message["filenames"].as_array().cloned().unwrap_or_default())
+        .filter_map(|file| file.as_str().map(PathBuf::from))
+        .find(|file| file.file_name().is_some_and(|n| *n == *name))
+        .unwrap_or_else(|| panic!("cargo named no {name} among the artifacts it built"))
+}
+
+/// pyxcp unlocks calibration by itself through the team's seed-and-key library, installed as
+/// docs/calibration.md tells a tuner (the library with `aer-xcp-secret.key` beside it), both
+/// ways pyxcp calls it: in its `asamkeydll` helper program (the default) and loaded into
+/// Python with ctypes (`seed_n_key_dll_same_bit_width`). Against the desk server: a write is
+/// refused while locked, then accepted after pyxcp's unlock, and reads back.
+#[test]
+fn pyxcp_unlocks_through_the_seed_and_key_library() {
+    let Some(python) = python() else {
+        return;
+    };
+    let built = seed_key_library();
+    let dir = tempfile::tempdir().unwrap();
+    let library = dir
+        .path()
+        .join(built.file_name().expect("the library's file name"));
+    std::fs::copy(&built, &library).unwrap();
+    let secret: String = scenarios::SECRET
+        .iter()
+        .map(|b| format!("{b:02x}"))
+        .collect();
+    std::fs::write(dir.path().join("aer-xcp-secret.key"), format!("{secret}\n")).unwrap();
+    let description = expected::description(&root().join("generated/aer.a2l"));
+    let default = description["parameters"]
+        .as_array()
+        .into_iter()
+        .flatten()
+        .find(|p| p["name"] == "traction_kp")
+        .map(|p| p["defaults"][0].clone())
+        .expect("traction_kp in the description");
+    let expected = dir.path().join("expected.json");
+    std::fs::write(&expected, description.to_string()).unwrap();
+
+    for (how, same_bit_width) in [("asamkeydll helper", false), ("ctypes", true)] {
+        let mut link = TcpLink::bind("127.0.0.1:0".parse().unwrap()).unwrap();
+        let mut command = Command::new(&python);
+        command
+            .arg(root().join("tools/xcp_scenarios.py"))
+            .arg("--seed-key-library")
+            .arg(&library);
+        if same_bit_width {
+            command.arg("--same-bit-width");
+        }
+        let script = command
+            .envs(link.script_env())
+            .env("AER_XCP_EXPECTED", &expected)
+            .env_remove("AER_XCP_SECRET_FILE")
+            .stdout(Stdio::piped())
+            .stderr(Stdio::inherit())
+            .spawn()
+            .unwrap();
+        let finished = Arc::new(AtomicBool::new(false));
+        let waiter = {
+            let finished = Arc::clone(&finished);
+            std::thread::spawn(move || {
+                let output = script.wait_with_output();
+                finished.store(true, Ordering::Release);
+                output
+            })
+        };
+        // The desk server, in real time, until the script has ended (or a minute has passed).
+        let ran_ms = serve::serve(
+            &mut link,
+            Cycle::Acceleration,
+            Some(scenarios::SECRET),
+            |ms| ms < 60_000 && !finished.load(Ordering::Acquire),
+        )
+        .unwrap();
+        assert!(
+            finished.load(Ordering::Acquire),
+            "{how}: the script still ran after {ran_ms} ms"
+        );
+        let output = waiter.join().unwrap().unwrap();
+        assert!(
+            output.status.success(),
+            "{how}: the script failed: {}",
+            output.status
+        );
+        let stdout = String::from_utf8_lossy(&output.stdout);
+        let outcome: Value = serde_json::from_str(stdout.trim())
+            .unwrap_or_else(|e| panic!("{how}: the script printed {stdout:?}: {e}"));
+        eprintln!("{how}: {outcome}");
+        assert_eq!(
+            outcome["locked_before"], true,
+            "{how}: locked after CONNECT"
+        );
+        assert_eq!(
+            outcome["locked_write"], 0x25,
+            "{how}: a write before unlocking is ERR_ACCESS_LOCKED"
+        );
+        assert_eq!(
+            outcome["unlock_error"],
+            Value::Null,
+            "{how}: pyxcp's unlock through the library"
+        );
+        assert_eq!(outcome["unlocked"], true, "{how}: unlocked afterwards");
+        assert_eq!(outcome["write"], Value::Null, "{how}: the write accepted");
+        assert_eq!(
+            outcome["read_back"], outcome["value"],
+            "{how}: the value written reads back"
+        );
+        assert_ne!(
+            outcome["value"], default,
+            "{how}: the value written is not the default"
+        );
+    }
 }
