@@ -2,7 +2,8 @@
 //! command code the `aer-raspi` binary runs, on a store like the car's after a run (the
 //! bundled session, then an LV power cycle's empty session), so the runbook cannot drift from
 //! the tool. A quote sits in a ```text block right after a `<!-- test-day: NAME -->` line.
-//! Timings (`12.3 ms`) differ from run to run and are compared as `#.# ms`.
+//! Timings (`12.3 ms`) differ from run to run and are compared as `#.# ms`. `cargo xtask docs`
+//! rewrites every quote from what this test prints.
 
 mod common;
 
@@ -275,27 +276,38 @@ fn quotes() -> Vec<(String, String)> {
     quotes
 }
 
+/// `cargo xtask docs` sets this to a file the examples are written to, to rewrite the quotes.
+const EXAMPLES_FILE: &str = "AER_DOC_EXAMPLES";
+
 #[test]
 fn every_quote_in_the_test_day_runbook_is_what_the_commands_print() {
     let examples = examples();
+    let mut all = String::new();
     for (name, text) in &examples {
-        println!("--- test-day {name}\n{text}");
+        all.push_str(&format!("--- test-day {name}\n{text}"));
+    }
+    if let Some(path) = std::env::var_os(EXAMPLES_FILE) {
+        std::fs::write(&path, &all).expect("write the examples for cargo xtask docs");
     }
     let quotes = quotes();
+    let mut differ = Vec::new();
     for (name, block) in &quotes {
         let printed = examples.get(name.as_str()).unwrap_or_else(|| {
             panic!("docs/test-day.md quotes `{name}`, which no command prints here")
         });
-        assert_eq!(
-            without_timings(block),
-            without_timings(printed),
-            "docs/test-day.md's `{name}` differs from what the command prints"
-        );
+        if without_timings(block) != without_timings(printed) {
+            differ.push(format!("`{name}`, which the command prints as:\n{printed}"));
+        }
     }
+    assert!(
+        differ.is_empty(),
+        "docs/test-day.md's quotes differ from what the commands print (run `cargo xtask docs` to rewrite them all):\n{}",
+        differ.join("\n")
+    );
     for name in examples.keys() {
         assert!(
             quotes.iter().any(|(quoted, _)| quoted == name),
-            "`{name}` is never quoted in docs/test-day.md"
+            "`{name}` is never quoted in docs/test-day.md: add its marker where it belongs, then `cargo xtask docs`"
         );
     }
 }

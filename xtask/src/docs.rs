@@ -1,18 +1,68 @@
-//! `cargo xtask docs`: rewrites the quoted transcripts in docs/bench-day.md from the code that
-//! prints them (`cargo run -p aer-m7-check --example bench_day`), all at once; the doc test
-//! (`cargo test -p aer-m7-check --test bench_day_doc`) then passes. A marker
-//! `<!-- bench-day: NAME -->` is followed by a ```text block that holds NAME's transcript.
+//! `cargo xtask docs`: rewrites every quoted transcript in the documentation from the code that
+//! prints it, all at once, so the doc tests pass again after a change (a schema change moves
+//! fingerprints, byte counts and parameter lists in several quotes).
+//!
+//! - docs/bench-day.md: `cargo run -p aer-m7-check --example bench_day` prints every transcript
+//!   (checked by `cargo test -p aer-m7-check --test bench_day_doc`).
+//! - docs/test-day.md: the test `cargo test -p aer-raspi --test test_day_doc` writes what each
+//!   command prints to the file `AER_DOC_EXAMPLES` names.
+//!
+//! In both, a marker `<!-- NAME-OF-PAGE: QUOTE -->` is followed by a fenced block (```text,
+//! ```python, ...) that holds the quote.
 
 use crate::cargo;
 use anyhow::{Context, Result, bail};
 use std::collections::BTreeMap;
 use std::path::Path;
 
-/// The page and where its quotes come from.
-const PAGE: &str = "docs/bench-day.md";
-const MARKER: &str = "<!-- bench-day: ";
+/// One page and the command whose output its quotes are.
+struct Page {
+    /// The page, from the workspace root.
+    path: &'static str,
+    /// Its markers' and the output's sections' tag: `bench-day`, `test-day`.
+    tag: &'static str,
+}
+
+const PAGES: [Page; 2] = [
+    Page {
+        path: "docs/bench-day.md",
+        tag: "bench-day",
+    },
+    Page {
+        path: "docs/test-day.md",
+        tag: "test-day",
+    },
+];
 
 pub fn run(root: &Path) -> Result<()> {
+    for page in &PAGES {
+        let output = match page.tag {
+            "bench-day" => bench_day(root)?,
+            _ => test_day(root)?,
+        };
+        let transcripts = parse(&output, page.tag);
+        let path = root.join(page.path);
+        let text =
+            std::fs::read_to_string(&path).with_context(|| format!("reading {}", page.path))?;
+        let (rewritten, changed) = rewrite(&text, page, &transcripts)?;
+        if rewritten != text {
+            std::fs::write(&path, rewritten).with_context(|| format!("writing {}", page.path))?;
+        }
+        println!(
+            "{}: {} quotes, {} rewritten{}",
+            page.path,
+            transcripts.len(),
+            changed.len(),
+            if changed.is_empty() { "" } else { ":" }
+        );
+        for name in changed {
+            println!("  {name}");
+        }
+    }
+    Ok(())
+}
+
+fn bench_day(root: &Path) -> Result<String> {
     let output = cargo()
         .current_dir(root)
         .args([
@@ -31,30 +81,44 @@ pub fn run(root: &Path) -> Result<()> {
             String::from_utf8_lossy(&output.stderr)
         );
     }
-    let transcripts = parse(&String::from_utf8_lossy(&output.stdout));
-    let path = root.join(PAGE);
-    let page = std::fs::read_to_string(&path).with_context(|| format!("reading {PAGE}"))?;
-    let (rewritten, changed) = rewrite(&page, &transcripts)?;
-    if rewritten != page {
-        std::fs::write(&path, rewritten).with_context(|| format!("writing {PAGE}"))?;
-    }
-    println!(
-        "{PAGE}: {} quotes, {} rewritten",
-        transcripts.len(),
-        changed.len()
-    );
-    for name in changed {
-        println!("  {name}");
-    }
-    Ok(())
+    Ok(String::from_utf8_lossy(&output.stdout).into_owned())
 }
 
-/// `--- bench-day NAME` sections.
-fn parse(text: &str) -> BTreeMap<String, String> {
+fn test_day(root: &Path) -> Result<String> {
+    let file = crate::target_dir(root).join("test-day-examples.txt");
+    let _absent = std::fs::remove_file(&file);
+    // The test fails while the page differs; what it wrote before comparing is what counts.
+    let status = cargo()
+        .current_dir(root)
+        .args([
+            "test",
+            "--quiet",
+            "-p",
+            "aer-raspi",
+            "--test",
+            "test_day_doc",
+        ])
+        .env("AER_DOC_EXAMPLES", &file)
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .status()
+        .context("running the test-day runbook's commands")?;
+    let text = std::fs::read_to_string(&file).unwrap_or_default();
+    if text.is_empty() {
+        bail!(
+            "the test-day runbook's commands printed nothing (the test exited {status}): run `cargo test -p aer-raspi --test test_day_doc` to see why"
+        );
+    }
+    Ok(text)
+}
+
+/// `--- TAG NAME` sections.
+fn parse(text: &str, tag: &str) -> BTreeMap<String, String> {
+    let header = format!("--- {tag} ");
     let mut transcripts = BTreeMap::new();
     let mut current: Option<(String, String)> = None;
     for line in text.lines() {
-        if let Some(name) = line.strip_prefix("--- bench-day ") {
+        if let Some(name) = line.strip_prefix(&header) {
             if let Some((name, body)) = current.take() {
                 transcripts.insert(name, body);
             }
@@ -71,23 +135,29 @@ fn parse(text: &str) -> BTreeMap<String, String> {
 }
 
 /// The page with every marked block replaced; the names whose block changed.
-fn rewrite(page: &str, transcripts: &BTreeMap<String, String>) -> Result<(String, Vec<String>)> {
+fn rewrite(
+    text: &str,
+    page: &Page,
+    transcripts: &BTreeMap<String, String>,
+) -> Result<(String, Vec<String>)> {
+    let marker = format!("<!-- {}: ", page.tag);
     let mut out = String::new();
     let mut changed = Vec::new();
-    let mut lines = page.lines().peekable();
     let mut quoted = Vec::new();
+    let mut lines = text.lines();
     while let Some(line) = lines.next() {
         out.push_str(line);
         out.push('\n');
-        let Some(rest) = line.trim().strip_prefix(MARKER) else {
+        let Some(rest) = line.trim().strip_prefix(&marker) else {
             continue;
         };
         let name = rest.trim_end_matches("-->").trim().to_owned();
-        let Some(text) = transcripts.get(&name) else {
-            bail!("{PAGE} quotes `{name}`, which no transcript prints");
+        let Some(quote) = transcripts.get(&name) else {
+            bail!("{} quotes `{name}`, which nothing prints", page.path);
         };
-        if lines.next().map(str::trim) != Some("```text") {
-            bail!("{PAGE}: `{name}` must be followed by a ```text block");
+        let fence = lines.next().map(str::trim).unwrap_or_default();
+        if !fence.starts_with("```") {
+            bail!("{}: `{name}` must be followed by a ``` block", page.path);
         }
         let mut old = String::new();
         for line in lines.by_ref() {
@@ -97,16 +167,20 @@ fn rewrite(page: &str, transcripts: &BTreeMap<String, String>) -> Result<(String
             old.push_str(line);
             old.push('\n');
         }
-        if &old != text {
+        if &old != quote {
             changed.push(name.clone());
         }
-        out.push_str("```text\n");
-        out.push_str(text);
+        out.push_str(fence);
+        out.push('\n');
+        out.push_str(quote);
         out.push_str("```\n");
         quoted.push(name);
     }
     if let Some(missing) = transcripts.keys().find(|name| !quoted.contains(name)) {
-        bail!("`{missing}` is never quoted in {PAGE}: add its marker where it belongs");
+        bail!(
+            "`{missing}` is never quoted in {}: add its marker where it belongs",
+            page.path
+        );
     }
     Ok((out, changed))
 }
