@@ -339,8 +339,9 @@ impl<H: CcmHardware> BenchBoard for CcmBench<H> {
     }
 
     fn all_off(&mut self) {
-        if self.dti.test.active() {
-            self.dti.test.stop();
+        // A DTI that kept its drive enabled (no command timeout) is told to drop it.
+        self.dti.test.stop();
+        if self.dti.evidence.dc_link.is_some() {
             self.send_dti(EnableTest::disable_frames());
         }
         self.dti.guard.revoke();

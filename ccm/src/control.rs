@@ -59,9 +59,9 @@ pub enum HandoverRefusal {
 impl core::fmt::Display for HandoverRefusal {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         match self {
-            Self::Driving => {
-                f.write_str("the car is DRIVING: stop, switch ready-to-move off, then ask again")
-            }
+            Self::Driving => f.write_str(
+                "the car is DRIVING: stop, press ready-to-move to leave DRIVING, then ask again",
+            ),
             Self::TorqueCommanded { torque_nm } => write!(
                 f,
                 "{torque_nm:.1} Nm is still commanded: wait for zero torque, then ask again"

@@ -25,7 +25,7 @@ fn the_bootloader_is_refused_while_driving_or_while_torque_is_commanded() {
         );
         assert_eq!(
             HandoverRefusal::Driving.to_string(),
-            "the car is DRIVING: stop, switch ready-to-move off, then ask again"
+            "the car is DRIVING: stop, press ready-to-move to leave DRIVING, then ask again"
         );
 
         // Ready-to-move pressed: IDLE, zero torque from this step, but the inverter still

@@ -156,8 +156,15 @@ impl<const N: usize> LineReader<N> {
     }
 
     /// Feeds one byte; returns a complete line (without its end, trimmed) when `byte` ends
-    /// one. Carriage return and line feed both end a line; an empty line is skipped.
+    /// one. Carriage return and line feed both end a line; an empty line is skipped; backspace
+    /// (BS or DEL, what terminals send) takes back the last byte typed.
     pub fn push(&mut self, byte: u8) -> Option<&str> {
+        if byte == 0x08 || byte == 0x7F {
+            if !self.overlong {
+                self.len = self.len.saturating_sub(1);
+            }
+            return None;
+        }
         if byte == b'\r' || byte == b'\n' {
             let len = core::mem::take(&mut self.len);
             if core::mem::take(&mut self.overlong) {
@@ -190,6 +197,26 @@ mod tests {
     extern crate std;
     use super::*;
     use std::format;
+
+    #[test]
+    fn backspace_takes_back_the_last_byte_typed() {
+        let mut reader = LineReader::<16>::new();
+        let mut typed = None;
+        for &byte in b"resq\x7ft\x08port\r" {
+            typed = reader.push(byte).map(std::string::String::from).or(typed);
+        }
+        assert_eq!(typed.as_deref(), Some("rport"));
+        let mut reader = LineReader::<16>::new();
+        let mut typed = None;
+        for &byte in b"\x7f\x7fhelp\n" {
+            typed = reader.push(byte).map(std::string::String::from).or(typed);
+        }
+        assert_eq!(
+            typed.as_deref(),
+            Some("help"),
+            "nothing to take back is nothing"
+        );
+    }
 
     fn drain<const N: usize>(log: &mut LogBuffer<N>) -> std::string::String {
         let mut out = [0u8; 64];

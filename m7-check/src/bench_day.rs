@@ -529,6 +529,8 @@ impl RacePcc {
                 "{}",
                 CountersLine {
                     now_ms,
+                    accumulator_v: self.pcc.accumulator_v(),
+                    tractive_v: self.pcc.tractive_v(),
                     bus: ACTIVE,
                     rx_queue_overflows: 0,
                     status_not_sent: 0,

@@ -7,7 +7,7 @@
 use crate::bringup::GateLine;
 use crate::constants::TASK_PERIOD_MS;
 use crate::constants::VfConfig;
-use crate::machine::{HandoverRefusal, Precharge, PrechargeTiming};
+use crate::machine::{HandoverRefusal, Precharge, PrechargeTiming, Waiting};
 use crate::relays::Relays;
 use crate::state::{Errors, State};
 use aer_boards::pcc::Revision;
@@ -76,11 +76,15 @@ impl fmt::Display for StateLine {
     }
 }
 
-/// The race image's bus and drop counters, every 5 s.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+/// The race image's voltages, bus and drop counters, every 5 s.
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct CountersLine {
     /// Milliseconds since start-up.
     pub now_ms: u32,
+    /// Accumulator voltage (V).
+    pub accumulator_v: f32,
+    /// Tractive-system voltage (V).
+    pub tractive_v: f32,
     /// The CAN controller.
     pub bus: BusStatus,
     /// Frames dropped because the receive queue was full.
@@ -95,8 +99,14 @@ impl fmt::Display for CountersLine {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         write!(
             f,
-            "t={} ms CAN2 {}; rx queue overflows {}, status not sent {}, log lines dropped {}",
-            self.now_ms, self.bus, self.rx_queue_overflows, self.status_not_sent, self.log_dropped
+            "t={} ms accumulator {:.1} V, tractive {:.1} V; CAN2 {}; rx queue overflows {}, status not sent {}, log lines dropped {}",
+            self.now_ms,
+            self.accumulator_v,
+            self.tractive_v,
+            self.bus,
+            self.rx_queue_overflows,
+            self.status_not_sent,
+            self.log_dropped
         )
     }
 }
@@ -123,12 +133,66 @@ impl fmt::Display for RebootAnswer {
     }
 }
 
-/// What the race image's control task logs: the state and errors when they change, each
-/// precharge's timing when it ends, and every 5 s the bus and drop counters.
+/// What the race image's control task logs: the state and errors when they change, what
+/// STANDBY waits for when that changes, each precharge's timing when it ends, and every 5 s
+/// the voltages, the bus and the drop counters.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct RaceLog {
     state: Watch<(State, Errors)>,
+    waiting: Watch<Option<Waiting>>,
     precharge: Watch<Option<PrechargeTiming>>,
+}
+
+/// STANDBY's line: what precharge waits for.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct WaitingLine {
+    /// Milliseconds since start-up.
+    pub now_ms: u32,
+    /// What is not met yet.
+    pub waiting: Waiting,
+    /// Accumulator voltage (V).
+    pub accumulator_v: f32,
+    /// The pack minimum (V).
+    pub pack_min_v: f32,
+    /// The BMS timeout (ms).
+    pub bms_timeout_ms: u32,
+}
+
+impl fmt::Display for WaitingLine {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "t={} ms standby: precharge waits for", self.now_ms)?;
+        let mut first = true;
+        let mut item = |f: &mut fmt::Formatter<'_>, args: fmt::Arguments<'_>| {
+            let sep = if first { " " } else { ", " };
+            first = false;
+            write!(f, "{sep}{args}")
+        };
+        if self.waiting.pack {
+            item(
+                f,
+                format_args!(
+                    "the pack (accumulator {:.1} V, below {:.0} V)",
+                    self.accumulator_v, self.pack_min_v
+                ),
+            )?;
+        }
+        if self.waiting.bms {
+            item(
+                f,
+                format_args!("the BMS (no frame in {} ms)", self.bms_timeout_ms),
+            )?;
+        }
+        if self.waiting.rise {
+            item(
+                f,
+                format_args!("the tractive system to rise (the shutdown circuit to close)"),
+            )?;
+        }
+        if first {
+            f.write_str(" nothing")?;
+        }
+        Ok(())
+    }
 }
 
 impl RaceLog {
@@ -148,6 +212,17 @@ impl RaceLog {
                 errors,
                 accumulator_v: pcc.accumulator_v(),
                 tractive_v: pcc.tractive_v(),
+            };
+            log.line(format_args!("{line}"));
+        }
+        if let Some(Some(waiting)) = self.waiting.changed(pcc.waiting()) {
+            let config = pcc.config();
+            let line = WaitingLine {
+                now_ms,
+                waiting,
+                accumulator_v: pcc.accumulator_v(),
+                pack_min_v: config.min_accumulator_v,
+                bms_timeout_ms: config.bms_timeout_ms,
             };
             log.line(format_args!("{line}"));
         }

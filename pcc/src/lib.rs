@@ -25,6 +25,6 @@ mod status;
 pub mod watchdog;
 
 pub use constants::{PrechargeConfig, TASK_PERIOD_MS, VfConfig};
-pub use machine::{HandoverRefusal, Inputs, Precharge, PrechargeTiming};
+pub use machine::{HandoverRefusal, Inputs, Precharge, PrechargeTiming, Waiting};
 pub use relays::Relays;
 pub use state::{Errors, State};

@@ -70,6 +70,19 @@ pub struct Precharge {
     tractive_v: f32,
     /// How the last precharge ended.
     last_precharge: Option<PrechargeTiming>,
+    /// In STANDBY, what the last step was still waiting for.
+    waiting: Option<Waiting>,
+}
+
+/// What STANDBY waits for before precharge starts: each `true` is a condition not met yet.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Waiting {
+    /// The accumulator reads below the pack minimum (60 V).
+    pub pack: bool,
+    /// No BMS frame within its timeout.
+    pub bms: bool,
+    /// The tractive system does not rise (the shutdown circuit has not closed).
+    pub rise: bool,
 }
 
 /// How long a precharge took, against the window it must fall in.
@@ -161,6 +174,7 @@ impl Precharge {
             accumulator_v: 0.0,
             tractive_v: 0.0,
             last_precharge: None,
+            waiting: None,
         }
     }
 
@@ -202,6 +216,16 @@ impl Precharge {
     /// How the last precharge ended (`None` before the first).
     pub fn last_precharge(&self) -> Option<PrechargeTiming> {
         self.last_precharge
+    }
+
+    /// The limits it runs with.
+    pub fn config(&self) -> &PrechargeConfig {
+        &self.config
+    }
+
+    /// In STANDBY, what precharge still waits for; `None` in any other state.
+    pub fn waiting(&self) -> Option<Waiting> {
+        self.waiting
     }
 
     /// Whether the PCC may stop running its state machine (the bootloader), and the relays
@@ -272,6 +296,12 @@ impl Precharge {
                     self.progress_percent >= self.trough_percent + self.config.start_percent;
                 if pack_present && bms_alive && rising {
                     self.enter(State::Precharge, now);
+                } else {
+                    self.waiting = Some(Waiting {
+                        pack: !pack_present,
+                        bms: !bms_alive,
+                        rise: !rising,
+                    });
                 }
             }
             State::Precharge => self.precharge(now, inputs.charger_safety),
@@ -367,6 +397,7 @@ impl Precharge {
 
     fn enter(&mut self, state: State, now: u32) {
         self.state = state;
+        self.waiting = None;
         self.entered_ms = now;
         self.conditions.reset();
         self.at_target_since_ms = None;

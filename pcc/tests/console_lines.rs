@@ -131,6 +131,8 @@ fn the_race_lines_fit_the_race_log() {
     };
     let counters = CountersLine {
         now_ms: u32::MAX,
+        accumulator_v: -f32::MAX,
+        tractive_v: -f32::MAX,
         bus: WORST_STATUS,
         rx_queue_overflows: u32::MAX,
         status_not_sent: u32::MAX,
@@ -149,10 +151,22 @@ fn the_race_lines_fit_the_race_log() {
             limit_v: f32::MAX,
         }),
     };
+    let waiting = aer_pcc::console::WaitingLine {
+        now_ms: u32::MAX,
+        waiting: aer_pcc::Waiting {
+            pack: true,
+            bms: true,
+            rise: true,
+        },
+        accumulator_v: -f32::MAX,
+        pack_min_v: f32::MAX,
+        bms_timeout_ms: u32::MAX,
+    };
     assert!(log.line(format_args!("{state}")));
+    assert!(log.line(format_args!("{waiting}")));
     assert!(log.line(format_args!("{counters}")));
     assert!(log.line(format_args!("t={} ms {timing}", u32::MAX)));
     assert!(log.line(format_args!("t={} ms {refused}", u32::MAX)));
     assert_eq!(log.dropped(), 0);
-    assert_eq!(drain(&mut log).len(), 2 + 4);
+    assert_eq!(drain(&mut log).len(), 2 + 5);
 }

@@ -583,3 +583,45 @@ fn each_precharge_is_timed_against_its_window() {
             .ends_with(", TOO FAST")
     );
 }
+
+/// STANDBY says what precharge waits for, one condition at a time, and nothing outside it.
+#[test]
+fn standby_names_what_precharge_waits_for() {
+    use aer_pcc::Waiting;
+    let mut pcc = Precharge::new(PrechargeConfig::CAR, 0);
+    let mut inputs = Inputs {
+        now_ms: 0,
+        accumulator_v: 0.0,
+        tractive_v: 0.0,
+        bms_last_seen_ms: None,
+        charger_safety: false,
+    };
+    pcc.step(&inputs);
+    assert_eq!(
+        pcc.waiting(),
+        Some(Waiting {
+            pack: true,
+            bms: true,
+            rise: true
+        })
+    );
+    inputs.now_ms = 10;
+    inputs.bms_last_seen_ms = Some(10);
+    inputs.accumulator_v = 300.0;
+    pcc.step(&inputs);
+    assert_eq!(
+        pcc.waiting(),
+        Some(Waiting {
+            pack: false,
+            bms: false,
+            rise: true
+        })
+    );
+    // The shutdown circuit closes: the tractive system rises, precharge starts.
+    inputs.now_ms = 20;
+    inputs.bms_last_seen_ms = Some(20);
+    inputs.tractive_v = 30.0;
+    pcc.step(&inputs);
+    assert_eq!(pcc.state(), State::Precharge);
+    assert_eq!(pcc.waiting(), None);
+}

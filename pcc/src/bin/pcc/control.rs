@@ -87,6 +87,8 @@ pub(crate) async fn control(mut cx: control::Context<'_>) {
             cx.shared.log.lock(|log| {
                 let line = CountersLine {
                     now_ms,
+                    accumulator_v: pcc.accumulator_v(),
+                    tractive_v: pcc.tractive_v(),
                     bus,
                     rx_queue_overflows: RX_QUEUE_OVERFLOWS.load(Ordering::Relaxed),
                     status_not_sent: TX_BUSY.load(Ordering::Relaxed),
