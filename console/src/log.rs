@@ -202,10 +202,10 @@ mod tests {
     fn backspace_takes_back_the_last_byte_typed() {
         let mut reader = LineReader::<16>::new();
         let mut typed = None;
-        for &byte in b"resq\x7ft\x08port\r" {
+        for &byte in b"repq\x7f\x08port\r" {
             typed = reader.push(byte).map(std::string::String::from).or(typed);
         }
-        assert_eq!(typed.as_deref(), Some("rport"));
+        assert_eq!(typed.as_deref(), Some("report"));
         let mut reader = LineReader::<16>::new();
         let mut typed = None;
         for &byte in b"\x7f\x7fhelp\n" {
