@@ -30,7 +30,7 @@ use core::fmt::{self, Write};
 pub type Example = (&'static str, fn(&mut dyn Write) -> fmt::Result);
 
 /// Every transcript docs/bench-day.md quotes, by the name its marker gives.
-pub const EXAMPLES: [Example; 25] = [
+pub const EXAMPLES: [Example; 26] = [
     ("ccm-bringup-startup", ccm_bringup_startup),
     ("ccm-report-alone", ccm_report_alone),
     ("ccm-can-self-test", ccm_can_self_test),
@@ -50,6 +50,7 @@ pub const EXAMPLES: [Example; 25] = [
     ("pcc-bms-heartbeat", pcc_bms_heartbeat),
     ("pcc-race-startup", pcc_race_startup),
     ("pcc-race-precharge", pcc_race_precharge),
+    ("pcc-race-missed", pcc_race_missed),
     ("pcc-race-shutdown", pcc_race_shutdown),
     ("pcc-bootloader", pcc_bootloader),
     ("pcc-race-watchdog", pcc_race_watchdog),
@@ -407,7 +408,9 @@ fn pcc_confirm_silent(out: &mut dyn Write) -> fmt::Result {
     let mut session = pcc([None, None]);
     session.skip(5_250)?;
     session.type_line("confirm hv-disconnected", out, EXCHANGE)?;
-    session.type_line("out air-plus-close on", out, EXCHANGE)
+    // The refused output names the step that is missing in its own line first.
+    let keep = Keep::Starting(&["> ", "refused", "t=", "pin 11"]);
+    session.type_line("out air-plus-close on", out, keep)
 }
 
 fn pcc_confirm_refused(out: &mut dyn Write) -> fmt::Result {
@@ -422,17 +425,18 @@ fn pcc_air_plus(out: &mut dyn Write) -> fmt::Result {
     session.skip(8_250)?;
     session.type_line("confirm hv-disconnected", out, EXCHANGE)?;
     session.type_line("out air-plus-close on", out, EXCHANGE)?;
-    // The supply on the tractive input turned up past 60 V: AIR+ drops within two steps.
+    // The generator on the tractive input turned up to 750 Hz (63 V): AIR+ drops within
+    // two steps.
     session.run(9_500, out, EXCHANGE)?;
-    session.sim().inputs[1].pulses = Pulses::volts(61.0);
+    session.sim().inputs[1].pulses = Pulses::Hz(750.0);
     session.run(10_250, out, EXCHANGE)?;
     session.sim().inputs[1].pulses = Pulses::volts(24.0);
     session.run(10_500, out, EXCHANGE)?;
     session.type_line("confirm hv-disconnected", out, EXCHANGE)?;
     session.type_line("out air-plus-close on", out, EXCHANGE)?;
-    // A converter's wire comes off: silent after its 100 ms edge timeout, AIR+ drops.
+    // The generator switched off: pin 15 silent after its 100 ms edge timeout, AIR+ drops.
     session.run(11_500, out, EXCHANGE)?;
-    session.sim().inputs[0].pulses = Pulses::None;
+    session.sim().inputs[1].pulses = Pulses::None;
     session.run(12_000, out, EXCHANGE)
 }
 
@@ -481,6 +485,8 @@ struct RacePcc {
     log: LogBuffer<{ pcc_console::LOG_BYTES }>,
     now_ms: u32,
     relays: Relays,
+    /// The BMS's frames are heard from this time on.
+    bms_from_ms: u32,
 }
 
 impl RacePcc {
@@ -494,6 +500,7 @@ impl RacePcc {
             log: LogBuffer::new(),
             now_ms: 0,
             relays: Relays::ALL_OPEN,
+            bms_from_ms: 0,
         }
     }
 
@@ -517,7 +524,7 @@ impl RacePcc {
             now_ms,
             accumulator_v: self.channels[0].sample(now_us),
             tractive_v: self.channels[1].sample(now_us),
-            bms_last_seen_ms: Some(now_ms - now_ms % 100),
+            bms_last_seen_ms: (now_ms >= self.bms_from_ms).then_some(now_ms - now_ms % 100),
             charger_safety: false,
         };
         self.relays = self.pcc.step(&inputs);
@@ -572,6 +579,21 @@ fn precharging() -> RacePcc {
 
 fn pcc_race_precharge(out: &mut dyn Write) -> fmt::Result {
     precharging().run(15_000, Some(out))
+}
+
+fn pcc_race_missed(out: &mut dyn Write) -> fmt::Result {
+    // The BMS is silent until 17 s: the hardware precharges (5-14.9 s) with the PCC waiting.
+    let mut pcc = precharging();
+    pcc.bms_from_ms = 17_000;
+    pcc.run(17_500, Some(&mut *out))?;
+    // The shutdown circuit opens: the tractive system discharges.
+    pcc.inputs[1].pulses = Pulses::Sweep {
+        from_hz: VfConfig::PCC_BOARD.hz_for_volts(300.0),
+        to_hz: 0.0,
+        start_ms: 17_500,
+        duration_ms: 600,
+    };
+    pcc.run(18_500, Some(out))
 }
 
 fn pcc_race_shutdown(out: &mut dyn Write) -> fmt::Result {

@@ -152,8 +152,12 @@ pub struct WaitingLine {
     pub waiting: Waiting,
     /// Accumulator voltage (V).
     pub accumulator_v: f32,
+    /// Tractive-system voltage (V).
+    pub tractive_v: f32,
     /// The pack minimum (V).
     pub pack_min_v: f32,
+    /// The discharged limit (V).
+    pub discharged_v: f32,
     /// The BMS timeout (ms).
     pub bms_timeout_ms: u32,
 }
@@ -186,6 +190,17 @@ impl fmt::Display for WaitingLine {
             item(
                 f,
                 format_args!("the tractive system to rise (the shutdown circuit to close)"),
+            )?;
+        }
+        if self.waiting.charged {
+            item(
+                f,
+                format_args!(
+                    "the tractive system to discharge (it reads {:.1} V with AIR+ open: it \
+                     charged while the PCC could not start, an untimed precharge; open the \
+                     shutdown circuit, treat it as live until it reads below {:.0} V)",
+                    self.tractive_v, self.discharged_v
+                ),
             )?;
         }
         if first {
@@ -221,7 +236,9 @@ impl RaceLog {
                 now_ms,
                 waiting,
                 accumulator_v: pcc.accumulator_v(),
+                tractive_v: pcc.tractive_v(),
                 pack_min_v: config.min_accumulator_v,
+                discharged_v: config.discharged_v,
                 bms_timeout_ms: config.bms_timeout_ms,
             };
             log.line(format_args!("{line}"));

@@ -83,6 +83,11 @@ pub struct Waiting {
     pub bms: bool,
     /// The tractive system does not rise (the shutdown circuit has not closed).
     pub rise: bool,
+    /// The tractive system already reads the discharged limit (60 V) or more with AIR+ open:
+    /// the hardware precharged while the PCC could not start (no pack reading, no BMS, or
+    /// the shutdown circuit closed before start-up). That precharge went untimed, so it never
+    /// counts: the shutdown circuit must open and the tractive system discharge first.
+    pub charged: bool,
 }
 
 /// How long a precharge took, against the window it must fall in.
@@ -291,16 +296,29 @@ impl Precharge {
                 // The hardware started precharging (the shutdown circuit closed): the timer
                 // starts now, at the rise, not after a settle time that would shorten the
                 // measured precharge.
-                self.trough_percent = self.trough_percent.min(self.progress_percent);
+                //
+                // A rise only counts if it began with the PCC ready (the pack read, the BMS
+                // heard): a tractive system that charged while the PCC could not start would
+                // otherwise start an untimed PRECHARGE that ends in `too-fast`, or by chance
+                // inside the window. A jump with the PCC ready still starts PRECHARGE, whose
+                // `too-fast` then names a bypassed precharge resistor or a welded AIR+.
+                let ready = pack_present && bms_alive;
+                let charged = self.tractive_v >= self.config.discharged_v;
+                self.trough_percent = if ready {
+                    self.trough_percent.min(self.progress_percent)
+                } else {
+                    self.progress_percent
+                };
                 let rising =
                     self.progress_percent >= self.trough_percent + self.config.start_percent;
-                if pack_present && bms_alive && rising {
+                if ready && rising {
                     self.enter(State::Precharge, now);
                 } else {
                     self.waiting = Some(Waiting {
                         pack: !pack_present,
                         bms: !bms_alive,
-                        rise: !rising,
+                        rise: !rising && !charged,
+                        charged,
                     });
                 }
             }

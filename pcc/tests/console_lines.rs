@@ -157,9 +157,12 @@ fn the_race_lines_fit_the_race_log() {
             pack: true,
             bms: true,
             rise: true,
+            charged: true,
         },
         accumulator_v: -f32::MAX,
+        tractive_v: -f32::MAX,
         pack_min_v: f32::MAX,
+        discharged_v: f32::MAX,
         bms_timeout_ms: u32::MAX,
     };
     assert!(log.line(format_args!("{state}")));

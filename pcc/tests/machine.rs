@@ -180,7 +180,9 @@ fn standby_needs_the_pack_and_a_live_bms_when_the_rise_is_seen() {
     bench.at_with_bms(1_010);
     assert_eq!(bench.state(), State::Precharge);
 
-    // No BMS frame yet, then a stale one: the rise is not a start; a fresh frame makes it one.
+    // No BMS frame yet, then a stale one: the rise is not a start, and a fresh frame does not
+    // make it one (the precharge began untimed); only a rise that begins with the BMS heard
+    // starts PRECHARGE.
     let mut bench = Bench::ready();
     bench.inputs.bms_last_seen_ms = None;
     bench.at(1_000);
@@ -191,6 +193,9 @@ fn standby_needs_the_pack_and_a_live_bms_when_the_rise_is_seen() {
     bench.at(3_000);
     assert_eq!(bench.state(), State::Standby);
     bench.at_with_bms(3_010);
+    assert_eq!(bench.state(), State::Standby, "a rise the PCC missed");
+    bench.set_progress(2.0 * CONFIG.start_percent);
+    bench.at_with_bms(3_020);
     assert_eq!(bench.state(), State::Precharge);
 }
 
@@ -602,7 +607,8 @@ fn standby_names_what_precharge_waits_for() {
         Some(Waiting {
             pack: true,
             bms: true,
-            rise: true
+            rise: true,
+            charged: false
         })
     );
     inputs.now_ms = 10;
@@ -614,7 +620,8 @@ fn standby_names_what_precharge_waits_for() {
         Some(Waiting {
             pack: false,
             bms: false,
-            rise: true
+            rise: true,
+            charged: false
         })
     );
     // The shutdown circuit closes: the tractive system rises, precharge starts.
@@ -624,4 +631,74 @@ fn standby_names_what_precharge_waits_for() {
     pcc.step(&inputs);
     assert_eq!(pcc.state(), State::Precharge);
     assert_eq!(pcc.waiting(), None);
+}
+
+/// A tractive system the hardware charged while the PCC could not start (the BMS silent) is
+/// an untimed precharge: the PCC stays in STANDBY, says so, and never closes AIR+ on it; once
+/// the shutdown circuit has opened and the tractive system is below 60 V, the next rise is a
+/// timed precharge as usual.
+#[test]
+fn a_precharge_the_pcc_missed_never_counts() {
+    use aer_pcc::Waiting;
+    let config = PrechargeConfig::CAR;
+    let mut pcc = Precharge::new(config, 0);
+    let pack = 300.0;
+    let mut inputs = Inputs {
+        now_ms: 0,
+        accumulator_v: pack,
+        tractive_v: 0.0,
+        bms_last_seen_ms: None,
+        charger_safety: false,
+    };
+    // The shutdown circuit closes with the BMS silent: the hardware precharges to the pack.
+    for step in 0..2_000u32 {
+        inputs.now_ms = step * 10;
+        inputs.tractive_v = pack * (1.0 - (-(inputs.now_ms as f32) / 3_800.0).exp());
+        assert!(
+            !pcc.step(&inputs).air_plus,
+            "AIR+ closed at {} ms",
+            inputs.now_ms
+        );
+    }
+    assert_eq!(pcc.state(), State::Standby);
+    // The BMS is heard now: no PRECHARGE (its timing would be meaningless), and STANDBY says
+    // why.
+    for step in 2_000..2_300u32 {
+        inputs.now_ms = step * 10;
+        inputs.bms_last_seen_ms = Some(inputs.now_ms);
+        assert!(!pcc.step(&inputs).air_plus);
+    }
+    assert_eq!(pcc.state(), State::Standby);
+    assert_eq!(
+        pcc.waiting(),
+        Some(Waiting {
+            pack: false,
+            bms: false,
+            rise: false,
+            charged: true
+        })
+    );
+    // The shutdown circuit opens: the tractive system discharges below 60 V.
+    let mut now = inputs.now_ms;
+    while inputs.tractive_v >= 1.0 {
+        now += 10;
+        inputs.now_ms = now;
+        inputs.bms_last_seen_ms = Some(now);
+        inputs.tractive_v *= 0.99;
+        pcc.step(&inputs);
+    }
+    assert_eq!(pcc.state(), State::Standby);
+    assert_eq!(pcc.waiting().map(|waiting| waiting.rise), Some(true));
+    // It closes again: a timed precharge to ONLINE.
+    let start = now;
+    while pcc.state() != State::Online {
+        now += 10;
+        assert!(now - start < 20_000, "never ONLINE: {:?}", pcc.state());
+        inputs.now_ms = now;
+        inputs.bms_last_seen_ms = Some(now);
+        inputs.tractive_v = pack * (1.0 - (-((now - start) as f32) / 3_800.0).exp());
+        pcc.step(&inputs);
+    }
+    let timing = pcc.last_precharge().expect("timed");
+    assert!(!timing.to_string().contains("TOO"), "{timing}");
 }

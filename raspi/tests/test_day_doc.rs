@@ -282,14 +282,19 @@ const EXAMPLES_FILE: &str = "AER_DOC_EXAMPLES";
 #[test]
 fn every_quote_in_the_test_day_runbook_is_what_the_commands_print() {
     let examples = examples();
+    let quotes = quotes();
     let mut all = String::new();
     for (name, text) in &examples {
+        // A quote that differs in its timings alone stays as the page has it.
+        let unchanged = quotes.iter().find(|(quoted, block)| {
+            quoted == name && without_timings(block) == without_timings(text)
+        });
+        let text = unchanged.map_or(text.as_str(), |(_, block)| block.as_str());
         all.push_str(&format!("--- test-day {name}\n{text}"));
     }
     if let Some(path) = std::env::var_os(EXAMPLES_FILE) {
         std::fs::write(&path, &all).expect("write the examples for cargo xtask docs");
     }
-    let quotes = quotes();
     let mut differ = Vec::new();
     for (name, block) in &quotes {
         let printed = examples.get(name.as_str()).unwrap_or_else(|| {
