@@ -8882,7 +8882,7 @@ pub struct PccStatus {
     ///
     /// `PCC_ErrorBmsTimeout`: 1 bit from bit 10 (Intel), unsigned, range [0.0, 1.0].
     pub pcc_error_bms_timeout: bool,
-    /// Error bit 0x08: the shutdown input opened while the tractive system was energised; clears once the shutdown circuit is closed again and the tractive system is discharged.
+    /// Error bit 0x08: the shutdown input opened while the tractive system was energised; clears once the tractive system has read below 60 V for 200 ms, whether the shutdown circuit is open or closed again.
     ///
     /// `PCC_ErrorShutdown`: 1 bit from bit 11 (Intel), unsigned, range [0.0, 1.0].
     pub pcc_error_shutdown: bool,
@@ -8981,7 +8981,7 @@ static PCC_STATUS_SIGNALS: [SignalMeta; 9] = [
         name: "PCC_ErrorShutdown",
         index: 4,
         unit: "",
-        comment: "Error bit 0x08: the shutdown input opened while the tractive system was energised; clears once the shutdown circuit is closed again and the tractive system is discharged.",
+        comment: "Error bit 0x08: the shutdown input opened while the tractive system was energised; clears once the tractive system has read below 60 V for 200 ms, whether the shutdown circuit is open or closed again.",
         start_bit: 11,
         len: 1,
         byte_order: ByteOrder::LittleEndian,

@@ -208,8 +208,8 @@ pub fn serve_bench<const N: usize>(
 }
 
 /// One step of a bring-up image's bench loop as its task runs it: the lines typed since the
-/// last step (from the USB interrupt), the log under its lock, and the reboot into the
-/// bootloader once the loop has made every output safe.
+/// last step (from the USB interrupt) and the log under its lock. A reboot it returns
+/// (every output already safe) goes to [`hand_over`] after the caller's 2 ms.
 pub fn bench_step<B: BenchBoard, const N: usize>(
     bench: &mut BenchLoop,
     board: &mut B,
@@ -218,9 +218,16 @@ pub fn bench_step<B: BenchBoard, const N: usize>(
     shared: &B::Shared,
     log: &mut impl Mutex<T = LogBuffer<N>>,
     reboot: &RebootRequest,
-) {
+) -> After {
     let typed = core::iter::from_fn(|| lines.dequeue());
-    match log.lock(|log| bench.step(board, now_ms, typed, reboot, shared, log)) {
+    log.lock(|log| bench.step(board, now_ms, typed, reboot, shared, log))
+}
+
+/// What [`bench_step`] asked for, once the caller has let the safe commands leave the CAN
+/// mailboxes (two frame times at 500 kbit/s: the caller waits 2 ms first): the bootloader, or a
+/// restart. Nothing for [`After::Continue`].
+pub fn hand_over(after: After) {
+    match after {
         After::Continue => {}
         After::Bootloader => reboot_to_bootloader(),
         After::Restart => restart(),
@@ -236,15 +243,20 @@ pub struct Polled {
     pub reboot_requested: bool,
 }
 
-/// The chip's 64-bit unique id (OCOTP CFG0 and CFG1, fused at manufacture) as the USB serial
-/// number: 16 hex digits written into `text`, which the device then keeps.
-pub fn chip_serial(text: &'static mut [u8; 16]) -> &'static str {
+/// The chip's 64-bit unique id (OCOTP CFG0 and CFG1, fused at manufacture).
+pub fn chip_id() -> u64 {
     // SAFETY: the OCOTP shadow registers are read-only here and loaded by the boot ROM before
-    // any code runs; nothing else in the images uses the OCOTP block.
+    // any code runs; nothing else in the images writes the OCOTP block.
     let ocotp = unsafe { teensy4_bsp::ral::ocotp::OCOTP::instance() };
     let high = teensy4_bsp::ral::read_reg!(teensy4_bsp::ral::ocotp, ocotp, CFG1);
     let low = teensy4_bsp::ral::read_reg!(teensy4_bsp::ral::ocotp, ocotp, CFG0);
-    crate::serial_number(u64::from(high) << 32 | u64::from(low), text)
+    u64::from(high) << 32 | u64::from(low)
+}
+
+/// The chip's unique id ([`chip_id`]) as the USB serial number: 16 hex digits written into
+/// `text`, which the device then keeps.
+pub fn chip_serial(text: &'static mut [u8; 16]) -> &'static str {
+    crate::serial_number(chip_id(), text)
 }
 
 /// Bytes of log copied out per USB poll.

@@ -158,6 +158,8 @@ pub struct WaitingLine {
     pub pack_min_v: f32,
     /// The discharged limit (V).
     pub discharged_v: f32,
+    /// The rest a timed precharge starts from (% of the pack).
+    pub rest_percent: f32,
     /// The BMS timeout (ms).
     pub bms_timeout_ms: u32,
 }
@@ -192,16 +194,30 @@ impl fmt::Display for WaitingLine {
                 format_args!("the tractive system to rise (the shutdown circuit to close)"),
             )?;
         }
-        if self.waiting.charged {
-            item(
-                f,
-                format_args!(
-                    "the tractive system to discharge (it reads {:.1} V with AIR+ open: it \
-                     charged while the PCC could not start, an untimed precharge; open the \
-                     shutdown circuit, treat it as live until it reads below {:.0} V)",
-                    self.tractive_v, self.discharged_v
-                ),
-            )?;
+        if self.waiting.discharge {
+            if self.waiting.live {
+                item(
+                    f,
+                    format_args!(
+                        "the tractive system to discharge (it reads {:.1} V with AIR+ open: it \
+                         charged while the PCC could not time it; open the shutdown circuit \
+                         and treat it as live until it reads below {:.0} V)",
+                        self.tractive_v, self.discharged_v
+                    ),
+                )?;
+            } else {
+                item(
+                    f,
+                    format_args!(
+                        "the tractive system to discharge (it reads {:.1} V, above the {:.1} V, \
+                         {:.0} % of the pack, a timed precharge starts from: keep the shutdown \
+                         circuit open)",
+                        self.tractive_v,
+                        self.accumulator_v * self.rest_percent / 100.0,
+                        self.rest_percent
+                    ),
+                )?;
+            }
         }
         if first {
             f.write_str(" nothing")?;
@@ -239,6 +255,7 @@ impl RaceLog {
                 tractive_v: pcc.tractive_v(),
                 pack_min_v: config.min_accumulator_v,
                 discharged_v: config.discharged_v,
+                rest_percent: config.rest_percent,
                 bms_timeout_ms: config.bms_timeout_ms,
             };
             log.line(format_args!("{line}"));

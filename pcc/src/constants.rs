@@ -39,6 +39,13 @@ pub struct PrechargeConfig {
     /// the true one, well inside the 8.2-9.2 s window; 8 V at 400 V is far above the
     /// converters' noise.
     pub start_percent: f32,
+    /// A precharge is timed only from a tractive system at rest: progress below this, seen
+    /// with the pack read and the BMS heard, before the rise. A rise from higher (a
+    /// precharge that began while the PCC could not start, the shutdown circuit closed again
+    /// before the tractive system had discharged) would be timed short and judged wrong.
+    /// 5 % of the pack shortens a true precharge by 0.05 time constants (200 ms on the car)
+    /// at most.
+    pub rest_percent: f32,
     /// In PRECHARGE, progress this far below its highest value means the precharge path
     /// opened (the shutdown circuit) or the tractive system is loaded down.
     pub precharge_drop_percent: f32,
@@ -59,6 +66,7 @@ impl PrechargeConfig {
         bms_timeout_ms: 1_500,
         discharged_v: 60.0,
         start_percent: 2.0,
+        rest_percent: 5.0,
         precharge_drop_percent: 10.0,
         online_min_percent: 80.0,
     };

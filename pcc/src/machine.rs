@@ -60,9 +60,13 @@ pub struct Precharge {
     at_target_since_ms: Option<u32>,
     /// The highest progress seen during this precharge (%).
     peak_percent: f32,
-    /// The lowest progress seen during this STANDBY (%): precharge has started once progress
-    /// rises above it, so a tractive system still discharging is not taken for one charging.
+    /// The lowest progress seen during this STANDBY since the rest was seen (%): precharge
+    /// has started once progress rises above it, so a tractive system still discharging is
+    /// not taken for one charging.
     trough_percent: f32,
+    /// In STANDBY, the tractive system has been seen at rest (below the rest percentage)
+    /// with the PCC ready (the pack read, the BMS heard) since: only then is a rise timed.
+    rest_seen: bool,
     /// Since when the tractive system has been falling away while energised.
     falling_since_ms: Option<u32>,
     progress_percent: f32,
@@ -83,11 +87,15 @@ pub struct Waiting {
     pub bms: bool,
     /// The tractive system does not rise (the shutdown circuit has not closed).
     pub rise: bool,
-    /// The tractive system already reads the discharged limit (60 V) or more with AIR+ open:
-    /// the hardware precharged while the PCC could not start (no pack reading, no BMS, or
-    /// the shutdown circuit closed before start-up). That precharge went untimed, so it never
-    /// counts: the shutdown circuit must open and the tractive system discharge first.
-    pub charged: bool,
+    /// The tractive system is not at rest (above [`PrechargeConfig::rest_percent`] of the
+    /// pack, or at the discharged limit, 60 V, or more): a precharge began that the PCC could
+    /// not time (no pack reading, no BMS, the shutdown circuit closed before start-up or
+    /// again before the tractive system had discharged). It never counts: the shutdown
+    /// circuit must stay open until the tractive system is at rest.
+    pub discharge: bool,
+    /// Of those, the tractive system reads the discharged limit (60 V) or more: treat it as
+    /// live.
+    pub live: bool,
 }
 
 /// How long a precharge took, against the window it must fall in.
@@ -174,6 +182,7 @@ impl Precharge {
             at_target_since_ms: None,
             peak_percent: 0.0,
             trough_percent: f32::MAX,
+            rest_seen: false,
             falling_since_ms: None,
             progress_percent: 0.0,
             accumulator_v: 0.0,
@@ -297,28 +306,36 @@ impl Precharge {
                 // starts now, at the rise, not after a settle time that would shorten the
                 // measured precharge.
                 //
-                // A rise only counts if it began with the PCC ready (the pack read, the BMS
-                // heard): a tractive system that charged while the PCC could not start would
-                // otherwise start an untimed PRECHARGE that ends in `too-fast`, or by chance
-                // inside the window. A jump with the PCC ready still starts PRECHARGE, whose
-                // `too-fast` then names a bypassed precharge resistor or a welded AIR+.
+                // A rise is timed only from rest seen with the PCC ready (the pack read, the
+                // BMS heard): a tractive system that charged while the PCC could not start,
+                // or was closed again before it discharged, would otherwise start a PRECHARGE
+                // timed short. A jump from rest still starts PRECHARGE, whose `too-fast` then
+                // names a bypassed precharge resistor or a welded AIR+.
                 let ready = pack_present && bms_alive;
-                let charged = self.tractive_v >= self.config.discharged_v;
-                self.trough_percent = if ready {
+                let at_rest = self.progress_percent < self.config.rest_percent
+                    && self.tractive_v < self.config.discharged_v;
+                if !ready {
+                    self.rest_seen = false;
+                } else if at_rest {
+                    self.rest_seen = true;
+                }
+                self.trough_percent = if self.rest_seen {
                     self.trough_percent.min(self.progress_percent)
                 } else {
                     self.progress_percent
                 };
-                let rising =
-                    self.progress_percent >= self.trough_percent + self.config.start_percent;
+                let rising = self.rest_seen
+                    && self.progress_percent >= self.trough_percent + self.config.start_percent;
                 if ready && rising {
                     self.enter(State::Precharge, now);
                 } else {
+                    let discharge = !self.rest_seen && !at_rest;
                     self.waiting = Some(Waiting {
                         pack: !pack_present,
                         bms: !bms_alive,
-                        rise: !rising && !charged,
-                        charged,
+                        rise: !rising && !discharge,
+                        discharge,
+                        live: discharge && self.tractive_v >= self.config.discharged_v,
                     });
                 }
             }
@@ -421,6 +438,7 @@ impl Precharge {
         self.at_target_since_ms = None;
         self.peak_percent = 0.0;
         self.trough_percent = f32::MAX;
+        self.rest_seen = false;
         self.falling_since_ms = None;
     }
 }

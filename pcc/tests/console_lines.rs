@@ -157,19 +157,26 @@ fn the_race_lines_fit_the_race_log() {
             pack: true,
             bms: true,
             rise: true,
-            charged: true,
+            discharge: true,
+            live: true,
         },
         accumulator_v: -f32::MAX,
         tractive_v: -f32::MAX,
         pack_min_v: f32::MAX,
         discharged_v: f32::MAX,
+        rest_percent: f32::MAX,
         bms_timeout_ms: u32::MAX,
     };
     assert!(log.line(format_args!("{state}")));
     assert!(log.line(format_args!("{waiting}")));
+    // The other wording of the discharge: below 60 V, not at rest.
+    let mut resting = waiting;
+    resting.waiting.live = false;
+    resting.accumulator_v = f32::MAX;
+    assert!(log.line(format_args!("{resting}")));
     assert!(log.line(format_args!("{counters}")));
     assert!(log.line(format_args!("t={} ms {timing}", u32::MAX)));
     assert!(log.line(format_args!("t={} ms {refused}", u32::MAX)));
     assert_eq!(log.dropped(), 0);
-    assert_eq!(drain(&mut log).len(), 2 + 5);
+    assert_eq!(drain(&mut log).len(), 2 + 6);
 }

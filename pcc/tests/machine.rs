@@ -608,7 +608,8 @@ fn standby_names_what_precharge_waits_for() {
             pack: true,
             bms: true,
             rise: true,
-            charged: false
+            discharge: false,
+            live: false
         })
     );
     inputs.now_ms = 10;
@@ -621,7 +622,8 @@ fn standby_names_what_precharge_waits_for() {
             pack: false,
             bms: false,
             rise: true,
-            charged: false
+            discharge: false,
+            live: false
         })
     );
     // The shutdown circuit closes: the tractive system rises, precharge starts.
@@ -675,7 +677,8 @@ fn a_precharge_the_pcc_missed_never_counts() {
             pack: false,
             bms: false,
             rise: false,
-            charged: true
+            discharge: true,
+            live: true
         })
     );
     // The shutdown circuit opens: the tractive system discharges below 60 V.
@@ -701,4 +704,58 @@ fn a_precharge_the_pcc_missed_never_counts() {
     }
     let timing = pcc.last_precharge().expect("timed");
     assert!(!timing.to_string().contains("TOO"), "{timing}");
+}
+
+/// The other ways a precharge goes untimed never start PRECHARGE either: the pack's reading
+/// missing while the tractive system charged, the circuit closed at start-up, and the circuit
+/// closed again before the tractive system had discharged to rest (5 % of the pack).
+#[test]
+fn only_a_rise_from_rest_with_the_pcc_ready_is_timed() {
+    let config = PrechargeConfig::CAR;
+    let step = |pcc: &mut Precharge, now_ms: u32, accumulator_v: f32, tractive_v: f32| {
+        let relays = pcc.step(&Inputs {
+            now_ms,
+            accumulator_v,
+            tractive_v,
+            bms_last_seen_ms: Some(now_ms),
+            charger_safety: false,
+        });
+        assert!(!relays.air_plus, "AIR+ closed at {now_ms} ms");
+    };
+    // The pack's converter silent (0 V) while the tractive system charges; then it reads.
+    let mut pcc = Precharge::new(config, 0);
+    for (now, tractive) in [(0, 0.0), (10, 150.0), (20, 290.0), (30, 300.0)] {
+        step(&mut pcc, now, 0.0, tractive);
+    }
+    step(&mut pcc, 40, 300.0, 300.0);
+    step(&mut pcc, 50, 300.0, 300.0);
+    assert_eq!(pcc.state(), State::Standby);
+    assert_eq!(pcc.waiting().map(|w| w.discharge), Some(true));
+
+    // The circuit already closed at start-up: both readings rise together from 0.
+    let mut pcc = Precharge::new(config, 0);
+    for (now, volts) in [(0, 0.0), (10, 40.0), (20, 110.0), (30, 200.0), (40, 300.0)] {
+        step(&mut pcc, now, volts, volts);
+    }
+    assert_eq!(pcc.state(), State::Standby);
+    assert_eq!(pcc.waiting().map(|w| w.discharge), Some(true));
+
+    // Closed again at 55 V, below 60 V but not at rest: no PRECHARGE until it has been
+    // below 15 V (5 % of 300 V) with the circuit open.
+    let mut pcc = Precharge::new(config, 0);
+    step(&mut pcc, 0, 300.0, 55.0);
+    step(&mut pcc, 10, 300.0, 80.0);
+    assert_eq!(pcc.state(), State::Standby);
+    let waiting = pcc.waiting().expect("waiting");
+    assert!(waiting.discharge && !waiting.rise, "{waiting:?}");
+    step(&mut pcc, 20, 300.0, 14.0);
+    assert_eq!(pcc.waiting().map(|w| w.rise), Some(true));
+    pcc.step(&Inputs {
+        now_ms: 30,
+        accumulator_v: 300.0,
+        tractive_v: 21.0,
+        bms_last_seen_ms: Some(30),
+        charger_safety: false,
+    });
+    assert_eq!(pcc.state(), State::Precharge, "a rise from rest");
 }

@@ -41,10 +41,10 @@ mod app {
     use aer_ccm::bench::CcmBench;
     use aer_ccm::console::bringup::{self, LOG_BYTES};
     use aer_ccm::hw::{self, halt};
-    use aer_console::bench::{BenchLoop, Line, QUEUED_LINES};
+    use aer_console::bench::{After, BenchLoop, Line, QUEUED_LINES};
     use aer_console::bringup::Clocks;
     use aer_console::usb::{
-        Bus, EndpointState, Memory, UsbConsole, UsbMemory, bench_step, serve_bench,
+        Bus, EndpointState, Memory, UsbConsole, UsbMemory, bench_step, hand_over, serve_bench,
     };
     use aer_console::{LineReader, LogBuffer};
     use heapless::spsc::{Consumer, Producer, Queue};
@@ -147,7 +147,7 @@ mod app {
                 .shared
                 .wheels
                 .lock(|wheels| wheels.each_ref().map(|input| input.is_set()));
-            bench_step(
+            let after = bench_step(
                 &mut bench_loop,
                 cx.local.bench,
                 now_ms,
@@ -156,6 +156,11 @@ mod app {
                 &mut cx.shared.log,
                 &REBOOT,
             );
+            if after != After::Continue {
+                // Two frame times at 500 kbit/s for the safe commands to leave the mailboxes.
+                Mono::delay(2u64.millis()).await;
+                hand_over(after);
+            }
             Mono::delay(1u64.millis()).await;
         }
     }

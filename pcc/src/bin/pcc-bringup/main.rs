@@ -38,10 +38,10 @@ static EDGES: [AtomicU32; 2] = [AtomicU32::new(0), AtomicU32::new(0)];
 mod app {
     use crate::bench::TeensyPcc;
     use crate::{EDGES, Mono, REBOOT};
-    use aer_console::bench::{BenchLoop, Line, QUEUED_LINES};
+    use aer_console::bench::{After, BenchLoop, Line, QUEUED_LINES};
     use aer_console::bringup::Clocks;
     use aer_console::usb::{
-        Bus, EndpointState, Memory, UsbConsole, UsbMemory, bench_step, serve_bench,
+        Bus, EndpointState, Memory, UsbConsole, UsbMemory, bench_step, hand_over, serve_bench,
     };
     use aer_console::{LineReader, LogBuffer};
     use aer_pcc::VfConfig;
@@ -178,7 +178,7 @@ mod app {
                     .map(|meter| meter.reading(now_us, timeout_us))
             });
             let inputs = VfInputs { levels, hz };
-            bench_step(
+            let after = bench_step(
                 &mut bench_loop,
                 cx.local.bench,
                 now_ms,
@@ -187,6 +187,11 @@ mod app {
                 &mut cx.shared.log,
                 &REBOOT,
             );
+            if after != After::Continue {
+                // Two frame times at 500 kbit/s for the safe commands to leave the mailboxes.
+                Mono::delay(2u64.millis()).await;
+                hand_over(after);
+            }
             Mono::delay(10u64.millis()).await;
         }
     }
