@@ -4,7 +4,7 @@
 //!
 //! [`Calibration`] holds every tuned number; [`Calibration::DEFAULT`] is the schema's defaults
 //! (the calibration tools' reference page). The page is the form the tools address: every
-//! parameter little-endian at its [`Parameter::offset`], 124 bytes in all.
+//! parameter little-endian at its [`Parameter::offset`], 140 bytes in all.
 //! [`Calibration::from_page`] takes a page only when every element keeps its limits, so a
 //! value outside them never reaches the control step; [`ChangeWhen::allows`] says whether a
 //! parameter may change in the car's present state.
@@ -12,10 +12,10 @@
 /// Fingerprint of the calibration's layout (names, types, offsets, limits, change conditions,
 /// axes), the internals' block and the XCP settings: a saved page or a calibration tool's
 /// description with another fingerprint does not describe this firmware's page.
-pub const CALIBRATION_FINGERPRINT: u32 = 0x61EC7CFC;
+pub const CALIBRATION_FINGERPRINT: u32 = 0x3094E2CA;
 
 /// Bytes of the page.
-pub const PAGE_LEN: usize = 124;
+pub const PAGE_LEN: usize = 140;
 
 /// When a calibration tool may change a parameter.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
@@ -78,8 +78,12 @@ pub struct Axis {
     pub label: &'static str,
     /// Its unit.
     pub unit: &'static str,
-    /// The points, strictly increasing.
+    /// The default points, strictly increasing.
     pub points: &'static [f32],
+    /// The parameter that holds the points (tunable; right after the curve in the page).
+    pub parameter: &'static str,
+    /// The internal the curve is looked up with ([`Internals`]).
+    pub input: &'static str,
 }
 
 /// One parameter as the calibration tools address it.
@@ -111,8 +115,10 @@ pub struct Parameter {
     pub change: ChangeWhen,
     /// What each element of a list is (empty for a scalar or a curve).
     pub elements: &'static [&'static str],
-    /// A curve's input points.
+    /// A curve's input.
     pub axis: Option<Axis>,
+    /// The curve whose axis points this parameter holds.
+    pub axis_of: Option<&'static str>,
 }
 
 /// Why a page is refused.
@@ -171,12 +177,20 @@ impl Parameter {
         self.element.read(page.get(start..)?)
     }
 
-    /// Whether every element in `page` keeps the limits (and increases where it must).
+    /// Whether every element in `page` keeps the limits (and increases where it must). An f32
+    /// must be a normal number or zero: NaN, infinities and subnormals (1e-45, say, which
+    /// limits starting at 0 would admit) mean nothing here.
     pub fn check(&self, page: &[u8]) -> Result<(), CalibrationError> {
         let mut before = f64::NEG_INFINITY;
         for index in 0..self.count {
             let value = self.value(page, index).unwrap_or(f64::NAN);
-            if !(self.min..=self.max).contains(&value) {
+            // Only the element types the schema uses exist: integers may be absent.
+            #[allow(unreachable_patterns)]
+            let normal = match self.element {
+                ElementType::F32 => value == 0.0 || (value as f32).is_normal(),
+                _ => true,
+            };
+            if !(normal && (self.min..=self.max).contains(&value)) {
                 return Err(CalibrationError::OutOfRange {
                     parameter: self.name,
                     index,
@@ -196,13 +210,13 @@ impl Parameter {
 }
 
 /// Every parameter, in page order.
-pub const PARAMETERS: [Parameter; 16] = [
+pub const PARAMETERS: [Parameter; 17] = [
     Parameter {
         name: "launch_slip_target",
         label: "Launch slip target",
         group: "launch",
         unit: "1",
-        description: "The slip ratio launch control holds the driven wheels at, over the free-rolling front wheels' speed (team documentation: 0.07).",
+        description: "The slip ratio launch control holds the driven wheels at, over the free-rolling front wheels' speed (team documentation: 0.07). Any shape is allowed over speed (a target that falls and rises again is a tuning choice, not an error); the speeds themselves must increase.",
         offset: 0,
         element: ElementType::F32,
         count: 4,
@@ -214,8 +228,28 @@ pub const PARAMETERS: [Parameter; 16] = [
         axis: Some(Axis {
             label: "Front wheel speed",
             unit: "m/s",
-            points: &LAUNCH_SLIP_TARGET_AXIS,
+            points: &[0.0, 5.0, 10.0, 20.0],
+            parameter: "launch_slip_target_axis",
+            input: "front_wheel_speed",
         }),
+        axis_of: None,
+    },
+    Parameter {
+        name: "launch_slip_target_axis",
+        label: "Launch slip target axis",
+        group: "launch",
+        unit: "m/s",
+        description: "The front wheel speed points launch slip target's values apply at, strictly increasing (the curve is interpolated between them and held at the ends).",
+        offset: 16,
+        element: ElementType::F32,
+        count: 4,
+        min: 0.0,
+        max: 40.0,
+        increasing: true,
+        change: ChangeWhen::Standstill,
+        elements: &["point 1", "point 2", "point 3", "point 4"],
+        axis: None,
+        axis_of: Some("launch_slip_target"),
     },
     Parameter {
         name: "launch_slip_band",
@@ -223,7 +257,7 @@ pub const PARAMETERS: [Parameter; 16] = [
         group: "launch",
         unit: "1",
         description: "Inside this band around the target the torque reduction holds still (team documentation: 0.05-0.10 around 0.07).",
-        offset: 16,
+        offset: 32,
         element: ElementType::F32,
         count: 2,
         min: 0.0,
@@ -232,6 +266,7 @@ pub const PARAMETERS: [Parameter; 16] = [
         change: ChangeWhen::Standstill,
         elements: &["below the target", "above the target"],
         axis: None,
+        axis_of: None,
     },
     Parameter {
         name: "launch_kp",
@@ -239,7 +274,7 @@ pub const PARAMETERS: [Parameter; 16] = [
         group: "launch",
         unit: "Nm",
         description: "Torque taken away per unit of slip beyond the band.",
-        offset: 24,
+        offset: 40,
         element: ElementType::F32,
         count: 1,
         min: 0.0,
@@ -248,6 +283,7 @@ pub const PARAMETERS: [Parameter; 16] = [
         change: ChangeWhen::Standstill,
         elements: &[],
         axis: None,
+        axis_of: None,
     },
     Parameter {
         name: "launch_ki",
@@ -255,7 +291,7 @@ pub const PARAMETERS: [Parameter; 16] = [
         group: "launch",
         unit: "Nm/s",
         description: "Torque taken away per second and unit of slip beyond the band.",
-        offset: 28,
+        offset: 44,
         element: ElementType::F32,
         count: 1,
         min: 0.0,
@@ -264,6 +300,7 @@ pub const PARAMETERS: [Parameter; 16] = [
         change: ChangeWhen::Standstill,
         elements: &[],
         axis: None,
+        axis_of: None,
     },
     Parameter {
         name: "traction_slip_threshold",
@@ -271,7 +308,7 @@ pub const PARAMETERS: [Parameter; 16] = [
         group: "traction",
         unit: "1",
         description: "Traction control takes torque away above this slip ratio (assumed).",
-        offset: 32,
+        offset: 48,
         element: ElementType::F32,
         count: 1,
         min: 0.02,
@@ -280,6 +317,7 @@ pub const PARAMETERS: [Parameter; 16] = [
         change: ChangeWhen::Driving,
         elements: &[],
         axis: None,
+        axis_of: None,
     },
     Parameter {
         name: "traction_kp",
@@ -287,7 +325,7 @@ pub const PARAMETERS: [Parameter; 16] = [
         group: "traction",
         unit: "Nm",
         description: "Torque taken away per unit of slip over the threshold.",
-        offset: 36,
+        offset: 52,
         element: ElementType::F32,
         count: 1,
         min: 0.0,
@@ -296,6 +334,7 @@ pub const PARAMETERS: [Parameter; 16] = [
         change: ChangeWhen::Driving,
         elements: &[],
         axis: None,
+        axis_of: None,
     },
     Parameter {
         name: "traction_ki",
@@ -303,7 +342,7 @@ pub const PARAMETERS: [Parameter; 16] = [
         group: "traction",
         unit: "Nm/s",
         description: "Torque taken away per second and unit of slip over the threshold.",
-        offset: 40,
+        offset: 56,
         element: ElementType::F32,
         count: 1,
         min: 0.0,
@@ -312,6 +351,7 @@ pub const PARAMETERS: [Parameter; 16] = [
         change: ChangeWhen::Driving,
         elements: &[],
         axis: None,
+        axis_of: None,
     },
     Parameter {
         name: "power_trim_gain",
@@ -319,7 +359,7 @@ pub const PARAMETERS: [Parameter; 16] = [
         group: "power",
         unit: "1/s",
         description: "Integral gain of the power limiter's trim on the relative power error: how fast its efficiency estimate settles (5/s: about 0.2 s). The torque monitor holds the rule's limit whatever this is.",
-        offset: 44,
+        offset: 60,
         element: ElementType::F32,
         count: 1,
         min: 0.5,
@@ -328,6 +368,7 @@ pub const PARAMETERS: [Parameter; 16] = [
         change: ChangeWhen::Driving,
         elements: &[],
         axis: None,
+        axis_of: None,
     },
     Parameter {
         name: "pump_base_duty",
@@ -335,7 +376,7 @@ pub const PARAMETERS: [Parameter; 16] = [
         group: "cooling",
         unit: "1",
         description: "Coolant pump duty whenever the tractive system is live (never below 0.2: the inverter needs flow).",
-        offset: 48,
+        offset: 64,
         element: ElementType::F32,
         count: 1,
         min: 0.2,
@@ -344,6 +385,7 @@ pub const PARAMETERS: [Parameter; 16] = [
         change: ChangeWhen::Driving,
         elements: &[],
         axis: None,
+        axis_of: None,
     },
     Parameter {
         name: "pump_ramp_degc",
@@ -351,7 +393,7 @@ pub const PARAMETERS: [Parameter; 16] = [
         group: "cooling",
         unit: "degC",
         description: "The pump ramps from its base duty to full over this inverter temperature.",
-        offset: 52,
+        offset: 68,
         element: ElementType::F32,
         count: 2,
         min: 20.0,
@@ -360,6 +402,7 @@ pub const PARAMETERS: [Parameter; 16] = [
         change: ChangeWhen::Driving,
         elements: &["ramp starts", "full duty"],
         axis: None,
+        axis_of: None,
     },
     Parameter {
         name: "fan_ramp_degc",
@@ -367,7 +410,7 @@ pub const PARAMETERS: [Parameter; 16] = [
         group: "cooling",
         unit: "degC",
         description: "The fan ramps from off to full over the hotter of motor and inverter.",
-        offset: 60,
+        offset: 76,
         element: ElementType::F32,
         count: 2,
         min: 20.0,
@@ -376,6 +419,7 @@ pub const PARAMETERS: [Parameter; 16] = [
         change: ChangeWhen::Driving,
         elements: &["fan starts", "full duty"],
         axis: None,
+        axis_of: None,
     },
     Parameter {
         name: "apps1_v",
@@ -383,7 +427,7 @@ pub const PARAMETERS: [Parameter; 16] = [
         group: "pedals",
         unit: "V",
         description: "The 3.3 V accelerator pedal sensor's voltage at rest and at full travel (placeholders until the bring-up image measures the pedal). The limits are its valid band, 10-90 % of the supply; the two must also lie 0.5 V apart.",
-        offset: 68,
+        offset: 84,
         element: ElementType::F32,
         count: 2,
         min: 0.33,
@@ -392,6 +436,7 @@ pub const PARAMETERS: [Parameter; 16] = [
         change: ChangeWhen::TractiveOff,
         elements: &["at rest", "at full travel"],
         axis: None,
+        axis_of: None,
     },
     Parameter {
         name: "apps2_v",
@@ -399,7 +444,7 @@ pub const PARAMETERS: [Parameter; 16] = [
         group: "pedals",
         unit: "V",
         description: "The 5 V accelerator pedal sensor's voltage at rest and at full travel (placeholders until measured). The limits are its valid band, 10-90 % of the supply.",
-        offset: 76,
+        offset: 92,
         element: ElementType::F32,
         count: 2,
         min: 0.5,
@@ -408,6 +453,7 @@ pub const PARAMETERS: [Parameter; 16] = [
         change: ChangeWhen::TractiveOff,
         elements: &["at rest", "at full travel"],
         axis: None,
+        axis_of: None,
     },
     Parameter {
         name: "brake_zero_v",
@@ -415,7 +461,7 @@ pub const PARAMETERS: [Parameter; 16] = [
         group: "brakes",
         unit: "V",
         description: "Each brake pressure sensor's voltage with the brakes released, the zero its pressure is measured from (nominal 0.5 V; above 0.7 V is pressure left in the circuit).",
-        offset: 84,
+        offset: 100,
         element: ElementType::F32,
         count: 2,
         min: 0.5,
@@ -424,6 +470,7 @@ pub const PARAMETERS: [Parameter; 16] = [
         change: ChangeWhen::TractiveOff,
         elements: &["front (BSE1)", "rear (BSE2)"],
         axis: None,
+        axis_of: None,
     },
     Parameter {
         name: "shock_extended_v",
@@ -431,22 +478,6 @@ pub const PARAMETERS: [Parameter; 16] = [
         group: "shocks",
         unit: "V",
         description: "Each shock potentiometer's voltage at full extension, the zero its travel is measured from (team documentation: 5.00 V; the bring-up image measures it, `cal shock`). The inputs' order is the board table's (FL, FR, RL, RR assumed until the bench settles it).",
-        offset: 92,
-        element: ElementType::F32,
-        count: 4,
-        min: 0.2,
-        max: 5.0,
-        increasing: false,
-        change: ChangeWhen::TractiveOff,
-        elements: &["front left", "front right", "rear left", "rear right"],
-        axis: None,
-    },
-    Parameter {
-        name: "shock_compressed_v",
-        label: "Shock sensors fully compressed",
-        group: "shocks",
-        unit: "V",
-        description: "Each shock potentiometer's voltage at full compression, 76.2 mm of travel from full extension (team documentation: 4.86 V, 0.14 V below rest); must lie at least 0.05 V from the extended reading, on either side.",
         offset: 108,
         element: ElementType::F32,
         count: 4,
@@ -456,11 +487,26 @@ pub const PARAMETERS: [Parameter; 16] = [
         change: ChangeWhen::TractiveOff,
         elements: &["front left", "front right", "rear left", "rear right"],
         axis: None,
+        axis_of: None,
+    },
+    Parameter {
+        name: "shock_compressed_v",
+        label: "Shock sensors fully compressed",
+        group: "shocks",
+        unit: "V",
+        description: "Each shock potentiometer's voltage at full compression, 76.2 mm of travel from full extension (team documentation: 4.86 V, 0.14 V below rest); must lie at least 0.05 V from the extended reading, on either side.",
+        offset: 124,
+        element: ElementType::F32,
+        count: 4,
+        min: 0.2,
+        max: 5.0,
+        increasing: false,
+        change: ChangeWhen::TractiveOff,
+        elements: &["front left", "front right", "rear left", "rear right"],
+        axis: None,
+        axis_of: None,
     },
 ];
-
-/// The input points of [`Calibration::launch_slip_target`]: Front wheel speed (m/s).
-pub const LAUNCH_SLIP_TARGET_AXIS: [f32; 4] = [0.0, 5.0, 10.0, 20.0];
 
 /// The parameter whose bytes include page offset `offset`, if any.
 pub fn parameter_at(offset: usize) -> Option<&'static Parameter> {
@@ -478,11 +524,19 @@ pub fn check_page(page: &[u8; PAGE_LEN]) -> Result<(), CalibrationError> {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Calibration {
     /// The slip ratio launch control holds the driven wheels at, over the free-rolling front
-    /// wheels' speed (team documentation: 0.07).
+    /// wheels' speed (team documentation: 0.07). Any shape is allowed over speed (a target that
+    /// falls and rises again is a tuning choice, not an error); the speeds themselves must
+    /// increase.
     ///
-    /// Launch slip target: 0.02 to 0.25; over front wheel speed at 0, 5, 10, 20 m/s; changes at
-    /// standstill.
+    /// Launch slip target: 0.02 to 0.25; over front wheel speed (m/s, tunable:
+    /// `launch_slip_target_axis`, by default 0, 5, 10, 20); changes at standstill.
     pub launch_slip_target: [f32; 4],
+    /// The front wheel speed points launch slip target's values apply at, strictly increasing
+    /// (the curve is interpolated between them and held at the ends).
+    ///
+    /// Launch slip target axis: 0 to 40 m/s; elements: point 1, point 2, point 3, point 4;
+    /// increasing; changes at standstill.
+    pub launch_slip_target_axis: [f32; 4],
     /// Inside this band around the target the torque reduction holds still (team documentation:
     /// 0.05-0.10 around 0.07).
     ///
@@ -573,6 +627,7 @@ impl Calibration {
     /// The schema's defaults: the reference page.
     pub const DEFAULT: Self = Self {
         launch_slip_target: [0.07, 0.07, 0.07, 0.07],
+        launch_slip_target_axis: [0.0, 5.0, 10.0, 20.0],
         launch_slip_band: [0.02, 0.03],
         launch_kp: 200.0,
         launch_ki: 100.0,
@@ -596,36 +651,39 @@ impl Calibration {
         for (index, value) in self.launch_slip_target.iter().enumerate() {
             put(&mut page, index * 4, &value.to_le_bytes());
         }
-        for (index, value) in self.launch_slip_band.iter().enumerate() {
+        for (index, value) in self.launch_slip_target_axis.iter().enumerate() {
             put(&mut page, 16 + index * 4, &value.to_le_bytes());
         }
-        put(&mut page, 24, &self.launch_kp.to_le_bytes());
-        put(&mut page, 28, &self.launch_ki.to_le_bytes());
-        put(&mut page, 32, &self.traction_slip_threshold.to_le_bytes());
-        put(&mut page, 36, &self.traction_kp.to_le_bytes());
-        put(&mut page, 40, &self.traction_ki.to_le_bytes());
-        put(&mut page, 44, &self.power_trim_gain.to_le_bytes());
-        put(&mut page, 48, &self.pump_base_duty.to_le_bytes());
+        for (index, value) in self.launch_slip_band.iter().enumerate() {
+            put(&mut page, 32 + index * 4, &value.to_le_bytes());
+        }
+        put(&mut page, 40, &self.launch_kp.to_le_bytes());
+        put(&mut page, 44, &self.launch_ki.to_le_bytes());
+        put(&mut page, 48, &self.traction_slip_threshold.to_le_bytes());
+        put(&mut page, 52, &self.traction_kp.to_le_bytes());
+        put(&mut page, 56, &self.traction_ki.to_le_bytes());
+        put(&mut page, 60, &self.power_trim_gain.to_le_bytes());
+        put(&mut page, 64, &self.pump_base_duty.to_le_bytes());
         for (index, value) in self.pump_ramp_degc.iter().enumerate() {
-            put(&mut page, 52 + index * 4, &value.to_le_bytes());
-        }
-        for (index, value) in self.fan_ramp_degc.iter().enumerate() {
-            put(&mut page, 60 + index * 4, &value.to_le_bytes());
-        }
-        for (index, value) in self.apps1_v.iter().enumerate() {
             put(&mut page, 68 + index * 4, &value.to_le_bytes());
         }
-        for (index, value) in self.apps2_v.iter().enumerate() {
+        for (index, value) in self.fan_ramp_degc.iter().enumerate() {
             put(&mut page, 76 + index * 4, &value.to_le_bytes());
         }
-        for (index, value) in self.brake_zero_v.iter().enumerate() {
+        for (index, value) in self.apps1_v.iter().enumerate() {
             put(&mut page, 84 + index * 4, &value.to_le_bytes());
         }
-        for (index, value) in self.shock_extended_v.iter().enumerate() {
+        for (index, value) in self.apps2_v.iter().enumerate() {
             put(&mut page, 92 + index * 4, &value.to_le_bytes());
         }
-        for (index, value) in self.shock_compressed_v.iter().enumerate() {
+        for (index, value) in self.brake_zero_v.iter().enumerate() {
+            put(&mut page, 100 + index * 4, &value.to_le_bytes());
+        }
+        for (index, value) in self.shock_extended_v.iter().enumerate() {
             put(&mut page, 108 + index * 4, &value.to_le_bytes());
+        }
+        for (index, value) in self.shock_compressed_v.iter().enumerate() {
+            put(&mut page, 124 + index * 4, &value.to_le_bytes());
         }
         page
     }
@@ -637,44 +695,53 @@ impl Calibration {
             launch_slip_target: core::array::from_fn(|index| {
                 f32::from_le_bytes(take(page, index * 4).unwrap_or_default())
             }),
-            launch_slip_band: core::array::from_fn(|index| {
+            launch_slip_target_axis: core::array::from_fn(|index| {
                 f32::from_le_bytes(take(page, 16 + index * 4).unwrap_or_default())
             }),
-            launch_kp: f32::from_le_bytes(take(page, 24).unwrap_or_default()),
-            launch_ki: f32::from_le_bytes(take(page, 28).unwrap_or_default()),
-            traction_slip_threshold: f32::from_le_bytes(take(page, 32).unwrap_or_default()),
-            traction_kp: f32::from_le_bytes(take(page, 36).unwrap_or_default()),
-            traction_ki: f32::from_le_bytes(take(page, 40).unwrap_or_default()),
-            power_trim_gain: f32::from_le_bytes(take(page, 44).unwrap_or_default()),
-            pump_base_duty: f32::from_le_bytes(take(page, 48).unwrap_or_default()),
+            launch_slip_band: core::array::from_fn(|index| {
+                f32::from_le_bytes(take(page, 32 + index * 4).unwrap_or_default())
+            }),
+            launch_kp: f32::from_le_bytes(take(page, 40).unwrap_or_default()),
+            launch_ki: f32::from_le_bytes(take(page, 44).unwrap_or_default()),
+            traction_slip_threshold: f32::from_le_bytes(take(page, 48).unwrap_or_default()),
+            traction_kp: f32::from_le_bytes(take(page, 52).unwrap_or_default()),
+            traction_ki: f32::from_le_bytes(take(page, 56).unwrap_or_default()),
+            power_trim_gain: f32::from_le_bytes(take(page, 60).unwrap_or_default()),
+            pump_base_duty: f32::from_le_bytes(take(page, 64).unwrap_or_default()),
             pump_ramp_degc: core::array::from_fn(|index| {
-                f32::from_le_bytes(take(page, 52 + index * 4).unwrap_or_default())
-            }),
-            fan_ramp_degc: core::array::from_fn(|index| {
-                f32::from_le_bytes(take(page, 60 + index * 4).unwrap_or_default())
-            }),
-            apps1_v: core::array::from_fn(|index| {
                 f32::from_le_bytes(take(page, 68 + index * 4).unwrap_or_default())
             }),
-            apps2_v: core::array::from_fn(|index| {
+            fan_ramp_degc: core::array::from_fn(|index| {
                 f32::from_le_bytes(take(page, 76 + index * 4).unwrap_or_default())
             }),
-            brake_zero_v: core::array::from_fn(|index| {
+            apps1_v: core::array::from_fn(|index| {
                 f32::from_le_bytes(take(page, 84 + index * 4).unwrap_or_default())
             }),
-            shock_extended_v: core::array::from_fn(|index| {
+            apps2_v: core::array::from_fn(|index| {
                 f32::from_le_bytes(take(page, 92 + index * 4).unwrap_or_default())
             }),
-            shock_compressed_v: core::array::from_fn(|index| {
+            brake_zero_v: core::array::from_fn(|index| {
+                f32::from_le_bytes(take(page, 100 + index * 4).unwrap_or_default())
+            }),
+            shock_extended_v: core::array::from_fn(|index| {
                 f32::from_le_bytes(take(page, 108 + index * 4).unwrap_or_default())
+            }),
+            shock_compressed_v: core::array::from_fn(|index| {
+                f32::from_le_bytes(take(page, 124 + index * 4).unwrap_or_default())
             }),
         })
     }
 
     /// [`Self::launch_slip_target`] at `front wheel speed` (m/s): interpolated between
-    /// the axis points, held at the ends; the first point's value for a `NaN` input.
+    /// the axis points ([`Self::launch_slip_target_axis`], strictly increasing in every calibration
+    /// [`Self::from_page`] accepts), held at the ends; the first point's value for a `NaN`
+    /// input.
     pub fn launch_slip_target_at(&self, input: f32) -> f32 {
-        interpolate(&LAUNCH_SLIP_TARGET_AXIS, &self.launch_slip_target, input)
+        interpolate(
+            &self.launch_slip_target_axis,
+            &self.launch_slip_target,
+            input,
+        )
     }
 }
 
@@ -695,35 +762,39 @@ pub struct Internals {
     ///
     /// Expected 0 to 1; bytes 8 to 11 of the block.
     pub launch_slip_target: f32,
+    /// The free-rolling front wheels' speed the launch slip target curve is looked up with.
+    ///
+    /// Expected 0 to 40 m/s; bytes 12 to 15 of the block.
+    pub front_wheel_speed: f32,
     /// Traction control's torque limit.
     ///
-    /// Expected 0 to 260 Nm; bytes 12 to 15 of the block.
+    /// Expected 0 to 260 Nm; bytes 16 to 19 of the block.
     pub traction_torque_nm: f32,
     /// The slip estimate of the driven wheels over the free-rolling front wheels.
     ///
-    /// Expected -1 to 5; bytes 16 to 19 of the block.
+    /// Expected -1 to 5; bytes 20 to 23 of the block.
     pub slip_ratio: f32,
     /// The power limiter's torque cap.
     ///
-    /// Expected 0 to 260 Nm; bytes 20 to 23 of the block.
+    /// Expected 0 to 260 Nm; bytes 24 to 27 of the block.
     pub power_allowed_nm: f32,
     /// The power limiter's estimate of the drivetrain's efficiency.
     ///
-    /// Expected 0 to 1; bytes 24 to 27 of the block.
+    /// Expected 0 to 1; bytes 28 to 31 of the block.
     pub power_efficiency: f32,
     /// The power monitor's efficiency bound.
     ///
-    /// Expected 0 to 1; bytes 28 to 31 of the block.
+    /// Expected 0 to 1; bytes 32 to 35 of the block.
     pub monitor_efficiency: f32,
     /// The torque commanded after every limit.
     ///
-    /// Expected -260 to 260 Nm; bytes 32 to 35 of the block.
+    /// Expected -260 to 260 Nm; bytes 36 to 39 of the block.
     pub torque_command_nm: f32,
 }
 
 impl Internals {
     /// Bytes of [`Self::to_bytes`].
-    pub const LEN: usize = 36;
+    pub const LEN: usize = 40;
 
     /// The block: every value little-endian, 4 bytes each, in declared order.
     pub fn to_bytes(&self) -> [u8; Self::LEN] {
@@ -731,12 +802,13 @@ impl Internals {
         put(&mut bytes, 0, &self.driver_torque_nm.to_le_bytes());
         put(&mut bytes, 4, &self.launch_torque_nm.to_le_bytes());
         put(&mut bytes, 8, &self.launch_slip_target.to_le_bytes());
-        put(&mut bytes, 12, &self.traction_torque_nm.to_le_bytes());
-        put(&mut bytes, 16, &self.slip_ratio.to_le_bytes());
-        put(&mut bytes, 20, &self.power_allowed_nm.to_le_bytes());
-        put(&mut bytes, 24, &self.power_efficiency.to_le_bytes());
-        put(&mut bytes, 28, &self.monitor_efficiency.to_le_bytes());
-        put(&mut bytes, 32, &self.torque_command_nm.to_le_bytes());
+        put(&mut bytes, 12, &self.front_wheel_speed.to_le_bytes());
+        put(&mut bytes, 16, &self.traction_torque_nm.to_le_bytes());
+        put(&mut bytes, 20, &self.slip_ratio.to_le_bytes());
+        put(&mut bytes, 24, &self.power_allowed_nm.to_le_bytes());
+        put(&mut bytes, 28, &self.power_efficiency.to_le_bytes());
+        put(&mut bytes, 32, &self.monitor_efficiency.to_le_bytes());
+        put(&mut bytes, 36, &self.torque_command_nm.to_le_bytes());
         bytes
     }
 }
@@ -759,7 +831,7 @@ pub struct Internal {
 }
 
 /// Every internal value, in the order of [`Internals::to_bytes`].
-pub const INTERNALS: [Internal; 9] = [
+pub const INTERNALS: [Internal; 10] = [
     Internal {
         name: "driver_torque_nm",
         unit: "Nm",
@@ -785,10 +857,18 @@ pub const INTERNALS: [Internal; 9] = [
         max: 1.0,
     },
     Internal {
+        name: "front_wheel_speed",
+        unit: "m/s",
+        description: "The free-rolling front wheels' speed the launch slip target curve is looked up with.",
+        offset: 12,
+        min: 0.0,
+        max: 40.0,
+    },
+    Internal {
         name: "traction_torque_nm",
         unit: "Nm",
         description: "Traction control's torque limit.",
-        offset: 12,
+        offset: 16,
         min: 0.0,
         max: 260.0,
     },
@@ -796,7 +876,7 @@ pub const INTERNALS: [Internal; 9] = [
         name: "slip_ratio",
         unit: "1",
         description: "The slip estimate of the driven wheels over the free-rolling front wheels.",
-        offset: 16,
+        offset: 20,
         min: -1.0,
         max: 5.0,
     },
@@ -804,7 +884,7 @@ pub const INTERNALS: [Internal; 9] = [
         name: "power_allowed_nm",
         unit: "Nm",
         description: "The power limiter's torque cap.",
-        offset: 20,
+        offset: 24,
         min: 0.0,
         max: 260.0,
     },
@@ -812,7 +892,7 @@ pub const INTERNALS: [Internal; 9] = [
         name: "power_efficiency",
         unit: "1",
         description: "The power limiter's estimate of the drivetrain's efficiency.",
-        offset: 24,
+        offset: 28,
         min: 0.0,
         max: 1.0,
     },
@@ -820,7 +900,7 @@ pub const INTERNALS: [Internal; 9] = [
         name: "monitor_efficiency",
         unit: "1",
         description: "The power monitor's efficiency bound.",
-        offset: 28,
+        offset: 32,
         min: 0.0,
         max: 1.0,
     },
@@ -828,7 +908,7 @@ pub const INTERNALS: [Internal; 9] = [
         name: "torque_command_nm",
         unit: "Nm",
         description: "The torque commanded after every limit.",
-        offset: 32,
+        offset: 36,
         min: -260.0,
         max: 260.0,
     },
@@ -867,10 +947,16 @@ pub mod xcp {
     pub const INTERNALS_LEN: usize = Internals::LEN;
     /// The ECU program identifier's ASCII bytes ([`EPK`]).
     pub const EPK_ADDRESS: u32 = 0x0004_0000;
+    /// The XCP slave's own numbers (`aer_xcp::status`): the last refused command and why,
+    /// then its counters, [`XCP_STATUS_LEN`] bytes, read-only. The A2L names each as a
+    /// measurement (`xcp.*`).
+    pub const XCP_STATUS_ADDRESS: u32 = 0x0005_0000;
+    /// Bytes at [`XCP_STATUS_ADDRESS`].
+    pub const XCP_STATUS_LEN: usize = 52;
     /// The ECU program identifier: `AER`, the telemetry fingerprint (the DBC and the packet)
     /// and the calibration fingerprint, in hex. A tool compares it with its description's,
     /// so a description of another build is noticed at connection.
-    pub const EPK: &str = "AER DCF4C63B 61EC7CFC";
+    pub const EPK: &str = "AER DCF4C63B 3094E2CA";
 
     /// The master's command id (`XCP_Cmd`, standard).
     pub const CAN_ID_MASTER: u32 = 0x6F0;
@@ -910,6 +996,13 @@ pub mod xcp {
     /// The slave's frame budget (frames per second): `XCP_Res` every
     /// 4 ms on average. DAQ lists whose frames would exceed it are refused.
     pub const DAQ_FRAMES_PER_S: u32 = 250;
+    /// No command for this long (60 s) ends a session; with DAQ running the
+    /// session keeps measuring but calibration is locked again (ms).
+    pub const IDLE_TIMEOUT_MS: u32 = 60000;
+    /// GET_SEED is refused this long after a wrong key, doubling with each one in a row (ms).
+    pub const UNLOCK_DELAY_MS: u32 = 1000;
+    /// The longest delay after wrong keys (ms).
+    pub const UNLOCK_DELAY_MAX_MS: u32 = 300000;
 
     /// An event channel: a point in the firmware where DAQ lists are sampled.
     #[derive(Debug, Clone, Copy, PartialEq, Eq)]

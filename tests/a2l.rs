@@ -240,13 +240,59 @@ fn expected_measurements() -> Vec<Value> {
             (i.min, i.max),
         ));
     }
+    measurements.extend(xcp_status_measurements());
     measurements
+}
+
+/// The XCP slave's block as the slave lays it out (`aer_xcp::status`), its codes named as the
+/// slave's tables name them.
+fn xcp_status_measurements() -> Vec<Value> {
+    use aer_xcp::protocol::{cmd, err};
+    use aer_xcp::status::{FIELDS, Kind, Names};
+    let table = |list: &[(u8, &str)]| -> Value {
+        list.iter()
+            .map(|(raw, name)| (raw.to_string(), json!(name)))
+            .collect::<serde_json::Map<_, _>>()
+            .into()
+    };
+    let mut items: serde_json::Map<String, Value> = PARAMETERS
+        .iter()
+        .enumerate()
+        .map(|(index, p)| (index.to_string(), json!(p.name)))
+        .collect();
+    items.insert(aer_xcp::Detail::NO_ITEM.to_string(), json!("none"));
+    FIELDS
+        .iter()
+        .map(|field| {
+            let (datatype, lower, upper) = match field.kind {
+                Kind::U8 => ("UBYTE", 0.0, f64::from(u8::MAX)),
+                Kind::U16 => ("UWORD", 0.0, f64::from(u16::MAX)),
+                Kind::U32 => ("ULONG", 0.0, f64::from(u32::MAX)),
+                Kind::F32 => ("FLOAT32_IEEE", -f64::from(f32::MAX), f64::from(f32::MAX)),
+            };
+            let values = match field.names {
+                Names::Command => table(&cmd::NAMES),
+                Names::Error => table(&err::NAMES),
+                Names::Reason => table(&aer_xcp::reason::ALL),
+                Names::Item => Value::Object(items.clone()),
+                Names::None => Value::Null,
+            };
+            json!({
+                "name": format!("xcp.{}", field.name), "datatype": datatype,
+                "address": xcp::XCP_STATUS_ADDRESS + field.offset,
+                "lower": lower, "upper": upper, "unit": "",
+                "coeffs": if values.is_null() { json!([1.0, 0.0]) } else { Value::Null },
+                "values": values, "bit_mask": null,
+            })
+        })
+        .collect()
 }
 
 /// What tools/check_a2l.py compares the file with, from the crate's own constants.
 fn expected() -> Value {
     let characteristics: Vec<Value> = PARAMETERS
         .iter()
+        .filter(|p| p.axis_of.is_none())
         .map(|p| {
             let kind = match (p.axis, p.elements.is_empty()) {
                 (Some(_), _) => "CURVE",
@@ -263,9 +309,28 @@ fn expected() -> Value {
                 "unit": p.unit,
                 "coeffs": [1.0, 0.0],
                 "count": p.count,
-                "axis": p.axis.map(|a| a.points.to_vec()).unwrap_or_default(),
+                "axis": p.axis.map(|a| format!("calibration.{}", a.parameter)),
+                "axis_input": p.axis.map(|a| format!("internals.{}", a.input)),
                 "axis_unit": p.axis.map(|a| a.unit),
             })
+        })
+        .collect();
+    // A curve's axis points: tunable, in the page right after the curve.
+    let axis_points: Vec<Value> = PARAMETERS
+        .iter()
+        .filter_map(|p| {
+            let curve = PARAMETERS.iter().find(|c| Some(c.name) == p.axis_of)?;
+            let axis = curve.axis?;
+            Some(json!({
+                "name": format!("calibration.{}", p.name),
+                "address": xcp::CALIBRATION_ADDRESS + u32::try_from(p.offset).expect("offset"),
+                "datatype": element_datatype(p.element),
+                "lower": p.min,
+                "upper": p.max,
+                "unit": p.unit,
+                "count": p.count,
+                "input": format!("internals.{}", axis.input),
+            }))
         })
         .collect();
     json!({
@@ -276,8 +341,10 @@ fn expected() -> Value {
             "telemetry": [xcp::TELEMETRY_ADDRESS, Telemetry::LEN],
             "internals": [xcp::INTERNALS_ADDRESS, Internals::LEN],
             "epk": [xcp::EPK_ADDRESS, xcp::EPK.len()],
+            "xcp": [xcp::XCP_STATUS_ADDRESS, xcp::XCP_STATUS_LEN],
         },
         "characteristics": characteristics,
+        "axis_points": axis_points,
         "measurements": expected_measurements(),
     })
 }
@@ -317,10 +384,15 @@ fn pya2ldb_reads_back_what_the_crate_says() {
         ("ECU_ADDRESS 0x2000A\n", "ECU_ADDRESS 0x2000B\n"),
         ("COEFFS_LINEAR 0.4 0\n", "COEFFS_LINEAR 0.5 0\n"),
         (
-            "VALUE 0x10018 rl.f32 0 cm.Nm 0 2000\n",
-            "VALUE 0x10018 rl.f32 0 cm.Nm 0 2500\n",
+            "VALUE 0x10028 rl.f32 0 cm.Nm 0 2000\n",
+            "VALUE 0x10028 rl.f32 0 cm.Nm 0 2500\n",
         ),
         ("internals.slip_ratio", "internals.slip_estimate"),
+        (
+            "COM_AXIS internals.front_wheel_speed",
+            "COM_AXIS internals.driver_torque_nm",
+        ),
+        ("ECU_ADDRESS 0x50006\n", "ECU_ADDRESS 0x50007\n"),
     ];
     let mut tampered = a2l();
     for (from, to) in edits {
@@ -337,6 +409,8 @@ fn pya2ldb_reads_back_what_the_crate_says() {
         "CHARACTERISTIC calibration.launch_kp: upper limit 2500.0, expected 2000.0",
         "MEASUREMENT internals.slip_ratio is missing",
         "MEASUREMENT internals.slip_estimate is not in the crate's tables",
+        "CHARACTERISTIC calibration.launch_slip_target: axis input 'internals.driver_torque_nm', expected 'internals.front_wheel_speed'",
+        "MEASUREMENT xcp.refused_reason: address 327687, expected 327686",
     ] {
         assert!(text.contains(difference), "{difference:?} not in:\n{text}");
     }
@@ -355,7 +429,14 @@ fn the_a2l_names_every_parameter_internal_and_field_once() {
     let a2l = a2l();
     for p in &PARAMETERS {
         let name = format!("calibration.{}", p.name);
-        assert_eq!(definitions(&a2l, "CHARACTERISTIC", &name), 1, "{name}");
+        // A curve's tunable axis points are an AXIS_PTS, every other parameter a
+        // CHARACTERISTIC.
+        let kind = if p.axis_of.is_some() {
+            "AXIS_PTS"
+        } else {
+            "CHARACTERISTIC"
+        };
+        assert_eq!(definitions(&a2l, kind, &name), 1, "{name}");
     }
     let fields = Telemetry::FIELDS.iter().map(|f| f.name);
     let telemetry = ["sequence", "timestamp_us"].into_iter().chain(fields);
@@ -368,10 +449,12 @@ fn the_a2l_names_every_parameter_internal_and_field_once() {
     }
     // Nothing else: every object is one of the crate's.
     let count = |kind: &str| a2l.matches(&format!("/begin {kind} ")).count();
-    assert_eq!(count("CHARACTERISTIC"), PARAMETERS.len());
+    let axes = PARAMETERS.iter().filter(|p| p.axis_of.is_some()).count();
+    assert_eq!(count("CHARACTERISTIC"), PARAMETERS.len() - axes);
+    assert_eq!(count("AXIS_PTS"), axes);
     assert_eq!(
         count("MEASUREMENT"),
-        2 + Telemetry::FIELDS.len() + INTERNALS.len()
+        2 + Telemetry::FIELDS.len() + INTERNALS.len() + aer_xcp::status::FIELDS.len()
     );
     // The identifiers a tool checks at connection, and the ids it talks on.
     assert!(a2l.contains(&format!("EPK \"{}\"", xcp::EPK)));

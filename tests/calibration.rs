@@ -169,14 +169,23 @@ proptest! {
     #[test]
     fn the_launch_curve_stays_between_its_values(
         values in proptest::array::uniform4(0.02f32..=0.25),
+        first in 0.0f32..10.0,
+        gaps in proptest::array::uniform3(0.1f32..10.0),
         speed in -10.0f32..40.0,
     ) {
-        let calibration = Calibration { launch_slip_target: values, ..Calibration::DEFAULT };
+        // A tuned axis: any strictly increasing points the limits admit.
+        let axis = [first, first + gaps[0], first + gaps[0] + gaps[1], first + gaps.iter().sum::<f32>()];
+        let calibration = Calibration {
+            launch_slip_target: values,
+            launch_slip_target_axis: axis,
+            ..Calibration::DEFAULT
+        };
+        prop_assert!(Calibration::from_page(&calibration.to_page()).is_ok());
         let slip = calibration.launch_slip_target_at(speed);
         let low = values.iter().copied().fold(f32::INFINITY, f32::min);
         let high = values.iter().copied().fold(f32::NEG_INFINITY, f32::max);
         prop_assert!((low..=high).contains(&slip), "{slip} outside {low}..={high}");
-        for (point, value) in aer::calibration::LAUNCH_SLIP_TARGET_AXIS.iter().zip(values) {
+        for (point, value) in axis.iter().zip(values) {
             prop_assert_eq!(calibration.launch_slip_target_at(*point), value);
         }
         prop_assert_eq!(calibration.launch_slip_target_at(f32::NAN), values[0]);

@@ -14,7 +14,6 @@ import json
 import logging
 import os
 import shutil
-import struct
 import sys
 import tempfile
 
@@ -69,11 +68,6 @@ def import_a2l(path, problems):
     problems.extend(f"parser: {m}" for m in collect.messages)
     shutil.rmtree(workdir, ignore_errors=True)
     return session
-
-
-def as_f32(value):
-    """`value` rounded to the nearest f32, as the firmware holds a curve's axis."""
-    return struct.unpack("<f", struct.pack("<f", float(value)))[0]
 
 
 def same(actual, expected):
@@ -150,15 +144,29 @@ class Checker:
             self.number(what, "element count", count, e["count"])
         if e["type"] == "CURVE":
             axis = c.axis_descr[0] if c.axis_descr else None
-            if axis is None or axis.attribute != "FIX_AXIS" or axis.fix_axis_par_list is None:
-                self.problems.append(f"{what}: no fixed axis (FIX_AXIS_PAR_LIST)")
+            if axis is None or axis.attribute != "COM_AXIS" or axis.axis_pts_ref is None:
+                self.problems.append(f"{what}: no tunable axis (COM_AXIS with AXIS_PTS_REF)")
             else:
                 self.number(what, "axis points", axis.maxAxisPoints, e["count"])
-                points = list(axis.fix_axis_par_list.axisPts_Value)
-                as_firmware = [as_f32(p) for p in points]
-                if as_firmware != [as_f32(p) for p in e["axis"]]:
-                    self.differ(what, "axis", points, e["axis"])
+                if axis.axis_pts_ref.axisPoints != e["axis"]:
+                    self.differ(what, "axis", axis.axis_pts_ref.axisPoints, e["axis"])
+                if axis.inputQuantity != e["axis_input"]:
+                    self.differ(what, "axis input", axis.inputQuantity, e["axis_input"])
                 self.linear(f"{what} axis", axis.conversion, [1, 0], e["axis_unit"])
+
+    def axis_points(self, a, e):
+        what = f"AXIS_PTS {e['name']}"
+        self.number(what, "address", a.address, e["address"])
+        layout = self.layouts.get(a.depositAttr)
+        datatype = layout.axis_pts_x.datatype if layout and layout.axis_pts_x else None
+        if datatype != e["datatype"]:
+            self.differ(what, "data type", datatype, e["datatype"])
+        self.number(what, "lower limit", a.lowerLimit, e["lower"])
+        self.number(what, "upper limit", a.upperLimit, e["upper"])
+        self.number(what, "points", a.maxAxisPoints, e["count"])
+        if a.inputQuantity != e["input"]:
+            self.differ(what, "input", a.inputQuantity, e["input"])
+        self.linear(what, a.conversion, [1, 0], e["unit"])
 
     def measurement(self, m, e):
         what = f"MEASUREMENT {e['name']}"
@@ -221,6 +229,12 @@ def main(argv):
         checker.characteristic,
     )
     checker.objects(
+        "AXIS_PTS",
+        checker.model.AxisPts,
+        expected["axis_points"],
+        checker.axis_points,
+    )
+    checker.objects(
         "MEASUREMENT",
         checker.model.Measurement,
         expected["measurements"],
@@ -232,7 +246,8 @@ def main(argv):
             print(f"  {p}")
         return 1
     print(
-        f"{a2l}: {len(expected['characteristics'])} characteristics and "
+        f"{a2l}: {len(expected['characteristics'])} characteristics, "
+        f"{len(expected['axis_points'])} axis point lists and "
         f"{len(expected['measurements'])} measurements as the crate says"
     )
     return 0

@@ -161,7 +161,8 @@ impl Car {
     /// CAN1) hears the BMS's frames on its own.
     pub fn node_frames(&mut self, now_ms: u32, mut deliver: impl FnMut(usize, &CanFrame)) {
         if now_ms % TASK_PERIOD_MS == 0 {
-            let shutdown_open = self.plan.is_active(now_ms, Fault::ShutdownOpen);
+            let shutdown_open =
+                self.plan.is_active(now_ms, Fault::ShutdownOpen) || self.command.park;
             if let Some(status) = self.pcc.step(now_ms, self.pack.voltage_v, shutdown_open) {
                 self.nodes
                     .send(now_ms, CAN1, Node::Pcc, &status, &self.plan);

@@ -18,7 +18,17 @@ pub enum Cycle {
     Autocross,
     /// Full throttle throughout (on the dynamometer).
     FullThrottle,
+    /// The desk car's practice loop for a tuner: a launch and 75 m at full throttle, a stop,
+    /// [`STAND_MS`] at standstill with the tractive system live (launch parameters change
+    /// only at standstill), then [`PARK_MS`] parked with the tractive system off (saving, and
+    /// the pedal, brake and shock parameters, need it), and again.
+    Practice,
 }
+
+/// How long the practice loop stands still with the tractive system live (ms).
+pub const STAND_MS: u32 = 20_000;
+/// How long the practice loop stays parked with the tractive system off (ms).
+pub const PARK_MS: u32 = 30_000;
 
 /// The driver's hands and feet this millisecond.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -31,6 +41,9 @@ pub struct DriverCommand {
     pub ready_to_move: bool,
     /// Launch-control button.
     pub launch: bool,
+    /// The driver parked the car: the tractive-system master switch off, so the shutdown
+    /// circuit is open.
+    pub park: bool,
 }
 
 /// What the driver sees.
@@ -67,6 +80,25 @@ enum Phase {
     Drive { start_m: f32 },
     /// Braking to a stop after the cycle or a fault.
     Stop,
+    /// Practice: standing still, brake held, tractive system live.
+    Stand { since_ms: u32 },
+    /// Practice: parked, the tractive system off.
+    Park { since_ms: u32 },
+}
+
+/// Where the driver is, for people watching the desk car.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Activity {
+    /// Starting the car: waiting for the tractive system, ready-to-move, the sound.
+    Starting,
+    /// Launching or driving the cycle.
+    Driving,
+    /// Braking to a stop.
+    Stopping,
+    /// Standing still with the tractive system live.
+    Standing,
+    /// Parked with the tractive system off.
+    Parked,
 }
 
 /// What a driver does in an autocross segment.
@@ -139,6 +171,21 @@ impl Driver {
         matches!(self.phase, Phase::Drive { .. })
     }
 
+    /// What the driver is doing now.
+    pub fn activity(&self) -> Activity {
+        match self.phase {
+            Phase::WaitForIdle | Phase::PressButton { .. } | Phase::WaitForDrive => {
+                Activity::Starting
+            }
+            Phase::Launch { .. } | Phase::ChangeFeet { .. } | Phase::Drive { .. } => {
+                Activity::Driving
+            }
+            Phase::Lift { .. } | Phase::Stop => Activity::Stopping,
+            Phase::Stand { .. } => Activity::Standing,
+            Phase::Park { .. } => Activity::Parked,
+        }
+    }
+
     /// What the driver does now.
     pub fn command(&mut self, seen: &Seen) -> DriverCommand {
         let hold = DriverCommand {
@@ -146,6 +193,7 @@ impl Driver {
             brake_psi: HOLD_PSI,
             ready_to_move: false,
             launch: false,
+            park: false,
         };
         let now = seen.now_ms;
         match self.phase {
@@ -167,7 +215,8 @@ impl Driver {
             Phase::WaitForDrive => {
                 match seen.vehicle {
                     State::Driving => {
-                        self.phase = if self.cycle == Cycle::Acceleration {
+                        self.phase = if matches!(self.cycle, Cycle::Acceleration | Cycle::Practice)
+                        {
                             Phase::Launch { since_ms: now }
                         } else {
                             Phase::ChangeFeet { since_ms: now }
@@ -220,7 +269,9 @@ impl Driver {
                 DriverCommand::default()
             }
             Phase::Stop => {
-                if seen.stopped && seen.vehicle == State::Idle {
+                if seen.stopped && self.cycle == Cycle::Practice {
+                    self.phase = Phase::Stand { since_ms: now };
+                } else if seen.stopped && seen.vehicle == State::Idle {
                     self.phase = Phase::PressButton { since_ms: now };
                 }
                 DriverCommand {
@@ -228,12 +279,25 @@ impl Driver {
                     ..hold
                 }
             }
+            Phase::Stand { since_ms } => {
+                if now.wrapping_sub(since_ms) >= STAND_MS {
+                    self.phase = Phase::Park { since_ms: now };
+                }
+                hold
+            }
+            Phase::Park { since_ms } => {
+                if now.wrapping_sub(since_ms) >= PARK_MS {
+                    self.phase = Phase::WaitForIdle;
+                    return hold;
+                }
+                DriverCommand { park: true, ..hold }
+            }
         }
     }
 
     fn drive(&mut self, seen: &Seen, start_m: f32) -> DriverCommand {
         match self.cycle {
-            Cycle::Acceleration => {
+            Cycle::Acceleration | Cycle::Practice => {
                 if seen.distance_m - start_m >= ACCELERATION_M {
                     self.phase = Phase::Lift {
                         since_ms: seen.now_ms,

@@ -12,7 +12,7 @@ use aer_ccm::calibration::EPK;
 use aer_ccm::calibration::store::{CalibrationStore, RamFlash, Startup};
 use aer_ccm::constants::CONTROL_PERIOD_MS;
 use aer_ccm::xcp::{SECRET_LEN, SeedKey, XcpNode};
-use aer_xcp::{DaqReport, MAX_CTO};
+use aer_xcp::{DaqReport, MAX_CTO, SessionEnd};
 
 /// The car, its CCM and the CCM's XCP slave.
 pub struct XcpCar {
@@ -24,18 +24,23 @@ pub struct XcpCar {
 
 impl XcpCar {
     /// Starts `run`'s CCM with the calibration start-up finds in `flash`, the team's `secret`
-    /// (`None`: calibration stays locked) and `entropy` for the seeds.
+    /// (`None`: calibration stays locked) and `entropy` for the seeds (at least 32 bytes from
+    /// a true random source: the operating system's; fewer keep calibration locked).
     pub fn new(
         mut run: ClosedLoop,
         mut flash: RamFlash,
         secret: Option<[u8; SECRET_LEN]>,
-        entropy: u64,
+        entropy: &[u8],
     ) -> Self {
         let (store, loaded) = CalibrationStore::load(&mut flash, EPK);
         run.ccm.set_calibration(loaded.calibration, loaded.startup);
         Self {
             run,
-            node: XcpNode::new(SeedKey::new(secret, entropy), store, flash),
+            node: XcpNode::new(
+                SeedKey::new(secret, Some(entropy), b"desk car"),
+                store,
+                flash,
+            ),
             startup: loaded.startup,
         }
     }
@@ -63,6 +68,20 @@ impl XcpCar {
         let calibration = self.run.ccm.calibration_state_mut();
         self.node
             .command(calibration, vehicle, packet, now_us, reply)
+    }
+
+    /// Runs the slave's clock at the model's time: a session idle past the time-out ends
+    /// (or, with DAQ running, is relocked); the event telling the master goes to `send`.
+    pub fn poll(&mut self, send: &mut impl FnMut(&[u8]) -> bool) -> Option<SessionEnd> {
+        let now_us = self.run.now_ms().wrapping_mul(1_000);
+        let calibration = self.run.ccm.calibration_state_mut();
+        self.node.poll(calibration, now_us, send)
+    }
+
+    /// The master's transport is gone (its TCP connection closed or broke): the session ends.
+    pub fn transport_lost(&mut self) -> Option<SessionEnd> {
+        let calibration = self.run.ccm.calibration_state_mut();
+        self.node.transport_lost(calibration)
     }
 
     /// One model millisecond, then the sensor event and, after a control step, the control

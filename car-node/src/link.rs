@@ -26,6 +26,9 @@ pub trait Link {
     fn await_master(&mut self, still_waiting: &mut dyn FnMut() -> Result<()>) -> Result<()>;
     /// Forgets the master (the CCM power-cycles: a TCP master must reconnect).
     fn drop_master(&mut self);
+    /// Whether the master's transport ended (its TCP connection closed or broke) since the
+    /// last call: the slave's session must end with it.
+    fn take_lost(&mut self) -> bool;
     /// Packets received that were not XCP (a broken TCP frame, a CAN frame of the wrong
     /// length), all ignored so far.
     fn malformed(&self) -> u64;
@@ -33,6 +36,32 @@ pub trait Link {
     fn script_env(&self) -> Vec<(String, String)>;
     /// Where a master finds the slave, for people.
     fn describe(&self) -> String;
+}
+
+/// A TCP stream's frame that cannot be decoded: the stream cannot be resynchronised.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Malformed;
+
+/// Decodes the XCP-on-TCP frames in `input` (continuing what `decoder` holds) and hands each
+/// packet to `packet`; stops at the first broken frame.
+pub fn decode_stream(
+    decoder: &mut TcpDecoder,
+    mut input: &[u8],
+    mut packet: impl FnMut(Vec<u8>),
+) -> Result<(), Malformed> {
+    while !input.is_empty() {
+        let (used, decoded) = decoder.decode(input);
+        input = input.get(used..).unwrap_or_default();
+        match decoded {
+            Some(Ok(decoded)) => packet(decoded.data.to_vec()),
+            Some(Err(_)) => return Err(Malformed),
+            None => {}
+        }
+        if used == 0 {
+            break;
+        }
+    }
+    Ok(())
 }
 
 /// XCP on TCP: a listener and at most one connected master.
@@ -46,6 +75,8 @@ pub struct TcpLink {
     pending: VecDeque<Vec<u8>>,
     /// Malformed TCP frames received (the connection is closed on each).
     malformed: u64,
+    /// The master's connection ended since [`Link::take_lost`] last said so.
+    lost: bool,
 }
 
 impl TcpLink {
@@ -63,12 +94,19 @@ impl TcpLink {
             encoder: TcpEncoder::new(),
             pending: VecDeque::new(),
             malformed: 0,
+            lost: false,
         })
     }
 
     /// The address it listens on.
     pub fn address(&self) -> SocketAddr {
         self.address
+    }
+
+    /// The master's connection ended (closed, broken or malformed).
+    fn lost(&mut self) {
+        self.stream = None;
+        self.lost = true;
     }
 
     /// Takes a waiting connection, if any (a new master replaces the old one).
@@ -104,7 +142,7 @@ impl Link for TcpLink {
         let mut buffer = [0u8; 512];
         let read = match stream.read(&mut buffer) {
             Ok(0) => {
-                self.stream = None;
+                self.lost();
                 return Ok(None);
             }
             Ok(read) => read,
@@ -112,28 +150,21 @@ impl Link for TcpLink {
                 return Ok(None);
             }
             Err(_) => {
-                self.stream = None;
+                self.lost();
                 return Ok(None);
             }
         };
-        let mut input = buffer.get(..read).unwrap_or_default();
-        while !input.is_empty() {
-            let (used, packet) = self.decoder.decode(input);
-            input = input.get(used..).unwrap_or_default();
-            match packet {
-                Some(Ok(packet)) => self.pending.push_back(packet.data.to_vec()),
-                Some(Err(_)) => {
-                    // A broken stream cannot be resynchronised: drop the master, as a slave
-                    // on the car would.
-                    self.malformed += 1;
-                    self.stream = None;
-                    break;
-                }
-                None => {}
-            }
-            if used == 0 {
-                break;
-            }
+        let pending = &mut self.pending;
+        let decoded = decode_stream(
+            &mut self.decoder,
+            buffer.get(..read).unwrap_or_default(),
+            |packet| pending.push_back(packet),
+        );
+        if decoded.is_err() {
+            // A broken stream cannot be resynchronised: drop the master, as a slave on the car
+            // would.
+            self.malformed += 1;
+            self.lost();
         }
         Ok(self.pending.pop_front())
     }
@@ -163,6 +194,11 @@ impl Link for TcpLink {
     fn drop_master(&mut self) {
         self.stream = None;
         self.pending.clear();
+        self.lost = false;
+    }
+
+    fn take_lost(&mut self) -> bool {
+        std::mem::take(&mut self.lost)
     }
 
     fn malformed(&self) -> u64 {
@@ -250,6 +286,10 @@ impl Link for CanLink {
     }
 
     fn drop_master(&mut self) {}
+
+    fn take_lost(&mut self) -> bool {
+        false
+    }
 
     fn malformed(&self) -> u64 {
         self.malformed

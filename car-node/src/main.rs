@@ -1,7 +1,7 @@
 //! `aer-car-node`: the car model's CCM as an XCP slave on TCP or SocketCAN.
 
 use aer_car_model::driver::Cycle;
-use aer_car_node::{checks, link, scenarios, serve};
+use aer_car_node::{checks, link, masters, scenarios, serve};
 use anyhow::{Result, bail};
 use clap::{Parser, Subcommand, ValueEnum};
 use std::path::PathBuf;
@@ -20,8 +20,9 @@ enum Job {
         /// `tcp:ADDRESS` (the A2L names tcp:127.0.0.1:5555) or `can:INTERFACE`.
         #[arg(long, default_value = "tcp:127.0.0.1:5555")]
         link: String,
-        /// What the driver does.
-        #[arg(long, value_enum, default_value_t = DriveCycle::Autocross)]
+        /// What the driver does: `practice` launches, stops, stands 20 s with the tractive
+        /// system live, parks 30 s with it off, and again.
+        #[arg(long, value_enum, default_value_t = DriveCycle::Practice)]
         cycle: DriveCycle,
         /// The team's secret (64 hex digits, as ccm/xcp-secret.key); without it calibration
         /// stays locked, as on an image built without one.
@@ -55,6 +56,7 @@ enum Job {
 
 #[derive(Clone, Copy, ValueEnum)]
 enum DriveCycle {
+    Practice,
     Acceleration,
     Skidpad,
     Autocross,
@@ -63,6 +65,7 @@ enum DriveCycle {
 impl From<DriveCycle> for Cycle {
     fn from(cycle: DriveCycle) -> Self {
         match cycle {
+            DriveCycle::Practice => Cycle::Practice,
             DriveCycle::Acceleration => Cycle::Acceleration,
             DriveCycle::Skidpad => Cycle::Skidpad,
             DriveCycle::Autocross => Cycle::Autocross,
@@ -78,17 +81,23 @@ fn main() -> Result<()> {
             secret_file,
         } => {
             let secret = secret_file.as_deref().map(serve::read_secret).transpose()?;
-            let mut link = link::open(&link)?;
+            let transport = masters::open(&link)?;
+            let mut entropy = [0u8; 32];
+            getrandom::fill(&mut entropy).map_err(|error| {
+                anyhow::anyhow!("the operating system's random source: {error}")
+            })?;
             eprintln!(
-                "aer-car-node: the CCM's XCP slave, {}; calibration {}",
-                link.describe(),
+                "aer-car-node: the CCM's XCP slave, {}; calibration {}; one master at a time, \
+                 idle sessions end after {} s",
+                transport.describe,
                 if secret.is_some() {
                     "unlockable"
                 } else {
                     "locked (no secret)"
-                }
+                },
+                aer::calibration::xcp::IDLE_TIMEOUT_MS / 1_000,
             );
-            serve::serve(link.as_mut(), cycle.into(), secret, |_| true)?;
+            serve::serve(&transport, cycle.into(), secret, &entropy, |_| true)?;
             Ok(())
         }
         Job::Scenarios {

@@ -114,7 +114,7 @@ pub fn power_up(flash: RamFlash) -> XcpCar {
         Cycle::Acceleration,
         parked,
     );
-    let mut car = XcpCar::new(run, flash, Some(SECRET), 0x5EED_0001);
+    let mut car = XcpCar::new(run, flash, Some(SECRET), &[0x5E; 32]);
     for _ in 0..100 {
         car.step(&mut NoTap, &mut |_| true);
     }
@@ -203,6 +203,9 @@ impl Harness<'_> {
 
     /// Answers every command the master has sent by now.
     fn serve(&mut self) -> Result<()> {
+        if self.link.take_lost() {
+            self.car.transport_lost();
+        }
         while let Some(packet) = self.link.receive()? {
             let mut reply = [0u8; MAX_CTO];
             if let Some(len) = self.car.command(&packet, &mut reply) {

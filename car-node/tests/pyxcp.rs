@@ -11,12 +11,10 @@
 //! serve`): see [`pyxcp_unlocks_through_the_seed_and_key_library`].
 
 use aer_car_model::driver::Cycle;
-use aer_car_node::link::{Link, TcpLink};
-use aer_car_node::{checks, expected, scenarios, serve};
-use aer_xcp::transport::{TCP_FRAME_MAX, TcpDecoder, TcpEncoder};
+use aer_car_node::link::TcpLink;
+use aer_car_node::{checks, expected, masters, scenarios, serve};
 use serde_json::Value;
-use std::io::{Read, Write};
-use std::net::TcpStream;
+use std::net::TcpListener;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::sync::Arc;
@@ -65,50 +63,6 @@ fn pyxcp_calibrates_and_measures_the_ccm_in_the_car_model() {
     assert!(verdicts.len() >= 20, "{} checks", verdicts.len());
     let failed = checks::failed(&verdicts);
     assert!(failed.is_empty(), "{failed:#?}");
-}
-
-/// The desk server answers a master in real time: CONNECT gets its positive response with
-/// MAX_CTO 8, and the server stops when told.
-#[test]
-fn the_desk_server_answers_connect_over_tcp() {
-    let mut link = TcpLink::bind("127.0.0.1:0".parse().unwrap()).unwrap();
-    let address = link.address();
-    let answered = Arc::new(AtomicBool::new(false));
-    let master = {
-        let answered = Arc::clone(&answered);
-        std::thread::spawn(move || {
-            let mut stream = TcpStream::connect(address).unwrap();
-            let mut frame = [0u8; TCP_FRAME_MAX];
-            // CONNECT, normal mode.
-            let len = TcpEncoder::new().encode(&[0xFF, 0x00], &mut frame).unwrap();
-            stream.write_all(&frame[..len]).unwrap();
-            let mut decoder = TcpDecoder::new();
-            let mut buffer = [0u8; 64];
-            let response = loop {
-                let read = stream.read(&mut buffer).unwrap();
-                assert!(read > 0, "the server closed the connection");
-                let (_, packet) = decoder.decode(&buffer[..read]);
-                if let Some(packet) = packet {
-                    break packet.unwrap().data.to_vec();
-                }
-            };
-            answered.store(true, Ordering::Release);
-            response
-        })
-    };
-    let ran_ms = serve::serve(&mut link, Cycle::Acceleration, None, |_| {
-        !answered.load(Ordering::Acquire)
-    })
-    .unwrap();
-    let response = master.join().unwrap();
-    assert_eq!(
-        response.first(),
-        Some(&0xFF),
-        "positive response: {response:02x?}"
-    );
-    assert_eq!(response.get(3), Some(&8), "MAX_CTO: {response:02x?}");
-    assert!(link.describe().contains("XCP on TCP"));
-    eprintln!("served {ran_ms} model ms before the master had its answer");
 }
 
 /// The seed-and-key library pyxcp loads: `AER_XCP_SEEDKEY_LIBRARY` when set (a library built
@@ -188,7 +142,9 @@ fn pyxcp_unlocks_through_the_seed_and_key_library() {
     std::fs::write(&expected, description.to_string()).unwrap();
 
     for (how, same_bit_width) in [("asamkeydll helper", false), ("ctypes", true)] {
-        let mut link = TcpLink::bind("127.0.0.1:0".parse().unwrap()).unwrap();
+        let listener = TcpListener::bind("127.0.0.1:0").unwrap();
+        let address = listener.local_addr().unwrap();
+        let transport = masters::listen(listener).unwrap();
         let mut command = Command::new(&python);
         command
             .arg(root().join("tools/xcp_scenarios.py"))
@@ -198,7 +154,9 @@ fn pyxcp_unlocks_through_the_seed_and_key_library() {
             command.arg("--same-bit-width");
         }
         let script = command
-            .envs(link.script_env())
+            .env("AER_XCP_TRANSPORT", "tcp")
+            .env("AER_XCP_HOST", address.ip().to_string())
+            .env("AER_XCP_PORT", address.port().to_string())
             .env("AER_XCP_EXPECTED", &expected)
             .env_remove("AER_XCP_SECRET_FILE")
             .stdout(Stdio::piped())
@@ -215,16 +173,18 @@ fn pyxcp_unlocks_through_the_seed_and_key_library() {
             })
         };
         // The desk server, in real time, until the script has ended (or a minute has passed).
-        let ran_ms = serve::serve(
-            &mut link,
+        let ran = serve::serve(
+            &transport,
             Cycle::Acceleration,
             Some(scenarios::SECRET),
+            &[0x5E; 32],
             |ms| ms < 60_000 && !finished.load(Ordering::Acquire),
         )
         .unwrap();
         assert!(
             finished.load(Ordering::Acquire),
-            "{how}: the script still ran after {ran_ms} ms"
+            "{how}: the script still ran after {} ms",
+            ran.model_ms
         );
         let output = waiter.join().unwrap().unwrap();
         assert!(
@@ -259,5 +219,69 @@ fn pyxcp_unlocks_through_the_seed_and_key_library() {
             outcome["value"], default,
             "{how}: the value written is not the default"
         );
+    }
+}
+
+/// docs/examples/tune_desk_car.py, the guide's first session, as a tuner runs it against the
+/// desk car: it unlocks through the library, sees a refusal's reason read from the slave's
+/// status block, and writes an allowed value.
+#[test]
+fn the_guides_first_session_runs_against_the_desk_car() {
+    let Some(python) = python() else {
+        return;
+    };
+    let built = seed_key_library();
+    let dir = tempfile::tempdir().unwrap();
+    let library = dir.path().join(built.file_name().expect("a file name"));
+    std::fs::copy(&built, &library).unwrap();
+    let secret: String = scenarios::SECRET
+        .iter()
+        .map(|b| format!("{b:02x}"))
+        .collect();
+    std::fs::write(dir.path().join("aer-xcp-secret.key"), format!("{secret}\n")).unwrap();
+    let listener = TcpListener::bind("127.0.0.1:0").unwrap();
+    let address = listener.local_addr().unwrap();
+    let transport = masters::listen(listener).unwrap();
+    let script = Command::new(&python)
+        .current_dir(root())
+        .arg("docs/examples/tune_desk_car.py")
+        .arg("--library")
+        .arg(&library)
+        .arg("--port")
+        .arg(address.port().to_string())
+        .env_remove("AER_XCP_SECRET_FILE")
+        .stdout(Stdio::piped())
+        .stderr(Stdio::inherit())
+        .spawn()
+        .unwrap();
+    let finished = Arc::new(AtomicBool::new(false));
+    let waiter = {
+        let finished = Arc::clone(&finished);
+        std::thread::spawn(move || {
+            let output = script.wait_with_output();
+            finished.store(true, Ordering::Release);
+            output
+        })
+    };
+    serve::serve(
+        &transport,
+        Cycle::Practice,
+        Some(scenarios::SECRET),
+        &[0x5E; 32],
+        |ms| ms < 60_000 && !finished.load(Ordering::Acquire),
+    )
+    .unwrap();
+    let output = waiter.join().unwrap().unwrap();
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    eprintln!("{stdout}");
+    assert!(output.status.success(), "{}", output.status);
+    for line in [
+        "calibration unlocked",
+        "refused as expected: DOWNLOAD refused with ERR_OUT_OF_RANGE: traction_kp[0] = 2001, \
+         above its maximum (limit 2000)",
+        "traction_kp = ",
+        "slave counters: commands ",
+    ] {
+        assert!(stdout.contains(line), "{line:?} not in:\n{stdout}");
     }
 }

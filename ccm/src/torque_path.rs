@@ -179,6 +179,10 @@ impl TorquePath {
             driver_torque_nm: driver,
             launch_torque_nm: launch_torque,
             launch_slip_target: self.launch.target(),
+            // The launch slip target curve's input, as launch control looks it up: the slower
+            // front wheel's speed at the ground.
+            front_wheel_speed: inputs.front_rad_s.0.min(inputs.front_rad_s.1)
+                * crate::constants::WHEEL_RADIUS_M,
             traction_torque_nm: traction_torque,
             slip_ratio: slip,
             power_allowed_nm: power_ceiling,

@@ -13,7 +13,13 @@
 //! HMAC-SHA256 over the 6-byte seed, keyed with the team's 32-byte secret, which is not in
 //! the repository (`ccm/xcp-secret.key`, read by the firmware's build; docs/calibration.md
 //! says how to make one). An image built without a secret cannot be unlocked: it measures
-//! but never calibrates.
+//! but never calibrates. Seeds come from an HMAC_DRBG the TRNG starts
+//! ([`aer_xcp::seeds`]); without 256 bits from it, calibration stays locked too.
+//!
+//! Besides the calibration, the slave publishes its own numbers at
+//! [`XCP_STATUS_ADDRESS`]: the last refused command and why (the parameter, element, value and
+//! limit, from [`crate::calibration::why`]) and its counters, refreshed after every command
+//! and event.
 
 use crate::calibration::EPK;
 use crate::calibration::state::{CalibrationState, Page, Refused};
@@ -21,11 +27,17 @@ use crate::calibration::store::{CalibrationFlash, CalibrationStore, SaveError};
 use aer::calibration::VehicleState;
 use aer::calibration::xcp::{
     A2L_NAME, CALIBRATION_ADDRESS, CALIBRATION_LEN, DAQ_FRAMES_PER_S, EPK_ADDRESS, EVENTS,
-    INTERNALS_ADDRESS, INTERNALS_LEN, MAX_BS, MAX_CHECKSUM_BLOCK, MAX_DAQ, MAX_ODT_ENTRY_SIZE,
-    MIN_ST, ODT_ENTRIES, TELEMETRY_ADDRESS, TELEMETRY_LEN,
+    IDLE_TIMEOUT_MS, INTERNALS_ADDRESS, INTERNALS_LEN, MAX_BS, MAX_CHECKSUM_BLOCK, MAX_DAQ,
+    MAX_ODT_ENTRY_SIZE, MIN_ST, ODT_ENTRIES, TELEMETRY_ADDRESS, TELEMETRY_LEN, UNLOCK_DELAY_MAX_MS,
+    UNLOCK_DELAY_MS, XCP_STATUS_ADDRESS, XCP_STATUS_LEN,
 };
 pub use aer_xcp::seed_key::{KEY_LEN, SECRET_LEN, key_for};
-use aer_xcp::{Config, DaqReport, EventChannel, Refusal, SEED_LEN, Segment, Slave, Target};
+use aer_xcp::seeds::{ENTROPY_MIN, SeedGenerator};
+use aer_xcp::{
+    Config, DaqReport, Detail, EventChannel, Refusal, SEED_LEN, Segment, SessionEnd, Slave, Target,
+    reason,
+};
+use core::cell::Cell;
 
 /// The team's secret as the build found it (`ccm/xcp-secret.key` or `AER_XCP_SECRET_FILE`;
 /// `None` without one: the images then never unlock).
@@ -78,9 +90,16 @@ pub static CONFIG: Config = Config {
     max_odt_entry_size: MAX_ODT_ENTRY_SIZE,
     max_checksum_block: MAX_CHECKSUM_BLOCK,
     driver_version: 1,
+    idle_timeout_ms: IDLE_TIMEOUT_MS,
+    unlock_delay_ms: UNLOCK_DELAY_MS,
+    unlock_delay_max_ms: UNLOCK_DELAY_MAX_MS,
 };
 
 const _: () = assert!(CONFIG.is_valid());
+const _: () = assert!(
+    XCP_STATUS_LEN == aer_xcp::status::STATUS_LEN,
+    "the A2L's XCP status block and the slave's must agree"
+);
 
 /// A fresh slave, disconnected and locked.
 pub const fn slave() -> CcmSlave {
@@ -109,26 +128,31 @@ impl Default for Measurements {
 #[derive(Clone)]
 pub struct SeedKey {
     secret: Option<[u8; SECRET_LEN]>,
-    state: u64,
+    seeds: Option<SeedGenerator>,
 }
 
 impl SeedKey {
-    /// With the team's `secret` (`None`: calibration can never be unlocked) and `entropy` to
-    /// start the seed generator (the Teensy's TRNG; the host's clock in tests). Seeds never
-    /// repeat within 2^64 draws, so a recorded answer cannot be replayed.
-    pub const fn new(secret: Option<[u8; SECRET_LEN]>, entropy: u64) -> Self {
+    /// With the team's `secret` (`None`: calibration can never be unlocked), `entropy` from a
+    /// true random source (the Teensy's TRNG; fixed bytes in tests) and `personalization`
+    /// (the chip's unique id). Fewer than [`ENTROPY_MIN`] bytes of entropy cannot make
+    /// unpredictable seeds: calibration then stays locked, as without a secret.
+    pub fn new(
+        secret: Option<[u8; SECRET_LEN]>,
+        entropy: Option<&[u8]>,
+        personalization: &[u8],
+    ) -> Self {
+        let seeds = entropy
+            .filter(|entropy| entropy.len() >= ENTROPY_MIN)
+            .map(|entropy| SeedGenerator::new(entropy, personalization));
         Self {
-            secret,
-            // xorshift64* must not start at zero.
-            state: entropy | 1,
+            secret: seeds.as_ref().and(secret),
+            seeds,
         }
     }
 
-    fn next(&mut self) -> u64 {
-        self.state ^= self.state >> 12;
-        self.state ^= self.state << 25;
-        self.state ^= self.state >> 27;
-        self.state.wrapping_mul(0x2545_F491_4F6C_DD1D)
+    /// Whether a master can ever unlock calibration: a secret and a seeded generator.
+    pub fn can_unlock(&self) -> bool {
+        self.secret.is_some()
     }
 }
 
@@ -138,6 +162,7 @@ enum Region {
     Telemetry(usize),
     Internals(usize),
     Epk(usize),
+    XcpStatus(usize),
 }
 
 /// The region and offset of `len` bytes at `address`, if all of them lie in one region.
@@ -155,8 +180,10 @@ fn region(ext: u8, address: u32, len: usize) -> Option<Region> {
         Some(Region::Telemetry(offset))
     } else if let Some(offset) = within(INTERNALS_ADDRESS, INTERNALS_LEN) {
         Some(Region::Internals(offset))
+    } else if let Some(offset) = within(EPK_ADDRESS, EPK.len()) {
+        Some(Region::Epk(offset))
     } else {
-        within(EPK_ADDRESS, EPK.len()).map(Region::Epk)
+        within(XCP_STATUS_ADDRESS, XCP_STATUS_LEN).map(Region::XcpStatus)
     }
 }
 
@@ -166,6 +193,9 @@ pub struct CcmTarget<'a, F: CalibrationFlash> {
     pub calibration: &'a mut CalibrationState,
     /// The telemetry and internals.
     pub measurements: &'a Measurements,
+    /// The slave's own numbers ([`aer_xcp::Slave::status_bytes`]) as of its last command or
+    /// event.
+    pub status: &'a [u8; XCP_STATUS_LEN],
     /// Whether the car moves and the tractive system is live now.
     pub vehicle: VehicleState,
     /// Seeds and the secret.
@@ -174,22 +204,39 @@ pub struct CcmTarget<'a, F: CalibrationFlash> {
     pub store: &'a mut CalibrationStore,
     /// Their flash.
     pub flash: &'a mut F,
+    /// Why this target last refused ([`Target::explain`]).
+    pub why: Cell<Detail>,
 }
 
-fn refusal(refused: Refused) -> Refusal {
-    match refused {
-        Refused::NotMapped => Refusal::NotMapped,
-        Refused::OutOfRange => Refusal::OutOfRange,
-        Refused::NotNow => Refusal::WriteProtected,
+impl<'a, F: CalibrationFlash> CcmTarget<'a, F> {
+    /// The refusal for `refused`, the calibration's reason kept for [`Target::explain`].
+    fn refused(&self, refused: Refused) -> Refusal {
+        self.why.set(self.calibration.last_refusal());
+        match refused {
+            Refused::NotMapped => Refusal::NotMapped,
+            Refused::OutOfRange => Refusal::OutOfRange,
+            Refused::NotNow => Refusal::WriteProtected,
+        }
     }
-}
 
-fn copy_out(source: &[u8], offset: usize, out: &mut [u8]) -> Result<(), Refusal> {
-    let bytes = source
-        .get(offset..offset.saturating_add(out.len()))
-        .ok_or(Refusal::NotMapped)?;
-    out.copy_from_slice(bytes);
-    Ok(())
+    /// `refusal`, with `reason` kept for [`Target::explain`].
+    fn because(&self, refusal: Refusal, reason: u8) -> Refusal {
+        self.why.set(Detail::of(reason, 0.0, 0.0));
+        refusal
+    }
+
+    /// `out.len()` bytes at `offset` of `source`.
+    fn copy_out(&self, source: &[u8], offset: usize, out: &mut [u8]) -> Result<(), Refusal> {
+        let bytes = source
+            .get(offset..offset.saturating_add(out.len()))
+            .ok_or_else(|| self.because(Refusal::NotMapped, reason::NOT_MAPPED))?;
+        out.copy_from_slice(bytes);
+        Ok(())
+    }
+
+    fn page(&self, page: u8) -> Result<Page, Refusal> {
+        Page::from_number(page).ok_or_else(|| self.because(Refusal::PageNotValid, reason::NONE))
+    }
 }
 
 impl<F: CalibrationFlash> Target for CcmTarget<'_, F> {
@@ -198,26 +245,29 @@ impl<F: CalibrationFlash> Target for CcmTarget<'_, F> {
     }
 
     fn read(&self, page: u8, ext: u8, address: u32, out: &mut [u8]) -> Result<(), Refusal> {
-        match region(ext, address, out.len()).ok_or(Refusal::NotMapped)? {
+        let region = region(ext, address, out.len())
+            .ok_or_else(|| self.because(Refusal::NotMapped, reason::NOT_MAPPED))?;
+        match region {
             Region::Calibration(offset) => {
-                let page = Page::from_number(page).ok_or(Refusal::PageNotValid)?;
-                copy_out(self.calibration.page(page), offset, out)
+                let page = self.page(page)?;
+                self.copy_out(self.calibration.page(page), offset, out)
             }
-            Region::Telemetry(offset) => copy_out(&self.measurements.telemetry, offset, out),
-            Region::Internals(offset) => copy_out(&self.measurements.internals, offset, out),
-            Region::Epk(offset) => copy_out(EPK, offset, out),
+            Region::Telemetry(offset) => self.copy_out(&self.measurements.telemetry, offset, out),
+            Region::Internals(offset) => self.copy_out(&self.measurements.internals, offset, out),
+            Region::Epk(offset) => self.copy_out(EPK, offset, out),
+            Region::XcpStatus(offset) => self.copy_out(self.status, offset, out),
         }
     }
 
     fn write(&mut self, ext: u8, address: u32, data: &[u8]) -> Result<(), Refusal> {
         match region(ext, address, data.len()) {
-            Some(Region::Calibration(offset)) => self
-                .calibration
-                .write(offset, data, self.vehicle)
-                .map_err(refusal),
+            Some(Region::Calibration(offset)) => {
+                let written = self.calibration.write(offset, data, self.vehicle);
+                written.map_err(|refused| self.refused(refused))
+            }
             // Measurements and the EPK are read-only.
-            Some(_) => Err(Refusal::WriteProtected),
-            None => Err(Refusal::NotMapped),
+            Some(_) => Err(self.because(Refusal::WriteProtected, reason::READ_ONLY)),
+            None => Err(self.because(Refusal::NotMapped, reason::NOT_MAPPED)),
         }
     }
 
@@ -226,27 +276,31 @@ impl<F: CalibrationFlash> Target for CcmTarget<'_, F> {
     }
 
     fn set_ecu_page(&mut self, page: u8) -> Result<(), Refusal> {
-        let page = Page::from_number(page).ok_or(Refusal::PageNotValid)?;
-        self.calibration.select(page, self.vehicle).map_err(refusal)
+        let page = self.page(page)?;
+        let selected = self.calibration.select(page, self.vehicle);
+        selected.map_err(|refused| self.refused(refused))
     }
 
     fn copy_page(&mut self, from: u8, to: u8) -> Result<(), Refusal> {
-        let from = Page::from_number(from).ok_or(Refusal::PageNotValid)?;
-        let to = Page::from_number(to).ok_or(Refusal::PageNotValid)?;
+        let from = self.page(from)?;
+        let to = self.page(to)?;
         match (from, to) {
-            (Page::Reference, Page::Working) => self
-                .calibration
-                .revert_to_reference(self.vehicle)
-                .map_err(refusal),
-            (Page::Working, Page::Reference) => Err(Refusal::WriteProtected),
+            (Page::Reference, Page::Working) => {
+                let reverted = self.calibration.revert_to_reference(self.vehicle);
+                reverted.map_err(|refused| self.refused(refused))
+            }
+            (Page::Working, Page::Reference) => {
+                Err(self.because(Refusal::WriteProtected, reason::READ_ONLY))
+            }
             _ => Ok(()),
         }
     }
 
-    fn seed(&mut self, out: &mut [u8; SEED_LEN]) {
-        let random = self.keys.next().to_le_bytes();
-        for (byte, value) in out.iter_mut().zip(random) {
-            *byte = value;
+    fn seed(&mut self, now_us: u32, out: &mut [u8; SEED_LEN]) {
+        match &mut self.keys.seeds {
+            Some(seeds) => seeds.fill(out, &now_us.to_le_bytes()),
+            // No generator, no secret: any seed will do, no key is ever right.
+            None => out.fill(0),
         }
     }
 
@@ -271,9 +325,17 @@ impl<F: CalibrationFlash> Target for CcmTarget<'_, F> {
                 self.calibration.saved(saved);
                 Ok(())
             }
-            Err(SaveError::NotAllowedNow) => Err(Refusal::WriteProtected),
-            Err(SaveError::EpkTooLong | SaveError::Flash(_)) => Err(Refusal::Failed),
+            Err(SaveError::NotAllowedNow) => {
+                Err(self.because(Refusal::WriteProtected, reason::SAVE_NOT_NOW))
+            }
+            Err(SaveError::EpkTooLong | SaveError::Flash(_)) => {
+                Err(self.because(Refusal::Failed, reason::NONE))
+            }
         }
+    }
+
+    fn explain(&self) -> Detail {
+        self.why.get()
     }
 }
 
@@ -290,6 +352,8 @@ pub struct XcpNode<F: CalibrationFlash> {
     pub flash: F,
     /// The telemetry and internals as of the last control step.
     pub measurements: Measurements,
+    /// The slave's own numbers as of its last command or event.
+    status: [u8; XCP_STATUS_LEN],
 }
 
 impl<F: CalibrationFlash> XcpNode<F> {
@@ -301,6 +365,7 @@ impl<F: CalibrationFlash> XcpNode<F> {
             store,
             flash,
             measurements: Measurements::default(),
+            status: [0; XCP_STATUS_LEN],
         }
     }
 
@@ -318,17 +383,48 @@ impl<F: CalibrationFlash> XcpNode<F> {
         let mut target = CcmTarget {
             calibration,
             measurements: &self.measurements,
+            status: &self.status,
             vehicle,
             keys: &mut self.keys,
             store: &mut self.store,
             flash: &mut self.flash,
+            why: Cell::new(Detail::default()),
         };
         let answer = self.slave.command(&mut target, packet, now_us, reply);
         let connected = self.slave.is_connected();
         target
             .calibration
             .set_xcp(connected, connected && !self.slave.is_calibration_locked());
+        self.status = self.slave.status_bytes();
         answer
+    }
+
+    /// Runs the slave's clock ([`Slave::poll`]): call it every few milliseconds. A session
+    /// with no command for the idle time-out ends (or, with DAQ running, is relocked); the
+    /// event telling the master goes to `send`. `calibration` learns the new state.
+    pub fn poll(
+        &mut self,
+        calibration: &mut CalibrationState,
+        now_us: u32,
+        send: &mut impl FnMut(&[u8]) -> bool,
+    ) -> Option<SessionEnd> {
+        let ended = self.slave.poll(now_us, send)?;
+        self.session_changed(calibration);
+        Some(ended)
+    }
+
+    /// The transport under the session is gone (a TCP connection closed): the session ends
+    /// at once, locked, its DAQ lists stopped.
+    pub fn transport_lost(&mut self, calibration: &mut CalibrationState) -> Option<SessionEnd> {
+        let ended = self.slave.transport_lost()?;
+        self.session_changed(calibration);
+        Some(ended)
+    }
+
+    fn session_changed(&mut self, calibration: &mut CalibrationState) {
+        let connected = self.slave.is_connected();
+        calibration.set_xcp(connected, connected && !self.slave.is_calibration_locked());
+        self.status = self.slave.status_bytes();
     }
 
     /// Event channel `channel` fired: the running DAQ lists on it sample the measurements and
@@ -343,6 +439,7 @@ impl<F: CalibrationFlash> XcpNode<F> {
         let target = CcmTarget {
             calibration,
             measurements: &self.measurements,
+            status: &self.status,
             // Sampling only reads: the vehicle's state decides writes alone.
             vehicle: VehicleState {
                 moving: true,
@@ -351,7 +448,12 @@ impl<F: CalibrationFlash> XcpNode<F> {
             keys: &mut self.keys,
             store: &mut self.store,
             flash: &mut self.flash,
+            why: Cell::new(Detail::default()),
         };
-        self.slave.event(&target, channel, now_us, send)
+        let report = self.slave.event(&target, channel, now_us, send);
+        if report.sent > 0 || report.dropped > 0 {
+            self.status = self.slave.status_bytes();
+        }
+        report
     }
 }

@@ -4,12 +4,16 @@
 //! and STORE_CAL_REQ saving to flash only when parked. Byte layouts as ASAM MCD-1 XCP gives
 //! them (Intel byte order, CAN's 8-byte packets).
 
-use aer::calibration::xcp::{CALIBRATION_ADDRESS, EPK, INTERNALS_ADDRESS, TELEMETRY_ADDRESS};
-use aer::calibration::{Internals, PARAMETERS, VehicleState};
+use aer::calibration::xcp::{
+    CALIBRATION_ADDRESS, EPK, INTERNALS_ADDRESS, INTERNALS_LEN, TELEMETRY_ADDRESS, UNLOCK_DELAY_MS,
+    XCP_STATUS_ADDRESS, XCP_STATUS_LEN,
+};
+use aer::calibration::{INTERNALS, Internals, PARAMETERS, VehicleState};
 use aer_ccm::calibration::state::CalibrationState;
 use aer_ccm::calibration::store::{CalibrationStore, RamFlash, Startup};
 use aer_ccm::calibration::{self, Calibration};
 use aer_ccm::xcp::{SECRET_LEN, SeedKey, XcpNode, key_for};
+use aer_xcp::reason;
 
 const SECRET: [u8; SECRET_LEN] = *b"test secret, not the team's one!";
 const PARKED: VehicleState = VehicleState {
@@ -31,6 +35,8 @@ struct Ecu {
     node: XcpNode<RamFlash>,
     calibration: CalibrationState,
     vehicle: VehicleState,
+    /// The slave's clock (us).
+    now_us: u32,
 }
 
 impl Ecu {
@@ -38,9 +44,14 @@ impl Ecu {
         let mut flash = RamFlash::default();
         let (store, loaded) = CalibrationStore::load(&mut flash, calibration::EPK);
         Self {
-            node: XcpNode::new(SeedKey::new(Some(SECRET), 0x1234_5678), store, flash),
+            node: XcpNode::new(
+                SeedKey::new(Some(SECRET), Some(&[0x12; 32]), b"test"),
+                store,
+                flash,
+            ),
             calibration: CalibrationState::new(loaded.calibration, loaded.startup),
             vehicle: PARKED,
+            now_us: 0,
         }
     }
 
@@ -48,7 +59,13 @@ impl Ecu {
         let mut reply = [0u8; 8];
         let len = self
             .node
-            .command(&mut self.calibration, self.vehicle, packet, 0, &mut reply)
+            .command(
+                &mut self.calibration,
+                self.vehicle,
+                packet,
+                self.now_us,
+                &mut reply,
+            )
             .unwrap_or(0);
         reply[..len].to_vec()
     }
@@ -141,15 +158,27 @@ fn measurements_read_the_last_telemetry_and_internals_and_nothing_else_is_mapped
     .to_bytes();
     ecu.ok(&[0xFF, 0]);
     assert_eq!(ecu.read(TELEMETRY_ADDRESS + 6, 1), [0xFF, 0xAB]);
+    let slip = INTERNALS
+        .iter()
+        .find(|i| i.name == "slip_ratio")
+        .expect("slip_ratio");
     assert_eq!(
-        ecu.read(INTERNALS_ADDRESS + 16, 4)[1..],
+        ecu.read(INTERNALS_ADDRESS + slip.offset as u32, 4)[1..],
         0.125f32.to_le_bytes()
+    );
+    // The slave's own block is readable, never writable.
+    assert_eq!(ecu.read(XCP_STATUS_ADDRESS + 48, 4)[0], 0xFF);
+    assert_eq!(
+        ecu.write(XCP_STATUS_ADDRESS, &[0; 4]),
+        [ERR, ERR_ACCESS_LOCKED],
+        "locked first"
     );
     for unmapped in [
         0,
         0x2000_0000,
         TELEMETRY_ADDRESS - 1,
-        INTERNALS_ADDRESS + 34,
+        INTERNALS_ADDRESS + INTERNALS_LEN as u32 - 2,
+        XCP_STATUS_ADDRESS + XCP_STATUS_LEN as u32 - 2,
     ] {
         assert_eq!(
             ecu.read(unmapped, 4),
@@ -168,10 +197,13 @@ fn calibration_is_locked_until_the_seeds_key_unlocks_it() {
         ecu.write(gain, &650.0f32.to_le_bytes()),
         [ERR, ERR_ACCESS_LOCKED]
     );
-    // The wrong secret's key is refused (and ends the session, as XCP says).
+    // The wrong secret's key is refused (and ends the session, as XCP says); the next seed
+    // only after the delay.
     let reply = ecu.unlock(b"not the secret, just 32 bytes!!!");
     assert_eq!(reply, [ERR, ERR_ACCESS_LOCKED]);
     ecu.ok(&[0xFF, 0]);
+    assert_eq!(ecu.command(&[0xF8, 0, 0x01]), [ERR, 0x33], "too soon");
+    ecu.now_us += UNLOCK_DELAY_MS * 1_000;
     let reply = ecu.unlock(&SECRET);
     assert_eq!(reply[0], 0xFF);
     assert_eq!(reply[1] & 0x01, 0, "CAL/PAG unlocked");
@@ -189,7 +221,7 @@ fn calibration_is_locked_until_the_seeds_key_unlocks_it() {
 #[test]
 fn an_image_without_a_secret_never_unlocks() {
     let mut ecu = Ecu::new();
-    ecu.node.keys = SeedKey::new(None, 7);
+    ecu.node.keys = SeedKey::new(None, Some(&[7; 32]), b"test");
     ecu.ok(&[0xFF, 0]);
     assert_eq!(ecu.unlock(&SECRET), [ERR, ERR_ACCESS_LOCKED]);
 }
@@ -247,4 +279,129 @@ fn store_cal_req_saves_only_when_parked_and_start_up_loads_it() {
         }
     );
     assert_eq!(loaded.calibration.traction_kp, 650.0);
+}
+
+/// Status-block offsets (`aer_xcp::status`): the last refusal's fields, then the counters.
+const REFUSED_REASON: usize = 6;
+const REFUSED_ELEMENT: usize = 7;
+const REFUSED_ITEM: usize = 8;
+const REFUSED_VALUE: usize = 12;
+const REFUSED_LIMIT: usize = 16;
+
+impl Ecu {
+    /// The slave's status block, read over XCP as a tool reads it.
+    fn status(&mut self) -> Vec<u8> {
+        let mut block = Vec::new();
+        let mut address = XCP_STATUS_ADDRESS;
+        while block.len() < XCP_STATUS_LEN {
+            let len = (XCP_STATUS_LEN - block.len()).min(4) as u8;
+            let reply = self.read(address, len);
+            assert_eq!(reply[0], 0xFF, "{reply:02X?}");
+            block.extend_from_slice(&reply[1..]);
+            address += u32::from(len);
+        }
+        block
+    }
+
+    fn refused(&mut self) -> (u8, u16, u8, f32, f32) {
+        let block = self.status();
+        let f32_at = |at: usize| f32::from_le_bytes(block[at..at + 4].try_into().unwrap());
+        (
+            block[REFUSED_REASON],
+            u16::from_le_bytes([block[REFUSED_ITEM], block[REFUSED_ITEM + 1]]),
+            block[REFUSED_ELEMENT],
+            f32_at(REFUSED_VALUE),
+            f32_at(REFUSED_LIMIT),
+        )
+    }
+}
+
+fn item(name: &str) -> u16 {
+    PARAMETERS.iter().position(|p| p.name == name).unwrap() as u16
+}
+
+/// Every refusal says why in the status block a tool reads as measurements: the parameter
+/// (its index in the A2L's `xcp.item` table), the element, the value and the limit; the
+/// condition a write needs; a read-only address.
+#[test]
+fn the_status_block_names_each_refusals_parameter_element_value_and_limit() {
+    let mut ecu = Ecu::new();
+    ecu.ok(&[0xFF, 0]);
+    ecu.unlock(&SECRET);
+    let kp = PARAMETERS.iter().find(|p| p.name == "traction_kp").unwrap();
+    assert_eq!(
+        ecu.write(
+            address_of("traction_kp"),
+            &(kp.max as f32 + 1.0).to_le_bytes()
+        ),
+        [ERR, ERR_OUT_OF_RANGE]
+    );
+    assert_eq!(
+        ecu.refused(),
+        (
+            reason::ABOVE_MAX,
+            item("traction_kp"),
+            0,
+            kp.max as f32 + 1.0,
+            kp.max as f32
+        )
+    );
+    // A subnormal is not a number the car can use.
+    assert_eq!(
+        ecu.write(address_of("traction_kp"), &1e-45f32.to_le_bytes()),
+        [ERR, ERR_OUT_OF_RANGE]
+    );
+    assert_eq!(ecu.refused().0, reason::NOT_A_NUMBER);
+    // The launch curve's axis must increase: its third point at the second's value.
+    let axis = address_of("launch_slip_target_axis");
+    let second = Calibration::DEFAULT.launch_slip_target_axis[1];
+    assert_eq!(
+        ecu.write(axis + 8, &second.to_le_bytes()),
+        [ERR, ERR_OUT_OF_RANGE]
+    );
+    assert_eq!(
+        ecu.refused(),
+        (
+            reason::NOT_INCREASING,
+            item("launch_slip_target_axis"),
+            2,
+            second,
+            second
+        )
+    );
+    // A sensor cross-check: a shock's compressed end on its extended one.
+    let extended = Calibration::DEFAULT.shock_extended_v[3];
+    assert_eq!(
+        ecu.write(
+            address_of("shock_compressed_v") + 12,
+            &extended.to_le_bytes()
+        ),
+        [ERR, ERR_OUT_OF_RANGE]
+    );
+    let (why, which, element, span, least) = ecu.refused();
+    assert_eq!(
+        (why, which, element),
+        (reason::CROSS_CHECK, item("shock_compressed_v"), 3)
+    );
+    assert_eq!(span, 0.0);
+    assert!(least > 0.0);
+    // A condition: the launch gains change at standstill only.
+    ecu.vehicle = DRIVING;
+    assert_eq!(
+        ecu.write(address_of("launch_kp"), &100.0f32.to_le_bytes()),
+        [ERR, ERR_WRITE_PROTECTED]
+    );
+    assert_eq!(ecu.refused().0, reason::NEEDS_STANDSTILL);
+    assert_eq!(ecu.refused().1, item("launch_kp"));
+    // Read-only memory.
+    assert_eq!(
+        ecu.write(TELEMETRY_ADDRESS, &[0; 4]),
+        [ERR, ERR_WRITE_PROTECTED]
+    );
+    assert_eq!(ecu.refused().0, reason::READ_ONLY);
+    // The count of refusals and the command code are there too.
+    let block = ecu.status();
+    assert_eq!(u32::from_le_bytes(block[0..4].try_into().unwrap()), 6);
+    assert_eq!(block[4], 0xF0, "DOWNLOAD");
+    assert_eq!(block[5], ERR_WRITE_PROTECTED);
 }

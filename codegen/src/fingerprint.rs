@@ -135,9 +135,7 @@ pub fn calibration(c: &crate::model::Calibration) -> u32 {
             p.change
         ));
         if let Some(axis) = &p.axis {
-            for point in &axis.points {
-                h.field(&format!("axis {:016x}", point.to_bits()));
-            }
+            h.field(&format!("axis {} {}", axis.parameter, axis.input));
         }
     }
     for i in &c.internals {
@@ -160,6 +158,10 @@ pub fn calibration(c: &crate::model::Calibration) -> u32 {
         x.odt_entries,
         x.max_odt_entry_size,
         x.bus.as_deref().unwrap_or("")
+    ));
+    h.field(&format!(
+        "session {} {} {}",
+        x.idle_timeout_ms, x.unlock_delay_ms, x.unlock_delay_max_ms
     ));
     for e in &x.events {
         h.field(&format!("event {} {}", e.name, e.period_us));

@@ -499,6 +499,12 @@ pub struct Xcp {
     pub odt_entries: u16,
     /// Bytes one ODT entry may sample.
     pub max_odt_entry_size: u8,
+    /// No command for this long ends a session (with DAQ running: takes back its unlock), ms.
+    pub idle_timeout_ms: u32,
+    /// GET_SEED is refused this long after a wrong key, doubling with each one in a row, ms.
+    pub unlock_delay_ms: u32,
+    /// The longest such delay, ms.
+    pub unlock_delay_max_ms: u32,
     /// The event channels, numbered from 0 in this order.
     pub events: Vec<XcpEvent>,
 }
@@ -560,8 +566,10 @@ pub struct Parameter {
     pub increasing: bool,
     /// What each element of a list without an axis is.
     pub elements: Vec<String>,
-    /// A curve's fixed input points.
+    /// A curve's input.
     pub axis: Option<Axis>,
+    /// The curve whose axis points this parameter is (they follow it in the page).
+    pub axis_of: Option<String>,
     pub change: ChangeWhen,
     /// Where it starts in the page (aligned to its element).
     pub offset: usize,
@@ -579,12 +587,21 @@ impl Parameter {
     }
 }
 
-/// A curve's input: fixed points, strictly increasing.
+/// A curve's input: tunable points, strictly increasing, stored in the page as the parameter
+/// `parameter` (right after the curve), and the internal value the firmware looks it up with.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Axis {
     pub label: String,
     pub unit: String,
+    /// The default points.
     pub points: Vec<f64>,
+    /// The parameter holding the points (`<curve>_axis`).
+    pub parameter: String,
+    /// The internal the curve is looked up with (the A2L's input quantity).
+    pub input: String,
+    /// The limits the points keep.
+    pub min: f64,
+    pub max: f64,
 }
 
 /// The type of a parameter's elements.

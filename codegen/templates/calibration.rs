@@ -86,8 +86,12 @@ pub struct Axis {
     pub label: &'static str,
     /// Its unit.
     pub unit: &'static str,
-    /// The points, strictly increasing.
+    /// The default points, strictly increasing.
     pub points: &'static [f32],
+    /// The parameter that holds the points (tunable; right after the curve in the page).
+    pub parameter: &'static str,
+    /// The internal the curve is looked up with ([`Internals`]).
+    pub input: &'static str,
 }
 
 /// One parameter as the calibration tools address it.
@@ -119,8 +123,10 @@ pub struct Parameter {
     pub change: ChangeWhen,
     /// What each element of a list is (empty for a scalar or a curve).
     pub elements: &'static [&'static str],
-    /// A curve's input points.
+    /// A curve's input.
     pub axis: Option<Axis>,
+    /// The curve whose axis points this parameter holds.
+    pub axis_of: Option<&'static str>,
 }
 
 /// Why a page is refused.
@@ -179,12 +185,20 @@ impl Parameter {
         self.element.read(page.get(start..)?)
     }
 
-    /// Whether every element in `page` keeps the limits (and increases where it must).
+    /// Whether every element in `page` keeps the limits (and increases where it must). An f32
+    /// must be a normal number or zero: NaN, infinities and subnormals (1e-45, say, which
+    /// limits starting at 0 would admit) mean nothing here.
     pub fn check(&self, page: &[u8]) -> Result<(), CalibrationError> {
         let mut before = f64::NEG_INFINITY;
         for index in 0..self.count {
             let value = self.value(page, index).unwrap_or(f64::NAN);
-            if !(self.min..=self.max).contains(&value) {
+            // Only the element types the schema uses exist: integers may be absent.
+            #[allow(unreachable_patterns)]
+            let normal = match self.element {
+                ElementType::F32 => value == 0.0 || (value as f32).is_normal(),
+                _ => true,
+            };
+            if !(normal && (self.min..=self.max).contains(&value)) {
                 return Err(CalibrationError::OutOfRange {
                     parameter: self.name,
                     index,
@@ -225,23 +239,22 @@ pub const PARAMETERS: [Parameter; {{ parameters.len() }}] = [
         axis: Some(Axis {
             label: {{ "{:?}"|format(axis.label) }},
             unit: {{ "{:?}"|format(axis.unit) }},
-            points: &{{ p.upper }}_AXIS,
+            points: &{{ axis.points }},
+            parameter: {{ "{:?}"|format(axis.parameter) }},
+            input: {{ "{:?}"|format(axis.input) }},
         }),
 {%- when None %}
         axis: None,
 {%- endmatch %}
+{%- match p.axis_of %}
+{%- when Some with (curve) %}
+        axis_of: Some({{ "{:?}"|format(curve) }}),
+{%- when None %}
+        axis_of: None,
+{%- endmatch %}
     },
 {%- endfor %}
 ];
-{%- for p in parameters %}
-{%- match p.axis %}
-{%- when Some with (axis) %}
-
-/// The input points of [`Calibration::{{ p.name }}`]: {{ axis.label }} ({{ axis.unit }}).
-pub const {{ p.upper }}_AXIS: [f32; {{ p.count }}] = {{ axis.points }};
-{%- when None %}
-{%- endmatch %}
-{%- endfor %}
 
 /// The parameter whose bytes include page offset `offset`, if any.
 pub fn parameter_at(offset: usize) -> Option<&'static Parameter> {
@@ -315,9 +328,11 @@ impl Calibration {
 {%- when Some with (axis) %}
 
     /// [`Self::{{ p.name }}`] at `{{ axis.label|lower }}` ({{ axis.unit }}): interpolated between
-    /// the axis points, held at the ends; the first point's value for a `NaN` input.
+    /// the axis points ([`Self::{{ axis.parameter }}`], strictly increasing in every calibration
+    /// [`Self::from_page`] accepts), held at the ends; the first point's value for a `NaN`
+    /// input.
     pub fn {{ p.name }}_at(&self, input: f32) -> f32 {
-        interpolate(&{{ p.upper }}_AXIS, &self.{{ p.name }}, input)
+        interpolate(&self.{{ axis.parameter }}, &self.{{ p.name }}, input)
     }
 {%- when None %}
 {%- endmatch %}
@@ -415,6 +430,12 @@ pub mod xcp {
     pub const INTERNALS_LEN: usize = Internals::LEN;
     /// The ECU program identifier's ASCII bytes ([`EPK`]).
     pub const EPK_ADDRESS: u32 = {{ xcp.epk_address }};
+    /// The XCP slave's own numbers (`aer_xcp::status`): the last refused command and why,
+    /// then its counters, [`XCP_STATUS_LEN`] bytes, read-only. The A2L names each as a
+    /// measurement (`xcp.*`).
+    pub const XCP_STATUS_ADDRESS: u32 = {{ xcp.xcp_status_address }};
+    /// Bytes at [`XCP_STATUS_ADDRESS`].
+    pub const XCP_STATUS_LEN: usize = {{ xcp.xcp_status_len }};
     /// The ECU program identifier: `AER`, the telemetry fingerprint (the DBC and the packet)
     /// and the calibration fingerprint, in hex. A tool compares it with its description's,
     /// so a description of another build is noticed at connection.
@@ -458,6 +479,13 @@ pub mod xcp {
     /// The slave's frame budget (frames per second): `{{ xcp.response_message }}` every
     /// {{ xcp.response_cycle_ms }} ms on average. DAQ lists whose frames would exceed it are refused.
     pub const DAQ_FRAMES_PER_S: u32 = {{ xcp.daq_frames_per_s }};
+    /// No command for this long ({{ xcp.idle_timeout }}) ends a session; with DAQ running the
+    /// session keeps measuring but calibration is locked again (ms).
+    pub const IDLE_TIMEOUT_MS: u32 = {{ xcp.idle_timeout_ms }};
+    /// GET_SEED is refused this long after a wrong key, doubling with each one in a row (ms).
+    pub const UNLOCK_DELAY_MS: u32 = {{ xcp.unlock_delay_ms }};
+    /// The longest delay after wrong keys (ms).
+    pub const UNLOCK_DELAY_MAX_MS: u32 = {{ xcp.unlock_delay_max_ms }};
 
     /// An event channel: a point in the firmware where DAQ lists are sampled.
     #[derive(Debug, Clone, Copy, PartialEq, Eq)]

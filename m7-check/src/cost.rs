@@ -113,7 +113,7 @@ fn pcc_step(iterations: u32) {
 fn xcp_node(daq: bool) -> (XcpNode<RamFlash>, CalibrationState) {
     let (ccm, _) = crate::ccm::ccm_driving(2_000);
     let mut node = XcpNode::new(
-        SeedKey::new(None, 1),
+        SeedKey::new(None, None, &[]),
         CalibrationStore::default(),
         RamFlash::default(),
     );

@@ -8,6 +8,7 @@
 use aer::calibration::xcp::CALIBRATION_ADDRESS;
 use aer_car_model::driver::Cycle;
 use aer_car_node::link::Link;
+use aer_car_node::masters::{self, Inbound, Outbox, Transport};
 use aer_car_node::{checks, scenarios, serve};
 use aer_dashboard::config::{Config, View};
 use aer_dashboard::screenshot::PIT_SIZE;
@@ -72,6 +73,10 @@ impl Link for GatewayLink {
 
     fn drop_master(&mut self) {}
 
+    fn take_lost(&mut self) -> bool {
+        false
+    }
+
     fn malformed(&self) -> u64 {
         0
     }
@@ -84,6 +89,50 @@ impl Link for GatewayLink {
     fn describe(&self) -> String {
         format!("the Pi's XCP gateway at {}", self.gateway)
     }
+}
+
+/// The desk server's transport over `link`: the gateway's CAN side is one client, the bus.
+fn desk_transport(link: GatewayLink) -> Transport {
+    let (events, inbound) = std::sync::mpsc::sync_channel(masters::INBOUND_LEN);
+    let (queue, outgoing) = std::sync::mpsc::sync_channel::<Vec<u8>>(masters::OUTBOX_LEN);
+    let describe = link.describe();
+    let opened = Inbound::Opened {
+        client: 0,
+        peer: describe.clone(),
+        outbox: Outbox::new(queue, Box::new(|| {})),
+    };
+    events.send(opened).expect("the transport");
+    let GatewayLink {
+        commands,
+        seen,
+        answers,
+        ..
+    } = link;
+    std::thread::spawn(move || {
+        while let Ok(frame) = commands.recv() {
+            if let Ok(mut seen) = seen.lock() {
+                seen.push(frame[0]);
+            }
+            let packet = Inbound::Packet {
+                client: 0,
+                packet: frame.to_vec(),
+            };
+            if events.send(packet).is_err() {
+                return;
+            }
+        }
+    });
+    std::thread::spawn(move || {
+        while let Ok(packet) = outgoing.recv() {
+            let Some(frame) = can_frame(&packet) else {
+                continue;
+            };
+            if answers.blocking_send(frame.to_vec()).is_err() {
+                return;
+            }
+        }
+    });
+    Transport::new(inbound, describe)
 }
 
 /// A gateway on a free loopback port that allows `allow`, and the slave's link to it; its
@@ -360,16 +409,18 @@ fn strangers_and_second_masters_are_refused_and_a_vanished_master_leaves_the_ccm
     );
 
     // The car, with its slave behind the pit's gateway.
-    let (gateway, mut link) = gateway(&runtime, "127.0.0.1/32", &counters, None);
+    let (gateway, link) = gateway(&runtime, "127.0.0.1/32", &counters, None);
     let seen = link.seen.clone();
     let stop = Arc::new(AtomicBool::new(false));
     let car = {
         let stop = stop.clone();
         std::thread::spawn(move || {
+            let transport = desk_transport(link);
             serve::serve(
-                &mut link,
+                &transport,
                 Cycle::Acceleration,
                 Some(scenarios::SECRET),
+                &[0x5E; 32],
                 |_| !stop.load(Ordering::Relaxed),
             )
         })

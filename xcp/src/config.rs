@@ -55,6 +55,15 @@ pub struct Config {
     pub max_checksum_block: u32,
     /// Driver version announced by GET_COMM_MODE_INFO.
     pub driver_version: u8,
+    /// No command for this long (ms): the session's calibration unlock lapses, and with no
+    /// DAQ list running the session ends ([`crate::Slave::poll`]). The ECU's A2L and docs
+    /// state it.
+    pub idle_timeout_ms: u32,
+    /// After a wrong key, GET_SEED is refused this long (ms); each further wrong key in a row
+    /// doubles it, up to [`Self::unlock_delay_max_ms`]. A right key clears it.
+    pub unlock_delay_ms: u32,
+    /// The longest delay after wrong keys (ms).
+    pub unlock_delay_max_ms: u32,
 }
 
 /// Largest block a master-block-mode DOWNLOAD can announce (its length is one byte).
@@ -83,6 +92,24 @@ impl Config {
             && self.max_bs as usize * DOWNLOAD_CHUNK <= BLOCK_MAX
             && self.max_odt_entry_size >= 1
             && (self.max_odt_entry_size as usize) < MAX_DTO
+            && self.idle_timeout_ms >= 1_000
+            && self.unlock_delay_ms >= 1
+            && self.unlock_delay_ms <= self.unlock_delay_max_ms
+            && self.unlock_delay_max_ms <= u32::MAX / 2_000
+    }
+
+    /// The delay after the `wrong`-th wrong key in a row (1 for the first), in us.
+    pub const fn unlock_delay_us(&self, wrong: u32) -> u32 {
+        let mut delay = self.unlock_delay_ms;
+        let mut step = 1;
+        while step < wrong && delay < self.unlock_delay_max_ms {
+            delay = delay.saturating_mul(2);
+            step += 1;
+        }
+        if delay > self.unlock_delay_max_ms {
+            delay = self.unlock_delay_max_ms;
+        }
+        delay.saturating_mul(1_000)
     }
 
     /// MAX_BS as announced and enforced (clamped to 1..=42).

@@ -3,16 +3,22 @@
 //! DTOs use the identification field "absolute ODT number": one PID byte, the list's FIRST_PID
 //! plus the ODT's number in the list. A list with the TIMESTAMP mode carries a 4-byte, 1 us
 //! timestamp after the PID of its first ODT. Lists only start if the running lists stay within
-//! the DAQ share of the frame budget; otherwise ERR_DAQ_CONFIG, which pyxcp reports.
+//! the DAQ share of the frame budget; otherwise ERR_DAQ_CONFIG, which pyxcp reports, and the
+//! last refusal says which limit refused (the budget, or an ODT's room). A DTO the bus queue
+//! refuses is counted, and the master hears of it: one EV_DAQ_OVERLOAD per episode, sent
+//! before the next DTO the queue takes (the overload indication by event: pyxcp decodes
+//! PIDs with their top bit as they are, so the PID-bit indication would corrupt its data).
 
 use crate::daq::{Entry, ODT_CAPACITY, TIMESTAMP_LEN};
-use crate::protocol::{MAX_DTO, daq_mode, err};
+use crate::protocol::{MAX_DTO, daq_mode, err, ev, pid};
+use crate::refusal::{Detail, reason};
 use crate::slave::{DaqReport, Slave};
 use crate::target::Target;
 use crate::wire::{Answer, Args, Fail, Outcome, Packet};
 
-/// GET_DAQ_PROCESSOR_INFO's DAQ_PROPERTIES: dynamic configuration, prescaler, timestamps.
-const DAQ_PROPERTIES: u8 = 0x01 | 0x02 | 0x10;
+/// GET_DAQ_PROCESSOR_INFO's DAQ_PROPERTIES: dynamic configuration, prescaler, timestamps,
+/// overload indicated by event.
+const DAQ_PROPERTIES: u8 = 0x01 | 0x02 | 0x10 | 0x80;
 
 /// GET_DAQ_RESOLUTION_INFO's TIMESTAMP_MODE: 4 bytes, not fixed (per list), unit 1 us.
 const TIMESTAMP_MODE: u8 = 0x04 | (3 << 4);
@@ -24,9 +30,18 @@ const EVENT_PROPERTIES: u8 = 0x04 | 0x80;
 /// Mode bits SET_DAQ_LIST_MODE accepts (everything else: ERR_MODE_NOT_VALID).
 const SUPPORTED_MODE: u8 = daq_mode::TIMESTAMP;
 
-/// Turns a DAQ table error code into an error packet.
+/// Turns a DAQ table error code into an error packet (no storage left says so).
 fn fail(code: u8) -> Fail {
-    Fail::new(code)
+    if code == err::MEMORY_OVERFLOW {
+        Fail::because(code, Detail::of(reason::DAQ_STORAGE, 0.0, 0.0))
+    } else {
+        Fail::new(code)
+    }
+}
+
+/// A list without a periodic event channel cannot start: its rate has no bound.
+fn no_event() -> Fail {
+    Fail::because(err::DAQ_CONFIG, Detail::of(reason::NO_EVENT, 0.0, 0.0))
 }
 
 impl<const LISTS: usize, const ODTS: usize, const ENTRIES: usize> Slave<LISTS, ODTS, ENTRIES> {
@@ -64,9 +79,12 @@ impl<const LISTS: usize, const ODTS: usize, const ENTRIES: usize> Slave<LISTS, O
             text: crate::transfer::Text::EventName(number),
             offset: 0,
         };
+        // Any list may use any channel: as many lists as there are.
+        let max_lists =
+            u8::try_from(crate::daq::Daq::<LISTS, ODTS, ENTRIES>::max_lists()).unwrap_or(u8::MAX);
         Ok(Answer::Reply(Packet::ok(&[
             EVENT_PROPERTIES,
-            0xFF,
+            max_lists,
             name_len,
             cycle,
             unit,
@@ -167,12 +185,15 @@ impl<const LISTS: usize, const ODTS: usize, const ENTRIES: usize> Slave<LISTS, O
         } else {
             ODT_CAPACITY
         };
-        if self
+        let with_entry = self
             .daq
-            .odt_bytes(pointer.odt_index, Some((pointer.entry, size)))
-            > room
-        {
-            return Err(fail(err::DAQ_CONFIG));
+            .odt_bytes(pointer.odt_index, Some((pointer.entry, size)));
+        if with_entry > room {
+            let left = room.saturating_sub(with_entry.saturating_sub(usize::from(size)));
+            return Err(Fail::because(
+                err::DAQ_CONFIG,
+                Detail::of(reason::ODT_FULL, f32::from(size), left as f32),
+            ));
         }
         let mut probe = [0u8; MAX_DTO];
         let probe = probe
@@ -180,7 +201,7 @@ impl<const LISTS: usize, const ODTS: usize, const ENTRIES: usize> Slave<LISTS, O
             .ok_or(fail(err::OUT_OF_RANGE))?;
         target
             .read(target.ecu_page(), ext, address, probe)
-            .map_err(|refusal| fail(refusal.code()))?;
+            .map_err(|refusal| Fail::refused(refusal, target))?;
         let slot = self
             .daq
             .entries
@@ -220,7 +241,10 @@ impl<const LISTS: usize, const ODTS: usize, const ENTRIES: usize> Slave<LISTS, O
         }
         let timestamp = mode & daq_mode::TIMESTAMP != 0;
         if !self.daq.list_fits(&list, timestamp) {
-            return Err(fail(err::DAQ_CONFIG));
+            return Err(Fail::because(
+                err::DAQ_CONFIG,
+                Detail::of(reason::ODT_FULL, TIMESTAMP_LEN as f32, 0.0),
+            ));
         }
         let list = self.daq.list_mut(number).map_err(fail)?;
         list.event = Some(event);
@@ -254,8 +278,12 @@ impl<const LISTS: usize, const ODTS: usize, const ENTRIES: usize> Slave<LISTS, O
     /// DAQ share of the frame budget.
     fn check_budget(&self, also: impl Fn(usize, &crate::daq::List) -> bool) -> Result<(), Fail> {
         let load = self.daq.load_per_s(self.config, also);
-        if load > u64::from(self.config.daq_budget_per_s()) {
-            return Err(fail(err::DAQ_CONFIG));
+        let budget = self.config.daq_budget_per_s();
+        if load > u64::from(budget) {
+            return Err(Fail::because(
+                err::DAQ_CONFIG,
+                Detail::of(reason::DAQ_BUDGET, load as f32, budget as f32),
+            ));
         }
         Ok(())
     }
@@ -269,7 +297,7 @@ impl<const LISTS: usize, const ODTS: usize, const ENTRIES: usize> Slave<LISTS, O
             return Err(fail(err::MODE_NOT_VALID));
         }
         if mode != 0 && !self.daq.startable(&list) {
-            return Err(fail(err::DAQ_CONFIG));
+            return Err(no_event());
         }
         if mode == 1 && !list.running {
             self.check_budget(|index, _| index == usize::from(number))?;
@@ -306,7 +334,7 @@ impl<const LISTS: usize, const ODTS: usize, const ENTRIES: usize> Slave<LISTS, O
                     .filter(|list| list.selected)
                     .any(|list| !self.daq.startable(list))
                 {
-                    return Err(fail(err::DAQ_CONFIG));
+                    return Err(no_event());
                 }
                 self.check_budget(|_, list| list.selected)?;
                 for list in self
@@ -359,6 +387,13 @@ impl<const LISTS: usize, const ODTS: usize, const ENTRIES: usize> Slave<LISTS, O
         }
         let page = target.ecu_page();
         let mut full = false;
+        if self.overload_pending {
+            if send(&[pid::EV, ev::DAQ_OVERLOAD]) {
+                self.overload_pending = false;
+            } else {
+                full = true;
+            }
+        }
         for number in 0..self.daq.list_count {
             let Some(list) = self.daq.lists.get_mut(number) else {
                 break;
@@ -390,6 +425,10 @@ impl<const LISTS: usize, const ODTS: usize, const ENTRIES: usize> Slave<LISTS, O
                 } else {
                     report.dropped = report.dropped.saturating_add(1);
                     full = true;
+                    if !self.overload_pending {
+                        self.overload_pending = true;
+                        self.counters.overloads = self.counters.overloads.wrapping_add(1);
+                    }
                 }
             }
         }

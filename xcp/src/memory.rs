@@ -1,10 +1,11 @@
 //! Memory transfer: the MTA, reads (UPLOAD, SHORT_UPLOAD, BUILD_CHECKSUM, GET_ID's text),
-//! and writes (DOWNLOAD with master block mode, DOWNLOAD_NEXT, SHORT_DOWNLOAD). Reads and
-//! writes go through the [`Target`]; a block download reaches it as one write.
+//! and writes (DOWNLOAD with master block mode, DOWNLOAD_NEXT). Reads and writes go through
+//! the [`Target`]; a block download reaches it as one write. SHORT_DOWNLOAD is not offered:
+//! its eight-byte header leaves no room for data at MAX_CTO 8 (ERR_CMD_UNKNOWN).
 
 use crate::checksum::Crc16Ccitt;
 use crate::config::{BLOCK_MAX, DOWNLOAD_CHUNK};
-use crate::protocol::{MAX_CTO, checksum_type, err, id_type};
+use crate::protocol::{checksum_type, err, id_type};
 use crate::slave::Slave;
 use crate::target::Target;
 use crate::transfer::{Block, Mta, Text, after_packet, expected};
@@ -31,7 +32,7 @@ impl<const LISTS: usize, const ODTS: usize, const ENTRIES: usize> Slave<LISTS, O
         match mta {
             Mta::Memory { ext, address } => target
                 .read(self.xcp_page, ext, address, out)
-                .map_err(|refusal| Fail::new(refusal.code())),
+                .map_err(|refusal| Fail::refused(refusal, target)),
             Mta::Text { text, offset } => {
                 let start = usize::try_from(offset).map_err(|_| Fail::new(err::OUT_OF_RANGE))?;
                 let end = start
@@ -167,7 +168,7 @@ impl<const LISTS: usize, const ODTS: usize, const ENTRIES: usize> Slave<LISTS, O
             .ok_or(Fail::new(err::OUT_OF_RANGE))?;
         target
             .write(ext, address, data)
-            .map_err(|refusal| Fail::new(refusal.code()))?;
+            .map_err(|refusal| Fail::refused(refusal, target))?;
         self.mta = next;
         Ok(Answer::Reply(Packet::ok(&[])))
     }
@@ -261,23 +262,5 @@ impl<const LISTS: usize, const ODTS: usize, const ENTRIES: usize> Slave<LISTS, O
         let block = self.block;
         self.block = Block::IDLE;
         self.commit(target, block.ext, block.address, block.bytes())
-    }
-
-    /// SHORT_DOWNLOAD: data at an address given in the command. Its eight-byte header leaves
-    /// MAX_CTO-8 data bytes, none at MAX_CTO 8, so every SHORT_DOWNLOAD here answers
-    /// ERR_OUT_OF_RANGE (once unlocked); masters write with DOWNLOAD.
-    pub(crate) fn short_download(&mut self, target: &mut impl Target, args: Args<'_>) -> Outcome {
-        let count = usize::from(args.u8(1)?);
-        self.require_unlocked()?;
-        let most = MAX_CTO.saturating_sub(8);
-        if count == 0 || count > most {
-            return Err(Fail::new(err::OUT_OF_RANGE));
-        }
-        let ext = args.u8(3)?;
-        let address = args.u32(4)?;
-        let data = args.slice(8, count)?;
-        self.mta = Mta::Memory { ext, address };
-        let (ext, address) = self.write_destination()?;
-        self.commit(target, ext, address, data)
     }
 }

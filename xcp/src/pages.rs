@@ -56,7 +56,7 @@ impl<const LISTS: usize, const ODTS: usize, const ENTRIES: usize> Slave<LISTS, O
         if mode & page_mode::ECU != 0 {
             target
                 .set_ecu_page(page)
-                .map_err(|refusal| Fail::new(refusal.code()))?;
+                .map_err(|refusal| Fail::refused(refusal, target))?;
         }
         if mode & page_mode::XCP != 0 {
             self.xcp_page = page;
@@ -131,7 +131,7 @@ impl<const LISTS: usize, const ODTS: usize, const ENTRIES: usize> Slave<LISTS, O
         }
         target
             .copy_page(from, to)
-            .map_err(|refusal| Fail::new(refusal.code()))?;
+            .map_err(|refusal| Fail::refused(refusal, target))?;
         Ok(Answer::Reply(Packet::ok(&[])))
     }
 }

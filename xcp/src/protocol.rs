@@ -15,7 +15,7 @@ pub mod pid {
     pub const RES: u8 = 0xFF;
     /// Error packet.
     pub const ERR: u8 = 0xFE;
-    /// Event packet (never sent by this slave).
+    /// Event packet (EV_DAQ_OVERLOAD, EV_SESSION_TERMINATED).
     pub const EV: u8 = 0xFD;
     /// Service request packet (never sent by this slave).
     pub const SERV: u8 = 0xFC;
@@ -109,6 +109,54 @@ pub mod cmd {
     pub const ALLOC_ODT_ENTRY: u8 = 0xD3;
     /// Prefix of the two-byte commands (GET_VERSION, packed DAQ; not supported).
     pub const LEVEL_1_COMMAND: u8 = 0xC0;
+
+    /// Every command above with its name in the standard: what a tool shows for the last
+    /// refused command (the ECU's A2L `xcp.command` table).
+    pub const NAMES: [(u8, &str); 43] = [
+        (CONNECT, "CONNECT"),
+        (DISCONNECT, "DISCONNECT"),
+        (GET_STATUS, "GET_STATUS"),
+        (SYNCH, "SYNCH"),
+        (GET_COMM_MODE_INFO, "GET_COMM_MODE_INFO"),
+        (GET_ID, "GET_ID"),
+        (SET_REQUEST, "SET_REQUEST"),
+        (GET_SEED, "GET_SEED"),
+        (UNLOCK, "UNLOCK"),
+        (SET_MTA, "SET_MTA"),
+        (UPLOAD, "UPLOAD"),
+        (SHORT_UPLOAD, "SHORT_UPLOAD"),
+        (BUILD_CHECKSUM, "BUILD_CHECKSUM"),
+        (TRANSPORT_LAYER_CMD, "TRANSPORT_LAYER_CMD"),
+        (USER_CMD, "USER_CMD"),
+        (DOWNLOAD, "DOWNLOAD"),
+        (DOWNLOAD_NEXT, "DOWNLOAD_NEXT"),
+        (DOWNLOAD_MAX, "DOWNLOAD_MAX"),
+        (SHORT_DOWNLOAD, "SHORT_DOWNLOAD"),
+        (MODIFY_BITS, "MODIFY_BITS"),
+        (SET_CAL_PAGE, "SET_CAL_PAGE"),
+        (GET_CAL_PAGE, "GET_CAL_PAGE"),
+        (GET_PAG_PROCESSOR_INFO, "GET_PAG_PROCESSOR_INFO"),
+        (GET_SEGMENT_INFO, "GET_SEGMENT_INFO"),
+        (GET_PAGE_INFO, "GET_PAGE_INFO"),
+        (COPY_CAL_PAGE, "COPY_CAL_PAGE"),
+        (CLEAR_DAQ_LIST, "CLEAR_DAQ_LIST"),
+        (SET_DAQ_PTR, "SET_DAQ_PTR"),
+        (WRITE_DAQ, "WRITE_DAQ"),
+        (SET_DAQ_LIST_MODE, "SET_DAQ_LIST_MODE"),
+        (GET_DAQ_LIST_MODE, "GET_DAQ_LIST_MODE"),
+        (START_STOP_DAQ_LIST, "START_STOP_DAQ_LIST"),
+        (START_STOP_SYNCH, "START_STOP_SYNCH"),
+        (GET_DAQ_CLOCK, "GET_DAQ_CLOCK"),
+        (GET_DAQ_PROCESSOR_INFO, "GET_DAQ_PROCESSOR_INFO"),
+        (GET_DAQ_RESOLUTION_INFO, "GET_DAQ_RESOLUTION_INFO"),
+        (GET_DAQ_EVENT_INFO, "GET_DAQ_EVENT_INFO"),
+        (FREE_DAQ, "FREE_DAQ"),
+        (ALLOC_DAQ, "ALLOC_DAQ"),
+        (ALLOC_ODT, "ALLOC_ODT"),
+        (ALLOC_ODT_ENTRY, "ALLOC_ODT_ENTRY"),
+        (LEVEL_1_COMMAND, "LEVEL_1_COMMAND"),
+        (0, "none"),
+    ];
 }
 
 /// Error codes (second byte of an error packet).
@@ -145,6 +193,43 @@ pub mod err {
     pub const MEMORY_OVERFLOW: u8 = 0x30;
     /// The target failed for another reason.
     pub const GENERIC: u8 = 0x31;
+    /// The resource is not accessible now, try later (GET_SEED after a wrong key, until the
+    /// delay has passed).
+    pub const RESOURCE_TEMPORARY_NOT_ACCESSIBLE: u8 = 0x33;
+
+    /// Every error code above with its name in the standard (the ECU's A2L `xcp.error`
+    /// table).
+    pub const NAMES: [(u8, &str); 17] = [
+        (CMD_SYNCH, "ERR_CMD_SYNCH"),
+        (CMD_BUSY, "ERR_CMD_BUSY"),
+        (DAQ_ACTIVE, "ERR_DAQ_ACTIVE"),
+        (CMD_UNKNOWN, "ERR_CMD_UNKNOWN"),
+        (CMD_SYNTAX, "ERR_CMD_SYNTAX"),
+        (OUT_OF_RANGE, "ERR_OUT_OF_RANGE"),
+        (WRITE_PROTECTED, "ERR_WRITE_PROTECTED"),
+        (ACCESS_DENIED, "ERR_ACCESS_DENIED"),
+        (ACCESS_LOCKED, "ERR_ACCESS_LOCKED"),
+        (PAGE_NOT_VALID, "ERR_PAGE_NOT_VALID"),
+        (MODE_NOT_VALID, "ERR_MODE_NOT_VALID"),
+        (SEGMENT_NOT_VALID, "ERR_SEGMENT_NOT_VALID"),
+        (SEQUENCE, "ERR_SEQUENCE"),
+        (DAQ_CONFIG, "ERR_DAQ_CONFIG"),
+        (MEMORY_OVERFLOW, "ERR_MEMORY_OVERFLOW"),
+        (GENERIC, "ERR_GENERIC"),
+        (
+            RESOURCE_TEMPORARY_NOT_ACCESSIBLE,
+            "ERR_RESOURCE_TEMPORARY_NOT_ACCESSIBLE",
+        ),
+    ];
+}
+
+/// Event codes (the byte after [`pid::EV`]).
+pub mod ev {
+    /// DAQ packets were lost: the bus queue refused them (the overload indication
+    /// GET_DAQ_PROCESSOR_INFO announces).
+    pub const DAQ_OVERLOAD: u8 = 0x06;
+    /// The slave ended the session by itself (idle time-out).
+    pub const SESSION_TERMINATED: u8 = 0x07;
 }
 
 /// Resource bits (CONNECT's RESOURCE, GET_STATUS's protection status, GET_SEED, UNLOCK).

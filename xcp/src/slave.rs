@@ -1,10 +1,19 @@
-//! The slave's session: connection state, resource protection (seed and key), and the
-//! dispatch of each command packet to its handler. Memory, page and DAQ commands live in
-//! their own modules as further `impl Slave` blocks.
+//! The slave's session: connection state, resource protection (seed and key), how a session
+//! ends (DISCONNECT, a wrong key, the transport's end, the idle time-out), the last refusal,
+//! and the dispatch of each command packet to its handler. Memory, page and DAQ commands live
+//! in their own modules as further `impl Slave` blocks.
+//!
+//! A session ends with its master: the ECU calls [`Slave::transport_lost`] when the transport
+//! ends (a TCP connection closed, a framing error), and [`Slave::poll`] every step, which ends
+//! a session with no command for `idle_timeout_ms` (on CAN, where any node can speak as the
+//! master, that is the only end besides DISCONNECT). A measuring master keeps its DAQ lists:
+//! with DAQ running an idle session only loses its calibration unlock. A wrong key ends the
+//! session and delays the next seed, longer with every wrong key in a row.
 
 use crate::config::Config;
 use crate::daq::Daq;
-use crate::protocol::{MAX_CTO, MAX_DTO, cmd, comm_mode, err, resource, session};
+use crate::protocol::{MAX_CTO, MAX_DTO, cmd, comm_mode, err, ev, pid, resource, session};
+use crate::refusal::{Detail, LastRefusal, reason};
 use crate::target::{KEY_MAX, SEED_LEN, Target};
 use crate::transfer::{Block, Mta};
 use crate::wire::{Answer, Args, Fail, Outcome, Packet};
@@ -23,6 +32,28 @@ pub struct Counters {
     pub dtos_dropped: u32,
     /// DAQ samples abandoned because the target refused a read it had accepted at WRITE_DAQ.
     pub daq_faults: u32,
+    /// Overload episodes: the bus queue refused a DTO after it had taken the ones before
+    /// (each announced to the master with one EV_DAQ_OVERLOAD).
+    pub overloads: u32,
+    /// Sessions the idle time-out ended (or, with DAQ running, whose unlock it took back).
+    pub idle_ends: u32,
+    /// Sessions ended because their transport ended.
+    pub transport_ends: u32,
+    /// Wrong keys (each ended its session).
+    pub wrong_keys: u32,
+}
+
+/// How a session ended without a DISCONNECT, as [`Slave::poll`] and
+/// [`Slave::transport_lost`] report it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SessionEnd {
+    /// No command for the idle time-out, no DAQ running: disconnected, locked.
+    Idle,
+    /// No command for the idle time-out with DAQ running: the DAQ lists go on, calibration
+    /// is locked again.
+    IdleRelocked,
+    /// The transport ended.
+    TransportLost,
 }
 
 /// What one [`Slave::event`] call sent.
@@ -76,6 +107,17 @@ pub struct Slave<const LISTS: usize, const ODTS: usize, const ENTRIES: usize> {
     pub(crate) block: Block,
     pub(crate) daq: Daq<LISTS, ODTS, ENTRIES>,
     pub(crate) counters: Counters,
+    /// When the last command came (us, the ECU's clock).
+    last_command_us: u32,
+    /// The idle time-out has acted since the last command.
+    idle_handled: bool,
+    /// Wrong keys in a row (cleared by a right one).
+    wrong_keys_in_a_row: u32,
+    /// GET_SEED is refused until then (us), after a wrong key.
+    seed_after_us: Option<u32>,
+    /// A DTO was dropped: an EV_DAQ_OVERLOAD is due as soon as the bus queue takes one.
+    pub(crate) overload_pending: bool,
+    last_refusal: LastRefusal,
 }
 
 impl<const LISTS: usize, const ODTS: usize, const ENTRIES: usize> Slave<LISTS, ODTS, ENTRIES> {
@@ -96,6 +138,27 @@ impl<const LISTS: usize, const ODTS: usize, const ENTRIES: usize> Slave<LISTS, O
                 dtos_sent: 0,
                 dtos_dropped: 0,
                 daq_faults: 0,
+                overloads: 0,
+                idle_ends: 0,
+                transport_ends: 0,
+                wrong_keys: 0,
+            },
+            last_command_us: 0,
+            idle_handled: false,
+            wrong_keys_in_a_row: 0,
+            seed_after_us: None,
+            overload_pending: false,
+            last_refusal: LastRefusal {
+                count: 0,
+                command: 0,
+                error: 0,
+                detail: Detail {
+                    reason: reason::NONE,
+                    item: Detail::NO_ITEM,
+                    element: 0,
+                    value: 0.0,
+                    limit: 0.0,
+                },
             },
         }
     }
@@ -120,6 +183,73 @@ impl<const LISTS: usize, const ODTS: usize, const ENTRIES: usize> Slave<LISTS, O
         self.counters
     }
 
+    /// The last refused command, and why.
+    pub fn last_refusal(&self) -> LastRefusal {
+        self.last_refusal
+    }
+
+    /// The block the ECU publishes about the slave ([`crate::status`]).
+    pub fn status_bytes(&self) -> [u8; crate::status::STATUS_LEN] {
+        let mut bytes = [0u8; crate::status::STATUS_LEN];
+        let refusal = self.last_refusal.to_bytes();
+        let counters = self.counters.in_order();
+        for (slot, byte) in bytes.iter_mut().zip(
+            refusal
+                .iter()
+                .copied()
+                .chain(counters.iter().flat_map(|c| c.to_le_bytes())),
+        ) {
+            *slot = byte;
+        }
+        bytes
+    }
+
+    /// The transport the master spoke on ended (its TCP connection closed, a framing error):
+    /// the session ends with it, calibration locked, any block download and DAQ list
+    /// abandoned. Nothing happens when no master was connected.
+    pub fn transport_lost(&mut self) -> Option<SessionEnd> {
+        if !self.connected {
+            return None;
+        }
+        self.end_session();
+        self.counters.transport_ends = self.counters.transport_ends.wrapping_add(1);
+        Some(SessionEnd::TransportLost)
+    }
+
+    /// Call every step with the ECU's microsecond clock: a session with no command for the
+    /// idle time-out ends (with DAQ running, it only loses its calibration unlock), and an
+    /// EV_SESSION_TERMINATED goes to `send` (best effort: `send` may refuse it).
+    pub fn poll(
+        &mut self,
+        now_us: u32,
+        send: &mut impl FnMut(&[u8]) -> bool,
+    ) -> Option<SessionEnd> {
+        if !self.connected || self.idle_handled {
+            return None;
+        }
+        let idle_us = u64::from(self.config.idle_timeout_ms) * 1_000;
+        if u64::from(now_us.wrapping_sub(self.last_command_us)) < idle_us {
+            return None;
+        }
+        self.idle_handled = true;
+        self.counters.idle_ends = self.counters.idle_ends.wrapping_add(1);
+        if self.daq.any_running() {
+            self.cal_locked = true;
+            self.unlock = Unlock::IDLE;
+            self.block = crate::transfer::Block::IDLE;
+            return Some(SessionEnd::IdleRelocked);
+        }
+        self.end_session();
+        let _sent = send(&[pid::EV, ev::SESSION_TERMINATED]);
+        Some(SessionEnd::Idle)
+    }
+
+    /// Disconnected, with nothing of the session left.
+    fn end_session(&mut self) {
+        self.reset_session();
+        self.connected = false;
+    }
+
     /// Handles one command packet: at most one response or error packet is written into
     /// `reply`, and its length returned; `None` means no answer (not connected, or the middle
     /// of a block download). `now_us` is the slave's microsecond clock (GET_DAQ_CLOCK).
@@ -134,6 +264,8 @@ impl<const LISTS: usize, const ODTS: usize, const ENTRIES: usize> Slave<LISTS, O
         if !self.connected && code != Some(cmd::CONNECT) {
             return None;
         }
+        self.last_command_us = now_us;
+        self.idle_handled = false;
         self.counters.commands = self.counters.commands.wrapping_add(1);
         let outcome = match code {
             Some(code) if packet.len() <= MAX_CTO => {
@@ -146,6 +278,12 @@ impl<const LISTS: usize, const ODTS: usize, const ENTRIES: usize> Slave<LISTS, O
             Ok(Answer::Silent) => return None,
             Err(fail) => {
                 self.counters.errors = self.counters.errors.wrapping_add(1);
+                self.last_refusal = LastRefusal {
+                    count: self.last_refusal.count.wrapping_add(1),
+                    command: code.unwrap_or(0),
+                    error: fail.code(),
+                    detail: fail.detail,
+                };
                 fail.packet
             }
         };
@@ -189,15 +327,14 @@ impl<const LISTS: usize, const ODTS: usize, const ENTRIES: usize> Slave<LISTS, O
             ]))),
             cmd::GET_ID => self.get_id(target, args),
             cmd::SET_REQUEST => self.set_request(target, args),
-            cmd::GET_SEED => self.get_seed(target, args),
-            cmd::UNLOCK => self.unlock(target, args),
+            cmd::GET_SEED => self.get_seed(target, args, now_us),
+            cmd::UNLOCK => self.unlock(target, args, now_us),
             cmd::SET_MTA => self.set_mta(args),
             cmd::UPLOAD => self.upload(target, args),
             cmd::SHORT_UPLOAD => self.short_upload(target, args),
             cmd::BUILD_CHECKSUM => self.build_checksum(target, args),
             cmd::DOWNLOAD => self.download(target, args),
             cmd::DOWNLOAD_NEXT => self.download_next(target, args),
-            cmd::SHORT_DOWNLOAD => self.short_download(target, args),
             cmd::SET_CAL_PAGE => self.set_cal_page(target, args),
             cmd::GET_CAL_PAGE => self.get_cal_page(target, args),
             cmd::GET_PAG_PROCESSOR_INFO => Ok(Answer::Reply(Packet::ok(&[1, 0]))),
@@ -250,6 +387,7 @@ impl<const LISTS: usize, const ODTS: usize, const ENTRIES: usize> Slave<LISTS, O
     }
 
     /// Everything a new session starts without: DAQ, MTA, pending transfers, unlocked state.
+    /// (The delay after wrong keys outlives sessions: reconnecting does not clear it.)
     fn reset_session(&mut self) {
         self.cal_locked = true;
         self.unlock = Unlock::IDLE;
@@ -284,7 +422,10 @@ impl<const LISTS: usize, const ODTS: usize, const ENTRIES: usize> Slave<LISTS, O
     /// ERR_ACCESS_LOCKED unless calibration was unlocked in this session.
     pub(crate) fn require_unlocked(&self) -> Result<(), Fail> {
         if self.cal_locked {
-            Err(Fail::new(err::ACCESS_LOCKED))
+            Err(Fail::because(
+                err::ACCESS_LOCKED,
+                Detail::of(reason::LOCKED, 0.0, 0.0),
+            ))
         } else {
             Ok(())
         }
@@ -299,21 +440,33 @@ impl<const LISTS: usize, const ODTS: usize, const ENTRIES: usize> Slave<LISTS, O
         self.require_unlocked()?;
         target
             .request_store()
-            .map_err(|refusal| Fail::new(refusal.code()))?;
+            .map_err(|refusal| Fail::refused(refusal, target))?;
         Ok(Answer::Reply(Packet::ok(&[])))
     }
 
     /// GET_SEED: a fresh seed for the calibration resource while it is locked; length 0 for a
-    /// resource that is not protected (DAQ, or calibration once unlocked).
-    fn get_seed(&mut self, target: &mut impl Target, args: Args<'_>) -> Outcome {
+    /// resource that is not protected (DAQ, or calibration once unlocked). After a wrong key,
+    /// ERR_RESOURCE_TEMPORARY_NOT_ACCESSIBLE until the delay has passed.
+    fn get_seed(&mut self, target: &mut impl Target, args: Args<'_>, now_us: u32) -> Outcome {
         let mode = args.u8(1)?;
         match mode {
             0 => {
                 let wanted = args.u8(2)?;
                 match wanted {
                     resource::CAL_PAG if self.cal_locked => {
+                        if let Some(after) = self.seed_after_us {
+                            let left_us = after.wrapping_sub(now_us);
+                            // Wrapping difference: "before `after`" is up to half the clock.
+                            if left_us > 0 && left_us < u32::MAX / 2 {
+                                return Err(Fail::because(
+                                    err::RESOURCE_TEMPORARY_NOT_ACCESSIBLE,
+                                    Detail::of(reason::TOO_SOON, left_us as f32 / 1e6, 0.0),
+                                ));
+                            }
+                            self.seed_after_us = None;
+                        }
                         let mut seed = [0u8; SEED_LEN];
-                        target.seed(&mut seed);
+                        target.seed(now_us, &mut seed);
                         self.unlock = Unlock {
                             seed,
                             seeded: true,
@@ -336,8 +489,8 @@ impl<const LISTS: usize, const ODTS: usize, const ENTRIES: usize> Slave<LISTS, O
 
     /// UNLOCK: collects the key (the first packet announces its total length, every packet the
     /// bytes still to come) and checks it against the seed once complete. A wrong key ends the
-    /// session, as the standard requires.
-    fn unlock(&mut self, target: &impl Target, args: Args<'_>) -> Outcome {
+    /// session, as the standard requires, and delays the next seed.
+    fn unlock(&mut self, target: &impl Target, args: Args<'_>, now_us: u32) -> Outcome {
         let remaining = usize::from(args.u8(1)?);
         if !self.unlock.seeded {
             return Err(Fail::new(err::SEQUENCE));
@@ -376,11 +529,19 @@ impl<const LISTS: usize, const ODTS: usize, const ENTRIES: usize> Slave<LISTS, O
         self.unlock = Unlock::IDLE;
         if valid {
             self.cal_locked = false;
+            self.wrong_keys_in_a_row = 0;
+            self.seed_after_us = None;
             Ok(Answer::Reply(Packet::ok(&[self.protection()])))
         } else {
-            self.reset_session();
-            self.connected = false;
-            Err(Fail::new(err::ACCESS_LOCKED))
+            self.end_session();
+            self.counters.wrong_keys = self.counters.wrong_keys.wrapping_add(1);
+            self.wrong_keys_in_a_row = self.wrong_keys_in_a_row.saturating_add(1);
+            let delay_us = self.config.unlock_delay_us(self.wrong_keys_in_a_row);
+            self.seed_after_us = Some(now_us.wrapping_add(delay_us));
+            Err(Fail::because(
+                err::ACCESS_LOCKED,
+                Detail::of(reason::WRONG_KEY, delay_us as f32 / 1e6, 0.0),
+            ))
         }
     }
 }

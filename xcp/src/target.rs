@@ -4,6 +4,7 @@
 //! else. So the wire can reach no memory the ECU did not choose to expose.
 
 use crate::protocol::err;
+use crate::refusal::Detail;
 
 /// Length of the seed [`Target::seed`] produces: it fits one classic CAN response
 /// (PID, length, seed).
@@ -74,8 +75,9 @@ pub trait Target {
     /// the working page restores the defaults); validated like [`Target::write`].
     fn copy_page(&mut self, from: u8, to: u8) -> Result<(), Refusal>;
 
-    /// Fills `out` with a fresh, unpredictable seed for unlocking calibration.
-    fn seed(&mut self, out: &mut [u8; SEED_LEN]);
+    /// Fills `out` with a fresh, unpredictable seed for unlocking calibration; `now_us` is the
+    /// request's time, which a generator may mix in ([`crate::seeds::SeedGenerator::fill`]).
+    fn seed(&mut self, now_us: u32, out: &mut [u8; SEED_LEN]);
 
     /// Whether `key` is the right answer to `seed`: the key algorithm lives in the target.
     fn key_is_valid(&self, seed: &[u8], key: &[u8]) -> bool;
@@ -89,5 +91,11 @@ pub trait Target {
     /// Whether a requested store has not completed yet (GET_STATUS's STORE_CAL_REQ bit).
     fn store_pending(&self) -> bool {
         false
+    }
+
+    /// Why the target's last refusal happened, in the numbers the ECU's description names
+    /// ([`crate::reason`]); asked right after a refusal, for the slave's last refusal.
+    fn explain(&self) -> Detail {
+        Detail::default()
     }
 }

@@ -2,9 +2,11 @@
 //! wire bytes goes through here, so a short packet becomes ERR_CMD_SYNTAX instead of a panic.
 
 use crate::protocol::{MAX_CTO, err, pid};
+use crate::refusal::Detail;
+use crate::target::{Refusal, Target};
 
 /// What a command handler answers.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) enum Answer {
     /// A positive response packet.
     Reply(Packet),
@@ -12,10 +14,12 @@ pub(crate) enum Answer {
     Silent,
 }
 
-/// An error packet to send: the code and the bytes that follow it.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+/// An error packet to send: the code and the bytes that follow it, and why (the detail the
+/// slave keeps as the last refusal; it is not on the wire).
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct Fail {
     pub(crate) packet: Packet,
+    pub(crate) detail: Detail,
 }
 
 impl Fail {
@@ -24,7 +28,28 @@ impl Fail {
         let mut packet = Packet::empty();
         packet.push(pid::ERR);
         packet.push(code);
-        Fail { packet }
+        Fail {
+            packet,
+            detail: Detail::default(),
+        }
+    }
+
+    /// An error packet with just the code, and why.
+    pub(crate) fn because(code: u8, detail: Detail) -> Self {
+        Fail {
+            detail,
+            ..Self::new(code)
+        }
+    }
+
+    /// The target refused: its code, and its own explanation.
+    pub(crate) fn refused(refusal: Refusal, target: &impl Target) -> Self {
+        Self::because(refusal.code(), target.explain())
+    }
+
+    /// The XCP error code.
+    pub(crate) fn code(&self) -> u8 {
+        self.packet.bytes().get(1).copied().unwrap_or(0)
     }
 
     /// An error packet with one more byte (DOWNLOAD_NEXT's expected element count).

@@ -15,6 +15,7 @@ pub mod bench;
 pub mod sensors;
 pub mod state;
 pub mod store;
+pub mod why;
 
 pub use aer::calibration::Calibration;
 pub use bench::{BenchPoint, BenchRecorder, BenchSample, CALIBRATION_SAMPLES, ShockEnd};

@@ -8,9 +8,10 @@
 //! The control step copies [`CalibrationState::active`] whole, so it never sees half a change.
 
 use super::store::{Startup, crc32};
-use super::{Calibration, SensorCalibration};
-use aer::calibration::{PAGE_LEN, PARAMETERS, VehicleState};
+use super::{Calibration, SensorCalibration, why};
+use aer::calibration::{ChangeWhen, PAGE_LEN, PARAMETERS, VehicleState};
 use aer::can::{CcmCalibration, CcmCalibrationCcmCalPage, CcmCalibrationCcmCalStartup};
+use aer_xcp::Detail;
 
 /// The two pages of the calibration segment (XCP page numbers).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -64,6 +65,7 @@ pub struct CalibrationState {
     active_crc: u32,
     changes: u8,
     refusals: u8,
+    why: Detail,
     xcp_connected: bool,
     xcp_unlocked: bool,
 }
@@ -83,6 +85,7 @@ impl CalibrationState {
             active_crc: crc,
             changes: 0,
             refusals: 0,
+            why: Detail::default(),
             xcp_connected: false,
             xcp_unlocked: false,
         }
@@ -128,7 +131,7 @@ impl CalibrationState {
     ) -> Result<(), Refused> {
         let mut candidate = self.working;
         let Some(target) = candidate.get_mut(offset..offset.saturating_add(data.len())) else {
-            return self.refuse(Refused::NotMapped);
+            return self.refuse(Refused::NotMapped, why::NOT_MAPPED);
         };
         target.copy_from_slice(data);
         self.commit(candidate, state)
@@ -146,8 +149,8 @@ impl CalibrationState {
             return Ok(());
         }
         let (from, to) = (*self.page(self.ecu_page), *self.page(page));
-        if let Err(refused) = allowed(&from, &to, state) {
-            return self.refuse(refused);
+        if let Err((index, change)) = allowed(&from, &to, state) {
+            return self.refuse(Refused::NotNow, why::not_now(index, change));
         }
         self.ecu_page = page;
         self.active_crc = crc32(self.page(page));
@@ -182,16 +185,19 @@ impl CalibrationState {
     }
 
     fn commit(&mut self, candidate: [u8; PAGE_LEN], state: VehicleState) -> Result<(), Refused> {
-        let Ok(calibration) = Calibration::from_page(&candidate) else {
-            return self.refuse(Refused::OutOfRange);
+        let calibration = match Calibration::from_page(&candidate) {
+            Ok(calibration) => calibration,
+            Err(error) => {
+                return self.refuse(Refused::OutOfRange, why::limits(&error, &candidate));
+            }
         };
-        if SensorCalibration::of(&calibration).check().is_err() {
-            return self.refuse(Refused::OutOfRange);
+        if let Err(error) = SensorCalibration::of(&calibration).check() {
+            return self.refuse(Refused::OutOfRange, why::sensors(&error));
         }
         // Changing the working page changes the car only while the car runs on it.
         if self.ecu_page == Page::Working {
-            if let Err(refused) = allowed(&self.working, &candidate, state) {
-                return self.refuse(refused);
+            if let Err((index, change)) = allowed(&self.working, &candidate, state) {
+                return self.refuse(Refused::NotNow, why::not_now(index, change));
             }
         }
         if candidate != self.working {
@@ -205,18 +211,30 @@ impl CalibrationState {
         Ok(())
     }
 
-    fn refuse(&mut self, refused: Refused) -> Result<(), Refused> {
+    fn refuse(&mut self, refused: Refused, why: Detail) -> Result<(), Refused> {
         self.refusals = self.refusals.wrapping_add(1);
+        self.why = why;
         Err(refused)
+    }
+
+    /// Why the last change was refused: the parameter, element, value and limit
+    /// ([`why`]).
+    pub fn last_refusal(&self) -> Detail {
+        self.why
     }
 }
 
-/// Whether every parameter that differs between `from` and `to` may change in `state`.
-fn allowed(from: &[u8; PAGE_LEN], to: &[u8; PAGE_LEN], state: VehicleState) -> Result<(), Refused> {
-    for parameter in &PARAMETERS {
+/// Whether every parameter that differs between `from` and `to` may change in `state`; the
+/// first that may not, by index, and its condition.
+fn allowed(
+    from: &[u8; PAGE_LEN],
+    to: &[u8; PAGE_LEN],
+    state: VehicleState,
+) -> Result<(), (usize, ChangeWhen)> {
+    for (index, parameter) in PARAMETERS.iter().enumerate() {
         let range = parameter.offset..parameter.offset + parameter.len();
         if from.get(range.clone()) != to.get(range) && !parameter.change.allows(state) {
-            return Err(Refused::NotNow);
+            return Err((index, parameter.change));
         }
     }
     Ok(())

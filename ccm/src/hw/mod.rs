@@ -63,9 +63,9 @@ pub struct Ccm {
     pub reset_cause: ResetCause,
     /// The USB serial console, if the device started (the images run without it).
     pub console: Option<UsbConsole>,
-    /// 64 bits from the TRNG, to start the XCP seed generator (0 if the TRNG gave nothing
-    /// within its bound: the seeds are then predictable, the key still needs the secret).
-    pub entropy: u64,
+    /// 256 bits from the TRNG, to start the XCP seed generator; `None` if the TRNG gave
+    /// nothing within its bound (calibration then stays locked: seeds would be predictable).
+    pub entropy: Option<[u8; 32]>,
 }
 
 /// Start-up failed (a pin on the wrong port, a PWM period that does not fit): the image
@@ -168,7 +168,7 @@ pub fn start(
     start_watchdog(&wdog);
 
     let console = UsbConsole::new(usb, usb_memory, product).ok();
-    let entropy = random_u64(&mut trng);
+    let entropy = random_bytes(&mut trng);
     Ok(Ccm {
         brake_light,
         led,
@@ -192,18 +192,22 @@ pub fn start(
     })
 }
 
-/// Two words from the TRNG, each polled a bounded number of times (its first entropy takes a
-/// few milliseconds after reset).
-fn random_u64(trng: &mut hal::trng::Trng) -> u64 {
+/// Eight words from the TRNG, each polled a bounded number of times (its first entropy takes
+/// a few milliseconds after reset); `None` if any word did not come or came with an error.
+fn random_bytes(trng: &mut hal::trng::Trng) -> Option<[u8; 32]> {
     let mut word = || {
         for _ in 0..2_000_000u32 {
             if let core::task::Poll::Ready(result) = trng.next_u32() {
-                return result.unwrap_or(0);
+                return result.ok();
             }
         }
-        0
+        None
     };
-    (u64::from(word()) << 32) | u64::from(word())
+    let mut bytes = [0u8; 32];
+    for chunk in bytes.chunks_exact_mut(4) {
+        chunk.copy_from_slice(&word()?.to_le_bytes());
+    }
+    Some(bytes)
 }
 
 /// WDOG1 with a 1 s timeout: WT = 1 (0.5 s steps, plus one), enabled. The power-down counter

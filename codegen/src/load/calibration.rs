@@ -59,12 +59,17 @@ pub(crate) enum DefaultSpec {
     Many(Vec<f64>),
 }
 
+/// A curve's input: the points it is stored at (tunable, in the page after the curve), their
+/// limits, and the internal value the firmware looks the curve up with.
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub(crate) struct AxisSpec {
     pub label: String,
     pub unit: String,
     pub points: Spanned<Vec<f64>>,
+    pub min: Spanned<f64>,
+    pub max: Spanned<f64>,
+    pub input: Spanned<String>,
 }
 
 /// A controller's internal value a tuner samples (always f32).
@@ -93,6 +98,9 @@ pub(crate) struct XcpSpec {
     pub max_daq: Spanned<f64>,
     pub odt_entries: Spanned<f64>,
     pub max_odt_entry_size: Spanned<f64>,
+    pub idle_timeout_s: Spanned<f64>,
+    pub unlock_delay_s: Spanned<f64>,
+    pub unlock_delay_max_s: Spanned<f64>,
     pub events: Spanned<Vec<Spanned<EventSpec>>>,
 }
 

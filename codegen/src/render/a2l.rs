@@ -9,6 +9,9 @@
 
 use std::collections::HashSet;
 
+use aer_xcp::protocol::{cmd, err};
+use aer_xcp::status::{FIELDS, Kind, Names};
+use aer_xcp::{Detail, reason};
 use askama::Template;
 
 use crate::model::{
@@ -24,6 +27,12 @@ pub(crate) const TELEMETRY_ADDRESS: u32 = 0x0002_0000;
 pub(crate) const INTERNALS_ADDRESS: u32 = 0x0003_0000;
 /// Where the EPK's ASCII bytes lie.
 pub(crate) const EPK_ADDRESS: u32 = 0x0004_0000;
+/// Where the XCP slave's own numbers lie: its last refusal and its counters
+/// (`aer_xcp::status`).
+pub(crate) const XCP_STATUS_ADDRESS: u32 = 0x0005_0000;
+
+/// Bytes of the XCP slave's block (`aer_xcp::status`).
+pub(crate) const XCP_STATUS_LEN: u32 = aer_xcp::status::STATUS_LEN as u32;
 
 /// Bytes of a command/response packet (CTO) and of a DAQ packet (DTO): one classic CAN frame.
 pub(crate) const MAX_CTO: u8 = 8;
@@ -49,7 +58,7 @@ pub(crate) const TIMESTAMP_TICKS: u16 = 1;
 /// programming, which the slave does not offer).
 pub(crate) const TIMEOUTS_MS: [u16; 7] = [2000; 7];
 /// The optional commands the slave implements (beyond CONNECT, DISCONNECT, GET_STATUS, SYNCH).
-pub(crate) const OPTIONAL_CMDS: [&str; 33] = [
+pub(crate) const OPTIONAL_CMDS: [&str; 32] = [
     "GET_COMM_MODE_INFO",
     "GET_ID",
     "SET_REQUEST",
@@ -61,7 +70,6 @@ pub(crate) const OPTIONAL_CMDS: [&str; 33] = [
     "BUILD_CHECKSUM",
     "DOWNLOAD",
     "DOWNLOAD_NEXT",
-    "SHORT_DOWNLOAD",
     "SET_CAL_PAGE",
     "GET_CAL_PAGE",
     "COPY_CAL_PAGE",
@@ -118,6 +126,11 @@ pub(crate) struct A2lTemplate<'a> {
     pub telemetry_len: usize,
     pub internals_address: String,
     pub internals_len: usize,
+    pub xcp_status_address: String,
+    pub xcp_status_len: u32,
+    pub idle_timeout_s: u32,
+    pub unlock_delay_s: u32,
+    pub unlock_delay_max_s: u32,
     pub timeouts: String,
     pub max_cto: u8,
     pub max_dto: u16,
@@ -136,6 +149,7 @@ pub(crate) struct A2lTemplate<'a> {
     pub bit_rate: u32,
     pub tcp_port: u16,
     pub characteristics: Vec<CharacteristicView>,
+    pub axis_pts: Vec<AxisPtsView>,
     pub measurements: Vec<MeasurementView>,
     pub conversions: Vec<ConversionView>,
     pub tables: Vec<TableView>,
@@ -167,13 +181,27 @@ pub(crate) struct CharacteristicView {
     pub axis: Option<AxisView>,
 }
 
-/// A curve's fixed axis (FIX_AXIS, the points in FIX_AXIS_PAR_LIST).
+/// A curve's axis: its points in memory (COM_AXIS, AXIS_PTS_REF), its input quantity.
 pub(crate) struct AxisView {
+    pub input: String,
     pub conversion: String,
     pub count: usize,
     pub lower: String,
     pub upper: String,
-    pub points: String,
+    pub axis_pts: String,
+}
+
+/// A curve's tunable axis points (AXIS_PTS), strictly increasing.
+pub(crate) struct AxisPtsView {
+    pub name: String,
+    pub description: String,
+    pub address: String,
+    pub input: String,
+    pub layout: String,
+    pub conversion: String,
+    pub count: usize,
+    pub lower: String,
+    pub upper: String,
 }
 
 pub(crate) struct MeasurementView {
@@ -207,6 +235,8 @@ pub(crate) struct TableView {
 pub(crate) struct LayoutView {
     pub name: String,
     pub datatype: &'static str,
+    /// Axis points (AXIS_PTS_X) rather than values (FNC_VALUES).
+    pub axis: bool,
 }
 
 pub(crate) struct GroupView {
@@ -320,6 +350,27 @@ impl Conversions {
         name
     }
 
+    /// A table of `entries` (raw value, name) called `vtab.<ident>`, its conversion
+    /// `cm.<ident>`.
+    fn named(&mut self, ident: &str, description: &str, entries: Vec<(i128, String)>) -> String {
+        let name = self.fresh(&format!("cm.{ident}"));
+        let table = self.fresh(&format!("vtab.{ident}"));
+        self.tables.push(TableView {
+            name: table.clone(),
+            description: text(description),
+            entries,
+        });
+        self.views.push(ConversionView {
+            name: name.clone(),
+            description: format!("{}, named values", text(description)),
+            format: "%12.0".to_owned(),
+            unit: String::new(),
+            coeffs: None,
+            table: Some(table),
+        });
+        name
+    }
+
     /// The value names of `db.enums[index]`.
     fn table(&mut self, db: &Database, index: usize) -> String {
         if let Some((_, name)) = self.enums.iter().find(|(i, _)| *i == index) {
@@ -389,6 +440,25 @@ fn layout_name(element: ElementType) -> String {
     format!("rl.{}", element.rust())
 }
 
+fn axis_layout_name(element: ElementType) -> String {
+    format!("rl.axis.{}", element.rust())
+}
+
+/// The parameter holding a curve's axis points, as an AXIS_PTS.
+fn axis_pts(p: &Parameter, input: &str, conversions: &mut Conversions) -> AxisPtsView {
+    AxisPtsView {
+        name: format!("calibration.{}", p.name),
+        description: text(&p.description),
+        address: hex(CALIBRATION_ADDRESS + offset_u32(p.offset)),
+        input: format!("internals.{input}"),
+        layout: axis_layout_name(p.element),
+        conversion: conversions.linear(1.0, 0.0, &p.unit, FLOAT_DECIMALS),
+        count: p.defaults.len(),
+        lower: num(p.min),
+        upper: num(p.max),
+    }
+}
+
 fn characteristic(p: &Parameter, conversions: &mut Conversions) -> CharacteristicView {
     let decimals = if p.element.is_integer() {
         0
@@ -397,16 +467,12 @@ fn characteristic(p: &Parameter, conversions: &mut Conversions) -> Characteristi
     };
     let conversion = conversions.linear(1.0, 0.0, &p.unit, decimals);
     let axis = p.axis.as_ref().map(|a| AxisView {
+        input: format!("internals.{}", a.input),
         conversion: conversions.linear(1.0, 0.0, &a.unit, FLOAT_DECIMALS),
         count: a.points.len(),
-        lower: num(a.points.first().copied().unwrap_or_default()),
-        upper: num(a.points.last().copied().unwrap_or_default()),
-        points: a
-            .points
-            .iter()
-            .map(|v| num(*v))
-            .collect::<Vec<_>>()
-            .join(" "),
+        lower: num(a.min),
+        upper: num(a.max),
+        axis_pts: format!("calibration.{}", a.parameter),
     });
     let kind = match (p.scalar, &axis) {
         (true, _) => "VALUE",
@@ -607,12 +673,78 @@ fn groups(c: &Calibration, t: &Telemetry) -> Vec<GroupView> {
         .iter()
         .map(|i| format!("internals.{}", i.name))
         .collect();
+    let mut xcp = group(
+        "Xcp".to_owned(),
+        "The XCP slave: the last refusal and why, what DAQ lost".to_owned(),
+    );
+    xcp.root = true;
+    xcp.measurements = aer_xcp::status::FIELDS
+        .iter()
+        .map(|field| format!("xcp.{}", field.name))
+        .collect();
     let mut all = vec![calibration];
     all.extend(by_change);
     all.push(telemetry);
     all.extend(by_group);
     all.push(internals);
+    all.push(xcp);
     all
+}
+
+/// The XCP slave's block (its last refusal and counters), with the tables that name commands,
+/// error codes, reasons and parameters.
+fn xcp_status_measurements(c: &Calibration, conversions: &mut Conversions) -> Vec<MeasurementView> {
+    let entries = |list: &[(u8, &str)]| {
+        list.iter()
+            .map(|(value, name)| (i128::from(*value), text(name)))
+            .collect::<Vec<_>>()
+    };
+    let command = conversions.named("xcp.command", "XCP commands", entries(&cmd::NAMES));
+    let error = conversions.named("xcp.error", "XCP error codes", entries(&err::NAMES));
+    let reason = conversions.named(
+        "xcp.reason",
+        "Why a command was refused",
+        entries(&reason::ALL),
+    );
+    let mut items: Vec<(i128, String)> = c
+        .parameters
+        .iter()
+        .enumerate()
+        .map(|(index, p)| (index as i128, p.name.clone()))
+        .collect();
+    items.push((i128::from(Detail::NO_ITEM), "none".to_owned()));
+    let item = conversions.named("xcp.item", "Calibration parameters by index", items);
+    let count = conversions.linear(1.0, 0.0, "", 0);
+    let plain = conversions.linear(1.0, 0.0, "", FLOAT_DECIMALS);
+    FIELDS
+        .iter()
+        .map(|field| {
+            let conversion = match (field.names, field.kind) {
+                (Names::Command, _) => command.clone(),
+                (Names::Error, _) => error.clone(),
+                (Names::Reason, _) => reason.clone(),
+                (Names::Item, _) => item.clone(),
+                (Names::None, Kind::F32) => plain.clone(),
+                (Names::None, _) => count.clone(),
+            };
+            let (datatype, lower, upper) = match field.kind {
+                Kind::U8 => ("UBYTE", 0.0, f64::from(u8::MAX)),
+                Kind::U16 => ("UWORD", 0.0, f64::from(u16::MAX)),
+                Kind::U32 => ("ULONG", 0.0, f64::from(u32::MAX)),
+                Kind::F32 => ("FLOAT32_IEEE", -f64::from(f32::MAX), f64::from(f32::MAX)),
+            };
+            MeasurementView {
+                name: format!("xcp.{}", field.name),
+                description: field.description.to_owned(),
+                datatype,
+                conversion,
+                lower: num(lower),
+                upper: num(upper),
+                address: hex(XCP_STATUS_ADDRESS + field.offset),
+                bit_mask: None,
+            }
+        })
+        .collect()
 }
 
 pub(crate) fn render(
@@ -625,7 +757,17 @@ pub(crate) fn render(
     let characteristics: Vec<CharacteristicView> = c
         .parameters
         .iter()
+        .filter(|p| p.axis_of.is_none())
         .map(|p| characteristic(p, &mut conversions))
+        .collect();
+    let axis_pts: Vec<AxisPtsView> = c
+        .parameters
+        .iter()
+        .filter_map(|curve| {
+            let axis = curve.axis.as_ref()?;
+            let points = c.parameters.iter().find(|p| p.name == axis.parameter)?;
+            Some(axis_pts(points, &axis.input, &mut conversions))
+        })
         .collect();
     let mut measurements = telemetry_measurements(db, t, &mut conversions);
     for (index, i) in c.internals.iter().enumerate() {
@@ -640,13 +782,20 @@ pub(crate) fn render(
             bit_mask: None,
         });
     }
+    measurements.extend(xcp_status_measurements(c, &mut conversions));
     let mut layouts: Vec<LayoutView> = Vec::new();
     for p in &c.parameters {
-        let name = layout_name(p.element);
+        let axis = p.axis_of.is_some();
+        let name = if axis {
+            axis_layout_name(p.element)
+        } else {
+            layout_name(p.element)
+        };
         if !layouts.iter().any(|l| l.name == name) {
             layouts.push(LayoutView {
                 name,
                 datatype: element_datatype(p.element),
+                axis,
             });
         }
     }
@@ -663,6 +812,11 @@ pub(crate) fn render(
         telemetry_len: t.len,
         internals_address: hex(INTERNALS_ADDRESS),
         internals_len: c.internals_len(),
+        xcp_status_address: hex(XCP_STATUS_ADDRESS),
+        xcp_status_len: XCP_STATUS_LEN,
+        idle_timeout_s: x.idle_timeout_ms / 1000,
+        unlock_delay_s: x.unlock_delay_ms / 1000,
+        unlock_delay_max_s: x.unlock_delay_max_ms / 1000,
         timeouts: TIMEOUTS_MS
             .iter()
             .map(u16::to_string)
@@ -699,6 +853,7 @@ pub(crate) fn render(
         bit_rate: x.bit_rate,
         tcp_port: x.tcp_port,
         characteristics,
+        axis_pts,
         measurements,
         conversions: conversions.views,
         tables: conversions.tables,

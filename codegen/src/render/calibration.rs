@@ -41,6 +41,8 @@ pub(crate) struct XcpView {
     pub telemetry_address: String,
     pub internals_address: String,
     pub epk_address: String,
+    pub xcp_status_address: String,
+    pub xcp_status_len: u32,
     pub epk: String,
     pub command_message: String,
     pub response_message: String,
@@ -64,6 +66,11 @@ pub(crate) struct XcpView {
     pub max_daq: u16,
     pub odt_entries: u16,
     pub max_odt_entry_size: u8,
+    pub idle_timeout_ms: u32,
+    pub idle_timeout: String,
+    pub unlock_delay_ms: u32,
+    pub unlock_delay_max_ms: u32,
+    pub unlock_delays: String,
     pub events: Vec<EventView>,
 }
 
@@ -87,8 +94,6 @@ pub(crate) struct ElementView {
 
 pub(crate) struct ParameterView {
     pub name: String,
-    /// The `PARAMETERS` entry's constant prefix (`LAUNCH_SLIP_TARGET`).
-    pub upper: String,
     pub doc: Vec<String>,
     pub label: String,
     pub group: String,
@@ -109,12 +114,15 @@ pub(crate) struct ParameterView {
     pub increasing: bool,
     pub elements: Vec<String>,
     pub axis: Option<AxisView>,
+    pub axis_of: Option<String>,
 }
 
 pub(crate) struct AxisView {
     pub label: String,
     pub unit: String,
     pub points: String,
+    pub parameter: String,
+    pub input: String,
 }
 
 fn element_view(element: ElementType) -> ElementView {
@@ -159,6 +167,15 @@ fn grouped(value: u32) -> String {
 }
 
 /// A period for people: whole milliseconds in ms, else microseconds.
+/// A duration in milliseconds for people: whole seconds as seconds.
+fn duration_ms(ms: u32) -> String {
+    if ms % 1000 == 0 {
+        format!("{} s", ms / 1000)
+    } else {
+        format!("{ms} ms")
+    }
+}
+
 fn period(period_us: u32) -> String {
     if period_us % 1000 == 0 {
         format!("{} ms", period_us / 1000)
@@ -197,6 +214,8 @@ fn xcp_view(x: &Xcp, epk: &Epk) -> XcpView {
         telemetry_address: address(a2l::TELEMETRY_ADDRESS),
         internals_address: address(a2l::INTERNALS_ADDRESS),
         epk_address: address(a2l::EPK_ADDRESS),
+        xcp_status_address: address(a2l::XCP_STATUS_ADDRESS),
+        xcp_status_len: a2l::XCP_STATUS_LEN,
         epk: epk.text.clone(),
         command_message: x.command_message.clone(),
         response_message: x.response_message.clone(),
@@ -220,6 +239,15 @@ fn xcp_view(x: &Xcp, epk: &Epk) -> XcpView {
         max_daq: x.max_daq,
         odt_entries: x.odt_entries,
         max_odt_entry_size: x.max_odt_entry_size,
+        idle_timeout_ms: x.idle_timeout_ms,
+        idle_timeout: duration_ms(x.idle_timeout_ms),
+        unlock_delay_ms: x.unlock_delay_ms,
+        unlock_delay_max_ms: x.unlock_delay_max_ms,
+        unlock_delays: format!(
+            "{} after a wrong key, doubling with each one in a row up to {}",
+            duration_ms(x.unlock_delay_ms),
+            duration_ms(x.unlock_delay_max_ms)
+        ),
         events: x
             .events
             .iter()
@@ -291,10 +319,11 @@ fn view(p: &Parameter) -> ParameterView {
     }
     if let Some(a) = &p.axis {
         summary.push_str(&format!(
-            "; over {} at {} {}",
+            "; over {} ({}, tunable: `{}`, by default {})",
             a.label.to_lowercase(),
+            a.unit,
+            a.parameter,
             numbers(&a.points),
-            a.unit
         ));
     }
     if p.increasing {
@@ -306,7 +335,6 @@ fn view(p: &Parameter) -> ParameterView {
     doc.extend(wrap(&summary, DOC_WIDTH));
     ParameterView {
         name: p.name.clone(),
-        upper: p.name.to_uppercase(),
         doc,
         label: p.label.clone(),
         group: p.group.clone(),
@@ -341,7 +369,10 @@ fn view(p: &Parameter) -> ParameterView {
             label: a.label.clone(),
             unit: a.unit.clone(),
             points: list(ElementType::F32, &a.points),
+            parameter: a.parameter.clone(),
+            input: a.input.clone(),
         }),
+        axis_of: p.axis_of.clone(),
     }
 }
 
@@ -422,9 +453,10 @@ fn row(p: &Parameter) -> RowDoc {
     }
     if let Some(axis) = &p.axis {
         description.push_str(&format!(
-            " Over {} ({}) at {}.",
+            " Over {} ({}) at the points `{}` holds (by default {}).",
             axis.label,
             axis.unit,
+            axis.parameter,
             numbers(&axis.points)
         ));
     }

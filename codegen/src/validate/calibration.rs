@@ -8,31 +8,18 @@ use serde_saphyr::Spanned;
 
 use crate::diagnostic::{Code, Diagnostic, Diagnostics, Reporter};
 use crate::load::calibration::{
-    AxisSpec, DefaultSpec, EventSpec, InternalSpec, LoadedCalibration, ParameterSpec, XcpSpec,
+    AxisSpec, DefaultSpec, InternalSpec, LoadedCalibration, ParameterSpec,
 };
-use crate::model::{
-    Axis, Calibration, ChangeWhen, Database, ElementType, Internal, Message, Parameter, Xcp,
-    XcpEvent,
-};
+use crate::model::{Axis, Calibration, ChangeWhen, Database, ElementType, Internal, Parameter};
 use crate::naming::{is_keyword, snake};
 
 /// A curve or list longer than this is not a tuning parameter (and would not fit one XCP
 /// transfer the master can check at a glance).
 const MAX_ELEMENTS: usize = 32;
 
-fn line_of<T>(s: &Spanned<T>) -> usize {
+pub(crate) fn line_of<T>(s: &Spanned<T>) -> usize {
     usize::try_from(s.referenced.line()).unwrap_or(0)
 }
-
-/// Bytes of an XCP on CAN frame: the slave's messages always carry 8 (MAX_DLC_REQUIRED).
-const XCP_FRAME_LEN: usize = 8;
-
-/// The largest ODT entry a DAQ packet carries: MAX_DTO (8) less the absolute PID byte.
-const MAX_ODT_ENTRY_SIZE: f64 = 7.0;
-
-/// DAQ lists the absolute identification field can tell apart: PIDs 0..=0xFB, one ODT each
-/// at least.
-const MAX_DAQ_LISTS: f64 = 252.0;
 
 /// Validates the calibration schema and lays out its page; the XCP messages it names are
 /// looked up in `db`.
@@ -52,16 +39,36 @@ pub(crate) fn validate(
             "use lower-case letters, digits and underscores (`ccm`)",
         );
     }
+    let internals = check_internals(&mut r, &loaded.file.internals);
     let mut seen = HashSet::new();
     let mut parameters = Vec::new();
     let mut offset: usize = 0;
     for parameter in &loaded.file.parameters {
-        if let Some(mut checked) = check_parameter(&mut r, parameter, &mut seen) {
-            let align = checked.element.size();
+        let Some(checked) = check_parameter(&mut r, parameter, &mut seen, &internals) else {
+            continue;
+        };
+        // A curve's axis points follow it in the page, as a parameter of their own.
+        let axis = checked
+            .axis
+            .as_ref()
+            .map(|axis| axis_parameter(&checked, axis));
+        for mut placed in core::iter::once(checked).chain(axis) {
+            if !seen.insert(placed.name.clone()) && placed.axis_of.is_some() {
+                r.report(
+                    Code::ParameterName,
+                    line_of(parameter),
+                    format!(
+                        "`{}` is taken: a curve's axis points take that name",
+                        placed.name
+                    ),
+                    "rename the parameter that has it",
+                );
+            }
+            let align = placed.element.size();
             offset = offset.div_ceil(align) * align;
-            checked.offset = offset;
-            offset += checked.len();
-            parameters.push(checked);
+            placed.offset = offset;
+            offset += placed.len();
+            parameters.push(placed);
         }
     }
     if loaded.file.parameters.is_empty() {
@@ -72,8 +79,7 @@ pub(crate) fn validate(
             "declare the tuned numbers under `parameters:`",
         );
     }
-    let internals = check_internals(&mut r, &loaded.file.internals);
-    let xcp = check_xcp(&mut r, &loaded.file.xcp, db);
+    let xcp = super::xcp::check(&mut r, &loaded.file.xcp, db);
     if r.has_errors() {
         return Err(Diagnostics(r.diagnostics));
     }
@@ -96,6 +102,7 @@ fn check_parameter(
     r: &mut Reporter<'_>,
     spanned: &Spanned<ParameterSpec>,
     seen: &mut HashSet<String>,
+    internals: &[Internal],
 ) -> Option<Parameter> {
     let p = &spanned.value;
     let line = line_of(spanned);
@@ -113,7 +120,10 @@ fn check_parameter(
         DefaultSpec::One(value) => (true, vec![*value]),
         DefaultSpec::Many(values) => (false, values.clone()),
     };
-    let axis = p.axis.as_ref().and_then(|axis| check_axis(r, name, axis));
+    let axis = p
+        .axis
+        .as_ref()
+        .and_then(|axis| check_axis(r, name, axis, internals));
     if p.axis.is_some() && element != ElementType::F32 {
         r.report(
             Code::ParameterShape,
@@ -146,9 +156,39 @@ fn check_parameter(
             .map(|e| e.value.clone())
             .unwrap_or_default(),
         axis,
+        axis_of: None,
         change,
         offset: 0,
     })
+}
+
+/// The parameter holding `curve`'s axis points: tunable under the curve's change condition,
+/// within the axis's limits, strictly increasing (the firmware's lookup needs it).
+fn axis_parameter(curve: &Parameter, axis: &Axis) -> Parameter {
+    Parameter {
+        name: axis.parameter.clone(),
+        label: format!("{} axis", curve.label),
+        group: curve.group.clone(),
+        description: format!(
+            "The {} points {}'s values apply at, strictly increasing (the curve is interpolated between them and held at the ends).",
+            axis.label.to_lowercase(),
+            curve.label.to_lowercase()
+        ),
+        unit: axis.unit.clone(),
+        element: ElementType::F32,
+        scalar: false,
+        defaults: axis.points.clone(),
+        min: axis.min,
+        max: axis.max,
+        increasing: true,
+        elements: (1..=axis.points.len())
+            .map(|n| format!("point {n}"))
+            .collect(),
+        axis: None,
+        axis_of: Some(curve.name.clone()),
+        change: curve.change,
+        offset: 0,
+    }
 }
 
 fn check_name(r: &mut Reporter<'_>, name: &Spanned<String>, seen: &mut HashSet<String>) -> bool {
@@ -285,27 +325,76 @@ fn limits(r: &mut Reporter<'_>, p: &ParameterSpec, element: ElementType) -> Opti
     ok.then_some((min, max))
 }
 
-fn check_axis(r: &mut Reporter<'_>, name: &str, axis: &Spanned<AxisSpec>) -> Option<Axis> {
+fn check_axis(
+    r: &mut Reporter<'_>,
+    name: &str,
+    axis: &Spanned<AxisSpec>,
+    internals: &[Internal],
+) -> Option<Axis> {
+    let spec = &axis.value;
+    let (min, max) = (spec.min.value, spec.max.value);
+    let f32_range = -f64::from(f32::MAX)..=f64::from(f32::MAX);
+    if !(f32_range.contains(&min) && f32_range.contains(&max) && min < max) {
+        r.report(
+            Code::ParameterLimits,
+            line_of(&spec.max),
+            format!("the axis of `{name}` has limits {min}..{max}"),
+            "give finite f32 limits, min below max, that the tuned points must keep",
+        );
+        return None;
+    }
+    match internals.iter().find(|i| i.name == spec.input.value) {
+        None => {
+            r.report(
+                Code::ParameterShape,
+                line_of(&spec.input),
+                format!(
+                    "the axis of `{name}` names input `{}`, which is not an internal",
+                    spec.input.value
+                ),
+                "name the internal the firmware looks the curve up with (declare it under `internals:`)",
+            );
+            return None;
+        }
+        Some(input) if input.unit != spec.unit => {
+            r.report(
+                Code::ParameterShape,
+                line_of(&spec.input),
+                format!(
+                    "the axis of `{name}` is in {} but its input `{}` in {}",
+                    spec.unit, input.name, input.unit
+                ),
+                "give the axis its input's unit",
+            );
+            return None;
+        }
+        Some(_) => {}
+    }
     let points = &axis.value.points.value;
     let increasing = points.windows(2).all(|w| matches!(w, [a, b] if a < b));
     let finite = points
         .iter()
         .all(|p| p.is_finite() && p.abs() <= f64::from(f32::MAX));
-    if points.len() < 2 || points.len() > MAX_ELEMENTS || !increasing || !finite {
+    let within = points.iter().all(|p| (min..=max).contains(p));
+    if points.len() < 2 || points.len() > MAX_ELEMENTS || !increasing || !finite || !within {
         r.report(
             Code::ParameterShape,
             line_of(&axis.value.points),
             format!(
-                "the axis of `{name}` is not 2 to {MAX_ELEMENTS} finite, strictly increasing points"
+                "the axis of `{name}` is not 2 to {MAX_ELEMENTS} strictly increasing points within {min}..={max}"
             ),
             "list the input points in increasing order, each once",
         );
         return None;
     }
     Some(Axis {
-        label: axis.value.label.clone(),
-        unit: axis.value.unit.clone(),
+        label: spec.label.clone(),
+        unit: spec.unit.clone(),
         points: points.clone(),
+        parameter: format!("{name}_axis"),
+        input: spec.input.value.clone(),
+        min,
+        max,
     })
 }
 
@@ -429,7 +518,7 @@ fn is_snake_identifier(text: &str) -> bool {
 
 /// A name for a generated item, reported under `code` when it is not snake_case, a keyword
 /// or already taken; `what` says what it names.
-fn check_item_name(
+pub(crate) fn check_item_name(
     r: &mut Reporter<'_>,
     code: Code,
     what: &str,
@@ -532,237 +621,4 @@ fn check_internals(
         }
     }
     checked
-}
-
-/// The XCP slave's settings: its messages in `db`, its limits and its events.
-fn check_xcp(r: &mut Reporter<'_>, xcp: &Spanned<XcpSpec>, db: &Database) -> Option<Xcp> {
-    let spec = &xcp.value;
-    let bus = spec.bus.as_ref();
-    let command = xcp_message(r, db, bus, &spec.command_message, "command");
-    let response = xcp_message(r, db, bus, &spec.response_message, "response");
-    if spec.command_message.value == spec.response_message.value {
-        r.report(
-            Code::XcpMessage,
-            line_of(&spec.response_message),
-            format!(
-                "`{}` is both the command and the response message",
-                spec.response_message.value
-            ),
-            "XCP on CAN needs one id for each direction: give the response its own message",
-        );
-    }
-    let cycle = response.and_then(|m| {
-        let cycle = m.cycle_time_ms.filter(|&c| c > 0);
-        if cycle.is_none() {
-            r.report(
-                Code::XcpMessage,
-                line_of(&spec.response_message),
-                format!("response message `{}` has no cycle time", m.name),
-                "give it a GenMsgCycleTime: the slave's frame budget (4 ms: at most 250 frames/s)",
-            );
-        }
-        cycle
-    });
-    if db.bit_rate.is_none() {
-        r.report(
-            Code::XcpMessage,
-            line_of(&spec.command_message),
-            "the DBC gives no bit rate for the XCP messages' bus".to_owned(),
-            "declare the database attribute Baudrate (the car's buses: 500000)",
-        );
-    }
-    let tcp_port = xcp_number(r, &spec.tcp_port, "tcp_port", (1.0, 65535.0), "a TCP port");
-    let max_daq = xcp_number(
-        r,
-        &spec.max_daq,
-        "max_daq",
-        (1.0, MAX_DAQ_LISTS),
-        "DAQ lists the absolute PIDs can tell apart",
-    );
-    let odt_entries = xcp_number(
-        r,
-        &spec.odt_entries,
-        "odt_entries",
-        (1.0, 65535.0),
-        "ODT entries over all DAQ lists",
-    );
-    let entry_size = xcp_number(
-        r,
-        &spec.max_odt_entry_size,
-        "max_odt_entry_size",
-        (4.0, MAX_ODT_ENTRY_SIZE),
-        "bytes: an entry holds the widest measured value (an f32) and fits a DAQ packet after its PID",
-    );
-    if let (Some(daq), Some(entries)) = (max_daq, odt_entries) {
-        if entries < daq {
-            r.report(
-                Code::XcpSetting,
-                line_of(&spec.odt_entries),
-                format!("odt_entries {entries} is below max_daq {daq}"),
-                "every DAQ list needs an entry at least: allow as many entries as lists or more",
-            );
-        }
-    }
-    let events = check_events(r, &spec.events);
-    Some(Xcp {
-        bus: bus.map(|b| b.value.clone()),
-        command_message: command?.name.clone(),
-        response_message: response?.name.clone(),
-        can_id_master: command?.id,
-        can_id_slave: response?.id,
-        bit_rate: db.bit_rate?,
-        response_cycle_ms: cycle?,
-        tcp_port: u16::try_from(tcp_port?).ok()?,
-        max_daq: u16::try_from(max_daq?).ok()?,
-        odt_entries: u16::try_from(odt_entries?).ok()?,
-        max_odt_entry_size: u8::try_from(entry_size?).ok()?,
-        events: events?,
-    })
-}
-
-/// The DBC message an XCP direction uses: present, on the bus, 8 bytes, a standard id.
-fn xcp_message<'db>(
-    r: &mut Reporter<'_>,
-    db: &'db Database,
-    bus: Option<&Spanned<String>>,
-    name: &Spanned<String>,
-    direction: &str,
-) -> Option<&'db Message> {
-    let line = line_of(name);
-    let Some(message) = db.messages.iter().find(|m| m.name == name.value) else {
-        r.report(
-            Code::XcpMessage,
-            line,
-            format!(
-                "the XCP {direction} message `{}` is not in the DBC",
-                name.value
-            ),
-            "name a message of schema/aer.dbc (the car's: XCP_Cmd, XCP_Res)",
-        );
-        return None;
-    };
-    let mut ok = true;
-    if let Some(bus) = bus {
-        if !message.buses.contains(&bus.value) {
-            r.report(
-                Code::XcpMessage,
-                line_of(bus),
-                format!(
-                    "the XCP {direction} message `{}` is not sent on bus `{}`",
-                    message.name, bus.value
-                ),
-                "give the message that AerBus, or name the bus it is on",
-            );
-            ok = false;
-        }
-    }
-    if message.len != XCP_FRAME_LEN || message.fd {
-        r.report(
-            Code::XcpMessage,
-            line,
-            format!(
-                "the XCP {direction} message `{}` is {} bytes",
-                message.name, message.len
-            ),
-            "XCP on classic CAN sends every packet in 8 bytes (MAX_DLC_REQUIRED): make it 8",
-        );
-        ok = false;
-    }
-    if message.extended {
-        r.report(
-            Code::XcpMessage,
-            line,
-            format!(
-                "the XCP {direction} message `{}` has an extended id",
-                message.name
-            ),
-            "give it a standard (11-bit) id, as the slave filters and the A2L states",
-        );
-        ok = false;
-    }
-    ok.then_some(message)
-}
-
-/// A whole number within `low..=high`, or `None` with `key` reported.
-fn xcp_number(
-    r: &mut Reporter<'_>,
-    value: &Spanned<f64>,
-    key: &str,
-    (low, high): (f64, f64),
-    what: &str,
-) -> Option<u32> {
-    let v = value.value;
-    if v.fract() == 0.0 && (low..=high).contains(&v) {
-        // Whole and within u16's range: the cast is exact.
-        return Some(v as u32);
-    }
-    r.report(
-        Code::XcpSetting,
-        line_of(value),
-        format!("{key} {v} is not a whole number in {low}..={high}"),
-        format!("give {low} to {high} ({what})"),
-    );
-    None
-}
-
-/// The event channels: at least one, each named, described and with a period an A2L event
-/// can state.
-fn check_events(
-    r: &mut Reporter<'_>,
-    events: &Spanned<Vec<Spanned<EventSpec>>>,
-) -> Option<Vec<XcpEvent>> {
-    if events.value.is_empty() {
-        r.report(
-            Code::XcpEvent,
-            line_of(events),
-            "the XCP slave has no events".to_owned(),
-            "list the points where DAQ lists are sampled under `events:` (the car's: control, sensors)",
-        );
-        return None;
-    }
-    let mut seen = HashSet::new();
-    let mut checked = Vec::new();
-    let mut ok = true;
-    for spanned in &events.value {
-        let spec = &spanned.value;
-        let name = spec.name.value.as_str();
-        ok &= check_item_name(r, Code::XcpEvent, "event", &spec.name, &mut seen);
-        if spec
-            .description
-            .as_deref()
-            .is_none_or(|t| t.trim().is_empty())
-        {
-            r.report(
-                Code::XcpEvent,
-                line_of(spanned),
-                format!("event `{name}` has no description"),
-                "add `description:` (the calibration tool shows it)",
-            );
-            ok = false;
-        }
-        let period_us = spec.period_ms.value * 1000.0;
-        let whole = period_us.fract() == 0.0 && (1.0..=f64::from(u32::MAX)).contains(&period_us);
-        // Whole and within u32's range: the cast is exact.
-        let period = whole.then_some(period_us as u32);
-        match period.filter(|&p| crate::model::time_cycle(p).is_some()) {
-            Some(period_us) => checked.push(XcpEvent {
-                name: name.to_owned(),
-                period_us,
-                description: spec.description.clone().unwrap_or_default(),
-            }),
-            None => {
-                r.report(
-                    Code::XcpEvent,
-                    line_of(&spec.period_ms),
-                    format!(
-                        "event `{name}`'s period_ms {} is not a period an A2L event states",
-                        spec.period_ms.value
-                    ),
-                    "give a period above 0 that is at most 255 times 1 us, 10 us, ... or 1 s (10 ms, 1 ms, 0.5 ms)",
-                );
-                ok = false;
-            }
-        }
-    }
-    ok.then_some(checked)
 }

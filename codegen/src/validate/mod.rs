@@ -3,3 +3,4 @@
 pub(crate) mod calibration;
 pub(crate) mod dbc;
 pub(crate) mod telemetry;
+pub(crate) mod xcp;

@@ -52,7 +52,13 @@ pub static CONFIG: Config = Config {
     max_odt_entry_size: 7,
     max_checksum_block: 256,
     driver_version: 0x10,
+    idle_timeout_ms: IDLE_TIMEOUT_MS,
+    unlock_delay_ms: 1_000,
+    unlock_delay_max_ms: 300_000,
 };
+
+/// The test slave's idle time-out (ms).
+pub const IDLE_TIMEOUT_MS: u32 = 60_000;
 
 const _: () = assert!(CONFIG.is_valid());
 
@@ -243,7 +249,7 @@ impl Target for FakeTarget {
         Ok(())
     }
 
-    fn seed(&mut self, out: &mut [u8; SEED_LEN]) {
+    fn seed(&mut self, _now_us: u32, out: &mut [u8; SEED_LEN]) {
         self.seed_counter = self.seed_counter.wrapping_add(1);
         for (i, byte) in out.iter_mut().enumerate() {
             *byte = self
@@ -357,4 +363,44 @@ impl Bench {
 /// A u32 as the four Intel-order bytes of a command.
 pub fn le32(value: u32) -> [u8; 4] {
     value.to_le_bytes()
+}
+
+/// Allocates one list of two ODTs (2 entries, 1 entry) and fills it:
+/// ODT 0 = measurement[0..2] + measurement[5], ODT 1 = measurement[8..12].
+pub fn configure_two_odt_list(bench: &mut Bench) {
+    for packet in [
+        &[0xD6][..],
+        &[0xD5, 0, 1, 0],
+        &[0xD4, 0, 0, 0, 2],
+        &[0xD3, 0, 0, 0, 0, 2],
+        &[0xD3, 0, 0, 0, 1, 1],
+        &[0xE2, 0, 0, 0, 0, 0],
+    ] {
+        assert_eq!(bench.ask(packet), [0xFF], "{packet:02X?}");
+    }
+    let write = |bench: &mut Bench, size: u8, address: u32| {
+        let a = le32(address);
+        assert_eq!(
+            bench.ask(&[0xE1, 0xFF, size, 0, a[0], a[1], a[2], a[3]]),
+            [0xFF]
+        );
+    };
+    write(bench, 2, MEAS);
+    write(bench, 1, MEAS + 5);
+    assert_eq!(bench.ask(&[0xE2, 0, 0, 0, 1, 0]), [0xFF]);
+    write(bench, 4, MEAS + 8);
+}
+
+/// The two-ODT list on the control channel, started by select + START_STOP_SYNCH.
+pub fn start_two_odt_list(bench: &mut Bench, timestamp: bool) {
+    configure_two_odt_list(bench);
+    let mode = if timestamp { 0x10 } else { 0x00 };
+    assert_eq!(bench.ask(&[0xE0, mode, 0, 0, 0, 0, 1, 0]), [0xFF]);
+    assert_eq!(
+        bench.ask(&[0xDE, 0x02, 0, 0]),
+        [0xFF, 0x00],
+        "selected; FIRST_PID 0"
+    );
+    assert_eq!(bench.ask(&[0xDD, 0x01]), [0xFF]);
+    assert!(bench.slave.is_daq_running());
 }

@@ -208,7 +208,15 @@ mod app {
         // leaves the pad alone.
         let _thermistor = board.thermistor;
 
-        let xcp_node = XcpNode::new(SeedKey::new(XCP_SECRET, board.entropy), store, flash);
+        // The seed generator: 256 bits from the TRNG, personalised with the chip's unique id.
+        let chip = aer_console::usb::chip_id().to_le_bytes();
+        let keys = SeedKey::new(XCP_SECRET, board.entropy.as_ref().map(|e| &e[..]), &chip);
+        if XCP_SECRET.is_some() && !keys.can_unlock() {
+            log.line(format_args!(
+                "XCP: the TRNG gave no entropy, so seeds would be predictable: calibration stays locked (measuring works)"
+            ));
+        }
+        let xcp_node = XcpNode::new(keys, store, flash);
 
         let (vehicle_rx, vehicle_frames) = cx.local.vehicle_queue.split();
         let (xcp_rx, xcp_commands) = cx.local.xcp_queue.split();

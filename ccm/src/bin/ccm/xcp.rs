@@ -1,7 +1,7 @@
 //! The XCP slave on the vehicle bus: commands from XCP_Cmd (0x6F0) answered on XCP_Res
 //! (0x6F1), and the DAQ packets of the two event channels (sent by the sensor and telemetry
-//! tasks through [`send_dto`]). The library's `XcpNode` does the protocol and checks every
-//! calibration change; this file only moves frames.
+//! tasks through [`send_dto`]). The library's `XcpNode` does the protocol, checks every
+//! calibration change and ends idle sessions; this file only moves frames and runs its clock.
 
 use crate::app::xcp;
 use crate::{Mono, TX_NOT_SENT, now_us};
@@ -40,6 +40,17 @@ pub(crate) async fn xcp(mut cx: xcp::Context<'_>) {
                 }
             }
         }
+        // The slave's clock: a session idle past its time-out ends (the event goes out
+        // on XCP_Res like any packet).
+        let now = now_us();
+        (
+            &mut cx.shared.xcp,
+            &mut cx.shared.calibration,
+            &mut cx.shared.vehicle_can,
+        )
+            .lock(|node, calibration, can| {
+                node.poll(calibration, now, &mut |packet| send_dto(can, packet))
+            });
         Mono::delay(POLL_MS.millis()).await;
     }
 }
