@@ -39,7 +39,8 @@ fn parse_calibration(
 /// settings of the car's DBC.
 const INTERNALS_AND_XCP: &str = "internals:\n  - { name: x, unit: V, min: 0, max: 1, description: X. }\n\
 xcp:\n  bus: vehicle\n  command_message: XCP_Cmd\n  response_message: XCP_Res\n  tcp_port: 5555\n  \
-max_daq: 4\n  odt_entries: 64\n  max_odt_entry_size: 4\n  events:\n    \
+max_daq: 4\n  odt_entries: 64\n  max_odt_entry_size: 4\n  idle_timeout_s: 60\n  unlock_delay_s: 1\n  \
+unlock_delay_max_s: 300\n  events:\n    \
 - { name: control, period_ms: 10, description: After each step. }\n";
 
 #[test]
@@ -193,7 +194,25 @@ fn calibration_mistakes_are_reported_with_lines() {
             "      points: [0, 5, 10, 20]\n",
             "      points: [0, 10, 5, 20]\n",
             "E0305",
-            "the axis of `launch_slip_target` is not 2 to 32 finite, strictly increasing points",
+            "the axis of `launch_slip_target` is not 2 to 32 strictly increasing points within 0..=40",
+        ),
+        (
+            "      input: front_wheel_speed\n",
+            "      input: wheel_speed\n",
+            "E0305",
+            "the axis of `launch_slip_target` names input `wheel_speed`, which is not an internal",
+        ),
+        (
+            "      input: front_wheel_speed\n",
+            "      input: slip_ratio\n",
+            "E0305",
+            "the axis of `launch_slip_target` is in m/s but its input `slip_ratio` in 1",
+        ),
+        (
+            "      points: [0, 5, 10, 20]\n",
+            "      points: [0, 5, 10, 50]\n",
+            "E0305",
+            "the axis of `launch_slip_target` is not 2 to 32 strictly increasing points within 0..=40",
         ),
         (
             "    default: 200\n    min: 0\n    max: 2000\n",
@@ -318,6 +337,24 @@ fn calibration_mistakes_are_reported_with_lines() {
             "max_daq 300 is not a whole number in 1..=252",
         ),
         (
+            "  idle_timeout_s: 60\n",
+            "  idle_timeout_s: 0\n",
+            "E0314",
+            "idle_timeout_s 0 is not a whole number in 1..=3600",
+        ),
+        (
+            "  unlock_delay_max_s: 300\n",
+            "  unlock_delay_max_s: 0.5\n",
+            "E0314",
+            "unlock_delay_max_s 0.5 is not a whole number in 1..=3600",
+        ),
+        (
+            "  unlock_delay_s: 1\n  unlock_delay_max_s: 300\n",
+            "  unlock_delay_s: 60\n  unlock_delay_max_s: 30\n",
+            "E0314",
+            "unlock_delay_max_s 30 is below unlock_delay_s 60",
+        ),
+        (
             "  odt_entries: 64\n",
             "  odt_entries: 2\n",
             "E0314",
@@ -409,6 +446,7 @@ fn the_cars_calibration_declares_its_internals_and_xcp_slave() {
             "driver_torque_nm",
             "launch_torque_nm",
             "launch_slip_target",
+            "front_wheel_speed",
             "traction_torque_nm",
             "slip_ratio",
             "power_allowed_nm",
@@ -417,7 +455,7 @@ fn the_cars_calibration_declares_its_internals_and_xcp_slave() {
             "torque_command_nm",
         ]
     );
-    assert_eq!(c.internals_len(), 36);
+    assert_eq!(c.internals_len(), 40);
     for i in &c.internals {
         assert!(i.min < i.max && !i.unit.is_empty() && !i.description.is_empty());
     }
@@ -428,6 +466,11 @@ fn the_cars_calibration_declares_its_internals_and_xcp_slave() {
     assert_eq!(
         (x.tcp_port, x.max_daq, x.odt_entries, x.max_odt_entry_size),
         (5555, 4, 64, 4)
+    );
+    // The session's ends and the wrong-key delay, as the A2L and the slave state them.
+    assert_eq!(
+        (x.idle_timeout_ms, x.unlock_delay_ms, x.unlock_delay_max_ms),
+        (60_000, 1_000, 300_000)
     );
     let events: Vec<(&str, u32)> = x
         .events
@@ -459,6 +502,7 @@ fn the_fingerprint_follows_the_internals_and_the_xcp_settings() {
         ("  tcp_port: 5555\n", "  tcp_port: 5556\n"),
         ("  max_daq: 4\n", "  max_daq: 3\n"),
         ("      period_ms: 1\n", "      period_ms: 2\n"),
+        ("  idle_timeout_s: 60\n", "  idle_timeout_s: 30\n"),
     ] {
         assert_ne!(
             fingerprint(yaml.replacen(from, to, 1)),

@@ -116,7 +116,7 @@ pub(crate) fn check(r: &mut Reporter<'_>, xcp: &Spanned<XcpSpec>, db: &Database)
         if max < delay {
             r.report(
                 Code::XcpSetting,
-                line_of(&spec.unlock_delay_max_s),
+                line_of(&spec.unlock_delay_s),
                 format!("unlock_delay_max_s {max} is below unlock_delay_s {delay}"),
                 "the delay doubles with each wrong key up to the maximum: give a maximum at least the first delay",
             );
