@@ -122,22 +122,31 @@ impl LastRefusal {
     /// Little-endian, 20 bytes: count (u32), command, error, reason, element (u8 each), item
     /// (u16), 2 bytes of padding, value (f32), limit (f32).
     pub fn to_bytes(&self) -> [u8; LAST_REFUSAL_LEN] {
-        let mut bytes = [0u8; LAST_REFUSAL_LEN];
-        let fields: [(usize, &[u8]); 8] = [
-            (0, &self.count.to_le_bytes()),
-            (4, &[self.command]),
-            (5, &[self.error]),
-            (6, &[self.detail.reason]),
-            (7, &[self.detail.element]),
-            (8, &self.detail.item.to_le_bytes()),
-            (12, &self.detail.value.to_le_bytes()),
-            (16, &self.detail.limit.to_le_bytes()),
-        ];
-        for (at, field) in fields {
-            if let Some(slot) = bytes.get_mut(at..at + field.len()) {
-                slot.copy_from_slice(field);
-            }
-        }
-        bytes
+        let [c0, c1, c2, c3] = self.count.to_le_bytes();
+        let [i0, i1] = self.detail.item.to_le_bytes();
+        let [v0, v1, v2, v3] = self.detail.value.to_le_bytes();
+        let [l0, l1, l2, l3] = self.detail.limit.to_le_bytes();
+        [
+            c0,
+            c1,
+            c2,
+            c3,
+            self.command,
+            self.error,
+            self.detail.reason,
+            self.detail.element,
+            i0,
+            i1,
+            0,
+            0,
+            v0,
+            v1,
+            v2,
+            v3,
+            l0,
+            l1,
+            l2,
+            l3,
+        ]
     }
 }

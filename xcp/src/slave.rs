@@ -191,15 +191,10 @@ impl<const LISTS: usize, const ODTS: usize, const ENTRIES: usize> Slave<LISTS, O
     /// The block the ECU publishes about the slave ([`crate::status`]).
     pub fn status_bytes(&self) -> [u8; crate::status::STATUS_LEN] {
         let mut bytes = [0u8; crate::status::STATUS_LEN];
-        let refusal = self.last_refusal.to_bytes();
-        let counters = self.counters.in_order();
-        for (slot, byte) in bytes.iter_mut().zip(
-            refusal
-                .iter()
-                .copied()
-                .chain(counters.iter().flat_map(|c| c.to_le_bytes())),
-        ) {
-            *slot = byte;
+        let (refusal, counters) = bytes.split_at_mut(crate::refusal::LAST_REFUSAL_LEN);
+        refusal.copy_from_slice(&self.last_refusal.to_bytes());
+        for (slot, value) in counters.chunks_exact_mut(4).zip(self.counters.in_order()) {
+            slot.copy_from_slice(&value.to_le_bytes());
         }
         bytes
     }
