@@ -5,7 +5,7 @@
 # pipeline, a clean stop on SIGTERM, and a purge that keeps the recorded data.
 #
 # The container shares this machine's network (loopback included), and its kernel: there
-# is no CAN here, so the service runs the synthetic car through a drop-in, as an
+# is no CAN here, so the service replays the bundled session in a loop through a drop-in, as an
 # administrator would (`systemctl edit aer-raspi`).
 #
 # Needs: root, debootstrap, systemd-container, mosquitto-clients; Debian's mirror.
@@ -32,13 +32,13 @@ cp "$out"/aer-tools_*_amd64.deb "$out"/aer-raspi_*_all.deb "$out"/aer-dashboard_
   tail -30 "$root.install.log"; exit 1; }
 grep -E "^(Setting up aer|Created symlink)" "$root.install.log" || true
 
-# The broker on a free port (the container shares this machine's loopback), the synthetic
-# car instead of CAN.
+# The broker on a free port (the container shares this machine's loopback), the bundled
+# session in a loop instead of CAN.
 port=$(python3 -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')
 sed -i "s|127.0.0.1:[0-9]*\"|127.0.0.1:$port\"|" "$root/etc/aer/rumqttd.toml"
 mkdir -p "$root/etc/systemd/system/aer-raspi.service.d"
-printf '[Service]\nExecStart=\nExecStart=/usr/bin/aer-raspi --config /etc/aer/aer-raspi.toml synthetic --rate 100\n' \
-  > "$root/etc/systemd/system/aer-raspi.service.d/synthetic.conf"
+printf '[Service]\nExecStart=\nExecStart=/usr/bin/aer-raspi --config /etc/aer/aer-raspi.toml replay --loop\n' \
+  > "$root/etc/systemd/system/aer-raspi.service.d/replay.conf"
 
 echo "--- boot"
 "${nspawn[@]}" --boot > "$root.boot.log" 2>&1 &
@@ -108,6 +108,6 @@ check "purge keeps the data, removes the configuration" purge_keeps_data
 inside systemctl poweroff || true
 wait "$boot" || true
 trap - EXIT
-rm -f "$root/etc/systemd/system/aer-raspi.service.d/synthetic.conf"
+rm -f "$root/etc/systemd/system/aer-raspi.service.d/replay.conf"
 [ "$failed" = 0 ] || { echo "the booted package failed a check" >&2; exit 1; }
 echo "the packages install, boot and run under systemd"

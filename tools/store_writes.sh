@@ -1,6 +1,7 @@
 #!/bin/bash
 # Bytes the Pi service writes to disk per minute, and how fast its store and raw log grow, at
-# the car's traffic (the car model at 100 telemetry packets/s with both buses' frames).
+# the car's traffic (the bundled session replayed in a loop: 100 telemetry packets/s with both
+# buses' frames, as the CCM's logic sent them in the car model).
 # usage: tools/store_writes.sh AER_RAW_BINARY WORK_DIR SECONDS
 # Reads /proc/<pid>/io write_bytes (what reached the block layer, WAL and checkpoints included)
 # over SECONDS after a 10 s warm-up, then stops the service with SIGINT.
@@ -10,7 +11,7 @@ mkdir -p "$dir"; dir=$(realpath "$dir"); rm -rf "${dir:?}"/*
 source "$(dirname "$0")/pi_measure.sh"
 measure_config "$dir"
 size() { du -cb "$@" 2>/dev/null | tail -1 | awk '{print $1}'; }
-"$bin" --config "$dir/cfg.toml" synthetic --rate 100 > "$dir/run.log" 2>&1 &
+"$bin" --config "$dir/cfg.toml" replay --loop > "$dir/run.log" 2>&1 &
 pid=$!
 sleep 10
 w0=$(awk '/^write_bytes/ {print $2}' "/proc/$pid/io")

@@ -2,20 +2,15 @@
 //! `serve` runs it: ingest, raw log, store writer, embedded broker) to its delivery at an MQTT
 //! subscriber (rumqttc, loopback), at 100 Hz and 1 kHz, in one run for both forms the pit can
 //! read: the JSON telemetry topic, and the compact pit stream (`aer-pit/car1/stream`, decoded
-//! with the Pi's own ingest as the dashboard does). The traffic is the closed-loop car model's
-//! (every frame on both buses), one telemetry packet per 10 ms of model time. Prints, for each,
+//! with the Pi's own ingest as the dashboard does). The traffic is the bundled session
+//! (raspi/data/session.log: every frame on both buses the CCM's logic sent in the car model),
+//! one batch per telemetry packet, handed over at the packet rate. Prints, for each,
 //! p50, p99 and max, and the bytes on MQTT per second for what it carries (the JSON: the
 //! telemetry topic only; the stream: every frame). Run: `cargo bench -p aer-raspi --bench
 //! latency`.
 
 use aer::mqtt::{Sample, TELEMETRY, TelemetryRecord};
-use aer::telemetry::Telemetry;
-use aer_car_model::chassis::Mode;
-use aer_car_model::driver::Cycle;
-use aer_car_model::faults::FaultPlan;
-use aer_car_model::{BusTap, ClosedLoop, ModelParams};
-use aer_flexcan::CanFrame;
-use aer_host::candump::LoggedFrame;
+use aer_host::candump::{LoggedFrame, parse_line};
 use aer_host::clock::now_us;
 use aer_host::counters::Counters;
 use aer_host::decode::{Ingest, Record};
@@ -24,20 +19,38 @@ use aer_raspi::broker;
 use aer_raspi::config::Config;
 use aer_raspi::service::{Job, Pipeline};
 use aer_raspi::source::Input;
-use embedded_can::{Frame, Id};
 use rumqttc::{AsyncClient, Event, MqttOptions, Packet, QoS};
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
-/// One model step's frames.
-#[derive(Default)]
-struct Frames(Vec<(usize, CanFrame)>);
-
-impl BusTap for Frames {
-    fn frame(&mut self, _: u64, bus: usize, frame: &CanFrame) {
-        self.0.push((bus, *frame));
+/// The bundled session's frames in batches, each ending with a telemetry packet's last frame,
+/// with that packet's sequence number: what a source hands the pipeline per packet.
+fn packet_batches() -> Vec<(u16, Vec<LoggedFrame>)> {
+    let log = include_str!("../data/session.log");
+    let mut ingest = Ingest::new(Arc::new(Counters::default()));
+    let mut batches = Vec::new();
+    let mut batch = Vec::new();
+    for line in log.lines() {
+        let Ok(frame) = parse_line(line, |name| u8::from(name == "can1")) else {
+            continue;
+        };
+        batch.push(frame);
+        let mut completed = None;
+        ingest.on_frame(
+            &frame,
+            |record| {
+                if let Record::Telemetry { header, .. } = record {
+                    completed = Some(header.sequence);
+                }
+            },
+            |_, _| {},
+        );
+        if let Some(sequence) = completed {
+            batches.push((sequence, std::mem::take(&mut batch)));
+        }
     }
+    batches
 }
 
 /// What one form delivered: latencies and bytes on MQTT (payload, topic, fixed header).
@@ -167,9 +180,9 @@ fn main() {
                 name: name.into(),
             });
         input.send(buses.collect()).await.expect("pipeline running");
-        let telemetry = Id::Standard(embedded_can::StandardId::new(Telemetry::TX_ID).expect("id"));
+        let batches = packet_batches();
 
-        for (rate, packets) in [(100u32, 1_000u16), (1_000, 5_000)] {
+        for (rate, packets) in [(100u32, 1_000u16), (1_000, 4_000)] {
             for delivered in [&json, &stream] {
                 if let Ok(mut d) = delivered.lock() {
                     *d = Delivered::default();
@@ -178,34 +191,25 @@ fn main() {
             if let Ok(mut s) = sent.lock() {
                 s.clear();
             }
-            let mut model = ClosedLoop::new(
-                ModelParams::NOMINAL,
-                Mode::Road,
-                Cycle::Autocross,
-                FaultPlan::NONE,
-            );
             let period = Duration::from_secs(1) / rate;
             let started = tokio::time::Instant::now();
             let mut next = started;
-            for sequence in 0..packets {
+            for (sequence, frames) in batches.iter().take(usize::from(packets)) {
                 next += period;
-                let mut frames = Frames::default();
-                model.run_until(model.now_ms() + 10, &mut frames);
-                // The step ends with the telemetry packet: its last frame is the clock's start.
-                // One batch a step, as a source sends what it read: the clock starts when the
-                // batch holding the packet's last frame is handed to the pipeline.
+                // The clock starts when the batch holding the packet's last frame is handed to
+                // the pipeline, each frame stamped with the time it is handed over.
+                let now = now_us();
                 let batch = frames
-                    .0
                     .iter()
-                    .filter_map(|(bus, frame)| {
-                        LoggedFrame::new(now_us(), *bus as u8, frame.id(), frame.data())
+                    .map(|frame| {
+                        Input::Frame(LoggedFrame {
+                            ts_us: now,
+                            ..*frame
+                        })
                     })
-                    .map(Input::Frame)
                     .collect();
-                if frames.0.iter().any(|(_, f)| f.id() == telemetry)
-                    && let Ok(mut s) = sent.lock()
-                {
-                    s.insert(sequence, Instant::now());
+                if let Ok(mut s) = sent.lock() {
+                    s.insert(*sequence, Instant::now());
                 }
                 input.send(batch).await.expect("pipeline running");
                 tokio::time::sleep_until(next).await;

@@ -1,4 +1,4 @@
-//! aer-raspi: the Pi's ingest service. CAN (or a recorded log, or a synthetic car) -> ISO-TP
+//! aer-raspi: the Pi's ingest service. CAN (or a recorded log) -> ISO-TP
 //! and DBC decoding -> typed MQTT topics on an embedded broker + a durable local store ->
 //! TDengine.
 
@@ -69,21 +69,18 @@ enum Command {
     /// Replay a candump log (`candump -l` / `-L` format) or a raw log segment through the
     /// pipeline.
     Replay {
-        /// The log file, or a segment of the raw log (`raw-*.aerraw`).
-        file: PathBuf,
+        /// The log file, or a segment of the raw log (`raw-*.aerraw`); with `--loop` and no
+        /// file, the bundled session.
+        #[arg(required_unless_present = "looping")]
+        file: Option<PathBuf>,
         /// As fast as possible instead of at recorded speed.
         #[arg(long)]
         fast: bool,
-    },
-    /// Run the closed-loop car model (the CCM's own logic driving a simulated car round an
-    /// autocross course) as a live source: every frame on both buses.
-    Synthetic {
-        /// Packets per second.
-        #[arg(long, default_value_t = 100.0)]
-        rate: f64,
-        /// Stop after this many packets (default: until Ctrl-C).
-        #[arg(long)]
-        packets: Option<u64>,
+        /// A candump log again and again until Ctrl-C, each frame stamped with the time it is
+        /// replayed: a live-like source into the configured store, raw log and broker (the
+        /// bundled session, or a log `cargo xtask session-log` wrote from the car model).
+        #[arg(long = "loop", conflicts_with = "fast")]
+        looping: bool,
     },
     /// Replay the bundled session at recorded speed, looping until Ctrl-C, with the embedded
     /// broker on 127.0.0.1:1883, the local store aer-demo.sqlite and the raw log in
@@ -261,8 +258,15 @@ fn main() -> Result<()> {
         .context("starting the async runtime")?;
     let job = match cli.command {
         Command::Run => Job::Live,
-        Command::Replay { file, fast } => Job::Replay { file, fast },
-        Command::Synthetic { rate, packets } => Job::Synthetic { rate, packets },
+        Command::Replay {
+            file,
+            fast,
+            looping,
+        } => Job::Replay {
+            file,
+            fast,
+            looping,
+        },
         Command::Demo => Job::Demo,
         Command::RawExport { .. }
         | Command::Session { .. }

@@ -49,7 +49,7 @@ fn piped_output_has_no_colour_codes_and_subscribers_leaving_are_not_errors() {
     let mut service = Command::new(env!("CARGO_BIN_EXE_aer-raspi"))
         .arg("--config")
         .arg(&config)
-        .args(["synthetic", "--rate", "100"])
+        .args(["replay", "--loop"])
         .env_remove("RUST_LOG")
         .env_remove("NO_COLOR")
         .stdout(Stdio::piped())

@@ -33,7 +33,7 @@ fn start(dir: &Path) -> Child {
     Command::new(env!("CARGO_BIN_EXE_aer-raspi"))
         .args(["--config"])
         .arg(&config)
-        .args(["synthetic", "--rate", "100"])
+        .args(["replay", "--loop"])
         .stdout(Stdio::null())
         .stderr(Stdio::null())
         .spawn()

@@ -1,4 +1,4 @@
-//! Starting a job's source: the SocketCAN interfaces, a log replayed, the car model, the
+//! Starting a job's source: the SocketCAN interfaces, a log replayed (once, or looping), the
 //! bundled session looping (the demo), or nothing for a fed pipeline (its caller sends).
 
 use super::{Job, demo_log};
@@ -29,7 +29,33 @@ pub(super) fn start_source(
         // The caller holds the sender this pipeline's own would have been.
         Job::Fed => drop(inputs),
         Job::Live => return start_live(config, inputs, &counters, health, &cancel),
-        Job::Replay { file, fast } => {
+        Job::Replay {
+            file,
+            looping: true,
+            ..
+        } => {
+            let (log, from) = match file {
+                Some(file) => (
+                    std::fs::read_to_string(&file).with_context(|| {
+                        format!("reading {} (--loop replays a candump log)", file.display())
+                    })?,
+                    file.display().to_string(),
+                ),
+                None => demo_log(),
+            };
+            info!(log = %from, "replaying in a loop, restamped");
+            loop_log(log, inputs, counters, cancel);
+        }
+        Job::Replay {
+            file: None,
+            looping: false,
+            ..
+        } => anyhow::bail!("replay needs a file (or --loop for the bundled session)"),
+        Job::Replay {
+            file: Some(file),
+            fast,
+            ..
+        } => {
             let options = ReplayOptions {
                 fast,
                 restamp: false,
@@ -61,26 +87,32 @@ pub(super) fn start_source(
                 );
             });
         }
-        Job::Synthetic { rate, packets } => {
-            tokio::spawn(async move {
-                source::synthetic::synthetic(rate, inputs, &cancel, packets).await;
-            });
-        }
         Job::Demo => {
             let (log, from) = demo_log();
             announce_demo(config, broker_address, &from);
-            let options = ReplayOptions {
-                fast: false,
-                restamp: true,
-            };
-            tokio::spawn(async move {
-                while !cancel.is_cancelled() && !inputs.is_closed() {
-                    replay(log.as_bytes(), inputs.clone(), &counters, options, &cancel).await;
-                }
-            });
+            loop_log(log, inputs, counters, cancel);
         }
     }
     Ok(Replies::default())
+}
+
+/// Replays `log` (candump text) again and again at recorded speed, each frame stamped with
+/// the time it goes in, until `cancel` or the pipeline closes.
+fn loop_log(
+    log: String,
+    inputs: source::Sender,
+    counters: Arc<Counters>,
+    cancel: CancellationToken,
+) {
+    let options = ReplayOptions {
+        fast: false,
+        restamp: true,
+    };
+    tokio::spawn(async move {
+        while !cancel.is_cancelled() && !inputs.is_closed() {
+            replay(log.as_bytes(), inputs.clone(), &counters, options, &cancel).await;
+        }
+    });
 }
 
 #[cfg(target_os = "linux")]
@@ -110,7 +142,7 @@ fn start_live(
     _: &Arc<Health>,
     _: &CancellationToken,
 ) -> Result<Replies> {
-    anyhow::bail!("SocketCAN needs Linux; use `replay` or `synthetic` here")
+    anyhow::bail!("SocketCAN needs Linux; use `replay` or `demo` here")
 }
 
 fn announce_demo(config: &Config, broker_address: &str, from: &str) {

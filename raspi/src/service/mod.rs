@@ -45,10 +45,14 @@ pub(crate) fn demo_log() -> (String, String) {
 pub enum Job {
     /// The configured SocketCAN interfaces.
     Live,
-    /// A candump log, at recorded speed or flat out.
-    Replay { file: PathBuf, fast: bool },
-    /// The car model at `rate` packets per second, `packets` of them or until stopped.
-    Synthetic { rate: f64, packets: Option<u64> },
+    /// A candump log (or raw log segment), at recorded speed or flat out; `looping`: a
+    /// candump log (the bundled session without a file) again and again, restamped, until
+    /// stopped. Without `looping` a file is needed.
+    Replay {
+        file: Option<PathBuf>,
+        fast: bool,
+        looping: bool,
+    },
     /// The bundled session, looping until stopped.
     Demo,
     /// Inputs the caller sends through [`Pipeline::input`] (tests, benchmarks, a program that
@@ -62,7 +66,6 @@ impl Job {
         match self {
             Self::Live => "live",
             Self::Replay { .. } => "replay",
-            Self::Synthetic { .. } => "synthetic",
             Self::Demo => "demo",
             Self::Fed => "fed",
         }

@@ -86,8 +86,9 @@ pub(super) fn start_store(
             compaction: config.store.compact.then(Compaction::default),
             health: health.clone(),
             queue_rows: None,
-            // A replay is not live: it waits for the store rather than dropping rows.
-            when_full: if matches!(job, Job::Replay { .. }) {
+            // A replay is not live: it waits for the store rather than dropping rows (a looping
+            // replay stands in for live traffic, and is treated as such).
+            when_full: if matches!(job, Job::Replay { looping: false, .. }) {
                 WhenFull::Wait
             } else {
                 WhenFull::Drop
@@ -114,7 +115,7 @@ fn max_age(days: u64) -> Option<Duration> {
     (days > 0).then(|| Duration::from_secs(days.saturating_mul(86_400)))
 }
 
-/// Starts the raw log's writer, unless it is off or the job replays a log (which is its own
+/// Starts the raw log's writer, unless it is off or the job replays a log once (which is its own
 /// record).
 pub(super) fn start_raw_log(
     config: &Config,
@@ -123,7 +124,7 @@ pub(super) fn start_raw_log(
     health: &Arc<Health>,
 ) -> Result<Option<(RawWriter, SyncSender<Block>)>> {
     let raw = &config.raw_log;
-    if !raw.enabled || matches!(job, Job::Replay { .. }) {
+    if !raw.enabled || matches!(job, Job::Replay { looping: false, .. }) {
         return Ok(None);
     }
     let settings = Settings {

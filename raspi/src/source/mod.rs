@@ -1,5 +1,5 @@
-//! Where frames come from: a recorded candump log ([`replay`]), the closed-loop car model
-//! ([`synthetic`]) or live SocketCAN ([`socketcan`]). A source knows nothing downstream: it
+//! Where frames come from: a recorded candump log ([`replay`]) or live SocketCAN
+//! ([`socketcan`]). A source knows nothing downstream: it
 //! names its buses and sends what it reads, in batches, to a [`Sender`], until the channel
 //! closes or its cancellation token fires.
 
@@ -8,7 +8,6 @@ mod failures;
 pub mod replay;
 #[cfg(target_os = "linux")]
 pub mod socketcan;
-pub mod synthetic;
 
 use aer_host::candump::LoggedFrame;
 use std::collections::HashMap;

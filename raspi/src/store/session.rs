@@ -72,7 +72,7 @@ pub struct Session {
     pub started_us: i64,
     /// `None` while open (or if the service was killed; the next start closes it).
     pub ended_us: Option<i64>,
-    /// What fed the service: `live`, `replay`, `synthetic`, `demo` or `export`.
+    /// What fed the service: `live`, `replay`, `demo` or `export`.
     pub source: String,
     pub metadata: Metadata,
     /// Whether the wall clock was synchronized when the session began
