@@ -5,13 +5,14 @@ use crate::scenarios::Outcome;
 use aer::calibration::PARAMETERS;
 use aer::calibration::xcp::EPK;
 use aer_ccm::calibration::Calibration;
+use aer_xcp::protocol::err;
 use serde_json::Value;
 use std::fmt;
 
-/// XCP error codes the refusals must carry (ASAM MCD-1 XCP part 2).
-const ERR_OUT_OF_RANGE: u64 = 0x22;
-const ERR_WRITE_PROTECTED: u64 = 0x23;
-const ERR_ACCESS_LOCKED: u64 = 0x25;
+/// XCP error codes the refusals must carry, as JSON numbers.
+const ERR_OUT_OF_RANGE: u64 = err::OUT_OF_RANGE as u64;
+const ERR_WRITE_PROTECTED: u64 = err::WRITE_PROTECTED as u64;
+const ERR_ACCESS_LOCKED: u64 = err::ACCESS_LOCKED as u64;
 /// DAQ samples the 300 ms drive and the launch must deliver at least.
 const MIN_DAQ_SAMPLES: usize = 30;
 /// How much less torque the written launch slip target must command, on average, than the

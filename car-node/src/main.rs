@@ -38,12 +38,12 @@ enum Job {
         /// A Python with pyxcp and pya2ldb.
         #[arg(long, default_value = "python3")]
         python: PathBuf,
-        /// The scenario script.
-        #[arg(long, default_value = "tools/xcp_scenarios.py")]
-        script: PathBuf,
-        /// The A2L whose EPK must be the slave's.
-        #[arg(long, default_value = "generated/aer.a2l")]
-        a2l: PathBuf,
+        /// The scenario script (default: the `tools/xcp_scenarios.py` built into this binary).
+        #[arg(long)]
+        script: Option<PathBuf>,
+        /// The A2L whose EPK must be the slave's (default: the `generated/aer.a2l` built in).
+        #[arg(long)]
+        a2l: Option<PathBuf>,
         /// The master connects through the Pi's XCP gateway at this address (XCP on TCP)
         /// while the slave serves the link.
         #[arg(long)]
@@ -109,10 +109,20 @@ fn main() -> Result<()> {
             netns,
         } => {
             let mut link = link::open(&link)?;
+            // Whatever is not given comes from the copies built into the binary.
+            let built_in = tempfile::tempdir()?;
+            let unpack = |given: Option<PathBuf>, name: &str, text: &str| match given {
+                Some(path) => Ok::<_, std::io::Error>(path),
+                None => {
+                    let path = built_in.path().join(name);
+                    std::fs::write(&path, text)?;
+                    Ok(path)
+                }
+            };
             let script = scenarios::Script {
                 python,
-                path: script,
-                a2l,
+                path: unpack(script, "xcp_scenarios.py", scenarios::SCRIPT)?,
+                a2l: unpack(a2l, "aer.a2l", scenarios::A2L)?,
                 through,
                 netns,
             };

@@ -365,6 +365,12 @@ impl Harness<'_> {
 }
 
 /// The repository's script and A2L, for a checkout (`root` holds `tools/` and `generated/`).
+/// `tools/xcp_scenarios.py` as this binary was built with: `aer-car-node scenarios` plays it
+/// when no `--script` is given, so the binary needs no checkout beside it.
+pub const SCRIPT: &str = include_str!("../../tools/xcp_scenarios.py");
+/// `generated/aer.a2l` as this binary was built with (the EPK the slave reports).
+pub const A2L: &str = include_str!("../../generated/aer.a2l");
+
 pub fn in_checkout(root: &Path, python: PathBuf) -> Script {
     Script {
         python,

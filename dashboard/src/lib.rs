@@ -10,11 +10,11 @@
 
 pub mod backfill;
 pub mod config;
-pub mod follow;
 pub mod link;
+pub mod link_check;
 pub mod model;
 pub mod pit_stream;
 pub mod screenshot;
 pub mod session;
-pub mod tune;
+pub mod tune_worker;
 pub mod ui;

@@ -114,7 +114,7 @@ fn main() -> Result<()> {
                 .enable_all()
                 .build()
                 .context("starting the async runtime")?;
-            let report = runtime.block_on(aer_dashboard::follow::follow(
+            let report = runtime.block_on(aer_dashboard::link_check::follow(
                 &config,
                 packets,
                 std::time::Duration::from_secs(timeout_s),

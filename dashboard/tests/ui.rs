@@ -9,7 +9,7 @@ use aer_dashboard::config::{Config, View};
 use aer_dashboard::model::fields::{FieldValue, Schema};
 use aer_dashboard::model::{Dashboard, Update};
 use aer_dashboard::screenshot::{DRIVER_SIZE, PIT_SIZE};
-use aer_dashboard::tune;
+use aer_dashboard::tune_worker as tune;
 use aer_dashboard::ui::tune as tune_ui;
 use aer_dashboard::ui::{App, Message};
 use iced::{Element, Settings};

@@ -8,19 +8,20 @@
 //! [`report`] publishes the service's status and metrics; [`service`] assembles it all.
 
 pub mod broker;
+mod bus_names;
+pub mod column_descriptions;
 pub mod commands;
 pub mod config;
-pub mod describe;
 pub mod disk;
 pub mod export;
 pub mod forward;
 pub mod health;
+pub mod ingest;
 pub mod pit;
 pub mod rawlog;
-pub mod report;
 pub mod service;
 pub mod sink;
 pub mod source;
-pub mod stage;
+pub mod status_topics;
 pub mod store;
 pub mod xcp_gateway;

@@ -218,7 +218,7 @@ fn main() -> Result<()> {
     if let Command::RawExport { paths, format, out } = &cli.command {
         return match (format, out) {
             (Some(format), Some(out)) => {
-                let written = aer_raspi::rawlog::export::to_file(paths, *format, out)?;
+                let written = aer_raspi::export::raw_log::to_file(paths, *format, out)?;
                 println!(
                     "{} frames to {} ({} bytes)",
                     written.rows,
@@ -227,7 +227,7 @@ fn main() -> Result<()> {
                 );
                 Ok(())
             }
-            _ => aer_raspi::rawlog::export::candump(paths, std::io::stdout().lock()),
+            _ => aer_raspi::export::raw_log::candump(paths, std::io::stdout().lock()),
         };
     }
     if matches!(

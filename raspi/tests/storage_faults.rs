@@ -11,6 +11,7 @@ use aer_host::raw_format::SegmentReader;
 use aer_raspi::broker;
 use aer_raspi::export::Format;
 use aer_raspi::health::Health;
+use aer_raspi::ingest::Stage;
 use aer_raspi::rawlog::RawTap;
 use aer_raspi::rawlog::segments;
 use aer_raspi::rawlog::writer::{RawWriter, Settings};
@@ -18,7 +19,6 @@ use aer_raspi::sink::Sink;
 use aer_raspi::sink::mqtt as publish;
 use aer_raspi::sink::store::StoreSink;
 use aer_raspi::source::Replies;
-use aer_raspi::stage::Stage;
 use aer_raspi::store::{self as store, Budget, Retention, StoreWriter, WriterOptions, session};
 use rumqttc::{AsyncClient, Event, MqttOptions, Packet, QoS};
 use rusqlite::Connection;
@@ -348,14 +348,14 @@ fn the_raw_log_keeps_every_frame_and_reads_back_as_the_log() {
         (Format::Mf4, "session.mf4"),
     ] {
         let written =
-            aer_raspi::rawlog::export::to_file(&[dir.path().join("raw")], format, &out.join(name))
+            aer_raspi::export::raw_log::to_file(&[dir.path().join("raw")], format, &out.join(name))
                 .expect("written");
         assert_eq!(written.rows, original.len(), "{format:?}");
     }
     // Segments with no frames write nothing and say so.
     let empty = dir.path().join("no-segments");
     std::fs::create_dir_all(&empty).expect("folder");
-    let nothing = aer_raspi::rawlog::export::to_file(&[empty], Format::Blf, &out.join("none.blf"))
+    let nothing = aer_raspi::export::raw_log::to_file(&[empty], Format::Blf, &out.join("none.blf"))
         .expect_err("nothing to write");
     assert!(nothing.to_string().contains("no frames in"), "{nothing}");
     assert!(!out.join("none.blf").exists());

@@ -5,10 +5,10 @@
 use aer_host::counters::Counters;
 use aer_raspi::config::TdengineConfig;
 use aer_raspi::forward;
+use aer_raspi::ingest::Stage;
 use aer_raspi::sink::Sink;
 use aer_raspi::sink::store::StoreSink;
 use aer_raspi::source::Replies;
-use aer_raspi::stage::Stage;
 use aer_raspi::store;
 use std::sync::Arc;
 use std::time::Duration;

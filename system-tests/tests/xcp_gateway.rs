@@ -12,7 +12,7 @@ use aer_car_node::masters::{self, Inbound, Outbox, Transport};
 use aer_car_node::{checks, scenarios, serve};
 use aer_dashboard::config::{Config, View};
 use aer_dashboard::screenshot::PIT_SIZE;
-use aer_dashboard::tune::{Control, Event, Request, Worker};
+use aer_dashboard::tune_worker::{Control, Event, Request, Worker};
 use aer_dashboard::ui::tune::Action;
 use aer_dashboard::ui::{App, Message};
 use aer_host::counters::Counters;
@@ -580,7 +580,7 @@ fn the_tune_page_calibrates_the_ccm_through_the_pis_gateway() {
     config.tune.gateway = gateway.address.to_string();
     let mut app = App::new(&config, Instant::now());
     let (control, requests) = Control::channel();
-    let mut worker = Worker::new(aer_dashboard::tune::Settings {
+    let mut worker = Worker::new(aer_dashboard::tune_worker::Settings {
         gateway: gateway.address,
         secret: Some(scenarios::SECRET),
         no_secret: String::new(),

@@ -3,7 +3,7 @@
 //! condition come from the generated schema (`aer::calibration::PARAMETERS`); the values from
 //! the CCM.
 
-use crate::tune::{Event, Request};
+use crate::tune_worker::{Event, Request};
 use aer::calibration::{Calibration, ElementType, PAGE_LEN, PARAMETERS, Parameter};
 use aer::can::VehicleState;
 use aer::telemetry::Telemetry;

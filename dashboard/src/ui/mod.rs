@@ -13,7 +13,7 @@ use crate::link;
 use crate::model::health::{Connection, SchemaMatch};
 use crate::model::tune::{Session, Tune};
 use crate::model::{Dashboard, Freshness, Update};
-use crate::tune as worker;
+use crate::tune_worker as worker;
 use iced::keyboard::{self, Key, key::Named};
 use iced::widget::{container, text};
 use iced::{Element, Fill, Subscription, Theme};

@@ -12,7 +12,7 @@
 //!
 //! The store keeps the wire's values; only the exports change them, here, once.
 
-use crate::describe::{self, Description};
+use crate::column_descriptions::{self, Description};
 use aer::tables::{ColumnType, TELEMETRY, Table};
 
 /// One column's values, typed as the generated column type says; `None` is SQL NULL (a
@@ -71,7 +71,7 @@ pub struct ExportColumn {
 /// The exported columns of `table`, in the store's order (tags, then columns).
 pub fn of(table: &'static Table) -> Vec<ExportColumn> {
     let telemetry = std::ptr::eq(table, &TELEMETRY);
-    describe::columns(table)
+    column_descriptions::columns(table)
         .into_iter()
         .map(|(column, description)| {
             let (name, ty, description) = match column.name {

@@ -7,7 +7,7 @@
 use super::columns::ExportColumn;
 use super::columns::{TableData, Values};
 use super::{ExportError, Written};
-use crate::describe::{self, Property};
+use crate::column_descriptions::{self, Property};
 use crate::store::calibration::{Entry, number};
 use std::collections::BTreeMap;
 use std::io::{BufWriter, Write as _};
@@ -47,7 +47,7 @@ pub fn write(
             description: column.description,
             required: i <= tags,
         });
-        let schema = describe::schema_of(data.table.name, properties);
+        let schema = column_descriptions::schema_of(data.table.name, properties);
         let schema_id =
             out.add_schema(data.table.name, "jsonschema", schema.to_string().as_bytes())?;
         let channel_metadata = BTreeMap::from([("table".to_owned(), data.table.name.to_owned())]);

@@ -5,9 +5,8 @@
 //! disk: a block the writer has no room for is dropped and its frames counted.
 //!
 //! `aer-raspi replay <segment>` reads a segment back; `aer-raspi raw-export <segment>` prints
-//! it as `candump -l` text.
+//! it as `candump -l` text (`crate::export::raw_log`).
 
-pub mod export;
 pub mod segments;
 pub mod writer;
 

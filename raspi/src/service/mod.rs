@@ -3,9 +3,9 @@
 //! or a shutdown signal fires (the one way to start it: the service, the tests and the
 //! benchmarks); [`serve`] is the service itself, which alone installs signal handlers.
 
-mod jobs;
-mod parts;
 mod pipeline;
+mod start_source;
+mod subsystems;
 
 pub use pipeline::Pipeline;
 

@@ -5,18 +5,18 @@
 //! the source stops; the stage drains; the raw log and the store write what they hold; MQTT
 //! sends what is queued.
 
-use super::parts::{self, Mqtt};
-use super::{Job, jobs};
+use super::subsystems::{self, Mqtt};
+use super::{Job, start_source};
 use crate::config::{self, Config};
 use crate::health::Health;
+use crate::ingest::Stage;
 use crate::rawlog::writer::RawWriter;
 use crate::rawlog::{Block, RawTap};
 use crate::sink::Sink;
 use crate::sink::store::StoreSink;
 use crate::source;
-use crate::stage::Stage;
 use crate::store::StoreWriter;
-use crate::{forward, report};
+use crate::{forward, status_topics};
 use aer_host::counters::{Counters, ServiceCounters};
 use anyhow::Result;
 use std::future::Future;
@@ -52,15 +52,15 @@ impl Pipeline {
         let counters = Arc::new(Counters::default());
         let health = Arc::new(Health::default());
         let cancel = CancellationToken::new();
-        let (store, session) = parts::start_store(&config, &job, &counters, &health)?;
-        let raw_log = parts::start_raw_log(&config, &job, &counters, &health)?;
-        let mqtt = parts::start_mqtt(&config, &counters, &health, &cancel).await?;
+        let (store, session) = subsystems::start_store(&config, &job, &counters, &health)?;
+        let raw_log = subsystems::start_raw_log(&config, &job, &counters, &health)?;
+        let mqtt = subsystems::start_mqtt(&config, &counters, &health, &cancel).await?;
         // What every key of every topic means (label, unit, value names), retained, once.
-        for (suffix, schema) in crate::describe::topic_schemas() {
+        for (suffix, schema) in crate::column_descriptions::topic_schemas() {
             mqtt.publisher
                 .publish_json(&format!("schema/{suffix}"), &schema, true);
         }
-        let xcp_gateway = parts::start_xcp_gateway(
+        let xcp_gateway = subsystems::start_xcp_gateway(
             &config,
             &job,
             &counters,
@@ -69,12 +69,12 @@ impl Pipeline {
             &cancel,
         )
         .await;
-        let reporter = tokio::spawn(report::run(
+        let reporter = tokio::spawn(status_topics::run(
             mqtt.publisher.clone(),
             config.car_id.clone(),
             counters.clone(),
             health.clone(),
-            report::Served {
+            status_topics::Served {
                 clients: mqtt.clients.clone(),
                 xcp_gateway: xcp_gateway.as_ref().map(|g| g.state.clone()),
             },
@@ -144,7 +144,7 @@ impl Pipeline {
             }
         });
         let replies = match self.inputs.take() {
-            Some(inputs) => jobs::start_source(
+            Some(inputs) => start_source::start_source(
                 &self.config,
                 &self.job,
                 inputs,
@@ -209,13 +209,13 @@ impl Pipeline {
         self.cancel.cancel();
         let (store, session) = (self.store, self.session);
         let store_path = self.config.store.path.clone();
-        parts::finish_blocking("local store", move || {
+        subsystems::finish_blocking("local store", move || {
             store.finish();
-            parts::end_session(&store_path, session);
+            subsystems::end_session(&store_path, session);
         })
         .await;
         if let Some(raw_writer) = raw_writer {
-            parts::finish_blocking("raw log", move || raw_writer.finish()).await;
+            subsystems::finish_blocking("raw log", move || raw_writer.finish()).await;
         }
         let _ = tokio::time::timeout(Duration::from_secs(2), self.reporter).await;
         if let Some(pit_stream) = pit_stream {
@@ -223,7 +223,7 @@ impl Pipeline {
             let _ = tokio::time::timeout(Duration::from_secs(2), pit_stream).await;
         }
         if let Some(forwarder) = self.forwarder {
-            let _ = tokio::time::timeout(parts::STOP_WAIT, forwarder).await;
+            let _ = tokio::time::timeout(subsystems::STOP_WAIT, forwarder).await;
         }
         if let Some(gateway) = self.xcp_gateway {
             // It ends a connected master's session with the CCM first.

@@ -17,11 +17,3 @@ pub trait Sink: Send {
     /// nothing lingers while the buses are quiet.
     fn flush(&mut self) {}
 }
-
-/// The name of bus number `bus` (`bus<N>` for a number no source announced).
-pub(crate) fn bus_name(buses: &[Arc<str>], bus: u8) -> Arc<str> {
-    buses
-        .get(usize::from(bus))
-        .cloned()
-        .unwrap_or_else(|| format!("bus{bus}").into())
-}

@@ -365,7 +365,7 @@ impl Publisher {
                 message,
                 ..
             } => {
-                let bus = super::bus_name(buses, *bus);
+                let bus = crate::bus_names::bus_name(buses, *bus);
                 let (suffix, payload) = encode_message(message, seconds(*ts_us), &bus);
                 (format!("{}/{suffix}", self.prefix).into(), payload)
             }

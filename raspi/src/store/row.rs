@@ -60,7 +60,7 @@ pub fn row(record: &Record, car_id: &Arc<str>, bus_names: &[Arc<str>]) -> Row {
             car_id: car_id.clone(),
             ts_us: *ts_us,
             data: RowData::Can {
-                bus: crate::sink::bus_name(bus_names, *bus),
+                bus: crate::bus_names::bus_name(bus_names, *bus),
                 message: *message,
                 check: *check,
             },

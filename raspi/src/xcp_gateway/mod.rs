@@ -36,6 +36,7 @@ use aer::calibration::PAGE_LEN;
 use aer::calibration::xcp::CALIBRATION_ADDRESS;
 use aer_host::counters::Counters;
 use aer_host::status::XcpGateway;
+use aer_xcp::protocol::pid::{ERR, RES};
 use aer_xcp::protocol::{cmd, page_mode};
 use aer_xcp::transport::{CAN_DLC, TCP_FRAME_MAX, TcpDecoder, TcpEncoder, can_frame};
 use allow::Network;
@@ -50,12 +51,6 @@ use tokio::task::JoinHandle;
 use tokio_util::sync::CancellationToken;
 use tracing::{info, warn};
 
-/// XCP command codes the gateway watches (ASAM MCD-1 XCP part 2).
-const CONNECT: u8 = 0xFF;
-const DISCONNECT: u8 = 0xFE;
-/// The packet ids of a positive response and of an error.
-const RES: u8 = 0xFF;
-const ERR: u8 = 0xFE;
 /// How long a write to the master may wait before it counts as gone.
 const WRITE_LIMIT: Duration = Duration::from_secs(2);
 /// How long the slave may take to answer the gateway's own commands: its DISCONNECT, its
@@ -338,7 +333,7 @@ impl Forwarder {
             let entries = self.recorder.answer(packet, at_us, &peer);
             self.publish(entries);
             match (packet.first(), last_command) {
-                (Some(&RES), Some(CONNECT)) => {
+                (Some(&RES), Some(cmd::CONNECT)) => {
                     self.state.update(|s| s.session = true);
                     // Before the master sees the answer, so nothing of its own is lost.
                     if !self.read_page(&peer).await {
@@ -347,7 +342,7 @@ impl Forwarder {
                         return;
                     }
                 }
-                (Some(&RES), Some(DISCONNECT)) => self.state.update(|s| s.session = false),
+                (Some(&RES), Some(cmd::DISCONNECT)) => self.state.update(|s| s.session = false),
                 // A wrong key ends the slave's session (the standard's rule).
                 (Some(&ERR), Some(cmd::UNLOCK))
                     if packet.get(1) == Some(&aer_xcp::protocol::err::ACCESS_LOCKED) =>
@@ -438,7 +433,7 @@ impl Forwarder {
     /// Ends the slave's session for a vanished master, so none of its state (unlocked
     /// calibration, DAQ) reaches the next one; the answer is not the next master's either.
     async fn disconnect_slave(&mut self) {
-        if self.ask(&[DISCONNECT]).await.is_some() {
+        if self.ask(&[cmd::DISCONNECT]).await.is_some() {
             Counters::bump(&self.counters.xcp_dropped);
         } else {
             warn!("XCP gateway: the slave did not answer the DISCONNECT for a vanished master");

@@ -2,10 +2,10 @@
 #![allow(dead_code)]
 
 use aer_host::counters::Counters;
+use aer_raspi::ingest::Stage;
 use aer_raspi::sink::Sink;
 use aer_raspi::sink::store::StoreSink;
 use aer_raspi::source::Replies;
-use aer_raspi::stage::Stage;
 use aer_raspi::store::{self, StoreWriter, WhenFull, WriterOptions, session};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};

@@ -1,8 +1,8 @@
 //! Raw log segments as candump `-l` text (the same timestamps, interfaces, ids and data), or
 //! as a BLF, ASC or MF4 file for the bus tools.
 
-use crate::export::frames::{self, source::FrameSource, source::expand};
-use crate::export::{Format, Written};
+use super::frames::{self, source::FrameSource, source::expand};
+use super::{Format, Written};
 use aer_host::raw_format::SegmentReader;
 use anyhow::{Context, Result, bail};
 use std::io::Write;
