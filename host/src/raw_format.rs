@@ -7,8 +7,7 @@
 //!
 //! ```text
 //! block:   sync "AERB" | stored length u32 LE | CRC-32 of the stored bytes u32 LE | stored
-//! stored:  version 2: codec u8 (0 plain, 1 zstd) | the payload in that codec
-//!          version 1: the payload itself
+//! stored:  codec u8 (0 plain, 1 zstd) | the payload in that codec
 //! payload: first timestamp (us since the epoch) u64 LE, then records:
 //!   0x01 bus:   index u8, name length u8, name (UTF-8)
 //!   0x02 frame: time since the previous record (zigzag LEB128, us), bus u8,
@@ -19,8 +18,8 @@
 //!
 //! Every block names the buses it uses, so each one decodes on its own. A block cut short by a
 //! crash or damaged on disk fails its length or checksum and is skipped: the reader finds the
-//! next block by its sync word, so one bad block loses only itself, and says so. Version 1
-//! segments (uncompressed, before 2026-11) still read.
+//! next block by its sync word, so one bad block loses only itself, and says so. The header's
+//! version is 2; a segment of another version is refused.
 
 use crate::candump::LoggedFrame;
 use crate::varint::{put_varint, read_varint, unzigzag, zigzag};
@@ -55,7 +54,7 @@ const FLAG_EXTENDED: u8 = 0x01;
 pub enum RawError {
     #[error("not a raw log segment (no AERRAW header)")]
     NotRawLog,
-    #[error("raw log version {0} is newer than this build reads")]
+    #[error("raw log version {0}: this build reads version 2")]
     Version(u16),
     #[error("block at byte {offset} is cut short (a crash while writing)")]
     Truncated { offset: usize },
@@ -253,8 +252,6 @@ pub fn seal(payload: &[u8]) -> Vec<u8> {
 pub struct SegmentReader<'a> {
     data: &'a [u8],
     pos: usize,
-    /// Version 2 blocks name their codec.
-    coded: bool,
     block: Option<BlockReader>,
 }
 
@@ -268,13 +265,12 @@ impl<'a> SegmentReader<'a> {
         let version = header
             .get(6..8)
             .map_or(0, |v| u16::from_le_bytes([v[0], v[1]]));
-        if !(1..=2).contains(&version) {
+        if version != 2 {
             return Err(RawError::Version(version));
         }
         Ok(Self {
             data,
             pos: MAGIC.len(),
-            coded: version >= 2,
             block: None,
         })
     }
@@ -341,9 +337,6 @@ impl<'a> SegmentReader<'a> {
 
     /// A block's stored bytes as its payload.
     fn decode(&self, stored: &[u8], offset: usize) -> Result<Vec<u8>, RawError> {
-        if !self.coded {
-            return Ok(stored.to_vec());
-        }
         let damaged = |why| RawError::Damaged { offset, why };
         match stored.split_first() {
             Some((&CODEC_PLAIN, payload)) => Ok(payload.to_vec()),
@@ -641,22 +634,6 @@ mod tests {
             .map(|r| r.unwrap().frame)
             .collect();
         assert_eq!(read, expected);
-    }
-
-    #[test]
-    fn version_1_segments_still_read() {
-        let (encoder, frames) = sample_encoder(5_000);
-        let payload = encoder.payload;
-        let mut data = b"AERRAW\x01\x00".to_vec();
-        data.extend_from_slice(&SYNC);
-        data.extend_from_slice(&(payload.len() as u32).to_le_bytes());
-        data.extend_from_slice(&crc32fast::hash(&payload).to_le_bytes());
-        data.extend_from_slice(&payload);
-        let read: Vec<LoggedFrame> = SegmentReader::new(&data)
-            .unwrap()
-            .map(|r| r.unwrap().frame)
-            .collect();
-        assert_eq!(read, frames);
     }
 
     #[test]

@@ -135,17 +135,13 @@ pub fn record(db: &Connection, session: i64, entries: &[Entry]) -> rusqlite::Res
 }
 
 /// The entries between `from_us` and `to_us` (inclusive, either open) of session `session`
-/// (or of every session), in the order they were recorded. A store from before the record
-/// was kept has none.
+/// (or of every session), in the order they were recorded.
 pub fn list(
     db: &Connection,
     session: Option<i64>,
     from_us: Option<i64>,
     to_us: Option<i64>,
 ) -> rusqlite::Result<Vec<Entry>> {
-    if !super::session::has_column(db, "session_calibration", "checksum")? {
-        return Ok(Vec::new());
-    }
     let mut query = db.prepare(
         "SELECT at_us, master, kind, parameter, element, old, new, accepted, reason, checksum \
          FROM session_calibration WHERE (?1 IS NULL OR session_id = ?1) AND at_us >= ?2 \

@@ -106,15 +106,11 @@ pub fn open(path: &Path) -> Result<Connection, StoreError> {
 pub(crate) fn create_tables(db: &Connection) -> rusqlite::Result<()> {
     for table in TABLES {
         db.execute(table.sqlite.create, [])?;
-        // Stores from before 2026-11 indexed `ts`; the index cost a page write per table per
-        // commit and nothing reads it.
-        db.execute(&format!("DROP INDEX IF EXISTS \"{}_ts\"", table.name), [])?;
-        migrate(db, table)?;
+        add_missing_columns(db, table)?;
     }
     db.execute(CURSOR_TABLE, [])?;
     db.execute(SET_ASIDE_TABLE, [])?;
     db.execute(session::SESSIONS_TABLE, [])?;
-    session::migrate(db)?;
     db.execute(clock::SESSION_CLOCK_TABLE, [])?;
     db.execute(session::SESSION_ROWS_TABLE, [])?;
     db.execute(session_messages::SESSION_MESSAGES_TABLE, [])?;
@@ -124,46 +120,6 @@ pub(crate) fn create_tables(db: &Connection) -> rusqlite::Result<()> {
         ids_after_everything_seen(db, table)?;
     }
     Ok(())
-}
-
-/// Stores from before 2026-11-25 made row ids without `AUTOINCREMENT`: SQLite reuses the ids
-/// of a table whose rows were all removed (pruned by age, compacted), which the forwarder's
-/// cursor would then skip. Such a table is rebuilt once, ids kept.
-fn rebuild_with_autoincrement(db: &Connection, table: &Table) -> rusqlite::Result<()> {
-    let sql: String = db.query_row(
-        "SELECT sql FROM sqlite_master WHERE type = 'table' AND name = ?1",
-        [table.name],
-        |row| row.get(0),
-    )?;
-    if sql.contains("AUTOINCREMENT") {
-        return Ok(());
-    }
-    info!(
-        table = table.name,
-        "rebuilding the table so its row ids are never reused (once)"
-    );
-    let mut statement = db.prepare("SELECT name FROM pragma_table_info(?1)")?;
-    let names: Vec<String> = statement
-        .query_map([table.name], |row| row.get(0))?
-        .collect::<rusqlite::Result<_>>()?;
-    // The columns both tables have (a column the schema no longer has is left behind).
-    let names: Vec<String> = names
-        .iter()
-        .filter(|n| *n == "id" || table.local_columns().any(|c| c.name == n.as_str()))
-        .map(|n| format!("\"{n}\""))
-        .collect();
-    let old = format!("{}_before_autoincrement", table.name);
-    db.execute_batch(&format!(
-        "SAVEPOINT rebuild; \
-         ALTER TABLE \"{name}\" RENAME TO \"{old}\"; \
-         {create}; \
-         INSERT INTO \"{name}\" ({columns}) SELECT {columns} FROM \"{old}\"; \
-         DROP TABLE \"{old}\"; \
-         RELEASE rebuild;",
-        name = table.name,
-        create = table.sqlite.create,
-        columns = names.join(", "),
-    ))
 }
 
 /// New rows of `table` get ids after every id it ever had: its rows, its compacted blocks and
@@ -260,9 +216,9 @@ fn move_aside(path: &Path) -> Result<PathBuf, StoreError> {
     Ok(aside)
 }
 
-/// Adds the columns a store created by an older build lacks.
-fn migrate(db: &Connection, table: &Table) -> rusqlite::Result<()> {
-    rebuild_with_autoincrement(db, table)?;
+/// Adds the columns a schema change added since the store was created (a new signal in the
+/// DBC or the telemetry packet): the rows before it read NULL there.
+fn add_missing_columns(db: &Connection, table: &Table) -> rusqlite::Result<()> {
     let mut statement = db.prepare("SELECT name FROM pragma_table_info(?1)")?;
     let existing: Vec<String> = statement
         .query_map([table.name], |row| row.get(0))?

@@ -13,17 +13,6 @@ use serde::Deserialize;
 /// One row per session.
 pub(crate) const SESSIONS_TABLE: &str = "CREATE TABLE IF NOT EXISTS \"sessions\" (\"id\" INTEGER PRIMARY KEY, \"started_us\" INTEGER NOT NULL, \"ended_us\" INTEGER, \"source\" TEXT NOT NULL, \"driver\" TEXT NOT NULL DEFAULT '', \"track\" TEXT NOT NULL DEFAULT '', \"run\" INTEGER, \"notes\" TEXT NOT NULL DEFAULT '', \"clock\" TEXT NOT NULL DEFAULT '')";
 
-/// Adds what a sessions table from an older build lacks (the clock's state, from 2026-11-26).
-pub(crate) fn migrate(db: &Connection) -> rusqlite::Result<()> {
-    if !has_column(db, "sessions", "clock")? {
-        db.execute(
-            "ALTER TABLE sessions ADD COLUMN \"clock\" TEXT NOT NULL DEFAULT ''",
-            [],
-        )?;
-    }
-    Ok(())
-}
-
 /// Each session's rows: per table, the first and last row id committed while it was open.
 pub(crate) const SESSION_ROWS_TABLE: &str = "CREATE TABLE IF NOT EXISTS \"session_rows\" (\"session_id\" INTEGER NOT NULL, \"table_name\" TEXT NOT NULL, \"first_id\" INTEGER NOT NULL, \"last_id\" INTEGER NOT NULL, PRIMARY KEY (\"session_id\", \"table_name\"))";
 
@@ -168,47 +157,29 @@ pub fn record_clock_step(db: &Connection, at_us: i64, step_us: i64) -> rusqlite:
 
 /// The wall clock's steps while session `id` was open, oldest first: (when, by how much), microseconds.
 pub fn clock_steps(db: &Connection, id: i64) -> rusqlite::Result<Vec<(i64, i64)>> {
-    // A store from before steps were recorded, read without migrating it, has none.
-    if !has_column(db, "session_clock", "step_us")? {
-        return Ok(Vec::new());
-    }
     let mut statement = db
         .prepare("SELECT at_us, step_us FROM session_clock WHERE session_id = ?1 ORDER BY rowid")?;
     let steps = statement.query_map([id], |r| Ok((r.get(0)?, r.get(1)?)))?;
     steps.collect()
 }
 
-/// Whether `table` has `column` (false for a table that does not exist).
-pub(crate) fn has_column(db: &Connection, table: &str, column: &str) -> rusqlite::Result<bool> {
-    db.query_row(
-        "SELECT count(*) FROM pragma_table_info(?1) WHERE name = ?2",
-        [table, column],
-        |r| r.get::<_, i64>(0).map(|n| n > 0),
-    )
-}
-
-/// The columns of a session, as [`from_row`] reads them; a store from before the clock was
-/// recorded (read without migrating it: a copy on a laptop) has an empty one.
-fn select(db: &Connection) -> rusqlite::Result<String> {
-    let clock = if has_column(db, "sessions", "clock")? {
-        "s.clock"
-    } else {
-        "'' AS clock"
-    };
-    Ok(format!(
-        "SELECT s.id, s.started_us, s.ended_us, s.source, s.driver, s.track, s.run, s.notes, {clock} FROM sessions s"
-    ))
-}
+/// The columns of a session, as [`from_row`] reads them.
+const COLUMNS: &str =
+    "SELECT s.id, s.started_us, s.ended_us, s.source, s.driver, s.track, s.run, s.notes, s.clock";
 
 /// Session `id`.
 pub fn get(db: &Connection, id: i64) -> rusqlite::Result<Option<Session>> {
-    db.query_row(&format!("{} WHERE s.id = ?1", select(db)?), [id], from_row)
-        .optional()
+    db.query_row(
+        &format!("{COLUMNS} FROM sessions s WHERE s.id = ?1"),
+        [id],
+        from_row,
+    )
+    .optional()
 }
 
 /// Every session, oldest first.
 pub fn list(db: &Connection) -> rusqlite::Result<Vec<Session>> {
-    let mut statement = db.prepare(&format!("{} ORDER BY s.id", select(db)?))?;
+    let mut statement = db.prepare(&format!("{COLUMNS} FROM sessions s ORDER BY s.id"))?;
     let sessions = statement.query_map([], from_row)?;
     sessions.collect()
 }
@@ -216,11 +187,10 @@ pub fn list(db: &Connection) -> rusqlite::Result<Vec<Session>> {
 /// Every session, oldest first, with the rows it recorded (the width of its row ranges, every
 /// table; retention may have removed the oldest since).
 pub fn list_with_rows(db: &Connection) -> rusqlite::Result<Vec<(Session, u64)>> {
-    let columns = select(db)?;
     let mut statement = db.prepare(&format!(
         "{}, coalesce((SELECT sum(last_id - first_id + 1) FROM session_rows r WHERE r.session_id = s.id), 0) \
          FROM sessions s ORDER BY s.id",
-        columns.trim_end_matches(" FROM sessions s")
+        COLUMNS
     ))?;
     let sessions = statement.query_map([], |r| {
         let rows: i64 = r.get(9)?;

@@ -97,11 +97,6 @@ pub fn control(
     if !package.recommends.is_empty() {
         let _ = writeln!(text, "Recommends: {}", package.recommends);
     }
-    if !package.replaces.is_empty() {
-        let replaces = package.replaces.replace("${version}", &release.version);
-        let _ = writeln!(text, "Breaks: {replaces}");
-        let _ = writeln!(text, "Replaces: {replaces}");
-    }
     let _ = writeln!(text, "Section: {}", package.section);
     let _ = writeln!(text, "Priority: optional");
     let _ = writeln!(text, "Homepage: {HOMEPAGE}");

@@ -88,8 +88,6 @@ struct Package {
     binary: bool,
     depends: &'static str,
     recommends: &'static str,
-    /// Packages whose files this one takes over (`Replaces` and `Breaks`).
-    replaces: &'static str,
     section: &'static str,
     summary: &'static str,
     description: &'static str,
@@ -104,8 +102,6 @@ const PACKAGES: [Package; 4] = [
         binary: true,
         depends: "",
         recommends: "",
-        // Before 2026-11-26 the program was in aer-raspi.
-        replaces: "aer-raspi (<< ${version})",
         section: "utils",
         summary: "AER car data tools: sessions, exports and raw logs without the service",
         description: "The aer-raspi program alone: list the sessions of a store copied off the \
@@ -140,7 +136,6 @@ On the car, package aer-raspi runs the same program as the ingest service.",
         binary: false,
         depends: "adduser, aer-tools (= ${version})",
         recommends: "",
-        replaces: "",
         section: "net",
         summary: "AER car data ingest: CAN/ISO-TP to MQTT, local store and raw log",
         description: "Reads the car's CAN buses (can0, can1) and the central computer's ISO-TP \
@@ -196,7 +191,6 @@ through systemd-networkd.",
         // winit opens these at run time (dlopen): the keyboard always, then Wayland or X11.
         depends: "libxkbcommon0",
         recommends: "libwayland-client0, libwayland-cursor0, libx11-6, libx11-xcb1, libxcursor1, libxi6, libxrandr2, libxkbcommon-x11-0",
-        replaces: "",
         section: "misc",
         summary: "AER driver display and pit view of the car's telemetry",
         description: "Shows the car's live telemetry from the Pi's MQTT broker: the driver's \
@@ -247,7 +241,6 @@ display full-screen.",
         binary: false,
         depends: "aer-dashboard (>= ${version}), aer-raspi (>= ${version}), systemd",
         recommends: "",
-        replaces: "",
         section: "misc",
         summary: "starts the AER driver display full-screen on the car's screen",
         description: "Starts the driver's display (aer-dashboard, full-screen, driver view) \
