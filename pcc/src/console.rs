@@ -152,8 +152,6 @@ pub struct WaitingLine {
     pub waiting: Waiting,
     /// Accumulator voltage (V).
     pub accumulator_v: f32,
-    /// Tractive-system voltage (V).
-    pub tractive_v: f32,
     /// The pack minimum (V).
     pub pack_min_v: f32,
     /// The discharged limit (V).
@@ -199,21 +197,18 @@ impl fmt::Display for WaitingLine {
                 item(
                     f,
                     format_args!(
-                        "the tractive system to discharge (it reads {:.1} V with AIR+ open: it \
-                         charged while the PCC could not time it; open the shutdown circuit \
-                         and treat it as live until it reads below {:.0} V)",
-                        self.tractive_v, self.discharged_v
+                        "the tractive system to discharge (at {:.0} V or more with AIR+ open: it \
+                         charged while the PCC could not time it; open the shutdown circuit and \
+                         treat it as live until the TSMP meter reads below {:.0} V)",
+                        self.discharged_v, self.discharged_v
                     ),
                 )?;
             } else {
                 item(
                     f,
                     format_args!(
-                        "the tractive system to discharge (it reads {:.1} V, above the {:.1} V, \
-                         {:.0} % of the pack, a timed precharge starts from: keep the shutdown \
-                         circuit open)",
-                        self.tractive_v,
-                        self.accumulator_v * self.rest_percent / 100.0,
+                        "the tractive system to discharge to rest (below {:.0} % of the pack, \
+                         where a timed precharge starts: open the shutdown circuit and wait)",
                         self.rest_percent
                     ),
                 )?;
@@ -246,13 +241,17 @@ impl RaceLog {
             };
             log.line(format_args!("{line}"));
         }
-        if let Some(Some(waiting)) = self.waiting.changed(pcc.waiting()) {
+        // What STANDBY waits for, when it changes and again with every counters line: a
+        // terminal opened late still reads it within 5 s.
+        let changed = self.waiting.changed(pcc.waiting()).is_some();
+        if let Some(waiting) = pcc.waiting()
+            && (changed || Self::counters_due(now_ms))
+        {
             let config = pcc.config();
             let line = WaitingLine {
                 now_ms,
                 waiting,
                 accumulator_v: pcc.accumulator_v(),
-                tractive_v: pcc.tractive_v(),
                 pack_min_v: config.min_accumulator_v,
                 discharged_v: config.discharged_v,
                 rest_percent: config.rest_percent,

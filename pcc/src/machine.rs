@@ -312,8 +312,15 @@ impl Precharge {
                 // timed short. A jump from rest still starts PRECHARGE, whose `too-fast` then
                 // names a bypassed precharge resistor or a welded AIR+.
                 let ready = pack_present && bms_alive;
-                let at_rest = self.progress_percent < self.config.rest_percent
-                    && self.tractive_v < self.config.discharged_v;
+                // Without a pack reading the rest is judged against the smallest pack the PCC
+                // accepts, so a tractive system charging with the pack unread says so.
+                let at_rest = if pack_present {
+                    self.progress_percent < self.config.rest_percent
+                        && self.tractive_v < self.config.discharged_v
+                } else {
+                    self.tractive_v
+                        < self.config.min_accumulator_v * self.config.rest_percent / 100.0
+                };
                 if !ready {
                     self.rest_seen = false;
                 } else if at_rest {

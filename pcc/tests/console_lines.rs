@@ -161,7 +161,6 @@ fn the_race_lines_fit_the_race_log() {
             live: true,
         },
         accumulator_v: -f32::MAX,
-        tractive_v: -f32::MAX,
         pack_min_v: f32::MAX,
         discharged_v: f32::MAX,
         rest_percent: f32::MAX,
