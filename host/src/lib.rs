@@ -21,6 +21,7 @@ pub mod clock;
 pub mod config;
 pub mod counters;
 pub mod decode;
+pub mod frame_record;
 pub mod logging;
 pub mod pit_history;
 pub mod pit_stream;

@@ -10,15 +10,16 @@
 //!          the epoch) | payload length u32 LE | the payload, zstd-compressed
 //! payload: bus count u8, then per bus: name length u8, name (UTF-8, the index is the order)
 //!          then records:
-//!   0x02 frame:  time since the previous record (zigzag LEB128, us), bus u8,
-//!                flags u8 (bit 0: extended id), id (LEB128), length u8 (0-8), data
+//!   0x02 frame:  the frame record the raw log carries too ([`crate::frame_record`]): time
+//!                since the previous record (zigzag LEB128, us), bus u8, flags u8 (bit 0:
+//!                extended id), id (LEB128), length u8 (0-8), data
 //!   0x04 packet: time since the previous record (zigzag LEB128, us), bus u8,
 //!                length (LEB128), the packet
 //! ```
 
 use crate::candump::LoggedFrame;
-use crate::varint::{put_varint, read_varint, unzigzag, zigzag};
-use embedded_can::{ExtendedId, Id, StandardId};
+use crate::frame_record::{self, Cursor};
+use crate::varint::put_varint;
 use std::sync::Arc;
 use thiserror::Error;
 
@@ -65,7 +66,6 @@ const ZSTD_LEVEL: i32 = 3;
 
 const TAG_FRAME: u8 = 0x02;
 const TAG_PACKET: u8 = 0x04;
-const FLAG_EXTENDED: u8 = 0x01;
 
 /// Why a message is not a batch this build can read.
 #[derive(Debug, Clone, PartialEq, Eq, Error)]
@@ -147,25 +147,10 @@ impl BatchEncoder {
         }
     }
 
-    fn time(&mut self, ts_us: u64) {
-        let delta = ts_us.wrapping_sub(self.last_us) as i64;
-        self.last_us = ts_us;
-        put_varint(&mut self.payload, zigzag(delta));
-    }
-
     /// Appends a frame.
     pub fn frame(&mut self, frame: &LoggedFrame) {
         self.payload.push(TAG_FRAME);
-        self.time(frame.ts_us);
-        let (flags, id) = match frame.id {
-            Id::Standard(id) => (0, u32::from(id.as_raw())),
-            Id::Extended(id) => (FLAG_EXTENDED, id.as_raw()),
-        };
-        self.payload.extend_from_slice(&[frame.bus, flags]);
-        put_varint(&mut self.payload, u64::from(id));
-        let data = frame.payload();
-        self.payload.push(data.len() as u8);
-        self.payload.extend_from_slice(data);
+        frame_record::put(&mut self.payload, &mut self.last_us, frame);
         self.items += 1;
     }
 
@@ -175,7 +160,7 @@ impl BatchEncoder {
             .get(..packet.len().min(MAX_PACKET))
             .unwrap_or_default();
         self.payload.push(TAG_PACKET);
-        self.time(ts_us);
+        frame_record::put_time(&mut self.payload, &mut self.last_us, ts_us);
         self.payload.push(bus);
         put_varint(&mut self.payload, packet.len() as u64);
         self.payload.extend_from_slice(packet);
@@ -221,44 +206,38 @@ impl BatchEncoder {
     }
 }
 
-/// A cursor over the payload with the offset for errors.
-struct Reader<'a> {
-    data: &'a [u8],
-    at: usize,
-}
-
-impl<'a> Reader<'a> {
-    fn damaged(&self, why: &'static str) -> StreamError {
-        StreamError::Damaged {
-            offset: self.at,
-            why,
+/// The payload's buses and records.
+fn records(
+    cursor: &mut Cursor<'_>,
+    first_us: u64,
+) -> Result<(Vec<Arc<str>>, Vec<Item>), frame_record::Why> {
+    let count = cursor.byte()?;
+    let mut buses = Vec::with_capacity(usize::from(count));
+    for _ in 0..count {
+        let len = cursor.byte()?;
+        let name = std::str::from_utf8(cursor.bytes(usize::from(len))?)
+            .map_err(|_| "bus name not UTF-8")?;
+        buses.push(Arc::from(name));
+    }
+    let mut items = Vec::new();
+    let mut last_us = first_us;
+    while !cursor.is_done() {
+        match cursor.byte()? {
+            TAG_FRAME => items.push(Item::Frame(cursor.frame(&mut last_us)?)),
+            TAG_PACKET => {
+                let ts_us = cursor.time(&mut last_us)?;
+                let bus = cursor.byte()?;
+                let len = usize::try_from(cursor.varint()?).unwrap_or(usize::MAX);
+                if len > MAX_PACKET {
+                    return Err("packet longer than ISO-TP allows");
+                }
+                let packet = cursor.bytes(len)?.to_vec();
+                items.push(Item::Packet { ts_us, bus, packet });
+            }
+            _ => return Err("unknown record"),
         }
     }
-
-    fn u8(&mut self, what: &'static str) -> Result<u8, StreamError> {
-        let byte = *self.data.get(self.at).ok_or_else(|| self.damaged(what))?;
-        self.at += 1;
-        Ok(byte)
-    }
-
-    fn bytes(&mut self, len: usize, what: &'static str) -> Result<&'a [u8], StreamError> {
-        let data: &'a [u8] = self.data;
-        let end = self.at.checked_add(len).ok_or_else(|| self.damaged(what))?;
-        let bytes = data.get(self.at..end).ok_or_else(|| self.damaged(what))?;
-        self.at = end;
-        Ok(bytes)
-    }
-
-    fn varint(&mut self, what: &'static str) -> Result<u64, StreamError> {
-        let (data, mut at) = (self.data, self.at);
-        let value = read_varint(|| {
-            let byte = data.get(at).copied();
-            at += 1;
-            byte
-        });
-        self.at = at.min(data.len());
-        value.ok_or_else(|| self.damaged(what))
-    }
+    Ok((buses, items))
 }
 
 fn header_field<const N: usize>(message: &[u8], at: usize) -> Result<[u8; N], StreamError> {
@@ -303,71 +282,11 @@ pub fn decode(message: &[u8]) -> Result<Batch, StreamError> {
             held: payload.len(),
         });
     }
-    let mut reader = Reader {
-        data: &payload,
-        at: 0,
-    };
-    let count = reader.u8("bus count")?;
-    let mut buses = Vec::with_capacity(usize::from(count));
-    for _ in 0..count {
-        let len = reader.u8("bus name length")?;
-        let name = std::str::from_utf8(reader.bytes(usize::from(len), "bus name")?)
-            .map_err(|_| reader.damaged("bus name not UTF-8"))?;
-        buses.push(Arc::from(name));
-    }
-    let mut items = Vec::new();
-    let mut last_us = first_us;
-    while reader.at < payload.len() {
-        let tag = reader.u8("record tag")?;
-        let delta = unzigzag(reader.varint("time")?);
-        last_us = last_us.wrapping_add(delta as u64);
-        let bus = reader.u8("bus")?;
-        match tag {
-            TAG_FRAME => {
-                let flags = reader.u8("flags")?;
-                let raw = u32::try_from(reader.varint("id")?)
-                    .map_err(|_| reader.damaged("id too large"))?;
-                let id = if flags & FLAG_EXTENDED != 0 {
-                    ExtendedId::new(raw).map(Id::Extended)
-                } else {
-                    u16::try_from(raw)
-                        .ok()
-                        .and_then(StandardId::new)
-                        .map(Id::Standard)
-                }
-                .ok_or_else(|| reader.damaged("id out of range"))?;
-                let len = reader.u8("length")?;
-                if len > 8 {
-                    return Err(reader.damaged("frame longer than 8 bytes"));
-                }
-                let mut data = [0u8; 8];
-                let bytes = reader.bytes(usize::from(len), "frame data")?;
-                for (slot, byte) in data.iter_mut().zip(bytes) {
-                    *slot = *byte;
-                }
-                items.push(Item::Frame(LoggedFrame {
-                    ts_us: last_us,
-                    bus,
-                    id,
-                    len,
-                    data,
-                }));
-            }
-            TAG_PACKET => {
-                let len = reader.varint("packet length")? as usize;
-                if len > MAX_PACKET {
-                    return Err(reader.damaged("packet longer than ISO-TP allows"));
-                }
-                let packet = reader.bytes(len, "packet")?.to_vec();
-                items.push(Item::Packet {
-                    ts_us: last_us,
-                    bus,
-                    packet,
-                });
-            }
-            _ => return Err(reader.damaged("unknown record")),
-        }
-    }
+    let mut cursor = Cursor::new(&payload, 0);
+    let (buses, items) = records(&mut cursor, first_us).map_err(|why| StreamError::Damaged {
+        offset: cursor.at,
+        why,
+    })?;
     Ok(Batch {
         number,
         buses,

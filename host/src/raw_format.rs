@@ -22,8 +22,7 @@
 //! version is 2; a segment of another version is refused.
 
 use crate::candump::LoggedFrame;
-use crate::varint::{put_varint, read_varint, unzigzag, zigzag};
-use embedded_can::{ExtendedId, Id, StandardId};
+use crate::frame_record::{self, Cursor, Why};
 use std::sync::Arc;
 use thiserror::Error;
 
@@ -47,7 +46,6 @@ const BLOCK_HEADER: usize = 12;
 const TAG_BUS: u8 = 0x01;
 const TAG_FRAME: u8 = 0x02;
 const TAG_TIME: u8 = 0x03;
-const FLAG_EXTENDED: u8 = 0x01;
 
 /// What is wrong with a segment or a block.
 #[derive(Debug, Clone, PartialEq, Eq, Error)]
@@ -117,19 +115,8 @@ impl BlockEncoder {
 
     /// Appends a frame.
     pub fn push(&mut self, frame: &LoggedFrame) {
-        let delta = frame.ts_us.wrapping_sub(self.last_us) as i64;
-        self.last_us = frame.ts_us;
         self.payload.push(TAG_FRAME);
-        put_varint(&mut self.payload, zigzag(delta));
-        let (flags, id) = match frame.id {
-            Id::Standard(id) => (0, u32::from(id.as_raw())),
-            Id::Extended(id) => (FLAG_EXTENDED, id.as_raw()),
-        };
-        self.payload.extend_from_slice(&[frame.bus, flags]);
-        put_varint(&mut self.payload, u64::from(id));
-        let payload = frame.payload();
-        self.payload.push(payload.len() as u8);
-        self.payload.extend_from_slice(payload);
+        frame_record::put(&mut self.payload, &mut self.last_us, frame);
         self.frames += 1;
     }
 
@@ -177,18 +164,14 @@ impl Joiner {
             // The block's first frame is at its start time: its time since the previous
             // frame takes the place of that zero, as if one encoder had written both.
             self.payload.push(TAG_FRAME);
-            put_varint(
-                &mut self.payload,
-                zigzag(block.first_us.wrapping_sub(self.last_us) as i64),
-            );
+            let mut last_us = self.last_us;
+            frame_record::put_time(&mut self.payload, &mut last_us, block.first_us);
             self.payload
                 .extend_from_slice(block.payload.get(block.frames_at + 2..).unwrap_or_default());
         } else {
             self.payload.push(TAG_TIME);
-            put_varint(
-                &mut self.payload,
-                zigzag(block.first_us.wrapping_sub(self.last_us) as i64),
-            );
+            let mut last_us = self.last_us;
+            frame_record::put_time(&mut self.payload, &mut last_us, block.first_us);
             let from = if block.buses == self.buses {
                 block.frames_at
             } else {
@@ -420,50 +403,28 @@ impl BlockReader {
         }
     }
 
-    fn byte(&mut self) -> Result<u8, RawError> {
-        let byte = *self
-            .payload
-            .get(self.pos)
-            .ok_or(self.damaged("record cut short"))?;
-        self.pos += 1;
-        Ok(byte)
-    }
-
-    fn bytes(&mut self, len: usize) -> Result<&[u8], RawError> {
-        let at = self.pos;
-        if self.payload.len() < at + len {
-            return Err(self.damaged("record cut short"));
-        }
-        self.pos += len;
-        Ok(self.payload.get(at..at + len).unwrap_or_default())
+    /// Runs `read` on a cursor at the current position; damage names this block.
+    fn read<T>(
+        &mut self,
+        read: impl FnOnce(&mut Cursor<'_>, &mut u64) -> Result<T, Why>,
+    ) -> Result<T, RawError> {
+        let mut cursor = Cursor::new(&self.payload, self.pos);
+        let result = read(&mut cursor, &mut self.last_us);
+        self.pos = cursor.at;
+        result.map_err(|why| self.damaged(why))
     }
 
     fn time(&mut self) -> Result<(), RawError> {
-        let delta = unzigzag(self.varint()?);
-        self.last_us = self.last_us.wrapping_add(delta as u64);
-        Ok(())
-    }
-
-    fn varint(&mut self) -> Result<u64, RawError> {
-        let (payload, pos) = (&self.payload, &mut self.pos);
-        read_varint(|| {
-            let byte = payload.get(*pos).copied();
-            *pos += 1;
-            byte
-        })
-        .ok_or(self.damaged("varint cut short or too long"))
+        self.read(|cursor, last_us| cursor.time(last_us).map(|_| ()))
     }
 
     fn bus(&mut self) -> Result<(), RawError> {
-        let index = usize::from(self.byte()?);
-        let len = usize::from(self.byte()?);
-        let offset = self.offset;
-        let name: Arc<str> = std::str::from_utf8(self.bytes(len)?)
-            .map_err(|_| RawError::Damaged {
-                offset,
-                why: "bus name not UTF-8",
-            })?
-            .into();
+        let (index, name) = self.read(|cursor, _| {
+            let index = usize::from(cursor.byte()?);
+            let len = usize::from(cursor.byte()?);
+            let name = std::str::from_utf8(cursor.bytes(len)?).map_err(|_| "bus name not UTF-8")?;
+            Ok((index, Arc::<str>::from(name)))
+        })?;
         if self.buses.len() <= index {
             self.buses.resize(index + 1, None);
         }
@@ -474,35 +435,13 @@ impl BlockReader {
     }
 
     fn frame(&mut self) -> Result<Frame, RawError> {
-        let delta = unzigzag(self.varint()?);
-        let ts_us = self.last_us.wrapping_add(delta as u64);
-        self.last_us = ts_us;
-        let bus = self.byte()?;
-        let flags = self.byte()?;
-        let raw_id = u32::try_from(self.varint()?).map_err(|_| self.damaged("id too large"))?;
-        let id = if flags & FLAG_EXTENDED != 0 {
-            ExtendedId::new(raw_id).map(Id::Extended)
-        } else {
-            u16::try_from(raw_id)
-                .ok()
-                .and_then(StandardId::new)
-                .map(Id::Standard)
-        }
-        .ok_or(self.damaged("identifier out of range"))?;
-        let len = usize::from(self.byte()?);
-        if len > 8 {
-            return Err(self.damaged("payload over 8 bytes"));
-        }
-        let mut data = [0u8; 8];
-        let data = data.get_mut(..len).unwrap_or_default();
-        data.copy_from_slice(self.bytes(len)?);
+        let frame = self.read(|cursor, last_us| cursor.frame(last_us))?;
         let interface = self
             .buses
-            .get(usize::from(bus))
+            .get(usize::from(frame.bus))
             .cloned()
             .flatten()
             .ok_or(self.damaged("frame of an unnamed bus"))?;
-        let frame = LoggedFrame::new(ts_us, bus, id, data).ok_or(self.damaged("bad payload"))?;
         Ok(Frame { interface, frame })
     }
 }
@@ -535,6 +474,7 @@ impl Iterator for BlockReader {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use embedded_can::{ExtendedId, Id, StandardId};
 
     fn frame(ts_us: u64, bus: u8, id: Id, data: &[u8]) -> LoggedFrame {
         LoggedFrame::new(ts_us, bus, id, data).unwrap()
@@ -710,6 +650,7 @@ mod tests {
 #[cfg(test)]
 mod properties {
     use super::*;
+    use embedded_can::{ExtendedId, Id, StandardId};
     use proptest::prelude::*;
 
     fn any_frame() -> impl Strategy<Value = LoggedFrame> {
