@@ -1,4 +1,4 @@
-//! Filling what the pit missed (`aer_host::pit_history`): the link notes every live batch's
+//! Filling what the pit missed (`aer_host::link::pit_history`): the link notes every live batch's
 //! number; a gap in the numbering (a dropout, a radio that lost batches) becomes a request to
 //! the Pi for those batches, and a pit that joins mid-session asks for the session so far
 //! (up to `[link] join_history_s` back). A gap is asked for with one batch more on each
@@ -12,7 +12,7 @@
 
 use crate::model::{BackfillProgress, Update};
 use crate::pit_stream::{Received, StreamDecoder};
-use aer_host::pit_history::{Answer, Request, request_topic};
+use aer_host::link::pit_history::{Answer, Request, request_topic};
 use std::collections::VecDeque;
 
 /// Tries at one range before it is given up (a Pi that keeps refusing, or keeps losing it).
@@ -102,7 +102,7 @@ impl Backfill {
 
     /// The topic the answers come on (subscribe to it before asking).
     pub fn reply_topic(&self) -> String {
-        aer_host::pit_history::reply_topic(&self.prefix, &self.reply)
+        aer_host::link::pit_history::reply_topic(&self.prefix, &self.reply)
     }
 
     /// The topic requests go to.

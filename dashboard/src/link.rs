@@ -11,7 +11,7 @@ use crate::model::Update;
 use crate::model::can::CanMessages;
 use crate::pit_stream::StreamDecoder;
 use aer::mqtt::TELEMETRY;
-use aer_host::status::{METRICS, STATUS};
+use aer_host::reports::status::{METRICS, STATUS};
 use iced::futures::channel::mpsc;
 use iced::futures::{SinkExt, Stream, StreamExt};
 use rumqttc::{
@@ -174,7 +174,7 @@ impl Settings {
     /// message), or the telemetry topic (CAN topics then come and go with the pit view).
     pub fn topics(&self) -> [String; 3] {
         let data = match self.format {
-            StreamFormat::Compact => aer_host::pit_stream::topic(&self.prefix),
+            StreamFormat::Compact => aer_host::formats::pit_stream::topic(&self.prefix),
             StreamFormat::Json => TELEMETRY.path(&self.prefix),
         };
         [data, STATUS.path(&self.prefix), METRICS.path(&self.prefix)]
@@ -312,7 +312,7 @@ fn connect(settings: &Settings, client_id: &str) -> Result<(AsyncClient, EventLo
         options.set_credentials(user.clone(), password.clone());
     }
     if let Some(trusted) = &settings.tls_ca {
-        let config = aer_host::tls::client_config(trusted)
+        let config = aer_host::link::tls::client_config(trusted)
             .map_err(|error| format!("TLS cannot start: {error} (AER_MQTT_TLS_CA)"))?;
         options.set_transport(Transport::tls_with_config(TlsConfiguration::Rustls(config)));
     }
@@ -339,7 +339,7 @@ async fn next(
             request = backfill.as_deref_mut().and_then(Backfill::reconnected);
         }
         Ok(MqttEvent::Incoming(Packet::Publish(publish))) => {
-            let stream = publish.topic == aer_host::pit_stream::topic(&settings.prefix);
+            let stream = publish.topic == aer_host::formats::pit_stream::topic(&settings.prefix);
             if stream {
                 let received = decoder.decode(&publish.topic, &publish.payload, out);
                 if let (Some(received), Some(backfill)) = (received, backfill.as_deref_mut()) {
@@ -376,8 +376,8 @@ async fn next(
 /// Why the link is down, in words the pit crew can act on.
 fn why_down(error: &ConnectionError, accepted: bool, settings: &Settings) -> String {
     let tls = settings.tls_ca.is_some();
-    if let Some(failure) = aer_host::tls::tls_failure(error) {
-        return aer_host::tls::explain(failure, &settings.host, "AER_MQTT_TLS_CA");
+    if let Some(failure) = aer_host::link::tls::tls_failure(error) {
+        return aer_host::link::tls::explain(failure, &settings.host, "AER_MQTT_TLS_CA");
     }
     match error {
         // The gate answers a CONNECT sent in the clear to a TLS listener with "not

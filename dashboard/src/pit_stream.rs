@@ -1,4 +1,4 @@
-//! Reads the Pi's compact pit stream (`aer_host::pit_stream`) with the same ingest and
+//! Reads the Pi's compact pit stream (`aer_host::formats::pit_stream`) with the same ingest and
 //! generated decoders the Pi runs: frames and packets in, the same telemetry and CAN samples
 //! the JSON topics would have carried out. Telemetry from firmware of another schema is named,
 //! as on the Pi.
@@ -7,9 +7,9 @@ use crate::model::Update;
 use aer::mqtt::{Sample, TelemetryRecord};
 use aer::telemetry::TELEMETRY_FINGERPRINT;
 use aer_host::clock::seconds;
-use aer_host::counters::Counters;
 use aer_host::decode::{Ingest, Record};
-use aer_host::pit_stream::{Item, decode};
+use aer_host::formats::pit_stream::{Item, decode};
+use aer_host::reports::counters::Counters;
 use std::sync::Arc;
 use std::sync::atomic::Ordering;
 
@@ -150,7 +150,7 @@ impl StreamDecoder {
 mod tests {
     use super::*;
     use aer::telemetry::{Telemetry, TelemetryHeader};
-    use aer_host::pit_stream::BatchEncoder;
+    use aer_host::formats::pit_stream::BatchEncoder;
 
     fn packet(sequence: u16) -> [u8; Telemetry::LEN] {
         let mut out = [0u8; Telemetry::LEN];

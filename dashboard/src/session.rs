@@ -5,7 +5,7 @@
 use aer::mqtt::{Sample, TelemetryRecord};
 use aer_host::clock::seconds;
 use aer_host::decode::decode_log;
-use aer_host::status::{Metrics, Problems, Status, status};
+use aer_host::reports::status::{Metrics, Problems, Status, status};
 
 /// The session the Pi's demo replays (recorded from the CCM's own logic).
 pub const BUNDLED_SESSION: &str = include_str!("../../raspi/data/session.log");

@@ -1,5 +1,5 @@
 //! The Tune page's XCP master: a worker thread that holds one XCP session with the CCM through
-//! the Pi's gateway ([`aer_host::xcp_master`]) and carries out the page's requests one at a
+//! the Pi's gateway ([`aer_host::link::xcp_master`]) and carries out the page's requests one at a
 //! time, answering each with an [`Event`]. Blocking I/O stays off the UI thread; the page
 //! only sends [`Request`]s and applies events ([`crate::model::tune`]).
 
@@ -7,7 +7,7 @@ use crate::config::TuneConfig;
 use aer::calibration::xcp::CALIBRATION_ADDRESS;
 use aer::calibration::{ElementType, PAGE_LEN, PARAMETERS};
 use aer_host::calibration::refusal_text;
-use aer_host::xcp_master::{Master, MasterError};
+use aer_host::link::xcp_master::{Master, MasterError};
 use aer_xcp::seed_key::{SECRET_LEN, parse_secret};
 use iced::futures::channel::mpsc;
 use iced::futures::{SinkExt, Stream, StreamExt};

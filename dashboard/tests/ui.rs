@@ -154,7 +154,7 @@ fn a_lost_broker_connection_is_obvious() {
 }
 
 fn pi_status(telemetry_fingerprint: u32, firmware_ok: Option<bool>) -> Update {
-    Update::Status(Box::new(aer_host::status::Status {
+    Update::Status(Box::new(aer_host::reports::status::Status {
         service: "aer-raspi".into(),
         car_id: "car1".into(),
         schema_fingerprint: format!("{:#010x}", aer::can::SCHEMA_FINGERPRINT),
@@ -184,7 +184,7 @@ fn the_link_panel_shows_how_far_behind_the_pi_serves_this_pit_and_the_pis_proble
         Update::Identity("aer-dashboard-7".into()),
     ));
     app.update(Message::Link(t0, Update::Connected));
-    let client = |id: &str, lag_ms: u64, dropped: u64| aer_host::status::MqttClient {
+    let client = |id: &str, lag_ms: u64, dropped: u64| aer_host::reports::status::MqttClient {
         client_id: id.into(),
         listener: "v4-pit".into(),
         protocol: "3.1.1".into(),
@@ -200,7 +200,7 @@ fn the_link_panel_shows_how_far_behind_the_pi_serves_this_pit_and_the_pis_proble
     else {
         unreachable!("pi_status makes a status");
     };
-    status.problems.mqtt_clients = aer_host::status::clients_behind(&clients);
+    status.problems.mqtt_clients = aer_host::reports::status::clients_behind(&clients);
     status.mqtt_clients = clients.into_iter().map(|(client, _)| client).collect();
     app.update(Message::Link(t0, Update::Status(status)));
     assert!(shows_part(
@@ -610,7 +610,7 @@ fn count_part(app: &App, part: &str) -> usize {
 
 #[test]
 fn the_pit_view_shows_the_pis_bus_loads_and_slow_messages() {
-    use aer_host::traffic::{BusTraffic, MessageRate};
+    use aer_host::reports::traffic::{BusTraffic, MessageRate};
     let t0 = Instant::now();
     let mut app = app_with(View::Pit, driving(), t0);
     let Update::Status(mut status) = pi_status(aer::telemetry::TELEMETRY_FINGERPRINT, Some(true))
@@ -646,7 +646,7 @@ fn the_pit_view_shows_the_pis_bus_loads_and_slow_messages() {
 #[test]
 fn the_pit_view_marks_the_other_inverters_fields_not_fitted() {
     use aer::can::MESSAGES;
-    use aer_host::traffic::MessageRate;
+    use aer_host::reports::traffic::MessageRate;
     let cars = [
         ("the comp car (DTI)", "MCU"),
         ("the bench (IFL100)", "DTI_"),

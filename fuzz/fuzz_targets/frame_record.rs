@@ -1,9 +1,9 @@
-//! The frame record the raw log and the pit stream share (`aer_host::frame_record`), two ways:
+//! The frame record the raw log and the pit stream share (`aer_host::formats::frame_record`), two ways:
 //! - over arbitrary bytes: frames or a reason, never a panic, never a read past the end;
 //! - over records written from the input's frames: each comes back exactly, in order.
 #![no_main]
 
-use aer_host::frame_record::{self, Cursor};
+use aer_host::formats::frame_record::{self, Cursor};
 use frames::{FRAME_INPUT, frame_from};
 use libfuzzer_sys::fuzz_target;
 

@@ -1,6 +1,6 @@
 //! Frames made from fuzz input, shared by the targets that encode frames (raw log, pit stream).
 
-use aer_host::candump::LoggedFrame;
+use aer_host::formats::candump::LoggedFrame;
 use embedded_can::{ExtendedId, Id, StandardId};
 
 /// Bytes of input per frame: delta time (2), bus (1), flags (1), id (4), length (1), data (8).

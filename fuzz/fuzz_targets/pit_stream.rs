@@ -4,8 +4,8 @@
 //! - over a batch the Pi's encoder built from the input's frames: it comes back exactly.
 #![no_main]
 
-use aer_host::candump::LoggedFrame;
-use aer_host::pit_stream::{BatchEncoder, Item, MAGIC, VERSION, decode};
+use aer_host::formats::candump::LoggedFrame;
+use aer_host::formats::pit_stream::{BatchEncoder, Item, MAGIC, VERSION, decode};
 use frames::{FRAME_INPUT, frame_from};
 use libfuzzer_sys::fuzz_target;
 use std::sync::Arc;

@@ -6,8 +6,8 @@
 //!   back every frame of every block the damage did not touch, in order.
 #![no_main]
 
-use aer_host::candump::LoggedFrame;
-use aer_host::raw_format::{BlockEncoder, MAGIC, SegmentReader};
+use aer_host::formats::candump::LoggedFrame;
+use aer_host::formats::raw_format::{BlockEncoder, MAGIC, SegmentReader};
 use frames::{FRAME_INPUT, frame_from};
 use libfuzzer_sys::fuzz_target;
 use std::sync::Arc;

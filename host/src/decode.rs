@@ -3,8 +3,8 @@
 //! codec). Every failure is counted and logged. Decoding only: where records go is the
 //! caller's business.
 
-use crate::candump::{LoggedFrame, parse_line};
-use crate::counters::{Counters, worth_logging};
+use crate::formats::candump::{LoggedFrame, parse_line};
+use crate::reports::counters::{Counters, worth_logging};
 use aer::can::AnyMessage;
 use aer::runtime::{CounterCheck, DecodeError, IntegrityError};
 use aer::telemetry::{Telemetry, TelemetryError, TelemetryHeader};

@@ -4,9 +4,9 @@
 
 use aer::can::{Mcu1, Vcu1};
 use aer::runtime::CounterSender;
-use aer_host::candump::LoggedFrame;
-use aer_host::counters::{Counters, MessageHealth};
 use aer_host::decode::{Ingest, Record};
+use aer_host::formats::candump::LoggedFrame;
+use aer_host::reports::counters::{Counters, MessageHealth};
 use embedded_can::{Id, StandardId};
 use std::sync::Arc;
 
@@ -63,7 +63,7 @@ fn bad_checksums_repeats_skips_and_late_frames_are_counted_per_message_and_kept(
         (1, 1, 1, 1)
     );
     assert_eq!(kept, 8, "every frame is still a record");
-    let status = aer_host::status::status("car1", &counters, Default::default());
+    let status = aer_host::reports::status::status("car1", &counters, Default::default());
     assert_eq!(
         status.message_health.get("VCU1"),
         Some(&MessageHealth {

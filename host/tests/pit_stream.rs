@@ -3,11 +3,13 @@
 //! what the JSON topics take for the same data).
 
 use aer::mqtt::{TelemetryRecord, encode_message};
-use aer_host::candump::{LoggedFrame, parse_line};
 use aer_host::clock::seconds;
-use aer_host::counters::Counters;
 use aer_host::decode::{Ingest, Record};
-use aer_host::pit_stream::{BatchEncoder, HEADER_LEN, Item, MAX_PACKET, StreamError, decode};
+use aer_host::formats::candump::{LoggedFrame, parse_line};
+use aer_host::formats::pit_stream::{
+    BatchEncoder, HEADER_LEN, Item, MAX_PACKET, StreamError, decode,
+};
+use aer_host::reports::counters::Counters;
 use embedded_can::{ExtendedId, Id, StandardId};
 use proptest::prelude::*;
 use std::sync::Arc;

@@ -4,7 +4,7 @@
 
 use aer::can::XcpRes;
 use aer_host::decode::decode_log;
-use aer_host::status::{Problems, status};
+use aer_host::reports::status::{Problems, status};
 
 const SESSION: &str = include_str!("../../raspi/data/session.log");
 const CAN_DOC: &str = include_str!("../../generated/docs/can.md");

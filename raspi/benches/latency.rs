@@ -10,11 +10,11 @@
 //! latency`.
 
 use aer::mqtt::{Sample, TELEMETRY, TelemetryRecord};
-use aer_host::candump::{LoggedFrame, parse_line};
 use aer_host::clock::now_us;
-use aer_host::counters::Counters;
 use aer_host::decode::{Ingest, Record};
-use aer_host::pit_stream::{self, Item};
+use aer_host::formats::candump::{LoggedFrame, parse_line};
+use aer_host::formats::pit_stream::{self, Item};
+use aer_host::reports::counters::Counters;
 use aer_raspi::broker;
 use aer_raspi::config::Config;
 use aer_raspi::service::{Job, Pipeline};

@@ -11,10 +11,10 @@
 //! `taskset -c 0 cargo bench -p aer-raspi --bench pipeline`.
 
 use aer::telemetry::Telemetry;
-use aer_host::candump::parse_line;
 use aer_host::config::BrokerConfig;
-use aer_host::counters::Counters;
 use aer_host::decode::decode_log;
+use aer_host::formats::candump::parse_line;
+use aer_host::reports::counters::Counters;
 use aer_raspi::broker;
 use aer_raspi::health::Health;
 use aer_raspi::ingest::Stage;

@@ -188,7 +188,7 @@ impl XcpGatewayConfig {
     }
 }
 
-/// The compact stream for the pit (`aer_host::pit_stream`): what ingest takes in, batched
+/// The compact stream for the pit (`aer_host::formats::pit_stream`): what ingest takes in, batched
 /// and compressed, beside the JSON topics.
 #[derive(Debug, Clone, PartialEq, Deserialize)]
 #[serde(default, deny_unknown_fields)]

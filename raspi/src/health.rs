@@ -1,7 +1,7 @@
 //! What is failing right now, part by part, for the status topic and the log: each part
 //! records its error when it fails and clears it when it works again.
 
-use aer_host::status::Problems;
+use aer_host::reports::status::Problems;
 use std::collections::BTreeMap;
 use std::sync::Mutex;
 

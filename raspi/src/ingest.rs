@@ -9,8 +9,8 @@ use crate::rawlog::RawTap;
 use crate::sink::Sink;
 use crate::source::replay::{ReplayOptions, ReplayStats, replay};
 use crate::source::{self, Input, Receiver, Replies};
-use aer_host::counters::Counters;
 use aer_host::decode::{Ingest, Record};
+use aer_host::reports::counters::Counters;
 use std::sync::Arc;
 use tokio_util::sync::CancellationToken;
 

@@ -6,7 +6,7 @@
 
 use aer::mqtt::{Sample, TELEMETRY, TelemetryRecord};
 use aer_host::decode::decode_log;
-use aer_host::status::STATUS;
+use aer_host::reports::status::STATUS;
 use aer_raspi::broker;
 use aer_raspi::config::Config;
 use aer_raspi::service::{Job, Pipeline};

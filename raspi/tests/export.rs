@@ -9,8 +9,8 @@
 mod common;
 
 use aer::tables::TABLES;
-use aer_host::counters::Counters;
 use aer_host::decode::{Ingest, Record};
+use aer_host::reports::counters::Counters;
 use aer_raspi::export::frames::source::FrameSource;
 use aer_raspi::export::load::Selection;
 use aer_raspi::export::{self, Format, Request};
@@ -30,7 +30,7 @@ fn session_rows(limit: usize) -> Vec<row::Row> {
     let mut buses: Vec<Arc<str>> = Vec::new();
     let mut rows = Vec::new();
     for line in DEMO_LOG.lines().take(limit) {
-        let frame = aer_host::candump::parse_line(line, |name| {
+        let frame = aer_host::formats::candump::parse_line(line, |name| {
             let index = buses.iter().position(|b| &**b == name).unwrap_or_else(|| {
                 buses.push(name.into());
                 buses.len() - 1

@@ -4,8 +4,8 @@
 mod common;
 
 use aer::telemetry::Telemetry;
-use aer_host::candump::LoggedFrame;
-use aer_host::counters::{Counters, ServiceCounters};
+use aer_host::formats::candump::LoggedFrame;
+use aer_host::reports::counters::{Counters, ServiceCounters};
 use aer_raspi::config::TdengineConfig;
 use aer_raspi::forward;
 use aer_raspi::forward::{advance, next_batch};
@@ -164,7 +164,7 @@ async fn a_packet_of_another_schema_is_named_whatever_its_length() {
             (1, 0),
             "{len} bytes: {snapshot:?}"
         );
-        let status = aer_host::status::status("car1", &counters, Default::default());
+        let status = aer_host::reports::status::status("car1", &counters, Default::default());
         assert_eq!(status.undecodable_packets, 1, "{len} bytes");
         assert_eq!(
             status.undecodable_fingerprint.as_deref(),

@@ -4,7 +4,7 @@
 //! cursor moves on. An outage sets nothing aside.
 
 use aer::tables::{ColumnType, TABLES};
-use aer_host::counters::{Counters, ServiceCounters};
+use aer_host::reports::counters::{Counters, ServiceCounters};
 use aer_raspi::config::TdengineConfig;
 use aer_raspi::forward::{Destination, Worker, next_batch};
 use aer_raspi::health::Health;

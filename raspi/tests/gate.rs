@@ -2,7 +2,7 @@
 //! service's client id, subscribing and never reading or reading too slowly, TLS on a network
 //! listener; and MQTT 5 clients served with the same rules as 3.1.1.
 
-use aer_host::counters::Counters;
+use aer_host::reports::counters::Counters;
 use aer_raspi::broker::{self, packet};
 use aer_raspi::health::Health;
 use aer_raspi::sink::mqtt as publish;
@@ -702,7 +702,7 @@ async fn a_client_that_cannot_keep_up_gets_the_newest_data_and_is_reported() {
         ("v4-loopback", "3.1.1")
     );
     assert!(client.queued_bytes <= 32 * 1024 + 1100, "{client:?}");
-    let problem = aer_host::status::clients_behind(&snapshot).expect("reported");
+    let problem = aer_host::reports::status::clients_behind(&snapshot).expect("reported");
     assert!(problem.contains("`pit-slow` (v4-loopback)"), "{problem}");
     assert!(service.counters.snapshot().mqtt_client_dropped >= client.dropped);
 
@@ -776,7 +776,7 @@ async fn raw_subscriber(port: u16, id: &str, filter: &str) -> TcpStream {
 /// gate holds 32 KiB for it, the history is 200 kB sent at 10 MB/s).
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn history_waits_for_a_pit_whose_link_is_full_and_none_of_it_is_dropped() {
-    use aer_host::pit_history::{Answer, Request, reply_topic};
+    use aer_host::link::pit_history::{Answer, Request, reply_topic};
     use aer_raspi::pit::history::{Ring, Settings, serve};
 
     let service = network_service().await;

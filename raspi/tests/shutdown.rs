@@ -6,9 +6,9 @@
 
 #![cfg(unix)]
 
-use aer_host::counters::Counters;
 use aer_host::decode::{Ingest, Record};
-use aer_host::raw_format::SegmentReader;
+use aer_host::formats::raw_format::SegmentReader;
+use aer_host::reports::counters::Counters;
 use aer_raspi::rawlog::segments;
 use aer_raspi::store;
 use std::path::{Path, PathBuf};

@@ -6,8 +6,8 @@
 mod common;
 
 use aer::mqtt::TELEMETRY;
-use aer_host::counters::Counters;
-use aer_host::raw_format::SegmentReader;
+use aer_host::formats::raw_format::SegmentReader;
+use aer_host::reports::counters::Counters;
 use aer_raspi::broker;
 use aer_raspi::export::Format;
 use aer_raspi::health::Health;
@@ -108,7 +108,11 @@ async fn receive(seen: &mut mpsc::UnboundedReceiver<()>, count: usize) -> usize 
 /// Replays the session through MQTT and a store whose connection `spoil` breaks first.
 async fn session_with_a_failing_store(
     spoil: impl FnOnce(&Connection),
-) -> (aer_host::counters::ServiceCounters, usize, Option<String>) {
+) -> (
+    aer_host::reports::counters::ServiceCounters,
+    usize,
+    Option<String>,
+) {
     let dir = tempfile::tempdir().expect("temp dir");
     let counters = Arc::new(Counters::default());
     let health = Arc::new(Health::default());

@@ -2,7 +2,7 @@
 //! `AER_TDENGINE_DSN=taos+ws://host:6041` to run it. The forwarder creates the database and
 //! super tables, moves a replayed session, and the row counts match the local store.
 
-use aer_host::counters::Counters;
+use aer_host::reports::counters::Counters;
 use aer_raspi::config::TdengineConfig;
 use aer_raspi::forward;
 use aer_raspi::ingest::Stage;

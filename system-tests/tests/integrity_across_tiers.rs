@@ -8,9 +8,9 @@
 use aer::can::{Mcu1, Vcu1};
 use aer::runtime::CounterSender;
 use aer_ccm::bus::BusState;
-use aer_host::candump::LoggedFrame;
-use aer_host::counters::Counters;
 use aer_host::decode::{FrameCheck, Ingest, Record};
+use aer_host::formats::candump::LoggedFrame;
+use aer_host::reports::counters::Counters;
 use embedded_can::{Frame, Id, StandardId};
 use std::sync::Arc;
 

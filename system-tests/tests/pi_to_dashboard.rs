@@ -12,7 +12,7 @@ use aer_dashboard::screenshot::PIT_SIZE;
 use aer_dashboard::session;
 use aer_dashboard::session::BUNDLED_SESSION;
 use aer_dashboard::ui::App;
-use aer_host::counters::Counters;
+use aer_host::reports::counters::Counters;
 use aer_raspi::broker;
 use aer_raspi::config::Config as ServiceConfig;
 use aer_raspi::service::{Job, Pipeline};
@@ -110,7 +110,7 @@ async fn until_connected(
 
 /// The pipeline's task: its counters as it ended, or why it failed.
 type Running = tokio::task::JoinHandle<
-    Result<aer_host::counters::ServiceCounters, Box<dyn std::error::Error + Send + Sync>>,
+    Result<aer_host::reports::counters::ServiceCounters, Box<dyn std::error::Error + Send + Sync>>,
 >;
 
 /// Runs `pipeline` until the returned sender is dropped, and replays the bundled session into
@@ -214,7 +214,7 @@ async fn a_replayed_session_reaches_the_dashboard_intact() {
     // The session's DTI_Temperatures frames: the only CAN frames the dashboard may get.
     let dti_temperatures = BUNDLED_SESSION
         .lines()
-        .filter_map(|line| aer_host::candump::parse_line(line, |_| 0).ok())
+        .filter_map(|line| aer_host::formats::candump::parse_line(line, |_| 0).ok())
         .filter(|frame| aer::runtime::raw_id(frame.id) == (DtiTemperatures::META.id, true))
         .count();
     assert!(dti_temperatures > 100, "{dti_temperatures}");

@@ -15,7 +15,7 @@ use aer_dashboard::screenshot::PIT_SIZE;
 use aer_dashboard::tune_worker::{Control, Event, Request, Worker};
 use aer_dashboard::ui::tune::Action;
 use aer_dashboard::ui::{App, Message};
-use aer_host::counters::Counters;
+use aer_host::reports::counters::Counters;
 use aer_raspi::store::calibration::{self, Kind};
 use aer_raspi::store::session::{self, Metadata};
 use aer_raspi::store::{self, CalibrationSender, StoreWriter};

@@ -11,7 +11,7 @@ use aer_car_model::driver::Cycle;
 use aer_car_model::faults::FaultPlan;
 use aer_car_model::{BusTap, ClosedLoop, ModelParams};
 use aer_flexcan::CanFrame;
-use aer_host::candump::LoggedFrame;
+use aer_host::formats::candump::LoggedFrame;
 use anyhow::{Context, Result, bail};
 use embedded_can::Frame;
 use std::fmt::Write as _;

@@ -2,7 +2,7 @@
 //! CCM's sequence numbers), payloads this dashboard could not read, and what the Pi reports
 //! (its counters and whether the firmware's schema matches).
 
-use aer_host::status::{Metrics, MqttClient, Status};
+use aer_host::reports::status::{Metrics, MqttClient, Status};
 use std::collections::VecDeque;
 use std::time::{Duration, Instant};
 

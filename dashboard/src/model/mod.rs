@@ -16,7 +16,7 @@ use aer::can::AnyMessage;
 use aer::can::VehicleState;
 use aer::mqtt::{Sample, TelemetryRecord};
 use aer::telemetry::{Level, Telemetry, TelemetryHeader};
-use aer_host::status::{Metrics, Status};
+use aer_host::reports::status::{Metrics, Status};
 use alarms::Alarms;
 use can::CanMessages;
 use fields::{Field, FieldValue, Schema};

@@ -192,11 +192,12 @@ fn served(health: &crate::model::health::Health) -> Option<(String, iced::Color)
         served.protocol,
         served.listener
     );
-    let color = if served.lag_ms >= aer_host::status::CLIENT_BEHIND_MS || served.dropped > 0 {
-        style::WARN
-    } else {
-        style::DIM
-    };
+    let color =
+        if served.lag_ms >= aer_host::reports::status::CLIENT_BEHIND_MS || served.dropped > 0 {
+            style::WARN
+        } else {
+            style::DIM
+        };
     Some((line, color))
 }
 
@@ -233,7 +234,7 @@ fn backfill(progress: &BackfillProgress, packets: u64) -> (String, iced::Color) 
 
 /// The Pi's measured bus loads, and the messages slower than their cycle time (fewer than
 /// 90 % of the declared frames: a sender struggling, or frames lost), in amber.
-fn bus_traffic(status: &aer_host::status::Status) -> Option<(String, iced::Color)> {
+fn bus_traffic(status: &aer_host::reports::status::Status) -> Option<(String, iced::Color)> {
     if status.bus_traffic.is_empty() {
         return None;
     }

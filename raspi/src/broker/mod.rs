@@ -191,11 +191,11 @@ pub(crate) const SERVICE_IDS: &str = "aer-raspi";
 /// configuration).
 pub async fn start(
     config: BrokerConfig,
-    counters: std::sync::Arc<aer_host::counters::Counters>,
+    counters: std::sync::Arc<aer_host::reports::counters::Counters>,
     cancel: tokio_util::sync::CancellationToken,
 ) -> Result<Broker> {
     let protected = ["aer/".to_owned(), "aer-pit/".to_owned()];
-    let open = [aer_host::pit_history::request_topic("aer/car1")];
+    let open = [aer_host::link::pit_history::request_topic("aer/car1")];
     let mut broker = spawn(config, SERVICE_IDS, &protected, &open)?;
     broker.clients = Some(gate::start(broker.gate.clone(), counters, cancel).await?);
     Ok(broker)

@@ -3,7 +3,7 @@
 
 use super::frames::{self, source::FrameSource, source::expand};
 use super::{Format, Written};
-use aer_host::raw_format::SegmentReader;
+use aer_host::formats::raw_format::SegmentReader;
 use anyhow::{Context, Result, bail};
 use std::io::Write;
 use std::path::{Path, PathBuf};

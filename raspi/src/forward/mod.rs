@@ -18,7 +18,7 @@ use self::sql::Mapping;
 use crate::config::TdengineConfig;
 use crate::health::Health;
 use aer::tables::TABLES;
-use aer_host::counters::{Counters, worth_logging};
+use aer_host::reports::counters::{Counters, worth_logging};
 use anyhow::{Context, Result};
 use rusqlite::Connection;
 use std::path::PathBuf;

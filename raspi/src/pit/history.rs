@@ -1,4 +1,4 @@
-//! The pit's history (`aer_host::pit_history`): every batch the stream published stays in a
+//! The pit's history (`aer_host::link::pit_history`): every batch the stream published stays in a
 //! bounded ring of the compressed messages, and a pit that missed some asks for them by
 //! number. The answer is the very messages it missed, oldest first, on its own reply topic,
 //! then a done note; it goes out paced at the configured rate and only while the broker's
@@ -7,8 +7,8 @@
 //! wait, the rest are refused with the reason: a slow or hostile asker cannot starve anything.
 
 use crate::sink::mqtt::Publisher;
-use aer_host::counters::{Counters, worth_logging};
-use aer_host::pit_history::{Answer, Request, reply_topic};
+use aer_host::link::pit_history::{Answer, Request, reply_topic};
+use aer_host::reports::counters::{Counters, worth_logging};
 use std::collections::VecDeque;
 use std::sync::{Arc, Mutex};
 use std::time::Duration;

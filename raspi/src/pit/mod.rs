@@ -1,6 +1,6 @@
-//! The pit stream's producer (`aer_host::pit_stream`): ingest's input (bus names, frames as
+//! The pit stream's producer (`aer_host::formats::pit_stream`): ingest's input (bus names, frames as
 //! received, packets the kernel reassembled) is copied to a task that batches it over a short
-//! window and publishes each batch on `aer-pit/<car>/stream` ([`aer_host::pit_stream::topic`]).
+//! window and publishes each batch on `aer-pit/<car>/stream` ([`aer_host::formats::pit_stream::topic`]).
 //! Ingest never waits on it: a full queue drops the input from the stream only (counted in
 //! `pit_dropped`; the raw log and the store keep it). Each published batch is also kept for
 //! pits that missed it ([`history`]).
@@ -9,8 +9,8 @@ pub mod history;
 
 use crate::sink::mqtt::Publisher;
 use crate::source::Input;
-use aer_host::counters::{Counters, worth_logging};
-use aer_host::pit_stream::{BatchEncoder, MAX_BATCH_PAYLOAD};
+use aer_host::formats::pit_stream::{BatchEncoder, MAX_BATCH_PAYLOAD};
+use aer_host::reports::counters::{Counters, worth_logging};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 use tokio::sync::mpsc::{Receiver, Sender, error::TrySendError};
@@ -203,7 +203,7 @@ pub async fn run(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use aer_host::candump::LoggedFrame;
+    use aer_host::formats::candump::LoggedFrame;
     use embedded_can::{Id, StandardId};
 
     fn frame(id: u16) -> Input {

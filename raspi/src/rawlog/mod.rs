@@ -1,5 +1,5 @@
 //! The black-box raw log: every frame from every bus, appended before anything decodes it, in
-//! segment files of checksummed blocks (`aer_host::raw_format`). Ingest encodes frames into
+//! segment files of checksummed blocks (`aer_host::formats::raw_format`). Ingest encodes frames into
 //! blocks ([`RawTap`]); a writer thread appends them, rotates segments, syncs them to disk
 //! every second and keeps the folder within its budget ([`writer`]). Neither ever waits on the
 //! disk: a block the writer has no room for is dropped and its frames counted.
@@ -10,9 +10,9 @@
 pub mod segments;
 pub mod writer;
 
-use aer_host::candump::LoggedFrame;
-use aer_host::counters::{Counters, worth_logging};
-use aer_host::raw_format::BlockEncoder;
+use aer_host::formats::candump::LoggedFrame;
+use aer_host::formats::raw_format::BlockEncoder;
+use aer_host::reports::counters::{Counters, worth_logging};
 use std::sync::Arc;
 use std::sync::mpsc::{SyncSender, TrySendError};
 use tracing::warn;

@@ -17,7 +17,7 @@ use crate::sink::store::StoreSink;
 use crate::source;
 use crate::store::StoreWriter;
 use crate::{forward, status_topics};
-use aer_host::counters::{Counters, ServiceCounters};
+use aer_host::reports::counters::{Counters, ServiceCounters};
 use anyhow::Result;
 use std::future::Future;
 use std::sync::Arc;
@@ -175,7 +175,7 @@ impl Pipeline {
             )));
             pit_stream = Some(tokio::spawn(crate::pit::run(
                 self.mqtt.publisher.clone(),
-                aer_host::pit_stream::topic(&self.config.topic_prefix()),
+                aer_host::formats::pit_stream::topic(&self.config.topic_prefix()),
                 self.counters.clone(),
                 inputs,
                 Duration::from_millis(self.config.pit_stream.window_ms),

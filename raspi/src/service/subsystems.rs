@@ -12,8 +12,9 @@ use crate::sink::mqtt::{self, Publisher};
 use crate::store::{
     self, Budget, Compaction, Retention, StoreWriter, WhenFull, WriterOptions, session,
 };
-use aer_host::counters::Counters;
-use aer_host::{clock, pit_stream};
+use aer_host::clock;
+use aer_host::formats::pit_stream;
+use aer_host::reports::counters::Counters;
 use anyhow::{Context, Result};
 use std::sync::Arc;
 use std::sync::mpsc::SyncSender;
@@ -169,7 +170,9 @@ pub(super) async fn start_mqtt(
             format!("{root}{}/", pit_stream::ROOT_SUFFIX),
         ];
         // ... but for the pits' history requests, which the history task checks.
-        let open = [aer_host::pit_history::request_topic(&config.topic_prefix())];
+        let open = [aer_host::link::pit_history::request_topic(
+            &config.topic_prefix(),
+        )];
         let broker = broker::spawn(broker_config, SERVICE_IDS, &protected, &open)?;
         clients = Some(broker::gate::start(broker.gate, counters.clone(), cancel.clone()).await?);
         mqtt::embedded(
@@ -193,7 +196,7 @@ pub(super) async fn start_mqtt(
     let (driver, history_requests) = if config.pit_stream.keeps_history() {
         let (sender, receiver) = tokio::sync::mpsc::channel(HISTORY_INTAKE);
         let intake = mqtt::Intake {
-            filter: aer_host::pit_history::request_topic(&config.topic_prefix()),
+            filter: aer_host::link::pit_history::request_topic(&config.topic_prefix()),
             sender,
             counters: counters.clone(),
         };

@@ -13,8 +13,8 @@ use crate::health::Health;
 use aer::mqtt::{TELEMETRY, TelemetryRecord, Topic, encode_message};
 use aer_host::clock::seconds;
 use aer_host::config::BrokerConfig;
-use aer_host::counters::{Counters, worth_logging};
 use aer_host::decode::Record;
+use aer_host::reports::counters::{Counters, worth_logging};
 use rumqttc::{AsyncClient, Event, EventLoop, MqttOptions, Packet, QoS};
 use rumqttd::local::{LinkRx, LinkTx};
 use serde::Serialize;
@@ -190,7 +190,7 @@ pub fn connect(
     client_id: &str,
     prefix: String,
     counters: Arc<Counters>,
-) -> Result<(Publisher, Driver), aer_host::tls::TlsSetupError> {
+) -> Result<(Publisher, Driver), aer_host::link::tls::TlsSetupError> {
     let mut options = MqttOptions::new(client_id, config.host.clone(), config.port);
     options.set_keep_alive(Duration::from_secs(5));
     options.set_max_packet_size(64 * 1024, 64 * 1024);
@@ -198,7 +198,7 @@ pub fn connect(
         options.set_credentials(user.clone(), password.clone());
     }
     if let Some(trusted) = &config.tls_ca {
-        let tls = aer_host::tls::client_config(trusted)?;
+        let tls = aer_host::link::tls::client_config(trusted)?;
         options.set_transport(rumqttc::Transport::tls_with_config(
             rumqttc::TlsConfiguration::Rustls(tls),
         ));

@@ -9,7 +9,7 @@ pub mod replay;
 #[cfg(target_os = "linux")]
 pub mod socketcan;
 
-use aer_host::candump::LoggedFrame;
+use aer_host::formats::candump::LoggedFrame;
 use std::collections::HashMap;
 use std::sync::Arc;
 use tokio::sync::mpsc;

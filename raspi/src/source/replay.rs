@@ -2,10 +2,10 @@
 //! segment of the service's own raw log.
 
 use super::{Batcher, BusNames, Input, Sender};
-use aer_host::candump::{LoggedFrame, parse_line};
 use aer_host::clock::now_us;
-use aer_host::counters::{Counters, worth_logging};
-use aer_host::raw_format::SegmentReader;
+use aer_host::formats::candump::{LoggedFrame, parse_line};
+use aer_host::formats::raw_format::SegmentReader;
+use aer_host::reports::counters::{Counters, worth_logging};
 use std::io::BufRead;
 use std::time::Duration;
 use tokio::time::Instant;
@@ -104,7 +104,7 @@ pub(crate) async fn replay_segment(
     counters: &Counters,
     options: ReplayOptions,
     cancel: &CancellationToken,
-) -> Result<ReplayStats, aer_host::raw_format::RawError> {
+) -> Result<ReplayStats, aer_host::formats::raw_format::RawError> {
     let reader = SegmentReader::new(data)?;
     let mut stats = ReplayStats::default();
     let mut pacer = Pacer::new(out, options);

@@ -17,9 +17,9 @@ use super::{Batcher, Input, Replies, Sender};
 use crate::config::IsoTpMode;
 use crate::health::Health;
 use aer::telemetry::Telemetry;
-use aer_host::candump::LoggedFrame;
 use aer_host::clock::now_us;
-use aer_host::counters::Counters;
+use aer_host::formats::candump::LoggedFrame;
+use aer_host::reports::counters::Counters;
 use embedded_can::{Frame as _, StandardId};
 use socketcan::SocketOptions as _;
 use std::io::ErrorKind;
@@ -233,7 +233,7 @@ fn kernel_isotp(
                 // the socket goes on with the next packet.
                 Err(err) if is_packet_error(&err) => {
                     let count = Counters::bump(&counters.isotp_errors);
-                    if aer_host::counters::worth_logging(count) {
+                    if aer_host::reports::counters::worth_logging(count) {
                         warn!(interface = %name, error = %err, count, "ISO-TP packet dropped by the kernel");
                     }
                 }

@@ -17,7 +17,7 @@
 
 use super::session;
 use aer::tables::{TABLES, Table};
-use aer_host::varint::{put_varint, read_varint, unzigzag, zigzag};
+use aer_host::formats::varint::{put_varint, read_varint, unzigzag, zigzag};
 use rusqlite::types::Value;
 use rusqlite::{Connection, params};
 use std::time::{Duration, Instant};

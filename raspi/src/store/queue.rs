@@ -4,7 +4,7 @@
 //! nothing is live: sending waits for room while the store works.
 
 use super::row::Row;
-use aer_host::counters::{Counters, worth_logging};
+use aer_host::reports::counters::{Counters, worth_logging};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Condvar, Mutex};
 use std::time::Duration;

@@ -14,7 +14,7 @@ use super::{compact, session};
 use crate::health::Health;
 use aer::tables::TABLES;
 use aer_host::clock::now_us;
-use aer_host::counters::Counters;
+use aer_host::reports::counters::Counters;
 use rusqlite::{Connection, OptionalExtension};
 use std::path::PathBuf;
 use std::sync::atomic::Ordering;

@@ -5,7 +5,7 @@
 //! however long the session runs. `aer-raspi session messages` prints it.
 
 use super::row::{Row, RowData};
-use aer_host::traffic;
+use aer_host::reports::traffic;
 use rusqlite::{Connection, params};
 use std::collections::HashMap;
 use std::sync::Arc;

@@ -14,7 +14,7 @@ use super::session::record_clock_step;
 use super::session_messages::Tally;
 use crate::health::Health;
 use aer::tables::TABLES;
-use aer_host::counters::{Counters, worth_logging};
+use aer_host::reports::counters::{Counters, worth_logging};
 use rusqlite::Connection;
 use std::sync::Arc;
 use std::sync::atomic::Ordering;

@@ -1,7 +1,7 @@
 //! What several of the service's test files build the same way (each uses some of it).
 #![allow(dead_code)]
 
-use aer_host::counters::Counters;
+use aer_host::reports::counters::Counters;
 use aer_raspi::ingest::Stage;
 use aer_raspi::sink::Sink;
 use aer_raspi::sink::store::StoreSink;
@@ -203,12 +203,12 @@ pub fn python() -> Option<PathBuf> {
 /// The bundled session as one raw log segment, as the service writes it: the header, then
 /// blocks of 4,096 frames.
 pub fn session_segment() -> Vec<u8> {
-    use aer_host::raw_format::{BlockEncoder, MAGIC};
+    use aer_host::formats::raw_format::{BlockEncoder, MAGIC};
     let mut buses: Vec<Arc<str>> = Vec::new();
     let frames: Vec<_> = SESSION
         .lines()
         .map(|line| {
-            aer_host::candump::parse_line(line, |name| {
+            aer_host::formats::candump::parse_line(line, |name| {
                 let index = buses.iter().position(|b| &**b == name).unwrap_or_else(|| {
                     buses.push(name.into());
                     buses.len() - 1

@@ -6,7 +6,7 @@
 //! second, so every line's offset is exact to the microsecond.
 
 use super::{FrameWriter, Summary};
-use aer_host::raw_format::Frame;
+use aer_host::formats::raw_format::Frame;
 use embedded_can::Id;
 use std::io::{self, Write};
 

@@ -7,7 +7,7 @@
 //! millisecond, so each frame's offset is exact.
 
 use super::{FrameWriter, Summary};
-use aer_host::raw_format::Frame;
+use aer_host::formats::raw_format::Frame;
 use chrono::{Datelike, Timelike};
 use embedded_can::Id;
 use flate2::{Compression, write::ZlibEncoder};

@@ -9,7 +9,7 @@
 //! links and the data block's length are written again.
 
 use super::{FrameWriter, Summary};
-use aer_host::raw_format::Frame;
+use aer_host::formats::raw_format::Frame;
 use embedded_can::Id;
 use std::io::{self, Seek, SeekFrom, Write};
 

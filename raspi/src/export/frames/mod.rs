@@ -12,7 +12,7 @@ mod order;
 pub mod source;
 
 use super::{ExportError, Format, Written};
-use aer_host::raw_format::Frame;
+use aer_host::formats::raw_format::Frame;
 use source::{FrameSource, Summary};
 use std::io::{self, BufWriter};
 use std::path::{Path, PathBuf};

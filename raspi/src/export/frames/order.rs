@@ -4,7 +4,7 @@
 //! until one a window newer has come, then written; frames with equal times keep their order.
 
 use crate::export::ExportError;
-use aer_host::raw_format::Frame;
+use aer_host::formats::raw_format::Frame;
 use std::cmp::{Ordering, Reverse};
 use std::collections::BinaryHeap;
 
@@ -86,7 +86,7 @@ impl TimeOrder {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use aer_host::candump::LoggedFrame;
+    use aer_host::formats::candump::LoggedFrame;
     use embedded_can::{Id, StandardId};
     use std::sync::Arc;
 

@@ -5,8 +5,8 @@
 
 use super::channels::Channels;
 use crate::export::ExportError;
-use aer_host::candump::parse_line;
-use aer_host::raw_format::{Frame, SegmentReader};
+use aer_host::formats::candump::parse_line;
+use aer_host::formats::raw_format::{Frame, SegmentReader};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 

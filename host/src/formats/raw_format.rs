@@ -21,8 +21,8 @@
 //! next block by its sync word, so one bad block loses only itself, and says so. The header's
 //! version is 2; a segment of another version is refused.
 
-use crate::candump::LoggedFrame;
-use crate::frame_record::{self, Cursor, Why};
+use crate::formats::candump::LoggedFrame;
+use crate::formats::frame_record::{self, Cursor, Why};
 use std::sync::Arc;
 use thiserror::Error;
 

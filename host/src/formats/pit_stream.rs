@@ -10,16 +10,16 @@
 //!          the epoch) | payload length u32 LE | the payload, zstd-compressed
 //! payload: bus count u8, then per bus: name length u8, name (UTF-8, the index is the order)
 //!          then records:
-//!   0x02 frame:  the frame record the raw log carries too ([`crate::frame_record`]): time
+//!   0x02 frame:  the frame record the raw log carries too ([`crate::formats::frame_record`]): time
 //!                since the previous record (zigzag LEB128, us), bus u8, flags u8 (bit 0:
 //!                extended id), id (LEB128), length u8 (0-8), data
 //!   0x04 packet: time since the previous record (zigzag LEB128, us), bus u8,
 //!                length (LEB128), the packet
 //! ```
 
-use crate::candump::LoggedFrame;
-use crate::frame_record::{self, Cursor};
-use crate::varint::put_varint;
+use crate::formats::candump::LoggedFrame;
+use crate::formats::frame_record::{self, Cursor};
+use crate::formats::varint::put_varint;
 use std::sync::Arc;
 use thiserror::Error;
 

@@ -27,7 +27,7 @@ macro_rules! counters {
             /// with any), for the status.
             pub message_health: std::sync::Mutex<std::collections::BTreeMap<String, MessageHealth>>,
             /// Each bus's and each message's traffic since the last status.
-            pub traffic: std::sync::Mutex<crate::traffic::Traffic>,
+            pub traffic: std::sync::Mutex<crate::reports::traffic::Traffic>,
         }
 
         impl Counters {

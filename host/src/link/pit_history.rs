@@ -21,7 +21,7 @@ pub const MAX_REPLY: usize = 40;
 /// The history topics' root for the car below `car_prefix` (`aer/car1` ->
 /// `aer-pit/car1/history`).
 pub fn root(car_prefix: &str) -> String {
-    let stream = crate::pit_stream::topic(car_prefix);
+    let stream = crate::formats::pit_stream::topic(car_prefix);
     let base = stream.strip_suffix("/stream").unwrap_or(&stream);
     format!("{base}/history")
 }

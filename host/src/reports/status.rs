@@ -2,7 +2,7 @@
 //! firmware sends, when data last came) and its counters every second.
 
 use crate::clock::{now_us, seconds};
-use crate::counters::{Counters, ServiceCounters};
+use crate::reports::counters::{Counters, ServiceCounters};
 use aer::mqtt::Topic;
 use serde::{Deserialize, Serialize};
 use std::sync::atomic::Ordering;
@@ -36,18 +36,18 @@ pub struct Status {
     /// Per message, the frames that came with a wrong checksum, a repeated or skipped
     /// counter, or later than the message's freshness limit (only messages with any).
     #[serde(default)]
-    pub message_health: std::collections::BTreeMap<String, crate::counters::MessageHealth>,
+    pub message_health: std::collections::BTreeMap<String, crate::reports::counters::MessageHealth>,
     /// Each bus's measured traffic since the previous status (about a second), by interface:
     /// frames, bits and load at worst-case stuffing, as the build-time figure in
     /// `generated/docs/can.md` counts them.
     #[serde(default)]
-    pub bus_traffic: std::collections::BTreeMap<String, crate::traffic::BusTraffic>,
+    pub bus_traffic: std::collections::BTreeMap<String, crate::reports::traffic::BusTraffic>,
     /// Each message's measured rate over the same window beside its declared cycle time, by
     /// interface and message.
     #[serde(default)]
     pub message_rates: std::collections::BTreeMap<
         String,
-        std::collections::BTreeMap<String, crate::traffic::MessageRate>,
+        std::collections::BTreeMap<String, crate::reports::traffic::MessageRate>,
     >,
     /// The clients connected through the gate (embedded broker only), each with how far
     /// behind it is.

@@ -1,5 +1,5 @@
-//! The frame record the raw log ([`crate::raw_format`]) and the pit stream
-//! ([`crate::pit_stream`]) both carry, after their own tag byte, coded here once:
+//! The frame record the raw log ([`crate::formats::raw_format`]) and the pit stream
+//! ([`crate::formats::pit_stream`]) both carry, after their own tag byte, coded here once:
 //!
 //! ```text
 //! time since the previous record (zigzag LEB128, us) | bus u8 | flags u8 (bit 0: extended id)
@@ -9,8 +9,8 @@
 //! [`Cursor`] reads it (and the other records of either format) from untrusted bytes: every
 //! read is checked, and a record that does not fit says why.
 
-use crate::candump::LoggedFrame;
-use crate::varint::{put_varint, read_varint, unzigzag, zigzag};
+use crate::formats::candump::LoggedFrame;
+use crate::formats::varint::{put_varint, read_varint, unzigzag, zigzag};
 use embedded_can::{ExtendedId, Id, StandardId};
 
 /// Flags bit 0: the identifier is extended (29 bits).
