@@ -11,7 +11,7 @@
 
 use crate::bringup::{AirPlusAnswer, AirPlusBench, converter_reading};
 use crate::console::{BringupReport, VfReading};
-use crate::constants::VfConfig;
+use crate::constants::CONVERTERS;
 use aer_boards::pcc::Revision;
 use aer_console::bench::{BenchBoard, Reply};
 use aer_console::bringup::{
@@ -134,9 +134,11 @@ impl<H: PccHardware> BenchBoard for PccBench<H> {
         while let Some(frame) = self.hw.receive() {
             self.heard.frame(raw_id(&frame));
         }
-        self.readings = inputs
-            .hz
-            .map(|hz| converter_reading(hz, &VfConfig::PCC_BOARD, now_ms));
+        let [accumulator, tractive] = inputs.hz;
+        self.readings = [
+            converter_reading(accumulator, &CONVERTERS[0], now_ms),
+            converter_reading(tractive, &CONVERTERS[1], now_ms),
+        ];
         if let Some(refusal) = self.gate.step(now_ms, self.readings) {
             log.line(format_args!("t={now_ms} ms pin 11 (AIR+) low: {refusal}"));
         }
@@ -223,15 +225,20 @@ impl<H: PccHardware> BenchBoard for PccBench<H> {
                 let _queued = self.hw.transmit(&frame);
             }
         }
-        let mut vf = self.board.voltage_freq.map(|pin| VfReading {
+        let [accumulator_pin, tractive_pin] = self.board.voltage_freq;
+        let reading = |pin, vf| VfReading {
             input: DigitalReading {
                 pin,
                 high: false,
                 edges: 0,
                 hz: 0.0,
             },
-            vf: VfConfig::PCC_BOARD,
-        });
+            vf,
+        };
+        let mut vf = [
+            reading(accumulator_pin, CONVERTERS[0]),
+            reading(tractive_pin, CONVERTERS[1]),
+        ];
         for (((reading, high), before), after) in vf
             .iter_mut()
             .zip(inputs.levels)

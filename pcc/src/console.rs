@@ -208,8 +208,10 @@ impl fmt::Display for WaitingLine {
                     f,
                     format_args!(
                         "the tractive system to discharge to rest (below {:.0} % of the pack, \
-                         where a timed precharge starts: open the shutdown circuit and wait)",
-                        self.rest_percent
+                         {:.0} V without a pack reading, where a timed precharge starts: open \
+                         the shutdown circuit and wait)",
+                        self.rest_percent,
+                        self.pack_min_v * self.rest_percent / 100.0
                     ),
                 )?;
             }

@@ -91,6 +91,11 @@ pub struct VfConfig {
     pub edge_timeout_us: u32,
 }
 
+/// Each converter's scaling, as the bench day's step 6b measures it: index 0 the accumulator
+/// (pin 14), 1 the tractive system (pin 15). The two are judged against each other (precharge
+/// progress is their ratio), so each has its own; both are the parts list's until measured.
+pub const CONVERTERS: [VfConfig; 2] = [VfConfig::PCC_BOARD, VfConfig::PCC_BOARD];
+
 impl VfConfig {
     /// The PCC board: 0.001275 V/Hz, divider 5 x 510 kOhm over 39 kOhm, 10 Hz cut-off
     /// (a 16 ms time constant: smooths the 10 ms windows without hiding a precharge that is

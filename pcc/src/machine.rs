@@ -164,7 +164,7 @@ impl core::fmt::Display for HandoverRefusal {
                 limit_v,
             } => write!(
                 f,
-                "the tractive system reads {tractive_v:.1} V: wait until it is below {limit_v:.0} V, then ask again"
+                "the tractive system reads {tractive_v:.1} V: open the shutdown circuit, wait until it is below {limit_v:.0} V, then ask again"
             ),
         }
     }

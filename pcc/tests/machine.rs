@@ -534,7 +534,7 @@ fn the_bootloader_is_refused_in_standby_and_error_with_the_tractive_system_charg
     assert_eq!(bench.state(), State::Standby);
     assert_eq!(
         bench.pcc.handover().unwrap_err().to_string(),
-        "the tractive system reads 75.0 V: wait until it is below 60 V, then ask again"
+        "the tractive system reads 75.0 V: open the shutdown circuit, wait until it is below 60 V, then ask again"
     );
     bench.inputs.tractive_v = 60.0;
     bench.at_with_bms(1_010);

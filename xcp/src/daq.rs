@@ -119,6 +119,21 @@ pub(crate) struct Daq<const LISTS: usize, const ODTS: usize, const ENTRIES: usiz
 }
 
 impl<const LISTS: usize, const ODTS: usize, const ENTRIES: usize> Daq<LISTS, ODTS, ENTRIES> {
+    /// ODTs not allocated yet.
+    pub(crate) fn free_odts(&self) -> usize {
+        ODTS.saturating_sub(self.odt_count)
+    }
+
+    /// ODT entries not allocated yet.
+    pub(crate) fn free_entries(&self) -> usize {
+        ENTRIES.saturating_sub(self.entry_count)
+    }
+
+    /// Bytes the first ODT of `list` has left beside its entries (for a timestamp).
+    pub(crate) fn first_odt_room(&self, list: &List) -> usize {
+        ODT_CAPACITY.saturating_sub(self.odt_bytes(list.first_odt, None))
+    }
+
     /// Nothing allocated.
     pub(crate) const fn new() -> Self {
         Daq {

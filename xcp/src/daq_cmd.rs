@@ -32,8 +32,16 @@ const SUPPORTED_MODE: u8 = daq_mode::TIMESTAMP;
 
 /// Turns a DAQ table error code into an error packet (no storage left says so).
 fn fail(code: u8) -> Fail {
+    Fail::new(code)
+}
+
+/// `code`; with MEMORY_OVERFLOW, what was asked and what was left.
+fn storage(code: u8, asked: usize, available: usize) -> Fail {
     if code == err::MEMORY_OVERFLOW {
-        Fail::because(code, Detail::of(reason::DAQ_STORAGE, 0.0, 0.0))
+        Fail::because(
+            code,
+            Detail::of(reason::DAQ_STORAGE, asked as f32, available as f32),
+        )
     } else {
         Fail::new(code)
     }
@@ -95,7 +103,10 @@ impl<const LISTS: usize, const ODTS: usize, const ENTRIES: usize> Slave<LISTS, O
     /// ALLOC_DAQ.
     pub(crate) fn alloc_daq(&mut self, args: Args<'_>) -> Outcome {
         let count = args.u16(2)?;
-        self.daq.alloc_lists(count).map_err(fail)?;
+        let available = crate::daq::Daq::<LISTS, ODTS, ENTRIES>::max_lists();
+        self.daq
+            .alloc_lists(count)
+            .map_err(|code| storage(code, usize::from(count), available))?;
         Ok(Answer::Reply(Packet::ok(&[])))
     }
 
@@ -103,7 +114,10 @@ impl<const LISTS: usize, const ODTS: usize, const ENTRIES: usize> Slave<LISTS, O
     pub(crate) fn alloc_odt(&mut self, args: Args<'_>) -> Outcome {
         let list = args.u16(2)?;
         let count = args.u8(4)?;
-        self.daq.alloc_odts(list, count).map_err(fail)?;
+        let available = self.daq.free_odts();
+        self.daq
+            .alloc_odts(list, count)
+            .map_err(|code| storage(code, usize::from(count), available))?;
         Ok(Answer::Reply(Packet::ok(&[])))
     }
 
@@ -112,7 +126,10 @@ impl<const LISTS: usize, const ODTS: usize, const ENTRIES: usize> Slave<LISTS, O
         let list = args.u16(2)?;
         let odt = args.u8(4)?;
         let count = args.u8(5)?;
-        self.daq.alloc_entries(list, odt, count).map_err(fail)?;
+        let available = self.daq.free_entries();
+        self.daq
+            .alloc_entries(list, odt, count)
+            .map_err(|code| storage(code, usize::from(count), available))?;
         Ok(Answer::Reply(Packet::ok(&[])))
     }
 
@@ -241,9 +258,12 @@ impl<const LISTS: usize, const ODTS: usize, const ENTRIES: usize> Slave<LISTS, O
         }
         let timestamp = mode & daq_mode::TIMESTAMP != 0;
         if !self.daq.list_fits(&list, timestamp) {
+            // The timestamp does not fit beside the first ODT's entries: what it needs, and
+            // the bytes they leave.
+            let room = self.daq.first_odt_room(&list);
             return Err(Fail::because(
                 err::DAQ_CONFIG,
-                Detail::of(reason::ODT_FULL, TIMESTAMP_LEN as f32, 0.0),
+                Detail::of(reason::ODT_FULL, TIMESTAMP_LEN as f32, room as f32),
             ));
         }
         let list = self.daq.list_mut(number).map_err(fail)?;

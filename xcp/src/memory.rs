@@ -6,6 +6,7 @@
 use crate::checksum::Crc16Ccitt;
 use crate::config::{BLOCK_MAX, DOWNLOAD_CHUNK};
 use crate::protocol::{checksum_type, err, id_type};
+use crate::refusal::{Detail, reason};
 use crate::slave::Slave;
 use crate::target::Target;
 use crate::transfer::{Block, Mta, Text, after_packet, expected};
@@ -152,7 +153,11 @@ impl<const LISTS: usize, const ODTS: usize, const ENTRIES: usize> Slave<LISTS, O
     fn write_destination(&self) -> Result<(u8, u32), Fail> {
         self.require_unlocked()?;
         if self.xcp_page != 0 {
-            return Err(Fail::new(err::WRITE_PROTECTED));
+            // The reference page is the schema's defaults: never written.
+            return Err(Fail::because(
+                err::WRITE_PROTECTED,
+                Detail::of(reason::READ_ONLY, 0.0, 0.0),
+            ));
         }
         match self.mta {
             Mta::Memory { ext, address } => Ok((ext, address)),

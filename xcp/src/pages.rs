@@ -3,6 +3,7 @@
 //! switch; the XCP access page (what UPLOAD and DOWNLOAD see) belongs to the session.
 
 use crate::protocol::{err, page_mode};
+use crate::refusal::{Detail, reason};
 use crate::slave::Slave;
 use crate::target::Target;
 use crate::wire::{Answer, Args, Fail, Outcome, Packet};
@@ -127,7 +128,10 @@ impl<const LISTS: usize, const ODTS: usize, const ENTRIES: usize> Slave<LISTS, O
         require_page(from)?;
         require_page(to)?;
         if to != 0 {
-            return Err(Fail::new(err::WRITE_PROTECTED));
+            return Err(Fail::because(
+                err::WRITE_PROTECTED,
+                Detail::of(reason::READ_ONLY, 0.0, 0.0),
+            ));
         }
         target
             .copy_page(from, to)

@@ -71,8 +71,8 @@ pub mod reason {
     ];
 }
 
-/// The detail of a refusal (see [`reason`]).
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
+/// The detail of a refusal (see [`reason`]); the default names no reason and no item.
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Detail {
     /// Why ([`reason`]).
     pub reason: u8,
@@ -84,6 +84,12 @@ pub struct Detail {
     pub value: f32,
     /// The limit it met (or what the reason says).
     pub limit: f32,
+}
+
+impl Default for Detail {
+    fn default() -> Self {
+        Self::of(reason::NONE, 0.0, 0.0)
+    }
 }
 
 impl Detail {

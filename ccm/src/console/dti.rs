@@ -433,6 +433,9 @@ pub enum DtiRefusal {
     WheelsNotConfirmed,
     /// At high voltage without the PCC heard ONLINE.
     PccNotOnline(Option<PrechargeState>),
+    /// The DTI reads its DC link below 60 V while the PCC reports a state in which the
+    /// tractive system is, or may be, live: the two disagree, and low voltage is not proven.
+    PccEnergised(PrechargeState),
     /// No fresh fault code from the DTI.
     FaultUnknown,
     /// The DTI reports a fault.
@@ -456,6 +459,11 @@ impl fmt::Display for DtiRefusal {
             Self::PccNotOnline(Some(state)) => write!(
                 f,
                 "at high voltage the PCC must be ONLINE, and it reports {}",
+                state.label().unwrap_or("an unknown state")
+            ),
+            Self::PccEnergised(state) => write!(
+                f,
+                "the DTI reads its DC link below 60 V but the PCC reports {}: the tractive system may be live: open the shutdown circuit, then check the DTI's HV input and its DC link reading against the TSMP meter",
                 state.label().unwrap_or("an unknown state")
             ),
             Self::FaultUnknown => write!(
@@ -540,6 +548,14 @@ impl DtiGuard {
             _ => return Err(DtiRefusal::Turning(None)),
         }
         if volts < TRACTIVE_OFF_V {
+            // Low voltage needs the PCC to agree, when it is heard: STANDBY or ERROR (AIR+
+            // open, the tractive system discharged or discharging), not a precharge or ONLINE.
+            if let Some((state, at)) = evidence.pcc
+                && fresh(at, PccStatus::TIMEOUT_MS)
+                && !matches!(state, PrechargeState::Standby | PrechargeState::Error)
+            {
+                return Err(DtiRefusal::PccEnergised(state));
+            }
             self.hv.allows(now_ms, &[sensor]).map_err(DtiRefusal::Hv)?;
             return Ok(Path::LowVoltage);
         }

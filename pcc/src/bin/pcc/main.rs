@@ -64,10 +64,11 @@ mod app {
     use aer_console::{LineReader, LogBuffer};
     use aer_flexcan::{CanFrame, Flexcan};
     use aer_pcc::console::{LOG_BYTES, RaceLog};
+    use aer_pcc::constants::CONVERTERS;
     use aer_pcc::hw::{self, WatchdogTimeout, board, halt_safe};
     use aer_pcc::measurement::VoltageChannel;
     use aer_pcc::watchdog::reset_by_watchdog;
-    use aer_pcc::{Relays, TASK_PERIOD_MS, VfConfig};
+    use aer_pcc::{Relays, TASK_PERIOD_MS};
     use heapless::spsc::{Consumer, Producer, Queue};
     use rtic_monotonics::imxrt::prelude::*;
     use teensy4_bsp::{hal::gpio, ral};
@@ -128,10 +129,10 @@ mod app {
         aer_pcc::console::race_startup(&mut log, &board::REVISION, board.reset_cause);
 
         let (rx_producer, rx_consumer) = cx.local.rx_queue.split();
-        let vf = VfConfig::PCC_BOARD;
+        let [accumulator_vf, tractive_vf] = CONVERTERS;
         let shared = Shared {
-            accumulator: VoltageChannel::new(vf, TASK_PERIOD_MS),
-            tractive: VoltageChannel::new(vf, TASK_PERIOD_MS),
+            accumulator: VoltageChannel::new(accumulator_vf, TASK_PERIOD_MS),
+            tractive: VoltageChannel::new(tractive_vf, TASK_PERIOD_MS),
             can,
             log,
         };
