@@ -55,6 +55,11 @@ impl XcpCar {
         &mut self.node.flash
     }
 
+    /// Whether a master has a session with the slave (CONNECT seen, not ended).
+    pub fn is_connected(&self) -> bool {
+        self.node.slave.is_connected()
+    }
+
     /// The slave's counters.
     pub fn counters(&self) -> aer_xcp::Counters {
         self.node.slave.counters()

@@ -4,11 +4,13 @@
 //! A2L, the DAQ lists, the refusals, a save and a second launch before the car exists.
 //!
 //! Masters reach it through [`crate::masters`], whose threads never hold up the model. One
-//! master holds the slave at a time: the first client to send a command. Any other client is
-//! answered ERR_RESOURCE_TEMPORARY_NOT_ACCESSIBLE (busy) and disconnected, never left waiting.
-//! The master's session ends with its transport (a closed or broken connection), when it
-//! stops reading (its queue fills: dropped, not obeyed), and when the slave's idle time-out
-//! ends it; the slot is then free.
+//! master holds the slave at a time, for as long as its XCP session lasts: from its CONNECT to
+//! its DISCONNECT or the session's end. Any other client that sends a command meanwhile is
+//! answered ERR_RESOURCE_TEMPORARY_NOT_ACCESSIBLE (busy) and disconnected, never left waiting;
+//! a client outside a session holds nothing. The session ends with its transport (a closed or
+//! broken connection), when the master stops reading (its queue fills: dropped, not obeyed),
+//! and when the slave's idle time-out ends it; the slot is then free. A client the desk has
+//! dropped or told busy is forgotten: what it had still queued is ignored.
 
 use crate::masters::{ClientId, Inbound, NotSent, Outbox, Transport};
 use aer_car_model::chassis::Mode;
@@ -88,6 +90,10 @@ struct Desk {
     master: Option<ClientId>,
     report: DeskReport,
     activity: Activity,
+    /// Clients told busy since the last line said so.
+    busy_unsaid: u64,
+    /// Late steps the last line said.
+    late_said: u64,
 }
 
 impl Desk {
@@ -121,19 +127,27 @@ impl Desk {
     }
 
     fn command(&mut self, client: ClientId, packet: &[u8]) {
+        // A client dropped or told busy is gone: what it still had queued counts for nothing.
+        if !self.clients.contains_key(&client) {
+            return;
+        }
         let master = *self.master.get_or_insert(client);
         if master != client {
-            if let Some((peer, outbox)) = self.clients.remove(&client) {
+            if let Some((_, outbox)) = self.clients.remove(&client) {
                 let _ = outbox.send(&BUSY);
                 outbox.finish();
                 self.report.told_busy += 1;
-                eprintln!("{peer}: told busy (another master holds the slave) and disconnected");
+                self.busy_unsaid += 1;
             }
             return;
         }
         let mut reply = [0u8; MAX_CTO];
         if let Some(len) = self.car.command(packet, &mut reply) {
             self.send_to_master(reply.get(..len).unwrap_or_default());
+        }
+        // Outside a session (before CONNECT, after DISCONNECT) a client holds nothing.
+        if !self.car.is_connected() {
+            self.master = None;
         }
     }
 
@@ -209,6 +223,24 @@ impl Desk {
             self.activity = activity;
             say(activity);
         }
+        // Once a second at most: what a storm of clients or a stalled machine would otherwise
+        // say a line at a time.
+        if self.car.run.now_ms() % 1_000 == 0 {
+            if self.busy_unsaid > 0 {
+                eprintln!(
+                    "{} client(s) told busy (another master holds the slave) and disconnected",
+                    self.busy_unsaid
+                );
+                self.busy_unsaid = 0;
+            }
+            if self.report.late_steps > self.late_said {
+                eprintln!(
+                    "{} model millisecond(s) ran more than 10 ms late (the machine stalled the desk car; it caught up)",
+                    self.report.late_steps - self.late_said
+                );
+                self.late_said = self.report.late_steps;
+            }
+        }
     }
 }
 
@@ -250,6 +282,8 @@ pub fn serve(
         master: None,
         report: DeskReport::default(),
         activity: Activity::Starting,
+        busy_unsaid: 0,
+        late_said: 0,
     };
     say(desk.activity);
     let started = Instant::now();

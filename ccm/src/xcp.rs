@@ -319,6 +319,11 @@ impl<F: CalibrationFlash> Target for CcmTarget<'_, F> {
     }
 
     fn request_store(&mut self) -> Result<(), Refusal> {
+        // Nothing to save: the working page is what start-up loads now. The flash is not
+        // written again (each save erases a sector: a tool saving in a loop must not wear it).
+        if !self.calibration.status().ccm_cal_unsaved {
+            return Ok(());
+        }
         let page = *self.calibration.page(Page::Working);
         match self.store.save(self.flash, &page, EPK, self.vehicle) {
             Ok(saved) => {
