@@ -12,7 +12,7 @@
 //! pulse timers ([`chassis::PulseTimer`], lock-free), [`sensors::Sensors`], the
 //! [`telemetry::TelemetryLink`] and [`control::Control`]; [`Ccm`] drives all four together.
 //!
-//! The bring-up image's bench ([`bench`]) is here too, over a hardware trait, so the bench
+//! The bring-up image's bench ([`bench`](mod@bench)) is here too, over a hardware trait, so the bench
 //! day's transcripts are what the image does.
 #![no_std]
 

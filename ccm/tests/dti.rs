@@ -564,6 +564,15 @@ fn dti_enable_below_60_v_needs_the_confirmation_and_live_readings() {
             },
             DtiRefusal::Turning(Some(900)),
         ),
+        // The DTI reads below 60 V while the PCC reports ERROR and reads 392 V (the shutdown
+        // circuit still closed): low voltage is not proven.
+        (
+            Heard {
+                pcc: Some(aer::can::PrechargeState::Error),
+                ..Heard::low_voltage()
+            },
+            DtiRefusal::PccReadsLive(392.0),
+        ),
         // The DTI reads below 60 V while the PCC reports ONLINE: the DTI's HV input or its
         // measurement, not low voltage; the confirmation does not make it so.
         (

@@ -5,8 +5,9 @@
 //! missed fetched by [`backfill`], or the generated typed JSON topics, on the Pi's broker) ->
 //! [`model`] (the
 //! latest packet, alarms, plots, laps, link health; no UI types) -> [`ui`] (iced: the driver
-//! and pit views, and the pit's Tune page, whose XCP master is [`tune`]). [`session`] and [`screenshot`] render the views from a recorded session
-//! without a display; [`follow`] runs the link and the model without a window.
+//! and pit views, and the pit's Tune page, whose XCP master is [`tune_worker`]). [`session`]
+//! and [`screenshot`] render the views from a recorded session without a display;
+//! [`link_check`] runs the link and the model without a window.
 
 pub mod backfill;
 pub mod config;

@@ -22,8 +22,9 @@ use aer_ccm::control::HandoverRefusal;
 use aer_console::bringup::ResetCause;
 use aer_console::{LogBuffer, Reboot};
 use aer_pcc::console::{self as pcc_console, CountersLine, RaceLog, RebootAnswer};
+use aer_pcc::constants::CONVERTERS;
 use aer_pcc::measurement::VoltageChannel;
-use aer_pcc::{Inputs, Precharge, PrechargeConfig, Relays, TASK_PERIOD_MS, VfConfig};
+use aer_pcc::{Inputs, Precharge, PrechargeConfig, Relays, TASK_PERIOD_MS};
 use core::fmt::{self, Write};
 
 /// A named transcript.
@@ -441,10 +442,16 @@ fn pcc_air_plus(out: &mut dyn Write) -> fmt::Result {
 }
 
 fn pcc_generator_frequencies(out: &mut dyn Write) -> fmt::Result {
-    let vf = VfConfig::PCC_BOARD;
-    writeln!(out, "volts at the input  Hz at pin 14 or 15")?;
-    for volts in [24.0f32, 30.0, 60.0, 100.0, 200.0, 300.0, 400.0] {
-        writeln!(out, "{volts:>17.0}  {:>18.1}", vf.hz_for_volts(volts))?;
+    // Each converter's own scaling, as the images read it (`CONVERTERS`, step 6b).
+    let [accumulator, tractive] = CONVERTERS;
+    writeln!(out, "volts at the input  Hz at pin 14  Hz at pin 15")?;
+    for volts in [24.0f32, 30.0, 60.0, 63.5, 100.0, 200.0, 300.0, 400.0] {
+        writeln!(
+            out,
+            "{volts:>17.1}  {:>12.1}  {:>12.1}",
+            accumulator.hz_for_volts(volts),
+            tractive.hz_for_volts(volts)
+        )?;
     }
     Ok(())
 }
@@ -491,10 +498,9 @@ struct RacePcc {
 
 impl RacePcc {
     fn new(pcc: Precharge) -> Self {
-        let vf = VfConfig::PCC_BOARD;
         Self {
             pcc,
-            channels: [VoltageChannel::new(vf, TASK_PERIOD_MS); 2],
+            channels: CONVERTERS.map(|vf| VoltageChannel::new(vf, TASK_PERIOD_MS)),
             inputs: [PulseTrain::new(); 2],
             race_log: RaceLog::default(),
             log: LogBuffer::new(),
@@ -566,11 +572,11 @@ impl RacePcc {
 /// precharge the race PCC sees on the bench.
 fn precharging() -> RacePcc {
     let mut pcc = RacePcc::new(Precharge::new(PrechargeConfig::CAR, 0));
-    let full = VfConfig::PCC_BOARD.hz_for_volts(300.0);
-    pcc.inputs[0].pulses = Pulses::Hz(full);
+    let [accumulator, tractive] = CONVERTERS;
+    pcc.inputs[0].pulses = Pulses::Hz(accumulator.hz_for_volts(300.0));
     pcc.inputs[1].pulses = Pulses::Sweep {
         from_hz: 0.0,
-        to_hz: full,
+        to_hz: tractive.hz_for_volts(300.0),
         start_ms: 5_000,
         duration_ms: 9_900,
     };
@@ -588,7 +594,7 @@ fn pcc_race_missed(out: &mut dyn Write) -> fmt::Result {
     pcc.run(17_500, Some(&mut *out))?;
     // The shutdown circuit opens: the tractive system discharges.
     pcc.inputs[1].pulses = Pulses::Sweep {
-        from_hz: VfConfig::PCC_BOARD.hz_for_volts(300.0),
+        from_hz: CONVERTERS[1].hz_for_volts(300.0),
         to_hz: 0.0,
         start_ms: 17_500,
         duration_ms: 600,
@@ -612,7 +618,7 @@ fn pcc_bootloader(out: &mut dyn Write) -> fmt::Result {
     // The shutdown circuit opens; asked while the tractive system discharges, and once it
     // is discharged.
     pcc.inputs[1].pulses = Pulses::Sweep {
-        from_hz: VfConfig::PCC_BOARD.hz_for_volts(300.0),
+        from_hz: CONVERTERS[1].hz_for_volts(300.0),
         to_hz: 0.0,
         start_ms: 15_000,
         duration_ms: 600,

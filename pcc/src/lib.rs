@@ -6,7 +6,7 @@
 //! ([`machine`]) turns both plus the shutdown input into a state, the relays follow from the
 //! state alone ([`relays`]), and the status frame is built by the generated codec
 //! ([`status`](Precharge::status)). [`watchdog`] decides when the hardware watchdog may be
-//! serviced and what a restart after it expired means. [`bench`] is the bring-up image's bench
+//! serviced and what a restart after it expired means. [`bench`](mod@bench) is the bring-up image's bench
 //! and [`bringup`] its gate in front of pin 11.
 #![no_std]
 

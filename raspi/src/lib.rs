@@ -1,11 +1,11 @@
 //! The Pi's ingest service as a library: the binary (`aer-raspi`), the end-to-end tests and the
 //! benchmarks run the same stages.
 //!
-//! Data flow, one way: [`source`] (SocketCAN, a candump log, the car model) -> the ingest
-//! [`stage`] (decoding, shared with the dashboard in `aer-host`) -> [`sink`]s: typed MQTT
-//! topics on the embedded [`broker`], and the SQLite [`store`] -> [`forward`] (TDengine).
-//! [`export`] reads the store back out.
-//! [`report`] publishes the service's status and metrics; [`service`] assembles it all.
+//! Data flow, one way: [`source`] (SocketCAN, or a candump log replayed) -> [`ingest`]
+//! (decoding, shared with the dashboard in `aer-host`) -> [`sink`]s: typed MQTT topics on the
+//! embedded [`broker`], and the SQLite [`store`] -> [`forward`] (TDengine). [`export`] reads
+//! the store back out. [`status_topics`] publishes the service's status and metrics;
+//! [`service`] assembles it all.
 
 pub mod broker;
 mod bus_names;

@@ -2,7 +2,7 @@
 //! generated as [`Calibration`] (its defaults, limits and change conditions), and the part of
 //! it the bench measures, the sensors ([`SensorCalibration`]): the pedal sensors at rest and at
 //! full travel, each brake pressure sensor with the brakes released, each shock sensor at both
-//! ends of its travel. The bench measures them with the bring-up image ([`bench`]);
+//! ends of its travel. The bench measures them with the bring-up image ([`bench`](mod@bench));
 //! `ccm/calibration.toml` records them and the firmware images' build reads them
 //! ([`measured`]); [`SensorCalibration::check`] checks them everywhere.
 //!

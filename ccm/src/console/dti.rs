@@ -333,6 +333,7 @@ impl DtiBench {
         if !extended && id == PccStatus::ID {
             if let Ok(status) = PccStatus::decode(data) {
                 self.evidence.pcc = Some((status.pcc_state, now_ms));
+                self.evidence.pcc_tractive_v = Some(status.pcc_tractive_voltage as f32);
             }
         }
     }
@@ -399,6 +400,8 @@ pub struct DtiEvidence {
     pub fault: Option<(DtiFaultCode, u32)>,
     /// The PCC's state (PCC_Status on the vehicle bus).
     pub pcc: Option<(PrechargeState, u32)>,
+    /// The tractive-system voltage the PCC reads, from the same status (V).
+    pub pcc_tractive_v: Option<f32>,
 }
 
 impl DtiEvidence {
@@ -436,6 +439,9 @@ pub enum DtiRefusal {
     /// The DTI reads its DC link below 60 V while the PCC reports a state in which the
     /// tractive system is, or may be, live: the two disagree, and low voltage is not proven.
     PccEnergised(PrechargeState),
+    /// The DTI reads its DC link below 60 V while the PCC reads the tractive system at 60 V or
+    /// more (V).
+    PccReadsLive(f32),
     /// No fresh fault code from the DTI.
     FaultUnknown,
     /// The DTI reports a fault.
@@ -465,6 +471,10 @@ impl fmt::Display for DtiRefusal {
                 f,
                 "the DTI reads its DC link below 60 V but the PCC reports {}: the tractive system may be live: open the shutdown circuit, then check the DTI's HV input and its DC link reading against the TSMP meter",
                 state.label().unwrap_or("an unknown state")
+            ),
+            Self::PccReadsLive(volts) => write!(
+                f,
+                "the DTI reads its DC link below 60 V but the PCC reads the tractive system at {volts:.0} V: it may be live: open the shutdown circuit, then check the DTI's HV input and its DC link reading against the TSMP meter"
             ),
             Self::FaultUnknown => write!(
                 f,
@@ -552,9 +562,17 @@ impl DtiGuard {
             // open, the tractive system discharged or discharging), not a precharge or ONLINE.
             if let Some((state, at)) = evidence.pcc
                 && fresh(at, PccStatus::TIMEOUT_MS)
-                && !matches!(state, PrechargeState::Standby | PrechargeState::Error)
             {
-                return Err(DtiRefusal::PccEnergised(state));
+                if !matches!(state, PrechargeState::Standby | PrechargeState::Error) {
+                    return Err(DtiRefusal::PccEnergised(state));
+                }
+                // STANDBY after an untimed precharge, or ERROR with the circuit still closed:
+                // the PCC's own reading says live.
+                if let Some(volts) = evidence.pcc_tractive_v
+                    && volts.partial_cmp(&TRACTIVE_OFF_V) != Some(core::cmp::Ordering::Less)
+                {
+                    return Err(DtiRefusal::PccReadsLive(volts));
+                }
             }
             self.hv.allows(now_ms, &[sensor]).map_err(DtiRefusal::Hv)?;
             return Ok(Path::LowVoltage);

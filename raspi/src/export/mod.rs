@@ -4,7 +4,7 @@
 //! every column means (label, unit, values), all from the generated schema. Beside them, the
 //! session's frames from the raw log in the bus tools' formats: BLF, ASC and MF4.
 //!
-//! [`load`] selects and reads the rows, [`describe`](crate::column_descriptions) says what each column is, and [`mcap`],
+//! [`load`] selects and reads the rows, [`column_descriptions`](crate::column_descriptions) says what each column is, and [`mcap`],
 //! [`parquet`] and [`csv`] write them, with the session's [`calibration`] record; [`frames`]
 //! writes the frames.
 
