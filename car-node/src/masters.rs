@@ -11,7 +11,7 @@ use anyhow::{Context, Result};
 use std::io::{ErrorKind, Read, Write};
 use std::net::{Shutdown, SocketAddr, TcpListener, TcpStream};
 use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::mpsc::{Receiver, SyncSender, TrySendError, sync_channel};
 use std::thread::JoinHandle;
 use std::time::Duration;
@@ -22,6 +22,8 @@ pub const OUTBOX_LEN: usize = 1_024;
 /// Events waiting for the model thread: a flooding master's reader waits (TCP pushes back)
 /// once this many are queued.
 pub const INBOUND_LEN: usize = 256;
+/// TCP clients served at once; one more is closed as it connects (each costs two threads).
+pub const MAX_CLIENTS: usize = 32;
 /// Bytes the kernel may hold for one client's connection beyond its outbox.
 const SEND_BUFFER: usize = 16 * 1024;
 /// How often threads that wait for something else look at the stop flag.
@@ -73,13 +75,34 @@ pub enum NotSent {
 pub struct Outbox {
     queue: SyncSender<Vec<u8>>,
     close: Box<dyn Fn() + Send>,
+    /// The transport outlives any session on it (a CAN bus): ending a session keeps it.
+    lasting: bool,
 }
 
 impl Outbox {
     /// An outbox over `queue` (its receiver is the client's writer) that ends the client's
     /// transport with `close`: for a transport of the caller's own (a test's channels).
     pub fn new(queue: SyncSender<Vec<u8>>, close: Box<dyn Fn() + Send>) -> Self {
-        Self { queue, close }
+        Self {
+            queue,
+            close,
+            lasting: false,
+        }
+    }
+
+    /// An outbox over a transport that outlives its sessions (a bus of the caller's own).
+    pub fn lasting(queue: SyncSender<Vec<u8>>, close: Box<dyn Fn() + Send>) -> Self {
+        Self {
+            queue,
+            close,
+            lasting: true,
+        }
+    }
+
+    /// Whether the transport outlives the sessions on it (a CAN bus, where any node may be
+    /// the next master): the desk ends a session there but keeps listening.
+    pub fn is_lasting(&self) -> bool {
+        self.lasting
     }
 
     /// Queues `packet` without waiting.
@@ -176,10 +199,15 @@ pub fn listen(listener: TcpListener) -> Result<Transport> {
 
 fn accept(listener: &TcpListener, events: &SyncSender<Inbound>, stop: &AtomicBool) {
     let mut next: ClientId = 1;
+    let open = Arc::new(AtomicUsize::new(0));
     while !stop.load(Ordering::Relaxed) {
         match listener.accept() {
+            Ok((stream, _)) if open.load(Ordering::Relaxed) >= MAX_CLIENTS => {
+                // Too many at once: closed as it comes, before it costs a thread.
+                let _ = stream.shutdown(Shutdown::Both);
+            }
             Ok((stream, peer)) => {
-                if client(stream, peer, next, events).is_err() {
+                if client(stream, peer, next, events, &open).is_err() {
                     continue;
                 }
                 next += 1;
@@ -197,6 +225,7 @@ fn client(
     peer: SocketAddr,
     id: ClientId,
     events: &SyncSender<Inbound>,
+    open: &Arc<AtomicUsize>,
 ) -> std::io::Result<()> {
     stream.set_nonblocking(false)?;
     stream.set_nodelay(true)?;
@@ -214,6 +243,7 @@ fn client(
         close: Box::new(move || {
             let _ = stream.shutdown(Shutdown::Both);
         }),
+        lasting: false,
     };
     if events
         .send(Inbound::Opened {
@@ -226,7 +256,12 @@ fn client(
         return Ok(());
     }
     let events = events.clone();
-    std::thread::spawn(move || read_client(reading, id, &events));
+    open.fetch_add(1, Ordering::Relaxed);
+    let open = Arc::clone(open);
+    std::thread::spawn(move || {
+        read_client(reading, id, &events);
+        open.fetch_sub(1, Ordering::Relaxed);
+    });
     std::thread::spawn(move || write_client(writing, &outgoing));
     Ok(())
 }
@@ -307,6 +342,7 @@ mod can {
         let outbox = Outbox {
             queue,
             close: Box::new(|| {}),
+            lasting: true,
         };
         let _ = events.send(Inbound::Opened {
             client: 0,

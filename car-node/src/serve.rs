@@ -94,6 +94,8 @@ struct Desk {
     busy_unsaid: u64,
     /// Late steps the last line said.
     late_said: u64,
+    /// Parked, and the tractive system seen off.
+    parked_off: bool,
 }
 
 impl Desk {
@@ -178,6 +180,13 @@ impl Desk {
             return;
         };
         self.car.transport_lost();
+        // A bus outlives its sessions: the next master may be any node on it.
+        if let Some((peer, outbox)) = self.clients.get(&master)
+            && outbox.is_lasting()
+        {
+            eprintln!("{peer}: {why}");
+            return;
+        }
         if let Some((peer, outbox)) = self.clients.remove(&master) {
             if now {
                 outbox.close();
@@ -221,7 +230,19 @@ impl Desk {
         let activity = self.car.run.car.driver.activity();
         if activity != self.activity {
             self.activity = activity;
+            self.parked_off = false;
             say(activity);
+        }
+        // Parked: the tractive system takes about a second to fall below 60 V; the CCM
+        // allows saving and the sensor parameters from then on.
+        if activity == Activity::Parked
+            && !self.parked_off
+            && !self.car.run.ccm.vehicle_state().tractive_live
+        {
+            self.parked_off = true;
+            eprintln!(
+                "car: the tractive system is off now: saving and the pedal, brake and shock parameters are allowed until the next start"
+            );
         }
         // Once a second at most: what a storm of clients or a stalled machine would otherwise
         // say a line at a time.
@@ -253,13 +274,11 @@ fn say(activity: Activity) {
         Activity::Standing => {
             "car: standing still with the tractive system live: launch parameters can change"
         }
-        Activity::Parked => {
-            "car: parked, the tractive system off: saving and the pedal, brake and shock parameters too"
-        }
+        Activity::Parked => "car: parking: the tractive system switched off",
     };
     let seconds = match activity {
         Activity::Standing => format!(" (for {} s)", STAND_MS / 1_000),
-        Activity::Parked => format!(" (for {} s, once below 60 V)", PARK_MS / 1_000),
+        Activity::Parked => format!(" (parked for {} s)", PARK_MS / 1_000),
         _ => String::new(),
     };
     eprintln!("{line}{seconds}");
@@ -284,6 +303,7 @@ pub fn serve(
         activity: Activity::Starting,
         busy_unsaid: 0,
         late_said: 0,
+        parked_off: false,
     };
     say(desk.activity);
     let started = Instant::now();

@@ -279,3 +279,32 @@ fn a_stranger_without_a_session_and_a_client_told_busy_take_nothing() {
     );
     assert_eq!(report.told_busy, 1);
 }
+
+/// On a bus (XCP on CAN: the transport outlives its sessions) a session the desk ends keeps
+/// the bus: the next CONNECT on it is served. Here the bus's queue is never read, so each
+/// session ends "stopped reading"; the second CONNECT still reaches the slave.
+#[test]
+fn a_bus_outlives_the_sessions_the_desk_ends() {
+    use aer_car_node::masters::{Inbound, Outbox, Transport};
+    use std::sync::mpsc::sync_channel;
+    let (events, inbound) = sync_channel(masters::INBOUND_LEN);
+    let (queue, _never_read) = sync_channel::<Vec<u8>>(1);
+    events
+        .send(Inbound::Opened {
+            client: 0,
+            peer: "the bus".into(),
+            outbox: Outbox::lasting(queue, Box::new(|| {})),
+        })
+        .unwrap();
+    let packet = |packet: &[u8]| Inbound::Packet {
+        client: 0,
+        packet: packet.to_vec(),
+    };
+    for event in [packet(&CONNECT), packet(&GET_STATUS), packet(&CONNECT)] {
+        events.send(event).unwrap();
+    }
+    let transport = Transport::new(inbound, "in process".into());
+    let report =
+        serve::serve(&transport, Cycle::Practice, None, &[0x5E; 32], |ms| ms < 50).unwrap();
+    assert_eq!(report.stopped_reading, 2, "{report:?}");
+}

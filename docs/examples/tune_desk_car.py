@@ -80,11 +80,25 @@ def main():
     general = {"disable_error_handling": True, "seed_n_key_dll": args.library}
     app = create_application_from_config({"Transport": transport, "General": general}, log_level=logging.WARNING)
     with Master(layer, config=app) as master:
-        master.connect()
+        try:
+            master.connect()
+        except XcpResponseError as error:
+            print(f"connecting failed ({error}): another tool may hold the slave; close its session and retry",
+                  file=sys.stderr)
+            return 1
         # pyxcp's push() (block writes) needs MAX_BS from GET_COMM_MODE_INFO.
         info = master.getCommModeInfo()
         print(f"connected: MAX_CTO {master.slaveProperties.maxCto}, MAX_BS {info.maxBs}")
-        master.cond_unlock("calpag")
+        try:
+            master.cond_unlock("calpag")
+        except XcpResponseError as error:
+            print(
+                f"unlocking failed ({error}): check that the library has the car's secret beside it "
+                "(aer-xcp-secret.key) or in AER_XCP_SECRET_FILE; after a wrong key, wait the delay "
+                "(docs/calibration.md, \"Unlocking\") and run this again",
+                file=sys.stderr,
+            )
+            return 1
         print("calibration unlocked")
 
         address, low, high = parameters["traction_kp"]

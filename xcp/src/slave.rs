@@ -43,6 +43,22 @@ pub struct Counters {
     pub wrong_keys: u32,
 }
 
+impl Counters {
+    /// The values in [`crate::status::COUNTERS`]' order.
+    pub fn in_order(&self) -> [u32; 8] {
+        [
+            self.commands,
+            self.errors,
+            self.dtos_sent,
+            self.dtos_dropped,
+            self.overloads,
+            self.daq_faults,
+            self.idle_ends,
+            self.wrong_keys,
+        ]
+    }
+}
+
 /// How a session ended without a DISCONNECT, as [`Slave::poll`] and
 /// [`Slave::transport_lost`] report it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

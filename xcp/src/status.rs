@@ -7,7 +7,6 @@
 //! see [`crate::LastRefusal::to_bytes`]), then one u32 each, in [`COUNTERS`]' order.
 
 use crate::refusal::LAST_REFUSAL_LEN;
-use crate::slave::Counters;
 
 /// How a field of the block is stored.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -176,19 +175,3 @@ pub const COUNTERS: [(&str, &str); 8] = [
 
 /// Bytes of the block.
 pub const STATUS_LEN: usize = LAST_REFUSAL_LEN + 4 * COUNTERS.len();
-
-impl Counters {
-    /// The values in [`COUNTERS`]' order.
-    pub fn in_order(&self) -> [u32; 8] {
-        [
-            self.commands,
-            self.errors,
-            self.dtos_sent,
-            self.dtos_dropped,
-            self.overloads,
-            self.daq_faults,
-            self.idle_ends,
-            self.wrong_keys,
-        ]
-    }
-}

@@ -6,6 +6,7 @@ use std::path::Path;
 
 use serde_saphyr::Spanned;
 
+use super::names::{check_item_name, line_of};
 use crate::diagnostic::{Code, Diagnostic, Diagnostics, Reporter};
 use crate::load::calibration::{
     AxisSpec, DefaultSpec, InternalSpec, LoadedCalibration, ParameterSpec,
@@ -16,10 +17,6 @@ use crate::naming::{is_keyword, snake};
 /// A curve or list longer than this is not a tuning parameter (and would not fit one XCP
 /// transfer the master can check at a glance).
 const MAX_ELEMENTS: usize = 32;
-
-pub(crate) fn line_of<T>(s: &Spanned<T>) -> usize {
-    usize::try_from(s.referenced.line()).unwrap_or(0)
-}
 
 /// Validates the calibration schema and lays out its page; the XCP messages it names are
 /// looked up in `db`.
@@ -506,51 +503,6 @@ fn check_defaults(
         return false;
     }
     true
-}
-
-/// Whether `text` can name a generated item: snake_case, starting with a letter.
-fn is_snake_identifier(text: &str) -> bool {
-    text.starts_with(|c: char| c.is_ascii_lowercase())
-        && text
-            .chars()
-            .all(|c| c.is_ascii_lowercase() || c.is_ascii_digit() || c == '_')
-}
-
-/// A name for a generated item, reported under `code` when it is not snake_case, a keyword
-/// or already taken; `what` says what it names.
-pub(crate) fn check_item_name(
-    r: &mut Reporter<'_>,
-    code: Code,
-    what: &str,
-    name: &Spanned<String>,
-    seen: &mut HashSet<String>,
-) -> bool {
-    let (text, line) = (name.value.as_str(), line_of(name));
-    let problem = if !is_snake_identifier(text) {
-        Some((
-            format!("{what} name `{text}` is not a snake_case identifier"),
-            "start with a lower-case letter; use lower-case letters, digits and underscores",
-        ))
-    } else if is_keyword(text) {
-        Some((
-            format!("{what} name `{text}` is a Rust keyword"),
-            "choose another name (it becomes a generated Rust name)",
-        ))
-    } else if !seen.insert(text.to_owned()) {
-        Some((
-            format!("{what} `{text}` is declared twice"),
-            "give each its own name",
-        ))
-    } else {
-        None
-    };
-    match problem {
-        Some((message, help)) => {
-            r.report(code, line, message, help);
-            false
-        }
-        None => true,
-    }
 }
 
 /// The controllers' internal values, each an f32 with a unit, limits and a description.

@@ -2,5 +2,6 @@
 
 pub(crate) mod calibration;
 pub(crate) mod dbc;
+pub(crate) mod names;
 pub(crate) mod telemetry;
 pub(crate) mod xcp;

@@ -6,7 +6,7 @@ use std::collections::HashSet;
 
 use serde_saphyr::Spanned;
 
-use super::calibration::{check_item_name, line_of};
+use super::names::{check_item_name, line_of};
 use crate::diagnostic::{Code, Reporter};
 use crate::load::calibration::{EventSpec, XcpSpec};
 use crate::model::{Database, Message, Xcp, XcpEvent};
