@@ -396,7 +396,9 @@ fn a_vendor_file_with_allowed_defects_generates_and_decodes_as_written() {
             .any(|(c, h)| *c == "E0101" && h.contains("extended")),
         "{warned:?}"
     );
-    let target = Path::new(env!("CARGO_TARGET_TMPDIR")).join("tricky_can_target");
+    // Its own target directory: the tricky crate's test builds an example of the same name
+    // meanwhile, and one folder would let either test run the other crate's decoder.
+    let target = Path::new(env!("CARGO_TARGET_TMPDIR")).join("vendor_defects_can_target");
     let status = Command::new(env!("CARGO"))
         .args(["build", "--quiet", "--example", "decode"])
         .current_dir(&root)
