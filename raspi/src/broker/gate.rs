@@ -29,7 +29,8 @@
 //!   (`broker/mqtt5.rs`), so the same rules apply to both;
 //! - speaks TLS on listeners that have certificates.
 //!
-//! Everything refused is counted (`mqtt_refused`, `mqtt_slow_clients`) and logged.
+//! Everything refused is counted (`mqtt_refused`, `mqtt_slow_clients`) and logged, before the
+//! client is told: what a refused client saw is already in the service's status.
 
 use super::client_queue::ClientQueue;
 use super::mqtt5::{self, Unsubscribes};
@@ -433,14 +434,14 @@ impl Gate {
             Err(error @ packet::PacketError::Protocol { level, .. }) => {
                 // Answered as the client's protocol defines, so it stops retrying and says
                 // why, instead of reconnecting for ever.
-                let _ = stream.write_all(&packet::unsupported_version(level)).await;
-                let _ = stream.shutdown().await;
                 Counters::bump(&self.counters.mqtt_refused);
                 // Counted apart from other refusals, so the first of its kind is always logged.
                 let count = self.version_refusals.fetch_add(1, Ordering::Relaxed) + 1;
                 if worth_logging(count) {
                     warn!(%peer, level, count, "MQTT client refused: {error}; it was told so (CONNACK 'unsupported protocol version')");
                 }
+                let _ = stream.write_all(&packet::unsupported_version(level)).await;
+                let _ = stream.shutdown().await;
                 return;
             }
             Err(error) => return self.refused(peer, &error.to_string()),
@@ -448,20 +449,23 @@ impl Gate {
         buffer.drain(..len);
         let version = connect.version;
         if let Err((why, refusal)) = self.admit(&connect, listener) {
+            self.refused(peer, why);
             let _ = stream.write_all(&packet::refusal(version, refusal)).await;
-            return self.refused(peer, why);
+            return;
         }
         if !self.make_room() {
+            self.refused(peer, "connection limit reached");
             let _ = stream
                 .write_all(&packet::refusal(version, Refusal::Busy))
                 .await;
-            return self.refused(peer, "connection limit reached");
+            return;
         }
         let Ok(mut broker) = self.connect_broker().await else {
+            self.refused(peer, "broker not reachable");
             let _ = stream
                 .write_all(&packet::refusal(version, Refusal::Unavailable))
                 .await;
-            return self.refused(peer, "broker not reachable");
+            return;
         };
         let max = self.settings.max_keep_alive_s;
         if connect.keep_alive_s == 0 || connect.keep_alive_s > max {
@@ -492,10 +496,11 @@ impl Gate {
             if !unacknowledged && let Ok(mut ids) = self.unacknowledged_ids.lock() {
                 ids.insert(connect.client_id.clone());
             }
+            self.refused(peer, "the broker did not acknowledge the connection");
             let _ = stream
                 .write_all(&packet::refusal(version, Refusal::Unavailable))
                 .await;
-            return self.refused(peer, "the broker did not acknowledge the connection");
+            return;
         }
         let pending = Unsubscribes::default();
         let acknowledgement = match version {
