@@ -324,6 +324,20 @@ impl Gate {
         }
     }
 
+    /// Refuses a CONNECT with the CONNACK of the client's version: counted first, so a client
+    /// that has read its refusal finds it in the status already.
+    async fn refuse_connect(
+        &self,
+        stream: &mut (impl AsyncWrite + Unpin),
+        version: Version,
+        refusal: Refusal,
+        peer: SocketAddr,
+        why: &str,
+    ) {
+        self.refused(peer, why);
+        let _ = stream.write_all(&packet::refusal(version, refusal)).await;
+    }
+
     fn now_us(&self) -> u64 {
         self.clients.now_us()
     }
@@ -449,23 +463,21 @@ impl Gate {
         buffer.drain(..len);
         let version = connect.version;
         if let Err((why, refusal)) = self.admit(&connect, listener) {
-            self.refused(peer, why);
-            let _ = stream.write_all(&packet::refusal(version, refusal)).await;
-            return;
+            return self
+                .refuse_connect(&mut stream, version, refusal, peer, why)
+                .await;
         }
         if !self.make_room() {
-            self.refused(peer, "connection limit reached");
-            let _ = stream
-                .write_all(&packet::refusal(version, Refusal::Busy))
+            let why = "connection limit reached";
+            return self
+                .refuse_connect(&mut stream, version, Refusal::Busy, peer, why)
                 .await;
-            return;
         }
         let Ok(mut broker) = self.connect_broker().await else {
-            self.refused(peer, "broker not reachable");
-            let _ = stream
-                .write_all(&packet::refusal(version, Refusal::Unavailable))
+            let why = "broker not reachable";
+            return self
+                .refuse_connect(&mut stream, version, Refusal::Unavailable, peer, why)
                 .await;
-            return;
         };
         let max = self.settings.max_keep_alive_s;
         if connect.keep_alive_s == 0 || connect.keep_alive_s > max {
@@ -496,11 +508,10 @@ impl Gate {
             if !unacknowledged && let Ok(mut ids) = self.unacknowledged_ids.lock() {
                 ids.insert(connect.client_id.clone());
             }
-            self.refused(peer, "the broker did not acknowledge the connection");
-            let _ = stream
-                .write_all(&packet::refusal(version, Refusal::Unavailable))
+            let why = "the broker did not acknowledge the connection";
+            return self
+                .refuse_connect(&mut stream, version, Refusal::Unavailable, peer, why)
                 .await;
-            return;
         }
         let pending = Unsubscribes::default();
         let acknowledgement = match version {
