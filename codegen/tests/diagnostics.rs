@@ -148,6 +148,27 @@ fn overlapping_signals() {
     );
 }
 
+/// Three signals and one laid over all of them.
+const WIDE: &str = "BO_ 100 M: 8 ECU\n SG_ A : 0|8@1+ (1,0) [0|0] \"\" ECU\n SG_ B : 8|8@1+ (1,0) [0|0] \"\" ECU\n SG_ C : 16|8@1+ (1,0) [0|0] \"\" ECU\n SG_ Wide : 0|32@1+ (1,0) [0|0] \"\" ECU\n";
+
+/// A signal laid over several others is one finding naming every one, not only the first.
+#[test]
+fn a_signal_over_several_others_names_them_all() {
+    let d = expect(
+        WIDE,
+        "E0107",
+        5,
+        &[
+            "`Wide` of message `M` overlaps 3 signals",
+            "`A` in bit(s) [0, 1, 2, 3, 4, 5, 6, 7]",
+            "`B` in bit(s) [8,",
+            "`C` in bit(s) [16,",
+        ],
+    );
+    let findings = diagnose(WIDE).iter().filter(|d| d.code == "E0107").count();
+    assert_eq!(findings, 1, "{d}");
+}
+
 #[test]
 fn multiplexed_alternatives_may_share_bits() {
     let diags = diagnose(
@@ -162,7 +183,11 @@ fn duplicate_signal_names() {
         "BO_ 100 M: 8 ECU\n SG_ A : 0|8@1+ (1,0) [0|0] \"\" ECU\n SG_ A : 8|8@1+ (1,0) [0|0] \"\" ECU\n",
         "E0108",
         3,
-        &["`A` is defined twice"],
+        // The first definition is the line before.
+        &[
+            "`A` is defined twice",
+            &format!("(first on line {})", header_lines() + 2),
+        ],
     );
 }
 

@@ -19,8 +19,9 @@ pub(crate) struct LoadedDbc {
 pub(crate) struct LineIndex {
     /// One entry per `BO_` line, in file order: (line, id exactly as written).
     pub messages: Vec<(usize, u64)>,
-    /// (raw message id as written, signal name) -> line of its `SG_`.
-    pub signals: HashMap<(u64, String), usize>,
+    /// (raw message id as written, signal name) -> lines of its `SG_`s, in file order (a name
+    /// written twice has two).
+    pub signals: HashMap<(u64, String), Vec<usize>>,
     /// (raw message id, signal name) -> line of its `VAL_`.
     pub values: HashMap<(u64, String), usize>,
     /// (raw message id, signal name) -> line of its `SG_MUL_VAL_`.
@@ -52,7 +53,11 @@ impl LineIndex {
                 }
                 Some("SG_") => {
                     if let (Some(id), Some(name)) = (current_message, tokens.next()) {
-                        index.signals.insert((id, name.to_owned()), n);
+                        index
+                            .signals
+                            .entry((id, name.to_owned()))
+                            .or_default()
+                            .push(n);
                     }
                 }
                 Some("VAL_") => {

@@ -29,18 +29,23 @@ impl<'a> Builder<'a, '_> {
     ) -> Option<Message> {
         let msg = frame.msg;
         let len = self.frame_len(&frame)?;
+        // The n-th signal of a name takes the n-th `SG_` line of that name.
+        let mut seen: HashMap<&str, usize> = HashMap::new();
         let drafts: Vec<Draft<'a>> = msg
             .signals
             .iter()
-            .map(|sig| Draft {
-                sig,
-                line: self
+            .map(|sig| {
+                let nth = seen.entry(sig.name.as_str()).or_default();
+                let line = self
                     .loaded
                     .lines
                     .signals
                     .get(&(frame.written_id, sig.name.clone()))
+                    .and_then(|lines| lines.get(*nth))
                     .copied()
-                    .unwrap_or(frame.line),
+                    .unwrap_or(frame.line);
+                *nth += 1;
+                Draft { sig, line }
             })
             .collect();
         let mut signals = self.signals(&frame, len, &drafts, enums)?;

@@ -225,27 +225,48 @@ impl<'a> Builder<'a, '_> {
         signals: &[Signal],
         order: &[usize],
     ) {
+        // One finding per signal, naming every earlier signal it overlaps.
+        let mut by_signal: std::collections::BTreeMap<usize, Vec<usize>> = Default::default();
         for (a, b) in overlap::overlaps(signals, order) {
-            let (Some(first), Some(second), Some(draft)) =
-                (signals.get(a), signals.get(b), drafts.get(b))
-            else {
+            by_signal.entry(b).or_default().push(a);
+        }
+        for (b, earlier) in by_signal {
+            let (Some(second), Some(draft)) = (signals.get(b), drafts.get(b)) else {
                 continue;
             };
-            let theirs: BTreeSet<u32> = first.bits().into_iter().collect();
-            let shared: Vec<u32> = second
-                .bits()
-                .into_iter()
-                .filter(|bit| theirs.contains(bit))
-                .collect::<BTreeSet<u32>>()
-                .into_iter()
+            let ours: BTreeSet<u32> = second.bits().into_iter().collect();
+            let with: Vec<(&str, Vec<u32>)> = earlier
+                .iter()
+                .filter_map(|&a| signals.get(a))
+                .map(|first| {
+                    let shared: BTreeSet<u32> = first
+                        .bits()
+                        .into_iter()
+                        .filter(|bit| ours.contains(bit))
+                        .collect();
+                    (first.name.as_str(), shared.into_iter().collect())
+                })
                 .collect();
+            let message = match with.as_slice() {
+                [(first, shared)] => format!(
+                    "signals `{first}` and `{}` of message `{}` overlap in bit(s) {shared:?}",
+                    second.name, msg.name
+                ),
+                _ => format!(
+                    "signal `{}` of message `{}` overlaps {} signals: {}",
+                    second.name,
+                    msg.name,
+                    with.len(),
+                    with.iter()
+                        .map(|(name, shared)| format!("`{name}` in bit(s) {shared:?}"))
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                ),
+            };
             self.r.report(
                 Code::SignalOverlap,
                 draft.line,
-                format!(
-                    "signals `{}` and `{}` of message `{}` overlap in bit(s) {:?}",
-                    first.name, second.name, msg.name, shared
-                ),
+                message,
                 "move one of them, or make them alternatives of the same multiplexor",
             );
         }

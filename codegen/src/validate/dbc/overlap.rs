@@ -54,8 +54,8 @@ pub(super) fn decode_order(signals: &[Signal]) -> Option<Vec<usize>> {
     Some(order)
 }
 
-/// For each signal that overlaps an earlier one it can share a frame with: (the first such
-/// earlier signal, the signal), in that order. `order` is the [`decode_order`].
+/// For each signal that overlaps earlier ones it can share a frame with: (each such earlier
+/// signal, the signal), sorted. `order` is the [`decode_order`].
 pub(super) fn overlaps(signals: &[Signal], order: &[usize]) -> Vec<(usize, usize)> {
     let forest = Forest::new(signals, order);
     // Per bit, the signals there grouped by their selector (few groups per bit).
@@ -63,15 +63,15 @@ pub(super) fn overlaps(signals: &[Signal], order: &[usize]) -> Vec<(usize, usize
     let mut found = Vec::new();
     for (b, signal) in signals.iter().enumerate() {
         let bits = signal.bits();
-        let first = bits
+        // Every earlier signal it conflicts with (one per bit and group is enough: a signal
+        // over several others meets each of them at some bit).
+        let conflicts: std::collections::BTreeSet<usize> = bits
             .iter()
             .filter_map(|&bit| at_bit.get(bit as usize))
             .flatten()
             .filter_map(|(selector, group)| forest.first_conflict(b, *selector, group))
-            .min();
-        if let Some(a) = first {
-            found.push((a, b));
-        }
+            .collect();
+        found.extend(conflicts.into_iter().map(|a| (a, b)));
         let selector = signal.mux.as_ref().map(|m| m.selector);
         for bit in bits {
             let bit = bit as usize;
@@ -279,9 +279,22 @@ mod tests {
     use crate::model::{ByteOrder, Encoding, PhysType};
     use proptest::prelude::*;
 
-    /// The earlier quadratic check, kept as the oracle: every pair, every condition on both
-    /// chains.
+    /// The earlier quadratic check, kept as the oracle: for each signal with a conflict, its
+    /// first earlier one.
     fn pairwise_overlaps(signals: &[Signal]) -> Vec<(usize, usize)> {
+        let mut found = Vec::new();
+        let mut reported = std::collections::HashSet::new();
+        for (a, b) in all_pairwise_overlaps(signals) {
+            if reported.insert(b) {
+                found.push((a, b));
+            }
+        }
+        found
+    }
+
+    /// Every pair of signals that share a bit and can share a frame: every pair, every
+    /// condition on both chains.
+    fn all_pairwise_overlaps(signals: &[Signal]) -> Vec<(usize, usize)> {
         let chain = |mut i: usize| {
             let mut conditions = Vec::new();
             while let Some(m) = signals[i].mux.as_ref() {
@@ -301,14 +314,13 @@ mod tests {
             })
         };
         let mut found = Vec::new();
-        let mut reported = std::collections::HashSet::new();
         for a in 0..signals.len() {
             for b in a + 1..signals.len() {
                 let shares = signals[a]
                     .bits()
                     .iter()
                     .any(|x| signals[b].bits().contains(x));
-                if shares && !exclusive(a, b) && reported.insert(b) {
+                if shares && !exclusive(a, b) {
                     found.push((a, b));
                 }
             }
@@ -412,7 +424,26 @@ mod tests {
             // Overlaps are only checked once the order exists (no cycle).
             let signals = without_cycles(signals);
             let order = decode_order(&signals).expect("no cycle");
-            prop_assert_eq!(overlaps(&signals, &order), pairwise_overlaps(&signals));
+            // Every pair found conflicts; every signal with a conflict is found, with its
+            // first earlier one (a signal over several others is reported with each it meets
+            // at some bit: at least the first).
+            let found = overlaps(&signals, &order);
+            let pairwise = pairwise_overlaps(&signals);
+            let all: std::collections::HashSet<(usize, usize)> =
+                all_pairwise_overlaps(&signals).into_iter().collect();
+            for pair in &found {
+                prop_assert!(all.contains(pair), "{pair:?} is no conflict");
+            }
+            let mut first_by_b = std::collections::BTreeMap::new();
+            for &(a, b) in &found {
+                let first = first_by_b.entry(b).or_insert(a);
+                *first = a.min(*first);
+            }
+            let first_found: Vec<(usize, usize)> =
+                first_by_b.into_iter().map(|(b, a)| (a, b)).collect();
+            let mut pairwise_by_b = pairwise.clone();
+            pairwise_by_b.sort_by_key(|&(a, b)| (b, a));
+            prop_assert_eq!(first_found, pairwise_by_b);
         }
     }
 
