@@ -9,7 +9,6 @@ mod image;
 mod m7_check;
 mod package;
 mod pins;
-mod session;
 
 use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand};
@@ -159,9 +158,25 @@ fn main() -> Result<()> {
         }
         Task::Docs => docs::run(&workspace_root()),
         Task::SessionLog => {
+            // The car model runs in a build of its own: the firmware tasks never compile it.
             let path = workspace_root().join("raspi/data/session.log");
-            let frames = session::write(&path)?;
-            println!("{}: {frames} frames", path.display());
+            let status = cargo()
+                .current_dir(workspace_root())
+                .args([
+                    "run",
+                    "--quiet",
+                    "--package",
+                    "aer-car-model",
+                    "--example",
+                    "session_log",
+                    "--",
+                ])
+                .arg(&path)
+                .status()
+                .context("running cargo")?;
+            if !status.success() {
+                bail!("recording the session failed");
+            }
             Ok(())
         }
         Task::M7Check { timeout } => {
