@@ -12,7 +12,7 @@
 /// Fingerprint of the calibration's layout (names, types, offsets, limits, change conditions,
 /// axes), the internals' block and the XCP settings: a saved page or a calibration tool's
 /// description with another fingerprint does not describe this firmware's page.
-pub const CALIBRATION_FINGERPRINT: u32 = 0x3094E2CA;
+pub const CALIBRATION_FINGERPRINT: u32 = 0xF0D0A9D1;
 
 /// Bytes of the page.
 pub const PAGE_LEN: usize = 140;
@@ -921,7 +921,7 @@ pub const INTERNALS: [Internal; 10] = [
 /// Addresses are byte addresses with address extension 0; everything at them is
 /// little-endian. Commands come in `XCP_Cmd` ([`CAN_ID_MASTER`](xcp::CAN_ID_MASTER));
 /// responses, events and DAQ packets go out in `XCP_Res` ([`CAN_ID_SLAVE`](xcp::CAN_ID_SLAVE));
-/// both on the vehicle bus, always 8 bytes.
+/// both on the inverter bus, always 8 bytes.
 pub mod xcp {
     use super::{Internals, PAGE_LEN};
 
@@ -956,7 +956,7 @@ pub mod xcp {
     /// The ECU program identifier: `AER`, the telemetry fingerprint (the DBC and the packet)
     /// and the calibration fingerprint, in hex. A tool compares it with its description's,
     /// so a description of another build is noticed at connection.
-    pub const EPK: &str = "AER DCF4C63B 3094E2CA";
+    pub const EPK: &str = "AER DCF4C63B F0D0A9D1";
 
     /// The master's command id (`XCP_Cmd`, standard).
     pub const CAN_ID_MASTER: u32 = 0x6F0;

@@ -185,6 +185,10 @@ pub struct MessageMeta {
     /// `AerTimeoutMs`, else a few cycle times); `None` for a message sent on demand.
     pub timeout_ms: Option<u32>,
     pub comment: &'static str,
+    /// The node that sends it (`BO_`'s transmitter), `None` when the schema names none.
+    pub sender: Option<&'static str>,
+    /// The buses it is sent on (the `AerBus` attribute), empty when the schema names none.
+    pub buses: &'static [&'static str],
     pub signals: &'static [SignalMeta],
     /// The rolling counter the message carries, if the schema declares one.
     pub counter: Option<CounterMeta>,

@@ -6,6 +6,7 @@
 //! (6 byte(s), unused bits zero).
 
 use super::can::AnyMessage;
+use super::can::CcmStatus;
 use super::can::DtiControlMode;
 use super::can::DtiDriveEnable;
 use super::can::DtiFaultCode;
@@ -2613,7 +2614,8 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
 
 /// The fields of [`Telemetry`] that mirror a DBC signal (`signal:` in telemetry.yaml), as
 /// last received. [`TelemetryMirror::apply`] fills them from decoded frames, so a mirrored
-/// field added to the schema needs no code in the sender.
+/// field added to the schema needs no code in the sender; fields of messages the sender sends
+/// itself come from [`TelemetrySent`] instead.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TelemetryMirror {
     /// Corrected isolation resistance.
@@ -2878,7 +2880,7 @@ impl TelemetryMirror {
     };
 
     /// Copies every field that mirrors a signal of `message`; other fields keep their value.
-    /// The sender calls this for each frame it decodes (and for the frames it sends itself).
+    /// The sender calls this for each frame it decodes.
     pub fn apply(&mut self, message: &AnyMessage) {
         match message {
             AnyMessage::CcmStatus(m) => {
@@ -2964,6 +2966,16 @@ impl TelemetryMirror {
             _ => {}
         }
     }
+}
+
+/// The messages CCM sends itself that fields of [`Telemetry`] mirror: it receives
+/// no frame of its own, so [`TelemetryMirror::apply`] alone would leave those fields at
+/// zero. There is no `Default`: the sender passes each message as it sends it, so a field
+/// mirroring a message it does not build yet is a compile error naming the message.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TelemetrySent {
+    /// The [`CcmStatus`] CCM sent last.
+    pub ccm_status: CcmStatus,
 }
 
 /// The fields of [`Telemetry`] the sender measures or counts itself (no `signal:` in
@@ -3919,8 +3931,16 @@ impl Telemetry {
         ))
     }
 
-    /// The packet from what the sender mirrored from the buses and what it measured itself.
-    pub fn from_parts(mirror: &TelemetryMirror, own: TelemetryOwnFields) -> Self {
+    /// The packet from what the sender mirrored from the buses, the messages it sends itself
+    /// (their mirrored fields are taken from them, so they show what went out) and what it
+    /// measured.
+    pub fn from_parts(
+        mirror: &TelemetryMirror,
+        sent: &TelemetrySent,
+        own: TelemetryOwnFields,
+    ) -> Self {
+        let mut mirror = *mirror;
+        mirror.apply(&AnyMessage::CcmStatus(sent.ccm_status));
         Self {
             apps_travel: own.apps_travel,
             bse_front: own.bse_front,

@@ -68,6 +68,61 @@ impl SignalSource for FromVector<'_> {
     }
 }
 
+/// The vectors cover the schema as it is now: every message has vectors, and each vector
+/// carries exactly its message's signals. A message or signal added, renamed or removed after
+/// the vectors were made fails here with the command that remakes them, instead of passing
+/// against vectors that never exercise it.
+#[test]
+fn the_vectors_are_of_the_schema_as_it_is() {
+    const REMAKE: &str = "remake them: .venv/bin/python tools/cantools_vectors.py --frames 100 \
+                          --out tests/vectors schema/aer.dbc (docs/schema.md, \"Changing the schema\")";
+    let vectors = vectors();
+    let mut stale = Vec::new();
+    for meta in aer::can::MESSAGES {
+        let of_message: Vec<&Vector> = vectors.iter().filter(|v| v.name == meta.name).collect();
+        if of_message.is_empty() {
+            stale.push(format!("{}: no vectors", meta.name));
+            continue;
+        }
+        let declared: std::collections::BTreeSet<&str> =
+            meta.signals.iter().map(|s| s.name).collect();
+        for v in of_message {
+            let carried: std::collections::BTreeSet<&str> =
+                v.signals.keys().map(String::as_str).collect();
+            // A multiplexed message's vector carries the signals its multiplexor selects.
+            if !carried.is_subset(&declared)
+                || (carried.len() < declared.len() && !multiplexed(meta))
+            {
+                stale.push(format!(
+                    "{}: a vector with signals {carried:?}, the schema has {declared:?}",
+                    meta.name
+                ));
+                break;
+            }
+        }
+    }
+    let known: std::collections::BTreeSet<&str> =
+        aer::can::MESSAGES.iter().map(|m| m.name).collect();
+    for v in &vectors {
+        if !known.contains(v.name.as_str()) {
+            stale.push(format!(
+                "{}: vectors of a message the schema no longer has",
+                v.name
+            ));
+            break;
+        }
+    }
+    assert!(
+        stale.is_empty(),
+        "stale vectors, {REMAKE}:\n{}",
+        stale.join("\n")
+    );
+}
+
+fn multiplexed(meta: &aer::runtime::MessageMeta) -> bool {
+    meta.signals.iter().any(|s| s.multiplexed)
+}
+
 #[test]
 fn decoding_matches_cantools_exactly() {
     let vectors = vectors();

@@ -32,9 +32,24 @@ const MIRRORED_FIELD: &str = "
     label: Max brake torque
     signal: MCU1.MCU_MaxMotorBrakeTorque";
 
+/// A new field mirroring a message the CCM sends itself: the CCM hears no frame of its own, so
+/// only the message it passes to `from_parts` can fill it.
+const SENT_FIELD: &str = "
+  - name: steering_rack
+    group: chassis
+    label: Steering rack
+    signal: CCM_Chassis.CCM_SteeringRack";
+
+/// The message that field mirrors, new in the DBC, sent by the CCM on the vehicle bus.
+const SENT_MESSAGE: &str = "BO_ 162 CCM_Chassis: 2 CCM
+ SG_ CCM_SteeringRack : 0|16@1+ (0.01,0) [0|100] \"mm\" RASPI
+
+";
+
 /// The promise made to a new team member, on a copy of this repository: add a telemetry field
-/// to the schema and the CCM firmware crate stops building, naming the field, until the CCM
-/// fills it; a field mirrored from the bus is filled by generated code and needs nothing.
+/// to the schema and the CCM firmware crate stops building, naming the field (or the message
+/// the CCM must pass as it sends it), until the CCM fills it; a field mirrored from a message
+/// another node sends is filled by generated code and needs nothing.
 #[test]
 fn a_new_telemetry_field_fails_the_ccm_build_until_the_ccm_fills_it() {
     let repo = Path::new(env!("CARGO_MANIFEST_DIR"));
@@ -45,10 +60,21 @@ fn a_new_telemetry_field_fails_the_ccm_build_until_the_ccm_fills_it() {
     let text = std::fs::read_to_string(&schema).expect("telemetry.yaml");
     let text = text.replacen(
         "\nfields:",
-        &format!("\nfields:{OWN_FIELD}{MIRRORED_FIELD}"),
+        &format!("\nfields:{OWN_FIELD}{MIRRORED_FIELD}{SENT_FIELD}"),
         1,
     );
     std::fs::write(&schema, text).expect("write telemetry.yaml");
+    let dbc = copy.path().join("schema/aer.dbc");
+    let text = std::fs::read_to_string(&dbc).expect("aer.dbc");
+    assert!(text.contains("BO_ 161 "), "the DBC has CCM_Calibration");
+    let text = text
+        .replacen("BO_ 161 ", &format!("{SENT_MESSAGE}BO_ 161 "), 1)
+        .replacen(
+            "BA_ \"AerBus\" BO_ 161 ",
+            "BA_ \"AerBus\" BO_ 162 \"vehicle\";\nBA_ \"AerBus\" BO_ 161 ",
+            1,
+        );
+    std::fs::write(&dbc, text).expect("write aer.dbc");
 
     let unfilled = check_ccm(copy.path());
     let stderr = String::from_utf8_lossy(&unfilled.stderr);
@@ -59,6 +85,10 @@ fn a_new_telemetry_field_fails_the_ccm_build_until_the_ccm_fills_it() {
     assert!(
         stderr.contains("missing field `steering_angle` in initializer of `TelemetryOwnFields`"),
         "the error names the new field:\n{stderr}"
+    );
+    assert!(
+        stderr.contains("missing field `ccm_chassis` in initializer of `TelemetrySent`"),
+        "the error names the message the CCM sends that the new mirrored field needs:\n{stderr}"
     );
     assert!(
         stderr.contains("ccm/src/control.rs"),
@@ -75,11 +105,21 @@ fn a_new_telemetry_field_fails_the_ccm_build_until_the_ccm_fills_it() {
         code.contains("shocktravel4: rr,"),
         "the snapshot fills shocktravel4"
     );
-    let code = code.replacen(
-        "shocktravel4: rr,",
-        "shocktravel4: rr,\n                steering_angle: 0.0,",
-        1,
+    assert!(
+        code.contains("ccm_status: self.status(),"),
+        "the snapshot passes the CCM_Status it sends"
     );
+    let code = code
+        .replacen(
+            "shocktravel4: rr,",
+            "shocktravel4: rr,\n                steering_angle: 0.0,",
+            1,
+        )
+        .replacen(
+            "ccm_status: self.status(),",
+            "ccm_status: self.status(),\n                ccm_chassis: aer::can::CcmChassis { ccm_steering_rack: 0.0 },",
+            1,
+        );
     std::fs::write(&control, code).expect("write control.rs");
     let filled = check_ccm(copy.path());
     assert!(

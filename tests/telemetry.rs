@@ -224,10 +224,17 @@ fn bad_packets_give_typed_errors() {
 
 #[test]
 fn the_packet_is_compact_and_documented() {
-    // Today's layout is 118 bytes (18 CAN frames with its flow control). Ours, with the
-    // CCM's 16 fault flags and its CAN controllers' health, fits a first frame and 10
-    // consecutive frames (6 + 10 x 7 = 76 bytes).
-    const { assert!(Telemetry::LEN <= 76) };
+    // The team's hand-written layout is 118 bytes (18 CAN frames with its flow control); the
+    // generated one carries more (the CCM's fault flags, its CAN controllers' health) in
+    // fewer. Its exact length follows the schema: the bus budget that bounds it is the
+    // generator's (W0210, W0211 on `headroom_bytes`), not this test's.
+    // ISO-TP on classic CAN: a first frame of 6 bytes, consecutive frames of 7, a flow control.
+    let frames = |len: usize| 2 + len.saturating_sub(6).div_ceil(7);
+    assert!(
+        frames(Telemetry::LEN) < frames(118),
+        "the packet ({} bytes) takes no fewer frames than the hand-written one it replaced",
+        Telemetry::LEN
+    );
     assert_eq!(Telemetry::TX_ID, 0x666);
     assert_eq!(Telemetry::FLOW_CONTROL_ID, 0x777);
     let current = Telemetry::DISPLAY[Telemetry::FIELDS

@@ -8,9 +8,10 @@ use crate::params::powertrain::DTI_AVAILABLE_AC_A;
 use crate::rng::Rng;
 use aer::can::{
     AnyMessage, DtiAcLimits, DtiControl, DtiControlMode, DtiCurrents, DtiDcLimits, DtiDriveEnable,
-    DtiFaultCode, DtiFlags, DtiFocCurrents, DtiSpeed, DtiTemperatures, ImdInfoGeneral, Mcu1, Mcu2,
-    Mcu3, McuMainState, McuWarningLevel, McuWorkMode, MotorMode, MotorRotateDirection,
-    OrionCellVoltages, OrionLimits, OrionPackStatus,
+    DtiFaultCode, DtiFlags, DtiFocCurrents, DtiSpeed, DtiTemperatures, ImdInfoGeneral,
+    ImdInfoIsolationDetail, ImdInfoItSystem, ImdInfoVoltage, Mcu1, Mcu2, Mcu3, McuMainState,
+    McuWarningLevel, McuWorkMode, MotorMode, MotorRotateDirection, OrionCellVoltages, OrionLimits,
+    OrionPackStatus,
 };
 use aer_ccm::InverterKind;
 use aer_ccm::constants::{DTI_CAN_MAP_VERSION, MOTOR_POLE_PAIRS, MOTOR_TORQUE_PER_PEAK_A};
@@ -164,6 +165,9 @@ impl Nodes {
             (_, 7) if bms_up => Some((CAN1, Node::Bms, limits(measured))),
             (_, 8) if bms_up => Some((CAN1, Node::Bms, cells(measured))),
             (_, 9) => Some((CAN1, Node::Imd, self.imd())),
+            (_, 19) => Some((CAN1, Node::Imd, self.imd_isolation())),
+            (_, 29) => Some((CAN1, Node::Imd, self.imd_voltage(measured))),
+            (_, 39) => Some((CAN1, Node::Imd, self.imd_it_system())),
             _ => None,
         };
         if let Some((bus, node, message)) = due {
@@ -263,6 +267,42 @@ impl Nodes {
             orion_pack_soc: quantise(soc * 100.0, 0.5, 0.0, 100.0),
             // Bit 0: discharge enabled; the charger-safety bit (2) stays clear.
             orion_relay_state: 1,
+        })
+    }
+
+    /// IMD_InfoIsolationDetail: each pole's isolation, as healthy as the general figure.
+    fn imd_isolation(&mut self) -> AnyMessage {
+        let noise = self.rng.below(200) as u16;
+        AnyMessage::ImdInfoIsolationDetail(ImdInfoIsolationDetail {
+            imd_r_iso_negative: 2_500 + noise,
+            imd_r_iso_positive: 2_450 + noise,
+            imd_r_iso_original: 2_400 + noise,
+            imd_iso_measurement_counter: self.counter,
+            imd_iso_quality: 100,
+        })
+    }
+
+    /// IMD_InfoVoltage: the HV system's voltage, split evenly about earth.
+    fn imd_voltage(&self, measured: &Measured) -> AnyMessage {
+        let (pack_v, ..) = measured.pack;
+        let volts = f64::from(pack_v).clamp(0.0, 1_670.0);
+        AnyMessage::ImdInfoVoltage(ImdInfoVoltage {
+            imd_hv_system_voltage: volts,
+            imd_hv_neg_to_earth_voltage: -volts / 2.0,
+            imd_hv_pos_to_earth_voltage: volts / 2.0,
+            imd_voltage_measurement_counter: self.counter,
+            imd_voltage_quality: 100,
+        })
+    }
+
+    /// IMD_InfoItSystem: a small, balanced Y capacitance on a DC system.
+    fn imd_it_system(&self) -> AnyMessage {
+        AnyMessage::ImdInfoItSystem(ImdInfoItSystem {
+            imd_capacity: 150,
+            imd_capacity_measurement_counter: self.counter,
+            imd_unbalance: 0,
+            imd_unbalance_measurement_counter: self.counter,
+            imd_voltage_frequency: 0.0,
         })
     }
 

@@ -23,9 +23,9 @@ use crate::thermal::cooling;
 use crate::torque_path::{TorqueInputs, TorquePath};
 use crate::vehicle::{State, Vehicle, VehicleInputs};
 use aer::calibration::{Internals, VehicleState};
-use aer::can::{AnyMessage, CcmCalibration, CcmStatus, PrechargeState, SCHEMA_FINGERPRINT};
+use aer::can::{CcmCalibration, CcmStatus, PrechargeState, SCHEMA_FINGERPRINT};
 use aer::runtime::EncodeError;
-use aer::telemetry::{Telemetry, TelemetryOwnFields};
+use aer::telemetry::{Telemetry, TelemetryOwnFields, TelemetrySent};
 use embedded_can::Frame;
 
 /// What goes out after a control step: the inverter's commands every command period,
@@ -407,12 +407,11 @@ impl Control {
         status
     }
 
-    /// The telemetry snapshot: everything mirrored from the buses plus the CCM's own sensors,
-    /// state and counters. Every own field is named here (the generated `TelemetryOwnFields`
-    /// has no `Default`), so a field added to the schema does not build until it is filled.
+    /// The telemetry snapshot: everything mirrored from the buses, the messages the CCM sends
+    /// itself, and its own sensors, state and counters. Every own field and sent message is
+    /// named here (the generated `TelemetryOwnFields` and `TelemetrySent` have no `Default`), so
+    /// a field added to the schema does not build until it is filled.
     pub fn snapshot(&self, sensors: &SensorReading, link: LinkCounters) -> Telemetry {
-        let mut mirror = self.bus.mirror;
-        mirror.apply(&AnyMessage::CcmStatus(self.status()));
         // Counters wrap at 8 bits on the wire; at 100 packets/s the Pi sees every increment.
         let wrap = |count: u32| (count & 0xFF) as u8;
         let driver = &self.driver;
@@ -428,7 +427,12 @@ impl Control {
         // Whole degrees on the wire; a NaN or out-of-range reading saturates.
         let degrees = |degc: f32| degc.clamp(-40.0, 215.0) as i16;
         Telemetry::from_parts(
-            &mirror,
+            &self.bus.mirror,
+            // What the CCM sends itself, built as it goes out (the generated `TelemetrySent`
+            // names every message a telemetry field mirrors from the CCM).
+            &TelemetrySent {
+                ccm_status: self.status(),
+            },
             TelemetryOwnFields {
                 // Travel is a fraction inside the CCM; people read the throttle in percent.
                 apps_travel: sensors.apps.travel * 100.0,

@@ -76,8 +76,7 @@ pub(crate) fn loads(db: &Database, telemetry: Option<&Telemetry>) -> Vec<BusLoad
         }
     }
     if let Some(t) = telemetry {
-        let consecutive = t.len.saturating_sub(6).div_ceil(7);
-        let frames = (if t.len <= 7 { 1 } else { 2 + consecutive }) as f64;
+        let frames = isotp_frames(t.len) as f64;
         let rate = 1_000.0 / f64::from(t.period_ms.max(1));
         let bus = t.bus.as_deref().unwrap_or(UNNAMED_BUS);
         on(
@@ -88,6 +87,30 @@ pub(crate) fn loads(db: &Database, telemetry: Option<&Telemetry>) -> Vec<BusLoad
         );
     }
     loads
+}
+
+/// The load of the telemetry's bus with the packet grown by its planned headroom, `None`
+/// without headroom.
+pub(crate) fn planned(db: &Database, t: &Telemetry) -> Option<BusLoad> {
+    if t.headroom_bytes == 0 {
+        return None;
+    }
+    let grown = Telemetry {
+        len: t.len + t.headroom_bytes,
+        ..t.clone()
+    };
+    let bus = t.bus.as_deref().unwrap_or(UNNAMED_BUS);
+    loads(db, Some(&grown)).into_iter().find(|l| l.bus == bus)
+}
+
+/// ISO-TP frames a packet of `len` bytes takes on classic CAN: a single frame up to 7 bytes,
+/// else a first frame (6 bytes), consecutive frames (7 each) and one flow control frame.
+pub(crate) fn isotp_frames(len: usize) -> usize {
+    if len <= 7 {
+        1
+    } else {
+        2 + len.saturating_sub(6).div_ceil(7)
+    }
 }
 
 #[cfg(test)]

@@ -87,6 +87,8 @@ pub enum Code {
     UnknownBus,
     /// E0216: a packet timeout shorter than its period (every packet would be late).
     PacketTimeout,
+    /// E0217: a packet sender that is not a node of the DBC.
+    UnknownSender,
     /// E0301: the calibration schema cannot be read.
     CalibrationUnreadable,
     /// E0302: the calibration schema does not parse.
@@ -140,10 +142,13 @@ pub enum Code {
     CycleTimeOnEvent,
     /// W0210: a bus loaded above the warning threshold at worst-case stuffing.
     BusOverloaded,
+    /// W0211: the telemetry's bus would be loaded above the warning threshold once the packet
+    /// grows by its planned headroom.
+    NoHeadroom,
 }
 
 /// Every code, for [`Code::parse`].
-const ALL: [Code; 60] = [
+const ALL: [Code; 62] = [
     Code::DbcUnreadable,
     Code::DbcEncoding,
     Code::DbcSyntax,
@@ -179,6 +184,7 @@ const ALL: [Code; 60] = [
     Code::Thresholds,
     Code::UnknownBus,
     Code::PacketTimeout,
+    Code::UnknownSender,
     Code::CalibrationUnreadable,
     Code::CalibrationSyntax,
     Code::ParameterName,
@@ -204,6 +210,7 @@ const ALL: [Code; 60] = [
     Code::MissingUnit,
     Code::CycleTimeOnEvent,
     Code::BusOverloaded,
+    Code::NoHeadroom,
 ];
 
 impl Code {
@@ -245,6 +252,7 @@ impl Code {
             Code::Thresholds => "E0214",
             Code::UnknownBus => "E0215",
             Code::PacketTimeout => "E0216",
+            Code::UnknownSender => "E0217",
             Code::CalibrationUnreadable => "E0301",
             Code::CalibrationSyntax => "E0302",
             Code::ParameterName => "E0303",
@@ -270,6 +278,7 @@ impl Code {
             Code::MissingUnit => "W0208",
             Code::CycleTimeOnEvent => "W0209",
             Code::BusOverloaded => "W0210",
+            Code::NoHeadroom => "W0211",
         }
     }
 

@@ -270,6 +270,7 @@ impl CarSchema {
                 render::docs::render_can(
                     db,
                     &bus_load::loads(db, Some(t)),
+                    bus_load::planned(db, t).map(|planned| (t, planned)),
                     dbc,
                     fingerprint::database(db),
                 )?,

@@ -31,9 +31,12 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
-    /// Checks DBC files and prints compiler-style diagnostics; exits non-zero on any error.
+    /// Checks DBC files and prints compiler-style diagnostics; exits non-zero on any error. A
+    /// schema directory (`schema`), or a DBC with a `telemetry.yaml` beside it, is checked as
+    /// `cargo build` checks the car's schema: the DBC, the telemetry packet (its bus load
+    /// included) and the calibration, warnings denied.
     Check {
-        /// DBC files to check.
+        /// DBC files or schema directories to check.
         #[arg(required = true)]
         files: Vec<PathBuf>,
         /// Treat warnings as errors (the car's own schema is built this way).
@@ -81,6 +84,10 @@ fn main() -> ExitCode {
         } => {
             let mut failed = false;
             for file in &files {
+                if let Some(schema) = car_schema_dir(file) {
+                    failed |= !check_car_schema(&schema);
+                    continue;
+                }
                 match aer_codegen::load_dbc_allowing(file, &allow) {
                     Ok((db, warnings)) => {
                         if !warnings.is_empty() {
@@ -124,6 +131,47 @@ fn main() -> ExitCode {
         }
         Command::Generate { schema, out } => {
             report(aer_codegen::generate_contract(&schema, &out), &out)
+        }
+    }
+}
+
+/// The schema directory `path` names: itself, or the folder of a DBC that has a
+/// `telemetry.yaml` beside it (the car's schema, which the build checks as a whole).
+fn car_schema_dir(path: &std::path::Path) -> Option<PathBuf> {
+    if path.is_dir() {
+        return Some(path.to_path_buf());
+    }
+    let dir = path.parent()?;
+    let dir = if dir.as_os_str().is_empty() {
+        std::path::Path::new(".")
+    } else {
+        dir
+    };
+    dir.join("telemetry.yaml")
+        .is_file()
+        .then(|| dir.to_path_buf())
+}
+
+/// Checks the car's schema in `dir` as build.rs does; true when it is clean.
+fn check_car_schema(dir: &std::path::Path) -> bool {
+    match aer_codegen::CarSchema::load(dir) {
+        Ok(schema) => {
+            let signals: usize = schema.db.messages.iter().map(|m| m.signals.len()).sum();
+            println!(
+                "{}: the car's schema as `cargo build` checks it (aer.dbc, telemetry.yaml, \
+                 calibration.yaml; warnings denied): {} messages, {} signals, a {}-byte \
+                 telemetry packet, {} calibration parameters",
+                dir.display(),
+                schema.db.messages.len(),
+                signals,
+                schema.telemetry.len,
+                schema.calibration.parameters.len()
+            );
+            true
+        }
+        Err(error) => {
+            eprintln!("{error}");
+            false
         }
     }
 }

@@ -326,6 +326,10 @@ pub struct Telemetry {
     pub timeout_ms: u32,
     /// The bus it is sent on (one of the DBC's `AerBus` names), if the schema says.
     pub bus: Option<String>,
+    /// The node that sends it (a DBC node), if the schema says.
+    pub sender: Option<String>,
+    /// Bytes the packet is planned to grow by; its bus must keep room for them.
+    pub headroom_bytes: usize,
     /// Every field, in schema order; `layout` says where each one sits.
     pub fields: Vec<TelemetryField>,
     /// Total packet length in bytes, header included.

@@ -125,6 +125,8 @@ impl {{ m.type_name }} {
         cycle_time_ms: {{ m.cycle_time }},
         timeout_ms: {{ m.timeout }},
         comment: {{ m.comment }},
+        sender: {{ m.sender }},
+        buses: &[{% for b in m.buses %}{% if !loop.first %}, {% endif %}{{ b }}{% endfor %}],
         signals: &{{ m.meta_static }},
         counter: {{ m.counter }},
         checksum: {{ m.checksum }},

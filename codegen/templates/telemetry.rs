@@ -12,6 +12,11 @@ use super::runtime::{self, ByteOrder, SignalMeta, SignalVisitor, Value};
 {%- for e in enums %}
 use super::can::{{ e }};
 {%- endfor %}
+{%- for arm in mirrors %}
+{%- if arm.sent.is_some() %}
+use super::can::{{ arm.variant }};
+{%- endif %}
+{%- endfor %}
 
 /// Fingerprint of this layout and of the CAN database it references: the first four bytes of
 /// every packet, so a receiver built from another schema rejects the packet instead of
@@ -137,7 +142,8 @@ static TELEMETRY_DISPLAY: [FieldDisplay; {{ fields.len() }}] = [
 
 /// The fields of [`{{ t.type_name }}`] that mirror a DBC signal (`signal:` in telemetry.yaml), as
 /// last received. [`{{ t.type_name }}Mirror::apply`] fills them from decoded frames, so a mirrored
-/// field added to the schema needs no code in the sender.
+/// field added to the schema needs no code in the sender; fields of messages the sender sends
+/// itself come from [`{{ t.type_name }}Sent`] instead.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct {{ t.type_name }}Mirror {
 {%- for f in fields %}
@@ -161,7 +167,7 @@ impl {{ t.type_name }}Mirror {
     };
 
     /// Copies every field that mirrors a signal of `message`; other fields keep their value.
-    /// The sender calls this for each frame it decodes (and for the frames it sends itself).
+    /// The sender calls this for each frame it decodes.
     pub fn apply(&mut self, message: &AnyMessage) {
         match message {
 {%- for arm in mirrors %}
@@ -174,6 +180,20 @@ impl {{ t.type_name }}Mirror {
             _ => {}
         }
     }
+}
+
+/// The messages {{ sender }} sends itself that fields of [`{{ t.type_name }}`] mirror: it receives
+/// no frame of its own, so [`{{ t.type_name }}Mirror::apply`] alone would leave those fields at
+/// zero. There is no `Default`: the sender passes each message as it sends it, so a field
+/// mirroring a message it does not build yet is a compile error naming the message.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct {{ t.type_name }}Sent {
+{%- for arm in mirrors %}
+{%- if let Some(name) = arm.sent %}
+    /// The [`{{ arm.variant }}`] {{ sender }} sent last.
+    pub {{ name }}: {{ arm.variant }},
+{%- endif %}
+{%- endfor %}
 }
 
 /// The fields of [`{{ t.type_name }}`] the sender measures or counts itself (no `signal:` in
@@ -275,8 +295,22 @@ impl {{ t.type_name }} {
         ))
     }
 
-    /// The packet from what the sender mirrored from the buses and what it measured itself.
-    pub fn from_parts(mirror: &{{ t.type_name }}Mirror, own: {{ t.type_name }}OwnFields) -> Self {
+    /// The packet from what the sender mirrored from the buses, the messages it sends itself
+    /// (their mirrored fields are taken from them, so they show what went out) and what it
+    /// measured.
+    pub fn from_parts(
+        mirror: &{{ t.type_name }}Mirror,
+        {% if has_sent %}sent{% else %}_sent{% endif %}: &{{ t.type_name }}Sent,
+        own: {{ t.type_name }}OwnFields,
+    ) -> Self {
+        {%- if has_sent %}
+        let mut mirror = *mirror;
+        {%- for arm in mirrors %}
+        {%- if let Some(name) = arm.sent %}
+        mirror.apply(&AnyMessage::{{ arm.variant }}(sent.{{ name }}));
+        {%- endif %}
+        {%- endfor %}
+        {%- endif %}
         Self {
 {%- for f in fields %}
             {{ f.name }}: {% if f.mirrored %}mirror{% else %}own{% endif %}.{{ f.name }},

@@ -213,6 +213,12 @@ fn telemetry_mistakes_are_reported_with_lines() {
             "bus `vehicel`, which no DBC message names",
         ),
         (
+            "  sender: CCM",
+            "  sender: VCU",
+            "E0217",
+            "sender `VCU` is not a node of the DBC",
+        ),
+        (
             "    scale: 0.001\n    unit: V\n    min: 0\n    max: 5\n    description: Front",
             "    sacle: 0.001\n    unit: V\n    min: 0\n    max: 5\n    description: Front",
             "E0202",
@@ -322,6 +328,66 @@ fn a_field_without_label_or_unit_is_refused_for_the_car() {
         assert!(
             warnings.iter().all(|w| Some(w.line) == line),
             "{warnings:?}"
+        );
+    }
+}
+
+/// The vehicle bus keeps room for the team's next sensors: the car's schema plans
+/// `headroom_bytes` of growth, and the build warns (W0211, denied for the car) when the packet
+/// grown by it would load its bus above the warning threshold. The room itself is generated
+/// into the bus documentation.
+#[test]
+fn the_planned_headroom_is_kept_on_the_telemetry_bus() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    schema_with_shocktravel5(dir.path());
+    let path = dir.path().join("telemetry.yaml");
+    let yaml = std::fs::read_to_string(&path).expect("read");
+    let schema = CarSchema::load(dir.path()).expect("the car's schema with room to spare");
+    assert!(
+        schema.telemetry.headroom_bytes >= 8,
+        "room for at least four 16-bit sensors"
+    );
+    let files = schema.files().expect("render");
+    let can = file(&files, "docs/can.md");
+    assert!(
+        can.contains(&format!(
+            "with the packet {} bytes longer",
+            schema.telemetry.headroom_bytes
+        )),
+        "the room is documented:\n{can}"
+    );
+
+    // Planning far more growth than the bus has room for is denied, at the key.
+    let from = format!("  headroom_bytes: {}", schema.telemetry.headroom_bytes);
+    assert!(yaml.contains(&from), "fixture moved: {from}");
+    let edited = yaml.replacen(&from, "  headroom_bytes: 200", 1);
+    std::fs::write(&path, &edited).expect("write");
+    let Err(aer_codegen::Error::DeniedWarnings(warnings)) = CarSchema::load(dir.path()) else {
+        panic!("a plan the bus cannot hold was not denied");
+    };
+    let line = edited
+        .lines()
+        .position(|l| l == "  headroom_bytes: 200")
+        .map(|i| i + 1);
+    assert!(
+        warnings.iter().any(|w| w.code == "W0211"
+            && Some(w.line) == line
+            && w.message.contains("bus `vehicle` keeps no room")),
+        "{warnings:?}"
+    );
+
+    // `aer-codegen check` finds it as the build does, given the folder or the DBC in it.
+    for target in [dir.path().to_path_buf(), dir.path().join("aer.dbc")] {
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_aer-codegen"))
+            .arg("check")
+            .arg(&target)
+            .output()
+            .expect("run aer-codegen");
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            !out.status.success() && stderr.contains("W0211"),
+            "check {}: {stderr}",
+            target.display()
         );
     }
 }

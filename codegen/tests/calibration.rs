@@ -38,7 +38,7 @@ fn parse_calibration(
 /// What every calibration file declares besides its parameters: an internal and the XCP
 /// settings of the car's DBC.
 const INTERNALS_AND_XCP: &str = "internals:\n  - { name: x, unit: V, min: 0, max: 1, description: X. }\n\
-xcp:\n  bus: vehicle\n  command_message: XCP_Cmd\n  response_message: XCP_Res\n  tcp_port: 5555\n  \
+xcp:\n  bus: inverter\n  command_message: XCP_Cmd\n  response_message: XCP_Res\n  tcp_port: 5555\n  \
 max_daq: 4\n  odt_entries: 64\n  max_odt_entry_size: 4\n  idle_timeout_s: 60\n  unlock_delay_s: 1\n  \
 unlock_delay_max_s: 300\n  events:\n    \
 - { name: control, period_ms: 10, description: After each step. }\n";
@@ -302,9 +302,9 @@ fn calibration_mistakes_are_reported_with_lines() {
         ),
         (
             "  command_message: XCP_Cmd\n",
-            "  command_message: IMD_InfoGeneral\n",
+            "  command_message: DTI_Control\n",
             "E0313",
-            "the XCP command message `IMD_InfoGeneral` has an extended id",
+            "the XCP command message `DTI_Control` has an extended id",
         ),
         (
             "  response_message: XCP_Res\n",
@@ -313,10 +313,10 @@ fn calibration_mistakes_are_reported_with_lines() {
             "`XCP_Cmd` is both the command and the response message",
         ),
         (
-            "  bus: vehicle\n",
             "  bus: inverter\n",
+            "  bus: vehicle\n",
             "E0313",
-            "the XCP command message `XCP_Cmd` is not sent on bus `inverter`",
+            "the XCP command message `XCP_Cmd` is not sent on bus `vehicle`",
         ),
         (
             "  tcp_port: 5555\n",
@@ -462,7 +462,7 @@ fn the_cars_calibration_declares_its_internals_and_xcp_slave() {
     let x = &c.xcp;
     assert_eq!((x.can_id_master, x.can_id_slave), (0x6F0, 0x6F1));
     assert_eq!((x.bit_rate, x.response_cycle_ms), (500_000, 4));
-    assert_eq!(x.bus.as_deref(), Some("vehicle"));
+    assert_eq!(x.bus.as_deref(), Some("inverter"));
     assert_eq!(
         (x.tcp_port, x.max_daq, x.odt_entries, x.max_odt_entry_size),
         (5555, 4, 64, 4)

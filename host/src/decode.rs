@@ -175,6 +175,9 @@ impl Ingest {
         if let Ok(mut traffic) = self.counters.traffic.lock() {
             traffic.message(frame.bus, meta, frame.ts_us);
         }
+        if let Ok(mut arrivals) = self.counters.arrivals.lock() {
+            arrivals.message(meta, frame.ts_us);
+        }
         if meta.counter.is_none() && meta.checksum.is_none() && meta.timeout_ms.is_none() {
             return FrameCheck::default();
         }
@@ -270,6 +273,9 @@ fn packet_record(
         Ok((header, telemetry)) => {
             Counters::bump(&counters.packets);
             counters.last_packet_us.store(ts_us, Ordering::Relaxed);
+            if let Ok(mut arrivals) = counters.arrivals.lock() {
+                arrivals.packet(ts_us);
+            }
             counters.firmware_fingerprint.store(
                 u64::from(aer::telemetry::TELEMETRY_FINGERPRINT),
                 Ordering::Relaxed,

@@ -42,18 +42,24 @@ fn the_session_runs_at_the_declared_cycle_times_within_the_declared_load() {
             checked += 1;
         }
     }
-    assert_eq!(checked, 20);
+    // Every periodic message the schema declares on the comp car's buses came, whatever
+    // their number: the status names none as never arrived.
+    assert!(checked > 0, "no message rates");
+    assert_eq!(
+        status.problems.never_arrived, None,
+        "the session leaves out a declared message"
+    );
 
     // can0 is the vehicle bus (telemetry included), can1 the inverter's. The session records
-    // nearly every periodic message, so each bus carries nearly the build-time load, never
-    // more. The vehicle bus's figure includes the XCP slave's frame budget (XCP_Res, one frame
-    // per cycle time at most), which a session without a calibration tool does not use: the
+    // every periodic message, so each bus carries nearly the build-time load, never more. The
+    // inverter bus's figure includes the XCP slave's frame budget (XCP_Res, one frame per
+    // cycle time at most), which a session without a calibration tool does not use: the
     // generator counts an 8-byte standard frame as 135 bits (worst-case stuffing, interframe
     // space included).
     let xcp_budget_kbit_s = 1_000.0 / f64::from(XcpRes::CYCLE_TIME_MS) * 135.0 / 1_000.0;
     for (interface, bus, unused) in [
-        ("can0", "vehicle", xcp_budget_kbit_s),
-        ("can1", "inverter", 0.0),
+        ("can0", "vehicle", 0.0),
+        ("can1", "inverter", xcp_budget_kbit_s),
     ] {
         let measured = status.bus_traffic[interface].bits_per_s / 1_000.0;
         let declared = declared_kbit_s(bus) - unused;

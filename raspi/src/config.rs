@@ -144,8 +144,8 @@ pub struct XcpGatewayConfig {
     /// The addresses masters may connect from (`10.9.0.2`, `10.9.0.0/24`); anyone else is
     /// refused and counted.
     pub allow: Vec<String>,
-    /// The CAN interface the CCM's slave is on; empty: the first of `[can] interfaces`, the
-    /// vehicle bus.
+    /// The CAN interface the CCM's slave is on; empty: the second of `[can] interfaces`, the
+    /// inverter bus (the schema's XCP bus), or the only one.
     pub interface: String,
     /// A master that sends nothing for this long (s) is taken as gone, and its session with
     /// the CCM ended.
@@ -175,7 +175,12 @@ impl XcpGatewayConfig {
             .collect::<Result<Vec<_>, _>>()
             .map_err(|e| anyhow::anyhow!("[xcp_gateway] allow: {e}"))?;
         let interface = if self.interface.is_empty() {
-            can.interfaces.first().cloned().unwrap_or_default()
+            let interfaces = &can.interfaces;
+            interfaces
+                .get(1)
+                .or(interfaces.first())
+                .cloned()
+                .unwrap_or_default()
         } else {
             self.interface.clone()
         };
@@ -467,10 +472,10 @@ mod tests {
     }
 
     #[test]
-    fn the_xcp_gateway_serves_the_vehicle_bus_and_names_an_allow_list_it_cannot_read() {
+    fn the_xcp_gateway_serves_the_inverter_bus_and_names_an_allow_list_it_cannot_read() {
         let config = Config::default();
         let settings = config.xcp_gateway.settings(&config.can).unwrap();
-        assert_eq!(settings.interface, "can0");
+        assert_eq!(settings.interface, "can1");
         assert!(
             settings
                 .allow

@@ -105,6 +105,8 @@ impl Health {
             firmware: None,
             mqtt_clients: None,
             xcp_gateway: self.xcp_gateway.error(),
+            // The status fills it from the messages the ingest saw.
+            never_arrived: None,
         }
     }
 }

@@ -433,11 +433,11 @@ def disk_smaller_than_floor(slice_log, want):
 
 
 def car_node_scenarios(label, *extra):
-    """`aer-car-node scenarios` with the CCM's slave on can0 (and `extra` options): the
+    """`aer-car-node scenarios` with the CCM's slave on can1 (and `extra` options): the
     calibration scenarios played by pyxcp, each line said under `label`."""
     node = subprocess.run(
         [
-            os.path.join(HERE, "aer-car-node"), "scenarios", "--link", "can:can0", *extra,
+            os.path.join(HERE, "aer-car-node"), "scenarios", "--link", "can:can1", *extra,
             "--python", "/opt/xcp/bin/python",
             "--script", os.path.join(HERE, "xcp_scenarios.py"),
             "--a2l", os.path.join(HERE, "aer.a2l"),
@@ -453,7 +453,7 @@ def car_node_scenarios(label, *extra):
 
 
 def xcp_on_can():
-    """The CCM's XCP slave in the closed-loop car (aer-car-node) on can0, the vehicle bus, and
+    """The CCM's XCP slave in the closed-loop car (aer-car-node) on can1, the inverter bus, and
     pyxcp on the same vcan through python-can's socketcan interface: the calibration
     engineer's scenarios over XCP on CAN, with the Pi's service listening on the bus."""
     if not start_service():
@@ -694,7 +694,7 @@ def ended_sessions():
 def xcp_gateway_from_the_pit():
     """The pit's calibration tool on the Pi's XCP gateway over the radio (netem, 250 kbit/s,
     100 ms each way): pyxcp in the pit's namespace plays every calibration scenario through
-    the gateway against the CCM's slave on can0; a master from another address is refused and
+    the gateway against the CCM's slave on can1; a master from another address is refused and
     counted; a pyxcp master killed in the middle of a block download leaves the page as it
     was, the status shows its session ended, and the next master connects."""
     set_xcp_gateway(f"{PI_ADDRESS}:5555", '["10.9.0.2"]')
@@ -742,7 +742,7 @@ def xcp_gateway_from_the_pit():
     with open(secret, "w") as f:
         f.write(XCP_SECRET + "\n")
     serve = subprocess.Popen(
-        [os.path.join(HERE, "aer-car-node"), "serve", "--link", "can:can0", "--secret-file", secret],
+        [os.path.join(HERE, "aer-car-node"), "serve", "--link", "can:can1", "--secret-file", secret],
         stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
     )
     try:

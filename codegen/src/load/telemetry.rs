@@ -31,6 +31,14 @@ pub(crate) struct PacketSpec {
     /// The bus it is sent on: one of the DBC's `AerBus` names.
     #[serde(default)]
     pub bus: Option<Spanned<String>>,
+    /// The node that sends it (a `BU_` of the DBC): fields mirroring messages this node sends
+    /// are filled from the messages it passes to `from_parts`, not from received frames.
+    #[serde(default)]
+    pub sender: Option<Spanned<String>>,
+    /// Bytes the packet is planned to grow by (the team's next sensors): the generator warns
+    /// (W0211) when its bus would then be loaded above the warning threshold.
+    #[serde(default)]
+    pub headroom_bytes: Option<Spanned<u32>>,
 }
 
 #[derive(Debug, Deserialize)]

@@ -4,7 +4,7 @@
 
 use askama::Template;
 
-use crate::bus_load::{BusLoad, DEFAULT_BIT_RATE, WARN_LOAD};
+use crate::bus_load::{BusLoad, DEFAULT_BIT_RATE, WARN_LOAD, isotp_frames};
 use crate::model::{
     ByteOrder, ChecksumAlgorithm, Database, Encoding, Message, Placement, Signal,
     TELEMETRY_HEADER_LEN, Telemetry, TelemetryField, WireType,
@@ -22,6 +22,8 @@ pub(crate) struct CanMatrix<'a> {
     /// The bit rate the loads are relative to, and where it comes from.
     pub bit_rate: String,
     pub warn_percent: String,
+    /// The telemetry's bus with the packet grown by its planned headroom, empty without one.
+    pub headroom: String,
 }
 
 #[derive(Template)]
@@ -235,6 +237,7 @@ fn signal_doc(db: &Database, message: &Message, s: &Signal) -> SignalDoc {
 pub(crate) fn render_can(
     db: &Database,
     loads: &[BusLoad],
+    headroom: Option<(&Telemetry, BusLoad)>,
     source: &str,
     fingerprint: u32,
 ) -> askama::Result<String> {
@@ -284,6 +287,21 @@ pub(crate) fn render_can(
         loads,
         bit_rate,
         warn_percent: format!("{:.0}", WARN_LOAD * 100.0),
+        headroom: headroom.map_or_else(String::new, |(t, planned)| {
+            let grown = t.len + t.headroom_bytes;
+            format!(
+                "Room kept for the next sensors (`headroom_bytes` in telemetry.yaml): with the \
+                 packet {} bytes longer ({grown} bytes, {} ISO-TP frames instead of {}), bus \
+                 {} would carry {:.1} kbit/s, {:.1} %; the generator warns (W0211) above {:.0} %.",
+                t.headroom_bytes,
+                isotp_frames(grown),
+                isotp_frames(t.len),
+                planned.bus,
+                planned.bits_per_s / 1_000.0,
+                planned.load * 100.0,
+                WARN_LOAD * 100.0
+            )
+        }),
     }
     .render()
 }

@@ -200,6 +200,8 @@ static SEALED: MessageMeta = MessageMeta {
     cycle_time_ms: Some(10),
     timeout_ms: Some(50),
     comment: "",
+    sender: None,
+    buses: &[],
     signals: &[],
     counter: Some(CounterMeta {
         signal: "Counter",
@@ -345,6 +347,8 @@ static SPEED: MessageMeta = MessageMeta {
     cycle_time_ms: None,
     timeout_ms: None,
     comment: "",
+    sender: None,
+    buses: &[],
     signals: &SPEED_SIGNALS,
     counter: None,
     checksum: None,

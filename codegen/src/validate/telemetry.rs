@@ -44,6 +44,7 @@ pub(crate) fn validate(
     }
     let bus = check_bus(&mut r, packet, db);
     let timeout_ms = timeout(&mut r, packet);
+    let sender = check_sender(&mut r, packet, db);
     if r.has_errors() {
         return Err(Diagnostics(r.diagnostics));
     }
@@ -55,6 +56,11 @@ pub(crate) fn validate(
         period_ms: packet.period_ms,
         timeout_ms,
         bus,
+        sender,
+        headroom_bytes: packet
+            .headroom_bytes
+            .as_ref()
+            .map_or(0, |h| h.value as usize),
         fields,
         len,
     };
@@ -70,8 +76,50 @@ pub(crate) fn validate(
         .unwrap_or(crate::bus_load::UNNAMED_BUS);
     if let Some(load) = loads.iter().find(|l| l.bus == own_bus) {
         crate::validate::dbc::report_overload(&mut r, load, line);
+        if load.load <= crate::bus_load::WARN_LOAD {
+            report_no_headroom(&mut r, loaded, db, &telemetry);
+        }
     }
     Ok((telemetry, r.diagnostics))
+}
+
+/// W0211 when the packet's planned growth would load its bus above the warning threshold.
+fn report_no_headroom(
+    r: &mut Reporter<'_>,
+    loaded: &LoadedTelemetry,
+    db: &Database,
+    telemetry: &Telemetry,
+) {
+    let Some(planned) = crate::bus_load::planned(db, telemetry) else {
+        return;
+    };
+    if planned.load <= crate::bus_load::WARN_LOAD {
+        return;
+    }
+    let line = loaded
+        .file
+        .packet
+        .value
+        .headroom_bytes
+        .as_ref()
+        .map_or_else(|| line_of(&loaded.file.packet), line_of);
+    r.report(
+        Code::NoHeadroom,
+        line,
+        format!(
+            "bus `{}` keeps no room for the packet's planned {} more bytes: at {} bytes the \
+             packet takes {} frames and the bus {:.1} % at worst-case bit stuffing, above the \
+             {:.0} % the generator allows without a warning",
+            planned.bus,
+            telemetry.headroom_bytes,
+            telemetry.len + telemetry.headroom_bytes,
+            crate::bus_load::isotp_frames(telemetry.len + telemetry.headroom_bytes),
+            planned.load * 100.0,
+            crate::bus_load::WARN_LOAD * 100.0
+        ),
+        "make room first (move a message to another bus, relax a cycle time: docs/schema.md, \
+         \"The bus budget\"), or lower `headroom_bytes` knowing the next sensors will not fit",
+    );
 }
 
 /// The packet's bus: one the DBC's messages are sent on.
@@ -90,6 +138,25 @@ fn check_bus(r: &mut Reporter<'_>, packet: &PacketSpec, db: &Database) -> Option
         );
     }
     Some(bus.value.clone())
+}
+
+/// The packet's sender: a node of the DBC.
+fn check_sender(r: &mut Reporter<'_>, packet: &PacketSpec, db: &Database) -> Option<String> {
+    let sender = packet.sender.as_ref()?;
+    if !db.nodes.iter().any(|n| n.name == sender.value) {
+        let nodes: Vec<&str> = db.nodes.iter().map(|n| n.name.as_str()).collect();
+        r.report(
+            Code::UnknownSender,
+            line_of(sender),
+            format!(
+                "the packet's sender `{}` is not a node of the DBC (`BU_: {}`)",
+                sender.value,
+                nodes.join(" ")
+            ),
+            "name the node that sends the packet, as the DBC's BU_ line spells it",
+        );
+    }
+    Some(sender.value.clone())
 }
 
 /// The freshness limit: the declared `timeout_ms`, else a few periods as for the DBC's

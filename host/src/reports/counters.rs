@@ -28,6 +28,8 @@ macro_rules! counters {
             pub message_health: std::sync::Mutex<std::collections::BTreeMap<String, MessageHealth>>,
             /// Each bus's and each message's traffic since the last status.
             pub traffic: std::sync::Mutex<crate::reports::traffic::Traffic>,
+            /// When each message and the telemetry first came, since the service started.
+            pub arrivals: std::sync::Mutex<crate::reports::arrivals::Arrivals>,
         }
 
         impl Counters {

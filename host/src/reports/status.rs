@@ -117,6 +117,7 @@ impl Problems {
             ("firmware", &self.firmware),
             ("MQTT clients", &self.mqtt_clients),
             ("XCP gateway", &self.xcp_gateway),
+            ("never arrived", &self.never_arrived),
         ]
         .into_iter()
         .filter_map(|(part, problem)| problem.as_deref().map(|p| (part, p)))
@@ -184,6 +185,11 @@ pub struct Problems {
     /// The XCP gateway could not start (its address taken, its CAN interface missing).
     #[serde(default)]
     pub xcp_gateway: Option<String>,
+    /// Periodic messages the schema declares on a bus this car has that never arrived since
+    /// the service started, and the telemetry fields mirroring them (or the telemetry packet
+    /// itself): what nothing sends reads 0, not missing, in the data.
+    #[serde(default)]
+    pub never_arrived: Option<String>,
 }
 
 /// The ingest service's counters, published every second.
@@ -212,6 +218,11 @@ pub fn status(car_id: &str, counters: &Counters, problems: Problems) -> Status {
     let last = counters.last_packet_us.load(Ordering::Relaxed);
     let ours = aer::telemetry::TELEMETRY_FINGERPRINT;
     let mut problems = problems;
+    problems.never_arrived = counters
+        .arrivals
+        .lock()
+        .ok()
+        .and_then(|arrivals| arrivals.problem(&aer::can::MESSAGES));
     if seen != 0 && seen != u64::from(ours) {
         problems.firmware = Some(format!(
             "telemetry of another schema: the firmware sends {seen:#010x}, this service \

@@ -228,3 +228,21 @@ pub fn session_segment() -> Vec<u8> {
     }
     segment
 }
+
+/// The messages the demo session carries on interface `bus` (`can0`, the vehicle bus; `can1`,
+/// the DTI's), from the schema: every periodic message on that bus but the XCP slave's
+/// responses (sent only while a master talks to it). Tests count against this, so a message
+/// added to the schema (and to the session) needs no edit here.
+pub fn session_messages_on(bus: &str) -> std::collections::BTreeSet<&'static str> {
+    let schema_bus = match bus {
+        "can0" => "vehicle",
+        "can1" => "inverter",
+        other => panic!("the demo session has no interface {other}"),
+    };
+    aer::can::MESSAGES
+        .iter()
+        .filter(|m| m.timeout_ms.is_some() && m.buses.contains(&schema_bus))
+        .filter(|m| m.extended || m.id != aer::calibration::xcp::CAN_ID_SLAVE)
+        .map(|m| m.name)
+        .collect()
+}

@@ -14,22 +14,22 @@ use rtic::Mutex;
 
 pub(crate) fn vehicle_receive(mut cx: vehicle_receive::Context) {
     let queue = cx.local.vehicle_rx;
-    let xcp = Some(&mut *cx.local.xcp_rx);
     let link = &mut cx.shared.link;
     cx.shared
         .vehicle_can
-        .lock(|can| drain(can, queue, xcp, link));
+        .lock(|can| drain(can, queue, None, link));
 }
 
 pub(crate) fn inverter_receive(mut cx: inverter_receive::Context) {
     let queue = cx.local.inverter_rx;
+    let xcp = Some(&mut *cx.local.xcp_rx);
     let link = &mut cx.shared.link;
     cx.shared
         .inverter_can
-        .lock(|can| drain(can, queue, None, link));
+        .lock(|can| drain(can, queue, xcp, link));
 }
 
-/// Drains a FIFO; a full queue drops the frame and counts it. XCP commands (vehicle bus only)
+/// Drains a FIFO; a full queue drops the frame and counts it. XCP commands (inverter bus only)
 /// go to the XCP task's queue.
 fn drain<const N: u8>(
     can: &mut Flexcan<N>,

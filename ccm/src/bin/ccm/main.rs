@@ -292,13 +292,13 @@ mod app {
         fn wheel_edge(cx: wheel_edge::Context);
 
         #[task(priority = 4, local = [adc, analog, pedals],
-               shared = [calibration, xcp, sensors, vehicle_can, supervisor])]
+               shared = [calibration, xcp, sensors, inverter_can, supervisor])]
         async fn sensors(cx: sensors::Context);
 
-        #[task(binds = CAN3, priority = 3, local = [vehicle_rx, xcp_rx], shared = [vehicle_can, link])]
+        #[task(binds = CAN3, priority = 3, local = [vehicle_rx], shared = [vehicle_can, link])]
         fn vehicle_receive(cx: vehicle_receive::Context);
 
-        #[task(binds = CAN2, priority = 3, local = [inverter_rx], shared = [inverter_can, link])]
+        #[task(binds = CAN2, priority = 3, local = [inverter_rx, xcp_rx], shared = [inverter_can, link])]
         fn inverter_receive(cx: inverter_receive::Context);
 
         #[task(priority = 2,
@@ -307,10 +307,10 @@ mod app {
                shared = [calibration, sensors, control, vehicle_can, inverter_can, supervisor, log])]
         async fn control(cx: control::Context);
 
-        #[task(priority = 1, shared = [sensors, control, link, vehicle_can, calibration, xcp, supervisor])]
+        #[task(priority = 1, shared = [sensors, control, link, vehicle_can, inverter_can, calibration, xcp, supervisor])]
         async fn telemetry(cx: telemetry::Context);
 
-        #[task(priority = 1, local = [xcp_commands], shared = [xcp, calibration, control, vehicle_can])]
+        #[task(priority = 1, local = [xcp_commands], shared = [xcp, calibration, control, inverter_can])]
         async fn xcp(cx: xcp::Context);
 
         #[task(priority = 1, local = [wdog], shared = [supervisor])]

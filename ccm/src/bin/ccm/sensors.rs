@@ -59,7 +59,7 @@ pub(crate) async fn sensors(mut cx: sensors::Context<'_>) {
         (
             &mut cx.shared.xcp,
             &mut cx.shared.calibration,
-            &mut cx.shared.vehicle_can,
+            &mut cx.shared.inverter_can,
         )
             .lock(|node, calibration, can| {
                 node.event(calibration, EVENT_SENSORS, now_micros, &mut |dto| {

@@ -38,7 +38,7 @@ pub(crate) async fn telemetry(mut cx: telemetry::Context<'_>) {
         (
             &mut cx.shared.xcp,
             &mut cx.shared.calibration,
-            &mut cx.shared.vehicle_can,
+            &mut cx.shared.inverter_can,
         )
             .lock(|node, calibration, can| {
                 node.measurements = Measurements {

@@ -1,4 +1,5 @@
-//! The XCP slave on the vehicle bus: commands from XCP_Cmd (0x6F0) answered on XCP_Res
+//! The XCP slave on the inverter bus (where the Pi's gateway is too; the vehicle bus's room is
+//! the telemetry's): commands from XCP_Cmd (0x6F0) answered on XCP_Res
 //! (0x6F1), and the DAQ packets of the two event channels (sent by the sensor and telemetry
 //! tasks through [`send_dto`]). The library's `XcpNode` does the protocol, checks every
 //! calibration change and ends idle sessions; this file only moves frames and runs its clock.
@@ -33,7 +34,7 @@ pub(crate) async fn xcp(mut cx: xcp::Context<'_>) {
             if let Some(len) = answer {
                 let sent = cx
                     .shared
-                    .vehicle_can
+                    .inverter_can
                     .lock(|can| send_dto(can, reply.get(..len).unwrap_or(&[])));
                 if !sent {
                     TX_NOT_SENT.fetch_add(1, Ordering::Relaxed);
@@ -46,7 +47,7 @@ pub(crate) async fn xcp(mut cx: xcp::Context<'_>) {
         (
             &mut cx.shared.xcp,
             &mut cx.shared.calibration,
-            &mut cx.shared.vehicle_can,
+            &mut cx.shared.inverter_can,
         )
             .lock(|node, calibration, can| {
                 node.poll(calibration, now, &mut |packet| send_dto(can, packet))
@@ -55,9 +56,9 @@ pub(crate) async fn xcp(mut cx: xcp::Context<'_>) {
     }
 }
 
-/// Puts one XCP packet on the vehicle bus as XCP_Res, padded to 8 bytes; false if no mailbox
+/// Puts one XCP packet on the inverter bus as XCP_Res, padded to 8 bytes; false if no mailbox
 /// took it (the slave counts a DAQ packet so lost).
-pub(crate) fn send_dto(can: &mut Flexcan<3>, packet: &[u8]) -> bool {
+pub(crate) fn send_dto(can: &mut Flexcan<2>, packet: &[u8]) -> bool {
     let Some(data) = can_frame(packet) else {
         return false;
     };

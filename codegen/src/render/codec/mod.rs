@@ -50,6 +50,10 @@ pub(crate) struct MessageView {
     /// `Some(ChecksumMeta { .. })` or `None`.
     pub checksum: String,
     pub comment: StrLit,
+    /// The transmitter, `Some("CCM")` or `None`.
+    pub sender: OptionLit<StrLit>,
+    /// The `AerBus` names.
+    pub buses: Vec<StrLit>,
     pub signals: Vec<SignalView>,
     /// Indices into `signals` in the order decode/encode must process them (multiplexors
     /// first).
@@ -140,6 +144,8 @@ fn message_view(db: &Database, m: &Message) -> MessageView {
         counter: counter_literal(m),
         checksum: checksum_literal(m),
         comment: StrLit(m.comment.clone().unwrap_or_default()),
+        sender: OptionLit(m.transmitter.clone().map(StrLit)),
+        buses: m.buses.iter().cloned().map(StrLit).collect(),
         signals: m
             .signals
             .iter()

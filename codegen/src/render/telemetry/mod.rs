@@ -8,6 +8,7 @@ use askama::Template;
 
 use super::phys_rust;
 use crate::model::{Database, PhysType, Telemetry, WireType};
+use crate::naming::snake;
 use field::{FieldConversion, FieldDefault, FieldPlacement, FieldView};
 
 #[derive(Template)]
@@ -21,12 +22,19 @@ pub(crate) struct TelemetryTemplate<'a> {
     pub flag_bytes: usize,
     /// One arm per DBC message that telemetry fields mirror.
     pub mirrors: Vec<MirrorArm>,
+    /// The packet's sender (a DBC node), for the docs.
+    pub sender: String,
+    /// The sender transmits a message that fields mirror (`from_parts` takes it).
+    pub has_sent: bool,
 }
 
 /// The fields that mirror one message's signals.
 pub(crate) struct MirrorArm {
     /// `AnyMessage` variant (the message's type name).
     pub variant: String,
+    /// The packet's sender transmits this message itself: its field in `TelemetrySent`
+    /// (snake_case), through which `from_parts` takes the message as sent.
+    pub sent: Option<String>,
     pub copies: Vec<MirrorCopy>,
 }
 
@@ -79,6 +87,7 @@ pub(crate) fn render(
         .collect();
     enums.sort();
     enums.dedup();
+    let mirrors = mirror_arms(db, t);
     TelemetryTemplate {
         source,
         t,
@@ -86,7 +95,9 @@ pub(crate) fn render(
         enums,
         fields: field_views(db, t),
         flag_bytes: flag_count(t).div_ceil(8),
-        mirrors: mirror_arms(db, t),
+        has_sent: mirrors.iter().any(|arm| arm.sent.is_some()),
+        mirrors,
+        sender: t.sender.clone().unwrap_or_else(|| "the sender".to_owned()),
     }
     .render()
 }
@@ -113,8 +124,10 @@ fn mirror_arms(db: &Database, t: &Telemetry) -> Vec<MirrorArm> {
                     })
                 })
                 .collect();
+            let sent_by_sender = t.sender.is_some() && message.transmitter == t.sender;
             (!copies.is_empty()).then(|| MirrorArm {
                 variant: message.type_name.clone(),
+                sent: sent_by_sender.then(|| snake(&message.type_name)),
                 copies,
             })
         })
