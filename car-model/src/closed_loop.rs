@@ -9,10 +9,11 @@ use crate::faults::{Fault, FaultPlan};
 use crate::nodes::{CAN1, CAN2};
 use crate::params::ModelParams;
 use crate::rules::Rules;
-use aer::can::{CcmCalibration, CcmStatus, PccStatus};
+use aer::can::PccStatus;
 use aer::telemetry::Telemetry;
 use aer_ccm::calibration::Calibration;
 use aer_ccm::constants::{CONTROL_PERIOD_MS, TELEMETRY_PERIOD_MS};
+use aer_ccm::own_frames::OwnFrames;
 use aer_ccm::{BusHealth, Ccm, ControlOutputs, DriverCounters, DriverInputs, OutFrame};
 use aer_flexcan::CanFrame;
 use aer_isotp::{Config, Received, Receiver};
@@ -199,24 +200,19 @@ impl ClosedLoop {
                 }
             }
         }
-        if let Some(status) = due.status {
-            let mut data = [0u8; CcmStatus::LEN];
-            if status.encode(&mut data).is_ok() {
-                if let Some(frame) = standard_frame(CcmStatus::ID, &data) {
-                    for bus in [CAN1, CAN2] {
-                        if !self.was_off.get(bus).copied().unwrap_or(true) {
-                            tap.frame(now_us + 150, bus, &frame);
-                        }
-                    }
-                }
-            }
-        }
-        if due.calibration && !self.was_off[0] {
-            let mut data = [0u8; CcmCalibration::LEN];
-            let status = self.ccm.calibration_state().status();
-            if status.encode(&mut data).is_ok() {
-                if let Some(frame) = standard_frame(CcmCalibration::ID, &data) {
-                    tap.frame(now_us + 160, CAN1, &frame);
+        // The CCM's own messages, as the firmware sends them (`OwnFrames`), on the model's buses.
+        let calibration = due
+            .calibration
+            .then(|| self.ccm.calibration_state().status());
+        for (index, own) in OwnFrames::of(&due, calibration).iter().enumerate() {
+            let Some(frame) = can_frame(&own.frame) else {
+                continue;
+            };
+            // 10 us apart, in sending order.
+            let at_us = now_us + 150 + 10 * index as u64;
+            for (bus, on) in [(CAN1, own.buses.vehicle), (CAN2, own.buses.inverter)] {
+                if on && !self.was_off.get(bus).copied().unwrap_or(true) {
+                    tap.frame(at_us, bus, &frame);
                 }
             }
         }

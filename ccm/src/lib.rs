@@ -5,7 +5,8 @@
 //! Data flow: 1 kHz sensor samples ([`apps`], [`brakes`], [`chassis`]) and CAN frames
 //! ([`bus`], every value kept with its arrival time) -> 100 Hz control ([`faults`],
 //! [`vehicle`], [`torque_path`]: [`launch`] or [`traction`], [`power`], then the independent
-//! [`monitor`]; [`thermal`]) -> inverter frames ([`inverter`]), CCM status, and the telemetry
+//! [`monitor`]; [`thermal`]) -> inverter frames ([`inverter`]), the CCM's own messages
+//! ([`own_frames`]), and the telemetry
 //! packet over ISO-TP ([`telemetry`]); [`watchdog`] supervises the tasks.
 //!
 //! State is split by writer so the firmware locks each part at its own priority: the wheel
@@ -35,6 +36,7 @@ pub mod inverter;
 mod io;
 pub mod launch;
 pub mod monitor;
+pub mod own_frames;
 pub mod power;
 pub mod sensors;
 pub mod telemetry;

@@ -69,3 +69,50 @@ fn the_session_runs_at_the_declared_cycle_times_within_the_declared_load() {
         );
     }
 }
+
+/// A message the schema declares and the car never sends is named in the status, with the
+/// telemetry fields that mirror it (which would otherwise read a plausible 0): the session
+/// replayed without its DTI_Flags frames.
+#[test]
+fn a_declared_message_that_never_arrives_is_named_with_its_fields() {
+    use aer::can::DtiFlags;
+    let id = format!(" {:08X}#", DtiFlags::ID & 0x1FFF_FFFF);
+    let without: String = SESSION
+        .lines()
+        .filter(|line| !line.contains(&id))
+        .map(|line| format!("{line}\n"))
+        .collect();
+    assert!(
+        without.len() < SESSION.len(),
+        "the session carries DTI_Flags"
+    );
+    let decoded = decode_log(&without);
+    let status = status("car1", &decoded.counters, Problems::default());
+    let problem = status
+        .problems
+        .never_arrived
+        .as_deref()
+        .expect("DTI_Flags is named as never arrived");
+    assert!(
+        problem.contains("DTI_Flags (from DTI, every 10 ms)"),
+        "{problem}"
+    );
+    let mirrored: Vec<&str> = aer::telemetry::Telemetry::FIELDS
+        .iter()
+        .zip(aer::telemetry::Telemetry::DISPLAY)
+        .filter(|(_, display)| display.mirrors == Some(DtiFlags::META.name))
+        .map(|(field, _)| field.name)
+        .collect();
+    assert!(!mirrored.is_empty(), "telemetry mirrors DTI_Flags");
+    for field in mirrored {
+        assert!(problem.contains(field), "{field} in {problem}");
+    }
+    assert!(
+        status
+            .problems
+            .named()
+            .iter()
+            .any(|(part, _)| *part == "never arrived"),
+        "the dashboard lists it with the other problems"
+    );
+}

@@ -5,10 +5,10 @@
 use crate::app::control;
 use crate::{Mono, PEDAL_BUS_ERRORS, REBOOT, RX_QUEUE_OVERFLOWS, TX_NOT_SENT, WHEELS};
 use crate::{now_ms, now_us};
-use aer::can::{CcmCalibration, CcmStatus};
 use aer_ccm::console::{LOG_BYTES, RebootAnswer};
 use aer_ccm::constants::{CONTROL_PERIOD_MS, WHEEL_TEETH};
 use aer_ccm::faults::{Fault, FaultMap};
+use aer_ccm::own_frames::OwnFrames;
 use aer_ccm::watchdog::Task;
 use aer_ccm::{BusHealth, ControlOutputs, DriverCounters, DriverInputs, OutFrames};
 use aer_console::{LogBuffer, Reboot, Watch};
@@ -101,43 +101,33 @@ pub(crate) async fn control(mut cx: control::Context<'_>) {
             }
             None => {}
         }
-        if let Some(status) = due.status {
-            let mut data = [0u8; CcmStatus::LEN];
-            if status.encode(&mut data).is_ok() {
+        // The CCM's own messages, on the buses the schema names (the car model sends the same).
+        let calibration = due.calibration.then(|| {
+            cx.shared
+                .calibration
+                .lock(|calibration| calibration.status())
+        });
+        let own = OwnFrames::of(&due, calibration);
+        TX_NOT_SENT.fetch_add(own.not_encoded, Ordering::Relaxed);
+        for own in own.iter() {
+            let frame = &own.frame;
+            if own.buses.vehicle {
                 send(
                     &mut cx.shared.vehicle_can,
-                    CcmStatus::ID,
-                    false,
-                    &data,
+                    frame.id,
+                    frame.extended,
+                    frame.data(),
                     Queueing::Behind,
                 );
+            }
+            if own.buses.inverter {
                 send(
                     &mut cx.shared.inverter_can,
-                    CcmStatus::ID,
-                    false,
-                    &data,
+                    frame.id,
+                    frame.extended,
+                    frame.data(),
                     Queueing::Behind,
                 );
-            } else {
-                TX_NOT_SENT.fetch_add(2, Ordering::Relaxed);
-            }
-        }
-        if due.calibration {
-            let status = cx
-                .shared
-                .calibration
-                .lock(|calibration| calibration.status());
-            let mut data = [0u8; CcmCalibration::LEN];
-            if status.encode(&mut data).is_ok() {
-                send(
-                    &mut cx.shared.vehicle_can,
-                    CcmCalibration::ID,
-                    false,
-                    &data,
-                    Queueing::Behind,
-                );
-            } else {
-                TX_NOT_SENT.fetch_add(1, Ordering::Relaxed);
             }
         }
         if let Some((reboot, handover)) = handover {
