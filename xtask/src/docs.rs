@@ -63,16 +63,7 @@ pub fn run(root: &Path) -> Result<()> {
 }
 
 fn bench_day(root: &Path) -> Result<String> {
-    let output = cargo()
-        .current_dir(root)
-        .args([
-            "run",
-            "--quiet",
-            "-p",
-            "aer-m7-check",
-            "--example",
-            "bench_day",
-        ])
+    let output = crate::example(root, "bench_day")?
         .output()
         .context("running the bench day's transcripts")?;
     if !output.status.success() {

@@ -8,19 +8,10 @@ use std::time::{Duration, Instant};
 /// The host's transcript, from the check's example (a build of its own: the firmware tasks
 /// never compile the car model the check drives).
 fn host_transcript(root: &Path) -> Result<String> {
-    let output = crate::cargo()
-        .current_dir(root)
-        .args([
-            "run",
-            "--quiet",
-            "--package",
-            "aer-m7-check",
-            "--example",
-            "host_transcript",
-        ])
+    let output = crate::example(root, "host_transcript")?
         .stderr(Stdio::inherit())
         .output()
-        .context("running cargo")?;
+        .context("running the host transcript")?;
     if !output.status.success() {
         bail!("the host run failed");
     }

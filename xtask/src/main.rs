@@ -158,22 +158,12 @@ fn main() -> Result<()> {
         }
         Task::Docs => docs::run(&workspace_root()),
         Task::SessionLog => {
-            // The car model runs in a build of its own: the firmware tasks never compile it.
+            // The car model runs as an example: the firmware tasks never compile it.
             let path = workspace_root().join("raspi/data/session.log");
-            let status = cargo()
-                .current_dir(workspace_root())
-                .args([
-                    "run",
-                    "--quiet",
-                    "--package",
-                    "aer-car-model",
-                    "--example",
-                    "session_log",
-                    "--",
-                ])
+            let status = example(&workspace_root(), "session_log")?
                 .arg(&path)
                 .status()
-                .context("running cargo")?;
+                .context("running the session log")?;
             if !status.success() {
                 bail!("recording the session failed");
             }
@@ -207,6 +197,23 @@ pub(crate) fn target_dir(root: &Path) -> PathBuf {
         Some(dir) if !dir.is_empty() => root.join(dir),
         _ => root.join("target"),
     }
+}
+
+/// The workspace example `name`, built with the workspace's examples (the features `cargo
+/// build --workspace --all-targets` and the tests resolve, so after either nothing builds
+/// again), ready to run.
+pub(crate) fn example(root: &Path, name: &str) -> Result<Command> {
+    let status = cargo()
+        .current_dir(root)
+        .args(["build", "--quiet", "--workspace", "--examples"])
+        .status()
+        .context("running cargo build")?;
+    if !status.success() {
+        bail!("building the workspace's examples failed");
+    }
+    let mut command = Command::new(target_dir(root).join("debug/examples").join(name));
+    command.current_dir(root);
+    Ok(command)
 }
 
 pub(crate) fn cargo() -> Command {
