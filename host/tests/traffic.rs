@@ -47,7 +47,14 @@ fn the_session_runs_at_the_declared_cycle_times_within_the_declared_load() {
     assert!(checked > 0, "no message rates");
     assert_eq!(
         status.problems.never_arrived, None,
-        "the session leaves out a declared message"
+        "the demo session leaves out a message the schema declares: record it again with \
+         `cargo xtask session-log` (docs/schema.md, \"Changing the schema\", step 4)"
+    );
+    assert_eq!(
+        status.fingerprint_match,
+        Some(true),
+        "the demo session's telemetry is of another schema: record it again with `cargo xtask \
+         session-log` (docs/schema.md, \"Changing the schema\", step 4)"
     );
 
     // can0 is the vehicle bus (telemetry included), can1 the inverter's. The session records
