@@ -88,6 +88,15 @@ impl Ingest {
         }
     }
 
+    /// The recording starts again (a looping replay's next pass, the demo's loop point): the
+    /// counters and arrival times learned so far, and any packet half reassembled, belong to
+    /// the pass before, so the first frames of this one are not counted as counter jumps,
+    /// late frames or broken packets.
+    pub fn restart(&mut self) {
+        self.watches.clear();
+        self.receivers.clear();
+    }
+
     /// Names bus `index` (its interface) in the measured traffic.
     pub fn name_bus(&self, index: u8, name: &str) {
         if let Ok(mut traffic) = self.counters.traffic.lock() {

@@ -9,6 +9,8 @@
 //!   their typed topics, each bus's measured traffic;
 //! - [`link`]: the clients off the Pi: TLS with the team's certificates, the pit's history
 //!   requests, the XCP master through the Pi's gateway;
+//! - [`run`]: the channels derived from the telemetry (speed, power, distance, energy) and
+//!   the laps;
 //! - [`calibration`]: the calibration record's entries as the Pi and the pit show them;
 //! - [`config`]: reading configuration files and the broker settings both tiers use;
 //! - [`clock`]: timestamps as the topics carry them;
@@ -22,3 +24,4 @@ pub mod formats;
 pub mod link;
 pub mod logging;
 pub mod reports;
+pub mod run;

@@ -317,7 +317,15 @@ pub enum Origin {
     Installed(PathBuf),
     /// No file: the defaults.
     Defaults,
+    /// `--demo`: the defaults, recording into (or reading) the demo's store and raw log.
+    Demo,
 }
+
+/// Where the demo records (unless AER_STORE_PATH or AER_RAW_LOG_DIR say otherwise, whatever
+/// configuration it is given) and what every store command reads with `--demo`.
+pub const DEMO_STORE: &str = "aer-demo.sqlite";
+/// The demo's raw log folder.
+pub const DEMO_RAW_LOG: &str = "aer-demo-raw";
 
 impl Origin {
     /// The choice for a store command, given `-c`/`AER_CONFIG` and where the installed
@@ -334,7 +342,7 @@ impl Origin {
     pub fn path(&self) -> Option<&Path> {
         match self {
             Self::Given(path) | Self::Installed(path) => Some(path),
-            Self::Defaults => None,
+            Self::Defaults | Self::Demo => None,
         }
     }
 }
@@ -349,11 +357,24 @@ impl std::fmt::Display for Origin {
             Self::Defaults => f.write_str(
                 "no configuration file (no -c, no AER_CONFIG, no /etc/aer/aer-raspi.toml): the built-in defaults",
             ),
+            Self::Demo => write!(f, "--demo: the demo's store and raw log, {DEMO_RAW_LOG}/"),
         }
     }
 }
 
 impl Config {
+    /// This configuration recording into the demo's store and raw log, unless the environment
+    /// (`env`) moves them: so `demo` and every store command's `--demo` meet.
+    pub fn in_demo_store(mut self, env: impl Fn(&str) -> Option<String>) -> Self {
+        if env("AER_STORE_PATH").is_none() {
+            self.store.path = DEMO_STORE.into();
+        }
+        if env("AER_RAW_LOG_DIR").is_none() {
+            self.raw_log.dir = DEMO_RAW_LOG.into();
+        }
+        self
+    }
+
     /// Reads `path` (if given) and applies the environment overrides from `env`.
     pub fn load(path: Option<&Path>, env: impl Fn(&str) -> Option<String>) -> Result<Self> {
         let mut config: Self = read_or_default(path)?;

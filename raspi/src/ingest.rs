@@ -17,6 +17,7 @@ use tokio_util::sync::CancellationToken;
 /// Decoder, bus names and sinks.
 pub struct Stage {
     ingest: Ingest,
+    counters: Arc<Counters>,
     buses: Vec<Arc<str>>,
     sinks: Vec<Box<dyn Sink>>,
     replies: Replies,
@@ -29,7 +30,8 @@ impl Stage {
     /// to `replies`.
     pub fn new(counters: Arc<Counters>, sinks: Vec<Box<dyn Sink>>, replies: Replies) -> Self {
         Self {
-            ingest: Ingest::new(counters),
+            ingest: Ingest::new(counters.clone()),
+            counters,
             buses: Vec::new(),
             sinks,
             replies,
@@ -63,6 +65,7 @@ impl Stage {
         }
         let Self {
             ingest,
+            counters,
             buses,
             sinks,
             replies,
@@ -97,6 +100,14 @@ impl Stage {
                 ingest.on_packet(ts_us, bus, &packet, |record| {
                     hand_on(sinks, buses, &record);
                 });
+            }
+            Input::Restart { pass } => {
+                tracing::info!(
+                    pass,
+                    "the looped log starts again: its counters and telemetry sequence start over (the loop point, not a fault)"
+                );
+                ingest.restart();
+                Counters::bump(&counters.replay_passes);
             }
         }
     }

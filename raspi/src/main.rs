@@ -5,7 +5,7 @@
 use aer_raspi::commands::{self, Located, export::Wanted};
 use aer_raspi::config::{self, Config, Origin};
 use aer_raspi::export::Format;
-use aer_raspi::service::{DEMO_STORE, Job, serve};
+use aer_raspi::service::{Job, serve};
 use aer_raspi::store::session::Changes;
 use anyhow::{Context, Result};
 use clap::{Args, Parser, Subcommand};
@@ -91,18 +91,25 @@ enum Command {
     Session {
         #[command(subcommand)]
         action: SessionAction,
+        #[command(flatten)]
+        store: StoreChoice,
     },
     /// Export a session (or a time range) from the local store, or a recorded log, as MCAP
     /// (Foxglove, PlotJuggler), Parquet (pandas, polars) and CSV, into a folder or as one tar
     /// archive with the session's raw log.
     Export(ExportArgs),
+    /// A session's run report: per lap its time, distance, top speed, energy, peak power and
+    /// temperatures; the fields beyond their thresholds; the problems, drops and counts as they
+    /// came; the calibration in force; plots against distance. Printed, and written as
+    /// report.txt and report.html (one page, plots inline) into --out.
+    Report(ReportArgs),
     /// The Pi's clock as the sessions record it: the time in UTC, whether network time
     /// synchronized it, the open session's clock steps.
-    Clock,
+    Clock(StoreChoice),
     /// Compact every closed session in the local store now (the running service does it by
     /// itself, a block at a time): before copying the store off the car, or after a
     /// `compact = false` season.
-    Compact,
+    Compact(StoreChoice),
     /// Print raw log segments as candump -l text (every frame, losslessly), oldest first; a
     /// folder means every segment in it. With --format, write them as BLF, ASC or MF4 to --out.
     RawExport {
@@ -132,6 +139,15 @@ const BROKER_ROUTINE: &[aer_host::logging::Routine] = &[
     },
 ];
 
+/// Which store a store command reads or changes.
+#[derive(Args, Debug, Clone, Copy, Default)]
+struct StoreChoice {
+    /// The store and raw log the demo records into (aer-demo.sqlite, aer-demo-raw/ in the
+    /// current folder) instead of the configured ones.
+    #[arg(long, global = true)]
+    demo: bool,
+}
+
 #[derive(Subcommand)]
 enum SessionAction {
     /// Every session: id, times, source, driver, track, run, notes.
@@ -151,6 +167,13 @@ enum SessionAction {
     /// Each CAN message of the open session (or of session --id) per bus: frames, measured
     /// and declared rate, checksum failures, counter repeats and jumps, late frames.
     Messages {
+        #[arg(long)]
+        id: Option<i64>,
+    },
+    /// What happened during the open session (or session --id), with when: lap marks, each
+    /// `problems` entry of the status as it came and cleared, drops and integrity counts as
+    /// they grew, loop points.
+    Events {
         #[arg(long)]
         id: Option<i64>,
     },
@@ -197,9 +220,28 @@ struct ExportArgs {
     /// Remove an earlier export found in --out first (without it, such a folder is refused).
     #[arg(long, requires = "out")]
     replace: bool,
-    /// Read the store the demo records into (aer-demo.sqlite) instead of the configured one.
-    #[arg(long, conflicts_with = "log")]
-    demo: bool,
+    #[command(flatten)]
+    store: StoreChoice,
+}
+
+#[derive(Args)]
+struct ReportArgs {
+    /// The session (`aer-raspi session list`), or `latest`: the newest with data.
+    #[arg(long, default_value = "latest")]
+    session: String,
+    /// Another session to set beside it: speed and time delta against distance, the laps, the
+    /// calibration values that differ.
+    #[arg(long)]
+    compare: Option<String>,
+    /// Also end a lap every so many metres (an endurance lap); without it a lap is a run from
+    /// the first movement to the stop, or ends at a driver's or pit's mark.
+    #[arg(long)]
+    lap_length: Option<f64>,
+    /// The folder for report.txt and report.html (default: report-session-<id>).
+    #[arg(long)]
+    out: Option<PathBuf>,
+    #[command(flatten)]
+    store: StoreChoice,
 }
 
 /// A time as microseconds since the Unix epoch.
@@ -212,7 +254,27 @@ fn parse_time(text: &str) -> Result<i64, String> {
         .map_err(|e| format!("`{text}` is neither RFC 3339 nor Unix seconds: {e}"))
 }
 
-fn main() -> Result<()> {
+/// A failure is the user's to read: what went wrong and why, never a stack trace (which
+/// `RUST_BACKTRACE=1`, set for some other program, would otherwise print with every mistyped
+/// flag or missing store).
+fn main() -> std::process::ExitCode {
+    match run() {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(error) => {
+            eprintln!("Error: {error}");
+            let causes: Vec<String> = error.chain().skip(1).map(ToString::to_string).collect();
+            if !causes.is_empty() {
+                eprintln!("\nCaused by:");
+                for (number, cause) in causes.iter().enumerate() {
+                    eprintln!("    {number}: {cause}");
+                }
+            }
+            std::process::ExitCode::FAILURE
+        }
+    }
+}
+
+fn run() -> Result<()> {
     aer_host::logging::init("info,rumqttd=warn", BROKER_ROUTINE);
     let cli = Cli::parse();
     if let Command::RawExport { paths, format, out } = &cli.command {
@@ -230,11 +292,20 @@ fn main() -> Result<()> {
             _ => aer_raspi::export::raw_log::candump(paths, std::io::stdout().lock()),
         };
     }
-    if matches!(
-        cli.command,
-        Command::Session { .. } | Command::Export(_) | Command::Compact | Command::Clock
-    ) {
-        let origin = Origin::for_store_command(cli.config.as_deref(), Path::new(config::INSTALLED));
+    let store_choice = match &cli.command {
+        Command::Session { store, .. } | Command::Compact(store) | Command::Clock(store) => {
+            Some(*store)
+        }
+        Command::Export(args) => Some(args.store),
+        Command::Report(args) => Some(args.store),
+        _ => None,
+    };
+    if let Some(choice) = store_choice {
+        let origin = if choice.demo {
+            Origin::Demo
+        } else {
+            Origin::for_store_command(cli.config.as_deref(), Path::new(config::INSTALLED))
+        };
         let mut located = Located::load(origin, |key| std::env::var(key).ok())?;
         located.config.session = cli.session.changes().apply(located.config.session);
         return store_command(&located, &cli);
@@ -242,14 +313,9 @@ fn main() -> Result<()> {
     let mut config = Config::load(cli.config.as_deref(), |key| std::env::var(key).ok())?;
     config.session = cli.session.changes().apply(config.session);
     // The demo records into its own store and raw log whatever configuration it is given (a
-    // broker file, say), so `export --demo` always finds it; the environment can move them.
+    // broker file, say), so every store command's `--demo` finds them.
     if matches!(cli.command, Command::Demo) {
-        if std::env::var_os("AER_STORE_PATH").is_none() {
-            config.store.path = DEMO_STORE.into();
-        }
-        if std::env::var_os("AER_RAW_LOG_DIR").is_none() {
-            config.raw_log.dir = "aer-demo-raw".into();
-        }
+        config = config.in_demo_store(|key| std::env::var(key).ok());
     }
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
@@ -271,8 +337,9 @@ fn main() -> Result<()> {
         Command::RawExport { .. }
         | Command::Session { .. }
         | Command::Export(_)
-        | Command::Compact
-        | Command::Clock => {
+        | Command::Report(_)
+        | Command::Compact(_)
+        | Command::Clock(_) => {
             return Ok(());
         }
     };
@@ -288,7 +355,7 @@ fn store_command(located: &Located, cli: &Cli) -> Result<()> {
     let mut out = std::io::stdout().lock();
     let mut notes = std::io::stderr().lock();
     match &cli.command {
-        Command::Session { action } => match action {
+        Command::Session { action, .. } => match action {
             SessionAction::List => commands::session::list(located, &mut out, &mut notes),
             SessionAction::Set { id } => {
                 commands::session::set(located, *id, &cli.session.changes(), &mut out, &mut notes)
@@ -304,6 +371,9 @@ fn store_command(located: &Located, cli: &Cli) -> Result<()> {
             SessionAction::Messages { id } => {
                 commands::session::messages(located, *id, &mut out, &mut notes)
             }
+            SessionAction::Events { id } => {
+                commands::session::events(located, *id, &mut out, &mut notes)
+            }
             SessionAction::Calibration { id, compare } => {
                 commands::session::calibration(located, *id, *compare, &mut out, &mut notes)
             }
@@ -318,12 +388,22 @@ fn store_command(located: &Located, cli: &Cli) -> Result<()> {
                 out: args.out.clone(),
                 archive: args.archive.clone(),
                 replace: args.replace,
-                demo: args.demo,
             };
             commands::export::run(located, &wanted, &mut out, &mut notes)
         }
-        Command::Compact => commands::compact(located, &mut out, &mut notes),
-        Command::Clock => commands::clock::show(
+        Command::Report(args) => commands::report::run(
+            located,
+            &commands::report::Wanted {
+                session: args.session.clone(),
+                compare: args.compare.clone(),
+                lap_length_m: args.lap_length,
+                out: args.out.clone(),
+            },
+            &mut out,
+            &mut notes,
+        ),
+        Command::Compact(_) => commands::compact(located, &mut out, &mut notes),
+        Command::Clock(_) => commands::clock::show(
             located,
             now_us(),
             &aer_raspi::store::clock::state(),

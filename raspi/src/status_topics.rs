@@ -6,6 +6,8 @@
 use crate::broker::gate::Clients;
 use crate::health::Health;
 use crate::sink::mqtt::Publisher;
+use crate::status_events::StatusWatch;
+use crate::store::NoteSender;
 use crate::xcp_gateway;
 use aer_host::reports::counters::Counters;
 use aer_host::reports::status::{METRICS, STATUS, clients_behind, metrics, status};
@@ -20,6 +22,8 @@ pub struct Served {
     pub clients: Option<Arc<Clients>>,
     /// The pit's XCP gateway, when it runs.
     pub xcp_gateway: Option<Arc<xcp_gateway::State>>,
+    /// Where the status's changes go as session events (the store's writer).
+    pub events: Option<NoteSender>,
 }
 
 /// Publishes status and metrics every second until `cancel`; `console` also prints a line.
@@ -33,6 +37,7 @@ pub async fn run(
     console: bool,
 ) {
     let mut previous = counters.snapshot();
+    let mut watch = StatusWatch::new(&previous);
     let mut tick = tokio::time::interval(Duration::from_secs(1));
     loop {
         tokio::select! {
@@ -48,6 +53,12 @@ pub async fn run(
             status.mqtt_clients = served.into_iter().map(|(client, _)| client).collect();
         }
         status.xcp_gateway = served.xcp_gateway.as_ref().map(|state| state.snapshot());
+        if let Some(events) = &served.events {
+            let at_us = i64::try_from(aer_host::clock::now_us()).unwrap_or(i64::MAX);
+            for event in watch.update(&status.problems, &now, at_us) {
+                events.send(event);
+            }
+        }
         // The next status measures the next second's traffic.
         if let Ok(mut traffic) = counters.traffic.lock() {
             traffic.restart();

@@ -272,6 +272,82 @@ fn a_session_exported_in_every_format_reads_back_equal_to_the_store() {
     );
 }
 
+/// `session new` while the service runs: the writer commits a batch up to a second after its
+/// rows arrived, so rows received before the new session began reach the store after it. Each
+/// row belongs to the session open when it was received, and the raw log's frames are taken
+/// by the same window, so every format of either session holds the same traffic: the row
+/// formats (MCAP, Parquet, CSV) the rows received in the window, the frame formats (BLF,
+/// ASC, MF4) the frames received in it.
+#[test]
+fn at_a_session_new_every_format_of_each_session_takes_the_same_traffic() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let mut db = store::open(&dir.path().join("store.sqlite")).expect("store");
+    let rows = session_rows(usize::MAX);
+    let ts = |row: &row::Row| i64::try_from(row.ts_us).expect("a time");
+    let (first, last) = (ts(&rows[0]), ts(&rows[rows.len() - 1]));
+    let boundary = ts(&rows[rows.len() / 2]);
+    session::begin(&db, &Metadata::default(), "demo", first).expect("session 1");
+    let (before, after) = rows.split_at(rows.len() / 3);
+    writer::commit(&mut db, before).expect("commit");
+    // The pit starts the next session; the writer has not yet committed what came before.
+    let second = session::hand_over(&db, &Metadata::default(), boundary).expect("session 2");
+    for batch in after.chunks(5000) {
+        writer::commit(&mut db, batch).expect("commit");
+    }
+    session::end(&db, last + 1).expect("end");
+
+    let log = common::session_log();
+    let log_times: Vec<u64> = DEMO_LOG
+        .lines()
+        .map(|line| {
+            aer_host::formats::candump::parse_line(line, |_| 0)
+                .expect("the bundled log parses")
+                .ts_us
+        })
+        .collect();
+    for id in [1, second] {
+        let session = session::get(&db, id).expect("read").expect("session");
+        assert_eq!(session.source, "demo", "session new keeps the source");
+        let (from, to) = session.window();
+        let within = |t: u64| t >= from && to.is_none_or(|to| t <= to);
+        let out = dir.path().join(format!("session-{id}"));
+        let mut request = session_request(id, Format::all(), &out, log.clone());
+        if let Some(frames) = request.frames.as_mut() {
+            frames.from_us = Some(from);
+            frames.to_us = to;
+        }
+        let report = export::export(&db, &request).expect("export");
+        for table in TABLES {
+            let expected = rows
+                .iter()
+                .filter(|r| r.table().name == table.name && within(r.ts_us))
+                .count();
+            let exported = report
+                .rows
+                .iter()
+                .find(|(name, _)| *name == table.name)
+                .map_or(0, |(_, n)| *n);
+            assert_eq!(exported, expected, "session {id}: {}", table.name);
+        }
+        let frames = log_times.iter().filter(|t| within(**t)).count();
+        assert!(frames > 0, "session {id} has frames");
+        for format in &report.formats {
+            let written: usize = format
+                .files
+                .iter()
+                .filter(|f| f.path.file_stem().is_none_or(|s| s != "calibration"))
+                .map(|f| f.rows)
+                .sum();
+            let expected = if format.format.holds_frames() {
+                frames
+            } else {
+                rows.iter().filter(|r| within(r.ts_us)).count()
+            };
+            assert_eq!(written, expected, "session {id}: {:?}", format.format);
+        }
+    }
+}
+
 /// The command line exports a recorded log straight away, with the session flags as its
 /// metadata, and takes the same rows the service would have stored.
 #[test]

@@ -18,7 +18,8 @@ fn without_a_configuration_no_command_makes_a_store_of_its_own() {
             .current_dir(dir.path())
             .env_remove("AER_CONFIG")
             .env_remove("AER_STORE_PATH")
-            .env("RUST_BACKTRACE", "0")
+            // A user's mistake is explained, never answered with a stack trace.
+            .env("RUST_BACKTRACE", "1")
             .output()
             .expect("aer-raspi")
     };
@@ -38,6 +39,7 @@ fn without_a_configuration_no_command_makes_a_store_of_its_own() {
             "{args:?}: {stderr}"
         );
         assert!(!dir.path().join("aer-local.sqlite").exists(), "{args:?}");
+        assert!(!stderr.contains("acktrace"), "{args:?}: {stderr}");
         assert!(!dir.path().join("run4").exists(), "{args:?}");
     }
     let created = run(&["session", "new", "--create-store"]);
@@ -272,4 +274,102 @@ fn is_root() -> bool {
         .arg("-u")
         .output()
         .is_ok_and(|o| String::from_utf8_lossy(&o.stdout).trim() == "0")
+}
+
+/// A store has one writer: with the demo running, a second `demo` in the same folder refuses
+/// before it touches the store (naming the process that holds it), and the running session
+/// stays one session with its metadata.
+#[test]
+fn a_second_service_on_a_running_store_refuses_and_the_first_session_stays_whole() {
+    use std::io::{BufRead, BufReader};
+    use std::process::Stdio;
+    let dir = tempfile::tempdir().expect("dir");
+    let port = std::net::TcpListener::bind("127.0.0.1:0")
+        .and_then(|l| l.local_addr())
+        .map(|a| a.port())
+        .expect("a free port");
+    let broker = dir.path().join("rumqttd.toml");
+    std::fs::write(
+        &broker,
+        aer_raspi::broker::DEFAULT_CONFIG.replace("127.0.0.1:1883", &format!("127.0.0.1:{port}")),
+    )
+    .expect("broker config");
+    let config = dir.path().join("aer-raspi.toml");
+    std::fs::write(
+        &config,
+        format!("[broker]\nconfig = {:?}\n", broker.display().to_string()),
+    )
+    .expect("config");
+    let service = |args: &[&str]| {
+        let mut command = Command::new(env!("CARGO_BIN_EXE_aer-raspi"));
+        command
+            .arg("-c")
+            .arg(&config)
+            .args(args)
+            .current_dir(dir.path())
+            .env_remove("AER_STORE_PATH")
+            .env_remove("AER_RAW_LOG_DIR")
+            .env("RUST_BACKTRACE", "0");
+        command
+    };
+    let mut first = service(&["demo", "--driver", "Ana", "--run", "3"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("first demo");
+    // The service logs to its standard output.
+    let mut log = BufReader::new(first.stdout.take().expect("stdout")).lines();
+    // Its announcement comes once it handles Ctrl-C, after it opened its session.
+    let mut opened = false;
+    for line in log.by_ref().map_while(Result::ok) {
+        opened |= line.contains("session open");
+        if line.contains("aer-raspi demo: replaying") {
+            break;
+        }
+    }
+    assert!(opened, "the first demo never opened its session");
+    // Keep reading its log, so it never blocks on a full pipe.
+    let drain = std::thread::spawn(move || log.map_while(Result::ok).count());
+
+    let second = service(&["demo", "--driver", "Ben"])
+        .output()
+        .expect("second demo");
+    let (stdout, stderr) = text(&second);
+    assert!(
+        !second.status.success(),
+        "the second demo ran: {stdout}{stderr}"
+    );
+    assert!(
+        stderr.contains(&format!(
+            "in use by another aer-raspi (pid {}, aer-raspi demo",
+            first.id()
+        )),
+        "{stderr}"
+    );
+    assert!(!stdout.contains("session open"), "{stdout}");
+
+    let stopped = Command::new("kill")
+        .args(["-INT", &first.id().to_string()])
+        .status()
+        .expect("kill");
+    assert!(stopped.success());
+    assert!(first.wait().expect("first demo").success());
+    drain.join().expect("log");
+
+    let listing = service(&["session", "list", "--demo"])
+        .output()
+        .expect("session list");
+    let (stdout, stderr) = text(&listing);
+    assert!(listing.status.success(), "{stderr}");
+    let sessions: Vec<&str> = stdout.lines().skip(1).collect();
+    assert_eq!(sessions.len(), 1, "one session, not split: {stdout}");
+    let fields: Vec<&str> = sessions[0].split('\t').collect();
+    assert_eq!(fields.get(3), Some(&"demo"), "{stdout}");
+    assert_eq!(fields.get(5), Some(&"Ana"), "{stdout}");
+    assert_eq!(fields.get(7), Some(&"3"), "{stdout}");
+    assert_ne!(
+        fields.get(2),
+        Some(&"open"),
+        "closed when it stopped: {stdout}"
+    );
 }

@@ -18,7 +18,7 @@ use aer_dashboard::ui::{App, Message};
 use aer_host::reports::counters::Counters;
 use aer_raspi::store::calibration::{self, Kind};
 use aer_raspi::store::session::{self, Metadata};
-use aer_raspi::store::{self, CalibrationSender, StoreWriter};
+use aer_raspi::store::{self, NoteSender, StoreWriter};
 use aer_raspi::xcp_gateway::{self, Gateway, Settings, SlaveLink};
 use aer_xcp::transport::{CAN_DLC, TCP_FRAME_MAX, TcpDecoder, TcpEncoder, can_frame};
 use std::io::{Read, Write};
@@ -141,7 +141,7 @@ fn gateway(
     runtime: &tokio::runtime::Runtime,
     allow: &str,
     counters: &Arc<Counters>,
-    record: Option<CalibrationSender>,
+    record: Option<NoteSender>,
 ) -> (Gateway, GatewayLink) {
     let (to_slave, mut commands) = mpsc::channel(xcp_gateway::TO_SLAVE_FRAMES);
     let (answers, from_slave) = mpsc::channel(xcp_gateway::TO_SLAVE_FRAMES);
@@ -223,7 +223,7 @@ fn pyxcp_calibrates_and_measures_the_ccm_through_the_pis_gateway() {
         &runtime,
         "127.0.0.1/32",
         &counters,
-        Some(writer.calibration_sender()),
+        Some(writer.note_sender()),
     );
     let script = scenarios::Script {
         through: Some(gateway.address),

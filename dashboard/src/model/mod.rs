@@ -7,7 +7,6 @@ pub mod can;
 pub mod fields;
 pub mod health;
 pub mod history;
-pub mod laps;
 pub mod record;
 pub mod tune;
 
@@ -17,17 +16,17 @@ use aer::can::VehicleState;
 use aer::mqtt::{Sample, TelemetryRecord};
 use aer::telemetry::{Level, Telemetry, TelemetryHeader};
 use aer_host::reports::status::{Metrics, Status};
+use aer_host::run::laps::LapTimer;
 use alarms::Alarms;
 use can::CanMessages;
 use fields::{Field, FieldValue, Schema};
 use health::{Connection, Health};
 use history::History;
-use laps::LapTimer;
 use record::{Row, SessionRecord};
 use std::time::{Duration, Instant};
 
 /// The car's own constants (ccm/src/constants.rs): one place for them, shared with the firmware.
-use aer_params::{POWER_LIMIT_W, road_speed_m_s};
+use aer_params::POWER_LIMIT_W;
 
 /// Something the dashboard learns from the broker.
 #[derive(Debug, Clone, PartialEq)]
@@ -344,9 +343,7 @@ impl Dashboard {
     /// ([`Self::power_limit_kw`]), red above it.
     pub fn power(&self) -> Option<Reading> {
         let latest = self.latest.as_ref()?;
-        let kw = f64::from(latest.telemetry.pack_voltage)
-            * f64::from(latest.telemetry.pack_current)
-            / 1_000.0;
+        let kw = aer_host::run::derived::battery_power_w(&latest.telemetry) / 1_000.0;
         let limit = Self::power_limit_kw();
         let level = if kw > limit {
             Level::Critical
@@ -484,10 +481,9 @@ fn row(sample: &Sample<TelemetryRecord>) -> Row {
     }
 }
 
-/// Road speed (m/s) from the motor speed, by the car's own formula (the gear ratio and wheel
-/// radius in aer-params).
+/// Road speed (m/s) from the motor speed, as every tier derives it.
 fn speed_m_s(telemetry: &Telemetry) -> f64 {
-    f64::from(road_speed_m_s(telemetry.motor_speed))
+    aer_host::run::derived::speed_m_s(telemetry)
 }
 
 #[cfg(test)]

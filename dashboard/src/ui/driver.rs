@@ -2,11 +2,11 @@
 //! grey under an amber banner; a lost broker connection is a red banner across the top.
 
 use super::{Message, style};
-use crate::model::laps::format_lap;
 use crate::model::{Dashboard, Freshness, Reading};
 use crate::ui::status_banner;
 use aer::can::VehicleState;
 use aer::telemetry::Level;
+use aer_host::run::laps::format_lap;
 use iced::widget::{column, container, progress_bar, row, space, text};
 use iced::{Alignment, Color, Element, Fill, FillPortion};
 use std::time::Instant;

@@ -149,6 +149,12 @@ counters! {
     /// Calibration entries the store could not record (behind, failing, or no session open);
     /// the journal and the status still show the changes.
     calibration_unrecorded,
+    /// Times a looping replay (the demo) started its log again: its loop points, where the
+    /// counters and the telemetry sequence start over (not faults of the car).
+    replay_passes,
+    /// Session events (marks, problems, counts that grew, loop points) the store could not
+    /// record (behind, failing, or no session open).
+    events_unrecorded,
 }
 
 /// What went wrong with one message's frames, as the status reports it.

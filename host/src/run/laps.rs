@@ -1,4 +1,5 @@
-//! The lap timer. The schema has no lap beacon, so a lap ends when the car has covered the
+//! The lap timer, one rule for the driver's display and the Pi's run report. The schema has no
+//! lap beacon, so a lap ends when the car has covered the
 //! configured lap length (distance integrated from its speed), when someone marks it (key
 //! `L`), or when the run ends: the car leaves DRIVING, or stands still for [`STOP_S`]. An
 //! autocross, acceleration or skidpad run is timed from the car's first movement to its stop
@@ -6,12 +7,26 @@
 //! stint needs the lap length. Times are packet times, so a replay times laps as they were
 //! driven.
 
-/// Gaps between packets longer than this are not integrated (the car was not seen).
-const MAX_STEP_S: f64 = 0.5;
+use super::derived::MAX_STEP_S;
+
 /// Below this speed the car stands still (m/s, 1.8 km/h).
 const MOVING_M_S: f64 = 0.5;
 /// Standing still this long ends the run; the run's time ends when the car stopped (s).
 pub const STOP_S: f64 = 3.0;
+
+/// A completed lap: when it started and ended (s, packet time).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Lap {
+    pub start: f64,
+    pub end: f64,
+}
+
+impl Lap {
+    /// Its time (s).
+    pub fn time(&self) -> f64 {
+        self.end - self.start
+    }
+}
 
 /// Lap times so far and the lap in progress.
 #[derive(Debug, Clone, PartialEq)]
@@ -23,7 +38,7 @@ pub struct LapTimer {
     stopped_at: Option<f64>,
     distance_m: f64,
     last_ts: Option<f64>,
-    laps: Vec<f64>,
+    laps: Vec<Lap>,
 }
 
 impl LapTimer {
@@ -98,7 +113,7 @@ impl LapTimer {
 
     fn complete(&mut self, ts: f64) {
         if let Some(start) = self.start.replace(ts) {
-            self.laps.push(ts - start);
+            self.laps.push(Lap { start, end: ts });
         }
     }
 
@@ -123,12 +138,17 @@ impl LapTimer {
 
     /// The last completed lap's time.
     pub fn last(&self) -> Option<f64> {
-        self.laps.last().copied()
+        self.laps.last().map(Lap::time)
     }
 
     /// The fastest completed lap's time.
     pub fn best(&self) -> Option<f64> {
-        self.laps.iter().copied().reduce(f64::min)
+        self.laps.iter().map(Lap::time).reduce(f64::min)
+    }
+
+    /// The laps completed so far, in order.
+    pub fn laps(&self) -> &[Lap] {
+        &self.laps
     }
 }
 

@@ -87,20 +87,18 @@ fn check_sections(raw: &toml::Table) -> Result<()> {
             .and_then(|listen| listen.parse::<SocketAddr>().ok())
             .is_some_and(|address| address.ip().is_loopback())
     };
-    if let Some(console) = raw.get("console").and_then(toml::Value::as_table) {
-        if !loopback(console.get("listen")) {
-            bail!(
-                "broker configuration: [console] must listen on 127.0.0.1: it has no credentials"
-            );
-        }
+    if let Some(console) = raw.get("console").and_then(toml::Value::as_table)
+        && !loopback(console.get("listen"))
+    {
+        bail!("broker configuration: [console] must listen on 127.0.0.1: it has no credentials");
     }
-    if let Some(prometheus) = raw.get("prometheus").and_then(toml::Value::as_table) {
-        if prometheus.contains_key("port") || !loopback(prometheus.get("listen")) {
-            bail!(
-                "broker configuration: [prometheus] must set `listen` to a 127.0.0.1 address: \
+    if let Some(prometheus) = raw.get("prometheus").and_then(toml::Value::as_table)
+        && (prometheus.contains_key("port") || !loopback(prometheus.get("listen")))
+    {
+        bail!(
+            "broker configuration: [prometheus] must set `listen` to a 127.0.0.1 address: \
                  it has no credentials"
-            );
-        }
+        );
     }
     Ok(())
 }

@@ -32,8 +32,6 @@ pub struct Wanted {
     pub archive: Option<PathBuf>,
     /// Remove an earlier export in `out` first.
     pub replace: bool,
-    /// Read the demo's store.
-    pub demo: bool,
 }
 
 /// What an export folder holds of the decoded rows' formats; with the bus-logging formats'
@@ -74,24 +72,10 @@ pub fn run(
             (db, extra, None)
         }
         None => {
-            let store = if wanted.demo {
-                let demo = Located {
-                    config: crate::config::Config {
-                        store: crate::config::StoreConfig {
-                            path: crate::service::DEMO_STORE.into(),
-                            ..located.config.store.clone()
-                        },
-                        ..located.config.clone()
-                    },
-                    origin: located.origin.clone(),
-                };
-                demo.read(notes)?
-            } else {
-                located.read(notes)?
-            };
+            let store = located.read(notes)?;
             let session = match wanted.session.as_deref() {
                 None => None,
-                Some(which) => Some(choose(&store.db, which, notes)?),
+                Some(which) => Some(choose(&store.db, which, "exporting", notes)?),
             };
             if !store.still_consistent() {
                 bail!("the service started while the store was being read: export again");
@@ -109,7 +93,7 @@ pub fn run(
     } else {
         wanted.formats.clone()
     };
-    let frames = frame_source(located, wanted, session.as_ref());
+    let frames = Some(frame_source(located, wanted, session.as_ref()));
     let (folder, scratch) = match (&wanted.out, &wanted.archive) {
         (Some(dir), None) => {
             prepare(dir, wanted.replace, notes)?;
@@ -197,35 +181,31 @@ pub fn run(
 }
 
 /// Where the bus-logging formats take their frames: the recorded log itself, or the raw log's
-/// segments over the session (or the time range). The demo records no raw log.
-fn frame_source(
-    located: &Located,
-    wanted: &Wanted,
-    session: Option<&Session>,
-) -> Option<FrameSource> {
+/// segments over the session (or the time range).
+fn frame_source(located: &Located, wanted: &Wanted, session: Option<&Session>) -> FrameSource {
     let micros = |us: Option<i64>| us.and_then(|us| u64::try_from(us).ok());
     let (mut from_us, mut to_us) = (micros(wanted.from_us), micros(wanted.to_us));
     if let Some(session) = session {
-        from_us = from_us.max(micros(Some(session.started_us)));
-        to_us = match (to_us, micros(session.ended_us)) {
+        let (started, last) = session.window();
+        from_us = from_us.max(Some(started));
+        to_us = match (to_us, last) {
             (Some(a), Some(b)) => Some(a.min(b)),
             (a, b) => a.or(b),
         };
     }
     let files = match &wanted.log {
         Some(log) => vec![log.clone()],
-        None if wanted.demo => return None,
         None => frames::segments_between(
             &located.config.raw_log.dir,
             from_us.unwrap_or(0),
             to_us.unwrap_or(u64::MAX),
         ),
     };
-    Some(FrameSource {
+    FrameSource {
         files,
         from_us,
         to_us,
-    })
+    }
 }
 
 /// Says how many frames the bus-logging formats hold, or that a selection has none.
@@ -274,8 +254,13 @@ fn frames_note(
 }
 
 /// The session `which` names (`latest`, or an id), if it has rows; otherwise an error naming
-/// the sessions that have.
-fn choose(db: &rusqlite::Connection, which: &str, notes: &mut dyn Write) -> Result<Session> {
+/// the sessions that have. Says on `notes` which it took, as what the command is `doing`.
+pub(super) fn choose(
+    db: &rusqlite::Connection,
+    which: &str,
+    doing: &str,
+    notes: &mut dyn Write,
+) -> Result<Session> {
     let sessions = session::list_with_rows(db)?;
     let with_data: Vec<&(Session, u64)> = sessions.iter().filter(|(_, rows)| *rows > 0).collect();
     let listing = || {
@@ -303,13 +288,13 @@ fn choose(db: &rusqlite::Connection, which: &str, notes: &mut dyn Write) -> Resu
         if let Some((newest, _)) = sessions.last().filter(|(s, _)| s.id != chosen.id) {
             writeln!(
                 notes,
-                "session {} (opened {}) has no rows yet: exporting session {}, the newest with data ({rows} rows)",
+                "session {} (opened {}) has no rows yet: {doing} session {}, the newest with data ({rows} rows)",
                 newest.id,
                 utc(newest.started_us),
                 chosen.id
             )?;
         } else {
-            writeln!(notes, "exporting session {} ({rows} rows)", chosen.id)?;
+            writeln!(notes, "{doing} session {} ({rows} rows)", chosen.id)?;
         }
         return Ok(chosen.clone());
     }
@@ -320,7 +305,7 @@ fn choose(db: &rusqlite::Connection, which: &str, notes: &mut dyn Write) -> Resu
         None => bail!("no session {id} in the store; {}", listing()),
         Some((_, 0)) => bail!("session {id} has no rows; {}", listing()),
         Some((s, rows)) => {
-            writeln!(notes, "exporting session {id} ({rows} rows)")?;
+            writeln!(notes, "{doing} session {id} ({rows} rows)")?;
             Ok(s.clone())
         }
     }
@@ -388,12 +373,8 @@ fn scratch_dir() -> Result<PathBuf> {
 
 /// The raw log segments that hold frames of `session`.
 fn session_segments(dir: &Path, session: &Session) -> Vec<PathBuf> {
-    let micros = |us: i64| u64::try_from(us).unwrap_or(0);
-    frames::segments_between(
-        dir,
-        micros(session.started_us),
-        session.ended_us.map_or(u64::MAX, micros),
-    )
+    let (started, last) = session.window();
+    frames::segments_between(dir, started, last.unwrap_or(u64::MAX))
 }
 
 /// Writes `folder` and the `raw` segments as one tar archive under `name/` (to `out` for
@@ -474,17 +455,19 @@ mod tests {
                 to_us,
                 ..Wanted::default()
             };
-            frame_source(&located, &wanted, s).map(|f| (f.from_us, f.to_us))
+            let frames = frame_source(&located, &wanted, s);
+            Some((frames.from_us, frames.to_us))
         };
+        // Up to just before its end, where the next session's frames begin.
         let closed = session(1_000, Some(5_000));
         assert_eq!(
             window(None, None, Some(&closed)),
-            Some((Some(1_000), Some(5_000)))
+            Some((Some(1_000), Some(4_999)))
         );
         // The narrower of the two, at each end.
         assert_eq!(
             window(Some(2_000), Some(9_000), Some(&closed)),
-            Some((Some(2_000), Some(5_000)))
+            Some((Some(2_000), Some(4_999)))
         );
         assert_eq!(
             window(Some(500), Some(3_000), Some(&closed)),
@@ -494,11 +477,5 @@ mod tests {
         let open = session(1_000, None);
         assert_eq!(window(None, None, Some(&open)), Some((Some(1_000), None)));
         assert_eq!(window(Some(7), None, None), Some((Some(7), None)));
-        // The demo keeps no raw log.
-        let demo = Wanted {
-            demo: true,
-            ..Wanted::default()
-        };
-        assert!(frame_source(&located, &demo, None).is_none());
     }
 }

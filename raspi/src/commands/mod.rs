@@ -1,5 +1,5 @@
-//! The store commands a person types on the car or a laptop (`session`, `export`, `compact`,
-//! `clock`): they find the service's store, say which one they opened, never create one by
+//! The store commands a person types on the car or a laptop (`session`, `export`, `report`,
+//! `compact`, `clock`): they find the service's store, say which one they opened, never create one by
 //! accident, and fail, with the reason and what to do, when they did nothing.
 //!
 //! Each writes its results to `out` (what a script reads: tables, the archive) and what it is
@@ -8,6 +8,7 @@
 
 pub mod clock;
 pub mod export;
+pub mod report;
 pub mod session;
 
 use crate::config::{Config, Origin};
@@ -27,7 +28,10 @@ pub struct Located {
 impl Located {
     /// The configuration `origin` names, with the environment's overrides.
     pub fn load(origin: Origin, env: impl Fn(&str) -> Option<String>) -> Result<Self> {
-        let config = Config::load(origin.path(), env)?;
+        let mut config = Config::load(origin.path(), &env)?;
+        if origin == Origin::Demo {
+            config = config.in_demo_store(env);
+        }
         Ok(Self { config, origin })
     }
 
@@ -64,10 +68,10 @@ impl Located {
     fn explain(&self, error: StoreError) -> anyhow::Error {
         let hint = match (&error, &self.origin) {
             (StoreError::Missing { .. }, Origin::Defaults) => {
-                let demo = if Path::new(crate::service::DEMO_STORE).exists() {
+                let demo = if Path::new(crate::config::DEMO_STORE).exists() {
                     format!(
                         "; the demo recorded into {}: add --demo",
-                        crate::service::DEMO_STORE
+                        crate::config::DEMO_STORE
                     )
                 } else {
                     String::new()

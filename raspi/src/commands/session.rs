@@ -78,7 +78,8 @@ pub fn set(
     Ok(())
 }
 
-/// `session new`: closes the open session at `now_us` and starts the next with `metadata`.
+/// `session new`: closes the open session at `now_us` and starts the next with `metadata`,
+/// from the same source.
 pub fn new(
     located: &Located,
     metadata: &Metadata,
@@ -88,7 +89,7 @@ pub fn new(
     notes: &mut dyn Write,
 ) -> Result<()> {
     let db = located.change(create_store, notes)?;
-    let id = session::begin(&db, metadata, "live", now)?;
+    let id = session::hand_over(&db, metadata, now)?;
     writeln!(out, "session {id} open since {}", utc_seconds(now))?;
     Ok(())
 }
@@ -139,6 +140,33 @@ pub fn messages(
     Ok(())
 }
 
+/// `session events`: what happened during the open session (or `id`), with when.
+pub fn events(
+    located: &Located,
+    id: Option<i64>,
+    out: &mut dyn Write,
+    notes: &mut dyn Write,
+) -> Result<()> {
+    let store = located.read(notes)?;
+    let id = given_or_open(&store.db, id)?;
+    let events = crate::store::events::list(&store.db, id)?;
+    if events.is_empty() {
+        bail!("session {id} recorded no events (no mark, no problem, no drop, no loop point)");
+    }
+    writeln!(out, "time (UTC)\tkind\tname\ttext")?;
+    for e in events {
+        writeln!(
+            out,
+            "{}\t{}\t{}\t{}",
+            utc(e.at_us),
+            e.kind.name(),
+            e.name,
+            e.text
+        )?;
+    }
+    Ok(())
+}
+
 /// `session calibration`: the open session's (or `id`'s) calibration changes and the values
 /// it ended with; with `compare`, the values that differ from those session `compare` ended
 /// with (or that one of the two does not know).
@@ -162,7 +190,6 @@ pub fn calibration(
     if let Some(other) = compare {
         let theirs = record::values_at_end(&record::list(&store.db, Some(other), None, None)?);
         let ours = record::values_at_end(&entries);
-        writeln!(out, "parameter\tunit\tsession {id}\tsession {other}")?;
         let mut names: Vec<(String, Option<u32>)> = ours
             .iter()
             .chain(&theirs)
@@ -181,6 +208,7 @@ pub fn calibration(
                 "neither session has a calibration record (no master connected through the gateway)"
             );
         }
+        writeln!(out, "parameter\tunit\tsession {id}\tsession {other}")?;
         let mut same = 0;
         for key in &names {
             let (a, b) = (find(&ours, key), find(&theirs, key));

@@ -87,7 +87,8 @@ pub fn tables(db: &Connection, selection: Selection) -> Result<Vec<TableData>, E
     TABLES.iter().map(|t| table(db, t, selection)).collect()
 }
 
-fn table(
+/// Reads the selected rows of `table`, in the order they arrived.
+pub fn table(
     db: &Connection,
     table: &'static Table,
     selection: Selection,

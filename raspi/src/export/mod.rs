@@ -54,7 +54,7 @@ pub enum ExportError {
     #[error("writing MCAP: {0}")]
     Mcap(#[from] ::mcap::McapError),
     #[error(
-        "BLF, ASC and MF4 hold the raw log's frames, and it has none for this selection (the demo keeps no raw log; `aer-raspi raw-export` reads segments)"
+        "BLF, ASC and MF4 hold the raw log's frames, and it has none for this selection (is the raw log where the configuration says? the demo's is aer-demo-raw/, read with --demo; `aer-raspi raw-export` reads segments)"
     )]
     NoFrames,
     #[error("internal error: {0}")]

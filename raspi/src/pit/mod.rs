@@ -131,6 +131,8 @@ impl Batcher {
             }
             Input::Frame(frame) => self.batch(frame.ts_us).frame(&frame),
             Input::Packet { ts_us, bus, packet } => self.batch(ts_us).packet(ts_us, bus, &packet),
+            // The pit's decoder sees the frames themselves; a loop point carries none.
+            Input::Restart { .. } => {}
         }
         if self
             .current

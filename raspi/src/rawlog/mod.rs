@@ -56,12 +56,12 @@ impl RawTap {
         if self.buses.len() <= index {
             self.buses.resize(index + 1, Arc::from(""));
         }
-        if let Some(slot) = self.buses.get_mut(index) {
-            if slot != name {
-                *slot = name.clone();
-                // Later frames must not be read with the old name.
-                self.flush();
-            }
+        if let Some(slot) = self.buses.get_mut(index)
+            && slot != name
+        {
+            *slot = name.clone();
+            // Later frames must not be read with the old name.
+            self.flush();
         }
     }
 

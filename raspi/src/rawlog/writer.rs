@@ -269,12 +269,11 @@ impl Writer {
     }
 
     fn close(&mut self) {
-        if let Some(segment) = self.segment.take() {
-            if segment.unsynced {
-                if let Err(error) = segment.file.sync_data() {
-                    self.failed(&error);
-                }
-            }
+        if let Some(segment) = self.segment.take()
+            && segment.unsynced
+            && let Err(error) = segment.file.sync_data()
+        {
+            self.failed(&error);
         }
     }
 

@@ -20,10 +20,6 @@ use tracing::info;
 /// in, for an installed service; `demo_log` prefers the repository's file.
 pub const DEMO_LOG: &str = include_str!("../../data/session.log");
 
-/// Where the demo records (without a config file or AER_STORE_PATH), and `export --demo`
-/// reads.
-pub const DEMO_STORE: &str = "aer-demo.sqlite";
-
 /// The repository's session log, as `cargo xtask session-log` rewrites it.
 pub(crate) const DEMO_LOG_PATH: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/data/session.log");
 

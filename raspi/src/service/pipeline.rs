@@ -43,6 +43,8 @@ pub struct Pipeline {
     xcp_gateway: Option<crate::xcp_gateway::Gateway>,
     inputs: Option<source::Sender>,
     batches: source::Receiver,
+    /// The store and raw log folder, this process's alone until the pipeline is dropped.
+    _held: Vec<crate::store::lock::Held>,
 }
 
 impl Pipeline {
@@ -52,6 +54,7 @@ impl Pipeline {
         let counters = Arc::new(Counters::default());
         let health = Arc::new(Health::default());
         let cancel = CancellationToken::new();
+        let held = subsystems::take_store(&config, &job)?;
         let (store, session) = subsystems::start_store(&config, &job, &counters, &health)?;
         let raw_log = subsystems::start_raw_log(&config, &job, &counters, &health)?;
         let mqtt = subsystems::start_mqtt(&config, &counters, &health, &cancel).await?;
@@ -65,10 +68,18 @@ impl Pipeline {
             &job,
             &counters,
             &health,
-            store.calibration_sender(),
+            store.note_sender(),
             &cancel,
         )
         .await;
+        if job == Job::Demo {
+            // The demo's sessions get a calibration record as a pit master's would make.
+            tokio::spawn(crate::xcp_gateway::rehearsal::run(
+                store.note_sender(),
+                now_us,
+                cancel.child_token(),
+            ));
+        }
         let reporter = tokio::spawn(status_topics::run(
             mqtt.publisher.clone(),
             config.car_id.clone(),
@@ -77,6 +88,7 @@ impl Pipeline {
             status_topics::Served {
                 clients: mqtt.clients.clone(),
                 xcp_gateway: xcp_gateway.as_ref().map(|g| g.state.clone()),
+                events: Some(store.note_sender()),
             },
             cancel.clone(),
             job == Job::Demo,
@@ -106,6 +118,7 @@ impl Pipeline {
             xcp_gateway,
             inputs: Some(inputs),
             batches,
+            _held: held,
         })
     }
 
@@ -244,4 +257,8 @@ impl Pipeline {
         info!(?snapshot, "stopped");
         Ok(snapshot)
     }
+}
+
+fn now_us() -> i64 {
+    i64::try_from(aer_host::clock::now_us()).unwrap_or(i64::MAX)
 }

@@ -5,7 +5,7 @@ use super::{Job, demo_log};
 use crate::config::Config;
 use crate::health::Health;
 use crate::source::replay::{ReplayOptions, replay, replay_segment};
-use crate::source::{self, Replies};
+use crate::source::{self, Input, Replies};
 use aer_host::formats::raw_format::SegmentReader;
 use aer_host::reports::counters::Counters;
 use anyhow::{Context, Result};
@@ -109,8 +109,13 @@ fn loop_log(
         restamp: true,
     };
     tokio::spawn(async move {
+        let mut pass = 1;
         while !cancel.is_cancelled() && !inputs.is_closed() {
             replay(log.as_bytes(), inputs.clone(), &counters, options, &cancel).await;
+            pass += 1;
+            if inputs.send(vec![Input::Restart { pass }]).await.is_err() {
+                break;
+            }
         }
     });
 }

@@ -10,7 +10,7 @@ use crate::rawlog::writer::{RawWriter, Settings};
 use crate::rawlog::{Block, segments};
 use crate::sink::mqtt::{self, Publisher};
 use crate::store::{
-    self, Budget, Compaction, Retention, StoreWriter, WhenFull, WriterOptions, session,
+    self, Budget, Compaction, Retention, StoreWriter, WhenFull, WriterOptions, lock, session,
 };
 use aer_host::clock;
 use aer_host::formats::pit_stream;
@@ -48,6 +48,34 @@ pub(super) async fn finish_blocking(part: &str, finish: impl FnOnce() + Send + '
             STOP_WAIT.as_secs()
         );
     }
+}
+
+/// Takes the store, and the raw log folder this job writes, for this process alone: a second
+/// service on the same store refuses here, before it opens a session or binds a port.
+pub(super) fn take_store(config: &Config, job: &Job) -> Result<Vec<lock::Held>> {
+    let holder = lock::this_process(job.source_name(), now_us());
+    let mut held = vec![lock::take(
+        &lock::store_lock_path(&config.store.path),
+        &format!("the store {}", config.store.path.display()),
+        &holder,
+    )?];
+    if writes_raw_log(config, job) {
+        let dir = &config.raw_log.dir;
+        std::fs::create_dir_all(dir)
+            .with_context(|| format!("creating the raw log folder {}", dir.display()))?;
+        held.push(lock::take(
+            &lock::raw_log_lock_path(dir),
+            &format!("the raw log folder {}", dir.display()),
+            &holder,
+        )?);
+    }
+    Ok(held)
+}
+
+/// Whether `job` keeps a raw log: unless it is off or the job replays a log once (which is its
+/// own record).
+fn writes_raw_log(config: &Config, job: &Job) -> bool {
+    config.raw_log.enabled && !matches!(job, Job::Replay { looping: false, .. })
 }
 
 /// Opens (or recovers) the store, opens this run's session in it and starts its writer with
@@ -125,7 +153,7 @@ pub(super) fn start_raw_log(
     health: &Arc<Health>,
 ) -> Result<Option<(RawWriter, SyncSender<Block>)>> {
     let raw = &config.raw_log;
-    if !raw.enabled || matches!(job, Job::Replay { looping: false, .. }) {
+    if !writes_raw_log(config, job) {
         return Ok(None);
     }
     let settings = Settings {
@@ -230,7 +258,7 @@ pub(super) async fn start_xcp_gateway(
     job: &Job,
     counters: &Arc<Counters>,
     health: &Arc<Health>,
-    record: crate::store::CalibrationSender,
+    record: crate::store::NoteSender,
     cancel: &CancellationToken,
 ) -> Option<crate::xcp_gateway::Gateway> {
     if *job != Job::Live || !config.xcp_gateway.enabled {

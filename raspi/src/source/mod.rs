@@ -27,6 +27,8 @@ pub enum Input {
         bus: u8,
         packet: Vec<u8>,
     },
+    /// A looping replay starts its log again (pass `pass`, from 2): not a fault of the car.
+    Restart { pass: u64 },
 }
 
 /// Inputs in arrival order, handed over together: a hand-off per frame would cost more than

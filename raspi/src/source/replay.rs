@@ -66,10 +66,10 @@ impl Pacer {
     ) -> bool {
         let (bus, announcement) = self.buses.index(interface);
         frame.bus = bus;
-        if let Some(announcement) = announcement {
-            if !self.batcher.push(announcement).await {
-                return false;
-            }
+        if let Some(announcement) = announcement
+            && !self.batcher.push(announcement).await
+        {
+            return false;
         }
         if !self.options.fast {
             let (first_us, start) = *self.origin.get_or_insert((frame.ts_us, Instant::now()));

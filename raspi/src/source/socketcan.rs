@@ -420,11 +420,10 @@ async fn read_bus(
                             info!(interface = %name, failed_attempts = attempts, "CAN frames arriving again");
                         }
                         let logged = LoggedFrame::new(now_us(), bus, frame.id(), frame.data());
-                        if let Some(logged) = logged {
-                            if inputs.send(Input::Frame(logged)).await.is_err() {
+                        if let Some(logged) = logged
+                            && inputs.send(Input::Frame(logged)).await.is_err() {
                                 return;
                             }
-                        }
                     }
                     Err(err) if err.raw_os_error() == Some(libc::ENETDOWN) => {
                         link_is_down = true;
@@ -435,11 +434,10 @@ async fn read_bus(
                 Some(fc) = replies.recv() => {
                     let frame = StandardId::new(Telemetry::FLOW_CONTROL_ID)
                         .and_then(|id| socketcan::CanFrame::new(id, fc.as_slice()));
-                    if let Some(frame) = frame {
-                        if let Err(err) = socket.write_frame(frame).await {
+                    if let Some(frame) = frame
+                        && let Err(err) = socket.write_frame(frame).await {
                             error!(interface = %name, error = %err, "flow control not sent");
                         }
-                    }
                 }
                 _ = watch.tick() => {
                     drops.count(&socket, &counters.can_rx_overflows);

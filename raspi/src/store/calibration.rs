@@ -107,11 +107,17 @@ impl fmt::Display for Entry {
     }
 }
 
-/// Adds `entries` to session `session`.
+/// Adds `entries` to session `session`, all or none.
 pub fn record(db: &Connection, session: i64, entries: &[Entry]) -> rusqlite::Result<()> {
     // All or none: the writer retries a failed batch whole, which must not store any twice.
     let transaction = db.unchecked_transaction()?;
-    let mut insert = transaction.prepare_cached(
+    insert(&transaction, session, entries)?;
+    transaction.commit()
+}
+
+/// Adds `entries` to session `session` inside the caller's transaction.
+pub(crate) fn insert(db: &Connection, session: i64, entries: &[Entry]) -> rusqlite::Result<()> {
+    let mut insert = db.prepare_cached(
         "INSERT INTO session_calibration (session_id, at_us, master, kind, parameter, element, \
          old, new, accepted, reason, checksum) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11)",
     )?;
@@ -130,8 +136,7 @@ pub fn record(db: &Connection, session: i64, entries: &[Entry]) -> rusqlite::Res
             e.checksum,
         ])?;
     }
-    drop(insert);
-    transaction.commit()
+    Ok(())
 }
 
 /// The entries between `from_us` and `to_us` (inclusive, either open) of session `session`

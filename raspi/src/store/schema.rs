@@ -6,7 +6,7 @@
 //! at most the last second's rows plus whatever waited in the writer's queue; a kill of the
 //! process loses the same, and nothing already committed.
 
-use super::{calibration, clock, compact, session, session_messages};
+use super::{calibration, clock, compact, events, session, session_messages};
 use aer::tables::{TABLES, Table};
 use rusqlite::{Connection, OpenFlags};
 use std::path::{Path, PathBuf};
@@ -115,6 +115,7 @@ pub(crate) fn create_tables(db: &Connection) -> rusqlite::Result<()> {
     db.execute(session::SESSION_ROWS_TABLE, [])?;
     db.execute(session_messages::SESSION_MESSAGES_TABLE, [])?;
     db.execute(calibration::CALIBRATION_TABLE, [])?;
+    db.execute(events::EVENTS_TABLE, [])?;
     db.execute(compact::BLOCKS_TABLE, [])?;
     for table in TABLES {
         ids_after_everything_seen(db, table)?;

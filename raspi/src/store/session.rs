@@ -69,6 +69,20 @@ pub struct Session {
     pub clock: String,
 }
 
+impl Session {
+    /// The receive times (us since the epoch, both ends included) of what belongs to this
+    /// session: from its start to just before its end, where the next one starts. The store
+    /// files rows by it ([`Filing::session_of`]) and the export takes the raw log's frames by
+    /// it, so every format of a session holds the same traffic. `None` at the end: still open.
+    pub fn window(&self) -> (u64, Option<u64>) {
+        let micros = |us: i64| u64::try_from(us).unwrap_or(0);
+        (
+            micros(self.started_us),
+            self.ended_us.map(|end| micros(end).saturating_sub(1)),
+        )
+    }
+}
+
 /// Closes any session left open (a crash) at `now_us` and opens a new one.
 pub fn begin(
     db: &Connection,
@@ -93,6 +107,68 @@ pub fn begin(
         ],
     )?;
     Ok(db.last_insert_rowid())
+}
+
+/// Closes the open session at `now_us` and opens the next with `metadata`, from the same
+/// source (`aer-raspi session new` while the service runs: the run goes on, under a new
+/// label). Without an open session, the next is `live`.
+pub fn hand_over(db: &Connection, metadata: &Metadata, now_us: i64) -> rusqlite::Result<i64> {
+    let source: Option<String> = db
+        .query_row(
+            "SELECT source FROM sessions WHERE ended_us IS NULL ORDER BY id DESC LIMIT 1",
+            [],
+            |r| r.get(0),
+        )
+        .optional()?;
+    begin(db, metadata, source.as_deref().unwrap_or("live"), now_us)
+}
+
+/// The open session as the writer files rows into it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) struct Filing {
+    /// The open session.
+    pub id: i64,
+    /// When it began.
+    pub started_us: i64,
+    /// The session it took over from, when it began as that one ended with the same source
+    /// (`session new` while the service ran): rows received before `started_us` and committed
+    /// after belong to that one.
+    pub took_over: Option<i64>,
+}
+
+impl Filing {
+    /// The session a row received at `ts_us` belongs to, by the one rule every export format
+    /// follows: the session open when it was received ([`Session::window`]).
+    pub fn session_of(&self, ts_us: u64) -> i64 {
+        match self.took_over {
+            Some(before) if i64::try_from(ts_us).is_ok_and(|ts| ts < self.started_us) => before,
+            _ => self.id,
+        }
+    }
+}
+
+/// The open session and what it took over from, if any.
+pub(crate) fn filing(db: &Connection) -> rusqlite::Result<Option<Filing>> {
+    let open: Option<(i64, i64, String)> = db
+        .prepare_cached(
+            "SELECT id, started_us, source FROM sessions WHERE ended_us IS NULL ORDER BY id DESC LIMIT 1",
+        )?
+        .query_row([], |r| Ok((r.get(0)?, r.get(1)?, r.get(2)?)))
+        .optional()?;
+    let Some((id, started_us, source)) = open else {
+        return Ok(None);
+    };
+    let took_over = db
+        .prepare_cached(
+            "SELECT id FROM sessions WHERE id < ?1 AND ended_us = ?2 AND source = ?3 ORDER BY id DESC LIMIT 1",
+        )?
+        .query_row(params![id, started_us, source], |r| r.get(0))
+        .optional()?;
+    Ok(Some(Filing {
+        id,
+        started_us,
+        took_over,
+    }))
 }
 
 /// Closes the open session (the service's, or the one `aer-raspi session new` started while

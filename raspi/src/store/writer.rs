@@ -6,6 +6,7 @@
 use super::calibration::{self, Entry};
 use super::clock::{StepWatch, describe_step};
 use super::compact::Compaction;
+use super::events::{self, Event};
 use super::queue::{BATCH_ROWS, BATCH_WAIT, QUEUE_ROWS, Queue, RowSender, WhenFull};
 use super::retention::Retention;
 use super::row::Row;
@@ -29,39 +30,74 @@ const RETRY_MAX: Duration = Duration::from_secs(30);
 /// it holds (counted as dropped; the raw log has their frames).
 const STOP_GRACE: Duration = Duration::from_secs(3);
 
-/// Calibration entries that may wait for the writer (a tuner makes a few a minute).
-const CALIBRATION_ENTRIES: usize = 1024;
+/// Calibration entries and events that may wait for the writer (a tuner makes a few a minute,
+/// the status a few a second at worst).
+const NOTES: usize = 1024;
 
 /// The writer thread, and the sender it keeps until it finishes.
 pub struct StoreWriter {
     sender: Option<RowSender>,
-    calibration: CalibrationSender,
+    notes: NoteSender,
     thread: Option<JoinHandle<()>>,
 }
 
-/// Hands calibration entries to the writer, which records them in the open session. Never
-/// waits: an entry the writer cannot take is counted (`calibration_unrecorded`).
+/// What the writer records in the open session besides rows.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Note {
+    /// A calibration record entry (the XCP gateway's).
+    Calibration(Entry),
+    /// An event (a mark, a problem, a count that grew, a loop point).
+    Event(Event),
+}
+
+impl Note {
+    /// The counter of notes of this kind the store could not record.
+    fn unrecorded<'a>(&self, counters: &'a Counters) -> &'a std::sync::atomic::AtomicU64 {
+        match self {
+            Self::Calibration(_) => &counters.calibration_unrecorded,
+            Self::Event(_) => &counters.events_unrecorded,
+        }
+    }
+}
+
+impl From<Entry> for Note {
+    fn from(entry: Entry) -> Self {
+        Self::Calibration(entry)
+    }
+}
+
+impl From<Event> for Note {
+    fn from(event: Event) -> Self {
+        Self::Event(event)
+    }
+}
+
+/// Hands calibration entries and events to the writer, which records them in the open
+/// session. Never waits: a note the writer cannot take is counted (`calibration_unrecorded`
+/// or `events_unrecorded`).
 #[derive(Clone)]
-pub struct CalibrationSender {
-    entries: std::sync::mpsc::SyncSender<Entry>,
+pub struct NoteSender {
+    notes: std::sync::mpsc::SyncSender<Note>,
     counters: Arc<Counters>,
 }
 
-impl CalibrationSender {
-    /// A sender to `entries`, which counts in `counters` what it could not hand over.
-    pub fn new(entries: std::sync::mpsc::SyncSender<Entry>, counters: Arc<Counters>) -> Self {
-        Self { entries, counters }
+impl NoteSender {
+    /// A sender to `notes`, which counts in `counters` what it could not hand over.
+    pub fn new(notes: std::sync::mpsc::SyncSender<Note>, counters: Arc<Counters>) -> Self {
+        Self { notes, counters }
     }
 
-    /// Hands `entry` over; false (and counted) if the writer is behind or gone.
-    pub fn send(&self, entry: Entry) -> bool {
-        let sent = self.entries.try_send(entry).is_ok();
+    /// Hands `note` over; false (and counted) if the writer is behind or gone.
+    pub fn send(&self, note: impl Into<Note>) -> bool {
+        let note = note.into();
+        let counter = note.unrecorded(&self.counters);
+        let sent = self.notes.try_send(note).is_ok();
         if !sent {
-            let count = Counters::bump(&self.counters.calibration_unrecorded);
+            let count = Counters::bump(counter);
             if worth_logging(count) {
                 warn!(
                     count,
-                    "a calibration entry could not be recorded (the store is behind or stopped)"
+                    "a calibration entry or event could not be recorded (the store is behind or stopped)"
                 );
             }
         }
@@ -97,13 +133,13 @@ impl StoreWriter {
             options.when_full,
             counters.clone(),
         );
-        let (calibration, calibration_entries) = std::sync::mpsc::sync_channel(CALIBRATION_ENTRIES);
-        let calibration = CalibrationSender::new(calibration, counters.clone());
+        let (notes, notes_in) = std::sync::mpsc::sync_channel(NOTES);
+        let notes = NoteSender::new(notes, counters.clone());
         let writer = Writer {
             db,
             queue,
-            calibration: calibration_entries,
-            calibration_pending: Vec::new(),
+            notes: notes_in,
+            notes_pending: Vec::new(),
             counters,
             health: options.health,
             retention: options.retention,
@@ -117,7 +153,7 @@ impl StoreWriter {
             .ok();
         Self {
             sender: Some(sender),
-            calibration,
+            notes,
             thread,
         }
     }
@@ -127,9 +163,9 @@ impl StoreWriter {
         self.sender.clone()
     }
 
-    /// A handle the XCP gateway hands its calibration entries to.
-    pub fn calibration_sender(&self) -> CalibrationSender {
-        self.calibration.clone()
+    /// A handle the XCP gateway hands its calibration entries to, and the status its events.
+    pub fn note_sender(&self) -> NoteSender {
+        self.notes.clone()
     }
 
     /// Writes every queued row and stops the writer, once every other sender is dropped. A
@@ -146,9 +182,9 @@ impl StoreWriter {
 struct Writer {
     db: Connection,
     queue: Arc<Queue>,
-    /// Calibration entries from the XCP gateway, and those a failing store still owes.
-    calibration: std::sync::mpsc::Receiver<Entry>,
-    calibration_pending: Vec<Entry>,
+    /// Calibration entries and events, and those a failing store still owes.
+    notes: std::sync::mpsc::Receiver<Note>,
+    notes_pending: Vec<Note>,
     counters: Arc<Counters>,
     health: Arc<Health>,
     retention: Option<Retention>,
@@ -170,13 +206,13 @@ impl Writer {
         let mut batch: Vec<Row> = Vec::with_capacity(BATCH_ROWS);
         loop {
             let Some(open) = self.queue.take(&mut batch, BATCH_WAIT) else {
-                self.record_calibration();
+                self.record_notes();
                 return;
             };
             if !batch.is_empty() {
                 self.write(&mut batch, open);
             }
-            self.record_calibration();
+            self.record_notes();
             if let Some((at_us, step_us)) = self.clock.check() {
                 warn!(step = %describe_step(at_us, step_us), "the wall clock stepped; the open session records it");
                 if let Err(error) = record_clock_step(&self.db, at_us, step_us) {
@@ -189,52 +225,48 @@ impl Writer {
             if open {
                 self.compact();
             } else {
-                self.record_calibration();
+                self.record_notes();
                 return;
             }
         }
     }
 
-    /// Records the calibration entries that came in, in the open session. A failing store
-    /// keeps them for the next try (up to the channel's bound; beyond it the oldest are
-    /// counted as unrecorded); with no session open they are counted too.
-    fn record_calibration(&mut self) {
-        self.calibration_pending.extend(self.calibration.try_iter());
-        if self.calibration_pending.is_empty() {
+    /// Records the calibration entries and events that came in, in the open session. A
+    /// failing store keeps them for the next try (up to the channel's bound; beyond it the
+    /// oldest are counted as unrecorded); with no session open they are counted too.
+    fn record_notes(&mut self) {
+        self.notes_pending.extend(self.notes.try_iter());
+        if self.notes_pending.is_empty() {
             return;
         }
         let recorded = session::current(&self.db).and_then(|session| match session {
-            Some(session) => {
-                calibration::record(&self.db, session, &self.calibration_pending).map(|()| true)
-            }
+            Some(session) => record_notes(&self.db, session, &self.notes_pending).map(|()| true),
             None => Ok(false),
         });
         match recorded {
-            Ok(true) => self.calibration_pending.clear(),
+            Ok(true) => self.notes_pending.clear(),
             Ok(false) => {
                 warn!(
-                    entries = self.calibration_pending.len(),
-                    "calibration entries with no session open: not recorded"
+                    notes = self.notes_pending.len(),
+                    "calibration entries or events with no session open: not recorded"
                 );
-                self.unrecorded(self.calibration_pending.len());
-                self.calibration_pending.clear();
+                let unrecorded = std::mem::take(&mut self.notes_pending);
+                self.unrecorded(&unrecorded);
             }
             Err(error) => {
-                warn!(%error, "recording calibration entries failed; retrying");
-                let over = self
-                    .calibration_pending
-                    .len()
-                    .saturating_sub(CALIBRATION_ENTRIES);
-                self.calibration_pending.drain(..over);
-                self.unrecorded(over);
+                warn!(%error, "recording calibration entries or events failed; retrying");
+                let over = self.notes_pending.len().saturating_sub(NOTES);
+                let dropped: Vec<Note> = self.notes_pending.drain(..over).collect();
+                self.unrecorded(&dropped);
             }
         }
     }
 
-    fn unrecorded(&self, entries: usize) {
-        self.counters
-            .calibration_unrecorded
-            .fetch_add(entries as u64, Ordering::Relaxed);
+    fn unrecorded(&self, notes: &[Note]) {
+        for note in notes {
+            note.unrecorded(&self.counters)
+                .fetch_add(1, Ordering::Relaxed);
+        }
     }
 
     /// Compacts closed sessions' rows, if due (never while stopping: a stop stays quick, and
@@ -288,18 +320,18 @@ impl Writer {
                 self.stopping();
             }
             let stop_by = self.stop_by;
-            if let Some(deadline) = stop_by {
-                if Instant::now() >= deadline {
-                    self.counters
-                        .store_dropped
-                        .fetch_add(batch.len() as u64, Ordering::Relaxed);
-                    error!(
-                        rows = batch.len(),
-                        "stopping with the local store failing: rows dropped"
-                    );
-                    batch.clear();
-                    return;
-                }
+            if let Some(deadline) = stop_by
+                && Instant::now() >= deadline
+            {
+                self.counters
+                    .store_dropped
+                    .fetch_add(batch.len() as u64, Ordering::Relaxed);
+                error!(
+                    rows = batch.len(),
+                    "stopping with the local store failing: rows dropped"
+                );
+                batch.clear();
+                return;
             }
             let pause = stop_by.map_or(backoff, |deadline| {
                 backoff.min(deadline.saturating_duration_since(Instant::now()))
@@ -310,19 +342,45 @@ impl Writer {
     }
 }
 
-/// Inserts `batch` in one transaction and records the row ids in the open session, if any.
+/// Records `notes` in session `session`, all or none.
+fn record_notes(db: &Connection, session: i64, notes: &[Note]) -> rusqlite::Result<()> {
+    let transaction = db.unchecked_transaction()?;
+    let entries: Vec<Entry> = notes
+        .iter()
+        .filter_map(|note| match note {
+            Note::Calibration(entry) => Some(entry.clone()),
+            Note::Event(_) => None,
+        })
+        .collect();
+    let events: Vec<Event> = notes
+        .iter()
+        .filter_map(|note| match note {
+            Note::Event(event) => Some(event.clone()),
+            Note::Calibration(_) => None,
+        })
+        .collect();
+    calibration::insert(&transaction, session, &entries)?;
+    events::insert(&transaction, session, &events)?;
+    transaction.commit()
+}
+
+/// Inserts `batch` in one transaction and records the row ids in the session each row
+/// belongs to: the open one, or, for rows received before a `session new` and committed after
+/// it, the one it took over from.
 pub fn commit(db: &mut Connection, batch: &[Row]) -> rusqlite::Result<()> {
     let transaction = db.transaction()?;
-    // The row ids each table got in this batch, for the open session's record.
-    let mut ids: Vec<Option<(i64, i64)>> = vec![None; TABLES.len()];
-    let mut tally = Tally::default();
+    let filing = session::filing(&transaction)?;
+    // Per table, the row ids this batch gave each session (the earlier session's first: rows
+    // arrive in order, so a table's rows change session once).
+    let mut ids: Vec<Vec<(i64, i64, i64)>> = vec![Vec::new(); TABLES.len()];
+    let mut tallies: std::collections::BTreeMap<i64, Tally> = std::collections::BTreeMap::new();
     {
         // Each table's statement is prepared once per batch, not looked up per row.
         let mut statements: Vec<Option<rusqlite::CachedStatement<'_>>> =
             TABLES.iter().map(|_| None).collect();
         for row in batch {
             let table = row.table();
-            let (Some(slot), Some(range)) =
+            let (Some(slot), Some(ranges)) =
                 (statements.get_mut(table.index), ids.get_mut(table.index))
             else {
                 continue;
@@ -333,18 +391,27 @@ pub fn commit(db: &mut Connection, batch: &[Row]) -> rusqlite::Result<()> {
             };
             row.bind(statement)?;
             statement.raw_execute()?;
-            tally.add(row);
             let id = transaction.last_insert_rowid();
-            *range = Some(range.map_or((id, id), |(first, _)| (first, id)));
+            let Some(filing) = filing else { continue };
+            // Once a table's rows reached the open session, later ones stay in it.
+            let owner = match ranges.last() {
+                Some(&(last_owner, _, _)) if last_owner == filing.id => filing.id,
+                _ => filing.session_of(row.ts_us),
+            };
+            match ranges.last_mut() {
+                Some((session, _, last)) if *session == owner => *last = id,
+                _ => ranges.push((owner, id, id)),
+            }
+            tallies.entry(owner).or_default().add(row);
         }
     }
-    if let Some(session) = session::current(&transaction)? {
-        for (table, range) in TABLES.iter().zip(ids) {
-            if let Some((first, last)) = range {
-                session::record_rows(&transaction, session, table.name, first, last)?;
-            }
+    for (table, ranges) in TABLES.iter().zip(ids) {
+        for (session, first, last) in ranges {
+            session::record_rows(&transaction, session, table.name, first, last)?;
         }
-        tally.record(&transaction, session)?;
+    }
+    for (session, tally) in &tallies {
+        tally.record(&transaction, *session)?;
     }
     transaction.commit()
 }

@@ -29,8 +29,9 @@ pub mod allow;
 #[cfg(target_os = "linux")]
 pub mod can;
 pub mod record;
+pub mod rehearsal;
 
-use crate::store::CalibrationSender;
+use crate::store::NoteSender;
 use crate::store::calibration::{Entry, Kind};
 use aer::calibration::PAGE_LEN;
 use aer::calibration::xcp::CALIBRATION_ADDRESS;
@@ -119,7 +120,7 @@ pub async fn spawn(
     settings: Settings,
     link: SlaveLink,
     counters: Arc<Counters>,
-    record: Option<CalibrationSender>,
+    record: Option<NoteSender>,
     cancel: CancellationToken,
 ) -> std::io::Result<Gateway> {
     let listener = TcpListener::bind(settings.listen).await?;
@@ -167,7 +168,7 @@ struct Forwarder {
     master: Option<Master>,
     recorder: Recorder,
     /// Where the entries go to be stored (none without a store).
-    record: Option<CalibrationSender>,
+    record: Option<NoteSender>,
     /// Until when masters are refused after the slave went silent on the gateway.
     quiet_until: Option<Instant>,
 }

@@ -199,11 +199,12 @@ impl Recorder {
         let Some(pending) = self.pending.take() else {
             return Vec::new();
         };
-        if let Pending::Write(write) = &pending {
-            if accepted && write.remaining() > 0 {
-                // The slave answers a block only at its end; this answers something else.
-                return Vec::new();
-            }
+        if let Pending::Write(write) = &pending
+            && accepted
+            && write.remaining() > 0
+        {
+            // The slave answers a block only at its end; this answers something else.
+            return Vec::new();
         }
         let stamp = |kind, parameter: &str| Entry {
             at_us,
@@ -344,12 +345,10 @@ impl Recorder {
                 ..stamp(Kind::Write, &place)
             }];
         };
-        if accepted {
-            if let Some((ext, address)) = write.at {
-                self.mta = u32::try_from(write.data.len())
-                    .ok()
-                    .and_then(|len| Some((ext, address.checked_add(len)?)));
-            }
+        if accepted && let Some((ext, address)) = write.at {
+            self.mta = u32::try_from(write.data.len())
+                .ok()
+                .and_then(|len| Some((ext, address.checked_add(len)?)));
         }
         let range = offset..offset + write.data.len();
         // The page the write would make: known whole when the working page is, else only
