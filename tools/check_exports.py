@@ -23,6 +23,7 @@ from pathlib import Path
 
 import polars as pl
 from mcap.reader import make_reader
+from xml.etree import ElementTree
 
 POLARS = {
     "Timestamp": pl.Datetime("us", "UTC"),
@@ -204,6 +205,35 @@ def check_mcap(path, types, db, session, meta):
     return sum(len(v) for v in seen.values())
 
 
+def check_layouts(out):
+    """Foxglove's and PlotJuggler's layouts parse, and every series they draw is a field of a
+    channel of the MCAP beside them (its topic, a property of its JSON Schema)."""
+    fields = {}
+    with open(out / "session.mcap", "rb") as f:
+        summary = make_reader(f).get_summary()
+        for channel in summary.channels.values():
+            schema = summary.schemas[channel.schema_id]
+            fields[channel.topic] = set(json.loads(schema.data)["properties"])
+    series = []
+    layout = json.load(open(out / "foxglove-layout.json"))
+    for panel, config in layout["configById"].items():
+        for path in config.get("paths", []):
+            topic, _, field = path["value"].rpartition(".")
+            series.append(("foxglove " + panel, topic, field))
+    if layout.get("layout") not in layout["configById"]:
+        fail(f"foxglove-layout.json: the root panel {layout.get('layout')!r} is not configured")
+    root = ElementTree.parse(out / "plotjuggler-layout.xml").getroot()
+    for curve in root.iter("curve"):
+        topic, _, field = curve.get("name").rpartition("/")
+        series.append(("plotjuggler", topic, field))
+    if not series:
+        fail("the layouts draw nothing")
+    for where, topic, field in series:
+        if field not in fields.get(topic, set()):
+            fail(f"{where}: {topic} {field} is no field of a channel of session.mcap")
+    return len(series)
+
+
 CALIBRATION = ["ts_us", "master", "kind", "parameter", "element", "old", "new", "accepted", "reason", "checksum"]
 
 
@@ -304,12 +334,14 @@ def main():
             fail(f"session.csv: {key} = {session_csv.get(key)!r}, want {value!r}")
     messages = check_mcap(args.out / "session.mcap", types, db, args.session, meta)
     entries = check_calibration(args.out, db, args.session)
+    series = check_layouts(args.out)
     if failures:
         print(f"{len(failures)} mismatch(es)", file=sys.stderr)
         sys.exit(1)
     print(
         f"exports match the store: {tables} tables, {rows_total} rows in Parquet and CSV, "
-        f"{messages} MCAP messages, calibration record of {entries} entries "
+        f"{messages} MCAP messages, calibration record of {entries} entries, "
+        f"{series} series of the Foxglove and PlotJuggler layouts on the MCAP's fields "
         f"(mcap {version('mcap')}, polars {pl.__version__})"
     )
 

@@ -170,6 +170,16 @@ enum SessionAction {
         #[arg(long)]
         id: Option<i64>,
     },
+    /// Ends the lap in progress now (or at --at), in the open session: the report times laps
+    /// with these marks as the driver's display does with its L key.
+    Mark {
+        /// Who marks: `pit` or `driver`.
+        #[arg(long, default_value = "pit")]
+        by: String,
+        /// When (RFC 3339 or Unix seconds); now without it.
+        #[arg(long, value_parser = parse_time)]
+        at: Option<i64>,
+    },
     /// What happened during the open session (or session --id), with when: lap marks, each
     /// `problems` entry of the status as it came and cleared, drops and integrity counts as
     /// they grew, loop points.
@@ -371,6 +381,13 @@ fn store_command(located: &Located, cli: &Cli) -> Result<()> {
             SessionAction::Messages { id } => {
                 commands::session::messages(located, *id, &mut out, &mut notes)
             }
+            SessionAction::Mark { by, at } => commands::session::mark(
+                located,
+                by,
+                at.unwrap_or_else(now_us),
+                &mut out,
+                &mut notes,
+            ),
             SessionAction::Events { id } => {
                 commands::session::events(located, *id, &mut out, &mut notes)
             }

@@ -276,6 +276,23 @@ fn is_root() -> bool {
         .is_ok_and(|o| String::from_utf8_lossy(&o.stdout).trim() == "0")
 }
 
+/// The pit marks the end of a lap in the running session; its events list it.
+#[test]
+fn a_pit_mark_is_an_event_of_the_open_session() {
+    let car = Car::new();
+    let marked = car.run(&["session", "mark", "--at", "1764000000.5"]);
+    let (stdout, stderr) = text(&marked);
+    assert!(marked.status.success(), "{stderr}");
+    assert!(
+        stdout.contains("lap mark at 2025-11-24T16:00:00.500000Z in session 2"),
+        "{stdout}"
+    );
+    let events = car.run(&["session", "events"]);
+    let (stdout, stderr) = text(&events);
+    assert!(events.status.success(), "{stderr}");
+    assert!(stdout.contains("mark\tpit\tlap ends"), "{stdout}");
+}
+
 /// A store has one writer: with the demo running, a second `demo` in the same folder refuses
 /// before it touches the store (naming the process that holds it), and the running session
 /// stays one session with its metadata.

@@ -36,7 +36,16 @@ pub struct Wanted {
 
 /// What an export folder holds of the decoded rows' formats; with the bus-logging formats'
 /// files ([`frames::file_name`]), anything of these is an earlier export.
-const LAYOUT: [&str; 3] = ["session.mcap", "parquet", "csv"];
+const LAYOUT: [&str; 8] = [
+    "session.mcap",
+    "parquet",
+    "csv",
+    "foxglove-layout.json",
+    "plotjuggler-layout.xml",
+    "report.html",
+    "report.txt",
+    "derived.csv",
+];
 /// Runs the export.
 pub fn run(
     located: &Located,
@@ -140,6 +149,18 @@ pub fn run(
                 )?;
             }
             frames_note(&report, &request, notes)?;
+            if let Some(session) = &session {
+                // The run report beside the data: what a data lead opens first.
+                match crate::report::gather(&db, session.id, None)
+                    .and_then(|run| crate::report::write(&folder, &run, None))
+                {
+                    Ok(_) => writeln!(
+                        notes,
+                        "report.html, report.txt, derived.csv: the run report"
+                    )?,
+                    Err(error) => writeln!(notes, "no run report: {error}")?,
+                }
+            }
             // A bus-logging format without frames was said above.
             for format in report
                 .formats

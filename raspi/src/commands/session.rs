@@ -89,8 +89,18 @@ pub fn new(
     notes: &mut dyn Write,
 ) -> Result<()> {
     let db = located.change(create_store, notes)?;
+    let closed = session::current(&db)?;
     let id = session::hand_over(&db, metadata, now)?;
     writeln!(out, "session {id} open since {}", utc_seconds(now))?;
+    if let Some(closed) = closed {
+        let carried = record::carry_over(&db, closed, id, now)?;
+        if carried > 0 {
+            writeln!(
+                notes,
+                "it begins with the {carried} calibration values session {closed} ended with"
+            )?;
+        }
+    }
     Ok(())
 }
 
@@ -137,6 +147,31 @@ pub fn messages(
             m.late_frames
         )?;
     }
+    Ok(())
+}
+
+/// `session mark`: ends the lap in progress at `at_us`, in the open session.
+pub fn mark(
+    located: &Located,
+    by: &str,
+    at_us: i64,
+    out: &mut dyn Write,
+    notes: &mut dyn Write,
+) -> Result<()> {
+    use crate::store::events::{self, Event, Kind};
+    let db = located.change(false, notes)?;
+    let id = session::current(&db)?.context("no session is open (is the service running?)")?;
+    events::insert(
+        &db,
+        id,
+        &[Event {
+            at_us,
+            kind: Kind::Mark,
+            name: by.to_owned(),
+            text: "lap ends".to_owned(),
+        }],
+    )?;
+    writeln!(out, "lap mark at {} in session {id}", utc(at_us))?;
     Ok(())
 }
 

@@ -12,6 +12,7 @@ pub mod calibration;
 pub mod columns;
 pub mod csv;
 pub mod frames;
+pub mod layouts;
 pub mod load;
 pub mod mcap;
 pub mod parquet;
@@ -331,13 +332,17 @@ fn write(
 ) -> Result<Vec<Written>, ExportError> {
     let dir = &request.out_dir;
     match format {
-        Format::Mcap => Ok(vec![mcap::write(
-            &dir.join("session.mcap"),
-            tables,
-            entries,
-            metadata,
-            &request.topic_root,
-        )?]),
+        Format::Mcap => {
+            let mut written = vec![mcap::write(
+                &dir.join("session.mcap"),
+                tables,
+                entries,
+                metadata,
+                &request.topic_root,
+            )?];
+            written.extend(layouts::write(dir, &request.topic_root)?);
+            Ok(written)
+        }
         Format::Parquet => {
             let dir = dir.join("parquet");
             let mut written = parquet::write(&dir, tables, metadata)?;

@@ -191,7 +191,7 @@ h2{{margin-top:28px;border-bottom:1px solid #ddd}}</style></head><body>"
     if report.events.is_empty() {
         out.push_str("<p>None.</p>");
     } else {
-        let origin = run.session.started_us;
+        let origin = run.origin_us;
         let rows: Vec<Vec<String>> = report
             .events
             .iter()

@@ -144,9 +144,36 @@ pub fn compare(report: &SessionReport, other: SessionReport) -> Comparison {
 pub struct Written {
     pub text: PathBuf,
     pub html: PathBuf,
+    pub derived: PathBuf,
 }
 
-/// Writes `report.txt` and `report.html` into `dir` (created if missing).
+/// The derived channels per telemetry packet as CSV: its receive time, the time since the
+/// run's origin, each of [`aer_host::run::derived::CHANNELS`] in its unit, and the lap.
+pub fn derived_csv(run: &run::Run) -> String {
+    use aer_host::run::derived::CHANNELS;
+    use std::fmt::Write as _;
+    let mut out = String::from("ts_us,t_s");
+    for channel in CHANNELS {
+        let _ = write!(out, ",{}_{}", channel.name, channel.unit.replace('/', "_"));
+    }
+    out.push_str(",lap\n");
+    for (t, sample) in run.t.iter().zip(&run.derived) {
+        let lap = run
+            .laps
+            .iter()
+            .position(|lap| (lap.start..=lap.end).contains(t))
+            .map_or(String::new(), |i| (i + 1).to_string());
+        let ts_us = run.origin_us + (t * 1e6).round() as i64;
+        let _ = write!(out, "{ts_us},{t:.6}");
+        for value in sample.values() {
+            let _ = write!(out, ",{value:.6}");
+        }
+        let _ = writeln!(out, ",{lap}");
+    }
+    out
+}
+
+/// Writes `report.txt`, `report.html` and `derived.csv` into `dir` (created if missing).
 pub fn write(
     dir: &Path,
     report: &SessionReport,
@@ -160,7 +187,9 @@ pub fn write(
     let written = Written {
         text: dir.join("report.txt"),
         html: dir.join("report.html"),
+        derived: dir.join("derived.csv"),
     };
+    std::fs::write(&written.derived, derived_csv(&report.run)).map_err(io(&written.derived))?;
     std::fs::write(&written.text, text::render(report, comparison)).map_err(io(&written.text))?;
     std::fs::write(&written.html, html::render(report, comparison)).map_err(io(&written.html))?;
     Ok(written)
@@ -273,6 +302,16 @@ mod tests {
         ] {
             assert!(text.contains(expected), "no {expected:?} in:\n{text}");
         }
+        let csv = derived_csv(&report.run);
+        assert!(csv.starts_with(
+            "ts_us,t_s,speed_km_h,battery_power_kW,distance_m,battery_energy_Wh,lap\n"
+        ));
+        let last = csv.lines().last().expect("rows");
+        assert!(
+            last.starts_with("1764000015990000,15.990000,0.000000,0.000000,366.5"),
+            "{last}"
+        );
+        assert_eq!(csv.lines().count(), 1_601);
         let html = html::render(&report, None);
         assert_eq!(
             html.matches("<svg").count(),
@@ -280,6 +319,32 @@ mod tests {
             "speed, power, torque, temperatures"
         );
         assert!(html.contains("can1: bus-off") && html.ends_with("</html>\n"));
+    }
+
+    #[test]
+    fn a_mark_ends_the_lap_in_progress() {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let mut db = crate::store::open(&dir.path().join("store.sqlite")).expect("store");
+        let id = drive(&mut db, 3_500.0);
+        events::insert(
+            &db,
+            id,
+            &[Event {
+                at_us: START_US + 6_000_000,
+                kind: EventKind::Mark,
+                name: "pit".into(),
+                text: "lap ends".into(),
+            }],
+        )
+        .expect("mark");
+        let report = gather(&db, id, None).expect("report");
+        let times: Vec<f64> = report.laps.iter().map(Stretch::time).collect();
+        assert_eq!(times.len(), 2, "{times:?}");
+        assert!(
+            (times[0] - 5.0).abs() < 1e-9 && (times[1] - 5.0).abs() < 1e-9,
+            "{times:?}"
+        );
+        assert!(text::render(&report, None).contains("at the 1 marks the session recorded"));
     }
 
     #[test]

@@ -31,6 +31,9 @@ pub struct Run {
     pub marks: Vec<f64>,
     /// The lap length the laps were timed with, if any.
     pub lap_length_m: Option<f64>,
+    /// What the times count from (us since the epoch): the session's start, or a replay's
+    /// first packet.
+    pub origin_us: i64,
 }
 
 impl Run {
@@ -46,11 +49,14 @@ impl Run {
         from..to.max(from)
     }
 
-    /// The session's length (s): to its end, or to its last packet while it is open.
+    /// The session's length (s): to its end, or to its last packet while it is open (or for
+    /// a replay).
     pub fn length_s(&self) -> f64 {
         match self.session.ended_us {
-            Some(end) => (end - self.session.started_us) as f64 / 1e6,
-            None => self.t.last().copied().unwrap_or(0.0),
+            Some(end) if self.origin_us == self.session.started_us => {
+                (end - self.session.started_us) as f64 / 1e6
+            }
+            _ => self.t.last().copied().unwrap_or(0.0),
         }
     }
 }
@@ -79,7 +85,14 @@ pub fn load(
             ..Selection::default()
         },
     )?;
-    let origin = session.started_us;
+    // Times from the session's start; a replay's rows carry the recorded times, from before
+    // the session (the replay) began: those count from the first packet.
+    let first = data.timestamps().iter().flatten().next().copied();
+    let within = |ts: i64| ts >= session.started_us && session.ended_us.is_none_or(|end| ts <= end);
+    let origin = match first {
+        Some(first) if !within(first) => first,
+        _ => session.started_us,
+    };
     let t: Vec<f64> = data
         .timestamps()
         .iter()
@@ -126,6 +139,7 @@ pub fn load(
         laps: timer.laps().to_vec(),
         marks,
         lap_length_m,
+        origin_us: origin,
     })
 }
 

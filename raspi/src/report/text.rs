@@ -183,7 +183,7 @@ pub fn render(report: &SessionReport, comparison: Option<&Comparison>) -> String
     if report.events.is_empty() {
         let _ = writeln!(out, "  none");
     }
-    let origin = report.run.session.started_us;
+    let origin = report.run.origin_us;
     for e in &report.events {
         let _ = writeln!(
             out,
@@ -267,6 +267,12 @@ pub fn render(report: &SessionReport, comparison: Option<&Comparison>) -> String
         ]
         .to_vec();
         table(&mut out, &header, &rows);
+        if rows.is_empty() {
+            let _ = writeln!(
+                out,
+                "  (no lap completed in one of them: the runs compare by distance only)"
+            );
+        }
         if let Some(&(d, delta)) = c.time_delta.last() {
             let _ = writeln!(
                 out,

@@ -196,9 +196,56 @@ pub fn values_at_end(entries: &[Entry]) -> Vec<(String, Option<u32>, f64)> {
         .collect()
 }
 
+/// The values session `from` ended with, as `Found` entries of session `to` at `at_us`: a
+/// session started while the CCM runs (`session new`) begins with the calibration the one
+/// before ended with, since the CCM's page does not change at a session's boundary. Returns
+/// how many were carried over.
+pub fn carry_over(db: &Connection, from: i64, to: i64, at_us: i64) -> rusqlite::Result<usize> {
+    let before = list(db, Some(from), None, None)?;
+    let checksum = before.iter().rev().find_map(|e| e.checksum);
+    let carried: Vec<Entry> = values_at_end(&before)
+        .into_iter()
+        .map(|(parameter, element, value)| Entry {
+            at_us,
+            master: format!("carried over from session {from}"),
+            kind: Kind::Found,
+            parameter,
+            element,
+            old: Some(value),
+            new: Some(value),
+            accepted: true,
+            reason: String::new(),
+            checksum,
+        })
+        .collect();
+    record(db, to, &carried)?;
+    Ok(carried.len())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_next_session_begins_with_the_values_the_one_before_ended_with() {
+        let db = Connection::open_in_memory().expect("memory");
+        db.execute(CALIBRATION_TABLE, []).expect("table");
+        let entries = [
+            entry(Kind::Found, "traction_kp", 500.0, true),
+            entry(Kind::Write, "traction_kp", 650.0, true),
+            entry(Kind::Write, "launch_kp", 1e6, false),
+        ];
+        record(&db, 1, &entries).expect("record");
+        assert_eq!(carry_over(&db, 1, 2, 2_000).expect("carry"), 1);
+        let carried = list(&db, Some(2), None, None).expect("list");
+        assert_eq!(values_at_end(&carried), values_at_end(&entries));
+        assert!(
+            carried
+                .iter()
+                .all(|e| e.kind == Kind::Found && e.at_us == 2_000)
+        );
+        assert_eq!(carry_over(&db, 3, 4, 3_000).expect("nothing"), 0);
+    }
 
     fn entry(kind: Kind, parameter: &str, new: f64, accepted: bool) -> Entry {
         Entry {

@@ -53,10 +53,11 @@ pub struct Desk {
 }
 
 impl Desk {
-    /// The desk connects: the page the demo's session runs with, as `Found` entries.
+    /// The desk connects: the page the demo's session runs with (the working page, 0), as
+    /// `Found` entries.
     pub fn connect(&mut self, at_us: i64) -> Vec<Entry> {
         self.recorder
-            .found(Calibration::DEFAULT.to_page(), None, at_us, MASTER)
+            .found(Calibration::DEFAULT.to_page(), Some(0), at_us, MASTER)
     }
 
     /// The desk's next change of [`PARAMETER`], answered as the CCM answers a write inside
@@ -100,7 +101,12 @@ mod tests {
         let mut desk = Desk::default();
         let mut entries = desk.connect(1_000);
         let page_elements: usize = PARAMETERS.iter().map(|p| p.count).sum();
-        assert_eq!(entries.len(), page_elements, "every element of the page");
+        assert_eq!(
+            entries.len(),
+            page_elements + 1,
+            "every element, and the page"
+        );
+        assert!(entries.iter().all(|e| e.checksum.is_some()), "{entries:?}");
         assert!(entries.iter().all(|e| e.kind == Kind::Found));
         let first = desk.change(2_000);
         let second = desk.change(3_000);
@@ -115,6 +121,7 @@ mod tests {
             assert_eq!(change.len(), 1, "{change:?}");
             let write = &change[0];
             assert!(write.kind == Kind::Write && write.accepted, "{write:?}");
+            assert!(write.checksum.is_some(), "{write:?}");
             assert_eq!(write.parameter, PARAMETER);
             assert_eq!(write.old, Some(f64::from(old)));
             assert_eq!(write.new, Some(f64::from(new)));
