@@ -247,9 +247,17 @@ struct ReportArgs {
     /// the first movement to the stop, or ends at a driver's or pit's mark.
     #[arg(long)]
     lap_length: Option<f64>,
-    /// The folder for report.txt and report.html (default: report-session-<id>).
+    /// The folder for report.txt, report.html and derived.csv (default: report-session-<id>).
     #[arg(long)]
     out: Option<PathBuf>,
+    /// Also write resampled_100hz.csv: the run every 10 ms (each value held until the next),
+    /// every telemetry field with enum names, the derived channels and the --signal columns.
+    #[arg(long)]
+    resample: bool,
+    /// A CAN signal for the resampled table, as the exports name it (`can_dti_speed.dti_erpm`);
+    /// repeat for more. Implies --resample.
+    #[arg(long = "signal")]
+    signals: Vec<String>,
     #[command(flatten)]
     store: StoreChoice,
 }
@@ -415,6 +423,8 @@ fn store_command(located: &Located, cli: &Cli) -> Result<()> {
                 compare: args.compare.clone(),
                 lap_length_m: args.lap_length,
                 out: args.out.clone(),
+                resample: args.resample,
+                signals: args.signals.clone(),
             },
             &mut out,
             &mut notes,

@@ -4,7 +4,7 @@
 use super::Located;
 use super::export::choose;
 use crate::report;
-use anyhow::Result;
+use anyhow::{Context, Result};
 use std::io::Write;
 use std::path::PathBuf;
 
@@ -19,6 +19,9 @@ pub struct Wanted {
     pub lap_length_m: Option<f64>,
     /// The folder to write into; `report-session-<id>` without.
     pub out: Option<PathBuf>,
+    /// Also write the run on a 100 Hz grid, with these CAN signals (`table.column`).
+    pub resample: bool,
+    pub signals: Vec<String>,
 }
 
 /// Runs the report.
@@ -44,6 +47,13 @@ pub fn run(
         .clone()
         .unwrap_or_else(|| PathBuf::from(format!("report-session-{}", session.id)));
     let written = report::write(&dir, &ours, comparison.as_ref())?;
+    if wanted.resample || !wanted.signals.is_empty() {
+        let signals = report::resample::signals(&store.db, session.id, &wanted.signals)?;
+        let path = dir.join("resampled_100hz.csv");
+        std::fs::write(&path, report::resample::csv(&ours.run, &signals))
+            .with_context(|| format!("writing {}", path.display()))?;
+        writeln!(notes, "the run at 100 Hz: {}", path.display())?;
+    }
     out.write_all(report::text::render(&ours, comparison.as_ref()).as_bytes())?;
     writeln!(
         notes,

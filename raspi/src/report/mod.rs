@@ -8,11 +8,13 @@
 //! speed against distance, the time delta, and the calibration values that differ.
 //!
 //! [`run`] reads the telemetry, [`summary`] and [`compare`] compute, [`text`] and [`html`]
-//! write (`report.txt`, `report.html` with its plots inline, [`plot`]).
+//! write (`report.txt`, `report.html` with its plots inline, [`plot`]); [`resample`] puts the
+//! run on a 100 Hz grid.
 
 pub mod compare;
 pub mod html;
 pub mod plot;
+pub mod resample;
 pub mod run;
 pub mod summary;
 pub mod text;
@@ -38,6 +40,8 @@ pub enum ReportError {
         "session {0} has no telemetry: nothing to report (`aer-raspi session list` shows the sessions with rows)"
     )]
     NoTelemetry(i64),
+    #[error("no signal {0}: give table.column as the exports name them (`can_dti_speed.dti_erpm`)")]
+    UnknownSignal(String),
     #[error("cannot write {path}: {source}")]
     Write {
         path: PathBuf,
@@ -319,6 +323,37 @@ mod tests {
             "speed, power, torque, temperatures"
         );
         assert!(html.contains("can1: bus-off") && html.ends_with("</html>\n"));
+    }
+
+    #[test]
+    fn the_run_at_100_hz_holds_each_value_and_names_enums() {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let mut db = crate::store::open(&dir.path().join("store.sqlite")).expect("store");
+        let id = drive(&mut db, 3_500.0);
+        let report = gather(&db, id, None).expect("report");
+        let csv = resample::csv(&report.run, &[]);
+        let mut lines = csv.lines();
+        let header: Vec<&str> = lines.next().expect("header").split(',').collect();
+        let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
+        assert_eq!(rows.len(), 1_600, "16 s every 10 ms");
+        let column = |name: &str| header.iter().position(|h| *h == name).expect(name);
+        let (state, speed, distance) = (
+            column("vehicle_state_label"),
+            column("speed_km_h"),
+            column("distance_m"),
+        );
+        assert!(rows.iter().all(|r| r[state] == "DRIVING"));
+        assert_eq!(
+            rows[500][speed].parse::<f64>().expect("speed").round(),
+            132.0
+        );
+        assert_eq!(rows[0][column("ts_us")], START_US.to_string());
+        let end: f64 = rows[1_599][distance].parse().expect("distance");
+        assert!((end - 366.519).abs() < 1e-2, "{end}");
+        assert!(matches!(
+            resample::signals(&db, id, &["can_nothing.x".into()]),
+            Err(ReportError::UnknownSignal(_))
+        ));
     }
 
     #[test]
