@@ -11,6 +11,7 @@ use crate::model::Update;
 use crate::model::can::CanMessages;
 use crate::pit_stream::StreamDecoder;
 use aer::mqtt::TELEMETRY;
+use aer_host::link::marks::Mark;
 use aer_host::reports::status::{METRICS, STATUS};
 use iced::futures::channel::mpsc;
 use iced::futures::{SinkExt, Stream, StreamExt};
@@ -55,11 +56,20 @@ pub enum Event {
 /// unsubscribes from the others on the live connection, without reconnecting; every new
 /// connection subscribes to the picks of the moment.
 #[derive(Debug, Clone)]
-pub struct Control(mpsc::UnboundedSender<Vec<&'static str>>);
+pub struct Control(mpsc::UnboundedSender<Request>);
+
+/// What the application asks of the link.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Request {
+    /// Show exactly these CAN topics (suffixes below the car's prefix).
+    ShowCan(Vec<&'static str>),
+    /// Send the Pi a lap mark, stored in the running session.
+    Mark(Mark),
+}
 
 impl Control {
     /// A control and the receiving end the link reads (tests drive an application with it).
-    pub fn channel() -> (Self, mpsc::UnboundedReceiver<Vec<&'static str>>) {
+    pub fn channel() -> (Self, mpsc::UnboundedReceiver<Request>) {
         let (sender, receiver) = mpsc::unbounded();
         (Self(sender), receiver)
     }
@@ -67,7 +77,14 @@ impl Control {
     /// Shows exactly `suffixes` (below the car's prefix) from now on. A link that has ended
     /// (the dashboard closing) ignores it.
     pub fn show_can(&self, suffixes: impl IntoIterator<Item = &'static str>) {
-        let _ = self.0.unbounded_send(suffixes.into_iter().collect());
+        let _ = self
+            .0
+            .unbounded_send(Request::ShowCan(suffixes.into_iter().collect()));
+    }
+
+    /// Sends the Pi `mark` (queued while the link reconnects).
+    pub fn mark(&self, mark: Mark) {
+        let _ = self.0.unbounded_send(Request::Mark(mark));
     }
 }
 
@@ -89,7 +106,7 @@ struct Subscriptions {
 impl Subscriptions {
     async fn run(
         mut self,
-        mut picks: mpsc::UnboundedReceiver<Vec<&'static str>>,
+        mut picks: mpsc::UnboundedReceiver<Request>,
         mut connections: mpsc::UnboundedReceiver<bool>,
     ) {
         loop {
@@ -100,7 +117,10 @@ impl Subscriptions {
                     // The link has ended.
                     None => return,
                 },
-                Some(wanted) = picks.next() => self.show(wanted),
+                Some(request) = picks.next() => match request {
+                    Request::ShowCan(wanted) => self.show(wanted),
+                    Request::Mark(mark) => self.send_mark(&mark),
+                },
             }
         }
     }
@@ -120,6 +140,18 @@ impl Subscriptions {
             .try_subscribe_many(all.map(|topic| SubscribeFilter::new(topic, QoS::AtMostOnce)))
         {
             warn!(%error, "subscribing a new connection");
+        }
+    }
+
+    /// Publishes a lap mark for the Pi (at least once: a repeat is a second mark at the same
+    /// instant, which ends no lap of its own).
+    fn send_mark(&self, mark: &Mark) {
+        let topic = aer_host::link::marks::topic(&self.prefix);
+        if let Err(error) =
+            self.client
+                .try_publish(topic, QoS::AtLeastOnce, false, mark.to_payload())
+        {
+            warn!(%error, "sending the Pi a lap mark");
         }
     }
 

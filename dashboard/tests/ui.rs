@@ -396,6 +396,12 @@ fn clicking_a_field_plots_it() {
 fn keys_switch_the_view_and_mark_laps() {
     let t0 = Instant::now();
     let mut app = app_with(View::Driver, driving(), t0);
+    let (control, mut link_told) = aer_dashboard::link::Control::channel();
+    app.update(Message::LinkReady(control));
+    assert!(matches!(
+        link_told.try_recv(),
+        Ok(aer_dashboard::link::Request::ShowCan(_))
+    ));
     assert!(shows(&app, "LAP 1"));
     app.update(Message::Link(
         t0 + Duration::from_secs(62),
@@ -403,6 +409,11 @@ fn keys_switch_the_view_and_mark_laps() {
     ));
     app.update(Message::MarkLap);
     assert!(shows(&app, "LAP 2"));
+    // The mark goes to the Pi too, for the session's record and the run report.
+    let Ok(aer_dashboard::link::Request::Mark(mark)) = link_told.try_recv() else {
+        panic!("no mark sent to the Pi");
+    };
+    assert_eq!(mark.by, "driver");
     assert!(shows(&app, "last 1:02.0   best 1:02.0"));
     app.update(Message::ToggleView);
     assert_eq!(app.current_view(), View::Pit);
@@ -517,7 +528,10 @@ fn a_clicked_can_message_is_subscribed_and_shows_its_signals_in_words() {
     // is what it subscribes to.
     let (control, mut link_told) = aer_dashboard::link::Control::channel();
     app.update(Message::LinkReady(control));
-    let mut shown = || link_told.try_recv().ok();
+    let mut shown = || match link_told.try_recv() {
+        Ok(aer_dashboard::link::Request::ShowCan(shown)) => Some(shown),
+        _ => None,
+    };
     assert_eq!(shown(), Some(vec![]), "nothing shown, nothing subscribed");
     let messages: Vec<Message> = {
         // Tall enough that the panel, below the telemetry fields, needs no scrolling.

@@ -17,6 +17,7 @@ pub mod export;
 pub mod forward;
 pub mod health;
 pub mod ingest;
+pub mod marks;
 pub mod pit;
 pub mod rawlog;
 pub mod report;

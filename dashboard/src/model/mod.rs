@@ -434,13 +434,14 @@ impl Dashboard {
     }
 
     /// Ends the lap in progress at `now` (key `L`).
-    pub fn mark_lap(&mut self, now: Instant) {
-        if let Some(ts) = self.car_time(now) {
-            self.laps.mark(ts);
-            if let Some(record) = &mut self.record {
-                record.mark(ts);
-            }
+    /// Returns the instant marked (on the data's time base), if the car has been seen.
+    pub fn mark_lap(&mut self, now: Instant) -> Option<f64> {
+        let ts = self.car_time(now)?;
+        self.laps.mark(ts);
+        if let Some(record) = &mut self.record {
+            record.mark(ts);
         }
+        Some(ts)
     }
 
     /// Link health.

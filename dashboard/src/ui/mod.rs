@@ -113,7 +113,22 @@ impl App {
                 };
                 self.show(next);
             }
-            Message::MarkLap => self.model.mark_lap(self.now),
+            Message::MarkLap => {
+                // The Pi stores it in the running session, for the run report's laps.
+                if let (Some(ts), Some(control)) =
+                    (self.model.mark_lap(self.now), &self.link_control)
+                {
+                    let by = if self.view == View::Driver {
+                        "driver"
+                    } else {
+                        "pit"
+                    };
+                    control.mark(aer_host::link::marks::Mark {
+                        ts,
+                        by: by.to_owned(),
+                    });
+                }
+            }
             Message::TogglePlot(index) => self.model.toggle_plot(index),
             Message::ToggleCan(index) => {
                 self.model.toggle_can(index);

@@ -149,6 +149,9 @@ counters! {
     /// Calibration entries the store could not record (behind, failing, or no session open);
     /// the journal and the status still show the changes.
     calibration_unrecorded,
+    /// Lap marks from the dashboards that were not marks (malformed, out of range) or came
+    /// faster than they are stored.
+    marks_refused,
     /// Times a looping replay (the demo) started its log again: its loop points, where the
     /// counters and the telemetry sequence start over (not faults of the car).
     replay_passes,

@@ -75,7 +75,7 @@ pub struct Settings {
     /// `aer-pit/`).
     pub protected: Vec<String>,
     /// Topics under those roots that clients may publish on: the pits' history requests
-    /// (`aer-pit/<car>/history/request`).
+    /// (`aer-pit/<car>/history/request`) and the dashboards' lap marks (`aer-pit/<car>/marks`).
     pub open: Vec<String>,
     /// Client ids only the service may use (`aer-raspi`).
     pub reserved_ids: String,

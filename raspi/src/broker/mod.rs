@@ -193,7 +193,10 @@ pub async fn start(
     cancel: tokio_util::sync::CancellationToken,
 ) -> Result<Broker> {
     let protected = ["aer/".to_owned(), "aer-pit/".to_owned()];
-    let open = [aer_host::link::pit_history::request_topic("aer/car1")];
+    let open = [
+        aer_host::link::pit_history::request_topic("aer/car1"),
+        aer_host::link::marks::topic("aer/car1"),
+    ];
     let mut broker = spawn(config, SERVICE_IDS, &protected, &open)?;
     broker.clients = Some(gate::start(broker.gate.clone(), counters, cancel).await?);
     Ok(broker)

@@ -158,19 +158,13 @@ pub fn mark(
     out: &mut dyn Write,
     notes: &mut dyn Write,
 ) -> Result<()> {
-    use crate::store::events::{self, Event, Kind};
     let db = located.change(false, notes)?;
     let id = session::current(&db)?.context("no session is open (is the service running?)")?;
-    events::insert(
-        &db,
-        id,
-        &[Event {
-            at_us,
-            kind: Kind::Mark,
-            name: by.to_owned(),
-            text: "lap ends".to_owned(),
-        }],
-    )?;
+    let mark = aer_host::link::marks::Mark {
+        ts: at_us as f64 / 1e6,
+        by: by.to_owned(),
+    };
+    crate::store::events::insert(&db, id, &[crate::marks::event(&mark)])?;
     writeln!(out, "lap mark at {} in session {id}", utc(at_us))?;
     Ok(())
 }

@@ -57,7 +57,7 @@ impl Pipeline {
         let held = subsystems::take_store(&config, &job)?;
         let (store, session) = subsystems::start_store(&config, &job, &counters, &health)?;
         let raw_log = subsystems::start_raw_log(&config, &job, &counters, &health)?;
-        let mqtt = subsystems::start_mqtt(&config, &counters, &health, &cancel).await?;
+        let mut mqtt = subsystems::start_mqtt(&config, &counters, &health, &cancel).await?;
         // What every key of every topic means (label, unit, value names), retained, once.
         for (suffix, schema) in crate::column_descriptions::topic_schemas() {
             mqtt.publisher
@@ -77,6 +77,14 @@ impl Pipeline {
             tokio::spawn(crate::xcp_gateway::rehearsal::run(
                 store.note_sender(),
                 now_us,
+                cancel.child_token(),
+            ));
+        }
+        if let Some(marks) = mqtt.marks.take() {
+            tokio::spawn(crate::marks::run(
+                marks,
+                store.note_sender(),
+                counters.clone(),
                 cancel.child_token(),
             ));
         }

@@ -34,6 +34,8 @@ pub(super) struct Mqtt {
     pub(super) address: String,
     /// The pits' history requests, when the stream keeps history.
     pub(super) history_requests: Option<tokio::sync::mpsc::Receiver<Vec<u8>>>,
+    /// The dashboards' lap marks, for the marks task.
+    pub(super) marks: Option<tokio::sync::mpsc::Receiver<Vec<u8>>>,
     /// The clients the gate serves (embedded broker only), for the status.
     pub(super) clients: Option<Arc<broker::gate::Clients>>,
 }
@@ -173,6 +175,9 @@ pub(super) fn start_raw_log(
     Ok(Some(started))
 }
 
+/// Lap marks that may wait for the marks task.
+const MARKS_INTAKE: usize = 16;
+
 /// History requests that may arrive before the history task reads them.
 const HISTORY_INTAKE: usize = 16;
 
@@ -197,10 +202,12 @@ pub(super) async fn start_mqtt(
             format!("{root}/"),
             format!("{root}{}/", pit_stream::ROOT_SUFFIX),
         ];
-        // ... but for the pits' history requests, which the history task checks.
-        let open = [aer_host::link::pit_history::request_topic(
-            &config.topic_prefix(),
-        )];
+        // ... but for the pits' history requests and the dashboards' lap marks, which their
+        // tasks check.
+        let open = [
+            aer_host::link::pit_history::request_topic(&config.topic_prefix()),
+            aer_host::link::marks::topic(&config.topic_prefix()),
+        ];
         let broker = broker::spawn(broker_config, SERVICE_IDS, &protected, &open)?;
         clients = Some(broker::gate::start(broker.gate, counters.clone(), cancel.clone()).await?);
         mqtt::embedded(
@@ -227,11 +234,19 @@ pub(super) async fn start_mqtt(
             filter: aer_host::link::pit_history::request_topic(&config.topic_prefix()),
             sender,
             counters: counters.clone(),
+            refused: |c| &c.history_refused,
         };
         (driver.with_intake(intake), Some(receiver))
     } else {
         (driver, None)
     };
+    let (sender, marks) = tokio::sync::mpsc::channel(MARKS_INTAKE);
+    let driver = driver.with_intake(mqtt::Intake {
+        filter: aer_host::link::marks::topic(&config.topic_prefix()),
+        sender,
+        counters: counters.clone(),
+        refused: |c| &c.marks_refused,
+    });
     let (connected_tx, mut connected) = tokio::sync::watch::channel(false);
     let connection = tokio::spawn(mqtt::drive(driver, connected_tx));
     // Give the broker a moment so the first packets are not dropped for want of a connection;
@@ -247,6 +262,7 @@ pub(super) async fn start_mqtt(
         connection,
         address,
         history_requests,
+        marks: Some(marks),
         clients,
     })
 }

@@ -89,25 +89,36 @@ pub enum Driver {
     Remote(Box<RemoteDriver>),
 }
 
-/// Where the connection hands what arrives on one topic filter (the pits' history
-/// requests): a bounded queue; what does not fit is dropped, counted in `history_refused`.
+/// Where the connection hands what arrives on one topic (the pits' history requests, the
+/// dashboards' lap marks): a bounded queue; what does not fit is dropped, counted in
+/// `refused`'s counter.
 pub struct Intake {
     pub filter: String,
     pub sender: tokio::sync::mpsc::Sender<Vec<u8>>,
     pub counters: Arc<Counters>,
+    /// The counter of what did not fit.
+    pub refused: fn(&Counters) -> &std::sync::atomic::AtomicU64,
 }
 
 impl Intake {
     fn deliver(&self, payload: &[u8]) {
         if self.sender.try_send(payload.to_vec()).is_err() {
-            let count = Counters::bump(&self.counters.history_refused);
+            let count = Counters::bump((self.refused)(&self.counters));
             if worth_logging(count) {
                 warn!(
                     count,
-                    "history requests arrive faster than they are served: refused"
+                    filter = %self.filter,
+                    "messages arrive faster than they are served: refused"
                 );
             }
         }
+    }
+}
+
+/// Hands a message that arrived on `topic` to the intake of that topic.
+fn deliver(intakes: &[Intake], topic: &[u8], payload: &[u8]) {
+    if let Some(intake) = intakes.iter().find(|i| i.filter.as_bytes() == topic) {
+        intake.deliver(payload);
     }
 }
 
@@ -121,11 +132,11 @@ impl Driver {
                 {
                     warn!(%error, filter = %intake.filter, "could not subscribe");
                 }
-                driver.intake = Some(intake);
+                driver.intakes.push(intake);
                 Self::Embedded(driver)
             }
             Self::Remote(mut driver) => {
-                driver.intake = Some(intake);
+                driver.intakes.push(intake);
                 Self::Remote(driver)
             }
         }
@@ -136,7 +147,7 @@ impl Driver {
 pub struct RemoteDriver {
     eventloop: EventLoop,
     client: AsyncClient,
-    intake: Option<Intake>,
+    intakes: Vec<Intake>,
 }
 
 /// A publisher into the embedded broker over its in-process `link`; should the broker drop
@@ -164,7 +175,7 @@ pub fn embedded(
             spares,
             closed,
             health,
-            intake: None,
+            intakes: Vec::new(),
         })),
     )
 }
@@ -177,7 +188,7 @@ pub struct EmbeddedDriver {
     spares: Vec<broker::Link>,
     closed: Arc<tokio::sync::Notify>,
     health: Arc<Health>,
-    intake: Option<Intake>,
+    intakes: Vec<Intake>,
 }
 
 /// A publisher to the broker `config` names, over TCP (TLS when `config.tls_ca` names the
@@ -214,7 +225,7 @@ pub fn connect(
         Driver::Remote(Box::new(RemoteDriver {
             eventloop,
             client,
-            intake: None,
+            intakes: Vec::new(),
         })),
     ))
 }
@@ -236,9 +247,7 @@ pub async fn drive(driver: Driver, connected_tx: tokio::sync::watch::Sender<bool
                     () = driver.closed.notified() => return,
                     received = driver.rx.next() => match received {
                         Ok(Some(rumqttd::Notification::Forward(forward))) => {
-                            if let Some(intake) = &driver.intake {
-                                intake.deliver(&forward.publish.payload);
-                            }
+                            deliver(&driver.intakes, &forward.publish.topic, &forward.publish.payload);
                         }
                         // The router paused forwarding (the link's buffer filled): resume.
                         Ok(Some(rumqttd::Notification::Unschedule)) => {
@@ -260,7 +269,7 @@ async fn drive_remote(driver: RemoteDriver, connected_tx: tokio::sync::watch::Se
     let RemoteDriver {
         mut eventloop,
         client,
-        intake,
+        intakes,
     } = driver;
     let mut connected = false;
     let mut closing = false;
@@ -271,16 +280,14 @@ async fn drive_remote(driver: RemoteDriver, connected_tx: tokio::sync::watch::Se
                 let _ = connected_tx.send(true);
                 info!("connected to the MQTT broker");
                 // A clean session forgets subscriptions: subscribe on every connection.
-                if let Some(intake) = &intake
-                    && let Err(error) = client.try_subscribe(&intake.filter, QoS::AtMostOnce)
-                {
-                    warn!(%error, filter = %intake.filter, "could not subscribe");
+                for intake in &intakes {
+                    if let Err(error) = client.try_subscribe(&intake.filter, QoS::AtMostOnce) {
+                        warn!(%error, filter = %intake.filter, "could not subscribe");
+                    }
                 }
             }
             Ok(Event::Incoming(Packet::Publish(publish))) => {
-                if let Some(intake) = &intake {
-                    intake.deliver(&publish.payload);
-                }
+                deliver(&intakes, publish.topic.as_bytes(), &publish.payload);
             }
             Ok(Event::Outgoing(rumqttc::Outgoing::Disconnect)) => closing = true,
             Ok(_) => {}
@@ -310,10 +317,10 @@ impl EmbeddedDriver {
         if let Ok(mut link) = self.link.lock() {
             link.tx = spare.tx;
             link.held = None;
-            if let Some(intake) = &self.intake
-                && let Err(error) = link.tx.subscribe(intake.filter.clone())
-            {
-                warn!(%error, filter = %intake.filter, "could not subscribe the spare link");
+            for intake in &self.intakes {
+                if let Err(error) = link.tx.subscribe(intake.filter.clone()) {
+                    warn!(%error, filter = %intake.filter, "could not subscribe the spare link");
+                }
             }
         }
         self.rx = spare.rx;
@@ -495,5 +502,38 @@ impl super::Sink for Publisher {
 
     fn flush(&mut self) {
         Publisher::flush(self);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_message_goes_to_the_intake_of_its_topic_and_an_overflow_is_counted() {
+        let counters = Arc::new(Counters::default());
+        let (history, mut requests) = tokio::sync::mpsc::channel(1);
+        let (marks, mut marked) = tokio::sync::mpsc::channel(1);
+        let intakes = [
+            Intake {
+                filter: "aer-pit/car1/history/request".into(),
+                sender: history,
+                counters: counters.clone(),
+                refused: |c| &c.history_refused,
+            },
+            Intake {
+                filter: "aer-pit/car1/marks".into(),
+                sender: marks,
+                counters: counters.clone(),
+                refused: |c| &c.marks_refused,
+            },
+        ];
+        deliver(&intakes, b"aer-pit/car1/marks", b"mark 1");
+        deliver(&intakes, b"aer-pit/car1/marks", b"mark 2");
+        deliver(&intakes, b"aer/car1/telemetry", b"not for an intake");
+        assert_eq!(marked.try_recv().ok(), Some(b"mark 1".to_vec()));
+        assert!(requests.try_recv().is_err(), "nothing for the history task");
+        let seen = counters.snapshot();
+        assert_eq!((seen.marks_refused, seen.history_refused), (1, 0));
     }
 }

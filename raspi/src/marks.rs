@@ -1,0 +1,89 @@
+//! The dashboards' lap marks (`aer-pit/<car>/marks`), checked and stored as `mark` events of
+//! the running session, where the run report times laps with them.
+
+use crate::store::NoteSender;
+use crate::store::events::{Event, Kind};
+use aer_host::link::marks::Mark;
+use aer_host::reports::counters::{Counters, worth_logging};
+use std::sync::Arc;
+use tokio::sync::mpsc::Receiver;
+use tokio_util::sync::CancellationToken;
+use tracing::{info, warn};
+
+/// Stores each mark that arrives until `cancel`; a payload that is no mark is counted
+/// (`marks_refused`) and logged.
+pub async fn run(
+    mut marks: Receiver<Vec<u8>>,
+    store: NoteSender,
+    counters: Arc<Counters>,
+    cancel: CancellationToken,
+) {
+    loop {
+        let payload = tokio::select! {
+            received = marks.recv() => match received {
+                Some(payload) => payload,
+                None => return,
+            },
+            () = cancel.cancelled() => return,
+        };
+        match Mark::parse(&payload) {
+            Ok(mark) => {
+                info!(by = %mark.by, ts = mark.ts, "lap mark");
+                store.send(event(&mark));
+            }
+            Err(error) => {
+                let count = Counters::bump(&counters.marks_refused);
+                if worth_logging(count) {
+                    warn!(%error, count, "a lap mark refused");
+                }
+            }
+        }
+    }
+}
+
+/// The event a mark is stored as.
+pub fn event(mark: &Mark) -> Event {
+    Event {
+        at_us: mark.at_us(),
+        kind: Kind::Mark,
+        name: mark.by.clone(),
+        text: "lap ends".to_owned(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::store::writer::Note;
+
+    #[tokio::test]
+    async fn a_mark_is_stored_as_an_event_and_a_bad_one_counted() {
+        let counters = Arc::new(Counters::default());
+        let (notes, stored) = std::sync::mpsc::sync_channel(16);
+        let (payloads, marks) = tokio::sync::mpsc::channel(16);
+        let mark = Mark {
+            ts: 1_764_000_000.5,
+            by: "driver".into(),
+        };
+        payloads.send(mark.to_payload()).await.expect("send");
+        payloads.send(b"not a mark".to_vec()).await.expect("send");
+        drop(payloads);
+        run(
+            marks,
+            NoteSender::new(notes, counters.clone()),
+            counters.clone(),
+            CancellationToken::new(),
+        )
+        .await;
+        let stored: Vec<Note> = stored.try_iter().collect();
+        assert_eq!(stored, vec![Note::Event(event(&mark))]);
+        let Note::Event(e) = &stored[0] else {
+            unreachable!()
+        };
+        assert_eq!(
+            (e.kind, e.at_us, e.name.as_str()),
+            (Kind::Mark, 1_764_000_000_500_000, "driver")
+        );
+        assert_eq!(counters.snapshot().marks_refused, 1);
+    }
+}
