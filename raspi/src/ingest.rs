@@ -107,6 +107,10 @@ impl Stage {
                     "the looped log starts again: its counters and telemetry sequence start over (the loop point, not a fault)"
                 );
                 ingest.restart();
+                counters.last_replay_pass_us.store(
+                    aer_host::clock::now_us(),
+                    std::sync::atomic::Ordering::Relaxed,
+                );
                 Counters::bump(&counters.replay_passes);
             }
         }

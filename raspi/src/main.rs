@@ -278,13 +278,26 @@ fn parse_time(text: &str) -> Result<i64, String> {
 fn main() -> std::process::ExitCode {
     match run() {
         Ok(()) => std::process::ExitCode::SUCCESS,
+        // A reader that stopped reading (`| head`) is no failure of the command.
+        Err(error)
+            if error.chain().any(|cause| {
+                cause
+                    .downcast_ref::<std::io::Error>()
+                    .is_some_and(|e| e.kind() == std::io::ErrorKind::BrokenPipe)
+            }) =>
+        {
+            std::process::ExitCode::SUCCESS
+        }
         Err(error) => {
-            eprintln!("Error: {error}");
+            use std::io::Write as _;
+            // Written, not printed: a closed standard error is no reason to panic.
+            let mut stderr = std::io::stderr().lock();
+            let _ = writeln!(stderr, "Error: {error}");
             let causes: Vec<String> = error.chain().skip(1).map(ToString::to_string).collect();
             if !causes.is_empty() {
-                eprintln!("\nCaused by:");
+                let _ = writeln!(stderr, "\nCaused by:");
                 for (number, cause) in causes.iter().enumerate() {
-                    eprintln!("    {number}: {cause}");
+                    let _ = writeln!(stderr, "    {number}: {cause}");
                 }
             }
             std::process::ExitCode::FAILURE

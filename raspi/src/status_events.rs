@@ -52,12 +52,14 @@ impl StatusWatch {
         }
     }
 
-    /// The events between the last status and this one, stamped `at_us`.
+    /// The events between the last status and this one, stamped `at_us` (a loop point with
+    /// `loop_at_us`, when the replay started again).
     pub fn update(
         &mut self,
         problems: &Problems,
         counters: &ServiceCounters,
         at_us: i64,
+        loop_at_us: i64,
     ) -> Vec<Event> {
         let event = |kind, name: &str, text: String| Event {
             at_us,
@@ -95,14 +97,15 @@ impl StatusWatch {
         }
         let passes = count(&now, LOOP_COUNTER);
         if passes > count(&self.counters, LOOP_COUNTER) {
-            events.push(event(
-                Kind::Loop,
-                "loop",
-                format!(
+            events.push(Event {
+                at_us: if loop_at_us > 0 { loop_at_us } else { at_us },
+                kind: Kind::Loop,
+                name: "loop".to_owned(),
+                text: format!(
                     "the looped log starts again (pass {}): its counters and telemetry sequence start over",
                     passes + 1
                 ),
-            ));
+            });
         }
         self.counters = now;
         events
@@ -134,11 +137,15 @@ mod tests {
         let counters = Counters::default();
         let mut watch = StatusWatch::new(&counters.snapshot());
         let mut problems = Problems::default();
-        assert!(watch.update(&problems, &counters.snapshot(), 1).is_empty());
+        assert!(
+            watch
+                .update(&problems, &counters.snapshot(), 1, 0)
+                .is_empty()
+        );
 
         problems.can = Some("can1: No such device".into());
         counters.store_dropped.fetch_add(12, Ordering::Relaxed);
-        let events = watch.update(&problems, &counters.snapshot(), 2);
+        let events = watch.update(&problems, &counters.snapshot(), 2, 0);
         assert_eq!(
             events,
             vec![
@@ -157,16 +164,24 @@ mod tests {
             ]
         );
         // The same again is no event; a changed text is.
-        assert!(watch.update(&problems, &counters.snapshot(), 3).is_empty());
+        assert!(
+            watch
+                .update(&problems, &counters.snapshot(), 3, 0)
+                .is_empty()
+        );
         problems.can = Some("can1: bus-off".into());
-        let events = watch.update(&problems, &counters.snapshot(), 4);
+        let events = watch.update(&problems, &counters.snapshot(), 4, 0);
         assert_eq!(events.len(), 1);
         assert_eq!(events[0].text, "can1: bus-off");
         problems.can = None;
         counters.replay_passes.fetch_add(1, Ordering::Relaxed);
-        let events = watch.update(&problems, &counters.snapshot(), 5);
+        let events = watch.update(&problems, &counters.snapshot(), 5, 4);
         let kinds: Vec<Kind> = events.iter().map(|e| e.kind).collect();
         assert_eq!(kinds, vec![Kind::Cleared, Kind::Loop], "{events:?}");
+        assert_eq!(
+            events[1].at_us, 4,
+            "the loop point when the replay started again"
+        );
     }
 
     #[test]

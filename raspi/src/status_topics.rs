@@ -55,7 +55,11 @@ pub async fn run(
         status.xcp_gateway = served.xcp_gateway.as_ref().map(|state| state.snapshot());
         if let Some(events) = &served.events {
             let at_us = i64::try_from(aer_host::clock::now_us()).unwrap_or(i64::MAX);
-            for event in watch.update(&status.problems, &now, at_us) {
+            let loop_at_us = counters
+                .last_replay_pass_us
+                .load(std::sync::atomic::Ordering::Relaxed);
+            let loop_at_us = i64::try_from(loop_at_us).unwrap_or(0);
+            for event in watch.update(&status.problems, &now, at_us, loop_at_us) {
                 events.send(event);
             }
         }

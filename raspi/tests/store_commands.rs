@@ -337,14 +337,18 @@ fn a_second_service_on_a_running_store_refuses_and_the_first_session_stays_whole
     // The service logs to its standard output.
     let mut log = BufReader::new(first.stdout.take().expect("stdout")).lines();
     // Its announcement comes once it handles Ctrl-C, after it opened its session.
-    let mut opened = false;
+    let (mut opened, mut replaying, mut said) = (false, false, String::new());
     for line in log.by_ref().map_while(Result::ok) {
         opened |= line.contains("session open");
+        said.push_str(&line);
+        said.push('\n');
         if line.contains("aer-raspi demo: replaying") {
+            replaying = true;
             break;
         }
     }
-    assert!(opened, "the first demo never opened its session");
+    // A demo that stopped (its output ended) must not leave the second one running for ever.
+    assert!(opened && replaying, "the first demo did not start: {said}");
     // Keep reading its log, so it never blocks on a full pipe.
     let drain = std::thread::spawn(move || log.map_while(Result::ok).count());
 
@@ -389,4 +393,25 @@ fn a_second_service_on_a_running_store_refuses_and_the_first_session_stays_whole
         Some(&"open"),
         "closed when it stopped: {stdout}"
     );
+}
+
+/// A session that does not exist is named as such, whichever command and flag names it.
+#[test]
+fn a_missing_session_is_named_by_every_session_command() {
+    let car = Car::new();
+    for args in [
+        &["session", "messages", "--id", "9"][..],
+        &["session", "events", "--id", "9"],
+        &["session", "calibration", "--id", "9"],
+        &["session", "calibration", "--id", "1", "--compare", "9"],
+    ] {
+        let output = car.run(args);
+        let (stdout, stderr) = text(&output);
+        assert!(!output.status.success(), "{args:?}: {stdout}");
+        assert!(
+            stderr.contains("no session 9 in the store"),
+            "{args:?}: {stderr}"
+        );
+        assert!(stdout.is_empty(), "{args:?} printed a table: {stdout}");
+    }
 }

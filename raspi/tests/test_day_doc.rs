@@ -213,6 +213,13 @@ fn examples() -> BTreeMap<&'static str, String> {
     examples.insert(
         "session-new",
         printed(&dir, |out, notes| {
+            // As on the car: the service runs, holding the store.
+            let _service = aer_raspi::store::lock::take(
+                &aer_raspi::store::lock::store_lock_path(car.store()),
+                "the store",
+                &aer_raspi::store::lock::this_process("run", NOW_US),
+            )
+            .expect("the service's lock");
             commands::session::new(&car, &metadata, false, NOW_US, out, notes).expect("new")
         }),
     );

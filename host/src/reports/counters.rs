@@ -19,6 +19,9 @@ macro_rules! counters {
             $($(#[doc = $doc])+ pub $name: AtomicU64,)+
             /// Receive time of the last telemetry packet (us since the epoch, 0 = none yet).
             pub last_packet_us: AtomicU64,
+            /// When a looping replay last started its log again (us since the epoch, 0 =
+            /// never), for the loop point's event.
+            pub last_replay_pass_us: AtomicU64,
             /// Telemetry fingerprint the firmware sent last (0 = none yet).
             pub firmware_fingerprint: AtomicU64,
             /// The last fingerprint that was not the service's (0 = none yet).

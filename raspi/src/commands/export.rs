@@ -319,9 +319,9 @@ pub(super) fn choose(
         }
         return Ok(chosen.clone());
     }
-    let id: i64 = which
-        .parse()
-        .with_context(|| format!("--session {which}: a number or `latest`"))?;
+    let id: i64 = which.parse().ok().with_context(|| {
+        format!("--session {which}: a session number (`aer-raspi session list`) or `latest`")
+    })?;
     match sessions.iter().find(|(s, _)| s.id == id) {
         None => bail!("no session {id} in the store; {}", listing()),
         Some((_, 0)) => bail!("session {id} has no rows; {}", listing()),

@@ -81,6 +81,11 @@ impl Located {
                     self.origin
                 )
             }
+            (StoreError::Missing { .. }, Origin::Demo) => format!(
+                "\n  (looked in {}: run the command in the folder the demo ran in, where it made aer-demo.sqlite and aer-demo-raw/)",
+                std::env::current_dir()
+                    .map_or_else(|_| ".".to_owned(), |d| d.display().to_string())
+            ),
             (StoreError::Missing { .. }, _) => format!(
                 "\n  (read with {}: has the service run with it? `aer-raspi session new --create-store` starts an empty store)",
                 self.origin

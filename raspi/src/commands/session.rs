@@ -89,6 +89,13 @@ pub fn new(
     notes: &mut dyn Write,
 ) -> Result<()> {
     let db = located.change(create_store, notes)?;
+    let lock = crate::store::lock::store_lock_path(located.store());
+    if crate::store::lock::holder(&lock).is_none() {
+        writeln!(
+            notes,
+            "no service records into this store now: the new session stays empty until one starts"
+        )?;
+    }
     let closed = session::current(&db)?;
     let id = session::hand_over(&db, metadata, now)?;
     writeln!(out, "session {id} open since {}", utc_seconds(now))?;
@@ -105,11 +112,27 @@ pub fn new(
 }
 
 /// Session `id`, or the open one.
-fn given_or_open(db: &rusqlite::Connection, id: Option<i64>) -> Result<i64> {
-    match id {
-        Some(id) => Ok(id),
-        None => session::current(db)?.context("no session is open; give --id"),
+/// Session `id` (which must exist), or the open one, or, with none open (the service or the
+/// demo stopped), the newest; says on `notes` which it took when none was given.
+fn given_or_open(db: &rusqlite::Connection, id: Option<i64>, notes: &mut dyn Write) -> Result<i64> {
+    if let Some(id) = id {
+        if session::get(db, id)?.is_none() {
+            bail!("no session {id} in the store (`aer-raspi session list` shows them)");
+        }
+        return Ok(id);
     }
+    if let Some(open) = session::current(db)? {
+        return Ok(open);
+    }
+    let newest = session::list(db)?
+        .last()
+        .map(|s| s.id)
+        .context("the store has no sessions yet")?;
+    writeln!(
+        notes,
+        "no session is open: session {newest}, the newest (give --id for another)"
+    )?;
+    Ok(newest)
 }
 
 /// `session messages`: each CAN message of the open session (or `id`) per bus.
@@ -120,7 +143,7 @@ pub fn messages(
     notes: &mut dyn Write,
 ) -> Result<()> {
     let store = located.read(notes)?;
-    let id = given_or_open(&store.db, id)?;
+    let id = given_or_open(&store.db, id, notes)?;
     let hz = |rate: Option<f64>| rate.map_or_else(|| "-".to_owned(), |r| format!("{r:.2}"));
     let messages = session_messages::list(&store.db, id)?;
     if messages.is_empty() {
@@ -177,7 +200,7 @@ pub fn events(
     notes: &mut dyn Write,
 ) -> Result<()> {
     let store = located.read(notes)?;
-    let id = given_or_open(&store.db, id)?;
+    let id = given_or_open(&store.db, id, notes)?;
     let events = crate::store::events::list(&store.db, id)?;
     if events.is_empty() {
         bail!("session {id} recorded no events (no mark, no problem, no drop, no loop point)");
@@ -207,7 +230,14 @@ pub fn calibration(
     notes: &mut dyn Write,
 ) -> Result<()> {
     let store = located.read(notes)?;
-    let id = given_or_open(&store.db, id)?;
+    let id = given_or_open(&store.db, id, notes)?;
+    if let Some(other) = compare
+        && session::get(&store.db, other)?.is_none()
+    {
+        bail!(
+            "--compare {other}: no session {other} in the store (`aer-raspi session list` shows them)"
+        );
+    }
     let entries = record::list(&store.db, Some(id), None, None)?;
     let value = |v: Option<f64>| v.map_or_else(|| "?".to_owned(), number);
     let unit = |name: &str| {

@@ -82,7 +82,7 @@ h2{{margin-top:28px;border-bottom:1px solid #ddd}}</style></head><body>"
         .iter()
         .enumerate()
         .map(|(i, lap)| {
-            let mut row = vec![format!("{}", i + 1)];
+            let mut row = vec![text::lap_name(report, i)];
             row.extend(stretch_row(lap));
             row
         })

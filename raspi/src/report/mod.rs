@@ -379,7 +379,7 @@ mod tests {
             (times[0] - 5.0).abs() < 1e-9 && (times[1] - 5.0).abs() < 1e-9,
             "{times:?}"
         );
-        assert!(text::render(&report, None).contains("at the 1 marks the session recorded"));
+        assert!(text::render(&report, None).contains("at the mark the session recorded"));
     }
 
     #[test]

@@ -110,6 +110,25 @@ fn table(out: &mut String, header: &[String], rows: &[Vec<String>]) {
     }
 }
 
+/// Lap `index`'s name: its number, and for a first lap the session began in the middle of
+/// (the car already moving at its first packet, a `session new` mid-run), that it is partial.
+pub fn lap_name(report: &SessionReport, index: usize) -> String {
+    let partial = index == 0
+        && report.run.laps.first().is_some_and(|lap| {
+            report.run.t.first() == Some(&lap.start)
+                && report
+                    .run
+                    .derived
+                    .first()
+                    .is_some_and(|s| s.speed_m_s >= 0.5)
+        });
+    if partial {
+        format!("{} (began before the session)", index + 1)
+    } else {
+        format!("{}", index + 1)
+    }
+}
+
 /// The laps' rule in words.
 pub fn lap_rule(report: &SessionReport) -> String {
     let run = &report.run;
@@ -119,6 +138,7 @@ pub fn lap_rule(report: &SessionReport) -> String {
             .map_or(String::new(), |m| format!(", every {m} m")),
         match run.marks.len() {
             0 => ", no marks recorded".to_owned(),
+            1 => ", at the mark the session recorded".to_owned(),
             n => format!(", at the {n} marks the session recorded"),
         }
     )
@@ -134,7 +154,7 @@ pub fn render(report: &SessionReport, comparison: Option<&Comparison>) -> String
         .iter()
         .enumerate()
         .map(|(i, lap)| {
-            let mut row = vec![format!("{}", i + 1)];
+            let mut row = vec![lap_name(report, i)];
             row.extend(stretch_row(lap));
             row
         })

@@ -112,6 +112,9 @@ fn loop_log(
         let mut pass = 1;
         while !cancel.is_cancelled() && !inputs.is_closed() {
             replay(log.as_bytes(), inputs.clone(), &counters, options, &cancel).await;
+            if cancel.is_cancelled() {
+                break;
+            }
             pass += 1;
             if inputs.send(vec![Input::Restart { pass }]).await.is_err() {
                 break;
@@ -160,7 +163,8 @@ fn announce_demo(config: &Config, broker_address: &str, from: &str) {
          Dashboard:  cargo run --release -p aer-dashboard (Tab: pit view)\n\
          Plot it:    PlotJuggler > Streaming > MQTT, broker {host}:{port}, topic aer/{car}/telemetry (JSON, timestamp field `ts`)\n\
          Data file:  {file} (SQLite, tables from schema/)\n\
-         Export it:  aer-raspi export --demo --session latest --out DIR (MCAP, Parquet, CSV)",
+         Export it:  aer-raspi export --demo --session latest --out DIR (MCAP, Parquet, CSV, BLF, ASC, MF4, the layouts and the run report)\n\
+         Report:     aer-raspi report --demo (laps, energy, what went wrong, the calibration)",
         car = config.car_id,
         file = std::fs::canonicalize(&config.store.path)
             .unwrap_or_else(|_| config.store.path.clone())

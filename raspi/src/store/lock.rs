@@ -98,6 +98,22 @@ pub fn take(lock_path: &Path, what: &str, holder: &str) -> Result<Held, LockErro
     })
 }
 
+/// Who holds `lock_path` now, as its note says, if that process still runs (Linux: its
+/// `/proc` entry). Looks without locking, so a service starting this instant is never refused
+/// for it.
+pub fn holder(lock_path: &Path) -> Option<String> {
+    let note = std::fs::read_to_string(lock_path).ok()?;
+    let pid: u32 = note
+        .strip_prefix("pid ")?
+        .split(|c: char| !c.is_ascii_digit())
+        .next()?
+        .parse()
+        .ok()?;
+    Path::new(&format!("/proc/{pid}"))
+        .exists()
+        .then(|| note.trim().to_owned())
+}
+
 /// This process as a lock's note names it: `pid 1234, aer-raspi demo, since 2026-11-28T10:00:00Z`.
 pub fn this_process(job: &str, now_us: i64) -> String {
     let since = super::utc(now_us);
@@ -115,15 +131,19 @@ mod tests {
     fn a_second_take_is_refused_naming_the_holder_and_free_once_released() {
         let dir = tempfile::tempdir().expect("temp dir");
         let path = store_lock_path(&dir.path().join("store.sqlite"));
-        let first = take(&path, "the store", "pid 1, aer-raspi demo").expect("first");
+        let first = take(&path, "the store", "pid 999999999, aer-raspi demo").expect("first");
         match take(&path, "the store", "pid 2, aer-raspi run") {
             Err(LockError::Held { holder, what }) => {
-                assert_eq!(holder, "pid 1, aer-raspi demo");
+                assert_eq!(holder, "pid 999999999, aer-raspi demo");
                 assert_eq!(what, "the store");
             }
             other => panic!("a second writer was not refused: {other:?}"),
         }
+        assert_eq!(holder(&path), None, "no process 999999999: not held");
         drop(first);
+        let mine = take(&path, "the store", &this_process("run", 0)).expect("free");
+        assert!(holder(&path).is_some_and(|h| h.contains(&std::process::id().to_string())));
+        drop(mine);
         let again = take(&path, "the store", "pid 3, aer-raspi run").expect("released");
         assert_eq!(
             std::fs::read_to_string(again.path()).expect("note"),
