@@ -18,6 +18,7 @@ pub mod forward;
 pub mod health;
 pub mod ingest;
 pub mod marks;
+pub mod markup;
 pub mod pit;
 pub mod rawlog;
 pub mod report;

@@ -118,7 +118,7 @@ enum Command {
         paths: Vec<PathBuf>,
         /// blf, asc or mf4 (CANalyzer, CANoe, CANape, asammdf) instead of candump text.
         #[arg(long, value_enum, requires = "out")]
-        format: Option<Format>,
+        format: Option<FrameFormat>,
         /// The file to write with --format.
         #[arg(long, requires = "format")]
         out: Option<PathBuf>,
@@ -138,6 +138,24 @@ const BROKER_ROUTINE: &[aer_host::logging::Routine] = &[
         messages: &["no-connection id", "Connection is already disconnected"],
     },
 ];
+
+/// The formats that hold frames, which raw log segments become.
+#[derive(Debug, Clone, Copy, clap::ValueEnum)]
+enum FrameFormat {
+    Blf,
+    Asc,
+    Mf4,
+}
+
+impl From<FrameFormat> for Format {
+    fn from(format: FrameFormat) -> Self {
+        match format {
+            FrameFormat::Blf => Self::Blf,
+            FrameFormat::Asc => Self::Asc,
+            FrameFormat::Mf4 => Self::Mf4,
+        }
+    }
+}
 
 /// Which store a store command reads or changes.
 #[derive(Args, Debug, Clone, Copy, Default)]
@@ -311,7 +329,7 @@ fn run() -> Result<()> {
     if let Command::RawExport { paths, format, out } = &cli.command {
         return match (format, out) {
             (Some(format), Some(out)) => {
-                let written = aer_raspi::export::raw_log::to_file(paths, *format, out)?;
+                let written = aer_raspi::export::raw_log::to_file(paths, (*format).into(), out)?;
                 println!(
                     "{} frames to {} ({} bytes)",
                     written.rows,

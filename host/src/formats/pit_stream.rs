@@ -28,13 +28,19 @@ use thiserror::Error;
 /// JSON text.
 pub const ROOT_SUFFIX: &str = "-pit";
 
+/// The pits' topics' root for the car whose topics are below `car_prefix` (`aer/car1` ->
+/// `aer-pit/car1`): the stream, the history, the lap marks.
+pub fn pit_root(car_prefix: &str) -> String {
+    match car_prefix.rsplit_once('/') {
+        Some((root, car)) => format!("{root}{ROOT_SUFFIX}/{car}"),
+        None => format!("{car_prefix}{ROOT_SUFFIX}"),
+    }
+}
+
 /// The stream's topic for the car whose topics are below `car_prefix` (`aer/car1` ->
 /// `aer-pit/car1/stream`).
 pub fn topic(car_prefix: &str) -> String {
-    match car_prefix.rsplit_once('/') {
-        Some((root, car)) => format!("{root}{ROOT_SUFFIX}/{car}/stream"),
-        None => format!("{car_prefix}{ROOT_SUFFIX}/stream"),
-    }
+    format!("{}/stream", pit_root(car_prefix))
 }
 /// Uncompressed payload at which a batch goes out before its window ends. With one more
 /// record (at most a [`MAX_PACKET`] packet) and even incompressible, the message stays under

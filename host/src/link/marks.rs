@@ -17,9 +17,7 @@ pub const MAX_BY: usize = 40;
 /// Where dashboards publish marks for the car below `car_prefix` (`aer/car1` ->
 /// `aer-pit/car1/marks`).
 pub fn topic(car_prefix: &str) -> String {
-    let stream = crate::formats::pit_stream::topic(car_prefix);
-    let base = stream.strip_suffix("/stream").unwrap_or(&stream);
-    format!("{base}/marks")
+    format!("{}/marks", crate::formats::pit_stream::pit_root(car_prefix))
 }
 
 /// One mark.

@@ -21,9 +21,10 @@ pub const MAX_REPLY: usize = 40;
 /// The history topics' root for the car below `car_prefix` (`aer/car1` ->
 /// `aer-pit/car1/history`).
 pub fn root(car_prefix: &str) -> String {
-    let stream = crate::formats::pit_stream::topic(car_prefix);
-    let base = stream.strip_suffix("/stream").unwrap_or(&stream);
-    format!("{base}/history")
+    format!(
+        "{}/history",
+        crate::formats::pit_stream::pit_root(car_prefix)
+    )
 }
 
 /// Where a pit publishes its requests.

@@ -202,10 +202,13 @@ pub fn events(
     let store = located.read(notes)?;
     let id = given_or_open(&store.db, id, notes)?;
     let events = crate::store::events::list(&store.db, id)?;
-    if events.is_empty() {
-        bail!("session {id} recorded no events (no mark, no problem, no drop, no loop point)");
-    }
     writeln!(out, "time (UTC)\tkind\tname\ttext")?;
+    if events.is_empty() {
+        writeln!(
+            notes,
+            "session {id} recorded no events: no mark, no problem, no drop, no loop point"
+        )?;
+    }
     for e in events {
         writeln!(
             out,

@@ -6,6 +6,7 @@
 
 use super::mcap::topic;
 use super::{ExportError, Written};
+use crate::markup::escape;
 use aer::runtime::SignalMeta;
 use aer::telemetry::Telemetry;
 use serde_json::{Value, json};
@@ -214,20 +215,20 @@ pub fn plotjuggler_layout(telemetry: &str, tabs: &[Tab]) -> String {
         let _ = writeln!(
             out,
             "  <Tab tab_name=\"{}\" containers=\"1\">\n   <Container>\n    <DockSplitter orientation=\"-\" count=\"{count}\" sizes=\"{sizes}\">",
-            xml(tab.title)
+            escape(tab.title)
         );
         for plot in &tab.plots {
             let _ = writeln!(
                 out,
                 "     <DockArea name=\"{}\">\n      <plot mode=\"TimeSeries\" style=\"{}\" flip_x=\"false\" flip_y=\"false\">\n       <range left=\"0\" right=\"1\" top=\"1\" bottom=\"0\"/>\n       <limitY/>",
-                xml(&plot.title),
+                escape(&plot.title),
                 if plot.states { "Steps" } else { "Lines" }
             );
             for (i, field) in plot.fields.iter().enumerate() {
                 let _ = writeln!(
                     out,
                     "       <curve name=\"{}/{field}\" color=\"{}\"/>",
-                    xml(telemetry),
+                    escape(telemetry),
                     COLORS[i % COLORS.len()]
                 );
             }
@@ -237,13 +238,6 @@ pub fn plotjuggler_layout(telemetry: &str, tabs: &[Tab]) -> String {
     }
     out.push_str("  <currentTabIndex index=\"0\"/>\n </tabbed_widget>\n <use_relative_time_offset enabled=\"1\"/>\n <previouslyLoaded_Datafiles>\n  <fileInfo filename=\"session.mcap\" prefix=\"\">\n   <selected_datasources value=\"\"/>\n  </fileInfo>\n </previouslyLoaded_Datafiles>\n</root>\n");
     out
-}
-
-fn xml(text: &str) -> String {
-    text.replace('&', "&amp;")
-        .replace('<', "&lt;")
-        .replace('>', "&gt;")
-        .replace('"', "&quot;")
 }
 
 #[cfg(test)]

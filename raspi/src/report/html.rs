@@ -2,9 +2,10 @@
 //! the car or off it, with nothing else beside it.
 
 use super::compare;
-use super::plot::{self, Series, escape};
-use super::text::{self, heading, lap_rule, stretch_header, stretch_row};
+use super::plot::{self, Series};
+use super::text::{self, heading, lap_rule};
 use super::{Comparison, SessionReport};
+use crate::markup::escape;
 use crate::store::calibration::number;
 use crate::store::clock::describe_step;
 use crate::store::utc;
@@ -75,21 +76,7 @@ h2{{margin-top:28px;border-bottom:1px solid #ddd}}</style></head><body>"
     );
 
     let _ = write!(out, "<h2>Laps</h2><p>{}.</p>", escape(&lap_rule(report)));
-    let mut header = vec!["lap".to_owned()];
-    header.extend(stretch_header());
-    let mut rows: Vec<Vec<String>> = report
-        .laps
-        .iter()
-        .enumerate()
-        .map(|(i, lap)| {
-            let mut row = vec![text::lap_name(report, i)];
-            row.extend(stretch_row(lap));
-            row
-        })
-        .collect();
-    let mut whole = vec!["session".to_owned()];
-    whole.extend(stretch_row(&report.whole));
-    rows.push(whole);
+    let (header, rows) = text::lap_table(report);
     table(&mut out, &header, &rows);
     out.push_str("<p>Energy: drawn from the battery less regenerated. Speed comes from the motor speed through the gear ratio and wheel radius: the telemetry has no wheel-speed sensor, so wheel slip cannot be shown.</p>");
 

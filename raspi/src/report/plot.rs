@@ -2,6 +2,7 @@
 //! anywhere). A long session is thinned to the lowest and highest value per horizontal pixel,
 //! so a peak is never lost and the page stays small.
 
+use crate::markup::escape;
 use std::fmt::Write;
 
 const WIDTH: f64 = 960.0;
@@ -212,14 +213,6 @@ fn tick(value: f64, step: f64) -> String {
         let decimals = (-step.log10().floor()) as usize;
         format!("{value:.decimals$}")
     }
-}
-
-/// Text for SVG and HTML.
-pub fn escape(text: &str) -> String {
-    text.replace('&', "&amp;")
-        .replace('<', "&lt;")
-        .replace('>', "&gt;")
-        .replace('"', "&quot;")
 }
 
 #[cfg(test)]

@@ -110,6 +110,26 @@ fn table(out: &mut String, header: &[String], rows: &[Vec<String>]) {
     }
 }
 
+/// The laps' table: a row per lap, then the whole session's, under their header.
+pub fn lap_table(report: &SessionReport) -> (Vec<String>, Vec<Vec<String>>) {
+    let mut rows: Vec<Vec<String>> = report
+        .laps
+        .iter()
+        .enumerate()
+        .map(|(i, lap)| {
+            let mut row = vec![lap_name(report, i)];
+            row.extend(stretch_row(lap));
+            row
+        })
+        .collect();
+    let mut whole = vec!["session".to_owned()];
+    whole.extend(stretch_row(&report.whole));
+    rows.push(whole);
+    let mut header = vec!["lap".to_owned()];
+    header.extend(stretch_header());
+    (header, rows)
+}
+
 /// Lap `index`'s name: its number, and for a first lap the session began in the middle of
 /// (the car already moving at its first packet, a `session new` mid-run), that it is partial.
 pub fn lap_name(report: &SessionReport, index: usize) -> String {
@@ -149,21 +169,7 @@ pub fn render(report: &SessionReport, comparison: Option<&Comparison>) -> String
     let mut out = String::new();
     let _ = writeln!(out, "{}\n", heading(report));
     let _ = writeln!(out, "Laps ({}):", lap_rule(report));
-    let mut rows: Vec<Vec<String>> = report
-        .laps
-        .iter()
-        .enumerate()
-        .map(|(i, lap)| {
-            let mut row = vec![lap_name(report, i)];
-            row.extend(stretch_row(lap));
-            row
-        })
-        .collect();
-    let mut whole = vec!["session".to_owned()];
-    whole.extend(stretch_row(&report.whole));
-    rows.push(whole);
-    let mut header = vec!["lap".to_owned()];
-    header.extend(stretch_header());
+    let (header, rows) = lap_table(report);
     table(&mut out, &header, &rows);
     if report.laps.is_empty() {
         let _ = writeln!(out, "  (no lap completed)");

@@ -76,6 +76,7 @@ impl Pipeline {
             // The demo's sessions get a calibration record as a pit master's would make.
             tokio::spawn(crate::xcp_gateway::rehearsal::run(
                 store.note_sender(),
+                counters.clone(),
                 now_us,
                 cancel.child_token(),
             ));

@@ -29,7 +29,13 @@ pub const PARAMETER: &str = "traction_kp";
 pub const TRACTION_KP_STEPS: [f32; 3] = [450.0, 500.0, 400.0];
 
 /// Records the desk's connection and its changes into the open session until `cancel`.
-pub async fn run(record: NoteSender, now_us: fn() -> i64, cancel: CancellationToken) {
+/// Each accepted change counts in `counters` as the gateway's would (`calibration_changes`).
+pub async fn run(
+    record: NoteSender,
+    counters: std::sync::Arc<aer_host::reports::counters::Counters>,
+    now_us: fn() -> i64,
+    cancel: CancellationToken,
+) {
     let mut desk = Desk::default();
     for entry in desk.connect(now_us()) {
         record.send(entry);
@@ -40,6 +46,9 @@ pub async fn run(record: NoteSender, now_us: fn() -> i64, cancel: CancellationTo
             () = cancel.cancelled() => return,
         }
         for entry in desk.change(now_us()) {
+            if entry.accepted {
+                aer_host::reports::counters::Counters::bump(&counters.calibration_changes);
+            }
             record.send(entry);
         }
     }

@@ -9,6 +9,7 @@
 //! links and the data block's length are written again.
 
 use super::{FrameWriter, Summary};
+use crate::markup::escape;
 use aer_host::formats::raw_format::Frame;
 use embedded_can::Id;
 use std::io::{self, Seek, SeekFrom, Write};
@@ -327,13 +328,6 @@ fn header_comment(metadata: &[(String, String)], channels: &str) -> String {
     }
     xml.push_str("</common_properties></HDcomment>");
     xml
-}
-
-fn escape(text: &str) -> String {
-    text.replace('&', "&amp;")
-        .replace('<', "&lt;")
-        .replace('>', "&gt;")
-        .replace('"', "&quot;")
 }
 
 #[cfg(test)]
