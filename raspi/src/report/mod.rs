@@ -7,7 +7,7 @@
 //! speed, power and torque against distance. `--compare` sets another session beside it:
 //! speed against distance, the time delta, and the calibration values that differ.
 //!
-//! [`run`] reads the telemetry, [`summary`] and [`compare`] compute, [`text`] and [`html`]
+//! [`run`] reads the telemetry, [`summary`] and [`mod@compare`] compute, [`text`] and [`html`]
 //! write (`report.txt`, `report.html` with its plots inline, [`plot`]); [`resample`] puts the
 //! run on a 100 Hz grid.
 

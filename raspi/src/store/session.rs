@@ -72,7 +72,7 @@ pub struct Session {
 impl Session {
     /// The receive times (us since the epoch, both ends included) of what belongs to this
     /// session: from its start to just before its end, where the next one starts. The store
-    /// files rows by it ([`Filing::session_of`]) and the export takes the raw log's frames by
+    /// files rows by it (`Filing::session_of`) and the export takes the raw log's frames by
     /// it, so every format of a session holds the same traffic. `None` at the end: still open.
     pub fn window(&self) -> (u64, Option<u64>) {
         let micros = |us: i64| u64::try_from(us).unwrap_or(0);
