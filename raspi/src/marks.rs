@@ -10,6 +10,10 @@ use tokio::sync::mpsc::Receiver;
 use tokio_util::sync::CancellationToken;
 use tracing::{info, warn};
 
+/// The closest two marks may come: closer ones are refused (counted), so a hostile or
+/// stuck client cannot fill the session's record.
+pub const MIN_GAP: std::time::Duration = std::time::Duration::from_millis(500);
+
 /// Stores each mark that arrives until `cancel`; a payload that is no mark is counted
 /// (`marks_refused`) and logged.
 pub async fn run(
@@ -18,6 +22,7 @@ pub async fn run(
     counters: Arc<Counters>,
     cancel: CancellationToken,
 ) {
+    let mut throttle = Throttle::default();
     loop {
         let payload = tokio::select! {
             received = marks.recv() => match received {
@@ -27,6 +32,17 @@ pub async fn run(
             () = cancel.cancelled() => return,
         };
         match Mark::parse(&payload) {
+            // A client on the broker that floods marks fills no store: a lap is seconds long.
+            Ok(_) if !throttle.admit(std::time::Instant::now()) => {
+                let count = Counters::bump(&counters.marks_refused);
+                if worth_logging(count) {
+                    warn!(
+                        count,
+                        "lap marks closer than {} ms: refused",
+                        MIN_GAP.as_millis()
+                    );
+                }
+            }
             Ok(mark) => {
                 info!(by = %mark.by, ts = mark.ts, "lap mark");
                 store.send(event(&mark));
@@ -38,6 +54,25 @@ pub async fn run(
                 }
             }
         }
+    }
+}
+
+/// At most one mark per [`MIN_GAP`].
+#[derive(Debug, Default)]
+pub struct Throttle {
+    last: Option<std::time::Instant>,
+}
+
+impl Throttle {
+    /// Whether a mark arriving at `now` is taken (and, if so, counts as the last).
+    pub fn admit(&mut self, now: std::time::Instant) -> bool {
+        let taken = self
+            .last
+            .is_none_or(|last| now.saturating_duration_since(last) >= MIN_GAP);
+        if taken {
+            self.last = Some(now);
+        }
+        taken
     }
 }
 
@@ -55,6 +90,19 @@ pub fn event(mark: &Mark) -> Event {
 mod tests {
     use super::*;
     use crate::store::writer::Note;
+
+    #[test]
+    fn marks_closer_than_the_gap_are_refused() {
+        let start = std::time::Instant::now();
+        let mut throttle = Throttle::default();
+        assert!(throttle.admit(start));
+        assert!(!throttle.admit(start + MIN_GAP / 2));
+        assert!(throttle.admit(start + MIN_GAP));
+        assert!(
+            !throttle.admit(start + MIN_GAP + MIN_GAP / 2),
+            "counted from the last taken"
+        );
+    }
 
     #[tokio::test]
     async fn a_mark_is_stored_as_an_event_and_a_bad_one_counted() {

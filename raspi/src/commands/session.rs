@@ -202,13 +202,10 @@ pub fn events(
     let store = located.read(notes)?;
     let id = given_or_open(&store.db, id, notes)?;
     let events = crate::store::events::list(&store.db, id)?;
-    writeln!(out, "time (UTC)\tkind\tname\ttext")?;
     if events.is_empty() {
-        writeln!(
-            notes,
-            "session {id} recorded no events: no mark, no problem, no drop, no loop point"
-        )?;
+        bail!("session {id} recorded no events: no mark, no problem, no drop, no loop point");
     }
+    writeln!(out, "time (UTC)\tkind\tname\ttext")?;
     for e in events {
         writeln!(
             out,

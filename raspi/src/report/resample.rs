@@ -7,7 +7,7 @@
 
 use super::ReportError;
 use super::run::Run;
-use crate::export::columns::{TableData, Values};
+use crate::export::columns::TableData;
 use crate::export::load::{self, Selection};
 use aer::tables::TABLES;
 use aer_host::run::derived::CHANNELS;
@@ -54,17 +54,7 @@ pub fn signals(
 
 fn column_of(data: &TableData, name: &str) -> Option<Column> {
     let (column, values) = data.columns().find(|(c, _)| c.name == name)?;
-    let numbers: Vec<f64> = match values {
-        Values::Bool(v) => v
-            .iter()
-            .map(|b| b.map_or(f64::NAN, |b| f64::from(u8::from(b))))
-            .collect(),
-        Values::Int(v) => v.iter().map(|x| x.map_or(f64::NAN, |x| x as f64)).collect(),
-        Values::UInt(v) => v.iter().map(|x| x.map_or(f64::NAN, |x| x as f64)).collect(),
-        Values::F32(v) => v.iter().map(|x| x.map_or(f64::NAN, f64::from)).collect(),
-        Values::F64(v) => v.iter().map(|x| x.unwrap_or(f64::NAN)).collect(),
-        Values::Text(_) => return None,
-    };
+    let numbers = super::run::numbers(values)?;
     Some(Column {
         name: format!("{}.{name}", data.table.name),
         times: data

@@ -143,8 +143,8 @@ pub fn load(
     })
 }
 
-/// A column as numbers (flags as 0 and 1); `None` for text.
-fn numbers(values: &Values) -> Option<Vec<f64>> {
+/// A column as numbers (flags as 0 and 1, NaN where empty); `None` for text.
+pub(crate) fn numbers(values: &Values) -> Option<Vec<f64>> {
     let or_nan = |v: Option<f64>| v.unwrap_or(f64::NAN);
     Some(match values {
         Values::Bool(v) => v

@@ -88,10 +88,16 @@ pub fn take(lock_path: &Path, what: &str, holder: &str) -> Result<Held, LockErro
         }
         Err(TryLockError::Error(source)) => return Err(io(source)),
     }
-    file.set_len(0).map_err(io)?;
-    file.rewind().map_err(io)?;
-    writeln!(file, "{holder}").map_err(io)?;
-    file.flush().map_err(io)?;
+    // Who holds it is a courtesy too: on a full disk the lock holds without its note, and the
+    // service runs (its drops counted) rather than refusing to start.
+    let noted = file
+        .set_len(0)
+        .and_then(|()| file.rewind())
+        .and_then(|()| writeln!(file, "{holder}"))
+        .and_then(|()| file.flush());
+    if let Err(error) = noted {
+        tracing::warn!(%error, path = %lock_path.display(), "the lock holds, but its note of who holds it could not be written");
+    }
     Ok(Held {
         _file: file,
         path: lock_path.to_owned(),
