@@ -10,7 +10,7 @@ use super::runtime::{
 /// Fingerprint of the schema's wire layout (ids, bit positions, types, scaling, value names).
 /// Sent by the firmware and checked by receivers, so a mismatched flash is detected instead of
 /// mis-decoded.
-pub const SCHEMA_FINGERPRINT: u32 = 0xA5C2387C;
+pub const SCHEMA_FINGERPRINT: u32 = 0x42D2C467;
 
 /// Values of `MCU1.MCU_RotateDirection`.
 ///
@@ -8888,10 +8888,26 @@ impl CanMessage for OrionCellVoltages {
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct PccStatus {
-    /// Precharge state machine.
+    /// Precharge state machine (the low four bits of byte 0: a reader of the whole byte sees the same values while no bit above them is set).
     ///
-    /// `PCC_State`: 8 bits from bit 0 (Intel), unsigned, range [0.0, 6.0].
+    /// `PCC_State`: 4 bits from bit 0 (Intel), unsigned, range [0.0, 6.0].
     pub pcc_state: PrechargeState,
+    /// Latched with PCC_ErrorTooFast: the precharge reached the target faster than any precharge through the resistor (under 500 ms): AIR+ welded or the precharge resistor bypassed. Needs a power cycle.
+    ///
+    /// `PCC_ErrorBypassed`: 1 bit from bit 4 (Intel), unsigned, range [0.0, 1.0].
+    pub pcc_error_bypassed: bool,
+    /// Latched: a precharge-resistor thermistor read its limit (69 degC) or more (PCC_Thermal). Needs a power cycle.
+    ///
+    /// `PCC_ErrorResistorHot`: 1 bit from bit 5 (Intel), unsigned, range [0.0, 1.0].
+    pub pcc_error_resistor_hot: bool,
+    /// Now: the accumulator's V/F converter gives no pulses (0 V, or unplugged, unpowered or broken), so PCC_AccumulatorVoltage is unknown.
+    ///
+    /// `PCC_AccumulatorNoPulses`: 1 bit from bit 6 (Intel), unsigned, range [0.0, 1.0].
+    pub pcc_accumulator_no_pulses: bool,
+    /// Now: the tractive system's V/F converter gives no pulses (0 V, or unplugged, unpowered or broken), so PCC_TractiveVoltage is unknown.
+    ///
+    /// `PCC_TractiveNoPulses`: 1 bit from bit 7 (Intel), unsigned, range [0.0, 1.0].
+    pub pcc_tractive_no_pulses: bool,
     /// Error bit 0x01: target reached faster than the minimum time (short or wrong measurement).
     ///
     /// `PCC_ErrorTooFast`: 1 bit from bit 8 (Intel), unsigned, range [0.0, 1.0].
@@ -8908,15 +8924,27 @@ pub struct PccStatus {
     ///
     /// `PCC_ErrorShutdown`: 1 bit from bit 11 (Intel), unsigned, range [0.0, 1.0].
     pub pcc_error_shutdown: bool,
+    /// Error bit 0x10, latched: the accumulator's V/F converter fell silent after reading 60 V or more, or while energised or discharging: its voltage is unknown. Needs a power cycle.
+    ///
+    /// `PCC_ErrorAccumulatorSilent`: 1 bit from bit 12 (Intel), unsigned, range [0.0, 1.0].
+    pub pcc_error_accumulator_silent: bool,
+    /// Error bit 0x20, latched: the tractive system's V/F converter fell silent after reading 60 V or more, or while energised or discharging: the tractive system may be live. Needs a power cycle.
+    ///
+    /// `PCC_ErrorTractiveSilent`: 1 bit from bit 13 (Intel), unsigned, range [0.0, 1.0].
+    pub pcc_error_tractive_silent: bool,
+    /// Error bit 0x40, latched: the tractive system began to fall but did not read below 60 V within 5 s (the rules' discharge time): an AIR welded or the discharge circuit failed. Needs a power cycle.
+    ///
+    /// `PCC_ErrorNoDischarge`: 1 bit from bit 14 (Intel), unsigned, range [0.0, 1.0].
+    pub pcc_error_no_discharge: bool,
     /// Error bit 0x80: state machine in an undefined state.
     ///
     /// `PCC_ErrorUndefinedState`: 1 bit from bit 15 (Intel), unsigned, range [0.0, 1.0].
     pub pcc_error_undefined_state: bool,
-    /// Accumulator voltage from the V/F converter.
+    /// Accumulator voltage from the V/F converter (unknown while PCC_AccumulatorNoPulses).
     ///
     /// `PCC_AccumulatorVoltage`: 16 bits from bit 16 (Intel), unsigned, physical = raw * 0.01, range [0.0, 655.35], unit `V`.
     pub pcc_accumulator_voltage: f64,
-    /// Tractive-system voltage from the V/F converter.
+    /// Tractive-system voltage from the V/F converter (unknown while PCC_TractiveNoPulses).
     ///
     /// `PCC_TractiveVoltage`: 16 bits from bit 32 (Intel), unsigned, physical = raw * 0.01, range [0.0, 655.35], unit `V`.
     pub pcc_tractive_voltage: f64,
@@ -8926,14 +8954,14 @@ pub struct PccStatus {
     pub pcc_precharge_progress: f64,
 }
 
-static PCC_STATUS_SIGNALS: [SignalMeta; 9] = [
+static PCC_STATUS_SIGNALS: [SignalMeta; 16] = [
     SignalMeta {
         name: "PCC_State",
         index: 0,
         unit: "",
-        comment: "Precharge state machine.",
+        comment: "Precharge state machine (the low four bits of byte 0: a reader of the whole byte sees the same values while no bit above them is set).",
         start_bit: 0,
-        len: 8,
+        len: 4,
         byte_order: ByteOrder::LittleEndian,
         signed: false,
         factor: 1.0,
@@ -8952,8 +8980,72 @@ static PCC_STATUS_SIGNALS: [SignalMeta; 9] = [
         multiplexed: false,
     },
     SignalMeta {
-        name: "PCC_ErrorTooFast",
+        name: "PCC_ErrorBypassed",
         index: 1,
+        unit: "",
+        comment: "Latched with PCC_ErrorTooFast: the precharge reached the target faster than any precharge through the resistor (under 500 ms): AIR+ welded or the precharge resistor bypassed. Needs a power cycle.",
+        start_bit: 4,
+        len: 1,
+        byte_order: ByteOrder::LittleEndian,
+        signed: false,
+        factor: 1.0,
+        offset: 0.0,
+        min: Some(0.0),
+        max: Some(1.0),
+        labels: &[],
+        multiplexed: false,
+    },
+    SignalMeta {
+        name: "PCC_ErrorResistorHot",
+        index: 2,
+        unit: "",
+        comment: "Latched: a precharge-resistor thermistor read its limit (69 degC) or more (PCC_Thermal). Needs a power cycle.",
+        start_bit: 5,
+        len: 1,
+        byte_order: ByteOrder::LittleEndian,
+        signed: false,
+        factor: 1.0,
+        offset: 0.0,
+        min: Some(0.0),
+        max: Some(1.0),
+        labels: &[],
+        multiplexed: false,
+    },
+    SignalMeta {
+        name: "PCC_AccumulatorNoPulses",
+        index: 3,
+        unit: "",
+        comment: "Now: the accumulator's V/F converter gives no pulses (0 V, or unplugged, unpowered or broken), so PCC_AccumulatorVoltage is unknown.",
+        start_bit: 6,
+        len: 1,
+        byte_order: ByteOrder::LittleEndian,
+        signed: false,
+        factor: 1.0,
+        offset: 0.0,
+        min: Some(0.0),
+        max: Some(1.0),
+        labels: &[],
+        multiplexed: false,
+    },
+    SignalMeta {
+        name: "PCC_TractiveNoPulses",
+        index: 4,
+        unit: "",
+        comment: "Now: the tractive system's V/F converter gives no pulses (0 V, or unplugged, unpowered or broken), so PCC_TractiveVoltage is unknown.",
+        start_bit: 7,
+        len: 1,
+        byte_order: ByteOrder::LittleEndian,
+        signed: false,
+        factor: 1.0,
+        offset: 0.0,
+        min: Some(0.0),
+        max: Some(1.0),
+        labels: &[],
+        multiplexed: false,
+    },
+    SignalMeta {
+        name: "PCC_ErrorTooFast",
+        index: 5,
         unit: "",
         comment: "Error bit 0x01: target reached faster than the minimum time (short or wrong measurement).",
         start_bit: 8,
@@ -8969,7 +9061,7 @@ static PCC_STATUS_SIGNALS: [SignalMeta; 9] = [
     },
     SignalMeta {
         name: "PCC_ErrorTooSlow",
-        index: 2,
+        index: 6,
         unit: "",
         comment: "Error bit 0x02: target not reached in time.",
         start_bit: 9,
@@ -8985,7 +9077,7 @@ static PCC_STATUS_SIGNALS: [SignalMeta; 9] = [
     },
     SignalMeta {
         name: "PCC_ErrorBmsTimeout",
-        index: 3,
+        index: 7,
         unit: "",
         comment: "Error bit 0x04: no BMS frame for 1.5 s.",
         start_bit: 10,
@@ -9001,7 +9093,7 @@ static PCC_STATUS_SIGNALS: [SignalMeta; 9] = [
     },
     SignalMeta {
         name: "PCC_ErrorShutdown",
-        index: 4,
+        index: 8,
         unit: "",
         comment: "Error bit 0x08: the shutdown input opened while the tractive system was energised; clears once the tractive system has read below 60 V for 200 ms, whether the shutdown circuit is open or closed again.",
         start_bit: 11,
@@ -9016,8 +9108,56 @@ static PCC_STATUS_SIGNALS: [SignalMeta; 9] = [
         multiplexed: false,
     },
     SignalMeta {
+        name: "PCC_ErrorAccumulatorSilent",
+        index: 9,
+        unit: "",
+        comment: "Error bit 0x10, latched: the accumulator's V/F converter fell silent after reading 60 V or more, or while energised or discharging: its voltage is unknown. Needs a power cycle.",
+        start_bit: 12,
+        len: 1,
+        byte_order: ByteOrder::LittleEndian,
+        signed: false,
+        factor: 1.0,
+        offset: 0.0,
+        min: Some(0.0),
+        max: Some(1.0),
+        labels: &[],
+        multiplexed: false,
+    },
+    SignalMeta {
+        name: "PCC_ErrorTractiveSilent",
+        index: 10,
+        unit: "",
+        comment: "Error bit 0x20, latched: the tractive system's V/F converter fell silent after reading 60 V or more, or while energised or discharging: the tractive system may be live. Needs a power cycle.",
+        start_bit: 13,
+        len: 1,
+        byte_order: ByteOrder::LittleEndian,
+        signed: false,
+        factor: 1.0,
+        offset: 0.0,
+        min: Some(0.0),
+        max: Some(1.0),
+        labels: &[],
+        multiplexed: false,
+    },
+    SignalMeta {
+        name: "PCC_ErrorNoDischarge",
+        index: 11,
+        unit: "",
+        comment: "Error bit 0x40, latched: the tractive system began to fall but did not read below 60 V within 5 s (the rules' discharge time): an AIR welded or the discharge circuit failed. Needs a power cycle.",
+        start_bit: 14,
+        len: 1,
+        byte_order: ByteOrder::LittleEndian,
+        signed: false,
+        factor: 1.0,
+        offset: 0.0,
+        min: Some(0.0),
+        max: Some(1.0),
+        labels: &[],
+        multiplexed: false,
+    },
+    SignalMeta {
         name: "PCC_ErrorUndefinedState",
-        index: 5,
+        index: 12,
         unit: "",
         comment: "Error bit 0x80: state machine in an undefined state.",
         start_bit: 15,
@@ -9033,9 +9173,9 @@ static PCC_STATUS_SIGNALS: [SignalMeta; 9] = [
     },
     SignalMeta {
         name: "PCC_AccumulatorVoltage",
-        index: 6,
+        index: 13,
         unit: "V",
-        comment: "Accumulator voltage from the V/F converter.",
+        comment: "Accumulator voltage from the V/F converter (unknown while PCC_AccumulatorNoPulses).",
         start_bit: 16,
         len: 16,
         byte_order: ByteOrder::LittleEndian,
@@ -9049,9 +9189,9 @@ static PCC_STATUS_SIGNALS: [SignalMeta; 9] = [
     },
     SignalMeta {
         name: "PCC_TractiveVoltage",
-        index: 7,
+        index: 14,
         unit: "V",
-        comment: "Tractive-system voltage from the V/F converter.",
+        comment: "Tractive-system voltage from the V/F converter (unknown while PCC_TractiveNoPulses).",
         start_bit: 32,
         len: 16,
         byte_order: ByteOrder::LittleEndian,
@@ -9065,7 +9205,7 @@ static PCC_STATUS_SIGNALS: [SignalMeta; 9] = [
     },
     SignalMeta {
         name: "PCC_PrechargeProgress",
-        index: 8,
+        index: 15,
         unit: "%",
         comment: "Tractive-system voltage as a percentage of the accumulator voltage.",
         start_bit: 48,
@@ -9107,13 +9247,26 @@ impl PccStatus {
     /// decoded as they are; only a short payload fails.
     pub fn decode(data: &[u8]) -> Result<Self, DecodeError> {
         let data = runtime::payload::<8>(data, "PCC_Status")?;
-        let pcc_state = Self::pcc_state_from_raw(bits::read_le(data, 0, 8) as u8);
+        let pcc_state = Self::pcc_state_from_raw(bits::read_le(data, 0, 4) as u8);
+        let pcc_error_bypassed = Self::pcc_error_bypassed_from_raw(bits::read_le(data, 4, 1) as u8);
+        let pcc_error_resistor_hot =
+            Self::pcc_error_resistor_hot_from_raw(bits::read_le(data, 5, 1) as u8);
+        let pcc_accumulator_no_pulses =
+            Self::pcc_accumulator_no_pulses_from_raw(bits::read_le(data, 6, 1) as u8);
+        let pcc_tractive_no_pulses =
+            Self::pcc_tractive_no_pulses_from_raw(bits::read_le(data, 7, 1) as u8);
         let pcc_error_too_fast = Self::pcc_error_too_fast_from_raw(bits::read_le(data, 8, 1) as u8);
         let pcc_error_too_slow = Self::pcc_error_too_slow_from_raw(bits::read_le(data, 9, 1) as u8);
         let pcc_error_bms_timeout =
             Self::pcc_error_bms_timeout_from_raw(bits::read_le(data, 10, 1) as u8);
         let pcc_error_shutdown =
             Self::pcc_error_shutdown_from_raw(bits::read_le(data, 11, 1) as u8);
+        let pcc_error_accumulator_silent =
+            Self::pcc_error_accumulator_silent_from_raw(bits::read_le(data, 12, 1) as u8);
+        let pcc_error_tractive_silent =
+            Self::pcc_error_tractive_silent_from_raw(bits::read_le(data, 13, 1) as u8);
+        let pcc_error_no_discharge =
+            Self::pcc_error_no_discharge_from_raw(bits::read_le(data, 14, 1) as u8);
         let pcc_error_undefined_state =
             Self::pcc_error_undefined_state_from_raw(bits::read_le(data, 15, 1) as u8);
         let pcc_accumulator_voltage =
@@ -9124,10 +9277,17 @@ impl PccStatus {
             Self::pcc_precharge_progress_from_raw(bits::read_le(data, 48, 16) as u16);
         Ok(Self {
             pcc_state,
+            pcc_error_bypassed,
+            pcc_error_resistor_hot,
+            pcc_accumulator_no_pulses,
+            pcc_tractive_no_pulses,
             pcc_error_too_fast,
             pcc_error_too_slow,
             pcc_error_bms_timeout,
             pcc_error_shutdown,
+            pcc_error_accumulator_silent,
+            pcc_error_tractive_silent,
+            pcc_error_no_discharge,
             pcc_error_undefined_state,
             pcc_accumulator_voltage,
             pcc_tractive_voltage,
@@ -9142,8 +9302,38 @@ impl PccStatus {
         bits::write_le(
             out,
             0,
-            8,
+            4,
             u64::from(Self::pcc_state_to_raw(self.pcc_state)?),
+        );
+        bits::write_le(
+            out,
+            4,
+            1,
+            u64::from(Self::pcc_error_bypassed_to_raw(self.pcc_error_bypassed)?),
+        );
+        bits::write_le(
+            out,
+            5,
+            1,
+            u64::from(Self::pcc_error_resistor_hot_to_raw(
+                self.pcc_error_resistor_hot,
+            )?),
+        );
+        bits::write_le(
+            out,
+            6,
+            1,
+            u64::from(Self::pcc_accumulator_no_pulses_to_raw(
+                self.pcc_accumulator_no_pulses,
+            )?),
+        );
+        bits::write_le(
+            out,
+            7,
+            1,
+            u64::from(Self::pcc_tractive_no_pulses_to_raw(
+                self.pcc_tractive_no_pulses,
+            )?),
         );
         bits::write_le(
             out,
@@ -9170,6 +9360,30 @@ impl PccStatus {
             11,
             1,
             u64::from(Self::pcc_error_shutdown_to_raw(self.pcc_error_shutdown)?),
+        );
+        bits::write_le(
+            out,
+            12,
+            1,
+            u64::from(Self::pcc_error_accumulator_silent_to_raw(
+                self.pcc_error_accumulator_silent,
+            )?),
+        );
+        bits::write_le(
+            out,
+            13,
+            1,
+            u64::from(Self::pcc_error_tractive_silent_to_raw(
+                self.pcc_error_tractive_silent,
+            )?),
+        );
+        bits::write_le(
+            out,
+            14,
+            1,
+            u64::from(Self::pcc_error_no_discharge_to_raw(
+                self.pcc_error_no_discharge,
+            )?),
         );
         bits::write_le(
             out,
@@ -9210,22 +9424,36 @@ impl PccStatus {
     pub fn visit(&self, visitor: &mut impl SignalVisitor) {
         let v = self.pcc_state;
         visitor.signal(&PCC_STATUS_SIGNALS[0], Value::from(v.into_raw()), v.label());
-        let v = self.pcc_error_too_fast;
+        let v = self.pcc_error_bypassed;
         visitor.signal(&PCC_STATUS_SIGNALS[1], Value::from(v), None);
-        let v = self.pcc_error_too_slow;
+        let v = self.pcc_error_resistor_hot;
         visitor.signal(&PCC_STATUS_SIGNALS[2], Value::from(v), None);
-        let v = self.pcc_error_bms_timeout;
+        let v = self.pcc_accumulator_no_pulses;
         visitor.signal(&PCC_STATUS_SIGNALS[3], Value::from(v), None);
-        let v = self.pcc_error_shutdown;
+        let v = self.pcc_tractive_no_pulses;
         visitor.signal(&PCC_STATUS_SIGNALS[4], Value::from(v), None);
-        let v = self.pcc_error_undefined_state;
+        let v = self.pcc_error_too_fast;
         visitor.signal(&PCC_STATUS_SIGNALS[5], Value::from(v), None);
-        let v = self.pcc_accumulator_voltage;
+        let v = self.pcc_error_too_slow;
         visitor.signal(&PCC_STATUS_SIGNALS[6], Value::from(v), None);
-        let v = self.pcc_tractive_voltage;
+        let v = self.pcc_error_bms_timeout;
         visitor.signal(&PCC_STATUS_SIGNALS[7], Value::from(v), None);
-        let v = self.pcc_precharge_progress;
+        let v = self.pcc_error_shutdown;
         visitor.signal(&PCC_STATUS_SIGNALS[8], Value::from(v), None);
+        let v = self.pcc_error_accumulator_silent;
+        visitor.signal(&PCC_STATUS_SIGNALS[9], Value::from(v), None);
+        let v = self.pcc_error_tractive_silent;
+        visitor.signal(&PCC_STATUS_SIGNALS[10], Value::from(v), None);
+        let v = self.pcc_error_no_discharge;
+        visitor.signal(&PCC_STATUS_SIGNALS[11], Value::from(v), None);
+        let v = self.pcc_error_undefined_state;
+        visitor.signal(&PCC_STATUS_SIGNALS[12], Value::from(v), None);
+        let v = self.pcc_accumulator_voltage;
+        visitor.signal(&PCC_STATUS_SIGNALS[13], Value::from(v), None);
+        let v = self.pcc_tractive_voltage;
+        visitor.signal(&PCC_STATUS_SIGNALS[14], Value::from(v), None);
+        let v = self.pcc_precharge_progress;
+        visitor.signal(&PCC_STATUS_SIGNALS[15], Value::from(v), None);
     }
 
     /// Decodes a payload and calls `visitor` with every present signal's physical value, as
@@ -9234,13 +9462,26 @@ impl PccStatus {
     /// is what `visit` hands on), so nothing is stored and read back.
     pub fn decode_visit(data: &[u8], visitor: &mut impl SignalVisitor) -> Result<(), DecodeError> {
         let data = runtime::payload::<8>(data, "PCC_Status")?;
-        let pcc_state = bits::read_le(data, 0, 8) as u8;
+        let pcc_state = bits::read_le(data, 0, 4) as u8;
+        let pcc_error_bypassed = Self::pcc_error_bypassed_from_raw(bits::read_le(data, 4, 1) as u8);
+        let pcc_error_resistor_hot =
+            Self::pcc_error_resistor_hot_from_raw(bits::read_le(data, 5, 1) as u8);
+        let pcc_accumulator_no_pulses =
+            Self::pcc_accumulator_no_pulses_from_raw(bits::read_le(data, 6, 1) as u8);
+        let pcc_tractive_no_pulses =
+            Self::pcc_tractive_no_pulses_from_raw(bits::read_le(data, 7, 1) as u8);
         let pcc_error_too_fast = Self::pcc_error_too_fast_from_raw(bits::read_le(data, 8, 1) as u8);
         let pcc_error_too_slow = Self::pcc_error_too_slow_from_raw(bits::read_le(data, 9, 1) as u8);
         let pcc_error_bms_timeout =
             Self::pcc_error_bms_timeout_from_raw(bits::read_le(data, 10, 1) as u8);
         let pcc_error_shutdown =
             Self::pcc_error_shutdown_from_raw(bits::read_le(data, 11, 1) as u8);
+        let pcc_error_accumulator_silent =
+            Self::pcc_error_accumulator_silent_from_raw(bits::read_le(data, 12, 1) as u8);
+        let pcc_error_tractive_silent =
+            Self::pcc_error_tractive_silent_from_raw(bits::read_le(data, 13, 1) as u8);
+        let pcc_error_no_discharge =
+            Self::pcc_error_no_discharge_from_raw(bits::read_le(data, 14, 1) as u8);
         let pcc_error_undefined_state =
             Self::pcc_error_undefined_state_from_raw(bits::read_le(data, 15, 1) as u8);
         let pcc_accumulator_voltage =
@@ -9256,41 +9497,76 @@ impl PccStatus {
         );
         visitor.signal(
             &PCC_STATUS_SIGNALS[1],
-            Value::from(pcc_error_too_fast),
+            Value::from(pcc_error_bypassed),
             None,
         );
         visitor.signal(
             &PCC_STATUS_SIGNALS[2],
-            Value::from(pcc_error_too_slow),
+            Value::from(pcc_error_resistor_hot),
             None,
         );
         visitor.signal(
             &PCC_STATUS_SIGNALS[3],
-            Value::from(pcc_error_bms_timeout),
+            Value::from(pcc_accumulator_no_pulses),
             None,
         );
         visitor.signal(
             &PCC_STATUS_SIGNALS[4],
-            Value::from(pcc_error_shutdown),
+            Value::from(pcc_tractive_no_pulses),
             None,
         );
         visitor.signal(
             &PCC_STATUS_SIGNALS[5],
-            Value::from(pcc_error_undefined_state),
+            Value::from(pcc_error_too_fast),
             None,
         );
         visitor.signal(
             &PCC_STATUS_SIGNALS[6],
-            Value::from(pcc_accumulator_voltage),
+            Value::from(pcc_error_too_slow),
             None,
         );
         visitor.signal(
             &PCC_STATUS_SIGNALS[7],
-            Value::from(pcc_tractive_voltage),
+            Value::from(pcc_error_bms_timeout),
             None,
         );
         visitor.signal(
             &PCC_STATUS_SIGNALS[8],
+            Value::from(pcc_error_shutdown),
+            None,
+        );
+        visitor.signal(
+            &PCC_STATUS_SIGNALS[9],
+            Value::from(pcc_error_accumulator_silent),
+            None,
+        );
+        visitor.signal(
+            &PCC_STATUS_SIGNALS[10],
+            Value::from(pcc_error_tractive_silent),
+            None,
+        );
+        visitor.signal(
+            &PCC_STATUS_SIGNALS[11],
+            Value::from(pcc_error_no_discharge),
+            None,
+        );
+        visitor.signal(
+            &PCC_STATUS_SIGNALS[12],
+            Value::from(pcc_error_undefined_state),
+            None,
+        );
+        visitor.signal(
+            &PCC_STATUS_SIGNALS[13],
+            Value::from(pcc_accumulator_voltage),
+            None,
+        );
+        visitor.signal(
+            &PCC_STATUS_SIGNALS[14],
+            Value::from(pcc_tractive_voltage),
+            None,
+        );
+        visitor.signal(
+            &PCC_STATUS_SIGNALS[15],
             Value::from(pcc_precharge_progress),
             None,
         );
@@ -9314,9 +9590,57 @@ impl PccStatus {
                         signal: "PCC_State",
                     })?
             },
-            pcc_error_too_fast: {
+            pcc_error_bypassed: {
                 let v = source
                     .value(&PCC_STATUS_SIGNALS[1])
+                    .ok_or(EncodeError::MissingSignal {
+                        message: "PCC_Status",
+                        signal: "PCC_ErrorBypassed",
+                    })?;
+                v.to_bool().ok_or(EncodeError::InvalidValue {
+                    message: "PCC_Status",
+                    signal: "PCC_ErrorBypassed",
+                })?
+            },
+            pcc_error_resistor_hot: {
+                let v = source
+                    .value(&PCC_STATUS_SIGNALS[2])
+                    .ok_or(EncodeError::MissingSignal {
+                        message: "PCC_Status",
+                        signal: "PCC_ErrorResistorHot",
+                    })?;
+                v.to_bool().ok_or(EncodeError::InvalidValue {
+                    message: "PCC_Status",
+                    signal: "PCC_ErrorResistorHot",
+                })?
+            },
+            pcc_accumulator_no_pulses: {
+                let v = source
+                    .value(&PCC_STATUS_SIGNALS[3])
+                    .ok_or(EncodeError::MissingSignal {
+                        message: "PCC_Status",
+                        signal: "PCC_AccumulatorNoPulses",
+                    })?;
+                v.to_bool().ok_or(EncodeError::InvalidValue {
+                    message: "PCC_Status",
+                    signal: "PCC_AccumulatorNoPulses",
+                })?
+            },
+            pcc_tractive_no_pulses: {
+                let v = source
+                    .value(&PCC_STATUS_SIGNALS[4])
+                    .ok_or(EncodeError::MissingSignal {
+                        message: "PCC_Status",
+                        signal: "PCC_TractiveNoPulses",
+                    })?;
+                v.to_bool().ok_or(EncodeError::InvalidValue {
+                    message: "PCC_Status",
+                    signal: "PCC_TractiveNoPulses",
+                })?
+            },
+            pcc_error_too_fast: {
+                let v = source
+                    .value(&PCC_STATUS_SIGNALS[5])
                     .ok_or(EncodeError::MissingSignal {
                         message: "PCC_Status",
                         signal: "PCC_ErrorTooFast",
@@ -9328,7 +9652,7 @@ impl PccStatus {
             },
             pcc_error_too_slow: {
                 let v = source
-                    .value(&PCC_STATUS_SIGNALS[2])
+                    .value(&PCC_STATUS_SIGNALS[6])
                     .ok_or(EncodeError::MissingSignal {
                         message: "PCC_Status",
                         signal: "PCC_ErrorTooSlow",
@@ -9340,7 +9664,7 @@ impl PccStatus {
             },
             pcc_error_bms_timeout: {
                 let v = source
-                    .value(&PCC_STATUS_SIGNALS[3])
+                    .value(&PCC_STATUS_SIGNALS[7])
                     .ok_or(EncodeError::MissingSignal {
                         message: "PCC_Status",
                         signal: "PCC_ErrorBmsTimeout",
@@ -9352,7 +9676,7 @@ impl PccStatus {
             },
             pcc_error_shutdown: {
                 let v = source
-                    .value(&PCC_STATUS_SIGNALS[4])
+                    .value(&PCC_STATUS_SIGNALS[8])
                     .ok_or(EncodeError::MissingSignal {
                         message: "PCC_Status",
                         signal: "PCC_ErrorShutdown",
@@ -9362,49 +9686,91 @@ impl PccStatus {
                     signal: "PCC_ErrorShutdown",
                 })?
             },
-            pcc_error_undefined_state: {
+            pcc_error_accumulator_silent: {
                 let v = source
-                    .value(&PCC_STATUS_SIGNALS[5])
+                    .value(&PCC_STATUS_SIGNALS[9])
                     .ok_or(EncodeError::MissingSignal {
                         message: "PCC_Status",
-                        signal: "PCC_ErrorUndefinedState",
+                        signal: "PCC_ErrorAccumulatorSilent",
                     })?;
+                v.to_bool().ok_or(EncodeError::InvalidValue {
+                    message: "PCC_Status",
+                    signal: "PCC_ErrorAccumulatorSilent",
+                })?
+            },
+            pcc_error_tractive_silent: {
+                let v =
+                    source
+                        .value(&PCC_STATUS_SIGNALS[10])
+                        .ok_or(EncodeError::MissingSignal {
+                            message: "PCC_Status",
+                            signal: "PCC_ErrorTractiveSilent",
+                        })?;
+                v.to_bool().ok_or(EncodeError::InvalidValue {
+                    message: "PCC_Status",
+                    signal: "PCC_ErrorTractiveSilent",
+                })?
+            },
+            pcc_error_no_discharge: {
+                let v =
+                    source
+                        .value(&PCC_STATUS_SIGNALS[11])
+                        .ok_or(EncodeError::MissingSignal {
+                            message: "PCC_Status",
+                            signal: "PCC_ErrorNoDischarge",
+                        })?;
+                v.to_bool().ok_or(EncodeError::InvalidValue {
+                    message: "PCC_Status",
+                    signal: "PCC_ErrorNoDischarge",
+                })?
+            },
+            pcc_error_undefined_state: {
+                let v =
+                    source
+                        .value(&PCC_STATUS_SIGNALS[12])
+                        .ok_or(EncodeError::MissingSignal {
+                            message: "PCC_Status",
+                            signal: "PCC_ErrorUndefinedState",
+                        })?;
                 v.to_bool().ok_or(EncodeError::InvalidValue {
                     message: "PCC_Status",
                     signal: "PCC_ErrorUndefinedState",
                 })?
             },
             pcc_accumulator_voltage: {
-                let v = source
-                    .value(&PCC_STATUS_SIGNALS[6])
-                    .ok_or(EncodeError::MissingSignal {
-                        message: "PCC_Status",
-                        signal: "PCC_AccumulatorVoltage",
-                    })?;
+                let v =
+                    source
+                        .value(&PCC_STATUS_SIGNALS[13])
+                        .ok_or(EncodeError::MissingSignal {
+                            message: "PCC_Status",
+                            signal: "PCC_AccumulatorVoltage",
+                        })?;
                 Some(v.to_f64()).ok_or(EncodeError::InvalidValue {
                     message: "PCC_Status",
                     signal: "PCC_AccumulatorVoltage",
                 })?
             },
             pcc_tractive_voltage: {
-                let v = source
-                    .value(&PCC_STATUS_SIGNALS[7])
-                    .ok_or(EncodeError::MissingSignal {
-                        message: "PCC_Status",
-                        signal: "PCC_TractiveVoltage",
-                    })?;
+                let v =
+                    source
+                        .value(&PCC_STATUS_SIGNALS[14])
+                        .ok_or(EncodeError::MissingSignal {
+                            message: "PCC_Status",
+                            signal: "PCC_TractiveVoltage",
+                        })?;
                 Some(v.to_f64()).ok_or(EncodeError::InvalidValue {
                     message: "PCC_Status",
                     signal: "PCC_TractiveVoltage",
                 })?
             },
             pcc_precharge_progress: {
-                let v = source
-                    .value(&PCC_STATUS_SIGNALS[8])
-                    .ok_or(EncodeError::MissingSignal {
-                        message: "PCC_Status",
-                        signal: "PCC_PrechargeProgress",
-                    })?;
+                let v =
+                    source
+                        .value(&PCC_STATUS_SIGNALS[15])
+                        .ok_or(EncodeError::MissingSignal {
+                            message: "PCC_Status",
+                            signal: "PCC_PrechargeProgress",
+                        })?;
                 Some(v.to_f64()).ok_or(EncodeError::InvalidValue {
                     message: "PCC_Status",
                     signal: "PCC_PrechargeProgress",
@@ -9423,7 +9789,87 @@ impl PccStatus {
         if let PrechargeState::Unknown(raw) = v {
             runtime::check_range(raw as f64, 0.0, 6.0, 1e-6, "PCC_Status", "PCC_State")?;
         }
-        Ok(v.into_raw())
+        let raw = v.into_raw();
+        if (0..=15).contains(&raw) {
+            Ok(raw)
+        } else {
+            Err(EncodeError::OutOfRange {
+                message: "PCC_Status",
+                signal: "PCC_State",
+            })
+        }
+    }
+
+    /// Physical value of `PCC_ErrorBypassed` for a raw value.
+    pub fn pcc_error_bypassed_from_raw(raw: u8) -> bool {
+        raw != 0
+    }
+
+    /// Raw value of `PCC_ErrorBypassed` for a physical value, range-checked.
+    pub fn pcc_error_bypassed_to_raw(v: bool) -> Result<u8, EncodeError> {
+        runtime::check_range(
+            f64::from(u8::from(v)),
+            0.0,
+            1.0,
+            1e-6,
+            "PCC_Status",
+            "PCC_ErrorBypassed",
+        )?;
+        Ok(u8::from(v))
+    }
+
+    /// Physical value of `PCC_ErrorResistorHot` for a raw value.
+    pub fn pcc_error_resistor_hot_from_raw(raw: u8) -> bool {
+        raw != 0
+    }
+
+    /// Raw value of `PCC_ErrorResistorHot` for a physical value, range-checked.
+    pub fn pcc_error_resistor_hot_to_raw(v: bool) -> Result<u8, EncodeError> {
+        runtime::check_range(
+            f64::from(u8::from(v)),
+            0.0,
+            1.0,
+            1e-6,
+            "PCC_Status",
+            "PCC_ErrorResistorHot",
+        )?;
+        Ok(u8::from(v))
+    }
+
+    /// Physical value of `PCC_AccumulatorNoPulses` for a raw value.
+    pub fn pcc_accumulator_no_pulses_from_raw(raw: u8) -> bool {
+        raw != 0
+    }
+
+    /// Raw value of `PCC_AccumulatorNoPulses` for a physical value, range-checked.
+    pub fn pcc_accumulator_no_pulses_to_raw(v: bool) -> Result<u8, EncodeError> {
+        runtime::check_range(
+            f64::from(u8::from(v)),
+            0.0,
+            1.0,
+            1e-6,
+            "PCC_Status",
+            "PCC_AccumulatorNoPulses",
+        )?;
+        Ok(u8::from(v))
+    }
+
+    /// Physical value of `PCC_TractiveNoPulses` for a raw value.
+    pub fn pcc_tractive_no_pulses_from_raw(raw: u8) -> bool {
+        raw != 0
+    }
+
+    /// Raw value of `PCC_TractiveNoPulses` for a physical value, range-checked.
+    pub fn pcc_tractive_no_pulses_to_raw(v: bool) -> Result<u8, EncodeError> {
+        runtime::check_range(
+            f64::from(u8::from(v)),
+            0.0,
+            1.0,
+            1e-6,
+            "PCC_Status",
+            "PCC_TractiveNoPulses",
+        )?;
+        Ok(u8::from(v))
     }
 
     /// Physical value of `PCC_ErrorTooFast` for a raw value.
@@ -9498,6 +9944,60 @@ impl PccStatus {
         Ok(u8::from(v))
     }
 
+    /// Physical value of `PCC_ErrorAccumulatorSilent` for a raw value.
+    pub fn pcc_error_accumulator_silent_from_raw(raw: u8) -> bool {
+        raw != 0
+    }
+
+    /// Raw value of `PCC_ErrorAccumulatorSilent` for a physical value, range-checked.
+    pub fn pcc_error_accumulator_silent_to_raw(v: bool) -> Result<u8, EncodeError> {
+        runtime::check_range(
+            f64::from(u8::from(v)),
+            0.0,
+            1.0,
+            1e-6,
+            "PCC_Status",
+            "PCC_ErrorAccumulatorSilent",
+        )?;
+        Ok(u8::from(v))
+    }
+
+    /// Physical value of `PCC_ErrorTractiveSilent` for a raw value.
+    pub fn pcc_error_tractive_silent_from_raw(raw: u8) -> bool {
+        raw != 0
+    }
+
+    /// Raw value of `PCC_ErrorTractiveSilent` for a physical value, range-checked.
+    pub fn pcc_error_tractive_silent_to_raw(v: bool) -> Result<u8, EncodeError> {
+        runtime::check_range(
+            f64::from(u8::from(v)),
+            0.0,
+            1.0,
+            1e-6,
+            "PCC_Status",
+            "PCC_ErrorTractiveSilent",
+        )?;
+        Ok(u8::from(v))
+    }
+
+    /// Physical value of `PCC_ErrorNoDischarge` for a raw value.
+    pub fn pcc_error_no_discharge_from_raw(raw: u8) -> bool {
+        raw != 0
+    }
+
+    /// Raw value of `PCC_ErrorNoDischarge` for a physical value, range-checked.
+    pub fn pcc_error_no_discharge_to_raw(v: bool) -> Result<u8, EncodeError> {
+        runtime::check_range(
+            f64::from(u8::from(v)),
+            0.0,
+            1.0,
+            1e-6,
+            "PCC_Status",
+            "PCC_ErrorNoDischarge",
+        )?;
+        Ok(u8::from(v))
+    }
+
     /// Physical value of `PCC_ErrorUndefinedState` for a raw value.
     pub fn pcc_error_undefined_state_from_raw(raw: u8) -> bool {
         raw != 0
@@ -9554,6 +10054,370 @@ impl PccStatus {
 }
 
 impl CanMessage for PccStatus {
+    const META: &'static MessageMeta = Self::META;
+
+    fn decode(data: &[u8]) -> Result<Self, DecodeError> {
+        Self::decode(data)
+    }
+
+    fn encode(&self, out: &mut [u8]) -> Result<usize, EncodeError> {
+        self.encode(out)
+    }
+
+    fn visit(&self, visitor: &mut impl SignalVisitor) {
+        self.visit(visitor)
+    }
+
+    fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
+        Self::from_signals(source)
+    }
+}
+
+/// The precharge resistor's temperature at its two thermistors (pins 21 and 22), every 100 ms.
+///
+/// `PCC_Thermal`: standard id 0x223, 5 bytes, every 100 ms, lost after 1000 ms, sent by PCC.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct PccThermal {
+    /// Thermistor 1 (pin 21); unknown while PCC_ResistorTemp1Valid is 0.
+    ///
+    /// `PCC_ResistorTemp1`: 16 bits from bit 0 (Intel), signed, physical = raw * 0.1, range [-40.0, 250.0], unit `degC`.
+    pub pcc_resistor_temp1: f64,
+    /// Thermistor 2 (pin 22); unknown while PCC_ResistorTemp2Valid is 0.
+    ///
+    /// `PCC_ResistorTemp2`: 16 bits from bit 16 (Intel), signed, physical = raw * 0.1, range [-40.0, 250.0], unit `degC`.
+    pub pcc_resistor_temp2: f64,
+    /// Thermistor 1 gives a reading (0: open or unplugged, its temperature unknown).
+    ///
+    /// `PCC_ResistorTemp1Valid`: 1 bit from bit 32 (Intel), unsigned, range [0.0, 1.0].
+    pub pcc_resistor_temp1_valid: bool,
+    /// Thermistor 2 gives a reading (0: open or unplugged, its temperature unknown).
+    ///
+    /// `PCC_ResistorTemp2Valid`: 1 bit from bit 33 (Intel), unsigned, range [0.0, 1.0].
+    pub pcc_resistor_temp2_valid: bool,
+}
+
+static PCC_THERMAL_SIGNALS: [SignalMeta; 4] = [
+    SignalMeta {
+        name: "PCC_ResistorTemp1",
+        index: 0,
+        unit: "degC",
+        comment: "Thermistor 1 (pin 21); unknown while PCC_ResistorTemp1Valid is 0.",
+        start_bit: 0,
+        len: 16,
+        byte_order: ByteOrder::LittleEndian,
+        signed: true,
+        factor: 0.1,
+        offset: 0.0,
+        min: Some(-40.0),
+        max: Some(250.0),
+        labels: &[],
+        multiplexed: false,
+    },
+    SignalMeta {
+        name: "PCC_ResistorTemp2",
+        index: 1,
+        unit: "degC",
+        comment: "Thermistor 2 (pin 22); unknown while PCC_ResistorTemp2Valid is 0.",
+        start_bit: 16,
+        len: 16,
+        byte_order: ByteOrder::LittleEndian,
+        signed: true,
+        factor: 0.1,
+        offset: 0.0,
+        min: Some(-40.0),
+        max: Some(250.0),
+        labels: &[],
+        multiplexed: false,
+    },
+    SignalMeta {
+        name: "PCC_ResistorTemp1Valid",
+        index: 2,
+        unit: "",
+        comment: "Thermistor 1 gives a reading (0: open or unplugged, its temperature unknown).",
+        start_bit: 32,
+        len: 1,
+        byte_order: ByteOrder::LittleEndian,
+        signed: false,
+        factor: 1.0,
+        offset: 0.0,
+        min: Some(0.0),
+        max: Some(1.0),
+        labels: &[],
+        multiplexed: false,
+    },
+    SignalMeta {
+        name: "PCC_ResistorTemp2Valid",
+        index: 3,
+        unit: "",
+        comment: "Thermistor 2 gives a reading (0: open or unplugged, its temperature unknown).",
+        start_bit: 33,
+        len: 1,
+        byte_order: ByteOrder::LittleEndian,
+        signed: false,
+        factor: 1.0,
+        offset: 0.0,
+        min: Some(0.0),
+        max: Some(1.0),
+        labels: &[],
+        multiplexed: false,
+    },
+];
+
+impl PccThermal {
+    pub const META: &'static MessageMeta = &MessageMeta {
+        name: "PCC_Thermal",
+        id: 0x223,
+        extended: false,
+        len: 5,
+        cycle_time_ms: Some(100),
+        timeout_ms: Some(1000),
+        comment: "The precharge resistor's temperature at its two thermistors (pins 21 and 22), every 100 ms.",
+        sender: Some("PCC"),
+        buses: &["vehicle"],
+        signals: &PCC_THERMAL_SIGNALS,
+        counter: None,
+        checksum: None,
+    };
+    pub const ID: u32 = 0x223;
+    pub const EXTENDED: bool = false;
+    pub const LEN: usize = 5;
+    pub const CYCLE_TIME_MS: u32 = 100;
+    /// How old the last frame may be before receivers count the message lost.
+    pub const TIMEOUT_MS: u32 = 1000;
+
+    /// Decodes a payload of at least [`Self::LEN`] bytes. Values outside the schema's range are
+    /// decoded as they are; only a short payload fails.
+    pub fn decode(data: &[u8]) -> Result<Self, DecodeError> {
+        let data = runtime::payload::<5>(data, "PCC_Thermal")?;
+        let pcc_resistor_temp1 = Self::pcc_resistor_temp1_from_raw(bits::sign_extend(
+            bits::read_le(data, 0, 16),
+            16,
+        ) as i16);
+        let pcc_resistor_temp2 = Self::pcc_resistor_temp2_from_raw(bits::sign_extend(
+            bits::read_le(data, 16, 16),
+            16,
+        ) as i16);
+        let pcc_resistor_temp1_valid =
+            Self::pcc_resistor_temp1_valid_from_raw(bits::read_le(data, 32, 1) as u8);
+        let pcc_resistor_temp2_valid =
+            Self::pcc_resistor_temp2_valid_from_raw(bits::read_le(data, 33, 1) as u8);
+        Ok(Self {
+            pcc_resistor_temp1,
+            pcc_resistor_temp2,
+            pcc_resistor_temp1_valid,
+            pcc_resistor_temp2_valid,
+        })
+    }
+
+    /// Encodes into the first [`Self::LEN`] bytes of `out` and returns that length. Fails, naming
+    /// the signal, when a value is outside its range or its multiplexor disagrees.
+    pub fn encode(&self, out: &mut [u8]) -> Result<usize, EncodeError> {
+        let out = runtime::payload_mut::<5>(out, "PCC_Thermal")?;
+        bits::write_le(
+            out,
+            0,
+            16,
+            Self::pcc_resistor_temp1_to_raw(self.pcc_resistor_temp1)? as u64,
+        );
+        bits::write_le(
+            out,
+            16,
+            16,
+            Self::pcc_resistor_temp2_to_raw(self.pcc_resistor_temp2)? as u64,
+        );
+        bits::write_le(
+            out,
+            32,
+            1,
+            u64::from(Self::pcc_resistor_temp1_valid_to_raw(
+                self.pcc_resistor_temp1_valid,
+            )?),
+        );
+        bits::write_le(
+            out,
+            33,
+            1,
+            u64::from(Self::pcc_resistor_temp2_valid_to_raw(
+                self.pcc_resistor_temp2_valid,
+            )?),
+        );
+        Ok(Self::LEN)
+    }
+
+    /// Calls `visitor` with every present signal's physical value.
+    pub fn visit(&self, visitor: &mut impl SignalVisitor) {
+        let v = self.pcc_resistor_temp1;
+        visitor.signal(&PCC_THERMAL_SIGNALS[0], Value::from(v), None);
+        let v = self.pcc_resistor_temp2;
+        visitor.signal(&PCC_THERMAL_SIGNALS[1], Value::from(v), None);
+        let v = self.pcc_resistor_temp1_valid;
+        visitor.signal(&PCC_THERMAL_SIGNALS[2], Value::from(v), None);
+        let v = self.pcc_resistor_temp2_valid;
+        visitor.signal(&PCC_THERMAL_SIGNALS[3], Value::from(v), None);
+    }
+
+    /// Decodes a payload and calls `visitor` with every present signal's physical value, as
+    /// [`Self::decode`] and then [`Self::visit`] would, without building the message: the
+    /// values go from the payload straight to the visitor (an enum's as its raw number, which
+    /// is what `visit` hands on), so nothing is stored and read back.
+    pub fn decode_visit(data: &[u8], visitor: &mut impl SignalVisitor) -> Result<(), DecodeError> {
+        let data = runtime::payload::<5>(data, "PCC_Thermal")?;
+        let pcc_resistor_temp1 = Self::pcc_resistor_temp1_from_raw(bits::sign_extend(
+            bits::read_le(data, 0, 16),
+            16,
+        ) as i16);
+        let pcc_resistor_temp2 = Self::pcc_resistor_temp2_from_raw(bits::sign_extend(
+            bits::read_le(data, 16, 16),
+            16,
+        ) as i16);
+        let pcc_resistor_temp1_valid =
+            Self::pcc_resistor_temp1_valid_from_raw(bits::read_le(data, 32, 1) as u8);
+        let pcc_resistor_temp2_valid =
+            Self::pcc_resistor_temp2_valid_from_raw(bits::read_le(data, 33, 1) as u8);
+        visitor.signal(
+            &PCC_THERMAL_SIGNALS[0],
+            Value::from(pcc_resistor_temp1),
+            None,
+        );
+        visitor.signal(
+            &PCC_THERMAL_SIGNALS[1],
+            Value::from(pcc_resistor_temp2),
+            None,
+        );
+        visitor.signal(
+            &PCC_THERMAL_SIGNALS[2],
+            Value::from(pcc_resistor_temp1_valid),
+            None,
+        );
+        visitor.signal(
+            &PCC_THERMAL_SIGNALS[3],
+            Value::from(pcc_resistor_temp2_valid),
+            None,
+        );
+        Ok(())
+    }
+
+    /// Builds the message from physical values looked up by signal.
+    pub fn from_signals(source: &mut impl SignalSource) -> Result<Self, EncodeError> {
+        Ok(Self {
+            pcc_resistor_temp1: {
+                let v =
+                    source
+                        .value(&PCC_THERMAL_SIGNALS[0])
+                        .ok_or(EncodeError::MissingSignal {
+                            message: "PCC_Thermal",
+                            signal: "PCC_ResistorTemp1",
+                        })?;
+                Some(v.to_f64()).ok_or(EncodeError::InvalidValue {
+                    message: "PCC_Thermal",
+                    signal: "PCC_ResistorTemp1",
+                })?
+            },
+            pcc_resistor_temp2: {
+                let v =
+                    source
+                        .value(&PCC_THERMAL_SIGNALS[1])
+                        .ok_or(EncodeError::MissingSignal {
+                            message: "PCC_Thermal",
+                            signal: "PCC_ResistorTemp2",
+                        })?;
+                Some(v.to_f64()).ok_or(EncodeError::InvalidValue {
+                    message: "PCC_Thermal",
+                    signal: "PCC_ResistorTemp2",
+                })?
+            },
+            pcc_resistor_temp1_valid: {
+                let v =
+                    source
+                        .value(&PCC_THERMAL_SIGNALS[2])
+                        .ok_or(EncodeError::MissingSignal {
+                            message: "PCC_Thermal",
+                            signal: "PCC_ResistorTemp1Valid",
+                        })?;
+                v.to_bool().ok_or(EncodeError::InvalidValue {
+                    message: "PCC_Thermal",
+                    signal: "PCC_ResistorTemp1Valid",
+                })?
+            },
+            pcc_resistor_temp2_valid: {
+                let v =
+                    source
+                        .value(&PCC_THERMAL_SIGNALS[3])
+                        .ok_or(EncodeError::MissingSignal {
+                            message: "PCC_Thermal",
+                            signal: "PCC_ResistorTemp2Valid",
+                        })?;
+                v.to_bool().ok_or(EncodeError::InvalidValue {
+                    message: "PCC_Thermal",
+                    signal: "PCC_ResistorTemp2Valid",
+                })?
+            },
+        })
+    }
+
+    /// Physical value of `PCC_ResistorTemp1` for a raw value.
+    pub fn pcc_resistor_temp1_from_raw(raw: i16) -> f64 {
+        f64::from(raw) * 0.1
+    }
+
+    /// Raw value of `PCC_ResistorTemp1` for a physical value, range-checked.
+    pub fn pcc_resistor_temp1_to_raw(v: f64) -> Result<i16, EncodeError> {
+        runtime::check_range(v, -40.0, 250.0, 1e-7, "PCC_Thermal", "PCC_ResistorTemp1")?;
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 0.1) as i16)
+    }
+
+    /// Physical value of `PCC_ResistorTemp2` for a raw value.
+    pub fn pcc_resistor_temp2_from_raw(raw: i16) -> f64 {
+        f64::from(raw) * 0.1
+    }
+
+    /// Raw value of `PCC_ResistorTemp2` for a physical value, range-checked.
+    pub fn pcc_resistor_temp2_to_raw(v: f64) -> Result<i16, EncodeError> {
+        runtime::check_range(v, -40.0, 250.0, 1e-7, "PCC_Thermal", "PCC_ResistorTemp2")?;
+        // The range check keeps the raw value inside the signal's bits (shown when generated).
+        Ok(runtime::round_i32(v / 0.1) as i16)
+    }
+
+    /// Physical value of `PCC_ResistorTemp1Valid` for a raw value.
+    pub fn pcc_resistor_temp1_valid_from_raw(raw: u8) -> bool {
+        raw != 0
+    }
+
+    /// Raw value of `PCC_ResistorTemp1Valid` for a physical value, range-checked.
+    pub fn pcc_resistor_temp1_valid_to_raw(v: bool) -> Result<u8, EncodeError> {
+        runtime::check_range(
+            f64::from(u8::from(v)),
+            0.0,
+            1.0,
+            1e-6,
+            "PCC_Thermal",
+            "PCC_ResistorTemp1Valid",
+        )?;
+        Ok(u8::from(v))
+    }
+
+    /// Physical value of `PCC_ResistorTemp2Valid` for a raw value.
+    pub fn pcc_resistor_temp2_valid_from_raw(raw: u8) -> bool {
+        raw != 0
+    }
+
+    /// Raw value of `PCC_ResistorTemp2Valid` for a physical value, range-checked.
+    pub fn pcc_resistor_temp2_valid_to_raw(v: bool) -> Result<u8, EncodeError> {
+        runtime::check_range(
+            f64::from(u8::from(v)),
+            0.0,
+            1.0,
+            1e-6,
+            "PCC_Thermal",
+            "PCC_ResistorTemp2Valid",
+        )?;
+        Ok(u8::from(v))
+    }
+}
+
+impl CanMessage for PccThermal {
     const META: &'static MessageMeta = Self::META;
 
     fn decode(data: &[u8]) -> Result<Self, DecodeError> {
@@ -18231,7 +19095,7 @@ impl CanMessage for DtiDcLimits {
 }
 
 /// Metadata of every message, in schema order.
-pub static MESSAGES: [&MessageMeta; 39] = [
+pub static MESSAGES: [&MessageMeta; 40] = [
     CcmStatus::META,
     CcmCalibration::META,
     Vcu1::META,
@@ -18244,6 +19108,7 @@ pub static MESSAGES: [&MessageMeta; 39] = [
     OrionLimits::META,
     OrionCellVoltages::META,
     PccStatus::META,
+    PccThermal::META,
     XcpCmd::META,
     XcpRes::META,
     ImdInfoGeneral::META,
@@ -18288,6 +19153,7 @@ pub enum AnyMessage {
     OrionLimits(OrionLimits),
     OrionCellVoltages(OrionCellVoltages),
     PccStatus(PccStatus),
+    PccThermal(PccThermal),
     XcpCmd(XcpCmd),
     XcpRes(XcpRes),
     ImdInfoGeneral(ImdInfoGeneral),
@@ -18333,6 +19199,7 @@ impl AnyMessage {
             (0x6B1, false) => OrionLimits::decode(data).map(Self::OrionLimits),
             (0x6B2, false) => OrionCellVoltages::decode(data).map(Self::OrionCellVoltages),
             (0x222, false) => PccStatus::decode(data).map(Self::PccStatus),
+            (0x223, false) => PccThermal::decode(data).map(Self::PccThermal),
             (0x6F0, false) => XcpCmd::decode(data).map(Self::XcpCmd),
             (0x6F1, false) => XcpRes::decode(data).map(Self::XcpRes),
             (0x18FF01F4, true) => ImdInfoGeneral::decode(data).map(Self::ImdInfoGeneral),
@@ -18394,6 +19261,7 @@ impl AnyMessage {
             (0x6B1, false) => OrionLimits::decode_visit(data, visitor),
             (0x6B2, false) => OrionCellVoltages::decode_visit(data, visitor),
             (0x222, false) => PccStatus::decode_visit(data, visitor),
+            (0x223, false) => PccThermal::decode_visit(data, visitor),
             (0x6F0, false) => XcpCmd::decode_visit(data, visitor),
             (0x6F1, false) => XcpRes::decode_visit(data, visitor),
             (0x18FF01F4, true) => ImdInfoGeneral::decode_visit(data, visitor),
@@ -18450,6 +19318,7 @@ impl AnyMessage {
             (0x6B1, false) => OrionLimits::from_signals(source).map(Self::OrionLimits),
             (0x6B2, false) => OrionCellVoltages::from_signals(source).map(Self::OrionCellVoltages),
             (0x222, false) => PccStatus::from_signals(source).map(Self::PccStatus),
+            (0x223, false) => PccThermal::from_signals(source).map(Self::PccThermal),
             (0x6F0, false) => XcpCmd::from_signals(source).map(Self::XcpCmd),
             (0x6F1, false) => XcpRes::from_signals(source).map(Self::XcpRes),
             (0x18FF01F4, true) => ImdInfoGeneral::from_signals(source).map(Self::ImdInfoGeneral),
@@ -18507,6 +19376,7 @@ impl AnyMessage {
             Self::OrionLimits(_) => OrionLimits::META,
             Self::OrionCellVoltages(_) => OrionCellVoltages::META,
             Self::PccStatus(_) => PccStatus::META,
+            Self::PccThermal(_) => PccThermal::META,
             Self::XcpCmd(_) => XcpCmd::META,
             Self::XcpRes(_) => XcpRes::META,
             Self::ImdInfoGeneral(_) => ImdInfoGeneral::META,
@@ -18553,6 +19423,7 @@ impl AnyMessage {
             Self::OrionLimits(m) => m.encode(out),
             Self::OrionCellVoltages(m) => m.encode(out),
             Self::PccStatus(m) => m.encode(out),
+            Self::PccThermal(m) => m.encode(out),
             Self::XcpCmd(m) => m.encode(out),
             Self::XcpRes(m) => m.encode(out),
             Self::ImdInfoGeneral(m) => m.encode(out),
@@ -18598,6 +19469,7 @@ impl AnyMessage {
             Self::OrionLimits(m) => m.visit(visitor),
             Self::OrionCellVoltages(m) => m.visit(visitor),
             Self::PccStatus(m) => m.visit(visitor),
+            Self::PccThermal(m) => m.visit(visitor),
             Self::XcpCmd(m) => m.visit(visitor),
             Self::XcpRes(m) => m.visit(visitor),
             Self::ImdInfoGeneral(m) => m.visit(visitor),
@@ -18643,6 +19515,7 @@ impl AnyMessage {
             Self::OrionLimits(m) => m.to_frame(),
             Self::OrionCellVoltages(m) => m.to_frame(),
             Self::PccStatus(m) => m.to_frame(),
+            Self::PccThermal(m) => m.to_frame(),
             Self::XcpCmd(m) => m.to_frame(),
             Self::XcpRes(m) => m.to_frame(),
             Self::ImdInfoGeneral(m) => m.to_frame(),

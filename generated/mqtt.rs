@@ -441,6 +441,9 @@ pub mod can {
     /// Frames of `PccStatus`.
     pub const PCC_STATUS: Topic<Sample<crate::can::PccStatus>> = Topic::new("can/pcc_status");
 
+    /// Frames of `PccThermal`.
+    pub const PCC_THERMAL: Topic<Sample<crate::can::PccThermal>> = Topic::new("can/pcc_thermal");
+
     /// Frames of `XcpCmd`.
     pub const XCP_CMD: Topic<Sample<crate::can::XcpCmd>> = Topic::new("can/xcp_cmd");
 
@@ -545,7 +548,7 @@ pub mod can {
 
 /// Every topic suffix of the schema: telemetry, then the CAN messages (for subscriptions and
 /// documentation).
-pub const SUFFIXES: [&str; 40] = [
+pub const SUFFIXES: [&str; 41] = [
     TELEMETRY.suffix(),
     can::CCM_STATUS.suffix(),
     can::CCM_CALIBRATION.suffix(),
@@ -559,6 +562,7 @@ pub const SUFFIXES: [&str; 40] = [
     can::ORION_LIMITS.suffix(),
     can::ORION_CELL_VOLTAGES.suffix(),
     can::PCC_STATUS.suffix(),
+    can::PCC_THERMAL.suffix(),
     can::XCP_CMD.suffix(),
     can::XCP_RES.suffix(),
     can::IMD_INFO_GENERAL.suffix(),
@@ -598,7 +602,7 @@ pub struct CanTopic {
 }
 
 /// Every CAN message's topic, in the schema's order (as [`crate::can::MESSAGES`]).
-pub static CAN_TOPICS: [CanTopic; 39] = [
+pub static CAN_TOPICS: [CanTopic; 40] = [
     CanTopic {
         meta: crate::can::CcmStatus::META,
         suffix: can::CCM_STATUS.suffix(),
@@ -646,6 +650,10 @@ pub static CAN_TOPICS: [CanTopic; 39] = [
     CanTopic {
         meta: crate::can::PccStatus::META,
         suffix: can::PCC_STATUS.suffix(),
+    },
+    CanTopic {
+        meta: crate::can::PccThermal::META,
+        suffix: can::PCC_THERMAL.suffix(),
     },
     CanTopic {
         meta: crate::can::XcpCmd::META,
@@ -812,6 +820,10 @@ pub fn decode_message(
         "can/pcc_status" => can::PCC_STATUS.decode(payload).map(|s| Sample {
             ts: s.ts,
             value: AnyMessage::PccStatus(s.value),
+        }),
+        "can/pcc_thermal" => can::PCC_THERMAL.decode(payload).map(|s| Sample {
+            ts: s.ts,
+            value: AnyMessage::PccThermal(s.value),
         }),
         "can/xcp_cmd" => can::XCP_CMD.decode(payload).map(|s| Sample {
             ts: s.ts,
@@ -984,6 +996,9 @@ pub fn encode_message(
             orion_cell_voltages_json(value, ts, bus),
         ),
         AnyMessage::PccStatus(value) => (can::PCC_STATUS.suffix(), pcc_status_json(value, ts, bus)),
+        AnyMessage::PccThermal(value) => {
+            (can::PCC_THERMAL.suffix(), pcc_thermal_json(value, ts, bus))
+        }
         AnyMessage::XcpCmd(value) => (can::XCP_CMD.suffix(), xcp_cmd_json(value, ts, bus)),
         AnyMessage::XcpRes(value) => (can::XCP_RES.suffix(), xcp_res_json(value, ts, bus)),
         AnyMessage::ImdInfoGeneral(value) => (
@@ -1415,7 +1430,7 @@ fn orion_cell_voltages_json(value: &crate::can::OrionCellVoltages, ts: f64, bus:
 }
 
 fn pcc_status_json(value: &crate::can::PccStatus, ts: f64, bus: &str) -> Vec<u8> {
-    let mut payload = Vec::with_capacity(546 + bus.len());
+    let mut payload = Vec::with_capacity(904 + bus.len());
     let out = &mut payload;
     out.extend_from_slice(b"{\"ts\":");
     json_float(out, ts);
@@ -1425,6 +1440,14 @@ fn pcc_status_json(value: &crate::can::PccStatus, ts: f64, bus: &str) -> Vec<u8>
     json_int(out, value.pcc_state.into_raw());
     out.extend_from_slice(b",\"pcc_state_label\":");
     json_label(out, value.pcc_state.label());
+    out.extend_from_slice(b",\"pcc_error_bypassed\":");
+    json_bool(out, value.pcc_error_bypassed);
+    out.extend_from_slice(b",\"pcc_error_resistor_hot\":");
+    json_bool(out, value.pcc_error_resistor_hot);
+    out.extend_from_slice(b",\"pcc_accumulator_no_pulses\":");
+    json_bool(out, value.pcc_accumulator_no_pulses);
+    out.extend_from_slice(b",\"pcc_tractive_no_pulses\":");
+    json_bool(out, value.pcc_tractive_no_pulses);
     out.extend_from_slice(b",\"pcc_error_too_fast\":");
     json_bool(out, value.pcc_error_too_fast);
     out.extend_from_slice(b",\"pcc_error_too_slow\":");
@@ -1433,6 +1456,12 @@ fn pcc_status_json(value: &crate::can::PccStatus, ts: f64, bus: &str) -> Vec<u8>
     json_bool(out, value.pcc_error_bms_timeout);
     out.extend_from_slice(b",\"pcc_error_shutdown\":");
     json_bool(out, value.pcc_error_shutdown);
+    out.extend_from_slice(b",\"pcc_error_accumulator_silent\":");
+    json_bool(out, value.pcc_error_accumulator_silent);
+    out.extend_from_slice(b",\"pcc_error_tractive_silent\":");
+    json_bool(out, value.pcc_error_tractive_silent);
+    out.extend_from_slice(b",\"pcc_error_no_discharge\":");
+    json_bool(out, value.pcc_error_no_discharge);
     out.extend_from_slice(b",\"pcc_error_undefined_state\":");
     json_bool(out, value.pcc_error_undefined_state);
     out.extend_from_slice(b",\"pcc_accumulator_voltage\":");
@@ -1441,6 +1470,25 @@ fn pcc_status_json(value: &crate::can::PccStatus, ts: f64, bus: &str) -> Vec<u8>
     json_fixed(out, value.pcc_tractive_voltage, 2);
     out.extend_from_slice(b",\"pcc_precharge_progress\":");
     json_fixed(out, value.pcc_precharge_progress, 2);
+    out.push(b'}');
+    payload
+}
+
+fn pcc_thermal_json(value: &crate::can::PccThermal, ts: f64, bus: &str) -> Vec<u8> {
+    let mut payload = Vec::with_capacity(260 + bus.len());
+    let out = &mut payload;
+    out.extend_from_slice(b"{\"ts\":");
+    json_float(out, ts);
+    out.extend_from_slice(b",\"bus\":");
+    json_str(out, bus);
+    out.extend_from_slice(b",\"pcc_resistor_temp1\":");
+    json_fixed(out, value.pcc_resistor_temp1, 1);
+    out.extend_from_slice(b",\"pcc_resistor_temp2\":");
+    json_fixed(out, value.pcc_resistor_temp2, 1);
+    out.extend_from_slice(b",\"pcc_resistor_temp1_valid\":");
+    json_bool(out, value.pcc_resistor_temp1_valid);
+    out.extend_from_slice(b",\"pcc_resistor_temp2_valid\":");
+    json_bool(out, value.pcc_resistor_temp2_valid);
     out.push(b'}');
     payload
 }

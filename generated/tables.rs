@@ -1281,6 +1281,22 @@ pub static CAN_PCC_STATUS: Table = Table {
             ty: ColumnType::U8,
         },
         Column {
+            name: "pcc_error_bypassed",
+            ty: ColumnType::Bool,
+        },
+        Column {
+            name: "pcc_error_resistor_hot",
+            ty: ColumnType::Bool,
+        },
+        Column {
+            name: "pcc_accumulator_no_pulses",
+            ty: ColumnType::Bool,
+        },
+        Column {
+            name: "pcc_tractive_no_pulses",
+            ty: ColumnType::Bool,
+        },
+        Column {
             name: "pcc_error_too_fast",
             ty: ColumnType::Bool,
         },
@@ -1294,6 +1310,18 @@ pub static CAN_PCC_STATUS: Table = Table {
         },
         Column {
             name: "pcc_error_shutdown",
+            ty: ColumnType::Bool,
+        },
+        Column {
+            name: "pcc_error_accumulator_silent",
+            ty: ColumnType::Bool,
+        },
+        Column {
+            name: "pcc_error_tractive_silent",
+            ty: ColumnType::Bool,
+        },
+        Column {
+            name: "pcc_error_no_discharge",
             ty: ColumnType::Bool,
         },
         Column {
@@ -1315,19 +1343,70 @@ pub static CAN_PCC_STATUS: Table = Table {
     ],
     signals: super::can::PccStatus::META.signals,
     tdengine: TdengineTable {
-        create: "CREATE STABLE IF NOT EXISTS `can_pcc_status` (`ts` TIMESTAMP, `pcc_state` TINYINT UNSIGNED, `pcc_error_too_fast` BOOL, `pcc_error_too_slow` BOOL, `pcc_error_bms_timeout` BOOL, `pcc_error_shutdown` BOOL, `pcc_error_undefined_state` BOOL, `pcc_accumulator_voltage` DOUBLE, `pcc_tractive_voltage` DOUBLE, `pcc_precharge_progress` DOUBLE) TAGS (`car_id` VARCHAR(32), `bus` VARCHAR(16), `schema_fingerprint` INT UNSIGNED)",
-        insert: "INSERT INTO ? USING `can_pcc_status` TAGS (?, ?, ?) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+        create: "CREATE STABLE IF NOT EXISTS `can_pcc_status` (`ts` TIMESTAMP, `pcc_state` TINYINT UNSIGNED, `pcc_error_bypassed` BOOL, `pcc_error_resistor_hot` BOOL, `pcc_accumulator_no_pulses` BOOL, `pcc_tractive_no_pulses` BOOL, `pcc_error_too_fast` BOOL, `pcc_error_too_slow` BOOL, `pcc_error_bms_timeout` BOOL, `pcc_error_shutdown` BOOL, `pcc_error_accumulator_silent` BOOL, `pcc_error_tractive_silent` BOOL, `pcc_error_no_discharge` BOOL, `pcc_error_undefined_state` BOOL, `pcc_accumulator_voltage` DOUBLE, `pcc_tractive_voltage` DOUBLE, `pcc_precharge_progress` DOUBLE) TAGS (`car_id` VARCHAR(32), `bus` VARCHAR(16), `schema_fingerprint` INT UNSIGNED)",
+        insert: "INSERT INTO ? USING `can_pcc_status` TAGS (?, ?, ?) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
     },
     sqlite: SqliteTable {
-        create: r#"CREATE TABLE IF NOT EXISTS "can_pcc_status" ("id" INTEGER PRIMARY KEY AUTOINCREMENT, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "pcc_state" INTEGER, "pcc_error_too_fast" INTEGER, "pcc_error_too_slow" INTEGER, "pcc_error_bms_timeout" INTEGER, "pcc_error_shutdown" INTEGER, "pcc_error_undefined_state" INTEGER, "pcc_accumulator_voltage" REAL, "pcc_tractive_voltage" REAL, "pcc_precharge_progress" REAL)"#,
-        insert: r#"INSERT INTO "can_pcc_status" ("car_id", "bus", "schema_fingerprint", "ts", "pcc_state", "pcc_error_too_fast", "pcc_error_too_slow", "pcc_error_bms_timeout", "pcc_error_shutdown", "pcc_error_undefined_state", "pcc_accumulator_voltage", "pcc_tractive_voltage", "pcc_precharge_progress") VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13)"#,
+        create: r#"CREATE TABLE IF NOT EXISTS "can_pcc_status" ("id" INTEGER PRIMARY KEY AUTOINCREMENT, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "pcc_state" INTEGER, "pcc_error_bypassed" INTEGER, "pcc_error_resistor_hot" INTEGER, "pcc_accumulator_no_pulses" INTEGER, "pcc_tractive_no_pulses" INTEGER, "pcc_error_too_fast" INTEGER, "pcc_error_too_slow" INTEGER, "pcc_error_bms_timeout" INTEGER, "pcc_error_shutdown" INTEGER, "pcc_error_accumulator_silent" INTEGER, "pcc_error_tractive_silent" INTEGER, "pcc_error_no_discharge" INTEGER, "pcc_error_undefined_state" INTEGER, "pcc_accumulator_voltage" REAL, "pcc_tractive_voltage" REAL, "pcc_precharge_progress" REAL)"#,
+        insert: r#"INSERT INTO "can_pcc_status" ("car_id", "bus", "schema_fingerprint", "ts", "pcc_state", "pcc_error_bypassed", "pcc_error_resistor_hot", "pcc_accumulator_no_pulses", "pcc_tractive_no_pulses", "pcc_error_too_fast", "pcc_error_too_slow", "pcc_error_bms_timeout", "pcc_error_shutdown", "pcc_error_accumulator_silent", "pcc_error_tractive_silent", "pcc_error_no_discharge", "pcc_error_undefined_state", "pcc_accumulator_voltage", "pcc_tractive_voltage", "pcc_precharge_progress") VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17, ?18, ?19, ?20)"#,
+    },
+};
+
+/// CAN message `PCC_Thermal` (0x223), one row per frame; multiplexed signals are NULL when absent.
+pub static CAN_PCC_THERMAL: Table = Table {
+    name: "can_pcc_thermal",
+    index: 13,
+    tags: &[
+        Column {
+            name: "car_id",
+            ty: ColumnType::VarChar(32),
+        },
+        Column {
+            name: "bus",
+            ty: ColumnType::VarChar(16),
+        },
+        Column {
+            name: "schema_fingerprint",
+            ty: ColumnType::U32,
+        },
+    ],
+    columns: &[
+        Column {
+            name: "ts",
+            ty: ColumnType::Timestamp,
+        },
+        Column {
+            name: "pcc_resistor_temp1",
+            ty: ColumnType::F64,
+        },
+        Column {
+            name: "pcc_resistor_temp2",
+            ty: ColumnType::F64,
+        },
+        Column {
+            name: "pcc_resistor_temp1_valid",
+            ty: ColumnType::Bool,
+        },
+        Column {
+            name: "pcc_resistor_temp2_valid",
+            ty: ColumnType::Bool,
+        },
+    ],
+    signals: super::can::PccThermal::META.signals,
+    tdengine: TdengineTable {
+        create: "CREATE STABLE IF NOT EXISTS `can_pcc_thermal` (`ts` TIMESTAMP, `pcc_resistor_temp1` DOUBLE, `pcc_resistor_temp2` DOUBLE, `pcc_resistor_temp1_valid` BOOL, `pcc_resistor_temp2_valid` BOOL) TAGS (`car_id` VARCHAR(32), `bus` VARCHAR(16), `schema_fingerprint` INT UNSIGNED)",
+        insert: "INSERT INTO ? USING `can_pcc_thermal` TAGS (?, ?, ?) VALUES (?, ?, ?, ?, ?)",
+    },
+    sqlite: SqliteTable {
+        create: r#"CREATE TABLE IF NOT EXISTS "can_pcc_thermal" ("id" INTEGER PRIMARY KEY AUTOINCREMENT, "car_id" TEXT NOT NULL, "bus" TEXT NOT NULL, "schema_fingerprint" INTEGER NOT NULL, "ts" INTEGER NOT NULL, "pcc_resistor_temp1" REAL, "pcc_resistor_temp2" REAL, "pcc_resistor_temp1_valid" INTEGER, "pcc_resistor_temp2_valid" INTEGER)"#,
+        insert: r#"INSERT INTO "can_pcc_thermal" ("car_id", "bus", "schema_fingerprint", "ts", "pcc_resistor_temp1", "pcc_resistor_temp2", "pcc_resistor_temp1_valid", "pcc_resistor_temp2_valid") VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8)"#,
     },
 };
 
 /// CAN message `XCP_Cmd` (0x6F0), one row per frame; multiplexed signals are NULL when absent.
 pub static CAN_XCP_CMD: Table = Table {
     name: "can_xcp_cmd",
-    index: 13,
+    index: 14,
     tags: &[
         Column {
             name: "car_id",
@@ -1366,7 +1445,7 @@ pub static CAN_XCP_CMD: Table = Table {
 /// CAN message `XCP_Res` (0x6F1), one row per frame; multiplexed signals are NULL when absent.
 pub static CAN_XCP_RES: Table = Table {
     name: "can_xcp_res",
-    index: 14,
+    index: 15,
     tags: &[
         Column {
             name: "car_id",
@@ -1405,7 +1484,7 @@ pub static CAN_XCP_RES: Table = Table {
 /// CAN message `IMD_InfoGeneral` (0x18FF01F4), one row per frame; multiplexed signals are NULL when absent.
 pub static CAN_IMD_INFO_GENERAL: Table = Table {
     name: "can_imd_info_general",
-    index: 15,
+    index: 16,
     tags: &[
         Column {
             name: "car_id",
@@ -1500,7 +1579,7 @@ pub static CAN_IMD_INFO_GENERAL: Table = Table {
 /// CAN message `IMD_InfoIsolationDetail` (0x18FF02F4), one row per frame; multiplexed signals are NULL when absent.
 pub static CAN_IMD_INFO_ISOLATION_DETAIL: Table = Table {
     name: "can_imd_info_isolation_detail",
-    index: 16,
+    index: 17,
     tags: &[
         Column {
             name: "car_id",
@@ -1555,7 +1634,7 @@ pub static CAN_IMD_INFO_ISOLATION_DETAIL: Table = Table {
 /// CAN message `IMD_InfoVoltage` (0x18FF03F4), one row per frame; multiplexed signals are NULL when absent.
 pub static CAN_IMD_INFO_VOLTAGE: Table = Table {
     name: "can_imd_info_voltage",
-    index: 17,
+    index: 18,
     tags: &[
         Column {
             name: "car_id",
@@ -1610,7 +1689,7 @@ pub static CAN_IMD_INFO_VOLTAGE: Table = Table {
 /// CAN message `IMD_InfoItSystem` (0x18FF04F4), one row per frame; multiplexed signals are NULL when absent.
 pub static CAN_IMD_INFO_IT_SYSTEM: Table = Table {
     name: "can_imd_info_it_system",
-    index: 18,
+    index: 19,
     tags: &[
         Column {
             name: "car_id",
@@ -1665,7 +1744,7 @@ pub static CAN_IMD_INFO_IT_SYSTEM: Table = Table {
 /// CAN message `IMD_Request` (0x18EFF417), one row per frame; multiplexed signals are NULL when absent.
 pub static CAN_IMD_REQUEST: Table = Table {
     name: "can_imd_request",
-    index: 19,
+    index: 20,
     tags: &[
         Column {
             name: "car_id",
@@ -1708,7 +1787,7 @@ pub static CAN_IMD_REQUEST: Table = Table {
 /// CAN message `DTI_SetCurrent` (0x141), one row per frame; multiplexed signals are NULL when absent.
 pub static CAN_DTI_SET_CURRENT: Table = Table {
     name: "can_dti_set_current",
-    index: 20,
+    index: 21,
     tags: &[
         Column {
             name: "car_id",
@@ -1747,7 +1826,7 @@ pub static CAN_DTI_SET_CURRENT: Table = Table {
 /// CAN message `DTI_SetBrakeCurrent` (0x241), one row per frame; multiplexed signals are NULL when absent.
 pub static CAN_DTI_SET_BRAKE_CURRENT: Table = Table {
     name: "can_dti_set_brake_current",
-    index: 21,
+    index: 22,
     tags: &[
         Column {
             name: "car_id",
@@ -1786,7 +1865,7 @@ pub static CAN_DTI_SET_BRAKE_CURRENT: Table = Table {
 /// CAN message `DTI_SetErpm` (0x341), one row per frame; multiplexed signals are NULL when absent.
 pub static CAN_DTI_SET_ERPM: Table = Table {
     name: "can_dti_set_erpm",
-    index: 22,
+    index: 23,
     tags: &[
         Column {
             name: "car_id",
@@ -1825,7 +1904,7 @@ pub static CAN_DTI_SET_ERPM: Table = Table {
 /// CAN message `DTI_SetPosition` (0x441), one row per frame; multiplexed signals are NULL when absent.
 pub static CAN_DTI_SET_POSITION: Table = Table {
     name: "can_dti_set_position",
-    index: 23,
+    index: 24,
     tags: &[
         Column {
             name: "car_id",
@@ -1864,7 +1943,7 @@ pub static CAN_DTI_SET_POSITION: Table = Table {
 /// CAN message `DTI_SetRelativeCurrent` (0x541), one row per frame; multiplexed signals are NULL when absent.
 pub static CAN_DTI_SET_RELATIVE_CURRENT: Table = Table {
     name: "can_dti_set_relative_current",
-    index: 24,
+    index: 25,
     tags: &[
         Column {
             name: "car_id",
@@ -1903,7 +1982,7 @@ pub static CAN_DTI_SET_RELATIVE_CURRENT: Table = Table {
 /// CAN message `DTI_SetRelativeBrakeCurrent` (0x641), one row per frame; multiplexed signals are NULL when absent.
 pub static CAN_DTI_SET_RELATIVE_BRAKE_CURRENT: Table = Table {
     name: "can_dti_set_relative_brake_current",
-    index: 25,
+    index: 26,
     tags: &[
         Column {
             name: "car_id",
@@ -1942,7 +2021,7 @@ pub static CAN_DTI_SET_RELATIVE_BRAKE_CURRENT: Table = Table {
 /// CAN message `DTI_SetDigitalOutputs` (0x741), one row per frame; multiplexed signals are NULL when absent.
 pub static CAN_DTI_SET_DIGITAL_OUTPUTS: Table = Table {
     name: "can_dti_set_digital_outputs",
-    index: 26,
+    index: 27,
     tags: &[
         Column {
             name: "car_id",
@@ -1993,7 +2072,7 @@ pub static CAN_DTI_SET_DIGITAL_OUTPUTS: Table = Table {
 /// CAN message `DTI_SetMaxCurrentAc` (0x841), one row per frame; multiplexed signals are NULL when absent.
 pub static CAN_DTI_SET_MAX_CURRENT_AC: Table = Table {
     name: "can_dti_set_max_current_ac",
-    index: 27,
+    index: 28,
     tags: &[
         Column {
             name: "car_id",
@@ -2032,7 +2111,7 @@ pub static CAN_DTI_SET_MAX_CURRENT_AC: Table = Table {
 /// CAN message `DTI_SetMaxBrakeCurrentAc` (0x941), one row per frame; multiplexed signals are NULL when absent.
 pub static CAN_DTI_SET_MAX_BRAKE_CURRENT_AC: Table = Table {
     name: "can_dti_set_max_brake_current_ac",
-    index: 28,
+    index: 29,
     tags: &[
         Column {
             name: "car_id",
@@ -2071,7 +2150,7 @@ pub static CAN_DTI_SET_MAX_BRAKE_CURRENT_AC: Table = Table {
 /// CAN message `DTI_SetMaxCurrentDc` (0xA41), one row per frame; multiplexed signals are NULL when absent.
 pub static CAN_DTI_SET_MAX_CURRENT_DC: Table = Table {
     name: "can_dti_set_max_current_dc",
-    index: 29,
+    index: 30,
     tags: &[
         Column {
             name: "car_id",
@@ -2110,7 +2189,7 @@ pub static CAN_DTI_SET_MAX_CURRENT_DC: Table = Table {
 /// CAN message `DTI_SetMaxBrakeCurrentDc` (0xB41), one row per frame; multiplexed signals are NULL when absent.
 pub static CAN_DTI_SET_MAX_BRAKE_CURRENT_DC: Table = Table {
     name: "can_dti_set_max_brake_current_dc",
-    index: 30,
+    index: 31,
     tags: &[
         Column {
             name: "car_id",
@@ -2149,7 +2228,7 @@ pub static CAN_DTI_SET_MAX_BRAKE_CURRENT_DC: Table = Table {
 /// CAN message `DTI_SetDriveEnable` (0xC41), one row per frame; multiplexed signals are NULL when absent.
 pub static CAN_DTI_SET_DRIVE_ENABLE: Table = Table {
     name: "can_dti_set_drive_enable",
-    index: 31,
+    index: 32,
     tags: &[
         Column {
             name: "car_id",
@@ -2188,7 +2267,7 @@ pub static CAN_DTI_SET_DRIVE_ENABLE: Table = Table {
 /// CAN message `DTI_Control` (0x1F41), one row per frame; multiplexed signals are NULL when absent.
 pub static CAN_DTI_CONTROL: Table = Table {
     name: "can_dti_control",
-    index: 32,
+    index: 33,
     tags: &[
         Column {
             name: "car_id",
@@ -2239,7 +2318,7 @@ pub static CAN_DTI_CONTROL: Table = Table {
 /// CAN message `DTI_Speed` (0x2041), one row per frame; multiplexed signals are NULL when absent.
 pub static CAN_DTI_SPEED: Table = Table {
     name: "can_dti_speed",
-    index: 33,
+    index: 34,
     tags: &[
         Column {
             name: "car_id",
@@ -2286,7 +2365,7 @@ pub static CAN_DTI_SPEED: Table = Table {
 /// CAN message `DTI_Currents` (0x2141), one row per frame; multiplexed signals are NULL when absent.
 pub static CAN_DTI_CURRENTS: Table = Table {
     name: "can_dti_currents",
-    index: 34,
+    index: 35,
     tags: &[
         Column {
             name: "car_id",
@@ -2329,7 +2408,7 @@ pub static CAN_DTI_CURRENTS: Table = Table {
 /// CAN message `DTI_Temperatures` (0x2241), one row per frame; multiplexed signals are NULL when absent.
 pub static CAN_DTI_TEMPERATURES: Table = Table {
     name: "can_dti_temperatures",
-    index: 35,
+    index: 36,
     tags: &[
         Column {
             name: "car_id",
@@ -2376,7 +2455,7 @@ pub static CAN_DTI_TEMPERATURES: Table = Table {
 /// CAN message `DTI_FocCurrents` (0x2341), one row per frame; multiplexed signals are NULL when absent.
 pub static CAN_DTI_FOC_CURRENTS: Table = Table {
     name: "can_dti_foc_currents",
-    index: 36,
+    index: 37,
     tags: &[
         Column {
             name: "car_id",
@@ -2419,7 +2498,7 @@ pub static CAN_DTI_FOC_CURRENTS: Table = Table {
 /// CAN message `DTI_Flags` (0x2441), one row per frame; multiplexed signals are NULL when absent.
 pub static CAN_DTI_FLAGS: Table = Table {
     name: "can_dti_flags",
-    index: 37,
+    index: 38,
     tags: &[
         Column {
             name: "car_id",
@@ -2546,7 +2625,7 @@ pub static CAN_DTI_FLAGS: Table = Table {
 /// CAN message `DTI_AcLimits` (0x2541), one row per frame; multiplexed signals are NULL when absent.
 pub static CAN_DTI_AC_LIMITS: Table = Table {
     name: "can_dti_ac_limits",
-    index: 38,
+    index: 39,
     tags: &[
         Column {
             name: "car_id",
@@ -2597,7 +2676,7 @@ pub static CAN_DTI_AC_LIMITS: Table = Table {
 /// CAN message `DTI_DcLimits` (0x2641), one row per frame; multiplexed signals are NULL when absent.
 pub static CAN_DTI_DC_LIMITS: Table = Table {
     name: "can_dti_dc_limits",
-    index: 39,
+    index: 40,
     tags: &[
         Column {
             name: "car_id",
@@ -2646,7 +2725,7 @@ pub static CAN_DTI_DC_LIMITS: Table = Table {
 };
 
 /// Every table: telemetry first, then one per CAN message in schema order.
-pub static TABLES: [&Table; 40] = [
+pub static TABLES: [&Table; 41] = [
     &TELEMETRY,
     &CAN_CCM_STATUS,
     &CAN_CCM_CALIBRATION,
@@ -2660,6 +2739,7 @@ pub static TABLES: [&Table; 40] = [
     &CAN_ORION_LIMITS,
     &CAN_ORION_CELL_VOLTAGES,
     &CAN_PCC_STATUS,
+    &CAN_PCC_THERMAL,
     &CAN_XCP_CMD,
     &CAN_XCP_RES,
     &CAN_IMD_INFO_GENERAL,
@@ -2704,6 +2784,7 @@ pub fn for_message(message: &AnyMessage) -> &'static Table {
         AnyMessage::OrionLimits(_) => &CAN_ORION_LIMITS,
         AnyMessage::OrionCellVoltages(_) => &CAN_ORION_CELL_VOLTAGES,
         AnyMessage::PccStatus(_) => &CAN_PCC_STATUS,
+        AnyMessage::PccThermal(_) => &CAN_PCC_THERMAL,
         AnyMessage::XcpCmd(_) => &CAN_XCP_CMD,
         AnyMessage::XcpRes(_) => &CAN_XCP_RES,
         AnyMessage::ImdInfoGeneral(_) => &CAN_IMD_INFO_GENERAL,

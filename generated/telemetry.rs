@@ -21,7 +21,7 @@ use super::runtime::{self, ByteOrder, SignalMeta, SignalVisitor, Value};
 /// Fingerprint of this layout and of the CAN database it references: the first four bytes of
 /// every packet, so a receiver built from another schema rejects the packet instead of
 /// mis-decoding it.
-pub const TELEMETRY_FINGERPRINT: u32 = 0xDCF4C63B;
+pub const TELEMETRY_FINGERPRINT: u32 = 0x3C476174;
 
 /// The header fields a sender chooses (the fingerprint is fixed).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]

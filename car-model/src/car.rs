@@ -134,7 +134,26 @@ impl Car {
             self.inverter
                 .dc_power_w(self.chassis.motor_rad_s(), self.efficiency, dc_live, 0.001);
         self.pack.deliver(self.power_w, 0.001);
-        self.pcc.advance(1.0);
+        self.pcc_hardware(now_ms);
+        self.pcc.advance(now_ms);
+    }
+
+    /// The PCC circuit's and sensing's faults planned for `now_ms`.
+    fn pcc_hardware(&mut self, now_ms: u32) {
+        let plan = &self.plan;
+        let plant = &mut self.pcc.plant;
+        plant.air_plus_welded = plan.is_active(now_ms, Fault::AirPlusWelded);
+        plant.discharge_failed = plan.is_active(now_ms, Fault::DischargeFailed);
+        plant.load_ohm = plan
+            .is_active(now_ms, Fault::TractiveLoad)
+            .then_some(plant.resistor.ohm);
+        let sensing = &mut self.pcc.sensing;
+        for (index, silent) in sensing.converter_silent.iter_mut().enumerate() {
+            *silent = plan.is_active(now_ms, Fault::ConverterSilent(index));
+        }
+        for (index, open) in sensing.thermistor_open.iter_mut().enumerate() {
+            *open = plan.is_active(now_ms, Fault::ThermistorOpen(index));
+        }
     }
 
     /// The CCM's sensor sample this millisecond, or `None` if its sampling has stopped.
@@ -163,9 +182,9 @@ impl Car {
         if now_ms % TASK_PERIOD_MS == 0 {
             let shutdown_open =
                 self.plan.is_active(now_ms, Fault::ShutdownOpen) || self.command.park;
-            if let Some(status) = self.pcc.step(now_ms, self.pack.voltage_v, shutdown_open) {
-                self.nodes
-                    .send(now_ms, CAN1, Node::Pcc, &status, &self.plan);
+            let frames = self.pcc.step(now_ms, self.pack.voltage_v, shutdown_open);
+            for frame in frames.iter().flatten() {
+                self.nodes.send(now_ms, CAN1, Node::Pcc, frame, &self.plan);
             }
         }
         let dc_v = self.pcc.plant.tractive_v;

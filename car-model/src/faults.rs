@@ -44,11 +44,24 @@ pub enum Fault {
     BusOff(usize),
     /// A node's frames carry random bytes: values out of range, unknown enum values.
     GarbledFrames(Node),
+    /// A PCC V/F converter's output wire breaks: no pulses, whatever the voltage (0 = the
+    /// accumulator's, 1 = the tractive system's).
+    ConverterSilent(usize),
+    /// AIR+'s contacts weld shut: closed whatever the PCC and the shutdown circuit do.
+    AirPlusWelded,
+    /// The discharge circuit is open: with the AIRs open the tractive system discharges only
+    /// through the inverter's own bleeder, in tens of seconds.
+    DischargeFailed,
+    /// A load across the tractive system (1.9 kOhm, as the precharge resistor): a precharge
+    /// stalls at half the pack and heats the resistor.
+    TractiveLoad,
+    /// A precharge-resistor thermistor is open (0 = pin 21, 1 = pin 22).
+    ThermistorOpen(usize),
 }
 
 impl Fault {
     /// Every kind, with its first variant where it has several (for reports).
-    pub const KINDS: [Self; 13] = [
+    pub const KINDS: [Self; 18] = [
         Self::PedalConverterLost,
         Self::PedalSensorOpen(0),
         Self::PedalSensorShorted(1),
@@ -62,6 +75,11 @@ impl Fault {
         Self::ShutdownOpen,
         Self::BusOff(0),
         Self::GarbledFrames(Node::Pcc),
+        Self::ConverterSilent(1),
+        Self::AirPlusWelded,
+        Self::DischargeFailed,
+        Self::TractiveLoad,
+        Self::ThermistorOpen(0),
     ];
 }
 

@@ -62,6 +62,11 @@ fn fault() -> impl Strategy<Value = Fault> {
         Just(Fault::InverterStuck),
         Just(Fault::ShutdownOpen),
         (0usize..2).prop_map(Fault::BusOff),
+        (0usize..2).prop_map(Fault::ConverterSilent),
+        Just(Fault::AirPlusWelded),
+        Just(Fault::DischargeFailed),
+        Just(Fault::TractiveLoad),
+        (0usize..2).prop_map(Fault::ThermistorOpen),
         prop_oneof![
             Just(Node::Pcc),
             Just(Node::Bms),

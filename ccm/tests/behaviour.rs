@@ -431,6 +431,13 @@ fn bus_frames_fill_the_mirror_and_bad_ones_are_counted() {
     let status = PccStatus {
         pcc_state: PrechargeState::Online,
         pcc_error_too_fast: false,
+        pcc_error_bypassed: false,
+        pcc_error_resistor_hot: false,
+        pcc_accumulator_no_pulses: false,
+        pcc_tractive_no_pulses: false,
+        pcc_error_accumulator_silent: false,
+        pcc_error_tractive_silent: false,
+        pcc_error_no_discharge: false,
         pcc_error_too_slow: false,
         pcc_error_bms_timeout: false,
         pcc_error_shutdown: false,

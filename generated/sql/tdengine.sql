@@ -39,7 +39,10 @@ CREATE STABLE IF NOT EXISTS `can_orion_limits` (`ts` TIMESTAMP, `orion_pack_dcl`
 CREATE STABLE IF NOT EXISTS `can_orion_cell_voltages` (`ts` TIMESTAMP, `orion_low_cell_voltage` DOUBLE, `orion_high_cell_voltage` DOUBLE, `orion_avg_cell_voltage` DOUBLE, `orion_low_cell_id` TINYINT UNSIGNED) TAGS (`car_id` VARCHAR(32), `bus` VARCHAR(16), `schema_fingerprint` INT UNSIGNED);
 
 -- CAN message `PCC_Status` (0x222), one row per frame; multiplexed signals are NULL when absent.
-CREATE STABLE IF NOT EXISTS `can_pcc_status` (`ts` TIMESTAMP, `pcc_state` TINYINT UNSIGNED, `pcc_error_too_fast` BOOL, `pcc_error_too_slow` BOOL, `pcc_error_bms_timeout` BOOL, `pcc_error_shutdown` BOOL, `pcc_error_undefined_state` BOOL, `pcc_accumulator_voltage` DOUBLE, `pcc_tractive_voltage` DOUBLE, `pcc_precharge_progress` DOUBLE) TAGS (`car_id` VARCHAR(32), `bus` VARCHAR(16), `schema_fingerprint` INT UNSIGNED);
+CREATE STABLE IF NOT EXISTS `can_pcc_status` (`ts` TIMESTAMP, `pcc_state` TINYINT UNSIGNED, `pcc_error_bypassed` BOOL, `pcc_error_resistor_hot` BOOL, `pcc_accumulator_no_pulses` BOOL, `pcc_tractive_no_pulses` BOOL, `pcc_error_too_fast` BOOL, `pcc_error_too_slow` BOOL, `pcc_error_bms_timeout` BOOL, `pcc_error_shutdown` BOOL, `pcc_error_accumulator_silent` BOOL, `pcc_error_tractive_silent` BOOL, `pcc_error_no_discharge` BOOL, `pcc_error_undefined_state` BOOL, `pcc_accumulator_voltage` DOUBLE, `pcc_tractive_voltage` DOUBLE, `pcc_precharge_progress` DOUBLE) TAGS (`car_id` VARCHAR(32), `bus` VARCHAR(16), `schema_fingerprint` INT UNSIGNED);
+
+-- CAN message `PCC_Thermal` (0x223), one row per frame; multiplexed signals are NULL when absent.
+CREATE STABLE IF NOT EXISTS `can_pcc_thermal` (`ts` TIMESTAMP, `pcc_resistor_temp1` DOUBLE, `pcc_resistor_temp2` DOUBLE, `pcc_resistor_temp1_valid` BOOL, `pcc_resistor_temp2_valid` BOOL) TAGS (`car_id` VARCHAR(32), `bus` VARCHAR(16), `schema_fingerprint` INT UNSIGNED);
 
 -- CAN message `XCP_Cmd` (0x6F0), one row per frame; multiplexed signals are NULL when absent.
 CREATE STABLE IF NOT EXISTS `can_xcp_cmd` (`ts` TIMESTAMP, `xcp_command_code` TINYINT UNSIGNED) TAGS (`car_id` VARCHAR(32), `bus` VARCHAR(16), `schema_fingerprint` INT UNSIGNED);

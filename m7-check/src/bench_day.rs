@@ -21,7 +21,9 @@ use aer_ccm::console::{self as ccm_console, CalibrationLine};
 use aer_ccm::control::HandoverRefusal;
 use aer_console::bringup::ResetCause;
 use aer_console::{LogBuffer, Reboot};
-use aer_pcc::console::{self as pcc_console, CountersLine, RaceLog, RebootAnswer};
+use aer_pcc::console::{
+    self as pcc_console, ConverterVolts, CountersLine, RaceLog, RebootAnswer, ResistorTemperature,
+};
 use aer_pcc::constants::CONVERTERS;
 use aer_pcc::measurement::VoltageChannel;
 use aer_pcc::{Inputs, Precharge, PrechargeConfig, Relays, TASK_PERIOD_MS};
@@ -494,6 +496,8 @@ struct RacePcc {
     relays: Relays,
     /// The BMS's frames are heard from this time on.
     bms_from_ms: u32,
+    /// What the thermistors read (degC; `None`: open).
+    resistor_c: [Option<f32>; 2],
 }
 
 impl RacePcc {
@@ -507,6 +511,7 @@ impl RacePcc {
             now_ms: 0,
             relays: Relays::ALL_OPEN,
             bms_from_ms: 0,
+            resistor_c: [Some(24.0), Some(24.5)],
         }
     }
 
@@ -526,24 +531,29 @@ impl RacePcc {
     fn step(&mut self) {
         let now_ms = self.now_ms;
         let now_us = now_ms.wrapping_mul(1_000);
+        let [accumulator, tractive] = self.channels.each_mut().map(|channel| channel.sample(now_us));
         let inputs = Inputs {
             now_ms,
-            accumulator_v: self.channels[0].sample(now_us),
-            tractive_v: self.channels[1].sample(now_us),
+            accumulator_v: accumulator.volts,
+            tractive_v: tractive.volts,
+            pulses: [accumulator.pulses, tractive.pulses],
             bms_last_seen_ms: (now_ms >= self.bms_from_ms).then_some(now_ms - now_ms % 100),
             charger_safety: false,
+            resistor_c: self.resistor_c,
         };
         self.relays = self.pcc.step(&inputs);
         self.race_log
             .changes(now_ms, &self.pcc, self.relays, &mut self.log);
         if RaceLog::counters_due(now_ms) {
             let dropped = self.log.dropped();
+            let [accumulator, tractive] = ConverterVolts::of(&self.pcc);
             self.log.line(format_args!(
                 "{}",
                 CountersLine {
                     now_ms,
-                    accumulator_v: self.pcc.accumulator_v(),
-                    tractive_v: self.pcc.tractive_v(),
+                    accumulator,
+                    tractive,
+                    resistor: self.pcc.resistor_c().map(ResistorTemperature),
                     bus: ACTIVE,
                     rx_queue_overflows: 0,
                     status_not_sent: 0,

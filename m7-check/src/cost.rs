@@ -8,6 +8,7 @@ use aer_ccm::calibration::state::CalibrationState;
 use aer_ccm::calibration::store::{CalibrationStore, RamFlash, Startup};
 use aer_ccm::xcp::{SeedKey, XcpNode};
 use aer_ccm::{Ccm, DriverInputs, SensorSample};
+use aer_pcc::measurement::Pulses;
 use aer_pcc::{Inputs, Precharge, PrechargeConfig};
 
 /// A measured operation: `run` performs it `iterations` times.
@@ -101,8 +102,10 @@ fn pcc_step(iterations: u32) {
             now_ms: i * 10,
             accumulator_v: 400.0,
             tractive_v: (i % 400) as f32,
+            pulses: [Pulses::Live; 2],
             bms_last_seen_ms: Some(i * 10),
             charger_safety: false,
+            resistor_c: [Some(25.0); 2],
         });
         core::hint::black_box(relays);
     }

@@ -4,7 +4,7 @@
 
 use crate::Digest;
 use aer::can::OrionPackStatus;
-use aer_car_model::precharge::PrechargePlant;
+use aer_car_model::precharge::{PrechargePlant, PulseGenerator};
 use aer_flexcan::CanFrame;
 use aer_pcc::measurement::VoltageChannel;
 use aer_pcc::{
@@ -71,39 +71,14 @@ pub fn scenarios(out: &mut impl Write) -> core::fmt::Result {
     Ok(())
 }
 
-/// Pulse generator for one V/F converter: edges at the frequency the modelled voltage gives.
-struct PulseTrain {
-    /// Fraction of a period elapsed since the last edge.
-    phase: f32,
-}
-
-impl PulseTrain {
-    /// Emits the edges of `period_us` starting at `start_us` for a signal at `hz`.
-    fn run(&mut self, start_us: u32, period_us: u32, hz: f32, channel: &mut VoltageChannel) {
-        let periods = self.phase + hz * period_us as f32 / 1e6;
-        let edges = periods as u32;
-        for k in 1..=edges {
-            let offset_us = (k as f32 - self.phase) / hz * 1e6;
-            channel.on_edge(start_us.wrapping_add(offset_us as u32));
-        }
-        self.phase = periods - edges as f32;
-    }
-}
-
 fn run(scenario: &Scenario, out: &mut impl Write) -> core::fmt::Result {
     let vf = VfConfig::PCC_BOARD;
     let config = PrechargeConfig::CAR;
-    let mut plant = PrechargePlant {
-        accumulator_v: 398.4,
-        tractive_v: 0.0,
-        precharge_tau_ms: scenario.precharge_tau_ms,
-        discharge_tau_ms: 400.0,
-        shutdown_closed: true,
-    };
+    let mut plant = PrechargePlant::new(398.4, scenario.precharge_tau_ms, 400.0);
     let mut accumulator = VoltageChannel::new(vf, TASK_PERIOD_MS);
     let mut tractive = VoltageChannel::new(vf, TASK_PERIOD_MS);
-    let mut accumulator_pulses = PulseTrain { phase: 0.0 };
-    let mut tractive_pulses = PulseTrain { phase: 0.0 };
+    let mut accumulator_pulses = PulseGenerator::default();
+    let mut tractive_pulses = PulseGenerator::default();
     let mut pcc = Precharge::new(config, 0);
     let mut bms = BmsLink::default();
     let mut relays = Relays::ALL_OPEN;
@@ -128,13 +103,13 @@ fn run(scenario: &Scenario, out: &mut impl Write) -> core::fmt::Result {
             start_us,
             period_us,
             VoltageChannel::hz_for_volts(&vf, plant.accumulator_v + ripple),
-            &mut accumulator,
+            |at_us| accumulator.on_edge(at_us),
         );
         tractive_pulses.run(
             start_us,
             period_us,
             VoltageChannel::hz_for_volts(&vf, plant.tractive_v),
-            &mut tractive,
+            |at_us| tractive.on_edge(at_us),
         );
 
         let charger = scenario.charger_from_ms.is_some_and(|from| now_ms >= from);
@@ -145,12 +120,16 @@ fn run(scenario: &Scenario, out: &mut impl Write) -> core::fmt::Result {
             }
         }
 
+        let accumulator_sample = accumulator.sample(now_ms * 1_000);
+        let tractive_sample = tractive.sample(now_ms * 1_000);
         let inputs = Inputs {
             now_ms,
-            accumulator_v: accumulator.sample(now_ms * 1_000),
-            tractive_v: tractive.sample(now_ms * 1_000),
+            accumulator_v: accumulator_sample.volts,
+            tractive_v: tractive_sample.volts,
+            pulses: [accumulator_sample.pulses, tractive_sample.pulses],
             bms_last_seen_ms: bms.last_seen_ms(),
             charger_safety: bms.charger_safety(),
+            resistor_c: [Some(plant.resistor.celsius); 2],
         };
         relays = pcc.step(&inputs);
         let mut status = [0u8; 8];

@@ -7,7 +7,10 @@
 use crate::bringup::GateLine;
 use crate::constants::TASK_PERIOD_MS;
 use crate::constants::VfConfig;
-use crate::machine::{HandoverRefusal, Precharge, PrechargeTiming, Waiting};
+use crate::machine::{
+    HandoverRefusal, HotResistor, NoDischarge, Precharge, PrechargeTiming, Silence, Waiting,
+};
+use crate::measurement::Pulses;
 use crate::relays::Relays;
 use crate::state::{Errors, State};
 use aer_boards::pcc::Revision;
@@ -40,6 +43,56 @@ pub fn race_startup<const N: usize>(
     .write(log)
 }
 
+/// A converter's reading as the console prints it: its voltage, or `no pulses`, never a 0 V
+/// that a broken wire would give just as well.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ConverterVolts {
+    /// The filtered voltage (V).
+    pub volts: f32,
+    /// Whether it gives pulses.
+    pub pulses: Pulses,
+}
+
+impl ConverterVolts {
+    /// Both converters of `pcc` as last read: accumulator, tractive system.
+    pub fn of(pcc: &Precharge) -> [Self; 2] {
+        let [accumulator, tractive] = pcc.pulses();
+        [
+            Self {
+                volts: pcc.accumulator_v(),
+                pulses: accumulator,
+            },
+            Self {
+                volts: pcc.tractive_v(),
+                pulses: tractive,
+            },
+        ]
+    }
+}
+
+impl fmt::Display for ConverterVolts {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self.pulses {
+            Pulses::Live => write!(f, "{:.1} V", self.volts),
+            Pulses::Silent { .. } => f.write_str("no pulses"),
+        }
+    }
+}
+
+/// The precharge resistor's temperature at one thermistor, as the console prints it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ResistorTemperature(pub Option<f32>);
+
+impl fmt::Display for ResistorTemperature {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self.0 {
+            Some(celsius) if celsius > 999.0 => f.write_str("shorted (hot)"),
+            Some(celsius) => write!(f, "{celsius:.1} degC"),
+            None => f.write_str("no reading"),
+        }
+    }
+}
+
 /// The race image's line when the state or the errors change.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct StateLine {
@@ -51,17 +104,17 @@ pub struct StateLine {
     pub relays: Relays,
     /// The latched error causes.
     pub errors: Errors,
-    /// Accumulator voltage (V).
-    pub accumulator_v: f32,
-    /// Tractive-system voltage (V).
-    pub tractive_v: f32,
+    /// The accumulator's converter.
+    pub accumulator: ConverterVolts,
+    /// The tractive system's converter.
+    pub tractive: ConverterVolts,
 }
 
 impl fmt::Display for StateLine {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         write!(
             f,
-            "t={} ms state {:?}, AIR+ {}, errors: {}, accumulator {:.1} V, tractive {:.1} V",
+            "t={} ms state {:?}, AIR+ {}, errors: {}, accumulator {}, tractive {}",
             self.now_ms,
             self.state,
             if self.relays.air_plus {
@@ -70,21 +123,23 @@ impl fmt::Display for StateLine {
                 "open"
             },
             self.errors,
-            self.accumulator_v,
-            self.tractive_v
+            self.accumulator,
+            self.tractive
         )
     }
 }
 
-/// The race image's voltages, bus and drop counters, every 5 s.
+/// The race image's voltages, resistor temperatures, bus and drop counters, every 5 s.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct CountersLine {
     /// Milliseconds since start-up.
     pub now_ms: u32,
-    /// Accumulator voltage (V).
-    pub accumulator_v: f32,
-    /// Tractive-system voltage (V).
-    pub tractive_v: f32,
+    /// The accumulator's converter.
+    pub accumulator: ConverterVolts,
+    /// The tractive system's converter.
+    pub tractive: ConverterVolts,
+    /// The precharge resistor at its two thermistors.
+    pub resistor: [ResistorTemperature; 2],
     /// The CAN controller.
     pub bus: BusStatus,
     /// Frames dropped because the receive queue was full.
@@ -97,12 +152,13 @@ pub struct CountersLine {
 
 impl fmt::Display for CountersLine {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let [first, second] = self.resistor;
         write!(
             f,
-            "t={} ms accumulator {:.1} V, tractive {:.1} V; CAN2 {}; rx queue overflows {}, status not sent {}, log lines dropped {}",
+            "t={} ms accumulator {}, tractive {}; resistor {first}, {second}; CAN2 {}; rx queue overflows {}, status not sent {}, log lines dropped {}",
             self.now_ms,
-            self.accumulator_v,
-            self.tractive_v,
+            self.accumulator,
+            self.tractive,
             self.bus,
             self.rx_queue_overflows,
             self.status_not_sent,
@@ -141,6 +197,91 @@ pub struct RaceLog {
     state: Watch<(State, Errors)>,
     waiting: Watch<Option<Waiting>>,
     precharge: Watch<Option<PrechargeTiming>>,
+    silences: [Watch<Option<Silence>>; 2],
+    no_discharge: Watch<Option<NoDischarge>>,
+    hot: Watch<Option<HotResistor>>,
+    thermistors: Watch<[bool; 2]>,
+}
+
+/// The line that names a converter's latched silence.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SilenceLine {
+    /// Milliseconds since start-up.
+    pub now_ms: u32,
+    /// What latched.
+    pub silence: Silence,
+    /// The discharged limit (V).
+    pub discharged_v: f32,
+}
+
+impl fmt::Display for SilenceLine {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let Silence {
+            converter,
+            last_v,
+            since_ms,
+        } = self.silence;
+        write!(
+            f,
+            "t={} ms {} SILENT since t={since_ms} ms, last read {last_v:.1} V: a broken wire or a dead converter, not 0 V. Treat the tractive system as live: AIR+ stays open; open the shutdown circuit and have the ESO measure at the TSMP (below {:.0} V before anyone touches it); bootloader and restart wait until both converters give pulses below {:.0} V; a new precharge needs a power cycle (LV off, USB out)",
+            self.now_ms,
+            converter.name(),
+            self.discharged_v,
+            self.discharged_v
+        )
+    }
+}
+
+/// The line that names a tractive system that did not discharge.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct NoDischargeLine {
+    /// Milliseconds since start-up.
+    pub now_ms: u32,
+    /// What latched.
+    pub fault: NoDischarge,
+    /// The discharged limit (V).
+    pub discharged_v: f32,
+}
+
+impl fmt::Display for NoDischargeLine {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let NoDischarge {
+            tractive_v,
+            falling_since_ms,
+            limit_ms,
+        } = self.fault;
+        write!(
+            f,
+            "t={} ms NO DISCHARGE: the tractive system reads {tractive_v:.1} V {limit_ms} ms after it began to fall (t={falling_since_ms} ms; the rules: below {:.0} V within {limit_ms} ms): an AIR welded or the discharge circuit failed. Hands off: the ESO isolates the accumulator (maintenance plug) and measures at the TSMP",
+            self.now_ms, self.discharged_v
+        )
+    }
+}
+
+/// The line that names a hot precharge resistor.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct HotResistorLine {
+    /// Milliseconds since start-up.
+    pub now_ms: u32,
+    /// What latched.
+    pub hot: HotResistor,
+}
+
+impl fmt::Display for HotResistorLine {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let HotResistor {
+            thermistor,
+            celsius,
+            limit_c,
+        } = self.hot;
+        write!(
+            f,
+            "t={} ms RESISTOR HOT: thermistor {thermistor} (pin {}) reads {}, limit {limit_c:.0} degC: the precharge resistor overheats (a precharge that stalls, a load on the tractive system). Open the shutdown circuit and let it cool; AIR+ stays open until a power cycle",
+            self.now_ms,
+            if thermistor == 1 { 21 } else { 22 },
+            ResistorTemperature(Some(celsius))
+        )
+    }
 }
 
 /// STANDBY's line: what precharge waits for.
@@ -233,15 +374,55 @@ impl RaceLog {
         log: &mut LogBuffer<N>,
     ) {
         if let Some((state, errors)) = self.state.changed((pcc.state(), pcc.errors())) {
+            let [accumulator, tractive] = ConverterVolts::of(pcc);
             let line = StateLine {
                 now_ms,
                 state,
                 relays,
                 errors,
-                accumulator_v: pcc.accumulator_v(),
-                tractive_v: pcc.tractive_v(),
+                accumulator,
+                tractive,
             };
             log.line(format_args!("{line}"));
+        }
+        let discharged_v = pcc.config().discharged_v;
+        for (watch, silence) in self.silences.iter_mut().zip(pcc.silences()) {
+            if let Some(Some(silence)) = watch.changed(silence) {
+                let line = SilenceLine {
+                    now_ms,
+                    silence,
+                    discharged_v,
+                };
+                log.line(format_args!("{line}"));
+            }
+        }
+        if let Some(Some(fault)) = self.no_discharge.changed(pcc.no_discharge()) {
+            let line = NoDischargeLine {
+                now_ms,
+                fault,
+                discharged_v,
+            };
+            log.line(format_args!("{line}"));
+        }
+        if let Some(Some(hot)) = self.hot.changed(pcc.hot_resistor()) {
+            log.line(format_args!("{}", HotResistorLine { now_ms, hot }));
+        }
+        let readings = pcc.resistor_c().map(|reading| reading.is_some());
+        if let Some(readings) = self.thermistors.changed(readings) {
+            for (thermistor, (reads, celsius)) in (1u8..).zip(readings.iter().zip(pcc.resistor_c()))
+            {
+                let pin = if thermistor == 1 { 21 } else { 22 };
+                if *reads {
+                    log.line(format_args!(
+                        "t={now_ms} ms thermistor {thermistor} (pin {pin}) reads {}",
+                        ResistorTemperature(celsius)
+                    ));
+                } else {
+                    log.line(format_args!(
+                        "t={now_ms} ms thermistor {thermistor} (pin {pin}) gives no reading (open or unplugged): the precharge resistor's temperature is not watched there"
+                    ));
+                }
+            }
         }
         // What STANDBY waits for, when it changes and again with every counters line: a
         // terminal opened late still reads it within 5 s.

@@ -52,6 +52,19 @@ pub struct PrechargeConfig {
     /// In ONLINE and CHARGING, progress below this means the tractive system is no longer
     /// connected to the pack (the shutdown circuit opened) or is shorted: AIR+ is released.
     pub online_min_percent: f32,
+    /// Once the tractive system has begun to fall after the AIRs opened, it must read below
+    /// [`Self::discharged_v`] within this time (ms), or the PCC latches `no-discharge` (an AIR
+    /// welded or the discharge circuit failed). The FSAE EV rules' discharge requirement:
+    /// below 60 V DC within 5 s of the shutdown circuit opening.
+    pub discharge_time_ms: u32,
+    /// A precharge that reaches the target sooner than this after the rise did not go through
+    /// the precharge resistor: AIR+ is welded or the resistor is bypassed. Through any
+    /// resistor the board could carry the rise takes seconds; a bypassed one reaches the pack
+    /// in one or two control periods plus the 16 ms measurement filter.
+    pub bypass_max_ms: u32,
+    /// The precharge resistor's temperature limit (degC): either thermistor at or above it
+    /// latches `resistor-hot`.
+    pub resistor_limit_c: f32,
 }
 
 impl PrechargeConfig {
@@ -69,6 +82,9 @@ impl PrechargeConfig {
         rest_percent: 5.0,
         precharge_drop_percent: 10.0,
         online_min_percent: 80.0,
+        discharge_time_ms: 5_000,
+        bypass_max_ms: 500,
+        resistor_limit_c: THERMISTORS.limit_c,
     };
 }
 
@@ -116,5 +132,77 @@ impl VfConfig {
     /// tests and a signal generator on the bench).
     pub fn hz_for_volts(&self, volts: f32) -> f32 {
         volts / (self.volts_per_hz * self.divider_ratio)
+    }
+}
+
+/// The precharge resistor's two thermistors (pins 21 and 22, A7 and A8): NTC parts on the low
+/// side of a divider whose high side goes to 3.3 V, read by the on-chip ADC (12 bits).
+///
+/// Every figure is the team's (embedded-mz@0c18690 fsae-pcc/src/precharge.cpp:19-27: 10 kOhm at
+/// 25 degC, beta 3880, a 6.8 kOhm divider resistor, a 69 degC threshold); the parts and the
+/// limit are assumed until the bench day checks them (docs/bench-day.md, 6a).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ThermistorConfig {
+    /// Resistance at `t0_c` (Ohm).
+    pub r0_ohm: f32,
+    /// The reference temperature (degC).
+    pub t0_c: f32,
+    /// The beta constant (K).
+    pub beta_k: f32,
+    /// The divider's resistor between the pin and 3.3 V (Ohm).
+    pub divider_ohm: f32,
+    /// Full scale of the ADC (counts).
+    pub full_scale: u16,
+    /// Below this temperature (degC) a reading is not a resistor on a car but an open or
+    /// unplugged thermistor (the pin pulled to 3.3 V): no reading.
+    pub open_below_c: f32,
+    /// The resistor's limit (degC).
+    pub limit_c: f32,
+}
+
+/// The PCC board's thermistors.
+pub const THERMISTORS: ThermistorConfig = ThermistorConfig {
+    r0_ohm: 10_000.0,
+    t0_c: 25.0,
+    beta_k: 3_880.0,
+    divider_ohm: 6_800.0,
+    full_scale: 4_095,
+    open_below_c: -30.0,
+    limit_c: 69.0,
+};
+
+impl ThermistorConfig {
+    /// The temperature (degC) that `counts` mean, or `None` for an open or unplugged
+    /// thermistor (a reading colder than [`Self::open_below_c`], the pin at the rail). A
+    /// shorted thermistor reads hotter than any limit, which fails safe.
+    pub fn temperature_c(&self, counts: u16) -> Option<f32> {
+        let full = f32::from(self.full_scale);
+        let counts = f32::from(counts.min(self.full_scale));
+        if counts >= full {
+            return None;
+        }
+        // The thermistor is the low side: counts / full = R / (R + divider).
+        let resistance = self.divider_ohm * counts / (full - counts);
+        if resistance <= 0.0 {
+            return Some(f32::MAX);
+        }
+        let kelvin0 = self.t0_c + 273.15;
+        let inverse = 1.0 / kelvin0 + libm::logf(resistance / self.r0_ohm) / self.beta_k;
+        let celsius = 1.0 / inverse - 273.15;
+        if !celsius.is_finite() || celsius < self.open_below_c {
+            None
+        } else {
+            Some(celsius)
+        }
+    }
+
+    /// The counts a thermistor at `celsius` gives (for simulations and tests).
+    pub fn counts_for(&self, celsius: f32) -> u16 {
+        let kelvin0 = self.t0_c + 273.15;
+        let resistance =
+            self.r0_ohm * libm::expf(self.beta_k * (1.0 / (celsius + 273.15) - 1.0 / kelvin0));
+        let full = f32::from(self.full_scale);
+        let counts = full * resistance / (resistance + self.divider_ohm);
+        libm::roundf(counts).clamp(0.0, full) as u16
     }
 }

@@ -23,10 +23,31 @@
 //! tractive system has been below 60 V for the settle time, so switching the car off with the
 //! shutdown circuit needs no power cycle.
 //!
+//! What the hardware can lie about, the PCC checks from what it can see:
+//! - **A silent converter is unknown, not 0 V.** An LM331 gives no pulses at 0 V, and none
+//!   with a broken wire. A converter that falls silent after reading 60 V or more, or while
+//!   the PCC is in PRECHARGE, ONLINE, CHARGING or DISCHARGE, latches a fault of its own in any
+//!   state; `bootloader` and `restart` are refused until both converters give pulses below
+//!   60 V again, and only a power cycle clears it.
+//! - **The tractive system must discharge.** Once it has begun to fall after the AIRs opened,
+//!   it must read below 60 V within the discharge time (5 s, the rules'), or `no-discharge`
+//!   latches: an AIR welded or the discharge circuit failed. The timer starts at the fall,
+//!   not when AIR+ opens: with the shutdown circuit still closed (a BMS timeout, say) the
+//!   tractive system stays charged through the precharge resistor, rightly.
+//! - **A precharge faster than the resistor allows** (under [`PrechargeConfig::bypass_max_ms`])
+//!   latches `too-fast` with `bypassed`: AIR+ welded or the precharge resistor bypassed.
+//! - **The precharge resistor's temperature**: either thermistor at its limit latches
+//!   `resistor-hot`. A thermistor with no reading (open, unplugged) is unknown: it latches
+//!   nothing, and the console says the protection is off.
+//!
+//! What it cannot see: a single welded AIR with the other one open (the tractive system then
+//! discharges as it should). The bench-day sheet's weld check before every re-closure covers it.
+//!
 //! Time is a free-running millisecond counter that may wrap; every comparison is on
 //! differences, so a wrap (after 49.7 days) changes nothing.
 
 use crate::constants::PrechargeConfig;
+use crate::measurement::Pulses;
 use crate::relays::Relays;
 use crate::state::{Errors, State};
 use aer_control::Persist;
@@ -36,14 +57,83 @@ use aer_control::Persist;
 pub struct Inputs {
     /// Free-running milliseconds.
     pub now_ms: u32,
-    /// Filtered accumulator voltage (V).
+    /// Filtered accumulator voltage (V; 0 while its converter is silent).
     pub accumulator_v: f32,
-    /// Filtered tractive-system voltage (V).
+    /// Filtered tractive-system voltage (V; 0 while its converter is silent).
     pub tractive_v: f32,
+    /// Whether each converter gives pulses: the accumulator's (pin 14), the tractive
+    /// system's (pin 15).
+    pub pulses: [Pulses; 2],
     /// When the last BMS frame arrived (`None` before the first).
     pub bms_last_seen_ms: Option<u32>,
     /// The BMS reports its charger-safety output on.
     pub charger_safety: bool,
+    /// The precharge resistor's temperature at each thermistor (degC); `None`: no reading.
+    pub resistor_c: [Option<f32>; 2],
+}
+
+/// One of the two V/F converters.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Converter {
+    /// The accumulator's (pin 14).
+    Accumulator,
+    /// The tractive system's (pin 15).
+    Tractive,
+}
+
+impl Converter {
+    /// Both, in the order of [`Inputs::pulses`].
+    pub const BOTH: [Self; 2] = [Self::Accumulator, Self::Tractive];
+
+    /// As the console names it.
+    pub const fn name(self) -> &'static str {
+        match self {
+            Self::Accumulator => "accumulator converter (pin 14)",
+            Self::Tractive => "tractive-system converter (pin 15)",
+        }
+    }
+}
+
+/// A converter's latched silence.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Silence {
+    /// Which one.
+    pub converter: Converter,
+    /// What it last measured before its pulses stopped (V).
+    pub last_v: f32,
+    /// When its last pulse came (ms, the PCC's clock).
+    pub since_ms: u32,
+}
+
+/// What latched `no-discharge`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct NoDischarge {
+    /// The tractive system's reading when the discharge time ran out (V).
+    pub tractive_v: f32,
+    /// When it began to fall (ms).
+    pub falling_since_ms: u32,
+    /// The discharge time it had (ms).
+    pub limit_ms: u32,
+}
+
+/// What latched `resistor-hot`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct HotResistor {
+    /// Which thermistor (1 or 2, pins 21 and 22).
+    pub thermistor: u8,
+    /// What it read (degC).
+    pub celsius: f32,
+    /// The limit (degC).
+    pub limit_c: f32,
+}
+
+/// A discharge being watched in ERROR or DISCHARGE, after an energised state.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct DischargeWatch {
+    /// The highest tractive-system reading since.
+    peak_v: f32,
+    /// When it began to fall.
+    falling_since_ms: Option<u32>,
 }
 
 /// The precharge controller.
@@ -76,6 +166,18 @@ pub struct Precharge {
     last_precharge: Option<PrechargeTiming>,
     /// In STANDBY, what the last step was still waiting for.
     waiting: Option<Waiting>,
+    /// Each converter as last read.
+    pulses: [Pulses; 2],
+    /// Each converter's latched silence.
+    silences: [Option<Silence>; 2],
+    /// The discharge watched after AIR+ opened.
+    discharge: Option<DischargeWatch>,
+    /// What latched `no-discharge`.
+    no_discharge: Option<NoDischarge>,
+    /// The resistor's temperatures as last read (degC).
+    resistor_c: [Option<f32>; 2],
+    /// What latched `resistor-hot`.
+    hot: Option<HotResistor>,
 }
 
 /// What STANDBY waits for before precharge starts: each `true` is a condition not met yet.
@@ -110,6 +212,8 @@ pub struct PrechargeTiming {
     pub target_percent: u8,
     /// The window (ms).
     pub window_ms: (u32, u32),
+    /// Faster than this (ms) the rise did not go through the precharge resistor.
+    pub bypass_max_ms: u32,
 }
 
 impl core::fmt::Display for PrechargeTiming {
@@ -121,7 +225,9 @@ impl core::fmt::Display for PrechargeTiming {
                 "precharge {}: {} % reached {ms} ms after the rise (window {min}-{max} ms){}",
                 self.attempt,
                 self.target_percent,
-                if ms < min {
+                if ms < self.bypass_max_ms {
+                    ", TOO FAST: faster than any precharge through the resistor: AIR+ welded or the precharge resistor bypassed (open the shutdown circuit; the weld check before any re-closure)"
+                } else if ms < min {
                     ", TOO FAST"
                 } else if ms > max {
                     ", TOO SLOW"
@@ -150,6 +256,16 @@ pub enum HandoverRefusal {
         /// The limit (V).
         limit_v: f32,
     },
+    /// A converter fell silent at high voltage, and this one does not yet show it is alive
+    /// below the discharged limit.
+    ConverterFault {
+        /// The converter.
+        converter: Converter,
+        /// What it reads now (V); `None`: no pulses.
+        reading: Option<f32>,
+        /// The limit (V).
+        limit_v: f32,
+    },
 }
 
 impl core::fmt::Display for HandoverRefusal {
@@ -166,6 +282,21 @@ impl core::fmt::Display for HandoverRefusal {
                 f,
                 "the tractive system reads {tractive_v:.1} V: open the shutdown circuit, wait until it is below {limit_v:.0} V, then ask again"
             ),
+            Self::ConverterFault {
+                converter,
+                reading,
+                limit_v,
+            } => {
+                write!(f, "a converter fell silent at high voltage, and the {} ", converter.name())?;
+                match reading {
+                    Some(volts) => write!(f, "reads {volts:.1} V")?,
+                    None => f.write_str("gives no pulses")?,
+                }
+                write!(
+                    f,
+                    ": treat the tractive system as live (the ESO measures at the TSMP); the PCC hands over only once both converters give pulses below {limit_v:.0} V (the bench supply on both sense inputs, step 6c), or power-cycle it (LV off, USB out) with the shutdown circuit open"
+                )
+            }
         }
     }
 }
@@ -189,6 +320,12 @@ impl Precharge {
             tractive_v: 0.0,
             last_precharge: None,
             waiting: None,
+            pulses: [Pulses::Live; 2],
+            silences: [None; 2],
+            discharge: None,
+            no_discharge: None,
+            resistor_c: [None; 2],
+            hot: None,
         }
     }
 
@@ -242,14 +379,58 @@ impl Precharge {
         self.waiting
     }
 
+    /// Each converter as last read: the accumulator's, the tractive system's.
+    pub fn pulses(&self) -> [Pulses; 2] {
+        self.pulses
+    }
+
+    /// Each converter's latched silence, in the same order.
+    pub fn silences(&self) -> [Option<Silence>; 2] {
+        self.silences
+    }
+
+    /// What latched `no-discharge`, if it is latched.
+    pub fn no_discharge(&self) -> Option<NoDischarge> {
+        self.no_discharge
+    }
+
+    /// The precharge resistor's temperatures as last read (degC; `None`: no reading).
+    pub fn resistor_c(&self) -> [Option<f32>; 2] {
+        self.resistor_c
+    }
+
+    /// What latched `resistor-hot`, if it is latched.
+    pub fn hot_resistor(&self) -> Option<HotResistor> {
+        self.hot
+    }
+
     /// Whether the PCC may stop running its state machine (the bootloader), and the relays
     /// to apply before it does. Only in STANDBY or ERROR, where AIR+ is open, and only with
     /// the tractive system measured below the discharged limit: a PCC that stopped with
     /// AIR+ closed would leave nothing to open it before the shutdown circuit closes again
     /// and starts a precharge AIR+ would bypass.
+    ///
+    /// After a converter fell silent at high voltage, both converters must first show they
+    /// are alive below the discharged limit: until then a reading of 0 V proves nothing.
     pub fn handover(&self) -> Result<Relays, HandoverRefusal> {
         if !matches!(self.state, State::Standby | State::Error) {
             return Err(HandoverRefusal::Energised(self.state));
+        }
+        if self.errors.converter_silent() {
+            let volts = [self.accumulator_v, self.tractive_v];
+            for ((converter, pulses), volts) in Converter::BOTH.into_iter().zip(self.pulses).zip(volts)
+            {
+                let reading = match pulses {
+                    Pulses::Live if volts < self.config.discharged_v => continue,
+                    Pulses::Live => Some(volts),
+                    Pulses::Silent { .. } => None,
+                };
+                return Err(HandoverRefusal::ConverterFault {
+                    converter,
+                    reading,
+                    limit_v: self.config.discharged_v,
+                });
+            }
         }
         if self.tractive_v >= self.config.discharged_v {
             return Err(HandoverRefusal::Charged {
@@ -281,6 +462,11 @@ impl Precharge {
         let bms_alive = inputs
             .bms_last_seen_ms
             .is_some_and(|seen| now.wrapping_sub(seen) <= self.config.bms_timeout_ms);
+        self.pulses = inputs.pulses;
+        self.resistor_c = inputs.resistor_c.map(|reading| reading.filter(|c| !c.is_nan()));
+        self.latch_silences(now);
+        self.latch_hot_resistor();
+        self.watch_discharge(now);
 
         if self.state.is_energised() {
             // Faults first: whatever else happens this period, they open everything.
@@ -298,6 +484,11 @@ impl Precharge {
                 self.enter(State::Discharge, now);
                 return self.relays();
             }
+        } else if self.errors.needs_reset() && self.state != State::Error {
+            // A fault latched outside the energised states (a silent converter, a hot
+            // resistor, no discharge): ERROR until a power cycle.
+            self.enter(State::Error, now);
+            return self.relays();
         }
 
         match self.state {
@@ -367,6 +558,88 @@ impl Precharge {
         self.relays()
     }
 
+    /// Latches a converter's silence when it cannot mean 0 V: after a reading of the
+    /// discharged limit or more, or in a state where the converter must be reading.
+    fn latch_silences(&mut self, now: u32) {
+        let watched = matches!(
+            self.state,
+            State::Precharge | State::Online | State::Charging | State::Discharge
+        );
+        for ((converter, pulses), latched) in Converter::BOTH
+            .into_iter()
+            .zip(self.pulses)
+            .zip(self.silences.iter_mut())
+        {
+            let Pulses::Silent { last_v, since_ms } = pulses else {
+                continue;
+            };
+            if latched.is_some() || !(watched || last_v >= self.config.discharged_v) {
+                continue;
+            }
+            *latched = Some(Silence {
+                converter,
+                last_v,
+                since_ms: now.wrapping_sub(since_ms),
+            });
+            match converter {
+                Converter::Accumulator => self.errors.accumulator_silent = true,
+                Converter::Tractive => self.errors.tractive_silent = true,
+            }
+        }
+    }
+
+    /// Latches `resistor-hot` at the first thermistor reading at or above the limit.
+    fn latch_hot_resistor(&mut self) {
+        if self.errors.resistor_hot {
+            return;
+        }
+        let limit_c = self.config.resistor_limit_c;
+        for (thermistor, celsius) in (1u8..).zip(self.resistor_c) {
+            if let Some(celsius) = celsius.filter(|c| *c >= limit_c) {
+                self.errors.resistor_hot = true;
+                self.hot = Some(HotResistor {
+                    thermistor,
+                    celsius,
+                    limit_c,
+                });
+                return;
+            }
+        }
+    }
+
+    /// In ERROR and DISCHARGE after AIR+ opened: once the tractive system falls, it must
+    /// reach the discharged limit within the discharge time, or `no-discharge` latches.
+    fn watch_discharge(&mut self, now: u32) {
+        if !matches!(self.state, State::Error | State::Discharge) {
+            self.discharge = None;
+            return;
+        }
+        let Some(watch) = self.discharge.as_mut() else {
+            return;
+        };
+        if self.tractive_v < self.config.discharged_v {
+            self.discharge = None;
+            return;
+        }
+        watch.peak_v = watch.peak_v.max(self.tractive_v);
+        let fallen = self.tractive_v
+            < watch.peak_v * (1.0 - self.config.precharge_drop_percent / 100.0);
+        if watch.falling_since_ms.is_none() && fallen {
+            watch.falling_since_ms = Some(now);
+        }
+        if let Some(since) = watch.falling_since_ms
+            && now.wrapping_sub(since) >= self.config.discharge_time_ms
+            && !self.errors.no_discharge
+        {
+            self.errors.no_discharge = true;
+            self.no_discharge = Some(NoDischarge {
+                tractive_v: self.tractive_v,
+                falling_since_ms: since,
+                limit_ms: self.config.discharge_time_ms,
+            });
+        }
+    }
+
     /// True once the tractive system has been falling away from the pack for the hold time:
     /// in PRECHARGE, progress more than the allowed drop below its peak; in ONLINE and
     /// CHARGING, below the online minimum. Either means AIR- or the precharge path opened
@@ -400,6 +673,7 @@ impl Precharge {
             self.record_precharge(Some(reached_after));
             if reached_after < self.config.min_time_ms {
                 self.errors.too_fast = true;
+                self.errors.bypassed = reached_after < self.config.bypass_max_ms;
                 self.enter(State::Error, now);
             } else if reached_after > self.config.max_time_ms {
                 self.errors.too_slow = true;
@@ -427,6 +701,7 @@ impl Precharge {
             reached_ms,
             target_percent: self.config.target_percent as u8,
             window_ms: (self.config.min_time_ms, self.config.max_time_ms),
+            bypass_max_ms: self.config.bypass_max_ms,
         });
     }
 
@@ -438,6 +713,18 @@ impl Precharge {
     }
 
     fn enter(&mut self, state: State, now: u32) {
+        if self.state.is_energised() && matches!(state, State::Error | State::Discharge) {
+            // AIR+ opens now: watch the discharge. A shutdown that opened was seen falling
+            // already; any other cause waits for the fall (the shutdown circuit opening).
+            self.discharge = Some(DischargeWatch {
+                peak_v: self.tractive_v,
+                falling_since_ms: if self.errors.shutdown {
+                    self.falling_since_ms
+                } else {
+                    None
+                },
+            });
+        }
         self.state = state;
         self.waiting = None;
         self.entered_ms = now;

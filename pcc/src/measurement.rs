@@ -65,12 +65,51 @@ impl FrequencyMeter {
     }
 }
 
+/// One control period's reading of a V/F converter.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct VoltageSample {
+    /// Volts at the high-voltage input, filtered. A silent converter reads 0 here, which is
+    /// a number for the state machine's arithmetic, not a measurement: `pulses` says which.
+    pub volts: f32,
+    /// Whether the converter gives pulses.
+    pub pulses: Pulses,
+}
+
+/// Whether a converter is alive. An LM331 gives no pulses at 0 V, and none when it is
+/// unplugged, unpowered or broken: silence alone cannot tell those apart, so the last voltage
+/// it measured decides what its silence may mean.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Pulses {
+    /// An edge came within the edge timeout.
+    Live,
+    /// No edge for the edge timeout, or none since start-up.
+    Silent {
+        /// The last voltage measured from whole periods before the pulses stopped (V); 0
+        /// when it never gave any.
+        last_v: f32,
+        /// Time since the last edge (ms), or since start-up if there never was one.
+        since_ms: u32,
+    },
+}
+
+impl Pulses {
+    /// True while no pulses come.
+    pub const fn is_silent(&self) -> bool {
+        matches!(self, Self::Silent { .. })
+    }
+}
+
 /// Pulse train in, filtered high voltage out.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct VoltageChannel {
     config: VfConfig,
     meter: FrequencyMeter,
     filter: LowPass,
+    /// The filtered voltage at the last sample whose window held a whole period: what the
+    /// converter last measured, before any silence capped the reading towards 0.
+    last_measured_v: f32,
+    /// When the channel was created (us), for a converter that never gave a pulse.
+    started_us: Option<u32>,
 }
 
 impl VoltageChannel {
@@ -80,6 +119,8 @@ impl VoltageChannel {
             config,
             meter: FrequencyMeter::default(),
             filter: LowPass::new(config.cutoff_hz, period_ms as f32 / 1000.0),
+            last_measured_v: 0.0,
+            started_us: None,
         }
     }
 
@@ -88,10 +129,26 @@ impl VoltageChannel {
         self.meter.on_edge(now_us);
     }
 
-    /// Volts at the high-voltage input, filtered; call once per control period.
-    pub fn sample(&mut self, now_us: u32) -> f32 {
+    /// Volts at the high-voltage input, filtered, and whether the converter gives pulses;
+    /// call once per control period.
+    pub fn sample(&mut self, now_us: u32) -> VoltageSample {
+        let started = *self.started_us.get_or_insert(now_us);
+        let whole_period = self.meter.periods > 0;
         let hz = self.meter.sample(now_us, self.config.edge_timeout_us);
-        self.filter.update(self.config.volts_for_hz(hz))
+        let volts = self.filter.update(self.config.volts_for_hz(hz));
+        if whole_period {
+            self.last_measured_v = volts;
+        }
+        let since_edge_us = now_us.wrapping_sub(self.meter.last_edge_us.unwrap_or(started));
+        let pulses = if hz > 0.0 {
+            Pulses::Live
+        } else {
+            Pulses::Silent {
+                last_v: self.last_measured_v,
+                since_ms: since_edge_us / 1_000,
+            }
+        };
+        VoltageSample { volts, pulses }
     }
 
     /// The pulse frequency that `volts` at the high-voltage input produces (for simulations
@@ -190,8 +247,85 @@ mod tests {
                 channel.on_edge(t);
                 edge += 1;
             }
-            volts = channel.sample(end_us);
+            volts = channel.sample(end_us).volts;
         }
         assert!((volts - 400.0).abs() < 0.2, "{volts}");
+    }
+
+    /// Runs `channel` at `volts` (through the board's scaling) for `windows` 10 ms windows
+    /// from `start_us`; returns the last sample and where it ended.
+    fn pulse(channel: &mut VoltageChannel, volts: f32, start_us: u32, windows: u32) -> (VoltageSample, u32) {
+        let hz = VfConfig::PCC_BOARD.hz_for_volts(volts);
+        let period_us = 1e6 / f64::from(hz);
+        let mut edge = 1.0;
+        let mut sample = None;
+        let mut end_us = start_us;
+        for _ in 0..windows {
+            end_us += 10_000;
+            loop {
+                let t = start_us + (edge * period_us) as u32;
+                if t >= end_us {
+                    break;
+                }
+                channel.on_edge(t);
+                edge += 1.0;
+            }
+            sample = Some(channel.sample(end_us));
+        }
+        (sample.expect("at least one window"), end_us)
+    }
+
+    #[test]
+    fn a_converter_that_stops_is_silent_with_what_it_measured_last() {
+        let mut channel = VoltageChannel::new(VfConfig::PCC_BOARD, 10);
+        let first = channel.sample(0);
+        assert_eq!(
+            first.pulses,
+            Pulses::Silent {
+                last_v: 0.0,
+                since_ms: 0
+            },
+            "never a pulse: silent, having measured nothing"
+        );
+        let (live, stopped_us) = pulse(&mut channel, 300.0, 0, 50);
+        assert_eq!(live.pulses, Pulses::Live);
+        assert!((live.volts - 300.0).abs() < 0.5, "{live:?}");
+        // The wire breaks: within the edge timeout the reading is capped towards 0 but still
+        // counts as pulses; after it, silent, naming the 300 V it read last.
+        let mut t = stopped_us;
+        let mut first_silent = None;
+        while first_silent.is_none() {
+            t += 10_000;
+            let sample = channel.sample(t);
+            if let Pulses::Silent { last_v, since_ms } = sample.pulses {
+                first_silent = Some((t - stopped_us, last_v, since_ms, sample.volts));
+            }
+        }
+        let (after_us, last_v, since_ms, volts) = first_silent.expect("silent");
+        assert!((100_000..=110_000).contains(&after_us), "{after_us}");
+        assert!((last_v - 300.0).abs() < 0.5, "{last_v}");
+        assert!((100..=110).contains(&since_ms), "{since_ms}");
+        assert!(volts < 150.0, "the filtered reading falls towards 0: {volts}");
+    }
+
+    #[test]
+    fn a_slow_discharge_ends_silent_at_a_low_reading() {
+        // 300 V falling with a 0.5 s time constant: the converter slows down and stops below
+        // about a volt, so what it read last is low.
+        let mut channel = VoltageChannel::new(VfConfig::PCC_BOARD, 10);
+        let (_, mut t) = pulse(&mut channel, 300.0, 0, 20);
+        let mut volts = 300.0f32;
+        let mut last = None;
+        for _ in 0..500 {
+            volts *= libm::expf(-10.0 / 500.0);
+            let (sample, end) = pulse(&mut channel, volts, t, 1);
+            t = end;
+            if let Pulses::Silent { last_v, .. } = sample.pulses {
+                last = Some(last_v);
+                break;
+            }
+        }
+        let last_v = last.expect("it stops");
+        assert!(last_v < 10.0, "{last_v}");
     }
 }

@@ -50,21 +50,48 @@ pub struct Errors {
     /// circuit opened (it drops AIR- and the precharge relay) or the tractive system is
     /// loaded down.
     pub shutdown: bool,
+    /// 0x10: the accumulator's converter (pin 14) fell silent after reading 60 V or more, or
+    /// while the PCC was energised or discharging: its voltage is unknown.
+    pub accumulator_silent: bool,
+    /// 0x20: the tractive system's converter (pin 15) fell silent the same way: the tractive
+    /// system may be live while the PCC cannot see it.
+    pub tractive_silent: bool,
+    /// 0x40: the tractive system did not fall below 60 V within the discharge time after it
+    /// began to fall: an AIR welded or the discharge circuit failed.
+    pub no_discharge: bool,
     /// 0x80: the PCC restarted after its watchdog expired (a hang or a panic), so the state
     /// it was in is not known.
     pub undefined_state: bool,
+    /// The precharge reached the target faster than the resistor allows: AIR+ welded or the
+    /// precharge resistor bypassed (set with `too_fast`).
+    pub bypassed: bool,
+    /// A precharge-resistor thermistor read the resistor's limit or more.
+    pub resistor_hot: bool,
 }
 
 impl Errors {
     /// True when a cause other than the shutdown input is latched (those need a power
     /// cycle, after the cause is found).
     pub const fn needs_reset(&self) -> bool {
-        self.too_fast || self.too_slow || self.bms_timeout || self.undefined_state
+        self.too_fast
+            || self.too_slow
+            || self.bms_timeout
+            || self.accumulator_silent
+            || self.tractive_silent
+            || self.no_discharge
+            || self.undefined_state
+            || self.bypassed
+            || self.resistor_hot
     }
 
     /// True when any cause is latched.
     pub const fn any(&self) -> bool {
         self.needs_reset() || self.shutdown
+    }
+
+    /// True when a converter's silence is latched.
+    pub const fn converter_silent(&self) -> bool {
+        self.accumulator_silent || self.tractive_silent
     }
 }
 
@@ -73,9 +100,17 @@ impl core::fmt::Display for Errors {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         let causes = [
             (self.too_fast, "too-fast"),
+            (
+                self.bypassed,
+                "bypassed (AIR+ welded or the precharge resistor bypassed)",
+            ),
             (self.too_slow, "too-slow"),
             (self.bms_timeout, "bms-timeout"),
             (self.shutdown, "shutdown"),
+            (self.accumulator_silent, "accumulator-converter-silent"),
+            (self.tractive_silent, "tractive-converter-silent"),
+            (self.no_discharge, "no-discharge"),
+            (self.resistor_hot, "resistor-hot"),
             (self.undefined_state, "undefined-state (watchdog reset)"),
         ];
         let mut first = true;

@@ -12,7 +12,12 @@ use aer_console::bringup::{
 use aer_console::hv_gate::HvReading;
 use aer_flexcan::{BusStatus, FaultState};
 use aer_pcc::bringup::AirPlusBench;
-use aer_pcc::console::{self, BringupReport, CountersLine, RebootAnswer, StateLine, VfReading};
+use aer_pcc::console::{
+    self, BringupReport, ConverterVolts, CountersLine, HotResistorLine, NoDischargeLine,
+    RebootAnswer, ResistorTemperature, SilenceLine, StateLine, VfReading,
+};
+use aer_pcc::machine::{Converter, HotResistor, NoDischarge, Silence};
+use aer_pcc::measurement::Pulses;
 use aer_pcc::{Errors, HandoverRefusal, PrechargeTiming, Relays, State, VfConfig};
 
 fn drain<const N: usize>(log: &mut LogBuffer<N>) -> Vec<String> {
@@ -119,20 +124,30 @@ fn the_race_lines_fit_the_race_log() {
         too_slow: true,
         bms_timeout: true,
         shutdown: true,
+        accumulator_silent: true,
+        tractive_silent: true,
+        no_discharge: true,
         undefined_state: true,
+        bypassed: true,
+        resistor_hot: true,
+    };
+    let worst_volts = ConverterVolts {
+        volts: -f32::MAX,
+        pulses: Pulses::Live,
     };
     let state = StateLine {
         now_ms: u32::MAX,
         state: State::Discharge,
         relays: Relays::ALL_OPEN,
         errors: every_error,
-        accumulator_v: -f32::MAX,
-        tractive_v: f32::MAX,
+        accumulator: worst_volts,
+        tractive: worst_volts,
     };
     let counters = CountersLine {
         now_ms: u32::MAX,
-        accumulator_v: -f32::MAX,
-        tractive_v: -f32::MAX,
+        accumulator: worst_volts,
+        tractive: worst_volts,
+        resistor: [ResistorTemperature(Some(-f32::MAX)); 2],
         bus: WORST_STATUS,
         rx_queue_overflows: u32::MAX,
         status_not_sent: u32::MAX,
@@ -143,6 +158,46 @@ fn the_race_lines_fit_the_race_log() {
         reached_ms: Some(u32::MAX),
         target_percent: u8::MAX,
         window_ms: (u32::MAX, u32::MAX),
+        bypass_max_ms: 0,
+    };
+    let bypassed = PrechargeTiming {
+        reached_ms: Some(0),
+        bypass_max_ms: u32::MAX,
+        ..timing
+    };
+    let silent = SilenceLine {
+        now_ms: u32::MAX,
+        silence: Silence {
+            converter: Converter::Tractive,
+            last_v: -f32::MAX,
+            since_ms: u32::MAX,
+        },
+        discharged_v: -f32::MAX,
+    };
+    let no_discharge = NoDischargeLine {
+        now_ms: u32::MAX,
+        fault: NoDischarge {
+            tractive_v: -f32::MAX,
+            falling_since_ms: u32::MAX,
+            limit_ms: u32::MAX,
+        },
+        discharged_v: -f32::MAX,
+    };
+    let hot = HotResistorLine {
+        now_ms: u32::MAX,
+        hot: HotResistor {
+            thermistor: 2,
+            celsius: -f32::MAX,
+            limit_c: -f32::MAX,
+        },
+    };
+    let converter_refusal = RebootAnswer {
+        reboot: Reboot::Bootloader,
+        outcome: Err(HandoverRefusal::ConverterFault {
+            converter: Converter::Tractive,
+            reading: Some(-f32::MAX),
+            limit_v: -f32::MAX,
+        }),
     };
     let refused = RebootAnswer {
         reboot: Reboot::Bootloader,
@@ -178,4 +233,16 @@ fn the_race_lines_fit_the_race_log() {
     assert!(log.line(format_args!("t={} ms {refused}", u32::MAX)));
     assert_eq!(log.dropped(), 0);
     assert_eq!(drain(&mut log).len(), 2 + 6);
+    // The fault lines, each at its worst, fit the log at once as well.
+    for line in [
+        format!("t={} ms {bypassed}", u32::MAX),
+        silent.to_string(),
+        no_discharge.to_string(),
+        hot.to_string(),
+        format!("t={} ms {converter_refusal}", u32::MAX),
+    ] {
+        assert!(line.len() < 600, "{} bytes: {line}", line.len());
+        assert!(log.line(format_args!("{line}")));
+    }
+    assert_eq!(log.dropped(), 0);
 }

@@ -7,6 +7,7 @@
 
 use aer::can::PccStatus;
 use aer_pcc::watchdog::{LoopMonitor, reset_by_watchdog};
+use aer_pcc::measurement::Pulses;
 use aer_pcc::{Inputs, Precharge, PrechargeConfig, Relays, State, TASK_PERIOD_MS};
 
 /// WDOG1 as the firmware sets it up: 0.5 s without service restarts the chip.
@@ -20,6 +21,8 @@ fn inputs(now_ms: u32, tractive_v: f32) -> Inputs {
         tractive_v,
         bms_last_seen_ms: Some(now_ms),
         charger_safety: false,
+        pulses: [Pulses::Live; 2],
+        resistor_c: [Some(25.0); 2],
     }
 }
 

@@ -1,6 +1,7 @@
 //! Every transition of the precharge state machine, and every timing limit probed just before
 //! and just after it.
 
+use aer_pcc::measurement::Pulses;
 use aer_pcc::{Errors, Inputs, Precharge, PrechargeConfig, Relays, State};
 
 const CONFIG: PrechargeConfig = PrechargeConfig::CAR;
@@ -23,6 +24,8 @@ impl Bench {
                 tractive_v: 0.0,
                 bms_last_seen_ms: Some(start_ms),
                 charger_safety: false,
+                pulses: [Pulses::Live; 2],
+                resistor_c: [Some(25.0); 2],
             },
         }
     }
@@ -551,6 +554,8 @@ fn the_bootloader_is_refused_in_standby_and_error_with_the_tractive_system_charg
         tractive_v: 300.0,
         bms_last_seen_ms: Some(10),
         charger_safety: false,
+        pulses: [Pulses::Live; 2],
+        resistor_c: [Some(25.0); 2],
     });
     assert!(matches!(
         error.handover(),
@@ -600,6 +605,8 @@ fn standby_names_what_precharge_waits_for() {
         tractive_v: 0.0,
         bms_last_seen_ms: None,
         charger_safety: false,
+        pulses: [Pulses::Live; 2],
+        resistor_c: [Some(25.0); 2],
     };
     pcc.step(&inputs);
     assert_eq!(
@@ -651,6 +658,8 @@ fn a_precharge_the_pcc_missed_never_counts() {
         tractive_v: 0.0,
         bms_last_seen_ms: None,
         charger_safety: false,
+        pulses: [Pulses::Live; 2],
+        resistor_c: [Some(25.0); 2],
     };
     // The shutdown circuit closes with the BMS silent: the hardware precharges to the pack.
     for step in 0..2_000u32 {
@@ -719,6 +728,8 @@ fn only_a_rise_from_rest_with_the_pcc_ready_is_timed() {
             tractive_v,
             bms_last_seen_ms: Some(now_ms),
             charger_safety: false,
+            pulses: [Pulses::Live; 2],
+            resistor_c: [Some(25.0); 2],
         });
         assert!(!relays.air_plus, "AIR+ closed at {now_ms} ms");
     };
@@ -756,6 +767,8 @@ fn only_a_rise_from_rest_with_the_pcc_ready_is_timed() {
         tractive_v: 21.0,
         bms_last_seen_ms: Some(30),
         charger_safety: false,
+        pulses: [Pulses::Live; 2],
+        resistor_c: [Some(25.0); 2],
     });
     assert_eq!(pcc.state(), State::Precharge, "a rise from rest");
 }

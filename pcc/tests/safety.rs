@@ -7,7 +7,11 @@
 //! - AIR+ (the board's one relay output, pin 11) is high in ONLINE and CHARGING only: never in
 //!   STANDBY, PRECHARGE, DISCHARGE or ERROR.
 //! - With a real RC precharge, the outcome is exactly what the time to 90 % predicts.
+//! - A converter that falls silent after reading 60 V or more, or while energised, and a
+//!   thermistor at the resistor's limit release AIR+ in the same step; once a cause that
+//!   needs a power cycle has latched, AIR+ never closes again.
 
+use aer_pcc::measurement::Pulses;
 use aer_pcc::{Inputs, Precharge, PrechargeConfig, Relays, State};
 use proptest::prelude::*;
 
@@ -21,6 +25,24 @@ struct Tick {
     tractive_v: f32,
     bms_frame: bool,
     charger_safety: bool,
+    pulses: [Pulses; 2],
+    resistor_c: [Option<f32>; 2],
+}
+
+fn pulses() -> impl Strategy<Value = Pulses> {
+    prop_oneof![
+        20 => Just(Pulses::Live),
+        1 => (prop_oneof![Just(0.0f32), 0.0f32..700.0], 0u32..1_000)
+            .prop_map(|(last_v, since_ms)| Pulses::Silent { last_v, since_ms }),
+    ]
+}
+
+fn resistor_c() -> impl Strategy<Value = Option<f32>> {
+    prop_oneof![
+        20 => Just(Some(25.0f32)),
+        1 => Just(None),
+        1 => (-40.0f32..120.0).prop_map(Some),
+    ]
 }
 
 fn tick() -> impl Strategy<Value = Tick> {
@@ -30,14 +52,20 @@ fn tick() -> impl Strategy<Value = Tick> {
         prop_oneof![0.0f32..700.0, Just(400.0f32), Just(361.0f32)],
         prop::bool::weighted(0.9),
         prop::bool::weighted(0.2),
+        [pulses(), pulses()],
+        [resistor_c(), resistor_c()],
     )
         .prop_map(
-            |(dt_ms, accumulator_v, tractive_v, bms_frame, charger_safety)| Tick {
-                dt_ms,
-                accumulator_v,
-                tractive_v,
-                bms_frame,
-                charger_safety,
+            |(dt_ms, accumulator_v, tractive_v, bms_frame, charger_safety, pulses, resistor_c)| {
+                Tick {
+                    dt_ms,
+                    accumulator_v,
+                    tractive_v,
+                    bms_frame,
+                    charger_safety,
+                    pulses,
+                    resistor_c,
+                }
             },
         )
 }
@@ -55,6 +83,8 @@ fn ramp() -> impl Strategy<Value = Vec<Tick>> {
                     tractive_v: (400.0 * fraction * overshoot).min(400.0),
                     bms_frame: true,
                     charger_safety: false,
+                    pulses: [Pulses::Live; 2],
+                    resistor_c: [Some(25.0); 2],
                 }
             })
             .collect()
@@ -69,6 +99,7 @@ fn check_sequence(start_ms: u32, ticks: &[Tick]) -> Result<(), TestCaseError> {
     let mut bms_seen = None;
     let mut precharge_started = None;
     let mut air_plus_allowed = false;
+    let mut latched = false;
     for tick in ticks {
         now = now.wrapping_add(tick.dt_ms);
         if tick.bms_frame {
@@ -79,11 +110,33 @@ fn check_sequence(start_ms: u32, ticks: &[Tick]) -> Result<(), TestCaseError> {
             now_ms: now,
             accumulator_v: tick.accumulator_v,
             tractive_v: tick.tractive_v,
+            pulses: tick.pulses,
             bms_last_seen_ms: bms_seen,
             charger_safety: tick.charger_safety,
+            resistor_c: tick.resistor_c,
         };
         let relays = pcc.step(&inputs);
         let after = pcc.state();
+
+        // A converter silent where silence cannot mean 0 V, or a hot resistor, opens AIR+
+        // in this very step and latches.
+        let unknown_hv = tick.pulses.iter().any(|pulses| match pulses {
+            Pulses::Silent { last_v, .. } => *last_v >= CONFIG.discharged_v || before.is_energised(),
+            Pulses::Live => false,
+        });
+        let hot = tick
+            .resistor_c
+            .iter()
+            .flatten()
+            .any(|c| *c >= CONFIG.resistor_limit_c);
+        if unknown_hv || hot {
+            prop_assert_eq!(relays, Relays::ALL_OPEN, "silent converter or hot resistor in {:?}", before);
+            prop_assert_eq!(after, State::Error);
+        }
+        latched |= pcc.errors().needs_reset();
+        if latched {
+            prop_assert!(!relays.air_plus, "AIR+ closed after a latched cause: {}", pcc.errors());
+        }
 
         // Faults seen while energised open everything in this very step.
         let bms_stale = bms_seen.is_none_or(|seen| now.wrapping_sub(seen) > CONFIG.bms_timeout_ms);
@@ -161,8 +214,10 @@ proptest! {
             now_ms,
             accumulator_v: 400.0,
             tractive_v,
+            pulses: [Pulses::Live; 2],
             bms_last_seen_ms: Some(now_ms),
             charger_safety: false,
+            resistor_c: [Some(25.0); 2],
         };
         let closed_ms = CONFIG.standby_settle_ms + 500;
         let mut started = None;

@@ -6,14 +6,33 @@ use crate::app::control;
 use crate::{Mono, REBOOT, RX_QUEUE_OVERFLOWS, STATUS_ENCODE_FAILURES, TX_BUSY};
 use aer_console::Reboot;
 use aer_flexcan::CanFrame;
-use aer_pcc::console::{CountersLine, RaceLog, RebootAnswer};
+use aer_pcc::console::{ConverterVolts, CountersLine, RaceLog, RebootAnswer, ResistorTemperature};
+use aer_pcc::constants::THERMISTORS;
 use aer_pcc::hw::{board, feed_watchdog};
 use aer_pcc::watchdog::LoopMonitor;
 use aer_pcc::{Inputs, Precharge, PrechargeConfig, Relays, TASK_PERIOD_MS, bms::BmsLink};
 use core::sync::atomic::Ordering;
 use rtic::Mutex;
 use rtic_monotonics::imxrt::prelude::*;
-use teensy4_bsp::hal::gpio;
+use teensy4_bsp::hal::{adc, gpio};
+
+/// PCC_Thermal's period (ms): the schema's cycle time.
+const THERMAL_PERIOD_MS: u32 = aer::can::PccThermal::CYCLE_TIME_MS;
+
+/// The precharge resistor's thermistors on the on-chip ADC (pins 21 and 22).
+pub(crate) struct Thermistors {
+    pub(crate) adc: adc::Adc,
+    pub(crate) inputs: [adc::AnalogInput; 2],
+}
+
+impl Thermistors {
+    /// Both temperatures (degC), `None` for a thermistor with no reading.
+    fn read(&mut self) -> [Option<f32>; 2] {
+        self.inputs
+            .each_mut()
+            .map(|input| THERMISTORS.temperature_c(self.adc.read_blocking(input)))
+    }
+}
 
 /// The board's one relay output: pin 11, close AIR+.
 pub(crate) struct RelayPins {
@@ -57,12 +76,16 @@ pub(crate) async fn control(mut cx: control::Context<'_>) {
         while let Some(frame) = cx.local.rx_consumer.dequeue() {
             bms.on_frame(now_ms, &frame);
         }
+        let accumulator = cx.shared.accumulator.lock(|channel| channel.sample(now_us));
+        let tractive = cx.shared.tractive.lock(|channel| channel.sample(now_us));
         let inputs = Inputs {
             now_ms,
-            accumulator_v: cx.shared.accumulator.lock(|channel| channel.sample(now_us)),
-            tractive_v: cx.shared.tractive.lock(|channel| channel.sample(now_us)),
+            accumulator_v: accumulator.volts,
+            tractive_v: tractive.volts,
+            pulses: [accumulator.pulses, tractive.pulses],
             bms_last_seen_ms: bms.last_seen_ms(),
             charger_safety: bms.charger_safety(),
+            resistor_c: cx.local.thermistors.read(),
         };
         let relays = pcc.step(&inputs);
         cx.local.relays.apply(relays);
@@ -85,10 +108,12 @@ pub(crate) async fn control(mut cx: control::Context<'_>) {
         if RaceLog::counters_due(now_ms) {
             let bus = cx.shared.can.lock(|can| can.status());
             cx.shared.log.lock(|log| {
+                let [accumulator, tractive] = ConverterVolts::of(&pcc);
                 let line = CountersLine {
                     now_ms,
-                    accumulator_v: pcc.accumulator_v(),
-                    tractive_v: pcc.tractive_v(),
+                    accumulator,
+                    tractive,
+                    resistor: pcc.resistor_c().map(ResistorTemperature),
                     bus,
                     rx_queue_overflows: RX_QUEUE_OVERFLOWS.load(Ordering::Relaxed),
                     status_not_sent: TX_BUSY.load(Ordering::Relaxed),
@@ -103,14 +128,21 @@ pub(crate) async fn control(mut cx: control::Context<'_>) {
             cx.local.led.toggle();
         }
 
-        match pcc.status_frame::<CanFrame>() {
-            Some(frame) => {
-                if cx.shared.can.lock(|can| can.transmit(&frame)).is_err() {
-                    TX_BUSY.fetch_add(1, Ordering::Relaxed);
+        let thermal_due = now_ms % THERMAL_PERIOD_MS < TASK_PERIOD_MS;
+        let frames = [
+            Some(pcc.status_frame::<CanFrame>()),
+            thermal_due.then(|| pcc.thermal_frame::<CanFrame>()),
+        ];
+        for frame in frames.into_iter().flatten() {
+            match frame {
+                Some(frame) => {
+                    if cx.shared.can.lock(|can| can.transmit(&frame)).is_err() {
+                        TX_BUSY.fetch_add(1, Ordering::Relaxed);
+                    }
                 }
-            }
-            None => {
-                STATUS_ENCODE_FAILURES.fetch_add(1, Ordering::Relaxed);
+                None => {
+                    STATUS_ENCODE_FAILURES.fetch_add(1, Ordering::Relaxed);
+                }
             }
         }
         if health.step_completed(Mono::now().as_ticks() as u32) {

@@ -57,7 +57,7 @@ static REBOOT: RebootRequest = RebootRequest::new();
 
 #[rtic::app(device = teensy4_bsp, peripherals = true, dispatchers = [KPP])]
 mod app {
-    use crate::control::{RelayPins, control};
+    use crate::control::{RelayPins, Thermistors, control};
     use crate::inputs::{can_receive, voltage_edge};
     use crate::{Mono, REBOOT, RX_QUEUE};
     use aer_console::usb::{Bus, EndpointState, Memory, UsbConsole, UsbMemory, serve_race};
@@ -91,6 +91,7 @@ mod app {
         wdog: ral::wdog::WDOG1,
         watchdog_reset: bool,
         race_log: RaceLog,
+        thermistors: Thermistors,
         console: Option<UsbConsole>,
         typed: LineReader<64>,
     }
@@ -114,8 +115,18 @@ mod app {
         };
         let mut relays = RelayPins::new(board.air_plus);
         relays.apply(Relays::ALL_OPEN);
-        // The thermistors are read by the bring-up image only.
-        let _thermistors = board.thermistors;
+        let adc = board.adc;
+        let (thermistor1, thermistor2) = board.thermistors;
+        let (Ok(thermistor1), Ok(thermistor2)) = (
+            adc.input::<_, 1>(thermistor1),
+            adc.input::<_, 1>(thermistor2),
+        ) else {
+            halt_safe()
+        };
+        let thermistors = Thermistors {
+            adc,
+            inputs: [thermistor1, thermistor2],
+        };
         // SAFETY: `hw::start` configured GPT1 and does not use it again; the monotonic owns it.
         Mono::start(
             unsafe { ral::gpt::GPT1::instance() },
@@ -150,6 +161,7 @@ mod app {
                 wdog: board.wdog,
                 watchdog_reset: reset_by_watchdog(board.reset_cause.0),
                 race_log: RaceLog::default(),
+                thermistors,
                 console: board.console,
                 typed: LineReader::new(),
             },
@@ -176,7 +188,7 @@ mod app {
         #[task(binds = CAN2, priority = 2, local = [rx_producer], shared = [can])]
         fn can_receive(cx: can_receive::Context);
 
-        #[task(priority = 1, local = [relays, led, rx_consumer, wdog, watchdog_reset, race_log],
+        #[task(priority = 1, local = [relays, led, rx_consumer, wdog, watchdog_reset, race_log, thermistors],
                shared = [accumulator, tractive, can, log])]
         async fn control(cx: control::Context);
     }
