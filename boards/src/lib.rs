@@ -10,6 +10,7 @@
 //! edits across the firmware.
 #![no_std]
 
+pub mod assumed;
 pub mod ccm;
 pub mod pcc;
 

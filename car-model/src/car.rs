@@ -117,6 +117,7 @@ impl Car {
         let dc_live = self.pcc.connected();
         let rpm = self.chassis.motor_rpm();
         self.inverter.faulted = self.plan.is_active(now_ms, Fault::InverterFaulted);
+        self.inverter.timeout_off = self.plan.is_active(now_ms, Fault::InverterTimeoutOff);
         let rad_s = self.chassis.motor_rad_s();
         // The DTI holds its DC current under the CCM's limit: a shaft torque ceiling.
         let cap_nm = if self.inverter.kind == InverterKind::Dti && rad_s > DC_LIMIT_MIN_RAD_S {

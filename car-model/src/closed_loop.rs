@@ -7,13 +7,14 @@ use crate::chassis::Mode;
 use crate::driver::Cycle;
 use crate::faults::{Fault, FaultPlan};
 use crate::nodes::{CAN1, CAN2};
-use crate::params::ModelParams;
+use crate::params::{ModelParams, ccm};
 use crate::rules::Rules;
 use aer::can::PccStatus;
 use aer::telemetry::Telemetry;
 use aer_ccm::calibration::Calibration;
 use aer_ccm::constants::{CONTROL_PERIOD_MS, TELEMETRY_PERIOD_MS};
 use aer_ccm::own_frames::OwnFrames;
+use aer_ccm::stop::StopFrames;
 use aer_ccm::{BusHealth, Ccm, ControlOutputs, DriverCounters, DriverInputs, OutFrame};
 use aer_flexcan::CanFrame;
 use aer_isotp::{Config, Received, Receiver};
@@ -50,6 +51,10 @@ pub struct ClosedLoop {
     last: ControlOutputs,
     bus_off_events: [u32; 2],
     was_off: [bool; 2],
+    /// What a panic sends: the firmware's published stop frames.
+    stop: StopFrames,
+    /// The CCM is down (a panic or a hang) and runs again at this time.
+    down_until_ms: Option<u32>,
 }
 
 impl ClosedLoop {
@@ -65,6 +70,8 @@ impl ClosedLoop {
             last: ControlOutputs::RESET,
             bus_off_events: [0; 2],
             was_off: [false; 2],
+            stop: StopFrames::new(),
+            down_until_ms: None,
         }
     }
 
@@ -120,6 +127,14 @@ impl ClosedLoop {
         let now = self.now_ms;
         let now_us = u64::from(now) * 1_000;
         self.car.advance(now, self.last.vehicle.state);
+        if self.ccm_down(now, tap) {
+            // The CCM sends nothing and hears nothing; the car and its nodes go on.
+            self.car
+                .node_frames(now, |bus, frame| tap.frame(now_us, bus, frame));
+            let inverter_nm = self.car.inverter.effective_command(now);
+            self.rules.millisecond(now, &self.car, inverter_nm);
+            return;
+        }
 
         let ccm = &mut self.ccm;
         self.car
@@ -150,6 +165,50 @@ impl ClosedLoop {
         if now % CONTROL_PERIOD_MS == 0 {
             self.control(now, tap);
         }
+    }
+
+    /// True while the CCM is down: a panic begins (its handler sends the stop frames the
+    /// control task last published, then resets at once) or a hang begins (nothing is sent
+    /// until the watchdog resets it); a CCM whose reset is over starts again, cold.
+    fn ccm_down(&mut self, now: u32, tap: &mut impl BusTap) -> bool {
+        let starts = |fault: Fault| {
+            self.car
+                .plan
+                .injections()
+                .any(|injection| injection.fault == fault && injection.from_ms == now)
+        };
+        if self.down_until_ms.is_none() {
+            if starts(Fault::CcmPanic) {
+                let now_us = u64::from(now) * 1_000;
+                for out in self.stop.latest().iter() {
+                    if let Some(frame) = can_frame(out)
+                        && !self.was_off[1]
+                    {
+                        tap.frame(now_us, CAN2, &frame);
+                        self.car.receive(&frame, now);
+                    }
+                }
+                self.down_until_ms = Some(now + ccm::RESET_TO_RUNNING_MS);
+            } else if starts(Fault::CcmHang) {
+                self.down_until_ms = Some(now + ccm::WATCHDOG_MS + ccm::RESET_TO_RUNNING_MS);
+            }
+        }
+        match self.down_until_ms {
+            Some(until) if now < until => true,
+            Some(_) => {
+                let params = self.car.params;
+                self.ccm = Ccm::with_limits(Calibration::DEFAULT, params.inverter, params.limits);
+                self.last = ControlOutputs::RESET;
+                self.down_until_ms = None;
+                false
+            }
+            None => false,
+        }
+    }
+
+    /// True while the CCM is down after a panic or a hang.
+    pub fn ccm_is_down(&self) -> bool {
+        self.down_until_ms.is_some()
     }
 
     fn bus_off(&mut self, bus: usize) -> bool {
@@ -189,6 +248,9 @@ impl ClosedLoop {
 
         // The firmware's own schedule (`Control::due`), on the model's clock.
         let due = self.ccm.due(now / CONTROL_PERIOD_MS);
+        if let Ok(frames) = self.ccm.stop_frames() {
+            self.stop.publish(&frames);
+        }
         if let Some(Ok(frames)) = due.inverter {
             for out in frames.iter() {
                 let Some(frame) = can_frame(out) else {

@@ -57,11 +57,20 @@ pub enum Fault {
     TractiveLoad,
     /// A precharge-resistor thermistor is open (0 = pin 21, 1 = pin 22).
     ThermistorOpen(usize),
+    /// The inverter's own command timeout is off (the DTI's CAN timeout left disabled in its
+    /// tool): it holds its last command for as long as none follows.
+    InverterTimeoutOff,
+    /// The CCM panics when the fault begins: its panic handler sends the inverter's stop
+    /// frames and resets at once; the image starts again after the reset.
+    CcmPanic,
+    /// The CCM's control hangs when the fault begins (no panic): nothing is sent until the
+    /// 1 s watchdog resets it.
+    CcmHang,
 }
 
 impl Fault {
     /// Every kind, with its first variant where it has several (for reports).
-    pub const KINDS: [Self; 18] = [
+    pub const KINDS: [Self; 21] = [
         Self::PedalConverterLost,
         Self::PedalSensorOpen(0),
         Self::PedalSensorShorted(1),
@@ -80,6 +89,9 @@ impl Fault {
         Self::DischargeFailed,
         Self::TractiveLoad,
         Self::ThermistorOpen(0),
+        Self::InverterTimeoutOff,
+        Self::CcmPanic,
+        Self::CcmHang,
     ];
 }
 

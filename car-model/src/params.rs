@@ -108,6 +108,15 @@ pub mod powertrain {
     pub const COOLANT_DEGC: f32 = 30.0;
 }
 
+/// The CCM itself.
+pub mod ccm {
+    /// From a reset to the image's first control step (ms, assumed): the boot ROM, the copy
+    /// into RAM and the image's start-up.
+    pub const RESET_TO_RUNNING_MS: u32 = 300;
+    /// The hardware watchdog's timeout (WDOG1, as the image sets it).
+    pub const WATCHDOG_MS: u32 = 1_000;
+}
+
 /// Accumulator.
 pub mod accumulator {
     /// Cells in series.

@@ -35,6 +35,8 @@ pub struct Inverter {
     pub dc_limit_a: f32,
     /// The inverter has a fault of its own (injected): it does not drive and reports it.
     pub faulted: bool,
+    /// Its command timeout is off (injected): the last command holds until another comes.
+    pub timeout_off: bool,
     /// The last VCU1 counter accepted.
     vcu1_counter: CounterCheck,
     /// VCU1 frames refused (bad checksum or rolling counter).
@@ -58,6 +60,7 @@ impl Inverter {
             last_enable_ms: None,
             dc_limit_a: 0.0,
             faulted: false,
+            timeout_off: false,
             vcu1_counter: CounterCheck::default(),
             refused_frames: 0,
             torque_nm: 0.0,
@@ -92,9 +95,9 @@ impl Inverter {
             InverterKind::Dti => {
                 self.drive
                     && !self.faulted
-                    && self
-                        .last_enable_ms
-                        .is_some_and(|at| now_ms.wrapping_sub(at) <= DTI_COMMAND_TIMEOUT_MS)
+                    && self.last_enable_ms.is_some_and(|at| {
+                        self.timeout_off || now_ms.wrapping_sub(at) <= DTI_COMMAND_TIMEOUT_MS
+                    })
             }
             InverterKind::Ifl100 => self.drive && !self.faulted,
         }
@@ -129,7 +132,7 @@ impl Inverter {
         };
         let recent = self
             .last_command_ms
-            .is_some_and(|at| now_ms.wrapping_sub(at) <= timeout);
+            .is_some_and(|at| self.timeout_off || now_ms.wrapping_sub(at) <= timeout);
         if recent && self.enabled(now_ms) {
             self.command_nm
         } else {

@@ -225,7 +225,10 @@ impl PccNode {
         self.plant.accumulator_v = accumulator_v;
         self.plant.shutdown_closed = !shutdown_open;
         let now_us = now_ms.wrapping_mul(1_000);
-        let [accumulator, tractive] = self.channels.each_mut().map(|channel| channel.sample(now_us));
+        let [accumulator, tractive] = self
+            .channels
+            .each_mut()
+            .map(|channel| channel.sample(now_us));
         let celsius = self.plant.resistor.celsius;
         let resistor_c = self.sensing.thermistor_open.map(|open| {
             let counts = if open {

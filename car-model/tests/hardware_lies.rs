@@ -106,8 +106,14 @@ fn a_converter_wire_breaking_at_high_voltage_latches_its_own_fault_and_the_pcc_t
             "{converter:?}: it names what it read before: {silence:?}"
         );
         assert_eq!(pcc.state(), State::Error, "{converter:?}");
-        assert!(!standby_seen, "{converter:?}: never back to STANDBY by itself");
-        assert!(!precharge_seen, "{converter:?}: the wire touching again starts nothing");
+        assert!(
+            !standby_seen,
+            "{converter:?}: never back to STANDBY by itself"
+        );
+        assert!(
+            !precharge_seen,
+            "{converter:?}: the wire touching again starts nothing"
+        );
         assert!(!air_plus_after, "{converter:?}: AIR+ never closes again");
         let errors = pcc.logic.errors();
         assert!(
@@ -298,7 +304,10 @@ fn a_late_bms_leaves_the_hardware_precharge_untimed_and_air_plus_open() {
     while run.now_ms() < 30_000 {
         run.step(&mut NoTap);
         let pcc = &run.car.pcc;
-        assert!(!pcc.relays().air_plus, "an untimed precharge never closes AIR+");
+        assert!(
+            !pcc.relays().air_plus,
+            "an untimed precharge never closes AIR+"
+        );
         assert_ne!(pcc.state(), State::Online);
         live_waiting |= pcc.logic.waiting().is_some_and(|waiting| waiting.live);
     }
@@ -307,4 +316,55 @@ fn a_late_bms_leaves_the_hardware_precharge_untimed_and_air_plus_open() {
         "STANDBY says the tractive system charged while the PCC could not time it"
     );
     assert_rules_hold(&run, "BMS late");
+}
+
+/// The longest the shaft keeps any torque after the CCM fails at `fault`'s start, with the
+/// DTI's own command timeout left disabled (ms); `None` while it still turns torque at the
+/// end of the window.
+fn torque_after_ccm_failure(fault: Fault) -> (Option<u32>, ClosedLoop) {
+    let mut run = driving();
+    // Full throttle on the skidpad: torque flows when the CCM fails.
+    let t0 = plan(
+        &mut run,
+        &[(Fault::InverterTimeoutOff, 0, u32::MAX), (fault, 500, 600)],
+    );
+    run.run_until(t0 + 500, &mut NoTap);
+    assert!(
+        run.car.inverter.torque_nm > 5.0,
+        "torque flows before the failure: {}",
+        run.car.inverter.torque_nm
+    );
+    let failed = t0 + 500;
+    let mut last_torque = None;
+    while run.now_ms() < failed + 3_000 {
+        run.step(&mut NoTap);
+        if run.car.inverter.torque_nm > 0.1 {
+            last_torque = Some(run.now_ms() - failed);
+        }
+    }
+    (last_torque, run)
+}
+
+#[test]
+fn a_ccm_panic_stops_torque_within_100_ms_whatever_the_dti_is_set_to() {
+    // The panic handler sends the stop frames the control task last published, then resets.
+    let (torque_until, run) = torque_after_ccm_failure(Fault::CcmPanic);
+    let torque_until = torque_until.expect("torque flowed at the panic");
+    assert!(
+        torque_until <= 100,
+        "torque for {torque_until} ms after the panic"
+    );
+    assert!(!run.car.inverter.enabled(run.now_ms()), "drive disabled");
+    assert!(!run.ccm_is_down(), "the CCM runs again after its reset");
+    assert_rules_hold(&run, "CCM panic");
+
+    // The same CCM hanging instead (no panic handler runs): the DTI, without its timeout,
+    // holds the last current until the watchdog's reset and the restart: this is what the
+    // panic handler's frames are for.
+    let (torque_until, _) = torque_after_ccm_failure(Fault::CcmHang);
+    let torque_until = torque_until.expect("torque held");
+    assert!(
+        torque_until >= 1_000,
+        "a hang holds torque until the watchdog: {torque_until} ms"
+    );
 }

@@ -333,6 +333,7 @@ impl<H: CcmHardware> BenchBoard for CcmBench<H> {
     type Shared = [bool; 2];
     const NAME: &'static str = "CCM";
     const SAFE: &'static str = "every output off";
+    const PANIC: &'static str = "sends the inverter drive disabled and 0 A on CAN2 (watch candump can0 on the inverter bus) and restarts the board at once";
 
     fn feed_watchdog(&mut self) {
         self.hw.feed_watchdog();
@@ -382,7 +383,10 @@ impl<H: CcmHardware> BenchBoard for CcmBench<H> {
             *before = high;
         }
         self.read_buses(now_ms);
-        self.dti.poll(now_ms);
+        if let Some((timeout, frames)) = self.dti.poll(now_ms) {
+            self.send_dti(frames);
+            log.line(format_args!("t={now_ms} ms {timeout}; drive disable sent"));
+        }
         match self.dti.due(now_ms) {
             Some(Step::Send(frames)) => self.send_dti(frames),
             Some(Step::Stopped(why, frames)) => {
@@ -490,7 +494,9 @@ impl<H: CcmHardware> BenchBoard for CcmBench<H> {
             | Command::Report
             | Command::WatchdogTest
             | Command::Bootloader
-            | Command::Restart => "taken by the bench loop",
+            | Command::Restart
+            | Command::Status
+            | Command::PanicTest => "taken by the bench loop",
         })
     }
 

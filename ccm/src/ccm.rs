@@ -186,6 +186,14 @@ impl Ccm {
         self.control.inverter_frames()
     }
 
+    /// The frames that stop the inverter now, without sending them ([`Control::stop_frames`]):
+    /// what the panic handler sends.
+    ///
+    /// [`Control::stop_frames`]: crate::control::Control::stop_frames
+    pub fn stop_frames(&self) -> Result<OutFrames, EncodeError> {
+        self.control.stop_frames()
+    }
+
     /// Whether the CCM may hand the chip to the bootloader now, with the inverter commands to
     /// send first (see [`Control::handover`]).
     pub fn handover(&mut self) -> Result<OutFrames, HandoverRefusal> {

@@ -350,6 +350,27 @@ impl Control {
         self.send(&safe).map_err(HandoverRefusal::Encode)
     }
 
+    /// The frames that stop the inverter, as a panic must send them (`crate::stop`): no
+    /// torque, drive disabled, main relay open, no current allowed. Built without sending or
+    /// recording anything: the IFL100's rolling counter is the next one, from a copy.
+    pub fn stop_frames(&self) -> Result<OutFrames, EncodeError> {
+        let stop = DriveCommand {
+            torque_nm: 0.0,
+            drive: false,
+            main_relay: false,
+            precharging: false,
+            brakes_engaged: self.last.brake_light,
+            discharge_limit_a: 0.0,
+        };
+        match self.inverter {
+            InverterKind::Ifl100 => {
+                let mut builder = self.vcu1.clone();
+                ifl100::frames(&mut builder, &stop).map(|(_, frames)| frames)
+            }
+            InverterKind::Dti => dti::frames(&stop).map(|(_, frames)| frames),
+        }
+    }
+
     /// Builds the inverter's frames for `command` and records what they ask for.
     fn send(&mut self, command: &DriveCommand) -> Result<OutFrames, EncodeError> {
         match self.inverter {

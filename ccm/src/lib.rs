@@ -39,6 +39,7 @@ pub mod monitor;
 pub mod own_frames;
 pub mod power;
 pub mod sensors;
+pub mod stop;
 pub mod telemetry;
 pub mod thermal;
 pub mod torque_path;

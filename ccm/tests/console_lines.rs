@@ -15,6 +15,7 @@ use aer_ccm::console::{self, CalibrationLine, RebootAnswer};
 use aer_ccm::control::HandoverRefusal;
 use aer_console::LogBuffer;
 use aer_console::Reboot;
+use aer_console::board_check::{BoardCheck, Teensy};
 use aer_console::bringup::{
     AnalogReading, BusLine, DigitalReading, HEARD_IDS, Heard, ReportHeader, ResetCause,
 };
@@ -68,7 +69,15 @@ fn worst_dti() -> DtiBench {
 fn the_bring_up_start_up_and_a_worst_case_report_fit_the_log_together() {
     for board in [aer_boards::ccm::COMP_CAR, aer_boards::ccm::COMP_CAR_ADS1115] {
         let mut log = LogBuffer::<{ bringup::LOG_BYTES }>::new();
-        assert_eq!(bringup::startup(&mut log, &board, ResetCause(0x1FF)), 0);
+        assert_eq!(
+            bringup::startup(
+                &mut log,
+                &board,
+                ResetCause(0x1FF),
+                BoardCheck::passed("AER CCM bring-up", Teensy::T41)
+            ),
+            0
+        );
         let pins = board.pins();
         let analog: Vec<AnalogReading> = pins
             .iter()
@@ -178,6 +187,7 @@ fn the_race_start_up_and_the_bootloader_answers_fit_the_race_log() {
                 aer_boards::ccm::COMP_CAR.name,
                 inverter,
                 ResetCause(0x1FF),
+                BoardCheck::passed("AER CCM", Teensy::T41),
                 CalibrationLine {
                     startup: Startup::OtherSchema,
                     checksum: u32::MAX,

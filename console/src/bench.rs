@@ -2,8 +2,9 @@
 //! unless a `watchdog test` stopped it, obey `bootloader` and `restart` with every output
 //! safe, let the board read its inputs and check its tests and gates, take the typed lines,
 //! print the report every second) and the commands every board answers alike (`help`,
-//! `report`, `watchdog test`, `bootloader`, `restart`, and a line it does not understand). What differs between the boards (their inputs,
-//! outputs and checks) is the [`BenchBoard`] each image implements.
+//! `report` (and `status`), `watchdog test`, `panic test`, `bootloader`, `restart`, and a line
+//! it does not understand). What differs between the boards (their inputs, outputs and
+//! checks) is the [`BenchBoard`] each image implements.
 //!
 //! Portable and host-tested: the image moves data between it and the hardware.
 
@@ -35,6 +36,8 @@ pub trait BenchBoard {
     const NAME: &'static str;
     /// What the safe state is, in messages ("every output off").
     const SAFE: &'static str;
+    /// What its panic handler does, in messages.
+    const PANIC: &'static str;
 
     /// Services the hardware watchdog.
     fn feed_watchdog(&mut self);
@@ -73,6 +76,8 @@ pub enum After {
     Bootloader,
     /// Every output is safe: restart the image now.
     Restart,
+    /// `panic test`: panic now, so the panic handler runs as it would on a fault.
+    Panic,
 }
 
 /// The loop's own state: whether it still feeds the watchdog, when it last reported.
@@ -85,6 +90,8 @@ pub struct BenchLoop {
     /// `report` was typed: report at this step, over the time since the last one (so edge
     /// rates stay true).
     report_now: bool,
+    /// `panic test` was typed: panic once this step's lines are in the log.
+    panic_now: bool,
 }
 
 impl Default for BenchLoop {
@@ -101,6 +108,7 @@ impl BenchLoop {
             last_report_ms: 0,
             dropped_at_report: 0,
             report_now: false,
+            panic_now: false,
         }
     }
 
@@ -147,6 +155,10 @@ impl BenchLoop {
             self.dropped_at_report = header.dropped_total;
             board.report(header, elapsed_ms, shared, log);
         }
+        if self.panic_now {
+            self.panic_now = false;
+            return After::Panic;
+        }
         After::Continue
     }
 
@@ -167,7 +179,15 @@ impl BenchLoop {
                 }
                 return None;
             }
-            Ok(Command::Report) => Reply::ReportNow,
+            Ok(Command::Report | Command::Status) => Reply::ReportNow,
+            Ok(Command::PanicTest) => {
+                self.panic_now = true;
+                log.line(format_args!(
+                    "> {line}: panicking on purpose: the panic handler {}",
+                    B::PANIC
+                ));
+                return None;
+            }
             Ok(Command::WatchdogTest) => {
                 self.feeding = false;
                 log.line(format_args!(
@@ -220,6 +240,7 @@ mod tests {
         type Shared = u8;
         const NAME: &'static str = "XCU";
         const SAFE: &'static str = "every output off";
+        const PANIC: &'static str = "stops";
 
         fn feed_watchdog(&mut self) {
             self.fed += 1;

@@ -2,7 +2,9 @@
 //! report lines, edge rates, the buses, the start-up lines. The gate in front of the outputs
 //! that matter at high voltage is [`crate::hv_gate`].
 
+use crate::board_check::BoardCheck;
 use crate::log::LogBuffer;
+use aer_boards::assumed::{Assumed, Board as AssumedBoard};
 use aer_boards::{Mode, Pin};
 use aer_flexcan::{BusStatus, FaultState, SelfTestError};
 use core::fmt;
@@ -262,6 +264,8 @@ pub struct Startup<'a> {
     pub clocks: Option<Clocks>,
     /// The pins to list (empty for the race images).
     pub pins: &'a [Pin],
+    /// The board check's result (the image runs only on the right board).
+    pub check: BoardCheck,
 }
 
 impl Startup<'_> {
@@ -275,6 +279,7 @@ impl Startup<'_> {
         };
         line(format_args!("{self}"));
         line(format_args!("{}", self.reset));
+        line(format_args!("{}", self.check));
         if let Some(clocks) = self.clocks {
             line(format_args!("{clocks}"));
         }
@@ -299,6 +304,44 @@ impl fmt::Display for Startup<'_> {
         }
         Ok(())
     }
+}
+
+/// One fact an image runs with that the bench day has not settled yet.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct AssumedLine(pub &'static Assumed);
+
+impl fmt::Display for AssumedLine {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let Assumed {
+            what,
+            assumed,
+            settled,
+            ..
+        } = self.0;
+        write!(f, "assumed: {what}")?;
+        if !assumed.is_empty() {
+            write!(f, ": {assumed}")?;
+        }
+        write!(f, " (settled in {settled})")
+    }
+}
+
+/// The race images' list of what they run with unchecked, for `board`: a header line, then
+/// one [`AssumedLine`] each. Returns how many lines did not fit.
+pub fn write_assumed<const N: usize>(log: &mut LogBuffer<N>, board: AssumedBoard) -> u32 {
+    let mut missed = 0;
+    let count = Assumed::for_board(board).count();
+    if !log.line(format_args!(
+        "this image runs with {count} facts the bench day has not settled (docs/bench-day.md, \"Still assumed\"; the team's sheet records each check):"
+    )) {
+        missed += 1;
+    }
+    for item in Assumed::for_board(board) {
+        if !log.line(format_args!("{}", AssumedLine(item))) {
+            missed += 1;
+        }
+    }
+    missed
 }
 
 /// The first line of every periodic report: when, and how many lines the log had to drop

@@ -59,6 +59,12 @@ pub enum Command<'a> {
     /// `restart`: start the image again (a software reset: clears what a watchdog restart
     /// latched, as a power cycle does).
     Restart,
+    /// `status` (race images): the state, what is latched, and what the image runs with that
+    /// the bench day has not settled.
+    Status,
+    /// `panic test` (CCM bring-up): panic on purpose, so the bench sees what the panic handler
+    /// sends the inverter and that the board restarts.
+    PanicTest,
 }
 
 /// An output level.
@@ -205,9 +211,12 @@ impl<'a> Command<'a> {
             ("dti", [Some("enable"), None, ..]) => Self::DtiEnable,
             ("bootloader", [None, ..]) => Self::Bootloader,
             ("restart", [None, ..]) => Self::Restart,
-            ("help" | "?" | "report" | "off" | "can" | "bootloader" | "restart", _) => {
+            ("status", [None, ..]) => Self::Status,
+            ("panic", [Some("test"), None, ..]) => Self::PanicTest,
+            ("help" | "?" | "report" | "off" | "can" | "bootloader" | "restart" | "status", _) => {
                 return Err(CommandError::Usage("no arguments"));
             }
+            ("panic", _) => return Err(CommandError::Usage("panic test")),
             ("i2c", _) => return Err(CommandError::Usage("i2c scan")),
             ("watchdog", _) => return Err(CommandError::Usage("watchdog test")),
             ("dti", _) => return Err(CommandError::Usage("dti enable")),
@@ -252,7 +261,7 @@ impl Level {
 }
 
 /// The help text, one command per line.
-pub const HELP: [&str; 18] = [
+pub const HELP: [&str; 19] = [
     "help                       this list",
     "report                     print every input, bus and counter now",
     "out <signal> on|off|<pct>  drive one output (names as in `cargo xtask pins`)",
@@ -268,9 +277,10 @@ pub const HELP: [&str; 18] = [
     "i2c scan                   addresses that answer (ADS1115 board)",
     "dti enable                 1 s of drive enable at 0 A, then silence: times the DTI's timeout (CCM)",
     "watchdog test              stop feeding the watchdog: the chip resets within 1 s",
+    "panic test                 panic on purpose: the inverter's stop frames on CAN2, then a restart (CCM)",
     "bootloader                 reboot into the Teensy bootloader",
     "restart                    start the image again (clears a watchdog restart's latch)",
-    "(the race images accept only `bootloader` and `restart`, and only in a safe state; 134 baud asks for the bootloader)",
+    "(the race images accept only `status`, and `bootloader` and `restart` in a safe state; 134 baud asks for the bootloader)",
 ];
 
 #[cfg(test)]
@@ -341,6 +351,12 @@ mod tests {
             Ok(Command::ConfirmWheelsOffGround)
         );
         assert_eq!(Command::parse("restart"), Ok(Command::Restart));
+        assert_eq!(Command::parse("status"), Ok(Command::Status));
+        assert_eq!(Command::parse("panic test"), Ok(Command::PanicTest));
+        assert_eq!(
+            Command::parse("panic"),
+            Err(CommandError::Usage("panic test"))
+        );
         assert_eq!(Command::parse("cal erase"), Ok(Command::CalErase));
         assert_eq!(
             Command::parse("cal shock rr compressed"),

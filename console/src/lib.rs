@@ -2,13 +2,17 @@
 //!
 //! Portable, `no_std` and host-tested: the bounded log ([`log`]), typed commands
 //! ([`command`]), the bring-up images' report lines ([`bringup`]) and the gate in front of
-//! what matters at high voltage ([`hv_gate`]). Behind the `firmware` feature,
-//! `usb` is the Teensy's USB CDC device that carries them, with the reboot into the
-//! bootloader that `teensy_loader_cli -s` asks for.
+//! what matters at high voltage ([`hv_gate`]), and which Teensy an image runs on
+//! ([`board_check`]). Behind the `firmware` feature, `usb` is the Teensy's USB CDC device that
+//! carries them, with the reboot into the bootloader that `teensy_loader_cli -s` asks for,
+//! and `chip` the boot ROM's flash driver that reads and writes the Teensy's flash.
 #![no_std]
 
 pub mod bench;
+pub mod board_check;
 pub mod bringup;
+#[cfg(feature = "firmware")]
+pub mod chip;
 pub mod command;
 pub mod hv_gate;
 pub mod log;
@@ -102,6 +106,28 @@ impl RebootRequest {
             2 => Some(Reboot::Restart),
             _ => None,
         }
+    }
+}
+
+/// A `status` request from the race console, handed from the USB interrupt to the task that
+/// prints the state.
+#[derive(Debug, Default)]
+pub struct StatusRequest(core::sync::atomic::AtomicBool);
+
+impl StatusRequest {
+    /// No request.
+    pub const fn new() -> Self {
+        Self(core::sync::atomic::AtomicBool::new(false))
+    }
+
+    /// Asks for the status lines.
+    pub fn request(&self) {
+        self.0.store(true, core::sync::atomic::Ordering::Relaxed);
+    }
+
+    /// Takes the request: true once per request.
+    pub fn take(&self) -> bool {
+        self.0.swap(false, core::sync::atomic::Ordering::Relaxed)
     }
 }
 

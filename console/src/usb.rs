@@ -12,7 +12,7 @@ pub use teensy4_bsp::usbd::EndpointState;
 
 use crate::bench::{After, BenchBoard, BenchLoop, Line};
 use crate::log::{LineReader, LogBuffer};
-use crate::{Command, REBOOT_BAUD, Reboot, RebootRequest};
+use crate::{Command, REBOOT_BAUD, Reboot, RebootRequest, StatusRequest};
 use core::sync::atomic::{AtomicU32, Ordering};
 use rtic_core::Mutex;
 use teensy4_bsp::hal::gpio::Input;
@@ -161,15 +161,16 @@ impl UsbConsole {
     }
 }
 
-/// The race images' console task: the log out, typed bytes in. Only `bootloader` and
-/// `restart` are taken, as requests the control task grants or refuses (the host's 134 baud
-/// asks for the bootloader). An image without a console (`None`: the USB device did not
+/// The race images' console task: the log out, typed bytes in. Only `bootloader`, `restart`
+/// and `status` are taken, as requests the control task grants, refuses or answers (the
+/// host's 134 baud asks for the bootloader). An image without a console (`None`: the USB device did not
 /// start) runs as before.
 pub fn serve_race<const N: usize>(
     console: Option<&mut UsbConsole>,
     log: &mut impl Mutex<T = LogBuffer<N>>,
     typed: &mut LineReader<64>,
     reboot: &RebootRequest,
+    status: &StatusRequest,
 ) {
     let Some(console) = console else {
         return;
@@ -177,6 +178,7 @@ pub fn serve_race<const N: usize>(
     let host_asks = console.serve(log, typed, |line| match Command::parse(line) {
         Ok(Command::Bootloader) => reboot.request(Reboot::Bootloader),
         Ok(Command::Restart) => reboot.request(Reboot::Restart),
+        Ok(Command::Status) => status.request(),
         _ => {}
     });
     if host_asks {
@@ -225,12 +227,13 @@ pub fn bench_step<B: BenchBoard, const N: usize>(
 
 /// What [`bench_step`] asked for, once the caller has let the safe commands leave the CAN
 /// mailboxes (two frame times at 500 kbit/s: the caller waits 2 ms first): the bootloader, or a
-/// restart. Nothing for [`After::Continue`].
+/// restart; the panic `panic test` asked for. Nothing for [`After::Continue`].
 pub fn hand_over(after: After) {
     match after {
         After::Continue => {}
         After::Bootloader => reboot_to_bootloader(),
         After::Restart => restart(),
+        After::Panic => panic!("panic test"),
     }
 }
 
@@ -270,6 +273,55 @@ pub fn count_rising_edges(inputs: &[Input], counters: &[AtomicU32]) {
             input.clear_triggered();
             edges.fetch_add(1, Ordering::Relaxed);
         }
+    }
+}
+
+/// What an image does on a board it was not built for (or cannot identify): nothing but the
+/// console. Its USB device names the mistake in its product string; the check's line is
+/// offered to the host every 5 s; `bootloader` (typed or 134 baud) and `restart` are obeyed at
+/// once, as no output was ever driven. Called before any pin is configured, the watchdog not
+/// started.
+pub fn wrong_board(
+    usb: teensy4_bsp::usbd::Instances<1>,
+    kept: UsbMemory,
+    check: crate::board_check::BoardCheck,
+) -> ! {
+    let Ok(mut console) = UsbConsole::new(usb, kept, check.wrong_board_product()) else {
+        // No console to say it on: the image stays idle, every pin as reset left it.
+        loop {
+            cortex_m::asm::wfi();
+        }
+    };
+    let mut log = LogBuffer::<1024>::new();
+    let mut reader = LineReader::<64>::new();
+    let mut tick: u32 = 0;
+    loop {
+        if tick % 5_000 == 0 && log.is_empty() {
+            log.line(format_args!("{check}"));
+        }
+        tick = tick.wrapping_add(1);
+        let mut staged = [0u8; STAGED_BYTES];
+        let count = log.peek(&mut staged);
+        let mut asked = None;
+        let polled = console.poll(staged.get(..count).unwrap_or(&[]), |byte| {
+            if let Some(line) = reader.push(byte) {
+                match Command::parse(line) {
+                    Ok(Command::Bootloader) => asked = Some(Reboot::Bootloader),
+                    Ok(Command::Restart) => asked = Some(Reboot::Restart),
+                    _ => {}
+                }
+            }
+        });
+        log.consume(polled.sent);
+        if polled.reboot_requested {
+            asked = Some(Reboot::Bootloader);
+        }
+        match asked {
+            Some(Reboot::Bootloader) => reboot_to_bootloader(),
+            Some(Reboot::Restart) => restart(),
+            None => {}
+        }
+        cortex_m::asm::delay(600_000);
     }
 }
 

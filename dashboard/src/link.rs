@@ -204,12 +204,18 @@ impl Settings {
 
     /// The topics the dashboard always reads: the compact stream (which carries every CAN
     /// message), or the telemetry topic (CAN topics then come and go with the pit view).
-    pub fn topics(&self) -> [String; 3] {
-        let data = match self.format {
-            StreamFormat::Compact => aer_host::formats::pit_stream::topic(&self.prefix),
-            StreamFormat::Json => TELEMETRY.path(&self.prefix),
+    pub fn topics(&self) -> Vec<String> {
+        let mut topics = match self.format {
+            StreamFormat::Compact => vec![aer_host::formats::pit_stream::topic(&self.prefix)],
+            // The PCC's status always: the driver's display names its latched causes (the
+            // compact stream carries it with every other frame).
+            StreamFormat::Json => vec![
+                TELEMETRY.path(&self.prefix),
+                aer::mqtt::can::PCC_STATUS.path(&self.prefix),
+            ],
         };
-        [data, STATUS.path(&self.prefix), METRICS.path(&self.prefix)]
+        topics.extend([STATUS.path(&self.prefix), METRICS.path(&self.prefix)]);
+        topics
     }
 }
 
@@ -281,7 +287,7 @@ pub fn stream(settings: Settings) -> impl Stream<Item = Event> {
         }
         let mut backfill = (settings.format == StreamFormat::Compact)
             .then(|| Backfill::new(&settings.prefix, &client_id, settings.join_history_s));
-        let mut base = settings.topics().to_vec();
+        let mut base = settings.topics();
         base.extend(backfill.as_ref().map(Backfill::reply_topic));
         let requests = client.clone();
         let (connections, connection_events) = mpsc::unbounded();

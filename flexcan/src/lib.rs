@@ -27,6 +27,7 @@
 #![no_std]
 
 pub mod can3;
+pub mod emergency;
 mod frame;
 mod report;
 pub mod timing;
@@ -84,10 +85,10 @@ const IFLAG_FIFO_OVERFLOW: u32 = 1 << 7;
 const FIFO_FILTERS: usize = 8;
 /// Buffer 8 stays inactive for the ERR005829 workaround.
 const ERRATA_MB: usize = 8;
-const FIRST_TX_MB: usize = 9;
-const LAST_MB: usize = 15;
+pub(crate) const FIRST_TX_MB: usize = 9;
+pub(crate) const LAST_MB: usize = 15;
 /// Message-buffer RAM starts 0x80 bytes into the register block; each buffer is 4 words.
-const MB_RAM_WORD_OFFSET: usize = 0x80 / 4;
+pub(crate) const MB_RAM_WORD_OFFSET: usize = 0x80 / 4;
 
 /// Register polling limit during set-up (each poll is one bus read, a few ns).
 const POLL_LIMIT: u32 = 1_000_000;

@@ -19,6 +19,7 @@ use aer_ccm::calibration::store::{Startup, crc32};
 use aer_ccm::console::bringup;
 use aer_ccm::console::{self as ccm_console, CalibrationLine};
 use aer_ccm::control::HandoverRefusal;
+use aer_console::board_check::{BoardCheck, Teensy};
 use aer_console::bringup::ResetCause;
 use aer_console::{LogBuffer, Reboot};
 use aer_pcc::console::{
@@ -138,7 +139,12 @@ fn ccm_on_the_car() -> CcmSession {
 
 fn ccm_bringup_startup(out: &mut dyn Write) -> fmt::Result {
     let mut log = LogBuffer::<{ bringup::LOG_BYTES }>::new();
-    bringup::startup(&mut log, &aer_boards::ccm::COMP_CAR, POWER_ON);
+    bringup::startup(
+        &mut log,
+        &aer_boards::ccm::COMP_CAR,
+        POWER_ON,
+        BoardCheck::passed("AER CCM bring-up", Teensy::T41),
+    );
     flush(&mut log, out)
 }
 
@@ -269,6 +275,7 @@ fn ccm_race_startup(out: &mut dyn Write) -> fmt::Result {
         aer_boards::ccm::COMP_CAR.name,
         InverterKind::Dti,
         POWER_ON,
+        BoardCheck::passed("AER CCM", Teensy::T41),
         CalibrationLine {
             startup: Startup::NoneSaved,
             checksum: crc32(&calibration.to_page()),
@@ -294,6 +301,7 @@ fn ccm_race_startup_saved(out: &mut dyn Write) -> fmt::Result {
         aer_boards::ccm::COMP_CAR.name,
         InverterKind::Dti,
         POWER_ON,
+        BoardCheck::passed("AER CCM", Teensy::T41),
         CalibrationLine {
             startup: loaded.startup,
             checksum: crc32(&loaded.calibration.to_page()),
@@ -384,7 +392,12 @@ fn ccm_dti_hv(out: &mut dyn Write) -> fmt::Result {
 
 fn pcc_bringup_startup(out: &mut dyn Write) -> fmt::Result {
     let mut log = LogBuffer::<{ pcc_console::BRINGUP_LOG_BYTES }>::new();
-    pcc_console::bringup_startup(&mut log, &aer_boards::pcc::COMP_CAR, POWER_ON);
+    pcc_console::bringup_startup(
+        &mut log,
+        &aer_boards::pcc::COMP_CAR,
+        POWER_ON,
+        BoardCheck::passed("AER PCC bring-up", Teensy::T40),
+    );
     flush(&mut log, out)
 }
 
@@ -479,7 +492,12 @@ fn pcc_bms_heartbeat(out: &mut dyn Write) -> fmt::Result {
 
 fn pcc_race_startup(out: &mut dyn Write) -> fmt::Result {
     let mut log = LogBuffer::<{ pcc_console::LOG_BYTES }>::new();
-    pcc_console::race_startup(&mut log, &aer_boards::pcc::COMP_CAR, POWER_ON);
+    pcc_console::race_startup(
+        &mut log,
+        &aer_boards::pcc::COMP_CAR,
+        POWER_ON,
+        BoardCheck::passed("AER PCC", Teensy::T40),
+    );
     flush(&mut log, out)
 }
 
@@ -531,7 +549,10 @@ impl RacePcc {
     fn step(&mut self) {
         let now_ms = self.now_ms;
         let now_us = now_ms.wrapping_mul(1_000);
-        let [accumulator, tractive] = self.channels.each_mut().map(|channel| channel.sample(now_us));
+        let [accumulator, tractive] = self
+            .channels
+            .each_mut()
+            .map(|channel| channel.sample(now_us));
         let inputs = Inputs {
             now_ms,
             accumulator_v: accumulator.volts,
@@ -646,12 +667,22 @@ fn pcc_race_watchdog(out: &mut dyn Write) -> fmt::Result {
     let config = PrechargeConfig::CAR;
     // The PCC hung and its watchdog restarted it: ERROR, latched.
     let mut pcc = RacePcc::new(Precharge::after_watchdog_reset(config, 0));
-    pcc_console::race_startup(&mut pcc.log, &aer_boards::pcc::COMP_CAR, WATCHDOG);
+    pcc_console::race_startup(
+        &mut pcc.log,
+        &aer_boards::pcc::COMP_CAR,
+        WATCHDOG,
+        BoardCheck::passed("AER PCC", Teensy::T40),
+    );
     pcc.run(7_000, Some(&mut *out))?;
     pcc.ask(Reboot::Restart);
     flush(&mut pcc.log, out)?;
     // The software reset starts it as a power cycle does.
     let mut pcc = RacePcc::new(Precharge::new(config, 0));
-    pcc_console::race_startup(&mut pcc.log, &aer_boards::pcc::COMP_CAR, SOFTWARE);
+    pcc_console::race_startup(
+        &mut pcc.log,
+        &aer_boards::pcc::COMP_CAR,
+        SOFTWARE,
+        BoardCheck::passed("AER PCC", Teensy::T40),
+    );
     pcc.run(10, Some(out))
 }

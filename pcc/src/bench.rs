@@ -120,6 +120,8 @@ impl<H: PccHardware> BenchBoard for PccBench<H> {
     type Shared = VfInputs;
     const NAME: &'static str = "PCC";
     const SAFE: &'static str = "pin 11 (AIR+) low";
+    const PANIC: &'static str =
+        "drives pin 11 (AIR+) low at once; the watchdog restarts the board within 0.5 s";
 
     fn feed_watchdog(&mut self) {
         self.hw.feed_watchdog();
@@ -204,7 +206,9 @@ impl<H: PccHardware> BenchBoard for PccBench<H> {
             | Command::Report
             | Command::WatchdogTest
             | Command::Bootloader
-            | Command::Restart => "taken by the bench loop",
+            | Command::Restart
+            | Command::Status
+            | Command::PanicTest => "taken by the bench loop",
         })
     }
 

@@ -13,9 +13,12 @@ use crate::machine::{
 use crate::measurement::Pulses;
 use crate::relays::Relays;
 use crate::state::{Errors, State};
+use aer_boards::assumed::Board as AssumedBoard;
 use aer_boards::pcc::Revision;
+use aer_console::board_check::BoardCheck;
 use aer_console::bringup::{
     AnalogReading, BusLine, Clocks, DigitalReading, ReportHeader, ResetCause, Startup,
+    write_assumed,
 };
 use aer_console::{LogBuffer, Reboot, Watch};
 use aer_flexcan::BusStatus;
@@ -31,6 +34,7 @@ pub fn race_startup<const N: usize>(
     log: &mut LogBuffer<N>,
     board: &Revision,
     reset: ResetCause,
+    check: BoardCheck,
 ) -> u32 {
     Startup {
         image: "AER PCC",
@@ -39,8 +43,10 @@ pub fn race_startup<const N: usize>(
         reset,
         clocks: None,
         pins: &[],
+        check,
     }
     .write(log)
+        + write_assumed(log, AssumedBoard::Pcc)
 }
 
 /// A converter's reading as the console prints it: its voltage, or `no pulses`, never a 0 V
@@ -447,6 +453,53 @@ impl RaceLog {
         }
     }
 
+    /// `status`: the state and what is latched now, each latched cause's own line, the
+    /// resistor's temperatures, then what the image runs with that the bench day has not
+    /// settled.
+    pub fn status<const N: usize>(
+        &self,
+        now_ms: u32,
+        pcc: &Precharge,
+        relays: Relays,
+        log: &mut LogBuffer<N>,
+    ) {
+        let [accumulator, tractive] = ConverterVolts::of(pcc);
+        let line = StateLine {
+            now_ms,
+            state: pcc.state(),
+            relays,
+            errors: pcc.errors(),
+            accumulator,
+            tractive,
+        };
+        log.line(format_args!("{line}"));
+        let discharged_v = pcc.config().discharged_v;
+        for silence in pcc.silences().into_iter().flatten() {
+            let line = SilenceLine {
+                now_ms,
+                silence,
+                discharged_v,
+            };
+            log.line(format_args!("{line}"));
+        }
+        if let Some(fault) = pcc.no_discharge() {
+            let line = NoDischargeLine {
+                now_ms,
+                fault,
+                discharged_v,
+            };
+            log.line(format_args!("{line}"));
+        }
+        if let Some(hot) = pcc.hot_resistor() {
+            log.line(format_args!("{}", HotResistorLine { now_ms, hot }));
+        }
+        let [first, second] = pcc.resistor_c().map(ResistorTemperature);
+        log.line(format_args!(
+            "t={now_ms} ms resistor: thermistor 1 (pin 21) {first}, thermistor 2 (pin 22) {second}"
+        ));
+        write_assumed(log, AssumedBoard::Pcc);
+    }
+
     /// Whether the step at `now_ms` logs the counters (the first step of every 5 s).
     pub const fn counters_due(now_ms: u32) -> bool {
         now_ms % 5_000 < TASK_PERIOD_MS
@@ -458,6 +511,7 @@ pub fn bringup_startup<const N: usize>(
     log: &mut LogBuffer<N>,
     board: &Revision,
     reset: ResetCause,
+    check: BoardCheck,
 ) -> u32 {
     let mut missed = Startup {
         image: "AER PCC bring-up",
@@ -466,6 +520,7 @@ pub fn bringup_startup<const N: usize>(
         reset,
         clocks: Some(Clocks::TEENSY4),
         pins: &board.pins(),
+        check,
     }
     .write(log);
     if !log.line(format_args!(

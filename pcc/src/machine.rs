@@ -287,7 +287,11 @@ impl core::fmt::Display for HandoverRefusal {
                 reading,
                 limit_v,
             } => {
-                write!(f, "a converter fell silent at high voltage, and the {} ", converter.name())?;
+                write!(
+                    f,
+                    "a converter fell silent at high voltage, and the {} ",
+                    converter.name()
+                )?;
                 match reading {
                     Some(volts) => write!(f, "reads {volts:.1} V")?,
                     None => f.write_str("gives no pulses")?,
@@ -418,7 +422,8 @@ impl Precharge {
         }
         if self.errors.converter_silent() {
             let volts = [self.accumulator_v, self.tractive_v];
-            for ((converter, pulses), volts) in Converter::BOTH.into_iter().zip(self.pulses).zip(volts)
+            for ((converter, pulses), volts) in
+                Converter::BOTH.into_iter().zip(self.pulses).zip(volts)
             {
                 let reading = match pulses {
                     Pulses::Live if volts < self.config.discharged_v => continue,
@@ -463,7 +468,9 @@ impl Precharge {
             .bms_last_seen_ms
             .is_some_and(|seen| now.wrapping_sub(seen) <= self.config.bms_timeout_ms);
         self.pulses = inputs.pulses;
-        self.resistor_c = inputs.resistor_c.map(|reading| reading.filter(|c| !c.is_nan()));
+        self.resistor_c = inputs
+            .resistor_c
+            .map(|reading| reading.filter(|c| !c.is_nan()));
         self.latch_silences(now);
         self.latch_hot_resistor();
         self.watch_discharge(now);
@@ -622,8 +629,8 @@ impl Precharge {
             return;
         }
         watch.peak_v = watch.peak_v.max(self.tractive_v);
-        let fallen = self.tractive_v
-            < watch.peak_v * (1.0 - self.config.precharge_drop_percent / 100.0);
+        let fallen =
+            self.tractive_v < watch.peak_v * (1.0 - self.config.precharge_drop_percent / 100.0);
         if watch.falling_since_ms.is_none() && fallen {
             watch.falling_since_ms = Some(now);
         }

@@ -254,7 +254,12 @@ mod tests {
 
     /// Runs `channel` at `volts` (through the board's scaling) for `windows` 10 ms windows
     /// from `start_us`; returns the last sample and where it ended.
-    fn pulse(channel: &mut VoltageChannel, volts: f32, start_us: u32, windows: u32) -> (VoltageSample, u32) {
+    fn pulse(
+        channel: &mut VoltageChannel,
+        volts: f32,
+        start_us: u32,
+        windows: u32,
+    ) -> (VoltageSample, u32) {
         let hz = VfConfig::PCC_BOARD.hz_for_volts(volts);
         let period_us = 1e6 / f64::from(hz);
         let mut edge = 1.0;
@@ -305,7 +310,10 @@ mod tests {
         assert!((100_000..=110_000).contains(&after_us), "{after_us}");
         assert!((last_v - 300.0).abs() < 0.5, "{last_v}");
         assert!((100..=110).contains(&since_ms), "{since_ms}");
-        assert!(volts < 150.0, "the filtered reading falls towards 0: {volts}");
+        assert!(
+            volts < 150.0,
+            "the filtered reading falls towards 0: {volts}"
+        );
     }
 
     #[test]

@@ -6,6 +6,7 @@
 use aer_boards::pcc::COMP_CAR;
 use aer_console::LogBuffer;
 use aer_console::Reboot;
+use aer_console::board_check::{BoardCheck, Teensy};
 use aer_console::bringup::{
     AnalogReading, BusLine, DigitalReading, HEARD_IDS, Heard, ReportHeader, ResetCause,
 };
@@ -44,7 +45,12 @@ const WORST_STATUS: BusStatus = BusStatus {
 fn the_bring_up_start_up_and_a_worst_case_report_fit_the_log_together() {
     let mut log = LogBuffer::<{ console::BRINGUP_LOG_BYTES }>::new();
     assert_eq!(
-        console::bringup_startup(&mut log, &COMP_CAR, ResetCause(0x1FF)),
+        console::bringup_startup(
+            &mut log,
+            &COMP_CAR,
+            ResetCause(0x1FF),
+            BoardCheck::passed("AER PCC bring-up", Teensy::T40)
+        ),
         0
     );
     let mut heard = Heard::default();
@@ -116,7 +122,12 @@ fn worst_gate_line() -> aer_pcc::bringup::GateLine {
 fn the_race_lines_fit_the_race_log() {
     let mut log = LogBuffer::<{ console::LOG_BYTES }>::new();
     assert_eq!(
-        console::race_startup(&mut log, &COMP_CAR, ResetCause(0x1FF)),
+        console::race_startup(
+            &mut log,
+            &COMP_CAR,
+            ResetCause(0x1FF),
+            BoardCheck::passed("AER PCC", Teensy::T40)
+        ),
         0
     );
     let every_error = Errors {

@@ -6,8 +6,8 @@
 //! the watchdog is driven by the library's servicing policy, as the firmware drives WDOG1.
 
 use aer::can::PccStatus;
-use aer_pcc::watchdog::{LoopMonitor, reset_by_watchdog};
 use aer_pcc::measurement::Pulses;
+use aer_pcc::watchdog::{LoopMonitor, reset_by_watchdog};
 use aer_pcc::{Inputs, Precharge, PrechargeConfig, Relays, State, TASK_PERIOD_MS};
 
 /// WDOG1 as the firmware sets it up: 0.5 s without service restarts the chip.

@@ -121,7 +121,9 @@ fn check_sequence(start_ms: u32, ticks: &[Tick]) -> Result<(), TestCaseError> {
         // A converter silent where silence cannot mean 0 V, or a hot resistor, opens AIR+
         // in this very step and latches.
         let unknown_hv = tick.pulses.iter().any(|pulses| match pulses {
-            Pulses::Silent { last_v, .. } => *last_v >= CONFIG.discharged_v || before.is_energised(),
+            Pulses::Silent { last_v, .. } => {
+                *last_v >= CONFIG.discharged_v || before.is_energised()
+            }
             Pulses::Live => false,
         });
         let hot = tick
@@ -130,12 +132,21 @@ fn check_sequence(start_ms: u32, ticks: &[Tick]) -> Result<(), TestCaseError> {
             .flatten()
             .any(|c| *c >= CONFIG.resistor_limit_c);
         if unknown_hv || hot {
-            prop_assert_eq!(relays, Relays::ALL_OPEN, "silent converter or hot resistor in {:?}", before);
+            prop_assert_eq!(
+                relays,
+                Relays::ALL_OPEN,
+                "silent converter or hot resistor in {:?}",
+                before
+            );
             prop_assert_eq!(after, State::Error);
         }
         latched |= pcc.errors().needs_reset();
         if latched {
-            prop_assert!(!relays.air_plus, "AIR+ closed after a latched cause: {}", pcc.errors());
+            prop_assert!(
+                !relays.air_plus,
+                "AIR+ closed after a latched cause: {}",
+                pcc.errors()
+            );
         }
 
         // Faults seen while energised open everything in this very step.

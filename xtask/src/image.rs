@@ -17,17 +17,18 @@ pub struct Region {
     pub size: u32,
 }
 
-/// External QSPI flash (Teensy 4.0: 2 MiB; the last 4 KiB hold the bootloader's data).
+/// External QSPI flash (Teensy 4.0: 2 MiB; PJRC reserves the top 64 KiB for the restore
+/// program and EEPROM emulation: `aer_console::board_check::Teensy::reserved_bytes`).
 pub const FLASH_T40: Region = Region {
     name: "flash",
     start: 0x6000_0000,
-    size: 2 * 1024 * 1024 - 4096,
+    size: 2 * 1024 * 1024 - 64 * 1024,
 };
-/// External QSPI flash (Teensy 4.1: 8 MiB; the last 4 KiB hold the bootloader's data).
+/// External QSPI flash (Teensy 4.1: 8 MiB; PJRC reserves the top 256 KiB).
 pub const FLASH_T41: Region = Region {
     name: "flash",
     start: 0x6000_0000,
-    size: 8 * 1024 * 1024 - 4096,
+    size: 8 * 1024 * 1024 - 256 * 1024,
 };
 
 /// On-chip RAM regions: FlexRAM (512 KiB shared by ITCM and DTCM in 32 KiB banks) and OCRAM2.

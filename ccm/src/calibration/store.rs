@@ -74,6 +74,9 @@ pub enum FlashError {
     OutOfBounds,
     /// The controller reported a failure (timeout, protection, verify error).
     Device,
+    /// The slot lies outside the chip's flash, or in the top its bootloader reserves: this
+    /// image is on a board it was not built for.
+    Reserved,
 }
 
 /// What start-up loaded, as `CCM_Calibration.CCM_CalStartup` reports it.
@@ -160,6 +163,9 @@ impl core::fmt::Display for SaveError {
             Self::Flash(FlashError::Device) => {
                 f.write_str("not saved: the flash failed (the previous copy stays)")
             }
+            Self::Flash(FlashError::Reserved) => f.write_str(
+                "not saved: the slot is not this chip's to write (outside its flash or in the top its bootloader reserves)",
+            ),
         }
     }
 }

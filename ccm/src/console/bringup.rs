@@ -11,6 +11,7 @@ use crate::calibration::bench::{BenchPoint, BenchRecorder, PedalResult};
 use crate::calibration::store::{self, CalibrationFlash, CalibrationStore, crc32};
 use aer::calibration::VehicleState;
 use aer_console::LogBuffer;
+use aer_console::board_check::BoardCheck;
 use aer_console::bringup::{
     AnalogReading, BusLine, Clocks, DigitalReading, ReportHeader, ResetCause, Startup,
 };
@@ -25,6 +26,7 @@ pub fn startup<const N: usize>(
     log: &mut LogBuffer<N>,
     board: &aer_boards::ccm::Revision,
     reset: ResetCause,
+    check: BoardCheck,
 ) -> u32 {
     let mut missed = Startup {
         image: "AER CCM bring-up",
@@ -36,6 +38,7 @@ pub fn startup<const N: usize>(
         reset,
         clocks: Some(Clocks::TEENSY4),
         pins: &board.pins(),
+        check,
     }
     .write(log);
     if !log.line(format_args!(

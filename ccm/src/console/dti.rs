@@ -121,6 +121,8 @@ pub struct EnableTimeout {
     /// The DTI reported "enabled" since that command.
     enabled_seen: bool,
     result: Option<TimeoutResult>,
+    /// A measurement ended and the bench has not taken it yet ([`Self::take_ended`]).
+    ended: bool,
 }
 
 /// What a measurement found.
@@ -161,6 +163,7 @@ impl EnableTimeout {
         } else if self.enabled_seen {
             self.result = Some(TimeoutResult::Dropped(now_ms.wrapping_sub(last)));
             self.last_enable_ms = None;
+            self.ended = true;
         }
     }
 
@@ -176,7 +179,22 @@ impl EnableTimeout {
                 TimeoutResult::NeverEnabled
             });
             self.last_enable_ms = None;
+            self.ended = true;
         }
+    }
+
+    /// The result of a measurement that ended since the last call (once each).
+    pub fn take_ended(&mut self) -> Option<TimeoutResult> {
+        if core::mem::take(&mut self.ended) {
+            self.result
+        } else {
+            None
+        }
+    }
+
+    /// True when the last measurement passed: the drive dropped within the limit.
+    pub fn passed(&self) -> bool {
+        matches!(self.result, Some(TimeoutResult::Dropped(ms)) if ms <= DTI_TIMEOUT_LIMIT_MS)
     }
 
     /// The last measurement's result.
@@ -191,22 +209,22 @@ impl fmt::Display for EnableTimeout {
         match (self.result, self.last_enable_ms) {
             (_, Some(_)) => f.write_str("measuring (drive enable commanded)"),
             (None, None) => f.write_str(
-                "not measured (`confirm hv-disconnected`, then `dti enable`, or drive enable from a CAN adapter, then silence)",
+                "NOT MEASURED (`confirm hv-disconnected`, then `dti enable`, or drive enable from a CAN adapter, then silence): no spin until it reads PASS",
             ),
             (Some(TimeoutResult::Dropped(ms)), None) if ms <= DTI_TIMEOUT_LIMIT_MS => write!(
                 f,
-                "drive enable dropped {ms} ms after the last command: within {DTI_TIMEOUT_LIMIT_MS} ms, as the torque-off proofs assume ({DTI_ASSUMED_COMMAND_TIMEOUT_MS} ms)"
+                "PASS: drive enable dropped {ms} ms after the last command (limit {DTI_TIMEOUT_LIMIT_MS} ms; the torque-off proofs assume {DTI_ASSUMED_COMMAND_TIMEOUT_MS} ms): write {ms} ms on the sheet"
             ),
             (Some(TimeoutResult::Dropped(ms)), None) => write!(
                 f,
-                "drive enable dropped {ms} ms after the last command: LONGER than the {DTI_TIMEOUT_LIMIT_MS} ms the torque-off proofs allow: set the CAN timeout in the DTI tool to {DTI_ASSUMED_COMMAND_TIMEOUT_MS} ms and measure again before any spin"
+                "FAIL: drive enable dropped {ms} ms after the last command, LONGER than the {DTI_TIMEOUT_LIMIT_MS} ms limit: no spin; set the CAN timeout in the DTI tool to {DTI_ASSUMED_COMMAND_TIMEOUT_MS} ms and measure again"
             ),
             (Some(TimeoutResult::NotDropped), None) => write!(
                 f,
-                "STILL ENABLED {TIMEOUT_WAIT_MS} ms after the last command: type `off` (it sends drive disabled), then set the CAN timeout in the DTI tool before any spin"
+                "FAIL: STILL ENABLED {TIMEOUT_WAIT_MS} ms after the last command (the bench has sent drive disabled): no spin; set the CAN timeout in the DTI tool, then measure again"
             ),
             (Some(TimeoutResult::NeverEnabled), None) => f.write_str(
-                "the DTI never reported its drive enabled: check its node id, fault code and enable input, then repeat",
+                "NOT MEASURED: the DTI never reported its drive enabled: check its node id, fault code and enable input, then repeat; no spin until it reads PASS",
             ),
         }
     }
@@ -362,9 +380,15 @@ impl DtiBench {
         Some(Step::Send(frames))
     }
 
-    /// Ends a timeout measurement that waited long enough.
-    pub fn poll(&mut self, now_ms: u32) {
+    /// Ends a timeout measurement that waited long enough. Returns the result of one that
+    /// ended at this step (by the DTI's answer or the wait), with the frames that disable the
+    /// DTI whatever it answered: the bench sends them, so a DTI whose timeout does not work is
+    /// never left enabled.
+    pub fn poll(&mut self, now_ms: u32) -> Option<(EnableTimeout, Result<OutFrames, EncodeError>)> {
         self.timeout.poll(now_ms);
+        self.timeout
+            .take_ended()
+            .map(|_| (self.timeout, EnableTest::disable_frames()))
     }
 
     /// A report was printed: the next period's check starts empty.

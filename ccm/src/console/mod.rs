@@ -10,7 +10,9 @@ pub mod dti;
 use crate::calibration::store::Startup as Loaded;
 use crate::control::HandoverRefusal;
 use crate::inverter::InverterKind;
-use aer_console::bringup::{ResetCause, Startup};
+use aer_boards::assumed::Board as AssumedBoard;
+use aer_console::board_check::BoardCheck;
+use aer_console::bringup::{ResetCause, Startup, write_assumed};
 use aer_console::{LogBuffer, Reboot};
 use core::fmt;
 
@@ -25,6 +27,7 @@ pub fn race_startup<const N: usize>(
     board: &str,
     inverter: InverterKind,
     reset: ResetCause,
+    check: BoardCheck,
     calibration: CalibrationLine<'_>,
 ) -> u32 {
     let image = match inverter {
@@ -41,12 +44,13 @@ pub fn race_startup<const N: usize>(
         reset,
         clocks: None,
         pins: &[],
+        check,
     }
     .write(log);
     if !log.line(format_args!("{calibration}")) {
         missed += 1;
     }
-    missed
+    missed + write_assumed(log, AssumedBoard::Ccm)
 }
 
 /// The one line that says which calibration runs and where it came from, by the one rule
@@ -109,5 +113,72 @@ impl fmt::Display for RebootAnswer {
             ),
             Err(why) => write!(f, "{asked} REFUSED: {why}"),
         }
+    }
+}
+
+/// The PCC as the CCM last heard it (PCC_Status): its state and every latched cause by the
+/// names the PCC's own console uses, for the race image's log and `status`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PccLine(pub Option<aer::can::PccStatus>);
+
+impl PccLine {
+    /// The state and the error bits alone (what the log watches: the voltages move).
+    pub fn key(&self) -> Option<(aer::can::PrechargeState, u16)> {
+        self.0.map(|status| {
+            let bits = pcc_causes(&status)
+                .iter()
+                .enumerate()
+                .fold(0u16, |bits, (index, (set, _))| {
+                    bits | (u16::from(*set) << index)
+                });
+            (status.pcc_state, bits)
+        })
+    }
+}
+
+/// PCC_Status's latched causes with their names.
+fn pcc_causes(status: &aer::can::PccStatus) -> [(bool, &'static str); 10] {
+    [
+        (status.pcc_error_too_fast, "too-fast"),
+        (
+            status.pcc_error_bypassed,
+            "bypassed (AIR+ welded or the precharge resistor bypassed)",
+        ),
+        (status.pcc_error_too_slow, "too-slow"),
+        (status.pcc_error_bms_timeout, "bms-timeout"),
+        (status.pcc_error_shutdown, "shutdown"),
+        (
+            status.pcc_error_accumulator_silent,
+            "accumulator-converter-silent",
+        ),
+        (
+            status.pcc_error_tractive_silent,
+            "tractive-converter-silent",
+        ),
+        (status.pcc_error_no_discharge, "no-discharge"),
+        (status.pcc_error_resistor_hot, "resistor-hot"),
+        (status.pcc_error_undefined_state, "undefined-state"),
+    ]
+}
+
+impl fmt::Display for PccLine {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let Some(status) = self.0 else {
+            return f.write_str("PCC not heard");
+        };
+        write!(
+            f,
+            "PCC {}, errors:",
+            status.pcc_state.label().unwrap_or("UNKNOWN")
+        )?;
+        let mut any = false;
+        for (_, name) in pcc_causes(&status).iter().filter(|(set, _)| *set) {
+            write!(f, " {name}")?;
+            any = true;
+        }
+        if !any {
+            f.write_str(" none")?;
+        }
+        Ok(())
     }
 }

@@ -7,9 +7,11 @@
 
 pub mod board;
 pub mod flash;
+pub mod panic;
 pub mod pedals;
 pub mod pwm;
 
+use aer_console::board_check::{BoardCheck, Teensy};
 use aer_console::bringup::ResetCause;
 use aer_console::usb::{UsbConsole, UsbMemory};
 use aer_flexcan::{Flexcan, InitError};
@@ -61,6 +63,9 @@ pub struct Ccm {
     pub wdog: ral::wdog::WDOG1,
     /// Why the chip started (SRC_SRSR, cleared for the next start).
     pub reset_cause: ResetCause,
+    /// The board check: the board this image was built for, found (or the image would have
+    /// stopped in `wrong_board`).
+    pub board: BoardCheck,
     /// The USB serial console, if the device started (the images run without it).
     pub console: Option<UsbConsole>,
     /// 256 bits from the TRNG, to start the XCP seed generator; `None` if the TRNG gave
@@ -73,7 +78,9 @@ pub struct Ccm {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct SetupFailed;
 
-/// Brings the board up: pins, PWM (outputs off), ADC, pedal front-end, GPT1 on the 1 MHz
+/// Brings the board up: the board check first (on a Teensy 4.0, or one the check cannot
+/// identify, the image stops here in `wrong_board`, every pin as reset left it), then pins,
+/// PWM (outputs off), ADC, pedal front-end, GPT1 on the 1 MHz
 /// peripheral clock (the image starts its monotonic on it next), both CAN controllers, WDOG1
 /// at 1 s, the reset cause and the USB console named `product`.
 pub fn start(
@@ -96,6 +103,16 @@ pub fn start(
         mut trng,
         ..
     } = bsp::t41(device);
+    // Which board this is, before any pin is touched: on another one, nothing is driven and
+    // the flash is never written.
+    let check = BoardCheck {
+        image: product,
+        built_for: Teensy::T41,
+        found: aer_console::chip::identify(),
+    };
+    if !check.right() {
+        aer_console::usb::wrong_board(usb, usb_memory, check);
+    }
     let mut pins = board::pins(pins);
 
     let brake_light = gpio2.output(pins.brake_light).map_err(|_| SetupFailed)?;
@@ -165,6 +182,9 @@ pub fn start(
     let (tx2, rx2) = pins.inverter_can;
     let vehicle_can = Flexcan::new_can3(can3_regs, tx3, rx3, &ccm, board::CAN_BITRATE);
     let inverter_can = Flexcan::new(can2_regs, tx2, rx2, &ccm, board::CAN_BITRATE);
+    if inverter_can.is_ok() {
+        panic::inverter_bus_started();
+    }
     start_watchdog(&wdog);
 
     let console = UsbConsole::new(usb, usb_memory, product).ok();
@@ -187,6 +207,7 @@ pub fn start(
         inverter_can,
         wdog,
         reset_cause: ResetCause(srsr),
+        board: check,
         console,
         entropy,
     })

@@ -120,6 +120,8 @@ pub struct Dashboard {
     health: Health,
     plots: Vec<usize>,
     can: CanMessages,
+    /// The PCC's latched causes, from its newest status.
+    pcc_alarms: Vec<(&'static str, Level)>,
     /// The session so far, for merging history (with the compact stream only: the JSON
     /// topics have no history to fetch).
     record: Option<SessionRecord>,
@@ -160,6 +162,7 @@ impl Dashboard {
             health: Health::default(),
             plots,
             can: CanMessages::new(&config.display.can_messages),
+            pcc_alarms: Vec::new(),
             record: (config.link.stream == crate::config::StreamFormat::Compact)
                 .then(SessionRecord::default),
             lap_length_m: config.display.lap_length_m,
@@ -182,7 +185,12 @@ impl Dashboard {
                 }
             }
             Update::Telemetry(sample) => self.telemetry(&sample, now),
-            Update::Can(sample) => self.can.take(&sample, now),
+            Update::Can(sample) => {
+                if let AnyMessage::PccStatus(status) = &sample.value {
+                    self.pcc_alarms = pcc_alarms(status);
+                }
+                self.can.take(&sample, now);
+            }
             Update::Status(status) => self.health.status(*status),
             Update::Metrics(metrics) => self.health.metrics = Some(*metrics),
             Update::Undecodable { topic, error } => self.health.undecodable(&topic, &error),
@@ -408,9 +416,13 @@ impl Dashboard {
             .is_some_and(|l| l.telemetry.ready_to_drive)
     }
 
-    /// Alarms active now, critical first.
+    /// Alarms active now, critical first: the telemetry's, and the PCC's latched causes from
+    /// its own status (PCC_Status), which the Pi forwards as it arrives.
     pub fn active_alarms(&self) -> Vec<(&'static str, Level)> {
-        self.alarms.active()
+        let mut active = self.alarms.active();
+        active.extend(self.pcc_alarms.iter().copied());
+        active.sort_by_key(|(_, level)| std::cmp::Reverse(*level));
+        active
     }
 
     /// The alarm history.
@@ -474,6 +486,67 @@ impl Dashboard {
     }
 }
 
+/// The PCC's latched causes as the driver's display names them: what stops the car is
+/// critical; a shutdown (the car switched off with the shutdown circuit) is a warning.
+fn pcc_alarms(status: &aer::can::PccStatus) -> Vec<(&'static str, Level)> {
+    [
+        (
+            status.pcc_error_tractive_silent,
+            "PCC: TS sensing lost, treat TS as live",
+            Level::Critical,
+        ),
+        (
+            status.pcc_error_no_discharge,
+            "PCC: TS not discharged, treat as live",
+            Level::Critical,
+        ),
+        (
+            status.pcc_error_bypassed,
+            "PCC: AIR+ welded or precharge bypassed",
+            Level::Critical,
+        ),
+        (
+            status.pcc_error_accumulator_silent,
+            "PCC: pack sensing lost",
+            Level::Critical,
+        ),
+        (
+            status.pcc_error_resistor_hot,
+            "PCC: precharge resistor hot",
+            Level::Critical,
+        ),
+        (
+            status.pcc_error_too_fast && !status.pcc_error_bypassed,
+            "PCC: precharge too fast",
+            Level::Critical,
+        ),
+        (
+            status.pcc_error_too_slow,
+            "PCC: precharge too slow",
+            Level::Critical,
+        ),
+        (
+            status.pcc_error_bms_timeout,
+            "PCC: BMS timeout",
+            Level::Critical,
+        ),
+        (
+            status.pcc_error_undefined_state,
+            "PCC: watchdog restart",
+            Level::Critical,
+        ),
+        (
+            status.pcc_error_shutdown,
+            "PCC: shutdown circuit opened",
+            Level::Warn,
+        ),
+    ]
+    .into_iter()
+    .filter(|(set, _, _)| *set)
+    .map(|(_, label, level)| (label, level))
+    .collect()
+}
+
 fn row(sample: &Sample<TelemetryRecord>) -> Row {
     Row {
         ts: sample.ts,
@@ -502,6 +575,34 @@ mod tests {
                 telemetry,
             },
         }
+    }
+
+    #[test]
+    fn the_pccs_latched_causes_are_named_on_the_drivers_display() {
+        let mut dashboard = Dashboard::new(&Config::default());
+        let t0 = Instant::now();
+        let mut data = [0u8; 8];
+        // ERROR (5) with the tractive system's converter silent (0x20 of byte 1).
+        data[0] = 5;
+        data[1] = 0x20;
+        let status = aer::can::PccStatus::decode(&data).expect("decodes");
+        let sample = Sample {
+            ts: 1.0,
+            value: AnyMessage::PccStatus(status),
+        };
+        dashboard.apply(Update::Can(Box::new(sample)), t0);
+        assert_eq!(
+            dashboard.active_alarms(),
+            vec![("PCC: TS sensing lost, treat TS as live", Level::Critical)]
+        );
+        // A status without causes clears them.
+        let clear = aer::can::PccStatus::decode(&[0u8; 8]).expect("decodes");
+        let sample = Sample {
+            ts: 2.0,
+            value: AnyMessage::PccStatus(clear),
+        };
+        dashboard.apply(Update::Can(Box::new(sample)), t0);
+        assert!(dashboard.active_alarms().is_empty());
     }
 
     #[test]

@@ -8,6 +8,7 @@
 
 pub mod board;
 
+use aer_console::board_check::{BoardCheck, Teensy};
 use aer_console::bringup::ResetCause;
 use aer_console::usb::{UsbConsole, UsbMemory};
 use aer_flexcan::{Flexcan, InitError};
@@ -41,6 +42,9 @@ pub struct Pcc {
     pub wdog: ral::wdog::WDOG1,
     /// Why the chip started (SRC_SRSR, cleared for the next start).
     pub reset_cause: ResetCause,
+    /// The board check: the board this image was built for, found (or the image would have
+    /// stopped in `wrong_board`).
+    pub board: BoardCheck,
     /// The USB serial console, if the device started (the images run without it).
     pub console: Option<UsbConsole>,
 }
@@ -49,8 +53,9 @@ pub struct Pcc {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct SetupFailed;
 
-/// Brings the board up: AIR+ first, driven low (its pad pulled down before it becomes an
-/// output), the LED, the V/F inputs, the ADC, GPT1 on the 1 MHz peripheral clock (the image
+/// Brings the board up: the board check first (on a Teensy 4.1, or one the check cannot
+/// identify, the image stops here in `wrong_board`, every pin as reset left it), then AIR+,
+/// driven low (its pad pulled down before it becomes an output), the LED, the V/F inputs, the ADC, GPT1 on the 1 MHz peripheral clock (the image
 /// starts its monotonic on it next), CAN2, the reset cause and the USB console named
 /// `product`. The watchdog is the image's to start.
 pub fn start(
@@ -68,6 +73,15 @@ pub fn start(
         usb,
         ..
     } = bsp::t40(device);
+    // Which board this is, before any pin is touched: on another one, nothing is driven.
+    let check = BoardCheck {
+        image: product,
+        built_for: Teensy::T40,
+        found: aer_console::chip::identify(),
+    };
+    if !check.right() {
+        aer_console::usb::wrong_board(usb, usb_memory, check);
+    }
     let mut pins = board::pins(pins);
 
     // AIR+ first, driven low, before anything else can run. A pin on the wrong port is a
@@ -122,6 +136,7 @@ pub fn start(
         can,
         wdog,
         reset_cause: ResetCause(srsr),
+        board: check,
         console,
     })
 }

@@ -100,7 +100,7 @@ impl TeensyCcm {
             vehicle_can,
             inverter_can,
             wdog: board.wdog,
-            flash: TeensyFlash::new(),
+            flash: TeensyFlash::new(board.board.built_for),
         };
         Ok((teensy, board.wheels, board.console))
     }

@@ -25,7 +25,6 @@ mod bench;
 use aer_console::RebootRequest;
 use core::sync::atomic::AtomicU32;
 use rtic_monotonics::imxrt::prelude::*;
-use teensy4_panic as _;
 
 imxrt_gpt1_monotonic!(Mono, 1_000_000);
 
@@ -97,7 +96,16 @@ mod app {
             Priority::rtic_default(),
         );
         let mut log = LogBuffer::new();
-        bringup::startup(&mut log, &hw::board::REVISION, board.reset_cause);
+        bringup::startup(
+            &mut log,
+            &hw::board::REVISION,
+            board.reset_cause,
+            board.board,
+        );
+        // What a panic (`panic test`, or a fault) sends the DTI: 0 A and drive disabled.
+        if let Ok(frames) = aer_ccm::console::dti::EnableTest::disable_frames() {
+            aer_ccm::stop::STOP.publish(&frames);
+        }
         // The wheel inputs are shared with their edge interrupt, the console with the USB's.
         let Ok((teensy, wheels, console)) = TeensyCcm::new(board, &mut log) else {
             halt()

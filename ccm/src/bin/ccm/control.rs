@@ -3,14 +3,17 @@
 //! to the bootloader or a restart.
 
 use crate::app::control;
-use crate::{Mono, PEDAL_BUS_ERRORS, REBOOT, RX_QUEUE_OVERFLOWS, TX_NOT_SENT, WHEELS};
+use crate::{Mono, PEDAL_BUS_ERRORS, REBOOT, RX_QUEUE_OVERFLOWS, STATUS, TX_NOT_SENT, WHEELS};
 use crate::{now_ms, now_us};
-use aer_ccm::console::{LOG_BYTES, RebootAnswer};
-use aer_ccm::constants::{CONTROL_PERIOD_MS, WHEEL_TEETH};
+use aer_boards::assumed::Board as AssumedBoard;
+use aer_ccm::console::{LOG_BYTES, PccLine, RebootAnswer};
+use aer_ccm::constants::{CONTROL_PERIOD_MS, PCC_STATUS_TIMEOUT_MS, WHEEL_TEETH};
 use aer_ccm::faults::{Fault, FaultMap};
 use aer_ccm::own_frames::OwnFrames;
+use aer_ccm::stop::STOP;
 use aer_ccm::watchdog::Task;
 use aer_ccm::{BusHealth, ControlOutputs, DriverCounters, DriverInputs, OutFrames};
+use aer_console::bringup::write_assumed;
 use aer_console::{LogBuffer, Reboot, Watch};
 use aer_flexcan::{BusStatus, CanFrame, FaultState, Flexcan};
 use core::sync::atomic::Ordering;
@@ -53,7 +56,7 @@ pub(crate) async fn control(mut cx: control::Context<'_>) {
             .lock(|calibration| *calibration.active());
         let [left, right] = &WHEELS;
         let wheels = [left.speed(WHEEL_TEETH), right.speed(WHEEL_TEETH)];
-        let (outputs, due, handover) = cx.shared.control.lock(|control| {
+        let (outputs, due, handover, pcc) = cx.shared.control.lock(|control| {
             control.set_driver_counters(counters);
             while let Some(frame) = vehicle_frames.dequeue() {
                 control.on_frame(&frame, now);
@@ -63,10 +66,19 @@ pub(crate) async fn control(mut cx: control::Context<'_>) {
             }
             let outputs = control.step(&calibration, &sensors, wheels, driver, now, now_micros);
             let due = control.due(step);
+            // What a panic would send from now on.
+            match control.stop_frames() {
+                Ok(frames) => STOP.publish(&frames),
+                Err(_) => {
+                    TX_NOT_SENT.fetch_add(1, Ordering::Relaxed);
+                }
+            }
             let handover = REBOOT.take().map(|reboot| (reboot, control.handover()));
-            (outputs, due, handover)
+            let pcc = control.bus().pcc.fresh(now, PCC_STATUS_TIMEOUT_MS);
+            (outputs, due, handover, PccLine(pcc))
         });
         let watches = &mut cx.local.watches;
+        let status = STATUS.take();
         cx.shared.log.lock(|log| {
             watches.log_changes(
                 log,
@@ -74,7 +86,17 @@ pub(crate) async fn control(mut cx: control::Context<'_>) {
                 &outputs,
                 &counters,
                 [vehicle_bus.state, inverter_bus.state],
-            )
+                pcc,
+            );
+            if status {
+                log.line(format_args!(
+                    "t={now} ms status: vehicle {:?}, faults {:#06x}:{}; {pcc}",
+                    outputs.vehicle.state,
+                    outputs.faults.bits(),
+                    FaultNames(outputs.faults)
+                ));
+                write_assumed(log, AssumedBoard::Ccm);
+            }
         });
         if outputs.brake_light {
             cx.local.brake_light.set();
@@ -167,11 +189,13 @@ pub(crate) struct Watches {
     state: Watch<aer_ccm::vehicle::State>,
     faults: Watch<FaultMap>,
     buses: Watch<[FaultState; 2]>,
+    pcc: Watch<Option<(aer::can::PrechargeState, u16)>>,
 }
 
 impl Watches {
-    /// Logs what changed this control step: the vehicle state, the fault map, either bus's
-    /// fault confinement state; every 5 s the drop counters.
+    /// Logs what changed this control step: the vehicle state, the PCC's state and latched
+    /// causes, the fault map, either bus's fault confinement state; every 5 s the drop
+    /// counters.
     fn log_changes(
         &mut self,
         log: &mut LogBuffer<LOG_BYTES>,
@@ -179,9 +203,13 @@ impl Watches {
         outputs: &ControlOutputs,
         counters: &DriverCounters,
         buses: [FaultState; 2],
+        pcc: PccLine,
     ) {
         if let Some(state) = self.state.changed(outputs.vehicle.state) {
             log.line(format_args!("t={now} ms vehicle {state:?}"));
+        }
+        if self.pcc.changed(pcc.key()).is_some() {
+            log.line(format_args!("t={now} ms {pcc}"));
         }
         if let Some(faults) = self.faults.changed(outputs.faults) {
             log.line(format_args!(

@@ -43,10 +43,9 @@ mod watchdog;
 mod xcp;
 
 use aer_ccm::chassis::PulseTimer;
-use aer_console::RebootRequest;
+use aer_console::{RebootRequest, StatusRequest};
 use core::sync::atomic::AtomicU32;
 use rtic_monotonics::imxrt::prelude::*;
-use teensy4_panic as _;
 
 imxrt_gpt1_monotonic!(Mono, 1_000_000);
 
@@ -65,6 +64,8 @@ static TX_NOT_SENT: AtomicU32 = AtomicU32::new(0);
 static PEDAL_BUS_ERRORS: AtomicU32 = AtomicU32::new(0);
 /// `bootloader` typed, or 134 baud from the host; the control task decides.
 static REBOOT: RebootRequest = RebootRequest::new();
+/// `status` typed; the control task prints it.
+static STATUS: StatusRequest = StatusRequest::new();
 /// Front wheel pulse times: written only by `wheel_edge`, read by `control`.
 static WHEELS: [PulseTimer; 2] = [PulseTimer::new(), PulseTimer::new()];
 
@@ -86,7 +87,7 @@ mod app {
     use crate::telemetry::telemetry;
     use crate::watchdog::watchdog;
     use crate::xcp::xcp;
-    use crate::{Mono, REBOOT, RX_QUEUE, XCP_QUEUE};
+    use crate::{Mono, REBOOT, RX_QUEUE, STATUS, XCP_QUEUE};
     use aer_ccm::calibration::EPK;
     use aer_ccm::calibration::measured::{MEASURED, SOURCE};
     use aer_ccm::calibration::state::CalibrationState;
@@ -182,7 +183,7 @@ mod app {
         );
         // The calibration, by the one rule: the newest good saved copy of this schema, else the
         // schema's defaults with ccm/calibration.toml's sensors; the start-up line says which.
-        let mut flash = TeensyFlash::new();
+        let mut flash = TeensyFlash::new(board.board.built_for);
         let (store, loaded) = CalibrationStore::load(&mut flash, EPK);
         let loaded = loaded.or_measured(MEASURED);
         let mut log = LogBuffer::new();
@@ -191,6 +192,7 @@ mod app {
             hw::board::REVISION.name,
             INVERTER,
             board.reset_cause,
+            board.board,
             CalibrationLine {
                 startup: loaded.startup,
                 checksum: crc32(&loaded.calibration.to_page()),
@@ -284,6 +286,7 @@ mod app {
             &mut cx.shared.log,
             cx.local.typed,
             &REBOOT,
+            &STATUS,
         );
     }
 

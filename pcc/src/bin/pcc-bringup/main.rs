@@ -102,7 +102,12 @@ mod app {
             Priority::rtic_default(),
         );
         let mut log = LogBuffer::new();
-        aer_pcc::console::bringup_startup(&mut log, &board::REVISION, board.reset_cause);
+        aer_pcc::console::bringup_startup(
+            &mut log,
+            &board::REVISION,
+            board.reset_cause,
+            board.board,
+        );
         // WDOG1 at 1 s, fed by the bench loop (`watchdog test` stops feeding it).
         hw::start_watchdog(&board.wdog, WatchdogTimeout::OneSecond);
         // The V/F inputs are shared with their edge interrupt, the console with the USB's.

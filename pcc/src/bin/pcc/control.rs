@@ -3,7 +3,7 @@
 //! handover to the bootloader or a restart.
 
 use crate::app::control;
-use crate::{Mono, REBOOT, RX_QUEUE_OVERFLOWS, STATUS_ENCODE_FAILURES, TX_BUSY};
+use crate::{Mono, REBOOT, RX_QUEUE_OVERFLOWS, STATUS, STATUS_ENCODE_FAILURES, TX_BUSY};
 use aer_console::Reboot;
 use aer_flexcan::CanFrame;
 use aer_pcc::console::{ConverterVolts, CountersLine, RaceLog, RebootAnswer, ResistorTemperature};
@@ -102,9 +102,13 @@ pub(crate) async fn control(mut cx: control::Context<'_>) {
             }
         }
         let race_log = &mut cx.local.race_log;
-        cx.shared
-            .log
-            .lock(|log| race_log.changes(now_ms, &pcc, relays, log));
+        let status = STATUS.take();
+        cx.shared.log.lock(|log| {
+            race_log.changes(now_ms, &pcc, relays, log);
+            if status {
+                race_log.status(now_ms, &pcc, relays, log);
+            }
+        });
         if RaceLog::counters_due(now_ms) {
             let bus = cx.shared.can.lock(|can| can.status());
             cx.shared.log.lock(|log| {

@@ -36,7 +36,7 @@
 mod control;
 mod inputs;
 
-use aer_console::RebootRequest;
+use aer_console::{RebootRequest, StatusRequest};
 use core::sync::atomic::AtomicU32;
 use rtic_monotonics::imxrt::prelude::*;
 
@@ -54,12 +54,14 @@ static TX_BUSY: AtomicU32 = AtomicU32::new(0);
 static STATUS_ENCODE_FAILURES: AtomicU32 = AtomicU32::new(0);
 /// `bootloader` typed, or 134 baud from the host; the control task decides.
 static REBOOT: RebootRequest = RebootRequest::new();
+/// `status` typed; the control task prints it.
+static STATUS: StatusRequest = StatusRequest::new();
 
 #[rtic::app(device = teensy4_bsp, peripherals = true, dispatchers = [KPP])]
 mod app {
     use crate::control::{RelayPins, Thermistors, control};
     use crate::inputs::{can_receive, voltage_edge};
-    use crate::{Mono, REBOOT, RX_QUEUE};
+    use crate::{Mono, REBOOT, RX_QUEUE, STATUS};
     use aer_console::usb::{Bus, EndpointState, Memory, UsbConsole, UsbMemory, serve_race};
     use aer_console::{LineReader, LogBuffer};
     use aer_flexcan::{CanFrame, Flexcan};
@@ -137,7 +139,7 @@ mod app {
         can.enable_rx_interrupt();
         hw::start_watchdog(&board.wdog, WatchdogTimeout::HalfSecond);
         let mut log = LogBuffer::new();
-        aer_pcc::console::race_startup(&mut log, &board::REVISION, board.reset_cause);
+        aer_pcc::console::race_startup(&mut log, &board::REVISION, board.reset_cause, board.board);
 
         let (rx_producer, rx_consumer) = cx.local.rx_queue.split();
         let [accumulator_vf, tractive_vf] = CONVERTERS;
@@ -177,6 +179,7 @@ mod app {
             &mut cx.shared.log,
             cx.local.typed,
             &REBOOT,
+            &STATUS,
         );
     }
 

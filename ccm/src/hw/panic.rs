@@ -1,0 +1,50 @@
+//! The CCM's panic handler, both images': the inverter's stop frames on CAN2 first, then a
+//! reset at once, so torque stops within a frame time whatever the inverter's own command
+//! timeout is set to (a DTI whose CAN timeout was left disabled holds its last current for
+//! ever).
+//!
+//! It runs with whatever state the program had when it panicked, so it builds nothing and
+//! takes no lock: the frames are the copy the control task last published
+//! ([`crate::stop::STOP`]), written into CAN2's transmit mailboxes by address
+//! ([`EmergencyTx`]), and only once CAN2 has started ([`inverter_bus_started`]). It waits a
+//! bounded time for them to leave, then resets through WDOG1's software reset (start-up then
+//! reads `watchdog`), with a system reset request behind it should that not take.
+
+use crate::stop::STOP;
+use aer_flexcan::emergency::EmergencyTx;
+use core::panic::PanicInfo;
+use core::sync::atomic::{AtomicBool, Ordering};
+use teensy4_bsp::ral;
+
+/// IFLAG1 polls while the stop frames leave: about 3 ms at 600 MHz, time for four frames
+/// behind seven pending ones at 500 kbit/s. A bus that takes nothing (bus-off, unplugged)
+/// costs this much before the reset.
+const SEND_POLLS: u32 = 300_000;
+
+/// CAN2 is clocked and configured: the mailboxes may be written.
+static INVERTER_BUS: AtomicBool = AtomicBool::new(false);
+
+/// Called once CAN2 has started: from then on a panic sends the stop frames.
+pub fn inverter_bus_started() {
+    INVERTER_BUS.store(true, Ordering::Release);
+}
+
+#[panic_handler]
+fn panic(_: &PanicInfo<'_>) -> ! {
+    cortex_m::interrupt::disable();
+    if INVERTER_BUS.load(Ordering::Acquire) {
+        // SAFETY: CAN2's register block (imxrt-ral's address); it started (`INVERTER_BUS`),
+        // and with interrupts off nothing else runs to write it after a panic.
+        let mut tx = unsafe { EmergencyTx::new(ral::can::CAN2 as *mut u32) };
+        let mask = tx.queue(STOP.latest_frames());
+        let _sent = tx.wait_sent(mask, SEND_POLLS);
+    }
+    // SAFETY: WDOG1 is the watchdog both images start; clearing WCR.SRS asserts its software
+    // reset (i.MX RT1060 RM, WDOG chapter). Nothing else runs.
+    unsafe {
+        let wdog = ral::wdog::WDOG1::instance();
+        ral::modify_reg!(ral::wdog, wdog, WCR, SRS: 0);
+    }
+    cortex_m::asm::delay(60_000);
+    aer_console::usb::restart()
+}
