@@ -34,8 +34,10 @@ use core::fmt::{self, Write};
 pub type Example = (&'static str, fn(&mut dyn Write) -> fmt::Result);
 
 /// Every transcript docs/bench-day.md quotes, by the name its marker gives.
-pub const EXAMPLES: [Example; 26] = [
+pub const EXAMPLES: [Example; 35] = [
     ("ccm-bringup-startup", ccm_bringup_startup),
+    ("ccm-wrong-board", ccm_wrong_board),
+    ("pcc-wrong-board", pcc_wrong_board),
     ("ccm-report-alone", ccm_report_alone),
     ("ccm-can-self-test", ccm_can_self_test),
     ("ccm-report-on-the-car", ccm_report_on_the_car),
@@ -56,9 +58,16 @@ pub const EXAMPLES: [Example; 26] = [
     ("pcc-race-precharge", pcc_race_precharge),
     ("pcc-race-missed", pcc_race_missed),
     ("pcc-race-shutdown", pcc_race_shutdown),
+    ("pcc-race-converter-silent", pcc_race_converter_silent),
+    ("pcc-race-no-discharge", pcc_race_no_discharge),
+    ("pcc-race-bypassed", pcc_race_bypassed),
     ("pcc-bootloader", pcc_bootloader),
     ("pcc-race-watchdog", pcc_race_watchdog),
+    ("pcc-race-status", pcc_race_status),
     ("ccm-dti-timeout", ccm_dti_timeout),
+    ("ccm-dti-still-enabled", ccm_dti_still_enabled),
+    ("ccm-panic-test", ccm_panic_test),
+    ("ccm-panic-frames", ccm_panic_frames),
     ("ccm-dti-refused", ccm_dti_refused),
     ("ccm-dti-hv", ccm_dti_hv),
 ];
@@ -327,17 +336,47 @@ fn ccm_bootloader(out: &mut dyn Write) -> fmt::Result {
 fn ccm_dti_timeout(out: &mut dyn Write) -> fmt::Result {
     let mut session = ccm_on_the_car();
     session.skip(30_250)?;
-    let keep = Keep::Starting(&[
-        "> ",
-        "refused",
-        "t=",
-        "DTI command timeout: drive",
-        "DTI command timeout: STILL",
-        "DTI command timeout: the DTI never",
-    ]);
+    let keep = Keep::Starting(&["> ", "refused", "t="]);
     session.type_line("confirm hv-disconnected", out, keep)?;
     session.type_line("dti enable", out, keep)?;
     session.run(32_100, out, keep)
+}
+
+fn ccm_dti_still_enabled(out: &mut dyn Write) -> fmt::Result {
+    // The DTI's CAN timeout left disabled in its tool: it keeps its drive enabled.
+    let mut session = ccm_on_the_car();
+    session.sim().dti = Some(SimDti {
+        timeout_ms: None,
+        ..SimDti::AT_REST
+    });
+    session.skip(30_250)?;
+    let keep = Keep::Starting(&["> ", "refused", "t=", "CAN2 (inverter) DTI"]);
+    session.type_line("confirm hv-disconnected", out, keep)?;
+    session.type_line("dti enable", out, keep)?;
+    session.run(33_400, out, keep)
+}
+
+fn ccm_panic_test(out: &mut dyn Write) -> fmt::Result {
+    let mut session = ccm();
+    session.skip(30_250)?;
+    session.type_line("panic test", out, EXCHANGE)
+}
+
+/// The frames the CCM's panic handler sends the DTI, as `candump can0` shows them on the
+/// inverter bus.
+fn ccm_panic_frames(out: &mut dyn Write) -> fmt::Result {
+    let stop = aer_ccm::stop::StopFrames::new();
+    if let Ok(frames) = aer_ccm::console::dti::EnableTest::disable_frames() {
+        stop.publish(&frames);
+    }
+    for frame in stop.latest().iter() {
+        write!(out, "  can0  {:08X}   [{}] ", frame.id, frame.data().len())?;
+        for byte in frame.data() {
+            write!(out, " {byte:02X}")?;
+        }
+        writeln!(out)?;
+    }
+    Ok(())
 }
 
 fn ccm_dti_refused(out: &mut dyn Write) -> fmt::Result {
@@ -379,7 +418,7 @@ fn ccm_dti_hv(out: &mut dyn Write) -> fmt::Result {
         ..SimDti::AT_REST
     });
     session.skip(50_250)?;
-    let keep = Keep::Starting(&["> ", "refused", "t=", "DTI command timeout: drive"]);
+    let keep = Keep::Starting(&["> ", "refused", "t="]);
     session.type_line("confirm wheels-off-ground", out, keep)?;
     session.type_line("dti enable", out, keep)?;
     session.run(52_100, out, keep)?;
@@ -633,12 +672,114 @@ fn pcc_race_missed(out: &mut dyn Write) -> fmt::Result {
     pcc.run(18_500, Some(out))
 }
 
+/// Pin 15's generator stands for the tractive system discharging after the AIRs opened: from
+/// `from_v` down to `to_v` over `duration_ms`, starting at `start_ms`.
+fn discharging(from_v: f32, to_v: f32, start_ms: u32, duration_ms: u32) -> Pulses {
+    let tractive = CONVERTERS[1];
+    Pulses::Sweep {
+        from_hz: tractive.hz_for_volts(from_v),
+        to_hz: tractive.hz_for_volts(to_v),
+        start_ms,
+        duration_ms,
+    }
+}
+
 fn pcc_race_shutdown(out: &mut dyn Write) -> fmt::Result {
     let mut pcc = precharging();
     pcc.run(19_990, None)?;
-    // The shutdown circuit opens: the tractive input's generator stops.
-    pcc.inputs[1].pulses = Pulses::None;
+    // The shutdown circuit opens: the tractive system discharges (pin 15 swept down to 0 Hz
+    // over 0.6 s, as a 0.3 s discharge time constant does).
+    pcc.inputs[1].pulses = discharging(300.0, 0.0, 19_990, 600);
     pcc.run(21_000, Some(out))
+}
+
+fn pcc_race_converter_silent(out: &mut dyn Write) -> fmt::Result {
+    let mut pcc = precharging();
+    pcc.run(19_990, None)?;
+    // ONLINE at 300 V, the tractive converter's wire breaks: its pulses stop at once.
+    pcc.inputs[1].pulses = Pulses::None;
+    pcc.run(20_500, Some(&mut *out))?;
+    pcc.ask(Reboot::Bootloader);
+    flush(&mut pcc.log, &mut *out)?;
+    // The wire touches again: pulses at 300 V; nothing restarts by itself.
+    pcc.inputs[1].pulses = Pulses::volts(300.0);
+    pcc.run(25_000, Some(&mut *out))?;
+    pcc.ask(Reboot::Restart);
+    flush(&mut pcc.log, out)
+}
+
+fn pcc_race_no_discharge(out: &mut dyn Write) -> fmt::Result {
+    let mut pcc = precharging();
+    pcc.run(19_990, None)?;
+    // The shutdown circuit opens but the tractive system only sags to 150 V and stays there:
+    // the discharge circuit does not work (or an AIR is welded).
+    pcc.inputs[1].pulses = discharging(300.0, 150.0, 19_990, 2_000);
+    pcc.run(25_100, Some(&mut *out))?;
+    pcc.ask(Reboot::Bootloader);
+    flush(&mut pcc.log, out)
+}
+
+fn pcc_race_bypassed(out: &mut dyn Write) -> fmt::Result {
+    // The pack at 300 V, and the tractive system jumping to it when the shutdown circuit
+    // closes at 5 s: AIR+ welded (or the precharge resistor bypassed).
+    let mut pcc = RacePcc::new(Precharge::new(PrechargeConfig::CAR, 0));
+    let [accumulator, tractive] = CONVERTERS;
+    pcc.inputs[0].pulses = Pulses::Hz(accumulator.hz_for_volts(300.0));
+    pcc.inputs[1].pulses = Pulses::Sweep {
+        from_hz: 0.0,
+        to_hz: tractive.hz_for_volts(300.0),
+        start_ms: 5_000,
+        duration_ms: 1,
+    };
+    pcc.run(4_990, None)?;
+    pcc.run(5_200, Some(out))
+}
+
+fn pcc_race_status(out: &mut dyn Write) -> fmt::Result {
+    let mut pcc = precharging();
+    pcc.run(19_990, None)?;
+    pcc.inputs[1].pulses = Pulses::None;
+    pcc.run(20_500, None)?;
+    pcc.race_log
+        .status(pcc.now_ms, &pcc.pcc, pcc.relays, &mut pcc.log);
+    flush(&mut pcc.log, out)
+}
+
+fn ccm_wrong_board(out: &mut dyn Write) -> fmt::Result {
+    wrong_board("AER CCM DTI", Teensy::T41, Teensy::T40, out)
+}
+
+fn pcc_wrong_board(out: &mut dyn Write) -> fmt::Result {
+    wrong_board("AER PCC", Teensy::T40, Teensy::T41, out)
+}
+
+/// What an image flashed onto the other board shows: its port's name, then the line it
+/// repeats every 5 s.
+fn wrong_board(
+    image: &'static str,
+    built_for: Teensy,
+    found: Teensy,
+    out: &mut dyn Write,
+) -> fmt::Result {
+    let check = BoardCheck {
+        image,
+        built_for,
+        found: Some(found),
+    };
+    let mut name = [0u8; 64];
+    let mut len = 0;
+    for byte in check.wrong_board_product().bytes() {
+        if let Some(slot) = name.get_mut(len) {
+            *slot = if byte == b' ' { b'_' } else { byte };
+            len += 1;
+        }
+    }
+    let product = core::str::from_utf8(name.get(..len).unwrap_or(&[])).unwrap_or("");
+    writeln!(
+        out,
+        "/dev/serial/by-id/usb-AER_{product}_<16 hex digits>-if00"
+    )?;
+    writeln!(out, "{check}")
 }
 
 fn pcc_bootloader(out: &mut dyn Write) -> fmt::Result {

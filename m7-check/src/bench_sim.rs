@@ -705,7 +705,9 @@ impl PccHardware for SimPcc {
     }
 
     fn thermistors(&mut self) -> [u16; 2] {
-        [2_048; 2]
+        // The resistor at room temperature, through the board's divider.
+        let thermistors = aer_pcc::constants::THERMISTORS;
+        [thermistors.counts_for(22.0), thermistors.counts_for(22.5)]
     }
 
     fn edges(&self) -> [u32; 2] {

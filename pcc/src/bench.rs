@@ -10,7 +10,7 @@
 //! converters are alive and read below 60 V, checked at every step.
 
 use crate::bringup::{AirPlusAnswer, AirPlusBench, converter_reading};
-use crate::console::{BringupReport, VfReading};
+use crate::console::{BringupReport, ThermistorReading, VfReading};
 use crate::constants::CONVERTERS;
 use aer_boards::pcc::Revision;
 use aer_console::bench::{BenchBoard, Reply};
@@ -258,16 +258,16 @@ impl<H: PccHardware> BenchBoard for PccBench<H> {
             header,
             vf,
             thermistors: [
-                AnalogReading {
+                ThermistorReading(AnalogReading {
                     pin: pin1,
                     counts: counts1,
                     divider: 1.0,
-                },
-                AnalogReading {
+                }),
+                ThermistorReading(AnalogReading {
                     pin: pin2,
                     counts: counts2,
                     divider: 1.0,
-                },
+                }),
             ],
             bus: BusLine {
                 name: "CAN2",

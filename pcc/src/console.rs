@@ -559,6 +559,21 @@ impl fmt::Display for VfReading {
     }
 }
 
+/// A precharge-resistor thermistor's input as the bring-up report prints it: the counts and
+/// volts, and the temperature the race image's conversion makes of them.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ThermistorReading(pub AnalogReading);
+
+impl fmt::Display for ThermistorReading {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let celsius = crate::constants::THERMISTORS.temperature_c(self.0.counts);
+        match celsius {
+            Some(_) => write!(f, "{} = {}", self.0, ResistorTemperature(celsius)),
+            None => write!(f, "{} = no reading (open or unplugged)", self.0),
+        }
+    }
+}
+
 /// The bring-up image's report every second.
 #[derive(Debug, Clone, Copy)]
 pub struct BringupReport<'a> {
@@ -567,7 +582,7 @@ pub struct BringupReport<'a> {
     /// The accumulator and tractive-system converters.
     pub vf: [VfReading; 2],
     /// Both thermistor inputs.
-    pub thermistors: [AnalogReading; 2],
+    pub thermistors: [ThermistorReading; 2],
     /// The CAN controller.
     pub bus: BusLine<'a>,
     /// Pin 11 (AIR+) and its gate.

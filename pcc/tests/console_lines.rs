@@ -3,6 +3,7 @@
 //! the board with its source, the longest pin source of all: pin 11's) and the start-up plus
 //! a report must fit the image's log at once, before the host reads anything.
 
+use aer_boards::assumed::{Assumed, Board as AssumedBoard};
 use aer_boards::pcc::COMP_CAR;
 use aer_console::LogBuffer;
 use aer_console::Reboot;
@@ -15,7 +16,7 @@ use aer_flexcan::{BusStatus, FaultState};
 use aer_pcc::bringup::AirPlusBench;
 use aer_pcc::console::{
     self, BringupReport, ConverterVolts, CountersLine, HotResistorLine, NoDischargeLine,
-    RebootAnswer, ResistorTemperature, SilenceLine, StateLine, VfReading,
+    RebootAnswer, ResistorTemperature, SilenceLine, StateLine, ThermistorReading, VfReading,
 };
 use aer_pcc::machine::{Converter, HotResistor, NoDischarge, Silence};
 use aer_pcc::measurement::Pulses;
@@ -78,7 +79,7 @@ fn the_bring_up_start_up_and_a_worst_case_report_fit_the_log_together() {
             dropped_total: u32::MAX,
         },
         vf,
-        thermistors,
+        thermistors: thermistors.map(ThermistorReading),
         bus: BusLine {
             name: "CAN2",
             status: Some(WORST_STATUS),
@@ -89,7 +90,8 @@ fn the_bring_up_start_up_and_a_worst_case_report_fit_the_log_together() {
     assert_eq!(report.write(&mut log), 0);
     assert_eq!(log.dropped(), 0);
     let lines = drain(&mut log);
-    assert_eq!(lines.len(), 3 + COMP_CAR.pins().len() + 1 + 7);
+    // Image, reset cause, board check, clocks; the pins; the pin 11 line; the report.
+    assert_eq!(lines.len(), 4 + COMP_CAR.pins().len() + 1 + 7);
     let pin_11 = lines
         .iter()
         .find(|line| line.starts_with("pin 11 air-plus-close"))
@@ -243,7 +245,9 @@ fn the_race_lines_fit_the_race_log() {
     assert!(log.line(format_args!("t={} ms {timing}", u32::MAX)));
     assert!(log.line(format_args!("t={} ms {refused}", u32::MAX)));
     assert_eq!(log.dropped(), 0);
-    assert_eq!(drain(&mut log).len(), 2 + 6);
+    // Image, reset cause, board check, then what is still assumed (a header and each item).
+    let assumed = Assumed::for_board(AssumedBoard::Pcc).count();
+    assert_eq!(drain(&mut log).len(), 3 + 1 + assumed + 6);
     // The fault lines, each at its worst, fit the log at once as well.
     for line in [
         format!("t={} ms {bypassed}", u32::MAX),
