@@ -157,10 +157,10 @@ fn the_bring_up_start_up_and_a_worst_case_report_fit_the_log_together() {
         assert_eq!(bringup::calibration(&mut log, &recorder, shock), 0);
         assert_eq!(log.dropped(), 0, "{}", board.name);
         let lines = drain(&mut log);
-        // Start-up: name, reset cause, clocks, every pin, the hint; the report; the pedal
-        // result (refused: no file lines) and the shocks' line.
+        // Start-up: name, reset cause, board check, clocks, every pin, the hint; the report;
+        // the pedal result (refused: no file lines) and the shocks' line.
         let report_lines = 1 + analog.len() + 1 + digital.len() + 2 + 3;
-        assert_eq!(lines.len(), 3 + pins.len() + 1 + report_lines + 2);
+        assert_eq!(lines.len(), 4 + pins.len() + 1 + report_lines + 2);
         let longest = lines.iter().map(String::len).max().unwrap_or(0);
         assert!(
             lines
@@ -218,7 +218,11 @@ fn the_race_start_up_and_the_bootloader_answers_fit_the_race_log() {
             }
         }
         let lines = drain(&mut log);
-        assert_eq!(lines.len(), 3 + 1 + 6);
+        // Image, reset cause, board check, calibration, what is still assumed (a header and
+        // each item); the saved line and the six answers.
+        let assumed =
+            aer_boards::assumed::Assumed::for_board(aer_boards::assumed::Board::Ccm).count();
+        assert_eq!(lines.len(), 4 + 1 + assumed + 1 + 6);
         assert!(
             lines[0].starts_with(&format!("AER CCM for the {}", inverter.name())),
             "{}",

@@ -305,6 +305,8 @@ struct Sent {
     enables: Vec<u32>,
     disables: Vec<u32>,
     stopped: Vec<String>,
+    /// Each measurement's result line, as it ended.
+    ended: Vec<String>,
 }
 
 /// Runs the bench from `from` to `to` (ms) against `heard`, every millisecond as the bring-up
@@ -316,7 +318,7 @@ fn run(
     from: u32,
     to: u32,
 ) {
-    use aer::can::{AnyMessage, DtiDriveEnable, DtiFlags, DtiSpeed, DtiTemperatures, PccStatus};
+    use aer::can::{DtiDriveEnable, DtiFlags, DtiSpeed, DtiTemperatures, PccStatus};
     use aer_ccm::console::dti::Step;
     for now in from..to {
         let mut frames = None;
@@ -329,22 +331,7 @@ fn run(
             None => {}
         }
         if let Some(frames) = frames {
-            for frame in frames.expect("encodes").iter() {
-                match AnyMessage::decode(frame.id, frame.extended, frame.data()).unwrap() {
-                    AnyMessage::DtiSetCurrent(current) => assert_eq!(current.dti_current_cmd, 0.0),
-                    AnyMessage::DtiSetMaxCurrentDc(limit) => {
-                        assert_eq!(limit.dti_max_current_dc_cmd, 0.0)
-                    }
-                    AnyMessage::DtiSetDriveEnable(enable) => {
-                        if enable.dti_drive_enable_cmd == DtiDriveEnable::Enabled {
-                            sent.enables.push(now);
-                        } else {
-                            sent.disables.push(now);
-                        }
-                    }
-                    _ => {}
-                }
-            }
+            record(frames.expect("encodes"), now, sent);
         }
         let mut data = [0u8; 8];
         if now % 10 == 3 {
@@ -407,7 +394,30 @@ fn run(
             .unwrap();
             bench.frame(now, DtiTemperatures::ID, true, &data);
         }
-        bench.poll(now);
+        if let Some((timeout, frames)) = bench.poll(now) {
+            sent.ended.push(timeout.to_string());
+            record(frames.expect("encodes"), now, sent);
+        }
+    }
+}
+
+/// Records the drive-enable commands among `frames`, sent at `now`; every other command must
+/// ask for 0 A.
+fn record(frames: aer_ccm::OutFrames, now: u32, sent: &mut Sent) {
+    use aer::can::{AnyMessage, DtiDriveEnable};
+    for frame in frames.iter() {
+        match AnyMessage::decode(frame.id, frame.extended, frame.data()).unwrap() {
+            AnyMessage::DtiSetCurrent(current) => assert_eq!(current.dti_current_cmd, 0.0),
+            AnyMessage::DtiSetMaxCurrentDc(limit) => assert_eq!(limit.dti_max_current_dc_cmd, 0.0),
+            AnyMessage::DtiSetDriveEnable(enable) => {
+                if enable.dti_drive_enable_cmd == DtiDriveEnable::Enabled {
+                    sent.enables.push(now);
+                } else {
+                    sent.disables.push(now);
+                }
+            }
+            _ => {}
+        }
     }
 }
 
@@ -419,7 +429,7 @@ fn the_bench_times_the_dtis_command_timeout_from_packet_0x24() {
     let mut bench = DtiBench::default();
     assert_eq!(
         bench.timeout.to_string(),
-        "DTI command timeout: not measured (`confirm hv-disconnected`, then `dti enable`, or drive enable from a CAN adapter, then silence)"
+        "DTI command timeout: NOT MEASURED (`confirm hv-disconnected`, then `dti enable`, or drive enable from a CAN adapter, then silence): no spin until it reads PASS"
     );
     let heard = Heard::low_voltage();
     let mut sent = Sent::default();
@@ -438,12 +448,22 @@ fn the_bench_times_the_dtis_command_timeout_from_packet_0x24() {
     );
     assert_eq!(sent.enables.len(), 100, "every 10 ms for one second");
     assert!(sent.stopped.is_empty(), "{:?}", sent.stopped);
-    assert!(sent.disables.is_empty(), "a timeout is measured on silence");
     assert!(!bench.test.active());
     let Some(TimeoutResult::Dropped(ms)) = bench.timeout.result() else {
         panic!("{:?}", bench.timeout.result());
     };
     assert!((80..=90).contains(&ms), "{ms} ms");
+    assert!(bench.timeout.passed());
+    // Measured on silence; the drive disable goes out once the result is in, not before.
+    let last_enable = *sent.enables.last().expect("enables");
+    assert_eq!(sent.disables.len(), 1, "{:?}", sent.disables);
+    assert!(sent.disables[0] >= last_enable + ms);
+    assert_eq!(sent.ended.len(), 1);
+    assert!(
+        sent.ended[0].contains(&format!("PASS: drive enable dropped {ms} ms")),
+        "{:?}",
+        sent.ended
+    );
 
     // A DTI without a timeout: still enabled a second after the last command.
     let mut stuck = DtiBench::default();
@@ -460,7 +480,16 @@ fn the_bench_times_the_dtis_command_timeout_from_packet_0x24() {
     assert_eq!(stuck.enable(500), Ok(Path::LowVoltage));
     run(&mut stuck, &never, &mut sent, 500, 3_000);
     assert_eq!(stuck.timeout.result(), Some(TimeoutResult::NotDropped));
-    assert!(stuck.timeout.to_string().contains("STILL ENABLED 1000 ms"));
+    assert!(!stuck.timeout.passed());
+    assert!(
+        stuck
+            .timeout
+            .to_string()
+            .contains("FAIL: STILL ENABLED 1000 ms")
+    );
+    // Whatever the DTI answered, the bench disabled it when its wait ended.
+    assert_eq!(sent.disables.len(), 1, "{:?}", sent.disables);
+    assert!(sent.ended[0].starts_with("DTI command timeout: FAIL"));
 
     // Commands from a CAN adapter time the same way; an explicit disable is not a timeout.
     let mut adapter = DtiBench::default();

@@ -34,7 +34,7 @@ use core::fmt::{self, Write};
 pub type Example = (&'static str, fn(&mut dyn Write) -> fmt::Result);
 
 /// Every transcript docs/bench-day.md quotes, by the name its marker gives.
-pub const EXAMPLES: [Example; 35] = [
+pub const EXAMPLES: [Example; 36] = [
     ("ccm-bringup-startup", ccm_bringup_startup),
     ("ccm-wrong-board", ccm_wrong_board),
     ("pcc-wrong-board", pcc_wrong_board),
@@ -47,6 +47,7 @@ pub const EXAMPLES: [Example; 35] = [
     ("ccm-race-startup", ccm_race_startup),
     ("ccm-race-startup-saved", ccm_race_startup_saved),
     ("ccm-bootloader", ccm_bootloader),
+    ("ccm-race-status", ccm_race_status),
     ("pcc-bringup-startup", pcc_bringup_startup),
     ("pcc-report-bench-supply", pcc_report_bench_supply),
     ("pcc-confirm-silent", pcc_confirm_silent),
@@ -112,6 +113,23 @@ fn flush<const N: usize>(log: &mut LogBuffer<N>, out: &mut dyn Write) -> fmt::Re
     }
     if log.dropped() > 0 {
         writeln!(out, "(log dropped {} lines)", log.dropped())?;
+    }
+    Ok(())
+}
+
+/// [`flush`], leaving out the lines of the list of what is assumed after its header (the
+/// start-up quotes; `status` quotes show the list whole).
+fn flush_without_assumed<const N: usize>(
+    log: &mut LogBuffer<N>,
+    out: &mut dyn Write,
+) -> fmt::Result {
+    let mut bytes = [0u8; 8_192];
+    let mut all = Text::new(&mut bytes);
+    flush(log, &mut all)?;
+    for line in all.as_str().lines() {
+        if !line.starts_with("assumed: ") {
+            writeln!(out, "{line}")?;
+        }
     }
     Ok(())
 }
@@ -317,7 +335,18 @@ fn ccm_race_startup_saved(out: &mut dyn Write) -> fmt::Result {
             file_source: SOURCE,
         },
     );
-    flush(&mut log, out)
+    // Up to the calibration line: the list of what is assumed follows as before.
+    let mut bytes = [0u8; 4_096];
+    let mut all = Text::new(&mut bytes);
+    flush(&mut log, &mut all)?;
+    for line in all
+        .as_str()
+        .lines()
+        .take_while(|line| !line.starts_with("this image runs"))
+    {
+        writeln!(out, "{line}")?;
+    }
+    Ok(())
 }
 
 fn ccm_bootloader(out: &mut dyn Write) -> fmt::Result {
@@ -742,7 +771,27 @@ fn pcc_race_status(out: &mut dyn Write) -> fmt::Result {
     pcc.run(20_500, None)?;
     pcc.race_log
         .status(pcc.now_ms, &pcc.pcc, pcc.relays, &mut pcc.log);
-    flush(&mut pcc.log, out)
+    flush_without_assumed(&mut pcc.log, out)
+}
+
+fn ccm_race_status(out: &mut dyn Write) -> fmt::Result {
+    // The race CCM standing with the PCC in ERROR: its tractive converter fell silent.
+    let mut data = [0u8; 8];
+    data[0] = PrechargeState::Error.into_raw();
+    data[1] = 0x20;
+    let pcc = aer::can::PccStatus::decode(&data).ok();
+    let mut faults = aer_ccm::faults::FaultMap::default();
+    faults.set(aer_ccm::faults::Fault::PccError, true);
+    let mut log = LogBuffer::<{ ccm_console::LOG_BYTES }>::new();
+    let line = ccm_console::StatusLine {
+        now_ms: 64_210,
+        state: aer_ccm::vehicle::State::Standby,
+        faults,
+        pcc: ccm_console::PccLine(pcc),
+    };
+    log.line(format_args!("{line}"));
+    aer_console::bringup::write_assumed(&mut log, aer_boards::assumed::Board::Ccm);
+    flush_without_assumed(&mut log, out)
 }
 
 fn ccm_wrong_board(out: &mut dyn Write) -> fmt::Result {
@@ -814,6 +863,7 @@ fn pcc_race_watchdog(out: &mut dyn Write) -> fmt::Result {
         WATCHDOG,
         BoardCheck::passed("AER PCC", Teensy::T40),
     );
+    flush_without_assumed(&mut pcc.log, &mut *out)?;
     pcc.run(7_000, Some(&mut *out))?;
     pcc.ask(Reboot::Restart);
     flush(&mut pcc.log, out)?;
@@ -825,5 +875,6 @@ fn pcc_race_watchdog(out: &mut dyn Write) -> fmt::Result {
         SOFTWARE,
         BoardCheck::passed("AER PCC", Teensy::T40),
     );
+    flush_without_assumed(&mut pcc.log, &mut *out)?;
     pcc.run(10, Some(out))
 }

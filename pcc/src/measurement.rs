@@ -340,7 +340,10 @@ mod tests {
         assert!(after_us <= 10_000, "{after_us}");
         assert!((last_v - 300.0).abs() < 0.5, "{last_v}");
         assert!(since_ms <= 10, "{since_ms}");
-        assert!(volts < 300.0, "the filtered reading falls towards 0: {volts}");
+        assert!(
+            volts < 300.0,
+            "the filtered reading falls towards 0: {volts}"
+        );
     }
 
     #[test]

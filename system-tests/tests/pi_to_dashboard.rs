@@ -221,6 +221,7 @@ async fn a_replayed_session_reaches_the_dashboard_intact() {
 
     let mut received = Vec::new();
     let mut can_frames = 0;
+    let mut pcc_frames = 0;
     while received.len() < expected.samples.len()
         || can_frames < dti_temperatures
         // A status from after the traffic: it knows which schema the car sends.
@@ -229,20 +230,25 @@ async fn a_replayed_session_reaches_the_dashboard_intact() {
         let (at, update) = next(&mut updates).await;
         match &update {
             Update::Telemetry(sample) => received.push((**sample).clone()),
-            Update::Can(sample) => {
-                assert!(
-                    matches!(sample.value, AnyMessage::DtiTemperatures(_)),
-                    "a message the pit view does not show: {:?}",
+            Update::Can(sample) => match sample.value {
+                AnyMessage::DtiTemperatures(_) => can_frames += 1,
+                // The driver's display names the PCC's latched causes: always subscribed.
+                AnyMessage::PccStatus(_) => pcc_frames += 1,
+                _ => panic!(
+                    "a message the pit view does not show and the driver's display does not need: {:?}",
                     sample.value.meta().name
-                );
-                can_frames += 1;
-            }
+                ),
+            },
             _ => {}
         }
         model.apply(update, at);
     }
     replaying.await.expect("the replay");
     assert_eq!(can_frames, dti_temperatures);
+    assert!(
+        pcc_frames > 100,
+        "the PCC's status reaches the driver's display: {pcc_frames}"
+    );
     assert_eq!(counters.snapshot().publish_dropped, 0);
 
     // Every packet, in order, with the values the generated decoder reads from the log.

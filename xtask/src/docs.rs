@@ -9,6 +9,9 @@
 //!
 //! In both, a marker `<!-- NAME-OF-PAGE: QUOTE -->` is followed by a fenced block (```text,
 //! ```python, ...) that holds the quote.
+//!
+//! Then the bench day's table of what is still assumed (from `aer_boards::assumed`) and its
+//! printable sheet, docs/bench-day-sheet.md, made from the page ([`crate::sheet`]).
 
 use crate::cargo;
 use anyhow::{Context, Result, bail};
@@ -58,6 +61,19 @@ pub fn run(root: &Path) -> Result<()> {
         for name in changed {
             println!("  {name}");
         }
+    }
+    let page_path = root.join("docs/bench-day.md");
+    let page = std::fs::read_to_string(&page_path).context("reading docs/bench-day.md")?;
+    let page_now = crate::sheet::with_assumed_table(&page)?;
+    if page_now != page {
+        std::fs::write(&page_path, &page_now).context("writing docs/bench-day.md")?;
+        println!("docs/bench-day.md: the table of what is still assumed rewritten");
+    }
+    let sheet_path = root.join("docs/bench-day-sheet.md");
+    let sheet = crate::sheet::sheet(&page_now)?;
+    if std::fs::read_to_string(&sheet_path).ok().as_deref() != Some(sheet.as_str()) {
+        std::fs::write(&sheet_path, sheet).context("writing docs/bench-day-sheet.md")?;
+        println!("docs/bench-day-sheet.md: rewritten from docs/bench-day.md");
     }
     Ok(())
 }

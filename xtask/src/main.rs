@@ -9,6 +9,7 @@ mod image;
 mod m7_check;
 mod package;
 mod pins;
+mod sheet;
 
 use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand};

@@ -182,3 +182,47 @@ impl fmt::Display for PccLine {
         Ok(())
     }
 }
+
+/// The race image's answer to `status`: the vehicle state, the active faults by name and the
+/// PCC as last heard; the list of what the image runs with unchecked follows it
+/// ([`aer_console::bringup::write_assumed`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StatusLine {
+    /// Milliseconds since start-up.
+    pub now_ms: u32,
+    /// The vehicle state.
+    pub state: crate::vehicle::State,
+    /// The active faults.
+    pub faults: crate::faults::FaultMap,
+    /// The PCC.
+    pub pcc: PccLine,
+}
+
+impl fmt::Display for StatusLine {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "t={} ms status: vehicle {:?}, faults {:#06x}:{}; {}",
+            self.now_ms,
+            self.state,
+            self.faults.bits(),
+            FaultNames(self.faults),
+            self.pcc
+        )
+    }
+}
+
+/// The active faults' names, each after a space.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FaultNames(pub crate::faults::FaultMap);
+
+impl fmt::Display for FaultNames {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        for fault in crate::faults::Fault::ALL {
+            if self.0.has(fault) {
+                write!(f, " {fault:?}")?;
+            }
+        }
+        Ok(())
+    }
+}

@@ -6,9 +6,9 @@ use crate::app::control;
 use crate::{Mono, PEDAL_BUS_ERRORS, REBOOT, RX_QUEUE_OVERFLOWS, STATUS, TX_NOT_SENT, WHEELS};
 use crate::{now_ms, now_us};
 use aer_boards::assumed::Board as AssumedBoard;
-use aer_ccm::console::{LOG_BYTES, PccLine, RebootAnswer};
+use aer_ccm::console::{FaultNames, LOG_BYTES, PccLine, RebootAnswer, StatusLine};
 use aer_ccm::constants::{CONTROL_PERIOD_MS, PCC_STATUS_TIMEOUT_MS, WHEEL_TEETH};
-use aer_ccm::faults::{Fault, FaultMap};
+use aer_ccm::faults::FaultMap;
 use aer_ccm::own_frames::OwnFrames;
 use aer_ccm::stop::STOP;
 use aer_ccm::watchdog::Task;
@@ -89,12 +89,13 @@ pub(crate) async fn control(mut cx: control::Context<'_>) {
                 pcc,
             );
             if status {
-                log.line(format_args!(
-                    "t={now} ms status: vehicle {:?}, faults {:#06x}:{}; {pcc}",
-                    outputs.vehicle.state,
-                    outputs.faults.bits(),
-                    FaultNames(outputs.faults)
-                ));
+                let line = StatusLine {
+                    now_ms: now,
+                    state: outputs.vehicle.state,
+                    faults: outputs.faults,
+                    pcc,
+                };
+                log.line(format_args!("{line}"));
                 write_assumed(log, AssumedBoard::Ccm);
             }
         });
@@ -234,20 +235,6 @@ impl Watches {
                 counters.buses[1].bus_off_events,
             ));
         }
-    }
-}
-
-/// The active faults' names.
-struct FaultNames(FaultMap);
-
-impl core::fmt::Display for FaultNames {
-    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        for fault in Fault::ALL {
-            if self.0.has(fault) {
-                write!(f, " {fault:?}")?;
-            }
-        }
-        Ok(())
     }
 }
 
