@@ -8892,7 +8892,7 @@ pub struct PccStatus {
     ///
     /// `PCC_State`: 4 bits from bit 0 (Intel), unsigned, range [0.0, 6.0].
     pub pcc_state: PrechargeState,
-    /// Latched with PCC_ErrorTooFast: the precharge reached the target faster than any precharge through the resistor (under 500 ms): AIR+ welded or the precharge resistor bypassed. Needs a power cycle.
+    /// Latched with PCC_ErrorTooFast: the tractive system rose faster than any precharge through the resistor (to the target in under 500 ms, or by 20 % of the accumulator voltage within one 10 ms period): AIR+ welded or the precharge resistor bypassed. Needs a power cycle.
     ///
     /// `PCC_ErrorBypassed`: 1 bit from bit 4 (Intel), unsigned, range [0.0, 1.0].
     pub pcc_error_bypassed: bool,
@@ -8983,7 +8983,7 @@ static PCC_STATUS_SIGNALS: [SignalMeta; 16] = [
         name: "PCC_ErrorBypassed",
         index: 1,
         unit: "",
-        comment: "Latched with PCC_ErrorTooFast: the precharge reached the target faster than any precharge through the resistor (under 500 ms): AIR+ welded or the precharge resistor bypassed. Needs a power cycle.",
+        comment: "Latched with PCC_ErrorTooFast: the tractive system rose faster than any precharge through the resistor (to the target in under 500 ms, or by 20 % of the accumulator voltage within one 10 ms period): AIR+ welded or the precharge resistor bypassed. Needs a power cycle.",
         start_bit: 4,
         len: 1,
         byte_order: ByteOrder::LittleEndian,

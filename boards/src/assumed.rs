@@ -46,9 +46,9 @@ impl Assumed {
 pub const ASSUMED: [Assumed; 26] = [
     Assumed {
         what: "which board an image runs on",
-        assumed: "the boot ROM's FlexSPI read, and a 2 MiB flash answering 2 MiB on from its start",
+        assumed: "the boot ROM's FlexSPI read, and a 2 MiB flash repeating its boot block and IVT 2 MiB on",
         lives: "`console/src/chip.rs`, `console/src/board_check.rs`",
-        settled: "step 1 (the start-up line `board: ... checked`)",
+        settled: "step 1 (the start-up line `board: ... checked`; 1.2, an image on the other board)",
         board: Board::Both,
     },
     Assumed {

@@ -143,6 +143,9 @@ impl Car {
     fn pcc_hardware(&mut self, now_ms: u32) {
         let plan = &self.plan;
         let plant = &mut self.pcc.plant;
+        // The shutdown circuit opens and closes on its own time, not the PCC's period: a
+        // contact that chatters for a few milliseconds reaches the relays all the same.
+        plant.shutdown_closed = !(plan.is_active(now_ms, Fault::ShutdownOpen) || self.command.park);
         plant.air_plus_welded = plan.is_active(now_ms, Fault::AirPlusWelded);
         plant.discharge_failed = plan.is_active(now_ms, Fault::DischargeFailed);
         plant.load_ohm = plan
@@ -181,9 +184,7 @@ impl Car {
     /// CAN1) hears the BMS's frames on its own.
     pub fn node_frames(&mut self, now_ms: u32, mut deliver: impl FnMut(usize, &CanFrame)) {
         if now_ms % TASK_PERIOD_MS == 0 {
-            let shutdown_open =
-                self.plan.is_active(now_ms, Fault::ShutdownOpen) || self.command.park;
-            let frames = self.pcc.step(now_ms, self.pack.voltage_v, shutdown_open);
+            let frames = self.pcc.step(now_ms, self.pack.voltage_v);
             for frame in frames.iter().flatten() {
                 self.nodes.send(now_ms, CAN1, Node::Pcc, frame, &self.plan);
             }

@@ -191,6 +191,21 @@ pub struct PccNode {
     pulses: [PulseGenerator; 2],
     /// The sensing faults in effect.
     pub sensing: SensingFaults,
+    /// Every time the pack was connected without the resistor: how many times, and the
+    /// lowest the tractive system stood then (% of the pack).
+    pub closures: Closures,
+}
+
+/// The pack connected to the tractive system without the resistor (AIR+ and AIR- closed):
+/// what it found there.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Closures {
+    /// How many times.
+    pub count: u32,
+    /// The lowest tractive-system voltage at such a moment, as % of the pack (`None` before
+    /// the first): below the precharge target it is a precharge bypassed.
+    pub lowest_percent: Option<f32>,
+    was_connected: bool,
 }
 
 impl PccNode {
@@ -205,6 +220,7 @@ impl PccNode {
             channels: CONVERTERS.map(|vf| VoltageChannel::new(vf, TASK_PERIOD_MS)),
             pulses: [PulseGenerator::default(); 2],
             sensing: SensingFaults::default(),
+            closures: Closures::default(),
         }
     }
 
@@ -213,17 +229,11 @@ impl PccNode {
         self.bms.on_frame(now_ms, frame);
     }
 
-    /// One 10 ms control period with the pack at `accumulator_v` and the shutdown circuit
-    /// open or closed; returns the frames to send (the status, and the resistor's
-    /// temperatures every 100 ms).
-    pub fn step(
-        &mut self,
-        now_ms: u32,
-        accumulator_v: f32,
-        shutdown_open: bool,
-    ) -> [Option<CanFrame>; 2] {
+    /// One 10 ms control period with the pack at `accumulator_v` (the shutdown circuit is the
+    /// car's hardware, set each millisecond in [`PrechargePlant::shutdown_closed`]); returns
+    /// the frames to send (the status, and the resistor's temperatures every 100 ms).
+    pub fn step(&mut self, now_ms: u32, accumulator_v: f32) -> [Option<CanFrame>; 2] {
         self.plant.accumulator_v = accumulator_v;
-        self.plant.shutdown_closed = !shutdown_open;
         let now_us = now_ms.wrapping_mul(1_000);
         let [accumulator, tractive] = self
             .channels
@@ -242,6 +252,7 @@ impl PccNode {
             now_ms,
             accumulator_v: accumulator.volts,
             tractive_v: tractive.volts,
+            raw_v: [accumulator.raw_volts, tractive.raw_volts],
             pulses: [accumulator.pulses, tractive.pulses],
             bms_last_seen_ms: self.bms.last_seen_ms(),
             charger_safety: self.bms.charger_safety(),
@@ -260,6 +271,17 @@ impl PccNode {
     /// Advances the circuit by one millisecond ending at `now_ms` with the relays as last
     /// commanded, and the converters' pulses of that millisecond into the measurement chain.
     pub fn advance(&mut self, now_ms: u32) {
+        let connected = self.plant.connected(self.relays);
+        if connected && !self.closures.was_connected && self.plant.accumulator_v > 0.0 {
+            let percent = 100.0 * self.plant.tractive_v / self.plant.accumulator_v;
+            self.closures.count += 1;
+            self.closures.lowest_percent = Some(
+                self.closures
+                    .lowest_percent
+                    .map_or(percent, |lowest| lowest.min(percent)),
+            );
+        }
+        self.closures.was_connected = connected;
         self.plant.advance(self.relays, 1.0);
         let start_us = now_ms.wrapping_sub(1).wrapping_mul(1_000);
         let volts = [self.plant.accumulator_v, self.plant.tractive_v];

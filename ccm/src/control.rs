@@ -253,7 +253,10 @@ impl Control {
                 && standing(front_rad_s.1)),
             tractive_live: vehicle.torque_enabled
                 || !bus.pcc.is_some_and(|pcc| {
+                    // A tractive converter that fell silent after reading 60 V or more: the
+                    // voltage is unknown, so live.
                     pcc.pcc_state == PrechargeState::Standby
+                        && !pcc.pcc_error_tractive_silent
                         && pcc.pcc_tractive_voltage < f64::from(TRACTIVE_OFF_V)
                 }),
         };

@@ -5,7 +5,7 @@ use crate::apps::AppsReading;
 use crate::brakes::BrakeReading;
 use crate::bus::BusInputs;
 use crate::constants::{MAX_TEMP_DEGC, MIN_CELL_V, SENSOR_FAULT_PERSIST_MS, SOC_DERATE_END};
-use aer::can::PrechargeState;
+use aer::can::{PccStatus, PrechargeState};
 use aer_control::Persist;
 
 /// One fault bit. Bits 0-7 are the team's original bitmap (vehicle-facts.md); the rest are
@@ -227,13 +227,120 @@ impl FaultMonitor {
         map.set(Fault::PccTimeout, bus.lost.pcc);
         map.set(Fault::InverterFault, bus.inverter.fault);
         map.set(Fault::InverterWarning, bus.inverter.warning);
-        let pcc_error = bus.pcc.is_some_and(|status| {
-            matches!(
-                status.pcc_state,
-                PrechargeState::Error | PrechargeState::Unknown(_)
-            )
-        });
+        let pcc_error = bus.pcc.is_some_and(|status| pcc_reports_error(&status));
         map.set(Fault::PccError, pcc_error);
         map
+    }
+}
+
+/// The PCC reports a fault, or a status no working PCC sends: its ERROR or UNDEFINED state
+/// (or one the schema does not name), any latched cause (each needs a power cycle), or a
+/// converter without pulses while it says the tractive system is connected (a voltage it
+/// cannot know).
+pub fn pcc_reports_error(status: &PccStatus) -> bool {
+    let latched = status.pcc_error_bypassed
+        || status.pcc_error_resistor_hot
+        || status.pcc_error_accumulator_silent
+        || status.pcc_error_tractive_silent
+        || status.pcc_error_no_discharge
+        || status.pcc_error_undefined_state;
+    let connected = matches!(
+        status.pcc_state,
+        PrechargeState::Online | PrechargeState::Charging
+    );
+    let blind = status.pcc_accumulator_no_pulses || status.pcc_tractive_no_pulses;
+    matches!(
+        status.pcc_state,
+        PrechargeState::Error | PrechargeState::Undefined | PrechargeState::Unknown(_)
+    ) || latched
+        || (connected && blind)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn status(state: PrechargeState) -> PccStatus {
+        PccStatus {
+            pcc_state: state,
+            pcc_error_bypassed: false,
+            pcc_error_resistor_hot: false,
+            pcc_accumulator_no_pulses: false,
+            pcc_tractive_no_pulses: false,
+            pcc_error_too_fast: false,
+            pcc_error_too_slow: false,
+            pcc_error_bms_timeout: false,
+            pcc_error_shutdown: false,
+            pcc_error_accumulator_silent: false,
+            pcc_error_tractive_silent: false,
+            pcc_error_no_discharge: false,
+            pcc_error_undefined_state: false,
+            pcc_accumulator_voltage: 392.0,
+            pcc_tractive_voltage: 392.0,
+            pcc_precharge_progress: 100.0,
+        }
+    }
+
+    #[test]
+    fn a_working_pcc_online_or_at_rest_is_no_error() {
+        assert!(!pcc_reports_error(&status(PrechargeState::Online)));
+        // At rest an LM331 gives no pulses at 0 V: no pulses is not a fault there.
+        let rest = PccStatus {
+            pcc_accumulator_no_pulses: true,
+            pcc_tractive_no_pulses: true,
+            pcc_tractive_voltage: 0.0,
+            ..status(PrechargeState::Standby)
+        };
+        assert!(!pcc_reports_error(&rest));
+        // A shutdown opened while energised clears on its own: the state says enough.
+        let shutdown = PccStatus {
+            pcc_error_shutdown: true,
+            ..status(PrechargeState::Discharge)
+        };
+        assert!(!pcc_reports_error(&shutdown));
+    }
+
+    #[test]
+    fn error_undefined_and_unnamed_states_are_errors() {
+        for state in [
+            PrechargeState::Error,
+            PrechargeState::Undefined,
+            PrechargeState::Unknown(9),
+        ] {
+            assert!(pcc_reports_error(&status(state)), "{state:?}");
+        }
+    }
+
+    #[test]
+    fn every_latched_cause_is_an_error_whatever_the_state_says() {
+        let latched: [fn(&mut PccStatus); 6] = [
+            |s| s.pcc_error_bypassed = true,
+            |s| s.pcc_error_resistor_hot = true,
+            |s| s.pcc_error_accumulator_silent = true,
+            |s| s.pcc_error_tractive_silent = true,
+            |s| s.pcc_error_no_discharge = true,
+            |s| s.pcc_error_undefined_state = true,
+        ];
+        for (index, set) in latched.iter().enumerate() {
+            for state in [PrechargeState::Online, PrechargeState::Standby] {
+                let mut lying = status(state);
+                set(&mut lying);
+                assert!(pcc_reports_error(&lying), "cause {index} in {state:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn connected_without_pulses_is_an_error() {
+        for state in [PrechargeState::Online, PrechargeState::Charging] {
+            for (accumulator, tractive) in [(true, false), (false, true)] {
+                let blind = PccStatus {
+                    pcc_accumulator_no_pulses: accumulator,
+                    pcc_tractive_no_pulses: tractive,
+                    ..status(state)
+                };
+                assert!(pcc_reports_error(&blind), "{state:?}");
+            }
+        }
     }
 }

@@ -274,6 +274,8 @@ struct Heard {
     erpm: i32,
     fault: aer::can::DtiFaultCode,
     pcc: Option<aer::can::PrechargeState>,
+    /// The PCC's tractive converter fell silent after reading 60 V or more (latched).
+    pcc_tractive_silent: bool,
     /// The DTI drops its drive enable this long after the last enable command (ms); `None`:
     /// never.
     timeout_ms: Option<u32>,
@@ -286,6 +288,7 @@ impl Heard {
             erpm: 0,
             fault: aer::can::DtiFaultCode::None,
             pcc: None,
+            pcc_tractive_silent: false,
             timeout_ms: Some(80),
         }
     }
@@ -369,7 +372,7 @@ fn run(
                     pcc_accumulator_no_pulses: false,
                     pcc_tractive_no_pulses: false,
                     pcc_error_accumulator_silent: false,
-                    pcc_error_tractive_silent: false,
+                    pcc_error_tractive_silent: heard.pcc_tractive_silent,
                     pcc_error_no_discharge: false,
                     pcc_error_too_slow: false,
                     pcc_error_bms_timeout: false,
@@ -608,6 +611,16 @@ fn dti_enable_below_60_v_needs_the_confirmation_and_live_readings() {
                 ..Heard::low_voltage()
             },
             DtiRefusal::PccReadsLive(392.0),
+        ),
+        // STANDBY, but the PCC's tractive converter fell silent after reading 60 V or more:
+        // its last reading is not the voltage now, and low voltage is not proven.
+        (
+            Heard {
+                pcc: Some(aer::can::PrechargeState::Standby),
+                pcc_tractive_silent: true,
+                ..Heard::low_voltage()
+            },
+            DtiRefusal::PccVoltageUnknown,
         ),
         // The DTI reads below 60 V while the PCC reports ONLINE: the DTI's HV input or its
         // measurement, not low voltage; the confirmation does not make it so.

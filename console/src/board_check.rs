@@ -29,6 +29,28 @@ pub const FCB_TAG: u32 = 0x4246_4346;
 /// Where a 2 MiB flash wraps to its start.
 pub const WRAP_OFFSET: u32 = 2 * 1024 * 1024;
 
+/// Where the image vector table (IVT) sits in flash for FlexSPI NOR boot (i.MX RT1060 RM,
+/// "Image Vector Table and Boot Data"): the second place compared, so that two copies of
+/// the boot configuration block alone never make a 4.1 look like a 4.0.
+pub const IVT_OFFSET: u32 = 0x1000;
+
+/// The IVT header's tag byte (its lowest byte, little-endian).
+pub const IVT_TAG: u8 = 0xD1;
+
+/// What the board check read: 16 bytes at the flash's start and at its IVT, and the same two
+/// [`WRAP_OFFSET`] further on, all with 8 MiB addressing.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Probe {
+    /// The boot configuration block's first words (offset 0).
+    pub origin: [u32; 4],
+    /// The words at [`WRAP_OFFSET`].
+    pub origin_at_wrap: [u32; 4],
+    /// The IVT's first words ([`IVT_OFFSET`]).
+    pub ivt: [u32; 4],
+    /// The words at [`WRAP_OFFSET`] + [`IVT_OFFSET`].
+    pub ivt_at_wrap: [u32; 4],
+}
+
 impl Teensy {
     /// The board's name.
     pub const fn name(self) -> &'static str {
@@ -66,18 +88,16 @@ impl Teensy {
         }
     }
 
-    /// The board from the flash's first words and the words [`WRAP_OFFSET`] further on, read
-    /// with 8 MiB addressing; `None` when the start is not a boot configuration block (the
-    /// read did not work, so nothing can be concluded).
-    pub fn from_probe(origin: [u32; 4], at_wrap: [u32; 4]) -> Option<Self> {
-        if origin[0] != FCB_TAG {
+    /// The board from what the check read: a 4.0 when both the boot configuration block and
+    /// the IVT repeat [`WRAP_OFFSET`] further on, a 4.1 otherwise; `None` when either is not
+    /// where the boot ROM needs it (the read did not work, so nothing can be concluded).
+    pub fn from_probe(probe: &Probe) -> Option<Self> {
+        let [ivt_header, ..] = probe.ivt;
+        if probe.origin[0] != FCB_TAG || ivt_header.to_le_bytes()[0] != IVT_TAG {
             return None;
         }
-        Some(if origin == at_wrap {
-            Self::T40
-        } else {
-            Self::T41
-        })
+        let wrapped = probe.origin == probe.origin_at_wrap && probe.ivt == probe.ivt_at_wrap;
+        Some(if wrapped { Self::T40 } else { Self::T41 })
     }
 }
 
@@ -158,19 +178,57 @@ mod tests {
 
     const FCB: [u32; 4] = [FCB_TAG, 0x5601_0000, 0, 0x0003_0301];
 
+    /// An IVT as imxrt-rt writes it: header (tag 0xD1, length 0x20, version 0x41), entry
+    /// point, reserved, DCD.
+    const IVT: [u32; 4] = [0x4120_00D1, 0x6000_2000, 0, 0];
+
+    fn probe(origin_at_wrap: [u32; 4], ivt_at_wrap: [u32; 4]) -> Probe {
+        Probe {
+            origin: FCB,
+            origin_at_wrap,
+            ivt: IVT,
+            ivt_at_wrap,
+        }
+    }
+
     #[test]
     fn a_wrapped_read_is_a_teensy_4_0_and_other_bytes_a_4_1() {
-        assert_eq!(Teensy::from_probe(FCB, FCB), Some(Teensy::T40));
-        assert_eq!(Teensy::from_probe(FCB, [u32::MAX; 4]), Some(Teensy::T41));
+        assert_eq!(Teensy::from_probe(&probe(FCB, IVT)), Some(Teensy::T40));
+        let erased = [u32::MAX; 4];
         assert_eq!(
-            Teensy::from_probe(FCB, [FCB_TAG, 0, 0, 0]),
+            Teensy::from_probe(&probe(erased, erased)),
+            Some(Teensy::T41)
+        );
+        assert_eq!(
+            Teensy::from_probe(&probe([FCB_TAG, 0, 0, 0], IVT)),
             Some(Teensy::T41),
             "only the whole block repeated is a wrap"
         );
         assert_eq!(
-            Teensy::from_probe([0; 4], [0; 4]),
+            Teensy::from_probe(&probe(FCB, erased)),
+            Some(Teensy::T41),
+            "a copy of the configuration block 2 MiB on, without the IVT, is no wrap"
+        );
+        let unread = Probe {
+            origin: [0; 4],
+            origin_at_wrap: [0; 4],
+            ivt: [0; 4],
+            ivt_at_wrap: [0; 4],
+        };
+        assert_eq!(
+            Teensy::from_probe(&unread),
             None,
             "no block read: no conclusion"
+        );
+        let no_ivt = Probe {
+            ivt: [0; 4],
+            ivt_at_wrap: [0; 4],
+            ..probe(FCB, IVT)
+        };
+        assert_eq!(
+            Teensy::from_probe(&no_ivt),
+            None,
+            "no IVT where the ROM boots from"
         );
     }
 

@@ -12,7 +12,7 @@
 //! RAM (imxrt-rt copies code to ITCM and data to DTCM/OCRAM at boot), but to be safe
 //! interrupts are off for each ROM operation, so nothing can reach the flash meanwhile.
 
-use crate::board_check::{Teensy, WRAP_OFFSET};
+use crate::board_check::{IVT_OFFSET, Probe, Teensy, WRAP_OFFSET};
 
 /// Where the FlexSPI maps the flash for reads.
 pub const FLASH_BASE: usize = 0x6000_0000;
@@ -128,18 +128,31 @@ impl RomDriver {
     }
 }
 
-/// Which Teensy this is: the flash's first 16 bytes beside the 16 bytes 2 MiB further, read
-/// with a copy of the boot block that declares 8 MiB (so the ROM lets the read through);
-/// `None` if either read failed. Reads only: nothing is written.
+/// Which Teensy this is: the flash's boot configuration block and its IVT (16 bytes each)
+/// beside the same places 2 MiB further, read with a copy of the boot block that declares
+/// 8 MiB (so the ROM lets the read through); `None` if any read failed. Reads only: nothing is
+/// written.
 pub fn identify() -> Option<Teensy> {
     let rom = RomDriver::locate();
     let mut config = NorConfig::from_flash();
     if let Some(size) = config.0.get_mut(A1_SIZE_WORD) {
         *size = Teensy::T41.flash_bytes();
     }
-    let mut origin = [0u32; 4];
-    let mut at_wrap = [0u32; 4];
-    rom.read(&mut config, 0, &mut origin).ok()?;
-    rom.read(&mut config, WRAP_OFFSET, &mut at_wrap).ok()?;
-    Teensy::from_probe(origin, at_wrap)
+    let mut probe = Probe {
+        origin: [0; 4],
+        origin_at_wrap: [0; 4],
+        ivt: [0; 4],
+        ivt_at_wrap: [0; 4],
+    };
+    rom.read(&mut config, 0, &mut probe.origin).ok()?;
+    rom.read(&mut config, WRAP_OFFSET, &mut probe.origin_at_wrap)
+        .ok()?;
+    rom.read(&mut config, IVT_OFFSET, &mut probe.ivt).ok()?;
+    rom.read(
+        &mut config,
+        WRAP_OFFSET + IVT_OFFSET,
+        &mut probe.ivt_at_wrap,
+    )
+    .ok()?;
+    Teensy::from_probe(&probe)
 }

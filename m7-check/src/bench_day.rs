@@ -625,6 +625,7 @@ impl RacePcc {
             now_ms,
             accumulator_v: accumulator.volts,
             tractive_v: tractive.volts,
+            raw_v: [accumulator.raw_volts, tractive.raw_volts],
             pulses: [accumulator.pulses, tractive.pulses],
             bms_last_seen_ms: (now_ms >= self.bms_from_ms).then_some(now_ms - now_ms % 100),
             charger_safety: false,

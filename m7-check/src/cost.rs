@@ -102,7 +102,8 @@ fn telemetry_pack(iterations: u32) {
 
 /// The panic handler's work before the reset, on RAM laid out as FlexCAN's register block (the
 /// emulated Cortex-M7 has no FlexCAN): take the newest published stop frames, build the CAN
-/// frames, write them into free transmit mailboxes. The frames then need their wire time
+/// frames, check every transmit mailbox for a pending frame (none here: a pending one adds its
+/// abort's bounded wait), write them into the mailboxes. The frames then need their wire time
 /// (an 8-byte extended frame is at most about 0.3 ms at 500 kbit/s).
 fn panic_stop(iterations: u32) {
     use aer_ccm::stop::StopFrames;
@@ -112,6 +113,7 @@ fn panic_stop(iterations: u32) {
     if let Ok(frames) = ccm.stop_frames() {
         stop.publish(&frames);
     }
+    // DBG1 (0x58) reads 0: no ERR006032 wait.
     let mut block = [0u32; 0x80 / 4 + 16 * 4];
     for _ in 0..iterations {
         let can = stop.latest_frames();
@@ -119,7 +121,7 @@ fn panic_stop(iterations: u32) {
         block.iter_mut().for_each(|word| *word = 0);
         // SAFETY: `block` is laid out as the register block and only this loop touches it.
         let mut tx = unsafe { EmergencyTx::new(block.as_mut_ptr()) };
-        core::hint::black_box(tx.queue(can));
+        core::hint::black_box(tx.queue(can, 1));
     }
     assert!(
         stop.latest().len() >= 2,
@@ -134,6 +136,7 @@ fn pcc_step(iterations: u32) {
             now_ms: i * 10,
             accumulator_v: 400.0,
             tractive_v: (i % 400) as f32,
+            raw_v: [400.0, (i % 400) as f32],
             pulses: [Pulses::Live; 2],
             bms_last_seen_ms: Some(i * 10),
             charger_safety: false,

@@ -126,6 +126,7 @@ fn run(scenario: &Scenario, out: &mut impl Write) -> core::fmt::Result {
             now_ms,
             accumulator_v: accumulator_sample.volts,
             tractive_v: tractive_sample.volts,
+            raw_v: [accumulator_sample.raw_volts, tractive_sample.raw_volts],
             pulses: [accumulator_sample.pulses, tractive_sample.pulses],
             bms_last_seen_ms: bms.last_seen_ms(),
             charger_safety: bms.charger_safety(),

@@ -8,7 +8,8 @@ use crate::bringup::GateLine;
 use crate::constants::TASK_PERIOD_MS;
 use crate::constants::VfConfig;
 use crate::machine::{
-    HandoverRefusal, HotResistor, NoDischarge, Precharge, PrechargeTiming, Silence, Waiting,
+    BypassRise, HandoverRefusal, HotResistor, NoDischarge, Precharge, PrechargeTiming, Silence,
+    Waiting,
 };
 use crate::measurement::Pulses;
 use crate::relays::Relays;
@@ -206,6 +207,7 @@ pub struct RaceLog {
     silences: [Watch<Option<Silence>>; 2],
     no_discharge: Watch<Option<NoDischarge>>,
     hot: Watch<Option<HotResistor>>,
+    bypass: Watch<Option<BypassRise>>,
     thermistors: Watch<[bool; 2]>,
 }
 
@@ -229,10 +231,9 @@ impl fmt::Display for SilenceLine {
         } = self.silence;
         write!(
             f,
-            "t={} ms {} SILENT since t={since_ms} ms, last read {last_v:.1} V: a broken wire or a dead converter, not 0 V. Treat the tractive system as live: AIR+ stays open; open the shutdown circuit and have the ESO measure at the TSMP (below {:.0} V before anyone touches it); bootloader and restart wait until both converters give pulses below {:.0} V; a new precharge needs a power cycle (LV off, USB out)",
+            "t={} ms {} SILENT since t={since_ms} ms, last read {last_v:.1} V: a broken wire or a dead converter, not 0 V. Treat the tractive system as live: AIR+ stays open; open the shutdown circuit and have the ESO measure at the TSMP (below {:.0} V before anyone touches it); bootloader, restart and a new precharge wait for a power cycle (LV off, USB out) after that measurement, or for both converters to give pulses below it (the bench, step 6c)",
             self.now_ms,
             converter.name(),
-            self.discharged_v,
             self.discharged_v
         )
     }
@@ -260,6 +261,25 @@ impl fmt::Display for NoDischargeLine {
             f,
             "t={} ms NO DISCHARGE: the tractive system reads {tractive_v:.1} V {limit_ms} ms after it began to fall (t={falling_since_ms} ms; the rules: below {:.0} V within {limit_ms} ms): an AIR welded or the discharge circuit failed. Hands off: the ESO isolates the accumulator (maintenance plug) and measures at the TSMP",
             self.now_ms, self.discharged_v
+        )
+    }
+}
+
+/// The line that names a rise no precharge resistor allows.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BypassLine {
+    /// Milliseconds since start-up.
+    pub now_ms: u32,
+    /// The rise.
+    pub rise: BypassRise,
+}
+
+impl fmt::Display for BypassLine {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "t={} ms BYPASSED: the tractive system rose from {:.0} % to {:.0} % of the pack in one step, faster than any precharge through the resistor: AIR+ welded or the precharge resistor bypassed. Open the shutdown circuit; nothing closes again until the electrical lead has found it (the weld check)",
+            self.now_ms, self.rise.from_percent, self.rise.to_percent
         )
     }
 }
@@ -413,6 +433,9 @@ impl RaceLog {
         if let Some(Some(hot)) = self.hot.changed(pcc.hot_resistor()) {
             log.line(format_args!("{}", HotResistorLine { now_ms, hot }));
         }
+        if let Some(Some(rise)) = self.bypass.changed(pcc.bypass_rise()) {
+            log.line(format_args!("{}", BypassLine { now_ms, rise }));
+        }
         let readings = pcc.resistor_c().map(|reading| reading.is_some());
         if let Some(readings) = self.thermistors.changed(readings) {
             for (thermistor, (reads, celsius)) in (1u8..).zip(readings.iter().zip(pcc.resistor_c()))
@@ -492,6 +515,9 @@ impl RaceLog {
         }
         if let Some(hot) = pcc.hot_resistor() {
             log.line(format_args!("{}", HotResistorLine { now_ms, hot }));
+        }
+        if let Some(rise) = pcc.bypass_rise() {
+            log.line(format_args!("{}", BypassLine { now_ms, rise }));
         }
         let [first, second] = pcc.resistor_c().map(ResistorTemperature);
         log.line(format_args!(

@@ -49,9 +49,22 @@ pub struct PrechargeConfig {
     /// In PRECHARGE, progress this far below its highest value means the precharge path
     /// opened (the shutdown circuit) or the tractive system is loaded down.
     pub precharge_drop_percent: f32,
-    /// In ONLINE and CHARGING, progress below this means the tractive system is no longer
+    /// In ONLINE and CHARGING, progress below this in [`Self::online_drop_periods`] windows in
+    /// a row (each window's own, unfiltered reading) means the tractive system is no longer
     /// connected to the pack (the shutdown circuit opened) or is shorted: AIR+ is released.
+    /// With AIR+ closed the two converters read the same voltage but for the contacts' drop
+    /// and the converters' disagreement (6c allows 1 %), so 95 % is far from a healthy
+    /// reading, and a shutdown circuit that opens and closes again within the detection time
+    /// finds the tractive system still above 90 % (as a precharge would) on the car's
+    /// discharge circuit.
     pub online_min_percent: f32,
+    /// Windows in a row below [`Self::online_min_percent`] that count (one stray window is
+    /// noise on a converter's line).
+    pub online_drop_periods: u32,
+    /// In STANDBY (from rest) and PRECHARGE, progress rising this many points within one
+    /// window is no precharge through the resistor (the car's rises at most a few tenths of a
+    /// point per 10 ms): AIR+ is welded or the resistor bypassed, latched at once.
+    pub bypass_rise_percent: f32,
     /// Once the tractive system has begun to fall after the AIRs opened, it must read below
     /// [`Self::discharged_v`] within this time (ms), or the PCC latches `no-discharge` (an AIR
     /// welded or the discharge circuit failed). The FSAE EV rules' discharge requirement:
@@ -81,7 +94,9 @@ impl PrechargeConfig {
         start_percent: 2.0,
         rest_percent: 5.0,
         precharge_drop_percent: 10.0,
-        online_min_percent: 80.0,
+        online_min_percent: 95.0,
+        online_drop_periods: 2,
+        bypass_rise_percent: 20.0,
         discharge_time_ms: 5_000,
         bypass_max_ms: 500,
         resistor_limit_c: THERMISTORS.limit_c,

@@ -35,7 +35,15 @@
 //!   not when AIR+ opens: with the shutdown circuit still closed (a BMS timeout, say) the
 //!   tractive system stays charged through the precharge resistor, rightly.
 //! - **A precharge faster than the resistor allows** (under [`PrechargeConfig::bypass_max_ms`])
-//!   latches `too-fast` with `bypassed`: AIR+ welded or the precharge resistor bypassed.
+//!   latches `too-fast` with `bypassed`: AIR+ welded or the precharge resistor bypassed. So
+//!   does a rise no resistor allows within one control period
+//!   ([`PrechargeConfig::bypass_rise_percent`] of the accumulator's voltage, on the unfiltered
+//!   readings), in PRECHARGE or in STANDBY once the tractive system was seen at rest: a
+//!   welded AIR+ under a shutdown contact that closes for a few milliseconds is named too.
+//! - **ONLINE and CHARGING hold only on the unfiltered readings**: the tractive system below
+//!   [`PrechargeConfig::online_min_percent`] of the accumulator for
+//!   [`PrechargeConfig::online_drop_periods`] periods in a row leaves them, so a contact that
+//!   opens is seen in 20 ms, not after the filter has followed it.
 //! - **The precharge resistor's temperature**: either thermistor at its limit latches
 //!   `resistor-hot`. A thermistor with no reading (open, unplugged) is unknown: it latches
 //!   nothing, and the console says the protection is off.
@@ -46,7 +54,7 @@
 //! Time is a free-running millisecond counter that may wrap; every comparison is on
 //! differences, so a wrap (after 49.7 days) changes nothing.
 
-use crate::constants::PrechargeConfig;
+use crate::constants::{PrechargeConfig, TASK_PERIOD_MS};
 use crate::measurement::Pulses;
 use crate::relays::Relays;
 use crate::state::{Errors, State};
@@ -61,6 +69,10 @@ pub struct Inputs {
     pub accumulator_v: f32,
     /// Filtered tractive-system voltage (V; 0 while its converter is silent).
     pub tractive_v: f32,
+    /// The same two over this period's window alone, unfiltered (V): accumulator, tractive
+    /// system. The fast checks judge these (the tractive system falling away while ONLINE, a
+    /// rise no resistor allows).
+    pub raw_v: [f32; 2],
     /// Whether each converter gives pulses: the accumulator's (pin 14), the tractive
     /// system's (pin 15).
     pub pulses: [Pulses; 2],
@@ -127,6 +139,15 @@ pub struct HotResistor {
     pub limit_c: f32,
 }
 
+/// A rise no precharge through the resistor makes.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BypassRise {
+    /// Progress before the step (% of the pack).
+    pub from_percent: f32,
+    /// Progress after it.
+    pub to_percent: f32,
+}
+
 /// A discharge being watched in ERROR or DISCHARGE, after an energised state.
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct DischargeWatch {
@@ -178,6 +199,14 @@ pub struct Precharge {
     resistor_c: [Option<f32>; 2],
     /// What latched `resistor-hot`.
     hot: Option<HotResistor>,
+    /// This period's progress from the unfiltered readings (%).
+    raw_progress: f32,
+    /// The last period's and when, while a rise is watched (STANDBY from rest, PRECHARGE).
+    last_raw_progress: Option<(f32, u32)>,
+    /// Windows in a row below the online minimum (ONLINE, CHARGING).
+    online_low: u32,
+    /// What latched `bypassed` by the rate of rise.
+    bypass: Option<BypassRise>,
 }
 
 /// What STANDBY waits for before precharge starts: each `true` is a condition not met yet.
@@ -330,6 +359,10 @@ impl Precharge {
             no_discharge: None,
             resistor_c: [None; 2],
             hot: None,
+            raw_progress: 0.0,
+            last_raw_progress: None,
+            online_low: 0,
+            bypass: None,
         }
     }
 
@@ -408,6 +441,11 @@ impl Precharge {
         self.hot
     }
 
+    /// The rise that latched `bypassed`, if the rate of rise latched it.
+    pub fn bypass_rise(&self) -> Option<BypassRise> {
+        self.bypass
+    }
+
     /// Whether the PCC may stop running its state machine (the bootloader), and the relays
     /// to apply before it does. Only in STANDBY or ERROR, where AIR+ is open, and only with
     /// the tractive system measured below the discharged limit: a PCC that stopped with
@@ -464,6 +502,12 @@ impl Precharge {
             0.0
         };
         let pack_present = self.accumulator_v >= self.config.min_accumulator_v;
+        let [raw_accumulator, raw_tractive] = inputs.raw_v.map(sanitise);
+        self.raw_progress = if raw_accumulator >= self.config.min_accumulator_v {
+            100.0 * raw_tractive / raw_accumulator
+        } else {
+            0.0
+        };
         let bms_alive = inputs
             .bms_last_seen_ms
             .is_some_and(|seen| now.wrapping_sub(seen) <= self.config.bms_timeout_ms);
@@ -474,6 +518,7 @@ impl Precharge {
         self.latch_silences(now);
         self.latch_hot_resistor();
         self.watch_discharge(now);
+        self.latch_bypass_rise(now);
 
         if self.state.is_energised() {
             // Faults first: whatever else happens this period, they open everything.
@@ -595,6 +640,32 @@ impl Precharge {
         }
     }
 
+    /// Latches `too-fast` with `bypassed` when progress rose more in one window than any
+    /// precharge through the resistor can: watched in STANDBY once the tractive system was
+    /// seen at rest, and in PRECHARGE.
+    fn latch_bypass_rise(&mut self, now: u32) {
+        let watched =
+            (self.state == State::Standby && self.rest_seen) || self.state == State::Precharge;
+        let previous = self.last_raw_progress.replace((self.raw_progress, now));
+        if !watched {
+            self.last_raw_progress = None;
+            return;
+        }
+        // Judged over one control period (a late step stretches it to two at most).
+        if let Some((from, at)) = previous
+            && now.wrapping_sub(at) <= 2 * TASK_PERIOD_MS
+            && self.raw_progress - from >= self.config.bypass_rise_percent
+            && !self.errors.bypassed
+        {
+            self.errors.too_fast = true;
+            self.errors.bypassed = true;
+            self.bypass = Some(BypassRise {
+                from_percent: from,
+                to_percent: self.raw_progress,
+            });
+        }
+    }
+
     /// Latches `resistor-hot` at the first thermistor reading at or above the limit.
     fn latch_hot_resistor(&mut self) {
         if self.errors.resistor_hot {
@@ -653,12 +724,27 @@ impl Precharge {
     /// (the shutdown circuit) or the tractive system is being loaded down (a short).
     fn falling_away(&mut self, now: u32) -> bool {
         let progress = self.progress_percent;
+        if matches!(self.state, State::Online | State::Charging) {
+            // Each window's own reading, no filter and no hold beyond the windows: AIR+ must
+            // be open before a shutdown circuit that bounces can close again onto a tractive
+            // system far below the pack.
+            if self.raw_progress < self.config.online_min_percent {
+                self.online_low = self.online_low.saturating_add(1);
+                if self.falling_since_ms.is_none() {
+                    self.falling_since_ms = Some(now);
+                }
+            } else {
+                self.online_low = 0;
+                self.falling_since_ms = None;
+            }
+            return self.online_low >= self.config.online_drop_periods;
+        }
         let falling = match self.state {
             State::Precharge => {
                 self.peak_percent = self.peak_percent.max(progress);
                 progress < self.peak_percent - self.config.precharge_drop_percent
             }
-            _ => progress < self.config.online_min_percent,
+            _ => false,
         };
         if !falling {
             self.falling_since_ms = None;
@@ -741,6 +827,8 @@ impl Precharge {
         self.trough_percent = f32::MAX;
         self.rest_seen = false;
         self.falling_since_ms = None;
+        self.online_low = 0;
+        self.last_raw_progress = None;
     }
 }
 

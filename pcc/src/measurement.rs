@@ -13,15 +13,26 @@ use aer_control::LowPass;
 pub const STALL_PERIODS: u32 = 8;
 /// ... but never sooner than this after the last edge (us).
 pub const STALL_MIN_US: u32 = 2_000;
+/// An LM331's periods are near uniform: a window whose periods spread more than this (their
+/// standard deviation over their mean) is a train with edges missing or added, a contact that
+/// frets, not a voltage. One stray or missed edge among a window's tens spreads them by about
+/// 15 %.
+pub const IRREGULAR_SPREAD: f32 = 0.3;
+/// Periods a window needs before their spread is judged.
+const SPREAD_MIN_PERIODS: u32 = 4;
 
 /// Edge-to-edge frequency measurement on one input.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct FrequencyMeter {
     last_edge_us: Option<u32>,
+    /// The latest edge ever (not cleared by silence): when the pulses stopped.
+    latest_edge_us: Option<u32>,
     periods: u32,
     span_us: u32,
+    /// The sum of the squared periods in this window (us^2), for their spread.
+    span_sq_us: u64,
     last_hz: f32,
-    /// The mean period of the last window that held whole periods (us).
+    /// The mean period of the last regular window that held whole periods (us).
     last_period_us: Option<u32>,
 }
 
@@ -29,10 +40,26 @@ impl FrequencyMeter {
     /// Records a rising edge at `now_us` (a free-running microsecond counter that may wrap).
     pub fn on_edge(&mut self, now_us: u32) {
         if let Some(previous) = self.last_edge_us {
-            self.span_us = self.span_us.saturating_add(now_us.wrapping_sub(previous));
+            let period = now_us.wrapping_sub(previous);
+            self.span_us = self.span_us.saturating_add(period);
+            self.span_sq_us = self
+                .span_sq_us
+                .saturating_add(u64::from(period) * u64::from(period));
             self.periods = self.periods.saturating_add(1);
         }
         self.last_edge_us = Some(now_us);
+        self.latest_edge_us = Some(now_us);
+    }
+
+    /// True when this window's periods spread like a train with edges missing or added.
+    fn irregular(&self) -> bool {
+        if self.periods < SPREAD_MIN_PERIODS {
+            return false;
+        }
+        let n = self.periods as f32;
+        let mean = self.span_us as f32 / n;
+        let variance = self.span_sq_us as f32 / n - mean * mean;
+        variance > (IRREGULAR_SPREAD * mean) * (IRREGULAR_SPREAD * mean)
     }
 
     /// The input frequency in Hz over the edges since the last sample.
@@ -40,10 +67,17 @@ impl FrequencyMeter {
     /// Without a complete period since then, the frequency can only have fallen: the result
     /// is capped by the time since the last edge, and is 0 once no edge came for
     /// `edge_timeout_us`, or for [`STALL_PERIODS`] of the train's own last period (a train
-    /// that stopped rather than slowed).
+    /// that stopped rather than slowed). A window whose periods are irregular
+    /// ([`IRREGULAR_SPREAD`]) reads 0 too: what its edges say is not a voltage. After 0 the
+    /// next edge starts afresh, so a dropout is never measured as one long period.
     pub fn sample(&mut self, now_us: u32, edge_timeout_us: u32) -> f32 {
+        let mut stopped = false;
         let hz = match self.last_edge_us {
             None => 0.0,
+            Some(_) if self.irregular() => {
+                stopped = true;
+                0.0
+            }
             Some(_) if self.periods > 0 && self.span_us > 0 => {
                 self.last_period_us = Some(self.span_us / self.periods);
                 self.periods as f32 * 1e6 / self.span_us as f32
@@ -54,6 +88,7 @@ impl FrequencyMeter {
                     silent_us >= period.saturating_mul(STALL_PERIODS).max(STALL_MIN_US)
                 });
                 if silent_us >= edge_timeout_us || stalled {
+                    stopped = true;
                     0.0
                 } else if silent_us == 0 {
                     self.last_hz
@@ -62,16 +97,21 @@ impl FrequencyMeter {
                 }
             }
         };
+        if stopped {
+            self.last_edge_us = None;
+            self.last_period_us = None;
+        }
         self.periods = 0;
         self.span_us = 0;
+        self.span_sq_us = 0;
         self.last_hz = hz;
         hz
     }
 
     /// [`Self::sample`], or `None` while the input is silent: no period measured yet, no
-    /// edge for `edge_timeout_us`, or a train that stopped. Silence is not 0 Hz: a converter unplugged, unpowered or
-    /// broken gives no pulses either, so whoever needs to tell "low" from "unknown" (the
-    /// bring-up's HV gate) reads this.
+    /// edge for `edge_timeout_us`, a train that stopped, or one whose periods are irregular.
+    /// Silence is not 0 Hz: a converter unplugged, unpowered or broken gives no pulses either,
+    /// so whoever needs to tell "low" from "unknown" (the bring-up's HV gate) reads this.
     pub fn reading(&mut self, now_us: u32, edge_timeout_us: u32) -> Option<f32> {
         let hz = self.sample(now_us, edge_timeout_us);
         (hz > 0.0).then_some(hz)
@@ -84,6 +124,9 @@ pub struct VoltageSample {
     /// Volts at the high-voltage input, filtered. A silent converter reads 0 here, which is
     /// a number for the state machine's arithmetic, not a measurement: `pulses` says which.
     pub volts: f32,
+    /// The same over this window alone, unfiltered: what a fast check (a tractive system
+    /// falling away, a rise no resistor allows) judges.
+    pub raw_volts: f32,
     /// Whether the converter gives pulses.
     pub pulses: Pulses,
 }
@@ -148,11 +191,12 @@ impl VoltageChannel {
         let started = *self.started_us.get_or_insert(now_us);
         let whole_period = self.meter.periods > 0;
         let hz = self.meter.sample(now_us, self.config.edge_timeout_us);
-        let volts = self.filter.update(self.config.volts_for_hz(hz));
+        let raw_volts = self.config.volts_for_hz(hz);
+        let volts = self.filter.update(raw_volts);
         if whole_period {
             self.last_measured_v = volts;
         }
-        let since_edge_us = now_us.wrapping_sub(self.meter.last_edge_us.unwrap_or(started));
+        let since_edge_us = now_us.wrapping_sub(self.meter.latest_edge_us.unwrap_or(started));
         let pulses = if hz > 0.0 {
             Pulses::Live
         } else {
@@ -161,7 +205,11 @@ impl VoltageChannel {
                 since_ms: since_edge_us / 1_000,
             }
         };
-        VoltageSample { volts, pulses }
+        VoltageSample {
+            volts,
+            raw_volts,
+            pulses,
+        }
     }
 
     /// The pulse frequency that `volts` at the high-voltage input produces (for simulations
@@ -347,21 +395,67 @@ mod tests {
     }
 
     #[test]
+    fn a_fretting_contact_is_silent_not_a_low_voltage() {
+        // 400 V (4.7 kHz) through a contact that passes edges only a quarter of the time: the
+        // edges that pass would read a few tens of volts; their spread says they are not a
+        // voltage.
+        let mut meter = FrequencyMeter::default();
+        let period = 213u32;
+        let mut t = 0;
+        let mut silent = 0;
+        for window in 1..=20u32 {
+            while t < window * 10_000 {
+                if t % 3_000 < 750 {
+                    meter.on_edge(t);
+                }
+                t += period;
+            }
+            if meter.reading(window * 10_000, 100_000).is_none() {
+                silent += 1;
+            }
+        }
+        assert!(silent >= 18, "{silent} of 20 windows unknown");
+        // One stray and one missed edge in a clean window are not irregular.
+        let mut meter = FrequencyMeter::default();
+        let mut t = 0;
+        for edge in 0..47u32 {
+            if edge != 20 {
+                meter.on_edge(t);
+            }
+            if edge == 30 {
+                meter.on_edge(t + 7);
+            }
+            t += period;
+        }
+        assert!(meter.reading(t, 100_000).is_some());
+    }
+
+    #[test]
     fn a_slow_discharge_ends_silent_at_a_low_reading() {
         // 300 V falling with a 0.5 s time constant: the converter slows down and stops below
         // about a volt, so what it read last is low.
+        // Edges by accumulated phase, the frequency falling every microsecond: the train
+        // stays regular however slow it gets.
         let mut channel = VoltageChannel::new(VfConfig::PCC_BOARD, 10);
-        let (_, mut t) = pulse(&mut channel, 300.0, 0, 20);
-        let mut volts = 300.0f32;
+        let mut phase = 0.0f64;
         let mut last = None;
-        for _ in 0..500 {
-            volts *= libm::expf(-10.0 / 500.0);
-            let (sample, end) = pulse(&mut channel, volts, t, 1);
-            t = end;
-            if let Pulses::Silent { last_v, .. } = sample.pulses {
+        for window in 1..=500u32 {
+            for us in (window - 1) * 10_000..window * 10_000 {
+                let volts = 300.0 * libm::exp(-f64::from(us) / 500_000.0);
+                phase += VfConfig::PCC_BOARD.hz_for_volts(volts as f32) as f64 / 1e6;
+                if phase >= 1.0 {
+                    phase -= 1.0;
+                    channel.on_edge(us);
+                }
+            }
+            let sample = channel.sample(window * 10_000);
+            if window > 20
+                && let Pulses::Silent { last_v, .. } = sample.pulses
+            {
                 last = Some(last_v);
                 break;
             }
+            assert!(window <= 20 || sample.pulses == Pulses::Live || last.is_some());
         }
         let last_v = last.expect("it stops");
         assert!(last_v < 10.0, "{last_v}");

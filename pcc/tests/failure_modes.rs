@@ -19,6 +19,7 @@ fn inputs(now_ms: u32, tractive_v: f32) -> Inputs {
         now_ms,
         accumulator_v: 400.0,
         tractive_v,
+        raw_v: [400.0, tractive_v],
         bms_last_seen_ms: Some(now_ms),
         charger_safety: false,
         pulses: [Pulses::Live; 2],
@@ -75,13 +76,13 @@ fn a_hang_online_releases_air_plus_within_the_watchdog_timeout() {
     // high only in ONLINE and CHARGING: hang there.
     let mut board = Board::new();
     let mut t = 0;
-    // The hardware starts precharging at 0.3 s: 5 % at first, 95 % well inside the time
-    // window.
+    // The hardware starts precharging at 0.3 s: 5 % at first, 90 % inside the time window.
     let mut started = None;
     while board.pcc.state() != State::Online {
         t += 1;
+        // A ramp that reaches 90 % of the pack 8.55 s after the rise, inside the window.
         let tractive_v = match started {
-            Some(at) if t - at > PrechargeConfig::CAR.min_time_ms + 100 => 380.0,
+            Some(at) => (380.0 * (t - at) as f32 / 9_500.0).clamp(20.0, 380.0),
             _ if t > 300 => 20.0,
             _ => 0.0,
         };

@@ -22,6 +22,7 @@ impl Bench {
                 now_ms: start_ms,
                 accumulator_v: PACK_V,
                 tractive_v: 0.0,
+                raw_v: [PACK_V, 0.0],
                 bms_last_seen_ms: Some(start_ms),
                 charger_safety: false,
                 pulses: [Pulses::Live; 2],
@@ -36,6 +37,8 @@ impl Bench {
 
     fn at(&mut self, now_ms: u32) -> Relays {
         self.inputs.now_ms = now_ms;
+        // Steady readings: each window's own equals the filtered one.
+        self.inputs.raw_v = [self.inputs.accumulator_v, self.inputs.tractive_v];
         self.pcc.step(&self.inputs)
     }
 
@@ -76,6 +79,10 @@ impl Bench {
         self.at_with_bms(reached);
         let done = reached.wrapping_add(CONFIG.target_hold_ms);
         self.at_with_bms(done);
+        // AIR+ closed joins the two: the tractive system reads the pack.
+        if matches!(self.state(), State::Online | State::Charging) {
+            self.set_progress(100.0);
+        }
         done
     }
 
@@ -308,24 +315,44 @@ fn charger_safety_chooses_charging_and_switches_with_online() {
 }
 
 #[test]
-fn the_tractive_system_falling_away_releases_air_plus_after_the_hold_in_every_energised_state() {
-    for energised in [State::Precharge, State::Online, State::Charging] {
+fn the_tractive_system_falling_away_releases_air_plus_after_the_hold_in_precharge() {
+    let (mut bench, now) = Bench::in_state(State::Precharge);
+    // The shutdown circuit opens: AIR- and the precharge path drop out, the tractive system
+    // falls away from the pack.
+    bench.set_progress(50.0);
+    bench.at_with_bms(now + 1);
+    bench.set_progress(50.0 - CONFIG.precharge_drop_percent - 0.01);
+    bench.at_with_bms(now + 2);
+    bench.at_with_bms(now + 1 + CONFIG.target_hold_ms);
+    assert_eq!(bench.state(), State::Precharge, "1 ms before the hold ends");
+    assert_eq!(
+        bench.at_with_bms(now + 2 + CONFIG.target_hold_ms),
+        Relays::ALL_OPEN
+    );
+    assert_eq!(bench.state(), State::Error);
+    assert_eq!(
+        bench.pcc.errors(),
+        Errors {
+            shutdown: true,
+            ..Errors::default()
+        }
+    );
+}
+
+#[test]
+fn online_the_tractive_system_falling_away_releases_air_plus_at_the_second_window() {
+    for energised in [State::Online, State::Charging] {
         let (mut bench, now) = Bench::in_state(energised);
-        // The shutdown circuit opens: AIR- and the precharge path drop out, the tractive
-        // system falls away from the pack.
-        let (high, fallen) = if energised == State::Precharge {
-            (50.0, 50.0 - CONFIG.precharge_drop_percent - 0.01)
-        } else {
-            (100.0, CONFIG.online_min_percent - 0.01)
-        };
-        bench.set_progress(high);
-        bench.at_with_bms(now + 1);
-        bench.set_progress(fallen);
-        bench.at_with_bms(now + 2);
-        bench.at_with_bms(now + 1 + CONFIG.target_hold_ms);
-        assert_eq!(bench.state(), energised, "1 ms before the hold ends");
+        // One window just below the online minimum is noise on a line; two in a row are the
+        // shutdown circuit opening (AIR- gone), and AIR+ opens in that step.
+        bench.set_progress(CONFIG.online_min_percent - 0.01);
+        assert_eq!(bench.at_with_bms(now + 10), CONNECTED, "{energised:?}");
+        bench.set_progress(100.0);
+        assert_eq!(bench.at_with_bms(now + 20), CONNECTED, "{energised:?}");
+        bench.set_progress(CONFIG.online_min_percent - 0.01);
+        assert_eq!(bench.at_with_bms(now + 30), CONNECTED, "{energised:?}");
         assert_eq!(
-            bench.at_with_bms(now + 2 + CONFIG.target_hold_ms),
+            bench.at_with_bms(now + 40),
             Relays::ALL_OPEN,
             "{energised:?}"
         );
@@ -338,6 +365,29 @@ fn the_tractive_system_falling_away_releases_air_plus_after_the_hold_in_every_en
             }
         );
     }
+}
+
+#[test]
+fn a_rise_no_resistor_allows_latches_bypassed_at_once() {
+    // From rest, the tractive system jumps by more than the allowed points in one window.
+    let mut bench = Bench::ready();
+    bench.at_with_bms(1_000);
+    bench.at_with_bms(1_010);
+    bench.set_progress(CONFIG.bypass_rise_percent + 1.0);
+    assert_eq!(bench.at_with_bms(1_020), Relays::ALL_OPEN);
+    assert_eq!(bench.state(), State::Error);
+    let errors = bench.pcc.errors();
+    assert!(errors.too_fast && errors.bypassed, "{errors}");
+    let rise = bench.pcc.bypass_rise().expect("named");
+    assert!(rise.from_percent < 1.0 && rise.to_percent > CONFIG.bypass_rise_percent);
+    // Just below the allowed rise in one window is a precharge starting (a fast one).
+    let mut bench = Bench::ready();
+    bench.at_with_bms(1_000);
+    bench.at_with_bms(1_010);
+    bench.set_progress(CONFIG.bypass_rise_percent - 1.0);
+    bench.at_with_bms(1_020);
+    assert_eq!(bench.state(), State::Precharge);
+    assert!(!bench.pcc.errors().bypassed);
 }
 
 #[test]
@@ -552,6 +602,7 @@ fn the_bootloader_is_refused_in_standby_and_error_with_the_tractive_system_charg
         now_ms: 10,
         accumulator_v: 400.0,
         tractive_v: 300.0,
+        raw_v: [400.0, 300.0],
         bms_last_seen_ms: Some(10),
         charger_safety: false,
         pulses: [Pulses::Live; 2],
@@ -603,11 +654,13 @@ fn standby_names_what_precharge_waits_for() {
         now_ms: 0,
         accumulator_v: 0.0,
         tractive_v: 0.0,
+        raw_v: [0.0, 0.0],
         bms_last_seen_ms: None,
         charger_safety: false,
         pulses: [Pulses::Live; 2],
         resistor_c: [Some(25.0); 2],
     };
+    inputs.raw_v = [inputs.accumulator_v, inputs.tractive_v];
     pcc.step(&inputs);
     assert_eq!(
         pcc.waiting(),
@@ -622,6 +675,7 @@ fn standby_names_what_precharge_waits_for() {
     inputs.now_ms = 10;
     inputs.bms_last_seen_ms = Some(10);
     inputs.accumulator_v = 300.0;
+    inputs.raw_v = [inputs.accumulator_v, inputs.tractive_v];
     pcc.step(&inputs);
     assert_eq!(
         pcc.waiting(),
@@ -637,6 +691,7 @@ fn standby_names_what_precharge_waits_for() {
     inputs.now_ms = 20;
     inputs.bms_last_seen_ms = Some(20);
     inputs.tractive_v = 30.0;
+    inputs.raw_v = [inputs.accumulator_v, inputs.tractive_v];
     pcc.step(&inputs);
     assert_eq!(pcc.state(), State::Precharge);
     assert_eq!(pcc.waiting(), None);
@@ -656,6 +711,7 @@ fn a_precharge_the_pcc_missed_never_counts() {
         now_ms: 0,
         accumulator_v: pack,
         tractive_v: 0.0,
+        raw_v: [pack, 0.0],
         bms_last_seen_ms: None,
         charger_safety: false,
         pulses: [Pulses::Live; 2],
@@ -697,6 +753,7 @@ fn a_precharge_the_pcc_missed_never_counts() {
         inputs.now_ms = now;
         inputs.bms_last_seen_ms = Some(now);
         inputs.tractive_v *= 0.99;
+        inputs.raw_v = [inputs.accumulator_v, inputs.tractive_v];
         pcc.step(&inputs);
     }
     assert_eq!(pcc.state(), State::Standby);
@@ -709,6 +766,7 @@ fn a_precharge_the_pcc_missed_never_counts() {
         inputs.now_ms = now;
         inputs.bms_last_seen_ms = Some(now);
         inputs.tractive_v = pack * (1.0 - (-((now - start) as f32) / 3_800.0).exp());
+        inputs.raw_v = [inputs.accumulator_v, inputs.tractive_v];
         pcc.step(&inputs);
     }
     let timing = pcc.last_precharge().expect("timed");
@@ -726,6 +784,7 @@ fn only_a_rise_from_rest_with_the_pcc_ready_is_timed() {
             now_ms,
             accumulator_v,
             tractive_v,
+            raw_v: [accumulator_v, tractive_v],
             bms_last_seen_ms: Some(now_ms),
             charger_safety: false,
             pulses: [Pulses::Live; 2],
@@ -765,6 +824,7 @@ fn only_a_rise_from_rest_with_the_pcc_ready_is_timed() {
         now_ms: 30,
         accumulator_v: 300.0,
         tractive_v: 21.0,
+        raw_v: [300.0, 21.0],
         bms_last_seen_ms: Some(30),
         charger_safety: false,
         pulses: [Pulses::Live; 2],

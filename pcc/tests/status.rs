@@ -11,6 +11,7 @@ fn inputs(now_ms: u32, accumulator_v: f32, tractive_v: f32) -> Inputs {
         now_ms,
         accumulator_v,
         tractive_v,
+        raw_v: [accumulator_v, tractive_v],
         bms_last_seen_ms: Some(now_ms),
         charger_safety: false,
         pulses: [Pulses::Live; 2],

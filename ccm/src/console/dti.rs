@@ -351,7 +351,10 @@ impl DtiBench {
         if !extended && id == PccStatus::ID {
             if let Ok(status) = PccStatus::decode(data) {
                 self.evidence.pcc = Some((status.pcc_state, now_ms));
-                self.evidence.pcc_tractive_v = Some(status.pcc_tractive_voltage as f32);
+                // A tractive converter that fell silent after reading 60 V or more: its
+                // last reading is not the voltage now.
+                self.evidence.pcc_tractive_v = (!status.pcc_error_tractive_silent)
+                    .then_some(status.pcc_tractive_voltage as f32);
             }
         }
     }
@@ -463,6 +466,9 @@ pub enum DtiRefusal {
     /// The DTI reads its DC link below 60 V while the PCC reports a state in which the
     /// tractive system is, or may be, live: the two disagree, and low voltage is not proven.
     PccEnergised(PrechargeState),
+    /// The DTI reads its DC link below 60 V while the PCC's tractive converter fell silent
+    /// after reading 60 V or more (latched): the tractive system may be live.
+    PccVoltageUnknown,
     /// The DTI reads its DC link below 60 V while the PCC reads the tractive system at 60 V or
     /// more (V).
     PccReadsLive(f32),
@@ -495,6 +501,9 @@ impl fmt::Display for DtiRefusal {
                 f,
                 "the DTI reads its DC link below 60 V but the PCC reports {}: the tractive system may be live: open the shutdown circuit, then check the DTI's HV input and its DC link reading against the TSMP meter",
                 state.label().unwrap_or("an unknown state")
+            ),
+            Self::PccVoltageUnknown => f.write_str(
+                "the DTI reads its DC link below 60 V but the PCC's tractive converter fell silent after reading 60 V or more: the tractive system may be live: open the shutdown circuit, measure at the TSMP, and power-cycle the PCC (LV off, USB out) once the ESO has measured below 60 V",
             ),
             Self::PccReadsLive(volts) => write!(
                 f,
@@ -592,10 +601,15 @@ impl DtiGuard {
                 }
                 // STANDBY after an untimed precharge, or ERROR with the circuit still closed:
                 // the PCC's own reading says live.
-                if let Some(volts) = evidence.pcc_tractive_v
-                    && volts.partial_cmp(&TRACTIVE_OFF_V) != Some(core::cmp::Ordering::Less)
-                {
-                    return Err(DtiRefusal::PccReadsLive(volts));
+                match evidence.pcc_tractive_v {
+                    Some(volts)
+                        if volts.partial_cmp(&TRACTIVE_OFF_V)
+                            != Some(core::cmp::Ordering::Less) =>
+                    {
+                        return Err(DtiRefusal::PccReadsLive(volts));
+                    }
+                    Some(_) => {}
+                    None => return Err(DtiRefusal::PccVoltageUnknown),
                 }
             }
             self.hv.allows(now_ms, &[sensor]).map_err(DtiRefusal::Hv)?;

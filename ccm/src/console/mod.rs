@@ -16,8 +16,10 @@ use aer_console::bringup::{ResetCause, Startup, write_assumed};
 use aer_console::{LogBuffer, Reboot};
 use core::fmt;
 
-/// Bytes of log the race image keeps for the host.
-pub const LOG_BYTES: usize = 4_096;
+/// Bytes of log the race image keeps for the host: its start-up lines (with the list of what
+/// is still assumed, about 3 KiB) and a full set of answers besides, for a console opened
+/// after the start.
+pub const LOG_BYTES: usize = 8_192;
 
 /// The race image's start-up lines: the inverter it was built for, the board, the
 /// fingerprints, why it started, the calibration it runs and where that came from. Returns

@@ -17,9 +17,13 @@ use core::sync::atomic::{AtomicBool, Ordering};
 use teensy4_bsp::ral;
 
 /// IFLAG1 polls while the stop frames leave: about 3 ms at 600 MHz, time for four frames
-/// behind seven pending ones at 500 kbit/s. A bus that takes nothing (bus-off, unplugged)
+/// behind a busy bus's higher-priority traffic at 500 kbit/s. A bus that takes nothing (bus-off, unplugged)
 /// costs this much before the reset.
 const SEND_POLLS: u32 = 300_000;
+
+/// IFLAG1 polls while one pending frame is aborted: the rest of a frame already on the wire
+/// (about 270 us at 500 kbit/s) with margin. Seven pending frames at most.
+const ABORT_POLLS: u32 = 30_000;
 
 /// CAN2 is clocked and configured: the mailboxes may be written.
 static INVERTER_BUS: AtomicBool = AtomicBool::new(false);
@@ -36,8 +40,8 @@ fn panic(_: &PanicInfo<'_>) -> ! {
         // SAFETY: CAN2's register block (imxrt-ral's address); it started (`INVERTER_BUS`),
         // and with interrupts off nothing else runs to write it after a panic.
         let mut tx = unsafe { EmergencyTx::new(ral::can::CAN2 as *mut u32) };
-        let mask = tx.queue(STOP.latest_frames());
-        let _sent = tx.wait_sent(mask, SEND_POLLS);
+        let queued = tx.queue(STOP.latest_frames(), ABORT_POLLS);
+        let _sent = tx.wait_sent(queued.mask, SEND_POLLS);
     }
     // SAFETY: WDOG1 is the watchdog both images start; clearing WCR.SRS asserts its software
     // reset (i.MX RT1060 RM, WDOG chapter). Nothing else runs.

@@ -82,6 +82,7 @@ pub(crate) async fn control(mut cx: control::Context<'_>) {
             now_ms,
             accumulator_v: accumulator.volts,
             tractive_v: tractive.volts,
+            raw_v: [accumulator.raw_volts, tractive.raw_volts],
             pulses: [accumulator.pulses, tractive.pulses],
             bms_last_seen_ms: bms.last_seen_ms(),
             charger_safety: bms.charger_safety(),
