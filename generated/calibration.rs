@@ -956,7 +956,7 @@ pub mod xcp {
     /// The ECU program identifier: `AER`, the telemetry fingerprint (the DBC and the packet)
     /// and the calibration fingerprint, in hex. A tool compares it with its description's,
     /// so a description of another build is noticed at connection.
-    pub const EPK: &str = "AER 3C476174 F0D0A9D1";
+    pub const EPK: &str = "AER E38C9F26 F0D0A9D1";
 
     /// The master's command id (`XCP_Cmd`, standard).
     pub const CAN_ID_MASTER: u32 = 0x6F0;

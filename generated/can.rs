@@ -10,7 +10,7 @@ use super::runtime::{
 /// Fingerprint of the schema's wire layout (ids, bit positions, types, scaling, value names).
 /// Sent by the firmware and checked by receivers, so a mismatched flash is detected instead of
 /// mis-decoded.
-pub const SCHEMA_FINGERPRINT: u32 = 0x42D2C467;
+pub const SCHEMA_FINGERPRINT: u32 = 0xFD25CCD3;
 
 /// Values of `MCU1.MCU_RotateDirection`.
 ///
@@ -1691,9 +1691,13 @@ pub struct CcmStatus {
     ///
     /// `CCM_FaultPccError`: 1 bit from bit 60 (Intel), unsigned, range [0.0, 1.0].
     pub ccm_fault_pcc_error: bool,
+    /// Fault bitmap bit 16: the PCC's tractive-system reading and the inverter's DC link disagree (one at 60 V or more, more than 10 % and 30 V apart) for 500 ms: one of them measures wrong, and the tractive system may be live where it reads dead.
+    ///
+    /// `CCM_FaultTractiveMismatch`: 1 bit from bit 61 (Intel), unsigned, range [0.0, 1.0].
+    pub ccm_fault_tractive_mismatch: bool,
 }
 
-static CCM_STATUS_SIGNALS: [SignalMeta; 20] = [
+static CCM_STATUS_SIGNALS: [SignalMeta; 21] = [
     SignalMeta {
         name: "CCM_VehicleState",
         index: 0,
@@ -2021,6 +2025,22 @@ static CCM_STATUS_SIGNALS: [SignalMeta; 20] = [
         labels: &[],
         multiplexed: false,
     },
+    SignalMeta {
+        name: "CCM_FaultTractiveMismatch",
+        index: 20,
+        unit: "",
+        comment: "Fault bitmap bit 16: the PCC's tractive-system reading and the inverter's DC link disagree (one at 60 V or more, more than 10 % and 30 V apart) for 500 ms: one of them measures wrong, and the tractive system may be live where it reads dead.",
+        start_bit: 61,
+        len: 1,
+        byte_order: ByteOrder::LittleEndian,
+        signed: false,
+        factor: 1.0,
+        offset: 0.0,
+        min: Some(0.0),
+        max: Some(1.0),
+        labels: &[],
+        multiplexed: false,
+    },
 ];
 
 impl CcmStatus {
@@ -2089,6 +2109,8 @@ impl CcmStatus {
             Self::ccm_fault_inverter_warning_from_raw(bits::read_le(data, 59, 1) as u8);
         let ccm_fault_pcc_error =
             Self::ccm_fault_pcc_error_from_raw(bits::read_le(data, 60, 1) as u8);
+        let ccm_fault_tractive_mismatch =
+            Self::ccm_fault_tractive_mismatch_from_raw(bits::read_le(data, 61, 1) as u8);
         Ok(Self {
             ccm_vehicle_state,
             ccm_fault_over_current,
@@ -2110,6 +2132,7 @@ impl CcmStatus {
             ccm_fault_inverter_fault,
             ccm_fault_inverter_warning,
             ccm_fault_pcc_error,
+            ccm_fault_tractive_mismatch,
         })
     }
 
@@ -2263,6 +2286,14 @@ impl CcmStatus {
             1,
             u64::from(Self::ccm_fault_pcc_error_to_raw(self.ccm_fault_pcc_error)?),
         );
+        bits::write_le(
+            out,
+            61,
+            1,
+            u64::from(Self::ccm_fault_tractive_mismatch_to_raw(
+                self.ccm_fault_tractive_mismatch,
+            )?),
+        );
         Ok(Self::LEN)
     }
 
@@ -2308,6 +2339,8 @@ impl CcmStatus {
         visitor.signal(&CCM_STATUS_SIGNALS[18], Value::from(v), None);
         let v = self.ccm_fault_pcc_error;
         visitor.signal(&CCM_STATUS_SIGNALS[19], Value::from(v), None);
+        let v = self.ccm_fault_tractive_mismatch;
+        visitor.signal(&CCM_STATUS_SIGNALS[20], Value::from(v), None);
     }
 
     /// Decodes a payload and calls `visitor` with every present signal's physical value, as
@@ -2352,6 +2385,8 @@ impl CcmStatus {
             Self::ccm_fault_inverter_warning_from_raw(bits::read_le(data, 59, 1) as u8);
         let ccm_fault_pcc_error =
             Self::ccm_fault_pcc_error_from_raw(bits::read_le(data, 60, 1) as u8);
+        let ccm_fault_tractive_mismatch =
+            Self::ccm_fault_tractive_mismatch_from_raw(bits::read_le(data, 61, 1) as u8);
         visitor.signal(
             &CCM_STATUS_SIGNALS[0],
             Value::from(ccm_vehicle_state),
@@ -2438,6 +2473,11 @@ impl CcmStatus {
         visitor.signal(
             &CCM_STATUS_SIGNALS[19],
             Value::from(ccm_fault_pcc_error),
+            None,
+        );
+        visitor.signal(
+            &CCM_STATUS_SIGNALS[20],
+            Value::from(ccm_fault_tractive_mismatch),
             None,
         );
         Ok(())
@@ -2696,6 +2736,19 @@ impl CcmStatus {
                 v.to_bool().ok_or(EncodeError::InvalidValue {
                     message: "CCM_Status",
                     signal: "CCM_FaultPccError",
+                })?
+            },
+            ccm_fault_tractive_mismatch: {
+                let v =
+                    source
+                        .value(&CCM_STATUS_SIGNALS[20])
+                        .ok_or(EncodeError::MissingSignal {
+                            message: "CCM_Status",
+                            signal: "CCM_FaultTractiveMismatch",
+                        })?;
+                v.to_bool().ok_or(EncodeError::InvalidValue {
+                    message: "CCM_Status",
+                    signal: "CCM_FaultTractiveMismatch",
                 })?
             },
         })
@@ -3060,6 +3113,24 @@ impl CcmStatus {
             1e-6,
             "CCM_Status",
             "CCM_FaultPccError",
+        )?;
+        Ok(u8::from(v))
+    }
+
+    /// Physical value of `CCM_FaultTractiveMismatch` for a raw value.
+    pub fn ccm_fault_tractive_mismatch_from_raw(raw: u8) -> bool {
+        raw != 0
+    }
+
+    /// Raw value of `CCM_FaultTractiveMismatch` for a physical value, range-checked.
+    pub fn ccm_fault_tractive_mismatch_to_raw(v: bool) -> Result<u8, EncodeError> {
+        runtime::check_range(
+            f64::from(u8::from(v)),
+            0.0,
+            1.0,
+            1e-6,
+            "CCM_Status",
+            "CCM_FaultTractiveMismatch",
         )?;
         Ok(u8::from(v))
     }
@@ -8888,10 +8959,14 @@ impl CanMessage for OrionCellVoltages {
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct PccStatus {
-    /// Precharge state machine (the low four bits of byte 0: a reader of the whole byte sees the same values while no bit above them is set).
+    /// Precharge state machine (the low three bits of byte 0: a reader of the whole byte sees the same values while no bit above them is set).
     ///
-    /// `PCC_State`: 4 bits from bit 0 (Intel), unsigned, range [0.0, 6.0].
+    /// `PCC_State`: 3 bits from bit 0 (Intel), unsigned, range [0.0, 6.0].
     pub pcc_state: PrechargeState,
+    /// Latched: AIR+ was commanded closed (ONLINE or CHARGING) but the tractive system did not reach 95 % of the accumulator voltage within 1 s: AIR+, its coil, its driver or its supply. Needs a power cycle.
+    ///
+    /// `PCC_ErrorAirPlusOpen`: 1 bit from bit 3 (Intel), unsigned, range [0.0, 1.0].
+    pub pcc_error_air_plus_open: bool,
     /// Latched with PCC_ErrorTooFast: the tractive system rose faster than any precharge through the resistor (to the target in under 500 ms, or by 20 % of the accumulator voltage within one 10 ms period): AIR+ welded or the precharge resistor bypassed. Needs a power cycle.
     ///
     /// `PCC_ErrorBypassed`: 1 bit from bit 4 (Intel), unsigned, range [0.0, 1.0].
@@ -8950,18 +9025,22 @@ pub struct PccStatus {
     pub pcc_tractive_voltage: f64,
     /// Tractive-system voltage as a percentage of the accumulator voltage.
     ///
-    /// `PCC_PrechargeProgress`: 16 bits from bit 48 (Intel), unsigned, physical = raw * 0.01, range [0.0, 655.35], unit `%`.
+    /// `PCC_PrechargeProgress`: 14 bits from bit 48 (Intel), unsigned, physical = raw * 0.01, range [0.0, 163.83], unit `%`.
     pub pcc_precharge_progress: f64,
+    /// Latched: while energised the tractive system read above 103 % of the accumulator voltage in two windows in a row, which no circuit does (with AIR+ closed both converters measure one node): a converter's scaling or divider changed, so neither reading can be trusted. Needs a power cycle.
+    ///
+    /// `PCC_ErrorConvertersDisagree`: 1 bit from bit 62 (Intel), unsigned, range [0.0, 1.0].
+    pub pcc_error_converters_disagree: bool,
 }
 
-static PCC_STATUS_SIGNALS: [SignalMeta; 16] = [
+static PCC_STATUS_SIGNALS: [SignalMeta; 18] = [
     SignalMeta {
         name: "PCC_State",
         index: 0,
         unit: "",
-        comment: "Precharge state machine (the low four bits of byte 0: a reader of the whole byte sees the same values while no bit above them is set).",
+        comment: "Precharge state machine (the low three bits of byte 0: a reader of the whole byte sees the same values while no bit above them is set).",
         start_bit: 0,
-        len: 4,
+        len: 3,
         byte_order: ByteOrder::LittleEndian,
         signed: false,
         factor: 1.0,
@@ -8980,8 +9059,24 @@ static PCC_STATUS_SIGNALS: [SignalMeta; 16] = [
         multiplexed: false,
     },
     SignalMeta {
-        name: "PCC_ErrorBypassed",
+        name: "PCC_ErrorAirPlusOpen",
         index: 1,
+        unit: "",
+        comment: "Latched: AIR+ was commanded closed (ONLINE or CHARGING) but the tractive system did not reach 95 % of the accumulator voltage within 1 s: AIR+, its coil, its driver or its supply. Needs a power cycle.",
+        start_bit: 3,
+        len: 1,
+        byte_order: ByteOrder::LittleEndian,
+        signed: false,
+        factor: 1.0,
+        offset: 0.0,
+        min: Some(0.0),
+        max: Some(1.0),
+        labels: &[],
+        multiplexed: false,
+    },
+    SignalMeta {
+        name: "PCC_ErrorBypassed",
+        index: 2,
         unit: "",
         comment: "Latched with PCC_ErrorTooFast: the tractive system rose faster than any precharge through the resistor (to the target in under 500 ms, or by 20 % of the accumulator voltage within one 10 ms period): AIR+ welded or the precharge resistor bypassed. Needs a power cycle.",
         start_bit: 4,
@@ -8997,7 +9092,7 @@ static PCC_STATUS_SIGNALS: [SignalMeta; 16] = [
     },
     SignalMeta {
         name: "PCC_ErrorResistorHot",
-        index: 2,
+        index: 3,
         unit: "",
         comment: "Latched: a precharge-resistor thermistor read its limit (69 degC) or more (PCC_Thermal). Needs a power cycle.",
         start_bit: 5,
@@ -9013,7 +9108,7 @@ static PCC_STATUS_SIGNALS: [SignalMeta; 16] = [
     },
     SignalMeta {
         name: "PCC_AccumulatorNoPulses",
-        index: 3,
+        index: 4,
         unit: "",
         comment: "Now: the accumulator's V/F converter gives no pulses (0 V, or unplugged, unpowered or broken), so PCC_AccumulatorVoltage is unknown.",
         start_bit: 6,
@@ -9029,7 +9124,7 @@ static PCC_STATUS_SIGNALS: [SignalMeta; 16] = [
     },
     SignalMeta {
         name: "PCC_TractiveNoPulses",
-        index: 4,
+        index: 5,
         unit: "",
         comment: "Now: the tractive system's V/F converter gives no pulses (0 V, or unplugged, unpowered or broken), so PCC_TractiveVoltage is unknown.",
         start_bit: 7,
@@ -9045,7 +9140,7 @@ static PCC_STATUS_SIGNALS: [SignalMeta; 16] = [
     },
     SignalMeta {
         name: "PCC_ErrorTooFast",
-        index: 5,
+        index: 6,
         unit: "",
         comment: "Error bit 0x01: target reached faster than the minimum time (short or wrong measurement).",
         start_bit: 8,
@@ -9061,7 +9156,7 @@ static PCC_STATUS_SIGNALS: [SignalMeta; 16] = [
     },
     SignalMeta {
         name: "PCC_ErrorTooSlow",
-        index: 6,
+        index: 7,
         unit: "",
         comment: "Error bit 0x02: target not reached in time.",
         start_bit: 9,
@@ -9077,7 +9172,7 @@ static PCC_STATUS_SIGNALS: [SignalMeta; 16] = [
     },
     SignalMeta {
         name: "PCC_ErrorBmsTimeout",
-        index: 7,
+        index: 8,
         unit: "",
         comment: "Error bit 0x04: no BMS frame for 1.5 s.",
         start_bit: 10,
@@ -9093,7 +9188,7 @@ static PCC_STATUS_SIGNALS: [SignalMeta; 16] = [
     },
     SignalMeta {
         name: "PCC_ErrorShutdown",
-        index: 8,
+        index: 9,
         unit: "",
         comment: "Error bit 0x08: the shutdown input opened while the tractive system was energised; clears once the tractive system has read below 60 V for 200 ms, whether the shutdown circuit is open or closed again.",
         start_bit: 11,
@@ -9109,7 +9204,7 @@ static PCC_STATUS_SIGNALS: [SignalMeta; 16] = [
     },
     SignalMeta {
         name: "PCC_ErrorAccumulatorSilent",
-        index: 9,
+        index: 10,
         unit: "",
         comment: "Error bit 0x10, latched: the accumulator's V/F converter fell silent after reading 60 V or more, or while energised or discharging: its voltage is unknown. Needs a power cycle.",
         start_bit: 12,
@@ -9125,7 +9220,7 @@ static PCC_STATUS_SIGNALS: [SignalMeta; 16] = [
     },
     SignalMeta {
         name: "PCC_ErrorTractiveSilent",
-        index: 10,
+        index: 11,
         unit: "",
         comment: "Error bit 0x20, latched: the tractive system's V/F converter fell silent after reading 60 V or more, or while energised or discharging: the tractive system may be live. Needs a power cycle.",
         start_bit: 13,
@@ -9141,7 +9236,7 @@ static PCC_STATUS_SIGNALS: [SignalMeta; 16] = [
     },
     SignalMeta {
         name: "PCC_ErrorNoDischarge",
-        index: 11,
+        index: 12,
         unit: "",
         comment: "Error bit 0x40, latched: the tractive system began to fall but did not read below 60 V within 5 s (the rules' discharge time): an AIR welded or the discharge circuit failed. Needs a power cycle.",
         start_bit: 14,
@@ -9157,7 +9252,7 @@ static PCC_STATUS_SIGNALS: [SignalMeta; 16] = [
     },
     SignalMeta {
         name: "PCC_ErrorUndefinedState",
-        index: 12,
+        index: 13,
         unit: "",
         comment: "Error bit 0x80: state machine in an undefined state.",
         start_bit: 15,
@@ -9173,7 +9268,7 @@ static PCC_STATUS_SIGNALS: [SignalMeta; 16] = [
     },
     SignalMeta {
         name: "PCC_AccumulatorVoltage",
-        index: 13,
+        index: 14,
         unit: "V",
         comment: "Accumulator voltage from the V/F converter (unknown while PCC_AccumulatorNoPulses).",
         start_bit: 16,
@@ -9189,7 +9284,7 @@ static PCC_STATUS_SIGNALS: [SignalMeta; 16] = [
     },
     SignalMeta {
         name: "PCC_TractiveVoltage",
-        index: 14,
+        index: 15,
         unit: "V",
         comment: "Tractive-system voltage from the V/F converter (unknown while PCC_TractiveNoPulses).",
         start_bit: 32,
@@ -9205,17 +9300,33 @@ static PCC_STATUS_SIGNALS: [SignalMeta; 16] = [
     },
     SignalMeta {
         name: "PCC_PrechargeProgress",
-        index: 15,
+        index: 16,
         unit: "%",
         comment: "Tractive-system voltage as a percentage of the accumulator voltage.",
         start_bit: 48,
-        len: 16,
+        len: 14,
         byte_order: ByteOrder::LittleEndian,
         signed: false,
         factor: 0.01,
         offset: 0.0,
         min: Some(0.0),
-        max: Some(655.35),
+        max: Some(163.83),
+        labels: &[],
+        multiplexed: false,
+    },
+    SignalMeta {
+        name: "PCC_ErrorConvertersDisagree",
+        index: 17,
+        unit: "",
+        comment: "Latched: while energised the tractive system read above 103 % of the accumulator voltage in two windows in a row, which no circuit does (with AIR+ closed both converters measure one node): a converter's scaling or divider changed, so neither reading can be trusted. Needs a power cycle.",
+        start_bit: 62,
+        len: 1,
+        byte_order: ByteOrder::LittleEndian,
+        signed: false,
+        factor: 1.0,
+        offset: 0.0,
+        min: Some(0.0),
+        max: Some(1.0),
         labels: &[],
         multiplexed: false,
     },
@@ -9247,7 +9358,9 @@ impl PccStatus {
     /// decoded as they are; only a short payload fails.
     pub fn decode(data: &[u8]) -> Result<Self, DecodeError> {
         let data = runtime::payload::<8>(data, "PCC_Status")?;
-        let pcc_state = Self::pcc_state_from_raw(bits::read_le(data, 0, 4) as u8);
+        let pcc_state = Self::pcc_state_from_raw(bits::read_le(data, 0, 3) as u8);
+        let pcc_error_air_plus_open =
+            Self::pcc_error_air_plus_open_from_raw(bits::read_le(data, 3, 1) as u8);
         let pcc_error_bypassed = Self::pcc_error_bypassed_from_raw(bits::read_le(data, 4, 1) as u8);
         let pcc_error_resistor_hot =
             Self::pcc_error_resistor_hot_from_raw(bits::read_le(data, 5, 1) as u8);
@@ -9274,9 +9387,12 @@ impl PccStatus {
         let pcc_tractive_voltage =
             Self::pcc_tractive_voltage_from_raw(bits::read_le(data, 32, 16) as u16);
         let pcc_precharge_progress =
-            Self::pcc_precharge_progress_from_raw(bits::read_le(data, 48, 16) as u16);
+            Self::pcc_precharge_progress_from_raw(bits::read_le(data, 48, 14) as u16);
+        let pcc_error_converters_disagree =
+            Self::pcc_error_converters_disagree_from_raw(bits::read_le(data, 62, 1) as u8);
         Ok(Self {
             pcc_state,
+            pcc_error_air_plus_open,
             pcc_error_bypassed,
             pcc_error_resistor_hot,
             pcc_accumulator_no_pulses,
@@ -9292,6 +9408,7 @@ impl PccStatus {
             pcc_accumulator_voltage,
             pcc_tractive_voltage,
             pcc_precharge_progress,
+            pcc_error_converters_disagree,
         })
     }
 
@@ -9302,8 +9419,16 @@ impl PccStatus {
         bits::write_le(
             out,
             0,
-            4,
+            3,
             u64::from(Self::pcc_state_to_raw(self.pcc_state)?),
+        );
+        bits::write_le(
+            out,
+            3,
+            1,
+            u64::from(Self::pcc_error_air_plus_open_to_raw(
+                self.pcc_error_air_plus_open,
+            )?),
         );
         bits::write_le(
             out,
@@ -9412,9 +9537,17 @@ impl PccStatus {
         bits::write_le(
             out,
             48,
-            16,
+            14,
             u64::from(Self::pcc_precharge_progress_to_raw(
                 self.pcc_precharge_progress,
+            )?),
+        );
+        bits::write_le(
+            out,
+            62,
+            1,
+            u64::from(Self::pcc_error_converters_disagree_to_raw(
+                self.pcc_error_converters_disagree,
             )?),
         );
         Ok(Self::LEN)
@@ -9424,36 +9557,40 @@ impl PccStatus {
     pub fn visit(&self, visitor: &mut impl SignalVisitor) {
         let v = self.pcc_state;
         visitor.signal(&PCC_STATUS_SIGNALS[0], Value::from(v.into_raw()), v.label());
-        let v = self.pcc_error_bypassed;
+        let v = self.pcc_error_air_plus_open;
         visitor.signal(&PCC_STATUS_SIGNALS[1], Value::from(v), None);
-        let v = self.pcc_error_resistor_hot;
+        let v = self.pcc_error_bypassed;
         visitor.signal(&PCC_STATUS_SIGNALS[2], Value::from(v), None);
-        let v = self.pcc_accumulator_no_pulses;
+        let v = self.pcc_error_resistor_hot;
         visitor.signal(&PCC_STATUS_SIGNALS[3], Value::from(v), None);
-        let v = self.pcc_tractive_no_pulses;
+        let v = self.pcc_accumulator_no_pulses;
         visitor.signal(&PCC_STATUS_SIGNALS[4], Value::from(v), None);
-        let v = self.pcc_error_too_fast;
+        let v = self.pcc_tractive_no_pulses;
         visitor.signal(&PCC_STATUS_SIGNALS[5], Value::from(v), None);
-        let v = self.pcc_error_too_slow;
+        let v = self.pcc_error_too_fast;
         visitor.signal(&PCC_STATUS_SIGNALS[6], Value::from(v), None);
-        let v = self.pcc_error_bms_timeout;
+        let v = self.pcc_error_too_slow;
         visitor.signal(&PCC_STATUS_SIGNALS[7], Value::from(v), None);
-        let v = self.pcc_error_shutdown;
+        let v = self.pcc_error_bms_timeout;
         visitor.signal(&PCC_STATUS_SIGNALS[8], Value::from(v), None);
-        let v = self.pcc_error_accumulator_silent;
+        let v = self.pcc_error_shutdown;
         visitor.signal(&PCC_STATUS_SIGNALS[9], Value::from(v), None);
-        let v = self.pcc_error_tractive_silent;
+        let v = self.pcc_error_accumulator_silent;
         visitor.signal(&PCC_STATUS_SIGNALS[10], Value::from(v), None);
-        let v = self.pcc_error_no_discharge;
+        let v = self.pcc_error_tractive_silent;
         visitor.signal(&PCC_STATUS_SIGNALS[11], Value::from(v), None);
-        let v = self.pcc_error_undefined_state;
+        let v = self.pcc_error_no_discharge;
         visitor.signal(&PCC_STATUS_SIGNALS[12], Value::from(v), None);
-        let v = self.pcc_accumulator_voltage;
+        let v = self.pcc_error_undefined_state;
         visitor.signal(&PCC_STATUS_SIGNALS[13], Value::from(v), None);
-        let v = self.pcc_tractive_voltage;
+        let v = self.pcc_accumulator_voltage;
         visitor.signal(&PCC_STATUS_SIGNALS[14], Value::from(v), None);
-        let v = self.pcc_precharge_progress;
+        let v = self.pcc_tractive_voltage;
         visitor.signal(&PCC_STATUS_SIGNALS[15], Value::from(v), None);
+        let v = self.pcc_precharge_progress;
+        visitor.signal(&PCC_STATUS_SIGNALS[16], Value::from(v), None);
+        let v = self.pcc_error_converters_disagree;
+        visitor.signal(&PCC_STATUS_SIGNALS[17], Value::from(v), None);
     }
 
     /// Decodes a payload and calls `visitor` with every present signal's physical value, as
@@ -9462,7 +9599,9 @@ impl PccStatus {
     /// is what `visit` hands on), so nothing is stored and read back.
     pub fn decode_visit(data: &[u8], visitor: &mut impl SignalVisitor) -> Result<(), DecodeError> {
         let data = runtime::payload::<8>(data, "PCC_Status")?;
-        let pcc_state = bits::read_le(data, 0, 4) as u8;
+        let pcc_state = bits::read_le(data, 0, 3) as u8;
+        let pcc_error_air_plus_open =
+            Self::pcc_error_air_plus_open_from_raw(bits::read_le(data, 3, 1) as u8);
         let pcc_error_bypassed = Self::pcc_error_bypassed_from_raw(bits::read_le(data, 4, 1) as u8);
         let pcc_error_resistor_hot =
             Self::pcc_error_resistor_hot_from_raw(bits::read_le(data, 5, 1) as u8);
@@ -9489,7 +9628,9 @@ impl PccStatus {
         let pcc_tractive_voltage =
             Self::pcc_tractive_voltage_from_raw(bits::read_le(data, 32, 16) as u16);
         let pcc_precharge_progress =
-            Self::pcc_precharge_progress_from_raw(bits::read_le(data, 48, 16) as u16);
+            Self::pcc_precharge_progress_from_raw(bits::read_le(data, 48, 14) as u16);
+        let pcc_error_converters_disagree =
+            Self::pcc_error_converters_disagree_from_raw(bits::read_le(data, 62, 1) as u8);
         visitor.signal(
             &PCC_STATUS_SIGNALS[0],
             Value::from(pcc_state),
@@ -9497,77 +9638,87 @@ impl PccStatus {
         );
         visitor.signal(
             &PCC_STATUS_SIGNALS[1],
-            Value::from(pcc_error_bypassed),
+            Value::from(pcc_error_air_plus_open),
             None,
         );
         visitor.signal(
             &PCC_STATUS_SIGNALS[2],
-            Value::from(pcc_error_resistor_hot),
+            Value::from(pcc_error_bypassed),
             None,
         );
         visitor.signal(
             &PCC_STATUS_SIGNALS[3],
-            Value::from(pcc_accumulator_no_pulses),
+            Value::from(pcc_error_resistor_hot),
             None,
         );
         visitor.signal(
             &PCC_STATUS_SIGNALS[4],
-            Value::from(pcc_tractive_no_pulses),
+            Value::from(pcc_accumulator_no_pulses),
             None,
         );
         visitor.signal(
             &PCC_STATUS_SIGNALS[5],
-            Value::from(pcc_error_too_fast),
+            Value::from(pcc_tractive_no_pulses),
             None,
         );
         visitor.signal(
             &PCC_STATUS_SIGNALS[6],
-            Value::from(pcc_error_too_slow),
+            Value::from(pcc_error_too_fast),
             None,
         );
         visitor.signal(
             &PCC_STATUS_SIGNALS[7],
-            Value::from(pcc_error_bms_timeout),
+            Value::from(pcc_error_too_slow),
             None,
         );
         visitor.signal(
             &PCC_STATUS_SIGNALS[8],
-            Value::from(pcc_error_shutdown),
+            Value::from(pcc_error_bms_timeout),
             None,
         );
         visitor.signal(
             &PCC_STATUS_SIGNALS[9],
-            Value::from(pcc_error_accumulator_silent),
+            Value::from(pcc_error_shutdown),
             None,
         );
         visitor.signal(
             &PCC_STATUS_SIGNALS[10],
-            Value::from(pcc_error_tractive_silent),
+            Value::from(pcc_error_accumulator_silent),
             None,
         );
         visitor.signal(
             &PCC_STATUS_SIGNALS[11],
-            Value::from(pcc_error_no_discharge),
+            Value::from(pcc_error_tractive_silent),
             None,
         );
         visitor.signal(
             &PCC_STATUS_SIGNALS[12],
-            Value::from(pcc_error_undefined_state),
+            Value::from(pcc_error_no_discharge),
             None,
         );
         visitor.signal(
             &PCC_STATUS_SIGNALS[13],
-            Value::from(pcc_accumulator_voltage),
+            Value::from(pcc_error_undefined_state),
             None,
         );
         visitor.signal(
             &PCC_STATUS_SIGNALS[14],
-            Value::from(pcc_tractive_voltage),
+            Value::from(pcc_accumulator_voltage),
             None,
         );
         visitor.signal(
             &PCC_STATUS_SIGNALS[15],
+            Value::from(pcc_tractive_voltage),
+            None,
+        );
+        visitor.signal(
+            &PCC_STATUS_SIGNALS[16],
             Value::from(pcc_precharge_progress),
+            None,
+        );
+        visitor.signal(
+            &PCC_STATUS_SIGNALS[17],
+            Value::from(pcc_error_converters_disagree),
             None,
         );
         Ok(())
@@ -9590,9 +9741,21 @@ impl PccStatus {
                         signal: "PCC_State",
                     })?
             },
-            pcc_error_bypassed: {
+            pcc_error_air_plus_open: {
                 let v = source
                     .value(&PCC_STATUS_SIGNALS[1])
+                    .ok_or(EncodeError::MissingSignal {
+                        message: "PCC_Status",
+                        signal: "PCC_ErrorAirPlusOpen",
+                    })?;
+                v.to_bool().ok_or(EncodeError::InvalidValue {
+                    message: "PCC_Status",
+                    signal: "PCC_ErrorAirPlusOpen",
+                })?
+            },
+            pcc_error_bypassed: {
+                let v = source
+                    .value(&PCC_STATUS_SIGNALS[2])
                     .ok_or(EncodeError::MissingSignal {
                         message: "PCC_Status",
                         signal: "PCC_ErrorBypassed",
@@ -9604,7 +9767,7 @@ impl PccStatus {
             },
             pcc_error_resistor_hot: {
                 let v = source
-                    .value(&PCC_STATUS_SIGNALS[2])
+                    .value(&PCC_STATUS_SIGNALS[3])
                     .ok_or(EncodeError::MissingSignal {
                         message: "PCC_Status",
                         signal: "PCC_ErrorResistorHot",
@@ -9616,7 +9779,7 @@ impl PccStatus {
             },
             pcc_accumulator_no_pulses: {
                 let v = source
-                    .value(&PCC_STATUS_SIGNALS[3])
+                    .value(&PCC_STATUS_SIGNALS[4])
                     .ok_or(EncodeError::MissingSignal {
                         message: "PCC_Status",
                         signal: "PCC_AccumulatorNoPulses",
@@ -9628,7 +9791,7 @@ impl PccStatus {
             },
             pcc_tractive_no_pulses: {
                 let v = source
-                    .value(&PCC_STATUS_SIGNALS[4])
+                    .value(&PCC_STATUS_SIGNALS[5])
                     .ok_or(EncodeError::MissingSignal {
                         message: "PCC_Status",
                         signal: "PCC_TractiveNoPulses",
@@ -9640,7 +9803,7 @@ impl PccStatus {
             },
             pcc_error_too_fast: {
                 let v = source
-                    .value(&PCC_STATUS_SIGNALS[5])
+                    .value(&PCC_STATUS_SIGNALS[6])
                     .ok_or(EncodeError::MissingSignal {
                         message: "PCC_Status",
                         signal: "PCC_ErrorTooFast",
@@ -9652,7 +9815,7 @@ impl PccStatus {
             },
             pcc_error_too_slow: {
                 let v = source
-                    .value(&PCC_STATUS_SIGNALS[6])
+                    .value(&PCC_STATUS_SIGNALS[7])
                     .ok_or(EncodeError::MissingSignal {
                         message: "PCC_Status",
                         signal: "PCC_ErrorTooSlow",
@@ -9664,7 +9827,7 @@ impl PccStatus {
             },
             pcc_error_bms_timeout: {
                 let v = source
-                    .value(&PCC_STATUS_SIGNALS[7])
+                    .value(&PCC_STATUS_SIGNALS[8])
                     .ok_or(EncodeError::MissingSignal {
                         message: "PCC_Status",
                         signal: "PCC_ErrorBmsTimeout",
@@ -9676,7 +9839,7 @@ impl PccStatus {
             },
             pcc_error_shutdown: {
                 let v = source
-                    .value(&PCC_STATUS_SIGNALS[8])
+                    .value(&PCC_STATUS_SIGNALS[9])
                     .ok_or(EncodeError::MissingSignal {
                         message: "PCC_Status",
                         signal: "PCC_ErrorShutdown",
@@ -9687,12 +9850,13 @@ impl PccStatus {
                 })?
             },
             pcc_error_accumulator_silent: {
-                let v = source
-                    .value(&PCC_STATUS_SIGNALS[9])
-                    .ok_or(EncodeError::MissingSignal {
-                        message: "PCC_Status",
-                        signal: "PCC_ErrorAccumulatorSilent",
-                    })?;
+                let v =
+                    source
+                        .value(&PCC_STATUS_SIGNALS[10])
+                        .ok_or(EncodeError::MissingSignal {
+                            message: "PCC_Status",
+                            signal: "PCC_ErrorAccumulatorSilent",
+                        })?;
                 v.to_bool().ok_or(EncodeError::InvalidValue {
                     message: "PCC_Status",
                     signal: "PCC_ErrorAccumulatorSilent",
@@ -9701,7 +9865,7 @@ impl PccStatus {
             pcc_error_tractive_silent: {
                 let v =
                     source
-                        .value(&PCC_STATUS_SIGNALS[10])
+                        .value(&PCC_STATUS_SIGNALS[11])
                         .ok_or(EncodeError::MissingSignal {
                             message: "PCC_Status",
                             signal: "PCC_ErrorTractiveSilent",
@@ -9714,7 +9878,7 @@ impl PccStatus {
             pcc_error_no_discharge: {
                 let v =
                     source
-                        .value(&PCC_STATUS_SIGNALS[11])
+                        .value(&PCC_STATUS_SIGNALS[12])
                         .ok_or(EncodeError::MissingSignal {
                             message: "PCC_Status",
                             signal: "PCC_ErrorNoDischarge",
@@ -9727,7 +9891,7 @@ impl PccStatus {
             pcc_error_undefined_state: {
                 let v =
                     source
-                        .value(&PCC_STATUS_SIGNALS[12])
+                        .value(&PCC_STATUS_SIGNALS[13])
                         .ok_or(EncodeError::MissingSignal {
                             message: "PCC_Status",
                             signal: "PCC_ErrorUndefinedState",
@@ -9740,7 +9904,7 @@ impl PccStatus {
             pcc_accumulator_voltage: {
                 let v =
                     source
-                        .value(&PCC_STATUS_SIGNALS[13])
+                        .value(&PCC_STATUS_SIGNALS[14])
                         .ok_or(EncodeError::MissingSignal {
                             message: "PCC_Status",
                             signal: "PCC_AccumulatorVoltage",
@@ -9753,7 +9917,7 @@ impl PccStatus {
             pcc_tractive_voltage: {
                 let v =
                     source
-                        .value(&PCC_STATUS_SIGNALS[14])
+                        .value(&PCC_STATUS_SIGNALS[15])
                         .ok_or(EncodeError::MissingSignal {
                             message: "PCC_Status",
                             signal: "PCC_TractiveVoltage",
@@ -9766,7 +9930,7 @@ impl PccStatus {
             pcc_precharge_progress: {
                 let v =
                     source
-                        .value(&PCC_STATUS_SIGNALS[15])
+                        .value(&PCC_STATUS_SIGNALS[16])
                         .ok_or(EncodeError::MissingSignal {
                             message: "PCC_Status",
                             signal: "PCC_PrechargeProgress",
@@ -9774,6 +9938,19 @@ impl PccStatus {
                 Some(v.to_f64()).ok_or(EncodeError::InvalidValue {
                     message: "PCC_Status",
                     signal: "PCC_PrechargeProgress",
+                })?
+            },
+            pcc_error_converters_disagree: {
+                let v =
+                    source
+                        .value(&PCC_STATUS_SIGNALS[17])
+                        .ok_or(EncodeError::MissingSignal {
+                            message: "PCC_Status",
+                            signal: "PCC_ErrorConvertersDisagree",
+                        })?;
+                v.to_bool().ok_or(EncodeError::InvalidValue {
+                    message: "PCC_Status",
+                    signal: "PCC_ErrorConvertersDisagree",
                 })?
             },
         })
@@ -9790,7 +9967,7 @@ impl PccStatus {
             runtime::check_range(raw as f64, 0.0, 6.0, 1e-6, "PCC_Status", "PCC_State")?;
         }
         let raw = v.into_raw();
-        if (0..=15).contains(&raw) {
+        if (0..=7).contains(&raw) {
             Ok(raw)
         } else {
             Err(EncodeError::OutOfRange {
@@ -9798,6 +9975,24 @@ impl PccStatus {
                 signal: "PCC_State",
             })
         }
+    }
+
+    /// Physical value of `PCC_ErrorAirPlusOpen` for a raw value.
+    pub fn pcc_error_air_plus_open_from_raw(raw: u8) -> bool {
+        raw != 0
+    }
+
+    /// Raw value of `PCC_ErrorAirPlusOpen` for a physical value, range-checked.
+    pub fn pcc_error_air_plus_open_to_raw(v: bool) -> Result<u8, EncodeError> {
+        runtime::check_range(
+            f64::from(u8::from(v)),
+            0.0,
+            1.0,
+            1e-6,
+            "PCC_Status",
+            "PCC_ErrorAirPlusOpen",
+        )?;
+        Ok(u8::from(v))
     }
 
     /// Physical value of `PCC_ErrorBypassed` for a raw value.
@@ -10047,9 +10242,27 @@ impl PccStatus {
 
     /// Raw value of `PCC_PrechargeProgress` for a physical value, range-checked.
     pub fn pcc_precharge_progress_to_raw(v: f64) -> Result<u16, EncodeError> {
-        runtime::check_range(v, 0.0, 655.35, 1e-8, "PCC_Status", "PCC_PrechargeProgress")?;
+        runtime::check_range(v, 0.0, 163.83, 1e-8, "PCC_Status", "PCC_PrechargeProgress")?;
         // The range check keeps the raw value inside the signal's bits (shown when generated).
         Ok(runtime::round_i32(v / 0.01) as u16)
+    }
+
+    /// Physical value of `PCC_ErrorConvertersDisagree` for a raw value.
+    pub fn pcc_error_converters_disagree_from_raw(raw: u8) -> bool {
+        raw != 0
+    }
+
+    /// Raw value of `PCC_ErrorConvertersDisagree` for a physical value, range-checked.
+    pub fn pcc_error_converters_disagree_to_raw(v: bool) -> Result<u8, EncodeError> {
+        runtime::check_range(
+            f64::from(u8::from(v)),
+            0.0,
+            1.0,
+            1e-6,
+            "PCC_Status",
+            "PCC_ErrorConvertersDisagree",
+        )?;
+        Ok(u8::from(v))
     }
 }
 

@@ -96,7 +96,7 @@ impl TelemetryRecord {
     /// rounded to its scaling's resolution (`203.84`, not `203.84000000000003`).
     /// `TELEMETRY.decode` reads it back.
     pub fn to_json(&self, ts: f64) -> Vec<u8> {
-        let mut payload = Vec::with_capacity(4435);
+        let mut payload = Vec::with_capacity(4486);
         let out = &mut payload;
         out.extend_from_slice(b"{\"ts\":");
         json_float(out, ts);
@@ -294,6 +294,8 @@ impl TelemetryRecord {
         json_bool(out, self.telemetry.fault_inverter_warning);
         out.extend_from_slice(b",\"fault_pcc_error\":");
         json_bool(out, self.telemetry.fault_pcc_error);
+        out.extend_from_slice(b",\"fault_tractive_mismatch\":");
+        json_bool(out, self.telemetry.fault_tractive_mismatch);
         out.push(b'}');
         payload
     }
@@ -1097,7 +1099,7 @@ pub fn encode_message(
 }
 
 fn ccm_status_json(value: &crate::can::CcmStatus, ts: f64, bus: &str) -> Vec<u8> {
-    let mut payload = Vec::with_capacity(1117 + bus.len());
+    let mut payload = Vec::with_capacity(1172 + bus.len());
     let out = &mut payload;
     out.extend_from_slice(b"{\"ts\":");
     json_float(out, ts);
@@ -1145,6 +1147,8 @@ fn ccm_status_json(value: &crate::can::CcmStatus, ts: f64, bus: &str) -> Vec<u8>
     json_bool(out, value.ccm_fault_inverter_warning);
     out.extend_from_slice(b",\"ccm_fault_pcc_error\":");
     json_bool(out, value.ccm_fault_pcc_error);
+    out.extend_from_slice(b",\"ccm_fault_tractive_mismatch\":");
+    json_bool(out, value.ccm_fault_tractive_mismatch);
     out.push(b'}');
     payload
 }
@@ -1430,7 +1434,7 @@ fn orion_cell_voltages_json(value: &crate::can::OrionCellVoltages, ts: f64, bus:
 }
 
 fn pcc_status_json(value: &crate::can::PccStatus, ts: f64, bus: &str) -> Vec<u8> {
-    let mut payload = Vec::with_capacity(904 + bus.len());
+    let mut payload = Vec::with_capacity(1012 + bus.len());
     let out = &mut payload;
     out.extend_from_slice(b"{\"ts\":");
     json_float(out, ts);
@@ -1440,6 +1444,8 @@ fn pcc_status_json(value: &crate::can::PccStatus, ts: f64, bus: &str) -> Vec<u8>
     json_int(out, value.pcc_state.into_raw());
     out.extend_from_slice(b",\"pcc_state_label\":");
     json_label(out, value.pcc_state.label());
+    out.extend_from_slice(b",\"pcc_error_air_plus_open\":");
+    json_bool(out, value.pcc_error_air_plus_open);
     out.extend_from_slice(b",\"pcc_error_bypassed\":");
     json_bool(out, value.pcc_error_bypassed);
     out.extend_from_slice(b",\"pcc_error_resistor_hot\":");
@@ -1470,6 +1476,8 @@ fn pcc_status_json(value: &crate::can::PccStatus, ts: f64, bus: &str) -> Vec<u8>
     json_fixed(out, value.pcc_tractive_voltage, 2);
     out.extend_from_slice(b",\"pcc_precharge_progress\":");
     json_fixed(out, value.pcc_precharge_progress, 2);
+    out.extend_from_slice(b",\"pcc_error_converters_disagree\":");
+    json_bool(out, value.pcc_error_converters_disagree);
     out.push(b'}');
     payload
 }

@@ -21,7 +21,7 @@ use super::runtime::{self, ByteOrder, SignalMeta, SignalVisitor, Value};
 /// Fingerprint of this layout and of the CAN database it references: the first four bytes of
 /// every packet, so a receiver built from another schema rejects the packet instead of
 /// mis-decoding it.
-pub const TELEMETRY_FINGERPRINT: u32 = 0x3C476174;
+pub const TELEMETRY_FINGERPRINT: u32 = 0xE38C9F26;
 
 /// The header fields a sender chooses (the fingerprint is fixed).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -340,6 +340,10 @@ pub struct Telemetry {
     ///
     /// Wire: flag in bit 3 of byte 75, mirrors `CCM_Status.CCM_FaultPccError`.
     pub fault_pcc_error: bool,
+    /// Fault bitmap bit 16: the PCC's tractive-system reading and the inverter's DC link disagree (one at 60 V or more, more than 10 % and 30 V apart) for 500 ms: one of them measures wrong, and the tractive system may be live where it reads dead.
+    ///
+    /// Wire: flag in bit 4 of byte 75, mirrors `CCM_Status.CCM_FaultTractiveMismatch`.
+    pub fault_tractive_mismatch: bool,
 }
 
 /// Why a packet could not be read.
@@ -420,7 +424,7 @@ impl FieldDisplay {
     }
 }
 
-static TELEMETRY_FIELDS: [SignalMeta; 86] = [
+static TELEMETRY_FIELDS: [SignalMeta; 87] = [
     SignalMeta {
         name: "apps_travel",
         index: 0,
@@ -1833,9 +1837,25 @@ static TELEMETRY_FIELDS: [SignalMeta; 86] = [
         labels: &[],
         multiplexed: false,
     },
+    SignalMeta {
+        name: "fault_tractive_mismatch",
+        index: 86,
+        unit: "",
+        comment: "Fault bitmap bit 16: the PCC's tractive-system reading and the inverter's DC link disagree (one at 60 V or more, more than 10 % and 30 V apart) for 500 ms: one of them measures wrong, and the tractive system may be live where it reads dead.",
+        start_bit: 604,
+        len: 1,
+        byte_order: ByteOrder::LittleEndian,
+        signed: false,
+        factor: 1.0,
+        offset: 0.0,
+        min: Some(0.0),
+        max: Some(1.0),
+        labels: &[],
+        multiplexed: false,
+    },
 ];
 
-static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
+static TELEMETRY_DISPLAY: [FieldDisplay; 87] = [
     FieldDisplay {
         group: "pedals",
         label: "Throttle",
@@ -2610,6 +2630,15 @@ static TELEMETRY_DISPLAY: [FieldDisplay; 86] = [
         critical_below: None,
         mirrors: Some("CCM_Status"),
     },
+    FieldDisplay {
+        group: "ccm_faults",
+        label: "TS voltage disagrees",
+        warn: None,
+        critical: Some(0.0),
+        warn_below: None,
+        critical_below: None,
+        mirrors: Some("CCM_Status"),
+    },
 ];
 
 /// The fields of [`Telemetry`] that mirror a DBC signal (`signal:` in telemetry.yaml), as
@@ -2812,6 +2841,10 @@ pub struct TelemetryMirror {
     ///
     /// Wire: flag in bit 3 of byte 75, mirrors `CCM_Status.CCM_FaultPccError`.
     pub fault_pcc_error: bool,
+    /// Fault bitmap bit 16: the PCC's tractive-system reading and the inverter's DC link disagree (one at 60 V or more, more than 10 % and 30 V apart) for 500 ms: one of them measures wrong, and the tractive system may be live where it reads dead.
+    ///
+    /// Wire: flag in bit 4 of byte 75, mirrors `CCM_Status.CCM_FaultTractiveMismatch`.
+    pub fault_tractive_mismatch: bool,
 }
 
 impl TelemetryMirror {
@@ -2877,6 +2910,7 @@ impl TelemetryMirror {
         fault_inverter_fault: false,
         fault_inverter_warning: false,
         fault_pcc_error: false,
+        fault_tractive_mismatch: false,
     };
 
     /// Copies every field that mirrors a signal of `message`; other fields keep their value.
@@ -2902,6 +2936,7 @@ impl TelemetryMirror {
                 self.fault_inverter_fault = m.ccm_fault_inverter_fault;
                 self.fault_inverter_warning = m.ccm_fault_inverter_warning;
                 self.fault_pcc_error = m.ccm_fault_pcc_error;
+                self.fault_tractive_mismatch = m.ccm_fault_tractive_mismatch;
             }
             AnyMessage::Mcu1(m) => {
                 self.motor_direction = m.mcu_rotate_direction;
@@ -3182,6 +3217,7 @@ impl Telemetry {
             fault_inverter_fault: false,
             fault_inverter_warning: false,
             fault_pcc_error: false,
+            fault_tractive_mismatch: false,
         }
     }
 }
@@ -3649,6 +3685,13 @@ impl Telemetry {
                 *b |= 1 << 3;
             }
         }
+        let (raw, clamped) = Self::fault_tractive_mismatch_to_raw(self.fault_tractive_mismatch);
+        saturated += u8::from(clamped);
+        if raw {
+            if let Some(b) = out.get_mut(75) {
+                *b |= 1 << 4;
+            }
+        }
         saturated
     }
 
@@ -3927,6 +3970,9 @@ impl Telemetry {
                 fault_pcc_error: Self::fault_pcc_error_from_raw(
                     data.get(75).is_some_and(|b| b & (1 << 3) != 0),
                 ),
+                fault_tractive_mismatch: Self::fault_tractive_mismatch_from_raw(
+                    data.get(75).is_some_and(|b| b & (1 << 4) != 0),
+                ),
             },
         ))
     }
@@ -4028,6 +4074,7 @@ impl Telemetry {
             fault_inverter_fault: mirror.fault_inverter_fault,
             fault_inverter_warning: mirror.fault_inverter_warning,
             fault_pcc_error: mirror.fault_pcc_error,
+            fault_tractive_mismatch: mirror.fault_tractive_mismatch,
         }
     }
 
@@ -4205,6 +4252,8 @@ impl Telemetry {
         visitor.signal(&TELEMETRY_FIELDS[84], Value::from(v), None);
         let v = self.fault_pcc_error;
         visitor.signal(&TELEMETRY_FIELDS[85], Value::from(v), None);
+        let v = self.fault_tractive_mismatch;
+        visitor.signal(&TELEMETRY_FIELDS[86], Value::from(v), None);
     }
 
     /// Physical value of `apps_travel` for a raw wire value.
@@ -5168,6 +5217,16 @@ impl Telemetry {
 
     /// Wire value of `fault_pcc_error`, and whether it had to be saturated.
     pub fn fault_pcc_error_to_raw(v: bool) -> (bool, bool) {
+        (v, false)
+    }
+
+    /// Physical value of `fault_tractive_mismatch` for a raw wire value.
+    pub fn fault_tractive_mismatch_from_raw(raw: bool) -> bool {
+        raw
+    }
+
+    /// Wire value of `fault_tractive_mismatch`, and whether it had to be saturated.
+    pub fn fault_tractive_mismatch_to_raw(v: bool) -> (bool, bool) {
         (v, false)
     }
 }

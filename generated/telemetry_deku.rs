@@ -256,6 +256,9 @@ impl TelemetryFrame {
                 self.flags[5] & (1 << 2) != 0,
             ),
             fault_pcc_error: Telemetry::fault_pcc_error_from_raw(self.flags[5] & (1 << 3) != 0),
+            fault_tractive_mismatch: Telemetry::fault_tractive_mismatch_from_raw(
+                self.flags[5] & (1 << 4) != 0,
+            ),
         };
         (header, telemetry)
     }
@@ -394,6 +397,9 @@ impl TelemetryFrame {
         }
         if Telemetry::fault_pcc_error_to_raw(t.fault_pcc_error).0 {
             flags[5] |= 1 << 3;
+        }
+        if Telemetry::fault_tractive_mismatch_to_raw(t.fault_tractive_mismatch).0 {
+            flags[5] |= 1 << 4;
         }
         Self {
             fingerprint: TELEMETRY_FINGERPRINT,

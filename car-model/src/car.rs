@@ -147,6 +147,7 @@ impl Car {
         // contact that chatters for a few milliseconds reaches the relays all the same.
         plant.shutdown_closed = !(plan.is_active(now_ms, Fault::ShutdownOpen) || self.command.park);
         plant.air_plus_welded = plan.is_active(now_ms, Fault::AirPlusWelded);
+        plant.air_plus_stuck_open = plan.is_active(now_ms, Fault::AirPlusStuckOpen);
         plant.discharge_failed = plan.is_active(now_ms, Fault::DischargeFailed);
         plant.load_ohm = plan
             .is_active(now_ms, Fault::TractiveLoad)

@@ -49,6 +49,8 @@ pub enum Fault {
     ConverterSilent(usize),
     /// AIR+'s contacts weld shut: closed whatever the PCC and the shutdown circuit do.
     AirPlusWelded,
+    /// AIR+ never closes, whatever the PCC commands (its coil unpowered, its driver dead).
+    AirPlusStuckOpen,
     /// The discharge circuit is open: with the AIRs open the tractive system discharges only
     /// through the inverter's own bleeder, in tens of seconds.
     DischargeFailed,
@@ -70,7 +72,7 @@ pub enum Fault {
 
 impl Fault {
     /// Every kind, with its first variant where it has several (for reports).
-    pub const KINDS: [Self; 21] = [
+    pub const KINDS: [Self; 22] = [
         Self::PedalConverterLost,
         Self::PedalSensorOpen(0),
         Self::PedalSensorShorted(1),
@@ -86,6 +88,7 @@ impl Fault {
         Self::GarbledFrames(Node::Pcc),
         Self::ConverterSilent(1),
         Self::AirPlusWelded,
+        Self::AirPlusStuckOpen,
         Self::DischargeFailed,
         Self::TractiveLoad,
         Self::ThermistorOpen(0),

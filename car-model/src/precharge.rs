@@ -32,6 +32,8 @@ pub struct PrechargePlant {
     pub shutdown_closed: bool,
     /// AIR+'s contacts are welded shut.
     pub air_plus_welded: bool,
+    /// AIR+ never closes (its coil unpowered, its driver dead).
+    pub air_plus_stuck_open: bool,
     /// The discharge circuit is open: the capacitance discharges through the inverter's own
     /// bleeder only ([`BLEEDER_TAU_MS`]).
     pub discharge_failed: bool,
@@ -88,6 +90,7 @@ impl PrechargePlant {
             discharge_tau_ms,
             shutdown_closed: true,
             air_plus_welded: false,
+            air_plus_stuck_open: false,
             discharge_failed: false,
             load_ohm: None,
             resistor: PrechargeResistor::new(25.0),
@@ -97,7 +100,8 @@ impl PrechargePlant {
     /// True when AIR+ is closed: the PCC commands it and the shutdown circuit powers it, or
     /// its contacts are welded.
     pub fn air_plus_closed(&self, relays: Relays) -> bool {
-        (self.shutdown_closed && relays.air_plus) || self.air_plus_welded
+        (self.shutdown_closed && relays.air_plus && !self.air_plus_stuck_open)
+            || self.air_plus_welded
     }
 
     /// True when the pack is connected to the tractive system without the resistor: AIR+
@@ -186,7 +190,11 @@ pub struct PccNode {
     bms: BmsLink,
     /// The circuit.
     pub plant: PrechargePlant,
+    /// The relays as the PCC commands them.
     relays: Relays,
+    /// AIR+'s contacts, which follow the command after the contactor's operate or release
+    /// time.
+    contacts: Contacts,
     channels: [VoltageChannel; 2],
     pulses: [PulseGenerator; 2],
     /// The sensing faults in effect.
@@ -194,6 +202,42 @@ pub struct PccNode {
     /// Every time the pack was connected without the resistor: how many times, and the
     /// lowest the tractive system stood then (% of the pack).
     pub closures: Closures,
+}
+
+/// AIR+ closes [`AIR_OPERATE_MS`] after its coil is powered and opens [`AIR_RELEASE_MS`]
+/// after it is released (assumed: the contactors FSAE cars carry close in 15-30 ms and open in
+/// under 10 ms): what the PCC sees of ONLINE is its contacts, not its command.
+pub const AIR_OPERATE_MS: u32 = 25;
+/// See [`AIR_OPERATE_MS`].
+pub const AIR_RELEASE_MS: u32 = 8;
+
+/// AIR+'s contacts and since when its command last changed.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+struct Contacts {
+    closed: bool,
+    commanded: bool,
+    since_ms: u32,
+}
+
+impl Contacts {
+    /// The contacts at `now_ms` with the coil `commanded`.
+    fn follow(&mut self, commanded: bool, now_ms: u32) -> Relays {
+        if commanded != self.commanded {
+            self.commanded = commanded;
+            self.since_ms = now_ms;
+        }
+        let delay = if commanded {
+            AIR_OPERATE_MS
+        } else {
+            AIR_RELEASE_MS
+        };
+        if self.closed != commanded && now_ms.wrapping_sub(self.since_ms) >= delay {
+            self.closed = commanded;
+        }
+        Relays {
+            air_plus: self.closed,
+        }
+    }
 }
 
 /// The pack connected to the tractive system without the resistor (AIR+ and AIR- closed):
@@ -217,6 +261,7 @@ impl PccNode {
             bms: BmsLink::default(),
             plant: PrechargePlant::new(accumulator_v, 3_800.0, 500.0),
             relays: Relays::ALL_OPEN,
+            contacts: Contacts::default(),
             channels: CONVERTERS.map(|vf| VoltageChannel::new(vf, TASK_PERIOD_MS)),
             pulses: [PulseGenerator::default(); 2],
             sensing: SensingFaults::default(),
@@ -271,7 +316,8 @@ impl PccNode {
     /// Advances the circuit by one millisecond ending at `now_ms` with the relays as last
     /// commanded, and the converters' pulses of that millisecond into the measurement chain.
     pub fn advance(&mut self, now_ms: u32) {
-        let connected = self.plant.connected(self.relays);
+        let contacts = self.contacts.follow(self.relays.air_plus, now_ms);
+        let connected = self.plant.connected(contacts);
         if connected && !self.closures.was_connected && self.plant.accumulator_v > 0.0 {
             let percent = 100.0 * self.plant.tractive_v / self.plant.accumulator_v;
             self.closures.count += 1;
@@ -282,7 +328,7 @@ impl PccNode {
             );
         }
         self.closures.was_connected = connected;
-        self.plant.advance(self.relays, 1.0);
+        self.plant.advance(contacts, 1.0);
         let start_us = now_ms.wrapping_sub(1).wrapping_mul(1_000);
         let volts = [self.plant.accumulator_v, self.plant.tractive_v];
         for (((generator, channel), vf), (volts, silent)) in self
@@ -304,7 +350,9 @@ impl PccNode {
 
     /// The accumulator is connected to the tractive system through AIR+ (full power).
     pub fn connected(&self) -> bool {
-        self.plant.connected(self.relays)
+        self.plant.connected(Relays {
+            air_plus: self.contacts.closed,
+        })
     }
 
     /// The PCC's state.

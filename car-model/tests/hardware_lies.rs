@@ -418,3 +418,29 @@ fn a_welded_air_plus_under_a_closure_of_a_few_milliseconds_is_named_all_the_same
         assert_rules_hold(&run, &format!("AIR+ welded, closed {closed_ms} ms"));
     }
 }
+
+#[test]
+fn air_plus_that_never_closes_is_named_and_no_torque_flows() {
+    // AIR+'s coil is dead: the PCC commands it closed at 90 %, the tractive system stays
+    // where the precharge resistor holds it.
+    let plan = FaultPlan::NONE.with(Injection {
+        fault: Fault::AirPlusStuckOpen,
+        from_ms: 0,
+        until_ms: u32::MAX,
+    });
+    let mut run = ClosedLoop::new(ModelParams::NOMINAL, Mode::Road, Cycle::Skidpad, plan);
+    assert!(
+        !run.start_up(20_000),
+        "the car never becomes ready to drive"
+    );
+    run.run_until(run.now_ms() + 10_000, &mut NoTap);
+    let errors = run.car.pcc.logic.errors();
+    assert!(errors.air_plus_open, "{errors}");
+    assert!(
+        !errors.no_discharge,
+        "held up through the resistor: {errors}"
+    );
+    assert!(!run.car.pcc.relays().air_plus, "AIR+ released");
+    assert_eq!(run.car.pcc.state(), State::Error);
+    assert_rules_hold(&run, "AIR+ stuck open");
+}

@@ -64,6 +64,7 @@ fn fault() -> impl Strategy<Value = Fault> {
         (0usize..2).prop_map(Fault::BusOff),
         (0usize..2).prop_map(Fault::ConverterSilent),
         Just(Fault::AirPlusWelded),
+        Just(Fault::AirPlusStuckOpen),
         Just(Fault::DischargeFailed),
         Just(Fault::TractiveLoad),
         (0usize..2).prop_map(Fault::ThermistorOpen),

@@ -259,7 +259,22 @@ pub const MAX_TEMP_DEGC: (f32, f32, f32) = (120.0, 85.0, 60.0);
 /// The tractive system counts as off (for calibration changes and saving) only while the
 /// PCC reports STANDBY with its tractive-system voltage below this (the 60 V DC low-voltage
 /// limit of the rules, as the PCC's own handover uses).
-pub const TRACTIVE_OFF_V: f32 = 60.0;
+pub const TRACTIVE_OFF_V: f32 = aer_params::TRACTIVE_LOW_VOLTAGE_V;
+
+/// The precharge target (% of the pack) the PCC closes AIR+ at: a PCC that reports ONLINE or
+/// CHARGING below it reports what it cannot be.
+pub const PCC_TARGET_PERCENT: f32 = aer_params::PRECHARGE_TARGET_PERCENT;
+
+/// The PCC's tractive-system reading and the inverter's DC link may differ by this fraction of
+/// the higher (the converters are checked to 1 % on the bench day, the DTI's reading is not
+/// specified better than a few percent: assumed) ...
+pub const TRACTIVE_MISMATCH_FRACTION: f32 = 0.1;
+/// ... plus this (V): the PCC's 10 Hz filter and the inverter's status period lag a tractive
+/// system that rises or falls by up to 800 V/s (the discharge's 0.5 s time constant).
+pub const TRACTIVE_MISMATCH_MARGIN_V: f32 = 30.0;
+/// ... for this long before it is a fault (ms): longer than any precharge or discharge
+/// transient, short against the seconds a wrong "dead" reading would matter for.
+pub const TRACTIVE_MISMATCH_PERSIST_MS: u32 = 500;
 /// The car counts as stopped (for calibration changes and saving) only while the motor, on a
 /// fresh inverter status, and both front wheels turn slower than this (rad/s, about 0.1 m/s at
 /// the wheel); an unknown speed counts as moving.

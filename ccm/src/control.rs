@@ -421,6 +421,7 @@ impl Control {
             ccm_fault_inverter_fault: faults.has(Fault::InverterFault),
             ccm_fault_inverter_warning: faults.has(Fault::InverterWarning),
             ccm_fault_pcc_error: faults.has(Fault::PccError),
+            ccm_fault_tractive_mismatch: faults.has(Fault::TractiveMismatch),
         }
     }
 

@@ -4,7 +4,11 @@
 use crate::apps::AppsReading;
 use crate::brakes::BrakeReading;
 use crate::bus::BusInputs;
-use crate::constants::{MAX_TEMP_DEGC, MIN_CELL_V, SENSOR_FAULT_PERSIST_MS, SOC_DERATE_END};
+use crate::constants::{
+    MAX_TEMP_DEGC, MIN_CELL_V, PCC_TARGET_PERCENT, SENSOR_FAULT_PERSIST_MS, SOC_DERATE_END,
+    TRACTIVE_MISMATCH_FRACTION, TRACTIVE_MISMATCH_MARGIN_V, TRACTIVE_MISMATCH_PERSIST_MS,
+    TRACTIVE_OFF_V,
+};
 use aer::can::{PccStatus, PrechargeState};
 use aer_control::Persist;
 
@@ -48,6 +52,10 @@ pub enum Fault {
     /// The PCC reports ERROR (or a state the schema does not know): the accumulator is
     /// disconnected; the PCC's own error bits say why.
     PccError = 15,
+    /// The PCC's tractive-system reading and the inverter's DC link disagree (one at 60 V or
+    /// more, apart by more than the two measurements can be) for 500 ms: they measure one
+    /// node, so one of them is wrong, and the tractive system may be live where it reads dead.
+    TractiveMismatch = 16,
 }
 
 /// What a fault makes the car do.
@@ -64,7 +72,7 @@ pub enum Reaction {
 
 impl Fault {
     /// Every fault, in bit order.
-    pub const ALL: [Self; 16] = [
+    pub const ALL: [Self; 17] = [
         Self::OverCurrent,
         Self::UnderVoltage,
         Self::OverTemperature,
@@ -81,6 +89,7 @@ impl Fault {
         Self::InverterFault,
         Self::InverterWarning,
         Self::PccError,
+        Self::TractiveMismatch,
     ];
 
     /// The fault's bit.
@@ -169,6 +178,7 @@ pub struct FaultMonitor {
     over_current: Persist,
     under_voltage: Persist,
     over_temperature: Persist,
+    tractive_mismatch: Persist,
 }
 
 impl FaultMonitor {
@@ -229,16 +239,51 @@ impl FaultMonitor {
         map.set(Fault::InverterWarning, bus.inverter.warning);
         let pcc_error = bus.pcc.is_some_and(|status| pcc_reports_error(&status));
         map.set(Fault::PccError, pcc_error);
+        let mismatch = bus
+            .pcc
+            .zip(bus.inverter.dc_link)
+            .is_some_and(|(pcc, (dti_v, _))| tractive_readings_disagree(&pcc, dti_v));
+        let mismatch = self
+            .tractive_mismatch
+            .update(mismatch, now_ms)
+            .is_some_and(|held| held >= TRACTIVE_MISMATCH_PERSIST_MS);
+        map.set(Fault::TractiveMismatch, mismatch);
         map
     }
 }
 
+/// The PCC's tractive-system reading (its converter silent counts as 0 V: what it reports as
+/// the voltage) and the inverter's DC link measure one node, whatever the AIRs do: they
+/// disagree when either reads 60 V or more and they differ by more than
+/// [`TRACTIVE_MISMATCH_FRACTION`] of the higher plus [`TRACTIVE_MISMATCH_MARGIN_V`] (the two
+/// filters' lag while the tractive system rises or falls).
+pub fn tractive_readings_disagree(pcc: &PccStatus, dti_v: f32) -> bool {
+    let pcc_v = if pcc.pcc_tractive_no_pulses || pcc.pcc_error_tractive_silent {
+        0.0
+    } else {
+        pcc.pcc_tractive_voltage as f32
+    };
+    if !dti_v.is_finite() {
+        return false;
+    }
+    let higher = pcc_v.max(dti_v);
+    higher >= TRACTIVE_OFF_V
+        && (pcc_v - dti_v).abs() > higher * TRACTIVE_MISMATCH_FRACTION + TRACTIVE_MISMATCH_MARGIN_V
+}
+
 /// The PCC reports a fault, or a status no working PCC sends: its ERROR or UNDEFINED state
-/// (or one the schema does not name), any latched cause (each needs a power cycle), or a
-/// converter without pulses while it says the tractive system is connected (a voltage it
-/// cannot know).
+/// (or one the schema does not name), any cause in any state, or, while it says the tractive
+/// system is connected (ONLINE, CHARGING), a converter without pulses (a voltage it cannot
+/// know), progress below the precharge target or a tractive system below 60 V (AIR+ cannot
+/// be closed on that).
 pub fn pcc_reports_error(status: &PccStatus) -> bool {
-    let latched = status.pcc_error_bypassed
+    let latched = status.pcc_error_too_fast
+        || status.pcc_error_too_slow
+        || status.pcc_error_bms_timeout
+        || status.pcc_error_shutdown
+        || status.pcc_error_air_plus_open
+        || status.pcc_error_converters_disagree
+        || status.pcc_error_bypassed
         || status.pcc_error_resistor_hot
         || status.pcc_error_accumulator_silent
         || status.pcc_error_tractive_silent
@@ -249,11 +294,13 @@ pub fn pcc_reports_error(status: &PccStatus) -> bool {
         PrechargeState::Online | PrechargeState::Charging
     );
     let blind = status.pcc_accumulator_no_pulses || status.pcc_tractive_no_pulses;
+    let contradicted = status.pcc_precharge_progress < f64::from(PCC_TARGET_PERCENT)
+        || status.pcc_tractive_voltage < f64::from(TRACTIVE_OFF_V);
     matches!(
         status.pcc_state,
         PrechargeState::Error | PrechargeState::Undefined | PrechargeState::Unknown(_)
     ) || latched
-        || (connected && blind)
+        || (connected && (blind || contradicted))
 }
 
 #[cfg(test)]
@@ -263,6 +310,8 @@ mod tests {
     fn status(state: PrechargeState) -> PccStatus {
         PccStatus {
             pcc_state: state,
+            pcc_error_air_plus_open: false,
+            pcc_error_converters_disagree: false,
             pcc_error_bypassed: false,
             pcc_error_resistor_hot: false,
             pcc_accumulator_no_pulses: false,
@@ -292,12 +341,31 @@ mod tests {
             ..status(PrechargeState::Standby)
         };
         assert!(!pcc_reports_error(&rest));
-        // A shutdown opened while energised clears on its own: the state says enough.
-        let shutdown = PccStatus {
-            pcc_error_shutdown: true,
+        // DISCHARGE (the pack's reading lost while energised): AIR+ open, no cause latched.
+        let discharge = PccStatus {
+            pcc_tractive_voltage: 200.0,
+            pcc_precharge_progress: 50.0,
             ..status(PrechargeState::Discharge)
         };
-        assert!(!pcc_reports_error(&shutdown));
+        assert!(!pcc_reports_error(&discharge));
+    }
+
+    #[test]
+    fn online_with_readings_it_cannot_have_is_an_error() {
+        for state in [PrechargeState::Online, PrechargeState::Charging] {
+            let below_target = PccStatus {
+                pcc_precharge_progress: 89.0,
+                ..status(state)
+            };
+            assert!(pcc_reports_error(&below_target), "{state:?} at 89 %");
+            let dead = PccStatus {
+                pcc_tractive_voltage: 0.0,
+                pcc_accumulator_voltage: 0.0,
+                pcc_precharge_progress: 0.0,
+                ..status(state)
+            };
+            assert!(pcc_reports_error(&dead), "{state:?} at 0 V");
+        }
     }
 
     #[test]
@@ -313,7 +381,13 @@ mod tests {
 
     #[test]
     fn every_latched_cause_is_an_error_whatever_the_state_says() {
-        let latched: [fn(&mut PccStatus); 6] = [
+        let latched: [fn(&mut PccStatus); 12] = [
+            |s| s.pcc_error_too_fast = true,
+            |s| s.pcc_error_too_slow = true,
+            |s| s.pcc_error_bms_timeout = true,
+            |s| s.pcc_error_shutdown = true,
+            |s| s.pcc_error_air_plus_open = true,
+            |s| s.pcc_error_converters_disagree = true,
             |s| s.pcc_error_bypassed = true,
             |s| s.pcc_error_resistor_hot = true,
             |s| s.pcc_error_accumulator_silent = true,
@@ -328,6 +402,29 @@ mod tests {
                 assert!(pcc_reports_error(&lying), "cause {index} in {state:?}");
             }
         }
+    }
+
+    #[test]
+    fn the_pcc_and_the_inverter_disagree_only_beyond_what_two_readings_can() {
+        let reading = |volts: f64| PccStatus {
+            pcc_tractive_voltage: volts,
+            ..status(PrechargeState::Standby)
+        };
+        // Both dead, both live and close, a discharge's lag: agreed.
+        assert!(!tractive_readings_disagree(&reading(0.0), 2.0));
+        assert!(!tractive_readings_disagree(&reading(392.0), 385.0));
+        assert!(!tractive_readings_disagree(&reading(300.0), 240.0));
+        // The PCC reads dead where the inverter reads live, or the reverse.
+        assert!(tractive_readings_disagree(&reading(8.0), 392.0));
+        assert!(tractive_readings_disagree(&reading(392.0), 5.0));
+        // A PCC converter without pulses reports 0 V, whatever the frame's number says.
+        let silent = PccStatus {
+            pcc_tractive_no_pulses: true,
+            ..reading(392.0)
+        };
+        assert!(tractive_readings_disagree(&silent, 392.0));
+        // An inverter reading that is not a number proves nothing either way.
+        assert!(!tractive_readings_disagree(&reading(0.0), f32::NAN));
     }
 
     #[test]

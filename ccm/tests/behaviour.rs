@@ -431,6 +431,8 @@ fn bus_frames_fill_the_mirror_and_bad_ones_are_counted() {
     let status = PccStatus {
         pcc_state: PrechargeState::Online,
         pcc_error_too_fast: false,
+        pcc_error_air_plus_open: false,
+        pcc_error_converters_disagree: false,
         pcc_error_bypassed: false,
         pcc_error_resistor_hot: false,
         pcc_accumulator_no_pulses: false,

@@ -276,6 +276,8 @@ struct Heard {
     pcc: Option<aer::can::PrechargeState>,
     /// The PCC's tractive converter fell silent after reading 60 V or more (latched).
     pcc_tractive_silent: bool,
+    /// What the PCC reads the tractive system at (V).
+    pcc_tractive_v: f64,
     /// The DTI drops its drive enable this long after the last enable command (ms); `None`:
     /// never.
     timeout_ms: Option<u32>,
@@ -289,6 +291,7 @@ impl Heard {
             fault: aer::can::DtiFaultCode::None,
             pcc: None,
             pcc_tractive_silent: false,
+            pcc_tractive_v: 392.0,
             timeout_ms: Some(80),
         }
     }
@@ -367,6 +370,8 @@ fn run(
                 PccStatus {
                     pcc_state: state,
                     pcc_error_too_fast: false,
+                    pcc_error_air_plus_open: false,
+                    pcc_error_converters_disagree: false,
                     pcc_error_bypassed: false,
                     pcc_error_resistor_hot: false,
                     pcc_accumulator_no_pulses: false,
@@ -379,7 +384,7 @@ fn run(
                     pcc_error_shutdown: false,
                     pcc_error_undefined_state: false,
                     pcc_accumulator_voltage: 392.0,
-                    pcc_tractive_voltage: 392.0,
+                    pcc_tractive_voltage: heard.pcc_tractive_v,
                     pcc_precharge_progress: 100.0,
                 }
                 .encode(&mut data)
@@ -659,18 +664,43 @@ fn dti_enable_at_high_voltage_needs_wheels_off_the_ground_and_the_pcc_online() {
     ));
     assert_eq!(bench.enable(300), Err(DtiRefusal::WheelsNotConfirmed));
     bench.guard.confirm_wheels_off_ground(300);
-    for (pcc, expected) in [
-        (None, DtiRefusal::PccNotOnline(None)),
+    for (heard, expected) in [
         (
-            Some(PrechargeState::Precharge),
+            Heard {
+                pcc: None,
+                ..Heard::high_voltage()
+            },
+            DtiRefusal::PccNotOnline(None),
+        ),
+        (
+            Heard {
+                pcc: Some(PrechargeState::Precharge),
+                ..Heard::high_voltage()
+            },
             DtiRefusal::PccNotOnline(Some(PrechargeState::Precharge)),
+        ),
+        // ONLINE, but with its tractive converter's silence latched: a status the race CCM
+        // calls a PCC error.
+        (
+            Heard {
+                pcc_tractive_silent: true,
+                ..Heard::high_voltage()
+            },
+            DtiRefusal::PccFault,
+        ),
+        // ONLINE, the PCC reading 300 V where the DTI reads 392 V: one of them is wrong.
+        (
+            Heard {
+                pcc_tractive_v: 300.0,
+                ..Heard::high_voltage()
+            },
+            DtiRefusal::Disagree {
+                pcc_v: Some(300.0),
+                dti_v: 392.0,
+            },
         ),
     ] {
         let mut bench = DtiBench::default();
-        let heard = Heard {
-            pcc,
-            ..Heard::high_voltage()
-        };
         run(&mut bench, &heard, &mut sent, 0, 300);
         bench.guard.confirm_wheels_off_ground(300);
         assert_eq!(bench.enable(300), Err(expected));

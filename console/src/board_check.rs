@@ -37,6 +37,10 @@ pub const IVT_OFFSET: u32 = 0x1000;
 /// The IVT header's tag byte (its lowest byte, little-endian).
 pub const IVT_TAG: u8 = 0xD1;
 
+/// Reads 2 MiB on that differ from the start in this many bits or fewer are a garbled copy,
+/// not other data.
+const GARBLED_BITS: u32 = 8;
+
 /// What the board check read: 16 bytes at the flash's start and at its IVT, and the same two
 /// [`WRAP_OFFSET`] further on, all with 8 MiB addressing.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -91,13 +95,29 @@ impl Teensy {
     /// The board from what the check read: a 4.0 when both the boot configuration block and
     /// the IVT repeat [`WRAP_OFFSET`] further on, a 4.1 otherwise; `None` when either is not
     /// where the boot ROM needs it (the read did not work, so nothing can be concluded).
+    ///
+    /// A 4.1 needs the reads 2 MiB on to be other data, not a failed read: all zeros, or a
+    /// copy of the start with a few bits wrong, proves nothing and is `None` too. (An erased
+    /// 4.1 reads all ones there, which a failing read could also return: that case stays
+    /// the bench day's, step 1.2.)
     pub fn from_probe(probe: &Probe) -> Option<Self> {
         let [ivt_header, ..] = probe.ivt;
         if probe.origin[0] != FCB_TAG || ivt_header.to_le_bytes()[0] != IVT_TAG {
             return None;
         }
-        let wrapped = probe.origin == probe.origin_at_wrap && probe.ivt == probe.ivt_at_wrap;
-        Some(if wrapped { Self::T40 } else { Self::T41 })
+        let at_wrap = || probe.origin_at_wrap.iter().chain(&probe.ivt_at_wrap);
+        let start = probe.origin.iter().chain(&probe.ivt);
+        let differing: u32 = start
+            .zip(at_wrap())
+            .map(|(a, b)| (a ^ b).count_ones())
+            .sum();
+        if differing == 0 {
+            return Some(Self::T40);
+        }
+        if differing <= GARBLED_BITS || at_wrap().all(|word| *word == 0) {
+            return None;
+        }
+        Some(Self::T41)
     }
 }
 
@@ -219,6 +239,18 @@ mod tests {
             Teensy::from_probe(&unread),
             None,
             "no block read: no conclusion"
+        );
+        let mut garbled = FCB;
+        garbled[1] ^= 1;
+        assert_eq!(
+            Teensy::from_probe(&probe(garbled, IVT)),
+            None,
+            "a copy with a bit wrong is a bad read, not a 4.1"
+        );
+        assert_eq!(
+            Teensy::from_probe(&probe([0; 4], [0; 4])),
+            None,
+            "zeros are a read that returned nothing"
         );
         let no_ivt = Probe {
             ivt: [0; 4],

@@ -6,10 +6,12 @@
 //! Every frame still pending is taken off the bus first (aborted, or deactivated while the
 //! bus is idle, as ERR006032 requires), so no stale command can leave after the stop frames:
 //! they are always the last word. They then take the transmit mailboxes lowest first, which
-//! with equal identifiers is also the order they leave in.
+//! with equal identifiers is also the order they leave in; frames of different identifiers
+//! leave lowest identifier first. After they are armed the spare mailbox is written inactive
+//! twice (ERR005829, as the driver's `transmit` does), so none is skipped in arbitration.
 
 use crate::frame::{self, code};
-use crate::{CanFrame, FIRST_TX_MB, LAST_MB, MB_RAM_WORD_OFFSET};
+use crate::{CanFrame, ERRATA_MB, FIRST_TX_MB, LAST_MB, MB_RAM_WORD_OFFSET};
 
 /// IFLAG1's word in the register block (offset 0x30).
 const IFLAG1_WORD: usize = 0x30 / 4;
@@ -100,9 +102,22 @@ impl<B: BlockWords> EmergencyTx<B> {
     pub fn queue(&mut self, frames: impl IntoIterator<Item = CanFrame>, polls: u32) -> Queued {
         let mut withdrawn = 0u8;
         for mb in FIRST_TX_MB..=LAST_MB {
-            if frame::code_of(self.block.read(Self::mb(mb, 0))) == code::TX_DATA {
-                self.withdraw(mb, polls);
-                withdrawn = withdrawn.saturating_add(1);
+            match frame::code_of(self.block.read(Self::mb(mb, 0))) {
+                code::TX_DATA => {
+                    self.withdraw(mb, polls);
+                    withdrawn = withdrawn.saturating_add(1);
+                }
+                // An abort the driver had asked for and the panic interrupted: let it finish
+                // (the flag rises, aborted or sent), then park the buffer.
+                code::TX_ABORT => {
+                    let bit = 1u32 << mb;
+                    let _ = (0..polls).any(|_| self.block.read(IFLAG1_WORD) & bit != 0);
+                    self.block.write(IFLAG1_WORD, bit);
+                    self.block
+                        .write(Self::mb(mb, 0), frame::cs_with_code(code::TX_INACTIVE));
+                    withdrawn = withdrawn.saturating_add(1);
+                }
+                _ => {}
             }
         }
         let mut mask = 0u32;
@@ -117,6 +132,12 @@ impl<B: BlockWords> EmergencyTx<B> {
             self.block.write(Self::mb(mb, 3), words[3]);
             self.block.write(Self::mb(mb, 0), words[0]);
             mask |= bit;
+        }
+        for _ in 0..2 {
+            self.block.write(
+                Self::mb(ERRATA_MB, 0),
+                frame::cs_with_code(code::TX_INACTIVE),
+            );
         }
         Queued { mask, withdrawn }
     }
@@ -342,6 +363,47 @@ mod tests {
         let queued = tx.queue([command(DISABLE)], 10);
         assert_eq!(queued.mask, 1 << FIRST_TX_MB);
         assert!(!tx.wait_sent(queued.mask, 10));
+    }
+
+    #[test]
+    fn the_spare_mailbox_is_written_inactive_twice_after_the_stop_frames_are_armed() {
+        let mut tx = EmergencyTx::over(Model::new(0));
+        tx.queue([command(DISABLE), command(DISABLE)], 100);
+        let model = tx.into_block();
+        let last_armed = model
+            .codes
+            .iter()
+            .rposition(|&(_, written)| written == code::TX_DATA)
+            .expect("armed");
+        let spare = model.codes[last_armed..]
+            .iter()
+            .filter(|&&entry| entry == (ERRATA_MB, code::TX_INACTIVE))
+            .count();
+        assert_eq!(spare, 2, "{:?}", model.codes);
+    }
+
+    #[test]
+    fn a_mailbox_caught_mid_abort_is_parked_before_it_is_reused() {
+        let mut model = Model::new(0);
+        model.pending(FIRST_TX_MB, &command(ENABLE));
+        let at = EmergencyTx::<Model>::mb(FIRST_TX_MB, 0);
+        model.words[at] =
+            (model.words[at] & !frame::CODE_MASK) | frame::cs_with_code(code::TX_ABORT);
+        let mut tx = EmergencyTx::over(model);
+        let queued = tx.queue([command(DISABLE)], 100);
+        let model = tx.into_block();
+        assert_eq!(queued.withdrawn, 1);
+        let parked = model
+            .codes
+            .iter()
+            .position(|&entry| entry == (FIRST_TX_MB, code::TX_INACTIVE))
+            .expect("parked");
+        let armed = model
+            .codes
+            .iter()
+            .position(|&(_, written)| written == code::TX_DATA)
+            .expect("armed");
+        assert!(parked < armed, "{:?}", model.codes);
     }
 
     #[test]

@@ -84,7 +84,7 @@ const IFLAG_FIFO_OVERFLOW: u32 = 1 << 7;
 /// its 8-entry filter table buffers 6-7, so buffer 8 is the first free one.
 const FIFO_FILTERS: usize = 8;
 /// Buffer 8 stays inactive for the ERR005829 workaround.
-const ERRATA_MB: usize = 8;
+pub(crate) const ERRATA_MB: usize = 8;
 pub(crate) const FIRST_TX_MB: usize = 9;
 pub(crate) const LAST_MB: usize = 15;
 /// Message-buffer RAM starts 0x80 bytes into the register block; each buffer is 4 words.

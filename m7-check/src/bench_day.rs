@@ -27,7 +27,7 @@ use aer_pcc::console::{
 };
 use aer_pcc::constants::CONVERTERS;
 use aer_pcc::measurement::VoltageChannel;
-use aer_pcc::{Inputs, Precharge, PrechargeConfig, Relays, TASK_PERIOD_MS};
+use aer_pcc::{Inputs, Precharge, PrechargeConfig, Relays, State, TASK_PERIOD_MS};
 use core::fmt::{self, Write};
 
 /// A named transcript.
@@ -398,7 +398,15 @@ fn ccm_panic_frames(out: &mut dyn Write) -> fmt::Result {
     if let Ok(frames) = aer_ccm::console::dti::EnableTest::disable_frames() {
         stop.publish(&frames);
     }
-    for frame in stop.latest().iter() {
+    // Queued at once in separate mailboxes, they leave in arbitration order: lowest identifier
+    // first.
+    let latest = stop.latest();
+    let mut frames: [Option<&_>; 8] = [None; 8];
+    for (slot, frame) in frames.iter_mut().zip(latest.iter()) {
+        *slot = Some(frame);
+    }
+    frames.sort_unstable_by_key(|frame| frame.map_or(u32::MAX, |frame| frame.id));
+    for frame in frames.iter().flatten() {
         write!(out, "  can0  {:08X}   [{}] ", frame.id, frame.data().len())?;
         for byte in frame.data() {
             write!(out, " {byte:02X}")?;
@@ -660,6 +668,16 @@ impl RacePcc {
         self.now_ms += TASK_PERIOD_MS;
     }
 
+    /// Fails the transcript unless the PCC is in `state` now: a scenario that injects its
+    /// fault into the wrong state documents the wrong thing.
+    fn expect(&self, state: State) -> fmt::Result {
+        if self.pcc.state() == state {
+            Ok(())
+        } else {
+            Err(fmt::Error)
+        }
+    }
+
     /// The race image's answer to `reboot` now.
     fn ask(&mut self, reboot: Reboot) {
         let outcome = self.pcc.handover().map(|_| ());
@@ -717,6 +735,7 @@ fn discharging(from_v: f32, to_v: f32, start_ms: u32, duration_ms: u32) -> Pulse
 fn pcc_race_shutdown(out: &mut dyn Write) -> fmt::Result {
     let mut pcc = precharging();
     pcc.run(19_990, None)?;
+    pcc.expect(State::Online)?;
     // The shutdown circuit opens: the tractive system discharges (pin 15 swept down to 0 Hz
     // over 0.6 s, as a 0.3 s discharge time constant does).
     pcc.inputs[1].pulses = discharging(300.0, 0.0, 19_990, 600);
@@ -726,6 +745,7 @@ fn pcc_race_shutdown(out: &mut dyn Write) -> fmt::Result {
 fn pcc_race_converter_silent(out: &mut dyn Write) -> fmt::Result {
     let mut pcc = precharging();
     pcc.run(19_990, None)?;
+    pcc.expect(State::Online)?;
     // ONLINE at 300 V, the tractive converter's wire breaks: its pulses stop at once.
     pcc.inputs[1].pulses = Pulses::None;
     pcc.run(20_500, Some(&mut *out))?;
@@ -741,10 +761,11 @@ fn pcc_race_converter_silent(out: &mut dyn Write) -> fmt::Result {
 fn pcc_race_no_discharge(out: &mut dyn Write) -> fmt::Result {
     let mut pcc = precharging();
     pcc.run(19_990, None)?;
+    pcc.expect(State::Online)?;
     // The shutdown circuit opens but the tractive system only sags to 150 V and stays there:
     // the discharge circuit does not work (or an AIR is welded).
     pcc.inputs[1].pulses = discharging(300.0, 150.0, 19_990, 2_000);
-    pcc.run(25_100, Some(&mut *out))?;
+    pcc.run(25_700, Some(&mut *out))?;
     pcc.ask(Reboot::Bootloader);
     flush(&mut pcc.log, out)
 }
@@ -768,6 +789,7 @@ fn pcc_race_bypassed(out: &mut dyn Write) -> fmt::Result {
 fn pcc_race_status(out: &mut dyn Write) -> fmt::Result {
     let mut pcc = precharging();
     pcc.run(19_990, None)?;
+    pcc.expect(State::Online)?;
     pcc.inputs[1].pulses = Pulses::None;
     pcc.run(20_500, None)?;
     pcc.race_log

@@ -321,9 +321,12 @@ impl SimCcm {
         }
         let tenth = now_ms % 100 == 3;
         if let Some(state) = self.pcc {
+            let online = matches!(state, PrechargeState::Online | PrechargeState::Charging);
             let status = PccStatus {
                 pcc_state: state,
                 pcc_error_too_fast: false,
+                pcc_error_air_plus_open: false,
+                pcc_error_converters_disagree: false,
                 pcc_error_bypassed: false,
                 pcc_error_resistor_hot: false,
                 pcc_accumulator_no_pulses: false,
@@ -336,12 +339,9 @@ impl SimCcm {
                 pcc_error_shutdown: false,
                 pcc_error_undefined_state: false,
                 pcc_accumulator_voltage: 392.0,
-                pcc_tractive_voltage: if state == PrechargeState::Online {
-                    392.0
-                } else {
-                    0.0
-                },
-                pcc_precharge_progress: 0.0,
+                // AIR+ closed joins the two: what a working PCC reports ONLINE.
+                pcc_tractive_voltage: if online { 392.0 } else { 0.0 },
+                pcc_precharge_progress: if online { 100.0 } else { 0.0 },
             };
             self.push_encoded(Bus::Vehicle, PccStatus::ID, false, |data| {
                 status.encode(data)

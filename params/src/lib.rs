@@ -5,6 +5,15 @@
 //! choices and must be checked on the car before they are trusted.
 #![no_std]
 
+// --- Tractive system ---------------------------------------------------------------------
+
+/// Below this the tractive system counts as discharged (V DC): the rules' low-voltage limit,
+/// which the PCC's hand-over and discharge check and the CCM's guards use alike.
+pub const TRACTIVE_LOW_VOLTAGE_V: f32 = 60.0;
+/// The precharge target (% of the accumulator voltage) at which the PCC closes AIR+: the
+/// team's design. A PCC that reports ONLINE or CHARGING below it reports what it cannot be.
+pub const PRECHARGE_TARGET_PERCENT: f32 = 90.0;
+
 // --- Powertrain --------------------------------------------------------------------------
 
 /// Motor torque the car is built for (Nm); also the inverter's 100 % torque reference.

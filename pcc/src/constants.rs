@@ -61,6 +61,22 @@ pub struct PrechargeConfig {
     /// Windows in a row below [`Self::online_min_percent`] that count (one stray window is
     /// noise on a converter's line).
     pub online_drop_periods: u32,
+    /// After ONLINE or CHARGING is entered, AIR+ must bring the tractive system to
+    /// [`Self::online_min_percent`] within this (ms), or `air-plus-open` latches. The online
+    /// minimum is watched from the first window that reaches it: AIR+ takes 20-30 ms to
+    /// close on the car, the bench's linear sweep about half a second from 90 % (6d). Until
+    /// then a fall from the peak, as in PRECHARGE, still opens AIR+.
+    pub air_plus_close_ms: u32,
+    /// ONLINE and CHARGING follow the BMS's charger-safety bit once it has held a new value
+    /// this long (ms): a bit that flickers (a garbled frame, a mis-mapped byte) switches
+    /// nothing.
+    pub charger_debounce_ms: u32,
+    /// While energised, the unfiltered progress above this in
+    /// [`Self::online_drop_periods`] windows in a row latches `converters-disagree`: no
+    /// circuit puts the tractive system above the pack, and with AIR+ closed both converters
+    /// read one node (6c lets them disagree by 1 %), so a reading this high is a converter's
+    /// scaling or divider gone wrong, which would also move every other judgement.
+    pub max_progress_percent: f32,
     /// In STANDBY (from rest) and PRECHARGE, progress rising this many points within one
     /// window is no precharge through the resistor (the car's rises at most a few tenths of a
     /// point per 10 ms): AIR+ is welded or the resistor bypassed, latched at once.
@@ -83,19 +99,22 @@ pub struct PrechargeConfig {
 impl PrechargeConfig {
     /// The car's values: 90 % target reached between 8.2 s and 9.2 s, BMS timeout 1.5 s.
     pub const CAR: Self = Self {
-        target_percent: 90.0,
+        target_percent: aer_params::PRECHARGE_TARGET_PERCENT,
         min_time_ms: 8_200,
         max_time_ms: 9_200,
         target_hold_ms: 20,
         min_accumulator_v: 60.0,
         standby_settle_ms: 200,
         bms_timeout_ms: 1_500,
-        discharged_v: 60.0,
+        discharged_v: aer_params::TRACTIVE_LOW_VOLTAGE_V,
         start_percent: 2.0,
         rest_percent: 5.0,
         precharge_drop_percent: 10.0,
         online_min_percent: 95.0,
         online_drop_periods: 2,
+        air_plus_close_ms: 1_000,
+        charger_debounce_ms: 100,
+        max_progress_percent: 103.0,
         bypass_rise_percent: 20.0,
         discharge_time_ms: 5_000,
         bypass_max_ms: 500,

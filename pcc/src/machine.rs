@@ -205,6 +205,13 @@ pub struct Precharge {
     last_raw_progress: Option<(f32, u32)>,
     /// Windows in a row below the online minimum (ONLINE, CHARGING).
     online_low: u32,
+    /// The tractive system reached the online minimum since ONLINE or CHARGING was entered
+    /// (AIR+ closed): from then on it must stay there.
+    online_reached: bool,
+    /// Since when the BMS's charger-safety bit has asked for the other of ONLINE and CHARGING.
+    charger_change_since: Option<u32>,
+    /// Windows in a row above the maximum progress (energised).
+    progress_high: u32,
     /// What latched `bypassed` by the rate of rise.
     bypass: Option<BypassRise>,
 }
@@ -362,6 +369,9 @@ impl Precharge {
             raw_progress: 0.0,
             last_raw_progress: None,
             online_low: 0,
+            online_reached: false,
+            charger_change_since: None,
+            progress_high: 0,
             bypass: None,
         }
     }
@@ -522,6 +532,7 @@ impl Precharge {
 
         if self.state.is_energised() {
             // Faults first: whatever else happens this period, they open everything.
+            self.latch_disagreement();
             if self.falling_away(now) {
                 self.errors.shutdown = true;
             }
@@ -590,9 +601,7 @@ impl Precharge {
                 }
             }
             State::Precharge => self.precharge(now, inputs.charger_safety),
-            State::Online if inputs.charger_safety => self.enter(State::Charging, now),
-            State::Charging if !inputs.charger_safety => self.enter(State::Online, now),
-            State::Online | State::Charging => {}
+            State::Online | State::Charging => self.follow_charger(now, inputs.charger_safety),
             State::Discharge => {
                 if self.tractive_v < self.config.discharged_v {
                     self.enter(State::Standby, now);
@@ -666,6 +675,19 @@ impl Precharge {
         }
     }
 
+    /// Latches `converters-disagree` when the tractive system reads above the pack by more
+    /// than the converters can disagree, for the drop windows in a row.
+    fn latch_disagreement(&mut self) {
+        if self.raw_progress > self.config.max_progress_percent {
+            self.progress_high = self.progress_high.saturating_add(1);
+        } else {
+            self.progress_high = 0;
+        }
+        if self.progress_high >= self.config.online_drop_periods {
+            self.errors.converters_disagree = true;
+        }
+    }
+
     /// Latches `resistor-hot` at the first thermistor reading at or above the limit.
     fn latch_hot_resistor(&mut self) {
         if self.errors.resistor_hot {
@@ -719,11 +741,31 @@ impl Precharge {
     }
 
     /// True once the tractive system has been falling away from the pack for the hold time:
-    /// in PRECHARGE, progress more than the allowed drop below its peak; in ONLINE and
-    /// CHARGING, below the online minimum. Either means AIR- or the precharge path opened
-    /// (the shutdown circuit) or the tractive system is being loaded down (a short).
+    /// in PRECHARGE, and in ONLINE and CHARGING until AIR+ has brought it to the online
+    /// minimum, progress more than the allowed drop below its peak; from then on, below the
+    /// online minimum. Either means AIR- or the precharge path opened (the shutdown circuit)
+    /// or the tractive system is being loaded down (a short). AIR+ that does not bring it to
+    /// the online minimum within the close time latches `air-plus-open` instead.
     fn falling_away(&mut self, now: u32) -> bool {
         let progress = self.progress_percent;
+        if matches!(self.state, State::Online | State::Charging) && !self.online_reached {
+            if self.raw_progress >= self.config.online_min_percent {
+                self.online_reached = true;
+            } else if now.wrapping_sub(self.entered_ms) >= self.config.air_plus_close_ms {
+                self.errors.air_plus_open = true;
+                return false;
+            } else {
+                // AIR+ still closing: a fall from the peak opens it, as in PRECHARGE.
+                self.peak_percent = self.peak_percent.max(progress);
+                let falling = progress < self.peak_percent - self.config.precharge_drop_percent;
+                if !falling {
+                    self.falling_since_ms = None;
+                    return false;
+                }
+                let since = *self.falling_since_ms.get_or_insert(now);
+                return now.wrapping_sub(since) >= self.config.target_hold_ms;
+            }
+        }
         if matches!(self.state, State::Online | State::Charging) {
             // Each window's own reading, no filter and no hold beyond the windows: AIR+ must
             // be open before a shutdown circuit that bounces can close again onto a tractive
@@ -807,15 +849,12 @@ impl Precharge {
 
     fn enter(&mut self, state: State, now: u32) {
         if self.state.is_energised() && matches!(state, State::Error | State::Discharge) {
-            // AIR+ opens now: watch the discharge. A shutdown that opened was seen falling
-            // already; any other cause waits for the fall (the shutdown circuit opening).
+            // AIR+ opens now: watch the discharge from the first real fall from the peak (the
+            // shutdown circuit opening). A tractive system still held up through the precharge
+            // resistor, the circuit closed, never starts the timer.
             self.discharge = Some(DischargeWatch {
                 peak_v: self.tractive_v,
-                falling_since_ms: if self.errors.shutdown {
-                    self.falling_since_ms
-                } else {
-                    None
-                },
+                falling_since_ms: None,
             });
         }
         self.state = state;
@@ -823,12 +862,42 @@ impl Precharge {
         self.entered_ms = now;
         self.conditions.reset();
         self.at_target_since_ms = None;
-        self.peak_percent = 0.0;
+        // Entering ONLINE or CHARGING, the reading AIR+ closes on is the peak a fall is judged
+        // from while it closes.
+        self.peak_percent = if matches!(state, State::Online | State::Charging) {
+            self.progress_percent
+        } else {
+            0.0
+        };
         self.trough_percent = f32::MAX;
         self.rest_seen = false;
         self.falling_since_ms = None;
         self.online_low = 0;
+        self.online_reached = false;
+        self.charger_change_since = None;
+        self.progress_high = 0;
         self.last_raw_progress = None;
+    }
+
+    /// ONLINE and CHARGING follow the BMS's charger-safety bit once it has held its new value
+    /// for the debounce time. Both keep AIR+ closed, so the switch is not a new state's start:
+    /// the watch on the tractive system (its low windows, its fall) goes on across it, and a
+    /// bit that flickers cannot keep restarting it.
+    fn follow_charger(&mut self, now: u32, charger_safety: bool) {
+        let wanted = if charger_safety {
+            State::Charging
+        } else {
+            State::Online
+        };
+        if wanted == self.state {
+            self.charger_change_since = None;
+            return;
+        }
+        let since = *self.charger_change_since.get_or_insert(now);
+        if now.wrapping_sub(since) >= self.config.charger_debounce_ms {
+            self.state = wanted;
+            self.charger_change_since = None;
+        }
     }
 }
 

@@ -20,6 +20,12 @@ pub const STALL_MIN_US: u32 = 2_000;
 pub const IRREGULAR_SPREAD: f32 = 0.3;
 /// Periods a window needs before their spread is judged.
 const SPREAD_MIN_PERIODS: u32 = 4;
+/// A window with fewer periods (but two at least) is irregular when its longest is more than
+/// this many times its shortest: bursts of a few edges between gaps (a contact that frets
+/// once per window) read as a low voltage otherwise. A converter's own jitter is a few
+/// percent, and at the voltages that matter (60 V is over 700 Hz) a window holds seven
+/// periods or more, so this judges only what the spread cannot.
+const FEW_PERIODS_RATIO: u32 = 2;
 
 /// Edge-to-edge frequency measurement on one input.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
@@ -31,6 +37,9 @@ pub struct FrequencyMeter {
     span_us: u32,
     /// The sum of the squared periods in this window (us^2), for their spread.
     span_sq_us: u64,
+    /// This window's shortest and longest period (us).
+    shortest_us: u32,
+    longest_us: u32,
     last_hz: f32,
     /// The mean period of the last regular window that held whole periods (us).
     last_period_us: Option<u32>,
@@ -46,6 +55,12 @@ impl FrequencyMeter {
                 .span_sq_us
                 .saturating_add(u64::from(period) * u64::from(period));
             self.periods = self.periods.saturating_add(1);
+            self.shortest_us = if self.periods == 1 {
+                period
+            } else {
+                self.shortest_us.min(period)
+            };
+            self.longest_us = self.longest_us.max(period);
         }
         self.last_edge_us = Some(now_us);
         self.latest_edge_us = Some(now_us);
@@ -53,8 +68,11 @@ impl FrequencyMeter {
 
     /// True when this window's periods spread like a train with edges missing or added.
     fn irregular(&self) -> bool {
-        if self.periods < SPREAD_MIN_PERIODS {
+        if self.periods < 2 {
             return false;
+        }
+        if self.periods < SPREAD_MIN_PERIODS {
+            return self.longest_us > self.shortest_us.saturating_mul(FEW_PERIODS_RATIO);
         }
         let n = self.periods as f32;
         let mean = self.span_us as f32 / n;
@@ -104,6 +122,8 @@ impl FrequencyMeter {
         self.periods = 0;
         self.span_us = 0;
         self.span_sq_us = 0;
+        self.shortest_us = 0;
+        self.longest_us = 0;
         self.last_hz = hz;
         hz
     }
@@ -193,7 +213,9 @@ impl VoltageChannel {
         let hz = self.meter.sample(now_us, self.config.edge_timeout_us);
         let raw_volts = self.config.volts_for_hz(hz);
         let volts = self.filter.update(raw_volts);
-        if whole_period {
+        // Only a regular window measured: an irregular one reads 0, which must not become
+        // the voltage a silence is named with.
+        if whole_period && hz > 0.0 {
             self.last_measured_v = volts;
         }
         let since_edge_us = now_us.wrapping_sub(self.meter.latest_edge_us.unwrap_or(started));
@@ -428,6 +450,42 @@ mod tests {
             t += period;
         }
         assert!(meter.reading(t, 100_000).is_some());
+    }
+
+    #[test]
+    fn bursts_of_a_few_edges_between_gaps_are_silent_not_a_low_voltage() {
+        extern crate std;
+        use std::vec::Vec;
+        // 400 V through a contact that closes for 450-600 us once per 10 or 20 ms, at a
+        // jittered phase: two or three edges per burst, which would read 8-28 V.
+        for (cycle_us, closed_us) in [(10_000u32, 450u32), (10_000, 600), (20_000, 600)] {
+            let mut meter = FrequencyMeter::default();
+            let period = 213u32;
+            let mut read = Vec::new();
+            let mut t = 0u32;
+            for window in 1..=40u32 {
+                while t < window * 10_000 {
+                    let cycle = t / cycle_us;
+                    let open = cycle * cycle_us
+                        + 1_000
+                        + (cycle.wrapping_mul(2_654_435_761) >> 20) % (cycle_us / 4);
+                    if (open..open + closed_us).contains(&t) {
+                        meter.on_edge(t);
+                    }
+                    t += period;
+                }
+                read.push(meter.reading(window * 10_000, 100_000));
+            }
+            // Past the first windows, no window reads a voltage far below the true one.
+            let low: Vec<_> = read
+                .iter()
+                .skip(2)
+                .flatten()
+                .map(|hz| VfConfig::PCC_BOARD.volts_for_hz(*hz))
+                .filter(|volts| *volts < 300.0)
+                .collect();
+            assert!(low.is_empty(), "{cycle_us}/{closed_us}: {low:?}");
+        }
     }
 
     #[test]

@@ -67,6 +67,12 @@ pub struct Errors {
     pub bypassed: bool,
     /// A precharge-resistor thermistor read the resistor's limit or more.
     pub resistor_hot: bool,
+    /// AIR+ was commanded closed but the tractive system did not reach the online minimum of
+    /// the pack within the close time: AIR+, its coil, its driver or its supply.
+    pub air_plus_open: bool,
+    /// While energised the tractive system read above the accumulator by more than the
+    /// converters can disagree: a scaling or divider changed, neither reading is trusted.
+    pub converters_disagree: bool,
 }
 
 impl Errors {
@@ -82,6 +88,8 @@ impl Errors {
             || self.undefined_state
             || self.bypassed
             || self.resistor_hot
+            || self.air_plus_open
+            || self.converters_disagree
     }
 
     /// True when any cause is latched.
@@ -107,6 +115,11 @@ impl core::fmt::Display for Errors {
             (self.too_slow, "too-slow"),
             (self.bms_timeout, "bms-timeout"),
             (self.shutdown, "shutdown"),
+            (self.air_plus_open, "air-plus-open (AIR+ did not close)"),
+            (
+                self.converters_disagree,
+                "converters-disagree (the tractive system read above the pack)",
+            ),
             (self.accumulator_silent, "accumulator-converter-silent"),
             (self.tractive_silent, "tractive-converter-silent"),
             (self.no_discharge, "no-discharge"),

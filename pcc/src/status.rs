@@ -7,6 +7,8 @@ use embedded_can::{Frame, StandardId};
 
 /// Largest value the status frame's 16-bit, 0.01-scaled fields hold.
 const FIELD_MAX: f64 = 655.35;
+/// Largest progress the frame's 14-bit, 0.01-scaled field holds (%).
+const PROGRESS_MAX: f64 = 163.83;
 
 impl Precharge {
     /// The status as the schema's message, values clamped to what the frame can carry.
@@ -15,6 +17,8 @@ impl Precharge {
         let [accumulator, tractive] = self.pulses();
         PccStatus {
             pcc_state: self.state().to_wire(),
+            pcc_error_air_plus_open: errors.air_plus_open,
+            pcc_error_converters_disagree: errors.converters_disagree,
             pcc_error_bypassed: errors.bypassed,
             pcc_error_resistor_hot: errors.resistor_hot,
             pcc_accumulator_no_pulses: accumulator.is_silent(),
@@ -29,7 +33,7 @@ impl Precharge {
             pcc_error_undefined_state: errors.undefined_state,
             pcc_accumulator_voltage: clamp(self.accumulator_v()),
             pcc_tractive_voltage: clamp(self.tractive_v()),
-            pcc_precharge_progress: clamp(self.progress_percent()),
+            pcc_precharge_progress: f64::from(self.progress_percent()).clamp(0.0, PROGRESS_MAX),
         }
     }
 

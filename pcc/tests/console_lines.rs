@@ -143,6 +143,8 @@ fn the_race_lines_fit_the_race_log() {
         undefined_state: true,
         bypassed: true,
         resistor_hot: true,
+        air_plus_open: true,
+        converters_disagree: true,
     };
     let worst_volts = ConverterVolts {
         volts: -f32::MAX,

@@ -306,12 +306,46 @@ fn charger_safety_chooses_charging_and_switches_with_online() {
     let done = bench.precharge_reaching_target_after(CONFIG.min_time_ms);
     assert_eq!(bench.state(), State::Charging);
     assert_eq!(bench.pcc.relays(), CONNECTED);
+    // The bit must hold its new value for the debounce time before the state follows.
     bench.inputs.charger_safety = false;
-    assert_eq!(bench.at_with_bms(done + 10), CONNECTED);
+    let cleared = done + 10;
+    assert_eq!(bench.at_with_bms(cleared), CONNECTED);
+    assert_eq!(bench.state(), State::Charging, "not yet");
+    bench.at_with_bms(cleared + CONFIG.charger_debounce_ms - 10);
+    assert_eq!(bench.state(), State::Charging, "10 ms early");
+    assert_eq!(
+        bench.at_with_bms(cleared + CONFIG.charger_debounce_ms),
+        CONNECTED
+    );
     assert_eq!(bench.state(), State::Online);
     bench.inputs.charger_safety = true;
-    bench.at_with_bms(done + 20);
+    let set = cleared + CONFIG.charger_debounce_ms + 10;
+    bench.at_with_bms(set);
+    bench.at_with_bms(set + CONFIG.charger_debounce_ms);
     assert_eq!(bench.state(), State::Charging);
+}
+
+#[test]
+fn a_flickering_charger_bit_neither_switches_nor_blinds_the_online_watch() {
+    let mut bench = Bench::ready();
+    let done = bench.online();
+    let mut t = done;
+    // The bit flips every period: no switch, ever.
+    for step in 0..50u32 {
+        t += 10;
+        bench.inputs.charger_safety = step % 2 == 0;
+        bench.at_with_bms(t);
+        assert_eq!(bench.state(), State::Online, "at {t}");
+    }
+    // And the tractive system falling away is still seen at the second low window.
+    bench.set_progress(CONFIG.online_min_percent - 1.0);
+    for step in 0..2u32 {
+        t += 10;
+        bench.inputs.charger_safety = step % 2 == 0;
+        bench.at_with_bms(t);
+    }
+    assert_eq!(bench.state(), State::Error);
+    assert!(bench.pcc.errors().shutdown);
 }
 
 #[test]
@@ -831,4 +865,121 @@ fn only_a_rise_from_rest_with_the_pcc_ready_is_timed() {
         resistor_c: [Some(25.0); 2],
     });
     assert_eq!(pcc.state(), State::Precharge, "a rise from rest");
+}
+
+#[test]
+fn air_plus_that_does_not_close_is_named_and_starts_no_discharge_timer() {
+    // ONLINE at 90 %: AIR+ commanded closed, but the tractive system stays where the
+    // precharge resistor holds it (the coil unpowered, the driver dead).
+    let mut bench = Bench::ready();
+    let start = bench.start_precharge();
+    bench.set_progress(CONFIG.target_percent);
+    let reached = start + CONFIG.min_time_ms + 100;
+    bench.at_with_bms(reached);
+    let online = reached + CONFIG.target_hold_ms;
+    bench.at_with_bms(online);
+    assert_eq!(bench.state(), State::Online);
+    let mut t = online;
+    while t < online + CONFIG.air_plus_close_ms - 10 {
+        t += 10;
+        assert_eq!(bench.at_with_bms(t), CONNECTED, "closing at {t}");
+    }
+    t += 10;
+    assert_eq!(
+        bench.at_with_bms(t),
+        Relays::ALL_OPEN,
+        "the close time is over"
+    );
+    assert_eq!(
+        bench.pcc.errors(),
+        Errors {
+            air_plus_open: true,
+            ..Errors::default()
+        }
+    );
+    // The shutdown circuit stays closed: the tractive system held at 90 % through the
+    // resistor is no failed discharge.
+    for _ in 0..1_000 {
+        t += 10;
+        bench.at_with_bms(t);
+    }
+    assert!(!bench.pcc.errors().no_discharge, "{}", bench.pcc.errors());
+}
+
+#[test]
+fn online_holds_while_a_slow_rise_reaches_the_minimum_within_the_close_time() {
+    // The bench's linear sweep: 90 % at ONLINE, 95 % about 450 ms later, then the pack.
+    let mut bench = Bench::ready();
+    let start = bench.start_precharge();
+    bench.set_progress(CONFIG.target_percent);
+    let reached = start + CONFIG.min_time_ms + 100;
+    bench.at_with_bms(reached);
+    let online = reached + CONFIG.target_hold_ms;
+    bench.at_with_bms(online);
+    assert_eq!(bench.state(), State::Online);
+    let mut t = online;
+    for step in 1..=100u32 {
+        t += 10;
+        let percent = (CONFIG.target_percent + step as f32 * 0.1).min(100.0);
+        bench.set_progress(percent);
+        assert_eq!(bench.at_with_bms(t), CONNECTED, "{percent} % at {t}");
+    }
+    assert_eq!(bench.pcc.errors(), Errors::default());
+}
+
+#[test]
+fn a_fall_while_air_plus_closes_opens_it_as_a_shutdown() {
+    let mut bench = Bench::ready();
+    let start = bench.start_precharge();
+    bench.set_progress(CONFIG.target_percent);
+    let reached = start + CONFIG.min_time_ms + 100;
+    bench.at_with_bms(reached);
+    let online = reached + CONFIG.target_hold_ms;
+    bench.at_with_bms(online);
+    assert_eq!(bench.state(), State::Online);
+    // The shutdown circuit opens before AIR+ has closed: the tractive system falls.
+    bench.set_progress(CONFIG.target_percent - CONFIG.precharge_drop_percent - 1.0);
+    bench.at_with_bms(online + 10);
+    assert_eq!(bench.at_with_bms(online + 30), Relays::ALL_OPEN);
+    assert_eq!(
+        bench.pcc.errors(),
+        Errors {
+            shutdown: true,
+            ..Errors::default()
+        }
+    );
+}
+
+#[test]
+fn the_discharge_timer_starts_at_the_fall_after_a_shutdown_from_online() {
+    let mut bench = Bench::ready();
+    let online = bench.online();
+    bench.at_with_bms(online + 10);
+    // The shutdown circuit opens: the tractive system falls to 93 % and stays there (no
+    // discharge circuit, no load): the fall from the peak is under 10 %, so no timer yet.
+    bench.set_progress(93.0);
+    let mut t = online + 10;
+    for _ in 0..3 {
+        t += 10;
+        bench.at_with_bms(t);
+    }
+    assert_eq!(bench.state(), State::Error);
+    for _ in 0..1_000 {
+        t += 10;
+        bench.at_with_bms(t);
+    }
+    assert!(!bench.pcc.errors().no_discharge, "no fall, no timer");
+    // It falls well below its peak and stalls at 150 V: no-discharge 5 s after that fall.
+    bench.set_progress(50.0);
+    t += 10;
+    bench.at_with_bms(t);
+    let fell = t;
+    while t < fell + CONFIG.discharge_time_ms - 10 {
+        t += 10;
+        bench.at_with_bms(t);
+        assert!(!bench.pcc.errors().no_discharge, "early at {t}");
+    }
+    t += 20;
+    bench.at_with_bms(t);
+    assert!(bench.pcc.errors().no_discharge);
 }

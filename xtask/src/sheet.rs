@@ -183,8 +183,9 @@ pub fn sheet(page: &str) -> Result<String> {
     );
     let _ = writeln!(
         out,
-        "## Stop: any of these ends the day's high-voltage work\n\n\
-         Hands off the car; the ESO decides what happens next ([the page's Stop section](bench-day.md#stop)).\n"
+        "## Stop: any of these stops the day's work on the car\n\n\
+         First open the shutdown circuit if it is closed (the e-stop); then hands off the car, and the ESO\n\
+         decides what happens next and when work goes on ([the page's Stop section](bench-day.md#stop)).\n"
     );
     let _ = writeln!(out, "| Stop condition | Seen (time, what) |\n|---|---|");
     for stop in &stops {

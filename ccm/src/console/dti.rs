@@ -351,6 +351,7 @@ impl DtiBench {
         if !extended && id == PccStatus::ID {
             if let Ok(status) = PccStatus::decode(data) {
                 self.evidence.pcc = Some((status.pcc_state, now_ms));
+                self.evidence.pcc_fault = crate::faults::pcc_reports_error(&status);
                 // A tractive converter that fell silent after reading 60 V or more: its
                 // last reading is not the voltage now.
                 self.evidence.pcc_tractive_v = (!status.pcc_error_tractive_silent)
@@ -416,6 +417,11 @@ pub const DC_LINK_MAX_AGE_MS: u32 = 2 * DtiSpeed::CYCLE_TIME_MS;
 /// test commands 0 A: stop.
 pub const STILL_ERPM: i32 = 300;
 
+/// At high voltage the PCC's tractive-system reading and the DTI's DC link must agree within
+/// this fraction of the DTI's: AIR+ closed joins the two, and 6c and 8.1 check the PCC's
+/// converters to 1 % and 0.5 %.
+pub const AGREE_FRACTION: f32 = 0.1;
+
 /// What the guard reads: the last of each, with when it arrived.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct DtiEvidence {
@@ -429,6 +435,9 @@ pub struct DtiEvidence {
     pub pcc: Option<(PrechargeState, u32)>,
     /// The tractive-system voltage the PCC reads, from the same status (V).
     pub pcc_tractive_v: Option<f32>,
+    /// The same status reports a fault or says what a working PCC cannot
+    /// ([`crate::faults::pcc_reports_error`], as the race CCM judges it).
+    pub pcc_fault: bool,
 }
 
 impl DtiEvidence {
@@ -466,6 +475,17 @@ pub enum DtiRefusal {
     /// The DTI reads its DC link below 60 V while the PCC reports a state in which the
     /// tractive system is, or may be, live: the two disagree, and low voltage is not proven.
     PccEnergised(PrechargeState),
+    /// At high voltage the PCC reports ONLINE with a fault, or with readings no working PCC
+    /// sends ([`crate::faults::pcc_reports_error`]).
+    PccFault,
+    /// At high voltage the PCC's tractive-system reading (`None`: unknown) and the DTI's DC
+    /// link differ by more than [`AGREE_FRACTION`]: one of them measures wrong.
+    Disagree {
+        /// The PCC's reading (V).
+        pcc_v: Option<f32>,
+        /// The DTI's (V).
+        dti_v: f32,
+    },
     /// The DTI reads its DC link below 60 V while the PCC's tractive converter fell silent
     /// after reading 60 V or more (latched): the tractive system may be live.
     PccVoltageUnknown,
@@ -502,6 +522,19 @@ impl fmt::Display for DtiRefusal {
                 "the DTI reads its DC link below 60 V but the PCC reports {}: the tractive system may be live: open the shutdown circuit, then check the DTI's HV input and its DC link reading against the TSMP meter",
                 state.label().unwrap_or("an unknown state")
             ),
+            Self::PccFault => f.write_str(
+                "at high voltage the PCC must be ONLINE without a fault, and its status reports one (the report's PCC line names it): open the shutdown circuit and find it first",
+            ),
+            Self::Disagree { pcc_v, dti_v } => match pcc_v {
+                Some(pcc_v) => write!(
+                    f,
+                    "the PCC reads the tractive system at {pcc_v:.0} V and the DTI its DC link at {dti_v:.0} V: more than 10 % apart, one of them measures wrong: open the shutdown circuit, then check both against the TSMP meter at the next precharge"
+                ),
+                None => write!(
+                    f,
+                    "the DTI reads its DC link at {dti_v:.0} V and the PCC's tractive-system reading is unknown (its converter fell silent): open the shutdown circuit"
+                ),
+            },
             Self::PccVoltageUnknown => f.write_str(
                 "the DTI reads its DC link below 60 V but the PCC's tractive converter fell silent after reading 60 V or more: the tractive system may be live: open the shutdown circuit, measure at the TSMP, and power-cycle the PCC (LV off, USB out) once the ESO has measured below 60 V",
             ),
@@ -623,7 +656,19 @@ impl DtiGuard {
         }
         match evidence.pcc {
             Some((PrechargeState::Online, at)) if fresh(at, PccStatus::TIMEOUT_MS) => {
-                Ok(Path::HighVoltage)
+                if evidence.pcc_fault {
+                    return Err(DtiRefusal::PccFault);
+                }
+                // With AIR+ closed the PCC and the DTI measure one node.
+                match evidence.pcc_tractive_v {
+                    Some(pcc_v) if (pcc_v - volts).abs() <= volts * AGREE_FRACTION => {
+                        Ok(Path::HighVoltage)
+                    }
+                    pcc_v => Err(DtiRefusal::Disagree {
+                        pcc_v,
+                        dti_v: volts,
+                    }),
+                }
             }
             Some((state, at)) if fresh(at, PccStatus::TIMEOUT_MS) => {
                 Err(DtiRefusal::PccNotOnline(Some(state)))

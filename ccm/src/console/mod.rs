@@ -139,7 +139,7 @@ impl PccLine {
 }
 
 /// PCC_Status's latched causes with their names.
-fn pcc_causes(status: &aer::can::PccStatus) -> [(bool, &'static str); 10] {
+fn pcc_causes(status: &aer::can::PccStatus) -> [(bool, &'static str); 12] {
     [
         (status.pcc_error_too_fast, "too-fast"),
         (
@@ -149,6 +149,14 @@ fn pcc_causes(status: &aer::can::PccStatus) -> [(bool, &'static str); 10] {
         (status.pcc_error_too_slow, "too-slow"),
         (status.pcc_error_bms_timeout, "bms-timeout"),
         (status.pcc_error_shutdown, "shutdown"),
+        (
+            status.pcc_error_air_plus_open,
+            "air-plus-open (AIR+ did not close)",
+        ),
+        (
+            status.pcc_error_converters_disagree,
+            "converters-disagree (the tractive system read above the pack)",
+        ),
         (
             status.pcc_error_accumulator_silent,
             "accumulator-converter-silent",

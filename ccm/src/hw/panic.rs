@@ -35,6 +35,23 @@ pub fn inverter_bus_started() {
 
 #[panic_handler]
 fn panic(_: &PanicInfo<'_>) -> ! {
+    stop_and_reset()
+}
+
+/// A fault no Rust panic reports (a bus fault, a stack overflow, an undefined instruction)
+/// escalates here: the inverter is stopped the same way.
+#[teensy4_bsp::rt::exception]
+unsafe fn HardFault(_frame: &teensy4_bsp::rt::ExceptionFrame) -> ! {
+    stop_and_reset()
+}
+
+/// An interrupt or exception nothing handles: a defect, treated as a panic.
+#[teensy4_bsp::rt::exception]
+unsafe fn DefaultHandler(_irqn: i16) {
+    stop_and_reset()
+}
+
+fn stop_and_reset() -> ! {
     cortex_m::interrupt::disable();
     if INVERTER_BUS.load(Ordering::Acquire) {
         // SAFETY: CAN2's register block (imxrt-ral's address); it started (`INVERTER_BUS`),

@@ -385,6 +385,8 @@ pub fn pcc_status(state: PrechargeState) -> PccStatus {
     PccStatus {
         pcc_state: state,
         pcc_error_too_fast: false,
+        pcc_error_air_plus_open: false,
+        pcc_error_converters_disagree: false,
         pcc_error_bypassed: false,
         pcc_error_resistor_hot: false,
         pcc_accumulator_no_pulses: false,

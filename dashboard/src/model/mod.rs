@@ -516,6 +516,16 @@ fn pcc_alarms(status: &aer::can::PccStatus) -> Vec<(&'static str, Level)> {
             Level::Critical,
         ),
         (
+            status.pcc_error_air_plus_open,
+            "PCC: AIR+ did not close",
+            Level::Critical,
+        ),
+        (
+            status.pcc_error_converters_disagree,
+            "PCC: voltage sensing disagrees",
+            Level::Critical,
+        ),
+        (
             status.pcc_error_too_fast && !status.pcc_error_bypassed,
             "PCC: precharge too fast",
             Level::Critical,

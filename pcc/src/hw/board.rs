@@ -55,6 +55,19 @@ pub type ThermistorPins = (pins::P21, pins::P22);
 /// GPIO2 bit of the AIR+ output on pin 11: the panic handler clears it without the HAL.
 pub const AIR_PLUS_GPIO2_MASK: u32 = 1 << <pins::P11 as GpioPin<2>>::OFFSET;
 
+/// Pulls pin 11's pad down (100 kOhm, the keeper off), without making it an output: the first
+/// thing every PCC image does, before even the board check. After a watchdog reset from ONLINE
+/// the pad's keeper would otherwise hold the level AIR+ was closed at for as long as the image
+/// does not reach its outputs (a board it stops on). On a Teensy 4.1 pin 11 is the same pad,
+/// and a pull-down there drives nothing.
+pub fn park_air_plus(pins: &mut pins::Pins) {
+    use teensy4_bsp::hal::iomuxc::{self, Config, PullKeeper};
+    iomuxc::configure(
+        &mut pins.p11,
+        Config::modify().set_pull_keeper(Some(PullKeeper::Pulldown100k)),
+    );
+}
+
 /// Assigns the Teensy's pins to the board's signals.
 pub fn pins(pins: pins::Pins) -> Pins {
     Pins {

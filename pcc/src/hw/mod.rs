@@ -73,7 +73,9 @@ pub fn start(
         usb,
         ..
     } = bsp::t40(device);
-    // Which board this is, before any pin is touched: on another one, nothing is driven.
+    let mut pins = pins;
+    board::park_air_plus(&mut pins);
+    // Which board this is, before any pin is driven: on another one, nothing is.
     let check = BoardCheck {
         image: product,
         built_for: Teensy::T40,
@@ -177,9 +179,27 @@ pub fn halt_safe() -> ! {
 /// panicked, so it touches nothing but pin 11's write-only clear register. Both images'.
 #[panic_handler]
 fn panic(_: &PanicInfo<'_>) -> ! {
+    open_air_plus_and_wait()
+}
+
+/// A fault no Rust panic reports (a bus fault, a stack overflow, an undefined instruction)
+/// escalates here: the same as a panic.
+#[teensy4_bsp::rt::exception]
+unsafe fn HardFault(_frame: &teensy4_bsp::rt::ExceptionFrame) -> ! {
+    open_air_plus_and_wait()
+}
+
+/// An interrupt or exception nothing handles: a defect, treated as a panic.
+#[teensy4_bsp::rt::exception]
+unsafe fn DefaultHandler(_irqn: i16) {
+    open_air_plus_and_wait()
+}
+
+fn open_air_plus_and_wait() -> ! {
+    cortex_m::interrupt::disable();
     // SAFETY: DR_CLEAR is write-only and only clears the given bits; the mask is pin 11
     // (board.rs), an output from start-up onwards, so this can only open AIR+. Nothing else
-    // in the program can run after a panic.
+    // in the program runs after a panic or a fault.
     unsafe {
         let gpio2 = ral::gpio::GPIO2::instance();
         ral::write_reg!(ral::gpio, gpio2, DR_CLEAR, board::AIR_PLUS_GPIO2_MASK);
