@@ -9027,7 +9027,7 @@ pub struct PccStatus {
     ///
     /// `PCC_PrechargeProgress`: 14 bits from bit 48 (Intel), unsigned, physical = raw * 0.01, range [0.0, 163.83], unit `%`.
     pub pcc_precharge_progress: f64,
-    /// Latched: while energised the tractive system read above 103 % of the accumulator voltage in two windows in a row, which no circuit does (with AIR+ closed both converters measure one node): a converter's scaling or divider changed, so neither reading can be trusted. Needs a power cycle.
+    /// Latched: while energised the tractive system read above 102 % of the accumulator voltage in two windows in a row, which no circuit does (with AIR+ closed both converters measure one node): a converter's scaling or divider changed, so neither reading can be trusted. Needs a power cycle.
     ///
     /// `PCC_ErrorConvertersDisagree`: 1 bit from bit 62 (Intel), unsigned, range [0.0, 1.0].
     pub pcc_error_converters_disagree: bool,
@@ -9318,7 +9318,7 @@ static PCC_STATUS_SIGNALS: [SignalMeta; 18] = [
         name: "PCC_ErrorConvertersDisagree",
         index: 17,
         unit: "",
-        comment: "Latched: while energised the tractive system read above 103 % of the accumulator voltage in two windows in a row, which no circuit does (with AIR+ closed both converters measure one node): a converter's scaling or divider changed, so neither reading can be trusted. Needs a power cycle.",
+        comment: "Latched: while energised the tractive system read above 102 % of the accumulator voltage in two windows in a row, which no circuit does (with AIR+ closed both converters measure one node): a converter's scaling or divider changed, so neither reading can be trusted. Needs a power cycle.",
         start_bit: 62,
         len: 1,
         byte_order: ByteOrder::LittleEndian,

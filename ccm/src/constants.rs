@@ -275,6 +275,10 @@ pub const TRACTIVE_MISMATCH_MARGIN_V: f32 = 30.0;
 /// ... for this long before it is a fault (ms): longer than any precharge or discharge
 /// transient, short against the seconds a wrong "dead" reading would matter for.
 pub const TRACTIVE_MISMATCH_PERSIST_MS: u32 = 500;
+/// One reading below 60 V and the other at this or more is a disagreement whatever the
+/// margin: the tractive system read dead where it may be live (V; above 60 V by the two
+/// filters' lag).
+pub const TRACTIVE_MISMATCH_LIVE_V: f32 = 70.0;
 /// The car counts as stopped (for calibration changes and saving) only while the motor, on a
 /// fresh inverter status, and both front wheels turn slower than this (rad/s, about 0.1 m/s at
 /// the wheel); an unknown speed counts as moving.

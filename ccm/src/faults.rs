@@ -6,8 +6,8 @@ use crate::brakes::BrakeReading;
 use crate::bus::BusInputs;
 use crate::constants::{
     MAX_TEMP_DEGC, MIN_CELL_V, PCC_TARGET_PERCENT, SENSOR_FAULT_PERSIST_MS, SOC_DERATE_END,
-    TRACTIVE_MISMATCH_FRACTION, TRACTIVE_MISMATCH_MARGIN_V, TRACTIVE_MISMATCH_PERSIST_MS,
-    TRACTIVE_OFF_V,
+    TRACTIVE_MISMATCH_FRACTION, TRACTIVE_MISMATCH_LIVE_V, TRACTIVE_MISMATCH_MARGIN_V,
+    TRACTIVE_MISMATCH_PERSIST_MS, TRACTIVE_OFF_V,
 };
 use aer::can::{PccStatus, PrechargeState};
 use aer_control::Persist;
@@ -256,7 +256,8 @@ impl FaultMonitor {
 /// the voltage) and the inverter's DC link measure one node, whatever the AIRs do: they
 /// disagree when either reads 60 V or more and they differ by more than
 /// [`TRACTIVE_MISMATCH_FRACTION`] of the higher plus [`TRACTIVE_MISMATCH_MARGIN_V`] (the two
-/// filters' lag while the tractive system rises or falls).
+/// filters' lag while the tractive system rises or falls), and whenever one reads it dead
+/// (below 60 V) and the other [`TRACTIVE_MISMATCH_LIVE_V`] or more.
 pub fn tractive_readings_disagree(pcc: &PccStatus, dti_v: f32) -> bool {
     let pcc_v = if pcc.pcc_tractive_no_pulses || pcc.pcc_error_tractive_silent {
         0.0
@@ -266,9 +267,11 @@ pub fn tractive_readings_disagree(pcc: &PccStatus, dti_v: f32) -> bool {
     if !dti_v.is_finite() {
         return false;
     }
-    let higher = pcc_v.max(dti_v);
-    higher >= TRACTIVE_OFF_V
-        && (pcc_v - dti_v).abs() > higher * TRACTIVE_MISMATCH_FRACTION + TRACTIVE_MISMATCH_MARGIN_V
+    let (lower, higher) = (pcc_v.min(dti_v), pcc_v.max(dti_v));
+    let apart =
+        (pcc_v - dti_v).abs() > higher * TRACTIVE_MISMATCH_FRACTION + TRACTIVE_MISMATCH_MARGIN_V;
+    let dead_and_live = lower < TRACTIVE_OFF_V && higher >= TRACTIVE_MISMATCH_LIVE_V;
+    higher >= TRACTIVE_OFF_V && (apart || dead_and_live)
 }
 
 /// The PCC reports a fault, or a status no working PCC sends: its ERROR or UNDEFINED state
@@ -417,6 +420,21 @@ mod tests {
         // The PCC reads dead where the inverter reads live, or the reverse.
         assert!(tractive_readings_disagree(&reading(8.0), 392.0));
         assert!(tractive_readings_disagree(&reading(392.0), 5.0));
+        // Dead on one side, live on the other, however close the numbers.
+        for (pcc, dti) in [(59.0, 70.0), (40.0, 99.0), (50.0, 80.0)] {
+            assert!(
+                tractive_readings_disagree(&reading(pcc), dti),
+                "{pcc} V / {dti} V"
+            );
+            assert!(
+                tractive_readings_disagree(&reading(f64::from(dti)), pcc as f32),
+                "{dti} V / {pcc} V"
+            );
+        }
+        assert!(
+            !tractive_readings_disagree(&reading(59.0), 65.0),
+            "both near the limit"
+        );
         // A PCC converter without pulses reports 0 V, whatever the frame's number says.
         let silent = PccStatus {
             pcc_tractive_no_pulses: true,

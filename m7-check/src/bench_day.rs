@@ -517,19 +517,25 @@ fn pcc_air_plus(out: &mut dyn Write) -> fmt::Result {
     session.skip(8_250)?;
     session.type_line("confirm hv-disconnected", out, EXCHANGE)?;
     session.type_line("out air-plus-close on", out, EXCHANGE)?;
-    // The generator on the tractive input turned up to 750 Hz (63 V): AIR+ drops within
-    // two steps.
+    // The generator on the tractive input swept up from 24 V's frequency to 750 Hz (63.5 V)
+    // over 2 s, as a voltage rises: AIR+ drops at the first step that reads 60 V or more. (A
+    // step change of frequency reads as an irregular window, silence, not a voltage.)
     session.run(9_500, out, EXCHANGE)?;
-    session.sim().inputs[1].pulses = Pulses::Hz(750.0);
-    session.run(10_250, out, EXCHANGE)?;
+    session.sim().inputs[1].pulses = Pulses::Sweep {
+        from_hz: CONVERTERS[1].hz_for_volts(24.0),
+        to_hz: 750.0,
+        start_ms: 9_500,
+        duration_ms: 2_000,
+    };
+    session.run(11_750, out, EXCHANGE)?;
     session.sim().inputs[1].pulses = Pulses::volts(24.0);
-    session.run(10_500, out, EXCHANGE)?;
+    session.run(12_000, out, EXCHANGE)?;
     session.type_line("confirm hv-disconnected", out, EXCHANGE)?;
     session.type_line("out air-plus-close on", out, EXCHANGE)?;
-    // The generator switched off: pin 15 silent after its 100 ms edge timeout, AIR+ drops.
-    session.run(11_500, out, EXCHANGE)?;
+    // The generator switched off: pin 15 silent after eight of its periods, AIR+ drops.
+    session.run(13_000, out, EXCHANGE)?;
     session.sim().inputs[1].pulses = Pulses::None;
-    session.run(12_000, out, EXCHANGE)
+    session.run(13_500, out, EXCHANGE)
 }
 
 fn pcc_generator_frequencies(out: &mut dyn Write) -> fmt::Result {
@@ -680,7 +686,11 @@ impl RacePcc {
 
     /// The race image's answer to `reboot` now.
     fn ask(&mut self, reboot: Reboot) {
-        let outcome = self.pcc.handover().map(|_| ());
+        let outcome = match reboot {
+            Reboot::Restart => self.pcc.restart(),
+            Reboot::Bootloader => self.pcc.handover(),
+        }
+        .map(|_| ());
         let answer = RebootAnswer { reboot, outcome };
         self.log.line(format_args!("t={} ms {answer}", self.now_ms));
     }

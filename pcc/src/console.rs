@@ -25,8 +25,9 @@ use aer_console::{LogBuffer, Reboot, Watch};
 use aer_flexcan::BusStatus;
 use core::fmt;
 
-/// Bytes of log the race image keeps for the host.
-pub const LOG_BYTES: usize = 4_096;
+/// Bytes of log the race image keeps for the host: its start-up lines (with what is still
+/// assumed) and every fault line at its longest besides, for a console opened late.
+pub const LOG_BYTES: usize = 8_192;
 /// Bytes of log the bring-up image keeps for the host.
 pub const BRINGUP_LOG_BYTES: usize = 8_192;
 
@@ -357,6 +358,15 @@ impl fmt::Display for WaitingLine {
             item(
                 f,
                 format_args!("the tractive system to rise (the shutdown circuit to close)"),
+            )?;
+        }
+        if self.waiting.resistor {
+            item(
+                f,
+                format_args!(
+                    "a precharge-resistor thermistor (neither gives a reading: a precharge would \
+                     heat the resistor unwatched; check their wiring, 6a)"
+                ),
             )?;
         }
         if self.waiting.discharge {

@@ -74,8 +74,9 @@ pub struct PrechargeConfig {
     /// While energised, the unfiltered progress above this in
     /// [`Self::online_drop_periods`] windows in a row latches `converters-disagree`: no
     /// circuit puts the tractive system above the pack, and with AIR+ closed both converters
-    /// read one node (6c lets them disagree by 1 %), so a reading this high is a converter's
-    /// scaling or divider gone wrong, which would also move every other judgement.
+    /// read one node (6c and 8.1 let them disagree by 1 %, and a window's reading is robust to
+    /// a stray edge), so a reading this high is a converter's scaling or divider gone wrong,
+    /// which would also move every other judgement (a precharge judged at the wrong point).
     pub max_progress_percent: f32,
     /// In STANDBY (from rest) and PRECHARGE, progress rising this many points within one
     /// window is no precharge through the resistor (the car's rises at most a few tenths of a
@@ -114,7 +115,7 @@ impl PrechargeConfig {
         online_drop_periods: 2,
         air_plus_close_ms: 1_000,
         charger_debounce_ms: 100,
-        max_progress_percent: 103.0,
+        max_progress_percent: 102.0,
         bypass_rise_percent: 20.0,
         discharge_time_ms: 5_000,
         bypass_max_ms: 500,

@@ -153,9 +153,27 @@ pub struct BypassRise {
 struct DischargeWatch {
     /// The highest tractive-system reading since.
     peak_v: f32,
-    /// When it began to fall.
+    /// When it first dipped below the peak (by [`DISCHARGE_DIP`]): where a fall that goes on
+    /// began.
+    dip_since_ms: Option<u32>,
+    /// When it began to fall (the rules' 5 s count from here): the dip's start, once the fall
+    /// reached the precharge drop.
     falling_since_ms: Option<u32>,
+    /// The lowest reading since the fall began.
+    low_v: f32,
 }
+
+/// A reading this far below the peak (as a fraction) starts a dip: a fall that goes on to the
+/// precharge drop is timed from it, so a slow discharge is judged from its start.
+const DISCHARGE_DIP: f32 = 0.01;
+/// While AIR+ closes after ONLINE, one window this many points of progress below the highest
+/// since is the tractive system falling away: a window's own reading holds to a tenth of a
+/// point on a regular train, and the precharge through the resistor only rises.
+const ONLINE_CLOSING_DROP: f32 = 2.0;
+/// A tractive system that rose this far (as a fraction of the peak) back above its low since
+/// the fall began is charged again through the closed shutdown circuit (the circuit bounced,
+/// rightly): the watch starts over from there.
+const DISCHARGE_RISE: f32 = 0.05;
 
 /// The precharge controller.
 #[derive(Debug, Clone, PartialEq)]
@@ -212,6 +230,8 @@ pub struct Precharge {
     charger_change_since: Option<u32>,
     /// Windows in a row above the maximum progress (energised).
     progress_high: u32,
+    /// The highest unfiltered progress since ONLINE or CHARGING was entered, while AIR+ closes.
+    raw_peak_percent: f32,
     /// What latched `bypassed` by the rate of rise.
     bypass: Option<BypassRise>,
 }
@@ -234,6 +254,9 @@ pub struct Waiting {
     /// Of those, the tractive system reads the discharged limit (60 V) or more: treat it as
     /// live.
     pub live: bool,
+    /// Neither precharge-resistor thermistor gives a reading: a precharge would heat the
+    /// resistor unwatched, so none is timed (one is enough).
+    pub resistor: bool,
 }
 
 /// How long a precharge took, against the window it must fall in.
@@ -292,6 +315,9 @@ pub enum HandoverRefusal {
         /// The limit (V).
         limit_v: f32,
     },
+    /// `restart` only: `bypassed` or `no-discharge` is latched (an AIR or the discharge circuit
+    /// failed), which only a power cycle clears.
+    PowerCycle,
     /// A converter fell silent at high voltage, and this one does not yet show it is alive
     /// below the discharged limit.
     ConverterFault {
@@ -317,6 +343,9 @@ impl core::fmt::Display for HandoverRefusal {
             } => write!(
                 f,
                 "the tractive system reads {tractive_v:.1} V: open the shutdown circuit, wait until it is below {limit_v:.0} V, then ask again"
+            ),
+            Self::PowerCycle => f.write_str(
+                "`bypassed` or `no-discharge` is latched: an AIR or the discharge circuit failed; nothing closes again until the electrical lead has found it, then power-cycle the PCC (LV off, USB out) with the shutdown circuit open",
             ),
             Self::ConverterFault {
                 converter,
@@ -372,6 +401,7 @@ impl Precharge {
             online_reached: false,
             charger_change_since: None,
             progress_high: 0,
+            raw_peak_percent: 0.0,
             bypass: None,
         }
     }
@@ -454,6 +484,18 @@ impl Precharge {
     /// The rise that latched `bypassed`, if the rate of rise latched it.
     pub fn bypass_rise(&self) -> Option<BypassRise> {
         self.bypass
+    }
+
+    /// Whether `restart` may run, and the relays to apply before it does: as
+    /// [`Self::handover`], and not while `bypassed` or `no-discharge` is latched. Those say an
+    /// AIR or the discharge circuit failed: only a power cycle, once the electrical lead has
+    /// found it, clears them, never a typed word.
+    pub fn restart(&self) -> Result<Relays, HandoverRefusal> {
+        let relays = self.handover()?;
+        if self.errors.bypassed || self.errors.no_discharge {
+            return Err(HandoverRefusal::PowerCycle);
+        }
+        Ok(relays)
     }
 
     /// Whether the PCC may stop running its state machine (the bootloader), and the relays
@@ -565,7 +607,8 @@ impl Precharge {
                 // or was closed again before it discharged, would otherwise start a PRECHARGE
                 // timed short. A jump from rest still starts PRECHARGE, whose `too-fast` then
                 // names a bypassed precharge resistor or a welded AIR+.
-                let ready = pack_present && bms_alive;
+                let resistor_watched = self.resistor_c.iter().any(Option::is_some);
+                let ready = pack_present && bms_alive && resistor_watched;
                 // Without a pack reading the rest is judged against the smallest pack the PCC
                 // accepts, so a tractive system charging with the pack unread says so.
                 let at_rest = if pack_present {
@@ -597,6 +640,7 @@ impl Precharge {
                         rise: !rising && !discharge,
                         discharge,
                         live: discharge && self.tractive_v >= self.config.discharged_v,
+                        resistor: !resistor_watched,
                     });
                 }
             }
@@ -721,11 +765,27 @@ impl Precharge {
             self.discharge = None;
             return;
         }
-        watch.peak_v = watch.peak_v.max(self.tractive_v);
-        let fallen =
-            self.tractive_v < watch.peak_v * (1.0 - self.config.precharge_drop_percent / 100.0);
+        let volts = self.tractive_v;
+        if watch.falling_since_ms.is_some() && volts > watch.low_v + watch.peak_v * DISCHARGE_RISE {
+            // Charged again: the shutdown circuit closed again (a bounce), not a discharge.
+            *watch = DischargeWatch {
+                peak_v: volts,
+                dip_since_ms: None,
+                falling_since_ms: None,
+                low_v: volts,
+            };
+        }
+        watch.peak_v = watch.peak_v.max(volts);
+        watch.low_v = watch.low_v.min(volts);
+        if volts < watch.peak_v * (1.0 - DISCHARGE_DIP) {
+            watch.dip_since_ms.get_or_insert(now);
+        } else if watch.falling_since_ms.is_none() {
+            watch.dip_since_ms = None;
+        }
+        let fallen = volts < watch.peak_v * (1.0 - self.config.precharge_drop_percent / 100.0);
         if watch.falling_since_ms.is_none() && fallen {
-            watch.falling_since_ms = Some(now);
+            watch.falling_since_ms = Some(watch.dip_since_ms.unwrap_or(now));
+            watch.low_v = volts;
         }
         if let Some(since) = watch.falling_since_ms
             && now.wrapping_sub(since) >= self.config.discharge_time_ms
@@ -741,16 +801,25 @@ impl Precharge {
     }
 
     /// True once the tractive system has been falling away from the pack for the hold time:
-    /// in PRECHARGE, and in ONLINE and CHARGING until AIR+ has brought it to the online
-    /// minimum, progress more than the allowed drop below its peak; from then on, below the
-    /// online minimum. Either means AIR- or the precharge path opened (the shutdown circuit)
+    /// in PRECHARGE, progress more than the allowed drop below its peak; in ONLINE and
+    /// CHARGING until AIR+ has brought it to the online minimum, one window's own reading
+    /// [`ONLINE_CLOSING_DROP`] points below the highest since (AIR+ is closing then: a shutdown
+    /// circuit that bounces must be seen before its contacts close on a tractive system that
+    /// fell); from then on, below the online minimum. Either means AIR- or the precharge path opened (the shutdown circuit)
     /// or the tractive system is being loaded down (a short). AIR+ that does not bring it to
     /// the online minimum within the close time latches `air-plus-open` instead.
     fn falling_away(&mut self, now: u32) -> bool {
+        // Without a pack reading progress means nothing: the pack lost is DISCHARGE.
+        if self.accumulator_v < self.config.min_accumulator_v {
+            return false;
+        }
         let progress = self.progress_percent;
         if matches!(self.state, State::Online | State::Charging) && !self.online_reached {
+            self.raw_peak_percent = self.raw_peak_percent.max(self.raw_progress);
             if self.raw_progress >= self.config.online_min_percent {
                 self.online_reached = true;
+            } else if self.raw_progress < self.raw_peak_percent - ONLINE_CLOSING_DROP {
+                return true;
             } else if now.wrapping_sub(self.entered_ms) >= self.config.air_plus_close_ms {
                 self.errors.air_plus_open = true;
                 return false;
@@ -854,7 +923,9 @@ impl Precharge {
             // resistor, the circuit closed, never starts the timer.
             self.discharge = Some(DischargeWatch {
                 peak_v: self.tractive_v,
+                dip_since_ms: None,
                 falling_since_ms: None,
+                low_v: self.tractive_v,
             });
         }
         self.state = state;
@@ -876,6 +947,7 @@ impl Precharge {
         self.online_reached = false;
         self.charger_change_since = None;
         self.progress_high = 0;
+        self.raw_peak_percent = self.raw_progress;
         self.last_raw_progress = None;
     }
 

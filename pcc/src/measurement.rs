@@ -13,36 +13,65 @@ use aer_control::LowPass;
 pub const STALL_PERIODS: u32 = 8;
 /// ... but never sooner than this after the last edge (us).
 pub const STALL_MIN_US: u32 = 2_000;
-/// An LM331's periods are near uniform: a window whose periods spread more than this (their
-/// standard deviation over their mean) is a train with edges missing or added, a contact that
-/// frets, not a voltage. One stray or missed edge among a window's tens spreads them by about
-/// 15 %.
-pub const IRREGULAR_SPREAD: f32 = 0.3;
-/// Periods a window needs before their spread is judged.
-const SPREAD_MIN_PERIODS: u32 = 4;
-/// A window with fewer periods (but two at least) is irregular when its longest is more than
-/// this many times its shortest: bursts of a few edges between gaps (a contact that frets
-/// once per window) read as a low voltage otherwise. A converter's own jitter is a few
-/// percent, and at the voltages that matter (60 V is over 700 Hz) a window holds seven
-/// periods or more, so this judges only what the spread cannot.
-const FEW_PERIODS_RATIO: u32 = 2;
+/// Periods a window keeps for its robust reading. A window with more (above about 9.6 kHz,
+/// beyond any pack this board measures) is read from its totals alone.
+pub const KEPT_PERIODS: usize = 96;
+/// An LM331's periods are near uniform, so the window's upper-quartile period is the train's:
+/// an edge added between two true ones (interference, a contact that frets) splits a period
+/// into two shorter ones, and even several such do not move it. A period shorter than three
+/// quarters of it is a fragment; a window with more than a quarter of its periods fragments is
+/// irregular: what its edges say is not a voltage.
+const FRAGMENT_NUM: u32 = 3;
+const FRAGMENT_DEN: u32 = 4;
+/// Irregular windows in a row before the train counts as silent: one glitch (a stray edge
+/// among a few periods, whose two fragments can fall in two windows) skips them, the reading
+/// held; a contact that frets keeps spoiling them and is silence, latched as such where that
+/// matters.
+pub const IRREGULAR_WINDOWS: u32 = 3;
+/// A window of two periods is irregular when the longer is more than this many times the
+/// shorter (too few for a median).
+const TWO_PERIODS_RATIO: u32 = 2;
 
 /// Edge-to-edge frequency measurement on one input.
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
+///
+/// The reading is robust to single edges added or lost: the window's span over its typical
+/// (upper-quartile) period, rounded, is the number of true periods it held (an added edge
+/// splits a period and changes neither; a lost edge doubles one, which counts as two), and
+/// that number over the span is the frequency, as precise as the whole span's time stamps.
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct FrequencyMeter {
     last_edge_us: Option<u32>,
     /// The latest edge ever (not cleared by silence): when the pulses stopped.
     latest_edge_us: Option<u32>,
     periods: u32,
     span_us: u32,
-    /// The sum of the squared periods in this window (us^2), for their spread.
-    span_sq_us: u64,
+    /// This window's periods (us), the first [`KEPT_PERIODS`] of them.
+    kept: [u32; KEPT_PERIODS],
     /// This window's shortest and longest period (us).
     shortest_us: u32,
     longest_us: u32,
     last_hz: f32,
-    /// The mean period of the last regular window that held whole periods (us).
+    /// The true period of the last regular window that held whole periods (us).
     last_period_us: Option<u32>,
+    /// Irregular windows in a row.
+    irregular_windows: u32,
+}
+
+impl Default for FrequencyMeter {
+    fn default() -> Self {
+        Self {
+            last_edge_us: None,
+            latest_edge_us: None,
+            periods: 0,
+            span_us: 0,
+            kept: [0; KEPT_PERIODS],
+            shortest_us: 0,
+            longest_us: 0,
+            last_hz: 0.0,
+            last_period_us: None,
+            irregular_windows: 0,
+        }
+    }
 }
 
 impl FrequencyMeter {
@@ -50,10 +79,13 @@ impl FrequencyMeter {
     pub fn on_edge(&mut self, now_us: u32) {
         if let Some(previous) = self.last_edge_us {
             let period = now_us.wrapping_sub(previous);
+            if let Some(slot) = usize::try_from(self.periods)
+                .ok()
+                .and_then(|index| self.kept.get_mut(index))
+            {
+                *slot = period;
+            }
             self.span_us = self.span_us.saturating_add(period);
-            self.span_sq_us = self
-                .span_sq_us
-                .saturating_add(u64::from(period) * u64::from(period));
             self.periods = self.periods.saturating_add(1);
             self.shortest_us = if self.periods == 1 {
                 period
@@ -66,18 +98,44 @@ impl FrequencyMeter {
         self.latest_edge_us = Some(now_us);
     }
 
-    /// True when this window's periods spread like a train with edges missing or added.
-    fn irregular(&self) -> bool {
-        if self.periods < 2 {
-            return false;
+    /// This window's frequency (Hz) and true period (us), or `None` when its periods are
+    /// irregular.
+    fn judge(&self) -> Option<(f32, u32)> {
+        let n = self.periods;
+        let mean = || (n as f32 * 1e6 / self.span_us as f32, self.span_us / n);
+        match n {
+            0 => None,
+            1 => Some(mean()),
+            2 => (self.longest_us <= self.shortest_us.saturating_mul(TWO_PERIODS_RATIO)).then(mean),
+            _ => {
+                let count = usize::try_from(n).ok().filter(|n| *n <= KEPT_PERIODS);
+                let Some(periods) = count.and_then(|count| self.kept.get(..count)) else {
+                    return Some(mean());
+                };
+                let mut sorted = [0u32; KEPT_PERIODS];
+                let sorted = sorted.get_mut(..periods.len())?;
+                sorted.copy_from_slice(periods);
+                sorted.sort_unstable();
+                let typical = *sorted.get(sorted.len() * 3 / 4)?;
+                if typical == 0 {
+                    return None;
+                }
+                let fragments = sorted
+                    .iter()
+                    .filter(|p| {
+                        p.saturating_mul(FRAGMENT_DEN) < typical.saturating_mul(FRAGMENT_NUM)
+                    })
+                    .count();
+                if fragments * 4 > sorted.len() {
+                    return None;
+                }
+                let true_periods = (self.span_us.saturating_add(typical / 2) / typical).max(1);
+                Some((
+                    true_periods as f32 * 1e6 / self.span_us as f32,
+                    self.span_us / true_periods,
+                ))
+            }
         }
-        if self.periods < SPREAD_MIN_PERIODS {
-            return self.longest_us > self.shortest_us.saturating_mul(FEW_PERIODS_RATIO);
-        }
-        let n = self.periods as f32;
-        let mean = self.span_us as f32 / n;
-        let variance = self.span_sq_us as f32 / n - mean * mean;
-        variance > (IRREGULAR_SPREAD * mean) * (IRREGULAR_SPREAD * mean)
     }
 
     /// The input frequency in Hz over the edges since the last sample.
@@ -85,21 +143,29 @@ impl FrequencyMeter {
     /// Without a complete period since then, the frequency can only have fallen: the result
     /// is capped by the time since the last edge, and is 0 once no edge came for
     /// `edge_timeout_us`, or for [`STALL_PERIODS`] of the train's own last period (a train
-    /// that stopped rather than slowed). A window whose periods are irregular
-    /// ([`IRREGULAR_SPREAD`]) reads 0 too: what its edges say is not a voltage. After 0 the
-    /// next edge starts afresh, so a dropout is never measured as one long period.
+    /// that stopped rather than slowed). An irregular window repeats the last reading; the
+    /// [`IRREGULAR_WINDOWS`]-th in a row reads 0: what the edges say is not a voltage. After 0
+    /// the next edge starts afresh, so a dropout is never measured as one long period.
     pub fn sample(&mut self, now_us: u32, edge_timeout_us: u32) -> f32 {
         let mut stopped = false;
         let hz = match self.last_edge_us {
             None => 0.0,
-            Some(_) if self.irregular() => {
-                stopped = true;
-                0.0
-            }
-            Some(_) if self.periods > 0 && self.span_us > 0 => {
-                self.last_period_us = Some(self.span_us / self.periods);
-                self.periods as f32 * 1e6 / self.span_us as f32
-            }
+            Some(_) if self.periods > 0 && self.span_us > 0 => match self.judge() {
+                Some((hz, period_us)) => {
+                    self.irregular_windows = 0;
+                    self.last_period_us = Some(period_us);
+                    hz
+                }
+                None => {
+                    self.irregular_windows = self.irregular_windows.saturating_add(1);
+                    if self.irregular_windows >= IRREGULAR_WINDOWS {
+                        stopped = true;
+                        0.0
+                    } else {
+                        self.last_hz
+                    }
+                }
+            },
             Some(last) => {
                 let silent_us = now_us.wrapping_sub(last);
                 let stalled = self.last_period_us.is_some_and(|period| {
@@ -118,10 +184,10 @@ impl FrequencyMeter {
         if stopped {
             self.last_edge_us = None;
             self.last_period_us = None;
+            self.irregular_windows = 0;
         }
         self.periods = 0;
         self.span_us = 0;
-        self.span_sq_us = 0;
         self.shortest_us = 0;
         self.longest_us = 0;
         self.last_hz = hz;
@@ -129,9 +195,10 @@ impl FrequencyMeter {
     }
 
     /// [`Self::sample`], or `None` while the input is silent: no period measured yet, no
-    /// edge for `edge_timeout_us`, a train that stopped, or one whose periods are irregular.
-    /// Silence is not 0 Hz: a converter unplugged, unpowered or broken gives no pulses either,
-    /// so whoever needs to tell "low" from "unknown" (the bring-up's HV gate) reads this.
+    /// edge for `edge_timeout_us`, a train that stopped, or one whose periods keep coming
+    /// irregular. Silence is not 0 Hz: a converter unplugged, unpowered or broken gives no
+    /// pulses either, so whoever needs to tell "low" from "unknown" (the bring-up's HV gate)
+    /// reads this.
     pub fn reading(&mut self, now_us: u32, edge_timeout_us: u32) -> Option<f32> {
         let hz = self.sample(now_us, edge_timeout_us);
         (hz > 0.0).then_some(hz)
@@ -243,7 +310,9 @@ impl VoltageChannel {
 
 #[cfg(test)]
 mod tests {
+    extern crate std;
     use super::*;
+    use std::vec::Vec;
 
     fn feed(meter: &mut FrequencyMeter, start_us: u32, period_us: u32, edges: u32) -> u32 {
         let mut t = start_us;
@@ -417,14 +486,13 @@ mod tests {
     }
 
     #[test]
-    fn a_fretting_contact_is_silent_not_a_low_voltage() {
+    fn a_fretting_contact_never_reads_a_live_input_low() {
         // 400 V (4.7 kHz) through a contact that passes edges only a quarter of the time: the
-        // edges that pass would read a few tens of volts; their spread says they are not a
-        // voltage.
+        // windows either rebuild the true train (its gaps are whole periods) or say nothing.
+        let true_hz = 1e6 / 213.0;
         let mut meter = FrequencyMeter::default();
         let period = 213u32;
         let mut t = 0;
-        let mut silent = 0;
         for window in 1..=20u32 {
             while t < window * 10_000 {
                 if t % 3_000 < 750 {
@@ -432,12 +500,14 @@ mod tests {
                 }
                 t += period;
             }
-            if meter.reading(window * 10_000, 100_000).is_none() {
-                silent += 1;
+            if let Some(hz) = meter.reading(window * 10_000, 100_000) {
+                assert!(
+                    hz > 0.95 * true_hz,
+                    "window {window} read {hz} Hz of {true_hz}"
+                );
             }
         }
-        assert!(silent >= 18, "{silent} of 20 windows unknown");
-        // One stray and one missed edge in a clean window are not irregular.
+        // One stray and one missed edge in a clean window change nothing.
         let mut meter = FrequencyMeter::default();
         let mut t = 0;
         for edge in 0..47u32 {
@@ -449,13 +519,72 @@ mod tests {
             }
             t += period;
         }
-        assert!(meter.reading(t, 100_000).is_some());
+        let hz = meter.reading(t - period, 100_000).expect("a reading");
+        assert!((hz / true_hz - 1.0).abs() < 0.002, "{hz} against {true_hz}");
     }
 
     #[test]
-    fn bursts_of_a_few_edges_between_gaps_are_silent_not_a_low_voltage() {
-        extern crate std;
-        use std::vec::Vec;
+    fn one_glitch_among_few_periods_holds_the_reading_and_a_lasting_one_is_silence() {
+        // 70 V (about 830 Hz, eight periods a window): one stray edge 30 us after a true one
+        // spoils that window only; its reading is held, not silence.
+        let period = 1_204u32;
+        let mut meter = FrequencyMeter::default();
+        let mut t = 0u32;
+        let mut readings = Vec::new();
+        for window in 1..=6u32 {
+            while t < window * 10_000 {
+                meter.on_edge(t);
+                if window == 3 && t == 24_080 {
+                    meter.on_edge(t + 30);
+                }
+                t += period;
+            }
+            readings.push(meter.reading(window * 10_000, 100_000));
+        }
+        assert!(readings.iter().skip(1).all(Option::is_some), "{readings:?}");
+        // Glitches in every window: silent from the second on.
+        let mut meter = FrequencyMeter::default();
+        let mut t = 0u32;
+        let mut silent = 0;
+        for window in 1..=6u32 {
+            while t < window * 10_000 {
+                meter.on_edge(t);
+                meter.on_edge(t + 30);
+                meter.on_edge(t + 70);
+                t += period;
+            }
+            if meter.reading(window * 10_000, 100_000).is_none() {
+                silent += 1;
+            }
+        }
+        assert!(silent >= 4, "{silent} of 6 windows silent");
+    }
+
+    #[test]
+    fn a_lost_edge_among_few_periods_reads_the_true_voltage() {
+        let period = 1_204u32;
+        let true_hz = 1e6 / f64::from(period);
+        let mut meter = FrequencyMeter::default();
+        let mut t = 0u32;
+        for window in 1..=4u32 {
+            while t < window * 10_000 {
+                if !(window == 3 && t == 26_488) {
+                    meter.on_edge(t);
+                }
+                t += period;
+            }
+            let hz = f64::from(meter.reading(window * 10_000, 100_000).expect("a reading"));
+            if window > 1 {
+                assert!(
+                    (hz / true_hz - 1.0).abs() < 0.01,
+                    "window {window}: {hz} Hz"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn bursts_of_a_few_edges_between_gaps_never_read_low() {
         // 400 V through a contact that closes for 450-600 us once per 10 or 20 ms, at a
         // jittered phase: two or three edges per burst, which would read 8-28 V.
         for (cycle_us, closed_us) in [(10_000u32, 450u32), (10_000, 600), (20_000, 600)] {

@@ -229,6 +229,7 @@ fn the_race_lines_fit_the_race_log() {
             rise: true,
             discharge: true,
             live: true,
+            resistor: true,
         },
         accumulator_v: -f32::MAX,
         pack_min_v: f32::MAX,

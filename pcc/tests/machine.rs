@@ -703,7 +703,8 @@ fn standby_names_what_precharge_waits_for() {
             bms: true,
             rise: true,
             discharge: false,
-            live: false
+            live: false,
+            resistor: false
         })
     );
     inputs.now_ms = 10;
@@ -718,7 +719,8 @@ fn standby_names_what_precharge_waits_for() {
             bms: false,
             rise: true,
             discharge: false,
-            live: false
+            live: false,
+            resistor: false
         })
     );
     // The shutdown circuit closes: the tractive system rises, precharge starts.
@@ -777,7 +779,8 @@ fn a_precharge_the_pcc_missed_never_counts() {
             bms: false,
             rise: false,
             discharge: true,
-            live: true
+            live: true,
+            resistor: false
         })
     );
     // The shutdown circuit opens: the tractive system discharges below 60 V.

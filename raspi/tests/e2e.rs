@@ -46,13 +46,17 @@ impl MosquittoSeen {
             "aer/car1/can/ccm_status" => self.ccm_status_buses.extend(text("bus")),
             _ => {}
         }
-        let noisy = payload
-            .split(|c: char| !c.is_ascii_digit() && c != '.')
-            .any(|number| {
-                number
-                    .split_once('.')
-                    .is_some_and(|(_, decimals)| decimals.len() > 9)
-            });
+        // Signal values are written to their scaling's resolution; the status topic's
+        // measured rates are plain floats and not judged here.
+        let signals = topic == "aer/car1/telemetry" || topic.starts_with("aer/car1/can/");
+        let noisy = signals
+            && payload
+                .split(|c: char| !c.is_ascii_digit() && c != '.')
+                .any(|number| {
+                    number
+                        .split_once('.')
+                        .is_some_and(|(_, decimals)| decimals.len() > 9)
+                });
         if noisy && self.noisy.is_none() {
             self.noisy = Some(line.to_owned());
         }

@@ -224,16 +224,15 @@ pub fn sheet(page: &str) -> Result<String> {
         if index == 2 {
             let _ = writeln!(
                 out,
-                "\n**Every re-closure of the shutdown circuit** (after any opening, planned or not): before closing,\n\
-                 the last opening was heard to open both AIRs and the TSMP meter reads below 5 V with the circuit open\n\
-                 (a single welded AIR is seen by nobody else: [8.2](bench-day.md#82-the-shutdown-circuit-opens-the-airs)).\n\
-                 Before the day's first closure and after any stop, the ESO also measures it: the maintenance plug out,\n\
-                 the TSMP meter below 5 V, LV off, the ohmmeter across each AIR's main contacts reads open.\n\n\
-                 | Closure | Time | Both AIRs heard open at the last opening | TSMP below 5 V, circuit open | Continuity: AIR+ open, AIR- open (first, after a stop) | Initials |\n\
+                "\n**Every closure of the shutdown circuit** (the day's first, and after any opening, planned or not): before\n\
+                 closing, the TSMP meter reads below 5 V with the circuit open, and the ESO measures each AIR open: the\n\
+                 maintenance plug out, LV off, the ohmmeter across each AIR's main contacts reads open (ears cannot tell:\n\
+                 both coils drop at once; [8, set-up](bench-day.md#set-up)).\n\n\
+                 | Closure | Time | TSMP below 5 V, circuit open | AIR+ open (ohmmeter) | AIR- open (ohmmeter) | ESO initials |\n\
                  |---|---|---|---|---|---|"
             );
             for closure in 1..=8 {
-                let _ = writeln!(out, "| {closure} | | ☐ | ☐ | ☐ ☐ | |");
+                let _ = writeln!(out, "| {closure} | | ☐ | ☐ | ☐ | |");
             }
         }
     }

@@ -419,7 +419,7 @@ pub const STILL_ERPM: i32 = 300;
 
 /// At high voltage the PCC's tractive-system reading and the DTI's DC link must agree within
 /// this fraction of the DTI's: AIR+ closed joins the two, and 6c and 8.1 check the PCC's
-/// converters to 1 % and 0.5 %.
+/// converters to 1 %.
 pub const AGREE_FRACTION: f32 = 0.1;
 
 /// What the guard reads: the last of each, with when it arrived.

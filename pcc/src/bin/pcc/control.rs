@@ -91,7 +91,11 @@ pub(crate) async fn control(mut cx: control::Context<'_>) {
         let relays = pcc.step(&inputs);
         cx.local.relays.apply(relays);
         if let Some(reboot) = REBOOT.take() {
-            let outcome = pcc.handover().map(|safe| cx.local.relays.apply(safe));
+            let allowed = match reboot {
+                Reboot::Restart => pcc.restart(),
+                Reboot::Bootloader => pcc.handover(),
+            };
+            let outcome = allowed.map(|safe| cx.local.relays.apply(safe));
             let answer = RebootAnswer { reboot, outcome };
             cx.shared
                 .log
